@@ -1,0 +1,62 @@
+"""Exceptions raised by ipromp_pin.
+
+Every error a user can trigger with bad input derives from :class:`IPrompPinError`
+and says *where* (file, field) and *what* went wrong, so that nothing silently
+produces numbers.
+"""
+
+from __future__ import annotations
+
+
+class IPrompPinError(Exception):
+    """Base class of all ipromp_pin errors."""
+
+
+class DataError(IPrompPinError, ValueError):
+    """Bad or unreadable demonstration data.
+
+    Attributes:
+        source: File (or folder) the problem was found in, or ``None``.
+        field: Column, channel group or key concerned, or ``None``.
+        problem: Human-readable description of the problem.
+    """
+
+    def __init__(self, source: object | None, field: str | None, problem: str) -> None:
+        self.source = None if source is None else str(source)
+        self.field = field
+        self.problem = problem
+        where = []
+        if self.source is not None:
+            where.append(self.source)
+        if field is not None:
+            where.append(f"field '{field}'")
+        prefix = ": ".join(where)
+        super().__init__(f"{prefix}: {problem}" if prefix else problem)
+
+
+class ObservationError(DataError):
+    """An observation does not fit the model (dimensions, groups, ratio, length)."""
+
+
+class ModelError(IPrompPinError):
+    """A model cannot be fitted or used as asked."""
+
+
+class NotFittedError(ModelError):
+    """A model method that needs a fitted model was called before ``fit``."""
+
+
+class ModelFileError(ModelError):
+    """A model file is corrupt, truncated, of an unknown format or a newer version."""
+
+
+class RobotError(IPrompPinError):
+    """Bad robot settings or description (unknown joint, missing frame, bad limits)."""
+
+
+class InfeasibleError(IPrompPinError):
+    """A path or start state cannot be turned into a trajectory within the limits."""
+
+
+class PipelineError(IPrompPinError):
+    """A pipeline definition file is invalid."""

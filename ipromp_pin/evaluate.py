@@ -1,0 +1,457 @@
+"""Evaluation: the paper's recognition experiment and a repeated random-split protocol.
+
+Two protocols, both honest about what is known online (the test demo's total
+duration and phase are never given to the model; it sees only the first
+``obs_ratio`` of the human channels it is told to observe):
+
+* ``paper``: per task, the first ``n_train`` demos (in the order of the
+  authors' ``filename_<task>.cfg``, else the recorded order) train, the next
+  ``n_test`` (10) test. Cells: (n_train, obs_ratio) in
+  :data:`PAPER_GRID`, for every observed channel set.
+* ``splits``: the same cells, each repeated over ``n_splits`` random
+  train/test splits per task; reported as mean and standard deviation.
+
+Besides recognition accuracy, every correctly recognised test trial measures
+how well the robot's motion is predicted, next to the unconditioned task mean
+(the prior), so the value of conditioning is visible:
+
+* joint RMSE in [rad] over the unobserved part of the motion, compared in
+  normalised phase (prediction and truth each over their own duration);
+* the error of the final (hand-over) joint configuration, RMS over joints in
+  [rad];
+* the hand-over gripper position error in [cm], through forward kinematics.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .data import ROBOT, Dataset, Demo
+from .exceptions import DataError
+
+PAPER_GRID: tuple[tuple[int, float], ...] = ((20, 0.1), (15, 0.1), (10, 0.1), (10, 0.2))
+"""(n_train, obs_ratio) cells of the paper's table."""
+
+PAPER_ACCURACY: dict[tuple[int, float, str], dict[str, float]] = {
+    (20, 0.1, "orientation"): {"aluminum_hold": 0.90, "spanner_handover": 0.60, "tape_hold": 0.10},
+    (20, 0.1, "orientation+emg"): {"aluminum_hold": 1.00, "spanner_handover": 1.00, "tape_hold": 0.70},
+    (15, 0.1, "orientation"): {"aluminum_hold": 0.60, "spanner_handover": 0.60, "tape_hold": 0.10},
+    (15, 0.1, "orientation+emg"): {"aluminum_hold": 1.00, "spanner_handover": 0.90, "tape_hold": 0.70},
+    (10, 0.1, "orientation"): {"aluminum_hold": 0.00, "spanner_handover": 0.00, "tape_hold": 0.80},
+    (10, 0.1, "orientation+emg"): {"aluminum_hold": 0.50, "spanner_handover": 0.80, "tape_hold": 0.70},
+    (10, 0.2, "orientation"): {"aluminum_hold": 0.30, "spanner_handover": 1.00, "tape_hold": 0.90},
+    (10, 0.2, "orientation+emg"): {"aluminum_hold": 1.00, "spanner_handover": 1.00, "tape_hold": 1.00},
+}
+"""Accuracies reported in the paper (Chen et al. 2017) on ``chen2017_handover``, per task."""
+
+ProgressFn = Callable[[int, int, str], None]
+
+
+@dataclass
+class TrialResult:
+    """Outcome of one test trial.
+
+    Attributes:
+        task: True task of the test demo.
+        demo: Test demo name.
+        predicted: Recognised task.
+        posterior: Posterior of the true task.
+        joint_rmse_rad: RMSE over joints and the unobserved phase, conditioned prediction, in [rad].
+        joint_rmse_prior_rad: The same for the unconditioned task mean, in [rad].
+        final_joint_error_rad: RMS over joints of the final configuration error, in [rad].
+        final_joint_error_prior_rad: The same for the prior mean, in [rad].
+        handover_error_cm: Gripper position error at the hand-over, in [cm] (NaN without FK).
+        handover_error_prior_cm: The same for the prior mean, in [cm].
+        duration_error_s: Predicted minus true duration of the motion, in [s].
+    """
+
+    task: str
+    demo: str
+    predicted: str
+    posterior: float
+    joint_rmse_rad: float
+    joint_rmse_prior_rad: float
+    final_joint_error_rad: float
+    final_joint_error_prior_rad: float
+    handover_error_cm: float
+    handover_error_prior_cm: float
+    duration_error_s: float
+
+    @property
+    def correct(self) -> bool:
+        """True when the task was recognised."""
+        return self.predicted == self.task
+
+
+@dataclass
+class Cell:
+    """One cell of the accuracy table: a protocol, training size, ratio, observed set and task."""
+
+    protocol: str
+    n_train: int
+    obs_ratio: float
+    observe: list[str]
+    task: str
+    accuracy: float
+    n_test: int
+    accuracy_std: float | None = None
+    n_splits: int | None = None
+    paper_accuracy: float | None = None
+    joint_rmse_rad: float | None = None
+    joint_rmse_prior_rad: float | None = None
+    final_joint_error_rad: float | None = None
+    final_joint_error_prior_rad: float | None = None
+    handover_error_cm: float | None = None
+    handover_error_prior_cm: float | None = None
+    duration_error_s: float | None = None
+    trials: list[dict] = field(default_factory=list)
+
+
+def observe_key(observe: Sequence[str]) -> str:
+    """Canonical text of an observed channel set, e.g. ``"orientation+emg"``."""
+    return "+".join(observe)
+
+
+def _median(values: Sequence[float]) -> float | None:
+    arr = np.asarray([v for v in values if np.isfinite(v)], dtype=float)
+    return float(np.median(arr)) if arr.size else None
+
+
+def _phase_interp(t: np.ndarray, q: np.ndarray, duration_s: float, z: np.ndarray) -> np.ndarray:
+    """Values of a trajectory ``q`` (N, D) sampled at ``t`` (N,) at phases ``z`` of ``duration_s``."""
+    tz = z * duration_s
+    return np.stack([np.interp(tz, t, q[:, j]) for j in range(q.shape[1])], axis=1)
+
+
+def score_trial(
+    prediction, demo: Demo, obs_ratio: float, fk: Callable[[np.ndarray], np.ndarray] | None
+) -> TrialResult:
+    """Measure one prediction against the full test demo.
+
+    Args:
+        prediction: The model's prediction from the observed part of ``demo``.
+        demo: The full test demo (its robot group is the ground truth).
+        obs_ratio: Observed fraction, in (0, 1].
+        fk: Forward kinematics, joint configurations (n, 7) in [rad] -> gripper
+            positions (n, 3) in [m]; ``None`` skips the Cartesian error.
+    """
+    truth = demo.groups[ROBOT]
+    z = np.linspace(obs_ratio, 1.0, 50)
+    true_z = _phase_interp(demo.t - demo.t[0], truth, demo.duration_s, z)
+    pred_z = _phase_interp(prediction.t, prediction.q_mean, prediction.duration_s, z)
+    prior_z = _phase_interp(prediction.t, prediction.q_prior_mean, prediction.duration_s, z)
+    rmse = float(np.sqrt(np.mean((pred_z - true_z) ** 2)))
+    rmse_prior = float(np.sqrt(np.mean((prior_z - true_z) ** 2)))
+    q_true_end = truth[-1]
+    q_pred_end = prediction.q_mean[-1]
+    q_prior_end = prediction.q_prior_mean[-1]
+    fin = float(np.sqrt(np.mean((q_pred_end - q_true_end) ** 2)))
+    fin_prior = float(np.sqrt(np.mean((q_prior_end - q_true_end) ** 2)))
+    ho = ho_prior = float("nan")
+    if fk is not None:
+        p = fk(np.stack([q_true_end, q_pred_end, q_prior_end]))
+        ho = float(np.linalg.norm(p[1] - p[0]) * 100.0)
+        ho_prior = float(np.linalg.norm(p[2] - p[0]) * 100.0)
+    k_true = prediction.tasks.index(demo.task) if demo.task in prediction.tasks else None
+    return TrialResult(
+        task=demo.task,
+        demo=demo.name,
+        predicted=prediction.task,
+        posterior=float(prediction.posterior[k_true]) if k_true is not None else 0.0,
+        joint_rmse_rad=rmse,
+        joint_rmse_prior_rad=rmse_prior,
+        final_joint_error_rad=fin,
+        final_joint_error_prior_rad=fin_prior,
+        handover_error_cm=ho,
+        handover_error_prior_cm=ho_prior,
+        duration_error_s=float(prediction.duration_s - demo.duration_s),
+    )
+
+
+def summarise(trials: Sequence[TrialResult]) -> dict[str, float | None]:
+    """Accuracy and median errors over the correctly recognised trials."""
+    ok = [r for r in trials if r.correct]
+    out: dict[str, float | None] = {"accuracy": float(len(ok) / len(trials)) if trials else float("nan")}
+    for name in (
+        "joint_rmse_rad",
+        "joint_rmse_prior_rad",
+        "final_joint_error_rad",
+        "final_joint_error_prior_rad",
+        "handover_error_cm",
+        "handover_error_prior_cm",
+        "duration_error_s",
+    ):
+        vals = [abs(getattr(r, name)) if name == "duration_error_s" else getattr(r, name) for r in ok]
+        out[name] = _median(vals)
+    return out
+
+
+def split_paper(dataset: Dataset, n_train: int, n_test: int) -> tuple[list[Demo], list[Demo]]:
+    """First ``n_train`` demos of each task train, the next ``n_test`` test."""
+    train: list[Demo] = []
+    test: list[Demo] = []
+    for task, demos in dataset.demos.items():
+        if len(demos) < n_train + 1:
+            raise DataError(
+                dataset.root, task, f"{len(demos)} demos, the protocol needs {n_train} to train and 1+ to test"
+            )
+        train += demos[:n_train]
+        test += demos[n_train : n_train + n_test]
+    return train, test
+
+
+def split_random(
+    dataset: Dataset, n_train: int, n_test: int, rng: np.random.Generator
+) -> tuple[list[Demo], list[Demo]]:
+    """A random split per task: ``n_train`` demos train, up to ``n_test`` of the others test."""
+    train: list[Demo] = []
+    test: list[Demo] = []
+    for task, demos in dataset.demos.items():
+        if len(demos) < n_train + 1:
+            raise DataError(
+                dataset.root, task, f"{len(demos)} demos, the protocol needs {n_train} to train and 1+ to test"
+            )
+        idx = rng.permutation(len(demos))
+        train += [demos[i] for i in idx[:n_train]]
+        test += [demos[i] for i in idx[n_train : n_train + n_test]]
+    return train, test
+
+
+@dataclass
+class EvaluationConfig:
+    """Settings of an evaluation run.
+
+    Attributes:
+        protocol: ``"paper"`` or ``"splits"``.
+        observe: Observed channel sets, each a list of group names.
+        grid: (n_train, obs_ratio) cells.
+        n_test: Test demos per task.
+        n_splits: Random splits (``splits`` protocol).
+        seed: Seed of the random splits.
+        model_params: Keyword arguments of the model's constructor.
+    """
+
+    protocol: str = "paper"
+    observe: list[list[str]] = field(default_factory=lambda: [["orientation"], ["orientation", "emg"]])
+    grid: list[tuple[int, float]] = field(default_factory=lambda: list(PAPER_GRID))
+    n_test: int = 10
+    n_splits: int = 20
+    seed: int = 0
+    model_params: dict = field(default_factory=dict)
+
+
+def _fit(train: list[Demo], observe: list[str], params: dict):
+    from .recognition import IProMP
+
+    return IProMP(observe=list(observe), **params).fit(train)
+
+
+def _run_trials(model, test: list[Demo], observe: list[str], ratio: float, fk) -> list[TrialResult]:
+    out = []
+    for demo in test:
+        obs = demo.head(ratio, groups=observe)
+        out.append(score_trial(model.predict(obs), demo, ratio, fk))
+    return out
+
+
+def evaluate(
+    dataset: Dataset,
+    config: EvaluationConfig,
+    fk: Callable[[np.ndarray], np.ndarray] | None = None,
+    progress: ProgressFn | None = None,
+) -> list[Cell]:
+    """Run one protocol over every cell of ``config`` and return the table.
+
+    Args:
+        dataset: Demos of every task, in protocol order.
+        config: Protocol, grid and observed channel sets.
+        fk: Forward kinematics for the hand-over error (joint configurations
+            (n, 7) [rad] -> positions (n, 3) [m]); ``None`` skips it.
+        progress: Called as ``progress(done, total, label)``.
+    """
+    if config.protocol not in ("paper", "splits"):
+        raise DataError(None, "protocol", f"unknown protocol '{config.protocol}' (use paper or splits)")
+    for observe in config.observe:
+        for demo in dataset.all_demos():
+            demo.require(list(observe) + [ROBOT])
+    n_train_values = sorted({n for n, _ in config.grid}, reverse=True)
+    repeats = 1 if config.protocol == "paper" else config.n_splits
+    total = repeats * len(n_train_values) * len(config.observe)
+    done = 0
+    # (n_train, ratio, observe_key, task) -> list over repeats of trial lists
+    results: dict[tuple[int, float, str, str], list[list[TrialResult]]] = {}
+    rng = np.random.default_rng(config.seed)
+    for rep in range(repeats):
+        for n_train in n_train_values:
+            if config.protocol == "paper":
+                train, test = split_paper(dataset, n_train, config.n_test)
+            else:
+                train, test = split_random(dataset, n_train, config.n_test, rng)
+            ratios = [r for n, r in config.grid if n == n_train]
+            for observe in config.observe:
+                key = observe_key(observe)
+                model = _fit(train, observe, config.model_params)
+                for ratio in ratios:
+                    trials = _run_trials(model, test, observe, ratio, fk)
+                    for task in dataset.tasks:
+                        cell = results.setdefault((n_train, ratio, key, task), [])
+                        cell.append([r for r in trials if r.task == task])
+                done += 1
+                if progress is not None:
+                    progress(done, total, f"{config.protocol} split {rep + 1}/{repeats} n_train={n_train} {key}")
+    cells = []
+    for n_train, ratio in config.grid:
+        for observe in config.observe:
+            key = observe_key(observe)
+            for task in dataset.tasks:
+                reps = results[(n_train, ratio, key, task)]
+                flat = [r for rep in reps for r in rep]
+                summary = summarise(flat)
+                accs = [summarise(rep)["accuracy"] for rep in reps if rep]
+                paper = PAPER_ACCURACY.get((n_train, ratio, key), {}).get(task)
+                cell = Cell(
+                    protocol=config.protocol,
+                    n_train=n_train,
+                    obs_ratio=ratio,
+                    observe=list(observe),
+                    task=task,
+                    accuracy=float(np.mean(accs)) if accs else float("nan"),
+                    n_test=len(flat),
+                    paper_accuracy=paper if Path(dataset.root).name == "chen2017_handover" else None,
+                    joint_rmse_rad=summary["joint_rmse_rad"],
+                    joint_rmse_prior_rad=summary["joint_rmse_prior_rad"],
+                    final_joint_error_rad=summary["final_joint_error_rad"],
+                    final_joint_error_prior_rad=summary["final_joint_error_prior_rad"],
+                    handover_error_cm=summary["handover_error_cm"],
+                    handover_error_prior_cm=summary["handover_error_prior_cm"],
+                    duration_error_s=summary["duration_error_s"],
+                )
+                if config.protocol == "splits":
+                    cell.accuracy_std = float(np.std(accs)) if accs else float("nan")
+                    cell.n_splits = len(accs)
+                else:
+                    cell.trials = [asdict(r) | {"correct": r.correct} for r in flat]
+                cells.append(cell)
+    return cells
+
+
+def overall(cells: Sequence[Cell]) -> dict[str, dict[str, float]]:
+    """Mean accuracy per (protocol, observed set), with the paper's mean where known."""
+    out: dict[str, dict[str, float]] = {}
+    for c in cells:
+        key = f"{c.protocol}:{observe_key(c.observe)}"
+        out.setdefault(key, {"cells": 0, "accuracy_sum": 0.0, "paper_sum": 0.0, "paper_cells": 0})
+        o = out[key]
+        o["cells"] += 1
+        o["accuracy_sum"] += c.accuracy
+        if c.paper_accuracy is not None:
+            o["paper_sum"] += c.paper_accuracy
+            o["paper_cells"] += 1
+    result = {}
+    for key, o in out.items():
+        result[key] = {"mean_accuracy": o["accuracy_sum"] / o["cells"], "cells": o["cells"]}
+        if o["paper_cells"]:
+            result[key]["paper_mean_accuracy"] = o["paper_sum"] / o["paper_cells"]
+            result[key]["cells_below_paper"] = sum(
+                1
+                for c in cells
+                if f"{c.protocol}:{observe_key(c.observe)}" == key
+                and c.paper_accuracy is not None
+                and c.accuracy < c.paper_accuracy - 1e-9
+            )
+    return result
+
+
+def _fmt(x: float | None, digits: int = 2) -> str:
+    return "-" if x is None or not np.isfinite(x) else f"{x:.{digits}f}"
+
+
+def to_markdown(cells: Sequence[Cell]) -> str:
+    """The accuracy table (and prediction errors) as Markdown."""
+    lines = []
+    for protocol in dict.fromkeys(c.protocol for c in cells):
+        pc = [c for c in cells if c.protocol == protocol]
+        tasks = list(dict.fromkeys(c.task for c in pc))
+        lines.append(f"### Recognition accuracy, protocol `{protocol}`\n")
+        head = "| n_train | obs ratio | observed | " + " | ".join(tasks) + " | mean |"
+        lines += [head, "|" + "---|" * (4 + len(tasks))]
+        rows = dict.fromkeys((c.n_train, c.obs_ratio, observe_key(c.observe)) for c in pc)
+        for n_train, ratio, key in rows:
+            row = [c for c in pc if (c.n_train, c.obs_ratio, observe_key(c.observe)) == (n_train, ratio, key)]
+            texts = []
+            for task in tasks:
+                c = next(c for c in row if c.task == task)
+                s = _fmt(c.accuracy)
+                if c.accuracy_std is not None:
+                    s += f" ± {_fmt(c.accuracy_std)}"
+                if c.paper_accuracy is not None:
+                    s += f" (paper {_fmt(c.paper_accuracy)})"
+                texts.append(s)
+            mean = float(np.mean([c.accuracy for c in row]))
+            lines.append(f"| {n_train} | {ratio:g} | {key} | " + " | ".join(texts) + f" | {_fmt(mean)} |")
+        lines.append("")
+        for key, o in overall(pc).items():
+            s = f"- mean over cells, {key.split(':', 1)[1]}: {o['mean_accuracy']:.3f}"
+            if "paper_mean_accuracy" in o:
+                s += f" (paper {o['paper_mean_accuracy']:.3f}; cells below the paper: {o['cells_below_paper']})"
+            lines.append(s)
+        lines.append("")
+        lines.append(
+            f"### Robot motion prediction, protocol `{protocol}` "
+            "(medians over correctly recognised trials; conditioned vs prior mean)\n"
+        )
+        lines.append(
+            "| n_train | obs ratio | observed | task | joint RMSE [rad] | final joint err [rad] "
+            "| hand-over err [cm] | duration err [s] |"
+        )
+        lines.append("|---|---|---|---|---|---|---|---|")
+        for c in pc:
+            lines.append(
+                f"| {c.n_train} | {c.obs_ratio:g} | {observe_key(c.observe)} | {c.task} "
+                f"| {_fmt(c.joint_rmse_rad, 3)} vs {_fmt(c.joint_rmse_prior_rad, 3)} "
+                f"| {_fmt(c.final_joint_error_rad, 3)} vs {_fmt(c.final_joint_error_prior_rad, 3)} "
+                f"| {_fmt(c.handover_error_cm, 1)} vs {_fmt(c.handover_error_prior_cm, 1)} "
+                f"| {_fmt(c.duration_error_s, 2)} |"
+            )
+        lines.append("")
+    return "\n".join(lines)
+
+
+def to_json(cells: Sequence[Cell], meta: dict | None = None) -> dict:
+    """JSON document: ``cells`` (one record per table cell), ``overall`` and ``meta``."""
+    return {
+        "format": "ipromp_pin.evaluation",
+        "version": 1,
+        "meta": meta or {},
+        "overall": overall(cells),
+        "cells": [asdict(c) for c in cells],
+    }
+
+
+def write_results(cells: Sequence[Cell], json_path: Path | None, md_path: Path | None, meta: dict) -> None:
+    """Write the JSON and Markdown results."""
+    if json_path is not None:
+        json_path.parent.mkdir(parents=True, exist_ok=True)
+        json_path.write_text(json.dumps(to_json(cells, meta), indent=1, allow_nan=False, default=_json_default))
+    if md_path is not None:
+        md_path.parent.mkdir(parents=True, exist_ok=True)
+        md_path.write_text(to_markdown(cells))
+
+
+def _json_default(x):
+    if isinstance(x, np.generic):
+        return x.item()
+    raise TypeError(f"not JSON serialisable: {type(x)}")
+
+
+def timed(fn: Callable, *args, **kwargs):
+    """Call ``fn`` and return (result, seconds)."""
+    t0 = time.perf_counter()
+    out = fn(*args, **kwargs)
+    return out, time.perf_counter() - t0

@@ -1,0 +1,222 @@
+"""Per-task Interaction ProMP: a Gaussian over the stacked basis weights of all channels.
+
+Representation. After per-channel scaling (:class:`ChannelScaler`, learned on the
+training demos of all tasks, so that the orientation quaternion, EMG envelope
+and joint angles have comparable magnitudes), each channel ``d`` of a demo of
+duration ``T_i`` is fitted (ridge least squares) as ``y_d(z) = phi(z)^T w_d``
+with ``z = t / T_i`` (:class:`~ipromp_pin.basis.GaussianBasis`). The weights of
+all ``D`` channels (observed human groups first, then the robot joints) are
+stacked dim-major into ``w`` of length ``p = D K``.
+
+Regularised covariance. With N = 10-100 demos and p of several hundred weights
+the sample covariance ``S = X_c^T X_c / N`` is singular. We use Ledoit-Wolf
+shrinkage (Ledoit & Wolf, 2004, "A well-conditioned estimator for
+large-dimensional covariance matrices") toward a *per-dim scalar* diagonal
+target ``T = blockdiag(tau_d I_K)``, ``tau_d`` = mean weight variance of dim d:
+``Sigma = (1 - lambda) S + lambda T`` with the analytic intensity
+``lambda = min(1, b^2 / d^2)``, ``b^2 = N^-2 sum_i ||x_i x_i^T - S||_F^2``,
+``d^2 = ||S - T||_F^2`` (computed in O(N^2 p) from the N x N Gram matrix). A
+small floor (1e-6 of the mean ``tau``) keeps every diagonal entry positive, so
+``Sigma`` is symmetric positive definite. It is stored in the structured form
+``Sigma = blockdiag(delta_d I_K) + F F^T`` with ``delta_d = lambda tau_d +
+floor`` and ``F = sqrt((1 - lambda) / N) X_c^T`` compressed to rank <= N - 1
+(thin SVD), which the fast inference (:mod:`ipromp_pin.phase`) exploits.
+
+Observation noise. An observed channel ``d`` is seen with white noise of
+variance ``r_d = nu * delta_d`` (scaled units): each channel's idiosyncratic
+(not shared with other channels) variation is split between a smooth part (in
+the weights) and a white part (in time) in the same proportion ``nu`` for every
+channel. The per-channel scale ``delta_d`` comes from the data of that channel;
+the global ratio ``nu`` is chosen by leave-one-out cross-validation on the
+training demos (see :mod:`ipromp_pin.recognition`). Sharing ``nu`` lets all
+channels share one factorisation per phase candidate.
+
+Phase. ``alpha_i = T_i / T_norm`` with ``T_norm`` the mean training duration
+over all tasks in [s]; each task has a Gaussian prior ``N(alpha_mu, alpha_sigma)``
+fitted to its demos' ``alpha_i``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .basis import GaussianBasis
+from .exceptions import DataError, ModelError
+
+VARIANCE_FLOOR = 1e-6
+"""Floor of the per-dim diagonal weight variance, relative to the mean target variance."""
+
+
+@dataclass
+class ChannelScaler:
+    """Per-channel affine scaling ``y_scaled = (y - offset) / scale``.
+
+    Attributes:
+        offset: (D,) channel means over the training samples, in original units.
+        scale: (D,) channel standard deviations (1 for constant channels).
+    """
+
+    offset: np.ndarray
+    scale: np.ndarray
+
+    @classmethod
+    def fit(cls, values: np.ndarray) -> ChannelScaler:
+        """Learn the scaling from stacked training samples (n, D); NaN rows are ignored per channel."""
+        offset = np.nanmean(values, axis=0)
+        scale = np.nanstd(values, axis=0)
+        tiny = 1e-9 * np.maximum(1.0, np.abs(offset))
+        scale = np.where(scale > tiny, scale, 1.0)
+        return cls(offset=offset, scale=scale)
+
+    def transform(self, values: np.ndarray, dims: slice | np.ndarray = slice(None)) -> np.ndarray:
+        """Scale values (..., D') of channels ``dims``."""
+        return (values - self.offset[dims]) / self.scale[dims]
+
+    def inverse(self, values: np.ndarray, dims: slice | np.ndarray = slice(None)) -> np.ndarray:
+        """Undo :meth:`transform`."""
+        return values * self.scale[dims] + self.offset[dims]
+
+
+@dataclass
+class ShrunkCovariance:
+    """Structured shrinkage estimate ``blockdiag(delta_d I_K) + F F^T`` of a weight covariance.
+
+    Attributes:
+        mean: (D, K) mean weights.
+        diag: (D,) per-dim diagonal variance ``delta_d``.
+        factor: (D, K, r) low-rank factor ``F`` (r <= N - 1).
+        shrinkage: Ledoit-Wolf intensity ``lambda`` in [0, 1].
+    """
+
+    mean: np.ndarray
+    diag: np.ndarray
+    factor: np.ndarray
+    shrinkage: float
+
+
+def shrink_covariance(weights: np.ndarray) -> ShrunkCovariance:
+    """Ledoit-Wolf shrinkage toward a per-dim scalar diagonal target.
+
+    Args:
+        weights: (N, D, K) weights of N demos (N >= 2).
+
+    Returns:
+        The structured SPD estimate (see the module docstring).
+    """
+    n, d, k = weights.shape
+    if n < 2:
+        raise ModelError(f"covariance needs at least 2 demos, got {n}")
+    mean = weights.mean(axis=0)
+    xc = (weights - mean).reshape(n, d * k)
+    gram = xc @ xc.T  # (N, N)
+    s_fro2 = float(np.sum(gram * gram)) / n**2  # ||S||_F^2
+    tau = np.einsum("ndk,ndk->d", xc.reshape(n, d, k), xc.reshape(n, d, k)) / (n * k)  # (D,)
+    d2 = max(s_fro2 - k * float(np.sum(tau * tau)), 0.0)
+    sq_norms = np.diag(gram)
+    xsx = np.sum(gram * gram, axis=1) / n  # x_i^T S x_i
+    b2 = float(np.sum(sq_norms**2 - 2.0 * xsx + s_fro2)) / n**2
+    lam = 1.0 if d2 <= 0.0 else float(min(1.0, max(0.0, b2 / d2)))
+    floor = VARIANCE_FLOOR * max(float(np.mean(tau)), 1e-12)
+    diag = lam * tau + floor
+    # thin SVD of the centred data: S = V s^2 V^T / N
+    _, sv, vt = np.linalg.svd(xc, full_matrices=False)
+    keep = sv > 1e-10 * max(float(sv[0]), 1e-300)
+    factor = (vt[keep].T * sv[keep]) * np.sqrt((1.0 - lam) / n)
+    return ShrunkCovariance(mean=mean, diag=diag, factor=factor.reshape(d, k, -1), shrinkage=lam)
+
+
+@dataclass
+class TaskModel:
+    """Interaction ProMP of one task, in scaled units.
+
+    Attributes:
+        task: Task name.
+        mean: (D, K) mean weights of all dims (observed human dims first, then robot).
+        diag: (D,) per-dim diagonal weight variance ``delta_d``.
+        factor: (D, K, r) low-rank covariance factor.
+        shrinkage: Ledoit-Wolf shrinkage intensity used.
+        alpha_mu: Mean of the phase prior ``alpha = T / T_norm``.
+        alpha_sigma: Standard deviation of the phase prior (floored).
+        alpha_grid: (n_alpha,) phase candidates.
+        alpha_log_prior: (n_alpha,) log prior weights of the candidates (they sum to 1).
+        train_weights: (N, D, K) fitted weights of the training demos (for plots).
+        train_alpha: (N,) phases ``T_i / T_norm`` of the training demos.
+    """
+
+    task: str
+    mean: np.ndarray
+    diag: np.ndarray
+    factor: np.ndarray
+    shrinkage: float
+    alpha_mu: float
+    alpha_sigma: float
+    alpha_grid: np.ndarray
+    alpha_log_prior: np.ndarray
+    train_weights: np.ndarray
+    train_alpha: np.ndarray
+
+    @property
+    def n_demos(self) -> int:
+        """Number of training demos N."""
+        return int(self.train_weights.shape[0])
+
+    @property
+    def rank(self) -> int:
+        """Rank r of the low-rank covariance part."""
+        return int(self.factor.shape[2])
+
+    def covariance(self, dims: np.ndarray | None = None) -> np.ndarray:
+        """Dense weight covariance (dims * K, dims * K) of the selected dims (default all)."""
+        dims = np.arange(self.mean.shape[0]) if dims is None else np.asarray(dims)
+        k = self.mean.shape[1]
+        f = self.factor[dims].reshape(dims.size * k, -1)
+        cov = f @ f.T
+        cov[np.diag_indices_from(cov)] += np.repeat(self.diag[dims], k)
+        return cov
+
+    def distribution(self, phi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Mean and std (n, D) of every dim at basis values ``phi`` (n, K), scaled units."""
+        mean = phi @ self.mean.T
+        proj = np.einsum("nk,dkr->ndr", phi, self.factor)
+        var = np.sum(proj * proj, axis=2) + np.sum(phi * phi, axis=1)[:, None] * self.diag
+        return mean, np.sqrt(var)
+
+
+def alpha_prior(alphas: np.ndarray, n_alpha: int, min_rel_sigma: float = 0.02) -> tuple[float, float]:
+    """Gaussian phase prior (mu, sigma) of the training phases, sigma floored at ``min_rel_sigma * mu``."""
+    mu = float(np.mean(alphas))
+    sigma = float(np.std(alphas, ddof=1)) if alphas.size > 1 else 0.0
+    return mu, max(sigma, min_rel_sigma * mu)
+
+
+def alpha_candidates(mu: float, sigma: float, n_alpha: int, width: float = 3.0) -> tuple[np.ndarray, np.ndarray]:
+    """Candidate phases on ``mu +- width sigma`` (kept > 0.2 mu) and their normalised log prior weights."""
+    lo = max(mu - width * sigma, 0.2 * mu)
+    grid = np.linspace(lo, mu + width * sigma, n_alpha)
+    logp = -0.5 * ((grid - mu) / sigma) ** 2
+    logp -= np.logaddexp.reduce(logp)
+    return grid, logp
+
+
+def fit_demo_weights(
+    basis: GaussianBasis, t: np.ndarray, values: np.ndarray, valid: np.ndarray | None, source: str, field: str
+) -> tuple[np.ndarray, np.ndarray]:
+    """Weights (D, K) of one channel group of one demo and its residual sum of squares (D,).
+
+    Args:
+        basis: The basis.
+        t: (T,) times in [s] from motion start.
+        values: (T, D) scaled values.
+        valid: (T,) mask of usable samples (None = all).
+        source, field: For error messages.
+    """
+    z = (t - t[0]) / (t[-1] - t[0])
+    if valid is not None:
+        z, values = z[valid], values[valid]
+    if z.size < 2:
+        raise DataError(source, field, f"only {z.size} usable samples to fit the basis weights")
+    w = basis.fit_weights(z, values)
+    resid = values - basis(z) @ w.T
+    return w, np.sum(resid * resid, axis=0)

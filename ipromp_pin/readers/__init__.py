@@ -1,0 +1,215 @@
+"""Readers of hand-over demonstrations: :func:`load_dataset` and :func:`read_demo`.
+
+A dataset is a folder with one sub-folder per task (task = sub-folder name).
+Each task folder is in one of these formats, detected per folder when
+``format="auto"`` (first match wins):
+
+* ``"chen2017"``: the chen2017_handover per-topic CSV export
+  (``csv/<stamp>-myo_raw_emg_pub.csv`` ...), see :mod:`.chen2017`;
+* ``"multimodal"``: ``csv/<stamp>/multiModal_states.csv`` (handover_20171128),
+  see :mod:`.multimodal`;
+* ``"native"``: the project's own format, one ``.npz`` or ``.csv`` per demo,
+  see :mod:`.native`;
+* ``"bag"``: ROS1 bags ``<stamp>.bag`` of the chen2017 topics, see :mod:`.rosbag`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+from ..data import Dataset, Demo
+from ..exceptions import DataError
+from ..preprocess import DEFAULT_EMG_CUTOFF_HZ
+from . import chen2017, multimodal, native, rosbag
+from ._common import BAXTER_LEFT_JOINTS
+from .native import write_dataset, write_demo
+
+FORMATS = ("auto", "chen2017", "multimodal", "bag", "native")
+"""Accepted values of ``format``."""
+
+__all__ = [
+    "BAXTER_LEFT_JOINTS",
+    "FORMATS",
+    "detect_format",
+    "list_demos",
+    "load_dataset",
+    "read_demo",
+    "write_dataset",
+    "write_demo",
+]
+
+
+def detect_format(folder: Path) -> str:
+    """Format of a task folder: ``"chen2017"``, ``"multimodal"``, ``"native"`` or ``"bag"``.
+
+    Raises:
+        DataError: the folder holds none of them.
+    """
+    folder = Path(folder)
+    if chen2017.is_chen2017_folder(folder):
+        return "chen2017"
+    if multimodal.is_multimodal_folder(folder):
+        return "multimodal"
+    if native.is_native_folder(folder):
+        return "native"
+    if rosbag.is_bag_folder(folder):
+        return "bag"
+    raise DataError(
+        folder,
+        "format",
+        "cannot detect the format: no csv/<stamp>-myo_raw_emg_pub.csv, csv/<stamp>/multiModal_states.csv, "
+        "*.npz / *.csv demo files or *.bag files",
+    )
+
+
+def list_demos(folder: Path, format: str, order: str = "config") -> list[Path]:
+    """Demo paths of a task folder in demo order (see each reader's ``list_demos``)."""
+    if format == "chen2017":
+        return chen2017.list_demos(folder, order)
+    if format == "multimodal":
+        return multimodal.list_demos(folder, order)
+    if format == "native":
+        return native.list_demos(folder, order)
+    if format == "bag":
+        return rosbag.list_demos(folder, order)
+    raise DataError(folder, "format", f"unknown format {format!r} (use one of {', '.join(FORMATS)})")
+
+
+def _detect_file_format(path: Path) -> str:
+    if path.is_dir() and (path / multimodal.FILE_NAME).is_file():
+        return "multimodal"
+    if path.name == multimodal.FILE_NAME:
+        return "multimodal"
+    if path.suffix == ".bag":
+        return "bag"
+    if path.suffix == ".npz":
+        return "native"
+    if chen2017.STAMP_RE.match(path.name) and path.parent.name == "csv":
+        return "chen2017"
+    if path.suffix == ".csv":
+        return "native"
+    raise DataError(path, "format", "cannot detect the demo's format from its path")
+
+
+def read_demo(
+    path: str | Path,
+    task: str | None = None,
+    *,
+    format: str = "auto",
+    frames: Sequence[str] | None = None,
+    rate_hz: float = 50.0,
+    robot_joints: Sequence[str] = BAXTER_LEFT_JOINTS,
+    emg_cutoff_hz: float = DEFAULT_EMG_CUTOFF_HZ,
+) -> Demo:
+    """Read one demonstration.
+
+    Args:
+        path: The demo: a chen2017 ``<task>/csv/<stamp>`` prefix or one of its CSV files,
+            a ``multiModal_states.csv`` (or its folder), a ``.bag``, or a native ``.npz``/``.csv``.
+        task: Task name (default: derived from the path).
+        format: One of :data:`FORMATS`.
+        frames: Skeleton frames (child_frame_id, e.g. ``"/left_hand_1"``) to read as
+            human groups (multimodal format only).
+        rate_hz: Output sampling rate in [Hz] (recorded formats; native demos keep theirs).
+        robot_joints: Joint names of the ``"robot"`` group, in the wanted order.
+        emg_cutoff_hz: EMG envelope cut-off in [Hz] (recorded formats).
+
+    Returns:
+        The demo on a uniform time grid starting at 0.
+    """
+    path = Path(path)
+    if format not in FORMATS:
+        raise DataError(path, "format", f"unknown format {format!r} (use one of {', '.join(FORMATS)})")
+    if format == "auto":
+        format = _detect_file_format(path)
+    if format == "chen2017":
+        return chen2017.read_demo(
+            path, task, rate_hz=rate_hz, robot_joints=robot_joints, emg_cutoff_hz=emg_cutoff_hz
+        )
+    if format == "multimodal":
+        return multimodal.read_demo(
+            path, task, frames=frames, rate_hz=rate_hz, robot_joints=robot_joints, emg_cutoff_hz=emg_cutoff_hz
+        )
+    if format == "bag":
+        return rosbag.read_demo(
+            path, task, rate_hz=rate_hz, robot_joints=robot_joints, emg_cutoff_hz=emg_cutoff_hz
+        )
+    return native.read_demo(path, task)
+
+
+def load_dataset(
+    path: str | Path,
+    *,
+    format: str = "auto",
+    frames: Sequence[str] | None = None,
+    rate_hz: float = 50.0,
+    robot_joints: Sequence[str] = BAXTER_LEFT_JOINTS,
+    order: str = "config",
+    progress: Callable[[int, int, str], None] | None = None,
+    emg_cutoff_hz: float = DEFAULT_EMG_CUTOFF_HZ,
+) -> Dataset:
+    """Load a dataset: a folder with one sub-folder per task.
+
+    Args:
+        path: The dataset folder (sub-folders without demos, or hidden ones, are ignored
+            when ``format="auto"``).
+        format: One of :data:`FORMATS`; ``"auto"`` detects it per task folder.
+        frames: Skeleton frames to read as human groups (multimodal format).
+        rate_hz: Output sampling rate in [Hz].
+        robot_joints: Joint names of the ``"robot"`` group, in the wanted order.
+        order: ``"config"`` (the authors' cfg order when there is one) or ``"recorded"`` (by stamp).
+        progress: Optional ``callable(done, total, name)`` called after each demo.
+        emg_cutoff_hz: EMG envelope cut-off in [Hz].
+
+    Returns:
+        Dataset with tasks in sorted folder-name order.
+
+    Raises:
+        DataError: no task sub-folder, undetectable format, a task with fewer than 2 demos,
+            or any bad demo (naming its file).
+    """
+    root = Path(path)
+    if not root.is_dir():
+        raise DataError(root, None, "dataset folder not found")
+    if format not in FORMATS:
+        raise DataError(root, "format", f"unknown format {format!r} (use one of {', '.join(FORMATS)})")
+    subdirs = sorted(p for p in root.iterdir() if p.is_dir() and not p.name.startswith((".", "_")))
+    plan: list[tuple[str, str, list[Path]]] = []
+    for d in subdirs:
+        if format == "auto":
+            try:
+                fmt = detect_format(d)
+            except DataError:
+                continue
+        else:
+            fmt = format
+        plan.append((d.name, fmt, list_demos(d, fmt, order)))
+    if not plan:
+        if subdirs and format == "auto":
+            detect_format(subdirs[0])  # raises, naming the folder
+        raise DataError(root, None, "no task sub-folders (expected one folder of demos per task)")
+    for task, _, files in plan:
+        if len(files) < 2:
+            raise DataError(root / task, None, f"a task needs at least 2 demos, found {len(files)}")
+    total = sum(len(files) for _, _, files in plan)
+    done = 0
+    demos: dict[str, list[Demo]] = {}
+    for task, fmt, files in plan:
+        out = demos.setdefault(task, [])
+        for f in files:
+            out.append(
+                read_demo(
+                    f,
+                    task,
+                    format=fmt,
+                    frames=frames,
+                    rate_hz=rate_hz,
+                    robot_joints=robot_joints,
+                    emg_cutoff_hz=emg_cutoff_hz,
+                )
+            )
+            done += 1
+            if progress is not None:
+                progress(done, total, f"{task}/{out[-1].name}")
+    return Dataset(root=str(root), demos=demos)

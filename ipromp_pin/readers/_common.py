@@ -1,0 +1,325 @@
+"""Pieces shared by the readers: joint names, CSV access, and the chen2017 demo assembly.
+
+The chen2017 CSV export and the original ROS bags hold the same four message
+streams; both readers parse them into :class:`RawRecording` and build the demo
+with :func:`assemble_chen2017`, so the two formats give the same :class:`Demo`.
+"""
+
+from __future__ import annotations
+
+import csv
+import datetime
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..data import ROBOT, Demo
+from ..exceptions import DataError
+from ..preprocess import (
+    DEFAULT_EMG_CUTOFF_HZ,
+    Stream,
+    align_streams,
+    emg_envelope,
+    estimate_clock_offset,
+    quaternion_continuity,
+)
+
+BAXTER_LEFT_JOINTS: tuple[str, ...] = (
+    "left_s0",
+    "left_s1",
+    "left_e0",
+    "left_e1",
+    "left_w0",
+    "left_w1",
+    "left_w2",
+)
+"""Baxter's left-arm joints in the URDF's kinematic order (the default robot group)."""
+
+ORIENTATION_CHANNELS = ("qw", "qx", "qy", "qz")
+EMG_CHANNELS = tuple(f"emg{i}" for i in range(8))
+ACC_CHANNELS = ("ax", "ay", "az")
+
+MYO_ORIENTATION_SCALE = 16384.0
+"""Myo firmware quaternion scaling (myohw.h: MYOHW_ORIENTATION_SCALE), raw units per 1."""
+MYO_ACCELEROMETER_SCALE = 2048.0
+"""Myo firmware accelerometer scaling (myohw.h: MYOHW_ACCELEROMETER_SCALE), raw units per g."""
+
+TIMEZONE_STEP_S = 900.0
+"""Receive times written as local wall-clock text differ from header stamps (epoch, UTC) by
+the time-zone offset, a multiple of 15 min; it is rounded away before the clock offsets are
+estimated, so clock offsets must be below 7.5 min."""
+
+
+# ----------------------------------------------------------------------------------------- CSV
+class CsvTable:
+    """A CSV file read as text columns (``csv`` module, no pandas).
+
+    Attributes:
+        path: The file.
+        header: Column names.
+        rows: Data rows (lists of strings), all of the header's length.
+    """
+
+    def __init__(self, path: Path) -> None:
+        self.path = Path(path)
+        try:
+            with open(self.path, newline="") as fh:
+                rows = list(csv.reader(fh))
+        except FileNotFoundError:
+            raise DataError(self.path, None, "file not found") from None
+        except (OSError, UnicodeDecodeError, csv.Error) as exc:
+            raise DataError(self.path, None, f"cannot read CSV: {exc}") from None
+        if not rows:
+            raise DataError(self.path, None, "empty file (no header line)")
+        self.header = [h.strip() for h in rows[0]]
+        self.rows = rows[1:]
+        while self.rows and not self.rows[-1]:
+            self.rows.pop()
+        n = len(self.header)
+        for i, r in enumerate(self.rows):
+            if len(r) != n:
+                raise DataError(
+                    self.path,
+                    f"line {i + 2}",
+                    f"has {len(r)} fields, the header has {n} (truncated or corrupt file?)",
+                )
+        self._index = {h: i for i, h in enumerate(self.header)}
+
+    def __len__(self) -> int:
+        return len(self.rows)
+
+    def has(self, column: str) -> bool:
+        """Whether the file has ``column``."""
+        return column in self._index
+
+    def text(self, column: str) -> list[str]:
+        """One column as strings."""
+        i = self._index.get(column)
+        if i is None:
+            raise DataError(self.path, column, "missing column")
+        return [r[i] for r in self.rows]
+
+    def numbers(self, columns: Sequence[str]) -> np.ndarray:
+        """Columns as floats, shape (N, len(columns))."""
+        idx = []
+        for c in columns:
+            i = self._index.get(c)
+            if i is None:
+                raise DataError(self.path, c, "missing column")
+            idx.append(i)
+        try:
+            return np.array([[r[i] for i in idx] for r in self.rows], dtype=float).reshape(len(self.rows), -1)
+        except ValueError:
+            for c, i in zip(columns, idx, strict=True):
+                for k, r in enumerate(self.rows):
+                    try:
+                        float(r[i])
+                    except ValueError:
+                        raise DataError(self.path, c, f"line {k + 2}: not a number: {r[i]!r}") from None
+            raise
+
+
+def parse_receive_times(path: object, values: Sequence[str]) -> np.ndarray:
+    """Receive times in [s]: wall-clock text ``YYYY/MM/DD/HH:MM:SS.ffffff`` (read as UTC)
+    or plain numbers (seconds, or nanoseconds when above 1e12)."""
+    if not values:
+        return np.zeros(0)
+    first = values[0].strip()
+    try:
+        float(first)
+        numeric = True
+    except ValueError:
+        numeric = False
+    if numeric:
+        try:
+            v = np.array(values, dtype=float)
+        except ValueError:
+            raise DataError(path, "time", "mixes numbers and text") from None
+        return v * 1e-9 if np.nanmedian(v) > 1e12 else v
+    days: dict[str, float] = {}
+    out = np.empty(len(values))
+    try:
+        for k, s in enumerate(values):
+            day = s[:10]
+            d0 = days.get(day)
+            if d0 is None:
+                d0 = datetime.datetime.strptime(day, "%Y/%m/%d").replace(tzinfo=datetime.timezone.utc)
+                d0 = days[day] = d0.timestamp()
+            if s[10] != "/" or s[13] != ":" or s[16] != ":":
+                raise ValueError(s)
+            out[k] = d0 + int(s[11:13]) * 3600 + int(s[14:16]) * 60 + float(s[17:])
+    except (ValueError, IndexError):
+        raise DataError(
+            path, "time", f"line {k + 2}: {values[k]!r} is not a 'YYYY/MM/DD/HH:MM:SS.ffffff' time"
+        ) from None
+    return out
+
+
+# ------------------------------------------------------------------------------- chen2017 assembly
+@dataclass
+class RawStream:
+    """Messages of one topic as recorded.
+
+    Attributes:
+        header_s: Header stamps in [s] (sender clock), shape (N,).
+        receive_s: Receive times in [s] (recording PC; may include a time-zone offset), shape (N,).
+        values: Message fields, shape (N, D).
+        source: File it came from.
+    """
+
+    header_s: np.ndarray
+    receive_s: np.ndarray
+    values: np.ndarray
+    source: str
+
+
+@dataclass
+class RawRecording:
+    """The four chen2017 streams of one demo (Myo EMG, Myo IMU, arm joints, end-point).
+
+    ``joints.values`` holds the requested joints in the requested order; ``endpoint``
+    (position xyz, quaternion xyzw) may be absent.
+    """
+
+    emg: RawStream
+    imu: RawStream
+    joints: RawStream
+    endpoint: RawStream | None = None
+    clock_offsets_s: dict[str, float] = field(default_factory=dict)
+
+
+def select_joint_messages(
+    source: object,
+    names_per_msg: Sequence[Sequence[str]],
+    robot_joints: Sequence[str],
+) -> tuple[np.ndarray, list[int]]:
+    """Which joint-state messages carry the arm, and where its joints are.
+
+    Messages without every requested joint (e.g. Baxter's one-name gripper
+    messages on the same topic) are dropped.
+
+    Args:
+        source: File for error messages.
+        names_per_msg: Joint names of each message.
+        robot_joints: Requested joint names, in the wanted order.
+
+    Returns:
+        ``(keep, columns)``: boolean mask over messages, and per requested joint
+        its index in the kept messages' name list (the kept messages share one list).
+
+    Raises:
+        DataError: a requested joint is in no message, or the kept messages
+            list the joints in different orders.
+    """
+    robot_joints = list(robot_joints)
+    if not robot_joints:
+        raise DataError(source, "robot_joints", "no robot joint requested")
+    wanted = set(robot_joints)
+    keep = np.zeros(len(names_per_msg), dtype=bool)
+    layout: tuple[str, ...] | None = None
+    seen: set[str] = set()
+    for k, names in enumerate(names_per_msg):
+        seen.update(names)
+        if wanted.issubset(names):
+            names = tuple(names)
+            if layout is None:
+                layout = names
+            elif names != layout:
+                # Same joints in another order would need per-message mapping; not seen in practice.
+                raise DataError(source, ".name", f"message {k} lists joints {names}, earlier ones {layout}")
+            keep[k] = True
+    if layout is None:
+        missing = [j for j in robot_joints if j not in seen]
+        if missing:
+            raise DataError(
+                source,
+                missing[0],
+                f"unknown joint name (the joint states have: {', '.join(sorted(seen)) or 'none'})",
+            )
+        raise DataError(source, ".name", f"no single message carries all of the joints {robot_joints}")
+    return keep, [layout.index(j) for j in robot_joints]
+
+
+def assemble_chen2017(
+    raw: RawRecording,
+    *,
+    task: str,
+    name: str,
+    source: object,
+    rate_hz: float,
+    robot_joints: Sequence[str],
+    emg_cutoff_hz: float = DEFAULT_EMG_CUTOFF_HZ,
+) -> Demo:
+    """Build a :class:`Demo` from the raw chen2017 streams.
+
+    Each stream's clock offset (header stamp vs receive time, after removing a
+    whole-quarter-hour time-zone difference) is estimated and removed, putting
+    every stream on the recording PC's clock; the demo spans the streams'
+    overlap on a uniform grid at ``rate_hz``. The EMG is sample-and-hold
+    resampled then turned into a causal envelope; quaternions are made
+    unit-norm and sign-continuous.
+    """
+    streams = {"emg": raw.emg, "imu": raw.imu, "robot": raw.joints}
+    if raw.endpoint is not None:
+        streams["endpoint"] = raw.endpoint
+    for key, s in streams.items():
+        if s.header_s.size == 0:
+            raise DataError(s.source, key, "stream is empty")
+    # Time-zone part of (header - receive): shared by all streams, a multiple of 15 min.
+    medians = [float(np.median(s.header_s - s.receive_s)) for s in streams.values()]
+    tz = TIMEZONE_STEP_S * np.round(np.median(medians) / TIMEZONE_STEP_S)
+    offsets = {k: estimate_clock_offset(s.header_s, s.receive_s + tz) for k, s in streams.items()}
+    raw.clock_offsets_s.update(offsets)
+
+    imu = raw.imu.values
+    q_raw = imu[:, :4] / MYO_ORIENTATION_SCALE
+    norm = np.linalg.norm(q_raw, axis=1)
+    bad = np.flatnonzero(~(np.abs(norm - 1.0) < 0.1))
+    if bad.size:
+        raise DataError(
+            raw.imu.source,
+            ".quat0-3",
+            f"{bad.size} quaternions whose norm is not 1 after the Myo scaling 1/{MYO_ORIENTATION_SCALE:g} "
+            f"(first: {norm[bad[0]]:.3f} in message {bad[0]})",
+        )
+    on_pc = {k: s.header_s - offsets[k] for k, s in streams.items()}
+    aligned_in = {
+        "emg": Stream(on_pc["emg"], raw.emg.values, EMG_CHANNELS, "previous", raw.emg.source),
+        "orientation": Stream(
+            on_pc["imu"], quaternion_continuity(q_raw), ORIENTATION_CHANNELS, "quaternion", raw.imu.source
+        ),
+        "acc": Stream(
+            on_pc["imu"], imu[:, 4:7] / MYO_ACCELEROMETER_SCALE, ACC_CHANNELS, "linear", raw.imu.source
+        ),
+        ROBOT: Stream(on_pc["robot"], raw.joints.values, tuple(robot_joints), "linear", raw.joints.source),
+    }
+    if raw.endpoint is not None:
+        ep = raw.endpoint
+        aligned_in["endpoint_position"] = Stream(
+            on_pc["endpoint"], ep.values[:, :3], ("x", "y", "z"), "linear", ep.source
+        )
+        aligned_in["endpoint_orientation"] = Stream(
+            on_pc["endpoint"], ep.values[:, 3:7], ("qx", "qy", "qz", "qw"), "quaternion", ep.source
+        )
+    t, values, _ = align_streams(aligned_in, rate_hz, source)
+    dt = 1.0 / rate_hz
+    groups = {
+        "orientation": values["orientation"],
+        "emg": emg_envelope(values["emg"], dt, emg_cutoff_hz),
+        "acc": values["acc"],
+        ROBOT: values[ROBOT],
+    }
+    names = {
+        "orientation": ORIENTATION_CHANNELS,
+        "emg": EMG_CHANNELS,
+        "acc": ACC_CHANNELS,
+        ROBOT: tuple(robot_joints),
+    }
+    extras = {}
+    if raw.endpoint is not None:
+        extras["endpoint_pose"] = np.hstack([values["endpoint_position"], values["endpoint_orientation"]])
+    return Demo(
+        task=task, name=name, source=str(source), t=t, groups=groups, channel_names=names, extras=extras
+    )

@@ -1,0 +1,330 @@
+"""Reader of ``multiModal_states.csv`` recordings (handover_20171128: skeleton + Myo + Baxter).
+
+Layout: ``<task>/csv/<stamp>/multiModal_states.csv``, one synchronised message
+stream (~50 Hz, ``rostopic echo -p`` style, ``field.`` prefixes) bundling the
+latest Myo EMG (``emgStates.ch0..7``), Myo IMU (``imuStates``), Baxter left
+end-point (``endpointStates``), joint states (``jointStates.name0..16`` /
+``position0..16``) and the tracked frames ``tf_of_interest.transformsK``.
+
+Time base. ``%time`` is the recording PC's receive time and
+``field.header.stamp`` the synchroniser's stamp (PC clock). Each bundled
+message keeps its own header stamp: a stale message is repeated in
+consecutive rows with the same stamp (only its first row is used), and the
+robot's messages carry the robot's clock. So every sub-stream is put on its own
+stamps, mapped onto the PC clock with the offset estimated against ``%time``
+(:func:`~ipromp_pin.preprocess.estimate_clock_offset`; about +0.02-0.05 s for
+the robot in this session, ~0 for the Myo). The tracked frames have no stamps
+(header stamp 0) and use ``field.header.stamp``. Then all streams are resampled
+onto a uniform ``rate_hz`` grid spanning their overlap, ``t`` from 0.
+
+Tracked frames. Which ``transformsK`` holds which frame is read from its
+``child_frame_id`` per row (rows may list fewer frames). A requested frame
+(``frames=["/left_hand_1"]``) becomes a group of positions x, y, z [m] in the
+``frame_id`` frame (``/base``, Baxter's base frame). Samples are missing (NaN in
+the group, True in ``Demo.missing``) where the frame is not listed, its
+transform is all zeros (the recorders' publishing bug), or it jumps: more than
+:data:`JUMP_THRESHOLD_M` from the component-wise median of the
+:data:`JUMP_WINDOW` valid samples centred on it (an isolated spike of at most 2
+samples; the tracker's genuine catch-up steps after a stall, up to ~0.4 m
+between rows in these recordings, persist and are kept). A grid sample is
+missing when a neighbouring source sample is.
+
+Groups: ``"emg"`` (envelope, as for chen2017), ``"orientation"`` (``imuStates
+.orientation`` raw Myo ints / 16384, here the fields are labelled correctly:
+w = ``orientation.w``, checked against the accelerometer's gravity direction,
+|cos| = 0.999), ``"acc"`` ([g]), the requested frames, ``"robot"``.
+Extras: ``"endpoint_pose"`` (T, 7) and ``"hand_position"`` (T, 3): the human hand
+frame (``/left_hand_1`` or ``/right_hand_1``, whichever ends closer to the robot's
+end-point; in this session always ``/left_hand_1``), gaps linearly filled
+(extras are for previews).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from ..data import ROBOT, Demo
+from ..exceptions import DataError
+from ..preprocess import (
+    DEFAULT_EMG_CUTOFF_HZ,
+    Stream,
+    align_streams,
+    emg_envelope,
+    estimate_clock_offset,
+    quaternion_continuity,
+)
+from ._common import (
+    ACC_CHANNELS,
+    BAXTER_LEFT_JOINTS,
+    EMG_CHANNELS,
+    MYO_ACCELEROMETER_SCALE,
+    MYO_ORIENTATION_SCALE,
+    ORIENTATION_CHANNELS,
+    CsvTable,
+    select_joint_messages,
+)
+
+FILE_NAME = "multiModal_states.csv"
+JUMP_THRESHOLD_M = 0.25
+"""A tracked position farther than this from the median of its neighbours is a jump (missing), in [m]."""
+JUMP_WINDOW = 5
+"""Number of valid samples (centred) whose median a tracked position is compared with."""
+HAND_FRAMES = ("/left_hand_1", "/right_hand_1")
+N_TRANSFORMS_MAX = 64
+
+P = "field."
+
+
+def is_multimodal_folder(folder: Path) -> bool:
+    """Whether ``folder`` holds ``csv/<stamp>/multiModal_states.csv`` demos."""
+    csv_dir = Path(folder) / "csv"
+    return csv_dir.is_dir() and any(csv_dir.glob(f"*/{FILE_NAME}"))
+
+
+def list_demos(folder: Path, order: str = "config") -> list[Path]:
+    """The demo files of a task folder, by stamp (there is no cfg file in this format)."""
+    if order not in ("config", "recorded"):
+        raise DataError(folder, "order", f"unknown demo order {order!r} (use 'config' or 'recorded')")
+    return sorted((Path(folder) / "csv").glob(f"*/{FILE_NAME}"))
+
+
+def _stamps(table: CsvTable, column: str) -> np.ndarray:
+    """Header stamps in [s] (ROS ``rostopic -p`` writes nanoseconds)."""
+    v = table.numbers([column])[:, 0]
+    return v * 1e-9
+
+
+def _sub_stream(
+    table: CsvTable,
+    stamp_column: str,
+    columns: Sequence[str],
+    receive: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(header stamps, receive times, values) of a bundled message, without never-received rows."""
+    header = _stamps(table, stamp_column)
+    values = table.numbers(columns)
+    ok = header > 0
+    if not np.any(ok):
+        raise DataError(table.path, stamp_column, "no message of this stream was received (all stamps 0)")
+    return header[ok], receive[ok], values[ok]
+
+
+def _find_transforms(table: CsvTable) -> list[str]:
+    prefixes = []
+    for k in range(N_TRANSFORMS_MAX):
+        p = f"{P}tf_of_interest.transforms{k}."
+        if table.has(p + "child_frame_id"):
+            prefixes.append(p)
+    return prefixes
+
+
+def _frame_positions(table: CsvTable, prefixes: list[str], frame: str) -> np.ndarray | None:
+    """Positions (N, 3) of ``frame`` with NaN where it is not listed or all-zero; None if never listed."""
+    n = len(table)
+    pos = np.full((n, 3), np.nan)
+    found = False
+    for p in prefixes:
+        ids = table.text(p + "child_frame_id")
+        rows = [i for i, s in enumerate(ids) if s.strip() == frame]
+        if not rows:
+            continue
+        found = True
+        cols = [p + f"transform.translation.{a}" for a in "xyz"] + [
+            p + f"transform.rotation.{a}" for a in "xyzw"
+        ]
+        idx = [table._index.get(c) for c in cols]
+        for c, i in zip(cols, idx, strict=True):
+            if i is None:
+                raise DataError(table.path, c, "missing column")
+        try:
+            v = np.array([[table.rows[r][i] for i in idx] for r in rows], dtype=float)
+        except ValueError:
+            raise DataError(table.path, p + "transform", f"non-numeric value for frame {frame!r}") from None
+        zero = np.all(v == 0.0, axis=1)
+        v[zero] = np.nan
+        pos[rows] = v[:, :3]
+    return pos if found else None
+
+
+def flag_jumps(
+    pos: np.ndarray, threshold_m: float = JUMP_THRESHOLD_M, window: int = JUMP_WINDOW
+) -> np.ndarray:
+    """Mask (N,) of tracked positions (N, 3) farther than ``threshold_m`` from the median of the
+    ``window`` valid samples centred on them (isolated spikes); NaN rows are not flagged."""
+    valid = np.flatnonzero(np.all(np.isfinite(pos), axis=1))
+    out = np.zeros(pos.shape[0], dtype=bool)
+    if valid.size < 3:
+        return out
+    v = pos[valid]
+    h = window // 2
+    padded = np.concatenate([np.repeat(v[:1], h, 0), v, np.repeat(v[-1:], h, 0)])
+    windows = np.stack([padded[i : i + v.shape[0]] for i in range(window)], axis=0)
+    med = np.median(windows, axis=0)
+    out[valid] = np.linalg.norm(v - med, axis=1) > threshold_m
+    return out
+
+
+def _fill_gaps(t: np.ndarray, x: np.ndarray) -> np.ndarray:
+    ok = np.all(np.isfinite(x), axis=1)
+    if ok.all() or ok.sum() < 2:
+        return x
+    return np.stack([np.interp(t, t[ok], x[ok, j]) for j in range(x.shape[1])], axis=1)
+
+
+def read_demo(
+    path: Path,
+    task: str | None = None,
+    *,
+    frames: Sequence[str] | None = None,
+    rate_hz: float = 50.0,
+    robot_joints: Sequence[str] = BAXTER_LEFT_JOINTS,
+    emg_cutoff_hz: float = DEFAULT_EMG_CUTOFF_HZ,
+) -> Demo:
+    """Read one ``multiModal_states.csv`` demo.
+
+    Args:
+        path: The CSV file or its folder ``<task>/csv/<stamp>``.
+        task: Task name (default: the task folder's name).
+        frames: Tracked frames (``child_frame_id``) to add as human position groups.
+        rate_hz: Output sampling rate in [Hz].
+        robot_joints: Joint names of the robot group, in the wanted order.
+        emg_cutoff_hz: EMG envelope cut-off in [Hz].
+    """
+    path = Path(path)
+    if path.is_dir():
+        path = path / FILE_NAME
+    table = CsvTable(path)
+    if len(table) < 2:
+        raise DataError(path, None, f"a demo needs at least 2 messages, got {len(table)}")
+    src = str(path)
+    receive = _stamps(table, "%time")
+    pc_stamp = _stamps(table, P + "header.stamp")
+
+    emg_h, emg_r, emg = _sub_stream(
+        table, P + "emgStates.header.stamp", [f"{P}emgStates.ch{i}" for i in range(8)], receive
+    )
+    imu_cols = [f"{P}imuStates.orientation.{a}" for a in "wxyz"]
+    imu_cols += [f"{P}imuStates.linear_acceleration.{a}" for a in "xyz"]
+    imu_h, imu_r, imu = _sub_stream(table, P + "imuStates.header.stamp", imu_cols, receive)
+    ep_cols = [f"{P}endpointStates.pose.position.{a}" for a in "xyz"]
+    ep_cols += [f"{P}endpointStates.pose.orientation.{a}" for a in "xyzw"]
+    ep_h, ep_r, ep = _sub_stream(table, P + "endpointStates.header.stamp", ep_cols, receive)
+
+    # Joints by name, per row.
+    name_cols = []
+    k = 0
+    while table.has(f"{P}jointStates.name{k}"):
+        name_cols.append(f"{P}jointStates.name{k}")
+        k += 1
+    if not name_cols:
+        raise DataError(path, P + "jointStates.name0", "missing column")
+    name_text = [table.text(c) for c in name_cols]
+    names_per_row = [tuple(n[r] for n in name_text if n[r]) for r in range(len(table))]
+    keep, cols = select_joint_messages(path, names_per_row, robot_joints)
+    pos_cols = [f"{P}jointStates.position{k}" for k in range(len(name_cols))]
+    layout_len = len(names_per_row[int(np.flatnonzero(keep)[0])])
+    jpos = table.numbers(pos_cols[:layout_len])
+    j_h_all = _stamps(table, P + "jointStates.header.stamp")
+    keep &= j_h_all > 0
+    j_h, j_r, jpos = j_h_all[keep], receive[keep], jpos[keep][:, cols]
+
+    # Orientation sanity (raw Myo ints).
+    q = imu[:, :4] / MYO_ORIENTATION_SCALE
+    norm = np.linalg.norm(q, axis=1)
+    bad = np.flatnonzero(~(np.abs(norm - 1.0) < 0.1))
+    if bad.size:
+        raise DataError(
+            path,
+            P + "imuStates.orientation",
+            f"{bad.size} quaternions whose norm is not 1 after the Myo scaling 1/{MYO_ORIENTATION_SCALE:g} "
+            f"(first: {norm[bad[0]]:.3f} in row {bad[0] + 2})",
+        )
+
+    def on_pc(h: np.ndarray, r: np.ndarray) -> np.ndarray:
+        return h - estimate_clock_offset(h, r)
+
+    streams = {
+        "emg": Stream(on_pc(emg_h, emg_r), emg, EMG_CHANNELS, "previous", src),
+        "orientation": Stream(
+            on_pc(imu_h, imu_r), quaternion_continuity(q), ORIENTATION_CHANNELS, "quaternion", src
+        ),
+        "acc": Stream(
+            on_pc(imu_h, imu_r), imu[:, 4:7] / MYO_ACCELEROMETER_SCALE, ACC_CHANNELS, "linear", src
+        ),
+        ROBOT: Stream(on_pc(j_h, j_r), jpos, tuple(robot_joints), "linear", src),
+        "endpoint_position": Stream(on_pc(ep_h, ep_r), ep[:, :3], ("x", "y", "z"), "linear", src),
+        "endpoint_orientation": Stream(
+            on_pc(ep_h, ep_r), ep[:, 3:7], ("qx", "qy", "qz", "qw"), "quaternion", src
+        ),
+    }
+    sk_t = on_pc(pc_stamp, receive)
+    prefixes = _find_transforms(table)
+    frames = list(frames or [])
+    reserved = set(streams) | {"hand_position"}
+    for f in frames:
+        if f in reserved:
+            raise DataError(path, f, "frame name clashes with a channel group name")
+    skeleton: dict[str, np.ndarray] = {}
+    for f in dict.fromkeys(frames + list(HAND_FRAMES)):
+        p = _frame_positions(table, prefixes, f)
+        if p is None:
+            if f in frames:
+                available = sorted({s for pr in prefixes for s in table.text(pr + "child_frame_id") if s})
+                raise DataError(path, f, f"frame never tracked (child_frame_ids: {', '.join(available)})")
+            continue
+        p[flag_jumps(p)] = np.nan
+        if np.sum(np.all(np.isfinite(p), axis=1)) < 2:
+            if f in frames:
+                raise DataError(path, f, "fewer than 2 valid samples of the frame")
+            continue
+        skeleton[f] = p
+        streams["frame:" + f] = Stream(sk_t, p, ("x", "y", "z"), "linear", src, allow_missing=True)
+
+    t, values, _ = align_streams(streams, rate_hz, src)
+    dt = 1.0 / rate_hz
+    groups = {
+        "orientation": values["orientation"],
+        "emg": emg_envelope(values["emg"], dt, emg_cutoff_hz),
+        "acc": values["acc"],
+    }
+    names = {"orientation": ORIENTATION_CHANNELS, "emg": EMG_CHANNELS, "acc": ACC_CHANNELS}
+    missing = {}
+    for f in frames:
+        v = values["frame:" + f]
+        groups[f] = v
+        names[f] = ("x", "y", "z")
+        m = ~np.all(np.isfinite(v), axis=1)
+        if m.all():
+            raise DataError(path, f, "frame missing over the whole demo")
+        v[m] = np.nan
+        if m.any():
+            missing[f] = m
+    groups[ROBOT] = values[ROBOT]
+    names[ROBOT] = tuple(robot_joints)
+    endpoint = np.hstack([values["endpoint_position"], values["endpoint_orientation"]])
+    extras = {"endpoint_pose": endpoint}
+    best, best_d = None, np.inf
+    for f in HAND_FRAMES:
+        v = values.get("frame:" + f)
+        if v is None:
+            continue
+        tail = slice(int(0.8 * t.size), None)
+        d = np.linalg.norm(v[tail] - endpoint[tail, :3], axis=1)
+        d = float(np.nanmedian(d)) if np.any(np.isfinite(d)) else np.inf
+        if d < best_d:
+            best, best_d = v, d
+    if best is not None and np.sum(np.all(np.isfinite(best), axis=1)) >= 2:
+        extras["hand_position"] = _fill_gaps(t, best)
+    return Demo(
+        task=task if task is not None else path.parent.parent.parent.name,
+        name=path.parent.name,
+        source=src,
+        t=t,
+        groups=groups,
+        channel_names=names,
+        missing=missing,
+        extras=extras,
+    )

@@ -1,0 +1,325 @@
+"""The project's own demo format: one file per demo, ``.npz`` or ``.csv``.
+
+A dataset is a folder with one sub-folder per task; each task folder holds one
+file per demo, named ``<demo name>.npz`` or ``<demo name>.csv`` (demos are
+ordered by file name). Both forms hold the same content:
+
+* ``t``: sample times in [s], strictly increasing and uniformly spaced (the
+  reader shifts them to start at 0; the spacing may deviate by at most 1 %);
+* per channel group (``"orientation"``, ``"emg"``, ``"robot"``, a skeleton frame
+  such as ``"/left_hand_1"`` ...): its values (T, D) and channel names, and
+  optionally a missing-sample mask (T,) (values there may be NaN; any other
+  NaN is an error);
+* optional extras: ``endpoint_pose`` (T, 7) (x, y, z [m], quaternion x, y, z, w),
+  ``hand_position`` (T, 3) [m], or any other (T, K) array.
+
+Units are those of :class:`~ipromp_pin.data.Demo`: joint angles in [rad],
+positions in [m], the orientation a unit quaternion (qw, qx, qy, qz), the EMG
+an envelope (readers do not filter native demos again).
+
+``.npz`` (``numpy.savez_compressed``; read with ``allow_pickle=False``, so
+only plain numeric and unicode arrays), keys:
+
+=====================  ===========================================================
+``format``             ``"ipromp_pin.demo"`` (0-d unicode)
+``version``            ``1`` (0-d int)
+``task``, ``name``     0-d unicode (the task folder / file name win when they differ)
+``duration_s``         0-d float: full duration in [s] (may exceed ``t`` for a partial demo)
+``t``                  (T,) float
+``groups``             (G,) unicode: group names, in order
+``group<i>``           (T, D_i) float: values of ``groups[i]``
+``group<i>_channels``  (D_i,) unicode: channel names
+``group<i>_missing``   (T,) bool, optional
+``extras``             (E,) unicode: extra names
+``extra<j>``           (T, ...) float
+=====================  ===========================================================
+
+``.csv``: one header line of column names, then one row per sample, ``.``
+as decimal separator, ``,`` as delimiter:
+
+* ``t`` first;
+* ``<group>.<channel>`` per channel, e.g. ``orientation.qw``, ``emg.emg0``,
+  ``robot.left_s0``, ``/left_hand_1.x`` (the group is everything before the
+  last ``.``; groups appear in column order);
+* ``<group>.missing`` (0/1), optional: 1 marks a missing sample (its values
+  may be empty or ``nan``);
+* ``extras:<name>.<k>`` for column k of an extra, e.g. ``extras:endpoint_pose.0``.
+
+Lines starting with ``#`` are comments. Example::
+
+    t,orientation.qw,orientation.qx,orientation.qy,orientation.qz,emg.emg0,...,robot.left_s0,...
+    0.0,0.95,0.1,0.2,0.2,31.0,...,-0.84,...
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import zipfile
+from pathlib import Path
+
+import numpy as np
+
+from ..data import Dataset, Demo
+from ..exceptions import DataError
+
+FORMAT_TAG = "ipromp_pin.demo"
+VERSION = 1
+UNIFORM_TOLERANCE = 0.01
+"""Maximum relative deviation of a native demo's sample spacing from its median."""
+SUFFIXES = (".npz", ".csv")
+
+
+def is_native_folder(folder: Path) -> bool:
+    """Whether ``folder`` holds native demo files (``*.npz``, or ``*.csv`` whose first column is ``t``)."""
+    folder = Path(folder)
+    if any(folder.glob("*.npz")):
+        return True
+    for p in folder.glob("*.csv"):
+        try:
+            with open(p, newline="") as fh:
+                for line in fh:
+                    if not line.startswith("#"):
+                        return line.split(",")[0].strip() == "t"
+        except (OSError, UnicodeDecodeError):
+            continue
+    return False
+
+
+def list_demos(folder: Path, order: str = "config") -> list[Path]:
+    """Demo files of a task folder, by file name.
+
+    Raises:
+        DataError: a demo exists both as ``.npz`` and ``.csv``.
+    """
+    if order not in ("config", "recorded"):
+        raise DataError(folder, "order", f"unknown demo order {order!r} (use 'config' or 'recorded')")
+    files = sorted(p for p in Path(folder).iterdir() if p.suffix in SUFFIXES and p.is_file())
+    stems: dict[str, Path] = {}
+    for p in files:
+        if p.stem in stems:
+            raise DataError(p, None, f"demo {p.stem!r} exists as both {stems[p.stem].name} and {p.name}")
+        stems[p.stem] = p
+    return files
+
+
+# ------------------------------------------------------------------------------------------ writing
+def write_demo(demo: Demo, path: str | Path) -> Path:
+    """Write a demo as ``.npz`` or ``.csv`` (chosen by the suffix of ``path``); returns the path."""
+    path = Path(path)
+    if path.suffix == ".npz":
+        arrays: dict[str, np.ndarray] = {
+            "format": np.array(FORMAT_TAG),
+            "version": np.array(VERSION),
+            "task": np.array(demo.task),
+            "name": np.array(demo.name),
+            "duration_s": np.array(float(demo.duration_s)),
+            "t": demo.t,
+            "groups": np.array(list(demo.groups), dtype=str),
+            "extras": np.array(list(demo.extras), dtype=str),
+        }
+        for i, (g, v) in enumerate(demo.groups.items()):
+            arrays[f"group{i}"] = v
+            arrays[f"group{i}_channels"] = np.array(demo.channel_names[g], dtype=str)
+            if g in demo.missing:
+                arrays[f"group{i}_missing"] = np.asarray(demo.missing[g], dtype=bool)
+        for j, v in enumerate(demo.extras.values()):
+            arrays[f"extra{j}"] = np.asarray(v, dtype=float)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        np.savez_compressed(path, **arrays)
+        return path
+    if path.suffix == ".csv":
+        header = ["t"]
+        cols = [demo.t[:, None]]
+        for g, v in demo.groups.items():
+            header += [f"{g}.{c}" for c in demo.channel_names[g]]
+            cols.append(v)
+            if g in demo.missing:
+                header.append(f"{g}.missing")
+                cols.append(np.asarray(demo.missing[g], dtype=float)[:, None])
+        for name, v in demo.extras.items():
+            v = np.asarray(v, dtype=float).reshape(demo.n_samples, -1)
+            header += [f"extras:{name}.{k}" for k in range(v.shape[1])]
+            cols.append(v)
+        data = np.hstack(cols)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with open(path, "w", newline="") as fh:
+            fh.write(",".join(header) + "\n")
+            np.savetxt(fh, data, delimiter=",", fmt="%.12g")
+        return path
+    raise DataError(path, None, "native demos are .npz or .csv files")
+
+
+def write_dataset(dataset: Dataset, folder: str | Path, suffix: str = ".npz") -> list[Path]:
+    """Write every demo of a dataset as ``<folder>/<task>/<name><suffix>``."""
+    folder = Path(folder)
+    return [
+        write_demo(d, folder / task / f"{d.name.replace('/', '_')}{suffix}")
+        for task, demos in dataset.demos.items()
+        for d in demos
+    ]
+
+
+# ------------------------------------------------------------------------------------------ reading
+def _check_time(path: Path, t: np.ndarray) -> np.ndarray:
+    t = np.asarray(t, dtype=float)
+    if t.ndim != 1:
+        raise DataError(path, "t", f"must be 1-D, got shape {t.shape}")
+    if t.size < 2:
+        raise DataError(path, "t", f"a demo needs at least 2 samples, got {t.size}")
+    if not np.all(np.isfinite(t)):
+        raise DataError(path, "t", "contains NaN or inf")
+    dt = np.diff(t)
+    if np.any(dt <= 0):
+        k = int(np.flatnonzero(dt <= 0)[0])
+        raise DataError(path, "t", f"not strictly increasing at sample {k + 1} (t={t[k + 1]})")
+    med = float(np.median(dt))
+    if np.max(np.abs(dt - med)) > UNIFORM_TOLERANCE * med:
+        raise DataError(path, "t", f"not uniformly spaced (median step {med:g} s; resample the demo first)")
+    return t - t[0]
+
+
+def _read_npz(path: Path, task: str | None) -> Demo:
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            data = {k: z[k] for k in z.files}
+    except (OSError, ValueError, zipfile.BadZipFile, EOFError) as exc:
+        raise DataError(path, None, f"corrupt or truncated .npz file ({exc})") from None
+
+    def get(key: str) -> np.ndarray:
+        if key not in data:
+            raise DataError(path, key, "missing array")
+        return data[key]
+
+    fmt = str(data.get("format", np.array("")))
+    if fmt != FORMAT_TAG:
+        raise DataError(path, "format", f"not an ipromp_pin demo file (format {fmt!r})")
+    version = int(get("version"))
+    if version > VERSION:
+        raise DataError(path, "version", f"written by a newer ipromp_pin (version {version} > {VERSION})")
+    t = _check_time(path, get("t"))
+    groups, names, missing = {}, {}, {}
+    for i, g in enumerate(get("groups").tolist()):
+        v = np.asarray(get(f"group{i}"), dtype=float)
+        if v.ndim != 2 or v.shape[0] != t.size:
+            raise DataError(path, g, f"values of shape {v.shape} do not match {t.size} samples")
+        groups[g] = v
+        names[g] = tuple(get(f"group{i}_channels").tolist())
+        if f"group{i}_missing" in data:
+            missing[g] = np.asarray(data[f"group{i}_missing"], dtype=bool)
+    extras = {n: np.asarray(get(f"extra{j}"), dtype=float) for j, n in enumerate(get("extras").tolist())}
+    for n, v in extras.items():
+        if v.shape[:1] != (t.size,):
+            raise DataError(path, f"extras:{n}", f"shape {v.shape} does not match {t.size} samples")
+    duration = float(get("duration_s")) if "duration_s" in data else None
+    if duration is not None and not (np.isfinite(duration) and duration >= t[-1] - 1e-9):
+        raise DataError(path, "duration_s", f"{duration} is shorter than the demo's {t[-1]:.3f} s")
+    return Demo(
+        task=task if task is not None else path.parent.name,
+        name=path.stem,
+        source=str(path),
+        t=t,
+        groups=groups,
+        channel_names=names,
+        missing=missing,
+        extras=extras,
+        duration_s=duration,
+    )
+
+
+def _read_csv(path: Path, task: str | None) -> Demo:
+    try:
+        text = path.read_text()
+    except FileNotFoundError:
+        raise DataError(path, None, "file not found") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise DataError(path, None, f"cannot read: {exc}") from None
+    lines = [ln for ln in text.splitlines() if ln.strip() and not ln.startswith("#")]
+    if not lines:
+        raise DataError(path, None, "empty file (no header line)")
+    rows = list(csv.reader(io.StringIO("\n".join(lines))))
+    header = [h.strip() for h in rows[0]]
+    body = rows[1:]
+    if not header or header[0] != "t":
+        raise DataError(path, "t", "the first column must be 't'")
+    if len(set(header)) != len(header):
+        dup = next(h for h in header if header.count(h) > 1)
+        raise DataError(path, dup, "column appears twice")
+    for k, r in enumerate(body):
+        if len(r) != len(header):
+            raise DataError(
+                path, f"line {k + 2}", f"has {len(r)} fields, the header has {len(header)} (truncated?)"
+            )
+    if len(body) < 2:
+        raise DataError(path, None, f"a demo needs at least 2 samples, got {len(body)}")
+    try:
+        data = np.array([[float(x) if x.strip() else np.nan for x in r] for r in body])
+    except ValueError:
+        for k, r in enumerate(body):
+            for h, x in zip(header, r, strict=True):
+                try:
+                    float(x) if x.strip() else None
+                except ValueError:
+                    raise DataError(path, h, f"line {k + 2}: not a number: {x!r}") from None
+        raise
+    t = _check_time(path, data[:, 0])
+    groups: dict[str, list[tuple[str, int]]] = {}
+    missing_col: dict[str, int] = {}
+    extras: dict[str, list[int]] = {}
+    for j, h in enumerate(header[1:], start=1):
+        if h.startswith("extras:"):
+            name = h[len("extras:") :].rsplit(".", 1)[0]
+            extras.setdefault(name, []).append(j)
+            continue
+        if "." not in h:
+            raise DataError(path, h, "column name is not '<group>.<channel>'")
+        g, c = h.rsplit(".", 1)
+        if c == "missing":
+            missing_col[g] = j
+        else:
+            groups.setdefault(g, []).append((c, j))
+    if not groups:
+        raise DataError(path, None, "no channel columns")
+    values, names, missing = {}, {}, {}
+    for g, chans in groups.items():
+        values[g] = data[:, [j for _, j in chans]]
+        names[g] = tuple(c for c, _ in chans)
+        if g in missing_col:
+            m = data[:, missing_col[g]]
+            if not np.all(np.isin(m, (0.0, 1.0))):
+                raise DataError(path, f"{g}.missing", "must be 0 or 1")
+            missing[g] = m.astype(bool)
+    for g in missing_col:
+        if g not in groups:
+            raise DataError(path, f"{g}.missing", "missing-sample column of a group without channels")
+    ex = {}
+    for name, cols in extras.items():
+        v = data[:, cols]
+        ex[name] = v
+    return Demo(
+        task=task if task is not None else path.parent.name,
+        name=path.stem,
+        source=str(path),
+        t=t,
+        groups=values,
+        channel_names=names,
+        missing=missing,
+        extras=ex,
+    )
+
+
+def read_demo(path: str | Path, task: str | None = None) -> Demo:
+    """Read one native demo (``.npz`` or ``.csv``).
+
+    Args:
+        path: The demo file.
+        task: Task name (default: the folder's name).
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise DataError(path, None, "file not found")
+    if path.suffix == ".npz":
+        return _read_npz(path, task)
+    if path.suffix == ".csv":
+        return _read_csv(path, task)
+    raise DataError(path, None, "native demos are .npz or .csv files")

@@ -1,0 +1,729 @@
+"""Multi-task EMG-augmented Interaction ProMP: task recognition, phase estimation and robot prediction.
+
+:class:`IProMP` learns one :class:`~ipromp_pin.model.TaskModel` per task from
+demonstrations (observed human channel groups + the robot's joint angles) and,
+from the first part of a new human motion (times from motion start; the total
+duration is unknown), computes
+
+1. per task the phase posterior over ``n_alpha`` candidates of
+   ``alpha = T / T_norm`` (exact marginal likelihood, :mod:`ipromp_pin.phase`),
+   refined to a continuous MAP estimate by a parabola;
+2. the task posterior ``p(k | obs)`` in log space: task prior times the
+   likelihood marginalised over the phase candidates (log-sum-exp);
+3. for the most probable task, the Gaussian conditioning of its weight
+   distribution on the observation at the MAP phase, giving the robot joint
+   trajectory (mean and covariance, in [rad]) over ``t in [0, alpha T_norm]``.
+
+Noise ratio. ``noise="auto"`` chooses the observation-noise ratio ``nu``
+(``r_d = nu delta_d``) among ``NOISE_GRID`` by leave-one-out cross-validation on
+the training demos only: every training demo is in turn removed from its task's
+model, its first 10 % and 20 % are observed, and the score is the mean log
+posterior of its true task plus the mean log posterior density of its true
+phase. A too-small ``nu`` makes the phase estimate overconfident (worse than the
+prior alone); a too-large one ignores the observation.
+
+:func:`direct_predict` is the textbook reference implementation (dense
+block-diagonal observation matrix, full covariance ``Phi Sigma Phi^T + R`` per
+candidate, dense conditioning) used by the tests and the benchmark to check the
+fast path.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from scipy.linalg import cho_factor, cho_solve, solve_triangular
+
+from .basis import GaussianBasis
+from .data import ROBOT, Dataset, Demo, group_by_task, parse_groups
+from .exceptions import DataError, ModelError, NotFittedError, ObservationError
+from .model import (
+    ChannelScaler,
+    TaskModel,
+    alpha_candidates,
+    alpha_prior,
+    fit_demo_weights,
+    shrink_covariance,
+)
+from .phase import LOG_2PI, ObservationPart, candidate_terms, log_prior_density, refine_peak
+
+NOISE_GRID = (0.01, 0.03, 0.1, 0.3, 1.0, 3.0, 10.0)
+"""Candidate noise ratios ``nu`` for ``noise="auto"``."""
+
+CV_RATIOS = (0.1, 0.2)
+"""Observed fractions of the held-out demo used by the noise cross-validation."""
+
+
+@dataclass
+class Recognition:
+    """Task posterior and phase estimates for a partial observation.
+
+    Attributes:
+        task: Most probable task.
+        tasks: All task names (order of the arrays below).
+        log_posterior: (K,) normalised log p(task | observation).
+        posterior: (K,) p(task | observation).
+        alpha: (K,) MAP phase ``T / T_norm`` per task (refined between candidates).
+        duration_s: Predicted total duration of the most probable task's motion, in [s].
+        observed_until_s: Time of the last observed sample, in [s] from motion start.
+        phase_grid: (K, n_alpha) phase candidates per task.
+        phase_log_post: (K, n_alpha) normalised log posterior of the candidates.
+        log_evidence: (K,) log p(observation | task).
+    """
+
+    task: str
+    tasks: list[str]
+    log_posterior: np.ndarray
+    posterior: np.ndarray
+    alpha: np.ndarray
+    duration_s: float
+    observed_until_s: float
+    phase_grid: np.ndarray
+    phase_log_post: np.ndarray
+    log_evidence: np.ndarray
+
+
+@dataclass
+class Prediction(Recognition):
+    """Recognition plus the conditioned robot (and human) trajectory of the most probable task.
+
+    Attributes:
+        t: (M,) robot time in [s] from motion start, spanning [0, duration_s].
+        q_mean: (M, J) predicted robot joint angles in [rad].
+        q_cov: (M, J, J) their covariance in [rad^2].
+        q_prior_mean: (M, J) unconditioned mean of the task on the same time grid, in [rad].
+        q_prior_std: (M, J) unconditioned standard deviation, in [rad].
+        joint_names: Robot joint names.
+        human_mean: Observed group -> predicted (conditioned) human channels (M, D) in original units.
+    """
+
+    t: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    q_mean: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+    q_cov: np.ndarray = field(default_factory=lambda: np.zeros((0, 0, 0)))
+    q_prior_mean: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+    q_prior_std: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+    joint_names: tuple[str, ...] = ()
+    human_mean: dict[str, np.ndarray] = field(default_factory=dict)
+    _w_mean: np.ndarray | None = field(default=None, repr=False)
+    _w_diag: np.ndarray | None = field(default=None, repr=False)
+    _w_factor: np.ndarray | None = field(default=None, repr=False)
+    _phi: np.ndarray | None = field(default=None, repr=False)
+    _offset: np.ndarray | None = field(default=None, repr=False)
+    _scale: np.ndarray | None = field(default=None, repr=False)
+
+    def sample_q(self, n: int, rng: np.random.Generator | int | None = None) -> np.ndarray:
+        """Draw ``n`` robot trajectories (n, M, J) in [rad] from the conditioned weight posterior."""
+        rng = np.random.default_rng(rng)
+        j, k, r = self._w_factor.shape
+        xi = rng.standard_normal((n, j, k)) * np.sqrt(self._w_diag)[None, :, None]
+        eta = rng.standard_normal((n, r))
+        w = self._w_mean[None] + xi + np.einsum("jkr,nr->njk", self._w_factor, eta)
+        q = np.einsum("mk,njk->nmj", self._phi, w)
+        return q * self._scale + self._offset
+
+
+class IProMP:
+    """EMG-augmented Interaction ProMP over several tasks (sklearn-style estimator).
+
+    Args:
+        observe: Observed human channel groups, e.g. ``["orientation", "emg"]`` (or "orientation,emg").
+        n_basis: Number of Gaussian basis functions per channel ``K``.
+        width: Basis width in phase units (default 0.75 x centre spacing).
+        ridge: Relative ridge of the per-demo weight fit.
+        n_alpha: Number of phase candidates per task (>= 50 recommended).
+        alpha_width: Candidates span ``mu +- alpha_width sigma`` of the phase prior.
+        noise: Noise ratio ``nu`` (float > 0) or ``"auto"`` (leave-one-out CV over NOISE_GRID).
+        n_points: Number M of points of the predicted trajectories.
+        task_prior: Prior task probabilities (task -> p, or None for uniform).
+        robot_group: Name of the robot's joint-angle group.
+
+    Fitted attributes:
+        tasks_: Task names.
+        models_: Task name -> :class:`~ipromp_pin.model.TaskModel`.
+        basis_: The :class:`~ipromp_pin.basis.GaussianBasis`.
+        scaler_: Per-channel :class:`~ipromp_pin.model.ChannelScaler` (all dims, observed then robot).
+        groups_: Modelled groups (observed then robot); ``group_slices_`` their dim ranges.
+        channel_names_: Group -> channel names.
+        duration_nominal_s_: ``T_norm`` in [s] (mean training duration).
+        noise_ratio_: Chosen ``nu``; ``noise_var_`` task -> (D_obs,) noise variances (scaled units).
+        cv_scores_: ``nu`` -> CV score (only with ``noise="auto"``).
+        task_log_prior_: (K,) log task prior.
+        residual_var_: (D,) mean per-sample residual variance of the basis fit (scaled units).
+    """
+
+    def __init__(
+        self,
+        observe: Iterable[str] | str = ("orientation", "emg"),
+        n_basis: int = 31,
+        width: float | None = None,
+        ridge: float = 1e-6,
+        n_alpha: int = 60,
+        alpha_width: float = 3.0,
+        noise: float | str = "auto",
+        n_points: int = 100,
+        task_prior: Mapping[str, float] | None = None,
+        robot_group: str = ROBOT,
+    ) -> None:
+        self.observe = parse_groups(observe)
+        self.n_basis = n_basis
+        self.width = width
+        self.ridge = ridge
+        self.n_alpha = n_alpha
+        self.alpha_width = alpha_width
+        self.noise = noise
+        self.n_points = n_points
+        self.task_prior = None if task_prior is None else dict(task_prior)
+        self.robot_group = robot_group
+        if robot_group in self.observe:
+            raise ModelError(f"the robot group '{robot_group}' cannot be an observed group")
+        if not (isinstance(noise, str) and noise == "auto"):
+            if isinstance(noise, str) or not (float(noise) > 0 and np.isfinite(float(noise))):
+                raise ModelError(f"noise must be 'auto' or a positive float, got {noise!r}")
+        if int(n_alpha) != n_alpha or n_alpha < 3:
+            raise ModelError(f"n_alpha must be an integer >= 3, got {n_alpha!r}")
+        if int(n_points) != n_points or n_points < 2:
+            raise ModelError(f"n_points must be an integer >= 2, got {n_points!r}")
+
+    # ------------------------------------------------------------------ fit
+    def fit(self, data: Dataset | Iterable[Demo]) -> IProMP:
+        """Learn the scaling, per-task weight distributions, phase priors and noise ratio.
+
+        Args:
+            data: A :class:`~ipromp_pin.data.Dataset` or demos (grouped by ``demo.task``).
+        """
+        by_task = dict(data.demos) if isinstance(data, Dataset) else dict(group_by_task(data))
+        if not by_task:
+            raise DataError(None, "demos", "no demonstrations to fit")
+        groups = [*self.observe, self.robot_group]
+        for task, demos in by_task.items():
+            if len(demos) < 2:
+                src = demos[0].source if demos else None
+                raise DataError(src, "task", f"task '{task}' has {len(demos)} demo(s); at least 2 are needed")
+        names: dict[str, tuple[str, ...]] = {}
+        for demos in by_task.values():
+            for d in demos:
+                d.require(groups)
+                for g in groups:
+                    ref = names.setdefault(g, tuple(d.channel_names[g]))
+                    if tuple(d.channel_names[g]) != ref:
+                        raise DataError(
+                            d.source, g, f"channels {d.channel_names[g]} differ from the first demo's {ref}"
+                        )
+        self.groups_ = groups
+        self.channel_names_ = {g: tuple(names[g]) for g in groups}
+        sizes = [len(names[g]) for g in groups]
+        starts = np.concatenate([[0], np.cumsum(sizes)])
+        self.group_slices_ = {g: (int(starts[i]), int(starts[i + 1])) for i, g in enumerate(groups)}
+        self.n_dims_ = int(starts[-1])
+        self.n_obs_dims_ = int(starts[-2])
+        self.joint_names_ = self.channel_names_[self.robot_group]
+        self.basis_ = GaussianBasis(self.n_basis, self.width, self.ridge)
+        all_demos = [d for demos in by_task.values() for d in demos]
+        self.scaler_ = ChannelScaler.fit(np.concatenate([self._stack(d) for d in all_demos]))
+        durations = {task: np.array([d.t[-1] - d.t[0] for d in demos]) for task, demos in by_task.items()}
+        self.duration_nominal_s_ = float(np.mean(np.concatenate(list(durations.values()))))
+        self.tasks_ = list(by_task)
+        weights = {}
+        rss = np.zeros(self.n_dims_)
+        count = np.zeros(self.n_dims_)
+        for task, demos in by_task.items():
+            ws = []
+            for d in demos:
+                w, res, cnt = self._demo_weights(d)
+                ws.append(w)
+                rss += res
+                count += cnt
+            weights[task] = np.stack(ws)
+        self.residual_var_ = rss / np.maximum(count, 1)
+        self._weights = weights
+        self._alphas = {task: durations[task] / self.duration_nominal_s_ for task in self.tasks_}
+        self.models_ = {task: self._task_model(task, weights[task], self._alphas[task]) for task in self.tasks_}
+        self.task_log_prior_ = self._log_task_prior()
+        if isinstance(self.noise, str):
+            self.noise_ratio_, self.cv_scores_ = self._choose_noise(by_task)
+        else:
+            self.noise_ratio_, self.cv_scores_ = float(self.noise), {}
+        self._set_noise()
+        return self
+
+    def _stack(self, d: Demo) -> np.ndarray:
+        cols = []
+        for g in self.groups_:
+            v = d.groups[g]
+            if g in d.missing:
+                v = np.where(d.missing[g][:, None], np.nan, v)
+            cols.append(v)
+        return np.concatenate(cols, axis=1)
+
+    def _demo_weights(self, d: Demo) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        w = np.zeros((self.n_dims_, self.basis_.n_basis))
+        rss = np.zeros(self.n_dims_)
+        cnt = np.zeros(self.n_dims_)
+        for g in self.groups_:
+            lo, hi = self.group_slices_[g]
+            valid = ~d.missing[g] if g in d.missing else None
+            y = self.scaler_.transform(d.groups[g], slice(lo, hi))
+            w[lo:hi], rss[lo:hi] = fit_demo_weights(self.basis_, d.t, y, valid, d.source, g)
+            cnt[lo:hi] = d.n_samples if valid is None else int(np.sum(valid))
+        return w, rss, cnt
+
+    def _task_model(self, task: str, weights: np.ndarray, alphas: np.ndarray) -> TaskModel:
+        cov = shrink_covariance(weights)
+        mu, sigma = alpha_prior(alphas, self.n_alpha)
+        grid, logw = alpha_candidates(mu, sigma, self.n_alpha, self.alpha_width)
+        return TaskModel(
+            task=task,
+            mean=cov.mean,
+            diag=cov.diag,
+            factor=cov.factor,
+            shrinkage=cov.shrinkage,
+            alpha_mu=mu,
+            alpha_sigma=sigma,
+            alpha_grid=grid,
+            alpha_log_prior=logw,
+            train_weights=weights,
+            train_alpha=alphas,
+        )
+
+    def _log_task_prior(self) -> np.ndarray:
+        if self.task_prior is None:
+            return np.full(len(self.tasks_), -np.log(len(self.tasks_)))
+        unknown = set(self.task_prior) - set(self.tasks_)
+        if unknown:
+            raise ModelError(f"task_prior names unknown tasks {sorted(unknown)} (tasks: {self.tasks_})")
+        p = np.array([float(self.task_prior.get(t, 0.0)) for t in self.tasks_])
+        if np.any(p < 0) or not np.any(p > 0) or not np.all(np.isfinite(p)):
+            raise ModelError(f"task_prior must be non-negative with a positive sum, got {self.task_prior}")
+        with np.errstate(divide="ignore"):
+            return np.log(p / p.sum())
+
+    def _set_noise(self) -> None:
+        lo, hi = 0, self.n_obs_dims_
+        self.noise_var_ = {t: self.noise_ratio_ * m.diag[lo:hi] for t, m in self.models_.items()}
+
+    def _choose_noise(self, by_task: Mapping[str, list[Demo]]) -> tuple[float, dict[float, float]]:
+        """Leave-one-out choice of the noise ratio (see the module docstring)."""
+        scores: dict[float, float] = {nu: 0.0 for nu in NOISE_GRID}
+        full = self.models_
+        n_eval = 0
+        try:
+            for task, demos in by_task.items():
+                if len(demos) < 3:
+                    continue
+                ki = self.tasks_.index(task)
+                for i, d in enumerate(demos):
+                    keep = np.arange(len(demos)) != i
+                    models = dict(full)
+                    models[task] = self._task_model(task, self._weights[task][keep], self._alphas[task][keep])
+                    self.models_ = models
+                    for ratio in CV_RATIOS:
+                        try:
+                            obs = d.head(ratio, self.observe)
+                        except ObservationError:
+                            continue
+                        parts, t_last = self._prepare(obs, check_length=False)
+                        alpha_true = self._alphas[task][i]
+                        n_eval += 1
+                        for nu in NOISE_GRID:
+                            rec, grids = self._recognise_parts(parts, t_last, nu, raw=True)
+                            s = rec.log_posterior[ki]
+                            m = models[task]
+                            # log posterior density of the true phase (grid interpolation)
+                            dens = grids[ki] - np.log(m.alpha_grid[1] - m.alpha_grid[0])
+                            s += float(np.interp(alpha_true, m.alpha_grid, dens, left=-50.0, right=-50.0))
+                            scores[nu] += max(float(s), -100.0)
+        finally:
+            self.models_ = full
+        if n_eval == 0:
+            return 1.0, {}
+        scores = {nu: s / n_eval for nu, s in scores.items()}
+        best = max(scores, key=lambda nu: scores[nu])
+        return float(best), scores
+
+    # ---------------------------------------------------------- inference
+    def _check_fitted(self) -> None:
+        if not hasattr(self, "models_"):
+            raise NotFittedError("IProMP is not fitted: call fit() before predict/recognise/stream/save")
+
+    def _prepare(self, obs: Demo, check_length: bool = True) -> tuple[list[ObservationPart], float]:
+        """Validate and scale an observation; group channels that share their sample times."""
+        self._check_fitted()
+        if not isinstance(obs, Demo):
+            raise ObservationError(None, "observation", f"expected a Demo, got {type(obs).__name__}")
+        src = obs.source
+        masks: dict[bytes, tuple[np.ndarray, list[np.ndarray], list[np.ndarray]]] = {}
+        t = obs.t
+        if t[0] < -1e-9:
+            raise ObservationError(src, "t", f"times must start at motion start (>= 0 s), first is {t[0]:.3f} s")
+        for g in self.observe:
+            if g not in obs.groups:
+                raise ObservationError(
+                    src, g, f"observed group missing from the observation (has: {', '.join(sorted(obs.groups))})"
+                )
+            v = obs.groups[g]
+            lo, hi = self.group_slices_[g]
+            if v.shape[1] != hi - lo:
+                raise ObservationError(
+                    src, g, f"has {v.shape[1]} channels, the model expects {hi - lo} {self.channel_names_[g]}"
+                )
+            valid = ~obs.missing[g] if g in obs.missing else np.ones(t.size, dtype=bool)
+            if not np.all(np.isfinite(v[valid])):
+                raise ObservationError(src, g, "NaN or inf values in samples not flagged as missing")
+            if not np.any(valid):
+                continue
+            key = valid.tobytes()
+            entry = masks.setdefault(key, (valid, [], []))
+            entry[1].append(np.arange(lo, hi))
+            entry[2].append(self.scaler_.transform(v[valid], slice(lo, hi)))
+        parts = [
+            ObservationPart(t=t[valid], dims=np.concatenate(dims), y=np.concatenate(ys, axis=1))
+            for valid, dims, ys in masks.values()
+        ]
+        n_used = sum(p.t.size for p in parts)
+        if t.size < 2 or n_used < 2:
+            raise ObservationError(src, "t", f"an observation needs at least 2 samples, got {t.size}")
+        t_last = float(t[-1])
+        if check_length:
+            longest = max(float(m.alpha_grid[-1]) for m in self.models_.values()) * self.duration_nominal_s_
+            if t_last > longest:
+                raise ObservationError(
+                    src,
+                    "t",
+                    f"observation lasts {t_last:.2f} s, longer than any task's plausible motion ({longest:.2f} s)",
+                )
+        return parts, t_last
+
+    def _recognise_parts(self, parts: list[ObservationPart], t_last: float, nu: float | None = None, raw=False):
+        nu = self.noise_ratio_ if nu is None else nu
+        n_task = len(self.tasks_)
+        grids = np.stack([self.models_[t].alpha_grid for t in self.tasks_])
+        logpost = np.empty_like(grids)
+        evidence = np.empty(n_task)
+        alpha = np.empty(n_task)
+        for i, task in enumerate(self.tasks_):
+            m = self.models_[task]
+            ll = candidate_terms(self.basis_, m, parts, m.alpha_grid, self.duration_nominal_s_, nu).loglik
+            lp = ll + m.alpha_log_prior
+            evidence[i] = np.logaddexp.reduce(lp)
+            logpost[i] = lp - evidence[i] if np.isfinite(evidence[i]) else lp
+            alpha[i] = refine_peak(m.alpha_grid, lp) if np.isfinite(evidence[i]) else m.alpha_mu
+        rec = self._finish_recognition(evidence, alpha, grids, logpost, t_last)
+        return (rec, logpost) if raw else rec
+
+    def _finish_recognition(self, evidence, alpha, grids, logpost, t_last) -> Recognition:
+        joint = self.task_log_prior_ + evidence
+        total = np.logaddexp.reduce(joint)
+        if not np.isfinite(total):
+            raise ObservationError(None, "t", "the observation is impossible under every task (too long?)")
+        log_post = joint - total
+        best = int(np.argmax(log_post))
+        return Recognition(
+            task=self.tasks_[best],
+            tasks=list(self.tasks_),
+            log_posterior=log_post,
+            posterior=np.exp(log_post),
+            alpha=alpha,
+            duration_s=float(alpha[best] * self.duration_nominal_s_),
+            observed_until_s=t_last,
+            phase_grid=grids,
+            phase_log_post=logpost,
+            log_evidence=evidence,
+        )
+
+    def recognise(self, observation: Demo) -> Recognition:
+        """Task posterior and phase estimates of a partial observation (no trajectory)."""
+        parts, t_last = self._prepare(observation)
+        return self._recognise_parts(parts, t_last)
+
+    recognize = recognise
+
+    def predict(self, observation: Demo) -> Prediction:
+        """Recognise the task and predict the robot's trajectory conditioned on the observation.
+
+        Args:
+            observation: Partial demo with the observed groups (>= 2 samples), times in [s] from motion start.
+        """
+        parts, t_last = self._prepare(observation)
+        rec = self._recognise_parts(parts, t_last)
+        return self._condition(rec, parts)
+
+    def _condition(self, rec: Recognition, parts: list[ObservationPart]) -> Prediction:
+        task = rec.task
+        m = self.models_[task]
+        best = self.tasks_.index(task)
+        alpha = float(rec.alpha[best])
+        nu = self.noise_ratio_
+        terms = candidate_terms(
+            self.basis_, m, parts, np.array([alpha]), self.duration_nominal_s_, nu, keep=True
+        )
+        r = m.rank
+        lq = terms.q_chol[0]
+        a = terms.a[0]
+        m_eta = cho_solve((lq, True), a) if r else np.zeros(0)
+        # human weights posterior mean (observed dims)
+        w_post = m.mean + np.einsum("dkr,r->dk", m.factor, m_eta)
+        for part, (ke, chol, b) in zip(parts, terms.parts, strict=True):
+            x = chol[0] @ chol[0].T
+            gram = x - nu * np.eye(ke)
+            fu = np.einsum("dkr,r->kd", m.factor[part.dims, :ke, :], m_eta)  # (ke, dm)
+            corr = cho_solve((chol[0], True), b[0] - gram @ fu)
+            w_post[part.dims, :ke] += corr.T
+        return self._make_prediction(rec, m, alpha, w_post, lq)
+
+    def _make_prediction(self, rec, m: TaskModel, alpha, w_post, lq) -> Prediction:
+        lo, hi = self.group_slices_[self.robot_group]
+        duration = alpha * self.duration_nominal_s_
+        z = np.linspace(0.0, 1.0, self.n_points)
+        phi = self.basis_(z)
+        scale = self.scaler_.scale[lo:hi]
+        offset = self.scaler_.offset[lo:hi]
+        fr = m.factor[lo:hi]  # (J, K, r)
+        post_factor = (
+            np.swapaxes(solve_triangular(lq, fr.reshape(-1, fr.shape[2]).T, lower=True), 0, 1).reshape(fr.shape)
+            if m.rank
+            else fr
+        )
+        q_mean = self.scaler_.inverse(phi @ w_post[lo:hi].T, slice(lo, hi))
+        proj = np.einsum("mk,jkr->mjr", phi, post_factor)
+        phi2 = np.sum(phi * phi, axis=1)
+        cov = np.einsum("mir,mjr->mij", proj, proj)
+        cov += phi2[:, None, None] * (np.eye(hi - lo) * m.diag[lo:hi])[None]
+        cov *= scale[None, :, None] * scale[None, None, :]
+        prior_mean, prior_std = m.distribution(phi)
+        human = {}
+        for g in self.observe:
+            glo, ghi = self.group_slices_[g]
+            human[g] = self.scaler_.inverse(phi @ w_post[glo:ghi].T, slice(glo, ghi))
+        return Prediction(
+            **vars(rec),
+            t=z * duration,
+            q_mean=q_mean,
+            q_cov=cov,
+            q_prior_mean=self.scaler_.inverse(prior_mean[:, lo:hi], slice(lo, hi)),
+            q_prior_std=prior_std[:, lo:hi] * scale,
+            joint_names=tuple(self.joint_names_),
+            human_mean=human,
+            _w_mean=w_post[lo:hi],
+            _w_diag=m.diag[lo:hi],
+            _w_factor=post_factor,
+            _phi=phi,
+            _offset=offset,
+            _scale=scale,
+        )
+
+    def stream(self) -> StreamingEstimator:
+        """A streaming estimator that refreshes the estimate as samples arrive one by one."""
+        self._check_fitted()
+        return StreamingEstimator(self)
+
+    # ------------------------------------------------------------- plots
+    def distribution(self, task: str, z: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[str]]:
+        """Learned mean and std (n, D) of every channel over phases ``z`` (n,), in original units.
+
+        Returns:
+            mean, std and the channel names as ``"group/channel"`` (observed groups, then robot).
+        """
+        self._check_fitted()
+        m = self._model(task)
+        mean, std = m.distribution(self.basis_(np.asarray(z, dtype=float)))
+        return self.scaler_.inverse(mean), std * self.scaler_.scale, self.channel_labels()
+
+    def train_trajectories(self, task: str, z: np.ndarray) -> np.ndarray:
+        """Basis-fitted trajectories (N, n, D) of the task's training demos at phases ``z``, original units."""
+        self._check_fitted()
+        m = self._model(task)
+        return self.scaler_.inverse(np.einsum("nk,idk->ind", self.basis_(np.asarray(z, float)), m.train_weights))
+
+    def channel_labels(self) -> list[str]:
+        """``"group/channel"`` labels of all modelled dims (observed groups, then robot)."""
+        return [f"{g}/{c}" for g in self.groups_ for c in self.channel_names_[g]]
+
+    def _model(self, task: str) -> TaskModel:
+        if task not in self.models_:
+            raise ModelError(f"unknown task '{task}' (tasks: {', '.join(self.tasks_)})")
+        return self.models_[task]
+
+    # ------------------------------------------------------------ files
+    def save(self, path: str | Path) -> None:
+        """Write the fitted model to a versioned, pickle-free ``.npz`` file."""
+        from .serialization import save_model
+
+        self._check_fitted()
+        save_model(self, path)
+
+    @classmethod
+    def load(cls, path: str | Path) -> IProMP:
+        """Read a model written by :meth:`save` (raises ModelFileError on a bad file)."""
+        from .serialization import load_model
+
+        return load_model(path)
+
+
+class StreamingEstimator:
+    """Refreshes the estimate as human samples arrive one by one.
+
+    The result after a sequence of :meth:`update` calls equals
+    :meth:`IProMP.recognise` / :meth:`IProMP.predict` on a :class:`Demo` holding
+    the same samples.
+    """
+
+    def __init__(self, model: IProMP) -> None:
+        self.model = model
+        self._t: list[float] = []
+        self._values: dict[str, list[np.ndarray]] = {g: [] for g in model.observe}
+        self._missing: dict[str, list[bool]] = {g: [] for g in model.observe}
+        self._last: Recognition | None = None
+
+    @property
+    def n_samples(self) -> int:
+        """Number of samples received."""
+        return len(self._t)
+
+    def update(self, t_s: float, sample: Mapping[str, np.ndarray | None]) -> Recognition | None:
+        """Add one sample and return the refreshed recognition (None until 2 samples arrived).
+
+        Args:
+            t_s: Sample time in [s] from motion start (strictly increasing).
+            sample: Observed group -> values (D,); a group that is absent or None is missing
+                for this sample (e.g. a lost skeleton frame).
+        """
+        m = self.model
+        t_s = float(t_s)
+        if not np.isfinite(t_s) or (self._t and t_s <= self._t[-1]) or t_s < -1e-9:
+            raise ObservationError("stream", "t", f"sample time {t_s} is not after the previous sample")
+        rows = {}
+        for g in m.observe:
+            v = sample.get(g)
+            lo, hi = m.group_slices_[g]
+            if v is None:
+                rows[g] = None
+                continue
+            v = np.asarray(v, dtype=float).reshape(-1)
+            if v.size != hi - lo:
+                raise ObservationError("stream", g, f"sample has {v.size} values, the model expects {hi - lo}")
+            if not np.all(np.isfinite(v)):
+                raise ObservationError("stream", g, f"NaN or inf in the sample at t={t_s:.3f} s")
+            rows[g] = v
+        unknown = set(sample) - set(m.observe)
+        if unknown:
+            raise ObservationError("stream", sorted(unknown)[0], f"not an observed group ({m.observe})")
+        self._t.append(t_s)
+        for g in m.observe:
+            v = rows[g]
+            lo, hi = m.group_slices_[g]
+            self._values[g].append(np.full(hi - lo, np.nan) if v is None else v)
+            self._missing[g].append(v is None)
+        if len(self._t) < 2:
+            return None
+        self._last = m.recognise(self.observation())
+        return self._last
+
+    def observation(self) -> Demo:
+        """The samples received so far as a :class:`Demo`."""
+        m = self.model
+        return Demo(
+            task="",
+            name="stream",
+            source="stream",
+            t=np.array(self._t),
+            groups={g: np.array(self._values[g]) for g in m.observe},
+            channel_names={g: m.channel_names_[g] for g in m.observe},
+            missing={g: np.array(self._missing[g]) for g in m.observe if any(self._missing[g])},
+        )
+
+    def recognition(self) -> Recognition:
+        """Latest recognition (raises ObservationError before 2 samples)."""
+        if self._last is None:
+            raise ObservationError("stream", "t", f"need at least 2 samples, got {len(self._t)}")
+        return self._last
+
+    def prediction(self) -> Prediction:
+        """Conditioned prediction on all samples received so far."""
+        if len(self._t) < 2:
+            raise ObservationError("stream", "t", f"need at least 2 samples, got {len(self._t)}")
+        return self.model.predict(self.observation())
+
+
+# ---------------------------------------------------------------------------------------------
+# Direct (textbook) reference implementation
+# ---------------------------------------------------------------------------------------------
+
+
+def _direct_obs_matrix(basis: GaussianBasis, parts, alpha: float, t_norm: float, n_dims: int, k: int):
+    """Dense observation matrix (n_y, n_dims * K) and stacked values / noise dims."""
+    rows, ys, dims_of_rows = [], [], []
+    for part in parts:
+        phi = basis(part.t / (alpha * t_norm))
+        for j, d in enumerate(part.dims):
+            blk = np.zeros((phi.shape[0], n_dims * k))
+            blk[:, d * k : (d + 1) * k] = phi
+            rows.append(blk)
+            ys.append(part.y[:, j])
+            dims_of_rows.append(np.full(phi.shape[0], d))
+    return np.concatenate(rows), np.concatenate(ys), np.concatenate(dims_of_rows)
+
+
+def direct_loglik(basis, task: TaskModel, parts, alpha: float, t_norm: float, nu: float) -> float:
+    """Textbook log N(y; Phi mu, Phi Sigma Phi^T + R) with a dense Cholesky."""
+    n_dims, k = task.mean.shape
+    t_last = max(float(p.t[-1]) for p in parts)
+    if t_last > alpha * t_norm * (1.0 + 1e-12):
+        return -np.inf
+    phi, y, dd = _direct_obs_matrix(basis, parts, alpha, t_norm, n_dims, k)
+    sigma = task.covariance()
+    cov = phi @ sigma @ phi.T + np.diag(nu * task.diag[dd])
+    c, low = cho_factor(cov, lower=True)
+    e = y - phi @ task.mean.reshape(-1)
+    sol = cho_solve((c, low), e)
+    return float(-0.5 * (y.size * LOG_2PI + 2.0 * np.sum(np.log(np.diag(c))) + e @ sol))
+
+
+def direct_predict(model: IProMP, observation: Demo) -> Prediction:
+    """Reference prediction by the textbook equations (slow; for tests and benchmarks)."""
+    parts, t_last = model._prepare(observation)
+    nu = model.noise_ratio_
+    tn = model.duration_nominal_s_
+    n_task = len(model.tasks_)
+    grids = np.stack([model.models_[t].alpha_grid for t in model.tasks_])
+    logpost = np.empty_like(grids)
+    evidence = np.empty(n_task)
+    alpha = np.empty(n_task)
+    for i, task in enumerate(model.tasks_):
+        m = model.models_[task]
+        ll = np.array([direct_loglik(model.basis_, m, parts, a, tn, nu) for a in m.alpha_grid])
+        lp = ll + m.alpha_log_prior
+        evidence[i] = np.logaddexp.reduce(lp)
+        logpost[i] = lp - evidence[i]
+        alpha[i] = refine_peak(m.alpha_grid, lp)
+    rec = model._finish_recognition(evidence, alpha, grids, logpost, t_last)
+    m = model.models_[rec.task]
+    a_best = float(rec.alpha[model.tasks_.index(rec.task)])
+    n_dims, k = m.mean.shape
+    phi, y, dd = _direct_obs_matrix(model.basis_, parts, a_best, tn, n_dims, k)
+    sigma = m.covariance()
+    cov = phi @ sigma @ phi.T + np.diag(nu * m.diag[dd])
+    c = cho_factor(cov, lower=True)
+    gain_t = cho_solve(c, phi @ sigma)  # C^-1 Phi Sigma, (n_y, p)
+    w_mean = m.mean.reshape(-1) + gain_t.T @ (y - phi @ m.mean.reshape(-1))
+    w_cov = sigma - (phi @ sigma).T @ gain_t
+    lo, hi = model.group_slices_[model.robot_group]
+    z = np.linspace(0.0, 1.0, model.n_points)
+    b = model.basis_(z)
+    big = np.zeros((z.size * (hi - lo), (hi - lo) * k))
+    for j in range(hi - lo):
+        big[j :: hi - lo, j * k : (j + 1) * k] = b
+    sel = slice(lo * k, hi * k)
+    scale = model.scaler_.scale[lo:hi]
+    q_mean = (big @ w_mean[sel]).reshape(z.size, hi - lo)
+    q_cov = np.stack(
+        [big[i * (hi - lo) : (i + 1) * (hi - lo)] @ w_cov[sel, sel] @ big[i * (hi - lo) : (i + 1) * (hi - lo)].T
+         for i in range(z.size)]
+    )
+    wr = w_mean.reshape(n_dims, k)
+    pred = model._make_prediction(rec, m, a_best, wr, np.eye(m.rank))
+    pred.q_mean = model.scaler_.inverse(q_mean, slice(lo, hi))
+    pred.q_cov = q_cov * scale[None, :, None] * scale[None, None, :]
+    return pred

@@ -53,12 +53,37 @@ class GaussianBasis:
         if not (self.ridge >= 0.0 and np.isfinite(self.ridge)):
             raise ModelError(f"ridge must be >= 0, got {ridge!r}")
         self.centres = np.linspace(0.0, 1.0, self.n_basis)
+        self._centre_factor = np.exp(-0.5 * (self.centres / self.width) ** 2)
 
     def __call__(self, z: np.ndarray) -> np.ndarray:
         """Basis values at phases ``z`` (any shape S) -> array of shape S + (K,)."""
         z = np.asarray(z, dtype=float)
         d = (z[..., None] - self.centres) * (1.0 / self.width)
         return np.exp(-0.5 * d * d)
+
+    def values_prefix(self, z: np.ndarray, n_first: int) -> np.ndarray:
+        """Values of the first ``n_first`` basis functions at ``z`` (any shape S) -> S + (n_first,).
+
+        Equals ``self(z)[..., :n_first]`` (to a few ulp). With uniform centres
+        ``c_k = k Delta``, ``phi_k(z) = exp(-z^2 / 2h^2) q(z)^k exp(-c_k^2 / 2h^2)`` with
+        ``q(z) = exp(z Delta / h^2)``, so only two exponentials per ``z`` are needed (a
+        cumulative product gives the powers); used when no factor can overflow or
+        underflow, otherwise the direct formula is used.
+        """
+        z = np.asarray(z, dtype=float)
+        n_first = int(n_first)
+        inv_h2 = 1.0 / (self.width * self.width)
+        spacing = 1.0 / (self.n_basis - 1)
+        z_max = float(np.max(np.abs(z))) if z.size else 0.0
+        if n_first < 3 or z_max * (n_first - 1) * spacing * inv_h2 > 600.0 or 0.5 * z_max**2 * inv_h2 > 600.0:
+            return self(z)[..., :n_first]
+        q = np.exp(z * (spacing * inv_h2))
+        out = np.empty(z.shape + (n_first,))
+        out[..., 0] = np.exp(-0.5 * inv_h2 * z * z)
+        out[..., 1:] = q[..., None]
+        np.cumprod(out, axis=-1, out=out)
+        out *= self._centre_factor[:n_first]
+        return out
 
     def support_count(self, z_max: float, tol: float = 1e-13) -> int:
         """Number of leading basis functions that exceed ``tol`` somewhere on [0, ``z_max``].

@@ -53,7 +53,9 @@ def _as_path(robot: Robot, q: np.ndarray, name: str = "q") -> np.ndarray:
     return q
 
 
-def frame_placements(robot: Robot, q: np.ndarray, frame_id: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+def frame_placements(
+    robot: Robot, q: np.ndarray, frame_id: int | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """Placements of a frame along a joint path.
 
     Args:
@@ -179,7 +181,12 @@ class FeasibilityReport:
             "handover_position_m": [float(x) for x in self.handover_pose[:3]],
             "handover_quat_xyzw": [float(x) for x in self.handover_pose[3:]],
             "checks": {
-                c.name: {"status": c.status, "required": c.required, "reason": c.reason, **_jsonable(c.values)}
+                c.name: {
+                    "status": c.status,
+                    "required": c.required,
+                    "reason": c.reason,
+                    **_jsonable(c.values),
+                }
                 for c in self.checks
             },
             "timings_ms": {k: round(float(v), 3) for k, v in self.timings_ms.items()},
@@ -188,8 +195,9 @@ class FeasibilityReport:
     def to_text(self) -> str:
         """Multi-line human-readable report."""
         p = self.handover_pose
+        verdict = "PASSED" if self.passed else "FAILED: " + ", ".join(self.failures)
         lines = [
-            f"Feasibility ({self.robot}): {'PASSED' if self.passed else 'FAILED: ' + ', '.join(self.failures)}",
+            f"Feasibility ({self.robot}): {verdict}",
             f"  hand-over position [m]: ({p[0]:.3f}, {p[1]:.3f}, {p[2]:.3f})",
         ]
         for c in self.checks:
@@ -220,7 +228,11 @@ def check_joint_limits(
     ``joint``, ``sample``, ``n_violations`` (samples x joints), ``margin_rad``.
     """
     q = _as_path(robot, q)
-    margin = robot.settings.position_margin_rad if margin_rad is None else np.broadcast_to(margin_rad, (q.shape[1],))
+    margin = (
+        robot.settings.position_margin_rad
+        if margin_rad is None
+        else np.broadcast_to(margin_rad, (q.shape[1],))
+    )
     lo = robot.lower_rad + margin
     hi = robot.upper_rad - margin
     slack = np.minimum(q - lo, hi - q)
@@ -244,7 +256,9 @@ def check_joint_limits(
             f"(with margin: [{lo[j]:.4f}, {hi[j]:.4f}]); {n_bad} violations"
         )
         return CheckResult("joint_limits", "fail", reason, values)
-    return CheckResult("joint_limits", "pass", f"smallest slack {s:.4f} rad ({name}, {side} limit, {at})", values)
+    return CheckResult(
+        "joint_limits", "pass", f"smallest slack {s:.4f} rad ({name}, {side} limit, {at})", values
+    )
 
 
 def collision_sample_indices(q: np.ndarray, max_step_rad: float) -> np.ndarray:
@@ -350,7 +364,9 @@ def check_self_collision(
     }
     where = f"{links[0]} - {links[1]} at sample {origin[k]}"
     if dmin[k] <= clearance:
-        reason = f"self-collision: distance {dmin[k] * 1e3:.1f} mm <= {clearance * 1e3:.1f} mm between {where}"
+        reason = (
+            f"self-collision: distance {dmin[k] * 1e3:.1f} mm <= {clearance * 1e3:.1f} mm between {where}"
+        )
         return CheckResult("self_collision", "fail", reason, values)
     reason = (
         f"min distance {dmin[k] * 1e3:.1f} mm ({where}); {qc.shape[0]} configurations checked, "
@@ -370,12 +386,19 @@ def check_workspace(robot: Robot, position_m: np.ndarray) -> CheckResult:
     values = {"position_m": p.tolist(), "distance_outside_m": d, "workspace": ws.to_dict()}
     pos = f"({p[0]:.3f}, {p[1]:.3f}, {p[2]:.3f}) m"
     if d > 0:
-        return CheckResult("workspace", "fail", f"hand-over position {pos} is {d * 1e3:.0f} mm outside", values)
-    return CheckResult("workspace", "pass", f"hand-over position {pos} inside ({-d * 1e3:.0f} mm deep)", values)
+        return CheckResult(
+            "workspace", "fail", f"hand-over position {pos} is {d * 1e3:.0f} mm outside", values
+        )
+    return CheckResult(
+        "workspace", "pass", f"hand-over position {pos} inside ({-d * 1e3:.0f} mm deep)", values
+    )
 
 
 def check_hand_distance(
-    robot: Robot, position_m: np.ndarray, hand_position_m: np.ndarray | None, max_distance_m: float | None = None
+    robot: Robot,
+    position_m: np.ndarray,
+    hand_position_m: np.ndarray | None,
+    max_distance_m: float | None = None,
 ) -> CheckResult:
     """Gripper-hand distance at the hand-over (skipped when the hand position is unknown or NaN)."""
     limit = robot.settings.max_hand_distance_m if max_distance_m is None else float(max_distance_m)
@@ -575,7 +598,9 @@ class CalibrationResult:
             f"  orientation error (median): {self.rotation_error_deg:.2f} deg",
         ]
         for src, med in self.per_source_mm.items():
-            lines.append(f"  {src}: median residual {med['before']:.2f} mm before, {med['after']:.2f} mm after")
+            lines.append(
+                f"  {src}: median residual {med['before']:.2f} mm before, {med['after']:.2f} mm after"
+            )
         return "\n".join(lines)
 
 
@@ -638,7 +663,9 @@ def calibrate_tool_offset(
         raise ValueError(f"{len(labels)} labels for {len(demos)} demos")
     pairs = _demo_pairs(robot, demos)
     if not pairs:
-        raise DataError(None, "endpoint_pose", "no demo has both robot joint angles and recorded end-point poses")
+        raise DataError(
+            None, "endpoint_pose", "no demo has both robot joint angles and recorded end-point poses"
+        )
     nominal = uncalibrated_robot(robot)
     pid = nominal.ee_parent_frame_id
     mount_parent = int(nominal.model.parents[int(nominal.arm_joint_ids[0])])

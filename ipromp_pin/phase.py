@@ -58,15 +58,36 @@ class ObservationPart:
 
 
 @dataclass
-class CandidateTerms:
-    """Per-candidate results of :func:`candidate_terms`.
+class PartStats:
+    """Sufficient statistics of one observation part for every unique phase candidate.
 
     Attributes:
-        loglik: (C,) log marginal likelihood of the observation (-inf where the
-            observation would extend past the end of the motion).
-        q_chol: (C, r, r) lower Cholesky factor of ``Q`` (None unless asked).
-        a: (C, r) vector ``a`` (None unless asked).
-        parts: Per observation part, (ke, X Cholesky (C, ke, ke), b (C, ke, D_m)) (None unless asked).
+        dims: (D_m,) observed dims of the part.
+        n: Number of samples.
+        ke: Number of leading basis functions used.
+        gram: (U, ke, ke) ``B^T B`` per unique candidate.
+        proj: (U, ke, D_m) ``B^T y``.
+        sq: (D_m,) ``y^T y`` per dim.
+    """
+
+    dims: np.ndarray
+    n: int
+    ke: int
+    gram: np.ndarray
+    proj: np.ndarray
+    sq: np.ndarray
+
+
+@dataclass
+class Terms:
+    """Per (task, candidate) results of :meth:`InferenceEngine.terms`.
+
+    Attributes:
+        loglik: (T, C) log marginal likelihood (-inf where the observation would
+            extend past the end of the motion).
+        q_chol: (T, C, r, r) lower Cholesky factor of ``Q`` (only with ``keep``).
+        a: (T, C, r) vector ``a`` (only with ``keep``).
+        parts: Per part (dims, ke, X^-1 (T, C, ke, ke), G (T, C, ke, ke), b (T, C, ke, D_m)) (only with ``keep``).
     """
 
     loglik: np.ndarray
@@ -75,90 +96,187 @@ class CandidateTerms:
     parts: list | None = None
 
 
-def _chol_solve(chol: np.ndarray, rhs: np.ndarray) -> np.ndarray:
-    """Solve ``L L^T x = rhs`` for batched lower factors (C, m, m) and rhs (C, m, q)."""
-    y = np.linalg.solve(chol, rhs)
-    return np.linalg.solve(np.swapaxes(chol, -1, -2), y)
+class InferenceEngine:
+    """Exact batched likelihood of an observation for every task and phase candidate.
 
-
-def candidate_terms(
-    basis: GaussianBasis,
-    task: TaskModel,
-    parts: list[ObservationPart],
-    alphas: np.ndarray,
-    t_norm: float,
-    nu: float,
-    keep: bool = False,
-) -> CandidateTerms:
-    """Exact log marginal likelihood of an observation for every phase candidate of one task.
+    Everything that depends only on the model is precomputed here: stacked task
+    means, scaled low-rank factors ``W = F / sqrt(delta)`` and, when it fits in
+    ``z_budget_bytes``, the tensor ``Z[(k, l), (a, b)] = sum_d W_dka W_dlb``
+    (symmetrised and packed) that turns ``P = sum_d W_d^T (I - nu X^-1) W_d``
+    into one matrix product per task. The per-candidate quantities that depend
+    only on the candidate's phase (basis matrix, ``X = nu I + G``, its inverse
+    and log-determinant from one Cholesky factorisation of the augmented
+    matrix ``[[X, I], [I, c I]]``) are computed once per unique candidate and
+    shared by all tasks whose grids contain it.
 
     Args:
-        basis: Basis of the model.
-        task: Task model (scaled units).
-        parts: Observed samples.
-        alphas: (C,) phase candidates.
+        basis: Model basis.
+        models: Task models (all with the same number of candidates).
+        n_obs: Number of observed dims D_o (the first dims of every model).
         t_norm: Nominal duration in [s].
-        nu: Noise ratio ``r_d / delta_d``.
-        keep: Also return ``Q``'s factor, ``a`` and the per-part factors (for conditioning).
+        nu: Noise ratio.
+        z_budget_bytes: Largest size of the precomputed ``Z`` tensors.
     """
-    alphas = np.asarray(alphas, dtype=float)
-    n_cand = alphas.size
-    r = task.rank
-    big_p = np.zeros((n_cand, r, r))
-    a = np.zeros((n_cand, r))
-    const = 0.0
-    logdet = np.zeros(n_cand)
-    quad = np.zeros(n_cand)
-    t_last = max(float(p.t[-1]) for p in parts)
-    kept = []
-    for part in parts:
-        n = part.t.size
-        dims = part.dims
-        dm = dims.size
-        z = part.t[None, :] / (alphas[:, None] * t_norm)  # (C, n)
-        ke = basis.support_count(float(z.max()))
-        b_mat = basis(z)[..., :ke]  # (C, n, ke)
-        gram = np.einsum("cnk,cnl->ckl", b_mat, b_mat)
-        h = np.einsum("cnk,nd->ckd", b_mat, part.y)
-        mu = task.mean[dims, :ke]  # (dm, ke)
-        delta = task.diag[dims]
-        sqd = np.sqrt(delta)
-        w = task.factor[dims, :ke, :] / sqd[:, None, None]  # (dm, ke, r)
-        gmu = np.einsum("ckl,dl->ckd", gram, mu)
-        b = h - gmu  # (C, ke, dm)
-        ete = np.sum(part.y * part.y, axis=0)[None, :] - 2.0 * np.einsum("dk,ckd->cd", mu, h)
-        ete = ete + np.einsum("dk,ckd->cd", mu, gmu)
-        x = gram + nu * np.eye(ke)
-        chol = np.linalg.cholesky(x)
-        bh = b / sqd  # (C, ke, dm)
-        rhs = np.concatenate(
-            [np.broadcast_to(w.transpose(1, 0, 2).reshape(ke, dm * r), (n_cand, ke, dm * r)), bh], axis=2
-        )
-        sol = _chol_solve(chol, rhs)
-        xw = sol[:, :, : dm * r].reshape(n_cand, ke, dm, r)
-        xb = sol[:, :, dm * r :]  # (C, ke, dm)
-        wtw = np.einsum("dkr,dks->rs", w, w)
-        big_p += wtw - nu * np.einsum("dkr,ckds->crs", w, xw)
-        a += np.einsum("dkr,ckd->cr", w, xb)
-        logdet_x = 2.0 * np.sum(np.log(np.diagonal(chol, axis1=1, axis2=2)), axis=1)
-        const += n * dm * LOG_2PI + n * float(np.sum(np.log(delta))) + dm * (n - ke) * np.log(nu)
-        logdet += dm * logdet_x
-        quad += np.sum(ete / (nu * delta), axis=1) - np.einsum("ckd,ckd->c", bh, xb) / nu
+
+    def __init__(
+        self,
+        basis: GaussianBasis,
+        models: list[TaskModel],
+        n_obs: int,
+        t_norm: float,
+        nu: float,
+        z_budget_bytes: float = 64e6,
+    ) -> None:
+        self.basis = basis
+        self.t_norm = float(t_norm)
+        self.nu = float(nu)
+        self.n_obs = int(n_obs)
+        grids = [m.alpha_grid for m in models]
+        if len({g.size for g in grids}) != 1:
+            raise ValueError("all tasks need the same number of phase candidates")
+        self.alphas = np.stack(grids)
+        self.log_prior = np.stack([m.alpha_log_prior for m in models])
+        self.alpha_unique, inverse = np.unique(self.alphas, return_inverse=True)
+        self.cand_index = inverse.reshape(self.alphas.shape)
+        n_task = len(models)
+        k = basis.n_basis
+        self.rank = r = max(m.rank for m in models)
+        self.mu = np.stack([m.mean[:n_obs] for m in models])  # (T, D, K)
+        self.delta = np.stack([m.diag[:n_obs] for m in models])  # (T, D)
+        self.sqrt_delta = np.sqrt(self.delta)
+        self.w = np.zeros((n_task, n_obs, k, r))
+        for i, m in enumerate(models):
+            self.w[i, :, :, : m.rank] = m.factor[:n_obs] / self.sqrt_delta[i][:, None, None]
+        pk, pl = [], []
+        for ll in range(k):
+            for kk in range(ll + 1):
+                pk.append(kk)
+                pl.append(ll)
+        self.pk, self.pl = np.array(pk), np.array(pl)
+        self.pair_diag = (self.pk == self.pl).astype(float)
+        ia, ib = np.triu_indices(r)
+        self.ia, self.ib = ia, ib
+        unpack = np.zeros((r, r), dtype=int)
+        unpack[ia, ib] = np.arange(ia.size)
+        unpack[ib, ia] = np.arange(ia.size)
+        self.unpack = unpack
+        self.use_z = n_task * self.pk.size * ia.size * 8 <= z_budget_bytes
+        self._z: dict[tuple[int, ...], np.ndarray] = {}
+
+    def z_tensor(self, dims: np.ndarray) -> np.ndarray:
+        """Packed ``Z`` (T, K(K+1)/2, r(r+1)/2) of the observed dims ``dims`` (cached)."""
+        key = tuple(int(d) for d in dims)
+        z = self._z.get(key)
+        if z is None:
+            w = self.w[:, dims]
+            full = np.einsum("tdka,tdlb->tklab", w, w)
+            z = full[:, self.pk, self.pl][:, :, self.ia, self.ib]
+            off = self.pk != self.pl
+            z[:, off] += full[:, self.pl[off], self.pk[off]][:, :, self.ia, self.ib]
+            self._z[key] = z = np.ascontiguousarray(z)
+        return z
+
+    def part_stats(self, part: ObservationPart, alphas: np.ndarray | None = None) -> PartStats:
+        """Statistics of an observation part for the unique candidates (default: the model's)."""
+        alphas = self.alpha_unique if alphas is None else alphas
+        z = part.t[None, :] / (alphas[:, None] * self.t_norm)
+        ke = self.basis.support_count(float(z.max()))
+        b = self.basis.values_prefix(z, ke)  # (U, n, ke)
+        bt = np.swapaxes(b, 1, 2)
+        gram = bt @ b
+        proj = bt @ part.y
+        return PartStats(part.dims, part.t.size, ke, gram, proj, np.sum(part.y * part.y, axis=0))
+
+    def terms(
+        self,
+        stats: list[PartStats],
+        t_last: float,
+        tasks: np.ndarray | None = None,
+        alphas: np.ndarray | None = None,
+        index: np.ndarray | None = None,
+        keep: bool = False,
+        nu: float | None = None,
+    ) -> Terms:
+        """Log likelihood per (task, candidate) from part statistics.
+
+        Args:
+            stats: Part statistics (computed for the unique candidates ``alphas``).
+            t_last: Time of the last observed sample in [s].
+            tasks: Task indices (default all).
+            alphas: (T', C) candidates (default the model's grids).
+            index: (T', C) index of each candidate in the unique candidates of ``stats``.
+            keep: Also return the factors needed for conditioning.
+            nu: Noise ratio (default the engine's).
+        """
+        nu = self.nu if nu is None else float(nu)
+        if tasks is None:
+            tasks, alphas, index = slice(None), self.alphas, self.cand_index
+        mu_all, sd_all, w_all = self.mu[tasks], self.sqrt_delta[tasks], self.w[tasks]
+        delta_all = self.delta[tasks]
+        n_task, n_cand = alphas.shape
+        r = self.rank
+        p_packed = np.zeros((n_task, n_cand, self.ia.size))
+        a = np.zeros((n_task, n_cand, r))
+        total = np.zeros((n_task, n_cand))
+        kept = []
+        for st in stats:
+            ke, dims = st.ke, st.dims
+            dm = dims.size
+            n_u = st.gram.shape[0]
+            aug = np.zeros((n_u, 2 * ke, 2 * ke))
+            eye = np.eye(ke)
+            aug[:, :ke, :ke] = st.gram + nu * eye
+            aug[:, ke:, :ke] = eye
+            aug[:, :ke, ke:] = eye
+            aug[:, ke:, ke:] = (2.0 / nu + 1.0) * eye
+            chol = np.linalg.cholesky(aug)
+            lit = chol[:, ke:, :ke]  # L^-T
+            xinv_u = lit @ np.swapaxes(lit, 1, 2)
+            logdet_x = 2.0 * np.sum(np.log(np.diagonal(chol[:, :ke, :ke], axis1=1, axis2=2)), axis=1)
+            xinv = xinv_u[index]  # (T, C, ke, ke)
+            gram = st.gram[index]
+            proj = st.proj[index]  # (T, C, ke, dm)
+            mu = mu_all[:, dims, :ke]  # (T, dm, ke)
+            gmu = gram @ np.swapaxes(mu, 1, 2)[:, None]  # (T, C, ke, dm)
+            b = proj - gmu
+            ete = st.sq - np.einsum("tdk,tckd->tcd", mu, 2.0 * proj - gmu)
+            sd = sd_all[:, dims]
+            bh = b / sd[:, None, None, :]
+            xb = xinv @ bh
+            total += np.sum(ete / delta_all[:, dims][:, None, :], axis=2) / nu
+            total -= np.einsum("tckd,tckd->tc", bh, xb) / nu
+            w = w_all[:, dims, :ke].reshape(n_task, dm * ke, r)
+            a += np.swapaxes(xb, 2, 3).reshape(n_task, n_cand, dm * ke) @ w
+            m = ke * (ke + 1) // 2
+            if self.use_z and isinstance(tasks, slice):
+                coef = self.pair_diag[:m] - nu * xinv[..., self.pk[:m], self.pl[:m]]
+                p_packed += coef @ self.z_tensor(dims)[:, :m]
+            else:
+                wk = w_all[:, dims, :ke]  # (T, dm, ke, r)
+                y = xinv @ np.swapaxes(wk, 1, 2).reshape(n_task, 1, ke, dm * r)  # (T, C, ke, dm*r)
+                y = np.swapaxes(y.reshape(n_task, n_cand, ke, dm, r), 2, 3).reshape(n_task, n_cand, dm * ke, r)
+                pp = np.swapaxes(w, 1, 2)[:, None] @ (w[:, None] - nu * y)
+                p_packed += pp[..., self.ia, self.ib]
+            const = st.n * dm * LOG_2PI + dm * (st.n - ke) * np.log(nu)
+            total += const + st.n * np.sum(np.log(delta_all[:, dims]), axis=1)[:, None]
+            total += dm * logdet_x[index]
+            if keep:
+                kept.append((dims, ke, xinv, gram, b))
+        qa = np.zeros((n_task, n_cand, r + 1, r + 1))
+        qa[..., :r, :r] = p_packed[..., self.unpack]
+        qa[..., np.arange(r), np.arange(r)] += 1.0
+        qa[..., r, :r] = a
+        qa[..., :r, r] = a
+        qa[..., r, r] = np.sum(a * a, axis=2) + 1.0
+        lq = np.linalg.cholesky(qa)
+        diag = np.diagonal(lq, axis1=2, axis2=3)
+        v = lq[..., r, :r]
+        total += 2.0 * np.sum(np.log(diag[..., :r]), axis=2) - np.sum(v * v, axis=2)
+        loglik = -0.5 * total
+        loglik = np.where(t_last <= alphas * self.t_norm * (1.0 + 1e-12), loglik, -np.inf)
         if keep:
-            kept.append((ke, chol, b))
-    q = big_p + np.eye(r)
-    q_chol = np.linalg.cholesky(q) if r else np.zeros((n_cand, 0, 0))
-    if r:
-        v = np.linalg.solve(q_chol, a[:, :, None])[:, :, 0]
-        logdet_q = 2.0 * np.sum(np.log(np.diagonal(q_chol, axis1=1, axis2=2)), axis=1)
-        quad_q = np.sum(v * v, axis=1)
-    else:
-        logdet_q = quad_q = np.zeros(n_cand)
-    loglik = -0.5 * (const + logdet + logdet_q + quad - quad_q)
-    loglik = np.where(t_last <= alphas * t_norm * (1.0 + 1e-12), loglik, -np.inf)
-    if keep:
-        return CandidateTerms(loglik=loglik, q_chol=q_chol, a=a, parts=kept)
-    return CandidateTerms(loglik=loglik)
+            return Terms(loglik=loglik, q_chol=lq[..., :r, :r], a=a, parts=kept)
+        return Terms(loglik=loglik)
 
 
 def refine_peak(grid: np.ndarray, logpost: np.ndarray) -> float:

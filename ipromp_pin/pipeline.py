@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from .data import ROBOT, Dataset, Demo
-from .exceptions import DataError, PipelineError
+from .exceptions import PipelineError
 
 LogFn = Callable[[str], None]
 
@@ -252,7 +252,7 @@ def plan(
         log: Progress messages (``None``: silent).
     """
     from .kinematics import check_path
-    from .timing import plan_trajectory
+    from .timing import JointLimits, time_path
 
     say = log or (lambda _msg: None)
     ms: dict[str, float] = {}
@@ -271,7 +271,7 @@ def plan(
     t2 = time.perf_counter()
     ms["check"] = (t2 - t1) * 1e3
     say(f"[check] {'pass' if report.passed else 'FAIL: ' + ', '.join(report.failures)}")
-    trajectory, timing_report = plan_trajectory(robot, prediction.q_mean, control_rate_hz=control_rate_hz)
+    trajectory, timing_report = time_path(prediction.q_mean, JointLimits.from_robot(robot), rate_hz=control_rate_hz)
     t3 = time.perf_counter()
     ms["time_parameterise_smooth"] = (t3 - t2) * 1e3
     say(f"[timing] {trajectory.t_s[-1]:.2f} s at {control_rate_hz:g} Hz, {len(trajectory.t_s)} samples")
@@ -373,7 +373,7 @@ def summary_text(result: PlanResult, files: dict[str, Path], elapsed_s: float) -
 
 def preview_content(result: PlanResult, robot, demo: Demo | None, visual_model=None):
     """Build the :class:`~ipromp_pin.preview.PreviewContent` of a planned hand-over."""
-    from .kinematics import check_path, ee_positions
+    from .kinematics import ee_positions
     from .preview import PreviewContent
 
     p = result.prediction
@@ -386,7 +386,6 @@ def preview_content(result: PlanResult, robot, demo: Demo | None, visual_model=N
         truth = ee_positions(robot, demo.groups[ROBOT])
         if "hand_position" in demo.extras:
             hand, hand_t = demo.extras["hand_position"], demo.t
-    del check_path
     r = result.report
     collision_links: list[str] = []
     near_limit: list[str] = []
@@ -452,8 +451,3 @@ def write_plots(result: PlanResult, model, demo: Demo, out_dir: Path) -> dict[st
             p.phase_grid, p.phase_log_post, list(p.tasks), out_dir / "phase_posterior.png"
         )
     return files
-
-
-def dataset_error_hint(exc: DataError) -> str:
-    """One-line hint for a dataset error raised while running a pipeline."""
-    return f"{exc} (check the dataset folder and --format)"

@@ -276,10 +276,21 @@ class PreviewContent:
             checks.append(FeasibilityCheck(str(item[0]), bool(item[1]), str(item[2]) if len(item) > 2 else ""))
         self.feasibility = tuple(checks)
         self.collision_links = tuple(str(n) for n in self.collision_links)
+        for name in self.collision_links:
+            self.link_frame(name)
         self.near_limit_joints = tuple(str(n) for n in self.near_limit_joints)
         for name in self.near_limit_joints:
             if not self.model.existJointName(name):
                 raise _err("near_limit_joints", f"joint '{name}' is not in the robot model")
+
+    def link_frame(self, name: str) -> int:
+        """Frame id of a link given by its frame name or by a geometry object's name."""
+        if self.model.existFrame(name):
+            return self.model.getFrameId(name)
+        for geometry in (self.collision_model, self.visual_model):
+            if geometry is not None and geometry.existGeometryName(name):
+                return geometry.geometryObjects[geometry.getGeometryId(name)].parentFrame
+        raise _err("collision_links", f"'{name}' is neither a frame nor a geometry of the robot")
 
     @property
     def duration_s(self) -> float:
@@ -407,21 +418,11 @@ def _highlight(content: PreviewContent, geometry_model: pin.GeometryModel) -> di
     for obj in geometry_model.geometryObjects:
         by_frame.setdefault(obj.parentFrame, []).append(obj.name)
         by_joint.setdefault(obj.parentJoint, []).append(obj.name)
-    others = [m for m in (content.collision_model, content.visual_model) if m is not None]
     for name in content.near_limit_joints:
         for geom in by_joint.get(model.getJointId(name), []):
             colors[geom] = COLOR_NEAR_LIMIT
     for name in content.collision_links:
-        frame_id = None
-        if model.existFrame(name):
-            frame_id = model.getFrameId(name)
-        else:
-            for gm in others:
-                if gm.existGeometryName(name):
-                    frame_id = gm.geometryObjects[gm.getGeometryId(name)].parentFrame
-                    break
-        if frame_id is None:
-            raise _err("collision_links", f"'{name}' is neither a frame nor a geometry of the robot")
+        frame_id = content.link_frame(name)
         geoms = by_frame.get(frame_id) or by_joint.get(model.frames[frame_id].parentJoint, [])
         for geom in geoms:
             colors[geom] = COLOR_COLLISION
@@ -558,27 +559,33 @@ class _RobotView:
         self.visualizer = MeshcatVisualizer(content.model, None, self.geometry)
 
     def load(self, viewer: meshcat.Visualizer, content: PreviewContent) -> None:
-        colors = _highlight(content, self.geometry)
-        originals = {}
-        for obj in self.geometry.geometryObjects:
-            if obj.name in colors:
-                originals[obj.name] = obj.meshColor.copy()
-                obj.meshColor = np.asarray(colors[obj.name], dtype=float)
-                obj.overrideMaterial = True
+        """Send the robot meshes (description colours), paint failing links, show the start pose."""
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", UserWarning)
             self.visualizer.initViewer(viewer=viewer)
             self.visualizer.loadViewerModel(rootNodeName=_ROBOT_NODE)
-        for obj in self.geometry.geometryObjects:
-            if obj.name in originals:
-                obj.meshColor = originals[obj.name]
-        for obj in self.geometry.geometryObjects:
-            if obj.name in colors:
-                # Make failing parts glow a little so that they read as "highlighted".
-                node = viewer[self.visualizer.getViewerNodeName(obj, pin.GeometryType.VISUAL)]
-                r, g, b = (int(255 * c * 0.35) for c in colors[obj.name][:3])
-                node.set_property("emissive", [r / 255, g / 255, b / 255])
+        self._painted: dict[str, tuple] = {}
+        self.paint(viewer, content)
         self.visualizer.display(content.configurations(np.array([0.0]))[0])
+
+    def paint(self, viewer: meshcat.Visualizer, content: PreviewContent) -> None:
+        """Colour links in collision red and links moved by a joint near its limit orange.
+
+        Only the colour property of the affected nodes is sent (no mesh is sent again), which keeps
+        live updates small.
+        """
+        colors = _highlight(content, self.geometry)
+        for obj in self.geometry.geometryObjects:
+            color = colors.get(obj.name)
+            if color is None and obj.name not in self._painted:
+                continue
+            if color is None:
+                color = tuple(float(c) for c in obj.meshColor)
+            if self._painted.get(obj.name) == color:
+                continue
+            node = viewer[self.visualizer.getViewerNodeName(obj, pin.GeometryType.VISUAL)]
+            node.set_property("color", list(color))
+            self._painted[obj.name] = color
 
     def placements(self, q: np.ndarray) -> list[np.ndarray]:
         viz = self.visualizer
@@ -737,7 +744,7 @@ class _Node(dict):
         super().__init__()
         self.object: bytes | None = None
         self.transform: bytes | None = None
-        self.properties: list[bytes] = []
+        self.properties: dict[str, bytes] = {}
         self.animation: bytes | None = None
 
 
@@ -775,11 +782,12 @@ class _SceneWindow:
             if kind == "set_object":
                 node = self._find(path)
                 node.object = packed
-                node.properties = []
+                node.properties = {}
             elif kind == "set_transform":
                 self._find(path).transform = packed
             elif kind == "set_property":
-                self._find(path).properties.append(packed)
+                # Keep the latest value of every property (a live preview re-sends them).
+                self._find(path).properties[data["property"]] = packed
             elif kind == "set_animation":
                 self.root.animation = packed
             elif kind == "delete":
@@ -807,7 +815,7 @@ class _SceneWindow:
             for node in _walk(self.root):
                 if node.object is not None:
                     out.append(node.object)
-                out.extend(node.properties)
+                out.extend(node.properties.values())
                 if node.transform is not None:
                     out.append(node.transform)
             if self.root.animation is not None:
@@ -1171,11 +1179,11 @@ class LivePreview:
         _build(self._window, content, robot=self._robot, fps=self.fps)
 
     def _redraw(self, content: PreviewContent, *, human: bool = False, prediction: bool = False,
-                label: bool = False, animation: bool = False, robot: bool = False) -> None:
+                label: bool = False, animation: bool = False, paint: bool = False) -> None:
         self.content = content
         viewer = _new_viewer(self._window)
-        if robot:
-            self._robot.load(viewer, content)
+        if paint:
+            self._robot.paint(viewer, content)
         if human:
             _draw_human(viewer, content)
         if prediction:
@@ -1239,7 +1247,7 @@ class LivePreview:
         content = self.content.replace(
             feasibility=feasibility, collision_links=collision_links, near_limit_joints=near_limit_joints
         )
-        self._redraw(content, robot=True, animation=True)
+        self._redraw(content, paint=True)
 
 
 def serve_preview(

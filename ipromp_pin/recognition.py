@@ -48,9 +48,9 @@ from .model import (
     fit_demo_weights,
     shrink_covariance,
 )
-from .phase import LOG_2PI, ObservationPart, candidate_terms, log_prior_density, refine_peak
+from .phase import LOG_2PI, InferenceEngine, ObservationPart, refine_peak
 
-NOISE_GRID = (0.01, 0.03, 0.1, 0.3, 1.0, 3.0, 10.0)
+NOISE_GRID = (0.03, 0.1, 0.3, 1.0, 3.0, 10.0, 30.0, 100.0)
 """Candidate noise ratios ``nu`` for ``noise="auto"``."""
 
 CV_RATIOS = (0.1, 0.2)
@@ -301,14 +301,16 @@ class IProMP:
             return np.log(p / p.sum())
 
     def _set_noise(self) -> None:
+        self._engine = None
         lo, hi = 0, self.n_obs_dims_
         self.noise_var_ = {t: self.noise_ratio_ * m.diag[lo:hi] for t, m in self.models_.items()}
 
     def _choose_noise(self, by_task: Mapping[str, list[Demo]]) -> tuple[float, dict[float, float]]:
         """Leave-one-out choice of the noise ratio (see the module docstring)."""
-        scores: dict[float, float] = {nu: 0.0 for nu in NOISE_GRID}
+        scores = np.zeros(len(NOISE_GRID))
         full = self.models_
         n_eval = 0
+        self.noise_ratio_ = NOISE_GRID[0]
         try:
             for task, demos in by_task.items():
                 if len(demos) < 3:
@@ -317,31 +319,36 @@ class IProMP:
                 for i, d in enumerate(demos):
                     keep = np.arange(len(demos)) != i
                     models = dict(full)
-                    models[task] = self._task_model(task, self._weights[task][keep], self._alphas[task][keep])
+                    models[task] = m = self._task_model(task, self._weights[task][keep], self._alphas[task][keep])
                     self.models_ = models
+                    self._engine = None
+                    engine = self._engine_()
+                    dens_shift = np.log(m.alpha_grid[1] - m.alpha_grid[0])
+                    alpha_true = self._alphas[task][i]
                     for ratio in CV_RATIOS:
                         try:
                             obs = d.head(ratio, self.observe)
                         except ObservationError:
                             continue
                         parts, t_last = self._prepare(obs, check_length=False)
-                        alpha_true = self._alphas[task][i]
+                        stats = [engine.part_stats(p) for p in parts]
                         n_eval += 1
-                        for nu in NOISE_GRID:
-                            rec, grids = self._recognise_parts(parts, t_last, nu, raw=True)
+                        for j, nu in enumerate(NOISE_GRID):
+                            loglik = engine.terms(stats, t_last, nu=nu).loglik
+                            rec, grids = self._recognition_from_loglik(loglik, t_last, raw=True)
                             s = rec.log_posterior[ki]
-                            m = models[task]
-                            # log posterior density of the true phase (grid interpolation)
-                            dens = grids[ki] - np.log(m.alpha_grid[1] - m.alpha_grid[0])
+                            # log posterior density of the true phase (interpolated between candidates)
+                            dens = grids[ki] - dens_shift
                             s += float(np.interp(alpha_true, m.alpha_grid, dens, left=-50.0, right=-50.0))
-                            scores[nu] += max(float(s), -100.0)
+                            scores[j] += max(float(s), -100.0)
         finally:
             self.models_ = full
+            self._engine = None
         if n_eval == 0:
             return 1.0, {}
-        scores = {nu: s / n_eval for nu, s in scores.items()}
-        best = max(scores, key=lambda nu: scores[nu])
-        return float(best), scores
+        scores /= n_eval
+        best = int(np.argmax(scores))
+        return float(NOISE_GRID[best]), {float(nu): float(v) for nu, v in zip(NOISE_GRID, scores, strict=True)}
 
     # ---------------------------------------------------------- inference
     def _check_fitted(self) -> None:
@@ -396,21 +403,35 @@ class IProMP:
                 )
         return parts, t_last
 
-    def _recognise_parts(self, parts: list[ObservationPart], t_last: float, nu: float | None = None, raw=False):
-        nu = self.noise_ratio_ if nu is None else nu
-        n_task = len(self.tasks_)
-        grids = np.stack([self.models_[t].alpha_grid for t in self.tasks_])
-        logpost = np.empty_like(grids)
-        evidence = np.empty(n_task)
-        alpha = np.empty(n_task)
-        for i, task in enumerate(self.tasks_):
-            m = self.models_[task]
-            ll = candidate_terms(self.basis_, m, parts, m.alpha_grid, self.duration_nominal_s_, nu).loglik
-            lp = ll + m.alpha_log_prior
-            evidence[i] = np.logaddexp.reduce(lp)
-            logpost[i] = lp - evidence[i] if np.isfinite(evidence[i]) else lp
-            alpha[i] = refine_peak(m.alpha_grid, lp) if np.isfinite(evidence[i]) else m.alpha_mu
-        rec = self._finish_recognition(evidence, alpha, grids, logpost, t_last)
+    def _engine_(self) -> InferenceEngine:
+        if self._engine is None:
+            models = [self.models_[t] for t in self.tasks_]
+            self._engine = InferenceEngine(
+                self.basis_, models, self.n_obs_dims_, self.duration_nominal_s_, self.noise_ratio_
+            )
+        return self._engine
+
+    def _recognise_parts(self, parts, t_last: float, nu: float | None = None, raw: bool = False, stats=None):
+        engine = self._engine_()
+        if stats is None:
+            stats = [engine.part_stats(p) for p in parts]
+        loglik = engine.terms(stats, t_last, nu=nu).loglik
+        return self._recognition_from_loglik(loglik, t_last, raw)
+
+    def _recognition_from_loglik(self, loglik: np.ndarray, t_last: float, raw: bool = False):
+        engine = self._engine_()
+        lp = loglik + engine.log_prior
+        with np.errstate(invalid="ignore"):
+            evidence = np.logaddexp.reduce(lp, axis=1)
+        finite = np.isfinite(evidence)
+        logpost = np.where(finite[:, None], lp - np.where(finite, evidence, 0.0)[:, None], lp)
+        alpha = np.array(
+            [
+                refine_peak(engine.alphas[i], lp[i]) if finite[i] else self.models_[t].alpha_mu
+                for i, t in enumerate(self.tasks_)
+            ]
+        )
+        rec = self._finish_recognition(evidence, alpha, engine.alphas, logpost, t_last)
         return (rec, logpost) if raw else rec
 
     def _finish_recognition(self, evidence, alpha, grids, logpost, t_last) -> Recognition:
@@ -455,35 +476,39 @@ class IProMP:
         m = self.models_[task]
         best = self.tasks_.index(task)
         alpha = float(rec.alpha[best])
-        nu = self.noise_ratio_
-        terms = candidate_terms(
-            self.basis_, m, parts, np.array([alpha]), self.duration_nominal_s_, nu, keep=True
+        engine = self._engine_()
+        a1 = np.array([alpha])
+        stats = [engine.part_stats(p, a1) for p in parts]
+        terms = engine.terms(
+            stats,
+            rec.observed_until_s,
+            tasks=np.array([best]),
+            alphas=a1[None, :],
+            index=np.zeros((1, 1), dtype=int),
+            keep=True,
         )
-        r = m.rank
-        lq = terms.q_chol[0]
-        a = terms.a[0]
-        m_eta = cho_solve((lq, True), a) if r else np.zeros(0)
-        # human weights posterior mean (observed dims)
-        w_post = m.mean + np.einsum("dkr,r->dk", m.factor, m_eta)
-        for part, (ke, chol, b) in zip(parts, terms.parts, strict=True):
-            x = chol[0] @ chol[0].T
-            gram = x - nu * np.eye(ke)
-            fu = np.einsum("dkr,r->kd", m.factor[part.dims, :ke, :], m_eta)  # (ke, dm)
-            corr = cho_solve((chol[0], True), b[0] - gram @ fu)
-            w_post[part.dims, :ke] += corr.T
-        return self._make_prediction(rec, m, alpha, w_post, lq)
+        r = engine.rank
+        lq = terms.q_chol[0, 0]
+        m_eta = cho_solve((lq, True), terms.a[0, 0]) if r else np.zeros(0)
+        factor = np.zeros(m.factor.shape[:2] + (r,))
+        factor[:, :, : m.rank] = m.factor
+        w_post = m.mean + factor @ m_eta
+        for dims, ke, xinv, gram, b in terms.parts:
+            fu = (factor[dims, :ke, :] @ m_eta).T  # (ke, dm)
+            w_post[dims, :ke] += (xinv[0, 0] @ (b[0, 0] - gram[0, 0] @ fu)).T
+        return self._make_prediction(rec, factor, m, alpha, w_post, lq)
 
-    def _make_prediction(self, rec, m: TaskModel, alpha, w_post, lq) -> Prediction:
+    def _make_prediction(self, rec, factor, m: TaskModel, alpha, w_post, lq) -> Prediction:
         lo, hi = self.group_slices_[self.robot_group]
         duration = alpha * self.duration_nominal_s_
         z = np.linspace(0.0, 1.0, self.n_points)
         phi = self.basis_(z)
         scale = self.scaler_.scale[lo:hi]
         offset = self.scaler_.offset[lo:hi]
-        fr = m.factor[lo:hi]  # (J, K, r)
+        fr = factor[lo:hi]  # (J, K, r)
         post_factor = (
-            np.swapaxes(solve_triangular(lq, fr.reshape(-1, fr.shape[2]).T, lower=True), 0, 1).reshape(fr.shape)
-            if m.rank
+            solve_triangular(lq, fr.reshape(-1, fr.shape[2]).T, lower=True).T.reshape(fr.shape)
+            if fr.shape[2]
             else fr
         )
         q_mean = self.scaler_.inverse(phi @ w_post[lo:hi].T, slice(lo, hi))
@@ -723,7 +748,7 @@ def direct_predict(model: IProMP, observation: Demo) -> Prediction:
          for i in range(z.size)]
     )
     wr = w_mean.reshape(n_dims, k)
-    pred = model._make_prediction(rec, m, a_best, wr, np.eye(m.rank))
+    pred = model._make_prediction(rec, m.factor, m, a_best, wr, np.eye(m.rank))
     pred.q_mean = model.scaler_.inverse(q_mean, slice(lo, hi))
     pred.q_cov = q_cov * scale[None, :, None] * scale[None, None, :]
     return pred

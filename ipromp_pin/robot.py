@@ -185,7 +185,9 @@ def _table(doc: dict, key: str, source: Path, required: bool = True) -> dict:
     return value
 
 
-def _get(table: dict, key: str, source: Path, prefix: str, kind: type | tuple, default: object = ...) -> object:
+def _get(
+    table: dict, key: str, source: Path, prefix: str, kind: type | tuple, default: object = ...
+) -> object:
     if key not in table:
         if default is ...:
             raise _err(source, f"{prefix}.{key}", "missing")
@@ -246,7 +248,9 @@ def load_robot_settings(path_or_name: str | Path) -> RobotSettings:
         raise _err(path, None, f"not valid TOML: {exc}") from exc
     version = doc.get("schema_version", _SCHEMA_VERSION)
     if version != _SCHEMA_VERSION:
-        raise _err(path, "schema_version", f"unsupported version {version} (this code reads {_SCHEMA_VERSION})")
+        raise _err(
+            path, "schema_version", f"unsupported version {version} (this code reads {_SCHEMA_VERSION})"
+        )
     name = _get(doc, "name", path, "", str, path.stem)
 
     desc = _table(doc, "description", path)
@@ -501,7 +505,9 @@ def _build_robot(s: RobotSettings, collision: bool = True) -> Robot:
     joint_ids = []
     for name in s.arm_joints:
         if not model.existJointName(name):
-            raise _err(src, "arm.joints", f"unknown joint '{name}' (not a movable joint of {s.urdf_path.name})")
+            raise _err(
+                src, "arm.joints", f"unknown joint '{name}' (not a movable joint of {s.urdf_path.name})"
+            )
         jid = model.getJointId(name)
         if model.joints[jid].nq != 1 or model.joints[jid].nv != 1:
             raise _err(src, "arm.joints", f"joint '{name}' is not a 1-dof joint")
@@ -529,7 +535,9 @@ def _build_robot(s: RobotSettings, collision: bool = True) -> Robot:
             )
         if 2 * s.position_margin_rad[i] >= hi - lo:
             raise _err(
-                src, "limits.position_margin_rad", f"margin {s.position_margin_rad[i]} leaves no range for {name}"
+                src,
+                "limits.position_margin_rad",
+                f"margin {s.position_margin_rad[i]} leaves no range for {name}",
             )
     vel = urdf_vel if s.velocity_override_rad_s is None else s.velocity_override_rad_s
 
@@ -557,7 +565,9 @@ def _build_robot(s: RobotSettings, collision: bool = True) -> Robot:
         raise _err(src, "end_effector.parent_frame", f"frame '{s.ee_parent_frame}' is not moved by the arm")
     offset = pin.SE3(np.eye(3), s.tool_offset_m)
     ee_id = model.addFrame(
-        pin.Frame(s.ee_frame, parent.parentJoint, parent_id, parent.placement * offset, pin.FrameType.OP_FRAME)
+        pin.Frame(
+            s.ee_frame, parent.parentJoint, parent_id, parent.placement * offset, pin.FrameType.OP_FRAME
+        )
     )
     root = int(joint_ids[0])
     model.jointPlacements[root] = pin.SE3(np.eye(3), s.mount_offset_m) * model.jointPlacements[root]
@@ -581,7 +591,9 @@ def _build_robot(s: RobotSettings, collision: bool = True) -> Robot:
         )
 
     try:
-        cmodel = pin.buildGeomFromUrdf(model, str(s.urdf_path), pin.COLLISION, package_dirs=list(s.package_dirs))
+        cmodel = pin.buildGeomFromUrdf(
+            model, str(s.urdf_path), pin.COLLISION, package_dirs=list(s.package_dirs)
+        )
     except (RuntimeError, ValueError) as exc:
         raise _err(src, "description.urdf", f"collision geometry cannot be loaded: {exc}") from exc
     cmodel.addAllCollisionPairs()
@@ -631,7 +643,9 @@ def _build_robot(s: RobotSettings, collision: bool = True) -> Robot:
         robot.static_min_distance_m = float(dmin)
         if dmin <= s.min_clearance_m:
             a, b = robot.pair_names(kmin)
-            raise _err(src, "fixed_joints", f"held configuration is in self-collision: {a} - {b} ({dmin:.4f} m)")
+            raise _err(
+                src, "fixed_joints", f"held configuration is in self-collision: {a} - {b} ({dmin:.4f} m)"
+            )
     for k in static:
         cdata.deactivateCollisionPair(k)
     return robot
@@ -641,7 +655,9 @@ def load_visual_model(robot: Robot) -> pin.GeometryModel:
     """Visual geometry (meshes) of ``robot``, for previews only (slow: ~2 s; never used by the checks)."""
     s = robot.settings
     try:
-        return pin.buildGeomFromUrdf(robot.model, str(s.urdf_path), pin.VISUAL, package_dirs=list(s.package_dirs))
+        return pin.buildGeomFromUrdf(
+            robot.model, str(s.urdf_path), pin.VISUAL, package_dirs=list(s.package_dirs)
+        )
     except (RuntimeError, ValueError) as exc:
         raise _err(s.path, "description.urdf", f"visual geometry cannot be loaded: {exc}") from exc
 

@@ -11,6 +11,9 @@ Each task folder is in one of these formats, detected per folder when
 * ``"native"``: the project's own format, one ``.npz`` or ``.csv`` per demo,
   see :mod:`.native`;
 * ``"bag"``: ROS1 bags ``<stamp>.bag`` of the chen2017 topics, see :mod:`.rosbag`.
+
+A chen2017 task folder holds both the CSV export and the bags; ``"auto"`` reads
+the CSVs (faster), ``format="bag"`` the bags (the same demos, see the tests).
 """
 
 from __future__ import annotations
@@ -98,7 +101,7 @@ def read_demo(
     *,
     format: str = "auto",
     frames: Sequence[str] | None = None,
-    rate_hz: float = 50.0,
+    rate_hz: float | None = 50.0,
     robot_joints: Sequence[str] = BAXTER_LEFT_JOINTS,
     emg_cutoff_hz: float = DEFAULT_EMG_CUTOFF_HZ,
 ) -> Demo:
@@ -110,8 +113,10 @@ def read_demo(
         task: Task name (default: derived from the path).
         format: One of :data:`FORMATS`.
         frames: Skeleton frames (child_frame_id, e.g. ``"/left_hand_1"``) to read as
-            human groups (multimodal format only).
-        rate_hz: Output sampling rate in [Hz] (recorded formats; native demos keep theirs).
+            human groups (multimodal format; native demos must contain them; an error
+            for chen2017 recordings, which have none).
+        rate_hz: Output sampling rate in [Hz] (native demos are resampled when theirs differs;
+            ``None`` keeps a native demo's rate).
         robot_joints: Joint names of the ``"robot"`` group, in the wanted order.
         emg_cutoff_hz: EMG envelope cut-off in [Hz] (recorded formats).
 
@@ -123,6 +128,12 @@ def read_demo(
         raise DataError(path, "format", f"unknown format {format!r} (use one of {', '.join(FORMATS)})")
     if format == "auto":
         format = _detect_file_format(path)
+    if frames and format in ("chen2017", "bag"):
+        raise DataError(
+            path, "frames", f"the {format} recordings have no tracked frames (asked for {list(frames)})"
+        )
+    if rate_hz is None and format != "native":
+        rate_hz = 50.0
     if format == "chen2017":
         return chen2017.read_demo(
             path, task, rate_hz=rate_hz, robot_joints=robot_joints, emg_cutoff_hz=emg_cutoff_hz
@@ -135,7 +146,7 @@ def read_demo(
         return rosbag.read_demo(
             path, task, rate_hz=rate_hz, robot_joints=robot_joints, emg_cutoff_hz=emg_cutoff_hz
         )
-    return native.read_demo(path, task)
+    return native.read_demo(path, task, rate_hz=rate_hz, frames=frames, robot_joints=robot_joints)
 
 
 def load_dataset(

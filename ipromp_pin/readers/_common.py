@@ -94,6 +94,13 @@ class CsvTable:
         """Whether the file has ``column``."""
         return column in self._index
 
+    def index(self, column: str) -> int:
+        """Position of ``column`` in a row."""
+        i = self._index.get(column)
+        if i is None:
+            raise DataError(self.path, column, "missing column")
+        return i
+
     def text(self, column: str) -> list[str]:
         """One column as strings."""
         i = self._index.get(column)

@@ -135,10 +135,7 @@ def _frame_positions(table: CsvTable, prefixes: list[str], frame: str) -> np.nda
         cols = [p + f"transform.translation.{a}" for a in "xyz"] + [
             p + f"transform.rotation.{a}" for a in "xyzw"
         ]
-        idx = [table._index.get(c) for c in cols]
-        for c, i in zip(cols, idx, strict=True):
-            if i is None:
-                raise DataError(table.path, c, "missing column")
+        idx = [table.index(c) for c in cols]
         try:
             v = np.array([[table.rows[r][i] for i in idx] for r in rows], dtype=float)
         except ValueError:

@@ -5,7 +5,9 @@ file per demo, named ``<demo name>.npz`` or ``<demo name>.csv`` (demos are
 ordered by file name). Both forms hold the same content:
 
 * ``t``: sample times in [s], strictly increasing and uniformly spaced (the
-  reader shifts them to start at 0; the spacing may deviate by at most 1 %);
+  reader shifts them to start at 0; the spacing may deviate by at most 1 %;
+  :func:`load_dataset <ipromp_pin.readers.load_dataset>` resamples demos whose
+  rate differs from its ``rate_hz``);
 * per channel group (``"orientation"``, ``"emg"``, ``"robot"``, a skeleton frame
   such as ``"/left_hand_1"`` ...): its values (T, D) and channel names, and
   optionally a missing-sample mask (T,) (values there may be NaN; any other
@@ -56,12 +58,14 @@ from __future__ import annotations
 import csv
 import io
 import zipfile
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 
-from ..data import Dataset, Demo
+from ..data import ROBOT, Dataset, Demo
 from ..exceptions import DataError
+from ..preprocess import Stream, align_streams
 
 FORMAT_TAG = "ipromp_pin.demo"
 VERSION = 1
@@ -308,18 +312,97 @@ def _read_csv(path: Path, task: str | None) -> Demo:
     )
 
 
-def read_demo(path: str | Path, task: str | None = None) -> Demo:
+def _select_joints(demo: Demo, joints: tuple[str, ...]) -> Demo:
+    have = demo.channel_names[ROBOT]
+    if have == joints:
+        return demo
+    for j in joints:
+        if j not in have:
+            raise DataError(demo.source, j, f"unknown joint name (the robot group has: {', '.join(have)})")
+    idx = [have.index(j) for j in joints]
+    groups = dict(demo.groups)
+    groups[ROBOT] = demo.groups[ROBOT][:, idx]
+    return Demo(
+        task=demo.task,
+        name=demo.name,
+        source=demo.source,
+        t=demo.t,
+        groups=groups,
+        channel_names={**demo.channel_names, ROBOT: joints},
+        missing=dict(demo.missing),
+        extras=dict(demo.extras),
+        duration_s=demo.duration_s,
+    )
+
+
+def resample_demo(demo: Demo, rate_hz: float) -> Demo:
+    """The demo on a uniform grid at ``rate_hz`` (linear interpolation; ``"orientation"``
+    renormalised; a grid sample next to a missing one is missing)."""
+    if not (np.isfinite(rate_hz) and rate_hz > 0):
+        raise DataError(demo.source, "rate_hz", f"must be positive, got {rate_hz}")
+    if abs(demo.dt * rate_hz - 1.0) < 1e-6:
+        return demo
+    streams = {}
+    for g, v in demo.groups.items():
+        kind = "quaternion" if g == "orientation" and v.shape[1] == 4 else "linear"
+        streams[g] = Stream(
+            demo.t, v, demo.channel_names[g], kind, demo.source, allow_missing=g in demo.missing
+        )
+    for name, v in demo.extras.items():
+        v = np.asarray(v, dtype=float).reshape(demo.n_samples, -1)
+        streams["extras:" + name] = Stream(
+            demo.t, v, tuple(str(k) for k in range(v.shape[1])), "linear", demo.source, allow_missing=True
+        )
+    t, values, _ = align_streams(streams, rate_hz, demo.source)
+    missing = {}
+    for g in demo.missing:
+        m = ~np.all(np.isfinite(values[g]), axis=1)
+        values[g][m] = np.nan
+        missing[g] = m
+    return Demo(
+        task=demo.task,
+        name=demo.name,
+        source=demo.source,
+        t=t,
+        groups={g: values[g] for g in demo.groups},
+        channel_names=dict(demo.channel_names),
+        missing=missing,
+        extras={
+            n: values["extras:" + n].reshape((t.size,) + np.shape(demo.extras[n])[1:]) for n in demo.extras
+        },
+        duration_s=max(float(demo.duration_s), float(t[-1])),
+    )
+
+
+def read_demo(
+    path: str | Path,
+    task: str | None = None,
+    *,
+    rate_hz: float | None = None,
+    frames: Sequence[str] | None = None,
+    robot_joints: Sequence[str] | None = None,
+) -> Demo:
     """Read one native demo (``.npz`` or ``.csv``).
 
     Args:
         path: The demo file.
         task: Task name (default: the folder's name).
+        rate_hz: Resample onto this rate in [Hz] when the file's differs (default: keep it).
+        frames: Groups that must be present (e.g. skeleton frames); DataError otherwise.
+        robot_joints: Joints of the ``"robot"`` group to keep, in this order, by name
+            (default: as stored). DataError naming a joint the file lacks.
     """
     path = Path(path)
     if not path.is_file():
         raise DataError(path, None, "file not found")
     if path.suffix == ".npz":
-        return _read_npz(path, task)
-    if path.suffix == ".csv":
-        return _read_csv(path, task)
-    raise DataError(path, None, "native demos are .npz or .csv files")
+        demo = _read_npz(path, task)
+    elif path.suffix == ".csv":
+        demo = _read_csv(path, task)
+    else:
+        raise DataError(path, None, "native demos are .npz or .csv files")
+    if frames:
+        demo.require(frames)
+    if robot_joints is not None and ROBOT in demo.groups:
+        demo = _select_joints(demo, tuple(robot_joints))
+    return demo if rate_hz is None else resample_demo(demo, rate_hz)

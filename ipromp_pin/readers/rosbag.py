@@ -1,8 +1,9 @@
 """Reader of the original chen2017 ROS1 bags, with the ``rosbags`` package (no ROS install needed).
 
 Message types are decoded from each bag's own connection message definitions
-(registered in a fresh, empty type store per bag), so custom types such as
-``myo_driver/emgState`` need no generated code. Topics read
+(registered in an empty type store; stores are cached by the definitions' text,
+see :func:`_typestore`), so custom types such as ``myo_driver/emgState`` need
+no generated code. Topics read
 (:data:`DEFAULT_TOPICS`): ``/myo_raw_emg_pub`` (``ch0..ch7``),
 ``/myo_raw_imu_pub`` (``quat0..3``, ``acc0..2``), ``/robot/joint_states``
 (the arm's 17-name messages; the one-name gripper messages on the same topic
@@ -17,6 +18,7 @@ microsecond rounding of the receive time).
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
@@ -63,6 +65,23 @@ def list_demos(folder: Path, order: str = "config") -> list[Path]:
     return bags
 
 
+@functools.lru_cache(maxsize=16)
+def _typestore(definitions: tuple[tuple[str, str], ...]):
+    """A type store with the given (msgtype, ROS1 message definition) pairs registered.
+
+    Cached (module-level, at most 16 stores) by the definitions' text, so that bags of one
+    recording session share their generated deserialisers; a bag with different definitions
+    gets its own store.
+    """
+    _, _, Stores, get_types_from_msg, get_typestore = _import_rosbags()
+    store = get_typestore(Stores.EMPTY)
+    types = {}
+    for msgtype, text in definitions:
+        types.update(get_types_from_msg(text, msgtype))
+    store.register(types)
+    return store
+
+
 def _import_rosbags():
     try:
         from rosbags.rosbag1 import Reader, ReaderError
@@ -78,7 +97,7 @@ def read_raw(
     topics: Mapping[str, str] | None = None,
 ) -> RawRecording:
     """The raw chen2017 streams of one bag."""
-    Reader, ReaderError, Stores, get_types_from_msg, get_typestore = _import_rosbags()
+    Reader, ReaderError, *_ = _import_rosbags()
     path = Path(path)
     topics = dict(DEFAULT_TOPICS, **(topics or {}))
     if not path.is_file():
@@ -90,12 +109,8 @@ def read_raw(
     by_topic = {v: k for k, v in topics.items()}
     try:
         with Reader(path) as reader:
-            store = get_typestore(Stores.EMPTY)
-            types = {}
             conns = [c for c in reader.connections if c.topic in by_topic]
-            for c in conns:
-                types.update(get_types_from_msg(c.msgdef.data, c.msgtype))
-            store.register(types)
+            store = _typestore(tuple(sorted({(c.msgtype, c.msgdef.data) for c in conns})))
             for c, stamp_ns, raw in reader.messages(connections=conns):
                 key = by_topic[c.topic]
                 msg = store.deserialize_ros1(raw, c.msgtype)

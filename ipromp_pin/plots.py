@@ -1,0 +1,297 @@
+"""Matplotlib figures (PNG, Agg backend) of learned models, predictions and evaluation results.
+
+Every function takes plain arrays (the pipeline passes model outputs), writes one PNG of a fixed
+pixel size (``figsize`` in inches times ``dpi``) and returns its path. Mismatched shapes raise
+:class:`~ipromp_pin.exceptions.DataError` naming the argument.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import matplotlib
+
+matplotlib.use("Agg")  # no display needed; set before pyplot is imported
+
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from .exceptions import DataError  # noqa: E402
+
+__all__ = ["plot_accuracy", "plot_distributions", "plot_phase_posterior", "plot_prediction"]
+
+_SOURCE = "plots"
+
+
+def _err(field_name: str, problem: str) -> DataError:
+    return DataError(_SOURCE, field_name, problem)
+
+
+def _array(value: Any, name: str, ndim: int) -> np.ndarray:
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise _err(name, f"not a numeric array ({exc})") from exc
+    if arr.ndim != ndim:
+        raise _err(name, f"expected {ndim} dimensions, got shape {arr.shape}")
+    if arr.size == 0:
+        raise _err(name, "is empty")
+    return arr
+
+
+def _names(names: Sequence[str] | None, n: int, name: str, prefix: str) -> list[str]:
+    if names is None:
+        return [f"{prefix}{i}" for i in range(n)]
+    names = [str(x) for x in names]
+    if len(names) != n:
+        raise _err(name, f"has {len(names)} names for {n} dimensions")
+    return names
+
+
+def _grid(n: int, max_cols: int = 4) -> tuple[int, int]:
+    cols = min(n, max_cols)
+    return int(np.ceil(n / cols)), cols
+
+
+def _save(fig: plt.Figure, path: str | Path, dpi: int) -> Path:
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, format="png", dpi=dpi)
+    plt.close(fig)
+    return path
+
+
+def plot_distributions(
+    phase: np.ndarray,
+    mean: np.ndarray,
+    std: np.ndarray,
+    path: str | Path,
+    *,
+    demos: Sequence[np.ndarray] | np.ndarray | None = None,
+    dim_names: Sequence[str] | None = None,
+    title: str = "",
+    figsize: tuple[float, float] = (12.0, 8.0),
+    dpi: int = 100,
+) -> Path:
+    """Learned distribution per dimension: mean and 2-sigma band over phase, training demos in grey.
+
+    Args:
+        phase: (P,) phase grid in [0, 1].
+        mean: (P, D) mean of every dimension on ``phase`` (original units).
+        std: (P, D) standard deviation on ``phase`` (same units).
+        path: PNG file to write.
+        demos: Training demos resampled on ``phase``: (n, P, D) or a sequence of (P, D).
+        dim_names: (D,) names of the dimensions (subplot titles).
+        title: Figure title (e.g. the task name).
+    """
+    phase = _array(phase, "phase", 1)
+    mean = _array(mean, "mean", 2)
+    std = _array(std, "std", 2)
+    if mean.shape[0] != phase.size:
+        raise _err("mean", f"has {mean.shape[0]} rows for {phase.size} phase values")
+    if std.shape != mean.shape:
+        raise _err("std", f"shape {std.shape} differs from mean {mean.shape}")
+    if np.any(std < 0):
+        raise _err("std", "standard deviations must be >= 0")
+    demo_list: list[np.ndarray] = []
+    if demos is not None:
+        for i, demo in enumerate(demos):
+            demo = _array(demo, f"demos[{i}]", 2)
+            if demo.shape != mean.shape:
+                raise _err("demos", f"demo {i} has shape {demo.shape}, expected {mean.shape}")
+            demo_list.append(demo)
+    n_dims = mean.shape[1]
+    names = _names(dim_names, n_dims, "dim_names", "dim ")
+    rows, cols = _grid(n_dims)
+    fig, axes = plt.subplots(rows, cols, figsize=figsize, squeeze=False, layout="constrained")
+    for d in range(rows * cols):
+        ax = axes.flat[d]
+        if d >= n_dims:
+            ax.set_visible(False)
+            continue
+        for k, demo in enumerate(demo_list):
+            ax.plot(phase, demo[:, d], color="0.6", lw=0.7, alpha=0.6, label="training demos" if k == 0 else None)
+        ax.fill_between(phase, mean[:, d] - 2 * std[:, d], mean[:, d] + 2 * std[:, d], color="C0", alpha=0.25,
+                        label="2 sigma")
+        ax.plot(phase, mean[:, d], color="C0", lw=1.8, label="mean")
+        ax.set_title(names[d], fontsize=9)
+        ax.tick_params(labelsize=7)
+        if d // cols == rows - 1 or d + cols >= n_dims:
+            ax.set_xlabel("phase", fontsize=8)
+    axes.flat[0].legend(fontsize=7, loc="best")
+    if title:
+        fig.suptitle(title)
+    return _save(fig, path, dpi)
+
+
+def plot_prediction(
+    t_s: np.ndarray,
+    q_mean: np.ndarray,
+    q_std: np.ndarray,
+    path: str | Path,
+    *,
+    truth_t_s: np.ndarray | None = None,
+    q_truth: np.ndarray | None = None,
+    observed_until_s: float | None = None,
+    joint_names: Sequence[str] | None = None,
+    title: str = "",
+    figsize: tuple[float, float] = (12.0, 8.0),
+    dpi: int = 100,
+) -> Path:
+    """Conditioned prediction of every robot joint against the ground truth.
+
+    Args:
+        t_s: (M,) prediction times in [s] from the motion start.
+        q_mean: (M, J) predicted joint positions in [rad].
+        q_std: (M, J) standard deviation in [rad] (band of 2 sigma).
+        path: PNG file to write.
+        truth_t_s: (G,) times of the recorded trajectory in [s].
+        q_truth: (G, J) recorded joint positions in [rad].
+        observed_until_s: End of the observed window in [s] (shaded).
+        joint_names: (J,) joint names.
+    """
+    t_s = _array(t_s, "t_s", 1)
+    q_mean = _array(q_mean, "q_mean", 2)
+    q_std = _array(q_std, "q_std", 2)
+    if q_mean.shape[0] != t_s.size:
+        raise _err("q_mean", f"has {q_mean.shape[0]} rows for {t_s.size} times")
+    if q_std.shape != q_mean.shape:
+        raise _err("q_std", f"shape {q_std.shape} differs from q_mean {q_mean.shape}")
+    if (truth_t_s is None) != (q_truth is None):
+        raise _err("q_truth", "truth_t_s and q_truth must be given together")
+    if q_truth is not None:
+        truth_t_s = _array(truth_t_s, "truth_t_s", 1)
+        q_truth = _array(q_truth, "q_truth", 2)
+        if q_truth.shape != (truth_t_s.size, q_mean.shape[1]):
+            raise _err("q_truth", f"shape {q_truth.shape}, expected {(truth_t_s.size, q_mean.shape[1])}")
+    n_joints = q_mean.shape[1]
+    names = _names(joint_names, n_joints, "joint_names", "joint ")
+    rows, cols = _grid(n_joints)
+    fig, axes = plt.subplots(rows, cols, figsize=figsize, squeeze=False, layout="constrained")
+    for j in range(rows * cols):
+        ax = axes.flat[j]
+        if j >= n_joints:
+            ax.set_visible(False)
+            continue
+        if observed_until_s is not None:
+            ax.axvspan(0.0, observed_until_s, color="C2", alpha=0.12, label="observed")
+            ax.axvline(observed_until_s, color="C2", lw=1.0)
+        ax.fill_between(t_s, q_mean[:, j] - 2 * q_std[:, j], q_mean[:, j] + 2 * q_std[:, j], color="C0", alpha=0.25,
+                        label="2 sigma")
+        ax.plot(t_s, q_mean[:, j], color="C0", lw=1.8, label="prediction")
+        if q_truth is not None:
+            ax.plot(truth_t_s, q_truth[:, j], color="k", lw=1.2, ls="--", label="ground truth")
+        ax.set_title(names[j], fontsize=9)
+        ax.set_ylabel("rad", fontsize=8)
+        ax.tick_params(labelsize=7)
+        if j + cols >= n_joints:
+            ax.set_xlabel("time [s]", fontsize=8)
+    axes.flat[0].legend(fontsize=7, loc="best")
+    if title:
+        fig.suptitle(title)
+    return _save(fig, path, dpi)
+
+
+def plot_phase_posterior(
+    alphas: Mapping[str, np.ndarray] | np.ndarray,
+    log_posterior: Mapping[str, np.ndarray],
+    path: str | Path,
+    *,
+    true_alpha: float | None = None,
+    title: str = "",
+    figsize: tuple[float, float] = (8.0, 5.0),
+    dpi: int = 100,
+) -> Path:
+    """Log posterior over the phase (time-scaling alpha) candidates of every task.
+
+    Args:
+        alphas: (A,) candidates shared by all tasks, or {task: (A_k,)}.
+        log_posterior: {task: (A_k,)} log posterior (or log likelihood) of each candidate.
+        path: PNG file to write.
+        true_alpha: Ground-truth alpha of the observed demo (vertical line), when known.
+    """
+    if not log_posterior:
+        raise _err("log_posterior", "no task given")
+    fig, ax = plt.subplots(figsize=figsize, layout="constrained")
+    for k, (task, values) in enumerate(log_posterior.items()):
+        grid = alphas.get(task) if isinstance(alphas, Mapping) else alphas
+        if grid is None:
+            raise _err("alphas", f"no candidates for task '{task}'")
+        grid = _array(grid, f"alphas[{task}]", 1)
+        values = _array(values, f"log_posterior[{task}]", 1)
+        if values.size != grid.size:
+            raise _err("log_posterior", f"task '{task}' has {values.size} values for {grid.size} alpha candidates")
+        finite = np.isfinite(values)
+        ax.plot(grid[finite], values[finite], marker=".", color=f"C{k}", label=str(task))
+        if finite.any():
+            best = int(np.flatnonzero(finite)[np.argmax(values[finite])])
+            ax.plot(grid[best], values[best], marker="o", ms=8, mfc="none", color=f"C{k}")
+    if true_alpha is not None:
+        ax.axvline(true_alpha, color="k", ls="--", lw=1.0, label="true alpha")
+    ax.set_xlabel("alpha (time scaling)")
+    ax.set_ylabel("log posterior")
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3)
+    if title:
+        ax.set_title(title)
+    return _save(fig, path, dpi)
+
+
+def plot_accuracy(
+    records: Sequence[Mapping[str, Any]],
+    path: str | Path,
+    *,
+    title: str = "Task recognition accuracy",
+    figsize: tuple[float, float] = (12.0, 4.5),
+    dpi: int = 100,
+) -> Path:
+    """Recognition accuracy against the observed ratio, one panel per training-set size.
+
+    One line per ``observe`` setting (e.g. ``"orientation"`` vs ``"orientation,emg"``), averaged
+    over the tasks of the records.
+
+    Args:
+        records: Rows ``{"n_train": int, "obs_ratio": float, "observe": str, "task": str,
+            "accuracy": float in [0, 1]}``.
+        path: PNG file to write.
+    """
+    required = ("n_train", "obs_ratio", "observe", "accuracy")
+    if not records:
+        raise _err("records", "no records given")
+    rows = []
+    for i, record in enumerate(records):
+        missing = [k for k in required if k not in record]
+        if missing:
+            raise _err("records", f"record {i} lacks {missing}")
+        accuracy = float(record["accuracy"])
+        if not 0.0 <= accuracy <= 1.0:
+            raise _err("records", f"record {i} has accuracy {accuracy} outside [0, 1]")
+        observe = record["observe"]
+        if not isinstance(observe, str):
+            observe = ",".join(observe)
+        rows.append((int(record["n_train"]), float(record["obs_ratio"]), observe, accuracy))
+    n_trains = sorted({r[0] for r in rows})
+    settings = sorted({r[2] for r in rows}, key=lambda s: ("emg" in s, s))
+    fig, axes = plt.subplots(1, len(n_trains), figsize=figsize, squeeze=False, sharey=True, layout="constrained")
+    for ax, n_train in zip(axes.flat, n_trains, strict=True):
+        for k, setting in enumerate(settings):
+            selected = [r for r in rows if r[0] == n_train and r[2] == setting]
+            if not selected:
+                continue
+            ratios = sorted({r[1] for r in selected})
+            mean = [np.mean([r[3] for r in selected if r[1] == ratio]) for ratio in ratios]
+            style = "-" if "emg" in setting else "--"
+            ax.plot(ratios, mean, style, marker="o", color=f"C{k}", label=setting)
+            for ratio, value in zip(ratios, mean, strict=True):
+                ax.annotate(f"{value:.2f}", (ratio, value), textcoords="offset points", xytext=(0, 5),
+                            ha="center", fontsize=7, color=f"C{k}")
+        ax.set_title(f"{n_train} training demos / task", fontsize=10)
+        ax.set_xlabel("observed ratio of the motion")
+        ax.set_ylim(0.0, 1.05)
+        ax.grid(alpha=0.3)
+    axes.flat[0].set_ylabel("accuracy")
+    axes.flat[0].legend(fontsize=8, loc="lower right")
+    fig.suptitle(title)
+    return _save(fig, path, dpi)

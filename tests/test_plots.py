@@ -1,0 +1,142 @@
+"""Tests of the matplotlib figures: files written, valid PNGs of the expected size, shape errors."""
+
+from __future__ import annotations
+
+import struct
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ipromp_pin import plots
+from ipromp_pin.exceptions import DataError
+
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+
+def png_size(path: Path) -> tuple[int, int]:
+    """(width, height) in pixels from the IHDR chunk of a PNG file."""
+    data = path.read_bytes()
+    assert data[:8] == PNG_SIGNATURE
+    assert data[12:16] == b"IHDR"
+    return struct.unpack(">II", data[16:24])
+
+
+def assert_png(path: Path, size: tuple[int, int]) -> None:
+    assert path.is_file() and path.stat().st_size > 5000
+    assert png_size(path) == size
+    from PIL import Image
+
+    with Image.open(path) as image:
+        image.verify()
+    with Image.open(path) as image:
+        pixels = np.asarray(image.convert("L"), dtype=float)
+    assert pixels.std() > 5.0  # something was drawn
+
+
+@pytest.fixture
+def rng() -> np.random.Generator:
+    return np.random.default_rng(0)
+
+
+def test_plot_distributions(tmp_path, rng):
+    phase = np.linspace(0, 1, 50)
+    mean = np.stack([np.sin(2 * np.pi * phase * (d + 1)) for d in range(5)], -1)
+    demos = mean[None] + rng.normal(0, 0.1, (8, 50, 5))
+    path = plots.plot_distributions(
+        phase,
+        mean,
+        demos.std(0),
+        tmp_path / "sub" / "dist.png",
+        demos=demos,
+        dim_names=[f"q{d}" for d in range(5)],
+        title="task A",
+        figsize=(9, 6),
+        dpi=80,
+    )
+    assert path == tmp_path / "sub" / "dist.png"
+    assert_png(path, (720, 480))
+
+
+def test_plot_distributions_shape_errors(tmp_path):
+    phase = np.linspace(0, 1, 10)
+    with pytest.raises(DataError, match="field 'mean'"):
+        plots.plot_distributions(phase, np.zeros((9, 2)), np.zeros((9, 2)), tmp_path / "x.png")
+    with pytest.raises(DataError, match="field 'std'"):
+        plots.plot_distributions(phase, np.zeros((10, 2)), np.zeros((10, 3)), tmp_path / "x.png")
+    with pytest.raises(DataError, match="field 'demos'"):
+        plots.plot_distributions(
+            phase, np.zeros((10, 2)), np.ones((10, 2)), tmp_path / "x.png", demos=[np.zeros((10, 3))]
+        )
+    with pytest.raises(DataError, match="field 'dim_names'"):
+        plots.plot_distributions(
+            phase, np.zeros((10, 2)), np.ones((10, 2)), tmp_path / "x.png", dim_names=["a"]
+        )
+    assert not (tmp_path / "x.png").exists()
+
+
+def test_plot_prediction(tmp_path, rng):
+    t = np.linspace(0, 3, 60)
+    q = np.stack([np.cos(t + j) for j in range(7)], -1)
+    path = plots.plot_prediction(
+        t,
+        q,
+        np.full_like(q, 0.05),
+        tmp_path / "pred.png",
+        truth_t_s=np.linspace(0, 3.2, 80),
+        q_truth=rng.normal(0, 0.3, (80, 7)),
+        observed_until_s=1.0,
+        joint_names=[f"left_{j}" for j in range(7)],
+    )
+    assert_png(path, (1200, 800))
+
+
+def test_plot_prediction_shape_errors(tmp_path):
+    t = np.linspace(0, 3, 10)
+    q = np.zeros((10, 7))
+    with pytest.raises(DataError, match="field 'q_mean'"):
+        plots.plot_prediction(t[:-1], q, q, tmp_path / "x.png")
+    with pytest.raises(DataError, match="field 'q_truth'"):
+        plots.plot_prediction(t, q, q, tmp_path / "x.png", truth_t_s=t, q_truth=np.zeros((10, 6)))
+    with pytest.raises(DataError, match="field 'q_truth'"):
+        plots.plot_prediction(t, q, q, tmp_path / "x.png", truth_t_s=t)
+
+
+def test_plot_phase_posterior(tmp_path):
+    alphas = np.linspace(0.6, 1.6, 21)
+    log_post = {
+        task: -((alphas - c) ** 2) / 0.02 for task, c in (("rod", 1.0), ("tape", 1.2), ("wrench", 0.8))
+    }
+    log_post["tape"][0] = -np.inf  # an impossible candidate is skipped, not an error
+    path = plots.plot_phase_posterior(alphas, log_post, tmp_path / "phase.png", true_alpha=1.0, dpi=50)
+    assert_png(path, (400, 250))
+    with pytest.raises(DataError, match="3 values for 21"):
+        plots.plot_phase_posterior(alphas, {"rod": np.zeros(3)}, tmp_path / "x.png")
+    with pytest.raises(DataError, match="no candidates"):
+        plots.plot_phase_posterior({"rod": alphas}, {"tape": np.zeros(21)}, tmp_path / "x.png")
+
+
+def test_plot_accuracy(tmp_path):
+    records = [
+        {
+            "n_train": n,
+            "obs_ratio": r,
+            "observe": obs,
+            "task": task,
+            "accuracy": min(1.0, r + (0.2 if "emg" in obs else 0.0)),
+        }
+        for n in (5, 10)
+        for r in (0.2, 0.4, 0.6)
+        for obs in ("orientation", "orientation,emg")
+        for task in ("rod", "tape")
+    ]
+    path = plots.plot_accuracy(records, tmp_path / "acc.png")
+    assert_png(path, (1200, 450))
+    with pytest.raises(DataError, match="lacks"):
+        plots.plot_accuracy([{"n_train": 5, "obs_ratio": 0.2}], tmp_path / "x.png")
+    with pytest.raises(DataError, match="outside"):
+        plots.plot_accuracy(
+            [{"n_train": 5, "obs_ratio": 0.2, "observe": "emg", "accuracy": 1.5}], tmp_path / "x.png"
+        )
+    with pytest.raises(DataError, match="no records"):
+        plots.plot_accuracy([], tmp_path / "x.png")

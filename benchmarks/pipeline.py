@@ -6,7 +6,7 @@ after the observation is timed: recognition + prediction, feasibility checks,
 toppra + ruckig, writing ``trajectory.csv``, ``trajectory.json`` and
 ``report.json``. BLAS is pinned to one thread (one core).
 
-    python benchmarks/pipeline.py [--repeats 50] [--dataset ../shared/datasets/chen2017_handover] [--json FILE]
+    python benchmarks/pipeline.py [--repeats 50] [--dataset DATASET] [--json FILE]
 
 Prints the median total and each stage's median and share.
 """
@@ -29,7 +29,9 @@ from ipromp_pin.robot import load_robot
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     parser.add_argument("--repeats", type=int, default=50)
     parser.add_argument("--dataset", type=Path, default=None, help="real dataset (default: synthetic)")
     parser.add_argument("--ratio", type=float, default=0.2)
@@ -63,8 +65,12 @@ def main() -> None:
             stages.setdefault("write_files", []).append((t2 - t1) * 1e3)
 
     total = statistics.median(totals)
-    print(f"machine: {platform.processor() or platform.machine()}, {platform.python_version()}, BLAS 1 thread")
-    print(f"data: {'synthetic' if args.dataset is None else args.dataset}, ratio {args.ratio}, {args.repeats} runs")
+    print(
+        f"machine: {platform.processor() or platform.machine()}, {platform.python_version()}, BLAS 1 thread"
+    )
+    print(
+        f"data: {args.dataset or 'synthetic'}, ratio {args.ratio}, {args.repeats} runs"
+    )
     print(f"{'stage':<28}{'median [ms]':>12}{'share':>8}")
     medians = {k: statistics.median(v) for k, v in stages.items()}
     for k, v in medians.items():

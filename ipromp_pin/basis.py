@@ -53,7 +53,8 @@ class GaussianBasis:
         if not (self.ridge >= 0.0 and np.isfinite(self.ridge)):
             raise ModelError(f"ridge must be >= 0, got {ridge!r}")
         self.centres = np.linspace(0.0, 1.0, self.n_basis)
-        self._centre_factor = np.exp(-0.5 * (self.centres / self.width) ** 2)
+        spacing = 1.0 / (self.n_basis - 1)
+        self._step_factor = np.exp(-(np.arange(self.n_basis - 1) + 0.5) * spacing**2 / self.width**2)
 
     def __call__(self, z: np.ndarray) -> np.ndarray:
         """Basis values at phases ``z`` (any shape S) -> array of shape S + (K,)."""
@@ -61,31 +62,31 @@ class GaussianBasis:
         d = (z[..., None] - self.centres) * (1.0 / self.width)
         return np.exp(-0.5 * d * d)
 
-    def values_prefix(self, z: np.ndarray, n_first: int) -> np.ndarray:
-        """Values of the first ``n_first`` basis functions at ``z`` (any shape S) -> S + (n_first,).
+    def values_prefix_t(self, z: np.ndarray, n_first: int) -> np.ndarray:
+        """Values of the first ``n_first`` basis functions at ``z`` (any shape S), basis axis first.
 
-        Equals ``self(z)[..., :n_first]`` (to a few ulp). With uniform centres
-        ``c_k = k Delta``, ``phi_k(z) = exp(-z^2 / 2h^2) q(z)^k exp(-c_k^2 / 2h^2)`` with
-        ``q(z) = exp(z Delta / h^2)``, so only two exponentials per ``z`` are needed (a
-        cumulative product gives the powers); used when no factor can overflow or
-        underflow, otherwise the direct formula is used.
+        Returns an array of shape ``(n_first,) + S`` equal to ``moveaxis(self(z)[..., :n_first], -1, 0)``
+        to a few ulp, using two exponentials per ``z``: with uniform centres ``c_k = k Delta``,
+        ``phi_{k+1}(z) = phi_k(z) q(z) d_k`` with ``q(z) = exp(z Delta / h^2)`` and
+        ``d_k = exp(-(k + 1/2) Delta^2 / h^2)``, a running product of bounded factors.
+        Falls back to the direct formula where ``phi_0`` could underflow.
         """
         z = np.asarray(z, dtype=float)
         n_first = int(n_first)
         inv_h2 = 1.0 / (self.width * self.width)
-        spacing = 1.0 / (self.n_basis - 1)
         z_max = float(np.max(np.abs(z))) if z.size else 0.0
-        if n_first < 3 or z_max * (n_first - 1) * spacing * inv_h2 > 600.0 or 0.5 * z_max**2 * inv_h2 > 600.0:
-            return self(z)[..., :n_first]
-        q = np.exp(z * (spacing * inv_h2))
-        out = np.empty(z.shape + (n_first,))
-        out[..., 0] = np.exp(-0.5 * inv_h2 * z * z)
-        out[..., 1:] = q[..., None]
-        np.cumprod(out, axis=-1, out=out)
-        out *= self._centre_factor[:n_first]
+        if n_first < 3 or 0.5 * z_max * z_max * inv_h2 > 650.0:
+            return np.moveaxis(self(z)[..., :n_first], -1, 0).copy()
+        spacing = 1.0 / (self.n_basis - 1)
+        out = np.empty((n_first,) + z.shape)
+        out[0] = np.exp(-0.5 * inv_h2 * z * z)
+        step = self._step_factor[: n_first - 1].reshape((-1,) + (1,) * z.ndim)
+        np.multiply(np.exp(z * (spacing * inv_h2)), step, out=out[1:])
+        for k in range(1, n_first):
+            np.multiply(out[k - 1], out[k], out=out[k])
         return out
 
-    def support_count(self, z_max: float, tol: float = 1e-13) -> int:
+    def support_count(self, z_max: float, tol: float = 1e-11) -> int:
         """Number of leading basis functions that exceed ``tol`` somewhere on [0, ``z_max``].
 
         Basis functions with centre beyond ``z_max + h sqrt(-2 ln tol)`` are below

@@ -34,14 +34,18 @@ def _progress(stream=sys.stderr):
 
 
 def _add_pipeline_overrides(p: argparse.ArgumentParser) -> None:
-    p.add_argument("pipeline", type=Path, help="pipeline definition (TOML), e.g. pipelines/baxter_handover.toml")
+    p.add_argument(
+        "pipeline", type=Path, help="pipeline definition (TOML), e.g. pipelines/baxter_handover.toml"
+    )
     p.add_argument("--out", type=Path, help="output folder (default: the pipeline's outputs.dir)")
     p.add_argument("--dataset", type=Path, help="dataset folder (default: built-in synthetic demos)")
     p.add_argument("--format", help="dataset format: auto, chen2017, multimodal, bag, native")
     p.add_argument("--frames", help="comma-separated skeleton frames to read, e.g. /left_hand_1")
     p.add_argument("--observe", help="comma-separated observed groups, e.g. orientation,emg")
     p.add_argument("--task", help="task of the demo to observe (default: the first task)")
-    p.add_argument("--demo", type=int, help="index of the demo in its task, held out of training (default -1)")
+    p.add_argument(
+        "--demo", type=int, help="index of the demo in its task, held out of training (default -1)"
+    )
     p.add_argument("--ratio", type=float, help="observed fraction of the motion, in (0, 1] (default 0.2)")
     p.add_argument("--model", type=Path, help="use this saved model instead of training")
     p.add_argument("--save-model", type=Path, help="save the trained model here")
@@ -93,7 +97,9 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     inverse = {model: rec for rec, model in robot.settings.recorded_names.items()}
     joints = tuple(inverse[j] for j in robot.settings.arm_joints)
     t0 = time.perf_counter()
-    ds = load_dataset(args.dataset, format=args.format, frames=frames, robot_joints=joints, progress=_progress())
+    ds = load_dataset(
+        args.dataset, format=args.format, frames=frames, robot_joints=joints, progress=_progress()
+    )
     print(f"read {len(ds.all_demos())} demos of {', '.join(ds.tasks)} in {time.perf_counter() - t0:.1f} s")
     if args.grid == "paper":
         grid = list(PAPER_GRID)
@@ -103,7 +109,12 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     cells = []
     for protocol in protocols:
         cfg = EvaluationConfig(
-            protocol=protocol, observe=observe, grid=grid, n_test=args.n_test, n_splits=args.splits, seed=args.seed
+            protocol=protocol,
+            observe=observe,
+            grid=grid,
+            n_test=args.n_test,
+            n_splits=args.splits,
+            seed=args.seed,
         )
         t1 = time.perf_counter()
         cells += evaluate(ds, cfg, fk=lambda q: ee_positions(robot, q), progress=_progress())
@@ -121,12 +132,15 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
 
         args.plots.mkdir(parents=True, exist_ok=True)
         plots.plot_accuracy_chart(
-            [c.__dict__ for c in cells], args.plots / "accuracy.png", title=f"Recognition accuracy: {args.dataset.name}"
+            [c.__dict__ for c in cells],
+            args.plots / "accuracy.png",
+            title=f"Recognition accuracy: {args.dataset.name}",
         )
     for key, o in overall(cells).items():
-        print(f"{key}: mean accuracy {o['mean_accuracy']:.3f}" + (
-            f" (paper {o['paper_mean_accuracy']:.3f})" if "paper_mean_accuracy" in o else ""
-        ))
+        print(
+            f"{key}: mean accuracy {o['mean_accuracy']:.3f}"
+            + (f" (paper {o['paper_mean_accuracy']:.3f})" if "paper_mean_accuracy" in o else "")
+        )
     if args.json:
         print(f"wrote {args.json}" + (f" and {md}" if md else ""))
     del json
@@ -143,7 +157,9 @@ def cmd_train(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     model = IProMP(observe=observe).fit(ds.all_demos())
     model.save(args.out)
-    print(f"trained on {len(ds.all_demos())} demos of {', '.join(ds.tasks)} in {time.perf_counter() - t0:.2f} s")
+    print(
+        f"trained on {len(ds.all_demos())} demos of {', '.join(ds.tasks)} in {time.perf_counter() - t0:.2f} s"
+    )
     print(f"wrote {args.out}")
     return 0
 
@@ -170,20 +186,25 @@ def cmd_synth(args: argparse.Namespace) -> int:
 
 
 def cmd_preview(args: argparse.Namespace) -> int:
-    from .preview_cli import preview_main
+    from .pipeline import run_preview
 
-    return preview_main(args, _pipeline_config(args))
+    run_preview(
+        _pipeline_config(args), html=args.html, port=args.port, speed=args.speed, wait=not args.no_wait
+    )
+    return 0
 
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``ipromp-pin``."""
     parser = argparse.ArgumentParser(
         prog="ipromp-pin",
-        description="EMG-augmented Interaction ProMPs: recognise a human's hand-over task and plan Baxter's part.",
+        description="EMG-augmented Interaction ProMPs: recognise a hand-over task, plan Baxter's part.",
     )
     sub = parser.add_subparsers(dest="command", required=True)
 
-    p = sub.add_parser("run", help="run a pipeline: observe -> recognise -> predict -> check -> time -> files")
+    p = sub.add_parser(
+        "run", help="run a pipeline: observe -> recognise -> predict -> check -> time -> files"
+    )
     _add_pipeline_overrides(p)
     p.add_argument("--no-preview", action="store_true", help="do not write preview.html")
     p.add_argument("--plots", action="store_true", help="also write PNG figures")
@@ -195,13 +216,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--observe",
         action="append",
-        help="comma-separated observed groups (orientation, emg, acc, /left_hand_1 ...); repeat to compare sets "
+        help="comma-separated observed groups (orientation, emg, acc, /left_hand_1 ...); repeat to compare "
         "(default: orientation and orientation,emg)",
     )
     p.add_argument("--json", type=Path, help="write the table as JSON here")
     p.add_argument("--md", type=Path, help="write the table as Markdown here (default: beside --json)")
     p.add_argument("--format", default="auto", help="dataset format (default auto)")
-    p.add_argument("--grid", choices=["paper", "full"], default="paper", help="paper's 4 cells or --n-train x --ratios")
+    p.add_argument(
+        "--grid", choices=["paper", "full"], default="paper", help="paper's 4 cells or --n-train x --ratios"
+    )
     p.add_argument("--n-train", type=int, nargs="+", default=[10, 15, 20])
     p.add_argument("--ratios", type=float, nargs="+", default=[0.1, 0.2])
     p.add_argument("--n-test", type=int, default=10, help="test demos per task (default 10)")

@@ -199,7 +199,9 @@ def split_paper(dataset: Dataset, n_train: int, n_test: int) -> tuple[list[Demo]
     for task, demos in dataset.demos.items():
         if len(demos) < n_train + 1:
             raise DataError(
-                dataset.root, task, f"{len(demos)} demos, the protocol needs {n_train} to train and 1+ to test"
+                dataset.root,
+                task,
+                f"{len(demos)} demos, the protocol needs {n_train} to train and 1+ to test",
             )
         train += demos[:n_train]
         test += demos[n_train : n_train + n_test]
@@ -215,7 +217,9 @@ def split_random(
     for task, demos in dataset.demos.items():
         if len(demos) < n_train + 1:
             raise DataError(
-                dataset.root, task, f"{len(demos)} demos, the protocol needs {n_train} to train and 1+ to test"
+                dataset.root,
+                task,
+                f"{len(demos)} demos, the protocol needs {n_train} to train and 1+ to test",
             )
         idx = rng.permutation(len(demos))
         train += [demos[i] for i in idx[:n_train]]
@@ -304,7 +308,9 @@ def evaluate(
                         cell.append([r for r in trials if r.task == task])
                 done += 1
                 if progress is not None:
-                    progress(done, total, f"{config.protocol} split {rep + 1}/{repeats} n_train={n_train} {key}")
+                    progress(
+                        done, total, f"{config.protocol} split {rep + 1}/{repeats} n_train={n_train} {key}"
+                    )
     cells = []
     for n_train, ratio in config.grid:
         for observe in config.observe:
@@ -399,7 +405,7 @@ def to_markdown(cells: Sequence[Cell]) -> str:
         for key, o in overall(pc).items():
             s = f"- mean over cells, {key.split(':', 1)[1]}: {o['mean_accuracy']:.3f}"
             if "paper_mean_accuracy" in o:
-                s += f" (paper {o['paper_mean_accuracy']:.3f}; cells below the paper: {o['cells_below_paper']})"
+                s += f" (paper {o['paper_mean_accuracy']:.3f}; cells below it: {o['cells_below_paper']})"
             lines.append(s)
         lines.append("")
         lines.append(
@@ -438,7 +444,9 @@ def write_results(cells: Sequence[Cell], json_path: Path | None, md_path: Path |
     """Write the JSON and Markdown results."""
     if json_path is not None:
         json_path.parent.mkdir(parents=True, exist_ok=True)
-        json_path.write_text(json.dumps(to_json(cells, meta), indent=1, allow_nan=False, default=_json_default))
+        json_path.write_text(
+            json.dumps(to_json(cells, meta), indent=1, allow_nan=False, default=_json_default)
+        )
     if md_path is not None:
         md_path.parent.mkdir(parents=True, exist_ok=True)
         md_path.write_text(to_markdown(cells))

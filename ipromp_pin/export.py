@@ -47,11 +47,8 @@ def write_trajectory_csv(traj: Trajectory, path: str | Path) -> Path:
     names = list(traj.joint_names)
     header = ["time_s"] + [f"{p}.{j}" for p in ("q", "qd", "qdd") for j in names]
     data = np.column_stack([traj.t_s, traj.q, traj.qd, traj.qdd])
-    with open(path, "w", newline="", encoding="utf-8") as fh:
-        w = csv.writer(fh)
-        w.writerow(header)
-        for row in data:
-            w.writerow([repr(float(x)) for x in row])
+    # %.17g round-trips every float64 exactly
+    np.savetxt(path, data, fmt="%.17g", delimiter=",", header=",".join(header), comments="")
     return path
 
 
@@ -123,9 +120,29 @@ def trajectory_to_ros(traj: Trajectory, frame_id: str = "", stamp_s: float = 0.0
 def write_trajectory_json(traj: Trajectory, path: str | Path, frame_id: str = "") -> Path:
     """Write ``traj`` as ROS JointTrajectory-shaped JSON."""
     path = Path(path)
+    _check(traj)
+    head = json.dumps(
+        {
+            "header": {"seq": 0, "stamp": _duration(0.0), "frame_id": frame_id},
+            "joint_names": list(traj.joint_names),
+        }
+    )[:-1]
+    # one point per line, formatted directly (repr round-trips float64; faster than json.dump)
+    lines = []
+    for k in range(traj.t_s.size):
+        t = _duration(float(traj.t_s[k]))
+        lines.append(
+            '{"positions": ['
+            + ", ".join(map(repr, traj.q[k].tolist()))
+            + '], "velocities": ['
+            + ", ".join(map(repr, traj.qd[k].tolist()))
+            + '], "accelerations": ['
+            + ", ".join(map(repr, traj.qdd[k].tolist()))
+            + f'], "effort": [], "time_from_start": {{"secs": {t["secs"]}, "nsecs": {t["nsecs"]}}}}}'
+        )
+    body = ",\n".join(lines)
     with open(path, "w", encoding="utf-8") as fh:
-        json.dump(trajectory_to_ros(traj, frame_id), fh, indent=1)
-        fh.write("\n")
+        fh.write(f'{head}, "points": [\n{body}\n]}}\n')
     return path
 
 

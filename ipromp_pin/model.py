@@ -184,20 +184,39 @@ class TaskModel:
         return mean, np.sqrt(var)
 
 
-def alpha_prior(alphas: np.ndarray, n_alpha: int, min_rel_sigma: float = 0.02) -> tuple[float, float]:
+def alpha_prior(alphas: np.ndarray, min_rel_sigma: float = 0.02) -> tuple[float, float]:
     """Gaussian phase prior (mu, sigma) of the training phases, sigma floored at ``min_rel_sigma * mu``."""
     mu = float(np.mean(alphas))
     sigma = float(np.std(alphas, ddof=1)) if alphas.size > 1 else 0.0
     return mu, max(sigma, min_rel_sigma * mu)
 
 
-def alpha_candidates(mu: float, sigma: float, n_alpha: int, width: float = 3.0) -> tuple[np.ndarray, np.ndarray]:
-    """Candidate phases on ``mu +- width sigma`` (kept > 0.2 mu) and their normalised log prior weights."""
-    lo = max(mu - width * sigma, 0.2 * mu)
-    grid = np.linspace(lo, mu + width * sigma, n_alpha)
-    logp = -0.5 * ((grid - mu) / sigma) ** 2
-    logp -= np.logaddexp.reduce(logp)
-    return grid, logp
+def alpha_candidates(
+    priors: list[tuple[float, float]], n_alpha: int, width: float = 3.0
+) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Phase candidates of every task, as windows of one common uniform lattice.
+
+    Task ``k``'s support is ``mu_k +- width sigma_k`` (kept above ``0.2 mu_k``).
+    The lattice spacing gives the narrowest support ``n_alpha`` points; every
+    task gets the same number ``C`` of consecutive lattice points covering its
+    support (so each support holds at least ``n_alpha`` candidates). Candidates
+    shared by several tasks are computed once by the inference engine.
+
+    Returns:
+        Per task: candidates (C,) and their normalised log prior weights (C,).
+    """
+    lo = np.array([max(mu - width * sd, 0.2 * mu) for mu, sd in priors])
+    hi = np.array([mu + width * sd for mu, sd in priors])
+    spacing = float(np.min(hi - lo)) / (n_alpha - 1)
+    origin = float(np.min(lo))
+    n_cand = int(np.max(np.ceil((hi - lo) / spacing - 1e-9))) + 2
+    out = []
+    for (mu, sd), low in zip(priors, lo, strict=True):
+        start = int(np.floor((low - origin) / spacing + 1e-9))
+        grid = origin + spacing * (start + np.arange(n_cand))
+        logp = -0.5 * ((grid - mu) / sd) ** 2
+        out.append((grid, logp - np.logaddexp.reduce(logp)))
+    return out
 
 
 def fit_demo_weights(

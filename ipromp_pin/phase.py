@@ -162,6 +162,14 @@ class InferenceEngine:
         self.unpack = unpack
         self.use_z = n_task * self.pk.size * ia.size * 8 <= z_budget_bytes
         self._z: dict[tuple[int, ...], np.ndarray] = {}
+        self._buffers: dict[str, np.ndarray] = {}
+
+    def _buffer(self, name: str, shape: tuple[int, ...]) -> np.ndarray:
+        """A reusable work array (avoids page faults of fresh large allocations on every call)."""
+        buf = self._buffers.get(name)
+        if buf is None or buf.shape != shape:
+            buf = self._buffers[name] = np.empty(shape)
+        return buf
 
     def z_tensor(self, dims: np.ndarray) -> np.ndarray:
         """Packed ``Z`` (T, K(K+1)/2, r(r+1)/2) of the observed dims ``dims`` (cached)."""
@@ -169,7 +177,9 @@ class InferenceEngine:
         z = self._z.get(key)
         if z is None:
             w = self.w[:, dims]
-            full = np.einsum("tdka,tdlb->tklab", w, w)
+            n_task, dm, k, r = w.shape
+            flat = w.reshape(n_task, dm, k * r)
+            full = (np.swapaxes(flat, 1, 2) @ flat).reshape(n_task, k, r, k, r).transpose(0, 1, 3, 2, 4)
             z = full[:, self.pk, self.pl][:, :, self.ia, self.ib]
             off = self.pk != self.pl
             z[:, off] += full[:, self.pl[off], self.pk[off]][:, :, self.ia, self.ib]
@@ -181,9 +191,8 @@ class InferenceEngine:
         alphas = self.alpha_unique if alphas is None else alphas
         z = part.t[None, :] / (alphas[:, None] * self.t_norm)
         ke = self.basis.support_count(float(z.max()))
-        b = self.basis.values_prefix(z, ke)  # (U, n, ke)
-        bt = np.swapaxes(b, 1, 2)
-        gram = bt @ b
+        bt = np.swapaxes(self.basis.values_prefix_t(z, ke), 0, 1)  # (U, ke, n)
+        gram = bt @ np.swapaxes(bt, 1, 2)
         proj = bt @ part.y
         return PartStats(part.dims, part.t.size, ke, gram, proj, np.sum(part.y * part.y, axis=0))
 
@@ -223,34 +232,34 @@ class InferenceEngine:
             ke, dims = st.ke, st.dims
             dm = dims.size
             n_u = st.gram.shape[0]
-            aug = np.zeros((n_u, 2 * ke, 2 * ke))
-            eye = np.eye(ke)
-            aug[:, :ke, :ke] = st.gram + nu * eye
-            aug[:, ke:, :ke] = eye
-            aug[:, :ke, ke:] = eye
-            aug[:, ke:, ke:] = (2.0 / nu + 1.0) * eye
+            aug = self._buffer("aug", (n_u, 2 * ke, 2 * ke))
+            diag_idx = np.arange(ke)
+            aug[:, :ke, :ke] = st.gram
+            aug[:, diag_idx, diag_idx] += nu
+            aug[:, ke:, :ke] = 0.0
+            aug[:, ke:, ke:] = 0.0
+            aug[:, ke + diag_idx, diag_idx] = 1.0
+            aug[:, ke + diag_idx, ke + diag_idx] = 2.0 / nu + 1.0
             chol = np.linalg.cholesky(aug)
-            lit = chol[:, ke:, :ke]  # L^-T
+            lit = np.ascontiguousarray(chol[:, ke:, :ke])  # L^-T
             xinv_u = lit @ np.swapaxes(lit, 1, 2)
-            logdet_x = 2.0 * np.sum(np.log(np.diagonal(chol[:, :ke, :ke], axis1=1, axis2=2)), axis=1)
+            logdet_x = 2.0 * np.sum(np.log(chol[:, diag_idx, diag_idx]), axis=1)
             xinv = xinv_u[index]  # (T, C, ke, ke)
             gram = st.gram[index]
             proj = st.proj[index]  # (T, C, ke, dm)
-            mu = mu_all[:, dims, :ke]  # (T, dm, ke)
-            gmu = gram @ np.swapaxes(mu, 1, 2)[:, None]  # (T, C, ke, dm)
+            mu_t = np.swapaxes(mu_all[:, dims, :ke], 1, 2)[:, None]  # (T, 1, ke, dm)
+            gmu = gram @ mu_t  # (T, C, ke, dm)
             b = proj - gmu
-            ete = st.sq - np.einsum("tdk,tckd->tcd", mu, 2.0 * proj - gmu)
-            sd = sd_all[:, dims]
-            bh = b / sd[:, None, None, :]
+            ete = st.sq - np.sum(mu_t * (proj + b), axis=2)  # y'y - 2 mu'H + mu'G mu
+            bh = b / sd_all[:, None, None, dims]
             xb = xinv @ bh
-            total += np.sum(ete / delta_all[:, dims][:, None, :], axis=2) / nu
-            total -= np.einsum("tckd,tckd->tc", bh, xb) / nu
+            total += (np.sum(ete / delta_all[:, None, dims], axis=2) - np.sum(bh * xb, axis=(2, 3))) / nu
             w = w_all[:, dims, :ke].reshape(n_task, dm * ke, r)
             a += np.swapaxes(xb, 2, 3).reshape(n_task, n_cand, dm * ke) @ w
             m = ke * (ke + 1) // 2
             if self.use_z and isinstance(tasks, slice):
-                coef = self.pair_diag[:m] - nu * xinv[..., self.pk[:m], self.pl[:m]]
-                p_packed += coef @ self.z_tensor(dims)[:, :m]
+                coef_u = self.pair_diag[:m] - nu * xinv_u[:, self.pk[:m], self.pl[:m]]
+                p_packed += coef_u[index] @ self.z_tensor(dims)[:, :m]
             else:
                 wk = w_all[:, dims, :ke]  # (T, dm, ke, r)
                 y = xinv @ np.swapaxes(wk, 1, 2).reshape(n_task, 1, ke, dm * r)  # (T, C, ke, dm*r)
@@ -262,7 +271,7 @@ class InferenceEngine:
             total += dm * logdet_x[index]
             if keep:
                 kept.append((dims, ke, xinv, gram, b))
-        qa = np.zeros((n_task, n_cand, r + 1, r + 1))
+        qa = self._buffer("qa", (n_task, n_cand, r + 1, r + 1))
         qa[..., :r, :r] = p_packed[..., self.unpack]
         qa[..., np.arange(r), np.arange(r)] += 1.0
         qa[..., r, :r] = a

@@ -1,4 +1,4 @@
-"""The hand-over pipeline: dataset -> model -> observe -> recognise -> predict -> check -> time -> smooth -> files.
+"""The hand-over pipeline: data -> model -> observe -> recognise -> predict -> check -> time -> files.
 
 A pipeline definition is a TOML file (see ``pipelines/baxter_handover.toml``);
 relative paths in it are relative to its folder. :func:`load_pipeline` reads
@@ -79,7 +79,9 @@ class PipelineConfig:
     def validate(self) -> PipelineConfig:
         """Check value ranges; raise :class:`PipelineError` naming the field."""
         if not (0.0 < self.ratio <= 1.0):
-            raise PipelineError(f"{self.source}: field 'observation.ratio': must be in (0, 1], got {self.ratio}")
+            raise PipelineError(
+                f"{self.source}: field 'observation.ratio': must be in (0, 1], got {self.ratio}"
+            )
         if not self.observe:
             raise PipelineError(f"{self.source}: field 'model.observe': no channel group given")
         if ROBOT in self.observe:
@@ -200,7 +202,9 @@ def choose_demo(ds: Dataset, cfg: PipelineConfig) -> Demo:
     """The demo to observe (raises :class:`PipelineError` for an unknown task or index)."""
     task = cfg.task or ds.tasks[0]
     if task not in ds.demos:
-        raise PipelineError(f"{cfg.source}: field 'observation.task': unknown task '{task}' ({', '.join(ds.tasks)})")
+        raise PipelineError(
+            f"{cfg.source}: field 'observation.task': unknown task '{task}' ({', '.join(ds.tasks)})"
+        )
     demos = ds.demos[task]
     if not -len(demos) <= cfg.demo < len(demos):
         raise PipelineError(
@@ -218,7 +222,9 @@ def get_model(cfg: PipelineConfig, ds: Dataset, held_out: Demo, log: LogFn = pri
         model = IProMP.load(cfg.load_model)
         missing = [g for g in cfg.observe if g not in model.observe]
         if missing:
-            raise PipelineError(f"{cfg.load_model}: model does not observe {missing} (observes {model.observe})")
+            raise PipelineError(
+                f"{cfg.load_model}: model does not observe {missing} (observes {model.observe})"
+            )
         return model
     train = [d for d in ds.all_demos() if d is not held_out]
     t0 = time.perf_counter()
@@ -261,8 +267,8 @@ def plan(
     t1 = time.perf_counter()
     ms["recognise_predict"] = (t1 - t0) * 1e3
     say(
-        f"[recognise] {prediction.task} (posterior {prediction.posterior[prediction.tasks.index(prediction.task)]:.3f})"
-        f", predicted duration {prediction.duration_s:.2f} s"
+        f"[recognise] {prediction.task} (posterior {float(np.max(prediction.posterior)):.3f}), "
+        f"predicted duration {prediction.duration_s:.2f} s"
     )
     samples = prediction.sample_q(16, np.random.default_rng(0))
     report = check_path(
@@ -271,7 +277,9 @@ def plan(
     t2 = time.perf_counter()
     ms["check"] = (t2 - t1) * 1e3
     say(f"[check] {'pass' if report.passed else 'FAIL: ' + ', '.join(report.failures)}")
-    trajectory, timing_report = time_path(prediction.q_mean, JointLimits.from_robot(robot), rate_hz=control_rate_hz)
+    trajectory, timing_report = time_path(
+        prediction.q_mean, JointLimits.from_robot(robot), rate_hz=control_rate_hz
+    )
     t3 = time.perf_counter()
     ms["time_parameterise_smooth"] = (t3 - t2) * 1e3
     say(f"[timing] {trajectory.t_s[-1]:.2f} s at {control_rate_hz:g} Hz, {len(trajectory.t_s)} samples")
@@ -339,8 +347,10 @@ def run_pipeline(cfg: PipelineConfig, log: LogFn = print) -> dict:
     if cfg.preview_html:
         t0 = time.perf_counter()
         files["preview"] = write_preview(result, robot, demo, cfg.out_dir / "preview.html")
-        log(f"[preview] {files['preview']} ({files['preview'].stat().st_size / 1e6:.1f} MB, "
-            f"{time.perf_counter() - t0:.1f} s)")
+        log(
+            f"[preview] {files['preview']} ({files['preview'].stat().st_size / 1e6:.1f} MB, "
+            f"{time.perf_counter() - t0:.1f} s)"
+        )
     if cfg.plots:
         files.update(write_plots(result, model, demo, cfg.out_dir))
     report = report_dict(result, observation)
@@ -451,3 +461,71 @@ def write_plots(result: PlanResult, model, demo: Demo, out_dir: Path) -> dict[st
             p.phase_grid, p.phase_log_post, list(p.tasks), out_dir / "phase_posterior.png"
         )
     return files
+
+
+def run_preview(
+    cfg: PipelineConfig,
+    *,
+    html: Path | None = None,
+    port: int = 7000,
+    speed: float = 1.0,
+    wait: bool = True,
+    log: LogFn = print,
+) -> Path | None:
+    """``ipromp-pin preview``: a self-contained HTML file, or a live page on 127.0.0.1.
+
+    Live mode streams the observed samples of the chosen demo one by one into
+    the model's streaming estimator (at ``speed`` times real time), updating
+    the task posterior and the observation window on the page, then shows the
+    planned trajectory and its checks.
+
+    Returns:
+        The HTML file written, or ``None`` in live mode.
+    """
+    from .preview import LivePreview
+    from .robot import load_robot, load_visual_model
+
+    ds = load_data(cfg, log)
+    demo = choose_demo(ds, cfg)
+    model = get_model(cfg, ds, demo, log)
+    robot = load_robot(cfg.robot)
+    observation = demo.head(cfg.ratio, groups=cfg.observe)
+    result = plan(model, robot, observation, cfg.control_rate_hz, log=log)
+    if html is not None:
+        path = write_preview(result, robot, demo, html)
+        log(f"[preview] wrote {path} ({path.stat().st_size / 1e6:.1f} MB): open it in a browser (no server)")
+        return path
+    content = preview_content(result, robot, demo, visual_model=load_visual_model(robot))
+    start = content.replace(
+        posterior=np.full(len(result.prediction.tasks), 1.0 / len(result.prediction.tasks)),
+        task="(observing)",
+        observed_until_s=0.0,
+    )
+    live = LivePreview(start, port=port)
+    log(f"[preview] live at {live.url} (127.0.0.1 only); streaming {observation.n_samples} samples")
+    try:
+        stream = model.stream()
+        t_wall = time.perf_counter()
+        for i, t in enumerate(observation.t):
+            rec = stream.update(float(t), {g: observation.groups[g][i] for g in observation.groups})
+            if rec is not None and (i % 3 == 0 or i == observation.n_samples - 1):
+                live.update_posterior(rec.posterior, tasks=list(rec.tasks))
+                live.update_observation(float(t))
+                log(
+                    f"  t={t:5.2f} s  "
+                    + "  ".join(f"{k} {v:.2f}" for k, v in zip(rec.tasks, rec.posterior, strict=True))
+                )
+            delay = t / max(speed, 1e-6) - (time.perf_counter() - t_wall)
+            if delay > 0:
+                time.sleep(delay)
+        live.show(content)
+        log(f"[preview] recognised {result.prediction.task}; trajectory and checks shown")
+        if wait:
+            log("[preview] press Ctrl-C to stop the server")
+            while True:
+                time.sleep(0.5)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        live.close()
+    return None

@@ -20,7 +20,13 @@ import numpy as np  # noqa: E402
 
 from .exceptions import DataError  # noqa: E402
 
-__all__ = ["plot_accuracy", "plot_distributions", "plot_phase_posterior", "plot_prediction"]
+__all__ = [
+    "plot_accuracy",
+    "plot_accuracy_chart",
+    "plot_distributions",
+    "plot_phase_posterior",
+    "plot_prediction",
+]
 
 _SOURCE = "plots"
 
@@ -112,9 +118,17 @@ def plot_distributions(
             ax.set_visible(False)
             continue
         for k, demo in enumerate(demo_list):
-            ax.plot(phase, demo[:, d], color="0.6", lw=0.7, alpha=0.6, label="training demos" if k == 0 else None)
-        ax.fill_between(phase, mean[:, d] - 2 * std[:, d], mean[:, d] + 2 * std[:, d], color="C0", alpha=0.25,
-                        label="2 sigma")
+            ax.plot(
+                phase, demo[:, d], color="0.6", lw=0.7, alpha=0.6, label="training demos" if k == 0 else None
+            )
+        ax.fill_between(
+            phase,
+            mean[:, d] - 2 * std[:, d],
+            mean[:, d] + 2 * std[:, d],
+            color="C0",
+            alpha=0.25,
+            label="2 sigma",
+        )
         ax.plot(phase, mean[:, d], color="C0", lw=1.8, label="mean")
         ax.set_title(names[d], fontsize=9)
         ax.tick_params(labelsize=7)
@@ -178,8 +192,14 @@ def plot_prediction(
         if observed_until_s is not None:
             ax.axvspan(0.0, observed_until_s, color="C2", alpha=0.12, label="observed")
             ax.axvline(observed_until_s, color="C2", lw=1.0)
-        ax.fill_between(t_s, q_mean[:, j] - 2 * q_std[:, j], q_mean[:, j] + 2 * q_std[:, j], color="C0", alpha=0.25,
-                        label="2 sigma")
+        ax.fill_between(
+            t_s,
+            q_mean[:, j] - 2 * q_std[:, j],
+            q_mean[:, j] + 2 * q_std[:, j],
+            color="C0",
+            alpha=0.25,
+            label="2 sigma",
+        )
         ax.plot(t_s, q_mean[:, j], color="C0", lw=1.8, label="prediction")
         if q_truth is not None:
             ax.plot(truth_t_s, q_truth[:, j], color="k", lw=1.2, ls="--", label="ground truth")
@@ -196,9 +216,10 @@ def plot_prediction(
 
 def plot_phase_posterior(
     alphas: Mapping[str, np.ndarray] | np.ndarray,
-    log_posterior: Mapping[str, np.ndarray],
+    log_posterior: Mapping[str, np.ndarray] | np.ndarray,
     path: str | Path,
     *,
+    tasks: Sequence[str] | None = None,
     true_alpha: float | None = None,
     title: str = "",
     figsize: tuple[float, float] = (8.0, 5.0),
@@ -208,10 +229,16 @@ def plot_phase_posterior(
 
     Args:
         alphas: (A,) candidates shared by all tasks, or {task: (A_k,)}.
-        log_posterior: {task: (A_k,)} log posterior (or log likelihood) of each candidate.
+        log_posterior: {task: (A_k,)} log posterior (or log likelihood) of each candidate, or a
+            (K, A) array with the task names in ``tasks``.
         path: PNG file to write.
+        tasks: (K,) task names of the rows of an array ``log_posterior``.
         true_alpha: Ground-truth alpha of the observed demo (vertical line), when known.
     """
+    if not isinstance(log_posterior, Mapping):
+        table = _array(log_posterior, "log_posterior", 2)
+        names = _names(tasks, table.shape[0], "tasks", "task ")
+        log_posterior = dict(zip(names, table, strict=True))
     if not log_posterior:
         raise _err("log_posterior", "no task given")
     fig, ax = plt.subplots(figsize=figsize, layout="constrained")
@@ -222,7 +249,9 @@ def plot_phase_posterior(
         grid = _array(grid, f"alphas[{task}]", 1)
         values = _array(values, f"log_posterior[{task}]", 1)
         if values.size != grid.size:
-            raise _err("log_posterior", f"task '{task}' has {values.size} values for {grid.size} alpha candidates")
+            raise _err(
+                "log_posterior", f"task '{task}' has {values.size} values for {grid.size} alpha candidates"
+            )
         finite = np.isfinite(values)
         ax.plot(grid[finite], values[finite], marker=".", color=f"C{k}", label=str(task))
         if finite.any():
@@ -253,8 +282,9 @@ def plot_accuracy(
     over the tasks of the records.
 
     Args:
-        records: Rows ``{"n_train": int, "obs_ratio": float, "observe": str, "task": str,
-            "accuracy": float in [0, 1]}``.
+        records: Rows ``{"n_train": int, "obs_ratio": float, "observe": str or list of groups,
+            "task": str, "accuracy": float in [0, 1]}`` (an optional ``"protocol"`` is named in the
+            legend when the records mix several).
         path: PNG file to write.
     """
     required = ("n_train", "obs_ratio", "observe", "accuracy")
@@ -271,10 +301,17 @@ def plot_accuracy(
         observe = record["observe"]
         if not isinstance(observe, str):
             observe = ",".join(observe)
-        rows.append((int(record["n_train"]), float(record["obs_ratio"]), observe, accuracy))
+        protocol = record.get("protocol")
+        rows.append((int(record["n_train"]), float(record["obs_ratio"]), observe, accuracy, protocol))
+    if len({r[4] for r in rows}) > 1:  # several protocols: name them in the legend
+        rows = [
+            (n, ratio, f"{protocol}: {observe}", acc, protocol) for n, ratio, observe, acc, protocol in rows
+        ]
     n_trains = sorted({r[0] for r in rows})
     settings = sorted({r[2] for r in rows}, key=lambda s: ("emg" in s, s))
-    fig, axes = plt.subplots(1, len(n_trains), figsize=figsize, squeeze=False, sharey=True, layout="constrained")
+    fig, axes = plt.subplots(
+        1, len(n_trains), figsize=figsize, squeeze=False, sharey=True, layout="constrained"
+    )
     for ax, n_train in zip(axes.flat, n_trains, strict=True):
         for k, setting in enumerate(settings):
             selected = [r for r in rows if r[0] == n_train and r[2] == setting]
@@ -285,8 +322,15 @@ def plot_accuracy(
             style = "-" if "emg" in setting else "--"
             ax.plot(ratios, mean, style, marker="o", color=f"C{k}", label=setting)
             for ratio, value in zip(ratios, mean, strict=True):
-                ax.annotate(f"{value:.2f}", (ratio, value), textcoords="offset points", xytext=(0, 5),
-                            ha="center", fontsize=7, color=f"C{k}")
+                ax.annotate(
+                    f"{value:.2f}",
+                    (ratio, value),
+                    textcoords="offset points",
+                    xytext=(0, 5),
+                    ha="center",
+                    fontsize=7,
+                    color=f"C{k}",
+                )
         ax.set_title(f"{n_train} training demos / task", fontsize=10)
         ax.set_xlabel("observed ratio of the motion")
         ax.set_ylim(0.0, 1.05)
@@ -295,3 +339,7 @@ def plot_accuracy(
     axes.flat[0].legend(fontsize=8, loc="lower right")
     fig.suptitle(title)
     return _save(fig, path, dpi)
+
+
+#: Alias of :func:`plot_accuracy`.
+plot_accuracy_chart = plot_accuracy

@@ -46,8 +46,8 @@ import meshcat.animation
 import meshcat.geometry as mg
 import numpy as np
 import pinocchio as pin
-from pinocchio.visualize import MeshcatVisualizer
 import umsgpack
+from pinocchio.visualize import MeshcatVisualizer
 
 from .exceptions import DataError
 
@@ -59,13 +59,14 @@ __all__ = [
     "overlay_state",
     "render_html",
     "serve_preview",
+    "count_triangles",
     "simplify_visual_model",
     "write_html",
 ]
 
 _SOURCE = "preview"
 
-#: Default triangle budget of the robot's visual meshes (about 2.5 MB of an offline page).
+#: Default triangle budget of the robot's visual meshes (Baxter: a 3.7 MB offline page).
 DEFAULT_MAX_TRIANGLES = 100_000
 
 # Colours (0xRRGGBB) of the scene elements; the HTML legend uses the same values.
@@ -208,7 +209,9 @@ class PreviewContent:
                 raise _err("joint_names", f"joint '{name}' is not in the robot model")
             joint = self.model.joints[self.model.getJointId(name)]
             if joint.nq != 1:
-                raise _err("joint_names", f"joint '{name}' has {joint.nq} configuration variables, expected 1")
+                raise _err(
+                    "joint_names", f"joint '{name}' has {joint.nq} configuration variables, expected 1"
+                )
             index.append(joint.idx_q)
         self._q_index = np.asarray(index, dtype=int)
         if self.q_full is None:
@@ -224,8 +227,10 @@ class PreviewContent:
             if self.ee_mean is None:
                 self.ee_mean = self.ee_samples.mean(axis=0)
             if self.ee_samples.shape[1] != self.ee_mean.shape[0]:
-                raise _err("ee_samples", f"paths have {self.ee_samples.shape[1]} points, ee_mean has "
-                           f"{self.ee_mean.shape[0]}")
+                raise _err(
+                    "ee_samples",
+                    f"paths have {self.ee_samples.shape[1]} points, ee_mean has {self.ee_mean.shape[0]}",
+                )
             if self.ee_std is None and self.ee_samples.shape[0] >= 2:
                 self.ee_std = self.ee_samples.std(axis=0, ddof=1)
         if self.ee_std is not None:
@@ -243,7 +248,9 @@ class PreviewContent:
             if self.hand_path is None:
                 raise _err("hand_t_s", "given without hand_path")
             if self.hand_t_s.size != self.hand_path.shape[0]:
-                raise _err("hand_t_s", f"has {self.hand_t_s.size} samples, hand_path has {self.hand_path.shape[0]}")
+                raise _err(
+                    "hand_t_s", f"has {self.hand_t_s.size} samples, hand_path has {self.hand_path.shape[0]}"
+                )
             if self.hand_t_s.size >= 2 and np.any(np.diff(self.hand_t_s) <= 0.0):
                 raise _err("hand_t_s", "times must be strictly increasing")
         if self.hand_observed_index is not None:
@@ -273,7 +280,9 @@ class PreviewContent:
         for item in self.feasibility:
             if not isinstance(item, (tuple, list)) or not 2 <= len(item) <= 3:
                 raise _err("feasibility", f"expected (name, passed, detail), got {item!r}")
-            checks.append(FeasibilityCheck(str(item[0]), bool(item[1]), str(item[2]) if len(item) > 2 else ""))
+            checks.append(
+                FeasibilityCheck(str(item[0]), bool(item[1]), str(item[2]) if len(item) > 2 else "")
+            )
         self.feasibility = tuple(checks)
         self.collision_links = tuple(str(n) for n in self.collision_links)
         for name in self.collision_links:
@@ -405,7 +414,9 @@ def count_triangles(geometry_model: pin.GeometryModel) -> int:
     import coal
 
     return sum(
-        g.geometry.num_tris for g in geometry_model.geometryObjects if isinstance(g.geometry, coal.BVHModelBase)
+        g.geometry.num_tris
+        for g in geometry_model.geometryObjects
+        if isinstance(g.geometry, coal.BVHModelBase)
     )
 
 
@@ -462,7 +473,10 @@ def _tube(points: np.ndarray, radius: float | np.ndarray, sides: int = 12) -> tu
     ring = (
         pts[:, None, :]
         + radii[:, None, None]
-        * (np.cos(angles)[None, :, None] * normals[:, None, :] + np.sin(angles)[None, :, None] * binormals[:, None, :])
+        * (
+            np.cos(angles)[None, :, None] * normals[:, None, :]
+            + np.sin(angles)[None, :, None] * binormals[:, None, :]
+        )
     ).reshape(-1, 3)
     m = len(pts)
     i, k = np.meshgrid(np.arange(m - 1), np.arange(sides), indexing="ij")
@@ -487,7 +501,11 @@ def _sphere_mesh(center: np.ndarray, radius: float, n: int = 12) -> tuple[np.nda
     theta = np.linspace(0.0, np.pi, n + 1)[1:-1]
     phi = 2.0 * np.pi * np.arange(2 * n) / (2 * n)
     ring = np.stack(
-        [np.outer(np.sin(theta), np.cos(phi)), np.outer(np.sin(theta), np.sin(phi)), np.outer(np.cos(theta), phi * 0)],
+        [
+            np.outer(np.sin(theta), np.cos(phi)),
+            np.outer(np.sin(theta), np.sin(phi)),
+            np.outer(np.cos(theta), phi * 0),
+        ],
         -1,
     ).reshape(-1, 3)
     vertices = np.vstack([ring, [0.0, 0.0, 1.0], [0.0, 0.0, -1.0]]) * radius + np.asarray(center, dtype=float)
@@ -495,7 +513,10 @@ def _sphere_mesh(center: np.ndarray, radius: float, n: int = 12) -> tuple[np.nda
     i, k = np.meshgrid(np.arange(rows - 1), np.arange(cols), indexing="ij")
     a = i * cols + k
     b = i * cols + (k + 1) % cols
-    faces = [np.stack([a, b, b + cols], -1).reshape(-1, 3), np.stack([a, b + cols, a + cols], -1).reshape(-1, 3)]
+    faces = [
+        np.stack([a, b, b + cols], -1).reshape(-1, 3),
+        np.stack([a, b + cols, a + cols], -1).reshape(-1, 3),
+    ]
     top, bottom = len(ring), len(ring) + 1
     k = np.arange(cols)
     faces.append(np.stack([np.full(cols, top), (k + 1) % cols, k], -1))
@@ -508,7 +529,9 @@ def _material(color: int, opacity: float = 1.0) -> mg.MeshPhongMaterial:
     return mg.MeshPhongMaterial(color=color, opacity=opacity, transparent=opacity < 1.0)
 
 
-def _set_mesh(node: meshcat.Visualizer, mesh: tuple[np.ndarray, np.ndarray], color: int, opacity: float = 1.0) -> None:
+def _set_mesh(
+    node: meshcat.Visualizer, mesh: tuple[np.ndarray, np.ndarray], color: int, opacity: float = 1.0
+) -> None:
     node.set_object(mg.TriangularMeshGeometry(mesh[0], mesh[1]), _material(color, opacity))
 
 
@@ -614,8 +637,12 @@ def _animate(viewer: meshcat.Visualizer, robot: _RobotView, content: PreviewCont
     times = np.arange(n_frames) / fps
     qs = content.configurations(times)
     frames = [robot.placements(q) for q in qs]
-    names = [robot.visualizer.getViewerNodeName(o, pin.GeometryType.VISUAL) for o in robot.geometry.geometryObjects]
-    moving = [i for i in range(len(names)) if any(not np.allclose(f[i], frames[0][i], atol=1e-9) for f in frames)]
+    names = [
+        robot.visualizer.getViewerNodeName(o, pin.GeometryType.VISUAL) for o in robot.geometry.geometryObjects
+    ]
+    moving = [
+        i for i in range(len(names)) if any(not np.allclose(f[i], frames[0][i], atol=1e-9) for f in frames)
+    ]
     animation = meshcat.animation.Animation(default_framerate=fps)
     hand = None
     if content.hand_path is not None and content.hand_t_s is not None:
@@ -662,7 +689,12 @@ def _draw_prediction(viewer: meshcat.Visualizer, content: PreviewContent) -> Non
         if content.ee_std is not None:
             # Radius: 2 sigma of the root-mean-square per-axis standard deviation.
             radius = 2.0 * np.sqrt(np.mean(content.ee_std**2, axis=1))
-            _set_mesh(viewer["prediction/band"], _tube(content.ee_mean, np.maximum(radius, 0.007), 16), COLOR_EE_BAND, 0.25)
+            _set_mesh(
+                viewer["prediction/band"],
+                _tube(content.ee_mean, np.maximum(radius, 0.007), 16),
+                COLOR_EE_BAND,
+                0.25,
+            )
         if content.ee_samples is not None:
             samples = content.ee_samples[:30]
             # One LineSegments object: consecutive point pairs of every sampled path.
@@ -726,7 +758,9 @@ def overlay_state(content: PreviewContent) -> dict[str, Any]:
         "tasks": list(content.tasks),
         "posterior": posterior,
         "observed": observed,
-        "feasibility": [{"name": c.name, "passed": c.passed, "detail": c.detail} for c in content.feasibility],
+        "feasibility": [
+            {"name": c.name, "passed": c.passed, "detail": c.detail} for c in content.feasibility
+        ],
         "collision_links": list(content.collision_links),
         "near_limit_joints": list(content.near_limit_joints),
         "legend": legend,
@@ -913,8 +947,12 @@ function iprompRender(s) {
     }
     root.appendChild(list);
   }
-  if (s.collision_links.length) root.appendChild(iprompEl("div", {}, "In collision (red): " + s.collision_links.join(", ")));
-  if (s.near_limit_joints.length) root.appendChild(iprompEl("div", {}, "Near a joint limit (orange): " + s.near_limit_joints.join(", ")));
+  if (s.collision_links.length) {
+    root.appendChild(iprompEl("div", {}, "In collision (red): " + s.collision_links.join(", ")));
+  }
+  if (s.near_limit_joints.length) {
+    root.appendChild(iprompEl("div", {}, "Near a joint limit (orange): " + s.near_limit_joints.join(", ")));
+  }
   const legend = iprompEl("div", {id: "ipromp-legend"});
   for (const item of s.legend) {
     const row = iprompEl("div");
@@ -964,7 +1002,7 @@ def _page(title: str, body_js: str, data_script: str = "") -> str:
     import html
 
     return (
-        "<!DOCTYPE html>\n<html>\n<head>\n<meta charset=\"utf-8\">\n"
+        '<!DOCTYPE html>\n<html>\n<head>\n<meta charset="utf-8">\n'
         f"<title>{html.escape(title)}</title>\n<style>{_PAGE_CSS}</style>\n</head>\n<body>\n"
         '<div id="meshcat-pane"></div>\n<div id="ipromp-overlay"></div>\n'
         f"{data_script}"
@@ -997,7 +1035,7 @@ def write_html(
     """Write the offline preview of ``content`` as ONE self-contained HTML file; returns its path.
 
     The page needs no server and no network: open it in any browser with WebGL. With the default
-    ``max_triangles`` Baxter's page is about 3 MB.
+    ``max_triangles`` Baxter's page is about 3.7 MB (1.4 MB gzipped).
     """
     path = Path(path)
     text = render_html(content, max_triangles=max_triangles, fps=fps)
@@ -1058,7 +1096,11 @@ class LivePreview:
         self._thread: threading.Thread | None = None
         self._sockets = self._bind(port, port_attempts)
         self.port = int(self._sockets[0].getsockname()[1])
-        self.url = f"http://{self.host}:{self.port}/" if ":" not in self.host else f"http://[{self.host}]:{self.port}/"
+        self.url = (
+            f"http://{self.host}:{self.port}/"
+            if ":" not in self.host
+            else f"http://[{self.host}]:{self.port}/"
+        )
         self._start()
 
     # -- server ---------------------------------------------------------------------------------
@@ -1090,6 +1132,10 @@ class LivePreview:
                 self.set_header("Cache-Control", "no-store")
                 self.write(page)
 
+        class NoIconHandler(tornado.web.RequestHandler):
+            def get(self) -> None:
+                self.set_status(204)
+
         class SocketHandler(tornado.websocket.WebSocketHandler):
             def open(self) -> None:
                 preview._on_open(self)
@@ -1105,7 +1151,9 @@ class LivePreview:
         def run() -> None:
             asyncio.set_event_loop(asyncio.new_event_loop())
             self._loop = tornado.ioloop.IOLoop.current()
-            app = tornado.web.Application([(r"/", PageHandler), (r"/ws", SocketHandler)])
+            app = tornado.web.Application(
+                [(r"/", PageHandler), (r"/favicon.ico", NoIconHandler), (r"/ws", SocketHandler)]
+            )
             self._server = tornado.httpserver.HTTPServer(app)
             self._server.add_sockets(self._sockets)
             ready.set()
@@ -1178,8 +1226,16 @@ class LivePreview:
         self.content = content
         _build(self._window, content, robot=self._robot, fps=self.fps)
 
-    def _redraw(self, content: PreviewContent, *, human: bool = False, prediction: bool = False,
-                label: bool = False, animation: bool = False, paint: bool = False) -> None:
+    def _redraw(
+        self,
+        content: PreviewContent,
+        *,
+        human: bool = False,
+        prediction: bool = False,
+        label: bool = False,
+        animation: bool = False,
+        paint: bool = False,
+    ) -> None:
         self.content = content
         viewer = _new_viewer(self._window)
         if paint:
@@ -1214,7 +1270,10 @@ class LivePreview:
         hand_observed_index: int | None = None,
     ) -> None:
         """New end of the observed window in [s] (and optionally a new/extended hand path)."""
-        changes: dict[str, Any] = {"observed_until_s": observed_until_s, "hand_observed_index": hand_observed_index}
+        changes: dict[str, Any] = {
+            "observed_until_s": observed_until_s,
+            "hand_observed_index": hand_observed_index,
+        }
         if hand_path is not None:
             changes.update(hand_path=hand_path, hand_t_s=hand_t_s)
         self._redraw(self.content.replace(**changes), human=True, animation=hand_path is not None)
@@ -1231,7 +1290,11 @@ class LivePreview:
     ) -> None:
         """New predicted robot trajectory (N,) [s], (N, J) [rad] and end-effector path (M, 3) [m]."""
         content = self.content.replace(
-            t_s=t_s, q=q, ee_mean=ee_mean, ee_samples=ee_samples, ee_std=ee_std,
+            t_s=t_s,
+            q=q,
+            ee_mean=ee_mean,
+            ee_samples=ee_samples,
+            ee_std=ee_std,
             handover_point=self.content.handover_point if handover_point is None else handover_point,
         )
         self._redraw(content, prediction=True, animation=True, human=True)

@@ -34,8 +34,11 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import contextlib
+
 import numpy as np
 from scipy.linalg import cho_factor, cho_solve, solve_triangular
+from threadpoolctl import ThreadpoolController
 
 from .basis import GaussianBasis
 from .data import ROBOT, Dataset, Demo, group_by_task, parse_groups
@@ -139,6 +142,8 @@ class IProMP:
         n_points: Number M of points of the predicted trajectories.
         task_prior: Prior task probabilities (task -> p, or None for uniform).
         robot_group: Name of the robot's joint-angle group.
+        blas_threads: BLAS threads used while fitting and inferring (None = leave unchanged). Inference works on
+            many small matrices, for which more threads only add overhead (1 is fastest).
 
     Fitted attributes:
         tasks_: Task names.
@@ -166,6 +171,7 @@ class IProMP:
         n_points: int = 100,
         task_prior: Mapping[str, float] | None = None,
         robot_group: str = ROBOT,
+        blas_threads: int | None = 1,
     ) -> None:
         self.observe = parse_groups(observe)
         self.n_basis = n_basis
@@ -177,6 +183,9 @@ class IProMP:
         self.n_points = n_points
         self.task_prior = None if task_prior is None else dict(task_prior)
         self.robot_group = robot_group
+        self.blas_threads = blas_threads
+        self._engine: InferenceEngine | None = None
+        self._threads: ThreadpoolController | None = None
         if robot_group in self.observe:
             raise ModelError(f"the robot group '{robot_group}' cannot be an observed group")
         if not (isinstance(noise, str) and noise == "auto"):
@@ -240,10 +249,11 @@ class IProMP:
         self.residual_var_ = rss / np.maximum(count, 1)
         self._weights = weights
         self._alphas = {task: durations[task] / self.duration_nominal_s_ for task in self.tasks_}
-        self.models_ = {task: self._task_model(task, weights[task], self._alphas[task]) for task in self.tasks_}
+        self.models_ = self._task_models(weights, self._alphas)
         self.task_log_prior_ = self._log_task_prior()
         if isinstance(self.noise, str):
-            self.noise_ratio_, self.cv_scores_ = self._choose_noise(by_task)
+            with self._limit_threads():
+                self.noise_ratio_, self.cv_scores_ = self._choose_noise(by_task)
         else:
             self.noise_ratio_, self.cv_scores_ = float(self.noise), {}
         self._set_noise()
@@ -270,23 +280,26 @@ class IProMP:
             cnt[lo:hi] = d.n_samples if valid is None else int(np.sum(valid))
         return w, rss, cnt
 
-    def _task_model(self, task: str, weights: np.ndarray, alphas: np.ndarray) -> TaskModel:
-        cov = shrink_covariance(weights)
-        mu, sigma = alpha_prior(alphas, self.n_alpha)
-        grid, logw = alpha_candidates(mu, sigma, self.n_alpha, self.alpha_width)
-        return TaskModel(
-            task=task,
-            mean=cov.mean,
-            diag=cov.diag,
-            factor=cov.factor,
-            shrinkage=cov.shrinkage,
-            alpha_mu=mu,
-            alpha_sigma=sigma,
-            alpha_grid=grid,
-            alpha_log_prior=logw,
-            train_weights=weights,
-            train_alpha=alphas,
-        )
+    def _task_models(self, weights: dict[str, np.ndarray], alphas: dict[str, np.ndarray]) -> dict[str, TaskModel]:
+        priors = [alpha_prior(alphas[t]) for t in self.tasks_]
+        cands = alpha_candidates(priors, self.n_alpha, self.alpha_width)
+        models = {}
+        for task, (mu, sigma), (grid, logw) in zip(self.tasks_, priors, cands, strict=True):
+            cov = shrink_covariance(weights[task])
+            models[task] = TaskModel(
+                task=task,
+                mean=cov.mean,
+                diag=cov.diag,
+                factor=cov.factor,
+                shrinkage=cov.shrinkage,
+                alpha_mu=mu,
+                alpha_sigma=sigma,
+                alpha_grid=grid,
+                alpha_log_prior=logw,
+                train_weights=weights[task],
+                train_alpha=alphas[task],
+            )
+        return models
 
     def _log_task_prior(self) -> np.ndarray:
         if self.task_prior is None:
@@ -318,9 +331,11 @@ class IProMP:
                 ki = self.tasks_.index(task)
                 for i, d in enumerate(demos):
                     keep = np.arange(len(demos)) != i
-                    models = dict(full)
-                    models[task] = m = self._task_model(task, self._weights[task][keep], self._alphas[task][keep])
-                    self.models_ = models
+                    self.models_ = self._task_models(
+                        {**self._weights, task: self._weights[task][keep]},
+                        {**self._alphas, task: self._alphas[task][keep]},
+                    )
+                    m = self.models_[task]
                     self._engine = None
                     engine = self._engine_()
                     dens_shift = np.log(m.alpha_grid[1] - m.alpha_grid[0])
@@ -351,6 +366,14 @@ class IProMP:
         return float(NOISE_GRID[best]), {float(nu): float(v) for nu, v in zip(NOISE_GRID, scores, strict=True)}
 
     # ---------------------------------------------------------- inference
+    def _limit_threads(self):
+        """Context limiting BLAS threads to ``blas_threads`` (the controller is created once per model)."""
+        if self.blas_threads is None:
+            return contextlib.nullcontext()
+        if self._threads is None:
+            self._threads = ThreadpoolController()
+        return self._threads.limit(limits=int(self.blas_threads), user_api="blas")
+
     def _check_fitted(self) -> None:
         if not hasattr(self, "models_"):
             raise NotFittedError("IProMP is not fitted: call fit() before predict/recognise/stream/save")
@@ -457,7 +480,8 @@ class IProMP:
     def recognise(self, observation: Demo) -> Recognition:
         """Task posterior and phase estimates of a partial observation (no trajectory)."""
         parts, t_last = self._prepare(observation)
-        return self._recognise_parts(parts, t_last)
+        with self._limit_threads():
+            return self._recognise_parts(parts, t_last)
 
     recognize = recognise
 
@@ -468,8 +492,9 @@ class IProMP:
             observation: Partial demo with the observed groups (>= 2 samples), times in [s] from motion start.
         """
         parts, t_last = self._prepare(observation)
-        rec = self._recognise_parts(parts, t_last)
-        return self._condition(rec, parts)
+        with self._limit_threads():
+            rec = self._recognise_parts(parts, t_last)
+            return self._condition(rec, parts)
 
     def _condition(self, rec: Recognition, parts: list[ObservationPart]) -> Prediction:
         task = rec.task

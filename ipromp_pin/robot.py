@@ -478,15 +478,16 @@ def load_robot(settings: RobotSettings | str | Path, *, cache: bool = True) -> R
         RobotError: unknown joint or frame names, non-revolute or out-of-order arm joints, invalid
             URDF limits, fixed joint values outside their limits, a held configuration in collision.
     """
-    if not isinstance(settings, RobotSettings):
-        settings = load_robot_settings(settings)
     key = None
     if cache:
-        st = settings.path.stat()
-        key = (str(settings.path), st.st_mtime_ns, st.st_size)
+        path = settings.path if isinstance(settings, RobotSettings) else resolve_settings_path(settings)
+        st = path.stat()
+        key = (str(path), st.st_mtime_ns, st.st_size)
         robot = _ROBOT_CACHE.get(key)
         if robot is not None:
             return robot
+    if not isinstance(settings, RobotSettings):
+        settings = load_robot_settings(settings)
     robot = _build_robot(settings)
     if key is not None:
         for k in [k for k in _ROBOT_CACHE if k[0] == key[0]]:

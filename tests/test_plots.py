@@ -110,6 +110,11 @@ def test_plot_phase_posterior(tmp_path):
     log_post["tape"][0] = -np.inf  # an impossible candidate is skipped, not an error
     path = plots.plot_phase_posterior(alphas, log_post, tmp_path / "phase.png", true_alpha=1.0, dpi=50)
     assert_png(path, (400, 250))
+    table = np.stack(list(log_post.values()))
+    path = plots.plot_phase_posterior(alphas, table, tmp_path / "phase2.png", tasks=list(log_post))
+    assert_png(path, (800, 500))
+    with pytest.raises(DataError, match="field 'tasks'"):
+        plots.plot_phase_posterior(alphas, table, tmp_path / "x.png", tasks=["rod"])
     with pytest.raises(DataError, match="3 values for 21"):
         plots.plot_phase_posterior(alphas, {"rod": np.zeros(3)}, tmp_path / "x.png")
     with pytest.raises(DataError, match="no candidates"):
@@ -132,6 +137,11 @@ def test_plot_accuracy(tmp_path):
     ]
     path = plots.plot_accuracy(records, tmp_path / "acc.png")
     assert_png(path, (1200, 450))
+    # Records as the evaluation writes them: observe as a list of groups, several protocols.
+    cells = [
+        dict(r, observe=r["observe"].split(","), protocol=p) for r in records for p in ("paper", "splits")
+    ]
+    assert_png(plots.plot_accuracy_chart(cells, tmp_path / "acc2.png", dpi=50), (600, 225))
     with pytest.raises(DataError, match="lacks"):
         plots.plot_accuracy([{"n_train": 5, "obs_ratio": 0.2}], tmp_path / "x.png")
     with pytest.raises(DataError, match="outside"):

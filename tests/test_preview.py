@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import asyncio
 import base64
-import importlib.metadata
 import json
 import re
 import socket
@@ -19,17 +18,17 @@ import umsgpack
 
 from ipromp_pin import preview
 from ipromp_pin.exceptions import DataError
+from ipromp_pin.robot import load_robot, load_visual_model
 
 ARM = ("left_s0", "left_s1", "left_e0", "left_e1", "left_w0", "left_w1", "left_w2")
 TASKS = ("handover_cup", "handover_rod", "handover_tape")
 
 
 def load_baxter(kind: pin.GeometryType = pin.GeometryType.VISUAL) -> tuple[pin.Model, pin.GeometryModel]:
-    """Baxter's model and visual (or collision) geometry from example-robot-data."""
-    share = Path(str(importlib.metadata.distribution("example-robot-data").locate_file("cmeel.prefix/share")))
-    urdf = share / "example-robot-data" / "robots" / "baxter_description" / "urdf" / "baxter.urdf"
-    model = pin.buildModelFromUrdf(str(urdf))
-    return model, pin.buildGeomFromUrdf(model, str(urdf), kind, package_dirs=[str(share)])
+    """Baxter's model and visual (or collision) geometry, through the project's robot settings."""
+    robot = load_robot("baxter_left")
+    geometry = load_visual_model(robot) if kind == pin.GeometryType.VISUAL else robot.collision_model
+    return robot.model, geometry
 
 
 def make_content(model: pin.Model, visual: pin.GeometryModel, **changes) -> preview.PreviewContent:
@@ -231,10 +230,15 @@ def test_offline_page_holds_every_scene_element(page, content):
 
 def test_offline_page_colours_failing_links(page):
     commands = scene_commands(page.read_text(encoding="utf-8"))
-    painted = {c["path"].rsplit("/", 1)[1]: c["value"] for c in commands
-               if c["type"] == "set_property" and c["property"] == "color"}
+    painted = {
+        c["path"].rsplit("/", 1)[1]: c["value"]
+        for c in commands
+        if c["type"] == "set_property" and c["property"] == "color"
+    }
     assert painted["left_lower_forearm_0"] == pytest.approx([1.0, 0.0, 0.0, 1.0])  # in collision
-    assert painted["left_lower_elbow_0"] == pytest.approx([1.0, 0.55, 0.0, 1.0])  # moved by left_e1, near limit
+    assert painted["left_lower_elbow_0"] == pytest.approx(
+        [1.0, 0.55, 0.0, 1.0]
+    )  # moved by left_e1, near limit
     assert set(painted) == {"left_lower_forearm_0", "left_lower_elbow_0"}
     objects = objects_by_path(commands)
     darkred = objects["/meshcat/robot/visuals/left_upper_shoulder_0"]["object"]["materials"][0]["color"]

@@ -59,17 +59,34 @@ class Browser:
             os.dup2(from_chrome_w, 4)
 
         args = [
-            binary, "--headless", "--no-sandbox", "--disable-gpu", "--no-first-run",
-            "--disable-background-networking", "--disable-component-update", "--disable-sync",
-            "--disable-quic", "--disable-extensions", "--mute-audio",
-            "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
-            f"--user-data-dir={profile}", f"--window-size={WIDTH},{HEIGHT}",
-            "--remote-debugging-pipe", "about:blank",
+            binary,
+            "--headless",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--no-first-run",
+            "--disable-background-networking",
+            "--disable-component-update",
+            "--disable-sync",
+            "--disable-quic",
+            "--disable-extensions",
+            "--mute-audio",
+            "--use-angle=swiftshader",
+            "--enable-unsafe-swiftshader",
+            f"--user-data-dir={profile}",
+            f"--window-size={WIDTH},{HEIGHT}",
+            "--remote-debugging-pipe",
+            "about:blank",
         ]
         self.log = profile.parent / "chromium.log"
         with self.log.open("w") as log:
-            self.process = subprocess.Popen(args, preexec_fn=child_fds, pass_fds=(3, 4), stdin=subprocess.DEVNULL,
-                                            stdout=subprocess.DEVNULL, stderr=log)
+            self.process = subprocess.Popen(
+                args,
+                preexec_fn=child_fds,
+                pass_fds=(3, 4),
+                stdin=subprocess.DEVNULL,
+                stdout=subprocess.DEVNULL,
+                stderr=log,
+            )
         os.close(to_chrome_r)
         os.close(from_chrome_w)
         self._send = os.fdopen(to_chrome_w, "wb", buffering=0)
@@ -87,7 +104,9 @@ class Browser:
                 self._messages.put(json.loads(message))
         self._messages.put(None)
 
-    def call(self, method: str, params: dict | None = None, session: str | None = None, timeout: float = 60.0):
+    def call(
+        self, method: str, params: dict | None = None, session: str | None = None, timeout: float = 60.0
+    ):
         self._next_id += 1
         message = {"id": self._next_id, "method": method, "params": params or {}}
         if session is not None:
@@ -106,14 +125,20 @@ class Browser:
     def open(self, url: str) -> str:
         target = self.call("Target.createTarget", {"url": "about:blank"})["targetId"]
         session = self.call("Target.attachToTarget", {"targetId": target, "flatten": True})["sessionId"]
-        self.call("Emulation.setDeviceMetricsOverride",
-                  {"width": WIDTH, "height": HEIGHT, "deviceScaleFactor": 1, "mobile": False}, session)
+        self.call(
+            "Emulation.setDeviceMetricsOverride",
+            {"width": WIDTH, "height": HEIGHT, "deviceScaleFactor": 1, "mobile": False},
+            session,
+        )
         self.call("Page.navigate", {"url": url}, session)
         return session
 
     def evaluate(self, session: str, expression: str):
-        result = self.call("Runtime.evaluate", {"expression": expression, "returnByValue": True,
-                                                "awaitPromise": True}, session)
+        result = self.call(
+            "Runtime.evaluate",
+            {"expression": expression, "returnByValue": True, "awaitPromise": True},
+            session,
+        )
         if "exceptionDetails" in result:
             raise RuntimeError(f"{expression}: {result['exceptionDetails']}")
         return result["result"].get("value")
@@ -129,7 +154,9 @@ class Browser:
 
     def screenshot(self, session: str) -> np.ndarray:
         """(H, W, 3) uint8 screenshot after two rendered animation frames."""
-        self.evaluate(session, "new Promise(r => requestAnimationFrame(() => requestAnimationFrame(() => r(1))))")
+        self.evaluate(
+            session, "new Promise(r => requestAnimationFrame(() => requestAnimationFrame(() => r(1))))"
+        )
         data = self.call("Page.captureScreenshot", {"format": "png"}, session, timeout=120)["data"]
         from PIL import Image
 
@@ -186,7 +213,9 @@ def test_offline_page_draws_the_robot(offline):
     scene = shot[:, OVERLAY_RIGHT:, :]
     assert scene.std() > 10.0  # not a blank canvas
     assert robot_pixels(shot) > 5000  # Baxter's red arms and shoulders
-    ys, xs = np.nonzero((shot[..., 0] > 50) & (shot[..., 0] > 2 * shot[..., 1]) & (shot[..., 0] > 2 * shot[..., 2]))
+    ys, xs = np.nonzero(
+        (shot[..., 0] > 50) & (shot[..., 0] > 2 * shot[..., 1]) & (shot[..., 0] > 2 * shot[..., 2])
+    )
     assert 0.2 * HEIGHT < np.median(ys) < 0.8 * HEIGHT  # robot in the middle of the view
     assert OVERLAY_RIGHT < np.median(xs) < WIDTH - 100
 
@@ -202,12 +231,16 @@ def test_offline_page_shows_prediction_and_human(offline):
 
 def test_offline_page_panel_names_the_task(browser, offline):
     _, session, _ = offline
-    assert browser.evaluate(session, "document.getElementById('ipromp-task-name').textContent") == "handover_cup"
+    assert (
+        browser.evaluate(session, "document.getElementById('ipromp-task-name').textContent") == "handover_cup"
+    )
     rows = browser.evaluate(
-        session, "[...document.querySelectorAll('#ipromp-posterior tr')].map(r => r.textContent)")
+        session, "[...document.querySelectorAll('#ipromp-posterior tr')].map(r => r.textContent)"
+    )
     assert rows == ["handover_cup0.820", "handover_rod0.130", "handover_tape0.050"]
-    failed = browser.evaluate(session, "[...document.querySelectorAll('#ipromp-feasibility li.fail')]"
-                                       ".map(e => e.textContent)")
+    failed = browser.evaluate(
+        session, "[...document.querySelectorAll('#ipromp-feasibility li.fail')].map(e => e.textContent)"
+    )
     assert failed == ["self-collision: forearm vs torso"]
     # The animation is loaded: meshcat's animator knows the clip duration.
     duration = browser.evaluate(session, "viewer.animator.duration")
@@ -222,10 +255,16 @@ def test_live_page_renders_and_follows_updates(browser, content):
         t1 = time.monotonic()
         assert n_commands > 40 and live.n_clients == 1
         shot = browser.screenshot(session)
-        print(f"live page: scene received after {t1 - t0:.1f} s, screenshot after {time.monotonic() - t0:.1f} s")
+        print(
+            f"live page: scene received after {t1 - t0:.1f} s, screenshot after {time.monotonic() - t0:.1f} s"
+        )
         assert robot_pixels(shot) > 5000
-        assert browser.evaluate(session, "document.getElementById('ipromp-task-name').textContent") == "handover_cup"
+        assert (
+            browser.evaluate(session, "document.getElementById('ipromp-task-name').textContent")
+            == "handover_cup"
+        )
         live.update_posterior(np.array([0.05, 0.15, 0.8]))
-        browser.wait_for(session, "document.getElementById('ipromp-task-name').textContent === 'handover_tape'",
-                         timeout=30)
+        browser.wait_for(
+            session, "document.getElementById('ipromp-task-name').textContent === 'handover_tape'", timeout=30
+        )
         browser.call("Page.close", session=session)

@@ -1,0 +1,99 @@
+"""End-to-end pipeline: synthetic default and a real demo, outputs re-load, bad definitions fail clearly."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ipromp_pin.cli import main
+from ipromp_pin.exceptions import PipelineError
+from ipromp_pin.export import read_trajectory_csv, read_trajectory_json
+from ipromp_pin.pipeline import load_pipeline
+from ipromp_pin.robot import load_robot
+from ipromp_pin.timing import JointLimits
+
+PIPELINE = Path(__file__).resolve().parents[1] / "pipelines" / "baxter_handover.toml"
+
+
+def _check_outputs(out: Path) -> dict:
+    report = json.loads((out / "report.json").read_text())
+    csv_traj = read_trajectory_csv(out / "trajectory.csv")
+    json_traj = read_trajectory_json(out / "trajectory.json")
+    np.testing.assert_allclose(csv_traj.q, json_traj.q, atol=1e-9)
+    np.testing.assert_allclose(csv_traj.t_s, json_traj.t_s, atol=1e-9)
+    robot = load_robot("baxter_left")
+    limits = JointLimits.from_robot(robot)
+    # every sample inside the position and velocity limits
+    assert np.all(csv_traj.q >= robot.lower_rad - 1e-9) and np.all(csv_traj.q <= robot.upper_rad + 1e-9)
+    assert np.all(np.abs(csv_traj.qd) <= limits.velocity_rad_s * (1 + 1e-6))
+    # starts and ends at rest
+    assert np.allclose(csv_traj.qd[-1], 0.0, atol=1e-6) and np.allclose(csv_traj.qd[0], 0.0, atol=1e-6)
+    assert set(report["posterior"]) and abs(sum(report["posterior"].values()) - 1.0) < 1e-9
+    assert report["recognised_task"] == max(report["posterior"], key=report["posterior"].get)
+    for name in ("joint_limits", "self_collision", "workspace"):
+        assert report["feasibility"]["checks"][name]["status"] in ("pass", "fail")
+    return report
+
+
+def test_pipeline_runs_on_synthetic_default(tmp_path, capsys):
+    out = tmp_path / "out"
+    code = main(["run", str(PIPELINE), "--out", str(out), "--no-preview", "--task", "wrench", "--demo", "3"])
+    assert code == 0
+    report = _check_outputs(out)
+    assert report["recognised_task"] == "wrench"
+    assert report["observation"]["task"] == "wrench"
+    text = capsys.readouterr().out
+    assert "Recognised task: wrench" in text and "[check]" in text and "[timing]" in text
+    assert not (out / "preview.html").exists()
+
+
+def test_pipeline_saved_model_gives_the_same_result(tmp_path):
+    model = tmp_path / "model.npz"
+    a, b = tmp_path / "a", tmp_path / "b"
+    assert main(["run", str(PIPELINE), "--out", str(a), "--no-preview", "--save-model", str(model)]) == 0
+    assert main(["run", str(PIPELINE), "--out", str(b), "--no-preview", "--model", str(model)]) == 0
+    ra = json.loads((a / "report.json").read_text())
+    rb = json.loads((b / "report.json").read_text())
+    assert ra["posterior"] == rb["posterior"]
+    assert (a / "trajectory.csv").read_text() == (b / "trajectory.csv").read_text()
+
+
+@pytest.mark.realdata
+def test_pipeline_runs_on_a_real_demo(tmp_path, chen2017_dir):
+    out = tmp_path / "real"
+    args = ["run", str(PIPELINE), "--dataset", str(chen2017_dir), "--task", "tape_hold", "--demo", "25"]
+    assert main([*args, "--out", str(out), "--no-preview", "--ratio", "0.2"]) == 0
+    report = _check_outputs(out)
+    assert report["observation"]["task"] == "tape_hold"
+    assert report["recognised_task"] in {"aluminum_hold", "spanner_handover", "tape_hold"}
+
+
+def test_bad_pipeline_files_fail_clearly(tmp_path, capsys):
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[observation]\nratio = 1.5\n")
+    with pytest.raises(PipelineError, match="observation.ratio"):
+        load_pipeline(bad)
+    bad.write_text("[model]\nobserv = ['emg']\n")
+    with pytest.raises(PipelineError, match="model.observ"):
+        load_pipeline(bad)
+    bad.write_text("[nonsense]\n")
+    with pytest.raises(PipelineError, match="unknown section"):
+        load_pipeline(bad)
+    bad.write_text("this is = = not toml")
+    with pytest.raises(PipelineError, match="not a valid TOML"):
+        load_pipeline(bad)
+    with pytest.raises(PipelineError, match="not found"):
+        load_pipeline(tmp_path / "missing.toml")
+    # the command line turns errors into one line and exit status 2
+    assert main(["run", str(bad), "--out", str(tmp_path / "x")]) == 2
+    assert "error:" in capsys.readouterr().err
+
+
+def test_unknown_task_and_demo_index_fail_clearly(tmp_path, capsys):
+    assert main(["run", str(PIPELINE), "--out", str(tmp_path), "--task", "juggling", "--no-preview"]) == 2
+    assert "unknown task 'juggling'" in capsys.readouterr().err
+    assert main(["run", str(PIPELINE), "--out", str(tmp_path), "--demo", "500", "--no-preview"]) == 2
+    assert "out of range" in capsys.readouterr().err

@@ -1,0 +1,144 @@
+"""Robot settings and model loading (robots/*.toml, ipromp_pin.robot)."""
+
+from __future__ import annotations
+
+import re
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ipromp_pin.exceptions import RobotError
+from ipromp_pin.robot import (
+    ROBOTS_DIR,
+    find_robot_data_dir,
+    load_robot,
+    load_robot_settings,
+    map_recorded_joints,
+)
+
+LEFT = ROBOTS_DIR / "baxter_left.toml"
+
+
+def _variant(tmp_path: Path, old: str, new: str, name: str = "bad.toml") -> Path:
+    """Copy of the left-arm settings with one textual substitution (regex, first match)."""
+    text = LEFT.read_text()
+    changed, n = re.subn(old, new, text, count=1, flags=re.M)
+    assert n == 1, f"pattern {old!r} not found"
+    path = tmp_path / name
+    path.write_text(changed)
+    return path
+
+
+def test_left_settings_load_and_describe_the_arm():
+    s = load_robot_settings("baxter_left")
+    assert s.arm_joints == ("left_s0", "left_s1", "left_e0", "left_e1", "left_w0", "left_w1", "left_w2")
+    assert s.ee_parent_frame == "left_gripper"
+    assert s.urdf_path.is_file() and s.srdf_path.is_file()
+    assert str(find_robot_data_dir()) in str(s.urdf_path)
+    assert np.all(s.acceleration_rad_s2 > 0) and np.all(s.jerk_rad_s3 > 0)
+
+
+def test_load_robot_is_cached_and_reads_urdf_limits():
+    robot = load_robot("baxter_left")
+    assert load_robot(LEFT) is robot
+    assert robot.arm_q_index.shape == (7,)
+    np.testing.assert_allclose(robot.velocity_rad_s, [1.5, 1.5, 1.5, 1.5, 4.0, 4.0, 4.0])
+    assert robot.lower_rad[3] == pytest.approx(-0.05) and robot.upper_rad[3] == pytest.approx(2.618)
+    # SRDF: 787 pairs, 240 disabled; only pairs the arm can move relative to each other are checked
+    assert robot.n_pairs_total == 787 and robot.n_pairs_srdf_removed == 240
+    assert 0 < robot.active_pair_ids.size < 787 - 240
+    # non-arm joints held where the settings say
+    q = robot.q_neutral
+    idx = robot.model.joints[robot.model.getJointId("right_e1")].idx_q
+    assert q[idx] == pytest.approx(1.855)
+    assert robot.collision_model is not None
+
+
+def test_right_arm_needs_only_a_settings_file():
+    robot = load_robot("baxter_right")
+    assert robot.joint_names[0] == "right_s0"
+    assert robot.model.frames[robot.ee_parent_frame_id].name == "right_gripper"
+
+
+def test_recorded_names_are_mapped_by_name_not_position():
+    s = load_robot_settings("baxter_left")
+    recorded = [
+        "head_nod",
+        "head_pan",
+        "left_e0",
+        "left_e1",
+        "left_s0",
+        "left_s1",
+        "left_w0",
+        "left_w1",
+        "left_w2",
+    ]
+    idx = map_recorded_joints(s, recorded)
+    assert [recorded[i] for i in idx] == list(s.arm_joints)
+    with pytest.raises(RobotError, match="lack arm joints"):
+        map_recorded_joints(s, recorded[:4])
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "message"),
+    [
+        (r'"left_w2"\]', '"left_wrist_roll"]', r"arm\.recorded_names\.left_w2.*not one of arm\.joints"),
+        (r'parent_frame = "left_gripper"', 'parent_frame = "no_such_frame"', r"end_effector\.parent_frame"),
+        (
+            r"^acceleration_rad_s2 = .*$",
+            "acceleration_rad_s2 = [1.0, 1.0, -1.0, 1.0, 1.0, 1.0, 1.0]",
+            "negative",
+        ),
+        (r"^jerk_rad_s3 = .*$", "jerk_rad_s3 = 0.0", r"limits\.jerk_rad_s3.*zero"),
+        (r"^jerk_rad_s3 = .*$", "jerk_rad_s3 = nan", r"limits\.jerk_rad_s3.*finite"),
+        (r"^min_m = .*$", "min_m = [1.5, -0.45, -0.08]", r"workspace.*below"),
+        (r"^right_e1 = .*$", "right_e1 = 5.0", r"fixed_joints\.right_e1.*outside"),
+        (r"^right_e1 = .*$", "right_elbow = 1.0", r"fixed_joints\.right_elbow.*unknown joint"),
+        (r"^position_margin_rad = .*$", "position_margin_rad = 2.0", r"position_margin_rad.*no range"),
+        (r'"left_s1", "left_e0"', '"left_e0", "left_s1"', "not in kinematic order"),
+        (r'^urdf = ".*"$', 'urdf = "/abs/baxter.urdf"', "relative path"),
+        (r'^urdf = ".*"$', 'urdf = "nowhere/baxter.urdf"', "file not found"),
+    ],
+)
+def test_bad_settings_fail_clearly(tmp_path, old, new, message):
+    path = _variant(tmp_path, old, new)
+    with pytest.raises(RobotError, match=message) as info:
+        load_robot(path, cache=False)
+    assert "bad.toml" in str(info.value) or "baxter.urdf" in str(info.value)
+
+
+def test_unknown_model_joint_fails_clearly(tmp_path):
+    path = _variant(tmp_path, r'"left_w2"\]', '"left_wrist_roll"]')
+    text = path.read_text().replace('left_w2 = "left_w2"', 'left_w2 = "left_wrist_roll"')
+    path.write_text(text)
+    with pytest.raises(RobotError, match=r"bad\.toml: field 'arm\.joints': unknown joint 'left_wrist_roll'"):
+        load_robot(path, cache=False)
+
+
+def test_placeholder_velocity_limit_in_urdf_is_rejected(tmp_path):
+    """A URDF velocity that is a placeholder (like head_pan's 10000) must not be trusted."""
+    share = find_robot_data_dir()
+    urdf = share / "example-robot-data/robots/baxter_description/urdf/baxter.urdf"
+    text = urdf.read_text()
+    # give left_s0 the head's placeholder limit
+    start = text.index('<joint name="left_s0"')
+    end = text.index("</joint>", start)
+    block = re.sub(r'velocity="[^"]*"', 'velocity="10000"', text[start:end])
+    (tmp_path / "baxter.urdf").write_text(text[:start] + block + text[end:])
+    shutil.copy(
+        share / "example-robot-data/robots/baxter_description/srdf/baxter_manipulation.srdf", tmp_path
+    )
+    settings = LEFT.read_text()
+    settings = settings.replace('package = "example-robot-data"', 'package = ""')
+    settings = re.sub(r'^urdf = ".*"$', 'urdf = "baxter.urdf"', settings, count=1, flags=re.M)
+    settings = re.sub(r'^srdf = ".*"$', 'srdf = "baxter_manipulation.srdf"', settings, count=1, flags=re.M)
+    (tmp_path / "local.toml").write_text(settings)
+    with pytest.raises(RobotError, match=r"left_s0.*velocity.*placeholder"):
+        load_robot(tmp_path / "local.toml", cache=False)
+
+
+def test_unknown_robot_name():
+    with pytest.raises(RobotError, match="not found"):
+        load_robot_settings("no_such_robot")

@@ -449,17 +449,27 @@ def write_plots(result: PlanResult, model, demo: Demo, out_dir: Path) -> dict[st
         p.t,
         p.q_mean,
         np.sqrt(np.maximum(np.diagonal(p.q_cov, axis1=1, axis2=2), 0.0)),
-        list(p.joint_names),
         out_dir / "prediction.png",
-        truth_t=demo.t,
-        truth=demo.groups.get(ROBOT),
+        truth_t_s=demo.t,
+        q_truth=demo.groups.get(ROBOT),
         observed_until_s=p.observed_until_s,
+        joint_names=list(p.joint_names),
         title=f"{p.task}: conditioned prediction vs recorded",
     )
-    if getattr(p, "phase_grid", None) is not None:
-        files["plot_phase"] = plots.plot_phase_posterior(
-            p.phase_grid, p.phase_log_post, list(p.tasks), out_dir / "phase_posterior.png"
-        )
+    files["plot_phase"] = plots.plot_phase_posterior(
+        p.phase_grid, p.phase_log_post, out_dir / "phase_posterior.png", tasks=list(p.tasks)
+    )
+    z = np.linspace(0.0, 1.0, 100)
+    mean, std, labels = model.distribution(p.task, z)
+    files["plot_distributions"] = plots.plot_distributions(
+        z,
+        mean,
+        std,
+        out_dir / "distributions.png",
+        demos=model.train_trajectories(p.task, z),
+        dim_names=labels,
+        title=f"learned distribution of task {p.task} (mean, 2 sigma, training demos)",
+    )
     return files
 
 
@@ -498,7 +508,7 @@ def run_preview(
     content = preview_content(result, robot, demo, visual_model=load_visual_model(robot))
     start = content.replace(
         posterior=np.full(len(result.prediction.tasks), 1.0 / len(result.prediction.tasks)),
-        task="(observing)",
+        task="",
         observed_until_s=0.0,
     )
     live = LivePreview(start, port=port)

@@ -51,7 +51,7 @@ from .model import (
     fit_demo_weights,
     shrink_covariance,
 )
-from .phase import LOG_2PI, InferenceEngine, ObservationPart, refine_peak
+from .phase import LOG_2PI, InferenceEngine, ObservationPart, PartStats, refine_peak
 
 NOISE_GRID = (0.03, 0.1, 0.3, 1.0, 3.0, 10.0, 30.0, 100.0)
 """Candidate noise ratios ``nu`` for ``noise="auto"``."""
@@ -113,16 +113,22 @@ class Prediction(Recognition):
     _w_mean: np.ndarray | None = field(default=None, repr=False)
     _w_diag: np.ndarray | None = field(default=None, repr=False)
     _w_factor: np.ndarray | None = field(default=None, repr=False)
+    _q_chol: np.ndarray | None = field(default=None, repr=False)
     _phi: np.ndarray | None = field(default=None, repr=False)
     _offset: np.ndarray | None = field(default=None, repr=False)
     _scale: np.ndarray | None = field(default=None, repr=False)
 
     def sample_q(self, n: int, rng: np.random.Generator | int | None = None) -> np.ndarray:
-        """Draw ``n`` robot trajectories (n, M, J) in [rad] from the conditioned weight posterior."""
+        """Draw ``n`` robot trajectories (n, M, J) in [rad] from the conditioned weight posterior.
+
+        The robot weights are ``w = m + sqrt(delta) xi + F eta`` with ``xi ~ N(0, I)`` and the
+        latent ``eta ~ N(0, Q^-1)`` (exactly the conditioned Gaussian, without forming it).
+        """
         rng = np.random.default_rng(rng)
         j, k, r = self._w_factor.shape
         xi = rng.standard_normal((n, j, k)) * np.sqrt(self._w_diag)[None, :, None]
-        eta = rng.standard_normal((n, r))
+        zeta = rng.standard_normal((r, n))
+        eta = solve_triangular(self._q_chol, zeta, lower=True, trans="T").T if r else zeta.T
         w = self._w_mean[None] + xi + np.einsum("jkr,nr->njk", self._w_factor, eta)
         q = np.einsum("mk,njk->nmj", self._phi, w)
         return q * self._scale + self._offset
@@ -185,6 +191,7 @@ class IProMP:
         self.robot_group = robot_group
         self.blas_threads = blas_threads
         self._engine: InferenceEngine | None = None
+        self._pred_cache: dict | None = None
         self._threads: ThreadpoolController | None = None
         if robot_group in self.observe:
             raise ModelError(f"the robot group '{robot_group}' cannot be an observed group")
@@ -315,6 +322,7 @@ class IProMP:
 
     def _set_noise(self) -> None:
         self._engine = None
+        self._pred_cache = None
         lo, hi = 0, self.n_obs_dims_
         self.noise_var_ = {t: self.noise_ratio_ * m.diag[lo:hi] for t, m in self.models_.items()}
 
@@ -523,42 +531,64 @@ class IProMP:
             w_post[dims, :ke] += (xinv[0, 0] @ (b[0, 0] - gram[0, 0] @ fu)).T
         return self._make_prediction(rec, factor, m, alpha, w_post, lq)
 
+    def _grid_cache(self, task: str, factor: np.ndarray) -> dict[str, np.ndarray]:
+        """Model-only quantities on the fixed prediction phase grid (cached per task)."""
+        if self._pred_cache is None:
+            self._pred_cache = {}
+        c = self._pred_cache.get((task, factor.shape[2]))
+        if c is None:
+            lo, hi = self.group_slices_[self.robot_group]
+            m = self.models_[task]
+            z = np.linspace(0.0, 1.0, self.n_points)
+            phi = self.basis_(z)
+            mean, std = m.distribution(phi)
+            fr = factor[lo:hi]
+            c = {
+                "z": z,
+                "phi": phi,
+                "phi2": np.sum(phi * phi, axis=1),
+                "prior_mean": self.scaler_.inverse(mean[:, lo:hi], slice(lo, hi)),
+                "prior_std": std[:, lo:hi] * self.scaler_.scale[lo:hi],
+                "phi_f": np.ascontiguousarray(np.einsum("mk,jkr->rmj", phi, fr)),  # (r, M, J)
+            }
+            self._pred_cache[(task, factor.shape[2])] = c
+        return c
+
     def _make_prediction(self, rec, factor, m: TaskModel, alpha, w_post, lq) -> Prediction:
         lo, hi = self.group_slices_[self.robot_group]
+        nj = hi - lo
         duration = alpha * self.duration_nominal_s_
-        z = np.linspace(0.0, 1.0, self.n_points)
-        phi = self.basis_(z)
+        c = self._grid_cache(m.task, factor)
+        phi = c["phi"]
         scale = self.scaler_.scale[lo:hi]
         offset = self.scaler_.offset[lo:hi]
-        fr = factor[lo:hi]  # (J, K, r)
-        post_factor = (
-            solve_triangular(lq, fr.reshape(-1, fr.shape[2]).T, lower=True).T.reshape(fr.shape)
-            if fr.shape[2]
-            else fr
-        )
         q_mean = self.scaler_.inverse(phi @ w_post[lo:hi].T, slice(lo, hi))
-        proj = np.einsum("mk,jkr->mjr", phi, post_factor)
-        phi2 = np.sum(phi * phi, axis=1)
-        cov = np.einsum("mir,mjr->mij", proj, proj)
-        cov += phi2[:, None, None] * (np.eye(hi - lo) * m.diag[lo:hi])[None]
-        cov *= scale[None, :, None] * scale[None, None, :]
-        prior_mean, prior_std = m.distribution(phi)
+        r = lq.shape[0]
+        if r:
+            proj = solve_triangular(lq, c["phi_f"].reshape(r, -1), lower=True).T.reshape(-1, nj, r)  # (M, J, r)
+            cov = proj @ np.swapaxes(proj, 1, 2)
+        else:
+            cov = np.zeros((phi.shape[0], nj, nj))
+        idx = np.arange(nj)
+        cov[:, idx, idx] += c["phi2"][:, None] * m.diag[lo:hi]
+        cov *= scale[:, None] * scale[None, :]
         human = {}
         for g in self.observe:
             glo, ghi = self.group_slices_[g]
             human[g] = self.scaler_.inverse(phi @ w_post[glo:ghi].T, slice(glo, ghi))
         return Prediction(
             **vars(rec),
-            t=z * duration,
+            t=c["z"] * duration,
             q_mean=q_mean,
             q_cov=cov,
-            q_prior_mean=self.scaler_.inverse(prior_mean[:, lo:hi], slice(lo, hi)),
-            q_prior_std=prior_std[:, lo:hi] * scale,
+            q_prior_mean=c["prior_mean"],
+            q_prior_std=c["prior_std"],
             joint_names=tuple(self.joint_names_),
             human_mean=human,
             _w_mean=w_post[lo:hi],
             _w_diag=m.diag[lo:hi],
-            _w_factor=post_factor,
+            _w_factor=factor[lo:hi],
+            _q_chol=lq,
             _phi=phi,
             _offset=offset,
             _scale=scale,
@@ -615,17 +645,33 @@ class IProMP:
 class StreamingEstimator:
     """Refreshes the estimate as human samples arrive one by one.
 
-    The result after a sequence of :meth:`update` calls equals
+    Each :meth:`update` adds the new sample's contribution to running sufficient
+    statistics (``B^T B``, ``B^T y`` and ``y^T y`` for every phase candidate; one
+    basis row per candidate instead of the whole basis matrix), then evaluates the
+    exact likelihood of every (task, candidate) from them. The result equals
     :meth:`IProMP.recognise` / :meth:`IProMP.predict` on a :class:`Demo` holding
-    the same samples.
+    the same samples (to rounding).
+
+    Channel groups that are missing in some samples are tracked separately: groups
+    with identical presence histories share their statistics, as in the one-shot call.
     """
 
     def __init__(self, model: IProMP) -> None:
         self.model = model
+        self._engine = model._engine_()
         self._t: list[float] = []
         self._values: dict[str, list[np.ndarray]] = {g: [] for g in model.observe}
         self._missing: dict[str, list[bool]] = {g: [] for g in model.observe}
         self._last: Recognition | None = None
+        u, k = self._engine.alpha_unique.size, model.basis_.n_basis
+        self._inv_dur = 1.0 / (self._engine.alpha_unique * model.duration_nominal_s_)
+        # presence pattern -> [groups, gram (U, K, K), n, last time]
+        self._patterns: list[list] = [[list(model.observe), np.zeros((u, k, k)), 0, 0.0]]
+        self._proj = {g: np.zeros((u, k, model.channel_names_[g].__len__())) for g in model.observe}
+        self._sq = {g: np.zeros(len(model.channel_names_[g])) for g in model.observe}
+        self._longest = (
+            max(float(m.alpha_grid[-1]) for m in model.models_.values()) * model.duration_nominal_s_
+        )
 
     @property
     def n_samples(self) -> int:
@@ -637,13 +683,20 @@ class StreamingEstimator:
 
         Args:
             t_s: Sample time in [s] from motion start (strictly increasing).
-            sample: Observed group -> values (D,); a group that is absent or None is missing
-                for this sample (e.g. a lost skeleton frame).
+            sample: Observed group -> values (D,) in original units; a group that is absent or
+                None is missing for this sample (e.g. a lost skeleton frame).
         """
         m = self.model
         t_s = float(t_s)
         if not np.isfinite(t_s) or (self._t and t_s <= self._t[-1]) or t_s < -1e-9:
             raise ObservationError("stream", "t", f"sample time {t_s} is not after the previous sample")
+        if t_s > self._longest:
+            raise ObservationError(
+                "stream", "t", f"observation lasts {t_s:.2f} s, longer than any task's plausible motion"
+            )
+        unknown = set(sample) - set(m.observe)
+        if unknown:
+            raise ObservationError("stream", sorted(unknown)[0], f"not an observed group ({m.observe})")
         rows = {}
         for g in m.observe:
             v = sample.get(g)
@@ -657,19 +710,61 @@ class StreamingEstimator:
             if not np.all(np.isfinite(v)):
                 raise ObservationError("stream", g, f"NaN or inf in the sample at t={t_s:.3f} s")
             rows[g] = v
-        unknown = set(sample) - set(m.observe)
-        if unknown:
-            raise ObservationError("stream", sorted(unknown)[0], f"not an observed group ({m.observe})")
         self._t.append(t_s)
         for g in m.observe:
             v = rows[g]
-            lo, hi = m.group_slices_[g]
-            self._values[g].append(np.full(hi - lo, np.nan) if v is None else v)
+            self._values[g].append(np.full(m.group_slices_[g][1] - m.group_slices_[g][0], np.nan) if v is None else v)
             self._missing[g].append(v is None)
-        if len(self._t) < 2:
-            return None
-        self._last = m.recognise(self.observation())
+        with m._limit_threads():
+            self._accumulate(t_s, rows)
+            if len(self._t) < 2:
+                return None
+            self._last = self._recognise()
         return self._last
+
+    def _accumulate(self, t_s: float, rows: dict[str, np.ndarray | None]) -> None:
+        m = self.model
+        phi = m.basis_(t_s * self._inv_dur)  # (U, K)
+        outer = None
+        patterns = []
+        for groups, gram, n, t_last in self._patterns:
+            present = [g for g in groups if rows[g] is not None]
+            absent = [g for g in groups if rows[g] is None]
+            if absent:
+                patterns.append([absent, gram.copy() if present else gram, n, t_last])
+            if present:
+                if outer is None:
+                    outer = phi[:, :, None] * phi[:, None, :]
+                gram += outer
+                patterns.append([present, gram, n + 1, t_s])
+        self._patterns = patterns
+        for g, v in rows.items():
+            if v is not None:
+                self._proj[g] += phi[:, :, None] * v_scaled(m, g, v)[None, None, :]
+                self._sq[g] += v_scaled(m, g, v) ** 2
+
+    def _stats(self) -> list[PartStats]:
+        m = self.model
+        eng = self._engine
+        stats = []
+        for groups, gram, n, t_last in self._patterns:
+            if n == 0:
+                continue
+            groups = [g for g in m.observe if g in groups]
+            ke = m.basis_.support_count(t_last * float(self._inv_dur.max()))
+            dims = np.concatenate([np.arange(*m.group_slices_[g]) for g in groups])
+            proj = np.concatenate([self._proj[g][:, :ke] for g in groups], axis=2)
+            sq = np.concatenate([self._sq[g] for g in groups])
+            stats.append(PartStats(dims, n, ke, np.ascontiguousarray(gram[:, :ke, :ke]), proj, sq))
+        if sum(s.n for s in stats) < 2:
+            raise ObservationError("stream", "t", "need at least 2 observed samples")
+        del eng
+        return stats
+
+    def _recognise(self) -> Recognition:
+        t_last = self._t[-1]
+        loglik = self._engine.terms(self._stats(), t_last).loglik
+        return self.model._recognition_from_loglik(loglik, t_last)
 
     def observation(self) -> Demo:
         """The samples received so far as a :class:`Demo`."""
@@ -695,6 +790,12 @@ class StreamingEstimator:
         if len(self._t) < 2:
             raise ObservationError("stream", "t", f"need at least 2 samples, got {len(self._t)}")
         return self.model.predict(self.observation())
+
+
+def v_scaled(model: IProMP, group: str, values: np.ndarray) -> np.ndarray:
+    """Scale raw values of ``group`` with the model's channel scaling."""
+    lo, hi = model.group_slices_[group]
+    return model.scaler_.transform(values, slice(lo, hi))
 
 
 # ---------------------------------------------------------------------------------------------
@@ -773,7 +874,7 @@ def direct_predict(model: IProMP, observation: Demo) -> Prediction:
          for i in range(z.size)]
     )
     wr = w_mean.reshape(n_dims, k)
-    pred = model._make_prediction(rec, m.factor, m, a_best, wr, np.eye(m.rank))
+    pred = model._make_prediction(rec, m.factor, m, a_best, wr, np.eye(m.rank))  # trajectories replaced below
     pred.q_mean = model.scaler_.inverse(q_mean, slice(lo, hi))
     pred.q_cov = q_cov * scale[None, :, None] * scale[None, None, :]
     return pred

@@ -207,7 +207,7 @@ def alpha_candidates(
     """
     lo = np.array([max(mu - width * sd, 0.2 * mu) for mu, sd in priors])
     hi = np.array([mu + width * sd for mu, sd in priors])
-    spacing = float(np.min(hi - lo)) / (n_alpha - 1)
+    spacing = float(np.min(hi - lo)) / n_alpha  # any interval this long holds >= n_alpha lattice points
     origin = float(np.min(lo))
     n_cand = int(np.max(np.ceil((hi - lo) / spacing - 1e-9))) + 2
     out = []

@@ -407,6 +407,27 @@ def _update(otg: Ruckig, inp: InputParameter, out: OutputParameter) -> Result:
             inp.max_velocity, inp.max_acceleration, inp.max_jerk = v, a, j
 
 
+def _reachable_target(v: float, a: float, v_max: float, a_max: float, j_max: float) -> tuple[float, float]:
+    """Clamp a 1-D target state (path velocity, acceleration) to one ruckig accepts.
+
+    A target state with velocity ``v`` and acceleration ``a`` passes through ``v + a^2 / (2 j_max)``
+    (after it when accelerating, before it when decelerating); ruckig rejects targets where that
+    exceeds ``v_max``. Decelerating targets are also kept from passing below zero velocity. Targets are kept
+    within 97 % of ``v_max``: a tracked state on the exact boundary (v + a^2 / 2j = v_max) is
+    rejected by ruckig as the *current* state of the next cycle. The uniform slow-down in
+    :func:`time_path` enforces the joint limits exactly afterwards.
+    """
+    v_cap = 0.97 * v_max
+    v = min(max(float(v), 0.0), v_cap)
+    a = min(max(float(a), -a_max), a_max)
+    a_cap = 0.999 * math.sqrt(2.0 * j_max * max(v_cap - v, 0.0))
+    if a > 0.0:
+        a = min(a, a_cap)
+    elif a < 0.0:
+        a = max(a, -a_cap, -0.999 * math.sqrt(2.0 * j_max * v))
+    return v, a
+
+
 def _ruckig_track_1d(
     ref_s: np.ndarray,
     ref_v: np.ndarray,
@@ -436,8 +457,9 @@ def _ruckig_track_1d(
         k += 1
         i = min(k + lookahead, n_ref - 1)
         inp.target_position = [ref_s[i]]
-        inp.target_velocity = [min(max(ref_v[i], 0.0), v_max)]
-        inp.target_acceleration = [min(max(ref_a[i], -a_max), a_max)]
+        v_t, a_t = _reachable_target(ref_v[i], ref_a[i], v_max, a_max, j_max)
+        inp.target_velocity = [v_t]
+        inp.target_acceleration = [a_t]
         result = _update(otg, inp, out)
         if result not in (Result.Working, Result.Finished):
             raise InfeasibleError(f"ruckig failed while timing the path: {result}")

@@ -135,3 +135,32 @@ def test_no_network_access_during_smoothing(limits, monkeypatch):
     monkeypatch.setattr(socket, "getaddrinfo", refuse)
     traj, rep = time_path(_curved_path(noise=0.002), limits, start_qd=np.full(7, 0.05))
     assert rep.passed and not attempts
+
+
+def test_reachable_target_never_implies_exceeding_the_velocity_limit():
+    from ipromp_pin.timing import _reachable_target
+
+    rng = np.random.default_rng(0)
+    for _ in range(2000):
+        v_max, a_max, j_max = rng.uniform(0.2, 2.0), rng.uniform(0.5, 3.0), rng.uniform(1.0, 20.0)
+        v, a = _reachable_target(rng.uniform(-0.5, 3.0), rng.uniform(-4, 4), v_max, a_max, j_max)
+        assert 0.0 <= v <= v_max and abs(a) <= a_max
+        assert v + a * a / (2 * j_max) <= v_max  # both when accelerating and decelerating
+        if a < 0:
+            assert v - a * a / (2 * j_max) >= 0.0
+
+
+def test_predicted_paths_of_a_model_are_all_timed_within_limits():
+    """Regression: smooth predicted paths once made ruckig reject a target state (velocity overshoot)."""
+    from ipromp_pin.recognition import IProMP
+    from ipromp_pin.synthetic import make_synthetic_dataset
+
+    ds = make_synthetic_dataset(n_demos=12, seed=1)
+    demos = ds.all_demos()
+    model = IProMP(observe=["orientation", "emg"], noise=10.0).fit(demos[::2])
+    robot = load_robot("baxter_left")
+    limits = JointLimits.from_robot(robot)
+    for demo in demos[1::2]:
+        prediction = model.predict(demo.head(0.2, groups=["orientation", "emg"]))
+        _, report = time_path(prediction.q_mean, limits)
+        assert report.passed, report.to_text()

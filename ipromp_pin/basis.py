@@ -7,12 +7,14 @@ Gaussian bumps of the phase ``z = t / T`` (``T`` = duration of the demo in [s]):
 Conditioning. The paper authors' basis (wide bumps relative to their spacing)
 had a Gram-matrix condition number of about 1e9, which makes the weight fit and
 every later solve lose about 9 digits. Here the centres ``c_k`` are uniformly
-spaced on [0, 1] (spacing ``Delta = 1 / (K - 1)``) and the default width is
-``h = 0.75 Delta``: the sum of the bumps is flat to about 3e-5 (so smooth
-signals are represented without ripple), yet neighbouring bumps overlap little
-enough that the Gram matrix ``int_0^1 phi phi^T dz`` has a condition number of
-about 124 for K = 31 (and K = 61); see :meth:`GaussianBasis.condition_number`.
-A width of ``1.5 Delta`` would give ~1e9 again. The weight fit additionally
+spaced with spacing ``Delta`` from ``-margin Delta`` to ``1 + margin Delta``
+and the default width is ``h = 0.75 Delta``: the sum of the bumps is flat to
+about 3e-5 (no ripple), neighbouring bumps overlap little, and one centre
+beyond each end (``margin = 1``) lets the fit follow a signal's slope up to the
+ends (max error 1.4e-3 for ``z^2`` on [0, 1], against 7e-2 without margin).
+The Gram matrix ``int_0^1 phi phi^T dz`` then has a condition number of about
+2.2e3 for K = 31 and K = 61 (:meth:`GaussianBasis.condition_number`; ~124
+without margin, ~1e9 for a width of 1.5 Delta). The weight fit additionally
 uses a small ridge (see :meth:`GaussianBasis.fit_weights`).
 """
 
@@ -36,25 +38,32 @@ class GaussianBasis:
             ``0.75 / (K - 1)`` (0.75 times the centre spacing).
         ridge: Relative ridge added to the normal equations of the weight fit,
             as a fraction of the mean diagonal of ``B^T B``.
+        margin: Centres extend this many spacings beyond each end of [0, 1].
 
     Attributes:
-        centres: (K,) centres ``c_k`` in phase units.
+        centres: (K,) centres ``c_k`` in phase units (uniform, spacing ``spacing``).
     """
 
-    def __init__(self, n_basis: int = 31, width: float | None = None, ridge: float = 1e-6) -> None:
+    def __init__(
+        self, n_basis: int = 31, width: float | None = None, ridge: float = 1e-6, margin: float = 1.0
+    ) -> None:
         if int(n_basis) != n_basis or n_basis < 2:
             raise ModelError(f"n_basis must be an integer >= 2, got {n_basis!r}")
         self.n_basis = int(n_basis)
-        spacing = 1.0 / (self.n_basis - 1)
+        self.margin = float(margin)
+        if not (0.0 <= self.margin < (self.n_basis - 1) / 2.0):
+            raise ModelError(f"margin must be in [0, (n_basis - 1) / 2), got {margin!r}")
+        spacing = 1.0 / (self.n_basis - 1 - 2.0 * self.margin)
+        self.spacing = spacing
         self.width = float(DEFAULT_RELATIVE_WIDTH * spacing if width is None else width)
         if not (self.width > 0.0 and np.isfinite(self.width)):
             raise ModelError(f"basis width must be positive, got {width!r}")
         self.ridge = float(ridge)
         if not (self.ridge >= 0.0 and np.isfinite(self.ridge)):
             raise ModelError(f"ridge must be >= 0, got {ridge!r}")
-        self.centres = np.linspace(0.0, 1.0, self.n_basis)
-        spacing = 1.0 / (self.n_basis - 1)
-        self._step_factor = np.exp(-(np.arange(self.n_basis - 1) + 0.5) * spacing**2 / self.width**2)
+        self.centres = -self.margin * spacing + spacing * np.arange(self.n_basis)
+        # phi_{k+1} / phi_k = exp(z Delta / h^2) * exp(-(c_k + Delta / 2) Delta / h^2)
+        self._step_factor = np.exp(-(self.centres[:-1] + 0.5 * spacing) * spacing / self.width**2)
 
     def __call__(self, z: np.ndarray) -> np.ndarray:
         """Basis values at phases ``z`` (any shape S) -> array of shape S + (K,)."""
@@ -68,18 +77,19 @@ class GaussianBasis:
         Returns an array of shape ``(n_first,) + S`` equal to ``moveaxis(self(z)[..., :n_first], -1, 0)``
         to a few ulp, using two exponentials per ``z``: with uniform centres ``c_k = k Delta``,
         ``phi_{k+1}(z) = phi_k(z) q(z) d_k`` with ``q(z) = exp(z Delta / h^2)`` and
-        ``d_k = exp(-(k + 1/2) Delta^2 / h^2)``, a running product of bounded factors.
+        ``d_k = exp(-(c_k + Delta / 2) Delta / h^2)``, a running product of bounded factors.
         Falls back to the direct formula where ``phi_0`` could underflow.
         """
         z = np.asarray(z, dtype=float)
         n_first = int(n_first)
         inv_h2 = 1.0 / (self.width * self.width)
-        z_max = float(np.max(np.abs(z))) if z.size else 0.0
-        if n_first < 3 or 0.5 * z_max * z_max * inv_h2 > 650.0:
+        far = float(np.max(np.abs(z - self.centres[0]))) if z.size else 0.0
+        if n_first < 3 or 0.5 * far * far * inv_h2 > 650.0:
             return np.moveaxis(self(z)[..., :n_first], -1, 0).copy()
-        spacing = 1.0 / (self.n_basis - 1)
+        spacing = self.spacing
         out = np.empty((n_first,) + z.shape)
-        out[0] = np.exp(-0.5 * inv_h2 * z * z)
+        d0 = z - self.centres[0]
+        out[0] = np.exp(-0.5 * inv_h2 * d0 * d0)
         step = self._step_factor[: n_first - 1].reshape((-1,) + (1,) * z.ndim)
         np.multiply(np.exp(z * (spacing * inv_h2)), step, out=out[1:])
         for k in range(1, n_first):
@@ -102,7 +112,7 @@ class GaussianBasis:
         return b.T @ b / n_points
 
     def condition_number(self) -> float:
-        """2-norm condition number of :meth:`gram` (about 124 for the default width)."""
+        """2-norm condition number of :meth:`gram` (about 2.2e3 with the defaults)."""
         return float(np.linalg.cond(self.gram()))
 
     def fit_weights(self, z: np.ndarray, values: np.ndarray) -> np.ndarray:
@@ -117,4 +127,4 @@ class GaussianBasis:
 
     def to_dict(self) -> dict:
         """Constructor parameters as a JSON-able dict."""
-        return {"n_basis": self.n_basis, "width": self.width, "ridge": self.ridge}
+        return {"n_basis": self.n_basis, "width": self.width, "ridge": self.ridge, "margin": self.margin}

@@ -457,7 +457,10 @@ def write_plots(result: PlanResult, model, demo: Demo, out_dir: Path) -> dict[st
         title=f"{p.task}: conditioned prediction vs recorded",
     )
     files["plot_phase"] = plots.plot_phase_posterior(
-        p.phase_grid, p.phase_log_post, out_dir / "phase_posterior.png", tasks=list(p.tasks)
+        {t: p.phase_grid[k] for k, t in enumerate(p.tasks)},
+        {t: p.phase_log_post[k] for k, t in enumerate(p.tasks)},
+        out_dir / "phase_posterior.png",
+        tasks=list(p.tasks),
     )
     z = np.linspace(0.0, 1.0, 100)
     mean, std, labels = model.distribution(p.task, z)

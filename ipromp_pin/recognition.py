@@ -142,6 +142,7 @@ class IProMP:
         n_basis: Number of Gaussian basis functions per channel ``K``.
         width: Basis width in phase units (default 0.75 x centre spacing).
         ridge: Relative ridge of the per-demo weight fit.
+        margin: Basis centres extend this many spacings beyond each end of the phase range.
         n_alpha: Number of phase candidates per task (>= 50 recommended).
         alpha_width: Candidates span ``mu +- alpha_width sigma`` of the phase prior.
         noise: Noise ratio ``nu`` (float > 0) or ``"auto"`` (leave-one-out CV over NOISE_GRID).
@@ -171,6 +172,7 @@ class IProMP:
         n_basis: int = 31,
         width: float | None = None,
         ridge: float = 1e-6,
+        margin: float = 1.0,
         n_alpha: int = 60,
         alpha_width: float = 3.0,
         noise: float | str = "auto",
@@ -183,6 +185,7 @@ class IProMP:
         self.n_basis = n_basis
         self.width = width
         self.ridge = ridge
+        self.margin = margin
         self.n_alpha = n_alpha
         self.alpha_width = alpha_width
         self.noise = noise
@@ -236,7 +239,7 @@ class IProMP:
         self.n_dims_ = int(starts[-1])
         self.n_obs_dims_ = int(starts[-2])
         self.joint_names_ = self.channel_names_[self.robot_group]
-        self.basis_ = GaussianBasis(self.n_basis, self.width, self.ridge)
+        self.basis_ = GaussianBasis(self.n_basis, self.width, self.ridge, self.margin)
         all_demos = [d for demos in by_task.values() for d in demos]
         self.scaler_ = ChannelScaler.fit(np.concatenate([self._stack(d) for d in all_demos]))
         durations = {task: np.array([d.t[-1] - d.t[0] for d in demos]) for task, demos in by_task.items()}

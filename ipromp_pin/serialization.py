@@ -57,6 +57,8 @@ def save_model(model: IProMP, path: str | Path) -> None:
             "n_basis": int(model.n_basis),
             "width": None if model.width is None else float(model.width),
             "ridge": float(model.ridge),
+            "margin": float(model.margin),
+            "blas_threads": model.blas_threads,
             "n_alpha": int(model.n_alpha),
             "alpha_width": float(model.alpha_width),
             "noise": model.noise if isinstance(model.noise, str) else float(model.noise),
@@ -145,6 +147,8 @@ def _build(cls: type, header: dict, arrays: dict[str, np.ndarray]) -> IProMP:
         n_basis=p["n_basis"],
         width=p["width"],
         ridge=p["ridge"],
+        margin=p["margin"],
+        blas_threads=p["blas_threads"],
         n_alpha=p["n_alpha"],
         alpha_width=p["alpha_width"],
         noise=p["noise"],
@@ -163,7 +167,7 @@ def _build(cls: type, header: dict, arrays: dict[str, np.ndarray]) -> IProMP:
     model.n_dims_ = int(starts[-1])
     model.n_obs_dims_ = int(starts[-2])
     model.joint_names_ = model.channel_names_[model.robot_group]
-    model.basis_ = GaussianBasis(model.n_basis, model.width, model.ridge)
+    model.basis_ = GaussianBasis(model.n_basis, model.width, model.ridge, model.margin)
     model.scaler_ = ChannelScaler(offset=arrays["scaler_offset"], scale=arrays["scaler_scale"])
     model.duration_nominal_s_ = float(header["duration_nominal_s"])
     model.tasks_ = list(header["tasks"])

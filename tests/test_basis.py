@@ -12,8 +12,8 @@ from ipromp_pin.exceptions import ModelError
 @pytest.mark.parametrize("n_basis", [31, 61])
 def test_gram_condition_number_is_modest(n_basis: int) -> None:
     cond = GaussianBasis(n_basis).condition_number()
-    # the paper authors' basis had ~1e9; ours is ~124 (see the module docstring)
-    assert cond < 200.0
+    # the paper authors' basis had ~1e9; ours is ~2.2e3 (see the module docstring)
+    assert cond < 5e3
 
 
 def test_wide_basis_is_ill_conditioned() -> None:
@@ -36,7 +36,17 @@ def test_fit_weights_reproduces_smooth_signal() -> None:
     y = np.stack([np.sin(2 * np.pi * z), z**2], axis=1)
     w = basis.fit_weights(z, y)
     assert w.shape == (2, 31)
-    assert np.max(np.abs(basis(z) @ w.T - y)) < 1e-3
+    assert np.max(np.abs(basis(z) @ w.T - y)) < 3e-3
+
+
+def test_margin_lets_the_fit_follow_the_ends() -> None:
+    z = np.linspace(0.0, 1.0, 400)
+    y = z[:, None] ** 2
+    errors = []
+    for margin in (0.0, 1.0):
+        basis = GaussianBasis(31, margin=margin)
+        errors.append(np.max(np.abs(basis(z) @ basis.fit_weights(z, y).T - y)))
+    assert errors[1] < 0.1 * errors[0]
 
 
 def test_support_count_drops_only_negligible_functions() -> None:

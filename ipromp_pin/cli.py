@@ -20,11 +20,12 @@ from .data import parse_groups
 from .exceptions import IPrompPinError
 
 
-def _progress(stream=sys.stderr):
-    """A progress callable printing ``[done/total] label  elapsed`` lines."""
+def _progress():
+    """A progress callable printing ``[done/total] label  elapsed`` on standard error."""
     t0 = time.perf_counter()
 
     def show(done: int, total: int, label: str) -> None:
+        stream = sys.stderr
         stream.write(f"\r[{done}/{total}] {label}  ({time.perf_counter() - t0:.0f} s)\033[K")
         if done == total:
             stream.write("\n")

@@ -9,17 +9,21 @@ all ``D`` channels (observed human groups first, then the robot joints) are
 stacked dim-major into ``w`` of length ``p = D K``.
 
 Regularised covariance. With N = 10-100 demos and p of several hundred weights
-the sample covariance ``S = X_c^T X_c / N`` is singular. We use Ledoit-Wolf
-shrinkage (Ledoit & Wolf, 2004, "A well-conditioned estimator for
+the sample covariance ``S_t = X_c^T X_c / N`` of task t is singular. We use
+Ledoit-Wolf shrinkage (Ledoit & Wolf, 2004, "A well-conditioned estimator for
 large-dimensional covariance matrices") toward a *per-dim scalar* diagonal
-target ``T = blockdiag(tau_d I_K)``, ``tau_d`` = mean weight variance of dim d:
-``Sigma = (1 - lambda) S + lambda T`` with the analytic intensity
-``lambda = min(1, b^2 / d^2)``, ``b^2 = N^-2 sum_i ||x_i x_i^T - S||_F^2``,
-``d^2 = ||S - T||_F^2`` (computed in O(N^2 p) from the N x N Gram matrix). A
-small floor (1e-6 of the mean ``tau``) keeps every diagonal entry positive, so
-``Sigma`` is symmetric positive definite. It is stored in the structured form
-``Sigma = blockdiag(delta_d I_K) + F F^T`` with ``delta_d = lambda tau_d +
-floor`` and ``F = sqrt((1 - lambda) / N) X_c^T`` compressed to rank <= N - 1
+target ``T = blockdiag(tau_d I_K)``, ``tau_d`` = mean weight variance of dim d
+pooled over all tasks (as regularised discriminant analysis pools class
+covariances): ``Sigma_t = (1 - lambda) S_t + lambda T`` with the analytic
+intensity ``lambda = min(1, sum_t b_t^2 / sum_t d_t^2)``,
+``b_t^2 = N^-2 sum_i ||x_i x_i^T - S_t||_F^2``, ``d_t^2 = ||S_t - T||_F^2``
+(computed in O(N^2 p) from the N x N Gram matrices). Pooling makes the diagonal
+part identical for all tasks, so their likelihoods differ only through what
+the data say about them (not through different noise levels). A small floor
+(1e-6 of the mean ``tau``) keeps every diagonal entry positive, so ``Sigma_t``
+is symmetric positive definite. It is stored in the structured form
+``Sigma_t = blockdiag(delta_d I_K) + F_t F_t^T`` with ``delta_d = lambda tau_d +
+floor`` and ``F_t = sqrt((1 - lambda) / N) X_c^T`` compressed to rank <= N - 1
 (thin SVD), which the fast inference (:mod:`ipromp_pin.phase`) exploits.
 
 Observation noise. An observed channel ``d`` is seen with white noise of
@@ -97,34 +101,62 @@ class ShrunkCovariance:
 
 
 def shrink_covariance(weights: np.ndarray) -> ShrunkCovariance:
-    """Ledoit-Wolf shrinkage toward a per-dim scalar diagonal target.
+    """Ledoit-Wolf shrinkage of one task's weight covariance (see :func:`shrink_covariances`)."""
+    return shrink_covariances([weights])[0]
+
+
+def shrink_covariances(weights: list[np.ndarray]) -> list[ShrunkCovariance]:
+    """Ledoit-Wolf shrinkage of every task's covariance toward one pooled per-dim diagonal target.
 
     Args:
-        weights: (N, D, K) weights of N demos (N >= 2).
+        weights: Per task, (N_t, D, K) weights of its N_t >= 2 demos.
 
     Returns:
-        The structured SPD estimate (see the module docstring).
+        Per task, the structured SPD estimate ``(1 - lambda) S_t + lambda T`` with
+        ``T = blockdiag(tau_d I_K)``, ``tau_d`` the mean weight variance of dim d pooled
+        over tasks, and one intensity ``lambda = min(1, sum_t b_t^2 / sum_t d_t^2)``
+        (Ledoit-Wolf, with the tasks' estimation errors and distances pooled). The
+        diagonal part ``delta_d = lambda tau_d`` is therefore shared by all tasks.
     """
-    n, d, k = weights.shape
-    if n < 2:
-        raise ModelError(f"covariance needs at least 2 demos, got {n}")
-    mean = weights.mean(axis=0)
-    xc = (weights - mean).reshape(n, d * k)
-    gram = xc @ xc.T  # (N, N)
-    s_fro2 = float(np.sum(gram * gram)) / n**2  # ||S||_F^2
-    tau = np.einsum("ndk,ndk->d", xc.reshape(n, d, k), xc.reshape(n, d, k)) / (n * k)  # (D,)
-    d2 = max(s_fro2 - k * float(np.sum(tau * tau)), 0.0)
-    sq_norms = np.diag(gram)
-    xsx = np.sum(gram * gram, axis=1) / n  # x_i^T S x_i
-    b2 = float(np.sum(sq_norms**2 - 2.0 * xsx + s_fro2)) / n**2
-    lam = 1.0 if d2 <= 0.0 else float(min(1.0, max(0.0, b2 / d2)))
+    d, k = weights[0].shape[1:]
+    centred, grams, tau_num, tau_den = [], [], np.zeros(d), 0
+    for w in weights:
+        n = w.shape[0]
+        if n < 2:
+            raise ModelError(f"covariance needs at least 2 demos per task, got {n}")
+        xc = (w - w.mean(axis=0)).reshape(n, d * k)
+        centred.append(xc)
+        grams.append(xc @ xc.T)
+        tau_num += np.einsum("ndk,ndk->d", xc.reshape(n, d, k), xc.reshape(n, d, k)) / k
+        tau_den += n
+    tau = tau_num / tau_den  # pooled per-dim mean weight variance
+    b2_sum = d2_sum = 0.0
+    for xc, gram in zip(centred, grams, strict=True):
+        n = xc.shape[0]
+        s_fro2 = float(np.sum(gram * gram)) / n**2  # ||S_t||_F^2
+        tau_t = np.einsum("ndk,ndk->d", xc.reshape(n, d, k), xc.reshape(n, d, k)) / (n * k)
+        # ||S_t - T||_F^2 = ||S_t||^2 - 2 K sum_d tau_t,d tau_d + K sum_d tau_d^2
+        d2_sum += max(s_fro2 - 2.0 * k * float(tau_t @ tau) + k * float(tau @ tau), 0.0)
+        xsx = np.sum(gram * gram, axis=1) / n  # x_i^T S_t x_i
+        b2_sum += float(np.sum(np.diag(gram) ** 2 - 2.0 * xsx + s_fro2)) / n**2
+    lam = 1.0 if d2_sum <= 0.0 else float(min(1.0, max(0.0, b2_sum / d2_sum)))
     floor = VARIANCE_FLOOR * max(float(np.mean(tau)), 1e-12)
     diag = lam * tau + floor
-    # thin SVD of the centred data: S = V s^2 V^T / N
-    _, sv, vt = np.linalg.svd(xc, full_matrices=False)
-    keep = sv > 1e-10 * max(float(sv[0]), 1e-300)
-    factor = (vt[keep].T * sv[keep]) * np.sqrt((1.0 - lam) / n)
-    return ShrunkCovariance(mean=mean, diag=diag, factor=factor.reshape(d, k, -1), shrinkage=lam)
+    out = []
+    for w, xc in zip(weights, centred, strict=True):
+        n = xc.shape[0]
+        _, sv, vt = np.linalg.svd(xc, full_matrices=False)
+        keep = sv > 1e-10 * max(float(sv[0]), 1e-300)
+        factor = (vt[keep].T * sv[keep]) * np.sqrt((1.0 - lam) / n)
+        out.append(
+            ShrunkCovariance(
+                mean=np.ascontiguousarray(w.mean(axis=0)),
+                diag=diag.copy(),
+                factor=np.ascontiguousarray(factor.reshape(d, k, -1)),
+                shrinkage=lam,
+            )
+        )
+    return out
 
 
 @dataclass

@@ -16,10 +16,12 @@ duration is unknown), computes
 
 Noise ratio. ``noise="auto"`` chooses the observation-noise ratio ``nu``
 (``r_d = nu delta_d``) among ``NOISE_GRID`` by leave-one-out cross-validation on
-the training demos only: every training demo is in turn removed from its task's
-model, its first 10 % and 20 % are observed, and the score is the mean log
-posterior of its true task plus the mean log posterior density of its true
-phase. A too-small ``nu`` makes the phase estimate overconfident (worse than the
+the training demos only: every training demo (at most ``CV_MAX_FOLDS`` in all,
+spread evenly over tasks) is in turn removed from its task's model (the pooled
+covariance target and phase priors are refitted without it), its first 10 % and
+20 % are observed, and the score is the mean log posterior of its true task plus
+the mean log posterior density of its true phase (each observation's score
+clipped at -100). A too-small ``nu`` makes the phase estimate overconfident (worse than the
 prior alone); a too-large one ignores the observation.
 
 :func:`direct_predict` is the textbook reference implementation (dense
@@ -30,11 +32,10 @@ fast path.
 
 from __future__ import annotations
 
+import contextlib
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-
-import contextlib
 
 import numpy as np
 from scipy.linalg import cho_factor, cho_solve, solve_triangular
@@ -49,7 +50,7 @@ from .model import (
     alpha_candidates,
     alpha_prior,
     fit_demo_weights,
-    shrink_covariance,
+    shrink_covariances,
 )
 from .phase import LOG_2PI, InferenceEngine, ObservationPart, PartStats, refine_peak
 
@@ -58,6 +59,9 @@ NOISE_GRID = (0.03, 0.1, 0.3, 1.0, 3.0, 10.0, 30.0, 100.0)
 
 CV_RATIOS = (0.1, 0.2)
 """Observed fractions of the held-out demo used by the noise cross-validation."""
+
+CV_MAX_FOLDS = 60
+"""Largest number of held-out demos of the noise cross-validation (spread evenly over tasks and demos)."""
 
 
 @dataclass
@@ -143,14 +147,14 @@ class IProMP:
         width: Basis width in phase units (default 0.75 x centre spacing).
         ridge: Relative ridge of the per-demo weight fit.
         margin: Basis centres extend this many spacings beyond each end of the phase range.
-        n_alpha: Number of phase candidates per task (>= 50 recommended).
+        n_alpha: Minimum number of phase candidates inside every task's prior support (>= 50 recommended).
         alpha_width: Candidates span ``mu +- alpha_width sigma`` of the phase prior.
         noise: Noise ratio ``nu`` (float > 0) or ``"auto"`` (leave-one-out CV over NOISE_GRID).
         n_points: Number M of points of the predicted trajectories.
         task_prior: Prior task probabilities (task -> p, or None for uniform).
         robot_group: Name of the robot's joint-angle group.
-        blas_threads: BLAS threads used while fitting and inferring (None = leave unchanged). Inference works on
-            many small matrices, for which more threads only add overhead (1 is fastest).
+        blas_threads: BLAS threads used while fitting and inferring (None = leave unchanged).
+            Inference works on many small matrices, for which more threads only add overhead.
 
     Fitted attributes:
         tasks_: Task names.
@@ -173,7 +177,7 @@ class IProMP:
         width: float | None = None,
         ridge: float = 1e-6,
         margin: float = 1.0,
-        n_alpha: int = 60,
+        n_alpha: int = 50,
         alpha_width: float = 3.0,
         noise: float | str = "auto",
         n_points: int = 100,
@@ -290,12 +294,14 @@ class IProMP:
             cnt[lo:hi] = d.n_samples if valid is None else int(np.sum(valid))
         return w, rss, cnt
 
-    def _task_models(self, weights: dict[str, np.ndarray], alphas: dict[str, np.ndarray]) -> dict[str, TaskModel]:
+    def _task_models(
+        self, weights: dict[str, np.ndarray], alphas: dict[str, np.ndarray]
+    ) -> dict[str, TaskModel]:
         priors = [alpha_prior(alphas[t]) for t in self.tasks_]
         cands = alpha_candidates(priors, self.n_alpha, self.alpha_width)
+        covs = shrink_covariances([weights[t] for t in self.tasks_])
         models = {}
-        for task, (mu, sigma), (grid, logw) in zip(self.tasks_, priors, cands, strict=True):
-            cov = shrink_covariance(weights[task])
+        for task, (mu, sigma), (grid, logw), cov in zip(self.tasks_, priors, cands, covs, strict=True):
             models[task] = TaskModel(
                 task=task,
                 mean=cov.mean,
@@ -340,7 +346,11 @@ class IProMP:
                 if len(demos) < 3:
                     continue
                 ki = self.tasks_.index(task)
-                for i, d in enumerate(demos):
+                per_task = max(1, -(-CV_MAX_FOLDS // len(by_task)))
+                n_held = min(per_task, len(demos))
+                held = np.unique(np.linspace(0, len(demos) - 1, n_held).round().astype(int))
+                for i in held:
+                    d = demos[i]
                     keep = np.arange(len(demos)) != i
                     self.models_ = self._task_models(
                         {**self._weights, task: self._weights[task][keep]},
@@ -374,7 +384,9 @@ class IProMP:
             return 1.0, {}
         scores /= n_eval
         best = int(np.argmax(scores))
-        return float(NOISE_GRID[best]), {float(nu): float(v) for nu, v in zip(NOISE_GRID, scores, strict=True)}
+        return float(NOISE_GRID[best]), {
+            float(nu): float(v) for nu, v in zip(NOISE_GRID, scores, strict=True)
+        }
 
     # ---------------------------------------------------------- inference
     def _limit_threads(self):
@@ -398,11 +410,15 @@ class IProMP:
         masks: dict[bytes, tuple[np.ndarray, list[np.ndarray], list[np.ndarray]]] = {}
         t = obs.t
         if t[0] < -1e-9:
-            raise ObservationError(src, "t", f"times must start at motion start (>= 0 s), first is {t[0]:.3f} s")
+            raise ObservationError(
+                src, "t", f"times must start at motion start (>= 0 s), first is {t[0]:.3f} s"
+            )
         for g in self.observe:
             if g not in obs.groups:
                 raise ObservationError(
-                    src, g, f"observed group missing from the observation (has: {', '.join(sorted(obs.groups))})"
+                    src,
+                    g,
+                    f"observed group missing from the observation (has: {', '.join(sorted(obs.groups))})",
                 )
             v = obs.groups[g]
             lo, hi = self.group_slices_[g]
@@ -433,7 +449,8 @@ class IProMP:
                 raise ObservationError(
                     src,
                     "t",
-                    f"observation lasts {t_last:.2f} s, longer than any task's plausible motion ({longest:.2f} s)",
+                    f"observation lasts {t_last:.2f} s, longer than any task's plausible motion "
+                    f"({longest:.2f} s)",
                 )
         return parts, t_last
 
@@ -508,31 +525,48 @@ class IProMP:
             return self._condition(rec, parts)
 
     def _condition(self, rec: Recognition, parts: list[ObservationPart]) -> Prediction:
+        """Condition the winning task's weights on the observation at its MAP phase.
+
+        Same algebra as :mod:`ipromp_pin.phase` for a single candidate: per part,
+        ``X = nu I + G`` (one Cholesky), ``P = sum_d W_d^T (I - nu X^-1) W_d`` and
+        ``a = sum_d W_d^T X^-1 b_d / sqrt(delta_d)``; the latent posterior is
+        ``N(Q^-1 a, Q^-1)`` with ``Q = I + P`` and the observed dims' weights get the
+        extra correction ``X^-1 (b_d - G F_d eta)``.
+        """
         task = rec.task
         m = self.models_[task]
-        best = self.tasks_.index(task)
-        alpha = float(rec.alpha[best])
-        engine = self._engine_()
-        a1 = np.array([alpha])
-        stats = [engine.part_stats(p, a1) for p in parts]
-        terms = engine.terms(
-            stats,
-            rec.observed_until_s,
-            tasks=np.array([best]),
-            alphas=a1[None, :],
-            index=np.zeros((1, 1), dtype=int),
-            keep=True,
-        )
-        r = engine.rank
-        lq = terms.q_chol[0, 0]
-        m_eta = cho_solve((lq, True), terms.a[0, 0]) if r else np.zeros(0)
-        factor = np.zeros(m.factor.shape[:2] + (r,))
-        factor[:, :, : m.rank] = m.factor
-        w_post = m.mean + factor @ m_eta
-        for dims, ke, xinv, gram, b in terms.parts:
-            fu = (factor[dims, :ke, :] @ m_eta).T  # (ke, dm)
-            w_post[dims, :ke] += (xinv[0, 0] @ (b[0, 0] - gram[0, 0] @ fu)).T
-        return self._make_prediction(rec, factor, m, alpha, w_post, lq)
+        alpha = float(rec.alpha[self.tasks_.index(task)])
+        nu = self.noise_ratio_
+        r = m.rank
+        q = np.eye(r)
+        a = np.zeros(r)
+        kept = []
+        inv_dur = 1.0 / (alpha * self.duration_nominal_s_)
+        for part in parts:
+            ke = self.basis_.support_count(float(part.t[-1]) * inv_dur)
+            bt = self.basis_.values_prefix_t(part.t * inv_dur, ke)  # (ke, n)
+            gram = bt @ bt.T
+            b = bt @ part.y - gram @ m.mean[part.dims, :ke].T  # (ke, dm)
+            x = gram.copy()
+            x[np.diag_indices(ke)] += nu
+            cx = cho_factor(x, lower=True, check_finite=False)
+            sd = np.sqrt(m.diag[part.dims])
+            w = (m.factor[part.dims, :ke, :] / sd[:, None, None]).transpose(1, 0, 2)  # (ke, dm, r)
+            wf = w.reshape(ke, -1)
+            sol = cho_solve(cx, np.concatenate([wf, b / sd], axis=1), check_finite=False)
+            xw = sol[:, : wf.shape[1]]
+            xb = sol[:, wf.shape[1] :]
+            wd = w.transpose(1, 0, 2).reshape(-1, r)  # rows (d, k)
+            q += wd.T @ (wd - nu * xw.reshape(ke, -1, r).transpose(1, 0, 2).reshape(-1, r))
+            a += wd.T @ xb.T.reshape(-1)
+            kept.append((part.dims, ke, cx, gram, b))
+        lq = np.linalg.cholesky(q) if r else np.zeros((0, 0))
+        m_eta = cho_solve((lq, True), a, check_finite=False) if r else np.zeros(0)
+        w_post = m.mean + m.factor @ m_eta
+        for dims, ke, cx, gram, b in kept:
+            fu = (m.factor[dims, :ke, :] @ m_eta).T  # (ke, dm)
+            w_post[dims, :ke] += cho_solve(cx, b - gram @ fu, check_finite=False).T
+        return self._make_prediction(rec, m.factor, m, alpha, w_post, lq)
 
     def _grid_cache(self, task: str, factor: np.ndarray) -> dict[str, np.ndarray]:
         """Model-only quantities on the fixed prediction phase grid (cached per task)."""
@@ -568,7 +602,9 @@ class IProMP:
         q_mean = self.scaler_.inverse(phi @ w_post[lo:hi].T, slice(lo, hi))
         r = lq.shape[0]
         if r:
-            proj = solve_triangular(lq, c["phi_f"].reshape(r, -1), lower=True).T.reshape(-1, nj, r)  # (M, J, r)
+            proj = solve_triangular(lq, c["phi_f"].reshape(r, -1), lower=True, check_finite=False).T.reshape(
+                -1, nj, r
+            )  # (M, J, r)
             cov = proj @ np.swapaxes(proj, 1, 2)
         else:
             cov = np.zeros((phi.shape[0], nj, nj))
@@ -615,10 +651,12 @@ class IProMP:
         return self.scaler_.inverse(mean), std * self.scaler_.scale, self.channel_labels()
 
     def train_trajectories(self, task: str, z: np.ndarray) -> np.ndarray:
-        """Basis-fitted trajectories (N, n, D) of the task's training demos at phases ``z``, original units."""
+        """Basis-fitted trajectories (N, n, D) of the training demos at phases ``z``, original units."""
         self._check_fitted()
         m = self._model(task)
-        return self.scaler_.inverse(np.einsum("nk,idk->ind", self.basis_(np.asarray(z, float)), m.train_weights))
+        return self.scaler_.inverse(
+            np.einsum("nk,idk->ind", self.basis_(np.asarray(z, float)), m.train_weights)
+        )
 
     def channel_labels(self) -> list[str]:
         """``"group/channel"`` labels of all modelled dims (observed groups, then robot)."""
@@ -709,14 +747,18 @@ class StreamingEstimator:
                 continue
             v = np.asarray(v, dtype=float).reshape(-1)
             if v.size != hi - lo:
-                raise ObservationError("stream", g, f"sample has {v.size} values, the model expects {hi - lo}")
+                raise ObservationError(
+                    "stream", g, f"sample has {v.size} values, the model expects {hi - lo}"
+                )
             if not np.all(np.isfinite(v)):
                 raise ObservationError("stream", g, f"NaN or inf in the sample at t={t_s:.3f} s")
             rows[g] = v
         self._t.append(t_s)
         for g in m.observe:
             v = rows[g]
-            self._values[g].append(np.full(m.group_slices_[g][1] - m.group_slices_[g][0], np.nan) if v is None else v)
+            self._values[g].append(
+                np.full(m.group_slices_[g][1] - m.group_slices_[g][0], np.nan) if v is None else v
+            )
             self._missing[g].append(v is None)
         with m._limit_threads():
             self._accumulate(t_s, rows)
@@ -820,14 +862,24 @@ def _direct_obs_matrix(basis: GaussianBasis, parts, alpha: float, t_norm: float,
     return np.concatenate(rows), np.concatenate(ys), np.concatenate(dims_of_rows)
 
 
-def direct_loglik(basis, task: TaskModel, parts, alpha: float, t_norm: float, nu: float) -> float:
-    """Textbook log N(y; Phi mu, Phi Sigma Phi^T + R) with a dense Cholesky."""
+def direct_loglik(
+    basis, task: TaskModel, parts, alpha: float, t_norm: float, nu: float, sigma: np.ndarray | None = None
+) -> float:
+    """Textbook log N(y; Phi mu, Phi Sigma Phi^T + R) with a dense Cholesky.
+
+    Args:
+        basis, task, parts: Model basis, task model and observation parts (scaled).
+        alpha: Phase candidate.
+        t_norm: Nominal duration in [s].
+        nu: Noise ratio (``R = nu * delta_d`` per observed dim).
+        sigma: Dense weight covariance of the task (computed when None).
+    """
     n_dims, k = task.mean.shape
     t_last = max(float(p.t[-1]) for p in parts)
     if t_last > alpha * t_norm * (1.0 + 1e-12):
         return -np.inf
     phi, y, dd = _direct_obs_matrix(basis, parts, alpha, t_norm, n_dims, k)
-    sigma = task.covariance()
+    sigma = task.covariance() if sigma is None else sigma
     cov = phi @ sigma @ phi.T + np.diag(nu * task.diag[dd])
     c, low = cho_factor(cov, lower=True)
     e = y - phi @ task.mean.reshape(-1)
@@ -847,7 +899,8 @@ def direct_predict(model: IProMP, observation: Demo) -> Prediction:
     alpha = np.empty(n_task)
     for i, task in enumerate(model.tasks_):
         m = model.models_[task]
-        ll = np.array([direct_loglik(model.basis_, m, parts, a, tn, nu) for a in m.alpha_grid])
+        sigma = m.covariance()
+        ll = np.array([direct_loglik(model.basis_, m, parts, a, tn, nu, sigma) for a in m.alpha_grid])
         lp = ll + m.alpha_log_prior
         evidence[i] = np.logaddexp.reduce(lp)
         logpost[i] = lp - evidence[i]
@@ -873,8 +926,12 @@ def direct_predict(model: IProMP, observation: Demo) -> Prediction:
     scale = model.scaler_.scale[lo:hi]
     q_mean = (big @ w_mean[sel]).reshape(z.size, hi - lo)
     q_cov = np.stack(
-        [big[i * (hi - lo) : (i + 1) * (hi - lo)] @ w_cov[sel, sel] @ big[i * (hi - lo) : (i + 1) * (hi - lo)].T
-         for i in range(z.size)]
+        [
+            big[i * (hi - lo) : (i + 1) * (hi - lo)]
+            @ w_cov[sel, sel]
+            @ big[i * (hi - lo) : (i + 1) * (hi - lo)].T
+            for i in range(z.size)
+        ]
     )
     wr = w_mean.reshape(n_dims, k)
     pred = model._make_prediction(rec, m.factor, m, a_best, wr, np.eye(m.rank))  # trajectories replaced below

@@ -180,10 +180,19 @@ def _build(cls: type, header: dict, arrays: dict[str, np.ndarray]) -> IProMP:
     for i, t in enumerate(model.tasks_):
         sc = header["task_scalars"][i]
         a = {name: arrays[f"task{i}_{name}"] for name in _TASK_ARRAYS}
-        if a["mean"].shape != (n_dims, k) or a["diag"].shape != (n_dims,) or a["factor"].shape[:2] != (n_dims, k):
+        if (
+            a["mean"].shape != (n_dims, k)
+            or a["diag"].shape != (n_dims,)
+            or a["factor"].shape[:2] != (n_dims, k)
+        ):
             raise ValueError(f"arrays of task '{t}' have inconsistent shapes")
-        models[t] = TaskModel(task=t, shrinkage=float(sc["shrinkage"]), alpha_mu=float(sc["alpha_mu"]),
-                              alpha_sigma=float(sc["alpha_sigma"]), **a)
+        models[t] = TaskModel(
+            task=t,
+            shrinkage=float(sc["shrinkage"]),
+            alpha_mu=float(sc["alpha_mu"]),
+            alpha_sigma=float(sc["alpha_sigma"]),
+            **a,
+        )
     if model.scaler_.offset.shape != (n_dims,) or model.task_log_prior_.shape != (len(model.tasks_),):
         raise ValueError("scaling or task prior arrays have inconsistent shapes")
     model.models_ = models

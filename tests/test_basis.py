@@ -58,7 +58,9 @@ def test_support_count_drops_only_negligible_functions() -> None:
     assert np.max(basis(z)[:, ke - 1]) > 1e-11 or ke == 1
 
 
-@pytest.mark.parametrize("kwargs", [{"n_basis": 1}, {"n_basis": 31, "width": -1.0}, {"n_basis": 5, "ridge": -1}])
+@pytest.mark.parametrize(
+    "kwargs", [{"n_basis": 1}, {"n_basis": 31, "width": -1.0}, {"n_basis": 5, "ridge": -1}]
+)
 def test_bad_parameters_raise(kwargs: dict) -> None:
     with pytest.raises(ModelError):
         GaussianBasis(**kwargs)

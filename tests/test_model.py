@@ -76,7 +76,9 @@ def test_distribution_matches_dense_covariance() -> None:
     rng = np.random.default_rng(4)
     w = _weights(rng, 9, d=3, k=6)
     cov = shrink_covariance(w)
-    m = TaskModel("t", cov.mean, cov.diag, cov.factor, cov.shrinkage, 1.0, 0.1, np.ones(3), np.zeros(3), w, np.ones(9))
+    m = TaskModel(
+        "t", cov.mean, cov.diag, cov.factor, cov.shrinkage, 1.0, 0.1, np.ones(3), np.zeros(3), w, np.ones(9)
+    )
     basis = GaussianBasis(6)
     phi = basis(np.linspace(0, 1, 5))
     mean, std = m.distribution(phi)

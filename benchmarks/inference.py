@@ -1,0 +1,364 @@
+"""Inference benchmark: training, full update, streaming update, direct reference, scaling, phase accuracy.
+
+Run ``python benchmarks/inference.py`` (full, several minutes) or ``--quick`` (smoke run,
+about a minute); ``--json FILE`` writes the medians in seconds. Everything runs on ONE core
+(process pinned to one CPU when possible, BLAS limited to one thread).
+
+Settings. "paper": 3 tasks, 4 orientation + 8 EMG observed dims, 7 robot joints, 31 basis
+functions, 20 training demos per task, 50 Hz synthetic hand-overs of 2.5-4.2 s
+(:func:`ipromp_pin.synthetic.make_synthetic_dataset`), observed ratios 0.1 and 0.2. Scaled
+settings change one factor at a time: 10 / 30 tasks, 30 observed dims (extra channels mixed from
+the measured ones), 61 basis functions, 100 demos per task.
+
+"full update" = :meth:`IProMP.predict` (phase posterior over every candidate of every task,
+task posterior, conditioned prediction of the winner); "streaming update" = one
+:meth:`StreamingEstimator.update` with a new sample; "direct" =
+:func:`ipromp_pin.recognition.direct_predict` (dense block-diagonal Phi per candidate, full
+covariance ``Phi Sigma Phi^T + R`` via Cholesky, dense conditioning).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import sys
+import time
+import tracemalloc
+from collections.abc import Callable
+
+import numpy as np
+from threadpoolctl import threadpool_info, threadpool_limits
+
+from ipromp_pin.data import Dataset, Demo
+from ipromp_pin.recognition import IProMP, direct_predict
+from ipromp_pin.synthetic import make_synthetic_dataset
+
+OBSERVE = ["orientation", "emg"]
+
+
+def median_time(fn: Callable[[], object], repeats: int, warmup: int = 1) -> float:
+    """Median wall time of ``fn`` in [s]."""
+    for _ in range(warmup):
+        fn()
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t0)
+    return float(np.median(times))
+
+
+def with_extra_dims(ds: Dataset, n_extra: int, seed: int = 0) -> Dataset:
+    """Add a group "extra" of ``n_extra`` channels: random mixes of the orientation and EMG plus noise."""
+    rng = np.random.default_rng(seed)
+    mix = rng.normal(size=(12, n_extra))
+    demos = {}
+    for task, ds_demos in ds.demos.items():
+        out = []
+        for d in ds_demos:
+            base = np.concatenate([d.groups["orientation"], d.groups["emg"] / 100.0], axis=1)
+            extra = base @ mix + rng.normal(0, 0.02, (d.n_samples, n_extra))
+            groups = {**d.groups, "extra": extra}
+            names = {**d.channel_names, "extra": tuple(f"x{i}" for i in range(n_extra))}
+            out.append(
+                Demo(
+                    d.task,
+                    d.name,
+                    d.source,
+                    d.t,
+                    groups,
+                    names,
+                    dict(d.missing),
+                    dict(d.extras),
+                    d.duration_s,
+                )
+            )
+        demos[task] = out
+    return Dataset(ds.root + "+extra", demos)
+
+
+def split(ds: Dataset, n_train: int) -> tuple[Dataset, dict[str, list[Demo]]]:
+    return (
+        Dataset(ds.root, {t: d[:n_train] for t, d in ds.demos.items()}),
+        {t: d[n_train:] for t, d in ds.demos.items()},
+    )
+
+
+def stream_update_time(model: IProMP, obs: Demo) -> float:
+    """Median time of one streaming update over the samples of ``obs`` (after the first two)."""
+    times = []
+    for _ in range(3):
+        stream = model.stream()
+        for j in range(obs.n_samples):
+            sample = {g: obs.groups[g][j] for g in model.observe}
+            t0 = time.perf_counter()
+            stream.update(obs.t[j], sample)
+            if j >= 2:
+                times.append(time.perf_counter() - t0)
+    return float(np.median(times))
+
+
+def run_setting(
+    name: str,
+    n_tasks: int = 3,
+    n_demos: int = 20,
+    n_basis: int = 31,
+    n_extra: int = 0,
+    n_alpha: int = 50,
+    repeats: int = 30,
+    ratios: tuple[float, ...] = (0.1, 0.2),
+    stream: bool = True,
+) -> dict[str, float]:
+    """Train on one setting and time the inference; returns medians in [s] and sizes."""
+    ds = make_synthetic_dataset(n_tasks=n_tasks, n_demos=n_demos + 2, seed=1)
+    observe = list(OBSERVE)
+    if n_extra:
+        ds = with_extra_dims(ds, n_extra)
+        observe.append("extra")
+    train, test = split(ds, n_demos)
+    model = IProMP(observe, n_basis=n_basis, n_alpha=n_alpha, noise=10.0)
+    tracemalloc.start()
+    t0 = time.perf_counter()
+    model.fit(train)
+    train_s = (time.perf_counter() - t0) / n_tasks
+    _, peak_fit = tracemalloc.get_traced_memory()
+    tracemalloc.stop()
+    demo = test[model.tasks_[0]][0]
+    out: dict[str, float] = {"train_per_task_s": train_s, "peak_fit_mb": peak_fit / 1e6}
+    out["n_candidates"] = float(model.models_[model.tasks_[0]].alpha_grid.size)
+    out["n_obs_dims"] = float(model.n_obs_dims_)
+    out["rank"] = float(model._engine_().rank)
+    for ratio in ratios:
+        obs = demo.head(ratio, observe)
+        tracemalloc.start()
+        model.predict(obs)
+        _, peak = tracemalloc.get_traced_memory()
+        tracemalloc.stop()
+        key = f"r{int(round(ratio * 100)):02d}"
+        out[f"full_update_{key}_s"] = median_time(lambda obs=obs: model.predict(obs), repeats)
+        out[f"recognise_{key}_s"] = median_time(lambda obs=obs: model.recognise(obs), repeats)
+        out[f"n_samples_{key}"] = float(obs.n_samples)
+        out[f"peak_predict_{key}_mb"] = peak / 1e6
+    if stream:
+        out["streaming_update_s"] = stream_update_time(model, demo.head(0.2, observe))
+    out["_model"] = model  # type: ignore[assignment]
+    out["_test"] = test  # type: ignore[assignment]
+    return out
+
+
+def direct_time(model: IProMP, obs: Demo, repeats: int) -> tuple[float, float]:
+    """Median direct time in [s] and the largest relative difference fast vs direct."""
+    fast = model.predict(obs)
+    ref = direct_predict(model, obs)
+    diff = max(
+        float(
+            np.max(np.abs(getattr(fast, f) - getattr(ref, f))) / max(np.max(np.abs(getattr(ref, f))), 1e-300)
+        )
+        for f in ("posterior", "alpha", "q_mean", "q_cov")
+    )
+    return median_time(lambda: direct_predict(model, obs), repeats, warmup=0), diff
+
+
+def phase_accuracy(model: IProMP, test: dict[str, list[Demo]], ratios=(0.1, 0.2)) -> list[str]:
+    """Phase and task accuracy on held-out synthetic demos with known alpha = T / T_norm."""
+    lines = []
+    for ratio in ratios:
+        err, prior, hits, cond, base = [], [], [], [], []
+        for task, demos in test.items():
+            for d in demos:
+                p = model.predict(d.head(ratio, model.observe))
+                k = p.tasks.index(task)
+                true = d.duration_s / model.duration_nominal_s_
+                err.append(abs(p.alpha[k] - true) / true)
+                prior.append(abs(model.models_[task].alpha_mu - true) / true)
+                hits.append(p.task == task)
+                z = p.t / p.duration_s
+                q = np.stack([np.interp(z, d.t / d.t[-1], d.groups["robot"][:, j]) for j in range(7)], axis=1)
+                cond.append(np.sqrt(np.mean((p.q_mean - q) ** 2)))
+                base.append(np.sqrt(np.mean((p.q_prior_mean - q) ** 2)))
+        lines.append(
+            f"  ratio {ratio:.1f}: phase error |alpha-true|/true mean {np.mean(err):.3f}"
+            f" median {np.median(err):.3f}"
+            f" (prior mean alone: mean {np.mean(prior):.3f} median {np.median(prior):.3f});"
+            f" task accuracy {np.mean(hits):.2f}; robot RMSE conditioned {np.mean(cond):.4f} rad,"
+            f" unconditioned prior {np.mean(base):.4f} rad"
+        )
+    return lines
+
+
+def machine_info() -> list[str]:
+    cpu = platform.processor() or "?"
+    try:
+        with open("/proc/cpuinfo") as fh:
+            for line in fh:
+                if line.startswith("model name"):
+                    cpu = line.split(":", 1)[1].strip()
+                    break
+    except OSError:
+        pass
+    blas = ", ".join(f"{i['internal_api']} {i.get('version')}" for i in threadpool_info())
+    return [
+        f"machine: {cpu}, {os.cpu_count()} logical CPUs, pinned to CPU {sorted(os.sched_getaffinity(0))}"
+        if hasattr(os, "sched_getaffinity")
+        else f"machine: {cpu}",
+        f"python {platform.python_version()}, numpy {np.__version__}, BLAS {blas} (limited to 1 thread)",
+    ]
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument(
+        "--quick", action="store_true", help="fast smoke run (fewer repeats, extrapolated direct)"
+    )
+    ap.add_argument("--json", metavar="FILE", help="write medians in [s] to FILE")
+    args = ap.parse_args(argv)
+    if hasattr(os, "sched_setaffinity"):
+        try:
+            os.sched_setaffinity(0, {sorted(os.sched_getaffinity(0))[0]})
+        except OSError:
+            pass
+    reps = 5 if args.quick else 30
+    results: dict[str, float] = {}
+    with threadpool_limits(1):
+        print("\n".join(machine_info()))
+        paper = run_setting("paper", repeats=reps)
+        model, test = paper.pop("_model"), paper.pop("_test")
+        settings = {"paper": paper}
+        scaled = [
+            ("10tasks", {"n_tasks": 10}),
+            ("30tasks", {"n_tasks": 30}),
+            ("dims30", {"n_extra": 18}),
+            ("basis61", {"n_basis": 61}),
+            ("demos100", {"n_demos": 100}),
+        ]
+        if not args.quick:
+            scaled += [("alpha100", {"n_alpha": 100}), ("alpha200", {"n_alpha": 200})]
+        else:
+            scaled += [("alpha100", {"n_alpha": 100})]
+        models = {"paper": model}
+        for name, kw in scaled:
+            r = run_setting(name, repeats=max(3, reps // 3), **kw)
+            models[name] = r.pop("_model")
+            r.pop("_test")
+            settings[name] = r
+        # direct reference, same run
+        demo = test[model.tasks_[0]][0]
+        direct = {}
+        for ratio in (0.1, 0.2):
+            if args.quick and ratio == 0.2:
+                continue
+            obs = demo.head(ratio, model.observe)
+            direct[ratio] = direct_time(model, obs, 1 if args.quick else 3)
+        per_task = direct[0.1][0] / 3.0  # direct cost is linear in the number of tasks
+        direct_scaled = {}
+        for name in ("10tasks", "30tasks"):
+            m = models[name]
+            if args.quick:
+                direct_scaled[name] = (per_task * len(m.tasks_), float("nan"), True)
+            else:
+                obs = demo.head(0.1, m.observe)
+                t, diff = direct_time(m, obs, 1)
+                direct_scaled[name] = (t, diff, False)
+        auto = IProMP(OBSERVE)
+        train_auto, _ = split(make_synthetic_dataset(n_tasks=3, n_demos=22, seed=1), 20)
+        t0 = time.perf_counter()
+        auto.fit(train_auto)
+        train_auto_s = (time.perf_counter() - t0) / 3
+        accuracy = phase_accuracy(auto, test)
+
+    def ms(x: float) -> str:
+        return f"{x * 1e3:9.3f}"
+
+    print("\nmedian times on one core (ms); r10/r20 = observed ratio 0.1/0.2")
+    head = (
+        f"{'setting':10s} {'cands':>5s} {'dims':>4s} {'rank':>4s} {'train/task':>10s} {'full r10':>9s} "
+        f"{'full r20':>9s} {'recog r20':>9s} {'stream':>9s} {'n r10/r20':>9s} {'peak fit MB':>11s} "
+        f"{'peak pred MB':>12s}"
+    )
+    print(head)
+    for name, r in settings.items():
+        print(
+            f"{name:10s} {int(r['n_candidates']):5d} {int(r['n_obs_dims']):4d} {int(r['rank']):4d} "
+            f"{ms(r['train_per_task_s']):>10s} {ms(r['full_update_r10_s'])} {ms(r['full_update_r20_s'])} "
+            f"{ms(r['recognise_r20_s'])} {ms(r['streaming_update_s'])} "
+            f"{int(r['n_samples_r10']):4d}/{int(r['n_samples_r20']):<4d} {r['peak_fit_mb']:11.1f} "
+            f"{r['peak_predict_r20_mb']:12.2f}"
+        )
+    print("\ndirect (textbook) reference, same run:")
+    for ratio, (t, diff) in direct.items():
+        key = f"full_update_r{int(round(ratio * 100)):02d}_s"
+        print(
+            f"  paper ratio {ratio:.1f}: direct {t * 1e3:.1f} ms, fast {paper[key] * 1e3:.3f} ms, "
+            f"speed-up {t / paper[key]:.0f}x, max relative difference {diff:.1e}"
+        )
+    for name, (t, diff, extrapolated) in direct_scaled.items():
+        note = (
+            " (extrapolated: paper per-task direct time x tasks)"
+            if extrapolated
+            else f", max rel diff {diff:.1e}"
+        )
+        fast = settings[name]["full_update_r10_s"]
+        print(f"  {name} ratio 0.1: direct {t * 1e3:.1f} ms, speed-up {t / fast:.0f}x{note}")
+    print("\ngrowth (full update, ratio 0.2, ms):")
+    print(
+        "  tasks 3/10/30: "
+        + " / ".join(ms(settings[k]["full_update_r20_s"]).strip() for k in ("paper", "10tasks", "30tasks"))
+    )
+    alphas = ["paper", "alpha100"] + (["alpha200"] if "alpha200" in settings else [])
+    print(
+        "  candidates "
+        + "/".join(str(int(settings[k]["n_candidates"])) for k in alphas)
+        + ": "
+        + " / ".join(ms(settings[k]["full_update_r20_s"]).strip() for k in alphas)
+    )
+    print(
+        f"  observed samples {int(paper['n_samples_r10'])}/{int(paper['n_samples_r20'])}: "
+        f"{ms(paper['full_update_r10_s']).strip()} / {ms(paper['full_update_r20_s']).strip()}"
+    )
+    print(
+        f"  observed dims 12/30: {ms(paper['full_update_r20_s']).strip()} / "
+        f"{ms(settings['dims30']['full_update_r20_s']).strip()}"
+    )
+    print(
+        f"  basis 31/61: {ms(paper['full_update_r20_s']).strip()} / "
+        f"{ms(settings['basis61']['full_update_r20_s']).strip()}"
+    )
+    print(
+        f"  demos 20/100 (rank {int(paper['rank'])}/{int(settings['demos100']['rank'])}): "
+        f"{ms(paper['full_update_r20_s']).strip()} / {ms(settings['demos100']['full_update_r20_s']).strip()}"
+    )
+    print(f"\nbasis Gram condition number (K=31): {model.basis_.condition_number():.3g}")
+    print(
+        f"noise='auto' (leave-one-out CV): chose nu = {auto.noise_ratio_:g}, "
+        f"training {train_auto_s:.2f} s per task "
+        f"(scores: {', '.join(f'{k:g}: {v:.2f}' for k, v in auto.cv_scores_.items())})"
+    )
+    print("phase / task accuracy on held-out synthetic demos (paper setting, CV-chosen noise):")
+    print("\n".join(accuracy))
+
+    for name, r in settings.items():
+        suffix = "paper" if name == "paper" else name
+        results[f"full_update_{suffix}_s"] = r["full_update_r20_s"]
+        results[f"full_update_r10_{suffix}_s"] = r["full_update_r10_s"]
+        results[f"full_update_r20_{suffix}_s"] = r["full_update_r20_s"]
+        results[f"recognise_r20_{suffix}_s"] = r["recognise_r20_s"]
+        results[f"streaming_update_{suffix}_s"] = r["streaming_update_s"]
+        results[f"train_per_task_{suffix}_s"] = r["train_per_task_s"]
+    results["direct_full_update_paper_s"] = direct[0.2][0] if 0.2 in direct else direct[0.1][0]
+    results["direct_full_update_r10_paper_s"] = direct[0.1][0]
+    for name, (t, _, _) in direct_scaled.items():
+        results[f"direct_full_update_{name}_s"] = t
+    results["direct_extrapolated"] = bool(args.quick)
+    results["train_per_task_auto_noise_paper_s"] = train_auto_s
+    results["basis_condition_number"] = model.basis_.condition_number()
+    if args.json:
+        with open(args.json, "w") as fh:
+            json.dump(results, fh, indent=2, sort_keys=True)
+        print(f"\nwrote {args.json}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,190 @@
+"""IProMP: fit / predict / recognise / stream, conditioning quality and input errors."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from helpers_model import random_dataset, split
+
+from ipromp_pin.data import Demo
+from ipromp_pin.exceptions import DataError, ModelError, NotFittedError, ObservationError
+from ipromp_pin.recognition import NOISE_GRID, IProMP, Prediction
+
+
+@pytest.fixture(scope="module")
+def fitted() -> tuple[IProMP, dict[str, list[Demo]]]:
+    train, test = split(random_dataset(11, n_demos=12), 8)
+    return IProMP(["a", "b"], n_basis=10, n_alpha=50).fit(train), test
+
+
+def test_prediction_fields(fitted) -> None:
+    model, test = fitted
+    obs = test["task2"][0].head(0.2, model.observe)
+    p = model.predict(obs)
+    assert isinstance(p, Prediction)
+    assert p.tasks == model.tasks_ and p.task == "task2"
+    assert np.isclose(p.posterior.sum(), 1.0) and np.allclose(np.exp(p.log_posterior), p.posterior)
+    assert p.alpha.shape == (3,) and p.phase_grid.shape == p.phase_log_post.shape
+    assert p.phase_grid.shape[0] == 3 and p.phase_grid.shape[1] >= 50
+    assert p.t[0] == 0.0 and np.isclose(p.t[-1], p.duration_s) and p.t.size == model.n_points
+    assert np.isclose(p.duration_s, p.alpha[2] * model.duration_nominal_s_)
+    assert p.q_mean.shape == p.q_prior_mean.shape == (model.n_points, 3)
+    assert p.q_cov.shape == (model.n_points, 3, 3)
+    assert np.allclose(p.q_cov, np.swapaxes(p.q_cov, 1, 2))
+    assert np.linalg.eigvalsh(p.q_cov).min() > 0
+    assert p.joint_names == ("j0", "j1", "j2")
+    assert set(p.human_mean) == {"a", "b"} and p.human_mean["b"].shape == (model.n_points, 3)
+    assert p.observed_until_s == obs.t[-1]
+
+
+def test_samples_match_mean_and_covariance(fitted) -> None:
+    model, test = fitted
+    p = model.predict(test["task0"][1].head(0.3, model.observe))
+    q = p.sample_q(4000, rng=0)
+    assert q.shape == (4000, model.n_points, 3)
+    sd = np.sqrt(np.diagonal(p.q_cov, axis1=1, axis2=2))
+    assert np.all(np.abs(q.mean(axis=0) - p.q_mean) < 0.1 * sd + 1e-9)
+    i = model.n_points // 2
+    emp = np.cov(q[:, i].T)
+    assert np.allclose(emp, p.q_cov[i], atol=0.1 * p.q_cov[i].diagonal().max())
+
+
+def test_recognition_accuracy(fitted) -> None:
+    model, test = fitted
+    hits = [model.recognise(d.head(0.2, model.observe)).task == t for t, ds in test.items() for d in ds]
+    assert np.mean(hits) >= 0.9
+
+
+def test_conditioning_beats_the_prior_when_robot_follows_the_human() -> None:
+    # the robot's hand-over configuration follows the human's amplitude: conditioning must use it
+    train, test = split(random_dataset(12, n_demos=30, coupling=1.0), 20)
+    model = IProMP(["a", "b"], n_basis=10, n_alpha=50).fit(train)
+    cond, prior = [], []
+    for demos in test.values():
+        for d in demos:
+            p = model.predict(d.head(0.3, model.observe))
+            z = p.t / p.duration_s
+            truth = np.stack([np.interp(z, d.t / d.t[-1], d.groups["robot"][:, j]) for j in range(3)], axis=1)
+            cond.append(np.sqrt(np.mean((p.q_mean - truth) ** 2)))
+            prior.append(np.sqrt(np.mean((p.q_prior_mean - truth) ** 2)))
+    assert np.mean(cond) < 0.8 * np.mean(prior)
+
+
+def test_stream_equals_one_shot_with_missing_samples() -> None:
+    train, test = split(random_dataset(13, missing_group="a"), 6)
+    model = IProMP(["a", "b"], n_basis=8, n_alpha=50, noise=1.0).fit(train)
+    demo = test["task1"][0].head(0.4, model.observe)
+    stream = model.stream()
+    assert stream.update(demo.t[0], {g: demo.groups[g][0] for g in model.observe}) is None
+    for j in range(1, demo.n_samples):
+        sample = {g: demo.groups[g][j] for g in model.observe}
+        if demo.missing["a"][j]:
+            sample["a"] = None
+        rec = stream.update(demo.t[j], sample)
+    one = model.recognise(demo)
+    assert np.allclose(rec.log_posterior, one.log_posterior, rtol=1e-9, atol=1e-9)
+    assert np.allclose(rec.alpha, one.alpha, rtol=1e-9)
+    finite = np.isfinite(one.phase_log_post)
+    assert np.array_equal(finite, np.isfinite(rec.phase_log_post))
+    assert np.allclose(rec.phase_log_post[finite], one.phase_log_post[finite], rtol=1e-9, atol=1e-8)
+    pred = stream.prediction()
+    assert np.allclose(pred.q_mean, model.predict(demo).q_mean, rtol=1e-12, atol=1e-12)
+
+
+def test_noise_is_chosen_by_cross_validation(fitted) -> None:
+    model, _ = fitted
+    assert model.noise_ratio_ in NOISE_GRID
+    assert set(model.cv_scores_) == set(NOISE_GRID)
+    assert model.cv_scores_[model.noise_ratio_] == max(model.cv_scores_.values())
+    for var in model.noise_var_.values():
+        assert var.shape == (5,) and np.all(var > 0)
+
+
+def test_distribution_and_training_trajectories(fitted) -> None:
+    model, _ = fitted
+    z = np.linspace(0, 1, 20)
+    mean, std, labels = model.distribution("task0", z)
+    assert mean.shape == std.shape == (20, 8) and labels[0] == "a/a0" and labels[-1] == "robot/j2"
+    trajs = model.train_trajectories("task0", z)
+    assert trajs.shape == (8, 20, 8)
+    assert np.allclose(trajs.mean(axis=0), mean, atol=1e-9)
+    assert np.all(std > 0)
+    with pytest.raises(ModelError, match="unknown task"):
+        model.distribution("nope", z)
+
+
+# ------------------------------------------------------------------ bad input
+
+
+def test_task_with_one_demo_is_rejected() -> None:
+    ds = random_dataset(14, n_demos=2)
+    ds.demos["task0"] = ds.demos["task0"][:1]
+    with pytest.raises(DataError, match="task0.*at least 2"):
+        IProMP(["a", "b"], n_basis=6, noise=1.0).fit(ds)
+
+
+def test_training_demo_without_observed_group_is_rejected() -> None:
+    ds = random_dataset(15, n_demos=3)
+    with pytest.raises(DataError, match="'c'"):
+        IProMP(["a", "c"], n_basis=6, noise=1.0).fit(ds)
+
+
+def test_predict_before_fit() -> None:
+    demo = random_dataset(16, n_demos=2).demos["task0"][0]
+    with pytest.raises(NotFittedError):
+        IProMP(["a", "b"]).predict(demo)
+    with pytest.raises(NotFittedError):
+        IProMP(["a", "b"]).stream()
+
+
+@pytest.mark.parametrize(
+    "kwargs", [{"noise": -1.0}, {"noise": "tight"}, {"n_alpha": 2}, {"observe": ["robot"]}]
+)
+def test_bad_parameters(kwargs: dict) -> None:
+    with pytest.raises((ModelError, DataError)):
+        IProMP(**{"observe": ["a"], **kwargs})
+
+
+def test_observation_errors(fitted) -> None:
+    model, test = fitted
+    demo = test["task0"][0]
+    with pytest.raises(ObservationError, match="field 'b'.*missing"):
+        model.predict(demo.head(0.2, ["a"]))
+    wrong = Demo(
+        "x",
+        "w",
+        "wrong.npz",
+        demo.t,
+        {"a": demo.groups["a"], "b": demo.groups["b"][:, :2]},
+        {"a": demo.channel_names["a"], "b": ("b0", "b1")},
+    )
+    with pytest.raises(ObservationError, match="field 'b'.*2 channels.*expects 3"):
+        model.predict(wrong)
+    t_long = np.arange(0, 40.0, 0.04)
+    long = Demo(
+        "x",
+        "l",
+        "long.npz",
+        t_long,
+        {"a": np.zeros((t_long.size, 2)), "b": np.zeros((t_long.size, 3))},
+        {"a": demo.channel_names["a"], "b": demo.channel_names["b"]},
+    )
+    with pytest.raises(ObservationError, match="longer than any task"):
+        model.recognise(long)
+
+
+def test_stream_errors(fitted) -> None:
+    model, test = fitted
+    demo = test["task0"][0]
+    stream = model.stream()
+    with pytest.raises(ObservationError, match="stream"):
+        stream.prediction()
+    stream.update(0.0, {"a": demo.groups["a"][0], "b": demo.groups["b"][0]})
+    with pytest.raises(ObservationError, match="field 'b'.*NaN"):
+        stream.update(0.04, {"a": demo.groups["a"][1], "b": np.array([np.nan, 0.0, 0.0])})
+    with pytest.raises(ObservationError, match="field 'a'.*expects 2"):
+        stream.update(0.04, {"a": np.zeros(3), "b": demo.groups["b"][1]})
+    with pytest.raises(ObservationError, match="not after"):
+        stream.update(0.0, {"a": demo.groups["a"][1], "b": demo.groups["b"][1]})
+    with pytest.raises(ObservationError, match="'c'"):
+        stream.update(0.04, {"a": demo.groups["a"][1], "c": np.zeros(1)})

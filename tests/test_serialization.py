@@ -1,0 +1,106 @@
+"""Model files: exact round trip and clear errors for bad files."""
+
+from __future__ import annotations
+
+import json
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+from helpers_model import random_dataset, split
+
+from ipromp_pin.exceptions import ModelFileError, NotFittedError
+from ipromp_pin.recognition import IProMP
+
+
+@pytest.fixture(scope="module")
+def model_and_obs():
+    train, test = split(random_dataset(21, missing_group="b"), 6)
+    model = IProMP(["a", "b"], n_basis=9, n_alpha=50, task_prior={"task0": 0.5, "task1": 0.3, "task2": 0.2})
+    return model.fit(train), test["task1"][0].head(0.3, ["a", "b"])
+
+
+def test_round_trip_gives_identical_predictions(tmp_path: Path, model_and_obs) -> None:
+    model, obs = model_and_obs
+    path = tmp_path / "model.npz"
+    model.save(path)
+    loaded = IProMP.load(path)
+    assert loaded.tasks_ == model.tasks_ and loaded.noise_ratio_ == model.noise_ratio_
+    assert loaded.cv_scores_ == model.cv_scores_
+    a, b = model.predict(obs), loaded.predict(obs)
+    for name in ("log_posterior", "alpha", "q_mean", "q_cov", "q_prior_mean", "phase_log_post", "t"):
+        assert np.array_equal(getattr(a, name), getattr(b, name)), name
+    assert np.array_equal(a.human_mean["b"], b.human_mean["b"])
+    z = np.linspace(0, 1, 7)
+    assert np.array_equal(model.distribution("task2", z)[0], loaded.distribution("task2", z)[0])
+
+
+def test_file_has_no_pickled_objects(tmp_path: Path, model_and_obs) -> None:
+    model, _ = model_and_obs
+    path = tmp_path / "m.npz"
+    model.save(path)
+    with np.load(path, allow_pickle=False) as npz:
+        header = json.loads(str(npz["header"][()]))
+        assert all(npz[name].dtype != object for name in npz.files)
+    assert header["format"] == "ipromp_pin.IProMP" and header["format_version"] == 1
+    assert header["tasks"] == ["task0", "task1", "task2"]
+
+
+def _rewrite_header(src: Path, dst: Path, change) -> None:
+    with np.load(src, allow_pickle=False) as npz:
+        arrays = {k: npz[k] for k in npz.files}
+    header = json.loads(str(arrays["header"][()]))
+    change(header)
+    arrays["header"] = np.array(json.dumps(header))
+    np.savez(dst, **arrays)
+
+
+def test_newer_format_version_is_refused(tmp_path: Path, model_and_obs) -> None:
+    model, _ = model_and_obs
+    model.save(tmp_path / "m.npz")
+    _rewrite_header(tmp_path / "m.npz", tmp_path / "new.npz", lambda h: h.update(format_version=99))
+    with pytest.raises(ModelFileError, match="version 99 is newer"):
+        IProMP.load(tmp_path / "new.npz")
+
+
+def test_truncated_file_is_refused(tmp_path: Path, model_and_obs) -> None:
+    model, _ = model_and_obs
+    model.save(tmp_path / "m.npz")
+    data = (tmp_path / "m.npz").read_bytes()
+    (tmp_path / "cut.npz").write_bytes(data[: len(data) // 2])
+    with pytest.raises(ModelFileError, match="cut.npz"):
+        IProMP.load(tmp_path / "cut.npz")
+
+
+def test_missing_array_is_refused(tmp_path: Path, model_and_obs) -> None:
+    model, _ = model_and_obs
+    model.save(tmp_path / "m.npz")
+    with np.load(tmp_path / "m.npz", allow_pickle=False) as npz:
+        arrays = {k: npz[k] for k in npz.files if k != "task1_factor"}
+    np.savez(tmp_path / "broken.npz", **arrays)
+    with pytest.raises(ModelFileError, match="corrupt"):
+        IProMP.load(tmp_path / "broken.npz")
+
+
+@pytest.mark.parametrize("kind", ["text", "other_npz", "wrong_format", "zip"])
+def test_files_that_are_not_models_are_refused(tmp_path: Path, kind: str) -> None:
+    path = tmp_path / "x.npz"
+    if kind == "text":
+        path.write_text("hello")
+    elif kind == "other_npz":
+        np.savez(path, a=np.zeros(3))
+    elif kind == "wrong_format":
+        np.savez(path, header=np.array(json.dumps({"format": "something.else", "format_version": 1})))
+    else:
+        with zipfile.ZipFile(path, "w") as zf:
+            zf.writestr("readme.txt", "not numpy")
+    with pytest.raises(ModelFileError):
+        IProMP.load(path)
+
+
+def test_missing_file_and_unfitted_model(tmp_path: Path) -> None:
+    with pytest.raises(ModelFileError, match="not found"):
+        IProMP.load(tmp_path / "none.npz")
+    with pytest.raises(NotFittedError):
+        IProMP(["a"]).save(tmp_path / "u.npz")

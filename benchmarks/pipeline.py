@@ -68,9 +68,7 @@ def main() -> None:
     print(
         f"machine: {platform.processor() or platform.machine()}, {platform.python_version()}, BLAS 1 thread"
     )
-    print(
-        f"data: {args.dataset or 'synthetic'}, ratio {args.ratio}, {args.repeats} runs"
-    )
+    print(f"data: {args.dataset or 'synthetic'}, ratio {args.ratio}, {args.repeats} runs")
     print(f"{'stage':<28}{'median [ms]':>12}{'share':>8}")
     medians = {k: statistics.median(v) for k, v in stages.items()}
     for k, v in medians.items():

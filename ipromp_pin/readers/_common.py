@@ -152,7 +152,7 @@ def parse_receive_times(path: object, values: Sequence[str]) -> np.ndarray:
             day = s[:10]
             d0 = days.get(day)
             if d0 is None:
-                d0 = datetime.datetime.strptime(day, "%Y/%m/%d").replace(tzinfo=datetime.timezone.utc)
+                d0 = datetime.datetime.strptime(day, "%Y/%m/%d").replace(tzinfo=datetime.UTC)
                 d0 = days[day] = d0.timestamp()
             if s[10] != "/" or s[13] != ":" or s[16] != ":":
                 raise ValueError(s)

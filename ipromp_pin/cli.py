@@ -12,6 +12,7 @@ the file, field and problem; no traceback.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 from pathlib import Path
@@ -85,10 +86,7 @@ def cmd_run(args: argparse.Namespace) -> int:
 
 
 def cmd_evaluate(args: argparse.Namespace) -> int:
-    import json
-
     from .evaluate import PAPER_GRID, EvaluationConfig, evaluate, overall, to_markdown, write_results
-    from .kinematics import ee_positions
     from .readers import load_dataset
     from .robot import load_robot
 
@@ -118,7 +116,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
             seed=args.seed,
         )
         t1 = time.perf_counter()
-        cells += evaluate(ds, cfg, fk=lambda q: ee_positions(robot, q), progress=_progress())
+        cells += evaluate(ds, cfg, robot=args.robot, progress=_progress(), jobs=args.jobs)
         print(f"protocol {protocol}: {time.perf_counter() - t1:.1f} s")
     print(to_markdown(cells))
     meta = {
@@ -144,7 +142,6 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         )
     if args.json:
         print(f"wrote {args.json}" + (f" and {md}" if md else ""))
-    del json
     return 0
 
 
@@ -232,6 +229,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--splits", type=int, default=20, help="random splits of the splits protocol (default 20)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--robot", default="baxter_left", help="robot settings for the hand-over error")
+    p.add_argument(
+        "--jobs", type=int, default=os.cpu_count() or 1, help="worker processes (default: all cores)"
+    )
     p.add_argument("--plots", type=Path, help="write PNG figures into this folder")
     p.set_defaults(func=cmd_evaluate)
 

@@ -25,7 +25,6 @@ how well the robot's motion is predicted, next to the unconditioned task mean
 from __future__ import annotations
 
 import json
-import time
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -194,36 +193,48 @@ def summarise(trials: Sequence[TrialResult]) -> dict[str, float | None]:
 
 def split_paper(dataset: Dataset, n_train: int, n_test: int) -> tuple[list[Demo], list[Demo]]:
     """First ``n_train`` demos of each task train, the next ``n_test`` test."""
-    train: list[Demo] = []
-    test: list[Demo] = []
-    for task, demos in dataset.demos.items():
-        if len(demos) < n_train + 1:
-            raise DataError(
-                dataset.root,
-                task,
-                f"{len(demos)} demos, the protocol needs {n_train} to train and 1+ to test",
-            )
-        train += demos[:n_train]
-        test += demos[n_train : n_train + n_test]
-    return train, test
+    return _take(dataset, _paper_indices(dataset, n_train, n_test))
 
 
 def split_random(
     dataset: Dataset, n_train: int, n_test: int, rng: np.random.Generator
 ) -> tuple[list[Demo], list[Demo]]:
     """A random split per task: ``n_train`` demos train, up to ``n_test`` of the others test."""
-    train: list[Demo] = []
-    test: list[Demo] = []
-    for task, demos in dataset.demos.items():
-        if len(demos) < n_train + 1:
-            raise DataError(
-                dataset.root,
-                task,
-                f"{len(demos)} demos, the protocol needs {n_train} to train and 1+ to test",
-            )
-        idx = rng.permutation(len(demos))
-        train += [demos[i] for i in idx[:n_train]]
-        test += [demos[i] for i in idx[n_train : n_train + n_test]]
+    return _take(dataset, _random_indices(dataset, n_train, n_test, rng))
+
+
+Indices = dict[str, tuple[list[int], list[int]]]
+"""Task -> (train demo indices, test demo indices)."""
+
+
+def _check_size(dataset: Dataset, task: str, n_train: int) -> int:
+    n = len(dataset.demos[task])
+    if n < n_train + 1:
+        raise DataError(
+            dataset.root, task, f"{n} demos, the protocol needs {n_train} to train and 1+ to test"
+        )
+    return n
+
+
+def _paper_indices(dataset: Dataset, n_train: int, n_test: int) -> Indices:
+    out = {}
+    for task in dataset.tasks:
+        n = _check_size(dataset, task, n_train)
+        out[task] = (list(range(n_train)), list(range(n_train, min(n, n_train + n_test))))
+    return out
+
+
+def _random_indices(dataset: Dataset, n_train: int, n_test: int, rng: np.random.Generator) -> Indices:
+    out = {}
+    for task in dataset.tasks:
+        idx = rng.permutation(_check_size(dataset, task, n_train)).tolist()
+        out[task] = (idx[:n_train], idx[n_train : n_train + n_test])
+    return out
+
+
+def _take(dataset: Dataset, indices: Indices) -> tuple[list[Demo], list[Demo]]:
+    train = [dataset.demos[t][i] for t, (tr, _) in indices.items() for i in tr]
+    test = [dataset.demos[t][i] for t, (_, te) in indices.items() for i in te]
     return train, test
 
 
@@ -250,34 +261,63 @@ class EvaluationConfig:
     model_params: dict = field(default_factory=dict)
 
 
-def _fit(train: list[Demo], observe: list[str], params: dict):
+@dataclass
+class _Job:
+    """One model fit of a protocol: a split, a training size and an observed set."""
+
+    rep: int
+    n_train: int
+    observe: list[str]
+    indices: Indices
+    ratios: list[float]
+
+
+_WORKER: dict = {}
+"""Per-process state of the evaluation workers (dataset, settings), set before forking."""
+
+
+def _run_job(job: _Job) -> tuple[_Job, dict[float, list[TrialResult]]]:
+    """Fit on the job's training demos and score its test demos at every ratio."""
     from .recognition import IProMP
 
-    return IProMP(observe=list(observe), **params).fit(train)
+    dataset: Dataset = _WORKER["dataset"]
+    fk = _WORKER["fk"]
+    train, test = _take(dataset, job.indices)
+    model = IProMP(observe=list(job.observe), **_WORKER["params"]).fit(train)
+    out = {}
+    for ratio in job.ratios:
+        out[ratio] = [
+            score_trial(model.predict(d.head(ratio, groups=job.observe)), d, ratio, fk) for d in test
+        ]
+    return job, out
 
 
-def _run_trials(model, test: list[Demo], observe: list[str], ratio: float, fk) -> list[TrialResult]:
-    out = []
-    for demo in test:
-        obs = demo.head(ratio, groups=observe)
-        out.append(score_trial(model.predict(obs), demo, ratio, fk))
-    return out
+def _robot_fk(robot: str | None) -> Callable[[np.ndarray], np.ndarray] | None:
+    if robot is None:
+        return None
+    from .kinematics import ee_positions
+    from .robot import load_robot
+
+    loaded = load_robot(robot)
+    return lambda q: ee_positions(loaded, q)
 
 
 def evaluate(
     dataset: Dataset,
     config: EvaluationConfig,
-    fk: Callable[[np.ndarray], np.ndarray] | None = None,
+    robot: str | None = "baxter_left",
     progress: ProgressFn | None = None,
+    jobs: int = 1,
 ) -> list[Cell]:
     """Run one protocol over every cell of ``config`` and return the table.
 
     Args:
         dataset: Demos of every task, in protocol order.
         config: Protocol, grid and observed channel sets.
-        fk: Forward kinematics for the hand-over error (joint configurations
-            (n, 7) [rad] -> positions (n, 3) [m]); ``None`` skips it.
-        progress: Called as ``progress(done, total, label)``.
+        robot: Robot settings (name or file) for the hand-over position error through forward
+            kinematics; ``None`` skips it.
+        progress: Called as ``progress(done, total, label)`` after every model fit.
+        jobs: Worker processes (model fits run in parallel; results do not depend on it).
     """
     if config.protocol not in ("paper", "splits"):
         raise DataError(None, "protocol", f"unknown protocol '{config.protocol}' (use paper or splits)")
@@ -286,31 +326,50 @@ def evaluate(
             demo.require(list(observe) + [ROBOT])
     n_train_values = sorted({n for n, _ in config.grid}, reverse=True)
     repeats = 1 if config.protocol == "paper" else config.n_splits
-    total = repeats * len(n_train_values) * len(config.observe)
-    done = 0
-    # (n_train, ratio, observe_key, task) -> list over repeats of trial lists
-    results: dict[tuple[int, float, str, str], list[list[TrialResult]]] = {}
     rng = np.random.default_rng(config.seed)
+    work = []
     for rep in range(repeats):
         for n_train in n_train_values:
             if config.protocol == "paper":
-                train, test = split_paper(dataset, n_train, config.n_test)
+                indices = _paper_indices(dataset, n_train, config.n_test)
             else:
-                train, test = split_random(dataset, n_train, config.n_test, rng)
+                indices = _random_indices(dataset, n_train, config.n_test, rng)
             ratios = [r for n, r in config.grid if n == n_train]
-            for observe in config.observe:
-                key = observe_key(observe)
-                model = _fit(train, observe, config.model_params)
-                for ratio in ratios:
-                    trials = _run_trials(model, test, observe, ratio, fk)
-                    for task in dataset.tasks:
-                        cell = results.setdefault((n_train, ratio, key, task), [])
-                        cell.append([r for r in trials if r.task == task])
-                done += 1
-                if progress is not None:
-                    progress(
-                        done, total, f"{config.protocol} split {rep + 1}/{repeats} n_train={n_train} {key}"
+            work += [_Job(rep, n_train, list(o), indices, ratios) for o in config.observe]
+    _WORKER.update(dataset=dataset, fk=_robot_fk(robot), params=dict(config.model_params))
+    # (n_train, ratio, observe_key, task) -> per repeat, the trials of that task
+    results: dict[tuple[int, float, str, str], list[list[TrialResult]]] = {}
+    try:
+        for done, (job, trials) in enumerate(_map(work, jobs), start=1):
+            key = observe_key(job.observe)
+            for ratio, rows in trials.items():
+                for task in dataset.tasks:
+                    results.setdefault((job.n_train, ratio, key, task), []).append(
+                        [r for r in rows if r.task == task]
                     )
+            if progress is not None:
+                label = f"{config.protocol} split {job.rep + 1}/{repeats} n_train={job.n_train} {key}"
+                progress(done, len(work), label)
+    finally:
+        _WORKER.clear()
+    return _cells(dataset, config, results)
+
+
+def _map(work: list[_Job], jobs: int):
+    """Run the jobs, in ``jobs`` forked worker processes when > 1 (results in completion order)."""
+    if jobs <= 1 or len(work) <= 1:
+        yield from map(_run_job, work)
+        return
+    import multiprocessing as mp
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+
+    with ProcessPoolExecutor(max_workers=jobs, mp_context=mp.get_context("fork")) as pool:
+        futures = [pool.submit(_run_job, job) for job in work]
+        for f in as_completed(futures):
+            yield f.result()
+
+
+def _cells(dataset: Dataset, config: EvaluationConfig, results) -> list[Cell]:
     cells = []
     for n_train, ratio in config.grid:
         for observe in config.observe:
@@ -430,36 +489,39 @@ def to_markdown(cells: Sequence[Cell]) -> str:
 
 
 def to_json(cells: Sequence[Cell], meta: dict | None = None) -> dict:
-    """JSON document: ``cells`` (one record per table cell), ``overall`` and ``meta``."""
-    return {
-        "format": "ipromp_pin.evaluation",
-        "version": 1,
-        "meta": meta or {},
-        "overall": overall(cells),
-        "cells": [asdict(c) for c in cells],
-    }
+    """JSON document: ``cells`` (one record per table cell), ``overall`` and ``meta``.
+
+    Undefined numbers (e.g. an error median over no correctly recognised trial) are ``null``.
+    """
+    return _finite(
+        {
+            "format": "ipromp_pin.evaluation",
+            "version": 1,
+            "meta": meta or {},
+            "overall": overall(cells),
+            "cells": [asdict(c) for c in cells],
+        }
+    )
+
+
+def _finite(x):
+    """``x`` with NaN and inf floats replaced by ``None`` (strict JSON) and numpy scalars made plain."""
+    if isinstance(x, dict):
+        return {k: _finite(v) for k, v in x.items()}
+    if isinstance(x, list | tuple):
+        return [_finite(v) for v in x]
+    if isinstance(x, np.generic):
+        x = x.item()
+    if isinstance(x, float) and not np.isfinite(x):
+        return None
+    return x
 
 
 def write_results(cells: Sequence[Cell], json_path: Path | None, md_path: Path | None, meta: dict) -> None:
     """Write the JSON and Markdown results."""
     if json_path is not None:
         json_path.parent.mkdir(parents=True, exist_ok=True)
-        json_path.write_text(
-            json.dumps(to_json(cells, meta), indent=1, allow_nan=False, default=_json_default)
-        )
+        json_path.write_text(json.dumps(to_json(cells, meta), indent=1, allow_nan=False))
     if md_path is not None:
         md_path.parent.mkdir(parents=True, exist_ok=True)
         md_path.write_text(to_markdown(cells))
-
-
-def _json_default(x):
-    if isinstance(x, np.generic):
-        return x.item()
-    raise TypeError(f"not JSON serialisable: {type(x)}")
-
-
-def timed(fn: Callable, *args, **kwargs):
-    """Call ``fn`` and return (result, seconds)."""
-    t0 = time.perf_counter()
-    out = fn(*args, **kwargs)
-    return out, time.perf_counter() - t0

@@ -53,34 +53,75 @@ VARIANCE_FLOOR = 1e-6
 """Floor of the per-dim diagonal weight variance, relative to the mean target variance."""
 
 
+LOG_SHIFT_FRACTION = 0.05
+"""Shift ``c`` of a log-scaled channel, ``log(max(y, 0) + c)``, as a fraction of its training median."""
+
+
 @dataclass
 class ChannelScaler:
-    """Per-channel affine scaling ``y_scaled = (y - offset) / scale``.
+    """Per-channel scaling ``y_scaled = (f(y) - offset) / scale``.
+
+    ``f`` is the identity, or for log-scaled channels (EMG envelopes)
+    ``f(y) = log(max(y, 0) + c)``: muscle-activity amplitudes vary
+    multiplicatively between repetitions (grip force, electrode contact), so
+    their spread is far closer to Gaussian in log space. ``c`` (a small
+    fraction of the channel's training median) keeps silent channels finite.
 
     Attributes:
-        offset: (D,) channel means over the training samples, in original units.
-        scale: (D,) channel standard deviations (1 for constant channels).
+        offset: (D,) channel means of ``f(y)`` over the training samples.
+        scale: (D,) channel standard deviations of ``f(y)`` (1 for constant channels).
+        log_shift: (D,) ``c`` of log-scaled channels, NaN for linear ones (``None``: all linear).
     """
 
     offset: np.ndarray
     scale: np.ndarray
+    log_shift: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        if self.log_shift is None:
+            self.log_shift = np.full(np.shape(self.offset), np.nan)
+        self._log = np.isfinite(self.log_shift)
 
     @classmethod
-    def fit(cls, values: np.ndarray) -> ChannelScaler:
-        """Learn the scaling from stacked training samples (n, D); NaN rows are ignored per channel."""
-        offset = np.nanmean(values, axis=0)
-        scale = np.nanstd(values, axis=0)
+    def fit(cls, values: np.ndarray, log_dims: np.ndarray | None = None) -> ChannelScaler:
+        """Learn the scaling from stacked training samples (n, D); NaN rows are ignored per channel.
+
+        Args:
+            values: (n, D) training samples in original units.
+            log_dims: (D,) boolean mask of the channels modelled in log space.
+        """
+        shift = np.full(values.shape[1], np.nan)
+        if log_dims is not None and np.any(log_dims):
+            med = np.nanmedian(np.maximum(values[:, log_dims], 0.0), axis=0)
+            shift[log_dims] = np.maximum(LOG_SHIFT_FRACTION * med, 1e-6)
+        scaler = cls(offset=np.zeros(values.shape[1]), scale=np.ones(values.shape[1]), log_shift=shift)
+        f = scaler._forward(values, slice(None))
+        offset = np.nanmean(f, axis=0)
+        scale = np.nanstd(f, axis=0)
         tiny = 1e-9 * np.maximum(1.0, np.abs(offset))
-        scale = np.where(scale > tiny, scale, 1.0)
-        return cls(offset=offset, scale=scale)
+        scaler.offset = offset
+        scaler.scale = np.where(scale > tiny, scale, 1.0)
+        return scaler
+
+    def _forward(self, values: np.ndarray, dims: slice | np.ndarray) -> np.ndarray:
+        log = self._log[dims]
+        if not np.any(log):
+            return values
+        out = np.array(values, dtype=float, copy=True)
+        out[..., log] = np.log(np.maximum(out[..., log], 0.0) + self.log_shift[dims][log])
+        return out
 
     def transform(self, values: np.ndarray, dims: slice | np.ndarray = slice(None)) -> np.ndarray:
         """Scale values (..., D') of channels ``dims``."""
-        return (values - self.offset[dims]) / self.scale[dims]
+        return (self._forward(values, dims) - self.offset[dims]) / self.scale[dims]
 
     def inverse(self, values: np.ndarray, dims: slice | np.ndarray = slice(None)) -> np.ndarray:
-        """Undo :meth:`transform`."""
-        return values * self.scale[dims] + self.offset[dims]
+        """Undo :meth:`transform` (log-scaled channels map back through ``exp(.) - c``)."""
+        out = values * self.scale[dims] + self.offset[dims]
+        log = self._log[dims]
+        if np.any(log):
+            out[..., log] = np.exp(out[..., log]) - self.log_shift[dims][log]
+        return out
 
 
 @dataclass
@@ -105,11 +146,16 @@ def shrink_covariance(weights: np.ndarray) -> ShrunkCovariance:
     return shrink_covariances([weights])[0]
 
 
-def shrink_covariances(weights: list[np.ndarray]) -> list[ShrunkCovariance]:
+def shrink_covariances(weights: list[np.ndarray], pooling: float = 0.0) -> list[ShrunkCovariance]:
     """Ledoit-Wolf shrinkage of every task's covariance toward one pooled per-dim diagonal target.
 
     Args:
         weights: Per task, (N_t, D, K) weights of its N_t >= 2 demos.
+        pooling: Weight ``beta`` in [0, 1] of the pooled within-task covariance: the low-rank part
+            of task t is that of ``(1 - beta) S_t + beta S_pool``, ``S_pool`` the covariance of
+            every task's demos about their own task mean (regularised discriminant analysis,
+            Friedman 1989). How the human's motion shapes the robot's (the cross-covariance) is
+            largely shared by hand-over tasks, and pooling estimates it from all demos.
 
     Returns:
         Per task, the structured SPD estimate ``(1 - lambda) S_t + lambda T`` with
@@ -142,12 +188,18 @@ def shrink_covariances(weights: list[np.ndarray]) -> list[ShrunkCovariance]:
     lam = 1.0 if d2_sum <= 0.0 else float(min(1.0, max(0.0, b2_sum / d2_sum)))
     floor = VARIANCE_FLOOR * max(float(np.mean(tau)), 1e-12)
     diag = lam * tau + floor
+    if not 0.0 <= pooling <= 1.0:
+        raise ModelError(f"pooling must be in [0, 1], got {pooling}")
+    pool = np.vstack(centred) / np.sqrt(sum(xc.shape[0] for xc in centred))
     out = []
     for w, xc in zip(weights, centred, strict=True):
         n = xc.shape[0]
-        _, sv, vt = np.linalg.svd(xc, full_matrices=False)
+        rows = xc / np.sqrt(n)
+        if pooling > 0.0:
+            rows = np.vstack([np.sqrt(1.0 - pooling) * rows, np.sqrt(pooling) * pool])
+        _, sv, vt = np.linalg.svd(rows, full_matrices=False)
         keep = sv > 1e-10 * max(float(sv[0]), 1e-300)
-        factor = (vt[keep].T * sv[keep]) * np.sqrt((1.0 - lam) / n)
+        factor = (vt[keep].T * sv[keep]) * np.sqrt(1.0 - lam)
         out.append(
             ShrunkCovariance(
                 mean=np.ascontiguousarray(w.mean(axis=0)),

@@ -164,6 +164,7 @@ class InferenceEngine:
         self.log_prior = np.stack([m.alpha_log_prior for m in models])
         self.alpha_unique, inverse = np.unique(self.alphas, return_inverse=True)
         self.cand_index = inverse.reshape(self.alphas.shape)
+        self.inv_duration = 1.0 / (self.alpha_unique * self.t_norm)
         n_task = len(models)
         k = basis.n_basis
         self.rank = r = max(m.rank for m in models)
@@ -182,12 +183,20 @@ class InferenceEngine:
         self.pair_diag = (self.pk == self.pl).astype(float)
         ia, ib = np.triu_indices(r)
         self.ia, self.ib = ia, ib
-        unpack = np.zeros((r, r), dtype=int)
-        unpack[ia, ib] = np.arange(ia.size)
-        unpack[ib, ia] = np.arange(ia.size)
-        self.unpack = unpack
+        npk = ia.size
+        # (r+1) x (r+1) matrix [[Q, a], [a^T, 1 + a^T a]] gathered from [packed Q, a, 1 + a^T a]
+        unpack = np.zeros((r + 1, r + 1), dtype=int)
+        unpack[ia, ib] = np.arange(npk)
+        unpack[ib, ia] = np.arange(npk)
+        unpack[r, :r] = unpack[:r, r] = npk + np.arange(r)
+        unpack[r, r] = npk + r
+        self.unpack = unpack[:r, :r].copy()
+        self._unpack_aug = unpack.reshape(-1)
+        self._eye_packed = (ia == ib).astype(float)
+        self._task_ix = np.arange(n_task)[:, None]
         self.use_z = n_task * self.pk.size * ia.size * 8 <= z_budget_bytes
         self._z: dict[tuple[int, ...], np.ndarray] = {}
+        self._dims_cache: dict[tuple[int, ...], dict[str, np.ndarray]] = {}
         self._buffers: dict[str, np.ndarray] = {}
 
     def _buffer(self, name: str, shape: tuple[int, ...]) -> np.ndarray:
@@ -212,15 +221,60 @@ class InferenceEngine:
             self._z[key] = z = np.ascontiguousarray(z)
         return z
 
+    def _dims(self, dims: np.ndarray) -> dict[str, np.ndarray]:
+        """Model arrays of the observed dims ``dims`` in basis-major layouts (cached).
+
+        ``mu_k`` (T, K, D_m) task means; ``w_k`` (T, K D_m, r) ``W_d / sqrt(delta_d)`` with rows
+        ordered (basis, dim), so that the first ``ke D_m`` rows are the first ``ke`` basis functions;
+        ``mu2`` (T, K) cumulative ``sum_d ||mu_d[:k]||^2 / delta_d``; ``inv_delta`` (T, D_m);
+        ``log_delta`` (T,) ``sum_d log delta_d``.
+        """
+        key = tuple(int(d) for d in dims)
+        c = self._dims_cache.get(key)
+        if c is None:
+            mu = self.mu[:, dims]  # (T, Dm, K)
+            delta = self.delta[:, dims]
+            n_task, dm, k = mu.shape
+            w_k = (self.w[:, dims] / self.sqrt_delta[:, dims, None, None]).transpose(0, 2, 1, 3)
+            c = {
+                "mu_k": np.ascontiguousarray(mu.transpose(0, 2, 1)),
+                "w_k": np.ascontiguousarray(w_k.reshape(n_task, k * dm, self.rank)),
+                "mu2": np.concatenate(
+                    [np.zeros((n_task, 1)), np.cumsum(np.einsum("tdk,td->tk", mu * mu, 1.0 / delta), axis=1)],
+                    axis=1,
+                ),
+                "inv_delta": 1.0 / delta,
+                "log_delta": np.sum(np.log(delta), axis=1),
+            }
+            self._dims_cache[key] = c
+        return c
+
     def part_stats(self, part: ObservationPart, alphas: np.ndarray | None = None) -> PartStats:
         """Statistics of an observation part for the unique candidates (default: the model's)."""
-        alphas = self.alpha_unique if alphas is None else alphas
-        z = part.t[None, :] / (alphas[:, None] * self.t_norm)
-        ke = self.basis.support_count(float(z.max()))
+        inv_dur = self.inv_duration if alphas is None else 1.0 / (alphas * self.t_norm)
+        z = part.t[None, :] * inv_dur[:, None]
+        ke = self.basis.support_count(float(part.t[-1]) * float(inv_dur.max()))
         bt = np.swapaxes(self.basis.values_prefix_t(z, ke), 0, 1)  # (U, ke, n)
         gram = bt @ np.swapaxes(bt, 1, 2)
         proj = bt @ part.y
-        return PartStats(part.dims, part.t.size, ke, gram, proj, np.sum(part.y * part.y, axis=0))
+        return PartStats(part.dims, part.t.size, ke, gram, proj, np.einsum("nd,nd->d", part.y, part.y))
+
+    def x_inverse(self, gram: np.ndarray, nu: float) -> tuple[np.ndarray, np.ndarray]:
+        """``X^-1`` (U, k, k) and ``log|X|`` (U,) of ``X = nu I + gram`` from one batched Cholesky
+        factorisation of ``[[X, I], [I, (2 / nu + 1) I]]`` (its lower-left block is ``L^-T``)."""
+        n_u, ke = gram.shape[:2]
+        aug = self._buffer("aug", (n_u, 2 * ke, 2 * ke))
+        diag_idx = np.arange(ke)
+        aug[:, :ke, :ke] = gram
+        aug[:, diag_idx, diag_idx] += nu
+        aug[:, ke:] = 0.0
+        aug[:, ke + diag_idx, diag_idx] = 1.0
+        aug[:, ke + diag_idx, ke + diag_idx] = 2.0 / nu + 1.0
+        chol = np.linalg.cholesky(aug)
+        lit = chol[:, ke:, :ke]  # L^-T
+        xinv = lit @ np.swapaxes(lit, 1, 2)
+        logdet = 2.0 * np.sum(np.log(chol[:, diag_idx, diag_idx]), axis=1)
+        return xinv, logdet
 
     def terms(
         self,
@@ -231,8 +285,14 @@ class InferenceEngine:
         index: np.ndarray | None = None,
         keep: bool = False,
         nu: float | None = None,
+        xinv: list[tuple[np.ndarray, np.ndarray]] | None = None,
     ) -> Terms:
         """Log likelihood per (task, candidate) from part statistics.
+
+        Per part, with ``h_d = B^T y_d + nu mu_d`` the data terms reduce to
+        ``e_d^T e_d - b_d^T X^-1 b_d = y_d^T y_d + nu ||mu_d||^2 - h_d^T X^-1 h_d`` and
+        ``X^-1 b_d = X^-1 h_d - mu_d``, so one product ``X^-1 [B^T y, mu_1 .. mu_T]`` per
+        unique candidate gives them for every task.
 
         Args:
             stats: Part statistics (computed for the unique candidates ``alphas``).
@@ -242,78 +302,104 @@ class InferenceEngine:
             index: (T', C) index of each candidate in the unique candidates of ``stats``.
             keep: Also return the factors needed for conditioning.
             nu: Noise ratio (default the engine's).
+            xinv: Per part ``(X^-1 (U, K', K'), log|X| (U,))`` already known (``K' >= ke``;
+                e.g. kept up to date by a streaming estimator); computed when None.
         """
         nu = self.nu if nu is None else float(nu)
-        if tasks is None:
-            tasks, alphas, index = slice(None), self.alphas, self.cand_index
-        mu_all, sd_all, w_all = self.mu[tasks], self.sqrt_delta[tasks], self.w[tasks]
-        delta_all = self.delta[tasks]
+        all_tasks = tasks is None
+        if all_tasks:
+            tasks, alphas, index = np.arange(self.alphas.shape[0]), self.alphas, self.cand_index
+        tasks = np.asarray(tasks)
         n_task, n_cand = alphas.shape
         r = self.rank
-        p_packed = np.zeros((n_task, n_cand, self.ia.size))
-        a = np.zeros((n_task, n_cand, r))
+        npk = self.ia.size
+        task_ix = np.arange(n_task)[:, None]
+        ext = self._buffer("ext", (n_task, n_cand, npk + r + 1))
+        ext[..., :npk] = self._eye_packed
+        a = ext[..., npk : npk + r]
+        a[...] = 0.0
         total = np.zeros((n_task, n_cand))
         kept = []
-        for st in stats:
+        log_nu = np.log(nu)
+        for ip, st in enumerate(stats):
             ke, dims = st.ke, st.dims
             dm = dims.size
-            n_u = st.gram.shape[0]
-            aug = self._buffer("aug", (n_u, 2 * ke, 2 * ke))
-            diag_idx = np.arange(ke)
-            aug[:, :ke, :ke] = st.gram
-            aug[:, diag_idx, diag_idx] += nu
-            aug[:, ke:, :ke] = 0.0
-            aug[:, ke:, ke:] = 0.0
-            aug[:, ke + diag_idx, diag_idx] = 1.0
-            aug[:, ke + diag_idx, ke + diag_idx] = 2.0 / nu + 1.0
-            chol = np.linalg.cholesky(aug)
-            lit = np.ascontiguousarray(chol[:, ke:, :ke])  # L^-T
-            xinv_u = lit @ np.swapaxes(lit, 1, 2)
-            logdet_x = 2.0 * np.sum(np.log(chol[:, diag_idx, diag_idx]), axis=1)
-            xinv = xinv_u[index]  # (T, C, ke, ke)
-            gram = st.gram[index]
-            proj = st.proj[index]  # (T, C, ke, dm)
-            mu_t = np.swapaxes(mu_all[:, dims, :ke], 1, 2)[:, None]  # (T, 1, ke, dm)
-            gmu = gram @ mu_t  # (T, C, ke, dm)
-            b = proj - gmu
-            ete = st.sq - np.einsum("tcdk,tcdk->tcd", np.swapaxes(proj + b, 2, 3), np.swapaxes(mu_t, 2, 3))
-            bh = b / sd_all[:, None, None, dims]
-            xb = xinv @ bh
-            total += (np.sum(ete / delta_all[:, None, dims], axis=2) - np.sum(bh * xb, axis=(2, 3))) / nu
-            w = w_all[:, dims, :ke].reshape(n_task, dm * ke, r)
-            a += np.swapaxes(xb, 2, 3).reshape(n_task, n_cand, dm * ke) @ w
-            m = ke * (ke + 1) // 2
-            if self.use_z and isinstance(tasks, slice):
-                coef_u = self.pair_diag[:m] - nu * xinv_u[:, self.pk[:m], self.pl[:m]]
-                p_packed += coef_u[index] @ self.z_tensor(dims)[:, :m]
+            c = self._dims(dims)
+            if xinv is not None:
+                xinv_u = xinv[ip][0][:, :ke, :ke]
+                logdet_x = xinv[ip][1]
             else:
-                wk = w_all[:, dims, :ke]  # (T, dm, ke, r)
-                y = xinv @ np.swapaxes(wk, 1, 2).reshape(n_task, 1, ke, dm * r)  # (T, C, ke, dm*r)
+                xinv_u, logdet_x = self.x_inverse(st.gram, nu)
+            mu = c["mu_k"][tasks, :ke]  # (T, ke, dm)
+            n_u = xinv_u.shape[0]
+            rhs = np.concatenate(
+                [
+                    st.proj,
+                    np.broadcast_to(
+                        mu.transpose(1, 0, 2).reshape(1, ke, n_task * dm), (n_u, ke, n_task * dm)
+                    ),
+                ],
+                axis=2,
+            )
+            xh_u = xinv_u @ rhs  # (U, ke, (1 + T) dm)
+            xh_mu = xh_u[:, :, dm:].reshape(n_u, ke, n_task, dm).transpose(2, 0, 1, 3)  # (T, U, ke, dm)
+            xh = xh_u[index, :, :dm]
+            xh += nu * xh_mu[task_ix, index]  # X^-1 h, (T, C, ke, dm)
+            h = st.proj[index]
+            h += nu * mu[:, None]
+            quad = np.einsum("tckd,tckd->tcd", h, xh) @ c["inv_delta"][tasks][:, :, None]
+            data = (st.sq @ c["inv_delta"][tasks].T + nu * c["mu2"][tasks, ke])[:, None]
+            total += (data - quad[..., 0]) / nu
+            xh -= mu[:, None]  # X^-1 b
+            a += xh.reshape(n_task, n_cand, ke * dm) @ c["w_k"][tasks, : ke * dm]
+            m = ke * (ke + 1) // 2
+            if self.use_z:
+                coef_u = self.pair_diag[:m] - nu * xinv_u[:, self.pk[:m], self.pl[:m]]
+                ext[..., :npk] += coef_u[index] @ self.z_tensor(dims)[tasks, :m]
+            else:
+                wk = self.w[tasks][:, dims, :ke]  # (T, dm, ke, r)
+                w = wk.reshape(n_task, dm * ke, r)
+                xinv_p = xinv_u[index]
+                y = xinv_p @ np.swapaxes(wk, 1, 2).reshape(n_task, 1, ke, dm * r)  # (T, C, ke, dm*r)
                 y = np.swapaxes(y.reshape(n_task, n_cand, ke, dm, r), 2, 3).reshape(
                     n_task, n_cand, dm * ke, r
                 )
                 pp = np.swapaxes(w, 1, 2)[:, None] @ (w[:, None] - nu * y)
-                p_packed += pp[..., self.ia, self.ib]
-            const = st.n * dm * LOG_2PI + dm * (st.n - ke) * np.log(nu)
-            total += const + st.n * np.sum(np.log(delta_all[:, dims]), axis=1)[:, None]
-            total += dm * logdet_x[index]
+                ext[..., :npk] += pp[..., self.ia, self.ib]
+            const = st.n * dm * LOG_2PI + dm * (st.n - ke) * log_nu
+            total += (const + st.n * c["log_delta"][tasks])[:, None] + dm * logdet_x[index]
             if keep:
-                kept.append((dims, ke, xinv, gram, b))
-        qa = self._buffer("qa", (n_task, n_cand, r + 1, r + 1))
-        qa[..., :r, :r] = np.take(p_packed, self.unpack, axis=2)
-        qa[..., np.arange(r), np.arange(r)] += 1.0
-        qa[..., r, :r] = a
-        qa[..., :r, r] = a
-        qa[..., r, r] = np.sum(a * a, axis=2) + 1.0
+                gram = st.gram[index]
+                b = st.proj[index] - gram @ mu[:, None]
+                kept.append((dims, ke, xinv_u[index], gram, b))
+        ext[..., npk + r] = 1.0 + np.einsum("tcr,tcr->tc", a, a)
+        qa = np.take(ext, self._unpack_aug, axis=2).reshape(n_task, n_cand, r + 1, r + 1)
         lq = np.linalg.cholesky(qa)
         diag = np.diagonal(lq, axis1=2, axis2=3)
         v = lq[..., r, :r]
-        total += 2.0 * np.sum(np.log(diag[..., :r]), axis=2) - np.sum(v * v, axis=2)
+        total += 2.0 * np.sum(np.log(diag[..., :r]), axis=2) - np.einsum("tcr,tcr->tc", v, v)
         loglik = -0.5 * total
-        loglik = np.where(t_last <= alphas * self.t_norm * (1.0 + 1e-12), loglik, -np.inf)
+        loglik[t_last > alphas * self.t_norm * (1.0 + 1e-12)] = -np.inf
         if keep:
-            return Terms(loglik=loglik, q_chol=lq[..., :r, :r], a=a, parts=kept)
+            return Terms(loglik=loglik, q_chol=lq[..., :r, :r], a=a.copy(), parts=kept)
         return Terms(loglik=loglik)
+
+
+def refine_peaks(grids: np.ndarray, logpost: np.ndarray) -> np.ndarray:
+    """:func:`refine_peak` of every row of ``logpost`` (T, C) on ``grids`` (T, C), vectorised -> (T,)."""
+    n_task, n_cand = grids.shape
+    rows = np.arange(n_task)
+    i = np.argmax(logpost, axis=1)
+    j = np.clip(i, 1, n_cand - 2)
+    x0, x1, x2 = grids[rows, j - 1], grids[rows, j], grids[rows, j + 1]
+    y0, y1, y2 = logpost[rows, j - 1], logpost[rows, j], logpost[rows, j + 1]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        denom = (x0 - x1) * (x0 - x2) * (x1 - x2)
+        ca = (x2 * (y1 - y0) + x1 * (y0 - y2) + x0 * (y2 - y1)) / denom
+        cb = (x2 * x2 * (y0 - y1) + x1 * x1 * (y2 - y0) + x0 * x0 * (y1 - y2)) / denom
+        vertex = np.minimum(np.maximum(-cb / (2.0 * ca), x0), x2)
+    ok = (i == j) & np.isfinite(y0) & np.isfinite(y1) & np.isfinite(y2) & (ca < 0.0)
+    return np.where(ok, vertex, grids[rows, i])
 
 
 def refine_peak(grid: np.ndarray, logpost: np.ndarray) -> float:

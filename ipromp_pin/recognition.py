@@ -52,15 +52,15 @@ from .model import (
     fit_demo_weights,
     shrink_covariances,
 )
-from .phase import LOG_2PI, InferenceEngine, ObservationPart, PartStats, refine_peak
+from .phase import LOG_2PI, InferenceEngine, ObservationPart, PartStats, refine_peak, refine_peaks
 
-NOISE_GRID = (0.03, 0.1, 0.3, 1.0, 3.0, 10.0, 30.0, 100.0)
+NOISE_GRID = (0.03, 0.1, 0.3, 1.0, 3.0, 10.0, 30.0, 100.0, 300.0, 1000.0)
 """Candidate noise ratios ``nu`` for ``noise="auto"``."""
 
 CV_RATIOS = (0.1, 0.2)
 """Observed fractions of the held-out demo used by the noise cross-validation."""
 
-CV_MAX_FOLDS = 60
+CV_MAX_FOLDS = 30
 """Largest number of held-out demos of the noise cross-validation (spread evenly over tasks and demos)."""
 
 
@@ -153,6 +153,10 @@ class IProMP:
         n_points: Number M of points of the predicted trajectories.
         task_prior: Prior task probabilities (task -> p, or None for uniform).
         robot_group: Name of the robot's joint-angle group.
+        log_groups: Observed groups modelled in log space (EMG envelopes: see
+            :class:`~ipromp_pin.model.ChannelScaler`); groups not observed are ignored.
+        pooling: Weight in [0, 1] of the covariance pooled over tasks in each task's
+            covariance (see :func:`~ipromp_pin.model.shrink_covariances`).
         blas_threads: BLAS threads used while fitting and inferring (None = leave unchanged).
             Inference works on many small matrices, for which more threads only add overhead.
 
@@ -183,6 +187,8 @@ class IProMP:
         n_points: int = 100,
         task_prior: Mapping[str, float] | None = None,
         robot_group: str = ROBOT,
+        log_groups: Iterable[str] = ("emg",),
+        pooling: float = 0.0,
         blas_threads: int | None = 1,
     ) -> None:
         self.observe = parse_groups(observe)
@@ -196,6 +202,8 @@ class IProMP:
         self.n_points = n_points
         self.task_prior = None if task_prior is None else dict(task_prior)
         self.robot_group = robot_group
+        self.log_groups = tuple(log_groups)
+        self.pooling = float(pooling)
         self.blas_threads = blas_threads
         self._engine: InferenceEngine | None = None
         self._pred_cache: dict | None = None
@@ -205,6 +213,8 @@ class IProMP:
         if not (isinstance(noise, str) and noise == "auto"):
             if isinstance(noise, str) or not (float(noise) > 0 and np.isfinite(float(noise))):
                 raise ModelError(f"noise must be 'auto' or a positive float, got {noise!r}")
+        if not 0.0 <= self.pooling <= 1.0:
+            raise ModelError(f"pooling must be in [0, 1], got {pooling!r}")
         if int(n_alpha) != n_alpha or n_alpha < 3:
             raise ModelError(f"n_alpha must be an integer >= 3, got {n_alpha!r}")
         if int(n_points) != n_points or n_points < 2:
@@ -245,7 +255,11 @@ class IProMP:
         self.joint_names_ = self.channel_names_[self.robot_group]
         self.basis_ = GaussianBasis(self.n_basis, self.width, self.ridge, self.margin)
         all_demos = [d for demos in by_task.values() for d in demos]
-        self.scaler_ = ChannelScaler.fit(np.concatenate([self._stack(d) for d in all_demos]))
+        log_dims = np.zeros(self.n_dims_, dtype=bool)
+        for g in self.log_groups:
+            if g in self.group_slices_ and g != self.robot_group:
+                log_dims[slice(*self.group_slices_[g])] = True
+        self.scaler_ = ChannelScaler.fit(np.concatenate([self._stack(d) for d in all_demos]), log_dims)
         durations = {task: np.array([d.t[-1] - d.t[0] for d in demos]) for task, demos in by_task.items()}
         self.duration_nominal_s_ = float(np.mean(np.concatenate(list(durations.values()))))
         self.tasks_ = list(by_task)
@@ -299,7 +313,7 @@ class IProMP:
     ) -> dict[str, TaskModel]:
         priors = [alpha_prior(alphas[t]) for t in self.tasks_]
         cands = alpha_candidates(priors, self.n_alpha, self.alpha_width)
-        covs = shrink_covariances([weights[t] for t in self.tasks_])
+        covs = shrink_covariances([weights[t] for t in self.tasks_], self.pooling)
         models = {}
         for task, (mu, sigma), (grid, logw), cov in zip(self.tasks_, priors, cands, covs, strict=True):
             models[task] = TaskModel(
@@ -476,12 +490,10 @@ class IProMP:
             evidence = np.logaddexp.reduce(lp, axis=1)
         finite = np.isfinite(evidence)
         logpost = np.where(finite[:, None], lp - np.where(finite, evidence, 0.0)[:, None], lp)
-        alpha = np.array(
-            [
-                refine_peak(engine.alphas[i], lp[i]) if finite[i] else self.models_[t].alpha_mu
-                for i, t in enumerate(self.tasks_)
-            ]
-        )
+        alpha = refine_peaks(engine.alphas, lp)
+        if not finite.all():
+            mus = np.array([self.models_[t].alpha_mu for t in self.tasks_])
+            alpha[~finite] = mus[~finite]
         rec = self._finish_recognition(evidence, alpha, engine.alphas, logpost, t_last)
         return (rec, logpost) if raw else rec
 

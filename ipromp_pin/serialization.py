@@ -8,7 +8,8 @@ A model file is a single ``.npz`` archive (``numpy.savez``) read back with
   constructor parameters, task names, channel groups and names, and the fitted
   scalars (``T_norm`` in [s], noise ratio, CV scores, per-task phase prior and
   shrinkage intensity);
-* plain float arrays: the channel scaling (``scaler_offset``, ``scaler_scale``),
+* plain float arrays: the channel scaling (``scaler_offset``, ``scaler_scale``,
+  ``scaler_log_shift``: NaN for linear channels),
   ``task_log_prior``, ``residual_var`` and, per task index ``i``,
   ``task{i}_mean`` (D, K), ``task{i}_diag`` (D,), ``task{i}_factor`` (D, K, r),
   ``task{i}_alpha_grid``, ``task{i}_alpha_log_prior``, ``task{i}_train_weights``
@@ -65,6 +66,8 @@ def save_model(model: IProMP, path: str | Path) -> None:
             "n_points": int(model.n_points),
             "task_prior": model.task_prior,
             "robot_group": model.robot_group,
+            "log_groups": list(model.log_groups),
+            "pooling": float(model.pooling),
         },
         "tasks": list(model.tasks_),
         "groups": list(model.groups_),
@@ -85,6 +88,7 @@ def save_model(model: IProMP, path: str | Path) -> None:
         "header": np.array(json.dumps(header)),
         "scaler_offset": model.scaler_.offset,
         "scaler_scale": model.scaler_.scale,
+        "scaler_log_shift": model.scaler_.log_shift,
         "task_log_prior": model.task_log_prior_,
         "residual_var": model.residual_var_,
     }
@@ -155,6 +159,8 @@ def _build(cls: type, header: dict, arrays: dict[str, np.ndarray]) -> IProMP:
         n_points=p["n_points"],
         task_prior=p["task_prior"],
         robot_group=p["robot_group"],
+        log_groups=p["log_groups"],
+        pooling=p["pooling"],
     )
     from .basis import GaussianBasis
 
@@ -168,7 +174,9 @@ def _build(cls: type, header: dict, arrays: dict[str, np.ndarray]) -> IProMP:
     model.n_obs_dims_ = int(starts[-2])
     model.joint_names_ = model.channel_names_[model.robot_group]
     model.basis_ = GaussianBasis(model.n_basis, model.width, model.ridge, model.margin)
-    model.scaler_ = ChannelScaler(offset=arrays["scaler_offset"], scale=arrays["scaler_scale"])
+    model.scaler_ = ChannelScaler(
+        offset=arrays["scaler_offset"], scale=arrays["scaler_scale"], log_shift=arrays["scaler_log_shift"]
+    )
     model.duration_nominal_s_ = float(header["duration_nominal_s"])
     model.tasks_ = list(header["tasks"])
     model.task_log_prior_ = arrays["task_log_prior"]

@@ -13,11 +13,30 @@ object to Baxter's left arm while wearing a Myo armband.
   every signal is a function of the phase ``t / duration_s``, so the true
   phase ratio of a demo is ``demo.duration_s / NOMINAL_DURATION_S``
   (:func:`true_alpha`).
+* Every demo has a latent hand-over offset ``d`` (3,) in [m] in the base frame,
+  drawn with the across-demo spread of the real hand-over points
+  (:data:`HANDOVER_OFFSET_STD_M`, normal truncated at 2.5 std, shortened if the
+  arm could not follow it inside its joint limits): where this demo's hand-over
+  happens relative to the task's nominal point. Both partners depend on it:
+
+  - the human's hand ends at the offset point, and the forearm turns towards it
+    early in the motion: the Myo orientation is rotated (in the world frame) by
+    ``s_aim(phase) * AIM_GAIN_RAD_PER_M @ d`` where ``s_aim`` rises from 0 to 1
+    within the first :data:`AIM_PHASE` of the motion, so the observed start of
+    the motion reveals ``d``;
+  - the robot's hand-over configuration is the task's configuration plus
+    ``coupling * H @ d`` (:func:`offset_maps`: the gripper moves by ``d`` to
+    first order and re-orients as the real robot did), plus an independent
+    residual in the null space of the gripper's position Jacobian (scaled
+    :data:`HANDOVER_Q_RESIDUAL_STD_RAD`, the part of the real configurations
+    the hand-over point does not explain).
+
+  The ground truth ``d`` is ``demo.extras["handover_offset"]`` (T, 3), constant.
 * The robot group holds Baxter left-arm joint angles moving from the measured
-  start configuration to a task-specific hand-over configuration along a
-  minimum-jerk profile, inside Baxter's joint limits.
+  start configuration to that hand-over configuration along a minimum-jerk
+  profile, inside Baxter's joint limits.
 * ``extras["hand_position"]`` is a human hand path in the Baxter base frame
-  [m], ending just in front of the robot's measured hand-over point.
+  [m], ending just in front of the robot's hand-over point (shifted by ``d``).
 
 Everything is deterministic for a given ``seed``.
 """
@@ -78,8 +97,100 @@ HANDOVER_Q_RAD = np.array(
 """Task hand-over configurations [rad] (median last sample of the real demos per task)."""
 HANDOVER_Q_STD_RAD = np.array([0.06, 0.05, 0.03, 0.15, 0.11, 0.26, 0.19])
 """Across-demo std of the hand-over configuration [rad] (mean of the three tasks' std)."""
+# Same recordings: per task, least-squares regression of the last robot sample on the last
+# endpoint_state position (both centred); mean over the three tasks of the per-axis std of the
+# end-point and of the per-joint std of the regression residual.
+HANDOVER_OFFSET_STD_M = np.array([0.069, 0.026, 0.050])
+"""Across-demo std of the hand-over point per base-frame axis (x, y, z) in [m]."""
+HANDOVER_Q_RESIDUAL_STD_RAD = np.array([0.033, 0.038, 0.026, 0.079, 0.092, 0.051, 0.155])
+"""Std of the hand-over configuration not explained by the hand-over point [rad] (per joint)."""
 HANDOVER_POINT_M = np.array([[0.868, -0.302, 0.175], [0.785, -0.289, 0.099], [0.918, -0.264, 0.127]])
 """Robot end-point position at hand-over [m] in the base frame (median last endpoint_state per task)."""
+
+# Position Jacobian (base-frame axes) of the "ee" frame at HANDOVER_Q_RAD, computed once with
+# Pinocchio from robots/baxter_left.toml (ipromp_pin.robot.load_robot, pin.computeFrameJacobian,
+# LOCAL_WORLD_ALIGNED); left_w2 does not move the gripper's position.
+HANDOVER_JACOBIAN_M_PER_RAD = np.array(
+    [
+        [
+            [0.571, -0.159, 0.389, -0.190, 0.147, -0.317, 0.0],
+            [0.812, 0.128, 0.536, 0.295, 0.292, 0.108, 0.0],
+            [0.0, -0.921, 0.057, -0.548, -0.077, -0.194, 0.0],
+        ],
+        [
+            [0.542, -0.203, 0.404, -0.204, 0.214, -0.303, 0.0],
+            [0.723, 0.213, 0.474, 0.363, 0.311, 0.216, 0.0],
+            [0.0, -0.823, 0.133, -0.446, 0.021, -0.107, 0.0],
+        ],
+        [
+            [0.513, -0.227, 0.387, -0.264, 0.081, -0.325, 0.0],
+            [0.855, 0.174, 0.598, 0.334, 0.251, 0.049, 0.0],
+            [0.0, -0.922, 0.097, -0.551, -0.069, -0.204, 0.0],
+        ],
+    ]
+)
+"""Per task (3, 3, 7): gripper position change [m] per joint change [rad] at the hand-over configuration."""
+# Same real recordings as above: per task, least-squares regression of the last robot sample on
+# the last endpoint_state position (both centred). J B is within ~0.2 of the identity.
+HANDOVER_REGRESSION_RAD_PER_M = np.array(
+    [
+        [
+            [0.784, 0.182, 0.392],
+            [-0.272, -0.195, -0.415],
+            [-0.228, 0.133, 0.118],
+            [1.684, -0.466, -1.951],
+            [-1.383, 1.910, 0.042],
+            [-3.685, 2.119, 2.307],
+            [1.642, -1.716, -1.266],
+        ],
+        [
+            [0.309, 0.627, 0.244],
+            [0.190, -1.092, -0.218],
+            [0.081, -0.374, 0.151],
+            [0.464, 1.428, -2.321],
+            [0.381, 1.149, 0.065],
+            [-2.863, 1.115, 2.151],
+            [-0.310, 1.200, -0.753],
+        ],
+        [
+            [0.338, 0.901, 0.223],
+            [0.106, -0.533, -0.528],
+            [0.193, -0.371, 0.067],
+            [0.952, 0.750, -1.883],
+            [-0.683, -0.173, 0.943],
+            [-3.328, 0.679, 2.500],
+            [1.960, 1.184, -1.433],
+        ],
+    ]
+)
+"""Per task (3, 7, 3): real hand-over configuration change [rad] per hand-over point change [m]."""
+
+FOREARM_LENGTH_M = 0.30
+"""Human forearm length [m]: a lateral/vertical hand offset d turns the forearm by ~d / length [rad]."""
+AIM_GAIN_RAD_PER_M = np.array(
+    [
+        [1.5, 0.0, 0.0],
+        [-1.0, 0.0, 1.0 / FOREARM_LENGTH_M],
+        [0.0, -1.0 / FOREARM_LENGTH_M, 0.0],
+    ]
+)
+"""Forearm rotation vector [rad] per hand-over offset [m] (3, 3), world axes taken as the base frame's.
+
+The forearm points towards the robot (-x): a sideways (y) offset yaws it about z, a vertical (z)
+offset pitches it about y; reaching further (x) extends the elbow (pitch) and supinates the
+forearm (roll about x), so all three offset axes show in the orientation.
+"""
+AIM_PHASE = 0.25
+"""The forearm has turned towards the hand-over point by this phase of the motion (min-jerk from 0)."""
+ORIENTATION_JITTER_DEG = 3.0
+"""Per-axis std of the demo's start and end forearm orientation not explained by the offset, in [deg]."""
+EMG_GAIN_LOG_STD = 0.15
+"""Std of the per-demo, per-channel EMG gain (log scale)."""
+EMG_RAW_NOISE = 0.25
+"""Relative noise of the raw EMG samples before the envelope."""
+RESIDUAL_SCALE = 0.5
+"""The hand-over configuration's independent residual is this times :data:`HANDOVER_Q_RESIDUAL_STD_RAD`."""
+"""The forearm has turned towards the hand-over point by this phase of the motion."""
 
 # Median Myo orientation (w, x, y, z) of the first and last sample over all tasks.
 ORIENTATION_START_WXYZ = np.array([0.255, 0.284, 0.566, 0.726])
@@ -123,10 +234,48 @@ def min_jerk(x: np.ndarray) -> np.ndarray:
     return x**3 * (10.0 - 15.0 * x + 6.0 * x**2)
 
 
+def handover_offset(demo: Demo) -> np.ndarray:
+    """Ground-truth latent hand-over offset (3,) of a synthetic demo in [m], base frame.
+
+    The task's nominal hand-over point plus this offset is where the human's hand goes;
+    the robot's gripper goes to the nominal point plus ``coupling`` times it.
+    """
+    offset = demo.extras.get("handover_offset")
+    if offset is None:
+        raise DataError(demo.source, "extras.handover_offset", "missing (not a synthetic demo)")
+    return np.asarray(offset, dtype=float)[0].copy()
+
+
+def offset_maps(jacobian: np.ndarray, regression: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Joint-space response of the robot to a hand-over point offset.
+
+    Args:
+        jacobian: (3, 7) gripper position Jacobian [m/rad] at the hand-over configuration.
+        regression: (7, 3) measured configuration change per hand-over point change [rad/m].
+
+    Returns:
+        ``H`` (7, 3) = ``J^+ + N B`` in [rad/m], with ``J H = I`` (the gripper follows the offset to
+        first order; the null-space part is the measured re-orientation of the gripper), and the
+        null-space projector ``N = I - J^+ J`` (7, 7).
+    """
+    j_pinv = np.linalg.pinv(jacobian)
+    null_space = np.eye(jacobian.shape[1]) - j_pinv @ jacobian
+    return j_pinv + null_space @ regression, null_space
+
+
+def _feasible_fraction(q: np.ndarray, dq: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> float:
+    """Largest s in [0, 1] with lo <= q + s dq <= hi (q (7,) inside the limits), all in [rad]."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        room = np.where(dq > 0, (hi - q) / dq, np.where(dq < 0, (lo - q) / dq, np.inf))
+    return float(np.clip(np.min(room), 0.0, 1.0))
+
+
 def _task_definitions(n_tasks: int) -> dict[str, np.ndarray | list[str]]:
     """Task parameters; tasks beyond the measured three are fixed blends of them."""
     names = list(TASKS[:n_tasks])
     q_end = list(HANDOVER_Q_RAD[:n_tasks])
+    jac = list(HANDOVER_JACOBIAN_M_PER_RAD[:n_tasks])
+    regression = list(HANDOVER_REGRESSION_RAD_PER_M[:n_tasks])
     point = list(HANDOVER_POINT_M[:n_tasks])
     rest = list(EMG_REST[:n_tasks])
     active = list(EMG_ACTIVE[:n_tasks])
@@ -135,13 +284,20 @@ def _task_definitions(n_tasks: int) -> dict[str, np.ndarray | list[str]]:
         w = extra_rng.dirichlet(np.ones(3))
         names.append(f"task{k}")
         q_end.append(w @ HANDOVER_Q_RAD + extra_rng.normal(0.0, 0.05, 7))
+        jac.append(np.tensordot(w, HANDOVER_JACOBIAN_M_PER_RAD, axes=1))
+        regression.append(np.tensordot(w, HANDOVER_REGRESSION_RAD_PER_M, axes=1))
         point.append(w @ HANDOVER_POINT_M)
         perm = extra_rng.permutation(8)
         rest.append((w @ EMG_REST)[perm])
         active.append((w @ EMG_ACTIVE)[extra_rng.permutation(8)] * extra_rng.uniform(0.8, 1.3))
+    offset_to_q, null_space = zip(
+        *(offset_maps(j, b) for j, b in zip(jac, regression, strict=True)), strict=True
+    )
     lo, hi = BAXTER_LEFT_LIMITS_RAD[:, 0] + LIMIT_MARGIN_RAD, BAXTER_LEFT_LIMITS_RAD[:, 1] - LIMIT_MARGIN_RAD
     return {
         "names": names,
+        "offset_to_q": np.array(offset_to_q),
+        "null_space": np.array(null_space),
         "q_end": np.clip(np.array(q_end), lo, hi),
         "point": np.array(point),
         "rest": np.array(rest),
@@ -157,6 +313,7 @@ def make_synthetic_dataset(
     *,
     noise: float = 1.0,
     emg_cutoff_hz: float = DEFAULT_EMG_CUTOFF_HZ,
+    coupling: float = 1.0,
 ) -> Dataset:
     """Synthetic hand-over demos with known ground truth.
 
@@ -169,11 +326,17 @@ def make_synthetic_dataset(
         noise: Scale of the observation noise and of the demo-to-demo variation
             (1 = realistic, 0 = every demo of a task follows its nominal path).
         emg_cutoff_hz: EMG envelope cut-off in [Hz].
+        coupling: How much the robot's hand-over configuration follows the demo's
+            latent hand-over offset (1 = its gripper goes where the human's hand
+            goes, 0 = the robot ignores it: nothing to learn from the human's motion
+            about the robot beyond the task and timing).
 
     Returns:
         Dataset with groups ``"orientation"`` (4), ``"emg"`` (8), ``"acc"`` (3)
         and ``"robot"`` (7 Baxter left-arm joints), plus ``extras["hand_position"]``
-        (T, 3) in [m]. ``root`` is ``"synthetic(seed=...)"``.
+        (T, 3) in [m] and ``extras["handover_offset"]`` (T, 3), the demo's constant
+        latent hand-over offset in [m] (see :func:`handover_offset`).
+        ``root`` is ``"synthetic(seed=...)"``.
     """
     if int(n_tasks) < 1:
         raise DataError("synthetic", "n_tasks", f"must be >= 1, got {n_tasks}")
@@ -183,6 +346,8 @@ def make_synthetic_dataset(
         raise DataError("synthetic", "rate_hz", f"must be >= 10 Hz, got {rate_hz}")
     if not (np.isfinite(noise) and noise >= 0):
         raise DataError("synthetic", "noise", f"must be >= 0, got {noise}")
+    if not (np.isfinite(coupling) and 0.0 <= coupling <= 1.5):
+        raise DataError("synthetic", "coupling", f"must be in [0, 1.5], got {coupling}")
     rng = np.random.default_rng(seed)
     defs = _task_definitions(int(n_tasks))
     r_start = Rotation.from_quat(np.roll(ORIENTATION_START_WXYZ, -1))
@@ -200,14 +365,28 @@ def make_synthetic_dataset(
             n = int(round(duration * rate_hz)) + 1
             t = dt * np.arange(n)
             phase = t / t[-1]
+            # Latent hand-over offset [m] (base frame) shared by the human's and the robot's motion,
+            # and the robot's hand-over configuration: the task's, changed by its response to the
+            # offset plus a residual that leaves the gripper's position unchanged (to first order),
+            # as on the real robot. An offset the arm cannot follow inside its joint limits is
+            # shortened (the human hands over where the robot can reach).
+            offset = np.clip(rng.normal(0.0, 1.0, 3), -2.5, 2.5) * HANDOVER_OFFSET_STD_M * noise
+            residual = rng.normal(0, RESIDUAL_SCALE * noise, 7) * HANDOVER_Q_RESIDUAL_STD_RAD
+            q_base = np.clip(defs["q_end"][k] + defs["null_space"][k] @ residual, lo, hi)
+            dq = coupling * defs["offset_to_q"][k] @ offset
+            offset = offset * _feasible_fraction(q_base, dq, lo, hi)
+            q1 = np.clip(q_base + coupling * defs["offset_to_q"][k] @ offset, lo, hi)
 
-            # Human forearm orientation: shared path, demo-to-demo variation, sensor noise.
-            jitter0 = Rotation.from_rotvec(rng.normal(0, np.deg2rad(4.0) * noise, 3))
-            jitter1 = Rotation.from_rotvec(rng.normal(0, np.deg2rad(4.0) * noise, 3))
+            # Human forearm orientation: shared path, turned early towards the hand-over point,
+            # demo-to-demo variation, sensor noise.
+            jitter0 = Rotation.from_rotvec(rng.normal(0, np.deg2rad(ORIENTATION_JITTER_DEG) * noise, 3))
+            jitter1 = Rotation.from_rotvec(rng.normal(0, np.deg2rad(ORIENTATION_JITTER_DEG) * noise, 3))
             ra, rb = jitter0 * r_start, jitter1 * tilt * r_end
             rel = (ra.inv() * rb).as_rotvec()
             s_h = min_jerk((phase - rng.uniform(0.0, 0.05)) / rng.uniform(0.7, 0.8))
             r = ra * Rotation.from_rotvec(s_h[:, None] * rel[None, :])
+            s_aim = min_jerk(phase / AIM_PHASE)
+            r = Rotation.from_rotvec(s_aim[:, None] * (AIM_GAIN_RAD_PER_M @ offset)[None, :]) * r
             r = Rotation.from_rotvec(rng.normal(0, 0.004 * noise, (n, 3))) * r
             quat = quaternion_continuity(np.roll(r.as_quat(), 1, axis=1))
             if quat[0, 0] < 0:
@@ -216,21 +395,20 @@ def make_synthetic_dataset(
             acc = r.inv().apply([0.0, 0.0, 1.0]) + rng.normal(0, 0.02 * noise, (n, 3))
 
             # EMG: task pattern, demo gain, grasp activation over the phase, noisy raw samples.
-            gain = np.exp(rng.normal(0, 0.15 * noise, 8))
+            gain = np.exp(rng.normal(0, EMG_GAIN_LOG_STD * noise, 8))
             act = 0.35 + 0.65 * min_jerk(phase / 0.12) - 0.35 * min_jerk((phase - 0.6) / 0.4)
             prof = defs["rest"][k] + (defs["active"][k] - defs["rest"][k]) * act[:, None]
-            raw = np.abs(prof * gain * (1.0 + rng.normal(0, 0.25 * noise, (n, 8))))
+            raw = np.abs(prof * gain * (1.0 + rng.normal(0, EMG_RAW_NOISE * noise, (n, 8))))
             emg = emg_envelope(raw, dt, emg_cutoff_hz)
 
-            # Robot: minimum-jerk from the start to a demo-specific hand-over configuration.
+            # Robot: minimum-jerk from the start to the demo's hand-over configuration q1.
             q0 = START_Q_RAD + rng.normal(0, 0.005 * noise, 7)
-            q1 = np.clip(defs["q_end"][k] + rng.normal(0, 0.5 * noise, 7) * HANDOVER_Q_STD_RAD, lo, hi)
             a, b = rng.uniform(0.02, 0.08), rng.uniform(0.80, 0.90)
             s_r = min_jerk((phase - a) / (b - a))
             q = q0 + s_r[:, None] * (q1 - q0)
 
             # Human hand: from its start to just in front of the robot's hand-over point, slight arc.
-            h1 = defs["point"][k] + HAND_BEYOND_GRIPPER_M + rng.normal(0, 0.02 * noise, 3)
+            h1 = defs["point"][k] + offset + HAND_BEYOND_GRIPPER_M + rng.normal(0, 0.01 * noise, 3)
             h0 = HAND_START_M + rng.normal(0, 0.03 * noise, 3)
             arc = np.array([0.0, 0.0, 0.10]) * np.sin(np.pi * s_h)[:, None]
             hand = h0 + s_h[:, None] * (h1 - h0) + arc + rng.normal(0, 0.003 * noise, (n, 3))
@@ -248,7 +426,7 @@ def make_synthetic_dataset(
                         "acc": ("ax", "ay", "az"),
                         ROBOT: JOINT_NAMES,
                     },
-                    extras={"hand_position": hand},
+                    extras={"hand_position": hand, "handover_offset": np.tile(offset, (n, 1))},
                     duration_s=float(t[-1]),
                 )
             )

@@ -37,12 +37,8 @@ def test_random_splits_are_disjoint_and_vary(synthetic):
 
 
 def test_evaluation_recognises_synthetic_tasks_and_conditioning_helps(synthetic):
-    from ipromp_pin.kinematics import ee_positions
-    from ipromp_pin.robot import load_robot
-
-    robot = load_robot("baxter_left")
     cfg = EvaluationConfig(protocol="paper", observe=[["orientation", "emg"]], grid=[(10, 0.2)], n_test=6)
-    cells = evaluate(synthetic, cfg, fk=lambda q: ee_positions(robot, q))
+    cells = evaluate(synthetic, cfg, robot="baxter_left")
     assert len(cells) == 3
     assert all(c.n_test == 6 for c in cells)
     # EMG separates the synthetic tasks by construction

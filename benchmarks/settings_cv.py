@@ -36,17 +36,23 @@ def main() -> None:
     parser.add_argument("--n-train", type=int, default=10)
     parser.add_argument("--folds", type=int, default=5)
     parser.add_argument("--observe", default="orientation,emg")
+    parser.add_argument(
+        "--study", choices=["scaling", "basis"], default="scaling", help="which settings to compare"
+    )
     args = parser.parse_args()
 
     observe = args.observe.split(",")
     ds = load_dataset(args.dataset)
     robot = load_robot("baxter_left")
     pool = {task: demos[: args.n_train] for task, demos in ds.demos.items()}
-    settings = [
-        {"log_groups": lg, "pooling": p} for lg, p in itertools.product([(), ("emg",)], [0.0, 0.5, 1.0])
-    ]
+    if args.study == "scaling":
+        settings = [
+            {"log_groups": lg, "pooling": p} for lg, p in itertools.product([(), ("emg",)], [0.0, 0.5, 1.0])
+        ]
+    else:
+        settings = [{"n_basis": k} for k in (11, 16, 21, 31)]
     print(f"{args.folds}-fold CV over the first {args.n_train} demos of each task of {args.dataset.name}")
-    print(f"{'log_groups':<12}{'pooling':>8}{'ratio':>7}{'accuracy':>10}{'hand-over cm':>14}{'prior cm':>10}")
+    print(f"{'setting':<28}{'ratio':>7}{'accuracy':>10}{'hand-over cm':>14}{'prior cm':>10}")
     with threadpool_limits(1):
         for s in settings:
             for ratio in (0.1, 0.2):
@@ -68,8 +74,9 @@ def main() -> None:
                             )
                             errors.append(np.linalg.norm(x[1] - x[0]) * 100)
                             prior_errors.append(np.linalg.norm(x[2] - x[0]) * 100)
+                text = " ".join(f"{k}={'+'.join(v) if isinstance(v, tuple) else v}" for k, v in s.items())
                 print(
-                    f"{'+'.join(s['log_groups']) or '-':<12}{s['pooling']:>8.1f}{ratio:>7.1f}"
+                    f"{text:<28}{ratio:>7.1f}"
                     f"{np.mean(correct):>10.3f}{np.median(errors):>14.2f}{np.median(prior_errors):>10.2f}"
                 )
 

@@ -250,7 +250,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-wait", action="store_true", help="live: exit when streaming is done")
     p.set_defaults(func=cmd_preview)
 
-    p = sub.add_parser("calibrate", help="fit the tool offset so FK matches the robot's end-point reports")
+    p = sub.add_parser("calibrate", help="calibrate FK (arm mount) against the robot's own end-point reports")
     p.add_argument("dataset", type=Path, nargs="+")
     p.add_argument("--robot", default="baxter_left")
     p.add_argument("--write", action="store_true", help="store the offset in the robot settings file")

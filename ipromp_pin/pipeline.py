@@ -287,7 +287,7 @@ def plan(
 
 
 def write_outputs(result: PlanResult, out_dir: Path, observation: Demo | None = None) -> dict[str, Path]:
-    """Write ``trajectory.csv``, ``trajectory.json`` and ``report.json`` into ``out_dir``."""
+    """Write ``trajectory.csv``, ``trajectory.json``, ``report.json`` and ``report.txt`` into ``out_dir``."""
     from .export import write_trajectory_csv, write_trajectory_json
 
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -298,7 +298,29 @@ def write_outputs(result: PlanResult, out_dir: Path, observation: Demo | None = 
     report_path = out_dir / "report.json"
     report_path.write_text(json.dumps(report_dict(result, observation), indent=1, allow_nan=False))
     files["report"] = report_path
+    text_path = out_dir / "report.txt"
+    text_path.write_text(report_text(result, observation) + "\n")
+    files["report_text"] = text_path
     return files
+
+
+def report_text(result: PlanResult, observation: Demo | None = None) -> str:
+    """The human-readable report: recognition, feasibility checks and trajectory verification."""
+    p = result.prediction
+    lines = []
+    if observation is not None:
+        lines.append(f"Observed: {observation.task}/{observation.name} ({observation.source})")
+    lines.append(
+        f"Recognised task: {p.task}; posterior "
+        + ", ".join(f"{t} {v:.3f}" for t, v in zip(p.tasks, p.posterior, strict=True))
+    )
+    lines.append(
+        f"Predicted duration of the motion: {p.duration_s:.2f} s (observed {p.observed_until_s:.2f} s)"
+    )
+    lines.append(result.report.to_text())
+    tr = result.timing_report
+    lines.append(tr.to_text() if hasattr(tr, "to_text") else str(tr))
+    return "\n".join(lines)
 
 
 def report_dict(result: PlanResult, observation: Demo | None = None) -> dict:

@@ -48,6 +48,8 @@ def test_pipeline_runs_on_synthetic_default(tmp_path, capsys):
     text = capsys.readouterr().out
     assert "Recognised task: wrench" in text and "[check]" in text and "[timing]" in text
     assert not (out / "preview.html").exists()
+    text = (out / "report.txt").read_text()
+    assert "Recognised task: wrench" in text and "joint_limits" in text
 
 
 def test_pipeline_saved_model_gives_the_same_result(tmp_path):

@@ -62,9 +62,17 @@ from dataclasses import dataclass
 import numpy as np
 
 from .basis import GaussianBasis
+from .exceptions import ModelError
 from .model import TaskModel
 
 LOG_2PI = float(np.log(2.0 * np.pi))
+
+
+def _kernels():
+    """The compiled kernels module (imports numba and compiles / loads cached code on first use)."""
+    from . import kernels
+
+    return kernels
 
 
 @dataclass
@@ -110,16 +118,9 @@ class Terms:
     Attributes:
         loglik: (T, C) log marginal likelihood (-inf where the observation would
             extend past the end of the motion).
-        q_chol: (T, C, r, r) lower Cholesky factor of ``Q`` (only with ``keep``).
-        a: (T, C, r) vector ``a`` (only with ``keep``).
-        parts: Per part (dims, ke, X^-1 (T, C, ke, ke), G (T, C, ke, ke), b (T, C, ke, D_m))
-            (only with ``keep``).
     """
 
     loglik: np.ndarray
-    q_chol: np.ndarray | None = None
-    a: np.ndarray | None = None
-    parts: list | None = None
 
 
 class InferenceEngine:
@@ -179,32 +180,21 @@ class InferenceEngine:
             for kk in range(ll + 1):
                 pk.append(kk)
                 pl.append(ll)
-        self.pk, self.pl = np.array(pk), np.array(pl)
-        self.pair_diag = (self.pk == self.pl).astype(float)
+        self.pk, self.pl = np.array(pk, dtype=np.int64), np.array(pl, dtype=np.int64)
         ia, ib = np.triu_indices(r)
         self.ia, self.ib = ia, ib
         npk = ia.size
-        # (r+1) x (r+1) matrix [[Q, a], [a^T, 1 + a^T a]] gathered from [packed Q, a, 1 + a^T a]
-        unpack = np.zeros((r + 1, r + 1), dtype=int)
+        # index of Q[i, j] in the packed upper triangle
+        unpack = np.zeros((r, r), dtype=np.int64)
         unpack[ia, ib] = np.arange(npk)
         unpack[ib, ia] = np.arange(npk)
-        unpack[r, :r] = unpack[:r, r] = npk + np.arange(r)
-        unpack[r, r] = npk + r
-        self.unpack = unpack[:r, :r].copy()
-        self._unpack_aug = unpack.reshape(-1)
-        self._eye_packed = (ia == ib).astype(float)
-        self._task_ix = np.arange(n_task)[:, None]
+        self.unpack = unpack
+        self._all_tasks = np.arange(n_task, dtype=np.int64)
+        self.cand_index = np.ascontiguousarray(self.cand_index, dtype=np.int64)
+        self._no_z = np.zeros((1, 1, 1))
         self.use_z = n_task * self.pk.size * ia.size * 8 <= z_budget_bytes
         self._z: dict[tuple[int, ...], np.ndarray] = {}
         self._dims_cache: dict[tuple[int, ...], dict[str, np.ndarray]] = {}
-        self._buffers: dict[str, np.ndarray] = {}
-
-    def _buffer(self, name: str, shape: tuple[int, ...]) -> np.ndarray:
-        """A reusable work array (avoids page faults of fresh large allocations on every call)."""
-        buf = self._buffers.get(name)
-        if buf is None or buf.shape != shape:
-            buf = self._buffers[name] = np.empty(shape)
-        return buf
 
     def z_tensor(self, dims: np.ndarray) -> np.ndarray:
         """Packed ``Z`` (T, K(K+1)/2, r(r+1)/2) of the observed dims ``dims`` (cached)."""
@@ -239,12 +229,15 @@ class InferenceEngine:
             c = {
                 "mu_k": np.ascontiguousarray(mu.transpose(0, 2, 1)),
                 "w_k": np.ascontiguousarray(w_k.reshape(n_task, k * dm, self.rank)),
-                "mu2": np.concatenate(
-                    [np.zeros((n_task, 1)), np.cumsum(np.einsum("tdk,td->tk", mu * mu, 1.0 / delta), axis=1)],
-                    axis=1,
+                "w_1": np.ascontiguousarray(self.w[:, dims].transpose(0, 2, 1, 3).reshape(n_task, k * dm, -1)),
+                "mu2": np.ascontiguousarray(
+                    np.concatenate(
+                        [np.zeros((n_task, 1)), np.cumsum(np.einsum("tdk,td->tk", mu * mu, 1.0 / delta), axis=1)],
+                        axis=1,
+                    )
                 ),
-                "inv_delta": 1.0 / delta,
-                "log_delta": np.sum(np.log(delta), axis=1),
+                "inv_delta": np.ascontiguousarray(1.0 / delta),
+                "log_delta": np.ascontiguousarray(np.sum(np.log(delta), axis=1)),
             }
             self._dims_cache[key] = c
         return c
@@ -259,22 +252,16 @@ class InferenceEngine:
         proj = bt @ part.y
         return PartStats(part.dims, part.t.size, ke, gram, proj, np.einsum("nd,nd->d", part.y, part.y))
 
-    def x_inverse(self, gram: np.ndarray, nu: float) -> tuple[np.ndarray, np.ndarray]:
-        """``X^-1`` (U, k, k) and ``log|X|`` (U,) of ``X = nu I + gram`` from one batched Cholesky
-        factorisation of ``[[X, I], [I, (2 / nu + 1) I]]`` (its lower-left block is ``L^-T``)."""
-        n_u, ke = gram.shape[:2]
-        aug = self._buffer("aug", (n_u, 2 * ke, 2 * ke))
-        diag_idx = np.arange(ke)
-        aug[:, :ke, :ke] = gram
-        aug[:, diag_idx, diag_idx] += nu
-        aug[:, ke:] = 0.0
-        aug[:, ke + diag_idx, diag_idx] = 1.0
-        aug[:, ke + diag_idx, ke + diag_idx] = 2.0 / nu + 1.0
-        chol = np.linalg.cholesky(aug)
-        lit = chol[:, ke:, :ke]  # L^-T
-        xinv = lit @ np.swapaxes(lit, 1, 2)
-        logdet = 2.0 * np.sum(np.log(chol[:, diag_idx, diag_idx]), axis=1)
-        return xinv, logdet
+    def x_inverse(self, gram: np.ndarray, nu: float, ke: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """``X^-1`` (U, ke, ke) and ``log|X|`` (U,) of ``X = nu I + gram[:, :ke, :ke]`` (one Cholesky each)."""
+        kern = _kernels()
+        gram = np.ascontiguousarray(gram, dtype=float)
+        ke = gram.shape[1] if ke is None else int(ke)
+        xinv = np.empty((ke, ke, gram.shape[0]))
+        logdet = kern.x_inverse(gram, ke, float(nu), xinv, np.empty_like(xinv))
+        if not np.all(np.isfinite(logdet)):
+            raise ModelError("X = nu I + B^T B is not numerically positive definite")
+        return np.moveaxis(xinv, 2, 0), logdet
 
     def terms(
         self,
@@ -283,105 +270,69 @@ class InferenceEngine:
         tasks: np.ndarray | None = None,
         alphas: np.ndarray | None = None,
         index: np.ndarray | None = None,
-        keep: bool = False,
         nu: float | None = None,
-        xinv: list[tuple[np.ndarray, np.ndarray]] | None = None,
     ) -> Terms:
-        """Log likelihood per (task, candidate) from part statistics.
+        """Log likelihood per (task, candidate) from part statistics (compiled kernels).
 
         Per part, with ``h_d = B^T y_d + nu mu_d`` the data terms reduce to
         ``e_d^T e_d - b_d^T X^-1 b_d = y_d^T y_d + nu ||mu_d||^2 - h_d^T X^-1 h_d`` and
-        ``X^-1 b_d = X^-1 h_d - mu_d``, so one product ``X^-1 [B^T y, mu_1 .. mu_T]`` per
-        unique candidate gives them for every task.
+        ``X^-1 b_d = X^-1 h_d - mu_d``; ``X^-1`` comes from one Cholesky factorisation per
+        unique candidate, ``P`` from one product with ``Z`` per task, and ``log|Q|``,
+        ``a^T Q^-1 a`` from one Cholesky factorisation per (task, candidate).
 
         Args:
-            stats: Part statistics (computed for the unique candidates ``alphas``).
+            stats: Part statistics (computed for the unique candidates ``alphas``; ``gram`` and
+                ``proj`` may hold more than ``ke`` basis functions, only the first ``ke`` are used).
             t_last: Time of the last observed sample in [s].
             tasks: Task indices (default all).
             alphas: (T', C) candidates (default the model's grids).
             index: (T', C) index of each candidate in the unique candidates of ``stats``.
-            keep: Also return the factors needed for conditioning.
             nu: Noise ratio (default the engine's).
-            xinv: Per part ``(X^-1 (U, K', K'), log|X| (U,))`` already known (``K' >= ke``;
-                e.g. kept up to date by a streaming estimator); computed when None.
         """
+        kern = _kernels()
         nu = self.nu if nu is None else float(nu)
-        all_tasks = tasks is None
-        if all_tasks:
-            tasks, alphas, index = np.arange(self.alphas.shape[0]), self.alphas, self.cand_index
-        tasks = np.asarray(tasks)
+        if tasks is None:
+            tasks, alphas, index = self._all_tasks, self.alphas, self.cand_index
+        tasks = np.ascontiguousarray(tasks, dtype=np.int64)
+        alphas = np.ascontiguousarray(alphas, dtype=float)
+        index = np.ascontiguousarray(index, dtype=np.int64)
         n_task, n_cand = alphas.shape
         r = self.rank
-        npk = self.ia.size
-        task_ix = np.arange(n_task)[:, None]
-        ext = self._buffer("ext", (n_task, n_cand, npk + r + 1))
-        ext[..., :npk] = self._eye_packed
-        a = ext[..., npk : npk + r]
-        a[...] = 0.0
         total = np.zeros((n_task, n_cand))
-        kept = []
-        log_nu = np.log(nu)
-        for ip, st in enumerate(stats):
-            ke, dims = st.ke, st.dims
-            dm = dims.size
-            c = self._dims(dims)
-            if xinv is not None:
-                xinv_u = xinv[ip][0][:, :ke, :ke]
-                logdet_x = xinv[ip][1]
-            else:
-                xinv_u, logdet_x = self.x_inverse(st.gram, nu)
-            mu = c["mu_k"][tasks, :ke]  # (T, ke, dm)
-            n_u = xinv_u.shape[0]
-            rhs = np.concatenate(
-                [
-                    st.proj,
-                    np.broadcast_to(
-                        mu.transpose(1, 0, 2).reshape(1, ke, n_task * dm), (n_u, ke, n_task * dm)
-                    ),
-                ],
-                axis=2,
+        a = np.zeros((n_task, r, n_cand))
+        pq = np.zeros((n_task, self.ia.size, n_cand))
+        for st in stats:
+            c = self._dims(st.dims)
+            z = self.z_tensor(st.dims) if self.use_z else self._no_z
+            ok = kern.part_terms(
+                st.gram,
+                st.proj,
+                st.sq,
+                st.n,
+                st.ke,
+                nu,
+                tasks,
+                index,
+                c["mu_k"],
+                c["inv_delta"],
+                c["mu2"],
+                c["log_delta"],
+                c["w_k"],
+                c["w_1"],
+                z,
+                self.pk,
+                self.pl,
+                self.unpack,
+                self.use_z,
+                total,
+                a,
+                pq,
             )
-            xh_u = xinv_u @ rhs  # (U, ke, (1 + T) dm)
-            xh_mu = xh_u[:, :, dm:].reshape(n_u, ke, n_task, dm).transpose(2, 0, 1, 3)  # (T, U, ke, dm)
-            xh = xh_u[index, :, :dm]
-            xh += nu * xh_mu[task_ix, index]  # X^-1 h, (T, C, ke, dm)
-            h = st.proj[index]
-            h += nu * mu[:, None]
-            quad = np.einsum("tckd,tckd->tcd", h, xh) @ c["inv_delta"][tasks][:, :, None]
-            data = (st.sq @ c["inv_delta"][tasks].T + nu * c["mu2"][tasks, ke])[:, None]
-            total += (data - quad[..., 0]) / nu
-            xh -= mu[:, None]  # X^-1 b
-            a += xh.reshape(n_task, n_cand, ke * dm) @ c["w_k"][tasks, : ke * dm]
-            m = ke * (ke + 1) // 2
-            if self.use_z:
-                coef_u = self.pair_diag[:m] - nu * xinv_u[:, self.pk[:m], self.pl[:m]]
-                ext[..., :npk] += coef_u[index] @ self.z_tensor(dims)[tasks, :m]
-            else:
-                wk = self.w[tasks][:, dims, :ke]  # (T, dm, ke, r)
-                w = wk.reshape(n_task, dm * ke, r)
-                xinv_p = xinv_u[index]
-                y = xinv_p @ np.swapaxes(wk, 1, 2).reshape(n_task, 1, ke, dm * r)  # (T, C, ke, dm*r)
-                y = np.swapaxes(y.reshape(n_task, n_cand, ke, dm, r), 2, 3).reshape(
-                    n_task, n_cand, dm * ke, r
-                )
-                pp = np.swapaxes(w, 1, 2)[:, None] @ (w[:, None] - nu * y)
-                ext[..., :npk] += pp[..., self.ia, self.ib]
-            const = st.n * dm * LOG_2PI + dm * (st.n - ke) * log_nu
-            total += (const + st.n * c["log_delta"][tasks])[:, None] + dm * logdet_x[index]
-            if keep:
-                gram = st.gram[index]
-                b = st.proj[index] - gram @ mu[:, None]
-                kept.append((dims, ke, xinv_u[index], gram, b))
-        ext[..., npk + r] = 1.0 + np.einsum("tcr,tcr->tc", a, a)
-        qa = np.take(ext, self._unpack_aug, axis=2).reshape(n_task, n_cand, r + 1, r + 1)
-        lq = np.linalg.cholesky(qa)
-        diag = np.diagonal(lq, axis1=2, axis2=3)
-        v = lq[..., r, :r]
-        total += 2.0 * np.sum(np.log(diag[..., :r]), axis=2) - np.einsum("tcr,tcr->tc", v, v)
-        loglik = -0.5 * total
-        loglik[t_last > alphas * self.t_norm * (1.0 + 1e-12)] = -np.inf
-        if keep:
-            return Terms(loglik=loglik, q_chol=lq[..., :r, :r], a=a.copy(), parts=kept)
+            if not ok:
+                raise ModelError("X = nu I + B^T B is not numerically positive definite")
+        loglik = np.empty((n_task, n_cand))
+        if not kern.finish_terms(pq, a, total, self.unpack, alphas, self.t_norm, float(t_last), loglik):
+            raise ModelError("Q = I + P is not numerically positive definite")
         return Terms(loglik=loglik)
 
 

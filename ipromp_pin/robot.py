@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import importlib.metadata
 import math
+import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -24,11 +25,6 @@ import numpy as np
 import pinocchio as pin
 
 from .exceptions import RobotError
-
-try:  # Python >= 3.11
-    import tomllib
-except ModuleNotFoundError:  # pragma: no cover - Python 3.10
-    import tomli as tomllib  # type: ignore[no-redef]
 
 ROBOTS_DIR = Path(__file__).resolve().parents[1] / "robots"
 """Folder of the project's robot settings files (``robots/`` beside the package)."""

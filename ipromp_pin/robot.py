@@ -569,23 +569,22 @@ def _build_robot(s: RobotSettings, collision: bool = True) -> Robot:
     root = int(joint_ids[0])
     model.jointPlacements[root] = pin.SE3(np.eye(3), s.mount_offset_m) * model.jointPlacements[root]
     data = model.createData()
+    kinematic = dict(
+        settings=s,
+        model=model,
+        data=data,
+        arm_joint_ids=joint_ids,
+        arm_q_index=q_idx,
+        arm_v_index=v_idx,
+        ee_frame_id=int(ee_id),
+        ee_parent_frame_id=int(parent_id),
+        q_neutral=q0,
+        lower_rad=lower,
+        upper_rad=upper,
+        velocity_rad_s=np.asarray(vel, dtype=float),
+    )
     if not collision:
-        return Robot(
-            settings=s,
-            model=model,
-            data=data,
-            collision_model=None,
-            collision_data=None,
-            arm_joint_ids=joint_ids,
-            arm_q_index=q_idx,
-            arm_v_index=v_idx,
-            ee_frame_id=int(ee_id),
-            ee_parent_frame_id=int(parent_id),
-            q_neutral=q0,
-            lower_rad=lower,
-            upper_rad=upper,
-            velocity_rad_s=np.asarray(vel, dtype=float),
-        )
+        return Robot(collision_model=None, collision_data=None, **kinematic)
 
     try:
         cmodel = pin.buildGeomFromUrdf(
@@ -614,20 +613,9 @@ def _build_robot(s: RobotSettings, collision: bool = True) -> Robot:
     for k, cp in enumerate(cmodel.collisionPairs):
         (active if geom_segment[cp.first] != geom_segment[cp.second] else static).append(k)
     robot = Robot(
-        settings=s,
-        model=model,
-        data=data,
         collision_model=cmodel,
         collision_data=cdata,
-        arm_joint_ids=joint_ids,
-        arm_q_index=q_idx,
-        arm_v_index=v_idx,
-        ee_frame_id=int(ee_id),
-        ee_parent_frame_id=int(parent_id),
-        q_neutral=q0,
-        lower_rad=lower,
-        upper_rad=upper,
-        velocity_rad_s=np.asarray(vel, dtype=float),
+        **kinematic,
         n_pairs_total=n_total,
         n_pairs_srdf_removed=n_removed,
         active_pair_ids=np.asarray(active, dtype=int),

@@ -99,3 +99,20 @@ def test_unknown_task_and_demo_index_fail_clearly(tmp_path, capsys):
     assert "unknown task 'juggling'" in capsys.readouterr().err
     assert main(["run", str(PIPELINE), "--out", str(tmp_path), "--demo", "500", "--no-preview"]) == 2
     assert "out of range" in capsys.readouterr().err
+
+
+def test_preview_command_writes_a_self_contained_page(tmp_path, capsys):
+    page = tmp_path / "preview.html"
+    assert main(["preview", str(PIPELINE), "--html", str(page), "--task", "tape"]) == 0
+    html = page.read_text()
+    assert 0 < page.stat().st_size < 10e6
+    assert "tape" in html and "http://" not in html.replace("http://www.w3.org", "")
+    assert "wrote" in capsys.readouterr().out
+
+
+def test_live_preview_streams_the_observation_on_loopback(capsys):
+    assert main(["preview", str(PIPELINE), "--no-wait", "--speed", "1000", "--port", "7391"]) == 0
+    out = capsys.readouterr().out
+    assert "live at http://127.0.0.1:" in out
+    # the posterior is printed as samples stream in, then the final recognition
+    assert out.count("  t=") >= 5 and "[preview] recognised" in out

@@ -191,8 +191,10 @@ def load_data(cfg: PipelineConfig, log: LogFn = print) -> Dataset:
     inverse = {model: rec for rec, model in settings.recorded_names.items()}
     joints = tuple(inverse[j] for j in settings.arm_joints)
     log(f"[data] reading {cfg.dataset} (format {cfg.format})")
+    # tracked skeleton frames named in `observe` are read without being listed twice
+    frames = list(dict.fromkeys([*cfg.frames, *(g for g in cfg.observe if g.startswith("/"))]))
     ds = load_dataset(
-        cfg.dataset, format=cfg.format, frames=cfg.frames or None, rate_hz=cfg.rate_hz, robot_joints=joints
+        cfg.dataset, format=cfg.format, frames=frames or None, rate_hz=cfg.rate_hz, robot_joints=joints
     )
     log(f"[data] {len(ds.all_demos())} demos of tasks {', '.join(ds.tasks)}")
     return ds

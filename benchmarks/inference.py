@@ -10,6 +10,10 @@ functions, 20 training demos per task, 50 Hz synthetic hand-overs of 2.5-4.2 s
 settings change one factor at a time: 10 / 30 tasks, 30 observed dims (extra channels mixed from
 the measured ones), 61 basis functions, 100 demos per task.
 
+Inference runs compiled numba kernels (:mod:`ipromp_pin.kernels`): every setting is warmed up
+before timing; the first-call time and the cold compile time (fresh process, empty numba
+cache) are reported separately.
+
 "full update" = :meth:`IProMP.predict` (phase posterior over every candidate of every task,
 task posterior, conditioned prediction of the winner); "streaming update" = one
 :meth:`StreamingEstimator.update` with a new sample; "direct" =
@@ -89,7 +93,7 @@ def split(ds: Dataset, n_train: int) -> tuple[Dataset, dict[str, list[Demo]]]:
 def stream_update_time(model: IProMP, obs: Demo) -> float:
     """Median time of one streaming update over the samples of ``obs`` (after the first two)."""
     times = []
-    for _ in range(3):
+    for _ in range(10):
         stream = model.stream()
         for j in range(obs.n_samples):
             sample = {g: obs.groups[g][j] for g in model.observe}
@@ -127,6 +131,10 @@ def run_setting(
     tracemalloc.stop()
     demo = test[model.tasks_[0]][0]
     out: dict[str, float] = {"train_per_task_s": train_s, "peak_fit_mb": peak_fit / 1e6}
+    # warm-up: the first inference of a process loads (or compiles) the numba kernels; never timed below
+    t0 = time.perf_counter()
+    model.predict(demo.head(ratios[0], observe))
+    out["first_call_s"] = time.perf_counter() - t0
     out["n_candidates"] = float(model.models_[model.tasks_[0]].alpha_grid.size)
     out["n_obs_dims"] = float(model.n_obs_dims_)
     out["rank"] = float(model._engine_().rank)
@@ -146,6 +154,29 @@ def run_setting(
     out["_model"] = model  # type: ignore[assignment]
     out["_test"] = test  # type: ignore[assignment]
     return out
+
+
+def cold_compile_time() -> float:
+    """First-inference time in [s] of a fresh process with an empty numba cache (full JIT compilation)."""
+    import subprocess
+    import tempfile
+
+    code = (
+        "import time\n"
+        "from ipromp_pin.recognition import IProMP\n"
+        "from ipromp_pin.synthetic import make_synthetic_dataset\n"
+        "ds = make_synthetic_dataset(n_tasks=2, n_demos=4, seed=0)\n"
+        "m = IProMP(['orientation', 'emg'], noise=1.0).fit(ds)\n"
+        "d = ds.demos[m.tasks_[0]][0].head(0.2, m.observe)\n"
+        "t0 = time.perf_counter(); m.predict(d); s = m.stream()\n"
+        "[s.update(d.t[j], {g: d.groups[g][j] for g in m.observe}) for j in range(3)]\n"
+        "print(time.perf_counter() - t0)\n"
+    )
+    with tempfile.TemporaryDirectory() as cache:
+        env = {**os.environ, "NUMBA_CACHE_DIR": cache}
+        cmd = [sys.executable, "-c", code]
+        res = subprocess.run(cmd, env=env, capture_output=True, text=True, check=True)
+    return float(res.stdout.strip().splitlines()[-1])
 
 
 def direct_time(model: IProMP, obs: Demo, repeats: int) -> tuple[float, float]:
@@ -223,6 +254,7 @@ def main(argv: list[str] | None = None) -> int:
     results: dict[str, float] = {}
     with threadpool_limits(1):
         print("\n".join(machine_info()))
+        cold = float("nan") if args.quick else cold_compile_time()
         paper = run_setting("paper", repeats=reps)
         model, test = paper.pop("_model"), paper.pop("_test")
         settings = {"paper": paper}
@@ -329,7 +361,12 @@ def main(argv: list[str] | None = None) -> int:
         f"  demos 20/100 (rank {int(paper['rank'])}/{int(settings['demos100']['rank'])}): "
         f"{ms(paper['full_update_r20_s']).strip()} / {ms(settings['demos100']['full_update_r20_s']).strip()}"
     )
-    print(f"\nbasis Gram condition number (K=31): {model.basis_.condition_number():.3g}")
+    print(
+        f"\nnumba kernels: first inference of this process {paper['first_call_s']:.2f} s (cache load or"
+        f" compile); fresh process with an empty cache (full compile) "
+        + ("not measured (--quick)" if args.quick else f"{cold:.1f} s")
+    )
+    print(f"basis Gram condition number (K=31): {model.basis_.condition_number():.3g}")
     print(
         f"noise='auto' (leave-one-out CV): chose nu = {auto.noise_ratio_:g}, "
         f"training {train_auto_s:.2f} s per task "
@@ -353,6 +390,8 @@ def main(argv: list[str] | None = None) -> int:
     results["direct_extrapolated"] = bool(args.quick)
     results["train_per_task_auto_noise_paper_s"] = train_auto_s
     results["basis_condition_number"] = model.basis_.condition_number()
+    results["first_call_paper_s"] = paper["first_call_s"]
+    results["jit_compile_cold_s"] = cold
     if args.json:
         with open(args.json, "w") as fh:
             json.dump(results, fh, indent=2, sort_keys=True)

@@ -18,7 +18,7 @@ LOG_2PI = float(np.log(2.0 * np.pi))
 
 @njit(**_JIT)
 def chol_inplace(a: np.ndarray, n: int) -> float:
-    """Lower Cholesky factor of ``a[:n, :n]`` in place (lower triangle) -> log-determinant (NaN if not SPD)."""
+    """Cholesky factor of ``a[:n, :n]`` in place (lower triangle) -> log-determinant (NaN if not SPD)."""
     logdet = 0.0
     for j in range(n):
         s = a[j, j]
@@ -39,17 +39,53 @@ def chol_inplace(a: np.ndarray, n: int) -> float:
 
 
 @njit(**_JIT)
+def part_stats(e0: np.ndarray, q: np.ndarray, step: np.ndarray, ke: int, y: np.ndarray):
+    """``B^T B`` (ke, ke, U) and ``B^T y`` (ke, U, D_m) of the first ``ke`` Gaussian basis functions.
+
+    The basis values come from the running product of
+    :meth:`ipromp_pin.basis.GaussianBasis.values_prefix_t` (same operations):
+    ``phi_0 = e0`` (n, U), ``phi_k = phi_{k-1} (q step_{k-1})`` with ``q`` (n, U); ``y`` (n, D_m).
+    """
+    n, n_u = e0.shape
+    gram = np.zeros((ke, ke, n_u))
+    bt = np.empty((ke, n_u, n))
+    b = np.empty((ke, n_u))
+    for j in range(n):
+        b[0] = e0[j]
+        qj = q[j]
+        for k in range(1, ke):
+            bk = b[k]
+            bp = b[k - 1]
+            s = step[k - 1]
+            for u in range(n_u):
+                bk[u] = bp[u] * (qj[u] * s)
+        for k in range(ke):
+            bk = b[k]
+            for m in range(k + 1):
+                g = gram[k, m]
+                bm = b[m]
+                for u in range(n_u):
+                    g[u] += bk[u] * bm[u]
+            for u in range(n_u):
+                bt[k, u, j] = bk[u]
+    for k in range(ke):
+        for m in range(k):
+            gram[m, k] = gram[k, m]
+    proj = np.dot(bt.reshape(ke * n_u, n), y).reshape(ke, n_u, y.shape[1])
+    return gram, proj
+
+
+@njit(**_JIT)
 def x_inverse(gram: np.ndarray, ke: int, nu: float, xinv: np.ndarray, linv: np.ndarray) -> np.ndarray:
     """``X^-1`` (into ``xinv`` (ke, ke, U)), ``L^-1`` (into ``linv`` (ke, ke, U), lower) and ``log|X|`` (U,)
-    of ``X = nu I + gram[:, :ke, :ke]`` (``gram`` (U, >=ke, >=ke)); candidate index innermost, so that
+    of ``X = nu I + gram[:ke, :ke]`` (``gram`` (>=ke, >=ke, U)); candidate index innermost, so that
     every step is a vector operation over candidates."""
-    n_u = gram.shape[0]
+    n_u = gram.shape[2]
     lx = np.empty((ke, ke, n_u))
-    for u in range(n_u):
-        for i in range(ke):
-            for j in range(i + 1):
-                lx[i, j, u] = gram[u, i, j]
-            lx[i, i, u] += nu
+    for i in range(ke):
+        for j in range(i + 1):
+            lx[i, j] = gram[i, j]
+        lx[i, i] += nu
     logdet = np.zeros(n_u)
     ok = chol_soa(lx, ke, logdet)
     if not ok:
@@ -89,6 +125,7 @@ def chol_soa(a: np.ndarray, n: int, logdet: np.ndarray) -> bool:
     """Lower Cholesky factors in place of a batch ``a`` (n, n, B) (batch innermost, lower triangle used);
     adds the log-determinants to ``logdet`` (B,). Returns False if a matrix is not numerically SPD."""
     nb = a.shape[2]
+    prod = np.ones(nb)
     for j in range(n):
         ajj = a[j, j]
         for k in range(j):
@@ -99,7 +136,11 @@ def chol_soa(a: np.ndarray, n: int, logdet: np.ndarray) -> bool:
             if not ajj[b] > 0.0:
                 return False
             ajj[b] = np.sqrt(ajj[b])
-            logdet[b] += 2.0 * np.log(ajj[b])
+            prod[b] *= ajj[b]
+        if j % 8 == 7 or j == n - 1:  # one log per 8 factors (bounded diagonals: no overflow)
+            for b in range(nb):
+                logdet[b] += 2.0 * np.log(prod[b])
+                prod[b] = 1.0
         for i in range(j + 1, n):
             aij = a[i, j]
             for k in range(j):
@@ -137,10 +178,10 @@ def part_terms(
     a: np.ndarray,
     pq: np.ndarray,
 ) -> bool:
-    """Add one observation part's terms to ``total`` (T', C), ``a`` (T', r, C) and packed ``P`` (T', r(r+1)/2, C).
+    """Add one observation part's terms to ``total`` (T', C), ``a`` (T', C, r) and packed ``P`` (T', C, npk).
 
     Args:
-        gram, proj, sq: Part statistics ``B^T B`` (U, >=ke, >=ke), ``B^T y`` (U, >=ke, D_m), ``y^T y`` (D_m,).
+        gram, proj, sq: Part statistics ``B^T B`` (>=ke, >=ke, U), ``B^T y`` (>=ke, U, D_m), ``y^T y`` (D_m,).
         n_obs, ke, nu: Number of samples, active basis functions, noise ratio.
         tasks, index: (T',) task indices and (T', C) unique-candidate index of every pair.
         mu_k, inv_delta, mu2, log_delta, w_k: Model arrays of the part's dims (see ``InferenceEngine._dims``).
@@ -151,9 +192,9 @@ def part_terms(
     Returns:
         False when a matrix ``X`` was not numerically positive definite.
     """
-    n_u = gram.shape[0]
+    n_u = gram.shape[2]
     dm = proj.shape[2]
-    r = a.shape[1]
+    r = a.shape[2]
     n_t, n_c = index.shape
     xinv = np.empty((ke, ke, n_u))
     linv = np.empty((ke, ke, n_u))
@@ -174,13 +215,18 @@ def part_terms(
         for d in range(dm):
             sqd += sq[d] * inv_delta[t, d]
         base = (sqd + nu * mu2[t, ke]) / nu + const + n_obs * log_delta[t]
-        for c in range(n_c):
-            u = index[ti, c]
-            for k in range(ke):
-                for d in range(dm):
-                    h[k, d, c] = proj[u, k, d] + nu * mu_k[t, k, d]
-                for j in range(ke):
-                    xg[k, j, c] = xinv[k, j, u]
+        idx = index[ti]
+        for k in range(ke):
+            for d in range(dm):
+                hkd = h[k, d]
+                mkd = nu * mu_k[t, k, d]
+                for c in range(n_c):
+                    hkd[c] = proj[k, idx[c], d] + mkd
+            for j in range(ke):
+                xkj = xg[k, j]
+                xikj = xinv[k, j]
+                for c in range(n_c):
+                    xkj[c] = xikj[idx[c]]
         quad[:] = 0.0
         for k in range(ke):
             for d in range(dm):
@@ -199,7 +245,7 @@ def part_terms(
                     acc[c] -= mkd
         for c in range(n_c):
             total[ti, c] += base - quad[c] / nu + dm * logdet[index[ti, c]]
-        a[ti] += np.dot(np.ascontiguousarray(w_k[t, :kd].T), xb)
+        a[ti] += np.dot(xb.T, w_k[t, :kd])
         if use_z:
             for q in range(m):
                 diag = 1.0 if pk[q] == pl[q] else 0.0
@@ -207,7 +253,7 @@ def part_terms(
                 cq = coef[q]
                 for c in range(n_c):
                     cq[c] = diag - nu * xq[c]
-            pq[ti] += np.dot(np.ascontiguousarray(z[t, :m].T), coef)
+            pq[ti] += np.dot(coef.T, z[t, :m])
     if not use_z:
         v = np.empty((kd, r))
         for ti in range(n_t):
@@ -227,7 +273,7 @@ def part_terms(
                 vv = np.dot(v.T, v)
                 for i in range(r):
                     for j in range(i, r):
-                        pq[ti, unpack[i, j], c] += s[i, j] - nu * vv[i, j]
+                        pq[ti, c, unpack[i, j]] += s[i, j] - nu * vv[i, j]
     return True
 
 
@@ -242,21 +288,24 @@ def finish_terms(
     t_last: float,
     loglik: np.ndarray,
 ) -> bool:
-    """Log likelihood (into ``loglik`` (T', C)) from ``Q = I + P`` (packed (T', r(r+1)/2, C)), ``a`` (T', r, C)
-    and the other terms ``total`` (T', C).
+    """Log likelihood (into ``loglik`` (T', C)) from ``Q = I + P`` (packed (T', C, r(r+1)/2)),
+    ``a`` (T', C, r) and the other terms ``total`` (T', C).
 
     ``log|Q|`` and ``a^T Q^-1 a`` come from one Cholesky factorisation of ``Q`` per pair
     (vectorised over candidates); candidates shorter than the observation get ``-inf``.
     Returns False when a ``Q`` was not numerically positive definite.
     """
-    n_t, r, n_c = a.shape
+    n_t, n_c, r = a.shape
     lq = np.empty((r, r, n_c))
     v = np.empty((r, n_c))
     logdet = np.empty(n_c)
     for t in range(n_t):
         for i in range(r):
             for j in range(i + 1):
-                lq[i, j] = pq[t, unpack[i, j]]
+                lij = lq[i, j]
+                p = unpack[i, j]
+                for c in range(n_c):
+                    lij[c] = pq[t, c, p]
             lq[i, i] += 1.0
         logdet[:] = 0.0
         if not chol_soa(lq, r, logdet):
@@ -264,7 +313,8 @@ def finish_terms(
         vv = np.zeros(n_c)
         for i in range(r):
             vi = v[i]
-            vi[:] = a[t, i]
+            for c in range(n_c):
+                vi[c] = a[t, c, i]
             for k in range(i):
                 lik = lq[i, k]
                 vk = v[k]
@@ -280,3 +330,152 @@ def finish_terms(
             else:
                 loglik[t, c] = -0.5 * (total[t, c] + logdet[c] - vv[c])
     return True
+
+
+@njit(**_JIT)
+def cholesky(a: np.ndarray) -> np.ndarray:
+    """Lower Cholesky factor (n, n) of an SPD matrix ``a`` (upper triangle zero; NaN-filled if not SPD)."""
+    n = a.shape[0]
+    low = np.zeros((n, n))
+    for i in range(n):
+        for j in range(i + 1):
+            low[i, j] = a[i, j]
+    if not np.isfinite(chol_inplace(low, n)):
+        low[:, :] = np.nan
+    return low
+
+
+@njit(**_JIT)
+def tri_solve(low: np.ndarray, b: np.ndarray, transpose: bool) -> np.ndarray:
+    """Solve ``L x = b`` (``L^T x = b`` with ``transpose``); ``L`` (n, n) lower triangular, ``b`` (n, m)."""
+    n, m = b.shape
+    x = b.copy()
+    if not transpose:
+        for i in range(n):
+            xi = x[i]
+            for k in range(i):
+                lik = low[i, k]
+                xk = x[k]
+                for j in range(m):
+                    xi[j] -= lik * xk[j]
+            inv = 1.0 / low[i, i]
+            for j in range(m):
+                xi[j] *= inv
+    else:
+        for i in range(n - 1, -1, -1):
+            xi = x[i]
+            for k in range(i + 1, n):
+                lki = low[k, i]
+                xk = x[k]
+                for j in range(m):
+                    xi[j] -= lki * xk[j]
+            inv = 1.0 / low[i, i]
+            for j in range(m):
+                xi[j] *= inv
+    return x
+
+
+@njit(**_JIT)
+def cho_solve(low: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Solve ``L L^T x = b`` for the lower Cholesky factor ``L`` (n, n) and ``b`` (n, m)."""
+    return tri_solve(low, tri_solve(low, b, False), True)
+
+
+@njit(**_JIT)
+def prediction_cov(
+    low: np.ndarray, phi_f: np.ndarray, phi2: np.ndarray, diag: np.ndarray, scale: np.ndarray
+) -> np.ndarray:
+    """Covariance (M, J, J) of the predicted joints: ``S^T S + phi2 diag`` with ``S = L^-1 phi_f``,
+    times the channel scales.
+
+    Args:
+        low: (r, r) lower Cholesky factor of ``Q``.
+        phi_f: (r, J, M) ``phi(z_m)^T F_j`` of the robot dims.
+        phi2: (M,) ``|phi(z_m)|^2``; diag: (J,) diagonal weight variances; scale: (J,) channel scales.
+    """
+    r, n_j, n_m = phi_f.shape
+    s = tri_solve(low, phi_f.reshape(r, n_j * n_m), False).reshape(r, n_j, n_m)
+    acc = np.zeros((n_j, n_j, n_m))
+    for k in range(r):
+        for i in range(n_j):
+            si = s[k, i]
+            for j in range(i + 1):
+                sj = s[k, j]
+                aij = acc[i, j]
+                for m in range(n_m):
+                    aij[m] += si[m] * sj[m]
+    cov = np.empty((n_m, n_j, n_j))
+    for i in range(n_j):
+        for j in range(i + 1):
+            f = scale[i] * scale[j]
+            aij = acc[i, j]
+            for m in range(n_m):
+                v = aij[m]
+                if i == j:
+                    v += phi2[m] * diag[i]
+                v *= f
+                cov[m, i, j] = v
+                cov[m, j, i] = v
+    return cov
+
+
+@njit(**_JIT)
+def phase_posterior(loglik: np.ndarray, log_prior: np.ndarray, grids: np.ndarray):
+    """Per task: log evidence (T,), normalised log phase posterior (T, C) and refined MAP phase (T,).
+
+    ``lp = loglik + log_prior``; the evidence is the log-sum-exp of ``lp`` over candidates (rows
+    without a possible candidate keep ``lp`` and get ``-inf``); the MAP phase is refined by the
+    parabola of :func:`ipromp_pin.phase.refine_peaks` (same arithmetic).
+    """
+    n_t, n_c = loglik.shape
+    evidence = np.empty(n_t)
+    logpost = np.empty((n_t, n_c))
+    alpha = np.empty(n_t)
+    for t in range(n_t):
+        lp = logpost[t]
+        best = 0
+        for c in range(n_c):
+            lp[c] = loglik[t, c] + log_prior[t, c]
+            if lp[c] > lp[best]:
+                best = c
+        top = lp[best]
+        if np.isfinite(top):
+            s = 0.0
+            for c in range(n_c):
+                s += np.exp(lp[c] - top)
+            ev = top + np.log(s)
+        else:
+            ev = top
+        evidence[t] = ev
+        j = min(max(best, 1), n_c - 2)
+        x0, x1, x2 = grids[t, j - 1], grids[t, j], grids[t, j + 1]
+        y0, y1, y2 = lp[j - 1], lp[j], lp[j + 1]
+        denom = (x0 - x1) * (x0 - x2) * (x1 - x2)
+        ca = (x2 * (y1 - y0) + x1 * (y0 - y2) + x0 * (y2 - y1)) / denom
+        cb = (x2 * x2 * (y0 - y1) + x1 * x1 * (y2 - y0) + x0 * x0 * (y1 - y2)) / denom
+        ok = best == j and np.isfinite(y0) and np.isfinite(y1) and np.isfinite(y2) and ca < 0.0
+        alpha[t] = min(max(-cb / (2.0 * ca), x0), x2) if ok else grids[t, best]
+        if np.isfinite(ev):
+            for c in range(n_c):
+                lp[c] -= ev
+    return evidence, logpost, alpha
+
+
+@njit(**_JIT)
+def add_sample(gram: np.ndarray, proj: np.ndarray, phi: np.ndarray, y: np.ndarray) -> None:
+    """Add one sample to running statistics: ``gram`` (K, K, U) ``+= phi phi^T`` and ``proj`` (K, U, D)
+    ``+= phi y^T`` for basis values ``phi`` (K, U) and scaled values ``y`` (D,); an empty ``gram``
+    (K, 0, U) or ``proj`` (K, U, 0) is left out."""
+    n_k, n_u = phi.shape
+    for k in range(gram.shape[0]):
+        pk = phi[k]
+        for m in range(gram.shape[1]):
+            pm = phi[m]
+            g = gram[k, m]
+            for u in range(n_u):
+                g[u] += pk[u] * pm[u]
+    for k in range(proj.shape[0]):
+        for u in range(n_u):
+            p = phi[k, u]
+            for d in range(proj.shape[2]):
+                proj[k, u, d] += p * y[d]

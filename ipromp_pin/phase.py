@@ -25,26 +25,28 @@ coordinates ``eta`` of ``w = mu + F eta + ...`` have the posterior
 (:mod:`ipromp_pin.recognition`); the robot's posterior weight covariance is
 ``blockdiag(delta_j I) + F_r Q^-1 F_r^T``.
 
-Making it fast (:class:`InferenceEngine`):
+Making it fast (:class:`InferenceEngine`, compiled numba kernels in :mod:`ipromp_pin.kernels`):
 
 * ``P`` is linear in ``X^-1``: ``P = sum_{k<=l} (delta_kl - nu X^-1_kl) Z[(k,l), :]``
   with ``Z[(k,l), (a,b)] = sum_d W_dka W_dlb`` (symmetrised, packed, precomputed
-  per task), so P of all candidates of a task is ONE matrix product.
-  ``X^-1`` and ``log|X|`` come from one batched Cholesky factorisation of the
-  augmented SPD matrix ``[[X, I], [I, c I]]`` (``c = 2 / nu + 1``), whose
-  lower-left block is ``L^-T``; ``X`` is well conditioned (eigenvalues in
-  ``[nu, nu + ||G||]``), and the result is checked against the dense Cholesky
-  reference to 1e-8 by the tests.
-* ``a^T Q^-1 a`` and ``log|Q|`` come from one batched Cholesky of ``Q``
-  augmented with ``a`` (its last row holds ``L_Q^-1 a``).
+  per task), so P of all candidates of a task is ONE matrix product (BLAS).
+  ``X^-1`` and ``log|X|`` come from one Cholesky factorisation per distinct
+  candidate (``X`` is well conditioned: eigenvalues in ``[nu, nu + ||G||]``);
+  the tests check the result against the dense textbook likelihood to 1e-8.
+* ``a^T Q^-1 a`` and ``log|Q|`` come from one Cholesky factorisation of ``Q``
+  per (task, candidate). The small factorisations run batched with the
+  candidate index innermost (every step is a vector operation over candidates,
+  exact IEEE arithmetic, no fast-math).
 * All tasks' candidates lie on one common lattice (:func:`ipromp_pin.model.alpha_candidates`):
   everything that depends only on the candidate (basis matrix, ``G``,
   ``B^T y``, ``X^-1``) is computed once per distinct candidate.
 * Basis functions below 1e-11 on every observed phase are dropped (their
   contribution is below 1e-20 relative); the basis is evaluated with two
-  exponentials per sample (:meth:`GaussianBasis.values_prefix_t`).
+  exponentials per sample (the running product of :meth:`GaussianBasis.values_prefix_t`).
 * Streaming: ``G``, ``B^T y`` and ``y^T y`` are running sums (one basis row per
   candidate per new sample).
+* The kernels compile on the first inference of a process (importing the package
+  does not import numba) and are cached on disk next to the module.
 
 Cost per update: O(T C (K_e^2 r^2 / 4 + r^3 / 3 + K_e D r)) for T tasks, C
 candidates, K_e active basis functions, D observed dims, rank r = N - 1: linear
@@ -98,8 +100,9 @@ class PartStats:
         dims: (D_m,) observed dims of the part.
         n: Number of samples.
         ke: Number of leading basis functions used.
-        gram: (U, ke, ke) ``B^T B`` per unique candidate.
-        proj: (U, ke, D_m) ``B^T y``.
+        gram: (ke, ke, U) ``B^T B`` per unique candidate (candidate index last; may hold more
+            than ``ke`` basis functions, only the first ``ke`` are used).
+        proj: (ke, U, D_m) ``B^T y``.
         sq: (D_m,) ``y^T y`` per dim.
     """
 
@@ -229,10 +232,15 @@ class InferenceEngine:
             c = {
                 "mu_k": np.ascontiguousarray(mu.transpose(0, 2, 1)),
                 "w_k": np.ascontiguousarray(w_k.reshape(n_task, k * dm, self.rank)),
-                "w_1": np.ascontiguousarray(self.w[:, dims].transpose(0, 2, 1, 3).reshape(n_task, k * dm, -1)),
+                "w_1": np.ascontiguousarray(
+                    self.w[:, dims].transpose(0, 2, 1, 3).reshape(n_task, k * dm, -1)
+                ),
                 "mu2": np.ascontiguousarray(
                     np.concatenate(
-                        [np.zeros((n_task, 1)), np.cumsum(np.einsum("tdk,td->tk", mu * mu, 1.0 / delta), axis=1)],
+                        [
+                            np.zeros((n_task, 1)),
+                            np.cumsum(np.einsum("tdk,td->tk", mu * mu, 1.0 / delta), axis=1),
+                        ],
                         axis=1,
                     )
                 ),
@@ -245,19 +253,29 @@ class InferenceEngine:
     def part_stats(self, part: ObservationPart, alphas: np.ndarray | None = None) -> PartStats:
         """Statistics of an observation part for the unique candidates (default: the model's)."""
         inv_dur = self.inv_duration if alphas is None else 1.0 / (alphas * self.t_norm)
-        z = part.t[None, :] * inv_dur[:, None]
+        z = part.t[:, None] * inv_dur[None, :]  # (n, U)
         ke = self.basis.support_count(float(part.t[-1]) * float(inv_dur.max()))
-        bt = np.swapaxes(self.basis.values_prefix_t(z, ke), 0, 1)  # (U, ke, n)
-        gram = bt @ np.swapaxes(bt, 1, 2)
-        proj = bt @ part.y
+        y = np.ascontiguousarray(part.y, dtype=float)
+        b = self.basis
+        inv_h2 = 1.0 / (b.width * b.width)
+        d0 = z - b.centres[0]
+        if ke < 3 or 0.5 * float(np.max(np.abs(d0))) ** 2 * inv_h2 > 650.0:
+            # exact exponentials where the running product could underflow (see values_prefix_t)
+            bt = np.moveaxis(b(z)[..., :ke], -1, 0)  # (ke, n, U)
+            gram = np.ascontiguousarray(np.einsum("knu,lnu->klu", bt, bt))
+            proj = np.ascontiguousarray(np.einsum("knu,nd->kud", bt, y))
+        else:
+            e0 = np.exp(-0.5 * inv_h2 * d0 * d0)
+            q = np.exp(z * (b.spacing * inv_h2))
+            gram, proj = _kernels().part_stats(e0, q, b._step_factor, ke, y)
         return PartStats(part.dims, part.t.size, ke, gram, proj, np.einsum("nd,nd->d", part.y, part.y))
 
     def x_inverse(self, gram: np.ndarray, nu: float, ke: int | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """``X^-1`` (U, ke, ke) and ``log|X|`` (U,) of ``X = nu I + gram[:, :ke, :ke]`` (one Cholesky each)."""
+        """``X^-1`` (U, ke, ke) and ``log|X|`` (U,) of ``X = nu I + gram[:ke, :ke]``, ``gram`` (K', K', U)."""
         kern = _kernels()
         gram = np.ascontiguousarray(gram, dtype=float)
-        ke = gram.shape[1] if ke is None else int(ke)
-        xinv = np.empty((ke, ke, gram.shape[0]))
+        ke = gram.shape[0] if ke is None else int(ke)
+        xinv = np.empty((ke, ke, gram.shape[2]))
         logdet = kern.x_inverse(gram, ke, float(nu), xinv, np.empty_like(xinv))
         if not np.all(np.isfinite(logdet)):
             raise ModelError("X = nu I + B^T B is not numerically positive definite")
@@ -299,8 +317,8 @@ class InferenceEngine:
         n_task, n_cand = alphas.shape
         r = self.rank
         total = np.zeros((n_task, n_cand))
-        a = np.zeros((n_task, r, n_cand))
-        pq = np.zeros((n_task, self.ia.size, n_cand))
+        a = np.zeros((n_task, n_cand, r))
+        pq = np.zeros((n_task, n_cand, self.ia.size))
         for st in stats:
             c = self._dims(st.dims)
             z = self.z_tensor(st.dims) if self.use_z else self._no_z

@@ -52,7 +52,7 @@ from .model import (
     fit_demo_weights,
     shrink_covariances,
 )
-from .phase import LOG_2PI, InferenceEngine, ObservationPart, PartStats, refine_peak, refine_peaks
+from .phase import LOG_2PI, InferenceEngine, ObservationPart, PartStats, _kernels, refine_peak
 
 NOISE_GRID = (0.03, 0.1, 0.3, 1.0, 3.0, 10.0, 30.0, 100.0, 300.0, 1000.0)
 """Candidate noise ratios ``nu`` for ``noise="auto"``."""
@@ -485,12 +485,8 @@ class IProMP:
 
     def _recognition_from_loglik(self, loglik: np.ndarray, t_last: float, raw: bool = False):
         engine = self._engine_()
-        lp = loglik + engine.log_prior
-        with np.errstate(invalid="ignore"):
-            evidence = np.logaddexp.reduce(lp, axis=1)
+        evidence, logpost, alpha = _kernels().phase_posterior(loglik, engine.log_prior, engine.alphas)
         finite = np.isfinite(evidence)
-        logpost = np.where(finite[:, None], lp - np.where(finite, evidence, 0.0)[:, None], lp)
-        alpha = refine_peaks(engine.alphas, lp)
         if not finite.all():
             mus = np.array([self.models_[t].alpha_mu for t in self.tasks_])
             alpha[~finite] = mus[~finite]
@@ -545,6 +541,7 @@ class IProMP:
         ``N(Q^-1 a, Q^-1)`` with ``Q = I + P`` and the observed dims' weights get the
         extra correction ``X^-1 (b_d - G F_d eta)``.
         """
+        kern = _kernels()
         task = rec.task
         m = self.models_[task]
         alpha = float(rec.alpha[self.tasks_.index(task)])
@@ -556,28 +553,35 @@ class IProMP:
         inv_dur = 1.0 / (alpha * self.duration_nominal_s_)
         for part in parts:
             ke = self.basis_.support_count(float(part.t[-1]) * inv_dur)
-            bt = self.basis_.values_prefix_t(part.t * inv_dur, ke)  # (ke, n)
+            bt = self.basis_(part.t * inv_dur)[:, :ke].T  # (ke, n)
             gram = bt @ bt.T
             b = bt @ part.y - gram @ m.mean[part.dims, :ke].T  # (ke, dm)
             x = gram.copy()
             x[np.diag_indices(ke)] += nu
-            cx = cho_factor(x, lower=True, check_finite=False)
+            lx = kern.cholesky(x)
+            if not np.isfinite(lx[0, 0]):
+                raise ModelError("X = nu I + B^T B is not numerically positive definite")
             sd = np.sqrt(m.diag[part.dims])
             w = (m.factor[part.dims, :ke, :] / sd[:, None, None]).transpose(1, 0, 2)  # (ke, dm, r)
             wf = w.reshape(ke, -1)
-            sol = cho_solve(cx, np.concatenate([wf, b / sd], axis=1), check_finite=False)
+            sol = kern.cho_solve(lx, np.concatenate([wf, b / sd], axis=1))
             xw = sol[:, : wf.shape[1]]
             xb = sol[:, wf.shape[1] :]
             wd = w.transpose(1, 0, 2).reshape(-1, r)  # rows (d, k)
             q += wd.T @ (wd - nu * xw.reshape(ke, -1, r).transpose(1, 0, 2).reshape(-1, r))
             a += wd.T @ xb.T.reshape(-1)
-            kept.append((part.dims, ke, cx, gram, b))
-        lq = np.linalg.cholesky(q) if r else np.zeros((0, 0))
-        m_eta = cho_solve((lq, True), a, check_finite=False) if r else np.zeros(0)
+            kept.append((part.dims, ke, lx, gram, b))
+        if r:
+            lq = kern.cholesky(q)
+            if not np.isfinite(lq[0, 0]):
+                raise ModelError("Q = I + P is not numerically positive definite")
+            m_eta = kern.cho_solve(lq, a[:, None])[:, 0]
+        else:
+            lq, m_eta = np.zeros((0, 0)), np.zeros(0)
         w_post = m.mean + m.factor @ m_eta
-        for dims, ke, cx, gram, b in kept:
+        for dims, ke, lx, gram, b in kept:
             fu = (m.factor[dims, :ke, :] @ m_eta).T  # (ke, dm)
-            w_post[dims, :ke] += cho_solve(cx, b - gram @ fu, check_finite=False).T
+            w_post[dims, :ke] += kern.cho_solve(lx, b - gram @ fu).T
         return self._make_prediction(rec, m.factor, m, alpha, w_post, lq)
 
     def _grid_cache(self, task: str, factor: np.ndarray) -> dict[str, np.ndarray]:
@@ -598,7 +602,7 @@ class IProMP:
                 "phi2": np.sum(phi * phi, axis=1),
                 "prior_mean": self.scaler_.inverse(mean[:, lo:hi], slice(lo, hi)),
                 "prior_std": std[:, lo:hi] * self.scaler_.scale[lo:hi],
-                "phi_f": np.ascontiguousarray(np.einsum("mk,jkr->rmj", phi, fr)),  # (r, M, J)
+                "phi_f": np.ascontiguousarray(np.einsum("mk,jkr->rjm", phi, fr)),  # (r, J, M)
             }
             self._pred_cache[(task, factor.shape[2])] = c
         return c
@@ -612,17 +616,13 @@ class IProMP:
         scale = self.scaler_.scale[lo:hi]
         offset = self.scaler_.offset[lo:hi]
         q_mean = self.scaler_.inverse(phi @ w_post[lo:hi].T, slice(lo, hi))
-        r = lq.shape[0]
-        if r:
-            proj = solve_triangular(lq, c["phi_f"].reshape(r, -1), lower=True, check_finite=False).T.reshape(
-                -1, nj, r
-            )  # (M, J, r)
-            cov = proj @ np.swapaxes(proj, 1, 2)
+        if lq.shape[0]:
+            cov = _kernels().prediction_cov(lq, c["phi_f"], c["phi2"], m.diag[lo:hi], scale)
         else:
             cov = np.zeros((phi.shape[0], nj, nj))
-        idx = np.arange(nj)
-        cov[:, idx, idx] += c["phi2"][:, None] * m.diag[lo:hi]
-        cov *= scale[:, None] * scale[None, :]
+            idx = np.arange(nj)
+            cov[:, idx, idx] += c["phi2"][:, None] * m.diag[lo:hi]
+            cov *= scale[:, None] * scale[None, :]
         human = {}
         for g in self.observe:
             glo, ghi = self.group_slices_[g]
@@ -718,10 +718,13 @@ class StreamingEstimator:
         self._last: Recognition | None = None
         u, k = self._engine.alpha_unique.size, model.basis_.n_basis
         self._inv_dur = 1.0 / (self._engine.alpha_unique * model.duration_nominal_s_)
-        # presence pattern -> [groups, gram (U, K, K), n, last time]
-        self._patterns: list[list] = [[list(model.observe), np.zeros((u, k, k)), 0, 0.0]]
-        self._proj = {g: np.zeros((u, k, model.channel_names_[g].__len__())) for g in model.observe}
+        # presence pattern -> [groups, gram (K, K, U), n, last time]
+        self._patterns: list[list] = [[list(model.observe), np.zeros((k, k, u)), 0, 0.0]]
+        self._proj = {g: np.zeros((k, u, len(model.channel_names_[g]))) for g in model.observe}
         self._sq = {g: np.zeros(len(model.channel_names_[g])) for g in model.observe}
+        self._no_gram = np.zeros((k, 0, u))  # placeholders of kernels.add_sample
+        self._no_proj = np.zeros((k, u, 0))
+        self._no_y = np.zeros(0)
         self._longest = (
             max(float(m.alpha_grid[-1]) for m in model.models_.values()) * model.duration_nominal_s_
         )
@@ -781,8 +784,8 @@ class StreamingEstimator:
 
     def _accumulate(self, t_s: float, rows: dict[str, np.ndarray | None]) -> None:
         m = self.model
-        phi = m.basis_(t_s * self._inv_dur)  # (U, K)
-        outer = None
+        kern = _kernels()
+        phi = np.ascontiguousarray(m.basis_(t_s * self._inv_dur).T)  # (K, U)
         patterns = []
         for groups, gram, n, t_last in self._patterns:
             present = [g for g in groups if rows[g] is not None]
@@ -790,19 +793,17 @@ class StreamingEstimator:
             if absent:
                 patterns.append([absent, gram.copy() if present else gram, n, t_last])
             if present:
-                if outer is None:
-                    outer = phi[:, :, None] * phi[:, None, :]
-                gram += outer
+                kern.add_sample(gram, self._no_proj, phi, self._no_y)
                 patterns.append([present, gram, n + 1, t_s])
         self._patterns = patterns
         for g, v in rows.items():
             if v is not None:
-                self._proj[g] += phi[:, :, None] * v_scaled(m, g, v)[None, None, :]
-                self._sq[g] += v_scaled(m, g, v) ** 2
+                vs = np.ascontiguousarray(v_scaled(m, g, v), dtype=float)
+                kern.add_sample(self._no_gram, self._proj[g], phi, vs)
+                self._sq[g] += vs**2
 
     def _stats(self) -> list[PartStats]:
         m = self.model
-        eng = self._engine
         stats = []
         for groups, gram, n, t_last in self._patterns:
             if n == 0:
@@ -810,12 +811,14 @@ class StreamingEstimator:
             groups = [g for g in m.observe if g in groups]
             ke = m.basis_.support_count(t_last * float(self._inv_dur.max()))
             dims = np.concatenate([np.arange(*m.group_slices_[g]) for g in groups])
-            proj = np.concatenate([self._proj[g][:, :ke] for g in groups], axis=2)
-            sq = np.concatenate([self._sq[g] for g in groups])
-            stats.append(PartStats(dims, n, ke, np.ascontiguousarray(gram[:, :ke, :ke]), proj, sq))
+            if len(groups) == 1:
+                proj, sq = self._proj[groups[0]], self._sq[groups[0]]
+            else:
+                proj = np.concatenate([self._proj[g] for g in groups], axis=2)
+                sq = np.concatenate([self._sq[g] for g in groups])
+            stats.append(PartStats(dims, n, ke, gram, proj, sq))
         if sum(s.n for s in stats) < 2:
             raise ObservationError("stream", "t", "need at least 2 observed samples")
-        del eng
         return stats
 
     def _recognise(self) -> Recognition:

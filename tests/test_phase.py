@@ -64,3 +64,43 @@ def test_phase_estimate_beats_the_prior_on_synthetic_data() -> None:
             err_est.append(abs(rec.alpha[k] - true) / true)
             err_prior.append(abs(model.models_[task].alpha_mu - true) / true)
     assert np.mean(err_est) < np.mean(err_prior)
+
+
+def test_compiled_x_inverse_equals_lapack() -> None:
+    from ipromp_pin.exceptions import ModelError
+
+    train, _ = split(random_dataset(7), 6)
+    engine = IProMP(["a", "b"], n_basis=8, n_alpha=50, noise=0.5).fit(train)._engine_()
+    rng = np.random.default_rng(0)
+    b = rng.normal(size=(13, 9, 5))  # 13 candidates, 9 basis functions, 5 samples: G singular
+    gram = np.ascontiguousarray((b @ np.swapaxes(b, 1, 2)).transpose(1, 2, 0))
+    xinv, logdet = engine.x_inverse(gram, 0.3)
+    x = np.moveaxis(gram, 2, 0) + 0.3 * np.eye(9)
+    assert np.allclose(xinv, np.linalg.inv(x), rtol=1e-10, atol=1e-12)
+    assert np.allclose(logdet, np.linalg.slogdet(x)[1], rtol=1e-12)
+    sub, _ = engine.x_inverse(gram, 0.3, ke=4)  # leading block only
+    assert np.allclose(sub, np.linalg.inv(x[:, :4, :4]), rtol=1e-10, atol=1e-12)
+    with pytest.raises(ModelError, match="positive definite"):
+        engine.x_inverse(gram, -100.0)
+
+
+def test_compiled_phase_posterior_equals_numpy() -> None:
+    from ipromp_pin.kernels import phase_posterior
+    from ipromp_pin.phase import refine_peaks
+
+    rng = np.random.default_rng(1)
+    grids = np.sort(rng.uniform(0.5, 1.5, (4, 30)), axis=1)
+    loglik = -50.0 * (grids - rng.uniform(0.6, 1.4, (4, 1))) ** 2 + rng.normal(0, 0.01, (4, 30))
+    loglik[1, :5] = -np.inf  # impossible candidates
+    loglik[2, :] = -np.inf  # impossible task
+    loglik[3, 0] = 10.0  # peak at the edge: no refinement
+    prior = rng.normal(0, 1, (4, 30))
+    evidence, logpost, alpha = phase_posterior(loglik, prior, grids)
+    lp = loglik + prior
+    rows = [0, 1, 3]
+    ref_ev = np.logaddexp.reduce(lp[rows], axis=1)
+    assert np.allclose(evidence[rows], ref_ev, rtol=1e-13)
+    assert evidence[2] == -np.inf and np.all(logpost[2] == -np.inf)
+    assert np.allclose(logpost[rows], lp[rows] - ref_ev[:, None], rtol=1e-12, atol=1e-12)
+    assert np.array_equal(alpha[rows], refine_peaks(grids, lp)[rows])
+    assert alpha[3] == grids[3, 0]

@@ -276,9 +276,9 @@ def plot_accuracy(
     figsize: tuple[float, float] = (12.0, 4.5),
     dpi: int = 100,
 ) -> Path:
-    """Recognition accuracy against the observed ratio, one panel per training-set size.
+    """Recognition accuracy per cell (training-set size, observed ratio) as grouped bars.
 
-    One line per ``observe`` setting (e.g. ``"orientation"`` vs ``"orientation,emg"``), averaged
+    One bar per ``observe`` setting (e.g. ``"orientation"`` vs ``"orientation,emg"``), averaged
     over the tasks of the records.
 
     Args:
@@ -307,36 +307,35 @@ def plot_accuracy(
         rows = [
             (n, ratio, f"{protocol}: {observe}", acc, protocol) for n, ratio, observe, acc, protocol in rows
         ]
-    n_trains = sorted({r[0] for r in rows})
+    cells = sorted({(r[0], r[1]) for r in rows}, key=lambda c: (-c[0], c[1]))
     settings = sorted({r[2] for r in rows}, key=lambda s: ("emg" in s, s))
-    fig, axes = plt.subplots(
-        1, len(n_trains), figsize=figsize, squeeze=False, sharey=True, layout="constrained"
-    )
-    for ax, n_train in zip(axes.flat, n_trains, strict=True):
-        for k, setting in enumerate(settings):
-            selected = [r for r in rows if r[0] == n_train and r[2] == setting]
-            if not selected:
-                continue
-            ratios = sorted({r[1] for r in selected})
-            mean = [np.mean([r[3] for r in selected if r[1] == ratio]) for ratio in ratios]
-            style = "-" if "emg" in setting else "--"
-            ax.plot(ratios, mean, style, marker="o", color=f"C{k}", label=setting)
-            for ratio, value in zip(ratios, mean, strict=True):
+    fig, ax = plt.subplots(figsize=figsize, layout="constrained")
+    width = 0.8 / len(settings)
+    x = np.arange(len(cells))
+    for k, setting in enumerate(settings):
+        mean = []
+        for n_train, ratio in cells:
+            values = [r[3] for r in rows if (r[0], r[1], r[2]) == (n_train, ratio, setting)]
+            mean.append(np.mean(values) if values else np.nan)
+        pos = x - 0.4 + (k + 0.5) * width
+        hatch = None if "emg" in setting else "//"
+        ax.bar(pos, mean, width, color=f"C{k}", hatch=hatch, edgecolor="white", label=setting)
+        for xi, value in zip(pos, mean, strict=True):
+            if np.isfinite(value):
                 ax.annotate(
                     f"{value:.2f}",
-                    (ratio, value),
+                    (xi, value),
                     textcoords="offset points",
-                    xytext=(0, 5),
+                    xytext=(0, 2),
                     ha="center",
                     fontsize=7,
                     color=f"C{k}",
                 )
-        ax.set_title(f"{n_train} training demos / task", fontsize=10)
-        ax.set_xlabel("observed ratio of the motion")
-        ax.set_ylim(0.0, 1.05)
-        ax.grid(alpha=0.3)
-    axes.flat[0].set_ylabel("accuracy")
-    axes.flat[0].legend(fontsize=8, loc="lower right")
+    ax.set_xticks(x, [f"{n} train / task\n{ratio:.0%} observed" for n, ratio in cells])
+    ax.set_ylabel("accuracy (mean over tasks)")
+    ax.set_ylim(0.0, 1.1)
+    ax.grid(axis="y", alpha=0.3)
+    ax.legend(fontsize=8, loc="lower left")
     fig.suptitle(title)
     return _save(fig, path, dpi)
 

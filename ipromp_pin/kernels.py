@@ -13,6 +13,7 @@ import numpy as np
 from numba import njit
 
 _JIT = {"cache": True, "nogil": True, "fastmath": False, "error_model": "numpy"}
+_JIT_FMA = {**_JIT, "fastmath": {"contract"}}  # fused multiply-add only (no reassociation)
 LOG_2PI = float(np.log(2.0 * np.pi))
 
 
@@ -479,3 +480,217 @@ def add_sample(gram: np.ndarray, proj: np.ndarray, phi: np.ndarray, y: np.ndarra
             p = phi[k, u]
             for d in range(proj.shape[2]):
                 proj[k, u, d] += p * y[d]
+
+
+@njit(**_JIT_FMA)
+def stream_step(
+    xinv: np.ndarray,
+    logdet: np.ndarray,
+    phi: np.ndarray,
+    y: np.ndarray,
+    proj: np.ndarray,
+    nu: float,
+    tasks: np.ndarray,
+    index: np.ndarray,
+    mu_k: np.ndarray,
+    inv_delta: np.ndarray,
+    log_delta: np.ndarray,
+    w_1: np.ndarray,
+    ia: np.ndarray,
+    ib: np.ndarray,
+    total: np.ndarray,
+    a: np.ndarray,
+    pq: np.ndarray,
+) -> bool:
+    """Add one sample (all observed dims, same active basis functions) to the terms of :func:`part_terms`.
+
+    With ``g = X^-1 phi`` and ``s = 1 + phi^T g`` (Sherman-Morrison), per unique candidate
+    ``X^-1 -= g g^T / s`` and ``log|X| += log s``; per pair, with ``h_d = B^T y_d + nu mu_d`` (after the
+    sample, ``proj`` already updated) and ``c_d = y_d - g^T h_d / s``: ``X^-1 h_d += c_d g``,
+    ``h_d^T X^-1 h_d += 2 y_d g^T h_d - (s - 1) y_d^2 - (g^T h_d)^2 / s``, ``a += sum_d c_d W_d^T g /
+    sqrt(delta_d)`` and ``P += nu / s sum_d (W_d^T g)(W_d^T g)^T``.
+
+    Args:
+        xinv, logdet: (ke, ke, U) ``X^-1`` and (U,) ``log|X|`` per unique candidate, updated in place.
+        phi: (K, U) basis values of the new sample; y: (D,) its scaled values.
+        proj: (K, U, D) ``B^T y`` including the new sample.
+        total, a, pq: (T' C,), (r, T' C) and packed ``P`` (r(r+1)/2, T' C) with pairs ordered
+            (task, candidate), innermost; updated in place.
+        Other arguments as in :func:`part_terms` (``ia``, ``ib``: row and column of each packed entry).
+
+    Returns:
+        False when ``X`` lost positive definiteness (``s <= 0``).
+    """
+    ke = xinv.shape[0]
+    n_u = xinv.shape[2]
+    dm = y.shape[0]
+    n_t, n_c = index.shape
+    r = a.shape[0]
+    npk = ia.shape[0]
+    g = np.zeros((ke, n_u))
+    for k in range(ke):
+        gk = g[k]
+        for j in range(ke):
+            xkj = xinv[k, j]
+            pj = phi[j]
+            for u in range(n_u):
+                gk[u] += xkj[u] * pj[u]
+    s = np.ones(n_u)
+    for k in range(ke):
+        gk = g[k]
+        pk = phi[k]
+        for u in range(n_u):
+            s[u] += pk[u] * gk[u]
+    for u in range(n_u):
+        if not s[u] > 0.0:
+            return False
+        logdet[u] += np.log(s[u])
+    for k in range(ke):
+        gk = g[k]
+        for j in range(ke):
+            xkj = xinv[k, j]
+            gj = g[j]
+            for u in range(n_u):
+                xkj[u] -= gk[u] * gj[u] / s[u]
+    gc = np.empty((ke, n_c))
+    sc = np.empty(n_c)
+    gh = np.empty((dm, n_c))
+    v = np.empty((dm, r, n_c))
+    fv = np.empty((dm, r, n_c))
+    acc = np.empty(n_c)
+    f = np.empty(n_c)
+    step = dm * (LOG_2PI + np.log(nu))
+    for ti in range(n_t):
+        t = tasks[ti]
+        idx = index[ti]
+        for c in range(n_c):
+            sc[c] = s[idx[c]]
+            f[c] = nu / sc[c]
+        for k in range(ke):
+            for c in range(n_c):
+                gc[k, c] = g[k, idx[c]]
+        gh[:, :] = 0.0
+        for k in range(ke):
+            gk = gc[k]
+            for d in range(dm):
+                ghd = gh[d]
+                mkd = nu * mu_k[t, k, d]
+                for c in range(n_c):
+                    ghd[c] += gk[c] * (proj[k, idx[c], d] + mkd)
+        off = ti * n_c
+        tt = total[off : off + n_c]
+        base = step + log_delta[t]
+        for c in range(n_c):
+            tt[c] += base + dm * np.log(sc[c])
+        vb = np.dot(np.ascontiguousarray(gc.T), w_1[t, : ke * dm].reshape(ke, dm * r))  # (C, D r)
+        for d in range(dm):
+            for p in range(r):
+                vdp = v[d, p]
+                col = d * r + p
+                for c in range(n_c):
+                    vdp[c] = vb[c, col]
+        for d in range(dm):
+            yd = y[d]
+            wd = inv_delta[t, d]
+            sdi = np.sqrt(wd)
+            ghd = gh[d]
+            vd = v[d]
+            for c in range(n_c):
+                dq = 2.0 * yd * ghd[c] - (sc[c] - 1.0) * yd * yd - ghd[c] * ghd[c] / sc[c]
+                tt[c] += wd * (yd * yd - dq) / nu
+                ghd[c] = (yd - ghd[c] / sc[c]) * sdi  # c_d / sqrt(delta_d)
+            for p in range(r):
+                ap = a[p, off : off + n_c]
+                vdp = vd[p]
+                for c in range(n_c):
+                    ap[c] += ghd[c] * vdp[c]
+        for d in range(dm):
+            for p in range(r):
+                vdp = v[d, p]
+                fdp = fv[d, p]
+                for c in range(n_c):
+                    fdp[c] = f[c] * vdp[c]
+        for q in range(npk):
+            i = ia[q]
+            j = ib[q]
+            acc[:] = 0.0
+            for d in range(dm):
+                fi = fv[d, i]
+                vj = v[d, j]
+                for c in range(n_c):
+                    acc[c] += fi[c] * vj[c]
+            pq_q = pq[q, off : off + n_c]
+            for c in range(n_c):
+                pq_q[c] += acc[c]
+    return True
+
+
+@njit(**_JIT)
+def finish_soa(
+    pq: np.ndarray,
+    a: np.ndarray,
+    total: np.ndarray,
+    unpack: np.ndarray,
+    alphas: np.ndarray,
+    t_norm: float,
+    t_last: float,
+    loglik: np.ndarray,
+) -> bool:
+    """:func:`finish_terms` for ``pq`` (r(r+1)/2, T' C), ``a`` (r, T' C) and ``total`` (T' C,) with pairs
+    ordered (task, candidate), innermost; ``loglik`` (T', C)."""
+    r, n_p = a.shape
+    n_c = alphas.shape[1]
+    lq = np.empty((r, r, n_p))
+    v = np.empty((r, n_p))
+    logdet = np.zeros(n_p)
+    for i in range(r):
+        for j in range(i + 1):
+            lq[i, j, :] = pq[unpack[i, j]]
+        lq[i, i] += 1.0
+    if not chol_soa(lq, r, logdet):
+        return False
+    vv = np.zeros(n_p)
+    for i in range(r):
+        vi = v[i]
+        vi[:] = a[i]
+        for k in range(i):
+            lik = lq[i, k]
+            vk = v[k]
+            for c in range(n_p):
+                vi[c] -= lik[c] * vk[c]
+        lii = lq[i, i]
+        for c in range(n_p):
+            vi[c] /= lii[c]
+            vv[c] += vi[c] * vi[c]
+    for p in range(n_p):
+        t = p // n_c
+        c = p - t * n_c
+        if t_last > alphas[t, c] * t_norm * (1.0 + 1e-12):
+            loglik[t, c] = -np.inf
+        else:
+            loglik[t, c] = -0.5 * (total[p] + logdet[p] - vv[p])
+    return True
+
+
+@njit(**_JIT)
+def basis_rows(z: np.ndarray, centres: np.ndarray, width: float, step: np.ndarray) -> np.ndarray:
+    """Gaussian basis values (K, U) at phases ``z`` (U,): the running product of
+    :meth:`ipromp_pin.basis.GaussianBasis.values_prefix_t` (``step`` (K-1,) its step factors), exact
+    exponentials for a phase where ``phi_0`` could underflow."""
+    n_k = centres.shape[0]
+    n_u = z.shape[0]
+    inv_h2 = 1.0 / (width * width)
+    spacing = centres[1] - centres[0]
+    out = np.empty((n_k, n_u))
+    for u in range(n_u):
+        d0 = z[u] - centres[0]
+        if 0.5 * d0 * d0 * inv_h2 > 650.0:
+            for k in range(n_k):
+                d = (z[u] - centres[k]) / width
+                out[k, u] = np.exp(-0.5 * d * d)
+        else:
+            out[0, u] = np.exp(-0.5 * inv_h2 * d0 * d0)
+            q = np.exp(z[u] * (spacing * inv_h2))
+            for k in range(1, n_k):
+                out[k, u] = out[k - 1, u] * (q * step[k - 1])
+    return out

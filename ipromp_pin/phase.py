@@ -354,6 +354,81 @@ class InferenceEngine:
         return Terms(loglik=loglik)
 
 
+class IncrementalTerms:
+    """Log likelihood of a growing observation, updated sample by sample (streaming).
+
+    Holds per unique candidate ``X^-1`` and ``log|X|`` and per (task, candidate) the terms of
+    :meth:`InferenceEngine.terms` (``P``, ``a`` and the scalar terms) for ONE observation part with
+    every observed dim; :meth:`reset` computes them from part statistics, :meth:`add` adds one sample
+    with the same active basis functions exactly (Sherman-Morrison update of ``X^-1``, rank-D update
+    of ``P``, see :func:`ipromp_pin.kernels.stream_step`); ``log|Q|`` and ``a^T Q^-1 a`` are
+    recomputed from ``Q`` on every call.
+
+    Args:
+        engine: The model's inference engine.
+    """
+
+    def __init__(self, engine: InferenceEngine) -> None:
+        self.engine = engine
+        self._kern = _kernels()
+        self.ke = -1
+        self.dims = np.arange(engine.n_obs)
+        self._c = engine._dims(self.dims)
+
+    def reset(self, stats: PartStats, t_last: float) -> np.ndarray:
+        """Terms from part statistics ``stats`` (all observed dims) -> log likelihood (T, C)."""
+        e = self.engine
+        kern = self._kern
+        ke = stats.ke
+        gram = np.ascontiguousarray(stats.gram)
+        self.xinv = np.empty((ke, ke, gram.shape[2]))
+        self.logdet = kern.x_inverse(gram, ke, e.nu, self.xinv, np.empty_like(self.xinv))
+        if not np.all(np.isfinite(self.logdet)):
+            raise ModelError("X = nu I + B^T B is not numerically positive definite")
+        n_task, n_cand = e.alphas.shape
+        total = np.zeros((n_task, n_cand))
+        a = np.zeros((n_task, n_cand, e.rank))
+        pq = np.zeros((n_task, n_cand, e.ia.size))
+        c = self._c
+        z = e.z_tensor(self.dims) if e.use_z else e._no_z
+        ok = kern.part_terms(
+            gram, stats.proj, stats.sq, stats.n, ke, e.nu, e._all_tasks, e.cand_index, c["mu_k"],
+            c["inv_delta"], c["mu2"], c["log_delta"], c["w_k"], c["w_1"], z, e.pk, e.pl, e.unpack,
+            e.use_z, total, a, pq,
+        )  # fmt: skip
+        if not ok:
+            raise ModelError("X = nu I + B^T B is not numerically positive definite")
+        # pairs flattened (task, candidate) and innermost
+        self.total = total.reshape(-1)
+        self.a = np.ascontiguousarray(a.reshape(-1, e.rank).T)
+        self.pq = np.ascontiguousarray(pq.reshape(-1, e.ia.size).T)
+        self.ke = ke
+        return self._finish(t_last)
+
+    def add(self, phi: np.ndarray, y: np.ndarray, proj: np.ndarray, t_last: float) -> np.ndarray:
+        """Add one sample: basis values ``phi`` (K, U), scaled values ``y`` (D,), ``proj`` (K, U, D)
+        already including it -> log likelihood (T, C)."""
+        e = self.engine
+        c = self._c
+        ok = self._kern.stream_step(
+            self.xinv, self.logdet, phi, y, proj, e.nu, e._all_tasks, e.cand_index, c["mu_k"],
+            c["inv_delta"], c["log_delta"], c["w_1"], e.ia, e.ib, self.total, self.a, self.pq,
+        )  # fmt: skip
+        if not ok:
+            self.ke = -1  # partly updated: rebuilt by the next reset
+            raise ModelError("X = nu I + B^T B is not numerically positive definite")
+        return self._finish(t_last)
+
+    def _finish(self, t_last: float) -> np.ndarray:
+        e = self.engine
+        loglik = np.empty(e.alphas.shape)
+        if not self._kern.finish_soa(
+            self.pq, self.a, self.total, e.unpack, e.alphas, e.t_norm, float(t_last), loglik
+        ):
+            raise ModelError("Q = I + P is not numerically positive definite")
+        return loglik
+
+
 def refine_peaks(grids: np.ndarray, logpost: np.ndarray) -> np.ndarray:
     """:func:`refine_peak` of every row of ``logpost`` (T, C) on ``grids`` (T, C), vectorised -> (T,)."""
     n_task, n_cand = grids.shape

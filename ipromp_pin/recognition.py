@@ -52,13 +52,25 @@ from .model import (
     fit_demo_weights,
     shrink_covariances,
 )
-from .phase import LOG_2PI, InferenceEngine, ObservationPart, PartStats, _kernels, refine_peak
+from .phase import (
+    LOG_2PI,
+    IncrementalTerms,
+    InferenceEngine,
+    ObservationPart,
+    PartStats,
+    _kernels,
+    refine_peak,
+)
 
 NOISE_GRID = (0.03, 0.1, 0.3, 1.0, 3.0, 10.0, 30.0, 100.0, 300.0, 1000.0)
 """Candidate noise ratios ``nu`` for ``noise="auto"``."""
 
 CV_RATIOS = (0.1, 0.2)
 """Observed fractions of the held-out demo used by the noise cross-validation."""
+
+STREAM_EXTRA_BASIS = 4
+"""Basis functions a :class:`StreamingEstimator` keeps beyond the observed window's support, so that its
+incremental terms are rebuilt only when the window reaches past them."""
 
 CV_MAX_FOLDS = 30
 """Largest number of held-out demos of the noise cross-validation (spread evenly over tasks and demos)."""
@@ -561,15 +573,14 @@ class IProMP:
             lx = kern.cholesky(x)
             if not np.isfinite(lx[0, 0]):
                 raise ModelError("X = nu I + B^T B is not numerically positive definite")
-            sd = np.sqrt(m.diag[part.dims])
-            w = (m.factor[part.dims, :ke, :] / sd[:, None, None]).transpose(1, 0, 2)  # (ke, dm, r)
-            wf = w.reshape(ke, -1)
+            sd, w_all = self._scaled_factor(task, part.dims)
+            wf = w_all[:ke].reshape(ke, -1)  # (ke, dm r): W_d / sqrt(delta_d), rows k
             sol = kern.cho_solve(lx, np.concatenate([wf, b / sd], axis=1))
-            xw = sol[:, : wf.shape[1]]
+            xw = sol[:, : wf.shape[1]].reshape(-1, r)  # rows (k, d)
             xb = sol[:, wf.shape[1] :]
-            wd = w.transpose(1, 0, 2).reshape(-1, r)  # rows (d, k)
-            q += wd.T @ (wd - nu * xw.reshape(ke, -1, r).transpose(1, 0, 2).reshape(-1, r))
-            a += wd.T @ xb.T.reshape(-1)
+            wk = wf.reshape(-1, r)  # rows (k, d)
+            q += wk.T @ (wk - nu * xw)
+            a += wk.T @ xb.reshape(-1)
             kept.append((part.dims, ke, lx, gram, b))
         if r:
             lq = kern.cholesky(q)
@@ -578,11 +589,26 @@ class IProMP:
             m_eta = kern.cho_solve(lq, a[:, None])[:, 0]
         else:
             lq, m_eta = np.zeros((0, 0)), np.zeros(0)
-        w_post = m.mean + m.factor @ m_eta
+        f_eta = m.factor @ m_eta  # (D, K)
+        w_post = m.mean + f_eta
         for dims, ke, lx, gram, b in kept:
-            fu = (m.factor[dims, :ke, :] @ m_eta).T  # (ke, dm)
+            fu = f_eta[dims, :ke].T  # (ke, dm)
             w_post[dims, :ke] += kern.cho_solve(lx, b - gram @ fu).T
         return self._make_prediction(rec, m.factor, m, alpha, w_post, lq)
+
+    def _scaled_factor(self, task: str, dims: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``sqrt(delta_d)`` (D_m,) and ``F_d / sqrt(delta_d)`` (K, D_m, r) of the observed dims ``dims``
+        of a task (cached)."""
+        if self._pred_cache is None:
+            self._pred_cache = {}
+        key = ("factor", task, dims.tobytes())
+        c = self._pred_cache.get(key)
+        if c is None:
+            m = self.models_[task]
+            sd = np.sqrt(m.diag[dims])
+            w = np.ascontiguousarray((m.factor[dims] / sd[:, None, None]).transpose(1, 0, 2))
+            self._pred_cache[key] = c = (sd, w)
+        return c
 
     def _grid_cache(self, task: str, factor: np.ndarray) -> dict[str, np.ndarray]:
         """Model-only quantities on the fixed prediction phase grid (cached per task)."""
@@ -615,7 +641,9 @@ class IProMP:
         phi = c["phi"]
         scale = self.scaler_.scale[lo:hi]
         offset = self.scaler_.offset[lo:hi]
-        q_mean = self.scaler_.inverse(phi @ w_post[lo:hi].T, slice(lo, hi))
+        # every modelled channel at once: one product and one inverse scaling
+        mean_all = self.scaler_.inverse(phi @ w_post.T, slice(None))
+        q_mean = np.ascontiguousarray(mean_all[:, lo:hi])
         if lq.shape[0]:
             cov = _kernels().prediction_cov(lq, c["phi_f"], c["phi2"], m.diag[lo:hi], scale)
         else:
@@ -626,7 +654,7 @@ class IProMP:
         human = {}
         for g in self.observe:
             glo, ghi = self.group_slices_[g]
-            human[g] = self.scaler_.inverse(phi @ w_post[glo:ghi].T, slice(glo, ghi))
+            human[g] = np.ascontiguousarray(mean_all[:, glo:ghi])
         return Prediction(
             **vars(rec),
             t=c["z"] * duration,
@@ -700,10 +728,14 @@ class StreamingEstimator:
 
     Each :meth:`update` adds the new sample's contribution to running sufficient
     statistics (``B^T B``, ``B^T y`` and ``y^T y`` for every phase candidate; one
-    basis row per candidate instead of the whole basis matrix), then evaluates the
-    exact likelihood of every (task, candidate) from them. The result equals
-    :meth:`IProMP.recognise` / :meth:`IProMP.predict` on a :class:`Demo` holding
-    the same samples (to rounding).
+    basis row per candidate instead of the whole basis matrix). While every sample
+    has every observed group and the number of active basis functions stays the
+    same, the likelihood terms are updated incrementally
+    (:class:`~ipromp_pin.phase.IncrementalTerms`: Sherman-Morrison update of
+    ``X^-1``, rank-D update of ``P``, one Cholesky factorisation of ``Q`` per
+    (task, candidate)); otherwise they are recomputed from the statistics. The
+    result equals :meth:`IProMP.recognise` / :meth:`IProMP.predict` on a
+    :class:`Demo` holding the same samples (to rounding).
 
     Channel groups that are missing in some samples are tracked separately: groups
     with identical presence histories share their statistics, as in the one-shot call.
@@ -717,14 +749,19 @@ class StreamingEstimator:
         self._missing: dict[str, list[bool]] = {g: [] for g in model.observe}
         self._last: Recognition | None = None
         u, k = self._engine.alpha_unique.size, model.basis_.n_basis
+        n_obs = model.n_obs_dims_
         self._inv_dur = 1.0 / (self._engine.alpha_unique * model.duration_nominal_s_)
+        self._inv_dur_max = float(self._inv_dur.max())
+        self._slices = [(g, *model.group_slices_[g]) for g in model.observe]
         # presence pattern -> [groups, gram (K, K, U), n, last time]
         self._patterns: list[list] = [[list(model.observe), np.zeros((k, k, u)), 0, 0.0]]
-        self._proj = {g: np.zeros((k, u, len(model.channel_names_[g]))) for g in model.observe}
-        self._sq = {g: np.zeros(len(model.channel_names_[g])) for g in model.observe}
+        self._proj = np.zeros((k, u, n_obs))  # B^T y of every observed dim (missing samples add 0)
+        self._sq = np.zeros(n_obs)
         self._no_gram = np.zeros((k, 0, u))  # placeholders of kernels.add_sample
         self._no_proj = np.zeros((k, u, 0))
         self._no_y = np.zeros(0)
+        self._inc: IncrementalTerms | None = IncrementalTerms(self._engine)
+        self._kern = _kernels()
         self._longest = (
             max(float(m.alpha_grid[-1]) for m in model.models_.values()) * model.duration_nominal_s_
         )
@@ -750,57 +787,61 @@ class StreamingEstimator:
             raise ObservationError(
                 "stream", "t", f"observation lasts {t_s:.2f} s, longer than any task's plausible motion"
             )
-        unknown = set(sample) - set(m.observe)
-        if unknown:
-            raise ObservationError("stream", sorted(unknown)[0], f"not an observed group ({m.observe})")
-        rows = {}
-        for g in m.observe:
+        for g in sample:
+            if g not in self._values:
+                raise ObservationError("stream", g, f"not an observed group ({m.observe})")
+        y = np.zeros(self._sq.size)
+        present = []
+        for g, lo, hi in self._slices:
             v = sample.get(g)
-            lo, hi = m.group_slices_[g]
             if v is None:
-                rows[g] = None
                 continue
             v = np.asarray(v, dtype=float).reshape(-1)
             if v.size != hi - lo:
                 raise ObservationError(
                     "stream", g, f"sample has {v.size} values, the model expects {hi - lo}"
                 )
-            if not np.all(np.isfinite(v)):
-                raise ObservationError("stream", g, f"NaN or inf in the sample at t={t_s:.3f} s")
-            rows[g] = v
+            y[lo:hi] = v
+            present.append(g)
+        if not np.all(np.isfinite(y)):
+            bad = next(g for g, lo, hi in self._slices if not np.all(np.isfinite(y[lo:hi])))
+            raise ObservationError("stream", bad, f"NaN or inf in the sample at t={t_s:.3f} s")
         self._t.append(t_s)
-        for g in m.observe:
-            v = rows[g]
-            self._values[g].append(
-                np.full(m.group_slices_[g][1] - m.group_slices_[g][0], np.nan) if v is None else v
-            )
-            self._missing[g].append(v is None)
+        for g, lo, hi in self._slices:
+            ok = g in present
+            self._values[g].append(y[lo:hi].copy() if ok else np.full(hi - lo, np.nan))
+            self._missing[g].append(not ok)
+        if len(present) == len(self._slices):
+            y = m.scaler_.transform(y, slice(0, y.size))
+        else:
+            self._inc = None  # the incremental terms hold one part with every observed dim
+            for g, lo, hi in self._slices:
+                y[lo:hi] = v_scaled(m, g, y[lo:hi]) if g in present else 0.0
         with m._limit_threads():
-            self._accumulate(t_s, rows)
+            phi = self._accumulate(t_s, set(present), y)
             if len(self._t) < 2:
                 return None
-            self._last = self._recognise()
+            self._last = self._recognise(phi, y)
         return self._last
 
-    def _accumulate(self, t_s: float, rows: dict[str, np.ndarray | None]) -> None:
-        m = self.model
-        kern = _kernels()
-        phi = np.ascontiguousarray(m.basis_(t_s * self._inv_dur).T)  # (K, U)
+    def _accumulate(self, t_s: float, present: set[str], y: np.ndarray) -> np.ndarray:
+        """Add the sample (scaled values ``y`` (D,), 0 in missing groups) -> basis values (K, U)."""
+        kern = self._kern
+        b = self.model.basis_
+        phi = kern.basis_rows(t_s * self._inv_dur, b.centres, b.width, b._step_factor)
         patterns = []
         for groups, gram, n, t_last in self._patterns:
-            present = [g for g in groups if rows[g] is not None]
-            absent = [g for g in groups if rows[g] is None]
+            have = [g for g in groups if g in present]
+            absent = [g for g in groups if g not in present]
             if absent:
-                patterns.append([absent, gram.copy() if present else gram, n, t_last])
-            if present:
+                patterns.append([absent, gram.copy() if have else gram, n, t_last])
+            if have:
                 kern.add_sample(gram, self._no_proj, phi, self._no_y)
-                patterns.append([present, gram, n + 1, t_s])
+                patterns.append([have, gram, n + 1, t_s])
         self._patterns = patterns
-        for g, v in rows.items():
-            if v is not None:
-                vs = np.ascontiguousarray(v_scaled(m, g, v), dtype=float)
-                kern.add_sample(self._no_gram, self._proj[g], phi, vs)
-                self._sq[g] += vs**2
+        kern.add_sample(self._no_gram, self._proj, phi, y)
+        self._sq += y * y
+        return phi
 
     def _stats(self) -> list[PartStats]:
         m = self.model
@@ -809,21 +850,33 @@ class StreamingEstimator:
             if n == 0:
                 continue
             groups = [g for g in m.observe if g in groups]
-            ke = m.basis_.support_count(t_last * float(self._inv_dur.max()))
+            ke = m.basis_.support_count(t_last * self._inv_dur_max)
             dims = np.concatenate([np.arange(*m.group_slices_[g]) for g in groups])
-            if len(groups) == 1:
-                proj, sq = self._proj[groups[0]], self._sq[groups[0]]
+            if dims.size == self._sq.size:
+                proj, sq = self._proj, self._sq
             else:
-                proj = np.concatenate([self._proj[g] for g in groups], axis=2)
-                sq = np.concatenate([self._sq[g] for g in groups])
+                proj, sq = np.ascontiguousarray(self._proj[:, :, dims]), self._sq[dims]
             stats.append(PartStats(dims, n, ke, gram, proj, sq))
         if sum(s.n for s in stats) < 2:
             raise ObservationError("stream", "t", "need at least 2 observed samples")
         return stats
 
-    def _recognise(self) -> Recognition:
+    def _recognise(self, phi: np.ndarray, y: np.ndarray) -> Recognition:
         t_last = self._t[-1]
-        loglik = self._engine.terms(self._stats(), t_last).loglik
+        inc = self._inc
+        if inc is None:
+            loglik = self._engine.terms(self._stats(), t_last).loglik
+        else:
+            basis = self.model.basis_
+            need = basis.support_count(t_last * self._inv_dur_max)
+            if inc.ke >= need:
+                loglik = inc.add(phi, y, self._proj, t_last)
+            else:
+                # a few more basis functions than needed (each below the support threshold on the
+                # observed window, as the one-shot truncation) so that resets stay rare
+                stats = self._stats()[0]
+                stats.ke = min(basis.n_basis, need + STREAM_EXTRA_BASIS)
+                loglik = inc.reset(stats, t_last)
         return self.model._recognition_from_loglik(loglik, t_last)
 
     def observation(self) -> Demo:

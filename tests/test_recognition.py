@@ -91,6 +91,30 @@ def test_stream_equals_one_shot_with_missing_samples() -> None:
     assert np.allclose(pred.q_mean, model.predict(demo).q_mean, rtol=1e-12, atol=1e-12)
 
 
+@pytest.mark.parametrize("noise", [1.0, 0.03])
+def test_incremental_stream_equals_one_shot_at_every_sample(noise: float) -> None:
+    # no missing samples: the incremental (Sherman-Morrison) path, rebuilt as the window grows
+    train, test = split(random_dataset(14, n_demos=8), 6)
+    model = IProMP(["a", "b"], n_basis=16, n_alpha=50, noise=noise).fit(train)
+    demo = test["task0"][0].head(0.6, model.observe)
+    stream = model.stream()
+    kes = set()
+    for j in range(demo.n_samples):
+        rec = stream.update(demo.t[j], {g: demo.groups[g][j] for g in model.observe})
+        if j == 0:
+            continue
+        kes.add(stream._inc.ke)
+        one = model.recognise(demo.slice(j + 1))
+        finite = np.isfinite(one.phase_log_post)
+        assert np.array_equal(finite, np.isfinite(rec.phase_log_post))
+        assert np.allclose(rec.phase_log_post[finite], one.phase_log_post[finite], rtol=1e-9, atol=1e-8)
+        assert np.allclose(rec.log_posterior, one.log_posterior, rtol=1e-9, atol=1e-9)
+        assert np.allclose(rec.alpha, one.alpha, rtol=1e-9)
+    assert len(kes) >= 2  # the incremental terms were rebuilt at least once
+    pred = stream.prediction()
+    assert np.allclose(pred.q_mean, model.predict(demo).q_mean, rtol=1e-12, atol=1e-12)
+
+
 def test_noise_is_chosen_by_cross_validation(fitted) -> None:
     model, _ = fitted
     assert model.noise_ratio_ in NOISE_GRID

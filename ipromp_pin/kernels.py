@@ -297,40 +297,9 @@ def finish_terms(
     Returns False when a ``Q`` was not numerically positive definite.
     """
     n_t, n_c, r = a.shape
-    lq = np.empty((r, r, n_c))
-    v = np.empty((r, n_c))
-    logdet = np.empty(n_c)
-    for t in range(n_t):
-        for i in range(r):
-            for j in range(i + 1):
-                lij = lq[i, j]
-                p = unpack[i, j]
-                for c in range(n_c):
-                    lij[c] = pq[t, c, p]
-            lq[i, i] += 1.0
-        logdet[:] = 0.0
-        if not chol_soa(lq, r, logdet):
-            return False
-        vv = np.zeros(n_c)
-        for i in range(r):
-            vi = v[i]
-            for c in range(n_c):
-                vi[c] = a[t, c, i]
-            for k in range(i):
-                lik = lq[i, k]
-                vk = v[k]
-                for c in range(n_c):
-                    vi[c] -= lik[c] * vk[c]
-            lii = lq[i, i]
-            for c in range(n_c):
-                vi[c] /= lii[c]
-                vv[c] += vi[c] * vi[c]
-        for c in range(n_c):
-            if t_last > alphas[t, c] * t_norm * (1.0 + 1e-12):
-                loglik[t, c] = -np.inf
-            else:
-                loglik[t, c] = -0.5 * (total[t, c] + logdet[c] - vv[c])
-    return True
+    pq_soa = np.ascontiguousarray(pq.reshape(n_t * n_c, pq.shape[2]).T)
+    a_soa = np.ascontiguousarray(a.reshape(n_t * n_c, r).T)
+    return finish_soa(pq_soa, a_soa, total.reshape(n_t * n_c), unpack, alphas, t_norm, t_last, loglik)
 
 
 @njit(**_JIT)

@@ -56,9 +56,19 @@ def _names(names: Sequence[str] | None, n: int, name: str, prefix: str) -> list[
     return names
 
 
-def _grid(n: int, max_cols: int = 4) -> tuple[int, int]:
+def _panels(n: int, figsize: tuple[float, float], max_cols: int = 4) -> tuple[plt.Figure, list, int]:
+    """A figure with ``n`` panels on a grid of at most ``max_cols`` columns (unused cells hidden).
+
+    Returns:
+        The figure, its ``n`` axes and the number of columns (panel ``i`` has none below it when
+        ``i + cols >= n``).
+    """
     cols = min(n, max_cols)
-    return int(np.ceil(n / cols)), cols
+    rows = int(np.ceil(n / cols))
+    fig, grid = plt.subplots(rows, cols, figsize=figsize, squeeze=False, layout="constrained")
+    for ax in grid.flat[n:]:
+        ax.set_visible(False)
+    return fig, list(grid.flat[:n]), cols
 
 
 def _save(fig: plt.Figure, path: str | Path, dpi: int) -> Path:
@@ -110,13 +120,8 @@ def plot_distributions(
             demo_list.append(demo)
     n_dims = mean.shape[1]
     names = _names(dim_names, n_dims, "dim_names", "dim ")
-    rows, cols = _grid(n_dims)
-    fig, axes = plt.subplots(rows, cols, figsize=figsize, squeeze=False, layout="constrained")
-    for d in range(rows * cols):
-        ax = axes.flat[d]
-        if d >= n_dims:
-            ax.set_visible(False)
-            continue
+    fig, axes, cols = _panels(n_dims, figsize)
+    for d, ax in enumerate(axes):
         for k, demo in enumerate(demo_list):
             ax.plot(
                 phase, demo[:, d], color="0.6", lw=0.7, alpha=0.6, label="training demos" if k == 0 else None
@@ -132,9 +137,9 @@ def plot_distributions(
         ax.plot(phase, mean[:, d], color="C0", lw=1.8, label="mean")
         ax.set_title(names[d], fontsize=9)
         ax.tick_params(labelsize=7)
-        if d // cols == rows - 1 or d + cols >= n_dims:
+        if d + cols >= n_dims:
             ax.set_xlabel("phase", fontsize=8)
-    axes.flat[0].legend(fontsize=7, loc="best")
+    axes[0].legend(fontsize=7, loc="best")
     if title:
         fig.suptitle(title)
     return _save(fig, path, dpi)
@@ -182,13 +187,8 @@ def plot_prediction(
             raise _err("q_truth", f"shape {q_truth.shape}, expected {(truth_t_s.size, q_mean.shape[1])}")
     n_joints = q_mean.shape[1]
     names = _names(joint_names, n_joints, "joint_names", "joint ")
-    rows, cols = _grid(n_joints)
-    fig, axes = plt.subplots(rows, cols, figsize=figsize, squeeze=False, layout="constrained")
-    for j in range(rows * cols):
-        ax = axes.flat[j]
-        if j >= n_joints:
-            ax.set_visible(False)
-            continue
+    fig, axes, cols = _panels(n_joints, figsize)
+    for j, ax in enumerate(axes):
         if observed_until_s is not None:
             ax.axvspan(0.0, observed_until_s, color="C2", alpha=0.12, label="observed")
             ax.axvline(observed_until_s, color="C2", lw=1.0)
@@ -208,7 +208,7 @@ def plot_prediction(
         ax.tick_params(labelsize=7)
         if j + cols >= n_joints:
             ax.set_xlabel("time [s]", fontsize=8)
-    axes.flat[0].legend(fontsize=7, loc="best")
+    axes[0].legend(fontsize=7, loc="best")
     if title:
         fig.suptitle(title)
     return _save(fig, path, dpi)

@@ -12,11 +12,16 @@ from .exceptions import (
     PipelineError,
     RobotError,
 )
+from .recognition import IProMP, Prediction, Recognition, StreamingEstimator
 
 __version__ = "0.1.0"
 
 __all__ = [
     "ROBOT",
+    "IProMP",
+    "Prediction",
+    "Recognition",
+    "StreamingEstimator",
     "DataError",
     "Dataset",
     "Demo",

@@ -21,6 +21,8 @@ import numpy as np
 
 from .data import ROBOT, Dataset, Demo
 from .exceptions import PipelineError
+from .kinematics import check_path, ee_positions
+from .timing import JointLimits, time_path
 
 LogFn = Callable[[str], None]
 
@@ -259,9 +261,6 @@ def plan(
         hand_position_m: Human hand position at the hand-over (3,) in [m], if known.
         log: Progress messages (``None``: silent).
     """
-    from .kinematics import check_path
-    from .timing import JointLimits, time_path
-
     say = log or (lambda _msg: None)
     ms: dict[str, float] = {}
     t0 = time.perf_counter()
@@ -407,7 +406,6 @@ def summary_text(result: PlanResult, files: dict[str, Path], elapsed_s: float) -
 
 def preview_content(result: PlanResult, robot, demo: Demo | None, visual_model=None):
     """Build the :class:`~ipromp_pin.preview.PreviewContent` of a planned hand-over."""
-    from .kinematics import ee_positions
     from .preview import PreviewContent
 
     p = result.prediction

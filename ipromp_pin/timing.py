@@ -40,6 +40,9 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
+import toppra
+import toppra.algorithm as algo
+import toppra.constraint as constraint
 from ruckig import InputParameter, OutputParameter, Result, Ruckig, RuckigError
 from scipy.interpolate import CubicSpline
 from scipy.ndimage import gaussian_filter1d
@@ -326,10 +329,6 @@ def toppra_profile(
     Raises:
         InfeasibleError: toppra found no parameterisation.
     """
-    import toppra
-    import toppra.algorithm as algo
-    import toppra.constraint as constraint
-
     logging.getLogger("toppra").setLevel(logging.ERROR)
     # the same spline as ``spline`` (same knots, same end conditions)
     path = toppra.SplineInterpolator(s_grid, spline(s_grid), bc_type="not-a-knot")

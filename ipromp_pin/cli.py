@@ -17,7 +17,7 @@ import sys
 import time
 from pathlib import Path
 
-from .data import parse_groups
+from .data import parse_groups, skeleton_frames
 from .exceptions import IPrompPinError
 
 
@@ -88,13 +88,11 @@ def cmd_run(args: argparse.Namespace) -> int:
 def cmd_evaluate(args: argparse.Namespace) -> int:
     from .evaluate import PAPER_GRID, EvaluationConfig, evaluate, overall, to_markdown, write_results
     from .readers import load_dataset
-    from .robot import load_robot
+    from .robot import load_robot_settings
 
     observe = [parse_groups(o) for o in (args.observe or ["orientation", "orientation,emg"])]
-    frames = sorted({g for o in observe for g in o if g.startswith("/")}) or None
-    robot = load_robot(args.robot)
-    inverse = {model: rec for rec, model in robot.settings.recorded_names.items()}
-    joints = tuple(inverse[j] for j in robot.settings.arm_joints)
+    frames = skeleton_frames(g for o in observe for g in o) or None
+    joints = load_robot_settings(args.robot).recorded_arm_joints
     t0 = time.perf_counter()
     ds = load_dataset(
         args.dataset, format=args.format, frames=frames, robot_joints=joints, progress=_progress()
@@ -150,7 +148,7 @@ def cmd_train(args: argparse.Namespace) -> int:
     from .recognition import IProMP
 
     observe = parse_groups(args.observe)
-    frames = sorted(g for g in observe if g.startswith("/")) or None
+    frames = skeleton_frames(observe) or None
     ds = load_dataset(args.dataset, format=args.format, frames=frames, progress=_progress())
     t0 = time.perf_counter()
     model = IProMP(observe=observe).fit(ds.all_demos())

@@ -228,6 +228,11 @@ def parse_groups(text: str | Iterable[str]) -> list[str]:
     return groups
 
 
+def skeleton_frames(groups: Iterable[str]) -> list[str]:
+    """The tracked skeleton frames (``"/left_hand_1"`` ...) among channel group names, once each, in order."""
+    return list(dict.fromkeys(g for g in groups if g.startswith("/")))
+
+
 def group_by_task(demos: Iterable[Demo]) -> Mapping[str, list[Demo]]:
     """Group demos by task, keeping the first-seen task order."""
     out: dict[str, list[Demo]] = {}

@@ -35,7 +35,7 @@ import pinocchio as pin
 
 from .data import ROBOT, Demo
 from .exceptions import DataError, InfeasibleError, RobotError
-from .robot import Robot, RobotSettings, _build_robot, load_robot, load_robot_settings
+from .robot import Robot, _build_robot, load_robot, load_robot_settings
 
 _GEOMETRY_PAD_M = 0.1
 """Padding in [m] added to the reach beyond a joint when bounding the swept motion (link radii)."""
@@ -830,7 +830,7 @@ def run_calibration(
         dataset_paths = [dataset_paths]
     settings = load_robot_settings(settings_path)
     robot = load_robot(settings)
-    recorded = _recorded_joint_order(settings)
+    recorded = settings.recorded_arm_joints
     demos, labels = [], []
     for path in dataset_paths:
         ds = load_dataset(path, robot_joints=recorded)
@@ -846,8 +846,3 @@ def run_calibration(
         if out is not None:
             out(f"  written to {written}")
     return result
-
-
-def _recorded_joint_order(settings: RobotSettings) -> tuple[str, ...]:
-    inverse = {model: rec for rec, model in settings.recorded_names.items()}
-    return tuple(inverse[j] for j in settings.arm_joints)

@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .data import ROBOT, Dataset, Demo
+from .data import ROBOT, Dataset, Demo, skeleton_frames
 from .exceptions import PipelineError
 from .kinematics import check_path, ee_positions
 from .timing import JointLimits, time_path
@@ -189,12 +189,9 @@ def load_data(cfg: PipelineConfig, log: LogFn = print) -> Dataset:
     from .readers import load_dataset
     from .robot import load_robot_settings
 
-    settings = load_robot_settings(cfg.robot)
-    inverse = {model: rec for rec, model in settings.recorded_names.items()}
-    joints = tuple(inverse[j] for j in settings.arm_joints)
+    joints = load_robot_settings(cfg.robot).recorded_arm_joints
     log(f"[data] reading {cfg.dataset} (format {cfg.format})")
-    # tracked skeleton frames named in `observe` are read without being listed twice
-    frames = list(dict.fromkeys([*cfg.frames, *(g for g in cfg.observe if g.startswith("/"))]))
+    frames = skeleton_frames([*cfg.frames, *cfg.observe])
     ds = load_dataset(
         cfg.dataset, format=cfg.format, frames=frames or None, rate_hz=cfg.rate_hz, robot_joints=joints
     )

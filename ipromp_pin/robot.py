@@ -140,6 +140,12 @@ class RobotSettings:
         """Number of arm joints."""
         return len(self.arm_joints)
 
+    @property
+    def recorded_arm_joints(self) -> tuple[str, ...]:
+        """The arm's joints as the recordings name them, in kinematic order (what readers ask for)."""
+        inverse = {model: rec for rec, model in self.recorded_names.items()}
+        return tuple(inverse[j] for j in self.arm_joints)
+
 
 def find_robot_data_dir(package: str = "example-robot-data") -> Path:
     """Data folder of an installed robot-description package (its cmeel ``share`` folder).

@@ -170,6 +170,8 @@ class PlanResult:
         trajectory: Time-parameterised, jerk-limited trajectory.
         timing_report: Verification of the trajectory against the limits and the path.
         stage_ms: Wall time of every stage in [ms].
+        q_samples: Joint trajectories (n, M, n_joints) in [rad] drawn from the conditioned
+            prediction, used by the uncertainty check and shown by the preview.
     """
 
     prediction: object
@@ -177,6 +179,7 @@ class PlanResult:
     trajectory: object
     timing_report: object
     stage_ms: dict[str, float]
+    q_samples: np.ndarray
 
 
 def load_data(cfg: PipelineConfig, log: LogFn = print) -> Dataset:
@@ -281,7 +284,7 @@ def plan(
     t3 = time.perf_counter()
     ms["time_parameterise_smooth"] = (t3 - t2) * 1e3
     say(f"[timing] {trajectory.t_s[-1]:.2f} s at {control_rate_hz:g} Hz, {len(trajectory.t_s)} samples")
-    return PlanResult(prediction, report, trajectory, timing_report, ms)
+    return PlanResult(prediction, report, trajectory, timing_report, ms, samples)
 
 
 def write_outputs(result: PlanResult, out_dir: Path, observation: Demo | None = None) -> dict[str, Path]:
@@ -407,8 +410,7 @@ def preview_content(result: PlanResult, robot, demo: Demo | None, visual_model=N
 
     p = result.prediction
     tr = result.trajectory
-    samples = p.sample_q(12, np.random.default_rng(1))
-    ee_samples = np.stack([ee_positions(robot, s) for s in samples])
+    ee_samples = np.stack([ee_positions(robot, s) for s in result.q_samples])
     truth = None
     hand = hand_t = None
     if demo is not None and ROBOT in demo.groups:

@@ -64,6 +64,12 @@ class GaussianBasis:
         self.centres = -self.margin * spacing + spacing * np.arange(self.n_basis)
         # phi_{k+1} / phi_k = exp(z Delta / h^2) * exp(-(c_k + Delta / 2) Delta / h^2)
         self._step_factor = np.exp(-(self.centres[:-1] + 0.5 * spacing) * spacing / self.width**2)
+        # products of two bumps: phi_k phi_l = tau_|k-l| psi_{k+l} with psi_s(z) = exp(-(z - m_s)^2 / h^2),
+        # m_s = c_0 + s Delta / 2 (see gram_factors)
+        inv_h2 = 1.0 / self.width**2
+        mids = self.centres[0] + 0.5 * spacing * np.arange(2 * self.n_basis - 1)
+        self._pair_step = np.exp(-(spacing * mids[:-1] + 0.25 * spacing**2) * inv_h2)
+        self._pair_overlap = np.exp(-0.25 * (spacing * np.arange(self.n_basis)) ** 2 * inv_h2)
 
     def __call__(self, z: np.ndarray) -> np.ndarray:
         """Basis values at phases ``z`` (any shape S) -> array of shape S + (K,)."""
@@ -95,6 +101,18 @@ class GaussianBasis:
         for k in range(1, n_first):
             np.multiply(out[k - 1], out[k], out=out[k])
         return out
+
+    def gram_factors(self) -> tuple[np.ndarray, np.ndarray]:
+        """Factors of the Gram matrix of the bumps: ``(pair_step (2K-2,), overlap (K,))``.
+
+        With uniform centres, ``phi_k(z) phi_l(z) = overlap_|k-l| psi_{k+l}(z)``, where
+        ``overlap_m = exp(-(m Delta)^2 / (4 h^2))`` and ``psi_s(z) = exp(-(z - m_s)^2 / h^2)``,
+        ``m_s = c_0 + s Delta / 2``; so ``B^T B`` over any samples is ``overlap_|k-l| S_{k+l}`` with
+        the 2K - 1 sums ``S_s = sum_j psi_s(z_j)`` instead of K (K + 1) / 2 sums of products. The
+        ``psi_s`` are a running product like the bumps: ``psi_{s+1}(z) = psi_s(z) q(z) pair_step_s``
+        with ``q(z) = exp(z Delta / h^2)``.
+        """
+        return self._pair_step, self._pair_overlap
 
     def support_count(self, z_max: float, tol: float = 1e-11) -> int:
         """Number of leading basis functions that exceed ``tol`` somewhere on [0, ``z_max``].

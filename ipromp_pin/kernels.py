@@ -40,38 +40,62 @@ def chol_inplace(a: np.ndarray, n: int) -> float:
 
 
 @njit(**_JIT)
-def part_stats(e0: np.ndarray, q: np.ndarray, step: np.ndarray, ke: int, y: np.ndarray):
+def part_stats(
+    e0: np.ndarray,
+    q: np.ndarray,
+    step: np.ndarray,
+    pair_step: np.ndarray,
+    overlap: np.ndarray,
+    ke: int,
+    y: np.ndarray,
+):
     """``B^T B`` (ke, ke, U) and ``B^T y`` (ke, U, D_m) of the first ``ke`` Gaussian basis functions.
 
     The basis values come from the running product of
     :meth:`ipromp_pin.basis.GaussianBasis.values_prefix_t` (same operations):
     ``phi_0 = e0`` (n, U), ``phi_k = phi_{k-1} (q step_{k-1})`` with ``q`` (n, U); ``y`` (n, D_m).
+    ``B^T B`` comes from the 2 ke - 1 sums of :meth:`~ipromp_pin.basis.GaussianBasis.gram_factors`
+    (``psi_0 = e0^2``, ``psi_s = psi_{s-1} (q pair_step_{s-1})``; the caller makes sure ``e0^2``
+    does not underflow).
     """
     n, n_u = e0.shape
-    gram = np.zeros((ke, ke, n_u))
+    ns = 2 * ke - 1
+    sums = np.zeros((ns, n_u))
     bt = np.empty((ke, n_u, n))
     b = np.empty((ke, n_u))
+    psi = np.empty(n_u)
     for j in range(n):
-        b[0] = e0[j]
+        e0j = e0[j]
         qj = q[j]
+        s0 = sums[0]
+        for u in range(n_u):
+            psi[u] = e0j[u] * e0j[u]
+            s0[u] += psi[u]
+        for s in range(1, ns):
+            f = pair_step[s - 1]
+            ss = sums[s]
+            for u in range(n_u):
+                psi[u] *= qj[u] * f
+                ss[u] += psi[u]
+        b[0] = e0j
         for k in range(1, ke):
             bk = b[k]
             bp = b[k - 1]
-            s = step[k - 1]
+            f = step[k - 1]
             for u in range(n_u):
-                bk[u] = bp[u] * (qj[u] * s)
+                bk[u] = bp[u] * (qj[u] * f)
         for k in range(ke):
-            bk = b[k]
-            for m in range(k + 1):
-                g = gram[k, m]
-                bm = b[m]
-                for u in range(n_u):
-                    g[u] += bk[u] * bm[u]
             for u in range(n_u):
-                bt[k, u, j] = bk[u]
+                bt[k, u, j] = b[k, u]
+    gram = np.empty((ke, ke, n_u))
     for k in range(ke):
-        for m in range(k):
-            gram[m, k] = gram[k, m]
+        for m in range(k + 1):
+            o = overlap[k - m]
+            sk = sums[k + m]
+            g = gram[k, m]
+            for u in range(n_u):
+                g[u] = o * sk[u]
+            gram[m, k] = g
     proj = np.dot(bt.reshape(ke * n_u, n), y).reshape(ke, n_u, y.shape[1])
     return gram, proj
 

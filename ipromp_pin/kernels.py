@@ -186,9 +186,10 @@ def part_terms(
     n_obs: int,
     ke: int,
     nu: float,
-    tasks: np.ndarray,
-    index: np.ndarray,
+    starts: np.ndarray,
+    n_c: int,
     mu_k: np.ndarray,
+    mu_rows: np.ndarray,
     inv_delta: np.ndarray,
     mu2: np.ndarray,
     log_delta: np.ndarray,
@@ -203,13 +204,20 @@ def part_terms(
     a: np.ndarray,
     pq: np.ndarray,
 ) -> bool:
-    """Add one observation part's terms to ``total`` (T', C), ``a`` (T', C, r) and packed ``P`` (T', C, npk).
+    """Add one observation part's terms to ``total`` (P,), ``a`` (r, P) and packed ``P`` (r(r+1)/2, P).
+
+    The P = T C (task, candidate) pairs are ordered task-major; task t's candidates are the unique
+    candidates ``starts[t] .. starts[t] + C - 1`` (consecutive points of the common lattice).
+    With ``h_d = B^T y_d + nu mu_d``: ``X^-1 h_d = X^-1 B^T y_d + nu X^-1 mu_d``, the first product
+    once per unique candidate (shared by the tasks), the second for every task and candidate in
+    one matrix product; ``P`` of all candidates is one product with ``Z`` per task.
 
     Args:
         gram, proj, sq: Part statistics ``B^T B`` (>=ke, >=ke, U), ``B^T y`` (>=ke, U, D_m), ``y^T y`` (D_m,).
         n_obs, ke, nu: Number of samples, active basis functions, noise ratio.
-        tasks, index: (T',) task indices and (T', C) unique-candidate index of every pair.
-        mu_k, inv_delta, mu2, log_delta, w_k: Model arrays of the part's dims (see ``InferenceEngine._dims``).
+        starts, n_c: (T,) first unique candidate of every task; candidates per task C.
+        mu_k, mu_rows, inv_delta, mu2, log_delta, w_k: Model arrays of the part's dims
+            (see ``InferenceEngine._dims``).
         w_1: (T, K D_m, r) ``W_d`` rows ordered (basis, dim) (only used without ``Z``).
         z, pk, pl: Packed ``Z`` tensors (T, K(K+1)/2, r(r+1)/2) and their basis pairs (only with ``use_z``).
         unpack: (r, r) index of ``(i, j)`` in the packed layout.
@@ -219,8 +227,8 @@ def part_terms(
     """
     n_u = gram.shape[2]
     dm = proj.shape[2]
-    r = a.shape[2]
-    n_t, n_c = index.shape
+    r = a.shape[0]
+    n_t = starts.shape[0]
     xinv = np.empty((ke, ke, n_u))
     linv = np.empty((ke, ke, n_u))
     logdet = x_inverse(gram, ke, nu, xinv, linv)
@@ -229,101 +237,82 @@ def part_terms(
     m = ke * (ke + 1) // 2
     kd = ke * dm
     const = n_obs * dm * LOG_2PI + dm * (n_obs - ke) * np.log(nu)
-    h = np.empty((ke, dm, n_c))
-    xg = np.empty((ke, ke, n_c))
+    # X^-1 mu_t of every task and unique candidate: rows (t, d), columns (k, u)
+    xm = np.dot(np.ascontiguousarray(mu_rows[:, :ke]), xinv.reshape(ke, ke * n_u))
+    # X^-1 B^T y per unique candidate: (k, d, u)
+    pt = np.empty((ke, dm, n_u))
+    for j in range(ke):
+        for u in range(n_u):
+            for d in range(dm):
+                pt[j, d, u] = proj[j, u, d]
+    xp = np.zeros((ke, dm, n_u))
+    for k in range(ke):
+        for j in range(ke):
+            xkj = xinv[k, j]
+            for d in range(dm):
+                row = xp[k, d]
+                pjd = pt[j, d]
+                for u in range(n_u):
+                    row[u] += xkj[u] * pjd[u]
+    if use_z:
+        coef = np.empty((m, n_u))
+        for q in range(m):
+            diag = 1.0 if pk[q] == pl[q] else 0.0
+            xq = xinv[pk[q], pl[q]]
+            cq = coef[q]
+            for u in range(n_u):
+                cq[u] = diag - nu * xq[u]
     xb = np.empty((kd, n_c))
-    coef = np.empty((m, n_c))
     quad = np.empty(n_c)
-    for ti in range(n_t):
-        t = tasks[ti]
+    for t in range(n_t):
+        u0 = starts[t]
+        off = t * n_c
         sqd = 0.0
         for d in range(dm):
             sqd += sq[d] * inv_delta[t, d]
         base = (sqd + nu * mu2[t, ke]) / nu + const + n_obs * log_delta[t]
-        idx = index[ti]
-        for k in range(ke):
-            for d in range(dm):
-                hkd = h[k, d]
-                mkd = nu * mu_k[t, k, d]
-                for c in range(n_c):
-                    hkd[c] = proj[k, idx[c], d] + mkd
-            for j in range(ke):
-                xkj = xg[k, j]
-                xikj = xinv[k, j]
-                for c in range(n_c):
-                    xkj[c] = xikj[idx[c]]
         quad[:] = 0.0
         for k in range(ke):
             for d in range(dm):
-                acc = xb[k * dm + d]
-                acc[:] = 0.0
-                for j in range(ke):
-                    xkj = xg[k, j]
-                    hjd = h[j, d]
-                    for c in range(n_c):
-                        acc[c] += xkj[c] * hjd[c]
-                hkd = h[k, d]
-                wd = inv_delta[t, d]
+                row = xb[k * dm + d]
+                xpr = xp[k, d]
+                xmr = xm[t * dm + d]
+                pr = pt[k, d]
                 mkd = mu_k[t, k, d]
+                nm = nu * mkd
+                wd = inv_delta[t, d]
+                xo = k * n_u + u0
                 for c in range(n_c):
-                    quad[c] += hkd[c] * acc[c] * wd
-                    acc[c] -= mkd
+                    xh = xpr[u0 + c] + nu * xmr[xo + c]
+                    quad[c] += (pr[u0 + c] + nm) * xh * wd
+                    row[c] = xh - mkd
         for c in range(n_c):
-            total[ti, c] += base - quad[c] / nu + dm * logdet[index[ti, c]]
-        a[ti] += np.dot(xb.T, w_k[t, :kd])
+            total[off + c] += base - quad[c] / nu + dm * logdet[u0 + c]
+        a[:, off : off + n_c] += np.dot(w_k[t, :kd].T, xb)
         if use_z:
-            for q in range(m):
-                diag = 1.0 if pk[q] == pl[q] else 0.0
-                xq = xg[pk[q], pl[q]]
-                cq = coef[q]
-                for c in range(n_c):
-                    cq[c] = diag - nu * xq[c]
-            pq[ti] += np.dot(coef.T, z[t, :m])
+            pz = np.dot(z[t, :m].T, coef)  # (npk, U)
+            pq[:, off : off + n_c] += pz[:, u0 : u0 + n_c]
     if not use_z:
         v = np.empty((kd, r))
-        for ti in range(n_t):
-            t = tasks[ti]
+        for t in range(n_t):
             wt = np.ascontiguousarray(w_1[t, :kd])
             s = np.dot(wt.T, wt)
             for c in range(n_c):
-                u = index[ti, c]
+                u = starts[t] + c
+                p = t * n_c + c
                 for k in range(ke):
                     for d in range(dm):
-                        for p in range(r):
-                            v[k * dm + d, p] = 0.0
+                        for i in range(r):
+                            v[k * dm + d, i] = 0.0
                         for j in range(k + 1):
                             x = linv[k, j, u]
-                            for p in range(r):
-                                v[k * dm + d, p] += x * wt[j * dm + d, p]
+                            for i in range(r):
+                                v[k * dm + d, i] += x * wt[j * dm + d, i]
                 vv = np.dot(v.T, v)
                 for i in range(r):
                     for j in range(i, r):
-                        pq[ti, c, unpack[i, j]] += s[i, j] - nu * vv[i, j]
+                        pq[unpack[i, j], p] += s[i, j] - nu * vv[i, j]
     return True
-
-
-@njit(**_JIT)
-def finish_terms(
-    pq: np.ndarray,
-    a: np.ndarray,
-    total: np.ndarray,
-    unpack: np.ndarray,
-    alphas: np.ndarray,
-    t_norm: float,
-    t_last: float,
-    loglik: np.ndarray,
-) -> bool:
-    """Log likelihood (into ``loglik`` (T', C)) from ``Q = I + P`` (packed (T', C, r(r+1)/2)),
-    ``a`` (T', C, r) and the other terms ``total`` (T', C).
-
-    ``log|Q|`` and ``a^T Q^-1 a`` come from one Cholesky factorisation of ``Q`` per pair
-    (vectorised over candidates); candidates shorter than the observation get ``-inf``.
-    Returns False when a ``Q`` was not numerically positive definite.
-    """
-    n_t, n_c, r = a.shape
-    pq_soa = np.ascontiguousarray(pq.reshape(n_t * n_c, pq.shape[2]).T)
-    a_soa = np.ascontiguousarray(a.reshape(n_t * n_c, r).T)
-    return finish_soa(pq_soa, a_soa, total.reshape(n_t * n_c), unpack, alphas, t_norm, t_last, loglik)
 
 
 @njit(**_JIT)
@@ -373,6 +362,80 @@ def tri_solve(low: np.ndarray, b: np.ndarray, transpose: bool) -> np.ndarray:
 def cho_solve(low: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Solve ``L L^T x = b`` for the lower Cholesky factor ``L`` (n, n) and ``b`` (n, m)."""
     return tri_solve(low, tri_solve(low, b, False), True)
+
+
+@njit(**_JIT)
+def condition_part(
+    bt: np.ndarray,
+    y: np.ndarray,
+    mean: np.ndarray,
+    wf: np.ndarray,
+    sd: np.ndarray,
+    nu: float,
+    q: np.ndarray,
+    a: np.ndarray,
+    lx: np.ndarray,
+    gram: np.ndarray,
+    b: np.ndarray,
+) -> bool:
+    """Add one observation part's terms of the conditioning at one phase (see ``IProMP._condition``).
+
+    Args:
+        bt: (ke, n) basis values of the part's samples; y: (n, D_m) scaled values.
+        mean: (D_m, K) prior mean weights of the part's dims; wf: (ke, D_m r) ``F_d / sqrt(delta_d)``
+            rows k; sd: (D_m,) ``sqrt(delta_d)``; nu: noise ratio.
+        q, a: (r, r) ``Q`` and (r,) ``a``, updated in place.
+        lx, gram, b: Outputs (ke, ke) Cholesky factor of ``X = nu I + B^T B``, ``B^T B`` and
+            (ke, D_m) ``b = B^T (y - B mu)``.
+
+    Returns:
+        False when ``X`` is not numerically positive definite.
+    """
+    ke, n = bt.shape
+    dm = y.shape[1]
+    r = q.shape[0]
+    gram[:, :] = np.dot(bt, bt.T)
+    by = np.dot(bt, y)
+    for k in range(ke):
+        for d in range(dm):
+            s = by[k, d]
+            for j in range(ke):
+                s -= gram[k, j] * mean[d, j]
+            b[k, d] = s
+    for i in range(ke):
+        for j in range(i + 1):
+            lx[i, j] = gram[i, j]
+        for j in range(i + 1, ke):
+            lx[i, j] = 0.0
+        lx[i, i] += nu
+    if not np.isfinite(chol_inplace(lx, ke)):
+        return False
+    ncol = dm * r
+    rhs = np.empty((ke, ncol + dm))
+    for k in range(ke):
+        for c in range(ncol):
+            rhs[k, c] = wf[k, c]
+        for d in range(dm):
+            rhs[k, ncol + d] = b[k, d] / sd[d]
+    sol = cho_solve(lx, rhs)
+    wk = wf.reshape(ke * dm, r)
+    xw = np.ascontiguousarray(sol[:, :ncol]).reshape(ke * dm, r)
+    xb = np.ascontiguousarray(sol[:, ncol:]).reshape(ke * dm)
+    q += np.dot(wk.T, wk - nu * xw)
+    a += np.dot(wk.T, xb)
+    return True
+
+
+@njit(**_JIT)
+def latent_posterior(q: np.ndarray, a: np.ndarray, factor: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Cholesky factor (r, r) of ``Q`` (NaN if not SPD) and ``F Q^-1 a`` (D, K) for ``factor`` (D, K, r)."""
+    r = q.shape[0]
+    lq = cholesky(q)
+    d, k, _ = factor.shape
+    if not np.isfinite(lq[0, 0]):
+        return lq, np.zeros((d, k))
+    m_eta = cho_solve(lq, a.reshape(r, 1)).reshape(r)
+    return lq, np.dot(factor.reshape(d * k, r), m_eta).reshape(d, k)
 
 
 @njit(**_JIT)

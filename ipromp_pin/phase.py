@@ -194,6 +194,10 @@ class InferenceEngine:
         self.unpack = unpack
         self._all_tasks = np.arange(n_task, dtype=np.int64)
         self.cand_index = np.ascontiguousarray(self.cand_index, dtype=np.int64)
+        # every task's candidates are consecutive lattice points, hence consecutive unique candidates
+        self.starts = np.ascontiguousarray(self.cand_index[:, 0])
+        if not np.array_equal(self.cand_index, self.starts[:, None] + np.arange(self.alphas.shape[1])):
+            raise ValueError("every task's phase candidates must be consecutive points of one lattice")
         self._no_z = np.zeros((1, 1, 1))
         self.use_z = n_task * self.pk.size * ia.size * 8 <= z_budget_bytes
         self._z: dict[tuple[int, ...], np.ndarray] = {}
@@ -231,6 +235,7 @@ class InferenceEngine:
             w_k = (self.w[:, dims] / self.sqrt_delta[:, dims, None, None]).transpose(0, 2, 1, 3)
             c = {
                 "mu_k": np.ascontiguousarray(mu.transpose(0, 2, 1)),
+                "mu_rows": np.ascontiguousarray(mu.reshape(n_task * dm, k)),
                 "w_k": np.ascontiguousarray(w_k.reshape(n_task, k * dm, self.rank)),
                 "w_1": np.ascontiguousarray(
                     self.w[:, dims].transpose(0, 2, 1, 3).reshape(n_task, k * dm, -1)
@@ -282,15 +287,7 @@ class InferenceEngine:
             raise ModelError("X = nu I + B^T B is not numerically positive definite")
         return np.moveaxis(xinv, 2, 0), logdet
 
-    def terms(
-        self,
-        stats: list[PartStats],
-        t_last: float,
-        tasks: np.ndarray | None = None,
-        alphas: np.ndarray | None = None,
-        index: np.ndarray | None = None,
-        nu: float | None = None,
-    ) -> Terms:
+    def terms(self, stats: list[PartStats], t_last: float, nu: float | None = None) -> Terms:
         """Log likelihood per (task, candidate) from part statistics (compiled kernels).
 
         Per part, with ``h_d = B^T y_d + nu mu_d`` the data terms reduce to
@@ -300,59 +297,39 @@ class InferenceEngine:
         ``a^T Q^-1 a`` from one Cholesky factorisation per (task, candidate).
 
         Args:
-            stats: Part statistics (computed for the unique candidates ``alphas``; ``gram`` and
-                ``proj`` may hold more than ``ke`` basis functions, only the first ``ke`` are used).
+            stats: Part statistics for the unique candidates (``gram`` and ``proj`` may hold more
+                than ``ke`` basis functions, only the first ``ke`` are used).
             t_last: Time of the last observed sample in [s].
-            tasks: Task indices (default all).
-            alphas: (T', C) candidates (default the model's grids).
-            index: (T', C) index of each candidate in the unique candidates of ``stats``.
             nu: Noise ratio (default the engine's).
         """
-        kern = _kernels()
         nu = self.nu if nu is None else float(nu)
-        if tasks is None:
-            tasks, alphas, index = self._all_tasks, self.alphas, self.cand_index
-        tasks = np.ascontiguousarray(tasks, dtype=np.int64)
-        alphas = np.ascontiguousarray(alphas, dtype=float)
-        index = np.ascontiguousarray(index, dtype=np.int64)
-        n_task, n_cand = alphas.shape
-        r = self.rank
-        total = np.zeros((n_task, n_cand))
-        a = np.zeros((n_task, n_cand, r))
-        pq = np.zeros((n_task, n_cand, self.ia.size))
+        total, a, pq = self.pair_terms(stats, nu)
+        loglik = np.empty(self.alphas.shape)
+        kern = _kernels()
+        if not kern.finish_soa(pq, a, total, self.unpack, self.alphas, self.t_norm, float(t_last), loglik):
+            raise ModelError("Q = I + P is not numerically positive definite")
+        return Terms(loglik=loglik)
+
+    def pair_terms(self, stats: list[PartStats], nu: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Terms of every (task, candidate) pair, pairs task-major and innermost: the scalar terms
+        (P,), ``a`` (r, P) and packed ``P`` (r(r+1)/2, P)."""
+        kern = _kernels()
+        n_task, n_cand = self.alphas.shape
+        n_pair = n_task * n_cand
+        total = np.zeros(n_pair)
+        a = np.zeros((self.rank, n_pair))
+        pq = np.zeros((self.ia.size, n_pair))
         for st in stats:
             c = self._dims(st.dims)
             z = self.z_tensor(st.dims) if self.use_z else self._no_z
             ok = kern.part_terms(
-                st.gram,
-                st.proj,
-                st.sq,
-                st.n,
-                st.ke,
-                nu,
-                tasks,
-                index,
-                c["mu_k"],
-                c["inv_delta"],
-                c["mu2"],
-                c["log_delta"],
-                c["w_k"],
-                c["w_1"],
-                z,
-                self.pk,
-                self.pl,
-                self.unpack,
-                self.use_z,
-                total,
-                a,
-                pq,
-            )
+                st.gram, st.proj, st.sq, st.n, st.ke, nu, self.starts, n_cand, c["mu_k"], c["mu_rows"],
+                c["inv_delta"], c["mu2"], c["log_delta"], c["w_k"], c["w_1"], z, self.pk, self.pl,
+                self.unpack, self.use_z, total, a, pq,
+            )  # fmt: skip
             if not ok:
                 raise ModelError("X = nu I + B^T B is not numerically positive definite")
-        loglik = np.empty((n_task, n_cand))
-        if not kern.finish_terms(pq, a, total, self.unpack, alphas, self.t_norm, float(t_last), loglik):
-            raise ModelError("Q = I + P is not numerically positive definite")
-        return Terms(loglik=loglik)
+        return total, a, pq
 
 
 class IncrementalTerms:
@@ -386,23 +363,7 @@ class IncrementalTerms:
         self.logdet = kern.x_inverse(gram, ke, e.nu, self.xinv, np.empty_like(self.xinv))
         if not np.all(np.isfinite(self.logdet)):
             raise ModelError("X = nu I + B^T B is not numerically positive definite")
-        n_task, n_cand = e.alphas.shape
-        total = np.zeros((n_task, n_cand))
-        a = np.zeros((n_task, n_cand, e.rank))
-        pq = np.zeros((n_task, n_cand, e.ia.size))
-        c = self._c
-        z = e.z_tensor(self.dims) if e.use_z else e._no_z
-        ok = kern.part_terms(
-            gram, stats.proj, stats.sq, stats.n, ke, e.nu, e._all_tasks, e.cand_index, c["mu_k"],
-            c["inv_delta"], c["mu2"], c["log_delta"], c["w_k"], c["w_1"], z, e.pk, e.pl, e.unpack,
-            e.use_z, total, a, pq,
-        )  # fmt: skip
-        if not ok:
-            raise ModelError("X = nu I + B^T B is not numerically positive definite")
-        # pairs flattened (task, candidate) and innermost
-        self.total = total.reshape(-1)
-        self.a = np.ascontiguousarray(a.reshape(-1, e.rank).T)
-        self.pq = np.ascontiguousarray(pq.reshape(-1, e.ia.size).T)
+        self.total, self.a, self.pq = e.pair_terms([stats], e.nu)
         self.ke = ke
         return self._finish(t_last)
 

@@ -563,42 +563,32 @@ class IProMP:
         a = np.zeros(r)
         kept = []
         inv_dur = 1.0 / (alpha * self.duration_nominal_s_)
+        b = self.basis_
         for part in parts:
-            ke = self.basis_.support_count(float(part.t[-1]) * inv_dur)
-            bt = self.basis_(part.t * inv_dur)[:, :ke].T  # (ke, n)
-            gram = bt @ bt.T
-            b = bt @ part.y - gram @ m.mean[part.dims, :ke].T  # (ke, dm)
-            x = gram.copy()
-            x[np.diag_indices(ke)] += nu
-            lx = kern.cholesky(x)
-            if not np.isfinite(lx[0, 0]):
-                raise ModelError("X = nu I + B^T B is not numerically positive definite")
-            sd, w_all = self._scaled_factor(task, part.dims)
+            ke = b.support_count(float(part.t[-1]) * inv_dur)
+            bt = kern.basis_rows(part.t * inv_dur, b.centres, b.width, b._step_factor)[:ke]  # (ke, n)
+            sd, w_all, mean = self._scaled_factor(task, part.dims)
+            lx, gram, bb = np.empty((ke, ke)), np.empty((ke, ke)), np.empty((ke, part.dims.size))
             wf = w_all[:ke].reshape(ke, -1)  # (ke, dm r): W_d / sqrt(delta_d), rows k
-            sol = kern.cho_solve(lx, np.concatenate([wf, b / sd], axis=1))
-            xw = sol[:, : wf.shape[1]].reshape(-1, r)  # rows (k, d)
-            xb = sol[:, wf.shape[1] :]
-            wk = wf.reshape(-1, r)  # rows (k, d)
-            q += wk.T @ (wk - nu * xw)
-            a += wk.T @ xb.reshape(-1)
-            kept.append((part.dims, ke, lx, gram, b))
+            bt = np.ascontiguousarray(bt)
+            if not kern.condition_part(bt, part.y, mean, wf, sd, nu, q, a, lx, gram, bb):
+                raise ModelError("X = nu I + B^T B is not numerically positive definite")
+            kept.append((part.dims, ke, lx, gram, bb))
         if r:
-            lq = kern.cholesky(q)
+            lq, f_eta = kern.latent_posterior(q, a, m.factor)
             if not np.isfinite(lq[0, 0]):
                 raise ModelError("Q = I + P is not numerically positive definite")
-            m_eta = kern.cho_solve(lq, a[:, None])[:, 0]
         else:
-            lq, m_eta = np.zeros((0, 0)), np.zeros(0)
-        f_eta = m.factor @ m_eta  # (D, K)
+            lq, f_eta = np.zeros((0, 0)), np.zeros_like(m.mean)
         w_post = m.mean + f_eta
-        for dims, ke, lx, gram, b in kept:
+        for dims, ke, lx, gram, bb in kept:
             fu = f_eta[dims, :ke].T  # (ke, dm)
-            w_post[dims, :ke] += kern.cho_solve(lx, b - gram @ fu).T
+            w_post[dims, :ke] += kern.cho_solve(lx, bb - gram @ fu).T
         return self._make_prediction(rec, m.factor, m, alpha, w_post, lq)
 
-    def _scaled_factor(self, task: str, dims: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """``sqrt(delta_d)`` (D_m,) and ``F_d / sqrt(delta_d)`` (K, D_m, r) of the observed dims ``dims``
-        of a task (cached)."""
+    def _scaled_factor(self, task: str, dims: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``sqrt(delta_d)`` (D_m,), ``F_d / sqrt(delta_d)`` (K, D_m, r) and the mean weights (D_m, K) of
+        the observed dims ``dims`` of a task (cached)."""
         if self._pred_cache is None:
             self._pred_cache = {}
         key = ("factor", task, dims.tobytes())
@@ -607,7 +597,7 @@ class IProMP:
             m = self.models_[task]
             sd = np.sqrt(m.diag[dims])
             w = np.ascontiguousarray((m.factor[dims] / sd[:, None, None]).transpose(1, 0, 2))
-            self._pred_cache[key] = c = (sd, w)
+            self._pred_cache[key] = c = (sd, w, np.ascontiguousarray(m.mean[dims]))
         return c
 
     def _grid_cache(self, task: str, factor: np.ndarray) -> dict[str, np.ndarray]:
@@ -739,6 +729,9 @@ class StreamingEstimator:
 
     Channel groups that are missing in some samples are tracked separately: groups
     with identical presence histories share their statistics, as in the one-shot call.
+
+    Used as a context manager (``with model.stream() as s: ...``), the estimator limits the BLAS
+    threads (``IProMP.blas_threads``) once for the whole block instead of on every update.
     """
 
     def __init__(self, model: IProMP) -> None:
@@ -765,6 +758,17 @@ class StreamingEstimator:
         self._longest = (
             max(float(m.alpha_grid[-1]) for m in model.models_.values()) * model.duration_nominal_s_
         )
+        self._held: contextlib.AbstractContextManager | None = None
+
+    def __enter__(self) -> StreamingEstimator:
+        self._held = self.model._limit_threads()
+        self._held.__enter__()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        held, self._held = self._held, None
+        if held is not None:
+            held.__exit__(*exc)
 
     @property
     def n_samples(self) -> int:
@@ -817,7 +821,7 @@ class StreamingEstimator:
             self._inc = None  # the incremental terms hold one part with every observed dim
             for g, lo, hi in self._slices:
                 y[lo:hi] = v_scaled(m, g, y[lo:hi]) if g in present else 0.0
-        with m._limit_threads():
+        with contextlib.nullcontext() if self._held is not None else m._limit_threads():
             phi = self._accumulate(t_s, set(present), y)
             if len(self._t) < 2:
                 return None

@@ -124,6 +124,12 @@ class GaussianBasis:
         reach = float(z_max) + self.width * np.sqrt(-2.0 * np.log(tol))
         return int(min(self.n_basis, np.searchsorted(self.centres, reach, side="right")))
 
+    def support_limit(self, n_first: int, tol: float = 1e-11) -> float:
+        """Phase below which :meth:`support_count` is at most ``n_first`` (inf when ``n_first >= K``)."""
+        if n_first >= self.n_basis:
+            return np.inf
+        return float(self.centres[n_first] - self.width * np.sqrt(-2.0 * np.log(tol)))
+
     def gram(self, n_points: int = 2000) -> np.ndarray:
         """Gram matrix ``mean_z phi(z) phi(z)^T`` over a dense uniform grid on [0, 1], (K, K)."""
         b = self(np.linspace(0.0, 1.0, n_points))

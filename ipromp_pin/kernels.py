@@ -546,12 +546,12 @@ def stream_step(
     y: np.ndarray,
     proj: np.ndarray,
     nu: float,
-    tasks: np.ndarray,
-    index: np.ndarray,
+    starts: np.ndarray,
+    n_c: int,
     mu_k: np.ndarray,
     inv_delta: np.ndarray,
     log_delta: np.ndarray,
-    w_1: np.ndarray,
+    w_t: np.ndarray,
     ia: np.ndarray,
     ib: np.ndarray,
     total: np.ndarray,
@@ -570,7 +570,9 @@ def stream_step(
         xinv, logdet: (ke, ke, U) ``X^-1`` and (U,) ``log|X|`` per unique candidate, updated in place.
         phi: (K, U) basis values of the new sample; y: (D,) its scaled values.
         proj: (K, U, D) ``B^T y`` including the new sample.
-        total, a, pq: (T' C,), (r, T' C) and packed ``P`` (r(r+1)/2, T' C) with pairs ordered
+        starts, n_c: (T,) first unique candidate of every task; candidates per task C.
+        w_t: (T, K, r, D) ``W_d / sqrt(delta_d)`` ordered (basis, latent, dim).
+        total, a, pq: (P',), (r, P') and packed ``P`` (r(r+1)/2, P') with pairs ordered
             (task, candidate), innermost; updated in place.
         Other arguments as in :func:`part_terms` (``ia``, ``ib``: row and column of each packed entry).
 
@@ -580,7 +582,7 @@ def stream_step(
     ke = xinv.shape[0]
     n_u = xinv.shape[2]
     dm = y.shape[0]
-    n_t, n_c = index.shape
+    n_t = starts.shape[0]
     r = a.shape[0]
     npk = ia.shape[0]
     g = np.zeros((ke, n_u))
@@ -608,76 +610,68 @@ def stream_step(
             gj = g[j]
             for u in range(n_u):
                 xkj[u] -= gk[u] * gj[u] / s[u]
+    # g^T B^T y_d per unique candidate (shared by the tasks): (D, U)
+    gp = np.zeros((n_u, dm))
+    for k in range(ke):
+        for u in range(n_u):
+            gku = g[k, u]
+            for d in range(dm):
+                gp[u, d] += gku * proj[k, u, d]
     gc = np.empty((ke, n_c))
     sc = np.empty(n_c)
     gh = np.empty((dm, n_c))
-    v = np.empty((dm, r, n_c))
-    fv = np.empty((dm, r, n_c))
     acc = np.empty(n_c)
     f = np.empty(n_c)
     step = dm * (LOG_2PI + np.log(nu))
-    for ti in range(n_t):
-        t = tasks[ti]
-        idx = index[ti]
+    for t in range(n_t):
+        u0 = starts[t]
+        off = t * n_c
         for c in range(n_c):
-            sc[c] = s[idx[c]]
+            sc[c] = s[u0 + c]
             f[c] = nu / sc[c]
         for k in range(ke):
             for c in range(n_c):
-                gc[k, c] = g[k, idx[c]]
-        gh[:, :] = 0.0
+                gc[k, c] = g[k, u0 + c]
+        # g^T h_d = g^T B^T y_d + nu g^T mu_d
+        for d in range(dm):
+            for c in range(n_c):
+                gh[d, c] = gp[u0 + c, d]
         for k in range(ke):
             gk = gc[k]
             for d in range(dm):
                 ghd = gh[d]
                 mkd = nu * mu_k[t, k, d]
                 for c in range(n_c):
-                    ghd[c] += gk[c] * (proj[k, idx[c], d] + mkd)
-        off = ti * n_c
-        tt = total[off : off + n_c]
+                    ghd[c] += gk[c] * mkd
         base = step + log_delta[t]
         for c in range(n_c):
-            tt[c] += base + dm * np.log(sc[c])
-        vb = np.dot(np.ascontiguousarray(gc.T), w_1[t, : ke * dm].reshape(ke, dm * r))  # (C, D r)
-        for d in range(dm):
-            for p in range(r):
-                vdp = v[d, p]
-                col = d * r + p
-                for c in range(n_c):
-                    vdp[c] = vb[c, col]
+            total[off + c] += base + dm * np.log(sc[c])
+        # W_d^T g of every dim and candidate: rows (latent, dim), candidates innermost
+        v = np.dot(w_t[t, :ke].reshape(ke, r * dm).T, gc).reshape(r, dm, n_c)
         for d in range(dm):
             yd = y[d]
             wd = inv_delta[t, d]
             sdi = np.sqrt(wd)
             ghd = gh[d]
-            vd = v[d]
             for c in range(n_c):
                 dq = 2.0 * yd * ghd[c] - (sc[c] - 1.0) * yd * yd - ghd[c] * ghd[c] / sc[c]
-                tt[c] += wd * (yd * yd - dq) / nu
+                total[off + c] += wd * (yd * yd - dq) / nu
                 ghd[c] = (yd - ghd[c] / sc[c]) * sdi  # c_d / sqrt(delta_d)
-            for p in range(r):
-                ap = a[p, off : off + n_c]
-                vdp = vd[p]
+        for p in range(r):
+            vp = v[p]
+            for d in range(dm):
+                ghd = gh[d]
                 for c in range(n_c):
-                    ap[c] += ghd[c] * vdp[c]
-        for d in range(dm):
-            for p in range(r):
-                vdp = v[d, p]
-                fdp = fv[d, p]
-                for c in range(n_c):
-                    fdp[c] = f[c] * vdp[c]
+                    a[p, off + c] += ghd[c] * vp[d, c]
         for q in range(npk):
-            i = ia[q]
-            j = ib[q]
+            vi = v[ia[q]]
+            vj = v[ib[q]]
             acc[:] = 0.0
             for d in range(dm):
-                fi = fv[d, i]
-                vj = v[d, j]
                 for c in range(n_c):
-                    acc[c] += fi[c] * vj[c]
-            pq_q = pq[q, off : off + n_c]
+                    acc[c] += vi[d, c] * vj[d, c]
             for c in range(n_c):
-                pq_q[c] += acc[c]
+                pq[q, off + c] += f[c] * acc[c]
     return True
 
 
@@ -692,8 +686,14 @@ def finish_soa(
     t_last: float,
     loglik: np.ndarray,
 ) -> bool:
-    """:func:`finish_terms` for ``pq`` (r(r+1)/2, T' C), ``a`` (r, T' C) and ``total`` (T' C,) with pairs
-    ordered (task, candidate), innermost; ``loglik`` (T', C)."""
+    """Log likelihood (into ``loglik`` (T, C)) from ``Q = I + P`` (packed ``pq`` (r(r+1)/2, P')), ``a``
+    (r, P') and the other terms ``total`` (P',), pairs (task, candidate) task-major and innermost.
+
+    ``log|Q|`` and ``a^T Q^-1 a`` come from one Cholesky factorisation of ``Q`` per pair
+    (vectorised over pairs); candidates shorter than the observation get ``-inf``. ``P' >= T C``:
+    lanes beyond ``T C`` are padding (zeros, so ``Q = I``) that keeps the pair loops in whole
+    vector widths. Returns False when a ``Q`` was not numerically positive definite.
+    """
     r, n_p = a.shape
     n_c = alphas.shape[1]
     lq = np.empty((r, r, n_p))
@@ -718,7 +718,7 @@ def finish_soa(
         for c in range(n_p):
             vi[c] /= lii[c]
             vv[c] += vi[c] * vi[c]
-    for p in range(n_p):
+    for p in range(alphas.shape[0] * n_c):
         t = p // n_c
         c = p - t * n_c
         if t_last > alphas[t, c] * t_norm * (1.0 + 1e-12):

@@ -69,6 +69,9 @@ from .model import TaskModel
 
 LOG_2PI = float(np.log(2.0 * np.pi))
 
+PAIR_LANES = 16
+"""The (task, candidate) pair arrays are padded to a multiple of this many lanes (whole vector loops)."""
+
 
 def _kernels():
     """The compiled kernels module (imports numba and compiles / loads cached code on first use)."""
@@ -224,7 +227,9 @@ class InferenceEngine:
         ``mu_k`` (T, K, D_m) task means; ``w_k`` (T, K D_m, r) ``W_d / sqrt(delta_d)`` with rows
         ordered (basis, dim), so that the first ``ke D_m`` rows are the first ``ke`` basis functions;
         ``mu2`` (T, K) cumulative ``sum_d ||mu_d[:k]||^2 / delta_d``; ``inv_delta`` (T, D_m);
-        ``log_delta`` (T,) ``sum_d log delta_d``.
+        ``log_delta`` (T,) ``sum_d log delta_d``; ``mu_rows`` (T D_m, K) the means with rows (task, dim);
+        ``w_1`` (T, K D_m, r) ``W_d`` with rows (basis, dim); ``w_t`` (T, K, r, D_m) ``W_d`` ordered
+        (basis, latent, dim).
         """
         key = tuple(int(d) for d in dims)
         c = self._dims_cache.get(key)
@@ -240,6 +245,7 @@ class InferenceEngine:
                 "w_1": np.ascontiguousarray(
                     self.w[:, dims].transpose(0, 2, 1, 3).reshape(n_task, k * dm, -1)
                 ),
+                "w_t": np.ascontiguousarray(self.w[:, dims].transpose(0, 2, 3, 1)),
                 "mu2": np.ascontiguousarray(
                     np.concatenate(
                         [
@@ -312,10 +318,10 @@ class InferenceEngine:
 
     def pair_terms(self, stats: list[PartStats], nu: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Terms of every (task, candidate) pair, pairs task-major and innermost: the scalar terms
-        (P,), ``a`` (r, P) and packed ``P`` (r(r+1)/2, P)."""
+        (P',), ``a`` (r, P') and packed ``P`` (r(r+1)/2, P'), ``P' >= T C`` padded with zeros."""
         kern = _kernels()
         n_task, n_cand = self.alphas.shape
-        n_pair = n_task * n_cand
+        n_pair = -(-n_task * n_cand // PAIR_LANES) * PAIR_LANES  # padded: see kernels.finish_soa
         total = np.zeros(n_pair)
         a = np.zeros((self.rank, n_pair))
         pq = np.zeros((self.ia.size, n_pair))
@@ -373,8 +379,8 @@ class IncrementalTerms:
         e = self.engine
         c = self._c
         ok = self._kern.stream_step(
-            self.xinv, self.logdet, phi, y, proj, e.nu, e._all_tasks, e.cand_index, c["mu_k"],
-            c["inv_delta"], c["log_delta"], c["w_1"], e.ia, e.ib, self.total, self.a, self.pq,
+            self.xinv, self.logdet, phi, y, proj, e.nu, e.starts, e.alphas.shape[1], c["mu_k"],
+            c["inv_delta"], c["log_delta"], c["w_t"], e.ia, e.ib, self.total, self.a, self.pq,
         )  # fmt: skip
         if not ok:
             self.ke = -1  # partly updated: rebuilt by the next reset

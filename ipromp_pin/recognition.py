@@ -759,6 +759,7 @@ class StreamingEstimator:
             max(float(m.alpha_grid[-1]) for m in model.models_.values()) * model.duration_nominal_s_
         )
         self._held: contextlib.AbstractContextManager | None = None
+        self._support_until = -np.inf  # phases below this need at most inc.ke basis functions
 
     def __enter__(self) -> StreamingEstimator:
         self._held = self.model._limit_threads()
@@ -834,6 +835,14 @@ class StreamingEstimator:
         b = self.model.basis_
         phi = kern.basis_rows(t_s * self._inv_dur, b.centres, b.width, b._step_factor)
         patterns = []
+        if len(self._patterns) == 1 and len(present) == len(self._slices):
+            # every group present and one presence history: one call adds to B^T B and B^T y
+            pattern = self._patterns[0]
+            kern.add_sample(pattern[1], self._proj, phi, y)
+            pattern[2] += 1
+            pattern[3] = t_s
+            self._sq += y * y
+            return phi
         for groups, gram, n, t_last in self._patterns:
             have = [g for g in groups if g in present]
             absent = [g for g in groups if g not in present]
@@ -872,7 +881,8 @@ class StreamingEstimator:
             loglik = self._engine.terms(self._stats(), t_last).loglik
         else:
             basis = self.model.basis_
-            need = basis.support_count(t_last * self._inv_dur_max)
+            z_last = t_last * self._inv_dur_max
+            need = inc.ke if z_last < self._support_until else basis.support_count(z_last)
             if inc.ke >= need:
                 loglik = inc.add(phi, y, self._proj, t_last)
             else:
@@ -881,6 +891,7 @@ class StreamingEstimator:
                 stats = self._stats()[0]
                 stats.ke = min(basis.n_basis, need + STREAM_EXTRA_BASIS)
                 loglik = inc.reset(stats, t_last)
+                self._support_until = basis.support_limit(stats.ke)
         return self.model._recognition_from_loglik(loglik, t_last)
 
     def observation(self) -> Demo:

@@ -64,3 +64,29 @@ def test_support_count_drops_only_negligible_functions() -> None:
 def test_bad_parameters_raise(kwargs: dict) -> None:
     with pytest.raises(ModelError):
         GaussianBasis(**kwargs)
+
+
+def test_support_limit_matches_support_count() -> None:
+    basis = GaussianBasis(31)
+    zs = np.linspace(0.0, 1.0, 2001)
+    for n_first in (3, 10, 20, 30, 31):
+        limit = basis.support_limit(n_first)
+        counts = np.array([basis.support_count(z) for z in zs])
+        assert np.all((counts <= n_first) == (zs < limit))
+
+
+def test_gram_factors_give_the_gram_matrix() -> None:
+    basis = GaussianBasis(21)
+    z = np.random.default_rng(3).uniform(0.0, 0.4, 37)
+    b = basis(z)
+    pair_step, overlap = basis.gram_factors()
+    inv_h2 = 1.0 / basis.width**2
+    psi = np.empty((2 * basis.n_basis - 1, z.size))
+    psi[0] = np.exp(-((z - basis.centres[0]) ** 2) * inv_h2)
+    q = np.exp(z * basis.spacing * inv_h2)
+    for s in range(1, psi.shape[0]):
+        psi[s] = psi[s - 1] * q * pair_step[s - 1]
+    sums = psi.sum(axis=1)
+    k = np.arange(basis.n_basis)
+    gram = overlap[np.abs(k[:, None] - k[None, :])] * sums[k[:, None] + k[None, :]]
+    np.testing.assert_allclose(gram, b.T @ b, rtol=1e-12, atol=1e-300)

@@ -42,7 +42,13 @@ Making it fast (:class:`InferenceEngine`, compiled numba kernels in :mod:`ipromp
   ``B^T y``, ``X^-1``) is computed once per distinct candidate.
 * Basis functions below 1e-11 on every observed phase are dropped (their
   contribution is below 1e-20 relative); the basis is evaluated with two
-  exponentials per sample (the running product of :meth:`GaussianBasis.values_prefix_t`).
+  exponentials per sample (the running product of :meth:`GaussianBasis.values_prefix_t`),
+  and ``G = B^T B`` from 2K - 1 sums instead of K (K + 1) / 2, because with uniform
+  centres the product of two bumps depends on ``k - l`` and ``k + l`` only
+  (:meth:`GaussianBasis.gram_factors`).
+* Every task's candidates are consecutive unique candidates, so the per-task work
+  runs on contiguous windows; ``X^-1 B^T y`` is computed once per unique candidate
+  and ``X^-1 mu`` of every task in one matrix product.
 * Streaming: ``G``, ``B^T y`` and ``y^T y`` are running sums (one basis row per
   candidate per new sample).
 * The kernels compile on the first inference of a process (importing the package
@@ -195,10 +201,8 @@ class InferenceEngine:
         unpack[ia, ib] = np.arange(npk)
         unpack[ib, ia] = np.arange(npk)
         self.unpack = unpack
-        self._all_tasks = np.arange(n_task, dtype=np.int64)
-        self.cand_index = np.ascontiguousarray(self.cand_index, dtype=np.int64)
         # every task's candidates are consecutive lattice points, hence consecutive unique candidates
-        self.starts = np.ascontiguousarray(self.cand_index[:, 0])
+        self.starts = np.ascontiguousarray(self.cand_index[:, 0], dtype=np.int64)
         if not np.array_equal(self.cand_index, self.starts[:, None] + np.arange(self.alphas.shape[1])):
             raise ValueError("every task's phase candidates must be consecutive points of one lattice")
         self._no_z = np.zeros((1, 1, 1))

@@ -90,7 +90,11 @@ class TrialResult:
 
 @dataclass
 class Cell:
-    """One cell of the accuracy table: a protocol, training size, ratio, observed set and task."""
+    """One cell of the accuracy table: a protocol, training size, ratio, observed set and task.
+
+    ``coupled_groups`` counts, over the cell's model fits, the observed groups each fitted model
+    coupled to the robot (``"+"``-joined, ``""`` for none; see ``IProMP(coupling=...)``).
+    """
 
     protocol: str
     n_train: int
@@ -109,6 +113,7 @@ class Cell:
     handover_error_cm: float | None = None
     handover_error_prior_cm: float | None = None
     duration_error_s: float | None = None
+    coupled_groups: dict[str, int] = field(default_factory=dict)
     trials: list[dict] = field(default_factory=list)
 
 
@@ -276,8 +281,13 @@ _WORKER: dict = {}
 """Per-process state of the evaluation workers (dataset, settings), set before forking."""
 
 
-def _run_job(job: _Job) -> tuple[_Job, dict[float, list[TrialResult]]]:
-    """Fit on the job's training demos and score its test demos at every ratio."""
+def _run_job(job: _Job) -> tuple[_Job, dict[float, list[TrialResult]], str]:
+    """Fit on the job's training demos and score its test demos at every ratio.
+
+    Returns:
+        The job, per ratio the trials, and the observed groups the fitted model couples to the
+        robot (``"+"``-joined).
+    """
     from .recognition import IProMP
 
     dataset: Dataset = _WORKER["dataset"]
@@ -289,7 +299,7 @@ def _run_job(job: _Job) -> tuple[_Job, dict[float, list[TrialResult]]]:
         out[ratio] = [
             score_trial(model.predict(d.head(ratio, groups=job.observe)), d, ratio, fk) for d in test
         ]
-    return job, out
+    return job, out, "+".join(getattr(model, "coupled_groups_", job.observe))
 
 
 def _robot_fk(robot: str | None) -> Callable[[np.ndarray], np.ndarray] | None:
@@ -339,9 +349,13 @@ def evaluate(
     _WORKER.update(dataset=dataset, fk=_robot_fk(robot), params=dict(config.model_params))
     # (n_train, ratio, observe_key, task) -> per repeat, the trials of that task
     results: dict[tuple[int, float, str, str], list[list[TrialResult]]] = {}
+    # (n_train, observe_key) -> coupled groups of the fitted models -> number of fits
+    couplings: dict[tuple[int, str], dict[str, int]] = {}
     try:
-        for done, (job, trials) in enumerate(_map(work, jobs), start=1):
+        for done, (job, trials, coupled) in enumerate(_map(work, jobs), start=1):
             key = observe_key(job.observe)
+            counts = couplings.setdefault((job.n_train, key), {})
+            counts[coupled] = counts.get(coupled, 0) + 1
             for ratio, rows in trials.items():
                 for task in dataset.tasks:
                     results.setdefault((job.n_train, ratio, key, task), []).append(
@@ -352,7 +366,7 @@ def evaluate(
                 progress(done, len(work), label)
     finally:
         _WORKER.clear()
-    return _cells(dataset, config, results)
+    return _cells(dataset, config, results, couplings)
 
 
 def _map(work: list[_Job], jobs: int):
@@ -369,7 +383,7 @@ def _map(work: list[_Job], jobs: int):
             yield f.result()
 
 
-def _cells(dataset: Dataset, config: EvaluationConfig, results) -> list[Cell]:
+def _cells(dataset: Dataset, config: EvaluationConfig, results, couplings) -> list[Cell]:
     cells = []
     for n_train, ratio in config.grid:
         for observe in config.observe:
@@ -396,6 +410,7 @@ def _cells(dataset: Dataset, config: EvaluationConfig, results) -> list[Cell]:
                     handover_error_cm=summary["handover_error_cm"],
                     handover_error_prior_cm=summary["handover_error_prior_cm"],
                     duration_error_s=summary["duration_error_s"],
+                    coupled_groups=dict(sorted(couplings.get((n_train, key), {}).items())),
                 )
                 if config.protocol == "splits":
                     cell.accuracy_std = float(np.std(accs)) if accs else float("nan")
@@ -485,6 +500,12 @@ def to_markdown(cells: Sequence[Cell]) -> str:
                 f"| {_fmt(c.duration_error_s, 2)} |"
             )
         lines.append("")
+        fits = {(c.n_train, observe_key(c.observe)): c.coupled_groups for c in pc if c.coupled_groups}
+        for (n_train, key), counts in fits.items():
+            chosen = ", ".join(f"{g or 'none'} ({n})" for g, n in counts.items())
+            lines.append(f"- observed groups coupled to the robot, n_train={n_train}, {key}: {chosen}")
+        if fits:
+            lines.append("")
     return "\n".join(lines)
 
 

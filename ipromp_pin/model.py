@@ -26,6 +26,11 @@ is symmetric positive definite. It is stored in the structured form
 floor`` and ``F_t = sqrt((1 - lambda) / N) X_c^T`` compressed to rank <= N - 1
 (thin SVD), which the fast inference (:mod:`ipromp_pin.phase`) exploits.
 
+Blocks. The dims may be split into independent blocks (zero cross-covariance), each shrunk as
+above on its own, with its own intensity, target and factor columns (so ``F_t`` then has rank
+<= N - 1 per block): e.g. the human groups that inform the robot together with the robot, and the
+human groups used only to recognise the task (:mod:`ipromp_pin.recognition`, ``coupling``).
+
 Observation noise. An observed channel ``d`` is seen with white noise of
 variance ``r_d = nu * delta_d`` (scaled units): each channel's idiosyncratic
 (not shared with other channels) variation is split between a smooth part (in
@@ -131,14 +136,14 @@ class ShrunkCovariance:
     Attributes:
         mean: (D, K) mean weights.
         diag: (D,) per-dim diagonal variance ``delta_d``.
-        factor: (D, K, r) low-rank factor ``F`` (r <= N - 1).
-        shrinkage: Ledoit-Wolf intensity ``lambda`` in [0, 1].
+        factor: (D, K, r) low-rank factor ``F`` (r <= N - 1 per block of dims).
+        shrinkage: (D,) Ledoit-Wolf intensity ``lambda`` in [0, 1] of each dim (equal within a block).
     """
 
     mean: np.ndarray
     diag: np.ndarray
     factor: np.ndarray
-    shrinkage: float
+    shrinkage: np.ndarray
 
 
 def shrink_covariance(weights: np.ndarray) -> ShrunkCovariance:
@@ -146,7 +151,12 @@ def shrink_covariance(weights: np.ndarray) -> ShrunkCovariance:
     return shrink_covariances([weights])[0]
 
 
-def shrink_covariances(weights: list[np.ndarray], pooling: float = 0.0) -> list[ShrunkCovariance]:
+def shrink_covariances(
+    weights: list[np.ndarray],
+    pooling: float = 0.0,
+    blocks: list[np.ndarray] | None = None,
+    tasks: list[int] | None = None,
+) -> list[ShrunkCovariance]:
     """Ledoit-Wolf shrinkage of every task's covariance toward one pooled per-dim diagonal target.
 
     Args:
@@ -156,20 +166,66 @@ def shrink_covariances(weights: list[np.ndarray], pooling: float = 0.0) -> list[
             every task's demos about their own task mean (regularised discriminant analysis,
             Friedman 1989). How the human's motion shapes the robot's (the cross-covariance) is
             largely shared by hand-over tasks, and pooling estimates it from all demos.
+        blocks: Partition of the dims ``0..D-1`` into index arrays (None: one block of all dims).
+            Dims of different blocks are independent (zero cross-covariance); each block is shrunk
+            on its own, with its own intensity, and has its own factor columns (rank <= N_t - 1
+            each). A block of channels that vary much between demos but are unrelated to the others
+            (EMG amplitudes) then neither drives the intensity of the other dims nor couples to them.
+        tasks: Indices of the tasks whose estimates are returned (default all); the pooled target
+            and intensities always use every task's demos.
 
     Returns:
-        Per task, the structured SPD estimate ``(1 - lambda) S_t + lambda T`` with
+        Per task, the structured SPD estimate, block by block ``(1 - lambda) S_t + lambda T`` with
         ``T = blockdiag(tau_d I_K)``, ``tau_d`` the mean weight variance of dim d pooled
-        over tasks, and one intensity ``lambda = min(1, sum_t b_t^2 / sum_t d_t^2)``
+        over tasks, and one intensity per block ``lambda = min(1, sum_t b_t^2 / sum_t d_t^2)``
         (Ledoit-Wolf, with the tasks' estimation errors and distances pooled). The
         diagonal part ``delta_d = lambda tau_d`` is therefore shared by all tasks.
     """
     d, k = weights[0].shape[1:]
+    if not 0.0 <= pooling <= 1.0:
+        raise ModelError(f"pooling must be in [0, 1], got {pooling}")
+    for w in weights:
+        if w.shape[0] < 2:
+            raise ModelError(f"covariance needs at least 2 demos per task, got {w.shape[0]}")
+    if blocks is None:
+        blocks = [np.arange(d)]
+    blocks = [np.asarray(b, dtype=int).reshape(-1) for b in blocks]
+    seen = np.concatenate(blocks) if blocks else np.zeros(0, dtype=int)
+    if seen.size != d or not np.array_equal(np.sort(seen), np.arange(d)):
+        raise ModelError(f"blocks must partition the {d} dims, got {[b.tolist() for b in blocks]}")
+    tasks = list(range(len(weights))) if tasks is None else [int(t) for t in tasks]
+    diag = np.empty(d)
+    lam_dims = np.empty(d)
+    factors: list[list[np.ndarray]] = [[] for _ in tasks]
+    for dims in blocks:
+        if dims.size == 0:
+            continue
+        lam, diag_b, facs = _shrink_block([w[:, dims] for w in weights], pooling, tasks)
+        diag[dims] = diag_b
+        lam_dims[dims] = lam
+        for i, f in enumerate(facs):
+            full = np.zeros((d, k, f.shape[2]))
+            full[dims] = f
+            factors[i].append(full)
+    return [
+        ShrunkCovariance(
+            mean=np.ascontiguousarray(weights[t].mean(axis=0)),
+            diag=diag.copy(),
+            factor=np.ascontiguousarray(np.concatenate(facs, axis=2)),
+            shrinkage=lam_dims.copy(),
+        )
+        for t, facs in zip(tasks, factors, strict=True)
+    ]
+
+
+def _shrink_block(
+    weights: list[np.ndarray], pooling: float, tasks: list[int]
+) -> tuple[float, np.ndarray, list[np.ndarray]]:
+    """Ledoit-Wolf intensity, diagonal (D_b,) and factors (D_b, K, r_t) of the tasks ``tasks``, one block."""
+    d, k = weights[0].shape[1:]
     centred, grams, tau_num, tau_den = [], [], np.zeros(d), 0
     for w in weights:
         n = w.shape[0]
-        if n < 2:
-            raise ModelError(f"covariance needs at least 2 demos per task, got {n}")
         xc = (w - w.mean(axis=0)).reshape(n, d * k)
         centred.append(xc)
         grams.append(xc @ xc.T)
@@ -188,27 +244,18 @@ def shrink_covariances(weights: list[np.ndarray], pooling: float = 0.0) -> list[
     lam = 1.0 if d2_sum <= 0.0 else float(min(1.0, max(0.0, b2_sum / d2_sum)))
     floor = VARIANCE_FLOOR * max(float(np.mean(tau)), 1e-12)
     diag = lam * tau + floor
-    if not 0.0 <= pooling <= 1.0:
-        raise ModelError(f"pooling must be in [0, 1], got {pooling}")
     pool = np.vstack(centred) / np.sqrt(sum(xc.shape[0] for xc in centred))
-    out = []
-    for w, xc in zip(weights, centred, strict=True):
-        n = xc.shape[0]
-        rows = xc / np.sqrt(n)
+    factors = []
+    for t in tasks:
+        xc = centred[t]
+        rows = xc / np.sqrt(xc.shape[0])
         if pooling > 0.0:
             rows = np.vstack([np.sqrt(1.0 - pooling) * rows, np.sqrt(pooling) * pool])
         _, sv, vt = np.linalg.svd(rows, full_matrices=False)
         keep = sv > 1e-10 * max(float(sv[0]), 1e-300)
         factor = (vt[keep].T * sv[keep]) * np.sqrt(1.0 - lam)
-        out.append(
-            ShrunkCovariance(
-                mean=np.ascontiguousarray(w.mean(axis=0)),
-                diag=diag.copy(),
-                factor=np.ascontiguousarray(factor.reshape(d, k, -1)),
-                shrinkage=lam,
-            )
-        )
-    return out
+        factors.append(factor.reshape(d, k, -1))
+    return lam, diag, factors
 
 
 @dataclass
@@ -220,7 +267,7 @@ class TaskModel:
         mean: (D, K) mean weights of all dims (observed human dims first, then robot).
         diag: (D,) per-dim diagonal weight variance ``delta_d``.
         factor: (D, K, r) low-rank covariance factor.
-        shrinkage: Ledoit-Wolf shrinkage intensity used.
+        shrinkage: (D,) Ledoit-Wolf shrinkage intensity of each dim (equal within a block of dims).
         alpha_mu: Mean of the phase prior ``alpha = T / T_norm``.
         alpha_sigma: Standard deviation of the phase prior (floored).
         alpha_grid: (n_alpha,) phase candidates.
@@ -233,7 +280,7 @@ class TaskModel:
     mean: np.ndarray
     diag: np.ndarray
     factor: np.ndarray
-    shrinkage: float
+    shrinkage: np.ndarray
     alpha_mu: float
     alpha_sigma: float
     alpha_grid: np.ndarray

@@ -24,6 +24,28 @@ the mean log posterior density of its true phase (each observation's score
 clipped at -100). A too-small ``nu`` makes the phase estimate overconfident (worse than the
 prior alone); a too-large one ignores the observation.
 
+Coupling. Not every observed group need inform the robot: on the hand-over data the forearm
+EMG amplitudes differ strongly between repetitions of a task (which is what tells the tasks
+apart) but say nothing about where the robot should go, and with 10-20 demos and hundreds of
+weights, their sample cross-covariance with the robot is mostly noise that the conditioning
+turns into prediction error. With ``coupling="auto"`` the model therefore has two independent
+blocks of dims, the *coupled* observed groups with the robot and the remaining observed groups
+(still modelled, with their correlations, for recognition and phase), each with its own
+Ledoit-Wolf shrinkage (:func:`~ipromp_pin.model.shrink_covariances`; the noisy block no longer
+inflates the shrinkage of the coupled one). The coupled groups are chosen among the non-empty
+subsets of the observed groups by leave-one-out cross-validation on the training demos (the same
+held-out demos as for ``nu``, after ``nu`` has been chosen on the fully coupled model): each
+held-out demo's first 10 % and 20 % are observed, its task's weights are conditioned on them at its
+true phase, and the score is the RMSE in [rad] of the predicted robot trajectory over the
+unobserved phases. With 10-20 demos per task these scores are noisy, so the one-standard-error
+rule picks the candidate with the fewest coupled dims (the fewest cross-covariances to estimate)
+among those whose mean squared error exceeds the best one's by at most one standard error of
+their paired difference over the held-out observations. The empty set (robot independent of
+the human: the prediction is the prior) is not a candidate, as the conditioning is the point of
+the model and on small training sets its CV error ties with the best coupling's;
+``coupling=[]`` selects it explicitly. With two blocks the covariance factor has rank up to
+``2 (N - 1)`` (one ``N - 1`` per block).
+
 :func:`direct_predict` is the textbook reference implementation (dense
 block-diagonal observation matrix, full covariance ``Phi Sigma Phi^T + R`` per
 candidate, dense conditioning) used by the tests and the benchmark to check the
@@ -35,6 +57,7 @@ from __future__ import annotations
 import contextlib
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
+from itertools import combinations
 from pathlib import Path
 
 import numpy as np
@@ -73,7 +96,18 @@ STREAM_EXTRA_BASIS = 4
 incremental terms are rebuilt only when the window reaches past them."""
 
 CV_MAX_FOLDS = 30
-"""Largest number of held-out demos of the noise cross-validation (spread evenly over tasks and demos)."""
+"""Largest number of held-out demos of the cross-validations (spread evenly over tasks and demos)."""
+
+CV_PHASES = 50
+"""Phases of the unobserved part of the motion at which the coupling cross-validation compares the
+robot's predicted and true trajectories."""
+
+COUPLING_SE = 1.0
+"""Candidates within this many standard errors of the best CV error count as equally good (the one with
+the fewest coupled dims is chosen)."""
+
+COUPLING_MAX_GROUPS = 4
+"""Up to this many observed groups, ``coupling="auto"`` tries every subset of them."""
 
 
 @dataclass
@@ -169,6 +203,11 @@ class IProMP:
             :class:`~ipromp_pin.model.ChannelScaler`); groups not observed are ignored.
         pooling: Weight in [0, 1] of the covariance pooled over tasks in each task's
             covariance (see :func:`~ipromp_pin.model.shrink_covariances`).
+        coupling: Observed groups whose weights covary with the robot's (the others are modelled
+            for recognition only, independent of the robot and of the coupled groups): ``"auto"``
+            (chosen by leave-one-out cross-validation of the robot prediction, see the module
+            docstring), ``"all"`` (every observed group, the textbook Interaction ProMP) or a list
+            of observed groups (empty: the robot's prediction is its prior).
         blas_threads: BLAS threads used while fitting and inferring (None = leave unchanged).
             Inference works on many small matrices, for which more threads only add overhead.
 
@@ -182,6 +221,9 @@ class IProMP:
         duration_nominal_s_: ``T_norm`` in [s] (mean training duration).
         noise_ratio_: Chosen ``nu``; ``noise_var_`` task -> (D_obs,) noise variances (scaled units).
         cv_scores_: ``nu`` -> CV score (only with ``noise="auto"``).
+        coupled_groups_: Observed groups coupled to the robot (see ``coupling``).
+        coupling_cv_scores_: Candidate coupled groups (``"+"``-joined) -> CV RMSE of the robot
+            prediction in [rad] (only with ``coupling="auto"`` and more than one candidate).
         task_log_prior_: (K,) log task prior.
         residual_var_: (D,) mean per-sample residual variance of the basis fit (scaled units).
     """
@@ -201,6 +243,7 @@ class IProMP:
         robot_group: str = ROBOT,
         log_groups: Iterable[str] = ("emg",),
         pooling: float = 0.0,
+        coupling: str | Iterable[str] = "auto",
         blas_threads: int | None = 1,
     ) -> None:
         self.observe = parse_groups(observe)
@@ -216,6 +259,7 @@ class IProMP:
         self.robot_group = robot_group
         self.log_groups = tuple(log_groups)
         self.pooling = float(pooling)
+        self.coupling = coupling if isinstance(coupling, str) else tuple(coupling)
         self.blas_threads = blas_threads
         self._engine: InferenceEngine | None = None
         self._pred_cache: dict | None = None
@@ -227,6 +271,17 @@ class IProMP:
                 raise ModelError(f"noise must be 'auto' or a positive float, got {noise!r}")
         if not 0.0 <= self.pooling <= 1.0:
             raise ModelError(f"pooling must be in [0, 1], got {pooling!r}")
+        if isinstance(self.coupling, str):
+            if self.coupling not in ("auto", "all"):
+                raise ModelError(
+                    f"coupling must be 'auto', 'all' or a list of observed groups, got {coupling!r}"
+                )
+        else:
+            unknown = [g for g in self.coupling if g not in self.observe]
+            if unknown or len(set(self.coupling)) != len(self.coupling):
+                raise ModelError(
+                    f"coupling {list(self.coupling)} must list distinct observed groups ({self.observe})"
+                )
         if int(n_alpha) != n_alpha or n_alpha < 3:
             raise ModelError(f"n_alpha must be an integer >= 3, got {n_alpha!r}")
         if int(n_points) != n_points or n_points < 2:
@@ -289,13 +344,23 @@ class IProMP:
         self.residual_var_ = rss / np.maximum(count, 1)
         self._weights = weights
         self._alphas = {task: durations[task] / self.duration_nominal_s_ for task in self.tasks_}
+        # the noise ratio is chosen on the fully coupled model (one block of rank N - 1: cheap)
+        self.coupled_groups_ = list(self.observe)
         self.models_ = self._task_models(weights, self._alphas)
         self.task_log_prior_ = self._log_task_prior()
-        if isinstance(self.noise, str):
-            with self._limit_threads():
+        with self._limit_threads():
+            if isinstance(self.noise, str):
                 self.noise_ratio_, self.cv_scores_ = self._choose_noise(by_task)
-        else:
-            self.noise_ratio_, self.cv_scores_ = float(self.noise), {}
+            else:
+                self.noise_ratio_, self.cv_scores_ = float(self.noise), {}
+            if self.coupling == "auto":
+                coupled, self.coupling_cv_scores_ = self._choose_coupling(by_task)
+            else:
+                coupled = list(self.observe) if self.coupling == "all" else list(self.coupling)
+                self.coupling_cv_scores_ = {}
+        if coupled != self.coupled_groups_:
+            self.coupled_groups_ = coupled
+            self.models_ = self._task_models(weights, self._alphas)
         self._set_noise()
         return self
 
@@ -325,7 +390,9 @@ class IProMP:
     ) -> dict[str, TaskModel]:
         priors = [alpha_prior(alphas[t]) for t in self.tasks_]
         cands = alpha_candidates(priors, self.n_alpha, self.alpha_width)
-        covs = shrink_covariances([weights[t] for t in self.tasks_], self.pooling)
+        covs = shrink_covariances(
+            [weights[t] for t in self.tasks_], self.pooling, self._coupling_blocks(self.coupled_groups_)
+        )
         models = {}
         for task, (mu, sigma), (grid, logw), cov in zip(self.tasks_, priors, cands, covs, strict=True):
             models[task] = TaskModel(
@@ -368,41 +435,35 @@ class IProMP:
         n_eval = 0
         self.noise_ratio_ = NOISE_GRID[0]
         try:
-            for task, demos in by_task.items():
-                if len(demos) < 3:
-                    continue
+            for task, i in self._held_out(by_task):
                 ki = self.tasks_.index(task)
-                per_task = max(1, -(-CV_MAX_FOLDS // len(by_task)))
-                n_held = min(per_task, len(demos))
-                held = np.unique(np.linspace(0, len(demos) - 1, n_held).round().astype(int))
-                for i in held:
-                    d = demos[i]
-                    keep = np.arange(len(demos)) != i
-                    self.models_ = self._task_models(
-                        {**self._weights, task: self._weights[task][keep]},
-                        {**self._alphas, task: self._alphas[task][keep]},
-                    )
-                    m = self.models_[task]
-                    self._engine = None
-                    engine = self._engine_()
-                    dens_shift = np.log(m.alpha_grid[1] - m.alpha_grid[0])
-                    alpha_true = self._alphas[task][i]
-                    for ratio in CV_RATIOS:
-                        try:
-                            obs = d.head(ratio, self.observe)
-                        except ObservationError:
-                            continue
-                        parts, t_last = self._prepare(obs, check_length=False)
-                        stats = [engine.part_stats(p) for p in parts]
-                        n_eval += 1
-                        for j, nu in enumerate(NOISE_GRID):
-                            loglik = engine.terms(stats, t_last, nu=nu).loglik
-                            rec, grids = self._recognition_from_loglik(loglik, t_last, raw=True)
-                            s = rec.log_posterior[ki]
-                            # log posterior density of the true phase (interpolated between candidates)
-                            dens = grids[ki] - dens_shift
-                            s += float(np.interp(alpha_true, m.alpha_grid, dens, left=-50.0, right=-50.0))
-                            scores[j] += max(float(s), -100.0)
+                d = by_task[task][i]
+                keep = np.arange(len(by_task[task])) != i
+                self.models_ = self._task_models(
+                    {**self._weights, task: self._weights[task][keep]},
+                    {**self._alphas, task: self._alphas[task][keep]},
+                )
+                m = self.models_[task]
+                self._engine = None
+                engine = self._engine_()
+                dens_shift = np.log(m.alpha_grid[1] - m.alpha_grid[0])
+                alpha_true = self._alphas[task][i]
+                for ratio in CV_RATIOS:
+                    try:
+                        obs = d.head(ratio, self.observe)
+                    except ObservationError:
+                        continue
+                    parts, t_last = self._prepare(obs, check_length=False)
+                    stats = [engine.part_stats(p) for p in parts]
+                    n_eval += 1
+                    for j, nu in enumerate(NOISE_GRID):
+                        loglik = engine.terms(stats, t_last, nu=nu).loglik
+                        rec, grids = self._recognition_from_loglik(loglik, t_last, raw=True)
+                        s = rec.log_posterior[ki]
+                        # log posterior density of the true phase (interpolated between candidates)
+                        dens = grids[ki] - dens_shift
+                        s += float(np.interp(alpha_true, m.alpha_grid, dens, left=-50.0, right=-50.0))
+                        scores[j] += max(float(s), -100.0)
         finally:
             self.models_ = full
             self._engine = None
@@ -413,6 +474,117 @@ class IProMP:
         return float(NOISE_GRID[best]), {
             float(nu): float(v) for nu, v in zip(NOISE_GRID, scores, strict=True)
         }
+
+    def _held_out(self, by_task: Mapping[str, list[Demo]]) -> list[tuple[str, int]]:
+        """(task, demo index) of the demos held out by the cross-validations: at most
+        ``CV_MAX_FOLDS`` in all, spread evenly over the tasks with >= 3 demos and over their demos."""
+        per_task = max(1, -(-CV_MAX_FOLDS // len(by_task)))
+        out = []
+        for task, demos in by_task.items():
+            if len(demos) < 3:
+                continue
+            n_held = min(per_task, len(demos))
+            held = np.unique(np.linspace(0, len(demos) - 1, n_held).round().astype(int))
+            out += [(task, int(i)) for i in held]
+        return out
+
+    def _coupling_blocks(self, coupled: list[str]) -> list[np.ndarray]:
+        """Independent blocks of dims: the coupled groups with the robot, and the other observed groups."""
+        rest = [g for g in self.observe if g not in coupled]
+        blocks = [[*coupled, self.robot_group]] + ([rest] if rest else [])
+        return [np.concatenate([np.arange(*self.group_slices_[g]) for g in b]) for b in blocks]
+
+    def _coupling_candidates(self) -> list[list[str]]:
+        """Candidate coupled groups: every subset of the observed groups, largest first (all groups
+        first); with more than ``COUPLING_MAX_GROUPS`` observed groups only all, all but one, one
+        and none."""
+        n = len(self.observe)
+        sizes = range(n, 0, -1) if n <= COUPLING_MAX_GROUPS else [n, n - 1, 1]
+        return [
+            [g for g in self.observe if g in c] for size in sizes for c in combinations(self.observe, size)
+        ]
+
+    def _choose_coupling(self, by_task: Mapping[str, list[Demo]]) -> tuple[list[str], dict[str, float]]:
+        """Leave-one-out choice of the observed groups coupled to the robot (see the module docstring)."""
+        cands = self._coupling_candidates()
+        if len(cands) == 1:
+            return cands[0], {}
+        lo, hi = self.group_slices_[self.robot_group]
+        scale = self.scaler_.scale[lo:hi]
+        rows = []  # per held-out observation, the mean squared error of every candidate in [rad^2]
+        for task, i in self._held_out(by_task):
+            d = by_task[task][i]
+            keep = np.arange(len(by_task[task])) != i
+            weights = [self._weights[t][keep] if t == task else self._weights[t] for t in self.tasks_]
+            ki = [self.tasks_.index(task)]
+            covs = [shrink_covariances(weights, self.pooling, self._coupling_blocks(c), ki)[0] for c in cands]
+            alpha = float(self._alphas[task][i])
+            w_true = self._weights[task][i][lo:hi]
+            for ratio in CV_RATIOS:
+                try:
+                    obs = d.head(ratio, self.observe)
+                except ObservationError:
+                    continue
+                parts, _ = self._prepare(obs, check_length=False)
+                phi = self.basis_(np.linspace(ratio, 1.0, CV_PHASES))
+                row = []
+                for cov in covs:
+                    w = self._robot_posterior_mean(cov.mean, cov.diag, cov.factor, parts, alpha)
+                    err = (phi @ (w - w_true).T) * scale
+                    row.append(float(np.mean(err * err)))
+                rows.append(row)
+        if not rows:
+            return list(self.observe), {}
+        mse = np.array(rows)
+        mean = mse.mean(axis=0)
+        best = int(np.argmin(mean))
+        # one-standard-error rule: the fewest coupled dims whose error is within one standard error
+        # (of its paired difference to the best, over the same held-out observations) of the best
+        diff = mse - mse[:, [best]]
+        se = diff.std(axis=0, ddof=1) / np.sqrt(len(rows)) if len(rows) > 1 else np.zeros(len(cands))
+        size = [sum(np.subtract(*self.group_slices_[g][::-1]) for g in c) for c in cands]
+        ok = [j for j in range(len(cands)) if mean[j] - mean[best] <= COUPLING_SE * se[j]]
+        chosen = min(ok, key=lambda j: (size[j], mean[j]))
+        rmse = np.sqrt(mean)
+        return cands[chosen], {"+".join(c): float(v) for c, v in zip(cands, rmse, strict=True)}
+
+    def _robot_posterior_mean(
+        self,
+        mean: np.ndarray,
+        diag: np.ndarray,
+        factor: np.ndarray,
+        parts: list[ObservationPart],
+        alpha: float,
+    ) -> np.ndarray:
+        """Conditioned mean (J, K) of the robot weights of a weight distribution (``mean`` (D, K),
+        ``diag`` (D,), ``factor`` (D, K, r)) given an observation at the phase ``alpha``.
+
+        The latent posterior is ``N(Q^-1 a, Q^-1)`` with ``Q = I + sum_d W_d^T (I - nu X^-1) W_d``
+        and ``a = sum_d W_d^T X^-1 b_d / sqrt(delta_d)`` (notation of :mod:`ipromp_pin.phase`); the
+        robot dims are not observed, so their weights are ``mu + F eta``.
+        """
+        nu = self.noise_ratio_
+        r = factor.shape[2]
+        lo, hi = self.group_slices_[self.robot_group]
+        q = np.eye(r)
+        a = np.zeros(r)
+        inv_dur = 1.0 / (alpha * self.duration_nominal_s_)
+        for part in parts:
+            ke = self.basis_.support_count(float(part.t[-1]) * inv_dur)
+            bt = self.basis_(part.t * inv_dur)[:, :ke]  # (n, ke)
+            gram = bt.T @ bt
+            b = bt.T @ part.y - gram @ mean[part.dims, :ke].T  # (ke, dm)
+            x = gram + nu * np.eye(ke)
+            sd = np.sqrt(diag[part.dims])
+            w = (factor[part.dims, :ke] / sd[:, None, None]).transpose(1, 0, 2).reshape(ke, -1)  # (ke, dm r)
+            cx = cho_factor(x, lower=True)
+            xw = cho_solve(cx, w)
+            xb = cho_solve(cx, b / sd)  # (ke, dm)
+            wd = w.reshape(ke, -1, r)
+            q += np.einsum("kdr,kds->rs", wd, wd - nu * xw.reshape(ke, -1, r))
+            a += np.einsum("kdr,kd->r", wd, xb)
+        eta = cho_solve(cho_factor(q, lower=True), a) if r else a
+        return mean[lo:hi] + factor[lo:hi] @ eta
 
     # ---------------------------------------------------------- inference
     def _limit_threads(self):

@@ -6,14 +6,20 @@ A model file is a single ``.npz`` archive (``numpy.savez``) read back with
 * ``header``: a JSON string with ``format`` (:data:`FORMAT_NAME`),
   ``format_version`` (:data:`FORMAT_VERSION`), the package version, the
   constructor parameters, task names, channel groups and names, and the fitted
-  scalars (``T_norm`` in [s], noise ratio, CV scores, per-task phase prior and
-  shrinkage intensity);
+  scalars (``T_norm`` in [s], noise ratio, CV scores, observed groups coupled to
+  the robot and their CV scores, per-task phase prior and the robot's shrinkage
+  intensity);
 * plain float arrays: the channel scaling (``scaler_offset``, ``scaler_scale``,
   ``scaler_log_shift``: NaN for linear channels),
   ``task_log_prior``, ``residual_var`` and, per task index ``i``,
   ``task{i}_mean`` (D, K), ``task{i}_diag`` (D,), ``task{i}_factor`` (D, K, r),
   ``task{i}_alpha_grid``, ``task{i}_alpha_log_prior``, ``task{i}_train_weights``
-  (N, D, K), ``task{i}_train_alpha`` (N,).
+  (N, D, K), ``task{i}_train_alpha`` (N,), ``task{i}_shrinkage`` (D,).
+
+Files written before the coupling was introduced (no ``coupling`` parameter, no
+``task{i}_shrinkage``) load as fully coupled models with one shrinkage intensity;
+the covariance is entirely in ``diag`` and ``factor``, so older readers also load
+newer files and predict the same.
 
 Floats are stored exactly (binary arrays; JSON floats use Python's
 round-tripping repr), so a loaded model gives bitwise identical predictions. A
@@ -68,6 +74,7 @@ def save_model(model: IProMP, path: str | Path) -> None:
             "robot_group": model.robot_group,
             "log_groups": list(model.log_groups),
             "pooling": float(model.pooling),
+            "coupling": model.coupling if isinstance(model.coupling, str) else list(model.coupling),
         },
         "tasks": list(model.tasks_),
         "groups": list(model.groups_),
@@ -75,9 +82,12 @@ def save_model(model: IProMP, path: str | Path) -> None:
         "duration_nominal_s": float(model.duration_nominal_s_),
         "noise_ratio": float(model.noise_ratio_),
         "cv_scores": [[float(k), float(v)] for k, v in model.cv_scores_.items()],
+        "coupled_groups": list(model.coupled_groups_),
+        "coupling_cv_scores": [[k, float(v)] for k, v in model.coupling_cv_scores_.items()],
         "task_scalars": [
             {
-                "shrinkage": float(m.shrinkage),
+                # the robot's intensity, as a scalar for readers of files without task{i}_shrinkage
+                "shrinkage": float(m.shrinkage[model.group_slices_[model.robot_group][0]]),
                 "alpha_mu": float(m.alpha_mu),
                 "alpha_sigma": float(m.alpha_sigma),
             }
@@ -96,6 +106,7 @@ def save_model(model: IProMP, path: str | Path) -> None:
         m = model.models_[t]
         for name in _TASK_ARRAYS:
             arrays[f"task{i}_{name}"] = np.asarray(getattr(m, name), dtype=float)
+        arrays[f"task{i}_shrinkage"] = np.asarray(m.shrinkage, dtype=float)
     path = Path(path)
     with open(path, "wb") as fh:
         np.savez(fh, **arrays)
@@ -161,6 +172,7 @@ def _build(cls: type, header: dict, arrays: dict[str, np.ndarray]) -> IProMP:
         robot_group=p["robot_group"],
         log_groups=p["log_groups"],
         pooling=p["pooling"],
+        coupling=p.get("coupling", "all"),
     )
     from .basis import GaussianBasis
 
@@ -183,20 +195,28 @@ def _build(cls: type, header: dict, arrays: dict[str, np.ndarray]) -> IProMP:
     model.residual_var_ = arrays["residual_var"]
     model.noise_ratio_ = float(header["noise_ratio"])
     model.cv_scores_ = {float(k): float(v) for k, v in header["cv_scores"]}
+    model.coupled_groups_ = list(header.get("coupled_groups", model.observe))
+    model.coupling_cv_scores_ = {str(k): float(v) for k, v in header.get("coupling_cv_scores", [])}
+    if any(g not in model.observe for g in model.coupled_groups_):
+        raise ValueError(f"coupled groups {model.coupled_groups_} are not observed groups")
     models = {}
     n_dims, k = model.n_dims_, model.basis_.n_basis
     for i, t in enumerate(model.tasks_):
         sc = header["task_scalars"][i]
         a = {name: arrays[f"task{i}_{name}"] for name in _TASK_ARRAYS}
+        shrinkage = arrays.get(f"task{i}_shrinkage")
+        if shrinkage is None:  # files without per-dim intensities: one block
+            shrinkage = np.full(n_dims, float(sc["shrinkage"]))
         if (
             a["mean"].shape != (n_dims, k)
             or a["diag"].shape != (n_dims,)
             or a["factor"].shape[:2] != (n_dims, k)
+            or shrinkage.shape != (n_dims,)
         ):
             raise ValueError(f"arrays of task '{t}' have inconsistent shapes")
         models[t] = TaskModel(
             task=t,
-            shrinkage=float(sc["shrinkage"]),
+            shrinkage=shrinkage,
             alpha_mu=float(sc["alpha_mu"]),
             alpha_sigma=float(sc["alpha_sigma"]),
             **a,

@@ -7,7 +7,13 @@ import pytest
 
 from ipromp_pin.basis import GaussianBasis
 from ipromp_pin.exceptions import ModelError
-from ipromp_pin.model import ChannelScaler, alpha_candidates, alpha_prior, shrink_covariance
+from ipromp_pin.model import (
+    ChannelScaler,
+    alpha_candidates,
+    alpha_prior,
+    shrink_covariance,
+    shrink_covariances,
+)
 
 
 def test_scaler_round_trip_and_constant_channel() -> None:
@@ -33,7 +39,8 @@ def test_shrinkage_is_spd_and_matches_its_formula() -> None:
     xc = (w - w.mean(axis=0)).reshape(n, d * k)
     s = xc.T @ xc / n
     tau = np.array([np.trace(s[i * k : (i + 1) * k, i * k : (i + 1) * k]) / k for i in range(d)])
-    lam = cov.shrinkage
+    assert cov.shrinkage.shape == (d,) and np.all(cov.shrinkage == cov.shrinkage[0])
+    lam = cov.shrinkage[0]
     expected = (1 - lam) * s + lam * np.diag(np.repeat(tau, k))
     f = cov.factor.reshape(d * k, -1)
     dense = f @ f.T + np.diag(np.repeat(cov.diag, k))
@@ -45,9 +52,45 @@ def test_shrinkage_is_spd_and_matches_its_formula() -> None:
 
 def test_shrinkage_decreases_with_more_demos() -> None:
     rng = np.random.default_rng(2)
-    few = shrink_covariance(_weights(rng, 8)).shrinkage
-    many = shrink_covariance(_weights(rng, 400)).shrinkage
+    few = shrink_covariance(_weights(rng, 8)).shrinkage[0]
+    many = shrink_covariance(_weights(rng, 400)).shrinkage[0]
     assert many < few
+
+
+def _dense(cov) -> np.ndarray:
+    d, k, _ = cov.factor.shape
+    f = cov.factor.reshape(d * k, -1)
+    return f @ f.T + np.diag(np.repeat(cov.diag, k))
+
+
+def test_blocks_are_independent_and_each_shrunk_on_its_own() -> None:
+    rng = np.random.default_rng(5)
+    weights = [_weights(rng, n, d=5, k=4) for n in (7, 9)]
+    blocks = [np.array([0, 3, 4]), np.array([1, 2])]
+    covs = shrink_covariances(weights, blocks=blocks)
+    for t, cov in enumerate(covs):
+        dense = _dense(cov).reshape(5, 4, 5, 4)
+        assert np.linalg.eigvalsh(_dense(cov)).min() > 0.0
+        assert cov.factor.shape[2] <= 2 * (weights[t].shape[0] - 1)
+        # no covariance between the blocks
+        assert np.all(dense[np.ix_(blocks[0], range(4), blocks[1], range(4))] == 0.0)
+        for b in blocks:
+            # each block equals the estimate made from its dims alone (own intensity and target)
+            alone = shrink_covariances([w[:, b] for w in weights])[t]
+            assert np.allclose(dense[np.ix_(b, range(4), b, range(4))].reshape(b.size * 4, -1), _dense(alone))
+            assert np.all(cov.shrinkage[b] == alone.shrinkage[0])
+            assert np.array_equal(cov.diag[b], alone.diag)
+    assert covs[0].shrinkage[0] != covs[0].shrinkage[1]
+    # only some tasks: the same estimates (the pooled target and intensity still use every task)
+    (only,) = shrink_covariances(weights, blocks=blocks, tasks=[1])
+    assert np.allclose(_dense(only), _dense(covs[1])) and np.array_equal(only.mean, covs[1].mean)
+
+
+@pytest.mark.parametrize("blocks", [[np.array([0, 1])], [np.array([0, 1, 2]), np.array([2, 3, 4])]])
+def test_blocks_must_partition_the_dims(blocks) -> None:
+    rng = np.random.default_rng(6)
+    with pytest.raises(ModelError, match="partition"):
+        shrink_covariances([_weights(rng, 6, d=5, k=3)], blocks=blocks)
 
 
 def test_shrinkage_needs_two_demos() -> None:

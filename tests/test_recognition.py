@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 from helpers_model import random_dataset, split
 
-from ipromp_pin.data import Demo
+from ipromp_pin.data import Dataset, Demo
 from ipromp_pin.exceptions import DataError, ModelError, NotFittedError, ObservationError
 from ipromp_pin.recognition import NOISE_GRID, IProMP, Prediction
 
@@ -115,6 +117,16 @@ def test_incremental_stream_equals_one_shot_at_every_sample(noise: float) -> Non
     assert np.allclose(pred.q_mean, model.predict(demo).q_mean, rtol=1e-12, atol=1e-12)
 
 
+def test_coupling_keeps_every_group_that_informs_the_robot(fitted) -> None:
+    # in random_dataset the robot follows the amplitude shared by both human groups
+    model, _ = fitted
+    assert model.coupling == "auto" and model.coupled_groups_ == ["a", "b"]
+    scores = model.coupling_cv_scores_
+    assert set(scores) == {"a+b", "a", "b"} and scores["a+b"] < min(scores["a"], scores["b"])
+    m = model.models_["task0"]
+    assert np.all(m.shrinkage == m.shrinkage[0]) and m.rank <= 7  # one block: rank <= N - 1
+
+
 def test_noise_is_chosen_by_cross_validation(fitted) -> None:
     model, _ = fitted
     assert model.noise_ratio_ in NOISE_GRID
@@ -212,3 +224,119 @@ def test_stream_errors(fitted) -> None:
         stream.update(0.0, {"a": demo.groups["a"][1], "b": demo.groups["b"][1]})
     with pytest.raises(ObservationError, match="'c'"):
         stream.update(0.04, {"a": demo.groups["a"][1], "c": np.zeros(1)})
+
+
+# ------------------------------------------------------------------ coupling
+
+
+def _shuffle_group(ds: Dataset, group: str, seed: int) -> Dataset:
+    """Each demo gets ``group`` of another demo of its task (time-normalised): the group keeps its
+    task-specific shape (useful for recognition) but says nothing about this demo's robot motion."""
+    rng = np.random.default_rng(seed)
+    out = {}
+    for task, demos in ds.demos.items():
+        new = []
+        for d, j in zip(demos, rng.permutation(len(demos)), strict=True):
+            src = demos[j]
+            z, zs = d.t / d.t[-1], src.t / src.t[-1]
+            v = np.stack([np.interp(z, zs, c) for c in src.groups[group].T], axis=1)
+            new.append(Demo(d.task, d.name, d.source, d.t, {**d.groups, group: v}, d.channel_names))
+        out[task] = new
+    return Dataset(ds.root, out)
+
+
+def _rmse(p: Prediction, d: Demo, q: np.ndarray) -> float:
+    z = p.t / p.duration_s
+    truth = np.stack([np.interp(z, d.t / d.t[-1], c) for c in d.groups["robot"].T], axis=1)
+    return float(np.sqrt(np.mean((q - truth) ** 2)))
+
+
+@pytest.fixture(scope="module")
+def shuffled() -> tuple[Dataset, dict[str, list[Demo]]]:
+    return split(_shuffle_group(random_dataset(31, n_demos=26), "b", 31), 18)
+
+
+def test_coupling_leaves_out_a_group_unrelated_to_the_robot(shuffled) -> None:
+    train, test = shuffled
+    auto = IProMP(["a", "b"], n_basis=10, n_alpha=50).fit(train)
+    full = IProMP(["a", "b"], n_basis=10, n_alpha=50, coupling="all").fit(train)
+    assert auto.coupled_groups_ == ["a"] and full.coupled_groups_ == ["a", "b"]
+    scores = auto.coupling_cv_scores_
+    assert set(scores) == {"a+b", "a", "b"} and min(scores, key=scores.get) == "a"
+    assert full.coupling_cv_scores_ == {}
+    # b is independent of a and of the robot, and has its own shrinkage intensity
+    m = auto.models_["task0"]
+    b_dims, robot_dims = np.arange(2, 5), np.arange(5, 8)
+    cov = m.covariance().reshape(8, 10, 8, 10)
+    assert np.all(cov[np.ix_(b_dims, range(10), np.r_[0, 1, robot_dims], range(10))] == 0.0)
+    assert np.all(m.shrinkage[b_dims] == m.shrinkage[2]) and m.shrinkage[2] != m.shrinkage[0]
+    assert np.linalg.eigvalsh(m.covariance()).min() > 0.0
+    err_auto, err_full, err_prior, hits = [], [], [], []
+    for demos in test.values():
+        for d in demos:
+            obs = d.head(0.3, auto.observe)
+            p, pf = auto.predict(obs), full.predict(obs)
+            hits.append(p.task == d.task)
+            err_auto.append(_rmse(p, d, p.q_mean))
+            err_full.append(_rmse(pf, d, pf.q_mean))
+            err_prior.append(_rmse(p, d, p.q_prior_mean))
+    assert np.mean(hits) >= 0.9
+    assert np.mean(err_auto) < np.mean(err_full) and np.mean(err_auto) < 0.5 * np.mean(err_prior)
+
+
+def test_explicit_coupling(shuffled) -> None:
+    train, test = shuffled
+    none = IProMP(["a", "b"], n_basis=10, n_alpha=50, noise=1.0, coupling=[]).fit(train)
+    assert none.coupled_groups_ == [] and none.coupling_cv_scores_ == {}
+    p = none.predict(test["task1"][0].head(0.3, none.observe))
+    assert np.allclose(p.q_mean, p.q_prior_mean, atol=1e-12)  # the robot is independent of the human
+
+
+@pytest.mark.parametrize("coupling", ["some", ["c"], ["a", "a"], ["robot"]])
+def test_bad_coupling(coupling) -> None:
+    with pytest.raises(ModelError, match="coupling"):
+        IProMP(["a", "b"], coupling=coupling)
+
+
+def test_coupling_survives_save_and_load(tmp_path, shuffled) -> None:
+    train, test = shuffled
+    model = IProMP(["a", "b"], n_basis=10, n_alpha=50, noise=1.0).fit(train)
+    path = tmp_path / "m.npz"
+    model.save(path)
+    loaded = IProMP.load(path)
+    assert loaded.coupling == "auto" and loaded.coupled_groups_ == model.coupled_groups_ == ["a"]
+    assert loaded.coupling_cv_scores_ == model.coupling_cv_scores_
+    for t in model.tasks_:
+        assert np.array_equal(loaded.models_[t].shrinkage, model.models_[t].shrinkage)
+    obs = test["task2"][0].head(0.3, model.observe)
+    assert np.array_equal(loaded.predict(obs).q_mean, model.predict(obs).q_mean)
+    # a file written before the coupling existed loads as a fully coupled model
+    full = IProMP(["a", "b"], n_basis=10, n_alpha=50, noise=1.0, coupling="all").fit(train)
+    full.save(path)
+    with np.load(path, allow_pickle=False) as npz:
+        arrays = {k: npz[k] for k in npz.files if not k.endswith("_shrinkage")}
+    header = json.loads(str(arrays["header"][()]))
+    for key in ("coupled_groups", "coupling_cv_scores"):
+        del header[key]
+    del header["params"]["coupling"]
+    arrays["header"] = np.array(json.dumps(header))
+    old = tmp_path / "old.npz"
+    np.savez(old, **arrays)
+    loaded = IProMP.load(old)
+    assert loaded.coupling == "all" and loaded.coupled_groups_ == ["a", "b"]
+    assert np.all(loaded.models_["task0"].shrinkage == full.models_["task0"].shrinkage[0])
+    assert np.array_equal(loaded.predict(obs).q_mean, full.predict(obs).q_mean)
+
+
+def test_stream_equals_one_shot_with_two_blocks(shuffled) -> None:
+    train, test = shuffled
+    model = IProMP(["a", "b"], n_basis=10, n_alpha=50, noise=1.0, coupling=["a"]).fit(train)
+    assert model.models_["task0"].rank > 17  # two blocks of rank N - 1 = 17 each
+    demo = test["task1"][1].head(0.4, model.observe)
+    stream = model.stream()
+    for j in range(demo.n_samples):
+        rec = stream.update(demo.t[j], {g: demo.groups[g][j] for g in model.observe})
+    one = model.predict(demo)
+    assert np.allclose(rec.log_posterior, one.log_posterior, rtol=1e-9, atol=1e-9)
+    assert np.allclose(rec.alpha, one.alpha, rtol=1e-9)
+    assert np.allclose(stream.prediction().q_mean, one.q_mean, rtol=1e-12, atol=1e-12)

@@ -180,7 +180,9 @@ def chol_soa(a: np.ndarray, n: int, logdet: np.ndarray) -> bool:
 
 @njit(**_JIT)
 def part_terms(
-    gram: np.ndarray,
+    xinv: np.ndarray,
+    linv: np.ndarray,
+    logdet: np.ndarray,
     proj: np.ndarray,
     sq: np.ndarray,
     n_obs: int,
@@ -213,7 +215,8 @@ def part_terms(
     one matrix product; ``P`` of all candidates is one product with ``Z`` per task.
 
     Args:
-        gram, proj, sq: Part statistics ``B^T B`` (>=ke, >=ke, U), ``B^T y`` (>=ke, U, D_m), ``y^T y`` (D_m,).
+        xinv, linv, logdet: ``X^-1``, ``L^-1`` (ke, ke, U) and ``log|X|`` (U,) (:func:`x_inverse`).
+        proj, sq: Part statistics ``B^T y`` (>=ke, U, D_m) and ``y^T y`` (D_m,).
         n_obs, ke, nu: Number of samples, active basis functions, noise ratio.
         starts, n_c: (T,) first unique candidate of every task; candidates per task C.
         mu_k, mu_rows, inv_delta, mu2, log_delta, w_k: Model arrays of the part's dims
@@ -223,17 +226,12 @@ def part_terms(
         unpack: (r, r) index of ``(i, j)`` in the packed layout.
 
     Returns:
-        False when a matrix ``X`` was not numerically positive definite.
+        True (the signature of a kernel that can fail).
     """
-    n_u = gram.shape[2]
+    n_u = xinv.shape[2]
     dm = proj.shape[2]
     r = a.shape[0]
     n_t = starts.shape[0]
-    xinv = np.empty((ke, ke, n_u))
-    linv = np.empty((ke, ke, n_u))
-    logdet = x_inverse(gram, ke, nu, xinv, linv)
-    if not np.isfinite(logdet[0]):
-        return False
     m = ke * (ke + 1) // 2
     kd = ke * dm
     const = n_obs * dm * LOG_2PI + dm * (n_obs - ke) * np.log(nu)
@@ -539,52 +537,13 @@ def add_sample(gram: np.ndarray, proj: np.ndarray, phi: np.ndarray, y: np.ndarra
 
 
 @njit(**_JIT_FMA)
-def stream_step(
-    xinv: np.ndarray,
-    logdet: np.ndarray,
-    phi: np.ndarray,
-    y: np.ndarray,
-    proj: np.ndarray,
-    nu: float,
-    starts: np.ndarray,
-    n_c: int,
-    mu_k: np.ndarray,
-    inv_delta: np.ndarray,
-    log_delta: np.ndarray,
-    w_t: np.ndarray,
-    ia: np.ndarray,
-    ib: np.ndarray,
-    total: np.ndarray,
-    a: np.ndarray,
-    pq: np.ndarray,
-) -> bool:
-    """Add one sample (all observed dims, same active basis functions) to the terms of :func:`part_terms`.
-
-    With ``g = X^-1 phi`` and ``s = 1 + phi^T g`` (Sherman-Morrison), per unique candidate
-    ``X^-1 -= g g^T / s`` and ``log|X| += log s``; per pair, with ``h_d = B^T y_d + nu mu_d`` (after the
-    sample, ``proj`` already updated) and ``c_d = y_d - g^T h_d / s``: ``X^-1 h_d += c_d g``,
-    ``h_d^T X^-1 h_d += 2 y_d g^T h_d - (s - 1) y_d^2 - (g^T h_d)^2 / s``, ``a += sum_d c_d W_d^T g /
-    sqrt(delta_d)`` and ``P += nu / s sum_d (W_d^T g)(W_d^T g)^T``.
-
-    Args:
-        xinv, logdet: (ke, ke, U) ``X^-1`` and (U,) ``log|X|`` per unique candidate, updated in place.
-        phi: (K, U) basis values of the new sample; y: (D,) its scaled values.
-        proj: (K, U, D) ``B^T y`` including the new sample.
-        starts, n_c: (T,) first unique candidate of every task; candidates per task C.
-        w_t: (T, K, r, D) ``W_d / sqrt(delta_d)`` ordered (basis, latent, dim).
-        total, a, pq: (P',), (r, P') and packed ``P`` (r(r+1)/2, P') with pairs ordered
-            (task, candidate), innermost; updated in place.
-        Other arguments as in :func:`part_terms` (``ia``, ``ib``: row and column of each packed entry).
-
-    Returns:
-        False when ``X`` lost positive definiteness (``s <= 0``).
-    """
+def sherman_morrison(xinv: np.ndarray, logdet: np.ndarray, phi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Add one sample with basis values ``phi`` (K, U) to ``X = nu I + B^T B`` of every unique candidate:
+    with ``g = X^-1 phi`` and ``s = 1 + phi^T g``, ``X^-1 -= g g^T / s`` and ``log|X| += log s``
+    (``xinv`` (ke, ke, U) and ``logdet`` (U,) updated in place, unless some ``s <= 0``, i.e. ``X``
+    lost positive definiteness). Returns ``g`` (ke, U) and ``s`` (U,)."""
     ke = xinv.shape[0]
     n_u = xinv.shape[2]
-    dm = y.shape[0]
-    n_t = starts.shape[0]
-    r = a.shape[0]
-    npk = ia.shape[0]
     g = np.zeros((ke, n_u))
     for k in range(ke):
         gk = g[k]
@@ -601,7 +560,8 @@ def stream_step(
             s[u] += pk[u] * gk[u]
     for u in range(n_u):
         if not s[u] > 0.0:
-            return False
+            return g, s
+    for u in range(n_u):
         logdet[u] += np.log(s[u])
     for k in range(ke):
         gk = g[k]
@@ -610,13 +570,61 @@ def stream_step(
             gj = g[j]
             for u in range(n_u):
                 xkj[u] -= gk[u] * gj[u] / s[u]
+    return g, s
+
+
+@njit(**_JIT_FMA)
+def stream_step(
+    g: np.ndarray,
+    s: np.ndarray,
+    dims: np.ndarray,
+    y: np.ndarray,
+    proj: np.ndarray,
+    nu: float,
+    starts: np.ndarray,
+    n_c: int,
+    mu_k: np.ndarray,
+    inv_delta: np.ndarray,
+    log_delta: np.ndarray,
+    w_t: np.ndarray,
+    ia: np.ndarray,
+    ib: np.ndarray,
+    total: np.ndarray,
+    a: np.ndarray,
+    pq: np.ndarray,
+) -> None:
+    """Add one sample (all observed dims, same active basis functions) to one block's terms of
+    :func:`part_terms`, after :func:`sherman_morrison`.
+
+    Per pair, with ``h_d = B^T y_d + nu mu_d`` (after the sample, ``proj`` already updated) and
+    ``c_d = y_d - g^T h_d / s``: ``X^-1 h_d += c_d g``,
+    ``h_d^T X^-1 h_d += 2 y_d g^T h_d - (s - 1) y_d^2 - (g^T h_d)^2 / s``, ``a += sum_d c_d W_d^T g /
+    sqrt(delta_d)`` and ``P += nu / s sum_d (W_d^T g)(W_d^T g)^T``.
+
+    Args:
+        g, s: (ke, U) ``X^-1 phi`` (before the update) and (U,) ``1 + phi^T g``.
+        dims: (D_b,) the block's observed dims; y: (D,) the sample's scaled values (all observed dims).
+        proj: (K, U, D) ``B^T y`` of all observed dims, including the new sample.
+        starts, n_c: (T,) first unique candidate of every task; candidates per task C.
+        mu_k, inv_delta, log_delta: Block arrays (see ``LatentBlock.arrays``).
+        w_t: (T, K, r, D_b) ``W_d / sqrt(delta_d)`` ordered (basis, latent, dim).
+        total, a, pq: (P',), (r, P') and packed ``P`` (r(r+1)/2, P') with pairs ordered
+            (task, candidate), innermost; updated in place.
+        ia, ib: Row and column of each packed entry.
+    """
+    ke = g.shape[0]
+    n_u = g.shape[1]
+    dm = dims.shape[0]
+    n_t = starts.shape[0]
+    r = a.shape[0]
+    npk = ia.shape[0]
     # g^T B^T y_d per unique candidate (shared by the tasks): (D, U)
     gp = np.zeros((n_u, dm))
     for k in range(ke):
         for u in range(n_u):
             gku = g[k, u]
             for d in range(dm):
-                gp[u, d] += gku * proj[k, u, d]
+                gp[u, d] += gku * proj[k, u, dims[d]]
     gc = np.empty((ke, n_c))
     sc = np.empty(n_c)
     gh = np.empty((dm, n_c))
@@ -649,7 +657,7 @@ def stream_step(
         # W_d^T g of every dim and candidate: rows (latent, dim), candidates innermost
         v = np.dot(w_t[t, :ke].reshape(ke, r * dm).T, gc).reshape(r, dm, n_c)
         for d in range(dm):
-            yd = y[d]
+            yd = y[dims[d]]
             wd = inv_delta[t, d]
             sdi = np.sqrt(wd)
             ghd = gh[d]
@@ -672,7 +680,7 @@ def stream_step(
                     acc[c] += vi[d, c] * vj[d, c]
             for c in range(n_c):
                 pq[q, off + c] += f[c] * acc[c]
-    return True
+    return
 
 
 @njit(**_JIT)

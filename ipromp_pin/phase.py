@@ -51,12 +51,16 @@ Making it fast (:class:`InferenceEngine`, compiled numba kernels in :mod:`ipromp
   and ``X^-1 mu`` of every task in one matrix product.
 * Streaming: ``G``, ``B^T y`` and ``y^T y`` are running sums (one basis row per
   candidate per new sample).
+* Independent blocks of observed dims (groups not coupled to the robot, see
+  ``IProMP(coupling=...)``) have disjoint factor columns, so ``P`` is block-diagonal
+  and the log likelihood is the sum of the blocks' (:func:`latent_blocks`); each
+  block is handled with its own rank and ``Z``, sharing ``X^-1``.
 * The kernels compile on the first inference of a process (importing the package
   does not import numba) and are cached on disk next to the module.
 
-Cost per update: O(T C (K_e^2 r^2 / 4 + r^3 / 3 + K_e D r)) for T tasks, C
-candidates, K_e active basis functions, D observed dims, rank r = N - 1: linear
-in tasks and candidates.
+Cost per update: O(T C sum_b (K_e^2 r_b^2 / 4 + r_b^3 / 3 + K_e D_b r_b)) for T tasks,
+C candidates, K_e active basis functions, blocks b of D_b observed dims and rank
+r_b <= N - 1: linear in tasks and candidates.
 
 Phase candidates: at least ``n_alpha`` (default 50) phases inside ``mu +- 3 sigma``
 of every task's phase prior; the MAP candidate is refined by a parabola through
@@ -135,18 +139,169 @@ class Terms:
     loglik: np.ndarray
 
 
+def latent_blocks(models: list[TaskModel], n_obs: int) -> list[tuple[np.ndarray, list[np.ndarray]]]:
+    """Independent blocks of the observed dims: dims linked by a shared factor column of any task.
+
+    Two observed dims are in one block when some task's low-rank factor ``F`` has a column that is
+    non-zero on both (directly or through other dims). The weights of different blocks are
+    independent in every task, so the likelihood of an observation is the product of the blocks'
+    likelihoods and each block needs only its own factor columns.
+
+    Returns:
+        Per block: its observed dims (sorted) and, per task, the factor columns non-zero on them.
+    """
+    parent = list(range(n_obs))
+
+    def root(i: int) -> int:
+        while parent[i] != i:
+            parent[i] = parent[parent[i]]
+            i = parent[i]
+        return i
+
+    active = [np.any(m.factor[:n_obs] != 0.0, axis=1) for m in models]  # (D_o, r_t) per task
+    for act in active:
+        for col in act.T:
+            dims = np.flatnonzero(col)
+            for d in dims[1:]:
+                parent[root(int(d))] = root(int(dims[0]))
+    roots = np.array([root(i) for i in range(n_obs)])
+    blocks = []
+    for r in np.unique(roots):
+        dims = np.flatnonzero(roots == r)
+        cols = [np.flatnonzero(np.any(act[dims], axis=0)) for act in active]
+        blocks.append((dims, cols))
+    return blocks
+
+
+class LatentBlock:
+    """One block of observed dims with its own latent factors (see :func:`latent_blocks`).
+
+    Holds the block's scaled factors ``W = F / sqrt(delta)`` (T, D_b, K, r_b) (tasks with fewer
+    columns padded with zeros; at least one column), its packed-triangle index arrays and, when it
+    fits in ``z_budget_bytes``, the tensor ``Z[(k, l), (a, b)] = sum_d W_dka W_dlb`` (symmetrised and
+    packed) that turns ``P = sum_d W_d^T (I - nu X^-1) W_d`` into one matrix product per task.
+
+    Args:
+        models: Task models.
+        dims: (D_b,) the block's observed dims.
+        cols: Per task, its factor columns used by the block.
+        mu, delta: (T, D_o, K) observed means and (T, D_o) diagonal variances of all observed dims.
+        z_budget_bytes: Largest size of the precomputed ``Z`` tensors.
+    """
+
+    def __init__(
+        self,
+        models: list[TaskModel],
+        dims: np.ndarray,
+        cols: list[np.ndarray],
+        mu: np.ndarray,
+        delta: np.ndarray,
+        z_budget_bytes: float,
+    ) -> None:
+        n_task = len(models)
+        k = mu.shape[2]
+        self.dims = np.asarray(dims, dtype=np.int64)
+        self.rank = r = max(1, max(c.size for c in cols))
+        self.mu = np.ascontiguousarray(mu[:, self.dims])  # (T, D_b, K)
+        self.delta = np.ascontiguousarray(delta[:, self.dims])
+        self.sqrt_delta = np.sqrt(self.delta)
+        self.w = np.zeros((n_task, self.dims.size, k, r))
+        for i, (m, c) in enumerate(zip(models, cols, strict=True)):
+            self.w[i, :, :, : c.size] = m.factor[self.dims][:, :, c] / self.sqrt_delta[i][:, None, None]
+        pk, pl = [], []
+        for ll in range(k):
+            for kk in range(ll + 1):
+                pk.append(kk)
+                pl.append(ll)
+        self.pk, self.pl = np.array(pk, dtype=np.int64), np.array(pl, dtype=np.int64)
+        ia, ib = np.triu_indices(r)
+        self.ia, self.ib = ia.astype(np.int64), ib.astype(np.int64)
+        unpack = np.zeros((r, r), dtype=np.int64)  # index of Q[i, j] in the packed upper triangle
+        unpack[ia, ib] = np.arange(ia.size)
+        unpack[ib, ia] = np.arange(ia.size)
+        self.unpack = unpack
+        self.use_z = n_task * self.pk.size * ia.size * 8 <= z_budget_bytes
+        self.no_z = np.zeros((1, 1, 1))
+        self._z: dict[tuple[int, ...], np.ndarray] = {}
+        self._arrays: dict[tuple[int, ...], dict[str, np.ndarray]] = {}
+        self._local = {int(d): i for i, d in enumerate(self.dims)}
+        self._select: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
+
+    def select(self, dims: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Positions in ``dims`` (observed dims of a part) of the block's dims and their block-local
+        indices (cached)."""
+        key = dims.tobytes()
+        out = self._select.get(key)
+        if out is None:
+            pos = [i for i, d in enumerate(dims) if int(d) in self._local]
+            local = [self._local[int(dims[i])] for i in pos]
+            self._select[key] = out = (np.array(pos, dtype=np.int64), np.array(local, dtype=np.int64))
+        return out
+
+    def z_tensor(self, local: np.ndarray) -> np.ndarray:
+        """Packed ``Z`` (T, K(K+1)/2, r(r+1)/2) of the block-local dims ``local`` (cached)."""
+        key = tuple(int(d) for d in local)
+        z = self._z.get(key)
+        if z is None:
+            w = self.w[:, local]
+            n_task, dm, k, r = w.shape
+            flat = w.reshape(n_task, dm, k * r)
+            full = (np.swapaxes(flat, 1, 2) @ flat).reshape(n_task, k, r, k, r).transpose(0, 1, 3, 2, 4)
+            z = full[:, self.pk, self.pl][:, :, self.ia, self.ib]
+            off = self.pk != self.pl
+            z[:, off] += full[:, self.pl[off], self.pk[off]][:, :, self.ia, self.ib]
+            self._z[key] = z = np.ascontiguousarray(z)
+        return z
+
+    def arrays(self, local: np.ndarray) -> dict[str, np.ndarray]:
+        """Model arrays of the block-local dims ``local`` in basis-major layouts (cached).
+
+        ``mu_k`` (T, K, D_m) task means; ``mu_rows`` (T D_m, K) the means with rows (task, dim);
+        ``w_k`` (T, K D_m, r) ``W_d / sqrt(delta_d)`` with rows ordered (basis, dim), so that the
+        first ``ke D_m`` rows are the first ``ke`` basis functions; ``w_1`` (T, K D_m, r) ``W_d``
+        with rows (basis, dim); ``w_t`` (T, K, r, D_m) ``W_d`` ordered (basis, latent, dim);
+        ``mu2`` (T, K + 1) cumulative ``sum_d ||mu_d[:k]||^2 / delta_d``; ``inv_delta`` (T, D_m);
+        ``log_delta`` (T,) ``sum_d log delta_d``.
+        """
+        key = tuple(int(d) for d in local)
+        c = self._arrays.get(key)
+        if c is None:
+            mu = self.mu[:, local]  # (T, Dm, K)
+            delta = self.delta[:, local]
+            w = self.w[:, local]
+            n_task, dm, k = mu.shape
+            w_k = (w / self.sqrt_delta[:, local, None, None]).transpose(0, 2, 1, 3)
+            c = {
+                "mu_k": np.ascontiguousarray(mu.transpose(0, 2, 1)),
+                "mu_rows": np.ascontiguousarray(mu.reshape(n_task * dm, k)),
+                "w_k": np.ascontiguousarray(w_k.reshape(n_task, k * dm, self.rank)),
+                "w_1": np.ascontiguousarray(w.transpose(0, 2, 1, 3).reshape(n_task, k * dm, -1)),
+                "w_t": np.ascontiguousarray(w.transpose(0, 2, 3, 1)),
+                "mu2": np.ascontiguousarray(
+                    np.concatenate(
+                        [
+                            np.zeros((n_task, 1)),
+                            np.cumsum(np.einsum("tdk,td->tk", mu * mu, 1.0 / delta), axis=1),
+                        ],
+                        axis=1,
+                    )
+                ),
+                "inv_delta": np.ascontiguousarray(1.0 / delta),
+                "log_delta": np.ascontiguousarray(np.sum(np.log(delta), axis=1)),
+            }
+            self._arrays[key] = c
+        return c
+
+
 class InferenceEngine:
     """Exact batched likelihood of an observation for every task and phase candidate.
 
-    Everything that depends only on the model is precomputed here: stacked task
-    means, scaled low-rank factors ``W = F / sqrt(delta)`` and, when it fits in
-    ``z_budget_bytes``, the tensor ``Z[(k, l), (a, b)] = sum_d W_dka W_dlb``
-    (symmetrised and packed) that turns ``P = sum_d W_d^T (I - nu X^-1) W_d``
-    into one matrix product per task. The per-candidate quantities that depend
-    only on the candidate's phase (basis matrix, ``X = nu I + G``, its inverse
-    and log-determinant from one Cholesky factorisation of the augmented
-    matrix ``[[X, I], [I, c I]]``) are computed once per unique candidate and
-    shared by all tasks whose grids contain it.
+    Everything that depends only on the model is precomputed here, per independent block of
+    observed dims (:class:`LatentBlock`; a fully coupled model has one). The per-candidate
+    quantities that depend only on the candidate's phase (basis matrix, ``X = nu I + G``, its
+    inverse and log-determinant) are computed once per unique candidate and shared by all
+    blocks and by all tasks whose grids contain the candidate. The log likelihood is the sum of
+    the blocks' log likelihoods.
 
     Args:
         basis: Model basis.
@@ -154,7 +309,7 @@ class InferenceEngine:
         n_obs: Number of observed dims D_o (the first dims of every model).
         t_norm: Nominal duration in [s].
         nu: Noise ratio.
-        z_budget_bytes: Largest size of the precomputed ``Z`` tensors.
+        z_budget_bytes: Largest size of the precomputed ``Z`` tensors of a block.
     """
 
     def __init__(
@@ -176,94 +331,33 @@ class InferenceEngine:
         self.alphas = np.stack(grids)
         self.log_prior = np.stack([m.alpha_log_prior for m in models])
         self.alpha_unique, inverse = np.unique(self.alphas, return_inverse=True)
-        self.cand_index = inverse.reshape(self.alphas.shape)
+        cand_index = inverse.reshape(self.alphas.shape)
         self.inv_duration = 1.0 / (self.alpha_unique * self.t_norm)
-        n_task = len(models)
-        k = basis.n_basis
-        self.rank = r = max(m.rank for m in models)
-        self.mu = np.stack([m.mean[:n_obs] for m in models])  # (T, D, K)
-        self.delta = np.stack([m.diag[:n_obs] for m in models])  # (T, D)
-        self.sqrt_delta = np.sqrt(self.delta)
-        self.w = np.zeros((n_task, n_obs, k, r))
-        for i, m in enumerate(models):
-            self.w[i, :, :, : m.rank] = m.factor[:n_obs] / self.sqrt_delta[i][:, None, None]
-        pk, pl = [], []
-        for ll in range(k):
-            for kk in range(ll + 1):
-                pk.append(kk)
-                pl.append(ll)
-        self.pk, self.pl = np.array(pk, dtype=np.int64), np.array(pl, dtype=np.int64)
-        ia, ib = np.triu_indices(r)
-        self.ia, self.ib = ia, ib
-        npk = ia.size
-        # index of Q[i, j] in the packed upper triangle
-        unpack = np.zeros((r, r), dtype=np.int64)
-        unpack[ia, ib] = np.arange(npk)
-        unpack[ib, ia] = np.arange(npk)
-        self.unpack = unpack
         # every task's candidates are consecutive lattice points, hence consecutive unique candidates
-        self.starts = np.ascontiguousarray(self.cand_index[:, 0], dtype=np.int64)
-        if not np.array_equal(self.cand_index, self.starts[:, None] + np.arange(self.alphas.shape[1])):
+        self.starts = np.ascontiguousarray(cand_index[:, 0], dtype=np.int64)
+        if not np.array_equal(cand_index, self.starts[:, None] + np.arange(self.alphas.shape[1])):
             raise ValueError("every task's phase candidates must be consecutive points of one lattice")
-        self._no_z = np.zeros((1, 1, 1))
-        self.use_z = n_task * self.pk.size * ia.size * 8 <= z_budget_bytes
-        self._z: dict[tuple[int, ...], np.ndarray] = {}
-        self._dims_cache: dict[tuple[int, ...], dict[str, np.ndarray]] = {}
+        mu = np.stack([m.mean[:n_obs] for m in models])  # (T, D, K)
+        delta = np.stack([m.diag[:n_obs] for m in models])  # (T, D)
+        self.blocks = [
+            LatentBlock(models, dims, cols, mu, delta, z_budget_bytes)
+            for dims, cols in latent_blocks(models, self.n_obs)
+        ]
 
-    def z_tensor(self, dims: np.ndarray) -> np.ndarray:
-        """Packed ``Z`` (T, K(K+1)/2, r(r+1)/2) of the observed dims ``dims`` (cached)."""
-        key = tuple(int(d) for d in dims)
-        z = self._z.get(key)
-        if z is None:
-            w = self.w[:, dims]
-            n_task, dm, k, r = w.shape
-            flat = w.reshape(n_task, dm, k * r)
-            full = (np.swapaxes(flat, 1, 2) @ flat).reshape(n_task, k, r, k, r).transpose(0, 1, 3, 2, 4)
-            z = full[:, self.pk, self.pl][:, :, self.ia, self.ib]
-            off = self.pk != self.pl
-            z[:, off] += full[:, self.pl[off], self.pk[off]][:, :, self.ia, self.ib]
-            self._z[key] = z = np.ascontiguousarray(z)
-        return z
+    @property
+    def rank(self) -> int:
+        """Total number of latent dims of the blocks."""
+        return sum(b.rank for b in self.blocks)
 
-    def _dims(self, dims: np.ndarray) -> dict[str, np.ndarray]:
-        """Model arrays of the observed dims ``dims`` in basis-major layouts (cached).
+    @property
+    def use_z(self) -> bool:
+        """Whether every block uses its precomputed ``Z`` tensors (settable, for tests)."""
+        return all(b.use_z for b in self.blocks)
 
-        ``mu_k`` (T, K, D_m) task means; ``w_k`` (T, K D_m, r) ``W_d / sqrt(delta_d)`` with rows
-        ordered (basis, dim), so that the first ``ke D_m`` rows are the first ``ke`` basis functions;
-        ``mu2`` (T, K) cumulative ``sum_d ||mu_d[:k]||^2 / delta_d``; ``inv_delta`` (T, D_m);
-        ``log_delta`` (T,) ``sum_d log delta_d``; ``mu_rows`` (T D_m, K) the means with rows (task, dim);
-        ``w_1`` (T, K D_m, r) ``W_d`` with rows (basis, dim); ``w_t`` (T, K, r, D_m) ``W_d`` ordered
-        (basis, latent, dim).
-        """
-        key = tuple(int(d) for d in dims)
-        c = self._dims_cache.get(key)
-        if c is None:
-            mu = self.mu[:, dims]  # (T, Dm, K)
-            delta = self.delta[:, dims]
-            n_task, dm, k = mu.shape
-            w_k = (self.w[:, dims] / self.sqrt_delta[:, dims, None, None]).transpose(0, 2, 1, 3)
-            c = {
-                "mu_k": np.ascontiguousarray(mu.transpose(0, 2, 1)),
-                "mu_rows": np.ascontiguousarray(mu.reshape(n_task * dm, k)),
-                "w_k": np.ascontiguousarray(w_k.reshape(n_task, k * dm, self.rank)),
-                "w_1": np.ascontiguousarray(
-                    self.w[:, dims].transpose(0, 2, 1, 3).reshape(n_task, k * dm, -1)
-                ),
-                "w_t": np.ascontiguousarray(self.w[:, dims].transpose(0, 2, 3, 1)),
-                "mu2": np.ascontiguousarray(
-                    np.concatenate(
-                        [
-                            np.zeros((n_task, 1)),
-                            np.cumsum(np.einsum("tdk,td->tk", mu * mu, 1.0 / delta), axis=1),
-                        ],
-                        axis=1,
-                    )
-                ),
-                "inv_delta": np.ascontiguousarray(1.0 / delta),
-                "log_delta": np.ascontiguousarray(np.sum(np.log(delta), axis=1)),
-            }
-            self._dims_cache[key] = c
-        return c
+    @use_z.setter
+    def use_z(self, value: bool) -> None:
+        for b in self.blocks:
+            b.use_z = bool(value)
 
     def part_stats(self, part: ObservationPart, alphas: np.ndarray | None = None) -> PartStats:
         """Statistics of an observation part for the unique candidates (default: the model's)."""
@@ -288,23 +382,27 @@ class InferenceEngine:
 
     def x_inverse(self, gram: np.ndarray, nu: float, ke: int | None = None) -> tuple[np.ndarray, np.ndarray]:
         """``X^-1`` (U, ke, ke) and ``log|X|`` (U,) of ``X = nu I + gram[:ke, :ke]``, ``gram`` (K', K', U)."""
-        kern = _kernels()
+        xinv, _, logdet = self._x_factors(gram, float(nu), gram.shape[0] if ke is None else int(ke))
+        return np.moveaxis(xinv, 2, 0), logdet
+
+    def _x_factors(self, gram: np.ndarray, nu: float, ke: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``X^-1``, ``L^-1`` (ke, ke, U) and ``log|X|`` (U,) (candidate index last)."""
         gram = np.ascontiguousarray(gram, dtype=float)
-        ke = gram.shape[0] if ke is None else int(ke)
         xinv = np.empty((ke, ke, gram.shape[2]))
-        logdet = kern.x_inverse(gram, ke, float(nu), xinv, np.empty_like(xinv))
+        linv = np.empty_like(xinv)
+        logdet = _kernels().x_inverse(gram, ke, nu, xinv, linv)
         if not np.all(np.isfinite(logdet)):
             raise ModelError("X = nu I + B^T B is not numerically positive definite")
-        return np.moveaxis(xinv, 2, 0), logdet
+        return xinv, linv, logdet
 
     def terms(self, stats: list[PartStats], t_last: float, nu: float | None = None) -> Terms:
         """Log likelihood per (task, candidate) from part statistics (compiled kernels).
 
-        Per part, with ``h_d = B^T y_d + nu mu_d`` the data terms reduce to
+        Per part and block, with ``h_d = B^T y_d + nu mu_d`` the data terms reduce to
         ``e_d^T e_d - b_d^T X^-1 b_d = y_d^T y_d + nu ||mu_d||^2 - h_d^T X^-1 h_d`` and
         ``X^-1 b_d = X^-1 h_d - mu_d``; ``X^-1`` comes from one Cholesky factorisation per
-        unique candidate, ``P`` from one product with ``Z`` per task, and ``log|Q|``,
-        ``a^T Q^-1 a`` from one Cholesky factorisation per (task, candidate).
+        unique candidate (shared by the blocks), ``P`` from one product with ``Z`` per task, and
+        ``log|Q|``, ``a^T Q^-1 a`` from one Cholesky factorisation per (task, candidate).
 
         Args:
             stats: Part statistics for the unique candidates (``gram`` and ``proj`` may hold more
@@ -313,44 +411,63 @@ class InferenceEngine:
             nu: Noise ratio (default the engine's).
         """
         nu = self.nu if nu is None else float(nu)
-        total, a, pq = self.pair_terms(stats, nu)
-        loglik = np.empty(self.alphas.shape)
+        factors = [self._x_factors(st.gram, nu, st.ke) for st in stats]
         kern = _kernels()
-        if not kern.finish_soa(pq, a, total, self.unpack, self.alphas, self.t_norm, float(t_last), loglik):
-            raise ModelError("Q = I + P is not numerically positive definite")
+        loglik = np.zeros(self.alphas.shape)
+        part = np.empty(self.alphas.shape)
+        for block in self.blocks:
+            pt = self.pair_terms(block, stats, factors, nu)
+            if pt is None:
+                continue  # no observed dim of this block
+            total, a, pq = pt
+            if not kern.finish_soa(pq, a, total, block.unpack, self.alphas, self.t_norm, float(t_last), part):
+                raise ModelError("Q = I + P is not numerically positive definite")
+            loglik += part
         return Terms(loglik=loglik)
 
-    def pair_terms(self, stats: list[PartStats], nu: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Terms of every (task, candidate) pair, pairs task-major and innermost: the scalar terms
-        (P',), ``a`` (r, P') and packed ``P`` (r(r+1)/2, P'), ``P' >= T C`` padded with zeros."""
+    def pair_terms(
+        self, block: LatentBlock, stats: list[PartStats], factors: list[tuple], nu: float
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """Terms of every (task, candidate) pair of one block, pairs task-major and innermost: the
+        scalar terms (P',), ``a`` (r, P') and packed ``P`` (r(r+1)/2, P'), ``P' >= T C`` padded with
+        zeros; None when no part observes the block."""
         kern = _kernels()
         n_task, n_cand = self.alphas.shape
         n_pair = -(-n_task * n_cand // PAIR_LANES) * PAIR_LANES  # padded: see kernels.finish_soa
         total = np.zeros(n_pair)
-        a = np.zeros((self.rank, n_pair))
-        pq = np.zeros((self.ia.size, n_pair))
-        for st in stats:
-            c = self._dims(st.dims)
-            z = self.z_tensor(st.dims) if self.use_z else self._no_z
+        a = np.zeros((block.rank, n_pair))
+        pq = np.zeros((block.ia.size, n_pair))
+        seen = False
+        for st, (xinv, linv, logdet) in zip(stats, factors, strict=True):
+            pos, local = block.select(st.dims)
+            if pos.size == 0:
+                continue
+            seen = True
+            full = pos.size == st.dims.size
+            proj = st.proj if full else np.ascontiguousarray(st.proj[:, :, pos])
+            sq = st.sq if full else np.ascontiguousarray(st.sq[pos])
+            c = block.arrays(local)
+            z = block.z_tensor(local) if block.use_z else block.no_z
             ok = kern.part_terms(
-                st.gram, st.proj, st.sq, st.n, st.ke, nu, self.starts, n_cand, c["mu_k"], c["mu_rows"],
-                c["inv_delta"], c["mu2"], c["log_delta"], c["w_k"], c["w_1"], z, self.pk, self.pl,
-                self.unpack, self.use_z, total, a, pq,
+                xinv, linv, logdet, proj, sq, st.n, st.ke, nu, self.starts, n_cand, c["mu_k"],
+                c["mu_rows"], c["inv_delta"], c["mu2"], c["log_delta"], c["w_k"], c["w_1"], z, block.pk,
+                block.pl, block.unpack, block.use_z, total, a, pq,
             )  # fmt: skip
             if not ok:
                 raise ModelError("X = nu I + B^T B is not numerically positive definite")
-        return total, a, pq
+        return (total, a, pq) if seen else None
 
 
 class IncrementalTerms:
     """Log likelihood of a growing observation, updated sample by sample (streaming).
 
-    Holds per unique candidate ``X^-1`` and ``log|X|`` and per (task, candidate) the terms of
-    :meth:`InferenceEngine.terms` (``P``, ``a`` and the scalar terms) for ONE observation part with
-    every observed dim; :meth:`reset` computes them from part statistics, :meth:`add` adds one sample
-    with the same active basis functions exactly (Sherman-Morrison update of ``X^-1``, rank-D update
-    of ``P``, see :func:`ipromp_pin.kernels.stream_step`); ``log|Q|`` and ``a^T Q^-1 a`` are
-    recomputed from ``Q`` on every call.
+    Holds per unique candidate ``X^-1`` and ``log|X|`` (shared by the blocks) and, per block of
+    observed dims and (task, candidate), the terms of :meth:`InferenceEngine.terms` (``P``, ``a``
+    and the scalar terms) for ONE observation part with every observed dim; :meth:`reset` computes
+    them from part statistics, :meth:`add` adds one sample with the same active basis functions
+    exactly (Sherman-Morrison update of ``X^-1``, rank-D update of ``P``, see
+    :func:`ipromp_pin.kernels.stream_step`); ``log|Q|`` and ``a^T Q^-1 a`` are recomputed from
+    ``Q`` on every call.
 
     Args:
         engine: The model's inference engine.
@@ -360,44 +477,41 @@ class IncrementalTerms:
         self.engine = engine
         self._kern = _kernels()
         self.ke = -1
-        self.dims = np.arange(engine.n_obs)
-        self._c = engine._dims(self.dims)
+        self._arrays = [b.arrays(b.select(np.arange(engine.n_obs))[1]) for b in engine.blocks]
 
     def reset(self, stats: PartStats, t_last: float) -> np.ndarray:
         """Terms from part statistics ``stats`` (all observed dims) -> log likelihood (T, C)."""
         e = self.engine
-        kern = self._kern
-        ke = stats.ke
-        gram = np.ascontiguousarray(stats.gram)
-        self.xinv = np.empty((ke, ke, gram.shape[2]))
-        self.logdet = kern.x_inverse(gram, ke, e.nu, self.xinv, np.empty_like(self.xinv))
-        if not np.all(np.isfinite(self.logdet)):
-            raise ModelError("X = nu I + B^T B is not numerically positive definite")
-        self.total, self.a, self.pq = e.pair_terms([stats], e.nu)
-        self.ke = ke
+        factors = e._x_factors(stats.gram, e.nu, stats.ke)
+        self.xinv, _, self.logdet = factors
+        self.terms = [e.pair_terms(b, [stats], [factors], e.nu) for b in e.blocks]
+        self.ke = stats.ke
         return self._finish(t_last)
 
     def add(self, phi: np.ndarray, y: np.ndarray, proj: np.ndarray, t_last: float) -> np.ndarray:
         """Add one sample: basis values ``phi`` (K, U), scaled values ``y`` (D,), ``proj`` (K, U, D)
         already including it -> log likelihood (T, C)."""
         e = self.engine
-        c = self._c
-        ok = self._kern.stream_step(
-            self.xinv, self.logdet, phi, y, proj, e.nu, e.starts, e.alphas.shape[1], c["mu_k"],
-            c["inv_delta"], c["log_delta"], c["w_t"], e.ia, e.ib, self.total, self.a, self.pq,
-        )  # fmt: skip
-        if not ok:
+        kern = self._kern
+        g, s = kern.sherman_morrison(self.xinv, self.logdet, phi)
+        if not np.all(s > 0.0):
             self.ke = -1  # partly updated: rebuilt by the next reset
             raise ModelError("X = nu I + B^T B is not numerically positive definite")
+        for block, c, (total, a, pq) in zip(e.blocks, self._arrays, self.terms, strict=True):
+            kern.stream_step(
+                g, s, block.dims, y, proj, e.nu, e.starts, e.alphas.shape[1], c["mu_k"], c["inv_delta"],
+                c["log_delta"], c["w_t"], block.ia, block.ib, total, a, pq,
+            )  # fmt: skip
         return self._finish(t_last)
 
     def _finish(self, t_last: float) -> np.ndarray:
         e = self.engine
-        loglik = np.empty(e.alphas.shape)
-        if not self._kern.finish_soa(
-            self.pq, self.a, self.total, e.unpack, e.alphas, e.t_norm, float(t_last), loglik
-        ):
-            raise ModelError("Q = I + P is not numerically positive definite")
+        loglik = np.zeros(e.alphas.shape)
+        part = np.empty(e.alphas.shape)
+        for block, (total, a, pq) in zip(e.blocks, self.terms, strict=True):
+            if not self._kern.finish_soa(pq, a, total, block.unpack, e.alphas, e.t_norm, float(t_last), part):
+                raise ModelError("Q = I + P is not numerically positive definite")
+            loglik += part
         return loglik
 
 

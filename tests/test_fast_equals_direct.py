@@ -9,11 +9,12 @@ from helpers_model import random_dataset, split
 from ipromp_pin.recognition import IProMP, direct_predict
 
 CASES = [
-    # seed, missing group, Z tensors (False: per-candidate solve route), noise ratio, observed ratio
-    (31, None, True, 0.3, 0.25),
-    (32, "a", True, 3.0, 0.3),
-    (33, None, False, 1.0, 0.2),
-    (34, "b", False, 0.1, 0.15),
+    # seed, missing group, Z tensors (False: per-candidate solve route), noise ratio, observed ratio,
+    # groups coupled to the robot (the others form an independent block of dims)
+    (31, None, True, 0.3, 0.25, "all"),
+    (32, "a", True, 3.0, 0.3, ["b"]),
+    (33, None, False, 1.0, 0.2, ["a"]),
+    (34, "b", False, 0.1, 0.15, "all"),
 ]
 
 
@@ -21,12 +22,14 @@ def _rel(a: np.ndarray, b: np.ndarray) -> float:
     return float(np.max(np.abs(a - b)) / max(float(np.max(np.abs(b))), 1e-300))
 
 
-@pytest.mark.parametrize(("seed", "missing", "use_z", "noise", "ratio"), CASES)
-def test_fast_prediction_equals_direct(seed, missing, use_z, noise, ratio) -> None:
+@pytest.mark.parametrize(("seed", "missing", "use_z", "noise", "ratio", "coupling"), CASES)
+def test_fast_prediction_equals_direct(seed, missing, use_z, noise, ratio, coupling) -> None:
     rng = np.random.default_rng(seed)
     train, test = split(random_dataset(seed, n_demos=9, missing_group=missing), 7)
-    model = IProMP(["a", "b"], n_basis=int(rng.integers(6, 10)), n_alpha=50, noise=noise).fit(train)
+    n_basis = int(rng.integers(6, 10))
+    model = IProMP(["a", "b"], n_basis=n_basis, n_alpha=50, noise=noise, coupling=coupling).fit(train)
     model._engine_().use_z = use_z
+    assert len(model._engine_().blocks) == (1 if coupling == "all" else 2)
     for task in ("task0", "task2"):
         obs = test[task][int(rng.integers(0, 2))].head(ratio, model.observe)
         fast, ref = model.predict(obs), direct_predict(model, obs)

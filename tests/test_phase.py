@@ -10,12 +10,17 @@ from ipromp_pin.phase import refine_peak
 from ipromp_pin.recognition import IProMP, direct_loglik
 
 
-@pytest.mark.parametrize("use_z", [True, False])
-def test_engine_loglik_equals_textbook_likelihood(use_z: bool) -> None:
+@pytest.mark.parametrize(
+    ("use_z", "coupling", "n_blocks"), [(True, "all", 1), (False, "all", 1), (True, ["b"], 2)]
+)
+def test_engine_loglik_equals_textbook_likelihood(use_z: bool, coupling, n_blocks: int) -> None:
     train, test = split(random_dataset(5, missing_group="a"), 6)
-    model = IProMP(["a", "b"], n_basis=8, n_alpha=50, noise=0.5).fit(train)
+    model = IProMP(["a", "b"], n_basis=8, n_alpha=50, noise=0.5, coupling=coupling).fit(train)
     engine = model._engine_()
     engine.use_z = use_z
+    # independent blocks of observed dims: one per group when only "b" is coupled to the robot
+    assert len(engine.blocks) == n_blocks
+    assert sorted(np.concatenate([b.dims for b in engine.blocks]).tolist()) == list(range(model.n_obs_dims_))
     obs = test["task0"][1].head(0.4, ["a", "b"])
     parts, t_last = model._prepare(obs)
     assert len(parts) == 2  # group "a" has missing samples: its own sample set

@@ -563,26 +563,15 @@ class IProMP:
         and ``a = sum_d W_d^T X^-1 b_d / sqrt(delta_d)`` (notation of :mod:`ipromp_pin.phase`); the
         robot dims are not observed, so their weights are ``mu + F eta``.
         """
-        nu = self.noise_ratio_
         r = factor.shape[2]
         lo, hi = self.group_slices_[self.robot_group]
-        q = np.eye(r)
-        a = np.zeros(r)
-        inv_dur = 1.0 / (alpha * self.duration_nominal_s_)
-        for part in parts:
-            ke = self.basis_.support_count(float(part.t[-1]) * inv_dur)
-            bt = self.basis_(part.t * inv_dur)[:, :ke]  # (n, ke)
-            gram = bt.T @ bt
-            b = bt.T @ part.y - gram @ mean[part.dims, :ke].T  # (ke, dm)
-            x = gram + nu * np.eye(ke)
-            sd = np.sqrt(diag[part.dims])
-            w = (factor[part.dims, :ke] / sd[:, None, None]).transpose(1, 0, 2).reshape(ke, -1)  # (ke, dm r)
-            cx = cho_factor(x, lower=True)
-            xw = cho_solve(cx, w)
-            xb = cho_solve(cx, b / sd)  # (ke, dm)
-            wd = w.reshape(ke, -1, r)
-            q += np.einsum("kdr,kds->rs", wd, wd - nu * xw.reshape(ke, -1, r))
-            a += np.einsum("kdr,kd->r", wd, xb)
+
+        def arrays(dims: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+            sd = np.sqrt(diag[dims])
+            w = np.ascontiguousarray((factor[dims] / sd[:, None, None]).transpose(1, 0, 2))
+            return sd, w, np.ascontiguousarray(mean[dims])
+
+        q, a, _ = self._latent_terms(parts, alpha, arrays, r)
         eta = cho_solve(cho_factor(q, lower=True), a) if r else a
         return mean[lo:hi] + factor[lo:hi] @ eta
 
@@ -729,23 +718,8 @@ class IProMP:
         task = rec.task
         m = self.models_[task]
         alpha = float(rec.alpha[self.tasks_.index(task)])
-        nu = self.noise_ratio_
         r = m.rank
-        q = np.eye(r)
-        a = np.zeros(r)
-        kept = []
-        inv_dur = 1.0 / (alpha * self.duration_nominal_s_)
-        b = self.basis_
-        for part in parts:
-            ke = b.support_count(float(part.t[-1]) * inv_dur)
-            bt = kern.basis_rows(part.t * inv_dur, b.centres, b.width, b._step_factor)[:ke]  # (ke, n)
-            sd, w_all, mean = self._scaled_factor(task, part.dims)
-            lx, gram, bb = np.empty((ke, ke)), np.empty((ke, ke)), np.empty((ke, part.dims.size))
-            wf = w_all[:ke].reshape(ke, -1)  # (ke, dm r): W_d / sqrt(delta_d), rows k
-            bt = np.ascontiguousarray(bt)
-            if not kern.condition_part(bt, part.y, mean, wf, sd, nu, q, a, lx, gram, bb):
-                raise ModelError("X = nu I + B^T B is not numerically positive definite")
-            kept.append((part.dims, ke, lx, gram, bb))
+        q, a, kept = self._latent_terms(parts, alpha, lambda dims: self._scaled_factor(task, dims), r)
         if r:
             lq, f_eta = kern.latent_posterior(q, a, m.factor)
             if not np.isfinite(lq[0, 0]):
@@ -757,6 +731,34 @@ class IProMP:
             fu = f_eta[dims, :ke].T  # (ke, dm)
             w_post[dims, :ke] += kern.cho_solve(lx, bb - gram @ fu).T
         return self._make_prediction(rec, m.factor, m, alpha, w_post, lq)
+
+    def _latent_terms(self, parts: list[ObservationPart], alpha: float, arrays, r: int) -> tuple:
+        """``Q`` (r, r), ``a`` (r,) of the latent posterior at phase ``alpha`` and, per part, what the
+        observed dims' correction needs (dims, ke, Cholesky factor of ``X``, ``B^T B``, ``b``).
+
+        Args:
+            parts: Observation parts; alpha: phase ``T / T_norm``; r: latent rank.
+            arrays: dims -> (``sqrt(delta_d)`` (D_m,), ``F_d / sqrt(delta_d)`` (K, D_m, r) and the mean
+                weights (D_m, K)) of the distribution being conditioned.
+        """
+        kern = _kernels()
+        nu = self.noise_ratio_
+        q = np.eye(r)
+        a = np.zeros(r)
+        kept = []
+        inv_dur = 1.0 / (alpha * self.duration_nominal_s_)
+        b = self.basis_
+        for part in parts:
+            ke = b.support_count(float(part.t[-1]) * inv_dur)
+            bt = kern.basis_rows(part.t * inv_dur, b.centres, b.width, b._step_factor)[:ke]  # (ke, n)
+            sd, w_all, mean = arrays(part.dims)
+            lx, gram, bb = np.empty((ke, ke)), np.empty((ke, ke)), np.empty((ke, part.dims.size))
+            wf = w_all[:ke].reshape(ke, part.dims.size * r)  # (ke, dm r): W_d / sqrt(delta_d), rows k
+            bt = np.ascontiguousarray(bt)
+            if not kern.condition_part(bt, part.y, mean, wf, sd, nu, q, a, lx, gram, bb):
+                raise ModelError("X = nu I + B^T B is not numerically positive definite")
+            kept.append((part.dims, ke, lx, gram, bb))
+        return q, a, kept
 
     def _scaled_factor(self, task: str, dims: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``sqrt(delta_d)`` (D_m,), ``F_d / sqrt(delta_d)`` (K, D_m, r) and the mean weights (D_m, K) of

@@ -48,15 +48,17 @@ def part_stats(
     overlap: np.ndarray,
     ke: int,
     y: np.ndarray,
+    hankel: bool,
 ):
     """``B^T B`` (ke, ke, U) and ``B^T y`` (ke, U, D_m) of the first ``ke`` Gaussian basis functions.
 
     The basis values come from the running product of
     :meth:`ipromp_pin.basis.GaussianBasis.values_prefix_t` (same operations):
     ``phi_0 = e0`` (n, U), ``phi_k = phi_{k-1} (q step_{k-1})`` with ``q`` (n, U); ``y`` (n, D_m).
-    ``B^T B`` comes from the 2 ke - 1 sums of :meth:`~ipromp_pin.basis.GaussianBasis.gram_factors`
-    (``psi_0 = e0^2``, ``psi_s = psi_{s-1} (q pair_step_{s-1})``; the caller makes sure ``e0^2``
-    does not underflow).
+    With ``hankel``, ``B^T B`` comes from the 2 ke - 1 sums of
+    :meth:`~ipromp_pin.basis.GaussianBasis.gram_factors` (``psi_0 = e0^2``,
+    ``psi_s = psi_{s-1} (q pair_step_{s-1})``; the caller makes sure ``e0^2`` does not underflow),
+    otherwise from the products of the basis values.
     """
     n, n_u = e0.shape
     ns = 2 * ke - 1
@@ -64,19 +66,21 @@ def part_stats(
     bt = np.empty((ke, n_u, n))
     b = np.empty((ke, n_u))
     psi = np.empty(n_u)
+    gram = np.zeros((ke, ke, n_u))
     for j in range(n):
         e0j = e0[j]
         qj = q[j]
-        s0 = sums[0]
-        for u in range(n_u):
-            psi[u] = e0j[u] * e0j[u]
-            s0[u] += psi[u]
-        for s in range(1, ns):
-            f = pair_step[s - 1]
-            ss = sums[s]
+        if hankel:
+            s0 = sums[0]
             for u in range(n_u):
-                psi[u] *= qj[u] * f
-                ss[u] += psi[u]
+                psi[u] = e0j[u] * e0j[u]
+                s0[u] += psi[u]
+            for s in range(1, ns):
+                f = pair_step[s - 1]
+                ss = sums[s]
+                for u in range(n_u):
+                    psi[u] *= qj[u] * f
+                    ss[u] += psi[u]
         b[0] = e0j
         for k in range(1, ke):
             bk = b[k]
@@ -87,14 +91,22 @@ def part_stats(
         for k in range(ke):
             for u in range(n_u):
                 bt[k, u, j] = b[k, u]
-    gram = np.empty((ke, ke, n_u))
+        if not hankel:
+            for k in range(ke):
+                bk = b[k]
+                for m in range(k + 1):
+                    g = gram[k, m]
+                    bm = b[m]
+                    for u in range(n_u):
+                        g[u] += bk[u] * bm[u]
     for k in range(ke):
         for m in range(k + 1):
-            o = overlap[k - m]
-            sk = sums[k + m]
             g = gram[k, m]
-            for u in range(n_u):
-                g[u] = o * sk[u]
+            if hankel:
+                o = overlap[k - m]
+                sk = sums[k + m]
+                for u in range(n_u):
+                    g[u] = o * sk[u]
             gram[m, k] = g
     proj = np.dot(bt.reshape(ke * n_u, n), y).reshape(ke, n_u, y.shape[1])
     return gram, proj

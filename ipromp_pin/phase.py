@@ -368,7 +368,8 @@ class InferenceEngine:
         b = self.basis
         inv_h2 = 1.0 / (b.width * b.width)
         d0 = z - b.centres[0]
-        if ke < 3 or float(np.max(np.abs(d0))) ** 2 * inv_h2 > 650.0:
+        far = float(np.max(np.abs(d0))) ** 2 * inv_h2
+        if ke < 3 or 0.5 * far > 650.0:
             # exact exponentials where the running product could underflow (see values_prefix_t)
             bt = np.moveaxis(b(z)[..., :ke], -1, 0)  # (ke, n, U)
             gram = np.ascontiguousarray(np.einsum("knu,lnu->klu", bt, bt))
@@ -377,7 +378,9 @@ class InferenceEngine:
             e0 = np.exp(-0.5 * inv_h2 * d0 * d0)
             q = np.exp(z * (b.spacing * inv_h2))
             pair_step, overlap = b.gram_factors()
-            gram, proj = _kernels().part_stats(e0, q, b._step_factor, pair_step, overlap, ke, y)
+            # the Gram sums start from e0^2: products of the basis values where that could underflow
+            hankel = far <= 650.0
+            gram, proj = _kernels().part_stats(e0, q, b._step_factor, pair_step, overlap, ke, y, hankel)
         return PartStats(part.dims, part.t.size, ke, gram, proj, np.einsum("nd,nd->d", part.y, part.y))
 
     def x_inverse(self, gram: np.ndarray, nu: float, ke: int | None = None) -> tuple[np.ndarray, np.ndarray]:

@@ -151,10 +151,15 @@ def cmd_train(args: argparse.Namespace) -> int:
     frames = skeleton_frames(observe) or None
     ds = load_dataset(args.dataset, format=args.format, frames=frames, progress=_progress())
     t0 = time.perf_counter()
-    model = IProMP(observe=observe).fit(ds.all_demos())
+    coupling = args.coupling if args.coupling in ("auto", "all") else parse_groups(args.coupling)
+    model = IProMP(observe=observe, coupling=coupling).fit(ds.all_demos())
     model.save(args.out)
     print(
         f"trained on {len(ds.all_demos())} demos of {', '.join(ds.tasks)} in {time.perf_counter() - t0:.2f} s"
+    )
+    print(
+        f"noise ratio {model.noise_ratio_:g}; groups coupled to the robot: "
+        f"{', '.join(model.coupled_groups_) or 'none (the prediction is the prior)'}"
     )
     print(f"wrote {args.out}")
     return 0
@@ -238,6 +243,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--observe", default="orientation,emg")
     p.add_argument("--format", default="auto")
     p.add_argument("--out", type=Path, required=True, help="model file (.npz)")
+    p.add_argument(
+        "--coupling",
+        default="auto",
+        help="observed groups that predict the robot: auto (cross-validated), all, or a comma-separated list",
+    )
     p.set_defaults(func=cmd_train)
 
     p = sub.add_parser("preview", help="meshcat preview: live on 127.0.0.1, or a self-contained HTML file")

@@ -76,3 +76,17 @@ def test_evaluate_command_rejects_unknown_groups(tmp_path, capsys):
     main(["synth", str(data), "--demos", "12"])
     assert main(["evaluate", str(data), "--observe", "orientation,gaze", "--n-test", "2"]) == 2
     assert "gaze" in capsys.readouterr().err
+
+
+def test_train_command_sets_the_coupled_groups(tmp_path, capsys):
+    from ipromp_pin.recognition import IProMP
+
+    data = tmp_path / "synth"
+    main(["synth", str(data), "--tasks", "2", "--demos", "6"])
+    out = tmp_path / "model.npz"
+    assert main(["train", str(data), "--out", str(out), "--coupling", "emg"]) == 0
+    assert "coupled to the robot: emg" in capsys.readouterr().out
+    assert IProMP.load(out).coupled_groups_ == ["emg"]
+    # a group that is not observed is a clear error, not a silent choice
+    assert main(["train", str(data), "--out", str(out), "--coupling", "gaze"]) == 2
+    assert "gaze" in capsys.readouterr().err

@@ -6,9 +6,12 @@ about a minute); ``--json FILE`` writes the medians in seconds. Everything runs 
 
 Settings. "paper": 3 tasks, 4 orientation + 8 EMG observed dims, 7 robot joints, 31 basis
 functions, 20 training demos per task, 50 Hz synthetic hand-overs of 2.5-4.2 s
-(:func:`ipromp_pin.synthetic.make_synthetic_dataset`), observed ratios 0.1 and 0.2. Scaled
-settings change one factor at a time: 10 / 30 tasks, 30 observed dims (extra channels mixed from
-the measured ones), 61 basis functions, 100 demos per task.
+(:func:`ipromp_pin.synthetic.make_synthetic_dataset`), observed ratios 0.1 and 0.2, the model's
+default ``coupling="auto"`` (on these demos it couples orientation alone to the robot, so the EMG
+forms a second independent block: ranks 19 + 19). "paper1blk" is the same with ``coupling="all"``
+(one block of rank 19, the textbook model). Scaled settings change one factor at a time: 10 / 30
+tasks, 30 observed dims (extra channels mixed from the measured ones), 61 basis functions, 100
+demos per task.
 
 Inference runs compiled numba kernels (:mod:`ipromp_pin.kernels`): every setting is warmed up
 before timing; the first-call time and the cold compile time (fresh process, empty numba
@@ -114,6 +117,7 @@ def run_setting(
     repeats: int = 30,
     ratios: tuple[float, ...] = (0.1, 0.2),
     stream: bool = True,
+    coupling: str = "auto",
 ) -> dict[str, float]:
     """Train on one setting and time the inference; returns medians in [s] and sizes."""
     ds = make_synthetic_dataset(n_tasks=n_tasks, n_demos=n_demos + 2, seed=1)
@@ -124,7 +128,9 @@ def run_setting(
     train, test = split(ds, n_demos)
     # the whole benchmark runs with BLAS limited to one thread, so the model's own per-call
     # limit (blas_threads, about 15-45 us a call) is switched off
-    model = IProMP(observe, n_basis=n_basis, n_alpha=n_alpha, noise=10.0, blas_threads=None)
+    model = IProMP(
+        observe, n_basis=n_basis, n_alpha=n_alpha, noise=10.0, blas_threads=None, coupling=coupling
+    )
     tracemalloc.start()
     t0 = time.perf_counter()
     model.fit(train)
@@ -273,6 +279,7 @@ def main(argv: list[str] | None = None) -> int:
         model, test = paper.pop("_model"), paper.pop("_test")
         settings = {"paper": paper}
         scaled = [
+            ("paper1blk", {"coupling": "all"}),
             ("10tasks", {"n_tasks": 10}),
             ("30tasks", {"n_tasks": 30}),
             ("dims30", {"n_extra": 18}),

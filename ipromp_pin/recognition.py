@@ -448,12 +448,7 @@ class IProMP:
                 engine = self._engine_()
                 dens_shift = np.log(m.alpha_grid[1] - m.alpha_grid[0])
                 alpha_true = self._alphas[task][i]
-                for ratio in CV_RATIOS:
-                    try:
-                        obs = d.head(ratio, self.observe)
-                    except ObservationError:
-                        continue
-                    parts, t_last = self._prepare(obs, check_length=False)
+                for _, parts, t_last in self._cv_observations(d):
                     stats = [engine.part_stats(p) for p in parts]
                     n_eval += 1
                     for j, nu in enumerate(NOISE_GRID):
@@ -474,6 +469,19 @@ class IProMP:
         return float(NOISE_GRID[best]), {
             float(nu): float(v) for nu, v in zip(NOISE_GRID, scores, strict=True)
         }
+
+    def _cv_observations(self, demo: Demo) -> list[tuple[float, list[ObservationPart], float]]:
+        """(observed ratio, prepared parts, last sample time in [s]) of the first ``CV_RATIOS`` of a
+        held-out training demo (ratios the demo is too short for are left out)."""
+        out = []
+        for ratio in CV_RATIOS:
+            try:
+                obs = demo.head(ratio, self.observe)
+            except ObservationError:
+                continue
+            parts, t_last = self._prepare(obs, check_length=False)
+            out.append((ratio, parts, t_last))
+        return out
 
     def _held_out(self, by_task: Mapping[str, list[Demo]]) -> list[tuple[str, int]]:
         """(task, demo index) of the demos held out by the cross-validations: at most
@@ -520,12 +528,7 @@ class IProMP:
             covs = [shrink_covariances(weights, self.pooling, self._coupling_blocks(c), ki)[0] for c in cands]
             alpha = float(self._alphas[task][i])
             w_true = self._weights[task][i][lo:hi]
-            for ratio in CV_RATIOS:
-                try:
-                    obs = d.head(ratio, self.observe)
-                except ObservationError:
-                    continue
-                parts, _ = self._prepare(obs, check_length=False)
+            for ratio, parts, _ in self._cv_observations(d):
                 phi = self.basis_(np.linspace(ratio, 1.0, CV_PHASES))
                 row = []
                 for cov in covs:

@@ -265,13 +265,12 @@ def part_terms(
                 for u in range(n_u):
                     row[u] += xkj[u] * pjd[u]
     if use_z:
-        coef = np.empty((m, n_u))
+        coef = np.empty((n_u, m))  # rows: unique candidates (a task's candidates are consecutive rows)
         for q in range(m):
             diag = 1.0 if pk[q] == pl[q] else 0.0
             xq = xinv[pk[q], pl[q]]
-            cq = coef[q]
             for u in range(n_u):
-                cq[u] = diag - nu * xq[u]
+                coef[u, q] = diag - nu * xq[u]
     xb = np.empty((kd, n_c))
     quad = np.empty(n_c)
     for t in range(n_t):
@@ -300,8 +299,10 @@ def part_terms(
             total[off + c] += base - quad[c] / nu + dm * logdet[u0 + c]
         a[:, off : off + n_c] += np.dot(w_k[t, :kd].T, xb)
         if use_z:
-            pz = np.dot(z[t, :m].T, coef)  # (npk, U)
-            pq[:, off : off + n_c] += pz[:, u0 : u0 + n_c]
+            pz = np.dot(coef[u0 : u0 + n_c], z[t, :m])  # (C, npk)
+            for q in range(pz.shape[1]):
+                for c in range(n_c):
+                    pq[q, off + c] += pz[c, q]
     if not use_z:
         v = np.empty((kd, r))
         for t in range(n_t):

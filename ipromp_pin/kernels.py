@@ -217,7 +217,7 @@ def part_terms(
     total: np.ndarray,
     a: np.ndarray,
     pq: np.ndarray,
-) -> bool:
+) -> None:
     """Add one observation part's terms to ``total`` (P,), ``a`` (r, P) and packed ``P`` (r(r+1)/2, P).
 
     The P = T C (task, candidate) pairs are ordered task-major; task t's candidates are the unique
@@ -237,8 +237,6 @@ def part_terms(
         z, pk, pl: Packed ``Z`` tensors (T, K(K+1)/2, r(r+1)/2) and their basis pairs (only with ``use_z``).
         unpack: (r, r) index of ``(i, j)`` in the packed layout.
 
-    Returns:
-        True (the signature of a kernel that can fail).
     """
     n_u = xinv.shape[2]
     dm = proj.shape[2]
@@ -323,7 +321,6 @@ def part_terms(
                 for i in range(r):
                     for j in range(i, r):
                         pq[unpack[i, j], p] += s[i, j] - nu * vv[i, j]
-    return True
 
 
 @njit(**_JIT)

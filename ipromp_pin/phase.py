@@ -451,13 +451,11 @@ class InferenceEngine:
             sq = st.sq if full else np.ascontiguousarray(st.sq[pos])
             c = block.arrays(local)
             z = block.z_tensor(local) if block.use_z else block.no_z
-            ok = kern.part_terms(
+            kern.part_terms(
                 xinv, linv, logdet, proj, sq, st.n, st.ke, nu, self.starts, n_cand, c["mu_k"],
                 c["mu_rows"], c["inv_delta"], c["mu2"], c["log_delta"], c["w_k"], c["w_1"], z, block.pk,
                 block.pl, block.unpack, block.use_z, total, a, pq,
             )  # fmt: skip
-            if not ok:
-                raise ModelError("X = nu I + B^T B is not numerically positive definite")
         return (total, a, pq) if seen else None
 
 

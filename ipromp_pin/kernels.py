@@ -485,17 +485,34 @@ def prediction_cov(
 
 
 @njit(**_JIT)
-def phase_posterior(loglik: np.ndarray, log_prior: np.ndarray, grids: np.ndarray):
-    """Per task: log evidence (T,), normalised log phase posterior (T, C) and refined MAP phase (T,).
+def _vertex(x0: float, x1: float, x2: float, y0: float, y1: float, y2: float) -> float:
+    """:func:`ipromp_pin.phase._parabola_vertex` (same arithmetic)."""
+    denom = (x0 - x1) * (x0 - x2) * (x1 - x2)
+    ca = (x2 * (y1 - y0) + x1 * (y0 - y2) + x0 * (y2 - y1)) / denom
+    cb = (x2 * x2 * (y0 - y1) + x1 * x1 * (y2 - y0) + x0 * x0 * (y1 - y2)) / denom
+    if not ca < 0.0:
+        return x1
+    return min(max(-cb / (2.0 * ca), x0), x2)
+
+
+@njit(**_JIT)
+def phase_posterior(
+    loglik: np.ndarray, log_prior: np.ndarray, grids: np.ndarray, weights: np.ndarray, nodes: np.ndarray
+):
+    """Per task: log evidence (T,), normalised log phase posterior (T, C) and continuous MAP phase (T,).
 
     ``lp = loglik + log_prior``; the evidence is the log-sum-exp of ``lp`` over candidates (rows
-    without a possible candidate keep ``lp`` and get ``-inf``); the MAP phase is refined by the
-    parabola of :func:`ipromp_pin.phase.refine_peaks` (same arithmetic).
+    without a possible candidate keep ``lp`` and get ``-inf``); the MAP phase is refined as in
+    :func:`ipromp_pin.phase.refine_peak` (same arithmetic; ``weights`` (S, 6) and ``nodes`` (6,) are
+    its interpolation weights and stencil).
     """
     n_t, n_c = loglik.shape
+    steps = weights.shape[0]
+    n_w = nodes.shape[0]
     evidence = np.empty(n_t)
     logpost = np.empty((n_t, n_c))
     alpha = np.empty(n_t)
+    fine = np.empty(2 * steps + 1)
     for t in range(n_t):
         lp = logpost[t]
         best = 0
@@ -512,14 +529,41 @@ def phase_posterior(loglik: np.ndarray, log_prior: np.ndarray, grids: np.ndarray
         else:
             ev = top
         evidence[t] = ev
-        j = min(max(best, 1), n_c - 2)
-        x0, x1, x2 = grids[t, j - 1], grids[t, j], grids[t, j + 1]
-        y0, y1, y2 = lp[j - 1], lp[j], lp[j + 1]
-        denom = (x0 - x1) * (x0 - x2) * (x1 - x2)
-        ca = (x2 * (y1 - y0) + x1 * (y0 - y2) + x0 * (y2 - y1)) / denom
-        cb = (x2 * x2 * (y0 - y1) + x1 * x1 * (y2 - y0) + x0 * x0 * (y1 - y2)) / denom
-        ok = best == j and np.isfinite(y0) and np.isfinite(y1) and np.isfinite(y2) and ca < 0.0
-        alpha[t] = min(max(-cb / (2.0 * ca), x0), x2) if ok else grids[t, best]
+        g = grids[t]
+        i = best
+        if (
+            i == 0
+            or i == n_c - 1
+            or not (np.isfinite(lp[i - 1]) and np.isfinite(lp[i]) and np.isfinite(lp[i + 1]))
+        ):
+            alpha[t] = g[i]
+        else:
+            inner = i >= 3 and i <= n_c - 4
+            if inner:
+                for c in range(i - 3, i + 4):
+                    if not np.isfinite(lp[c]):
+                        inner = False
+            if not inner:
+                alpha[t] = _vertex(g[i - 1], g[i], g[i + 1], lp[i - 1], lp[i], lp[i + 1])
+            else:
+                for half in range(2):
+                    left = i - 1 + half
+                    for j in range(steps):
+                        v = 0.0
+                        for q in range(n_w):
+                            v += weights[j, q] * lp[left + nodes[q]]
+                        fine[half * steps + j] = v
+                fine[2 * steps] = lp[i + 1]
+                h = (g[i + 1] - g[i - 1]) / (2 * steps)
+                jb = 0
+                for j in range(2 * steps + 1):
+                    if fine[j] > fine[jb]:
+                        jb = j
+                if jb == 0 or jb == 2 * steps:
+                    alpha[t] = g[i - 1] + jb * h
+                else:
+                    x0 = g[i - 1] + (jb - 1) * h
+                    alpha[t] = _vertex(x0, x0 + h, x0 + 2.0 * h, fine[jb - 1], fine[jb], fine[jb + 1])
         if np.isfinite(ev):
             for c in range(n_c):
                 lp[c] -= ev
@@ -547,11 +591,13 @@ def add_sample(gram: np.ndarray, proj: np.ndarray, phi: np.ndarray, y: np.ndarra
 
 
 @njit(**_JIT_FMA)
-def sherman_morrison(xinv: np.ndarray, logdet: np.ndarray, phi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def sherman_morrison(
+    xinv: np.ndarray, logdet: np.ndarray, phi: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, bool]:
     """Add one sample with basis values ``phi`` (K, U) to ``X = nu I + B^T B`` of every unique candidate:
     with ``g = X^-1 phi`` and ``s = 1 + phi^T g``, ``X^-1 -= g g^T / s`` and ``log|X| += log s``
     (``xinv`` (ke, ke, U) and ``logdet`` (U,) updated in place, unless some ``s <= 0``, i.e. ``X``
-    lost positive definiteness). Returns ``g`` (ke, U) and ``s`` (U,)."""
+    lost positive definiteness). Returns ``g`` (ke, U), ``s`` (U,) and whether every ``s > 0``."""
     ke = xinv.shape[0]
     n_u = xinv.shape[2]
     g = np.zeros((ke, n_u))
@@ -570,7 +616,7 @@ def sherman_morrison(xinv: np.ndarray, logdet: np.ndarray, phi: np.ndarray) -> t
             s[u] += pk[u] * gk[u]
     for u in range(n_u):
         if not s[u] > 0.0:
-            return g, s
+            return g, s, False
     for u in range(n_u):
         logdet[u] += np.log(s[u])
     for k in range(ke):
@@ -580,7 +626,7 @@ def sherman_morrison(xinv: np.ndarray, logdet: np.ndarray, phi: np.ndarray) -> t
             gj = g[j]
             for u in range(n_u):
                 xkj[u] -= gk[u] * gj[u] / s[u]
-    return g, s
+    return g, s, True
 
 
 @njit(**_JIT_FMA)

@@ -55,6 +55,7 @@ fast path.
 from __future__ import annotations
 
 import contextlib
+import math
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from itertools import combinations
@@ -77,6 +78,8 @@ from .model import (
 )
 from .phase import (
     LOG_2PI,
+    REFINE_NODES,
+    REFINE_WEIGHTS,
     IncrementalTerms,
     InferenceEngine,
     ObservationPart,
@@ -235,7 +238,7 @@ class IProMP:
         width: float | None = None,
         ridge: float = 1e-6,
         margin: float = 1.0,
-        n_alpha: int = 50,
+        n_alpha: int = 20,
         alpha_width: float = 3.0,
         noise: float | str = "auto",
         n_points: int = 100,
@@ -661,7 +664,9 @@ class IProMP:
 
     def _recognition_from_loglik(self, loglik: np.ndarray, t_last: float, raw: bool = False):
         engine = self._engine_()
-        evidence, logpost, alpha = _kernels().phase_posterior(loglik, engine.log_prior, engine.alphas)
+        evidence, logpost, alpha = _kernels().phase_posterior(
+            loglik, engine.log_prior, engine.alphas, REFINE_WEIGHTS, REFINE_NODES
+        )
         finite = np.isfinite(evidence)
         if not finite.all():
             mus = np.array([self.models_[t].alpha_mu for t in self.tasks_])
@@ -671,8 +676,9 @@ class IProMP:
 
     def _finish_recognition(self, evidence, alpha, grids, logpost, t_last) -> Recognition:
         joint = self.task_log_prior_ + evidence
-        total = np.logaddexp.reduce(joint)
-        if not np.isfinite(total):
+        top = float(joint.max())
+        total = top + math.log(float(np.exp(joint - top).sum())) if math.isfinite(top) else top
+        if not math.isfinite(total):
             raise ObservationError(None, "t", "the observation is impossible under every task (too long?)")
         log_post = joint - total
         best = int(np.argmax(log_post))
@@ -711,29 +717,94 @@ class IProMP:
     def _condition(self, rec: Recognition, parts: list[ObservationPart]) -> Prediction:
         """Condition the winning task's weights on the observation at its MAP phase.
 
-        Same algebra as :mod:`ipromp_pin.phase` for a single candidate: per part,
-        ``X = nu I + G`` (one Cholesky), ``P = sum_d W_d^T (I - nu X^-1) W_d`` and
-        ``a = sum_d W_d^T X^-1 b_d / sqrt(delta_d)``; the latent posterior is
-        ``N(Q^-1 a, Q^-1)`` with ``Q = I + P`` and the observed dims' weights get the
-        extra correction ``X^-1 (b_d - G F_d eta)``.
+        Same algebra as :mod:`ipromp_pin.phase` for a single candidate, per independent block of
+        observed dims (:meth:`_task_blocks`; the blocks' latent posteriors are independent): per
+        part, ``X = nu I + G`` (one Cholesky), ``P = sum_d W_d^T (I - nu X^-1) W_d`` and
+        ``a = sum_d W_d^T X^-1 b_d / sqrt(delta_d)``; the latent posterior is ``N(Q^-1 a, Q^-1)``
+        with ``Q = I + P`` and the observed dims' weights get the extra correction
+        ``X^-1 (b_d - G F_d eta)``. The robot's covariance needs only the blocks whose factor
+        columns load on the robot (with two blocks, half the latent dims).
         """
         kern = _kernels()
         task = rec.task
         m = self.models_[task]
         alpha = float(rec.alpha[self.tasks_.index(task)])
-        r = m.rank
-        q, a, kept = self._latent_terms(parts, alpha, lambda dims: self._scaled_factor(task, dims), r)
-        if r:
-            lq, f_eta = kern.latent_posterior(q, a, m.factor)
+        w_post = m.mean.copy()
+        info = self._task_blocks(task)
+        robot_chol = []
+        for b, (dims_b, cols_b) in enumerate(info["blocks"]):
+            sub = []
+            for part in parts:
+                pos = self._block_positions(part.dims, dims_b)
+                if pos.size == part.dims.size:
+                    sub.append(part)
+                elif pos.size:
+                    sub.append(ObservationPart(part.t, part.dims[pos], np.ascontiguousarray(part.y[:, pos])))
+            r = cols_b.size
+            q, a, kept = self._latent_terms(
+                sub, alpha, lambda dims, b=b: self._scaled_factor(task, b, dims), r
+            )
+            lq, f_eta = kern.latent_posterior(q, a, info["factors"][b])
             if not np.isfinite(lq[0, 0]):
                 raise ModelError("Q = I + P is not numerically positive definite")
-        else:
-            lq, f_eta = np.zeros((0, 0)), np.zeros_like(m.mean)
-        w_post = m.mean + f_eta
-        for dims, ke, lx, gram, bb in kept:
-            fu = f_eta[dims, :ke].T  # (ke, dm)
-            w_post[dims, :ke] += kern.cho_solve(lx, bb - gram @ fu).T
-        return self._make_prediction(rec, m.factor, m, alpha, w_post, lq)
+            w_post += f_eta
+            for dims, ke, lx, gram, bb in kept:
+                fu = f_eta[dims, :ke].T  # (ke, dm)
+                w_post[dims, :ke] += kern.cho_solve(lx, bb - gram @ fu).T
+            if b in info["robot_blocks"]:
+                robot_chol.append(lq)
+        n_free = info["robot_cols"].size - sum(c.shape[0] for c in robot_chol)
+        lq = robot_chol[0] if len(robot_chol) == 1 and n_free == 0 else _block_diag(robot_chol, n_free)
+        return self._make_prediction(rec, info["robot_factor"], m, alpha, w_post, lq)
+
+    def _task_blocks(self, task: str) -> dict:
+        """The independent blocks of a task's latent dims (cached).
+
+        Returns a dict: ``blocks`` per block of the inference engine its observed dims and the task's
+        factor columns loading on them; ``factors`` those columns of the factor (D, K, r_b);
+        ``robot_blocks`` the blocks whose columns load on the robot; ``robot_cols`` the columns of
+        these blocks followed by the robot's columns that load on no observed dim (their latent
+        posterior is the prior); ``robot_factor`` the factor restricted to them (D, K, r_R).
+        """
+        if self._pred_cache is None:
+            self._pred_cache = {}
+        key = ("blocks", task)
+        info = self._pred_cache.get(key)
+        if info is None:
+            m = self.models_[task]
+            lo, hi = self.group_slices_[self.robot_group]
+            loads = np.any(m.factor != 0.0, axis=1)  # (D, r)
+            robot = np.any(loads[lo:hi], axis=0)
+            blocks, factors, robot_blocks, cols_r = [], [], [], []
+            seen = np.zeros(m.rank, dtype=bool)
+            for block in self._engine_().blocks:
+                cols = np.flatnonzero(np.any(loads[block.dims], axis=0))
+                seen[cols] = True
+                blocks.append((block.dims, cols))
+                factors.append(np.ascontiguousarray(m.factor[:, :, cols]))
+                if np.any(robot[cols]):
+                    robot_blocks.append(len(blocks) - 1)
+                    cols_r.append(cols)
+            cols_r.append(np.flatnonzero(robot & ~seen))
+            robot_cols = np.concatenate(cols_r).astype(np.int64)
+            info = {
+                "blocks": blocks,
+                "factors": factors,
+                "robot_blocks": robot_blocks,
+                "robot_cols": robot_cols,
+                "robot_factor": np.ascontiguousarray(m.factor[:, :, robot_cols]),
+            }
+            self._pred_cache[key] = info
+        return info
+
+    def _block_positions(self, dims: np.ndarray, block_dims: np.ndarray) -> np.ndarray:
+        """Positions in ``dims`` of the dims that belong to ``block_dims`` (cached)."""
+        key = ("pos", dims.tobytes(), block_dims.tobytes())
+        pos = self._pred_cache.get(key)
+        if pos is None:
+            pos = np.flatnonzero(np.isin(dims, block_dims))
+            self._pred_cache[key] = pos
+        return pos
 
     def _latent_terms(self, parts: list[ObservationPart], alpha: float, arrays, r: int) -> tuple:
         """``Q`` (r, r), ``a`` (r,) of the latent posterior at phase ``alpha`` and, per part, what the
@@ -763,25 +834,29 @@ class IProMP:
             kept.append((part.dims, ke, lx, gram, bb))
         return q, a, kept
 
-    def _scaled_factor(self, task: str, dims: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``sqrt(delta_d)`` (D_m,), ``F_d / sqrt(delta_d)`` (K, D_m, r) and the mean weights (D_m, K) of
-        the observed dims ``dims`` of a task (cached)."""
-        if self._pred_cache is None:
-            self._pred_cache = {}
-        key = ("factor", task, dims.tobytes())
+    def _scaled_factor(
+        self, task: str, block: int, dims: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``sqrt(delta_d)`` (D_m,), ``F_d / sqrt(delta_d)`` (K, D_m, r_b) over the columns of latent block
+        ``block`` (:meth:`_task_blocks`) and the mean weights (D_m, K) of the observed dims ``dims`` of a
+        task (cached)."""
+        key = ("factor", task, block, dims.tobytes())
         c = self._pred_cache.get(key)
         if c is None:
             m = self.models_[task]
+            factor = self._task_blocks(task)["factors"][block]
             sd = np.sqrt(m.diag[dims])
-            w = np.ascontiguousarray((m.factor[dims] / sd[:, None, None]).transpose(1, 0, 2))
+            w = np.ascontiguousarray((factor[dims] / sd[:, None, None]).transpose(1, 0, 2))
             self._pred_cache[key] = c = (sd, w, np.ascontiguousarray(m.mean[dims]))
         return c
 
-    def _grid_cache(self, task: str, factor: np.ndarray) -> dict[str, np.ndarray]:
-        """Model-only quantities on the fixed prediction phase grid (cached per task)."""
+    def _grid_cache(self, task: str, factor: np.ndarray, which: str) -> dict[str, np.ndarray]:
+        """Model-only quantities on the fixed prediction phase grid (cached per task and ``which``
+        factor columns: "robot" those of :meth:`_task_blocks`, "all" every column)."""
         if self._pred_cache is None:
             self._pred_cache = {}
-        c = self._pred_cache.get((task, factor.shape[2]))
+        key = ("grid", task, which)
+        c = self._pred_cache.get(key)
         if c is None:
             lo, hi = self.group_slices_[self.robot_group]
             m = self.models_[task]
@@ -797,14 +872,16 @@ class IProMP:
                 "prior_std": std[:, lo:hi] * self.scaler_.scale[lo:hi],
                 "phi_f": np.ascontiguousarray(np.einsum("mk,jkr->rjm", phi, fr)),  # (r, J, M)
             }
-            self._pred_cache[(task, factor.shape[2])] = c
+            self._pred_cache[key] = c
         return c
 
-    def _make_prediction(self, rec, factor, m: TaskModel, alpha, w_post, lq) -> Prediction:
+    def _make_prediction(
+        self, rec, factor, m: TaskModel, alpha, w_post, lq, which: str = "robot"
+    ) -> Prediction:
         lo, hi = self.group_slices_[self.robot_group]
         nj = hi - lo
         duration = alpha * self.duration_nominal_s_
-        c = self._grid_cache(m.task, factor)
+        c = self._grid_cache(m.task, factor, which)
         phi = c["phi"]
         scale = self.scaler_.scale[lo:hi]
         offset = self.scaler_.offset[lo:hi]
@@ -936,6 +1013,11 @@ class StreamingEstimator:
             max(float(m.alpha_grid[-1]) for m in model.models_.values()) * model.duration_nominal_s_
         )
         self._held: contextlib.AbstractContextManager | None = None
+        sc = model.scaler_  # the scaling of a full sample (all observed dims), as ChannelScaler.transform
+        self._log_idx = np.flatnonzero(sc._log[:n_obs])
+        self._log_c = sc.log_shift[self._log_idx]
+        self._offset = sc.offset[:n_obs]
+        self._scale = sc.scale[:n_obs]
         self._support_until = -np.inf  # phases below this need at most inc.ke basis functions
 
     def __enter__(self) -> StreamingEstimator:
@@ -985,7 +1067,7 @@ class StreamingEstimator:
                 )
             y[lo:hi] = v
             present.append(g)
-        if not np.all(np.isfinite(y)):
+        if not math.isfinite(float(y.sum())) and not np.all(np.isfinite(y)):
             bad = next(g for g, lo, hi in self._slices if not np.all(np.isfinite(y[lo:hi])))
             raise ObservationError("stream", bad, f"NaN or inf in the sample at t={t_s:.3f} s")
         self._t.append(t_s)
@@ -994,7 +1076,10 @@ class StreamingEstimator:
             self._values[g].append(y[lo:hi].copy() if ok else np.full(hi - lo, np.nan))
             self._missing[g].append(not ok)
         if len(present) == len(self._slices):
-            y = m.scaler_.transform(y, slice(0, y.size))
+            li = self._log_idx
+            if li.size:
+                y[li] = np.log(np.maximum(y[li], 0.0) + self._log_c)
+            y = (y - self._offset) / self._scale
         else:
             self._inc = None  # the incremental terms hold one part with every observed dim
             for g, lo, hi in self._slices:
@@ -1097,6 +1182,18 @@ class StreamingEstimator:
         return self.model.predict(self.observation())
 
 
+def _block_diag(chols: list[np.ndarray], n_eye: int) -> np.ndarray:
+    """Block-diagonal matrix of the lower Cholesky factors ``chols`` followed by an identity of size
+    ``n_eye``."""
+    n = sum(c.shape[0] for c in chols) + n_eye
+    out = np.eye(n)
+    i = 0
+    for c in chols:
+        out[i : i + c.shape[0], i : i + c.shape[0]] = c
+        i += c.shape[0]
+    return out
+
+
 def v_scaled(model: IProMP, group: str, values: np.ndarray) -> np.ndarray:
     """Scale raw values of ``group`` with the model's channel scaling."""
     lo, hi = model.group_slices_[group]
@@ -1194,7 +1291,9 @@ def direct_predict(model: IProMP, observation: Demo) -> Prediction:
         ]
     )
     wr = w_mean.reshape(n_dims, k)
-    pred = model._make_prediction(rec, m.factor, m, a_best, wr, np.eye(m.rank))  # trajectories replaced below
+    pred = model._make_prediction(
+        rec, m.factor, m, a_best, wr, np.eye(m.rank), "all"
+    )  # trajectories replaced below
     pred.q_mean = model.scaler_.inverse(q_mean, slice(lo, hi))
     pred.q_cov = q_cov * scale[None, :, None] * scale[None, None, :]
     return pred

@@ -15,6 +15,7 @@ CASES = [
     (32, "a", True, 3.0, 0.3, ["b"]),
     (33, None, False, 1.0, 0.2, ["a"]),
     (34, "b", False, 0.1, 0.15, "all"),
+    (36, None, True, 1.0, 0.2, []),  # robot independent of the human: its latent dims stay at the prior
 ]
 
 
@@ -29,7 +30,7 @@ def test_fast_prediction_equals_direct(seed, missing, use_z, noise, ratio, coupl
     n_basis = int(rng.integers(6, 10))
     model = IProMP(["a", "b"], n_basis=n_basis, n_alpha=50, noise=noise, coupling=coupling).fit(train)
     model._engine_().use_z = use_z
-    assert len(model._engine_().blocks) == (1 if coupling == "all" else 2)
+    assert len(model._engine_().blocks) == (1 if coupling in ("all", []) else 2)
     for task in ("task0", "task2"):
         obs = test[task][int(rng.integers(0, 2))].head(ratio, model.observe)
         fast, ref = model.predict(obs), direct_predict(model, obs)

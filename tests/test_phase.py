@@ -91,21 +91,42 @@ def test_compiled_x_inverse_equals_lapack() -> None:
 
 def test_compiled_phase_posterior_equals_numpy() -> None:
     from ipromp_pin.kernels import phase_posterior
-    from ipromp_pin.phase import refine_peaks
+    from ipromp_pin.phase import REFINE_NODES, REFINE_WEIGHTS, refine_peaks
 
     rng = np.random.default_rng(1)
-    grids = np.sort(rng.uniform(0.5, 1.5, (4, 30)), axis=1)
-    loglik = -50.0 * (grids - rng.uniform(0.6, 1.4, (4, 1))) ** 2 + rng.normal(0, 0.01, (4, 30))
+    grids = rng.uniform(0.5, 0.7, (5, 1)) + rng.uniform(0.02, 0.04, (5, 1)) * np.arange(30)
+    loglik = -50.0 * (grids - rng.uniform(0.8, 1.2, (5, 1))) ** 2 + rng.normal(0, 0.01, (5, 30))
     loglik[1, :5] = -np.inf  # impossible candidates
     loglik[2, :] = -np.inf  # impossible task
     loglik[3, 0] = 10.0  # peak at the edge: no refinement
-    prior = rng.normal(0, 1, (4, 30))
-    evidence, logpost, alpha = phase_posterior(loglik, prior, grids)
+    loglik[4, 14:] = -np.inf  # peak next to impossible candidates: parabola on the candidates
+    prior = -0.5 * ((grids - 1.0) / 0.2) ** 2
+    evidence, logpost, alpha = phase_posterior(loglik, prior, grids, REFINE_WEIGHTS, REFINE_NODES)
     lp = loglik + prior
-    rows = [0, 1, 3]
+    rows = [0, 1, 3, 4]
     ref_ev = np.logaddexp.reduce(lp[rows], axis=1)
     assert np.allclose(evidence[rows], ref_ev, rtol=1e-13)
     assert evidence[2] == -np.inf and np.all(logpost[2] == -np.inf)
     assert np.allclose(logpost[rows], lp[rows] - ref_ev[:, None], rtol=1e-12, atol=1e-12)
     assert np.array_equal(alpha[rows], refine_peaks(grids, lp)[rows])
     assert alpha[3] == grids[3, 0]
+
+
+def test_refine_peak_interpolates_a_skewed_log_posterior() -> None:
+    # log of a skewed (log-normal-like) density: not a parabola, so a parabola through the three best
+    # candidates misses its peak; the interpolation between candidates must find it to a fraction of that
+    grid = 0.6 + 0.04 * np.arange(25)
+
+    def f(x):
+        return -0.5 * (np.log(x / 1.03) / 0.09) ** 2 - 3.0 * np.log(x)
+
+    fine = np.linspace(0.9, 1.2, 300001)
+    true = fine[np.argmax(f(fine))]
+    lp = f(grid)
+    i = int(np.argmax(lp))
+    from ipromp_pin.phase import _parabola_vertex
+
+    coarse_err = abs(_parabola_vertex(*grid[i - 1 : i + 2], *lp[i - 1 : i + 2]) - true)
+    err = abs(refine_peak(grid, lp) - true)
+    assert coarse_err > 5e-4
+    assert err < 0.05 * coarse_err

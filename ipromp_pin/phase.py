@@ -87,11 +87,16 @@ PAIR_LANES = 16
 """The (task, candidate) pair arrays are padded to a multiple of this many lanes (whole vector loops)."""
 
 
+_KERNELS: list = []  # the kernels module once imported (a lookup is cheaper than an import statement)
+
+
 def _kernels():
     """The compiled kernels module (imports numba and compiles / loads cached code on first use)."""
-    from . import kernels
+    if not _KERNELS:
+        from . import kernels
 
-    return kernels
+        _KERNELS.append(kernels)
+    return _KERNELS[0]
 
 
 @dataclass

@@ -210,6 +210,7 @@ class LatentBlock:
         n_task = len(models)
         k = mu.shape[2]
         self.dims = np.asarray(dims, dtype=np.int64)
+        self.cols = [np.asarray(c, dtype=np.int64) for c in cols]  # per task, its factor columns used
         self.rank = r = max(1, max(c.size for c in cols))
         self.mu = np.ascontiguousarray(mu[:, self.dims])  # (T, D_b, K)
         self.delta = np.ascontiguousarray(delta[:, self.dims])

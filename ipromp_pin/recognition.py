@@ -732,10 +732,10 @@ class IProMP:
         w_post = m.mean.copy()
         info = self._task_blocks(task)
         robot_chol = []
-        for b, (dims_b, cols_b) in enumerate(info["blocks"]):
+        for b, (block, cols_b) in enumerate(info["blocks"]):
             sub = []
             for part in parts:
-                pos = self._block_positions(part.dims, dims_b)
+                pos = block.select(part.dims)[0]
                 if pos.size == part.dims.size:
                     sub.append(part)
                 elif pos.size:
@@ -760,8 +760,9 @@ class IProMP:
     def _task_blocks(self, task: str) -> dict:
         """The independent blocks of a task's latent dims (cached).
 
-        Returns a dict: ``blocks`` per block of the inference engine its observed dims and the task's
-        factor columns loading on them; ``factors`` those columns of the factor (D, K, r_b);
+        Returns a dict: ``blocks`` per block of the inference engine, the block
+        (:class:`~ipromp_pin.phase.LatentBlock`) and the task's factor columns it uses
+        (``LatentBlock.cols``); ``factors`` those columns of the factor (D, K, r_b);
         ``robot_blocks`` the blocks whose columns load on the robot; ``robot_cols`` the columns of
         these blocks followed by the robot's columns that load on no observed dim (their latent
         posterior is the prior); ``robot_factor`` the factor restricted to them (D, K, r_R).
@@ -777,10 +778,11 @@ class IProMP:
             robot = np.any(loads[lo:hi], axis=0)
             blocks, factors, robot_blocks, cols_r = [], [], [], []
             seen = np.zeros(m.rank, dtype=bool)
+            ti = self.tasks_.index(task)
             for block in self._engine_().blocks:
-                cols = np.flatnonzero(np.any(loads[block.dims], axis=0))
+                cols = block.cols[ti]
                 seen[cols] = True
-                blocks.append((block.dims, cols))
+                blocks.append((block, cols))
                 factors.append(np.ascontiguousarray(m.factor[:, :, cols]))
                 if np.any(robot[cols]):
                     robot_blocks.append(len(blocks) - 1)
@@ -796,15 +798,6 @@ class IProMP:
             }
             self._pred_cache[key] = info
         return info
-
-    def _block_positions(self, dims: np.ndarray, block_dims: np.ndarray) -> np.ndarray:
-        """Positions in ``dims`` of the dims that belong to ``block_dims`` (cached)."""
-        key = ("pos", dims.tobytes(), block_dims.tobytes())
-        pos = self._pred_cache.get(key)
-        if pos is None:
-            pos = np.flatnonzero(np.isin(dims, block_dims))
-            self._pred_cache[key] = pos
-        return pos
 
     def _latent_terms(self, parts: list[ObservationPart], alpha: float, arrays, r: int) -> tuple:
         """``Q`` (r, r), ``a`` (r,) of the latent posterior at phase ``alpha`` and, per part, what the

@@ -20,6 +20,8 @@ uses a small ridge (see :meth:`GaussianBasis.fit_weights`).
 
 from __future__ import annotations
 
+import bisect
+
 import numpy as np
 from scipy.linalg import cho_solve
 
@@ -27,6 +29,10 @@ from .exceptions import ModelError
 
 DEFAULT_RELATIVE_WIDTH = 0.75
 """Default width ``h`` of a bump as a fraction of the centre spacing."""
+
+SUPPORT_TOL = 1e-11
+"""A basis function below this value on the whole observed phase interval is left out of the
+likelihood (:meth:`GaussianBasis.support_count`)."""
 
 
 class GaussianBasis:
@@ -63,6 +69,8 @@ class GaussianBasis:
             raise ModelError(f"ridge must be >= 0, got {ridge!r}")
         self.centres = -self.margin * spacing + spacing * np.arange(self.n_basis)
         # phi_{k+1} / phi_k = exp(z Delta / h^2) * exp(-(c_k + Delta / 2) Delta / h^2)
+        self._centres_list = [float(c) for c in self.centres]
+        self._reach = self.width * float(np.sqrt(-2.0 * np.log(SUPPORT_TOL)))
         self._step_factor = np.exp(-(self.centres[:-1] + 0.5 * spacing) * spacing / self.width**2)
         # products of two bumps: phi_k phi_l = tau_|k-l| psi_{k+l} with psi_s(z) = exp(-(z - m_s)^2 / h^2),
         # m_s = c_0 + s Delta / 2 (see gram_factors)
@@ -114,17 +122,19 @@ class GaussianBasis:
         """
         return self._pair_step, self._pair_overlap
 
-    def support_count(self, z_max: float, tol: float = 1e-11) -> int:
+    def support_count(self, z_max: float, tol: float = SUPPORT_TOL) -> int:
         """Number of leading basis functions that exceed ``tol`` somewhere on [0, ``z_max``].
 
         Basis functions with centre beyond ``z_max + h sqrt(-2 ln tol)`` are below
         ``tol`` on the whole interval (they are negligible for an observation
         that ends at phase ``z_max``).
         """
+        if tol == SUPPORT_TOL:  # the usual call: no array functions on scalars (a few us each)
+            return bisect.bisect_right(self._centres_list, float(z_max) + self._reach)
         reach = float(z_max) + self.width * np.sqrt(-2.0 * np.log(tol))
         return int(min(self.n_basis, np.searchsorted(self.centres, reach, side="right")))
 
-    def support_limit(self, n_first: int, tol: float = 1e-11) -> float:
+    def support_limit(self, n_first: int, tol: float = SUPPORT_TOL) -> float:
         """Phase below which :meth:`support_count` is at most ``n_first`` (inf when ``n_first >= K``)."""
         if n_first >= self.n_basis:
             return np.inf

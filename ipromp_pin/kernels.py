@@ -435,6 +435,146 @@ def condition_part(
 
 
 @njit(**_JIT)
+def condition_block(
+    t_cat: np.ndarray,
+    n_off: np.ndarray,
+    y_cat: np.ndarray,
+    y_off: np.ndarray,
+    y_width: np.ndarray,
+    pos_cat: np.ndarray,
+    dims_cat: np.ndarray,
+    p_off: np.ndarray,
+    ke_p: np.ndarray,
+    inv_dur: float,
+    centres: np.ndarray,
+    width: float,
+    step: np.ndarray,
+    mean: np.ndarray,
+    diag: np.ndarray,
+    factor: np.ndarray,
+    nu: float,
+    w_post: np.ndarray,
+    lq: np.ndarray,
+) -> bool:
+    """Condition one independent latent block of a task on every observation part at one phase.
+
+    The whole of ``IProMP._condition`` for one block in one call: per part, :func:`condition_part`
+    (its basis rows from :func:`basis_rows`); then the latent posterior ``N(Q^-1 a, Q^-1)``
+    (:func:`latent_posterior`), ``w_post += F Q^-1 a`` and, per part, the observed dims' correction
+    ``X^-1 (b_d - G F_d eta)``.
+
+    Args:
+        t_cat, n_off: Sample times in [s] of the parts, concatenated; part p is ``n_off[p]:n_off[p+1]``.
+        y_cat, y_off, y_width: Scaled values of the parts, each flattened row-major (n_p, y_width[p])
+            from ``y_off[p]``.
+        pos_cat, dims_cat, p_off: Per part (``p_off[p]:p_off[p+1]``), the columns of its values that
+            belong to the block and their model dims.
+        ke_p: (P,) active basis functions per part.
+        inv_dur: ``1 / (alpha T_norm)`` in [1/s]; centres, width, step: the basis (see :func:`basis_rows`).
+        mean, diag, factor: (D, K) mean weights, (D,) diagonal variances and (D, K, r) the block's
+            factor columns of the task (all dims).
+        nu: Noise ratio.
+        w_post: (D, K) weights, updated in place.
+        lq: (r, r) output, the lower Cholesky factor of ``Q``.
+
+    Returns:
+        False when ``X`` or ``Q`` is not numerically positive definite.
+    """
+    n_parts = n_off.shape[0] - 1
+    n_dims, n_k, r = factor.shape
+    q = np.eye(r)
+    a = np.zeros(r)
+    kmax = 1
+    dmax = 1
+    for p in range(n_parts):
+        kmax = max(kmax, ke_p[p])
+        dmax = max(dmax, p_off[p + 1] - p_off[p])
+    lxs = np.zeros((n_parts, kmax, kmax))
+    grams = np.zeros((n_parts, kmax, kmax))
+    bbs = np.zeros((n_parts, kmax, dmax))
+    for p in range(n_parts):
+        n0 = n_off[p]
+        n = n_off[p + 1] - n0
+        ke = ke_p[p]
+        d0 = p_off[p]
+        dm = p_off[p + 1] - d0
+        bt = np.ascontiguousarray(basis_rows(t_cat[n0 : n0 + n] * inv_dur, centres, width, step)[:ke])
+        ys = np.empty((n, dm))
+        yw = y_width[p]
+        for j in range(n):
+            row = y_off[p] + j * yw
+            for d in range(dm):
+                ys[j, d] = y_cat[row + pos_cat[d0 + d]]
+        md = np.empty((dm, n_k))
+        sd = np.empty(dm)
+        wf = np.empty((ke, dm * r))
+        for d in range(dm):
+            dd = dims_cat[d0 + d]
+            md[d] = mean[dd]
+            sd[d] = np.sqrt(diag[dd])
+            for k in range(ke):
+                for i in range(r):
+                    wf[k, d * r + i] = factor[dd, k, i] / sd[d]
+        lx = np.empty((ke, ke))
+        gram = np.empty((ke, ke))
+        bb = np.empty((ke, dm))
+        if not condition_part(bt, ys, md, wf, sd, nu, q, a, lx, gram, bb):
+            return False
+        lxs[p, :ke, :ke] = lx
+        grams[p, :ke, :ke] = gram
+        bbs[p, :ke, :dm] = bb
+    f_eta = np.zeros((n_dims, n_k))
+    if r > 0:
+        low, f_eta = latent_posterior(q, a, factor)
+        if not np.isfinite(low[0, 0]):
+            return False
+        lq[:, :] = low
+        w_post += f_eta
+    for p in range(n_parts):
+        ke = ke_p[p]
+        d0 = p_off[p]
+        dm = p_off[p + 1] - d0
+        gram = grams[p, :ke, :ke]
+        rhs = np.empty((ke, dm))
+        for k in range(ke):
+            for d in range(dm):
+                s = bbs[p, k, d]
+                dd = dims_cat[d0 + d]
+                for j in range(ke):
+                    s -= gram[k, j] * f_eta[dd, j]
+                rhs[k, d] = s
+        sol = cho_solve(np.ascontiguousarray(lxs[p, :ke, :ke]), rhs)
+        for d in range(dm):
+            dd = dims_cat[d0 + d]
+            for k in range(ke):
+                w_post[dd, k] += sol[k, d]
+    return True
+
+
+@njit(**_JIT)
+def channel_values(
+    phi: np.ndarray,
+    w: np.ndarray,
+    scale: np.ndarray,
+    offset: np.ndarray,
+    log_idx: np.ndarray,
+    log_shift: np.ndarray,
+) -> np.ndarray:
+    """Trajectories (M, D) in original units of weights ``w`` (D, K) at basis values ``phi`` (M, K):
+    ``phi w^T`` scaled back by ``scale`` and ``offset`` (D,), then ``exp(.) - log_shift`` on the
+    log-scaled channels ``log_idx`` (see ``ChannelScaler.inverse``)."""
+    out = np.dot(phi, w.T)
+    n_m, n_d = out.shape
+    for m in range(n_m):
+        for d in range(n_d):
+            out[m, d] = out[m, d] * scale[d] + offset[d]
+        for i in range(log_idx.shape[0]):
+            d = log_idx[i]
+            out[m, d] = np.exp(out[m, d]) - log_shift[d]
+    return out
+
+
+@njit(**_JIT)
 def latent_posterior(q: np.ndarray, a: np.ndarray, factor: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Cholesky factor (r, r) of ``Q`` (NaN if not SPD) and ``F Q^-1 a`` (D, K) for ``factor`` (D, K, r)."""
     r = q.shape[0]

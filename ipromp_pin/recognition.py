@@ -600,12 +600,12 @@ class IProMP:
         if not isinstance(obs, Demo):
             raise ObservationError(None, "observation", f"expected a Demo, got {type(obs).__name__}")
         src = obs.source
-        masks: dict[bytes, tuple[np.ndarray, list[np.ndarray], list[np.ndarray]]] = {}
         t = obs.t
         if t[0] < -1e-9:
             raise ObservationError(
                 src, "t", f"times must start at motion start (>= 0 s), first is {t[0]:.3f} s"
             )
+        gaps = False
         for g in self.observe:
             if g not in obs.groups:
                 raise ObservationError(
@@ -613,25 +613,25 @@ class IProMP:
                     g,
                     f"observed group missing from the observation (has: {', '.join(sorted(obs.groups))})",
                 )
-            v = obs.groups[g]
             lo, hi = self.group_slices_[g]
-            if v.shape[1] != hi - lo:
+            n_ch = obs.groups[g].shape[1]
+            if n_ch != hi - lo:
                 raise ObservationError(
-                    src, g, f"has {v.shape[1]} channels, the model expects {hi - lo} {self.channel_names_[g]}"
+                    src, g, f"has {n_ch} channels, the model expects {hi - lo} {self.channel_names_[g]}"
                 )
-            valid = ~obs.missing[g] if g in obs.missing else np.ones(t.size, dtype=bool)
-            if not np.all(np.isfinite(v[valid])):
-                raise ObservationError(src, g, "NaN or inf values in samples not flagged as missing")
-            if not np.any(valid):
-                continue
-            key = valid.tobytes()
-            entry = masks.setdefault(key, (valid, [], []))
-            entry[1].append(np.arange(lo, hi))
-            entry[2].append(self.scaler_.transform(v[valid], slice(lo, hi)))
-        parts = [
-            ObservationPart(t=t[valid], dims=np.concatenate(dims), y=np.concatenate(ys, axis=1))
-            for valid, dims, ys in masks.values()
-        ]
+            gaps = gaps or (g in obs.missing and bool(obs.missing[g].any()))
+        if not gaps:  # every group in every sample: one part with all observed dims
+            raw = np.concatenate([obs.groups[g] for g in self.observe], axis=1, dtype=float)
+            if not math.isfinite(float(raw.sum())):  # the sum is finite unless a value is not (or overflow)
+                for g in self.observe:
+                    if not np.all(np.isfinite(obs.groups[g])):
+                        raise ObservationError(src, g, "NaN or inf values in samples not flagged as missing")
+            dims, log_idx, log_c, offset, scale = self._obs_scaling()
+            if log_idx.size:
+                raw[:, log_idx] = np.log(np.maximum(raw[:, log_idx], 0.0) + log_c)
+            parts = [ObservationPart(t=t, dims=dims, y=(raw - offset) / scale)]
+        else:
+            parts = self._parts_with_gaps(obs)
         n_used = sum(p.t.size for p in parts)
         if t.size < 2 or n_used < 2:
             raise ObservationError(src, "t", f"an observation needs at least 2 samples, got {t.size}")
@@ -646,6 +646,41 @@ class IProMP:
                     f"({longest:.2f} s)",
                 )
         return parts, t_last
+
+    def _parts_with_gaps(self, obs: Demo) -> list[ObservationPart]:
+        """Observation parts of an observation with missing samples: groups with identical presence
+        masks share a part (their samples and times)."""
+        masks: dict[bytes, tuple[np.ndarray, list[np.ndarray], list[np.ndarray]]] = {}
+        for g in self.observe:
+            v = obs.groups[g]
+            lo, hi = self.group_slices_[g]
+            valid = ~obs.missing[g] if g in obs.missing else np.ones(obs.t.size, dtype=bool)
+            if not np.all(np.isfinite(v[valid])):
+                raise ObservationError(obs.source, g, "NaN or inf values in samples not flagged as missing")
+            if not np.any(valid):
+                continue
+            entry = masks.setdefault(valid.tobytes(), (valid, [], []))
+            entry[1].append(np.arange(lo, hi))
+            entry[2].append(self.scaler_.transform(v[valid], slice(lo, hi)))
+        return [
+            ObservationPart(t=obs.t[valid], dims=np.concatenate(dims), y=np.concatenate(ys, axis=1))
+            for valid, dims, ys in masks.values()
+        ]
+
+    def _obs_scaling(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The scaling of a full observed sample (cached): the observed dims (D_o,) (groups in
+        ``observe`` order), the log-scaled ones and their shifts, offsets and scales (D_o,) (the
+        operations of ``ChannelScaler.transform``)."""
+        if self._pred_cache is None:
+            self._pred_cache = {}
+        c = self._pred_cache.get("obs_scaling")
+        if c is None:
+            sc, n = self.scaler_, self.n_obs_dims_
+            log_idx = np.flatnonzero(sc._log[:n])  # observed groups come first, in observe order
+            dims = np.concatenate([np.arange(*self.group_slices_[g]) for g in self.observe])
+            c = (dims, log_idx, sc.log_shift[log_idx], sc.offset[dims], sc.scale[dims])
+            self._pred_cache["obs_scaling"] = c
+        return c
 
     def _engine_(self) -> InferenceEngine:
         if self._engine is None:
@@ -731,26 +766,39 @@ class IProMP:
         alpha = float(rec.alpha[self.tasks_.index(task)])
         w_post = m.mean.copy()
         info = self._task_blocks(task)
+        inv_dur = 1.0 / (alpha * self.duration_nominal_s_)
+        basis = self.basis_
+        ke_p = np.array([basis.support_count(float(p.t[-1]) * inv_dur) for p in parts], dtype=np.int64)
+        flat = _flatten_parts(parts)
         robot_chol = []
-        for b, (block, cols_b) in enumerate(info["blocks"]):
-            sub = []
-            for part in parts:
-                pos = block.select(part.dims)[0]
-                if pos.size == part.dims.size:
-                    sub.append(part)
-                elif pos.size:
-                    sub.append(ObservationPart(part.t, part.dims[pos], np.ascontiguousarray(part.y[:, pos])))
-            r = cols_b.size
-            q, a, kept = self._latent_terms(
-                sub, alpha, lambda dims, b=b: self._scaled_factor(task, b, dims), r
-            )
-            lq, f_eta = kern.latent_posterior(q, a, info["factors"][b])
-            if not np.isfinite(lq[0, 0]):
-                raise ModelError("Q = I + P is not numerically positive definite")
-            w_post += f_eta
-            for dims, ke, lx, gram, bb in kept:
-                fu = f_eta[dims, :ke].T  # (ke, dm)
-                w_post[dims, :ke] += kern.cho_solve(lx, bb - gram @ fu).T
+        for b, (block, _) in enumerate(info["blocks"]):
+            sel = [block.select(p.dims) for p in parts]
+            keep = [i for i, (pos, _) in enumerate(sel) if pos.size]
+            factor = info["factors"][b]
+            lq = np.empty((factor.shape[2], factor.shape[2]))  # written by the kernel
+            if not keep:  # no observed dim of this block: its latent posterior is the prior
+                if b in info["robot_blocks"]:
+                    robot_chol.append(np.eye(factor.shape[2]))
+                continue
+            if len(keep) == 1:
+                pos_cat, local = sel[keep[0]]
+                p_off = np.array([0, pos_cat.size], dtype=np.int64)
+            else:
+                pos_cat = np.concatenate([sel[i][0] for i in keep])
+                local = np.concatenate([sel[i][1] for i in keep])
+                p_off = np.cumsum([0] + [sel[i][0].size for i in keep])
+            dims_cat = block.dims[local]
+            if len(keep) == len(parts):
+                args = (*flat, ke_p)
+            else:
+                args = (*_flatten_parts([parts[i] for i in keep]), ke_p[keep])
+            ok = kern.condition_block(
+                *args[:5], pos_cat, dims_cat, p_off, args[5], inv_dur,
+                basis.centres, basis.width, basis._step_factor, m.mean, m.diag, factor, self.noise_ratio_,
+                w_post, lq,
+            )  # fmt: skip
+            if not ok:
+                raise ModelError("X = nu I + B^T B or Q = I + P is not numerically positive definite")
             if b in info["robot_blocks"]:
                 robot_chol.append(lq)
         n_free = info["robot_cols"].size - sum(c.shape[0] for c in robot_chol)
@@ -879,7 +927,11 @@ class IProMP:
         scale = self.scaler_.scale[lo:hi]
         offset = self.scaler_.offset[lo:hi]
         # every modelled channel at once: one product and one inverse scaling
-        mean_all = self.scaler_.inverse(phi @ w_post.T, slice(None))
+        sc = self.scaler_
+        log_idx = c.get("log_idx")
+        if log_idx is None:
+            c["log_idx"] = log_idx = np.flatnonzero(sc._log).astype(np.int64)
+        mean_all = _kernels().channel_values(phi, w_post, sc.scale, sc.offset, log_idx, sc.log_shift)
         q_mean = np.ascontiguousarray(mean_all[:, lo:hi])
         if lq.shape[0]:
             cov = _kernels().prediction_cov(lq, c["phi_f"], c["phi2"], m.diag[lo:hi], scale)
@@ -1173,6 +1225,27 @@ class StreamingEstimator:
         if len(self._t) < 2:
             raise ObservationError("stream", "t", f"need at least 2 samples, got {len(self._t)}")
         return self.model.predict(self.observation())
+
+
+def _flatten_parts(parts: list[ObservationPart]) -> tuple[np.ndarray, ...]:
+    """Observation parts as flat arrays (see ``kernels.condition_block``): concatenated times and
+    their offsets, concatenated row-major values, their offsets and the parts' widths."""
+    if len(parts) == 1:
+        p = parts[0]
+        return (
+            p.t,
+            np.array([0, p.t.size], dtype=np.int64),
+            p.y.reshape(-1),
+            np.array([0, p.y.size], dtype=np.int64),
+            np.array([p.dims.size], dtype=np.int64),
+        )
+    return (
+        np.concatenate([p.t for p in parts]),
+        np.cumsum([0] + [p.t.size for p in parts]),
+        np.concatenate([p.y.reshape(-1) for p in parts]),
+        np.cumsum([0] + [p.y.size for p in parts]),
+        np.array([p.dims.size for p in parts], dtype=np.int64),
+    )
 
 
 def _block_diag(chols: list[np.ndarray], n_eye: int) -> np.ndarray:

@@ -41,39 +41,70 @@ def chol_inplace(a: np.ndarray, n: int) -> float:
 
 @njit(**_JIT)
 def part_stats(
-    e0: np.ndarray,
-    q: np.ndarray,
+    t: np.ndarray,
+    inv_dur: np.ndarray,
+    centres: np.ndarray,
+    width: float,
     step: np.ndarray,
     pair_step: np.ndarray,
     overlap: np.ndarray,
     ke: int,
     y: np.ndarray,
-    hankel: bool,
 ):
-    """``B^T B`` (ke, ke, U) and ``B^T y`` (ke, U, D_m) of the first ``ke`` Gaussian basis functions.
+    """``B^T B`` (ke, ke, U), ``B^T y`` (ke, U, D_m) and ``y^T y`` (D_m,) of the first ``ke`` Gaussian
+    basis functions at the phases ``z = t inv_dur`` of samples at times ``t`` (n,) in [s] for the
+    candidates ``inv_dur`` (U,) in [1/s]; ``y`` (n, D_m).
 
     The basis values come from the running product of
     :meth:`ipromp_pin.basis.GaussianBasis.values_prefix_t` (same operations):
-    ``phi_0 = e0`` (n, U), ``phi_k = phi_{k-1} (q step_{k-1})`` with ``q`` (n, U); ``y`` (n, D_m).
-    With ``hankel``, ``B^T B`` comes from the 2 ke - 1 sums of
-    :meth:`~ipromp_pin.basis.GaussianBasis.gram_factors` (``psi_0 = e0^2``,
-    ``psi_s = psi_{s-1} (q pair_step_{s-1})``; the caller makes sure ``e0^2`` does not underflow),
-    otherwise from the products of the basis values.
+    ``phi_0 = exp(-(z - c_0)^2 / (2 h^2))``, ``phi_k = phi_{k-1} (q step_{k-1})`` with
+    ``q = exp(z Delta / h^2)``, and ``B^T B`` from the 2 ke - 1 sums of
+    :meth:`~ipromp_pin.basis.GaussianBasis.gram_factors` (``psi_0 = phi_0^2``,
+    ``psi_s = psi_{s-1} (q pair_step_{s-1})``). Where ``phi_0^2`` could underflow the Gram sums are
+    products of the basis values, and where ``phi_0`` could underflow (or ``ke < 3``) the basis
+    values are exact exponentials (as ``GaussianBasis.__call__``).
     """
-    n, n_u = e0.shape
+    n = t.shape[0]
+    n_u = inv_dur.shape[0]
+    dm = y.shape[1]
+    inv_h2 = 1.0 / (width * width)
+    spacing = centres[1] - centres[0]
+    c0 = centres[0]
+    far = 0.0
+    for j in range(n):
+        for u in range(n_u):
+            far = max(far, abs(t[j] * inv_dur[u] - c0))
+    far = far * far * inv_h2
+    exact = ke < 3 or 0.5 * far > 650.0
+    hankel = not exact and far <= 650.0
     ns = 2 * ke - 1
     sums = np.zeros((ns, n_u))
-    bt = np.empty((ke, n_u, n))
-    b = np.empty((ke, n_u))
+    bn = np.empty((n, ke, n_u))  # basis values, sample-major: B^T y is one matrix product
     psi = np.empty(n_u)
+    qj = np.empty(n_u)
     gram = np.zeros((ke, ke, n_u))
+    inv_w = 1.0 / width
     for j in range(n):
-        e0j = e0[j]
-        qj = q[j]
+        b = bn[j]
+        if exact:
+            for k in range(ke):
+                for u in range(n_u):
+                    d = (t[j] * inv_dur[u] - centres[k]) * inv_w
+                    b[k, u] = np.exp(-0.5 * d * d)
+        else:
+            for u in range(n_u):
+                z = t[j] * inv_dur[u]
+                d0 = z - c0
+                b[0, u] = np.exp(-0.5 * inv_h2 * d0 * d0)
+                qj[u] = np.exp(z * (spacing * inv_h2))
+            for k in range(1, ke):
+                f = step[k - 1]
+                for u in range(n_u):
+                    b[k, u] = b[k - 1, u] * (qj[u] * f)
         if hankel:
             s0 = sums[0]
             for u in range(n_u):
-                psi[u] = e0j[u] * e0j[u]
+                psi[u] = b[0, u] * b[0, u]
                 s0[u] += psi[u]
             for s in range(1, ns):
                 f = pair_step[s - 1]
@@ -81,24 +112,12 @@ def part_stats(
                 for u in range(n_u):
                     psi[u] *= qj[u] * f
                     ss[u] += psi[u]
-        b[0] = e0j
-        for k in range(1, ke):
-            bk = b[k]
-            bp = b[k - 1]
-            f = step[k - 1]
-            for u in range(n_u):
-                bk[u] = bp[u] * (qj[u] * f)
-        for k in range(ke):
-            for u in range(n_u):
-                bt[k, u, j] = b[k, u]
-        if not hankel:
+        else:
             for k in range(ke):
-                bk = b[k]
                 for m in range(k + 1):
                     g = gram[k, m]
-                    bm = b[m]
                     for u in range(n_u):
-                        g[u] += bk[u] * bm[u]
+                        g[u] += b[k, u] * b[m, u]
     for k in range(ke):
         for m in range(k + 1):
             g = gram[k, m]
@@ -108,8 +127,12 @@ def part_stats(
                 for u in range(n_u):
                     g[u] = o * sk[u]
             gram[m, k] = g
-    proj = np.dot(bt.reshape(ke * n_u, n), y).reshape(ke, n_u, y.shape[1])
-    return gram, proj
+    proj = np.dot(bn.reshape(n, ke * n_u).T, y).reshape(ke, n_u, dm)
+    sq = np.zeros(dm)
+    for j in range(n):
+        for d in range(dm):
+            sq[d] += y[j, d] * y[j, d]
+    return gram, proj, sq
 
 
 @njit(**_JIT)
@@ -131,6 +154,7 @@ def x_inverse(gram: np.ndarray, ke: int, nu: float, xinv: np.ndarray, linv: np.n
     for j in range(ke):
         for u in range(n_u):
             linv[j, j, u] = 1.0 / lx[j, j, u]
+    for j in range(ke):
         for i in range(j):
             linv[i, j, :] = 0.0
         for i in range(j + 1, ke):
@@ -141,9 +165,9 @@ def x_inverse(gram: np.ndarray, ke: int, nu: float, xinv: np.ndarray, linv: np.n
                 lkj = linv[k, j]
                 for u in range(n_u):
                     li[u] -= lik[u] * lkj[u]
-            lii = lx[i, i]
+            rii = linv[i, i]
             for u in range(n_u):
-                li[u] /= lii[u]
+                li[u] *= rii[u]
     for i in range(ke):
         for j in range(i + 1):
             xi = xinv[i, j]
@@ -160,33 +184,40 @@ def x_inverse(gram: np.ndarray, ke: int, nu: float, xinv: np.ndarray, linv: np.n
 @njit(**_JIT)
 def chol_soa(a: np.ndarray, n: int, logdet: np.ndarray) -> bool:
     """Lower Cholesky factors in place of a batch ``a`` (n, n, B) (batch innermost, lower triangle used);
-    adds the log-determinants to ``logdet`` (B,). Returns False if a matrix is not numerically SPD."""
+    adds the log-determinants to ``logdet`` (B,). Returns False if a matrix is not numerically SPD.
+
+    Every entry is accumulated in a contiguous buffer over the batch and divided by the diagonal
+    through its reciprocal (one division per column and matrix)."""
     nb = a.shape[2]
     prod = np.ones(nb)
+    inv = np.empty(nb)
+    acc = np.empty(nb)
     for j in range(n):
-        ajj = a[j, j]
-        for k in range(j):
-            ajk = a[j, k]
-            for b in range(nb):
-                ajj[b] -= ajk[b] * ajk[b]
         for b in range(nb):
-            if not ajj[b] > 0.0:
+            acc[b] = a[j, j, b]
+        for k in range(j):
+            for b in range(nb):
+                acc[b] -= a[j, k, b] * a[j, k, b]
+        for b in range(nb):
+            if not acc[b] > 0.0:
                 return False
-            ajj[b] = np.sqrt(ajj[b])
-            prod[b] *= ajj[b]
+        for b in range(nb):
+            d = np.sqrt(acc[b])
+            a[j, j, b] = d
+            prod[b] *= d
+            inv[b] = 1.0 / d
         if j % 8 == 7 or j == n - 1:  # one log per 8 factors (bounded diagonals: no overflow)
             for b in range(nb):
                 logdet[b] += 2.0 * np.log(prod[b])
                 prod[b] = 1.0
         for i in range(j + 1, n):
-            aij = a[i, j]
-            for k in range(j):
-                aik = a[i, k]
-                ajk = a[j, k]
-                for b in range(nb):
-                    aij[b] -= aik[b] * ajk[b]
             for b in range(nb):
-                aij[b] /= ajj[b]
+                acc[b] = a[i, j, b]
+            for k in range(j):
+                for b in range(nb):
+                    acc[b] -= a[i, k, b] * a[j, k, b]
+            for b in range(nb):
+                a[i, j, b] = acc[b] * inv[b]
     return True
 
 
@@ -197,6 +228,7 @@ def part_terms(
     logdet: np.ndarray,
     proj: np.ndarray,
     sq: np.ndarray,
+    cols: np.ndarray,
     n_obs: int,
     ke: int,
     nu: float,
@@ -228,7 +260,8 @@ def part_terms(
 
     Args:
         xinv, linv, logdet: ``X^-1``, ``L^-1`` (ke, ke, U) and ``log|X|`` (U,) (:func:`x_inverse`).
-        proj, sq: Part statistics ``B^T y`` (>=ke, U, D_m) and ``y^T y`` (D_m,).
+        proj, sq: Part statistics ``B^T y`` (>=ke, U, D') and ``y^T y`` (D',) of the part's dims.
+        cols: (D_m,) the columns of ``proj`` and ``sq`` of the block's dims.
         n_obs, ke, nu: Number of samples, active basis functions, noise ratio.
         starts, n_c: (T,) first unique candidate of every task; candidates per task C.
         mu_k, mu_rows, inv_delta, mu2, log_delta, w_k: Model arrays of the part's dims
@@ -239,7 +272,7 @@ def part_terms(
 
     """
     n_u = xinv.shape[2]
-    dm = proj.shape[2]
+    dm = cols.shape[0]
     r = a.shape[0]
     n_t = starts.shape[0]
     m = ke * (ke + 1) // 2
@@ -252,7 +285,7 @@ def part_terms(
     for j in range(ke):
         for u in range(n_u):
             for d in range(dm):
-                pt[j, d, u] = proj[j, u, d]
+                pt[j, d, u] = proj[j, u, cols[d]]
     xp = np.zeros((ke, dm, n_u))
     for k in range(ke):
         for j in range(ke):
@@ -276,7 +309,7 @@ def part_terms(
         off = t * n_c
         sqd = 0.0
         for d in range(dm):
-            sqd += sq[d] * inv_delta[t, d]
+            sqd += sq[cols[d]] * inv_delta[t, d]
         base = (sqd + nu * mu2[t, ke]) / nu + const + n_obs * log_delta[t]
         quad[:] = 0.0
         for k in range(ke):

@@ -232,8 +232,8 @@ class LatentBlock:
         self.unpack = unpack
         self.use_z = n_task * self.pk.size * ia.size * 8 <= z_budget_bytes
         self.no_z = np.zeros((1, 1, 1))
-        self._z: dict[tuple[int, ...], np.ndarray] = {}
-        self._arrays: dict[tuple[int, ...], dict[str, np.ndarray]] = {}
+        self._z: dict[bytes, np.ndarray] = {}
+        self._arrays: dict[bytes, dict[str, np.ndarray]] = {}
         self._local = {int(d): i for i, d in enumerate(self.dims)}
         self._select: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
 
@@ -250,7 +250,7 @@ class LatentBlock:
 
     def z_tensor(self, local: np.ndarray) -> np.ndarray:
         """Packed ``Z`` (T, K(K+1)/2, r(r+1)/2) of the block-local dims ``local`` (cached)."""
-        key = tuple(int(d) for d in local)
+        key = np.asarray(local, dtype=np.int64).tobytes()
         z = self._z.get(key)
         if z is None:
             w = self.w[:, local]
@@ -273,7 +273,7 @@ class LatentBlock:
         ``mu2`` (T, K + 1) cumulative ``sum_d ||mu_d[:k]||^2 / delta_d``; ``inv_delta`` (T, D_m);
         ``log_delta`` (T,) ``sum_d log delta_d``.
         """
-        key = tuple(int(d) for d in local)
+        key = np.asarray(local, dtype=np.int64).tobytes()
         c = self._arrays.get(key)
         if c is None:
             mu = self.mu[:, local]  # (T, Dm, K)
@@ -343,6 +343,7 @@ class InferenceEngine:
         self.alpha_unique, inverse = np.unique(self.alphas, return_inverse=True)
         cand_index = inverse.reshape(self.alphas.shape)
         self.inv_duration = 1.0 / (self.alpha_unique * self.t_norm)
+        self._inv_duration_max = float(self.inv_duration.max())
         # every task's candidates are consecutive lattice points, hence consecutive unique candidates
         self.starts = np.ascontiguousarray(cand_index[:, 0], dtype=np.int64)
         if not np.array_equal(cand_index, self.starts[:, None] + np.arange(self.alphas.shape[1])):
@@ -371,27 +372,19 @@ class InferenceEngine:
 
     def part_stats(self, part: ObservationPart, alphas: np.ndarray | None = None) -> PartStats:
         """Statistics of an observation part for the unique candidates (default: the model's)."""
-        inv_dur = self.inv_duration if alphas is None else 1.0 / (alphas * self.t_norm)
-        z = part.t[:, None] * inv_dur[None, :]  # (n, U)
-        ke = self.basis.support_count(float(part.t[-1]) * float(inv_dur.max()))
-        y = np.ascontiguousarray(part.y, dtype=float)
-        b = self.basis
-        inv_h2 = 1.0 / (b.width * b.width)
-        d0 = z - b.centres[0]
-        far = float(np.max(np.abs(d0))) ** 2 * inv_h2
-        if ke < 3 or 0.5 * far > 650.0:
-            # exact exponentials where the running product could underflow (see values_prefix_t)
-            bt = np.moveaxis(b(z)[..., :ke], -1, 0)  # (ke, n, U)
-            gram = np.ascontiguousarray(np.einsum("knu,lnu->klu", bt, bt))
-            proj = np.ascontiguousarray(np.einsum("knu,nd->kud", bt, y))
+        if alphas is None:
+            inv_dur, inv_max = self.inv_duration, self._inv_duration_max
         else:
-            e0 = np.exp(-0.5 * inv_h2 * d0 * d0)
-            q = np.exp(z * (b.spacing * inv_h2))
-            pair_step, overlap = b.gram_factors()
-            # the Gram sums start from e0^2: products of the basis values where that could underflow
-            hankel = far <= 650.0
-            gram, proj = _kernels().part_stats(e0, q, b._step_factor, pair_step, overlap, ke, y, hankel)
-        return PartStats(part.dims, part.t.size, ke, gram, proj, np.einsum("nd,nd->d", part.y, part.y))
+            inv_dur = 1.0 / (np.asarray(alphas, dtype=float) * self.t_norm)
+            inv_max = float(inv_dur.max())
+        ke = self.basis.support_count(float(part.t[-1]) * inv_max)
+        b = self.basis
+        pair_step, overlap = b.gram_factors()
+        gram, proj, sq = _kernels().part_stats(
+            np.ascontiguousarray(part.t, dtype=float), inv_dur, b.centres, b.width, b._step_factor, pair_step,
+            overlap, ke, np.ascontiguousarray(part.y, dtype=float),
+        )  # fmt: skip
+        return PartStats(part.dims, part.t.size, ke, gram, proj, sq)
 
     def x_inverse(self, gram: np.ndarray, nu: float, ke: int | None = None) -> tuple[np.ndarray, np.ndarray]:
         """``X^-1`` (U, ke, ke) and ``log|X|`` (U,) of ``X = nu I + gram[:ke, :ke]``, ``gram`` (K', K', U)."""
@@ -456,13 +449,10 @@ class InferenceEngine:
             if pos.size == 0:
                 continue
             seen = True
-            full = pos.size == st.dims.size
-            proj = st.proj if full else np.ascontiguousarray(st.proj[:, :, pos])
-            sq = st.sq if full else np.ascontiguousarray(st.sq[pos])
             c = block.arrays(local)
             z = block.z_tensor(local) if block.use_z else block.no_z
             kern.part_terms(
-                xinv, linv, logdet, proj, sq, st.n, st.ke, nu, self.starts, n_cand, c["mu_k"],
+                xinv, linv, logdet, st.proj, st.sq, pos, st.n, st.ke, nu, self.starts, n_cand, c["mu_k"],
                 c["mu_rows"], c["inv_delta"], c["mu2"], c["log_delta"], c["w_k"], c["w_1"], z, block.pk,
                 block.pl, block.unpack, block.use_z, total, a, pq,
             )  # fmt: skip

@@ -771,27 +771,19 @@ class IProMP:
         ke_p = np.array([basis.support_count(float(p.t[-1]) * inv_dur) for p in parts], dtype=np.int64)
         flat = _flatten_parts(parts)
         robot_chol = []
-        for b, (block, _) in enumerate(info["blocks"]):
-            sel = [block.select(p.dims) for p in parts]
-            keep = [i for i, (pos, _) in enumerate(sel) if pos.size]
+        for b, layout in enumerate(self._block_layouts(task, parts)):
             factor = info["factors"][b]
-            lq = np.empty((factor.shape[2], factor.shape[2]))  # written by the kernel
-            if not keep:  # no observed dim of this block: its latent posterior is the prior
+            r = factor.shape[2]
+            if layout is None:  # no observed dim of this block: its latent posterior is the prior
                 if b in info["robot_blocks"]:
-                    robot_chol.append(np.eye(factor.shape[2]))
+                    robot_chol.append(np.eye(r))
                 continue
-            if len(keep) == 1:
-                pos_cat, local = sel[keep[0]]
-                p_off = np.array([0, pos_cat.size], dtype=np.int64)
-            else:
-                pos_cat = np.concatenate([sel[i][0] for i in keep])
-                local = np.concatenate([sel[i][1] for i in keep])
-                p_off = np.cumsum([0] + [sel[i][0].size for i in keep])
-            dims_cat = block.dims[local]
-            if len(keep) == len(parts):
+            keep, pos_cat, dims_cat, p_off = layout
+            if keep is None:
                 args = (*flat, ke_p)
             else:
                 args = (*_flatten_parts([parts[i] for i in keep]), ke_p[keep])
+            lq = np.empty((r, r))
             ok = kern.condition_block(
                 *args[:5], pos_cat, dims_cat, p_off, args[5], inv_dur,
                 basis.centres, basis.width, basis._step_factor, m.mean, m.diag, factor, self.noise_ratio_,
@@ -804,6 +796,28 @@ class IProMP:
         n_free = info["robot_cols"].size - sum(c.shape[0] for c in robot_chol)
         lq = robot_chol[0] if len(robot_chol) == 1 and n_free == 0 else _block_diag(robot_chol, n_free)
         return self._make_prediction(rec, info["robot_factor"], m, alpha, w_post, lq)
+
+    def _block_layouts(self, task: str, parts: list[ObservationPart]) -> list:
+        """Per latent block of a task, where its observed dims are in the parts (cached per parts' dims):
+        None when no part observes the block, else the parts that do (None: all of them), the
+        columns of their values and their model dims (concatenated over those parts) and the offsets
+        of each part's entries (see ``kernels.condition_block``)."""
+        key = ("layout", task, *(p.dims.tobytes() for p in parts))
+        out = self._pred_cache.get(key)
+        if out is None:
+            out = []
+            for block, _ in self._task_blocks(task)["blocks"]:
+                sel = [block.select(p.dims) for p in parts]
+                keep = [i for i, (pos, _) in enumerate(sel) if pos.size]
+                if not keep:
+                    out.append(None)
+                    continue
+                pos_cat = np.concatenate([sel[i][0] for i in keep])
+                dims_cat = block.dims[np.concatenate([sel[i][1] for i in keep])]
+                p_off = np.cumsum([0] + [sel[i][0].size for i in keep]).astype(np.int64)
+                out.append((None if len(keep) == len(parts) else keep, pos_cat, dims_cat, p_off))
+            self._pred_cache[key] = out
+        return out
 
     def _task_blocks(self, task: str) -> dict:
         """The independent blocks of a task's latent dims (cached).

@@ -815,7 +815,7 @@ def stream_step(
     mu_k: np.ndarray,
     inv_delta: np.ndarray,
     log_delta: np.ndarray,
-    w_t: np.ndarray,
+    w_s: np.ndarray,
     ia: np.ndarray,
     ib: np.ndarray,
     total: np.ndarray,
@@ -828,7 +828,9 @@ def stream_step(
     Per pair, with ``h_d = B^T y_d + nu mu_d`` (after the sample, ``proj`` already updated) and
     ``c_d = y_d - g^T h_d / s``: ``X^-1 h_d += c_d g``,
     ``h_d^T X^-1 h_d += 2 y_d g^T h_d - (s - 1) y_d^2 - (g^T h_d)^2 / s``, ``a += sum_d c_d W_d^T g /
-    sqrt(delta_d)`` and ``P += nu / s sum_d (W_d^T g)(W_d^T g)^T``.
+    sqrt(delta_d)`` and ``P += nu / s sum_d (W_d^T g)(W_d^T g)^T``. ``W_d^T g`` of every task, dim
+    and unique candidate is one matrix product; the updates of ``a`` and ``P`` then run over all
+    (task, candidate) pairs at once.
 
     Args:
         g, s: (ke, U) ``X^-1 phi`` (before the update) and (U,) ``1 + phi^T g``.
@@ -836,7 +838,7 @@ def stream_step(
         proj: (K, U, D) ``B^T y`` of all observed dims, including the new sample.
         starts, n_c: (T,) first unique candidate of every task; candidates per task C.
         mu_k, inv_delta, log_delta: Block arrays (see ``LatentBlock.arrays``).
-        w_t: (T, K, r, D_b) ``W_d / sqrt(delta_d)`` ordered (basis, latent, dim).
+        w_s: (K, r D_b T) ``W_d`` ordered (basis, latent, dim, task).
         total, a, pq: (P',), (r, P') and packed ``P`` (r(r+1)/2, P') with pairs ordered
             (task, candidate), innermost; updated in place.
         ia, ib: Row and column of each packed entry.
@@ -847,68 +849,84 @@ def stream_step(
     n_t = starts.shape[0]
     r = a.shape[0]
     npk = ia.shape[0]
-    # g^T B^T y_d per unique candidate (shared by the tasks): (D, U)
+    n_p = n_t * n_c
+    # g^T B^T y_d per unique candidate (shared by the tasks): (U, D)
     gp = np.zeros((n_u, dm))
     for k in range(ke):
         for u in range(n_u):
             gku = g[k, u]
             for d in range(dm):
                 gp[u, d] += gku * proj[k, u, dims[d]]
-    gc = np.empty((ke, n_c))
-    sc = np.empty(n_c)
+    # W_d^T g of every (latent, dim, task) and unique candidate, then per pair: (r, D_b, P)
+    wg = np.dot(w_s[:ke].T, g)
+    same = n_u == n_c
+    for t in range(n_t):
+        same = same and starts[t] == 0
+    if same:  # every task has every unique candidate: already ordered by pair
+        v = wg.reshape(r, dm, n_p)
+    else:
+        wg4 = wg.reshape(r, dm, n_t, n_u)
+        v = np.empty((r, dm, n_p))
+        for i in range(r):
+            for d in range(dm):
+                for t in range(n_t):
+                    u0 = starts[t]
+                    for c in range(n_c):
+                        v[i, d, t * n_c + c] = wg4[i, d, t, u0 + c]
+    f = np.empty(n_p)
+    ch = np.empty((dm, n_p))  # c_d / sqrt(delta_d) per pair
     gh = np.empty((dm, n_c))
-    acc = np.empty(n_c)
-    f = np.empty(n_c)
     step = dm * (LOG_2PI + np.log(nu))
+    log_s = np.log(s)
     for t in range(n_t):
         u0 = starts[t]
         off = t * n_c
+        base = step + log_delta[t]
         for c in range(n_c):
-            sc[c] = s[u0 + c]
-            f[c] = nu / sc[c]
-        for k in range(ke):
-            for c in range(n_c):
-                gc[k, c] = g[k, u0 + c]
+            f[off + c] = nu / s[u0 + c]
+            total[off + c] += base + dm * log_s[u0 + c]
         # g^T h_d = g^T B^T y_d + nu g^T mu_d
         for d in range(dm):
             for c in range(n_c):
                 gh[d, c] = gp[u0 + c, d]
         for k in range(ke):
-            gk = gc[k]
+            gk = g[k]
             for d in range(dm):
                 ghd = gh[d]
                 mkd = nu * mu_k[t, k, d]
                 for c in range(n_c):
-                    ghd[c] += gk[c] * mkd
-        base = step + log_delta[t]
-        for c in range(n_c):
-            total[off + c] += base + dm * np.log(sc[c])
-        # W_d^T g of every dim and candidate: rows (latent, dim), candidates innermost
-        v = np.dot(w_t[t, :ke].reshape(ke, r * dm).T, gc).reshape(r, dm, n_c)
+                    ghd[c] += gk[u0 + c] * mkd
         for d in range(dm):
             yd = y[dims[d]]
             wd = inv_delta[t, d]
             sdi = np.sqrt(wd)
             ghd = gh[d]
             for c in range(n_c):
-                dq = 2.0 * yd * ghd[c] - (sc[c] - 1.0) * yd * yd - ghd[c] * ghd[c] / sc[c]
+                sc = s[u0 + c]
+                dq = 2.0 * yd * ghd[c] - (sc - 1.0) * yd * yd - ghd[c] * ghd[c] / sc
                 total[off + c] += wd * (yd * yd - dq) / nu
-                ghd[c] = (yd - ghd[c] / sc[c]) * sdi  # c_d / sqrt(delta_d)
-        for p in range(r):
-            vp = v[p]
-            for d in range(dm):
-                ghd = gh[d]
-                for c in range(n_c):
-                    a[p, off + c] += ghd[c] * vp[d, c]
-        for q in range(npk):
-            vi = v[ia[q]]
-            vj = v[ib[q]]
-            acc[:] = 0.0
-            for d in range(dm):
-                for c in range(n_c):
-                    acc[c] += vi[d, c] * vj[d, c]
-            for c in range(n_c):
-                pq[q, off + c] += f[c] * acc[c]
+                ch[d, off + c] = (yd - ghd[c] / sc) * sdi
+    for i in range(r):
+        ai = a[i]
+        for d in range(dm):
+            vid = v[i, d]
+            chd = ch[d]
+            for p in range(n_p):
+                ai[p] += chd[p] * vid[p]
+    fv = np.empty((r, dm, n_p))
+    for i in range(r):
+        for d in range(dm):
+            for p in range(n_p):
+                fv[i, d, p] = f[p] * v[i, d, p]
+    for q in range(npk):
+        row = pq[q]
+        fi = fv[ia[q]]
+        vj = v[ib[q]]
+        for d in range(dm):
+            fid = fi[d]
+            vjd = vj[d]
+            for p in range(n_p):
+                row[p] += fid[p] * vjd[p]
     return
 
 

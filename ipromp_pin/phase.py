@@ -269,7 +269,7 @@ class LatentBlock:
         ``mu_k`` (T, K, D_m) task means; ``mu_rows`` (T D_m, K) the means with rows (task, dim);
         ``w_k`` (T, K D_m, r) ``W_d / sqrt(delta_d)`` with rows ordered (basis, dim), so that the
         first ``ke D_m`` rows are the first ``ke`` basis functions; ``w_1`` (T, K D_m, r) ``W_d``
-        with rows (basis, dim); ``w_t`` (T, K, r, D_m) ``W_d`` ordered (basis, latent, dim);
+        with rows (basis, dim); ``w_s`` (K, r D_m T) ``W_d`` ordered (basis, latent, dim, task);
         ``mu2`` (T, K + 1) cumulative ``sum_d ||mu_d[:k]||^2 / delta_d``; ``inv_delta`` (T, D_m);
         ``log_delta`` (T,) ``sum_d log delta_d``.
         """
@@ -286,7 +286,7 @@ class LatentBlock:
                 "mu_rows": np.ascontiguousarray(mu.reshape(n_task * dm, k)),
                 "w_k": np.ascontiguousarray(w_k.reshape(n_task, k * dm, self.rank)),
                 "w_1": np.ascontiguousarray(w.transpose(0, 2, 1, 3).reshape(n_task, k * dm, -1)),
-                "w_t": np.ascontiguousarray(w.transpose(0, 2, 3, 1)),
+                "w_s": np.ascontiguousarray(w.transpose(2, 3, 1, 0).reshape(k, -1)),
                 "mu2": np.ascontiguousarray(
                     np.concatenate(
                         [
@@ -501,7 +501,7 @@ class IncrementalTerms:
         for block, c, (total, a, pq) in zip(e.blocks, self._arrays, self.terms, strict=True):
             kern.stream_step(
                 g, s, block.dims, y, proj, e.nu, e.starts, e.alphas.shape[1], c["mu_k"], c["inv_delta"],
-                c["log_delta"], c["w_t"], block.ia, block.ib, total, a, pq,
+                c["log_delta"], c["w_s"], block.ia, block.ib, total, a, pq,
             )  # fmt: skip
         return self._finish(t_last)
 

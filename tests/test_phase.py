@@ -130,3 +130,36 @@ def test_refine_peak_interpolates_a_skewed_log_posterior() -> None:
     err = abs(refine_peak(grid, lp) - true)
     assert coarse_err > 5e-4
     assert err < 0.05 * coarse_err
+
+
+def test_stream_step_when_every_task_has_every_candidate() -> None:
+    # tasks sharing all unique candidates take a shortcut (no reordering by pair); it must equal the
+    # general path, forced here by one extra unique candidate that no task uses
+    from ipromp_pin import kernels
+
+    rng = np.random.default_rng(3)
+    n_t, n_c, ke, n_k, dm, r = 3, 6, 5, 7, 2, 4
+    dims = np.array([1, 2])
+    y = rng.normal(size=3)
+    mu_k = rng.normal(size=(n_t, n_k, dm))
+    inv_delta = rng.uniform(0.5, 2.0, size=(n_t, dm))
+    log_delta = rng.normal(size=n_t)
+    w_s = rng.normal(size=(n_k, r * dm * n_t))
+    ia, ib = (x.astype(np.int64) for x in np.triu_indices(r))
+    n_pair = 32
+    outs = []
+    for n_u in (n_c, n_c + 1):
+        g = rng.normal(size=(ke, n_u)) if n_u == n_c else np.concatenate([g0, rng.normal(size=(ke, 1))], 1)
+        s = rng.uniform(1.0, 2.0, size=n_u) if n_u == n_c else np.append(s0, 1.5)
+        proj = rng.normal(size=(n_k, n_u, 3)) if n_u == n_c else np.concatenate([p0, np.ones((n_k, 1, 3))], 1)
+        if n_u == n_c:
+            g0, s0, p0 = g, s, proj
+        total, a, pq = np.zeros(n_pair), np.zeros((r, n_pair)), np.zeros((ia.size, n_pair))
+        kernels.stream_step(
+            np.ascontiguousarray(g), s, dims, y, np.ascontiguousarray(proj), 0.7, np.zeros(n_t, dtype=np.int64),
+            n_c, mu_k, inv_delta, log_delta, w_s, ia, ib, total, a, pq,
+        )  # fmt: skip
+        outs.append((total, a, pq))
+    for fast, general in zip(*outs, strict=True):
+        assert np.any(fast != 0.0)
+        assert np.allclose(fast, general, rtol=1e-14, atol=1e-14)

@@ -146,19 +146,21 @@ def test_stream_step_when_every_task_has_every_candidate() -> None:
     log_delta = rng.normal(size=n_t)
     w_s = rng.normal(size=(n_k, r * dm * n_t))
     ia, ib = (x.astype(np.int64) for x in np.triu_indices(r))
-    n_pair = 32
+    g = rng.normal(size=(ke, n_c))
+    s = rng.uniform(1.0, 2.0, size=n_c)
+    proj = rng.normal(size=(n_k, n_c, 3))
+    starts = np.zeros(n_t, dtype=np.int64)
+    extra = (  # the same values with one more unique candidate (last, used by no task)
+        np.concatenate([g, rng.normal(size=(ke, 1))], axis=1),
+        np.append(s, 1.5),
+        np.concatenate([proj, np.ones((n_k, 1, 3))], axis=1),
+    )
     outs = []
-    for n_u in (n_c, n_c + 1):
-        g = rng.normal(size=(ke, n_u)) if n_u == n_c else np.concatenate([g0, rng.normal(size=(ke, 1))], 1)
-        s = rng.uniform(1.0, 2.0, size=n_u) if n_u == n_c else np.append(s0, 1.5)
-        proj = rng.normal(size=(n_k, n_u, 3)) if n_u == n_c else np.concatenate([p0, np.ones((n_k, 1, 3))], 1)
-        if n_u == n_c:
-            g0, s0, p0 = g, s, proj
-        total, a, pq = np.zeros(n_pair), np.zeros((r, n_pair)), np.zeros((ia.size, n_pair))
+    for gu, su, pu in ((g, s, proj), extra):
+        total, a, pq = np.zeros(32), np.zeros((r, 32)), np.zeros((ia.size, 32))
         kernels.stream_step(
-            np.ascontiguousarray(g), s, dims, y, np.ascontiguousarray(proj), 0.7, np.zeros(n_t, dtype=np.int64),
-            n_c, mu_k, inv_delta, log_delta, w_s, ia, ib, total, a, pq,
-        )  # fmt: skip
+            gu, su, dims, y, pu, 0.7, starts, n_c, mu_k, inv_delta, log_delta, w_s, ia, ib, total, a, pq
+        )
         outs.append((total, a, pq))
     for fast, general in zip(*outs, strict=True):
         assert np.any(fast != 0.0)

@@ -136,10 +136,14 @@ def part_stats(
 
 
 @njit(**_JIT)
-def x_inverse(gram: np.ndarray, ke: int, nu: float, xinv: np.ndarray, linv: np.ndarray) -> np.ndarray:
+def x_inverse(
+    gram: np.ndarray, ke: int, nu: float, xinv: np.ndarray, linv: np.ndarray, coef: np.ndarray
+) -> np.ndarray:
     """``X^-1`` (into ``xinv`` (ke, ke, U)), ``L^-1`` (into ``linv`` (ke, ke, U), lower) and ``log|X|`` (U,)
     of ``X = nu I + gram[:ke, :ke]`` (``gram`` (>=ke, >=ke, U)); candidate index innermost, so that
-    every step is a vector operation over candidates."""
+    every step is a vector operation over candidates. Also ``coef`` (U, ke(ke+1)/2), the packed upper
+    triangle of ``I - nu X^-1`` (columns ``(k, l)``, ``k <= l``, ordered by ``l`` then ``k``), the
+    coefficients of the ``Z`` product of :func:`part_terms`."""
     n_u = gram.shape[2]
     lx = np.empty((ke, ke, n_u))
     for i in range(ke):
@@ -178,6 +182,14 @@ def x_inverse(gram: np.ndarray, ke: int, nu: float, xinv: np.ndarray, linv: np.n
                 for u in range(n_u):
                     xi[u] += lki[u] * lkj[u]
             xinv[j, i, :] = xi
+    q = 0
+    for ll in range(ke):
+        for kk in range(ll + 1):
+            diag = 1.0 if kk == ll else 0.0
+            xq = xinv[kk, ll]
+            for u in range(n_u):
+                coef[u, q] = diag - nu * xq[u]
+            q += 1
     return logdet
 
 
@@ -226,6 +238,7 @@ def part_terms(
     xinv: np.ndarray,
     linv: np.ndarray,
     logdet: np.ndarray,
+    coef: np.ndarray,
     proj: np.ndarray,
     sq: np.ndarray,
     cols: np.ndarray,
@@ -242,8 +255,6 @@ def part_terms(
     w_k: np.ndarray,
     w_1: np.ndarray,
     z: np.ndarray,
-    pk: np.ndarray,
-    pl: np.ndarray,
     unpack: np.ndarray,
     use_z: bool,
     total: np.ndarray,
@@ -259,7 +270,8 @@ def part_terms(
     one matrix product; ``P`` of all candidates is one product with ``Z`` per task.
 
     Args:
-        xinv, linv, logdet: ``X^-1``, ``L^-1`` (ke, ke, U) and ``log|X|`` (U,) (:func:`x_inverse`).
+        xinv, linv, logdet, coef: ``X^-1``, ``L^-1`` (ke, ke, U), ``log|X|`` (U,) and the packed
+            ``I - nu X^-1`` (U, ke(ke+1)/2) (:func:`x_inverse`).
         proj, sq: Part statistics ``B^T y`` (>=ke, U, D') and ``y^T y`` (D',) of the part's dims.
         cols: (D_m,) the columns of ``proj`` and ``sq`` of the block's dims.
         n_obs, ke, nu: Number of samples, active basis functions, noise ratio.
@@ -267,7 +279,8 @@ def part_terms(
         mu_k, mu_rows, inv_delta, mu2, log_delta, w_k: Model arrays of the part's dims
             (see ``InferenceEngine._dims``).
         w_1: (T, K D_m, r) ``W_d`` rows ordered (basis, dim) (only used without ``Z``).
-        z, pk, pl: Packed ``Z`` tensors (T, K(K+1)/2, r(r+1)/2) and their basis pairs (only with ``use_z``).
+        z: Packed ``Z`` tensors (T, K(K+1)/2, r(r+1)/2), rows ordered as ``coef``'s columns (only with
+            ``use_z``).
         unpack: (r, r) index of ``(i, j)`` in the packed layout.
 
     """
@@ -295,13 +308,6 @@ def part_terms(
                 pjd = pt[j, d]
                 for u in range(n_u):
                     row[u] += xkj[u] * pjd[u]
-    if use_z:
-        coef = np.empty((n_u, m))  # rows: unique candidates (a task's candidates are consecutive rows)
-        for q in range(m):
-            diag = 1.0 if pk[q] == pl[q] else 0.0
-            xq = xinv[pk[q], pl[q]]
-            for u in range(n_u):
-                coef[u, q] = diag - nu * xq[u]
     xb = np.empty((kd, n_c))
     quad = np.empty(n_c)
     for t in range(n_t):
@@ -744,6 +750,30 @@ def phase_posterior(
 
 
 @njit(**_JIT)
+def task_posterior(log_prior: np.ndarray, evidence: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
+    """Normalised log task posterior (T,), the posterior (T,) and the most probable task from the
+    log task prior and the log evidence (T,); the first two are NaN when every task is impossible."""
+    n_t = evidence.shape[0]
+    joint = log_prior + evidence
+    best = 0
+    for t in range(n_t):
+        if joint[t] > joint[best]:
+            best = t
+    top = joint[best]
+    total = top
+    if np.isfinite(top):
+        s = 0.0
+        for t in range(n_t):
+            s += np.exp(joint[t] - top)
+        total = top + np.log(s)
+    if not np.isfinite(total):
+        nan = np.full(n_t, np.nan)
+        return nan, nan.copy(), best
+    log_post = joint - total
+    return log_post, np.exp(log_post), best
+
+
+@njit(**_JIT)
 def add_sample(gram: np.ndarray, proj: np.ndarray, phi: np.ndarray, y: np.ndarray) -> None:
     """Add one sample to running statistics: ``gram`` (K, K, U) ``+= phi phi^T`` and ``proj`` (K, U, D)
     ``+= phi y^T`` for basis values ``phi`` (K, U) and scaled values ``y`` (D,); an empty ``gram``
@@ -761,6 +791,42 @@ def add_sample(gram: np.ndarray, proj: np.ndarray, phi: np.ndarray, y: np.ndarra
             p = phi[k, u]
             for d in range(proj.shape[2]):
                 proj[k, u, d] += p * y[d]
+
+
+@njit(**_JIT)
+def stream_sample(
+    t_s: float,
+    inv_dur: np.ndarray,
+    centres: np.ndarray,
+    width: float,
+    step: np.ndarray,
+    y: np.ndarray,
+    log_idx: np.ndarray,
+    log_c: np.ndarray,
+    offset: np.ndarray,
+    scale: np.ndarray,
+    gram: np.ndarray,
+    proj: np.ndarray,
+    sq: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Add one sample with every observed dim to the running statistics of a stream.
+
+    Scales the raw values ``y`` (D,) as ``ChannelScaler.transform`` (``log(max(y, 0) + c)`` on the
+    dims ``log_idx`` with shifts ``log_c``, then ``(y - offset) / scale``), computes the basis values
+    (K, U) at the phases ``t_s inv_dur`` (:func:`basis_rows`) and adds the sample to ``gram``
+    (K, K, U), ``proj`` (K, U, D) and ``sq`` (D,) (:func:`add_sample`). Returns the basis values and
+    the scaled values.
+    """
+    ys = y.copy()
+    for i in range(log_idx.shape[0]):
+        d = log_idx[i]
+        ys[d] = np.log(max(ys[d], 0.0) + log_c[i])
+    for d in range(ys.shape[0]):
+        ys[d] = (ys[d] - offset[d]) / scale[d]
+        sq[d] += ys[d] * ys[d]
+    phi = basis_rows(t_s * inv_dur, centres, width, step)
+    add_sample(gram, proj, phi, ys)
+    return phi, ys
 
 
 @njit(**_JIT_FMA)
@@ -790,15 +856,21 @@ def sherman_morrison(
     for u in range(n_u):
         if not s[u] > 0.0:
             return g, s, False
+    gs = np.empty((ke, n_u))  # g / s
     for u in range(n_u):
         logdet[u] += np.log(s[u])
     for k in range(ke):
-        gk = g[k]
-        for j in range(ke):
+        for u in range(n_u):
+            gs[k, u] = g[k, u] / s[u]
+    for k in range(ke):
+        gk = gs[k]
+        for j in range(k + 1):
             xkj = xinv[k, j]
             gj = g[j]
             for u in range(n_u):
-                xkj[u] -= gk[u] * gj[u] / s[u]
+                xkj[u] -= gk[u] * gj[u]
+        for j in range(k):
+            xinv[j, k] = xinv[k, j]
     return g, s, True
 
 

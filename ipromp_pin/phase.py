@@ -73,6 +73,7 @@ to the exact continuous MAP (a 1000-candidate grid) at 10 % and 20 % observed th
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -388,18 +389,21 @@ class InferenceEngine:
 
     def x_inverse(self, gram: np.ndarray, nu: float, ke: int | None = None) -> tuple[np.ndarray, np.ndarray]:
         """``X^-1`` (U, ke, ke) and ``log|X|`` (U,) of ``X = nu I + gram[:ke, :ke]``, ``gram`` (K', K', U)."""
-        xinv, _, logdet = self._x_factors(gram, float(nu), gram.shape[0] if ke is None else int(ke))
+        xinv, _, logdet, _ = self._x_factors(gram, float(nu), gram.shape[0] if ke is None else int(ke))
         return np.moveaxis(xinv, 2, 0), logdet
 
-    def _x_factors(self, gram: np.ndarray, nu: float, ke: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``X^-1``, ``L^-1`` (ke, ke, U) and ``log|X|`` (U,) (candidate index last)."""
+    def _x_factors(self, gram: np.ndarray, nu: float, ke: int) -> tuple[np.ndarray, ...]:
+        """``X^-1``, ``L^-1`` (ke, ke, U), ``log|X|`` (U,) (candidate index last) and the packed
+        ``I - nu X^-1`` (U, ke(ke+1)/2) (see ``kernels.x_inverse``)."""
         gram = np.ascontiguousarray(gram, dtype=float)
-        xinv = np.empty((ke, ke, gram.shape[2]))
+        n_u = gram.shape[2]
+        xinv = np.empty((ke, ke, n_u))
         linv = np.empty_like(xinv)
-        logdet = _kernels().x_inverse(gram, ke, nu, xinv, linv)
-        if not np.all(np.isfinite(logdet)):
+        coef = np.empty((n_u, ke * (ke + 1) // 2))
+        logdet = _kernels().x_inverse(gram, ke, nu, xinv, linv, coef)
+        if not math.isfinite(float(logdet.sum())):
             raise ModelError("X = nu I + B^T B is not numerically positive definite")
-        return xinv, linv, logdet
+        return xinv, linv, logdet, coef
 
     def terms(self, stats: list[PartStats], t_last: float, nu: float | None = None) -> Terms:
         """Log likelihood per (task, candidate) from part statistics (compiled kernels).
@@ -444,7 +448,7 @@ class InferenceEngine:
         a = np.zeros((block.rank, n_pair))
         pq = np.zeros((block.ia.size, n_pair))
         seen = False
-        for st, (xinv, linv, logdet) in zip(stats, factors, strict=True):
+        for st, (xinv, linv, logdet, coef) in zip(stats, factors, strict=True):
             pos, local = block.select(st.dims)
             if pos.size == 0:
                 continue
@@ -452,9 +456,9 @@ class InferenceEngine:
             c = block.arrays(local)
             z = block.z_tensor(local) if block.use_z else block.no_z
             kern.part_terms(
-                xinv, linv, logdet, st.proj, st.sq, pos, st.n, st.ke, nu, self.starts, n_cand, c["mu_k"],
-                c["mu_rows"], c["inv_delta"], c["mu2"], c["log_delta"], c["w_k"], c["w_1"], z, block.pk,
-                block.pl, block.unpack, block.use_z, total, a, pq,
+                xinv, linv, logdet, coef, st.proj, st.sq, pos, st.n, st.ke, nu, self.starts, n_cand,
+                c["mu_k"], c["mu_rows"], c["inv_delta"], c["mu2"], c["log_delta"], c["w_k"], c["w_1"], z,
+                block.unpack, block.use_z, total, a, pq,
             )  # fmt: skip
         return (total, a, pq) if seen else None
 
@@ -484,7 +488,7 @@ class IncrementalTerms:
         """Terms from part statistics ``stats`` (all observed dims) -> log likelihood (T, C)."""
         e = self.engine
         factors = e._x_factors(stats.gram, e.nu, stats.ke)
-        self.xinv, _, self.logdet = factors
+        self.xinv, _, self.logdet, _ = factors
         self.terms = [e.pair_terms(b, [stats], [factors], e.nu) for b in e.blocks]
         self.ke = stats.ke
         return self._finish(t_last)

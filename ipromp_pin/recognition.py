@@ -702,26 +702,31 @@ class IProMP:
         evidence, logpost, alpha = _kernels().phase_posterior(
             loglik, engine.log_prior, engine.alphas, REFINE_WEIGHTS, REFINE_NODES
         )
-        finite = np.isfinite(evidence)
-        if not finite.all():
+        if not math.isfinite(float(evidence.sum())):  # some task cannot explain the observation
+            finite = np.isfinite(evidence)
             mus = np.array([self.models_[t].alpha_mu for t in self.tasks_])
             alpha[~finite] = mus[~finite]
-        rec = self._finish_recognition(evidence, alpha, engine.alphas, logpost, t_last)
+        task_post = _kernels().task_posterior(self.task_log_prior_, evidence)
+        rec = self._finish_recognition(evidence, alpha, engine.alphas, logpost, t_last, task_post)
         return (rec, logpost) if raw else rec
 
-    def _finish_recognition(self, evidence, alpha, grids, logpost, t_last) -> Recognition:
-        joint = self.task_log_prior_ + evidence
-        top = float(joint.max())
-        total = top + math.log(float(np.exp(joint - top).sum())) if math.isfinite(top) else top
-        if not math.isfinite(total):
+    def _finish_recognition(self, evidence, alpha, grids, logpost, t_last, task_post=None) -> Recognition:
+        """The recognition from the tasks' log evidence and phase estimates (the task posterior
+        ``task_post`` as ``kernels.task_posterior`` when already computed)."""
+        if task_post is None:
+            joint = self.task_log_prior_ + evidence
+            top = float(joint.max())
+            total = top + math.log(float(np.exp(joint - top).sum())) if math.isfinite(top) else top
+            log_post = joint - total
+            task_post = (log_post, np.exp(log_post), int(np.argmax(joint)))
+        log_post, posterior, best = task_post
+        if not math.isfinite(float(log_post[best])):
             raise ObservationError(None, "t", "the observation is impossible under every task (too long?)")
-        log_post = joint - total
-        best = int(np.argmax(log_post))
         return Recognition(
             task=self.tasks_[best],
             tasks=list(self.tasks_),
             log_posterior=log_post,
-            posterior=np.exp(log_post),
+            posterior=posterior,
             alpha=alpha,
             duration_s=float(alpha[best] * self.duration_nominal_s_),
             observed_until_s=t_last,
@@ -1051,14 +1056,15 @@ class StreamingEstimator:
         self.model = model
         self._engine = model._engine_()
         self._t: list[float] = []
-        self._values: dict[str, list[np.ndarray]] = {g: [] for g in model.observe}
-        self._missing: dict[str, list[bool]] = {g: [] for g in model.observe}
+        self._rows: list[np.ndarray] = []  # raw samples (D_o,), NaN in missing groups
+        self._absent: list[int] = []  # per sample, bit i set when observed group i is missing
         self._last: Recognition | None = None
         u, k = self._engine.alpha_unique.size, model.basis_.n_basis
         n_obs = model.n_obs_dims_
         self._inv_dur = 1.0 / (self._engine.alpha_unique * model.duration_nominal_s_)
         self._inv_dur_max = float(self._inv_dur.max())
         self._slices = [(g, *model.group_slices_[g]) for g in model.observe]
+        self._groups = set(model.observe)
         # presence pattern -> [groups, gram (K, K, U), n, last time]
         self._patterns: list[list] = [[list(model.observe), np.zeros((k, k, u)), 0, 0.0]]
         self._proj = np.zeros((k, u, n_obs))  # B^T y of every observed dim (missing samples add 0)
@@ -1111,13 +1117,16 @@ class StreamingEstimator:
                 "stream", "t", f"observation lasts {t_s:.2f} s, longer than any task's plausible motion"
             )
         for g in sample:
-            if g not in self._values:
+            if g not in self._groups:
                 raise ObservationError("stream", g, f"not an observed group ({m.observe})")
-        y = np.zeros(self._sq.size)
+        y = np.empty(self._sq.size)
         present = []
-        for g, lo, hi in self._slices:
+        absent = 0
+        for i, (g, lo, hi) in enumerate(self._slices):
             v = sample.get(g)
             if v is None:
+                y[lo:hi] = np.nan
+                absent |= 1 << i
                 continue
             v = np.asarray(v, dtype=float).reshape(-1)
             if v.size != hi - lo:
@@ -1126,28 +1135,42 @@ class StreamingEstimator:
                 )
             y[lo:hi] = v
             present.append(g)
-        if not math.isfinite(float(y.sum())) and not np.all(np.isfinite(y)):
-            bad = next(g for g, lo, hi in self._slices if not np.all(np.isfinite(y[lo:hi])))
-            raise ObservationError("stream", bad, f"NaN or inf in the sample at t={t_s:.3f} s")
-        self._t.append(t_s)
-        for g, lo, hi in self._slices:
-            ok = g in present
-            self._values[g].append(y[lo:hi].copy() if ok else np.full(hi - lo, np.nan))
-            self._missing[g].append(not ok)
-        if len(present) == len(self._slices):
-            li = self._log_idx
-            if li.size:
-                y[li] = np.log(np.maximum(y[li], 0.0) + self._log_c)
-            y = (y - self._offset) / self._scale
-        else:
-            self._inc = None  # the incremental terms hold one part with every observed dim
+        if not math.isfinite(float(y.sum())):  # NaN in missing groups, or a bad value
             for g, lo, hi in self._slices:
-                y[lo:hi] = v_scaled(m, g, y[lo:hi]) if g in present else 0.0
+                if g in present and not np.all(np.isfinite(y[lo:hi])):
+                    raise ObservationError("stream", g, f"NaN or inf in the sample at t={t_s:.3f} s")
+        self._t.append(t_s)
+        self._rows.append(y)
+        self._absent.append(absent)
         with contextlib.nullcontext() if self._held is not None else m._limit_threads():
-            phi = self._accumulate(t_s, set(present), y)
+            if not absent and len(self._patterns) == 1:
+                # every group present and one presence history: scaling, basis row and running
+                # sums in one call
+                b = m.basis_
+                pattern = self._patterns[0]
+                phi, ys = self._kern.stream_sample(
+                    t_s, self._inv_dur, b.centres, b.width, b._step_factor, y, self._log_idx, self._log_c,
+                    self._offset, self._scale, pattern[1], self._proj, self._sq,
+                )  # fmt: skip
+                pattern[2] += 1
+                pattern[3] = t_s
+            else:
+                ys = np.zeros(self._sq.size)
+                if not absent:
+                    li = self._log_idx
+                    ys[:] = y
+                    if li.size:
+                        ys[li] = np.log(np.maximum(ys[li], 0.0) + self._log_c)
+                    ys = (ys - self._offset) / self._scale
+                else:
+                    self._inc = None  # the incremental terms hold one part with every observed dim
+                    for g, lo, hi in self._slices:
+                        if g in present:
+                            ys[lo:hi] = v_scaled(m, g, y[lo:hi])
+                phi = self._accumulate(t_s, set(present), ys)
             if len(self._t) < 2:
                 return None
-            self._last = self._recognise(phi, y)
+            self._last = self._recognise(phi, ys)
         return self._last
 
     def _accumulate(self, t_s: float, present: set[str], y: np.ndarray) -> np.ndarray:
@@ -1156,14 +1179,6 @@ class StreamingEstimator:
         b = self.model.basis_
         phi = kern.basis_rows(t_s * self._inv_dur, b.centres, b.width, b._step_factor)
         patterns = []
-        if len(self._patterns) == 1 and len(present) == len(self._slices):
-            # every group present and one presence history: one call adds to B^T B and B^T y
-            pattern = self._patterns[0]
-            kern.add_sample(pattern[1], self._proj, phi, y)
-            pattern[2] += 1
-            pattern[3] = t_s
-            self._sq += y * y
-            return phi
         for groups, gram, n, t_last in self._patterns:
             have = [g for g in groups if g in present]
             absent = [g for g in groups if g not in present]
@@ -1218,14 +1233,17 @@ class StreamingEstimator:
     def observation(self) -> Demo:
         """The samples received so far as a :class:`Demo`."""
         m = self.model
+        rows = np.array(self._rows).reshape(len(self._rows), self._sq.size)
+        bits = np.array(self._absent, dtype=np.int64)
+        gaps = (bits[:, None] >> np.arange(len(self._slices))[None, :]) & 1 == 1  # (n, groups)
         return Demo(
             task="",
             name="stream",
             source="stream",
             t=np.array(self._t),
-            groups={g: np.array(self._values[g]) for g in m.observe},
+            groups={g: rows[:, lo:hi].copy() for g, lo, hi in self._slices},
             channel_names={g: m.channel_names_[g] for g in m.observe},
-            missing={g: np.array(self._missing[g]) for g in m.observe if any(self._missing[g])},
+            missing={g: gaps[:, i] for i, g in enumerate(m.observe) if gaps[:, i].any()},
         )
 
     def recognition(self) -> Recognition:

@@ -84,7 +84,7 @@ from .model import TaskModel
 
 LOG_2PI = float(np.log(2.0 * np.pi))
 
-PAIR_LANES = 16
+PAIR_LANES = 8
 """The (task, candidate) pair arrays are padded to a multiple of this many lanes (whole vector loops)."""
 
 

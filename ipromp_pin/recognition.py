@@ -56,7 +56,7 @@ from __future__ import annotations
 
 import contextlib
 import math
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from itertools import combinations
 from pathlib import Path
@@ -113,6 +113,43 @@ COUPLING_MAX_GROUPS = 4
 """Up to this many observed groups, ``coupling="auto"`` tries every subset of them."""
 
 
+_NO_LOG = np.zeros(0, dtype=np.int64)
+
+
+class LazyGroups(Mapping):
+    """Read-only mapping group -> array whose values are computed together on first access.
+
+    Args:
+        keys: The groups.
+        compute: Returns the dict of every group's array (called at most once).
+    """
+
+    def __init__(self, keys: Iterable[str], compute: Callable[[], dict[str, np.ndarray]]) -> None:
+        self._keys = tuple(keys)
+        self._compute: Callable[[], dict[str, np.ndarray]] | None = compute
+        self._values: dict[str, np.ndarray] | None = None
+
+    def _get(self) -> dict[str, np.ndarray]:
+        if self._values is None:
+            self._values = self._compute()
+            self._compute = None
+        return self._values
+
+    def __getitem__(self, key: str) -> np.ndarray:
+        if key not in self._keys:
+            raise KeyError(key)
+        return self._get()[key]
+
+    def __iter__(self):
+        return iter(self._keys)
+
+    def __len__(self) -> int:
+        return len(self._keys)
+
+    def __repr__(self) -> str:
+        return f"LazyGroups({list(self._keys)}, computed={self._values is not None})"
+
+
 @dataclass
 class Recognition:
     """Task posterior and phase estimates for a partial observation.
@@ -153,7 +190,9 @@ class Prediction(Recognition):
         q_prior_mean: (M, J) unconditioned mean of the task on the same time grid, in [rad].
         q_prior_std: (M, J) unconditioned standard deviation, in [rad].
         joint_names: Robot joint names.
-        human_mean: Observed group -> predicted (conditioned) human channels (M, D) in original units.
+        human_mean: Observed group -> predicted (conditioned) human channels (M, D) in original units
+            (computed on first access: the latent blocks that do not load on the robot are
+            conditioned then).
     """
 
     t: np.ndarray = field(default_factory=lambda: np.zeros(0))
@@ -162,7 +201,7 @@ class Prediction(Recognition):
     q_prior_mean: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
     q_prior_std: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
     joint_names: tuple[str, ...] = ()
-    human_mean: dict[str, np.ndarray] = field(default_factory=dict)
+    human_mean: Mapping[str, np.ndarray] = field(default_factory=dict)
     _w_mean: np.ndarray | None = field(default=None, repr=False)
     _w_diag: np.ndarray | None = field(default=None, repr=False)
     _w_factor: np.ndarray | None = field(default=None, repr=False)
@@ -775,15 +814,15 @@ class IProMP:
         basis = self.basis_
         ke_p = np.array([basis.support_count(float(p.t[-1]) * inv_dur) for p in parts], dtype=np.int64)
         flat = _flatten_parts(parts)
-        robot_chol = []
-        for b, layout in enumerate(self._block_layouts(task, parts)):
+        layouts = self._block_layouts(task, parts)
+
+        def run(b: int, w: np.ndarray) -> np.ndarray:
+            """Condition latent block ``b`` into the weights ``w`` -> the Cholesky factor of its ``Q``."""
             factor = info["factors"][b]
             r = factor.shape[2]
-            if layout is None:  # no observed dim of this block: its latent posterior is the prior
-                if b in info["robot_blocks"]:
-                    robot_chol.append(np.eye(r))
-                continue
-            keep, pos_cat, dims_cat, p_off = layout
+            if layouts[b] is None:  # no observed dim of this block: its latent posterior is the prior
+                return np.eye(r)
+            keep, pos_cat, dims_cat, p_off = layouts[b]
             if keep is None:
                 args = (*flat, ke_p)
             else:
@@ -792,15 +831,26 @@ class IProMP:
             ok = kern.condition_block(
                 *args[:5], pos_cat, dims_cat, p_off, args[5], inv_dur,
                 basis.centres, basis.width, basis._step_factor, m.mean, m.diag, factor, self.noise_ratio_,
-                w_post, lq,
+                w, lq,
             )  # fmt: skip
             if not ok:
                 raise ModelError("X = nu I + B^T B or Q = I + P is not numerically positive definite")
-            if b in info["robot_blocks"]:
-                robot_chol.append(lq)
+            return lq
+
+        robot_chol = [run(b, w_post) for b in info["robot_blocks"]]
+        others = [b for b in range(len(layouts)) if b not in info["robot_blocks"]]
+
+        def human_weights() -> np.ndarray:
+            # the blocks that do not load on the robot only move the observed dims' weights
+            # (human predictions): conditioned when those are first asked for
+            w = w_post.copy()
+            for b in others:
+                run(b, w)
+            return w
+
         n_free = info["robot_cols"].size - sum(c.shape[0] for c in robot_chol)
         lq = robot_chol[0] if len(robot_chol) == 1 and n_free == 0 else _block_diag(robot_chol, n_free)
-        return self._make_prediction(rec, info["robot_factor"], m, alpha, w_post, lq)
+        return self._make_prediction(rec, info["robot_factor"], m, alpha, w_post, lq, human=human_weights)
 
     def _block_layouts(self, task: str, parts: list[ObservationPart]) -> list:
         """Per latent block of a task, where its observed dims are in the parts (cached per parts' dims):
@@ -936,8 +986,11 @@ class IProMP:
         return c
 
     def _make_prediction(
-        self, rec, factor, m: TaskModel, alpha, w_post, lq, which: str = "robot"
+        self, rec, factor, m: TaskModel, alpha, w_post, lq, which: str = "robot", human=None
     ) -> Prediction:
+        """The prediction from the conditioned weights ``w_post`` (D, K) (their observed dims' rows
+        completed by ``human()`` when given) and the Cholesky factor ``lq`` of the robot's latent
+        posterior precision."""
         lo, hi = self.group_slices_[self.robot_group]
         nj = hi - lo
         duration = alpha * self.duration_nominal_s_
@@ -945,13 +998,9 @@ class IProMP:
         phi = c["phi"]
         scale = self.scaler_.scale[lo:hi]
         offset = self.scaler_.offset[lo:hi]
-        # every modelled channel at once: one product and one inverse scaling
+        kern = _kernels()
         sc = self.scaler_
-        log_idx = c.get("log_idx")
-        if log_idx is None:
-            c["log_idx"] = log_idx = np.flatnonzero(sc._log).astype(np.int64)
-        mean_all = _kernels().channel_values(phi, w_post, sc.scale, sc.offset, log_idx, sc.log_shift)
-        q_mean = np.ascontiguousarray(mean_all[:, lo:hi])
+        q_mean = kern.channel_values(phi, np.ascontiguousarray(w_post[lo:hi]), scale, offset, _NO_LOG, scale)
         if lq.shape[0]:
             cov = _kernels().prediction_cov(lq, c["phi_f"], c["phi2"], m.diag[lo:hi], scale)
         else:
@@ -959,10 +1008,22 @@ class IProMP:
             idx = np.arange(nj)
             cov[:, idx, idx] += c["phi2"][:, None] * m.diag[lo:hi]
             cov *= scale[:, None] * scale[None, :]
-        human = {}
-        for g in self.observe:
-            glo, ghi = self.group_slices_[g]
-            human[g] = np.ascontiguousarray(mean_all[:, glo:ghi])
+        n_obs = self.n_obs_dims_
+        slices = [(g, *self.group_slices_[g]) for g in self.observe]
+
+        def human_means() -> dict[str, np.ndarray]:
+            w = w_post if human is None else human()
+            log_idx = np.flatnonzero(sc._log[:n_obs]).astype(np.int64)
+            vals = kern.channel_values(
+                phi,
+                np.ascontiguousarray(w[:n_obs]),
+                sc.scale[:n_obs],
+                sc.offset[:n_obs],
+                log_idx,
+                sc.log_shift,
+            )
+            return {g: np.ascontiguousarray(vals[:, glo:ghi]) for g, glo, ghi in slices}
+
         return Prediction(
             **vars(rec),
             t=c["z"] * duration,
@@ -971,7 +1032,7 @@ class IProMP:
             q_prior_mean=c["prior_mean"],
             q_prior_std=c["prior_std"],
             joint_names=tuple(self.joint_names_),
-            human_mean=human,
+            human_mean=LazyGroups(self.observe, human_means),
             _w_mean=w_post[lo:hi],
             _w_diag=m.diag[lo:hi],
             _w_factor=factor[lo:hi],

@@ -774,6 +774,22 @@ def task_posterior(log_prior: np.ndarray, evidence: np.ndarray) -> tuple[np.ndar
 
 
 @njit(**_JIT)
+def recognition(
+    loglik: np.ndarray,
+    log_prior: np.ndarray,
+    grids: np.ndarray,
+    weights: np.ndarray,
+    nodes: np.ndarray,
+    task_log_prior: np.ndarray,
+):
+    """:func:`phase_posterior` then :func:`task_posterior` in one call: log evidence (T,), log phase
+    posterior (T, C), MAP phases (T,), log task posterior (T,), task posterior (T,), best task."""
+    evidence, logpost, alpha = phase_posterior(loglik, log_prior, grids, weights, nodes)
+    log_post, post, best = task_posterior(task_log_prior, evidence)
+    return evidence, logpost, alpha, log_post, post, best
+
+
+@njit(**_JIT)
 def add_sample(gram: np.ndarray, proj: np.ndarray, phi: np.ndarray, y: np.ndarray) -> None:
     """Add one sample to running statistics: ``gram`` (K, K, U) ``+= phi phi^T`` and ``proj`` (K, U, D)
     ``+= phi y^T`` for basis values ``phi`` (K, U) and scaled values ``y`` (D,); an empty ``gram``
@@ -1012,9 +1028,11 @@ def finish_soa(
     t_norm: float,
     t_last: float,
     loglik: np.ndarray,
+    add: bool,
 ) -> bool:
-    """Log likelihood (into ``loglik`` (T, C)) from ``Q = I + P`` (packed ``pq`` (r(r+1)/2, P')), ``a``
-    (r, P') and the other terms ``total`` (P',), pairs (task, candidate) task-major and innermost.
+    """Log likelihood (into ``loglik`` (T, C), added to it with ``add``) from ``Q = I + P`` (packed
+    ``pq`` (r(r+1)/2, P')), ``a`` (r, P') and the other terms ``total`` (P',), pairs (task,
+    candidate) task-major and innermost.
 
     ``log|Q|`` and ``a^T Q^-1 a`` come from one Cholesky factorisation of ``Q`` per pair
     (vectorised over pairs); candidates shorter than the observation get ``-inf``. ``P' >= T C``:
@@ -1050,6 +1068,8 @@ def finish_soa(
         c = p - t * n_c
         if t_last > alphas[t, c] * t_norm * (1.0 + 1e-12):
             loglik[t, c] = -np.inf
+        elif add:
+            loglik[t, c] += -0.5 * (total[p] + logdet[p] - vv[p])
         else:
             loglik[t, c] = -0.5 * (total[p] + logdet[p] - vv[p])
     return True

@@ -424,15 +424,15 @@ class InferenceEngine:
         factors = [self._x_factors(st.gram, nu, st.ke) for st in stats]
         kern = _kernels()
         loglik = np.zeros(self.alphas.shape)
-        part = np.empty(self.alphas.shape)
         for block in self.blocks:
             pt = self.pair_terms(block, stats, factors, nu)
             if pt is None:
                 continue  # no observed dim of this block
             total, a, pq = pt
-            if not kern.finish_soa(pq, a, total, block.unpack, self.alphas, self.t_norm, float(t_last), part):
+            if not kern.finish_soa(
+                pq, a, total, block.unpack, self.alphas, self.t_norm, float(t_last), loglik, True
+            ):
                 raise ModelError("Q = I + P is not numerically positive definite")
-            loglik += part
         return Terms(loglik=loglik)
 
     def pair_terms(
@@ -511,12 +511,13 @@ class IncrementalTerms:
 
     def _finish(self, t_last: float) -> np.ndarray:
         e = self.engine
-        loglik = np.zeros(e.alphas.shape)
-        part = np.empty(e.alphas.shape)
-        for block, (total, a, pq) in zip(e.blocks, self.terms, strict=True):
-            if not self._kern.finish_soa(pq, a, total, block.unpack, e.alphas, e.t_norm, float(t_last), part):
+        loglik = np.empty(e.alphas.shape)
+        t_last = float(t_last)
+        for i, (block, (total, a, pq)) in enumerate(zip(e.blocks, self.terms, strict=True)):
+            if not self._kern.finish_soa(
+                pq, a, total, block.unpack, e.alphas, e.t_norm, t_last, loglik, i > 0
+            ):
                 raise ModelError("Q = I + P is not numerically positive definite")
-            loglik += part
         return loglik
 
 

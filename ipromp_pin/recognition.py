@@ -738,14 +738,13 @@ class IProMP:
 
     def _recognition_from_loglik(self, loglik: np.ndarray, t_last: float, raw: bool = False):
         engine = self._engine_()
-        evidence, logpost, alpha = _kernels().phase_posterior(
-            loglik, engine.log_prior, engine.alphas, REFINE_WEIGHTS, REFINE_NODES
+        evidence, logpost, alpha, *task_post = _kernels().recognition(
+            loglik, engine.log_prior, engine.alphas, REFINE_WEIGHTS, REFINE_NODES, self.task_log_prior_
         )
         if not math.isfinite(float(evidence.sum())):  # some task cannot explain the observation
             finite = np.isfinite(evidence)
             mus = np.array([self.models_[t].alpha_mu for t in self.tasks_])
             alpha[~finite] = mus[~finite]
-        task_post = _kernels().task_posterior(self.task_log_prior_, evidence)
         rec = self._finish_recognition(evidence, alpha, engine.alphas, logpost, t_last, task_post)
         return (rec, logpost) if raw else rec
 
@@ -1171,7 +1170,7 @@ class StreamingEstimator:
         """
         m = self.model
         t_s = float(t_s)
-        if not np.isfinite(t_s) or (self._t and t_s <= self._t[-1]) or t_s < -1e-9:
+        if not math.isfinite(t_s) or (self._t and t_s <= self._t[-1]) or t_s < -1e-9:
             raise ObservationError("stream", "t", f"sample time {t_s} is not after the previous sample")
         if t_s > self._longest:
             raise ObservationError(

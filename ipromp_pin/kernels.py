@@ -234,6 +234,46 @@ def chol_soa(a: np.ndarray, n: int, logdet: np.ndarray) -> bool:
 
 
 @njit(**_JIT)
+def chol_packed(a: np.ndarray, n: int, logdet: np.ndarray) -> bool:
+    """:func:`chol_soa` (same operations) of a batch stored as packed lower rows: ``a``
+    (n(n+1)/2, B), entry ``(i, j <= i)`` at row ``i (i + 1) / 2 + j`` (half the memory of the square
+    layout)."""
+    nb = a.shape[1]
+    prod = np.ones(nb)
+    inv = np.empty(nb)
+    acc = np.empty(nb)
+    for j in range(n):
+        rj = j * (j + 1) // 2
+        for b in range(nb):
+            acc[b] = a[rj + j, b]
+        for k in range(j):
+            for b in range(nb):
+                acc[b] -= a[rj + k, b] * a[rj + k, b]
+        for b in range(nb):
+            if not acc[b] > 0.0:
+                return False
+        for b in range(nb):
+            d = np.sqrt(acc[b])
+            a[rj + j, b] = d
+            prod[b] *= d
+            inv[b] = 1.0 / d
+        if j % 8 == 7 or j == n - 1:  # one log per 8 factors (bounded diagonals: no overflow)
+            for b in range(nb):
+                logdet[b] += 2.0 * np.log(prod[b])
+                prod[b] = 1.0
+        for i in range(j + 1, n):
+            ri = i * (i + 1) // 2
+            for b in range(nb):
+                acc[b] = a[ri + j, b]
+            for k in range(j):
+                for b in range(nb):
+                    acc[b] -= a[ri + k, b] * a[rj + k, b]
+            for b in range(nb):
+                a[ri + j, b] = acc[b] * inv[b]
+    return True
+
+
+@njit(**_JIT)
 def part_terms(
     xinv: np.ndarray,
     linv: np.ndarray,
@@ -1041,25 +1081,28 @@ def finish_soa(
     """
     r, n_p = a.shape
     n_c = alphas.shape[1]
-    lq = np.empty((r, r, n_p))
-    v = np.empty((r, n_p))
-    logdet = np.zeros(n_p)
+    # lower triangle of Q, rows packed one after the other: entry (i, j <= i) at row i (i + 1) / 2 + j
+    lq = np.empty((r * (r + 1) // 2, n_p))
     for i in range(r):
+        ri = i * (i + 1) // 2
         for j in range(i + 1):
-            lq[i, j, :] = pq[unpack[i, j]]
-        lq[i, i] += 1.0
-    if not chol_soa(lq, r, logdet):
+            lq[ri + j] = pq[unpack[i, j]]
+        lq[ri + i] += 1.0
+    logdet = np.zeros(n_p)
+    if not chol_packed(lq, r, logdet):
         return False
+    v = np.empty((r, n_p))
     vv = np.zeros(n_p)
     for i in range(r):
+        ri = i * (i + 1) // 2
         vi = v[i]
         vi[:] = a[i]
         for k in range(i):
-            lik = lq[i, k]
+            lik = lq[ri + k]
             vk = v[k]
             for c in range(n_p):
                 vi[c] -= lik[c] * vk[c]
-        lii = lq[i, i]
+        lii = lq[ri + i]
         for c in range(n_p):
             vi[c] /= lii[c]
             vv[c] += vi[c] * vi[c]

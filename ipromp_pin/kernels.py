@@ -831,13 +831,14 @@ def recognition(
 
 @njit(**_JIT)
 def add_sample(gram: np.ndarray, proj: np.ndarray, phi: np.ndarray, y: np.ndarray) -> None:
-    """Add one sample to running statistics: ``gram`` (K, K, U) ``+= phi phi^T`` and ``proj`` (K, U, D)
-    ``+= phi y^T`` for basis values ``phi`` (K, U) and scaled values ``y`` (D,); an empty ``gram``
-    (K, 0, U) or ``proj`` (K, U, 0) is left out."""
+    """Add one sample to running statistics: ``gram`` (K, K, U) ``+= phi phi^T`` (lower triangle only:
+    :func:`x_inverse` reads no other entry) and ``proj`` (K, U, D) ``+= phi y^T`` for basis values
+    ``phi`` (K, U) and scaled values ``y`` (D,); an empty ``gram`` (K, 0, U) or ``proj`` (K, U, 0) is
+    left out."""
     n_k, n_u = phi.shape
     for k in range(gram.shape[0]):
         pk = phi[k]
-        for m in range(gram.shape[1]):
+        for m in range(min(k + 1, gram.shape[1])):
             pm = phi[m]
             g = gram[k, m]
             for u in range(n_u):

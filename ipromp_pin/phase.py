@@ -124,7 +124,8 @@ class PartStats:
         n: Number of samples.
         ke: Number of leading basis functions used.
         gram: (ke, ke, U) ``B^T B`` per unique candidate (candidate index last; may hold more
-            than ``ke`` basis functions, only the first ``ke`` are used).
+            than ``ke`` basis functions, only the first ``ke`` are used; only the lower triangle is
+            read, and a stream fills only that).
         proj: (ke, U, D_m) ``B^T y``.
         sq: (D_m,) ``y^T y`` per dim.
     """

@@ -935,9 +935,9 @@ def sherman_morrison(
 def stream_step(
     g: np.ndarray,
     s: np.ndarray,
-    dims: np.ndarray,
     y: np.ndarray,
     proj: np.ndarray,
+    dims: np.ndarray,
     nu: float,
     starts: np.ndarray,
     n_c: int,

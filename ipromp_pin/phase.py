@@ -483,7 +483,24 @@ class IncrementalTerms:
         self.engine = engine
         self._kern = _kernels()
         self.ke = -1
-        self._arrays = [b.arrays(b.select(np.arange(engine.n_obs))[1]) for b in engine.blocks]
+        arrays = [b.arrays(b.select(np.arange(engine.n_obs))[1]) for b in engine.blocks]
+        e = engine
+        # the model arguments of kernels.stream_step per block (fixed for the stream)
+        self._step_args = [
+            (
+                b.dims,
+                e.nu,
+                e.starts,
+                e.alphas.shape[1],
+                c["mu_k"],
+                c["inv_delta"],
+                c["log_delta"],
+                c["w_s"],
+                b.ia,
+                b.ib,
+            )
+            for b, c in zip(e.blocks, arrays, strict=True)
+        ]
 
     def reset(self, stats: PartStats, t_last: float) -> np.ndarray:
         """Terms from part statistics ``stats`` (all observed dims) -> log likelihood (T, C)."""
@@ -497,27 +514,22 @@ class IncrementalTerms:
     def add(self, phi: np.ndarray, y: np.ndarray, proj: np.ndarray, t_last: float) -> np.ndarray:
         """Add one sample: basis values ``phi`` (K, U), scaled values ``y`` (D,), ``proj`` (K, U, D)
         already including it -> log likelihood (T, C)."""
-        e = self.engine
         kern = self._kern
         g, s, ok = kern.sherman_morrison(self.xinv, self.logdet, phi)
         if not ok:
             self.ke = -1  # partly updated: rebuilt by the next reset
             raise ModelError("X = nu I + B^T B is not numerically positive definite")
-        for block, c, (total, a, pq) in zip(e.blocks, self._arrays, self.terms, strict=True):
-            kern.stream_step(
-                g, s, block.dims, y, proj, e.nu, e.starts, e.alphas.shape[1], c["mu_k"], c["inv_delta"],
-                c["log_delta"], c["w_s"], block.ia, block.ib, total, a, pq,
-            )  # fmt: skip
+        for fixed, terms in zip(self._step_args, self.terms, strict=True):
+            kern.stream_step(g, s, y, proj, *fixed, *terms)
         return self._finish(t_last)
 
     def _finish(self, t_last: float) -> np.ndarray:
         e = self.engine
         loglik = np.empty(e.alphas.shape)
         t_last = float(t_last)
+        finish = self._kern.finish_soa
         for i, (block, (total, a, pq)) in enumerate(zip(e.blocks, self.terms, strict=True)):
-            if not self._kern.finish_soa(
-                pq, a, total, block.unpack, e.alphas, e.t_norm, t_last, loglik, i > 0
-            ):
+            if not finish(pq, a, total, block.unpack, e.alphas, e.t_norm, t_last, loglik, i > 0):
                 raise ModelError("Q = I + P is not numerically positive definite")
         return loglik
 

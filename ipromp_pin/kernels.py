@@ -297,11 +297,13 @@ def part_terms(
     z: np.ndarray,
     unpack: np.ndarray,
     use_z: bool,
+    lane0: int,
     total: np.ndarray,
     a: np.ndarray,
     pq: np.ndarray,
 ) -> None:
-    """Add one observation part's terms to ``total`` (P,), ``a`` (r, P) and packed ``P`` (r(r+1)/2, P).
+    """Add one observation part's terms to ``total`` (P',), ``a`` (r, P') and packed ``P`` (r(r+1)/2, P'),
+    in the lanes from ``lane0``.
 
     The P = T C (task, candidate) pairs are ordered task-major; task t's candidates are the unique
     candidates ``starts[t] .. starts[t] + C - 1`` (consecutive points of the common lattice).
@@ -352,7 +354,7 @@ def part_terms(
     quad = np.empty(n_c)
     for t in range(n_t):
         u0 = starts[t]
-        off = t * n_c
+        off = lane0 + t * n_c
         sqd = 0.0
         for d in range(dm):
             sqd += sq[cols[d]] * inv_delta[t, d]
@@ -387,7 +389,7 @@ def part_terms(
             s = np.dot(wt.T, wt)
             for c in range(n_c):
                 u = starts[t] + c
-                p = t * n_c + c
+                p = lane0 + t * n_c + c
                 for k in range(ke):
                     for d in range(dm):
                         for i in range(r):
@@ -947,12 +949,13 @@ def stream_step(
     w_s: np.ndarray,
     ia: np.ndarray,
     ib: np.ndarray,
+    lane0: int,
     total: np.ndarray,
     a: np.ndarray,
     pq: np.ndarray,
 ) -> None:
     """Add one sample (all observed dims, same active basis functions) to one block's terms of
-    :func:`part_terms`, after :func:`sherman_morrison`.
+    :func:`part_terms` (in the lanes from ``lane0``), after :func:`sherman_morrison`.
 
     Per pair, with ``h_d = B^T y_d + nu mu_d`` (after the sample, ``proj`` already updated) and
     ``c_d = y_d - g^T h_d / s``: ``X^-1 h_d += c_d g``,
@@ -1013,7 +1016,7 @@ def stream_step(
         base = step + log_delta[t]
         for c in range(n_c):
             f[off + c] = nu / s[u0 + c]
-            total[off + c] += base + dm * log_s[u0 + c]
+            total[lane0 + off + c] += base + dm * log_s[u0 + c]
         # g^T h_d = g^T B^T y_d + nu g^T mu_d
         for d in range(dm):
             for c in range(n_c):
@@ -1033,10 +1036,10 @@ def stream_step(
             for c in range(n_c):
                 sc = s[u0 + c]
                 dq = 2.0 * yd * ghd[c] - (sc - 1.0) * yd * yd - ghd[c] * ghd[c] / sc
-                total[off + c] += wd * (yd * yd - dq) / nu
+                total[lane0 + off + c] += wd * (yd * yd - dq) / nu
                 ch[d, off + c] = (yd - ghd[c] / sc) * sdi
     for i in range(r):
-        ai = a[i]
+        ai = a[i, lane0 : lane0 + n_p]
         for d in range(dm):
             vid = v[i, d]
             chd = ch[d]
@@ -1048,7 +1051,7 @@ def stream_step(
             for p in range(n_p):
                 fv[i, d, p] = f[p] * v[i, d, p]
     for q in range(npk):
-        row = pq[q]
+        row = pq[q, lane0 : lane0 + n_p]
         fi = fv[ia[q]]
         vj = v[ib[q]]
         for d in range(dm):
@@ -1070,10 +1073,12 @@ def finish_soa(
     t_last: float,
     loglik: np.ndarray,
     add: bool,
+    n_blocks: int,
 ) -> bool:
     """Log likelihood (into ``loglik`` (T, C), added to it with ``add``) from ``Q = I + P`` (packed
     ``pq`` (r(r+1)/2, P')), ``a`` (r, P') and the other terms ``total`` (P',), pairs (task,
-    candidate) task-major and innermost.
+    candidate) task-major and innermost; ``n_blocks`` independent blocks of equal rank side by side
+    (lanes ``b P' / n_blocks + p``), whose log likelihoods add up.
 
     ``log|Q|`` and ``a^T Q^-1 a`` come from one Cholesky factorisation of ``Q`` per pair
     (vectorised over pairs); candidates shorter than the observation get ``-inf``. ``P' >= T C``:
@@ -1107,15 +1112,21 @@ def finish_soa(
         for c in range(n_p):
             vi[c] /= lii[c]
             vv[c] += vi[c] * vi[c]
+    stride = n_p // n_blocks  # lanes per block
     for p in range(alphas.shape[0] * n_c):
         t = p // n_c
         c = p - t * n_c
         if t_last > alphas[t, c] * t_norm * (1.0 + 1e-12):
             loglik[t, c] = -np.inf
-        elif add:
-            loglik[t, c] += -0.5 * (total[p] + logdet[p] - vv[p])
+            continue
+        v = 0.0
+        for b in range(n_blocks):
+            lane = b * stride + p
+            v += -0.5 * (total[lane] + logdet[lane] - vv[lane])
+        if add:
+            loglik[t, c] += v
         else:
-            loglik[t, c] = -0.5 * (total[p] + logdet[p] - vv[p])
+            loglik[t, c] = v
     return True
 
 

@@ -356,6 +356,10 @@ class InferenceEngine:
             LatentBlock(models, dims, cols, mu, delta, z_budget_bytes)
             for dims, cols in latent_blocks(models, self.n_obs)
         ]
+        # blocks of equal rank share their arrays side by side (one factorisation call over more
+        # lanes): indices of the blocks of each rank
+        ranks = sorted({b.rank for b in self.blocks})
+        self.lane_groups = [[i for i, b in enumerate(self.blocks) if b.rank == r] for r in ranks]
 
     @property
     def rank(self) -> int:
@@ -425,43 +429,63 @@ class InferenceEngine:
         factors = [self._x_factors(st.gram, nu, st.ke) for st in stats]
         kern = _kernels()
         loglik = np.zeros(self.alphas.shape)
-        for block in self.blocks:
-            pt = self.pair_terms(block, stats, factors, nu)
-            if pt is None:
-                continue  # no observed dim of this block
-            total, a, pq = pt
+        t_last = float(t_last)
+        for group in self.lane_groups:
+            total, a, pq = self.lane_arrays(group)
+            for lane0, b in zip(self.lane_starts(group), group, strict=True):
+                self.block_terms(self.blocks[b], stats, factors, nu, total, a, pq, lane0)
+            unpack = self.blocks[group[0]].unpack
             if not kern.finish_soa(
-                pq, a, total, block.unpack, self.alphas, self.t_norm, float(t_last), loglik, True
+                pq, a, total, unpack, self.alphas, self.t_norm, t_last, loglik, True, len(group)
             ):
                 raise ModelError("Q = I + P is not numerically positive definite")
         return Terms(loglik=loglik)
 
-    def pair_terms(
-        self, block: LatentBlock, stats: list[PartStats], factors: list[tuple], nu: float
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
-        """Terms of every (task, candidate) pair of one block, pairs task-major and innermost: the
-        scalar terms (P',), ``a`` (r, P') and packed ``P`` (r(r+1)/2, P'), ``P' >= T C`` padded with
-        zeros; None when no part observes the block."""
-        kern = _kernels()
+    @property
+    def n_pair(self) -> int:
+        """Lanes per block: the T C (task, candidate) pairs padded to whole vector loops."""
         n_task, n_cand = self.alphas.shape
-        n_pair = -(-n_task * n_cand // PAIR_LANES) * PAIR_LANES  # padded: see kernels.finish_soa
-        total = np.zeros(n_pair)
-        a = np.zeros((block.rank, n_pair))
-        pq = np.zeros((block.ia.size, n_pair))
-        seen = False
+        return -(-n_task * n_cand // PAIR_LANES) * PAIR_LANES
+
+    def lane_arrays(self, group: list[int]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Zeroed terms of a lane group (:attr:`lane_groups`): the scalar terms (G P',), ``a``
+        (r, G P') and packed ``P`` (r(r+1)/2, G P'), block ``j`` of the group in lanes
+        ``j P' .. (j + 1) P'``. Lanes of a block no part observes stay zero (``Q = I``): their log
+        likelihood is 0."""
+        block = self.blocks[group[0]]
+        n = len(group) * self.n_pair
+        return np.zeros(n), np.zeros((block.rank, n)), np.zeros((block.ia.size, n))
+
+    def lane_starts(self, group: list[int]) -> range:
+        """First lane of each block of a lane group."""
+        return range(0, len(group) * self.n_pair, self.n_pair)
+
+    def block_terms(
+        self,
+        block: LatentBlock,
+        stats: list[PartStats],
+        factors: list[tuple],
+        nu: float,
+        total: np.ndarray,
+        a: np.ndarray,
+        pq: np.ndarray,
+        lane0: int,
+    ) -> None:
+        """Add one block's terms of every (task, candidate) pair (task-major, innermost) to the lanes
+        from ``lane0`` of ``total``, ``a`` and ``pq`` (see :meth:`lane_arrays`)."""
+        kern = _kernels()
+        n_cand = self.alphas.shape[1]
         for st, (xinv, linv, logdet, coef) in zip(stats, factors, strict=True):
             pos, local = block.select(st.dims)
             if pos.size == 0:
                 continue
-            seen = True
             c = block.arrays(local)
             z = block.z_tensor(local) if block.use_z else block.no_z
             kern.part_terms(
                 xinv, linv, logdet, coef, st.proj, st.sq, pos, st.n, st.ke, nu, self.starts, n_cand,
                 c["mu_k"], c["mu_rows"], c["inv_delta"], c["mu2"], c["log_delta"], c["w_k"], c["w_1"], z,
-                block.unpack, block.use_z, total, a, pq,
+                block.unpack, block.use_z, lane0, total, a, pq,
             )  # fmt: skip
-        return (total, a, pq) if seen else None
 
 
 class IncrementalTerms:
@@ -485,29 +509,26 @@ class IncrementalTerms:
         self.ke = -1
         arrays = [b.arrays(b.select(np.arange(engine.n_obs))[1]) for b in engine.blocks]
         e = engine
-        # the model arguments of kernels.stream_step per block (fixed for the stream)
-        self._step_args = [
-            (
-                b.dims,
-                e.nu,
-                e.starts,
-                e.alphas.shape[1],
-                c["mu_k"],
-                c["inv_delta"],
-                c["log_delta"],
-                c["w_s"],
-                b.ia,
-                b.ib,
-            )
-            for b, c in zip(e.blocks, arrays, strict=True)
-        ]
+        # per block: the model arguments of kernels.stream_step (fixed for the stream), its lane group
+        # and first lane
+        self._step_args = []
+        for gi, group in enumerate(e.lane_groups):
+            for lane0, bi in zip(e.lane_starts(group), group, strict=True):
+                b, c = e.blocks[bi], arrays[bi]
+                fixed = (b.dims, e.nu, e.starts, e.alphas.shape[1], c["mu_k"], c["inv_delta"], c["log_delta"])
+                self._step_args.append(((*fixed, c["w_s"], b.ia, b.ib), gi, lane0))
 
     def reset(self, stats: PartStats, t_last: float) -> np.ndarray:
         """Terms from part statistics ``stats`` (all observed dims) -> log likelihood (T, C)."""
         e = self.engine
         factors = e._x_factors(stats.gram, e.nu, stats.ke)
         self.xinv, _, self.logdet, _ = factors
-        self.terms = [e.pair_terms(b, [stats], [factors], e.nu) for b in e.blocks]
+        self.terms = []
+        for group in e.lane_groups:
+            arrays = e.lane_arrays(group)
+            for lane0, b in zip(e.lane_starts(group), group, strict=True):
+                e.block_terms(e.blocks[b], [stats], [factors], e.nu, *arrays, lane0)
+            self.terms.append(arrays)
         self.ke = stats.ke
         return self._finish(t_last)
 
@@ -519,8 +540,8 @@ class IncrementalTerms:
         if not ok:
             self.ke = -1  # partly updated: rebuilt by the next reset
             raise ModelError("X = nu I + B^T B is not numerically positive definite")
-        for fixed, terms in zip(self._step_args, self.terms, strict=True):
-            kern.stream_step(g, s, y, proj, *fixed, *terms)
+        for fixed, gi, lane0 in self._step_args:
+            kern.stream_step(g, s, y, proj, *fixed, lane0, *self.terms[gi])
         return self._finish(t_last)
 
     def _finish(self, t_last: float) -> np.ndarray:
@@ -528,8 +549,9 @@ class IncrementalTerms:
         loglik = np.empty(e.alphas.shape)
         t_last = float(t_last)
         finish = self._kern.finish_soa
-        for i, (block, (total, a, pq)) in enumerate(zip(e.blocks, self.terms, strict=True)):
-            if not finish(pq, a, total, block.unpack, e.alphas, e.t_norm, t_last, loglik, i > 0):
+        for i, (group, (total, a, pq)) in enumerate(zip(e.lane_groups, self.terms, strict=True)):
+            unpack = e.blocks[group[0]].unpack
+            if not finish(pq, a, total, unpack, e.alphas, e.t_norm, t_last, loglik, i > 0, len(group)):
                 raise ModelError("Q = I + P is not numerically positive definite")
         return loglik
 

@@ -159,7 +159,7 @@ def test_stream_step_when_every_task_has_every_candidate() -> None:
     for gu, su, pu in ((g, s, proj), extra):
         total, a, pq = np.zeros(32), np.zeros((r, 32)), np.zeros((ia.size, 32))
         kernels.stream_step(
-            gu, su, y, pu, dims, 0.7, starts, n_c, mu_k, inv_delta, log_delta, w_s, ia, ib, total, a, pq
+            gu, su, y, pu, dims, 0.7, starts, n_c, mu_k, inv_delta, log_delta, w_s, ia, ib, 0, total, a, pq
         )
         outs.append((total, a, pq))
     for fast, general in zip(*outs, strict=True):

@@ -825,10 +825,14 @@ def recognition(
     task_log_prior: np.ndarray,
 ):
     """:func:`phase_posterior` then :func:`task_posterior` in one call: log evidence (T,), log phase
-    posterior (T, C), MAP phases (T,), log task posterior (T,), task posterior (T,), best task."""
+    posterior (T, C), MAP phases (T,), whether every evidence is finite, log task posterior (T,), task
+    posterior (T,), best task."""
     evidence, logpost, alpha = phase_posterior(loglik, log_prior, grids, weights, nodes)
+    finite = True
+    for t in range(evidence.shape[0]):
+        finite = finite and np.isfinite(evidence[t])
     log_post, post, best = task_posterior(task_log_prior, evidence)
-    return evidence, logpost, alpha, log_post, post, best
+    return evidence, logpost, alpha, finite, log_post, post, best
 
 
 @njit(**_JIT)

@@ -738,10 +738,10 @@ class IProMP:
 
     def _recognition_from_loglik(self, loglik: np.ndarray, t_last: float, raw: bool = False):
         engine = self._engine_()
-        evidence, logpost, alpha, *task_post = _kernels().recognition(
+        evidence, logpost, alpha, finite, *task_post = _kernels().recognition(
             loglik, engine.log_prior, engine.alphas, REFINE_WEIGHTS, REFINE_NODES, self.task_log_prior_
         )
-        if not math.isfinite(float(evidence.sum())):  # some task cannot explain the observation
+        if not finite:  # some task cannot explain the observation
             finite = np.isfinite(evidence)
             mus = np.array([self.models_[t].alpha_mu for t in self.tasks_])
             alpha[~finite] = mus[~finite]
@@ -1202,35 +1202,43 @@ class StreamingEstimator:
         self._t.append(t_s)
         self._rows.append(y)
         self._absent.append(absent)
-        with contextlib.nullcontext() if self._held is not None else m._limit_threads():
-            if not absent and len(self._patterns) == 1:
-                # every group present and one presence history: scaling, basis row and running
-                # sums in one call
-                b = m.basis_
-                pattern = self._patterns[0]
-                phi, ys = self._kern.stream_sample(
-                    t_s, self._inv_dur, b.centres, b.width, b._step_factor, y, self._log_idx, self._log_c,
-                    self._offset, self._scale, pattern[1], self._proj, self._sq,
-                )  # fmt: skip
-                pattern[2] += 1
-                pattern[3] = t_s
+        if self._held is None:
+            with m._limit_threads():
+                return self._add(t_s, y, absent, present)
+        return self._add(t_s, y, absent, present)
+
+    def _add(self, t_s: float, y: np.ndarray, absent: int, present: list[str]) -> Recognition | None:
+        """Add the validated sample ``y`` (D,) (raw values, NaN in the groups flagged in ``absent``)
+        to the statistics and refresh the recognition."""
+        m = self.model
+        if not absent and len(self._patterns) == 1:
+            # every group present and one presence history: scaling, basis row and running
+            # sums in one call
+            b = m.basis_
+            pattern = self._patterns[0]
+            phi, ys = self._kern.stream_sample(
+                t_s, self._inv_dur, b.centres, b.width, b._step_factor, y, self._log_idx, self._log_c,
+                self._offset, self._scale, pattern[1], self._proj, self._sq,
+            )  # fmt: skip
+            pattern[2] += 1
+            pattern[3] = t_s
+        else:
+            ys = np.zeros(self._sq.size)
+            if not absent:
+                li = self._log_idx
+                ys[:] = y
+                if li.size:
+                    ys[li] = np.log(np.maximum(ys[li], 0.0) + self._log_c)
+                ys = (ys - self._offset) / self._scale
             else:
-                ys = np.zeros(self._sq.size)
-                if not absent:
-                    li = self._log_idx
-                    ys[:] = y
-                    if li.size:
-                        ys[li] = np.log(np.maximum(ys[li], 0.0) + self._log_c)
-                    ys = (ys - self._offset) / self._scale
-                else:
-                    self._inc = None  # the incremental terms hold one part with every observed dim
-                    for g, lo, hi in self._slices:
-                        if g in present:
-                            ys[lo:hi] = v_scaled(m, g, y[lo:hi])
-                phi = self._accumulate(t_s, set(present), ys)
-            if len(self._t) < 2:
-                return None
-            self._last = self._recognise(phi, ys)
+                self._inc = None  # the incremental terms hold one part with every observed dim
+                for g, lo, hi in self._slices:
+                    if g in present:
+                        ys[lo:hi] = v_scaled(m, g, y[lo:hi])
+            phi = self._accumulate(t_s, set(present), ys)
+        if len(self._t) < 2:
+            return None
+        self._last = self._recognise(phi, ys)
         return self._last
 
     def _accumulate(self, t_s: float, present: set[str], y: np.ndarray) -> np.ndarray:

@@ -54,7 +54,9 @@ Making it fast (:class:`InferenceEngine`, compiled numba kernels in :mod:`ipromp
 * Independent blocks of observed dims (groups not coupled to the robot, see
   ``IProMP(coupling=...)``) have disjoint factor columns, so ``P`` is block-diagonal
   and the log likelihood is the sum of the blocks' (:func:`latent_blocks`); each
-  block is handled with its own rank and ``Z``, sharing ``X^-1``.
+  block is handled with its own rank and ``Z``, sharing ``X^-1`` and the packed ``I - nu X^-1``.
+  Blocks of equal rank keep their per-pair arrays side by side, so that one batched
+  factorisation covers all of them (:attr:`InferenceEngine.lane_groups`).
 * The kernels compile on the first inference of a process (importing the package
   does not import numba) and are cached on disk next to the module.
 
@@ -322,6 +324,11 @@ class InferenceEngine:
         t_norm: Nominal duration in [s].
         nu: Noise ratio.
         z_budget_bytes: Largest size of the precomputed ``Z`` tensors of a block.
+
+    Attributes:
+        blocks: The independent blocks of observed dims (:class:`LatentBlock`).
+        lane_groups: Indices of the blocks of each rank: their per-pair arrays are laid side by side
+            (:meth:`lane_arrays`) and factorised in one call.
     """
 
     def __init__(

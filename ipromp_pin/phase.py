@@ -89,6 +89,10 @@ LOG_2PI = float(np.log(2.0 * np.pi))
 PAIR_LANES = 8
 """The (task, candidate) pair arrays are padded to a multiple of this many lanes (whole vector loops)."""
 
+LANE_GROUP_BYTES = 256e3
+"""Blocks of equal rank share one set of pair arrays while its packed ``Q`` stays below this size
+(about half the L2 cache of the machines measured): beyond it, separate factorisations are faster."""
+
 
 _KERNELS: list = []  # the kernels module once imported (a lookup is cheaper than an import statement)
 
@@ -364,9 +368,13 @@ class InferenceEngine:
             for dims, cols in latent_blocks(models, self.n_obs)
         ]
         # blocks of equal rank share their arrays side by side (one factorisation call over more
-        # lanes): indices of the blocks of each rank
-        ranks = sorted({b.rank for b in self.blocks})
-        self.lane_groups = [[i for i, b in enumerate(self.blocks) if b.rank == r] for r in ranks]
+        # lanes) while the packed Q of the group stays cache-sized: indices of the blocks of a group
+        self.lane_groups: list[list[int]] = []
+        for r in sorted({b.rank for b in self.blocks}):
+            per_block = self.n_pair * (r * (r + 1) // 2) * 8
+            size = max(1, int(LANE_GROUP_BYTES // per_block))
+            same = [i for i, b in enumerate(self.blocks) if b.rank == r]
+            self.lane_groups += [same[j : j + size] for j in range(0, len(same), size)]
 
     @property
     def rank(self) -> int:

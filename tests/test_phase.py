@@ -35,6 +35,30 @@ def test_engine_loglik_equals_textbook_likelihood(use_z: bool, coupling, n_block
                 assert fast[i, j] == -np.inf
 
 
+def test_blocks_side_by_side_equal_blocks_apart(monkeypatch) -> None:
+    # two blocks of equal rank share their pair arrays (one factorisation call); with no room for
+    # sharing each block gets its own arrays: same log likelihoods, one-shot and streaming
+    import ipromp_pin.phase as phase
+
+    train, test = split(random_dataset(5), 6)
+    obs = test["task0"][1].head(0.4, ["a", "b"])
+    out = []
+    for room in (phase.LANE_GROUP_BYTES, 0.0):
+        monkeypatch.setattr(phase, "LANE_GROUP_BYTES", room)
+        model = IProMP(["a", "b"], n_basis=8, n_alpha=50, noise=0.5, coupling=["b"]).fit(train)
+        engine = model._engine_()
+        assert len(engine.blocks) == 2
+        assert len(engine.lane_groups) == (1 if room else 2)
+        stream = model.stream()
+        for j in range(obs.n_samples):
+            rec = stream.update(obs.t[j], {g: obs.groups[g][j] for g in model.observe})
+        out.append((model.recognise(obs).phase_log_post, rec.phase_log_post))
+    for shared, apart in zip(*out, strict=True):
+        finite = np.isfinite(apart)
+        assert np.array_equal(finite, np.isfinite(shared))
+        assert np.allclose(shared[finite], apart[finite], rtol=1e-12, atol=1e-12)
+
+
 def test_candidates_shorter_than_the_observation_are_impossible() -> None:
     train, test = split(random_dataset(6), 6)
     model = IProMP(["a", "b"], n_basis=8, n_alpha=50, noise=0.5).fit(train)

@@ -1,0 +1,113 @@
+"""Where the time of an update goes: stage timers inside back-to-back updates (paper setting).
+
+Run ``taskset -c 0 python benchmarks/profile_update.py``. A full update is timed stage by stage
+through the calls that :meth:`IProMP.predict` makes (input checks, basis statistics, the likelihood
+of every (task, candidate) pair, the posteriors, the conditioning); a streaming update is split into
+its compiled kernels (each call timed) and the rest (Python). Medians in [us]; the stages of a full
+update add up to slightly less than a full update, which has one more level of calls.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+
+import numpy as np
+from inference import OBSERVE, split, warm_up
+from threadpoolctl import threadpool_limits
+
+import ipromp_pin.phase as phase
+from ipromp_pin.recognition import IProMP
+from ipromp_pin.synthetic import make_synthetic_dataset
+
+STREAM_KERNELS = ("stream_sample", "sherman_morrison", "stream_step", "finish_soa", "recognition")
+
+
+def full_update_stages(model: IProMP, obs, repeats: int = 2000) -> dict[str, float]:
+    """Median time in [us] of each stage of :meth:`IProMP.predict` on ``obs``."""
+    engine = model._engine_()
+    clock = time.perf_counter
+    rows = []
+    for _ in range(repeats):
+        t0 = clock()
+        parts, t_last = model._prepare(obs)
+        t1 = clock()
+        stats = [engine.part_stats(p) for p in parts]
+        t2 = clock()
+        loglik = engine.terms(stats, t_last).loglik
+        t3 = clock()
+        rec = model._recognition_from_loglik(loglik, t_last)
+        t4 = clock()
+        model._condition(rec, parts)
+        t5 = clock()
+        rows.append([t1 - t0, t2 - t1, t3 - t2, t4 - t3, t5 - t4, t5 - t0])
+    med = np.median(np.array(rows), axis=0) * 1e6
+    names = ["input checks", "basis statistics", "pair likelihoods", "posteriors", "conditioning", "total"]
+    return dict(zip(names, med, strict=True))
+
+
+class _TimedKernels:
+    """The kernels module with the streaming kernels' calls timed."""
+
+    def __init__(self, kernels) -> None:
+        self._k = kernels
+        self.times: dict[str, list[float]] = {n: [] for n in STREAM_KERNELS}
+
+    def __getattr__(self, name: str):
+        fn = getattr(self._k, name)
+        if name not in STREAM_KERNELS:
+            return fn
+        times = self.times[name]
+
+        def timed(*args):
+            t0 = time.perf_counter()
+            out = fn(*args)
+            times.append(time.perf_counter() - t0)
+            return out
+
+        return timed
+
+
+def streaming_stages(model: IProMP, obs, passes: int = 30) -> dict[str, float]:
+    """Median time in [us] of a streaming update and the per-update time of each kernel."""
+    kernels = phase._kernels()
+    timed = _TimedKernels(kernels)
+    phase._KERNELS[0] = timed
+    updates = []
+    try:
+        for _ in range(passes):
+            with model.stream() as stream:
+                for j in range(obs.n_samples):
+                    sample = {g: obs.groups[g][j] for g in model.observe}
+                    t0 = time.perf_counter()
+                    stream.update(obs.t[j], sample)
+                    if j >= 2:
+                        updates.append(time.perf_counter() - t0)
+    finally:
+        phase._KERNELS[0] = kernels
+    n = len(updates) + 2 * passes  # every update calls the kernels, the first two included
+    out = {"update (median)": float(np.median(updates)) * 1e6}
+    for name, ts in timed.times.items():
+        out[f"{name} (per update)"] = float(np.sum(ts)) / n * 1e6
+    return out
+
+
+def main() -> int:
+    with threadpool_limits(1):
+        warm_up()
+        train, test = split(make_synthetic_dataset(n_tasks=3, n_demos=22, seed=1), 20)
+        model = IProMP(OBSERVE, noise=10.0, blas_threads=None).fit(train)
+        obs = test[model.tasks_[0]][0].head(0.2, OBSERVE)
+        model.predict(obs)
+        print(f"paper setting, 20 % observed ({obs.n_samples} samples), medians in us")
+        print("full update:")
+        for name, us in full_update_stages(model, obs).items():
+            print(f"  {name:28s} {us:8.1f}")
+        print("streaming update (kernel times are means per update, resets included):")
+        for name, us in streaming_stages(model, obs).items():
+            print(f"  {name:28s} {us:8.1f}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

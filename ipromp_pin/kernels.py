@@ -234,18 +234,20 @@ def chol_soa(a: np.ndarray, n: int, logdet: np.ndarray) -> bool:
 
 
 @njit(**_JIT)
-def chol_packed(a: np.ndarray, n: int, logdet: np.ndarray) -> bool:
-    """:func:`chol_soa` (same operations) of a batch stored as packed lower rows: ``a``
-    (n(n+1)/2, B), entry ``(i, j <= i)`` at row ``i (i + 1) / 2 + j`` (half the memory of the square
-    layout)."""
+def chol_packed(pq: np.ndarray, unpack: np.ndarray, a: np.ndarray, n: int, logdet: np.ndarray) -> bool:
+    """:func:`chol_soa` (same operations) of the batch ``Q = I + P`` given by the packed ``pq``
+    (n(n+1)/2, B) (entry ``(i, j)`` in row ``unpack[i, j]``), the factor written as packed lower rows
+    into ``a`` (n(n+1)/2, B): entry ``(i, j <= i)`` at row ``i (i + 1) / 2 + j`` (half the memory of
+    the square layout; ``Q`` is read where each entry is first needed, without a separate copy)."""
     nb = a.shape[1]
     prod = np.ones(nb)
     inv = np.empty(nb)
     acc = np.empty(nb)
     for j in range(n):
         rj = j * (j + 1) // 2
+        src = pq[unpack[j, j]]
         for b in range(nb):
-            acc[b] = a[rj + j, b]
+            acc[b] = src[b] + 1.0
         for k in range(j):
             for b in range(nb):
                 acc[b] -= a[rj + k, b] * a[rj + k, b]
@@ -263,8 +265,9 @@ def chol_packed(a: np.ndarray, n: int, logdet: np.ndarray) -> bool:
                 prod[b] = 1.0
         for i in range(j + 1, n):
             ri = i * (i + 1) // 2
+            src = pq[unpack[i, j]]
             for b in range(nb):
-                acc[b] = a[ri + j, b]
+                acc[b] = src[b]
             for k in range(j):
                 for b in range(nb):
                     acc[b] -= a[ri + k, b] * a[rj + k, b]
@@ -1091,15 +1094,10 @@ def finish_soa(
     """
     r, n_p = a.shape
     n_c = alphas.shape[1]
-    # lower triangle of Q, rows packed one after the other: entry (i, j <= i) at row i (i + 1) / 2 + j
+    # Cholesky factor of Q, rows packed one after the other: entry (i, j <= i) at row i (i + 1) / 2 + j
     lq = np.empty((r * (r + 1) // 2, n_p))
-    for i in range(r):
-        ri = i * (i + 1) // 2
-        for j in range(i + 1):
-            lq[ri + j] = pq[unpack[i, j]]
-        lq[ri + i] += 1.0
     logdet = np.zeros(n_p)
-    if not chol_packed(lq, r, logdet):
+    if not chol_packed(pq, unpack, lq, r, logdet):
         return False
     v = np.empty((r, n_p))
     vv = np.zeros(n_p)

@@ -144,28 +144,29 @@ def x_inverse(
     every step is a vector operation over candidates. Also ``coef`` (U, ke(ke+1)/2), the packed upper
     triangle of ``I - nu X^-1`` (columns ``(k, l)``, ``k <= l``, ordered by ``l`` then ``k``), the
     coefficients of the ``Z`` product of :func:`part_terms`."""
-    n_u = gram.shape[2]
-    lx = np.empty((ke, ke, n_u))
+    n_k, n_u = gram.shape[1], gram.shape[2]
+    entry = np.empty((ke, ke), dtype=np.int64)  # row of gram's entry (i, j) once flattened
     for i in range(ke):
-        for j in range(i + 1):
-            lx[i, j] = gram[i, j]
-        lx[i, i] += nu
+        for j in range(ke):
+            entry[i, j] = i * n_k + j
+    lx = np.empty((ke * (ke + 1) // 2, n_u))  # factor of X in packed lower rows
     logdet = np.zeros(n_u)
-    ok = chol_soa(lx, ke, logdet)
-    if not ok:
+    if not chol_packed(gram.reshape(-1, n_u), entry, nu, lx, ke, logdet):
         logdet[:] = np.nan
         return logdet
     for j in range(ke):
+        rj = j * (j + 1) // 2
         for u in range(n_u):
-            linv[j, j, u] = 1.0 / lx[j, j, u]
+            linv[j, j, u] = 1.0 / lx[rj + j, u]
     for j in range(ke):
         for i in range(j):
             linv[i, j, :] = 0.0
         for i in range(j + 1, ke):
+            ri = i * (i + 1) // 2
             li = linv[i, j]
             li[:] = 0.0
             for k in range(j, i):
-                lik = lx[i, k]
+                lik = lx[ri + k]
                 lkj = linv[k, j]
                 for u in range(n_u):
                     li[u] -= lik[u] * lkj[u]
@@ -194,60 +195,26 @@ def x_inverse(
 
 
 @njit(**_JIT)
-def chol_soa(a: np.ndarray, n: int, logdet: np.ndarray) -> bool:
-    """Lower Cholesky factors in place of a batch ``a`` (n, n, B) (batch innermost, lower triangle used);
-    adds the log-determinants to ``logdet`` (B,). Returns False if a matrix is not numerically SPD.
+def chol_packed(
+    src: np.ndarray, entry: np.ndarray, shift: float, a: np.ndarray, n: int, logdet: np.ndarray
+) -> bool:
+    """Lower Cholesky factors of a batch of ``n x n`` matrices ``shift I + S`` (batch innermost), written
+    as packed lower rows into ``a`` (n(n+1)/2, B): entry ``(i, j <= i)`` at row ``i (i + 1) / 2 + j``.
+    ``S[i, j]`` is row ``entry[i, j]`` of ``src`` (M, B) (only ``j <= i`` is read), so a packed or a
+    square source is read where each entry is first needed, without a copy. Adds the
+    log-determinants to ``logdet`` (B,); returns False if a matrix is not numerically SPD.
 
     Every entry is accumulated in a contiguous buffer over the batch and divided by the diagonal
     through its reciprocal (one division per column and matrix)."""
-    nb = a.shape[2]
-    prod = np.ones(nb)
-    inv = np.empty(nb)
-    acc = np.empty(nb)
-    for j in range(n):
-        for b in range(nb):
-            acc[b] = a[j, j, b]
-        for k in range(j):
-            for b in range(nb):
-                acc[b] -= a[j, k, b] * a[j, k, b]
-        for b in range(nb):
-            if not acc[b] > 0.0:
-                return False
-        for b in range(nb):
-            d = np.sqrt(acc[b])
-            a[j, j, b] = d
-            prod[b] *= d
-            inv[b] = 1.0 / d
-        if j % 8 == 7 or j == n - 1:  # one log per 8 factors (bounded diagonals: no overflow)
-            for b in range(nb):
-                logdet[b] += 2.0 * np.log(prod[b])
-                prod[b] = 1.0
-        for i in range(j + 1, n):
-            for b in range(nb):
-                acc[b] = a[i, j, b]
-            for k in range(j):
-                for b in range(nb):
-                    acc[b] -= a[i, k, b] * a[j, k, b]
-            for b in range(nb):
-                a[i, j, b] = acc[b] * inv[b]
-    return True
-
-
-@njit(**_JIT)
-def chol_packed(pq: np.ndarray, unpack: np.ndarray, a: np.ndarray, n: int, logdet: np.ndarray) -> bool:
-    """:func:`chol_soa` (same operations) of the batch ``Q = I + P`` given by the packed ``pq``
-    (n(n+1)/2, B) (entry ``(i, j)`` in row ``unpack[i, j]``), the factor written as packed lower rows
-    into ``a`` (n(n+1)/2, B): entry ``(i, j <= i)`` at row ``i (i + 1) / 2 + j`` (half the memory of
-    the square layout; ``Q`` is read where each entry is first needed, without a separate copy)."""
     nb = a.shape[1]
     prod = np.ones(nb)
     inv = np.empty(nb)
     acc = np.empty(nb)
     for j in range(n):
         rj = j * (j + 1) // 2
-        src = pq[unpack[j, j]]
+        row = src[entry[j, j]]
         for b in range(nb):
-            acc[b] = src[b] + 1.0
+            acc[b] = row[b] + shift
         for k in range(j):
             for b in range(nb):
                 acc[b] -= a[rj + k, b] * a[rj + k, b]
@@ -265,9 +232,9 @@ def chol_packed(pq: np.ndarray, unpack: np.ndarray, a: np.ndarray, n: int, logde
                 prod[b] = 1.0
         for i in range(j + 1, n):
             ri = i * (i + 1) // 2
-            src = pq[unpack[i, j]]
+            row = src[entry[i, j]]
             for b in range(nb):
-                acc[b] = src[b]
+                acc[b] = row[b]
             for k in range(j):
                 for b in range(nb):
                     acc[b] -= a[ri + k, b] * a[rj + k, b]
@@ -1097,7 +1064,7 @@ def finish_soa(
     # Cholesky factor of Q, rows packed one after the other: entry (i, j <= i) at row i (i + 1) / 2 + j
     lq = np.empty((r * (r + 1) // 2, n_p))
     logdet = np.zeros(n_p)
-    if not chol_packed(pq, unpack, lq, r, logdet):
+    if not chol_packed(pq, unpack, 1.0, lq, r, logdet):
         return False
     v = np.empty((r, n_p))
     vv = np.zeros(n_p)

@@ -93,10 +93,11 @@ def split(ds: Dataset, n_train: int) -> tuple[Dataset, dict[str, list[Demo]]]:
     )
 
 
-def stream_update_time(model: IProMP, obs: Demo) -> float:
-    """Median time of one streaming update over the samples of ``obs`` (after the first two)."""
+def stream_update_times(model: IProMP, obs: Demo, passes: int = 30) -> list[float]:
+    """Times in [s] of the streaming updates of ``passes`` streams of the samples of ``obs`` (each
+    stream's first two left out)."""
     times = []
-    for _ in range(30):
+    for _ in range(passes):
         with model.stream() as stream:
             for j in range(obs.n_samples):
                 sample = {g: obs.groups[g][j] for g in model.observe}
@@ -104,7 +105,12 @@ def stream_update_time(model: IProMP, obs: Demo) -> float:
                 stream.update(obs.t[j], sample)
                 if j >= 2:
                     times.append(time.perf_counter() - t0)
-    return float(np.median(times))
+    return times
+
+
+def stream_update_time(model: IProMP, obs: Demo) -> float:
+    """Median time in [s] of one streaming update over the samples of ``obs`` (after the first two)."""
+    return float(np.median(stream_update_times(model, obs)))
 
 
 def run_setting(

@@ -13,7 +13,7 @@ import sys
 import time
 
 import numpy as np
-from inference import OBSERVE, split, warm_up
+from inference import OBSERVE, split, stream_update_times, warm_up
 from threadpoolctl import threadpool_limits
 
 import ipromp_pin.phase as phase
@@ -73,16 +73,8 @@ def streaming_stages(model: IProMP, obs, passes: int = 30) -> dict[str, float]:
     kernels = phase._kernels()
     timed = _TimedKernels(kernels)
     phase._KERNELS[0] = timed
-    updates = []
     try:
-        for _ in range(passes):
-            with model.stream() as stream:
-                for j in range(obs.n_samples):
-                    sample = {g: obs.groups[g][j] for g in model.observe}
-                    t0 = time.perf_counter()
-                    stream.update(obs.t[j], sample)
-                    if j >= 2:
-                        updates.append(time.perf_counter() - t0)
+        updates = stream_update_times(model, obs, passes)
     finally:
         phase._KERNELS[0] = kernels
     n = len(updates) + 2 * passes  # every update calls the kernels, the first two included

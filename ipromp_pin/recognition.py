@@ -943,22 +943,6 @@ class IProMP:
             kept.append((part.dims, ke, lx, gram, bb))
         return q, a, kept
 
-    def _scaled_factor(
-        self, task: str, block: int, dims: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``sqrt(delta_d)`` (D_m,), ``F_d / sqrt(delta_d)`` (K, D_m, r_b) over the columns of latent block
-        ``block`` (:meth:`_task_blocks`) and the mean weights (D_m, K) of the observed dims ``dims`` of a
-        task (cached)."""
-        key = ("factor", task, block, dims.tobytes())
-        c = self._pred_cache.get(key)
-        if c is None:
-            m = self.models_[task]
-            factor = self._task_blocks(task)["factors"][block]
-            sd = np.sqrt(m.diag[dims])
-            w = np.ascontiguousarray((factor[dims] / sd[:, None, None]).transpose(1, 0, 2))
-            self._pred_cache[key] = c = (sd, w, np.ascontiguousarray(m.mean[dims]))
-        return c
-
     def _grid_cache(self, task: str, factor: np.ndarray, which: str) -> dict[str, np.ndarray]:
         """Model-only quantities on the fixed prediction phase grid (cached per task and ``which``
         factor columns: "robot" those of :meth:`_task_blocks`, "all" every column)."""

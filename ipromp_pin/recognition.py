@@ -1122,11 +1122,8 @@ class StreamingEstimator:
             max(float(m.alpha_grid[-1]) for m in model.models_.values()) * model.duration_nominal_s_
         )
         self._held: contextlib.AbstractContextManager | None = None
-        sc = model.scaler_  # the scaling of a full sample (all observed dims), as ChannelScaler.transform
-        self._log_idx = np.flatnonzero(sc._log[:n_obs])
-        self._log_c = sc.log_shift[self._log_idx]
-        self._offset = sc.offset[:n_obs]
-        self._scale = sc.scale[:n_obs]
+        # the scaling of a full sample (all observed dims), as ChannelScaler.transform
+        _, self._log_idx, self._log_c, self._offset, self._scale = model._obs_scaling()
         self._support_until = -np.inf  # phases below this need at most inc.ke basis functions
 
     def __enter__(self) -> StreamingEstimator:

@@ -665,10 +665,7 @@ class IProMP:
                 for g in self.observe:
                     if not np.all(np.isfinite(obs.groups[g])):
                         raise ObservationError(src, g, "NaN or inf values in samples not flagged as missing")
-            dims, log_idx, log_c, offset, scale = self._obs_scaling()
-            if log_idx.size:
-                raw[:, log_idx] = np.log(np.maximum(raw[:, log_idx], 0.0) + log_c)
-            parts = [ObservationPart(t=t, dims=dims, y=(raw - offset) / scale)]
+            parts = [ObservationPart(t=t, dims=self._obs_scaling()[0], y=self._scale_observed(raw))]
         else:
             parts = self._parts_with_gaps(obs)
         n_used = sum(p.t.size for p in parts)
@@ -705,6 +702,14 @@ class IProMP:
             ObservationPart(t=obs.t[valid], dims=np.concatenate(dims), y=np.concatenate(ys, axis=1))
             for valid, dims, ys in masks.values()
         ]
+
+    def _scale_observed(self, raw: np.ndarray) -> np.ndarray:
+        """Scaled values (..., D_o) of raw samples ``raw`` (..., D_o) of every observed dim (as
+        ``ChannelScaler.transform``; the log-scaled dims of ``raw`` are overwritten)."""
+        _, log_idx, log_c, offset, scale = self._obs_scaling()
+        if log_idx.size:
+            raw[..., log_idx] = np.log(np.maximum(raw[..., log_idx], 0.0) + log_c)
+        return (raw - offset) / scale
 
     def _obs_scaling(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """The scaling of a full observed sample (cached): the observed dims (D_o,) (groups in
@@ -1204,14 +1209,10 @@ class StreamingEstimator:
             pattern[2] += 1
             pattern[3] = t_s
         else:
-            ys = np.zeros(self._sq.size)
             if not absent:
-                li = self._log_idx
-                ys[:] = y
-                if li.size:
-                    ys[li] = np.log(np.maximum(ys[li], 0.0) + self._log_c)
-                ys = (ys - self._offset) / self._scale
+                ys = m._scale_observed(y.copy())
             else:
+                ys = np.zeros(self._sq.size)
                 self._inc = None  # the incremental terms hold one part with every observed dim
                 for g, lo, hi in self._slices:
                     if g in present:

@@ -610,15 +610,21 @@ class IProMP:
         """
         r = factor.shape[2]
         lo, hi = self.group_slices_[self.robot_group]
-
-        def arrays(dims: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-            sd = np.sqrt(diag[dims])
-            w = np.ascontiguousarray((factor[dims] / sd[:, None, None]).transpose(1, 0, 2))
-            return sd, w, np.ascontiguousarray(mean[dims])
-
-        q, a, _ = self._latent_terms(parts, alpha, arrays, r)
-        eta = cho_solve(cho_factor(q, lower=True), a) if r else a
-        return mean[lo:hi] + factor[lo:hi] @ eta
+        basis = self.basis_
+        inv_dur = 1.0 / (alpha * self.duration_nominal_s_)
+        ke_p = np.array([basis.support_count(float(p.t[-1]) * inv_dur) for p in parts], dtype=np.int64)
+        pos_cat = np.concatenate([np.arange(p.dims.size) for p in parts])  # every column of every part
+        dims_cat = np.concatenate([p.dims for p in parts]).astype(np.int64)
+        p_off = np.cumsum([0] + [p.dims.size for p in parts]).astype(np.int64)
+        w = np.array(mean, dtype=float)  # conditioned in place (robot rows: mu + F eta)
+        ok = _kernels().condition_block(
+            *_flatten_parts(parts), pos_cat, dims_cat, p_off, ke_p, inv_dur, basis.centres, basis.width,
+            basis._step_factor, w.copy(), np.ascontiguousarray(diag, dtype=float),
+            np.ascontiguousarray(factor, dtype=float), self.noise_ratio_, w, np.empty((r, r)),
+        )  # fmt: skip
+        if not ok:
+            raise ModelError("X = nu I + B^T B or Q = I + P is not numerically positive definite")
+        return w[lo:hi]
 
     # ---------------------------------------------------------- inference
     def _limit_threads(self):
@@ -919,34 +925,6 @@ class IProMP:
             }
             self._pred_cache[key] = info
         return info
-
-    def _latent_terms(self, parts: list[ObservationPart], alpha: float, arrays, r: int) -> tuple:
-        """``Q`` (r, r), ``a`` (r,) of the latent posterior at phase ``alpha`` and, per part, what the
-        observed dims' correction needs (dims, ke, Cholesky factor of ``X``, ``B^T B``, ``b``).
-
-        Args:
-            parts: Observation parts; alpha: phase ``T / T_norm``; r: latent rank.
-            arrays: dims -> (``sqrt(delta_d)`` (D_m,), ``F_d / sqrt(delta_d)`` (K, D_m, r) and the mean
-                weights (D_m, K)) of the distribution being conditioned.
-        """
-        kern = _kernels()
-        nu = self.noise_ratio_
-        q = np.eye(r)
-        a = np.zeros(r)
-        kept = []
-        inv_dur = 1.0 / (alpha * self.duration_nominal_s_)
-        b = self.basis_
-        for part in parts:
-            ke = b.support_count(float(part.t[-1]) * inv_dur)
-            bt = kern.basis_rows(part.t * inv_dur, b.centres, b.width, b._step_factor)[:ke]  # (ke, n)
-            sd, w_all, mean = arrays(part.dims)
-            lx, gram, bb = np.empty((ke, ke)), np.empty((ke, ke)), np.empty((ke, part.dims.size))
-            wf = w_all[:ke].reshape(ke, part.dims.size * r)  # (ke, dm r): W_d / sqrt(delta_d), rows k
-            bt = np.ascontiguousarray(bt)
-            if not kern.condition_part(bt, part.y, mean, wf, sd, nu, q, a, lx, gram, bb):
-                raise ModelError("X = nu I + B^T B is not numerically positive definite")
-            kept.append((part.dims, ke, lx, gram, bb))
-        return q, a, kept
 
     def _grid_cache(self, task: str, factor: np.ndarray, which: str) -> dict[str, np.ndarray]:
         """Model-only quantities on the fixed prediction phase grid (cached per task and ``which``

@@ -442,19 +442,31 @@ class InferenceEngine:
         """
         nu = self.nu if nu is None else float(nu)
         factors = [self._x_factors(st.gram, nu, st.ke) for st in stats]
-        kern = _kernels()
-        loglik = np.zeros(self.alphas.shape)
-        t_last = float(t_last)
+        return Terms(loglik=self.finish_groups(self.group_terms(stats, factors, nu), t_last))
+
+    def group_terms(self, stats: list[PartStats], factors: list[tuple], nu: float) -> list[tuple]:
+        """Per lane group (:attr:`lane_groups`), the terms of every block and (task, candidate) pair
+        (:meth:`lane_arrays`, filled by :meth:`block_terms`), from part statistics and their
+        ``X`` factors (:meth:`_x_factors`)."""
+        out = []
         for group in self.lane_groups:
-            total, a, pq = self.lane_arrays(group)
+            arrays = self.lane_arrays(group)
             for lane0, b in zip(self.lane_starts(group), group, strict=True):
-                self.block_terms(self.blocks[b], stats, factors, nu, total, a, pq, lane0)
+                self.block_terms(self.blocks[b], stats, factors, nu, *arrays, lane0)
+            out.append(arrays)
+        return out
+
+    def finish_groups(self, terms: list[tuple], t_last: float) -> np.ndarray:
+        """Log likelihood (T, C) from the lane groups' terms (:meth:`group_terms`): the sum of the
+        blocks' (``kernels.finish_soa``)."""
+        finish = _kernels().finish_soa
+        loglik = np.empty(self.alphas.shape)
+        t_last = float(t_last)
+        for i, (group, (total, a, pq)) in enumerate(zip(self.lane_groups, terms, strict=True)):
             unpack = self.blocks[group[0]].unpack
-            if not kern.finish_soa(
-                pq, a, total, unpack, self.alphas, self.t_norm, t_last, loglik, True, len(group)
-            ):
+            if not finish(pq, a, total, unpack, self.alphas, self.t_norm, t_last, loglik, i > 0, len(group)):
                 raise ModelError("Q = I + P is not numerically positive definite")
-        return Terms(loglik=loglik)
+        return loglik
 
     @property
     def n_pair(self) -> int:
@@ -538,14 +550,9 @@ class IncrementalTerms:
         e = self.engine
         factors = e._x_factors(stats.gram, e.nu, stats.ke)
         self.xinv, _, self.logdet, _ = factors
-        self.terms = []
-        for group in e.lane_groups:
-            arrays = e.lane_arrays(group)
-            for lane0, b in zip(e.lane_starts(group), group, strict=True):
-                e.block_terms(e.blocks[b], [stats], [factors], e.nu, *arrays, lane0)
-            self.terms.append(arrays)
+        self.terms = e.group_terms([stats], [factors], e.nu)
         self.ke = stats.ke
-        return self._finish(t_last)
+        return e.finish_groups(self.terms, t_last)
 
     def add(self, phi: np.ndarray, y: np.ndarray, proj: np.ndarray, t_last: float) -> np.ndarray:
         """Add one sample: basis values ``phi`` (K, U), scaled values ``y`` (D,), ``proj`` (K, U, D)
@@ -557,18 +564,7 @@ class IncrementalTerms:
             raise ModelError("X = nu I + B^T B is not numerically positive definite")
         for fixed, gi, lane0 in self._step_args:
             kern.stream_step(g, s, y, proj, *fixed, lane0, *self.terms[gi])
-        return self._finish(t_last)
-
-    def _finish(self, t_last: float) -> np.ndarray:
-        e = self.engine
-        loglik = np.empty(e.alphas.shape)
-        t_last = float(t_last)
-        finish = self._kern.finish_soa
-        for i, (group, (total, a, pq)) in enumerate(zip(e.lane_groups, self.terms, strict=True)):
-            unpack = e.blocks[group[0]].unpack
-            if not finish(pq, a, total, unpack, e.alphas, e.t_norm, t_last, loglik, i > 0, len(group)):
-                raise ModelError("Q = I + P is not numerically positive definite")
-        return loglik
+        return self.engine.finish_groups(self.terms, t_last)
 
 
 REFINE_STEPS = 8

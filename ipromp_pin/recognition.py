@@ -761,13 +761,9 @@ class IProMP:
 
     def _finish_recognition(self, evidence, alpha, grids, logpost, t_last, task_post=None) -> Recognition:
         """The recognition from the tasks' log evidence and phase estimates (the task posterior
-        ``task_post`` as ``kernels.task_posterior`` when already computed)."""
+        ``task_post`` from ``kernels.task_posterior``, computed here when not given)."""
         if task_post is None:
-            joint = self.task_log_prior_ + evidence
-            top = float(joint.max())
-            total = top + math.log(float(np.exp(joint - top).sum())) if math.isfinite(top) else top
-            log_post = joint - total
-            task_post = (log_post, np.exp(log_post), int(np.argmax(joint)))
+            task_post = _kernels().task_posterior(self.task_log_prior_, np.ascontiguousarray(evidence))
         log_post, posterior, best = task_post
         if not math.isfinite(float(log_post[best])):
             raise ObservationError(None, "t", "the observation is impossible under every task (too long?)")

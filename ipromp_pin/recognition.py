@@ -304,7 +304,7 @@ class IProMP:
         self.coupling = coupling if isinstance(coupling, str) else tuple(coupling)
         self.blas_threads = blas_threads
         self._engine: InferenceEngine | None = None
-        self._pred_cache: dict | None = None
+        self._pred_cache: dict = {}  # model-only arrays of the inference, cleared when the model changes
         self._threads: ThreadpoolController | None = None
         if robot_group in self.observe:
             raise ModelError(f"the robot group '{robot_group}' cannot be an observed group")
@@ -466,7 +466,7 @@ class IProMP:
 
     def _set_noise(self) -> None:
         self._engine = None
-        self._pred_cache = None
+        self._pred_cache = {}
         lo, hi = 0, self.n_obs_dims_
         self.noise_var_ = {t: self.noise_ratio_ * m.diag[lo:hi] for t, m in self.models_.items()}
 
@@ -721,8 +721,6 @@ class IProMP:
         """The scaling of a full observed sample (cached): the observed dims (D_o,) (groups in
         ``observe`` order), the log-scaled ones and their shifts, offsets and scales (D_o,) (the
         operations of ``ChannelScaler.transform``)."""
-        if self._pred_cache is None:
-            self._pred_cache = {}
         c = self._pred_cache.get("obs_scaling")
         if c is None:
             sc, n = self.scaler_, self.n_obs_dims_
@@ -890,8 +888,6 @@ class IProMP:
         these blocks followed by the robot's columns that load on no observed dim (their latent
         posterior is the prior); ``robot_factor`` the factor restricted to them (D, K, r_R).
         """
-        if self._pred_cache is None:
-            self._pred_cache = {}
         key = ("blocks", task)
         info = self._pred_cache.get(key)
         if info is None:
@@ -925,8 +921,6 @@ class IProMP:
     def _grid_cache(self, task: str, factor: np.ndarray, which: str) -> dict[str, np.ndarray]:
         """Model-only quantities on the fixed prediction phase grid (cached per task and ``which``
         factor columns: "robot" those of :meth:`_task_blocks`, "all" every column)."""
-        if self._pred_cache is None:
-            self._pred_cache = {}
         key = ("grid", task, which)
         c = self._pred_cache.get(key)
         if c is None:

@@ -437,7 +437,7 @@ def condition_part(
     gram: np.ndarray,
     b: np.ndarray,
 ) -> bool:
-    """Add one observation part's terms of the conditioning at one phase (see ``IProMP._condition``).
+    """Add one observation part's terms of the conditioning at one phase (see :func:`condition_block`).
 
     Args:
         bt: (ke, n) basis values of the part's samples; y: (n, D_m) scaled values.

@@ -958,7 +958,7 @@ class IProMP:
         sc = self.scaler_
         q_mean = kern.channel_values(phi, np.ascontiguousarray(w_post[lo:hi]), scale, offset, _NO_LOG, scale)
         if lq.shape[0]:
-            cov = _kernels().prediction_cov(lq, c["phi_f"], c["phi2"], m.diag[lo:hi], scale)
+            cov = kern.prediction_cov(lq, c["phi_f"], c["phi2"], m.diag[lo:hi], scale)
         else:
             cov = np.zeros((phi.shape[0], nj, nj))
             idx = np.arange(nj)
@@ -969,15 +969,9 @@ class IProMP:
 
         def human_means() -> dict[str, np.ndarray]:
             w = w_post if human is None else human()
-            log_idx = np.flatnonzero(sc._log[:n_obs]).astype(np.int64)
-            vals = kern.channel_values(
-                phi,
-                np.ascontiguousarray(w[:n_obs]),
-                sc.scale[:n_obs],
-                sc.offset[:n_obs],
-                log_idx,
-                sc.log_shift,
-            )
+            _, log_idx, _, offset, scale_obs = self._obs_scaling()
+            w_obs = np.ascontiguousarray(w[:n_obs])
+            vals = kern.channel_values(phi, w_obs, scale_obs, offset, log_idx, sc.log_shift)
             return {g: np.ascontiguousarray(vals[:, glo:ghi]) for g, glo, ghi in slices}
 
         return Prediction(

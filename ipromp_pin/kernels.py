@@ -16,6 +16,13 @@ _JIT = {"cache": True, "nogil": True, "fastmath": False, "error_model": "numpy"}
 _JIT_FMA = {**_JIT, "fastmath": {"contract"}}  # fused multiply-add only (no reassociation)
 LOG_2PI = float(np.log(2.0 * np.pi))
 
+P_FROM_W = 0
+""":func:`part_terms` forms ``P`` from the scaled factors (no ``Z`` tensor)."""
+P_FROM_Z = 1
+""":func:`part_terms` forms ``P`` with one product with the ``Z`` tensor per task."""
+P_BY_CALLER = 2
+""":func:`part_terms` leaves ``P`` to the caller (one product for all tasks, :func:`add_fused_p`)."""
+
 
 @njit(**_JIT)
 def chol_inplace(a: np.ndarray, n: int) -> float:
@@ -266,7 +273,7 @@ def part_terms(
     w_1: np.ndarray,
     z: np.ndarray,
     unpack: np.ndarray,
-    use_z: bool,
+    p_mode: int,
     lane0: int,
     total: np.ndarray,
     a: np.ndarray,
@@ -292,8 +299,10 @@ def part_terms(
             (see ``InferenceEngine._dims``).
         w_1: (T, K D_m, r) ``W_d`` rows ordered (basis, dim) (only used without ``Z``).
         z: Packed ``Z`` tensors (T, K(K+1)/2, r(r+1)/2), rows ordered as ``coef``'s columns (only with
-            ``use_z``).
+            ``p_mode`` :data:`P_FROM_Z`).
         unpack: (r, r) index of ``(i, j)`` in the packed layout.
+        p_mode: How ``P`` is added: :data:`P_FROM_W` (from ``w_1``), :data:`P_FROM_Z` (one product with
+            ``z`` per task) or :data:`P_BY_CALLER` (not here: :func:`add_fused_p`).
 
     """
     n_u = xinv.shape[2]
@@ -347,12 +356,12 @@ def part_terms(
         for c in range(n_c):
             total[off + c] += base - quad[c] / nu + dm * logdet[u0 + c]
         a[:, off : off + n_c] += np.dot(w_k[t, :kd].T, xb)
-        if use_z:
+        if p_mode == P_FROM_Z:
             pz = np.dot(coef[u0 : u0 + n_c], z[t, :m])  # (C, npk)
             for q in range(pz.shape[1]):
                 for c in range(n_c):
                     pq[q, off + c] += pz[c, q]
-    if not use_z:
+    if p_mode == P_FROM_W:
         v = np.empty((kd, r))
         for t in range(n_t):
             wt = np.ascontiguousarray(w_1[t, :kd])
@@ -372,6 +381,25 @@ def part_terms(
                 for i in range(r):
                     for j in range(i, r):
                         pq[unpack[i, j], p] += s[i, j] - nu * vv[i, j]
+
+
+@njit(**_JIT)
+def add_fused_p(
+    pz: np.ndarray, starts: np.ndarray, u0: int, n_c: int, col0: int, npk: int, lane0: int, pq: np.ndarray
+) -> None:
+    """Add one block's packed ``P`` of every (task, candidate) pair from a product of the coefficients
+    of consecutive unique candidates (rows ``u - u0``) with the ``Z`` tensors of several tasks and
+    blocks side by side: ``pz`` (U', sum T r(r+1)/2), the block's task ``t`` in the columns
+    ``col0 + t npk .. col0 + (t + 1) npk``, added to the lanes from ``lane0`` of ``pq`` (npk, P')
+    (see :func:`part_terms`)."""
+    for t in range(starts.shape[0]):
+        c0 = col0 + t * npk
+        r0 = starts[t] - u0
+        off = lane0 + t * n_c
+        for q in range(npk):
+            row = pq[q]
+            for c in range(n_c):
+                row[off + c] += pz[r0 + c, c0 + q]
 
 
 @njit(**_JIT)
@@ -827,6 +855,35 @@ def add_sample(gram: np.ndarray, proj: np.ndarray, phi: np.ndarray, y: np.ndarra
 
 
 @njit(**_JIT)
+def scale_samples(
+    raw: np.ndarray,
+    log_idx: np.ndarray,
+    log_c: np.ndarray,
+    offset: np.ndarray,
+    scale: np.ndarray,
+    out: np.ndarray,
+) -> bool:
+    """Scaled values (into ``out`` (n, D)) of raw samples ``raw`` (n, D), as ``ChannelScaler.transform``:
+    ``log(max(y, 0) + c)`` on the dims ``log_idx`` with shifts ``log_c``, then ``(y - offset) / scale``
+    (D,). Returns whether every raw value is finite."""
+    n, n_d = raw.shape
+    finite = True
+    for j in range(n):
+        rj = raw[j]
+        oj = out[j]
+        for d in range(n_d):
+            v = rj[d]
+            finite = finite and np.isfinite(v)
+            oj[d] = v
+        for i in range(log_idx.shape[0]):
+            d = log_idx[i]
+            oj[d] = np.log(max(oj[d], 0.0) + log_c[i])
+        for d in range(n_d):
+            oj[d] = (oj[d] - offset[d]) / scale[d]
+    return finite
+
+
+@njit(**_JIT)
 def stream_sample(
     t_s: float,
     inv_dur: np.ndarray,
@@ -850,12 +907,10 @@ def stream_sample(
     (K, K, U), ``proj`` (K, U, D) and ``sq`` (D,) (:func:`add_sample`). Returns the basis values and
     the scaled values.
     """
-    ys = y.copy()
-    for i in range(log_idx.shape[0]):
-        d = log_idx[i]
-        ys[d] = np.log(max(ys[d], 0.0) + log_c[i])
+    ys = np.empty((1, y.shape[0]))
+    scale_samples(y.reshape(1, -1), log_idx, log_c, offset, scale, ys)
+    ys = ys.reshape(-1)
     for d in range(ys.shape[0]):
-        ys[d] = (ys[d] - offset[d]) / scale[d]
         sq[d] += ys[d] * ys[d]
     phi = basis_rows(t_s * inv_dur, centres, width, step)
     add_sample(gram, proj, phi, ys)

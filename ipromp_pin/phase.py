@@ -89,6 +89,11 @@ LOG_2PI = float(np.log(2.0 * np.pi))
 PAIR_LANES = 8
 """The (task, candidate) pair arrays are padded to a multiple of this many lanes (whole vector loops)."""
 
+FUSE_SPAN = 1.25
+"""The ``Z`` products of all tasks and blocks are one matrix product per part when the tasks' candidate
+windows together span at most this many windows (the product's rows are the unique candidates of the
+span: rows a task does not use are computed and left)."""
+
 LANE_GROUP_BYTES = 256e3
 """Blocks of equal rank share one set of pair arrays while its packed ``Q`` stays below this size
 (about half the L2 cache of the machines measured): beyond it, separate factorisations are faster."""
@@ -244,6 +249,7 @@ class LatentBlock:
         self._arrays: dict[bytes, dict[str, np.ndarray]] = {}
         self._local = {int(d): i for i, d in enumerate(self.dims)}
         self._select: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
+        self._inputs: dict[tuple[bytes, bool], tuple] = {}
 
     def select(self, dims: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Positions in ``dims`` (observed dims of a part) of the block's dims and their block-local
@@ -256,8 +262,26 @@ class LatentBlock:
             self._select[key] = out = (np.array(pos, dtype=np.int64), np.array(local, dtype=np.int64))
         return out
 
-    def z_tensor(self, local: np.ndarray) -> np.ndarray:
-        """Packed ``Z`` (T, K(K+1)/2, r(r+1)/2) of the block-local dims ``local`` (cached)."""
+    def part_inputs(
+        self, dims: np.ndarray, with_z: bool = True
+    ) -> tuple[np.ndarray, dict[str, np.ndarray], np.ndarray] | None:
+        """For a part observing the dims ``dims``: the positions of the block's dims in it, the model
+        arrays (:meth:`arrays`) and ``Z`` (:meth:`z_tensor`; a placeholder without ``use_z`` or
+        ``with_z``) of its dims; None when the part observes none of them (cached)."""
+        with_z = with_z and self.use_z
+        key = (dims.tobytes(), with_z)
+        out = self._inputs.get(key, False)
+        if out is False:
+            pos, local = self.select(dims)
+            out = None
+            if pos.size:
+                out = (pos, self.arrays(local), self.z_tensor(local) if with_z else self.no_z)
+            self._inputs[key] = out
+        return out
+
+    def z_tensor(self, local: np.ndarray, cache: bool = True) -> np.ndarray:
+        """Packed ``Z`` (T, K(K+1)/2, r(r+1)/2) of the block-local dims ``local`` (cached unless
+        ``cache`` is False)."""
         key = np.asarray(local, dtype=np.int64).tobytes()
         z = self._z.get(key)
         if z is None:
@@ -268,7 +292,9 @@ class LatentBlock:
             z = full[:, self.pk, self.pl][:, :, self.ia, self.ib]
             off = self.pk != self.pl
             z[:, off] += full[:, self.pl[off], self.pk[off]][:, :, self.ia, self.ib]
-            self._z[key] = z = np.ascontiguousarray(z)
+            z = np.ascontiguousarray(z)
+            if cache:
+                self._z[key] = z
         return z
 
     def arrays(self, local: np.ndarray) -> dict[str, np.ndarray]:
@@ -375,6 +401,10 @@ class InferenceEngine:
             size = max(1, int(LANE_GROUP_BYTES // per_block))
             same = [i for i, b in enumerate(self.blocks) if b.rank == r]
             self.lane_groups += [same[j : j + size] for j in range(0, len(same), size)]
+        first = int(self.starts.min())
+        span = int(self.starts.max()) - first + self.alphas.shape[1]
+        self._fuse_rows = (first, first + span) if span <= FUSE_SPAN * self.alphas.shape[1] else None
+        self._fused: dict[bytes, tuple[np.ndarray, list[int]]] = {}
 
     @property
     def rank(self) -> int:
@@ -447,13 +477,50 @@ class InferenceEngine:
     def group_terms(self, stats: list[PartStats], factors: list[tuple], nu: float) -> list[tuple]:
         """Per lane group (:attr:`lane_groups`), the terms of every block and (task, candidate) pair
         (:meth:`lane_arrays`, filled by :meth:`block_terms`), from part statistics and their
-        ``X`` factors (:meth:`_x_factors`)."""
+        ``X`` factors (:meth:`_x_factors`). ``P`` comes from one product per part for all tasks and
+        blocks (:meth:`fused_z`) when the tasks' candidate windows overlap enough, else from one
+        product per task and block."""
+        kern = _kernels()
+        fused = self._fuse_rows is not None and self.use_z
+        mode = kern.P_BY_CALLER if fused else (kern.P_FROM_Z if self.use_z else kern.P_FROM_W)
         out = []
         for group in self.lane_groups:
             arrays = self.lane_arrays(group)
             for lane0, b in zip(self.lane_starts(group), group, strict=True):
-                self.block_terms(self.blocks[b], stats, factors, nu, *arrays, lane0)
+                self.block_terms(self.blocks[b], stats, factors, nu, *arrays, lane0, mode)
             out.append(arrays)
+        if fused:
+            u0, u1 = self._fuse_rows
+            n_c = self.alphas.shape[1]
+            for st, (_, _, _, coef) in zip(stats, factors, strict=True):
+                zcat, cols = self.fused_z(st.dims)
+                pz = np.dot(coef[u0:u1], zcat[: st.ke * (st.ke + 1) // 2])
+                for group, (_, _, pq) in zip(self.lane_groups, out, strict=True):
+                    for lane0, b in zip(self.lane_starts(group), group, strict=True):
+                        if cols[b] >= 0:
+                            npk = self.blocks[b].ia.size
+                            kern.add_fused_p(pz, self.starts, u0, n_c, cols[b], npk, lane0, pq)
+        return out
+
+    def fused_z(self, dims: np.ndarray) -> tuple[np.ndarray, list[int]]:
+        """The ``Z`` tensors of every block and task side by side for a part observing ``dims``
+        (cached): (K(K+1)/2, sum_b T r_b(r_b+1)/2), block ``b``'s task ``t`` in the columns
+        ``cols[b] + t r_b(r_b+1)/2 ..``, and ``cols`` (-1 for a block the part does not observe)."""
+        key = dims.tobytes()
+        out = self._fused.get(key)
+        if out is None:
+            cols, mats, col = [], [], 0
+            for b in self.blocks:
+                pos, local = b.select(dims)
+                if pos.size == 0:
+                    cols.append(-1)
+                    continue
+                z = b.z_tensor(local, cache=False)  # (T, K(K+1)/2, npk)
+                mats.append(np.concatenate(list(z), axis=1))
+                cols.append(col)
+                col += z.shape[0] * z.shape[2]
+            out = (np.ascontiguousarray(np.concatenate(mats, axis=1)), cols)
+            self._fused[key] = out
         return out
 
     def finish_groups(self, terms: list[tuple], t_last: float) -> np.ndarray:
@@ -497,21 +564,22 @@ class InferenceEngine:
         a: np.ndarray,
         pq: np.ndarray,
         lane0: int,
+        p_mode: int,
     ) -> None:
         """Add one block's terms of every (task, candidate) pair (task-major, innermost) to the lanes
-        from ``lane0`` of ``total``, ``a`` and ``pq`` (see :meth:`lane_arrays`)."""
+        from ``lane0`` of ``total``, ``a`` and ``pq`` (see :meth:`lane_arrays`); ``P`` as ``p_mode``
+        says (``kernels.part_terms``)."""
         kern = _kernels()
         n_cand = self.alphas.shape[1]
         for st, (xinv, linv, logdet, coef) in zip(stats, factors, strict=True):
-            pos, local = block.select(st.dims)
-            if pos.size == 0:
+            inputs = block.part_inputs(st.dims, with_z=p_mode == kern.P_FROM_Z)
+            if inputs is None:
                 continue
-            c = block.arrays(local)
-            z = block.z_tensor(local) if block.use_z else block.no_z
+            pos, c, z = inputs
             kern.part_terms(
                 xinv, linv, logdet, coef, st.proj, st.sq, pos, st.n, st.ke, nu, self.starts, n_cand,
                 c["mu_k"], c["mu_rows"], c["inv_delta"], c["mu2"], c["log_delta"], c["w_k"], c["w_1"], z,
-                block.unpack, block.use_z, lane0, total, a, pq,
+                block.unpack, p_mode, lane0, total, a, pq,
             )  # fmt: skip
 
 

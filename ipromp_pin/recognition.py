@@ -667,11 +667,12 @@ class IProMP:
             gaps = gaps or (g in obs.missing and bool(obs.missing[g].any()))
         if not gaps:  # every group in every sample: one part with all observed dims
             raw = np.concatenate([obs.groups[g] for g in self.observe], axis=1, dtype=float)
-            if not math.isfinite(float(raw.sum())):  # the sum is finite unless a value is not (or overflow)
+            y, finite = self._scale_observed(raw)
+            if not finite:
                 for g in self.observe:
                     if not np.all(np.isfinite(obs.groups[g])):
                         raise ObservationError(src, g, "NaN or inf values in samples not flagged as missing")
-            parts = [ObservationPart(t=t, dims=self._obs_scaling()[0], y=self._scale_observed(raw))]
+            parts = [ObservationPart(t=t, dims=self._obs_scaling()[0], y=y)]
         else:
             parts = self._parts_with_gaps(obs)
         n_used = sum(p.t.size for p in parts)
@@ -679,7 +680,7 @@ class IProMP:
             raise ObservationError(src, "t", f"an observation needs at least 2 samples, got {t.size}")
         t_last = float(t[-1])
         if check_length:
-            longest = max(float(m.alpha_grid[-1]) for m in self.models_.values()) * self.duration_nominal_s_
+            longest = self._longest_s()
             if t_last > longest:
                 raise ObservationError(
                     src,
@@ -709,13 +710,22 @@ class IProMP:
             for valid, dims, ys in masks.values()
         ]
 
-    def _scale_observed(self, raw: np.ndarray) -> np.ndarray:
-        """Scaled values (..., D_o) of raw samples ``raw`` (..., D_o) of every observed dim (as
-        ``ChannelScaler.transform``; the log-scaled dims of ``raw`` are overwritten)."""
+    def _scale_observed(self, raw: np.ndarray) -> tuple[np.ndarray, bool]:
+        """Scaled values (n, D_o) of raw samples ``raw`` (n, D_o) of every observed dim (as
+        ``ChannelScaler.transform``) and whether every raw value is finite."""
         _, log_idx, log_c, offset, scale = self._obs_scaling()
-        if log_idx.size:
-            raw[..., log_idx] = np.log(np.maximum(raw[..., log_idx], 0.0) + log_c)
-        return (raw - offset) / scale
+        raw = np.ascontiguousarray(raw, dtype=float)
+        out = np.empty(raw.shape)
+        finite = _kernels().scale_samples(raw, log_idx, log_c, offset, scale, out)
+        return out, bool(finite)
+
+    def _longest_s(self) -> float:
+        """Longest plausible motion of any task in [s] (its largest phase candidate, cached)."""
+        longest = self._pred_cache.get("longest")
+        if longest is None:
+            longest = max(float(m.alpha_grid[-1]) for m in self.models_.values()) * self.duration_nominal_s_
+            self._pred_cache["longest"] = longest
+        return longest
 
     def _obs_scaling(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """The scaling of a full observed sample (cached): the observed dims (D_o,) (groups in
@@ -1085,9 +1095,7 @@ class StreamingEstimator:
         self._no_y = np.zeros(0)
         self._inc: IncrementalTerms | None = IncrementalTerms(self._engine)
         self._kern = _kernels()
-        self._longest = (
-            max(float(m.alpha_grid[-1]) for m in model.models_.values()) * model.duration_nominal_s_
-        )
+        self._longest = model._longest_s()
         self._held: contextlib.AbstractContextManager | None = None
         # the scaling of a full sample (all observed dims), as ChannelScaler.transform
         _, self._log_idx, self._log_c, self._offset, self._scale = model._obs_scaling()
@@ -1172,7 +1180,7 @@ class StreamingEstimator:
             pattern[3] = t_s
         else:
             if not absent:
-                ys = m._scale_observed(y.copy())
+                ys = m._scale_observed(y.reshape(1, -1))[0].reshape(-1)
             else:
                 ys = np.zeros(self._sq.size)
                 self._inc = None  # the incremental terms hold one part with every observed dim

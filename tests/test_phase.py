@@ -11,13 +11,29 @@ from ipromp_pin.recognition import IProMP, direct_loglik
 
 
 @pytest.mark.parametrize(
-    ("use_z", "coupling", "n_blocks"), [(True, "all", 1), (False, "all", 1), (True, ["b"], 2)]
+    ("use_z", "fuse", "coupling", "n_blocks"),
+    [
+        (True, True, "all", 1),
+        (True, False, "all", 1),
+        (False, False, "all", 1),
+        (True, True, ["b"], 2),
+        (True, False, ["b"], 2),
+    ],
 )
-def test_engine_loglik_equals_textbook_likelihood(use_z: bool, coupling, n_blocks: int) -> None:
+def test_engine_loglik_equals_textbook_likelihood(
+    use_z: bool, fuse: bool, coupling, n_blocks: int, monkeypatch
+) -> None:
+    # P from the factors, from one Z product per task and block, or from one product for all
+    # (fused: here over the union of the tasks' candidate windows, rows a task does not use included)
+    import ipromp_pin.phase as phase
+
+    monkeypatch.setattr(phase, "FUSE_SPAN", 1e9 if fuse else 0.0)
     train, test = split(random_dataset(5, missing_group="a"), 6)
     model = IProMP(["a", "b"], n_basis=8, n_alpha=50, noise=0.5, coupling=coupling).fit(train)
     engine = model._engine_()
     engine.use_z = use_z
+    assert (engine._fuse_rows is not None) == fuse
+    assert len(set(engine.starts.tolist())) > 1  # the tasks' candidate windows differ
     # independent blocks of observed dims: one per group when only "b" is coupled to the robot
     assert len(engine.blocks) == n_blocks
     assert sorted(np.concatenate([b.dims for b in engine.blocks]).tolist()) == list(range(model.n_obs_dims_))

@@ -231,9 +231,9 @@ def chol_packed(
                     - a[rj + k + 2, b] * a[rj + k + 2, b]
                 ) - a[rj + k + 3, b] * a[rj + k + 3, b]
             k += 4
-        for k in range(k, j):
+        for kk in range(k, j):
             for b in range(nb):
-                acc[b] -= a[rj + k, b] * a[rj + k, b]
+                acc[b] -= a[rj + kk, b] * a[rj + kk, b]
         for b in range(nb):
             if not acc[b] > 0.0:
                 return False
@@ -259,9 +259,9 @@ def chol_packed(
                         - a[ri + k + 2, b] * a[rj + k + 2, b]
                     ) - a[ri + k + 3, b] * a[rj + k + 3, b]
                 k += 4
-            for k in range(k, j):
+            for kk in range(k, j):
                 for b in range(nb):
-                    acc[b] -= a[ri + k, b] * a[rj + k, b]
+                    acc[b] -= a[ri + kk, b] * a[rj + kk, b]
             for b in range(nb):
                 a[ri + j, b] = acc[b] * inv[b]
     return True

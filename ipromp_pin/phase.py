@@ -29,7 +29,9 @@ Making it fast (:class:`InferenceEngine`, compiled numba kernels in :mod:`ipromp
 
 * ``P`` is linear in ``X^-1``: ``P = sum_{k<=l} (delta_kl - nu X^-1_kl) Z[(k,l), :]``
   with ``Z[(k,l), (a,b)] = sum_d W_dka W_dlb`` (symmetrised, packed, precomputed
-  per task), so P of all candidates of a task is ONE matrix product (BLAS).
+  per task), so P of all candidates of a task is ONE matrix product (BLAS); when the tasks'
+  candidate windows overlap (the usual case) the ``Z`` tensors of all tasks and blocks sit side by
+  side and P of every pair comes from one product per observation part (:data:`FUSE_SPAN`).
   ``X^-1`` and ``log|X|`` come from one Cholesky factorisation per distinct
   candidate (``X`` is well conditioned: eigenvalues in ``[nu, nu + ||G||]``);
   the tests check the result against the dense textbook likelihood to 1e-8.

@@ -19,6 +19,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from inference import stream_update_times
 from threadpoolctl import threadpool_limits
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -33,20 +34,6 @@ def fitted(package: str, n_tasks: int):
     train = type(ds)(ds.root, {t: d[:20] for t, d in ds.demos.items()})
     test = {t: d[20:] for t, d in ds.demos.items()}
     return recognition.IProMP(OBSERVE, noise=10.0, blas_threads=None).fit(train), test
-
-
-def stream_times(model, obs, passes: int) -> list[float]:
-    """Wall times in [s] of streaming updates over ``passes`` streams of ``obs`` (first two left out)."""
-    out = []
-    for _ in range(passes):
-        with model.stream() as stream:
-            for j in range(obs.n_samples):
-                sample = {g: obs.groups[g][j] for g in model.observe}
-                t0 = time.perf_counter()
-                stream.update(obs.t[j], sample)
-                if j >= 2:
-                    out.append(time.perf_counter() - t0)
-    return out
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -93,8 +80,8 @@ def main(argv: list[str] | None = None) -> int:
             obs_t = this_test[this.tasks_[0]][0].head(0.2, OBSERVE)
             s_o, s_t = [], []
             for _ in range(10):  # alternate blocks of 3 streams
-                s_o += stream_times(other, obs_o, 3)
-                s_t += stream_times(this, obs_t, 3)
+                s_o += stream_update_times(other, obs_o, 3)
+                s_t += stream_update_times(this, obs_t, 3)
             a, b = np.median(s_o) * 1e6, np.median(s_t) * 1e6
             print(f"  streaming update: {a:.1f} -> {b:.1f} (ratio {b / a:.3f})")
     return 0

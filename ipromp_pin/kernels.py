@@ -220,39 +220,17 @@ def chol_packed(
     acc = np.empty(nb)
     for j in range(n):
         rj = j * (j + 1) // 2
-        row = src[entry[j, j]]
-        for b in range(nb):
-            acc[b] = row[b] + shift
-        k = 0
-        while k + 4 <= j:  # four terms per pass over the batch (same order of operations)
-            for b in range(nb):
-                acc[b] = (
-                    ((acc[b] - a[rj + k, b] * a[rj + k, b]) - a[rj + k + 1, b] * a[rj + k + 1, b])
-                    - a[rj + k + 2, b] * a[rj + k + 2, b]
-                ) - a[rj + k + 3, b] * a[rj + k + 3, b]
-            k += 4
-        for kk in range(k, j):
-            for b in range(nb):
-                acc[b] -= a[rj + kk, b] * a[rj + kk, b]
-        for b in range(nb):
-            if not acc[b] > 0.0:
-                return False
-        for b in range(nb):
-            d = np.sqrt(acc[b])
-            a[rj + j, b] = d
-            prod[b] *= d
-            inv[b] = 1.0 / d
-        if j % 8 == 7 or j == n - 1:  # one log per 8 factors (bounded diagonals: no overflow)
-            for b in range(nb):
-                logdet[b] += 2.0 * np.log(prod[b])
-                prod[b] = 1.0
-        for i in range(j + 1, n):
+        for i in range(j, n):  # the diagonal entry first, then the column below it
             ri = i * (i + 1) // 2
             row = src[entry[i, j]]
-            for b in range(nb):
-                acc[b] = row[b]
+            if i == j:
+                for b in range(nb):
+                    acc[b] = row[b] + shift
+            else:
+                for b in range(nb):
+                    acc[b] = row[b]
             k = 0
-            while k + 4 <= j:
+            while k + 4 <= j:  # four terms per pass over the batch (same order of operations)
                 for b in range(nb):
                     acc[b] = (
                         ((acc[b] - a[ri + k, b] * a[rj + k, b]) - a[ri + k + 1, b] * a[rj + k + 1, b])
@@ -262,8 +240,22 @@ def chol_packed(
             for kk in range(k, j):
                 for b in range(nb):
                     acc[b] -= a[ri + kk, b] * a[rj + kk, b]
+            if i > j:
+                for b in range(nb):
+                    a[ri + j, b] = acc[b] * inv[b]
+                continue
             for b in range(nb):
-                a[ri + j, b] = acc[b] * inv[b]
+                if not acc[b] > 0.0:
+                    return False
+            for b in range(nb):
+                d = np.sqrt(acc[b])
+                a[rj + j, b] = d
+                prod[b] *= d
+                inv[b] = 1.0 / d
+            if j % 8 == 7 or j == n - 1:  # one log per 8 factors (bounded diagonals: no overflow)
+                for b in range(nb):
+                    logdet[b] += 2.0 * np.log(prod[b])
+                    prod[b] = 1.0
     return True
 
 

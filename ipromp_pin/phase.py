@@ -31,7 +31,8 @@ Making it fast (:class:`InferenceEngine`, compiled numba kernels in :mod:`ipromp
   with ``Z[(k,l), (a,b)] = sum_d W_dka W_dlb`` (symmetrised, packed, precomputed
   per task), so P of all candidates of a task is ONE matrix product (BLAS); when the tasks'
   candidate windows overlap (the usual case) the ``Z`` tensors of all tasks and blocks sit side by
-  side and P of every pair comes from one product per observation part (:data:`FUSE_SPAN`).
+  side and P of every pair comes from one product per observation part (:data:`FUSE_SPAN`,
+  :data:`FUSE_BYTES`).
   ``X^-1`` and ``log|X|`` come from one Cholesky factorisation per distinct
   candidate (``X`` is well conditioned: eigenvalues in ``[nu, nu + ||G||]``);
   the tests check the result against the dense textbook likelihood to 1e-8.
@@ -94,7 +95,11 @@ PAIR_LANES = 8
 FUSE_SPAN = 1.25
 """The ``Z`` products of all tasks and blocks are one matrix product per part when the tasks' candidate
 windows together span at most this many windows (the product's rows are the unique candidates of the
-span: rows a task does not use are computed and left)."""
+span: rows a task does not use are computed and left) ..."""
+
+FUSE_BYTES = 1e6
+"""... and when that product's result stays below this size (about the L2 cache): beyond it one product
+per task and block is as fast and needs less memory."""
 
 LANE_GROUP_BYTES = 256e3
 """Blocks of equal rank share one set of pair arrays while its packed ``Q`` stays below this size
@@ -405,7 +410,9 @@ class InferenceEngine:
             self.lane_groups += [same[j : j + size] for j in range(0, len(same), size)]
         first = int(self.starts.min())
         span = int(self.starts.max()) - first + self.alphas.shape[1]
-        self._fuse_rows = (first, first + span) if span <= FUSE_SPAN * self.alphas.shape[1] else None
+        fused_bytes = span * len(models) * sum(b.ia.size for b in self.blocks) * 8
+        fuse = span <= FUSE_SPAN * self.alphas.shape[1] and fused_bytes <= FUSE_BYTES
+        self._fuse_rows = (first, first + span) if fuse else None
         self._fused: dict[bytes, tuple[np.ndarray, list[int]]] = {}
 
     @property

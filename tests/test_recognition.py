@@ -209,6 +209,21 @@ def test_observation_errors(fitted) -> None:
         model.recognise(long)
 
 
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
+def test_predict_rejects_non_finite_values_not_flagged_missing(fitted, bad: float) -> None:
+    # Demo rejects such values when built; one changed afterwards reaches predict, which scales and
+    # checks the values in one kernel: a NaN or inf sample not flagged as missing names its group
+    model, test = fitted
+    obs = test["task0"][0].head(0.2, model.observe)
+    groups = {g: v.copy() for g, v in obs.groups.items()}
+    broken = Demo(obs.task, obs.name, "bad.csv", obs.t, groups, obs.channel_names)
+    broken.groups["b"][3, 1] = bad
+    for call in (model.predict, model.recognise):
+        with pytest.raises(ObservationError, match="bad.csv.*field 'b'.*NaN or inf"):
+            call(broken)
+    assert model.predict(obs).q_mean.shape == (model.n_points, 3)  # the clean observation still works
+
+
 def test_stream_errors(fitted) -> None:
     model, test = fitted
     demo = test["task0"][0]

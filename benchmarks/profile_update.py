@@ -20,7 +20,7 @@ import ipromp_pin.phase as phase
 from ipromp_pin.recognition import IProMP
 from ipromp_pin.synthetic import make_synthetic_dataset
 
-STREAM_KERNELS = ("stream_sample", "sherman_morrison", "stream_step", "finish_soa", "recognition")
+STREAM_KERNELS = ("stream_sample", "sherman_morrison", "stream_group", "finish_soa", "recognition")
 
 
 def full_update_stages(model: IProMP, obs, repeats: int = 2000) -> dict[str, float]:

@@ -907,23 +907,24 @@ def stream_sample(
     gram: np.ndarray,
     proj: np.ndarray,
     sq: np.ndarray,
-) -> tuple[np.ndarray, np.ndarray]:
+) -> tuple[np.ndarray, np.ndarray, bool]:
     """Add one sample with every observed dim to the running statistics of a stream.
 
     Scales the raw values ``y`` (D,) as ``ChannelScaler.transform`` (``log(max(y, 0) + c)`` on the
     dims ``log_idx`` with shifts ``log_c``, then ``(y - offset) / scale``), computes the basis values
     (K, U) at the phases ``t_s inv_dur`` (:func:`basis_rows`) and adds the sample to ``gram``
-    (K, K, U), ``proj`` (K, U, D) and ``sq`` (D,) (:func:`add_sample`). Returns the basis values and
-    the scaled values.
+    (K, K, U), ``proj`` (K, U, D) and ``sq`` (D,) (:func:`add_sample`). Returns the basis values, the
+    scaled values and whether every raw value is finite (if not, the statistics are left unchanged).
     """
     ys = np.empty((1, y.shape[0]))
-    scale_samples(y.reshape(1, -1), log_idx, log_c, offset, scale, ys)
+    if not scale_samples(y.reshape(1, -1), log_idx, log_c, offset, scale, ys):
+        return np.empty((0, 0)), ys.reshape(-1), False
     ys = ys.reshape(-1)
     for d in range(ys.shape[0]):
         sq[d] += ys[d] * ys[d]
     phi = basis_rows(t_s * inv_dur, centres, width, step)
     add_sample(gram, proj, phi, ys)
-    return phi, ys
+    return phi, ys, True
 
 
 @njit(**_JIT_FMA)
@@ -969,135 +970,6 @@ def sherman_morrison(
         for j in range(k):
             xinv[j, k] = xinv[k, j]
     return g, s, True
-
-
-@njit(**_JIT_FMA)
-def stream_step(
-    g: np.ndarray,
-    s: np.ndarray,
-    y: np.ndarray,
-    proj: np.ndarray,
-    dims: np.ndarray,
-    nu: float,
-    starts: np.ndarray,
-    n_c: int,
-    mu_k: np.ndarray,
-    inv_delta: np.ndarray,
-    log_delta: np.ndarray,
-    w_s: np.ndarray,
-    ia: np.ndarray,
-    ib: np.ndarray,
-    lane0: int,
-    total: np.ndarray,
-    a: np.ndarray,
-    pq: np.ndarray,
-) -> None:
-    """Add one sample (all observed dims, same active basis functions) to one block's terms of
-    :func:`part_terms` (in the lanes from ``lane0``), after :func:`sherman_morrison`.
-
-    Per pair, with ``h_d = B^T y_d + nu mu_d`` (after the sample, ``proj`` already updated) and
-    ``c_d = y_d - g^T h_d / s``: ``X^-1 h_d += c_d g``,
-    ``h_d^T X^-1 h_d += 2 y_d g^T h_d - (s - 1) y_d^2 - (g^T h_d)^2 / s``, ``a += sum_d c_d W_d^T g /
-    sqrt(delta_d)`` and ``P += nu / s sum_d (W_d^T g)(W_d^T g)^T``. ``W_d^T g`` of every task, dim
-    and unique candidate is one matrix product; the updates of ``a`` and ``P`` then run over all
-    (task, candidate) pairs at once.
-
-    Args:
-        g, s: (ke, U) ``X^-1 phi`` (before the update) and (U,) ``1 + phi^T g``.
-        dims: (D_b,) the block's observed dims; y: (D,) the sample's scaled values (all observed dims).
-        proj: (K, U, D) ``B^T y`` of all observed dims, including the new sample.
-        starts, n_c: (T,) first unique candidate of every task; candidates per task C.
-        mu_k, inv_delta, log_delta: Block arrays (see ``LatentBlock.arrays``).
-        w_s: (K, r D_b T) ``W_d`` ordered (basis, latent, dim, task).
-        total, a, pq: (P',), (r, P') and packed ``P`` (r(r+1)/2, P') with pairs ordered
-            (task, candidate), innermost; updated in place.
-        ia, ib: Row and column of each packed entry.
-    """
-    ke = g.shape[0]
-    n_u = g.shape[1]
-    dm = dims.shape[0]
-    n_t = starts.shape[0]
-    r = a.shape[0]
-    npk = ia.shape[0]
-    n_p = n_t * n_c
-    # g^T B^T y_d per unique candidate (shared by the tasks): (U, D)
-    gp = np.zeros((n_u, dm))
-    for k in range(ke):
-        for u in range(n_u):
-            gku = g[k, u]
-            for d in range(dm):
-                gp[u, d] += gku * proj[k, u, dims[d]]
-    # W_d^T g of every (latent, dim, task) and unique candidate, then per pair: (r, D_b, P)
-    wg = np.dot(w_s[:ke].T, g)
-    same = n_u == n_c
-    for t in range(n_t):
-        same = same and starts[t] == 0
-    if same:  # every task has every unique candidate: already ordered by pair
-        v = wg.reshape(r, dm, n_p)
-    else:
-        wg4 = wg.reshape(r, dm, n_t, n_u)
-        v = np.empty((r, dm, n_p))
-        for i in range(r):
-            for d in range(dm):
-                for t in range(n_t):
-                    u0 = starts[t]
-                    for c in range(n_c):
-                        v[i, d, t * n_c + c] = wg4[i, d, t, u0 + c]
-    f = np.empty(n_p)
-    ch = np.empty((dm, n_p))  # c_d / sqrt(delta_d) per pair
-    gh = np.empty((dm, n_c))
-    step = dm * (LOG_2PI + np.log(nu))
-    log_s = np.log(s)
-    for t in range(n_t):
-        u0 = starts[t]
-        off = t * n_c
-        base = step + log_delta[t]
-        for c in range(n_c):
-            f[off + c] = nu / s[u0 + c]
-            total[lane0 + off + c] += base + dm * log_s[u0 + c]
-        # g^T h_d = g^T B^T y_d + nu g^T mu_d
-        for d in range(dm):
-            for c in range(n_c):
-                gh[d, c] = gp[u0 + c, d]
-        for k in range(ke):
-            gk = g[k]
-            for d in range(dm):
-                ghd = gh[d]
-                mkd = nu * mu_k[t, k, d]
-                for c in range(n_c):
-                    ghd[c] += gk[u0 + c] * mkd
-        for d in range(dm):
-            yd = y[dims[d]]
-            wd = inv_delta[t, d]
-            sdi = np.sqrt(wd)
-            ghd = gh[d]
-            for c in range(n_c):
-                sc = s[u0 + c]
-                dq = 2.0 * yd * ghd[c] - (sc - 1.0) * yd * yd - ghd[c] * ghd[c] / sc
-                total[lane0 + off + c] += wd * (yd * yd - dq) / nu
-                ch[d, off + c] = (yd - ghd[c] / sc) * sdi
-    for i in range(r):
-        ai = a[i, lane0 : lane0 + n_p]
-        for d in range(dm):
-            vid = v[i, d]
-            chd = ch[d]
-            for p in range(n_p):
-                ai[p] += chd[p] * vid[p]
-    fv = np.empty((r, dm, n_p))
-    for i in range(r):
-        for d in range(dm):
-            for p in range(n_p):
-                fv[i, d, p] = f[p] * v[i, d, p]
-    for q in range(npk):
-        row = pq[q, lane0 : lane0 + n_p]
-        fi = fv[ia[q]]
-        vj = v[ib[q]]
-        for d in range(dm):
-            fid = fi[d]
-            vjd = vj[d]
-            for p in range(n_p):
-                row[p] += fid[p] * vjd[p]
-    return
 
 
 @njit(**_JIT)
@@ -1161,6 +1033,159 @@ def finish_soa(
         else:
             loglik[t, c] = v
     return True
+
+
+@njit(**_JIT_FMA)
+def stream_group(
+    g: np.ndarray,
+    s: np.ndarray,
+    y: np.ndarray,
+    proj: np.ndarray,
+    dims: np.ndarray,
+    dim_off: np.ndarray,
+    w_t: np.ndarray,
+    col_off: np.ndarray,
+    nu: float,
+    starts: np.ndarray,
+    n_c: int,
+    inv_delta: np.ndarray,
+    log_delta: np.ndarray,
+    ia: np.ndarray,
+    ib: np.ndarray,
+    total: np.ndarray,
+    a: np.ndarray,
+    pq: np.ndarray,
+    unpack: np.ndarray,
+    alphas: np.ndarray,
+    t_norm: float,
+    t_last: float,
+    loglik: np.ndarray,
+    add: bool,
+) -> bool:
+    """Add one sample (all observed dims, same active basis functions) to the terms of one lane
+    group's blocks (:func:`part_terms`, block ``b`` in the lanes from ``b P'``), after
+    :func:`sherman_morrison`, and return their log likelihood as :func:`finish_soa` (into ``loglik``,
+    added to it with ``add``; False when a ``Q`` is not numerically positive definite).
+
+    Per pair, with ``h_d = B^T y_d + nu mu_d`` (after the sample, ``proj`` already updated) and
+    ``c_d = y_d - g^T h_d / s``: ``X^-1 h_d += c_d g``,
+    ``h_d^T X^-1 h_d += 2 y_d g^T h_d - (s - 1) y_d^2 - (g^T h_d)^2 / s``, ``a += sum_d c_d W_d^T g /
+    sqrt(delta_d)`` and ``P += nu / s sum_d (W_d^T g)(W_d^T g)^T``. ``W_d^T g`` and ``nu mu_d^T g``
+    of every block, task, dim and unique candidate are one matrix product; the updates of ``a`` and
+    ``P`` then run over all (task, candidate) pairs at once.
+
+    Args:
+        g, s: (ke, U) ``X^-1 phi`` (before the update) and (U,) ``1 + phi^T g``.
+        y: (D,) the sample's scaled values (all observed dims).
+        proj: (K, U, D) ``B^T y`` of all observed dims, including the new sample.
+        dims, dim_off: (D_g,) the observed dims of the group's blocks, block ``b``'s at
+            ``dim_off[b] .. dim_off[b + 1]``.
+        w_t, col_off: (M, ke) the first ``ke`` basis rows of block ``b``'s ``W_d`` in the rows
+            ``col_off[b] .. col_off[b + 1]`` ordered (latent, dim, task), then of ``nu mu_d`` of the
+            dims ``dims`` from row ``col_off[-1]`` ordered (dim, task).
+        starts, n_c: (T,) first unique candidate of every task; candidates per task C.
+        inv_delta, log_delta: (T, D_g) ``1 / delta_d`` of the dims ``dims``; (n_blocks, T)
+            ``sum_d log delta_d`` of each block.
+        ia, ib: Row and column of each packed entry of ``P``.
+        total, a, pq: (B P',), (r, B P') and packed ``P`` (r(r+1)/2, B P'), pairs ordered (task,
+            candidate), innermost; updated in place.
+        unpack, alphas, t_norm, t_last, loglik, add: As :func:`finish_soa`.
+    """
+    ke = g.shape[0]
+    n_u = g.shape[1]
+    n_b = dim_off.shape[0] - 1
+    dg = dims.shape[0]
+    n_t = starts.shape[0]
+    r = a.shape[0]
+    npk = ia.shape[0]
+    n_p = n_t * n_c
+    stride = total.shape[0] // n_b
+    # g^T B^T y_d per unique candidate (shared by the tasks): (U, D_g)
+    gp = np.zeros((n_u, dg))
+    for k in range(ke):
+        for u in range(n_u):
+            gku = g[k, u]
+            for d in range(dg):
+                gp[u, d] += gku * proj[k, u, dims[d]]
+    # W_d^T g and nu mu_d^T g of every block, (latent, dim, task) and unique candidate: (M, U)
+    wg = np.dot(w_t, g)
+    mu0 = col_off[n_b]
+    same = n_u == n_c
+    for t in range(n_t):
+        same = same and starts[t] == 0
+    log_s = np.log(s)
+    inv_s = 1.0 / s
+    f = np.empty(n_p)
+    for t in range(n_t):
+        for c in range(n_c):
+            f[t * n_c + c] = nu * inv_s[starts[t] + c]
+    for b in range(n_b):
+        d0 = dim_off[b]
+        dm = dim_off[b + 1] - d0
+        lane0 = b * stride
+        c0 = col_off[b]
+        if same:  # every task has every unique candidate: rows (latent, dim, task) are ordered by pair
+            v = wg[c0 : c0 + r * dm * n_t].reshape(r, dm, n_p)
+        else:  # W_d^T g per pair
+            v = np.empty((r, dm, n_p))
+            for i in range(r):
+                for d in range(dm):
+                    for t in range(n_t):
+                        row = c0 + (i * dm + d) * n_t + t
+                        u0 = starts[t]
+                        for c in range(n_c):
+                            v[i, d, t * n_c + c] = wg[row, u0 + c]
+        ch = np.empty((dm, n_p))  # c_d / sqrt(delta_d) per pair
+        step = dm * (LOG_2PI + np.log(nu))
+        for t in range(n_t):
+            u0 = starts[t]
+            off = lane0 + t * n_c
+            base = step + log_delta[b, t]
+            for c in range(n_c):
+                total[off + c] += base + dm * log_s[u0 + c]
+            for d in range(dm):
+                yd = y[dims[d0 + d]]
+                wd = inv_delta[t, d0 + d]
+                sdi = np.sqrt(wd)
+                gpd = gp[:, d0 + d]
+                gmu = wg[mu0 + (d0 + d) * n_t + t]
+                chd = ch[d, t * n_c : (t + 1) * n_c]
+                for c in range(n_c):
+                    u = u0 + c
+                    gh = gpd[u] + gmu[u]  # g^T h_d = g^T B^T y_d + nu g^T mu_d
+                    ghs = gh * inv_s[u]
+                    dq = 2.0 * yd * gh - (s[u] - 1.0) * yd * yd - gh * ghs
+                    total[off + c] += wd * (yd * yd - dq) / nu
+                    chd[c] = (yd - ghs) * sdi
+        for i in range(r):
+            ai = a[i, lane0 : lane0 + n_p]
+            for d in range(dm):
+                vid = v[i, d]
+                chd = ch[d]
+                for p in range(n_p):
+                    ai[p] += chd[p] * vid[p]
+        fv = np.empty((r, dm, n_p))
+        for i in range(r):
+            for d in range(dm):
+                for p in range(n_p):
+                    fv[i, d, p] = f[p] * v[i, d, p]
+        for q in range(npk):
+            row = pq[q, lane0 : lane0 + n_p]
+            fi = fv[ia[q]]
+            vj = v[ib[q]]
+            d = 0
+            while d + 4 <= dm:  # four dims per pass over the pairs (same order of operations)
+                f0, f1, f2, f3 = fi[d], fi[d + 1], fi[d + 2], fi[d + 3]
+                v0, v1, v2, v3 = vj[d], vj[d + 1], vj[d + 2], vj[d + 3]
+                for p in range(n_p):
+                    row[p] = (((row[p] + f0[p] * v0[p]) + f1[p] * v1[p]) + f2[p] * v2[p]) + f3[p] * v3[p]
+                d += 4
+            for dd in range(d, dm):
+                fid = fi[dd]
+                vjd = vj[dd]
+                for p in range(n_p):
+                    row[p] += fid[p] * vjd[p]
+    return finish_soa(pq, a, total, unpack, alphas, t_norm, t_last, loglik, add, n_b)
 
 
 @njit(**_JIT)

@@ -599,9 +599,9 @@ class IncrementalTerms:
     observed dims and (task, candidate), the terms of :meth:`InferenceEngine.terms` (``P``, ``a``
     and the scalar terms) for ONE observation part with every observed dim; :meth:`reset` computes
     them from part statistics, :meth:`add` adds one sample with the same active basis functions
-    exactly (Sherman-Morrison update of ``X^-1``, rank-D update of ``P``, see
-    :func:`ipromp_pin.kernels.stream_step`); ``log|Q|`` and ``a^T Q^-1 a`` are recomputed from
-    ``Q`` on every call.
+    exactly (Sherman-Morrison update of ``X^-1``, rank-D update of ``P``, one compiled call per lane
+    group: :func:`ipromp_pin.kernels.stream_group`); ``log|Q|`` and ``a^T Q^-1 a`` are recomputed
+    from ``Q`` on every call.
 
     Args:
         engine: The model's inference engine.
@@ -611,16 +611,28 @@ class IncrementalTerms:
         self.engine = engine
         self._kern = _kernels()
         self.ke = -1
-        arrays = [b.arrays(b.select(np.arange(engine.n_obs))[1]) for b in engine.blocks]
         e = engine
-        # per block: the model arguments of kernels.stream_step (fixed for the stream), its lane group
-        # and first lane
-        self._step_args = []
-        for gi, group in enumerate(e.lane_groups):
-            for lane0, bi in zip(e.lane_starts(group), group, strict=True):
-                b, c = e.blocks[bi], arrays[bi]
-                fixed = (b.dims, e.nu, e.starts, e.alphas.shape[1], c["mu_k"], c["inv_delta"], c["log_delta"])
-                self._step_args.append(((*fixed, c["w_s"], b.ia, b.ib), gi, lane0))
+        # per lane group: the model arguments of kernels.stream_group (fixed for the stream) and the
+        # W_d and nu mu_d of its blocks (K, M)
+        self._group_args = []
+        self._wcat: list[np.ndarray] = []
+        for group in e.lane_groups:
+            blocks = [e.blocks[b] for b in group]
+            arrays = [b.arrays(b.select(np.arange(e.n_obs))[1]) for b in blocks]
+            dims = np.concatenate([b.dims for b in blocks])
+            dim_off = np.cumsum([0] + [b.dims.size for b in blocks]).astype(np.int64)
+            n_task, n_basis = arrays[0]["mu_k"].shape[:2]
+            # nu mu_d as (basis, dim, task) columns after every block's W_d
+            mu_cols = np.concatenate([c["mu_k"].transpose(1, 2, 0) for c in arrays], axis=1) * e.nu
+            w_cols = [c["w_s"] for c in arrays]
+            wcat = np.ascontiguousarray(np.concatenate([*w_cols, mu_cols.reshape(n_basis, -1)], axis=1))
+            col_off = np.cumsum([0] + [w.shape[1] for w in w_cols]).astype(np.int64)
+            inv_delta = np.ascontiguousarray(np.concatenate([c["inv_delta"] for c in arrays], axis=1))
+            log_delta = np.ascontiguousarray(np.stack([c["log_delta"] for c in arrays]))
+            self._wcat.append(wcat)
+            model = (col_off, e.nu, e.starts, e.alphas.shape[1], inv_delta, log_delta)
+            self._group_args.append(((dims, dim_off), model, (blocks[0].ia, blocks[0].ib), blocks[0].unpack))
+        self._w_t: list[np.ndarray] = []  # per group, wcat[:ke].T (C-contiguous: the faster product)
 
     def reset(self, stats: PartStats, t_last: float) -> np.ndarray:
         """Terms from part statistics ``stats`` (all observed dims) -> log likelihood (T, C)."""
@@ -629,19 +641,42 @@ class IncrementalTerms:
         self.xinv, _, self.logdet, _ = factors
         self.terms = e.group_terms([stats], [factors], e.nu)
         self.ke = stats.ke
+        self._w_t = [np.ascontiguousarray(w[: stats.ke].T) for w in self._wcat]
         return e.finish_groups(self.terms, t_last)
 
     def add(self, phi: np.ndarray, y: np.ndarray, proj: np.ndarray, t_last: float) -> np.ndarray:
         """Add one sample: basis values ``phi`` (K, U), scaled values ``y`` (D,), ``proj`` (K, U, D)
         already including it -> log likelihood (T, C)."""
         kern = self._kern
+        e = self.engine
         g, s, ok = kern.sherman_morrison(self.xinv, self.logdet, phi)
         if not ok:
             self.ke = -1  # partly updated: rebuilt by the next reset
             raise ModelError("X = nu I + B^T B is not numerically positive definite")
-        for fixed, gi, lane0 in self._step_args:
-            kern.stream_step(g, s, y, proj, *fixed, lane0, *self.terms[gi])
-        return self.engine.finish_groups(self.terms, t_last)
+        loglik = np.empty(e.alphas.shape)
+        t_last = float(t_last)
+        groups = zip(self._group_args, self._w_t, self.terms, strict=True)
+        for i, ((dims, model, packed, unpack), w_t, terms) in enumerate(groups):
+            if not kern.stream_group(
+                g,
+                s,
+                y,
+                proj,
+                *dims,
+                w_t,
+                *model,
+                *packed,
+                *terms,
+                unpack,
+                e.alphas,
+                e.t_norm,
+                t_last,
+                loglik,
+                i > 0,
+            ):
+                self.ke = -1
+                raise ModelError("Q = I + P is not numerically positive definite")
+        return loglik
 
 
 REFINE_STEPS = 8

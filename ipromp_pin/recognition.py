@@ -1100,6 +1100,9 @@ class StreamingEstimator:
         # the scaling of a full sample (all observed dims), as ChannelScaler.transform
         _, self._log_idx, self._log_c, self._offset, self._scale = model._obs_scaling()
         self._support_until = -np.inf  # phases below this need at most inc.ke basis functions
+        b = model.basis_
+        self._sample_basis = (self._inv_dur, b.centres, b.width, b._step_factor)  # kernels.stream_sample
+        self._sample_scaling = (self._log_idx, self._log_c, self._offset, self._scale)
 
     def __enter__(self) -> StreamingEstimator:
         self._held = self.model._limit_threads()
@@ -1132,9 +1135,9 @@ class StreamingEstimator:
             raise ObservationError(
                 "stream", "t", f"observation lasts {t_s:.2f} s, longer than any task's plausible motion"
             )
-        for g in sample:
-            if g not in self._groups:
-                raise ObservationError("stream", g, f"not an observed group ({m.observe})")
+        if not self._groups.issuperset(sample):
+            g = next(g for g in sample if g not in self._groups)
+            raise ObservationError("stream", g, f"not an observed group ({m.observe})")
         y = np.empty(self._sq.size)
         present = []
         absent = 0
@@ -1151,34 +1154,34 @@ class StreamingEstimator:
                 )
             y[lo:hi] = v
             present.append(g)
-        if not math.isfinite(float(y.sum())):  # NaN in missing groups, or a bad value
-            for g, lo, hi in self._slices:
-                if g in present and not np.all(np.isfinite(y[lo:hi])):
-                    raise ObservationError("stream", g, f"NaN or inf in the sample at t={t_s:.3f} s")
-        self._t.append(t_s)
-        self._rows.append(y)
-        self._absent.append(absent)
         if self._held is None:
             with m._limit_threads():
                 return self._add(t_s, y, absent, present)
         return self._add(t_s, y, absent, present)
 
+    def _check_finite(self, t_s: float, y: np.ndarray, present: list[str]) -> None:
+        """Raise ObservationError naming the first present group of ``y`` with a NaN or inf."""
+        for g, lo, hi in self._slices:
+            if g in present and not np.all(np.isfinite(y[lo:hi])):
+                raise ObservationError("stream", g, f"NaN or inf in the sample at t={t_s:.3f} s")
+
     def _add(self, t_s: float, y: np.ndarray, absent: int, present: list[str]) -> Recognition | None:
-        """Add the validated sample ``y`` (D,) (raw values, NaN in the groups flagged in ``absent``)
+        """Check and add the sample ``y`` (D,) (raw values, NaN in the groups flagged in ``absent``)
         to the statistics and refresh the recognition."""
         m = self.model
         if not absent and len(self._patterns) == 1:
-            # every group present and one presence history: scaling, basis row and running
-            # sums in one call
-            b = m.basis_
+            # every group present and one presence history: finiteness check, scaling, basis row and
+            # running sums in one call
             pattern = self._patterns[0]
-            phi, ys = self._kern.stream_sample(
-                t_s, self._inv_dur, b.centres, b.width, b._step_factor, y, self._log_idx, self._log_c,
-                self._offset, self._scale, pattern[1], self._proj, self._sq,
-            )  # fmt: skip
+            phi, ys, finite = self._kern.stream_sample(
+                t_s, *self._sample_basis, y, *self._sample_scaling, pattern[1], self._proj, self._sq
+            )
+            if not finite:
+                self._check_finite(t_s, y, present)
             pattern[2] += 1
             pattern[3] = t_s
         else:
+            self._check_finite(t_s, y, present)
             if not absent:
                 ys = m._scale_observed(y.reshape(1, -1))[0].reshape(-1)
             else:
@@ -1188,6 +1191,9 @@ class StreamingEstimator:
                     if g in present:
                         ys[lo:hi] = v_scaled(m, g, y[lo:hi])
             phi = self._accumulate(t_s, set(present), ys)
+        self._t.append(t_s)
+        self._rows.append(y)
+        self._absent.append(absent)
         if len(self._t) < 2:
             return None
         self._last = self._recognise(phi, ys)
@@ -1238,7 +1244,7 @@ class StreamingEstimator:
         else:
             basis = self.model.basis_
             z_last = t_last * self._inv_dur_max
-            need = inc.ke if z_last < self._support_until else basis.support_count(z_last)
+            need = inc.ke if 0 <= inc.ke and z_last < self._support_until else basis.support_count(z_last)
             if inc.ke >= need:
                 loglik = inc.add(phi, y, self._proj, t_last)
             else:

@@ -170,38 +170,3 @@ def test_refine_peak_interpolates_a_skewed_log_posterior() -> None:
     err = abs(refine_peak(grid, lp) - true)
     assert coarse_err > 5e-4
     assert err < 0.05 * coarse_err
-
-
-def test_stream_step_when_every_task_has_every_candidate() -> None:
-    # tasks sharing all unique candidates take a shortcut (no reordering by pair); it must equal the
-    # general path, forced here by one extra unique candidate that no task uses
-    from ipromp_pin import kernels
-
-    rng = np.random.default_rng(3)
-    n_t, n_c, ke, n_k, dm, r = 3, 6, 5, 7, 2, 4
-    dims = np.array([1, 2])
-    y = rng.normal(size=3)
-    mu_k = rng.normal(size=(n_t, n_k, dm))
-    inv_delta = rng.uniform(0.5, 2.0, size=(n_t, dm))
-    log_delta = rng.normal(size=n_t)
-    w_s = rng.normal(size=(n_k, r * dm * n_t))
-    ia, ib = (x.astype(np.int64) for x in np.triu_indices(r))
-    g = rng.normal(size=(ke, n_c))
-    s = rng.uniform(1.0, 2.0, size=n_c)
-    proj = rng.normal(size=(n_k, n_c, 3))
-    starts = np.zeros(n_t, dtype=np.int64)
-    extra = (  # the same values with one more unique candidate (last, used by no task)
-        np.concatenate([g, rng.normal(size=(ke, 1))], axis=1),
-        np.append(s, 1.5),
-        np.concatenate([proj, np.ones((n_k, 1, 3))], axis=1),
-    )
-    outs = []
-    for gu, su, pu in ((g, s, proj), extra):
-        total, a, pq = np.zeros(32), np.zeros((r, 32)), np.zeros((ia.size, 32))
-        kernels.stream_step(
-            gu, su, y, pu, dims, 0.7, starts, n_c, mu_k, inv_delta, log_delta, w_s, ia, ib, 0, total, a, pq
-        )
-        outs.append((total, a, pq))
-    for fast, general in zip(*outs, strict=True):
-        assert np.any(fast != 0.0)
-        assert np.allclose(fast, general, rtol=1e-14, atol=1e-14)

@@ -241,6 +241,35 @@ def test_stream_errors(fitted) -> None:
         stream.update(0.04, {"a": demo.groups["a"][1], "c": np.zeros(1)})
 
 
+@pytest.mark.parametrize("with_gap", [False, True])
+def test_stream_rejected_sample_leaves_the_estimate_unchanged(with_gap: bool) -> None:
+    # a sample with an inf is refused (naming its group) before it touches the running statistics,
+    # on the one-call path (every group present) and on the general path (a group missing before);
+    # the statistics feed the rebuilds of the incremental terms as the window grows
+    train, test = split(random_dataset(14, n_demos=8), 6)
+    model = IProMP(["a", "b"], n_basis=16, n_alpha=50, noise=1.0).fit(train)
+    demo = test["task0"][0].head(0.6, model.observe)
+    stream = model.stream()
+    kes = set()
+    for j in range(demo.n_samples):
+        sample = {g: demo.groups[g][j] for g in model.observe}
+        if with_gap and j == 2:
+            sample["a"] = None
+        if j == 3:
+            bad = dict(sample, b=np.array([0.0, np.inf, 0.0]))
+            with pytest.raises(ObservationError, match="field 'b'.*NaN or inf"):
+                stream.update(demo.t[j], bad)
+            assert stream.n_samples == j
+        rec = stream.update(demo.t[j], sample)
+        if stream._inc is not None:
+            kes.add(stream._inc.ke)
+    assert with_gap or len(kes) >= 2  # rebuilt from the statistics after the refused sample
+    one = model.recognise(stream.observation())
+    assert stream.n_samples == demo.n_samples
+    assert np.allclose(rec.log_posterior, one.log_posterior, rtol=1e-9, atol=1e-9)
+    assert np.allclose(rec.alpha, one.alpha, rtol=1e-9)
+
+
 # ------------------------------------------------------------------ coupling
 
 

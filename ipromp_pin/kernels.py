@@ -367,9 +367,10 @@ def part_terms(
         a[:, off : off + n_c] += np.dot(w_k[t, :kd].T, xb)
         if p_mode == P_FROM_Z:
             pz = np.dot(coef[u0 : u0 + n_c], z[t, :m])  # (C, npk)
-            for q in range(pz.shape[1]):
-                for c in range(n_c):
-                    pq[q, off + c] += pz[c, q]
+            for c in range(n_c):
+                pzc = pz[c]
+                for q in range(pz.shape[1]):
+                    pq[q, off + c] += pzc[q]
     if p_mode == P_FROM_W:
         v = np.empty((kd, r))
         for t in range(n_t):
@@ -405,10 +406,10 @@ def add_fused_p(
         c0 = col0 + t * npk
         r0 = starts[t] - u0
         off = lane0 + t * n_c
-        for q in range(npk):
-            row = pq[q]
-            for c in range(n_c):
-                row[off + c] += pz[r0 + c, c0 + q]
+        for c in range(n_c):  # contiguous reads of pz (twice as fast as contiguous writes of pq here)
+            src = pz[r0 + c, c0 : c0 + npk]
+            for q in range(npk):
+                pq[q, off + c] += src[q]
 
 
 @njit(**_JIT)

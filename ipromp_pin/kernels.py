@@ -1042,9 +1042,9 @@ def stream_group(
     s: np.ndarray,
     y: np.ndarray,
     proj: np.ndarray,
+    w_t: np.ndarray,
     dims: np.ndarray,
     dim_off: np.ndarray,
-    w_t: np.ndarray,
     col_off: np.ndarray,
     nu: float,
     starts: np.ndarray,
@@ -1079,11 +1079,12 @@ def stream_group(
         g, s: (ke, U) ``X^-1 phi`` (before the update) and (U,) ``1 + phi^T g``.
         y: (D,) the sample's scaled values (all observed dims).
         proj: (K, U, D) ``B^T y`` of all observed dims, including the new sample.
-        dims, dim_off: (D_g,) the observed dims of the group's blocks, block ``b``'s at
-            ``dim_off[b] .. dim_off[b + 1]``.
-        w_t, col_off: (M, ke) the first ``ke`` basis rows of block ``b``'s ``W_d`` in the rows
+        w_t: (M, ke) the first ``ke`` basis rows of block ``b``'s ``W_d`` in the rows
             ``col_off[b] .. col_off[b + 1]`` ordered (latent, dim, task), then of ``nu mu_d`` of the
             dims ``dims`` from row ``col_off[-1]`` ordered (dim, task).
+        dims, dim_off: (D_g,) the observed dims of the group's blocks, block ``b``'s at
+            ``dim_off[b] .. dim_off[b + 1]``.
+        col_off: (n_blocks + 1,) see ``w_t``.
         starts, n_c: (T,) first unique candidate of every task; candidates per task C.
         inv_delta, log_delta: (T, D_g) ``1 / delta_d`` of the dims ``dims``; (n_blocks, T)
             ``sum_d log delta_d`` of each block.

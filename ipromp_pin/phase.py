@@ -612,26 +612,35 @@ class IncrementalTerms:
         self._kern = _kernels()
         self.ke = -1
         e = engine
-        # per lane group: the model arguments of kernels.stream_group (fixed for the stream) and the
-        # W_d and nu mu_d of its blocks (K, M)
-        self._group_args = []
+        # per lane group: the W_d and nu mu_d of its blocks (K, M) and the model arguments of
+        # kernels.stream_group that follow w_t (fixed for the stream)
         self._wcat: list[np.ndarray] = []
+        self._group_args: list[tuple] = []
         for group in e.lane_groups:
             blocks = [e.blocks[b] for b in group]
             arrays = [b.arrays(b.select(np.arange(e.n_obs))[1]) for b in blocks]
-            dims = np.concatenate([b.dims for b in blocks])
-            dim_off = np.cumsum([0] + [b.dims.size for b in blocks]).astype(np.int64)
-            n_task, n_basis = arrays[0]["mu_k"].shape[:2]
+            n_basis = arrays[0]["mu_k"].shape[1]
             # nu mu_d as (basis, dim, task) columns after every block's W_d
             mu_cols = np.concatenate([c["mu_k"].transpose(1, 2, 0) for c in arrays], axis=1) * e.nu
             w_cols = [c["w_s"] for c in arrays]
-            wcat = np.ascontiguousarray(np.concatenate([*w_cols, mu_cols.reshape(n_basis, -1)], axis=1))
-            col_off = np.cumsum([0] + [w.shape[1] for w in w_cols]).astype(np.int64)
-            inv_delta = np.ascontiguousarray(np.concatenate([c["inv_delta"] for c in arrays], axis=1))
-            log_delta = np.ascontiguousarray(np.stack([c["log_delta"] for c in arrays]))
-            self._wcat.append(wcat)
-            model = (col_off, e.nu, e.starts, e.alphas.shape[1], inv_delta, log_delta)
-            self._group_args.append(((dims, dim_off), model, (blocks[0].ia, blocks[0].ib), blocks[0].unpack))
+            self._wcat.append(
+                np.ascontiguousarray(np.concatenate([*w_cols, mu_cols.reshape(n_basis, -1)], axis=1))
+            )
+            self._group_args.append(
+                (
+                    np.concatenate([b.dims for b in blocks]),
+                    np.cumsum([0] + [b.dims.size for b in blocks]).astype(np.int64),
+                    np.cumsum([0] + [w.shape[1] for w in w_cols]).astype(np.int64),
+                    e.nu,
+                    e.starts,
+                    e.alphas.shape[1],
+                    np.ascontiguousarray(np.concatenate([c["inv_delta"] for c in arrays], axis=1)),
+                    np.ascontiguousarray(np.stack([c["log_delta"] for c in arrays])),
+                    blocks[0].ia,
+                    blocks[0].ib,
+                )
+            )
+        self._unpack = [e.blocks[group[0]].unpack for group in e.lane_groups]
         self._w_t: list[np.ndarray] = []  # per group, wcat[:ke].T (C-contiguous: the faster product)
 
     def reset(self, stats: PartStats, t_last: float) -> np.ndarray:
@@ -655,25 +664,10 @@ class IncrementalTerms:
             raise ModelError("X = nu I + B^T B is not numerically positive definite")
         loglik = np.empty(e.alphas.shape)
         t_last = float(t_last)
-        groups = zip(self._group_args, self._w_t, self.terms, strict=True)
-        for i, ((dims, model, packed, unpack), w_t, terms) in enumerate(groups):
-            if not kern.stream_group(
-                g,
-                s,
-                y,
-                proj,
-                *dims,
-                w_t,
-                *model,
-                *packed,
-                *terms,
-                unpack,
-                e.alphas,
-                e.t_norm,
-                t_last,
-                loglik,
-                i > 0,
-            ):
+        groups = zip(self._w_t, self._group_args, self.terms, self._unpack, strict=True)
+        for i, (w_t, fixed, terms, unpack) in enumerate(groups):
+            tail = (unpack, e.alphas, e.t_norm, t_last, loglik, i > 0)
+            if not kern.stream_group(g, s, y, proj, w_t, *fixed, *terms, *tail):
                 self.ke = -1
                 raise ModelError("Q = I + P is not numerically positive definite")
         return loglik

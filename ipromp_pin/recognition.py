@@ -1177,7 +1177,7 @@ class StreamingEstimator:
                 t_s, *self._sample_basis, y, *self._sample_scaling, pattern[1], self._proj, self._sq
             )
             if not finite:
-                self._check_finite(t_s, y, present)
+                self._check_finite(t_s, y, present)  # raises: every group is present
             pattern[2] += 1
             pattern[3] = t_s
         else:

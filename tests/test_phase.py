@@ -170,3 +170,46 @@ def test_refine_peak_interpolates_a_skewed_log_posterior() -> None:
     err = abs(refine_peak(grid, lp) - true)
     assert coarse_err > 5e-4
     assert err < 0.05 * coarse_err
+
+
+def test_stream_group_when_every_task_has_every_candidate() -> None:
+    # tasks sharing all unique candidates take a shortcut (W_d^T g read in place, no reordering by
+    # pair); it must equal the general path, forced here by one extra unique candidate no task uses
+    from ipromp_pin import kernels
+
+    rng = np.random.default_rng(3)
+    n_t, n_c, ke, n_k, r = 3, 6, 5, 7, 4
+    dims, dim_off = np.array([1, 2, 0]), np.array([0, 2, 3])  # two blocks of 2 and 1 dims
+    dg = dims.size
+    col_off = np.array([0, r * 2 * n_t, r * dg * n_t])
+    w_t = rng.normal(size=(r * dg * n_t + dg * n_t, ke))  # W_d rows, then nu mu_d rows
+    y = rng.normal(size=3)
+    inv_delta = rng.uniform(0.5, 2.0, size=(n_t, dg))
+    log_delta = rng.normal(size=(2, n_t))
+    ia, ib = (x.astype(np.int64) for x in np.triu_indices(r))
+    unpack = np.zeros((r, r), dtype=np.int64)
+    unpack[ia, ib] = unpack[ib, ia] = np.arange(ia.size)
+    g = rng.normal(size=(ke, n_c))
+    s = rng.uniform(1.0, 2.0, size=n_c)
+    proj = rng.normal(size=(n_k, n_c, 3))
+    starts = np.zeros(n_t, dtype=np.int64)
+    alphas = np.tile(np.linspace(1.0, 1.5, n_c), (n_t, 1))
+    extra = (  # the same values with one more unique candidate (last, used by no task)
+        np.concatenate([g, rng.normal(size=(ke, 1))], axis=1),
+        np.append(s, 1.5),
+        np.concatenate([proj, np.ones((n_k, 1, 3))], axis=1),
+    )
+    outs = []
+    for gu, su, pu in ((g, s, proj), extra):
+        n_lane = 2 * n_t * n_c
+        total, a, pq = np.zeros(n_lane), np.zeros((r, n_lane)), np.zeros((ia.size, n_lane))
+        loglik = np.empty((n_t, n_c))
+        ok = kernels.stream_group(
+            gu, su, y, pu, w_t, dims, dim_off, col_off, 0.7, starts, n_c, inv_delta, log_delta, ia, ib,
+            total, a, pq, unpack, alphas, 1.0, 0.5, loglik, False,
+        )  # fmt: skip
+        assert ok
+        outs.append((total, a, pq, loglik))
+    for fast, general in zip(*outs, strict=True):
+        assert np.all(np.isfinite(fast)) and np.any(fast != 0.0)
+        assert np.allclose(fast, general, rtol=1e-14, atol=1e-14)

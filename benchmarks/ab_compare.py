@@ -43,7 +43,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--repeats", type=int, default=2000, help="full updates per ratio and version")
     args = ap.parse_args(argv)
     source = Path(args.other) / "ipromp_pin"
-    if not (source / "recognition.py").is_file():
+    if not (source / "__init__.py").is_file():
         ap.error(f"{args.other}: no ipromp_pin package there")
     with tempfile.TemporaryDirectory() as tmp:
         shutil.copytree(source, Path(tmp) / "ipromp_other", ignore=shutil.ignore_patterns("__pycache__"))

@@ -13,7 +13,7 @@ forms a second independent block: ranks 19 + 19). "paper1blk" is the same with `
 tasks, 30 observed dims (extra channels mixed from the measured ones), 61 basis functions, 100
 demos per task.
 
-Inference runs compiled numba kernels (:mod:`ipromp_pin.kernels`): every setting is warmed up
+Inference runs compiled numba kernels (:mod:`ipromp_pin.promp._kernels`): every setting is warmed up
 before timing; the first-call time and the cold compile time (fresh process, empty numba
 cache) are reported separately.
 
@@ -24,7 +24,7 @@ every quantity), the scaled settings 10 calls in one round.
 "full update" = :meth:`IProMP.predict` (phase posterior over every candidate of every task,
 task posterior, conditioned prediction of the winner); "streaming update" = one
 :meth:`StreamingEstimator.update` with a new sample; "direct" =
-:func:`ipromp_pin.recognition.direct_predict` (dense block-diagonal Phi per candidate, full
+:func:`ipromp_pin.promp.direct_predict` (dense block-diagonal Phi per candidate, full
 covariance ``Phi Sigma Phi^T + R`` via Cholesky, dense conditioning).
 """
 
@@ -43,7 +43,8 @@ import numpy as np
 from threadpoolctl import threadpool_info, threadpool_limits
 
 from ipromp_pin.data import Dataset, Demo
-from ipromp_pin.recognition import IProMP, direct_predict
+from ipromp_pin.promp import IProMP, direct_predict
+from ipromp_pin.promp.reference import parabola_vertex
 from ipromp_pin.synthetic import make_synthetic_dataset
 
 OBSERVE = ["orientation", "emg"]
@@ -160,7 +161,7 @@ def run_setting(
     out["first_call_s"] = time.perf_counter() - t0
     out["n_candidates"] = float(model.models_[model.tasks_[0]].alpha_grid.size)
     out["n_obs_dims"] = float(model.n_obs_dims_)
-    out["rank"] = float(model._engine_().rank)
+    out["rank"] = float(model.predictor_.engine.rank)
     observations = {}
     for ratio in ratios:
         obs = demo.head(ratio, observe)
@@ -231,14 +232,14 @@ def cold_compile_time() -> float:
 def direct_time(model: IProMP, obs: Demo, repeats: int) -> tuple[float, float]:
     """Median direct time in [s] and the largest relative difference fast vs direct."""
     fast = model.predict(obs)
-    ref = direct_predict(model, obs)
+    ref = direct_predict(model.predictor_, obs)
     diff = max(
         float(
             np.max(np.abs(getattr(fast, f) - getattr(ref, f))) / max(np.max(np.abs(getattr(ref, f))), 1e-300)
         )
         for f in ("posterior", "alpha", "q_mean", "q_cov")
     )
-    return median_time(lambda: direct_predict(model, obs), repeats, warmup=0), diff
+    return median_time(lambda: direct_predict(model.predictor_, obs), repeats, warmup=0), diff
 
 
 def phase_accuracy(model: IProMP, test: dict[str, list[Demo]], ratios=(0.1, 0.2)) -> list[str]:
@@ -276,8 +277,6 @@ def phase_search_accuracy(ratios=(0.1, 0.2, 0.3)) -> list[str]:
     between candidates) is compared with a 50-candidate grid refined by a parabola through the
     best candidate and its neighbours (the estimator the interpolation replaced).
     """
-    from ipromp_pin.phase import _parabola_vertex
-
     ds = make_synthetic_dataset(n_tasks=3, n_demos=40, seed=1)
     train, test = split(ds, 20)
     models = {
@@ -291,7 +290,7 @@ def phase_search_accuracy(ratios=(0.1, 0.2, 0.3)) -> list[str]:
         return (
             float(grid[i])
             if i in (0, grid.size - 1)
-            else _parabola_vertex(*grid[i - 1 : i + 2], *lp[i - 1 : i + 2])
+            else parabola_vertex(*grid[i - 1 : i + 2], *lp[i - 1 : i + 2])
         )
 
     lines = []

@@ -16,8 +16,8 @@ import numpy as np
 from inference import OBSERVE, split, stream_update_times, warm_up
 from threadpoolctl import threadpool_limits
 
-import ipromp_pin.phase as phase
-from ipromp_pin.recognition import IProMP
+import ipromp_pin.promp.compiled as compiled
+from ipromp_pin import IProMP
 from ipromp_pin.synthetic import make_synthetic_dataset
 
 STREAM_KERNELS = ("stream_sample", "sherman_morrison", "stream_group", "finish_soa", "recognition")
@@ -25,20 +25,21 @@ STREAM_KERNELS = ("stream_sample", "sherman_morrison", "stream_group", "finish_s
 
 def full_update_stages(model: IProMP, obs, repeats: int = 2000) -> dict[str, float]:
     """Median time in [us] of each stage of :meth:`IProMP.predict` on ``obs``."""
-    engine = model._engine_()
+    predictor = model.predictor_
+    engine = predictor.engine
     clock = time.perf_counter
     rows = []
     for _ in range(repeats):
         t0 = clock()
-        parts, t_last = model._prepare(obs)
+        parts, t_last = predictor.encode(obs)
         t1 = clock()
         stats = [engine.part_stats(p) for p in parts]
         t2 = clock()
-        loglik = engine.terms(stats, t_last).loglik
+        loglik = engine.log_likelihood(stats, t_last)
         t3 = clock()
-        rec = model._recognition_from_loglik(loglik, t_last)
+        rec = predictor.recognition_from_loglik(loglik, t_last)
         t4 = clock()
-        model._condition(rec, parts)
+        predictor.conditioner.condition(rec, parts)
         t5 = clock()
         rows.append([t1 - t0, t2 - t1, t3 - t2, t4 - t3, t5 - t4, t5 - t0])
     med = np.median(np.array(rows), axis=0) * 1e6
@@ -70,13 +71,13 @@ class _TimedKernels:
 
 def streaming_stages(model: IProMP, obs, passes: int = 30) -> dict[str, float]:
     """Median time in [us] of a streaming update and the per-update time of each kernel."""
-    kernels = phase._kernels()
+    kernels = compiled.kernels()
     timed = _TimedKernels(kernels)
-    phase._KERNELS[0] = timed
+    compiled._LOADED[0] = timed  # the streams created below call the timed kernels
     try:
         updates = stream_update_times(model, obs, passes)
     finally:
-        phase._KERNELS[0] = kernels
+        compiled._LOADED[0] = kernels
     n = len(updates) + 2 * passes  # every update calls the kernels, the first two included
     out = {"update (median)": float(np.median(updates)) * 1e6}
     for name, ts in timed.times.items():

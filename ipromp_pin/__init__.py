@@ -12,11 +12,11 @@ from .exceptions import (
     PipelineError,
     RobotError,
 )
-from .recognition import IProMP, Prediction, Recognition, StreamingEstimator
-
-__version__ = "0.1.0"
+from .promp import IProMP, Prediction, Recognition, StreamingEstimator
+from .version import __version__
 
 __all__ = [
+    "__version__",
     "ROBOT",
     "IProMP",
     "Prediction",

@@ -144,8 +144,8 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
 
 
 def cmd_train(args: argparse.Namespace) -> int:
+    from .promp import IProMP
     from .readers import load_dataset
-    from .recognition import IProMP
 
     observe = parse_groups(args.observe)
     frames = skeleton_frames(observe) or None

@@ -288,7 +288,7 @@ def _run_job(job: _Job) -> tuple[_Job, dict[float, list[TrialResult]], str]:
         The job, per ratio the trials, and the observed groups the fitted model couples to the
         robot (``"+"``-joined).
     """
-    from .recognition import IProMP
+    from .promp import IProMP
 
     dataset: Dataset = _WORKER["dataset"]
     fk = _WORKER["fk"]

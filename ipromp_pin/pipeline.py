@@ -219,7 +219,7 @@ def choose_demo(ds: Dataset, cfg: PipelineConfig) -> Demo:
 
 def get_model(cfg: PipelineConfig, ds: Dataset, held_out: Demo, log: LogFn = print):
     """Load the saved model, or train one on every demo but ``held_out``."""
-    from .recognition import IProMP
+    from .promp import IProMP
 
     if cfg.load_model is not None:
         log(f"[model] loading {cfg.load_model}")

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ipromp_pin.basis import GaussianBasis
 from ipromp_pin.exceptions import ModelError
+from ipromp_pin.promp.basis import GaussianBasis
 
 
 @pytest.mark.parametrize("n_basis", [31, 61])

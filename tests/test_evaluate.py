@@ -79,7 +79,7 @@ def test_evaluate_command_rejects_unknown_groups(tmp_path, capsys):
 
 
 def test_train_command_sets_the_coupled_groups(tmp_path, capsys):
-    from ipromp_pin.recognition import IProMP
+    from ipromp_pin.promp import IProMP
 
     data = tmp_path / "synth"
     main(["synth", str(data), "--tasks", "2", "--demos", "6"])

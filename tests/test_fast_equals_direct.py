@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from helpers_model import random_dataset, split
 
-from ipromp_pin.recognition import IProMP, direct_predict
+from ipromp_pin.promp import IProMP, direct_predict
 
 CASES = [
     # seed, missing group, Z tensors (False: per-candidate solve route), noise ratio, observed ratio,
@@ -29,11 +29,11 @@ def test_fast_prediction_equals_direct(seed, missing, use_z, noise, ratio, coupl
     train, test = split(random_dataset(seed, n_demos=9, missing_group=missing), 7)
     n_basis = int(rng.integers(6, 10))
     model = IProMP(["a", "b"], n_basis=n_basis, n_alpha=50, noise=noise, coupling=coupling).fit(train)
-    model._engine_().use_z = use_z
-    assert len(model._engine_().blocks) == (1 if coupling in ("all", []) else 2)
+    model.predictor_.engine.use_z = use_z
+    assert len(model.predictor_.engine.blocks) == (1 if coupling in ("all", []) else 2)
     for task in ("task0", "task2"):
         obs = test[task][int(rng.integers(0, 2))].head(ratio, model.observe)
-        fast, ref = model.predict(obs), direct_predict(model, obs)
+        fast, ref = model.predict(obs), direct_predict(model.predictor_, obs)
         assert fast.task == ref.task
         assert np.allclose(fast.log_posterior, ref.log_posterior, rtol=1e-8, atol=1e-8)
         assert _rel(fast.posterior, ref.posterior) < 1e-8
@@ -56,7 +56,7 @@ def test_close_tasks_give_a_spread_posterior_that_still_matches() -> None:
     model = IProMP(["a", "b"], n_basis=7, n_alpha=50, noise=3.0).fit(train)
     for ratio in (0.2, 0.5):
         obs = demos[14].head(ratio, model.observe)
-        fast, ref = model.predict(obs), direct_predict(model, obs)
+        fast, ref = model.predict(obs), direct_predict(model.predictor_, obs)
         assert 0.01 < fast.posterior.max() < 0.99
         assert _rel(fast.posterior, ref.posterior) < 1e-8
         assert _rel(fast.alpha, ref.alpha) < 1e-8

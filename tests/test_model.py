@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ipromp_pin.basis import GaussianBasis
 from ipromp_pin.exceptions import ModelError
-from ipromp_pin.model import (
+from ipromp_pin.promp.basis import GaussianBasis
+from ipromp_pin.promp.distribution import (
     ChannelScaler,
     alpha_candidates,
     alpha_prior,
@@ -114,7 +114,7 @@ def test_alpha_candidates_share_a_lattice_and_cover_every_support() -> None:
 
 
 def test_distribution_matches_dense_covariance() -> None:
-    from ipromp_pin.model import TaskModel
+    from ipromp_pin.promp.distribution import TaskModel
 
     rng = np.random.default_rng(4)
     w = _weights(rng, 9, d=3, k=6)

@@ -6,8 +6,11 @@ import numpy as np
 import pytest
 from helpers_model import random_dataset, split
 
-from ipromp_pin.phase import refine_peak
-from ipromp_pin.recognition import IProMP, direct_loglik
+import ipromp_pin.promp.likelihood as likelihood
+from ipromp_pin.promp import IProMP, direct_loglik
+from ipromp_pin.promp.compiled import kernels
+from ipromp_pin.promp.posterior import REFINE_NODES, REFINE_WEIGHTS
+from ipromp_pin.promp.reference import parabola_vertex, refine_peak
 
 
 @pytest.mark.parametrize(
@@ -25,22 +28,20 @@ def test_engine_loglik_equals_textbook_likelihood(
 ) -> None:
     # P from the factors, from one Z product per task and block, or from one product for all
     # (fused: here over the union of the tasks' candidate windows, rows a task does not use included)
-    import ipromp_pin.phase as phase
-
-    monkeypatch.setattr(phase, "FUSE_SPAN", 1e9 if fuse else 0.0)
+    monkeypatch.setattr(likelihood, "FUSE_SPAN", 1e9 if fuse else 0.0)
     train, test = split(random_dataset(5, missing_group="a"), 6)
     model = IProMP(["a", "b"], n_basis=8, n_alpha=50, noise=0.5, coupling=coupling).fit(train)
-    engine = model._engine_()
+    engine = model.predictor_.engine
     engine.use_z = use_z
-    assert (engine._fuse_rows is not None) == fuse
+    assert (engine.fuse_rows is not None) == fuse
     assert len(set(engine.starts.tolist())) > 1  # the tasks' candidate windows differ
     # independent blocks of observed dims: one per group when only "b" is coupled to the robot
     assert len(engine.blocks) == n_blocks
     assert sorted(np.concatenate([b.dims for b in engine.blocks]).tolist()) == list(range(model.n_obs_dims_))
     obs = test["task0"][1].head(0.4, ["a", "b"])
-    parts, t_last = model._prepare(obs)
+    parts, t_last = model.predictor_.encode(obs)
     assert len(parts) == 2  # group "a" has missing samples: its own sample set
-    fast = engine.terms([engine.part_stats(p) for p in parts], t_last).loglik
+    fast = engine.log_likelihood([engine.part_stats(p) for p in parts], t_last)
     for i, task in enumerate(model.tasks_):
         m = model.models_[task]
         for j in range(0, m.alpha_grid.size, 7):
@@ -54,15 +55,13 @@ def test_engine_loglik_equals_textbook_likelihood(
 def test_blocks_side_by_side_equal_blocks_apart(monkeypatch) -> None:
     # two blocks of equal rank share their pair arrays (one factorisation call); with no room for
     # sharing each block gets its own arrays: same log likelihoods, one-shot and streaming
-    import ipromp_pin.phase as phase
-
     train, test = split(random_dataset(5), 6)
     obs = test["task0"][1].head(0.4, ["a", "b"])
     out = []
-    for room in (phase.LANE_GROUP_BYTES, 0.0):
-        monkeypatch.setattr(phase, "LANE_GROUP_BYTES", room)
+    for room in (likelihood.LANE_GROUP_BYTES, 0.0):
+        monkeypatch.setattr(likelihood, "LANE_GROUP_BYTES", room)
         model = IProMP(["a", "b"], n_basis=8, n_alpha=50, noise=0.5, coupling=["b"]).fit(train)
-        engine = model._engine_()
+        engine = model.predictor_.engine
         assert len(engine.blocks) == 2
         assert len(engine.lane_groups) == (1 if room else 2)
         stream = model.stream()
@@ -115,7 +114,7 @@ def test_compiled_x_inverse_equals_lapack() -> None:
     from ipromp_pin.exceptions import ModelError
 
     train, _ = split(random_dataset(7), 6)
-    engine = IProMP(["a", "b"], n_basis=8, n_alpha=50, noise=0.5).fit(train)._engine_()
+    engine = IProMP(["a", "b"], n_basis=8, n_alpha=50, noise=0.5).fit(train).predictor_.engine
     rng = np.random.default_rng(0)
     b = rng.normal(size=(13, 9, 5))  # 13 candidates, 9 basis functions, 5 samples: G singular
     gram = np.ascontiguousarray((b @ np.swapaxes(b, 1, 2)).transpose(1, 2, 0))
@@ -130,9 +129,6 @@ def test_compiled_x_inverse_equals_lapack() -> None:
 
 
 def test_compiled_phase_posterior_equals_numpy() -> None:
-    from ipromp_pin.kernels import phase_posterior
-    from ipromp_pin.phase import REFINE_NODES, REFINE_WEIGHTS, refine_peaks
-
     rng = np.random.default_rng(1)
     grids = rng.uniform(0.5, 0.7, (5, 1)) + rng.uniform(0.02, 0.04, (5, 1)) * np.arange(30)
     loglik = -50.0 * (grids - rng.uniform(0.8, 1.2, (5, 1))) ** 2 + rng.normal(0, 0.01, (5, 30))
@@ -141,14 +137,14 @@ def test_compiled_phase_posterior_equals_numpy() -> None:
     loglik[3, 0] = 10.0  # peak at the edge: no refinement
     loglik[4, 14:] = -np.inf  # peak next to impossible candidates: parabola on the candidates
     prior = -0.5 * ((grids - 1.0) / 0.2) ** 2
-    evidence, logpost, alpha = phase_posterior(loglik, prior, grids, REFINE_WEIGHTS, REFINE_NODES)
+    evidence, logpost, alpha = kernels().phase_posterior(loglik, prior, grids, REFINE_WEIGHTS, REFINE_NODES)
     lp = loglik + prior
     rows = [0, 1, 3, 4]
     ref_ev = np.logaddexp.reduce(lp[rows], axis=1)
     assert np.allclose(evidence[rows], ref_ev, rtol=1e-13)
     assert evidence[2] == -np.inf and np.all(logpost[2] == -np.inf)
     assert np.allclose(logpost[rows], lp[rows] - ref_ev[:, None], rtol=1e-12, atol=1e-12)
-    assert np.array_equal(alpha[rows], refine_peaks(grids, lp)[rows])
+    assert np.array_equal(alpha[rows], [refine_peak(grids[r], lp[r]) for r in rows])
     assert alpha[3] == grids[3, 0]
 
 
@@ -164,9 +160,7 @@ def test_refine_peak_interpolates_a_skewed_log_posterior() -> None:
     true = fine[np.argmax(f(fine))]
     lp = f(grid)
     i = int(np.argmax(lp))
-    from ipromp_pin.phase import _parabola_vertex
-
-    coarse_err = abs(_parabola_vertex(*grid[i - 1 : i + 2], *lp[i - 1 : i + 2]) - true)
+    coarse_err = abs(parabola_vertex(*grid[i - 1 : i + 2], *lp[i - 1 : i + 2]) - true)
     err = abs(refine_peak(grid, lp) - true)
     assert coarse_err > 5e-4
     assert err < 0.05 * coarse_err
@@ -175,8 +169,6 @@ def test_refine_peak_interpolates_a_skewed_log_posterior() -> None:
 def test_stream_group_when_every_task_has_every_candidate() -> None:
     # tasks sharing all unique candidates take a shortcut (W_d^T g read in place, no reordering by
     # pair); it must equal the general path, forced here by one extra unique candidate no task uses
-    from ipromp_pin import kernels
-
     rng = np.random.default_rng(3)
     n_t, n_c, ke, n_k, r = 3, 6, 5, 7, 4
     dims, dim_off = np.array([1, 2, 0]), np.array([0, 2, 3])  # two blocks of 2 and 1 dims
@@ -204,7 +196,7 @@ def test_stream_group_when_every_task_has_every_candidate() -> None:
         n_lane = 2 * n_t * n_c
         total, a, pq = np.zeros(n_lane), np.zeros((r, n_lane)), np.zeros((ia.size, n_lane))
         loglik = np.empty((n_t, n_c))
-        ok = kernels.stream_group(
+        ok = kernels().stream_group(
             gu, su, y, pu, w_t, dims, dim_off, col_off, 0.7, starts, n_c, inv_delta, log_delta, ia, ib,
             total, a, pq, unpack, alphas, 1.0, 0.5, loglik, False,
         )  # fmt: skip

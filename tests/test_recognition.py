@@ -10,7 +10,7 @@ from helpers_model import random_dataset, split
 
 from ipromp_pin.data import Dataset, Demo
 from ipromp_pin.exceptions import DataError, ModelError, NotFittedError, ObservationError
-from ipromp_pin.recognition import NOISE_GRID, IProMP, Prediction
+from ipromp_pin.promp import NOISE_GRID, IProMP, Prediction
 
 
 @pytest.fixture(scope="module")
@@ -105,7 +105,7 @@ def test_incremental_stream_equals_one_shot_at_every_sample(noise: float) -> Non
         rec = stream.update(demo.t[j], {g: demo.groups[g][j] for g in model.observe})
         if j == 0:
             continue
-        kes.add(stream._inc.ke)
+        kes.add(stream.incremental.ke)
         one = model.recognise(demo.slice(j + 1))
         finite = np.isfinite(one.phase_log_post)
         assert np.array_equal(finite, np.isfinite(rec.phase_log_post))
@@ -176,9 +176,12 @@ def test_predict_before_fit() -> None:
 @pytest.mark.parametrize(
     "kwargs", [{"noise": -1.0}, {"noise": "tight"}, {"n_alpha": 2}, {"observe": ["robot"]}]
 )
-def test_bad_parameters(kwargs: dict) -> None:
+def test_bad_parameters_are_refused_by_fit(kwargs: dict) -> None:
+    # __init__ only stores the parameters (scikit-learn convention); fit validates them first
+    model = IProMP(**{"observe": ["a"], **kwargs})
+    assert all(model.get_params()[k] is v for k, v in kwargs.items())
     with pytest.raises((ModelError, DataError)):
-        IProMP(**{"observe": ["a"], **kwargs})
+        model.fit(random_dataset(11, n_demos=3))
 
 
 def test_observation_errors(fitted) -> None:
@@ -261,8 +264,8 @@ def test_stream_rejected_sample_leaves_the_estimate_unchanged(with_gap: bool) ->
                 stream.update(demo.t[j], bad)
             assert stream.n_samples == j
         rec = stream.update(demo.t[j], sample)
-        if stream._inc is not None:
-            kes.add(stream._inc.ke)
+        if stream.incremental is not None:
+            kes.add(stream.incremental.ke)
     assert with_gap or len(kes) >= 2  # rebuilt from the statistics after the refused sample
     one = model.recognise(stream.observation())
     assert stream.n_samples == demo.n_samples
@@ -339,7 +342,7 @@ def test_explicit_coupling(shuffled) -> None:
 @pytest.mark.parametrize("coupling", ["some", ["c"], ["a", "a"], ["robot"]])
 def test_bad_coupling(coupling) -> None:
     with pytest.raises(ModelError, match="coupling"):
-        IProMP(["a", "b"], coupling=coupling)
+        IProMP(["a", "b"], coupling=coupling).fit(random_dataset(11, n_demos=3))
 
 
 def test_coupling_survives_save_and_load(tmp_path, shuffled) -> None:

@@ -11,7 +11,7 @@ import pytest
 from helpers_model import random_dataset, split
 
 from ipromp_pin.exceptions import ModelFileError, NotFittedError
-from ipromp_pin.recognition import IProMP
+from ipromp_pin.promp import IProMP
 
 
 @pytest.fixture(scope="module")

@@ -123,7 +123,7 @@ def test_handover_offset_has_the_real_spread_and_moves_the_gripper(ds):
 
 def _conditioning_errors(coupling: float) -> tuple[np.ndarray, np.ndarray, float]:
     """Final-configuration errors [rad] (conditioned, prior) on held-out demos, and recognition accuracy."""
-    from ipromp_pin.recognition import IProMP
+    from ipromp_pin.promp import IProMP
 
     # 15 training demos per task; 25 held out per task (the median over 5 varies by +-0.15 between seeds)
     data = make_synthetic_dataset(n_demos=40, seed=0, coupling=coupling)

@@ -152,7 +152,7 @@ def test_reachable_target_never_implies_exceeding_the_velocity_limit():
 
 def test_predicted_paths_of_a_model_are_all_timed_within_limits():
     """Regression: smooth predicted paths once made ruckig reject a target state (velocity overshoot)."""
-    from ipromp_pin.recognition import IProMP
+    from ipromp_pin.promp import IProMP
     from ipromp_pin.synthetic import make_synthetic_dataset
 
     ds = make_synthetic_dataset(n_demos=12, seed=1)

@@ -25,7 +25,7 @@ import bisect
 import numpy as np
 from scipy.linalg import cho_solve
 
-from .exceptions import ModelError
+from ..exceptions import ModelError
 
 DEFAULT_RELATIVE_WIDTH = 0.75
 """Default width ``h`` of a bump as a fraction of the centre spacing."""
@@ -48,6 +48,10 @@ class GaussianBasis:
 
     Attributes:
         centres: (K,) centres ``c_k`` in phase units (uniform, spacing ``spacing``).
+        spacing: Distance ``Delta`` between neighbouring centres, in phase units.
+        step_factor: (K - 1,) ``d_k = exp(-(c_k + Delta / 2) Delta / h^2)``, the constant factors of
+            the running product ``phi_{k+1}(z) = phi_k(z) q(z) d_k`` (see :meth:`values_prefix_t`; the
+            compiled kernels evaluate the basis this way).
     """
 
     def __init__(
@@ -71,7 +75,7 @@ class GaussianBasis:
         # phi_{k+1} / phi_k = exp(z Delta / h^2) * exp(-(c_k + Delta / 2) Delta / h^2)
         self._centres_list = [float(c) for c in self.centres]
         self._reach = self.width * float(np.sqrt(-2.0 * np.log(SUPPORT_TOL)))
-        self._step_factor = np.exp(-(self.centres[:-1] + 0.5 * spacing) * spacing / self.width**2)
+        self.step_factor = np.exp(-(self.centres[:-1] + 0.5 * spacing) * spacing / self.width**2)
         # products of two bumps: phi_k phi_l = tau_|k-l| psi_{k+l} with psi_s(z) = exp(-(z - m_s)^2 / h^2),
         # m_s = c_0 + s Delta / 2 (see gram_factors)
         inv_h2 = 1.0 / self.width**2
@@ -104,7 +108,7 @@ class GaussianBasis:
         out = np.empty((n_first,) + z.shape)
         d0 = z - self.centres[0]
         out[0] = np.exp(-0.5 * inv_h2 * d0 * d0)
-        step = self._step_factor[: n_first - 1].reshape((-1,) + (1,) * z.ndim)
+        step = self.step_factor[: n_first - 1].reshape((-1,) + (1,) * z.ndim)
         np.multiply(np.exp(z * (spacing * inv_h2)), step, out=out[1:])
         for k in range(1, n_first):
             np.multiply(out[k - 1], out[k], out=out[k])

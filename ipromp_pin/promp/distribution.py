@@ -4,7 +4,7 @@ Representation. After per-channel scaling (:class:`ChannelScaler`, learned on th
 training demos of all tasks, so that the orientation quaternion, EMG envelope
 and joint angles have comparable magnitudes), each channel ``d`` of a demo of
 duration ``T_i`` is fitted (ridge least squares) as ``y_d(z) = phi(z)^T w_d``
-with ``z = t / T_i`` (:class:`~ipromp_pin.basis.GaussianBasis`). The weights of
+with ``z = t / T_i`` (:class:`~ipromp_pin.promp.basis.GaussianBasis`). The weights of
 all ``D`` channels (observed human groups first, then the robot joints) are
 stacked dim-major into ``w`` of length ``p = D K``.
 
@@ -24,12 +24,12 @@ the data say about them (not through different noise levels). A small floor
 is symmetric positive definite. It is stored in the structured form
 ``Sigma_t = blockdiag(delta_d I_K) + F_t F_t^T`` with ``delta_d = lambda tau_d +
 floor`` and ``F_t = sqrt((1 - lambda) / N) X_c^T`` compressed to rank <= N - 1
-(thin SVD), which the fast inference (:mod:`ipromp_pin.phase`) exploits.
+(thin SVD), which the fast inference (:mod:`ipromp_pin.promp.likelihood`) exploits.
 
 Blocks. The dims may be split into independent blocks (zero cross-covariance), each shrunk as
 above on its own, with its own intensity, target and factor columns (so ``F_t`` then has rank
 <= N - 1 per block): e.g. the human groups that inform the robot together with the robot, and the
-human groups used only to recognise the task (:mod:`ipromp_pin.recognition`, ``coupling``).
+human groups used only to recognise the task (:mod:`ipromp_pin.promp.selection`, ``coupling``).
 
 Observation noise. An observed channel ``d`` is seen with white noise of
 variance ``r_d = nu * delta_d`` (scaled units): each channel's idiosyncratic
@@ -37,7 +37,7 @@ variance ``r_d = nu * delta_d`` (scaled units): each channel's idiosyncratic
 the weights) and a white part (in time) in the same proportion ``nu`` for every
 channel. The per-channel scale ``delta_d`` comes from the data of that channel;
 the global ratio ``nu`` is chosen by leave-one-out cross-validation on the
-training demos (see :mod:`ipromp_pin.recognition`). Sharing ``nu`` lets all
+training demos (see :mod:`ipromp_pin.promp.selection`). Sharing ``nu`` lets all
 channels share one factorisation per phase candidate.
 
 Phase. ``alpha_i = T_i / T_norm`` with ``T_norm`` the mean training duration
@@ -51,8 +51,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..exceptions import DataError, ModelError
 from .basis import GaussianBasis
-from .exceptions import DataError, ModelError
 
 VARIANCE_FLOOR = 1e-6
 """Floor of the per-dim diagonal weight variance, relative to the mean target variance."""
@@ -86,6 +86,11 @@ class ChannelScaler:
         if self.log_shift is None:
             self.log_shift = np.full(np.shape(self.offset), np.nan)
         self._log = np.isfinite(self.log_shift)
+
+    @property
+    def log_mask(self) -> np.ndarray:
+        """(D,) True for the channels modelled in log space."""
+        return self._log
 
     @classmethod
     def fit(cls, values: np.ndarray, log_dims: np.ndarray | None = None) -> ChannelScaler:

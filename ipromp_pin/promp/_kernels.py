@@ -1,6 +1,6 @@
 """Compiled (numba) kernels of the phase likelihood: small Cholesky factorisations fused per candidate.
 
-The equations are those of :mod:`ipromp_pin.phase`; these kernels only remove the
+The equations are those of :mod:`ipromp_pin.promp.likelihood`; these kernels only remove the
 per-call overhead of batched numpy / LAPACK on many tiny matrices (20 x 20 and smaller).
 Compilation happens on the first call (lazily: importing :mod:`ipromp_pin` does not
 import numba) and is cached on disk (``cache=True``); every kernel has one signature
@@ -63,10 +63,10 @@ def part_stats(
     candidates ``inv_dur`` (U,) in [1/s]; ``y`` (n, D_m).
 
     The basis values come from the running product of
-    :meth:`ipromp_pin.basis.GaussianBasis.values_prefix_t` (same operations):
+    :meth:`ipromp_pin.promp.basis.GaussianBasis.values_prefix_t` (same operations):
     ``phi_0 = exp(-(z - c_0)^2 / (2 h^2))``, ``phi_k = phi_{k-1} (q step_{k-1})`` with
     ``q = exp(z Delta / h^2)``, and ``B^T B`` from the 2 ke - 1 sums of
-    :meth:`~ipromp_pin.basis.GaussianBasis.gram_factors` (``psi_0 = phi_0^2``,
+    :meth:`~ipromp_pin.promp.basis.GaussianBasis.gram_factors` (``psi_0 = phi_0^2``,
     ``psi_s = psi_{s-1} (q pair_step_{s-1})``). Where ``phi_0^2`` could underflow the Gram sums are
     products of the basis values, and where ``phi_0`` could underflow (or ``ke < 3``) the basis
     values are exact exponentials (as ``GaussianBasis.__call__``).
@@ -715,7 +715,7 @@ def prediction_cov(
 
 @njit(**_JIT)
 def _vertex(x0: float, x1: float, x2: float, y0: float, y1: float, y2: float) -> float:
-    """:func:`ipromp_pin.phase._parabola_vertex` (same arithmetic)."""
+    """:func:`ipromp_pin.promp.reference.parabola_vertex` (same arithmetic)."""
     denom = (x0 - x1) * (x0 - x2) * (x1 - x2)
     ca = (x2 * (y1 - y0) + x1 * (y0 - y2) + x0 * (y2 - y1)) / denom
     cb = (x2 * x2 * (y0 - y1) + x1 * x1 * (y2 - y0) + x0 * x0 * (y1 - y2)) / denom
@@ -732,7 +732,7 @@ def phase_posterior(
 
     ``lp = loglik + log_prior``; the evidence is the log-sum-exp of ``lp`` over candidates (rows
     without a possible candidate keep ``lp`` and get ``-inf``); the MAP phase is refined as in
-    :func:`ipromp_pin.phase.refine_peak` (same arithmetic; ``weights`` (S, 6) and ``nodes`` (6,) are
+    :func:`ipromp_pin.promp.reference.refine_peak` (same arithmetic; ``weights`` (S, 6) and ``nodes`` (6,) are
     its interpolation weights and stencil).
     """
     n_t, n_c = loglik.shape
@@ -1193,7 +1193,7 @@ def stream_group(
 @njit(**_JIT)
 def basis_rows(z: np.ndarray, centres: np.ndarray, width: float, step: np.ndarray) -> np.ndarray:
     """Gaussian basis values (K, U) at phases ``z`` (U,): the running product of
-    :meth:`ipromp_pin.basis.GaussianBasis.values_prefix_t` (``step`` (K-1,) its step factors), exact
+    :meth:`ipromp_pin.promp.basis.GaussianBasis.values_prefix_t` (``step`` (K-1,) its step factors), exact
     exponentials for a phase where ``phi_0`` could underflow."""
     n_k = centres.shape[0]
     n_u = z.shape[0]

@@ -4,7 +4,7 @@ Model (scaled units, one task). Observed channel ``d`` sampled at times ``t_j``
 is ``y_dj = phi(z_j)^T w_d + eps``, ``z_j = t_j / (alpha T_norm)``,
 ``eps ~ N(0, r_d)``, ``w ~ N(mu, Sigma)`` with the structured covariance
 ``Sigma = blockdiag(delta_d I_K) + F F^T`` and ``r_d = nu delta_d`` (see
-:mod:`ipromp_pin.model`). For one candidate let ``B`` (n, K) be the basis
+:mod:`ipromp_pin.promp.distribution`). For one candidate let ``B`` (n, K) be the basis
 matrix of the observed phases, ``G = B^T B`` and ``X = nu I + G``. Writing
 ``W_d = F_d / sqrt(delta_d)`` and ``b_d = B^T (y_d - B mu_d)``, the textbook
 marginal likelihood ``N(y; Phi mu, Phi Sigma Phi^T + R)`` (Phi = block-diagonal
@@ -22,10 +22,10 @@ so a candidate costs one K x K and one r x r Cholesky factorisation, shared by
 all channels, instead of one (n D) x (n D) factorisation. The latent
 coordinates ``eta`` of ``w = mu + F eta + ...`` have the posterior
 ``N(Q^-1 a, Q^-1)``, which gives the conditioned robot weights directly
-(:mod:`ipromp_pin.recognition`); the robot's posterior weight covariance is
+(:mod:`ipromp_pin.promp.conditioning`); the robot's posterior weight covariance is
 ``blockdiag(delta_j I) + F_r Q^-1 F_r^T``.
 
-Making it fast (:class:`InferenceEngine`, compiled numba kernels in :mod:`ipromp_pin.kernels`):
+Making it fast (:class:`InferenceEngine`, compiled numba kernels in :mod:`ipromp_pin.promp._kernels`):
 
 * ``P`` is linear in ``X^-1``: ``P = sum_{k<=l} (delta_kl - nu X^-1_kl) Z[(k,l), :]``
   with ``Z[(k,l), (a,b)] = sum_d W_dka W_dlb`` (symmetrised, packed, precomputed
@@ -40,7 +40,7 @@ Making it fast (:class:`InferenceEngine`, compiled numba kernels in :mod:`ipromp
   per (task, candidate). The small factorisations run batched with the
   candidate index innermost (every step is a vector operation over candidates,
   exact IEEE arithmetic, no fast-math).
-* All tasks' candidates lie on one common lattice (:func:`ipromp_pin.model.alpha_candidates`):
+* All tasks' candidates lie on one common lattice (:func:`ipromp_pin.promp.distribution.alpha_candidates`):
   everything that depends only on the candidate (basis matrix, ``G``,
   ``B^T y``, ``X^-1``) is computed once per distinct candidate.
 * Basis functions below 1e-11 on every observed phase are dropped (their
@@ -71,8 +71,8 @@ Phase candidates: at least ``n_alpha`` (default 20) phases inside ``mu +- 3 sigm
 of every task's phase prior (one uniform lattice). The MAP phase is not limited to the
 lattice: the log posterior, an analytic function of the phase, is interpolated around the
 best candidate by degree-5 polynomials at 1/8 of the spacing and the best fine point is
-refined by a parabola (:func:`refine_peak`). On the synthetic hand-overs this lands closer
-to the exact continuous MAP (a 1000-candidate grid) at 10 % and 20 % observed than a
+refined by a parabola (:mod:`ipromp_pin.promp.posterior`). On the synthetic hand-overs this
+lands closer to the exact continuous MAP (a 1000-candidate grid) at 10 % and 20 % observed than a
 50-candidate grid with a parabola does (``benchmarks/inference.py``, phase section).
 """
 
@@ -83,9 +83,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..exceptions import ModelError
 from .basis import GaussianBasis
-from .exceptions import ModelError
-from .model import TaskModel
+from .compiled import kernels
+from .distribution import TaskModel
+from .latent_blocks import LatentBlock, latent_blocks
+from .observation import ObservationPart
 
 LOG_2PI = float(np.log(2.0 * np.pi))
 
@@ -104,33 +107,6 @@ per task and block is as fast and needs less memory."""
 LANE_GROUP_BYTES = 256e3
 """Blocks of equal rank share one set of pair arrays while its packed ``Q`` stays below this size
 (about half the L2 cache of the machines measured): beyond it, separate factorisations are faster."""
-
-
-_KERNELS: list = []  # the kernels module once imported (a lookup is cheaper than an import statement)
-
-
-def _kernels():
-    """The compiled kernels module (imports numba and compiles / loads cached code on first use)."""
-    if not _KERNELS:
-        from . import kernels
-
-        _KERNELS.append(kernels)
-    return _KERNELS[0]
-
-
-@dataclass
-class ObservationPart:
-    """Scaled samples of observed channels that share their sample times.
-
-    Attributes:
-        t: (n,) sample times in [s] from motion start.
-        dims: (D_m,) indices of these channels among the model's dims.
-        y: (n, D_m) scaled values.
-    """
-
-    t: np.ndarray
-    dims: np.ndarray
-    y: np.ndarray
 
 
 @dataclass
@@ -156,194 +132,6 @@ class PartStats:
     sq: np.ndarray
 
 
-@dataclass
-class Terms:
-    """Per (task, candidate) results of :meth:`InferenceEngine.terms`.
-
-    Attributes:
-        loglik: (T, C) log marginal likelihood (-inf where the observation would
-            extend past the end of the motion).
-    """
-
-    loglik: np.ndarray
-
-
-def latent_blocks(models: list[TaskModel], n_obs: int) -> list[tuple[np.ndarray, list[np.ndarray]]]:
-    """Independent blocks of the observed dims: dims linked by a shared factor column of any task.
-
-    Two observed dims are in one block when some task's low-rank factor ``F`` has a column that is
-    non-zero on both (directly or through other dims). The weights of different blocks are
-    independent in every task, so the likelihood of an observation is the product of the blocks'
-    likelihoods and each block needs only its own factor columns.
-
-    Returns:
-        Per block: its observed dims (sorted) and, per task, the factor columns non-zero on them.
-    """
-    parent = list(range(n_obs))
-
-    def root(i: int) -> int:
-        while parent[i] != i:
-            parent[i] = parent[parent[i]]
-            i = parent[i]
-        return i
-
-    active = [np.any(m.factor[:n_obs] != 0.0, axis=1) for m in models]  # (D_o, r_t) per task
-    for act in active:
-        for col in act.T:
-            dims = np.flatnonzero(col)
-            for d in dims[1:]:
-                parent[root(int(d))] = root(int(dims[0]))
-    roots = np.array([root(i) for i in range(n_obs)])
-    blocks = []
-    for r in np.unique(roots):
-        dims = np.flatnonzero(roots == r)
-        cols = [np.flatnonzero(np.any(act[dims], axis=0)) for act in active]
-        blocks.append((dims, cols))
-    return blocks
-
-
-class LatentBlock:
-    """One block of observed dims with its own latent factors (see :func:`latent_blocks`).
-
-    Holds the block's scaled factors ``W = F / sqrt(delta)`` (T, D_b, K, r_b) (tasks with fewer
-    columns padded with zeros; at least one column), its packed-triangle index arrays and, when it
-    fits in ``z_budget_bytes``, the tensor ``Z[(k, l), (a, b)] = sum_d W_dka W_dlb`` (symmetrised and
-    packed) that turns ``P = sum_d W_d^T (I - nu X^-1) W_d`` into one matrix product per task.
-
-    Args:
-        models: Task models.
-        dims: (D_b,) the block's observed dims.
-        cols: Per task, its factor columns used by the block.
-        mu, delta: (T, D_o, K) observed means and (T, D_o) diagonal variances of all observed dims.
-        z_budget_bytes: Largest size of the precomputed ``Z`` tensors.
-    """
-
-    def __init__(
-        self,
-        models: list[TaskModel],
-        dims: np.ndarray,
-        cols: list[np.ndarray],
-        mu: np.ndarray,
-        delta: np.ndarray,
-        z_budget_bytes: float,
-    ) -> None:
-        n_task = len(models)
-        k = mu.shape[2]
-        self.dims = np.asarray(dims, dtype=np.int64)
-        self.cols = [np.asarray(c, dtype=np.int64) for c in cols]  # per task, its factor columns used
-        self.rank = r = max(1, max(c.size for c in cols))
-        self.mu = np.ascontiguousarray(mu[:, self.dims])  # (T, D_b, K)
-        self.delta = np.ascontiguousarray(delta[:, self.dims])
-        self.sqrt_delta = np.sqrt(self.delta)
-        self.w = np.zeros((n_task, self.dims.size, k, r))
-        for i, (m, c) in enumerate(zip(models, cols, strict=True)):
-            self.w[i, :, :, : c.size] = m.factor[self.dims][:, :, c] / self.sqrt_delta[i][:, None, None]
-        pk, pl = [], []
-        for ll in range(k):
-            for kk in range(ll + 1):
-                pk.append(kk)
-                pl.append(ll)
-        self.pk, self.pl = np.array(pk, dtype=np.int64), np.array(pl, dtype=np.int64)
-        ia, ib = np.triu_indices(r)
-        self.ia, self.ib = ia.astype(np.int64), ib.astype(np.int64)
-        unpack = np.zeros((r, r), dtype=np.int64)  # index of Q[i, j] in the packed upper triangle
-        unpack[ia, ib] = np.arange(ia.size)
-        unpack[ib, ia] = np.arange(ia.size)
-        self.unpack = unpack
-        self.use_z = n_task * self.pk.size * ia.size * 8 <= z_budget_bytes
-        self.no_z = np.zeros((1, 1, 1))
-        self._z: dict[bytes, np.ndarray] = {}
-        self._arrays: dict[bytes, dict[str, np.ndarray]] = {}
-        self._local = {int(d): i for i, d in enumerate(self.dims)}
-        self._select: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
-        self._inputs: dict[tuple[bytes, bool], tuple] = {}
-
-    def select(self, dims: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Positions in ``dims`` (observed dims of a part) of the block's dims and their block-local
-        indices (cached)."""
-        key = dims.tobytes()
-        out = self._select.get(key)
-        if out is None:
-            pos = [i for i, d in enumerate(dims) if int(d) in self._local]
-            local = [self._local[int(dims[i])] for i in pos]
-            self._select[key] = out = (np.array(pos, dtype=np.int64), np.array(local, dtype=np.int64))
-        return out
-
-    def part_inputs(
-        self, dims: np.ndarray, with_z: bool = True
-    ) -> tuple[np.ndarray, dict[str, np.ndarray], np.ndarray] | None:
-        """For a part observing the dims ``dims``: the positions of the block's dims in it, the model
-        arrays (:meth:`arrays`) and ``Z`` (:meth:`z_tensor`; a placeholder without ``use_z`` or
-        ``with_z``) of its dims; None when the part observes none of them (cached)."""
-        with_z = with_z and self.use_z
-        key = (dims.tobytes(), with_z)
-        out = self._inputs.get(key, False)
-        if out is False:
-            pos, local = self.select(dims)
-            out = None
-            if pos.size:
-                out = (pos, self.arrays(local), self.z_tensor(local) if with_z else self.no_z)
-            self._inputs[key] = out
-        return out
-
-    def z_tensor(self, local: np.ndarray, cache: bool = True) -> np.ndarray:
-        """Packed ``Z`` (T, K(K+1)/2, r(r+1)/2) of the block-local dims ``local`` (cached unless
-        ``cache`` is False)."""
-        key = np.asarray(local, dtype=np.int64).tobytes()
-        z = self._z.get(key)
-        if z is None:
-            w = self.w[:, local]
-            n_task, dm, k, r = w.shape
-            flat = w.reshape(n_task, dm, k * r)
-            full = (np.swapaxes(flat, 1, 2) @ flat).reshape(n_task, k, r, k, r).transpose(0, 1, 3, 2, 4)
-            z = full[:, self.pk, self.pl][:, :, self.ia, self.ib]
-            off = self.pk != self.pl
-            z[:, off] += full[:, self.pl[off], self.pk[off]][:, :, self.ia, self.ib]
-            z = np.ascontiguousarray(z)
-            if cache:
-                self._z[key] = z
-        return z
-
-    def arrays(self, local: np.ndarray) -> dict[str, np.ndarray]:
-        """Model arrays of the block-local dims ``local`` in basis-major layouts (cached).
-
-        ``mu_k`` (T, K, D_m) task means; ``mu_rows`` (T D_m, K) the means with rows (task, dim);
-        ``w_k`` (T, K D_m, r) ``W_d / sqrt(delta_d)`` with rows ordered (basis, dim), so that the
-        first ``ke D_m`` rows are the first ``ke`` basis functions; ``w_1`` (T, K D_m, r) ``W_d``
-        with rows (basis, dim); ``w_s`` (K, r D_m T) ``W_d`` ordered (basis, latent, dim, task);
-        ``mu2`` (T, K + 1) cumulative ``sum_d ||mu_d[:k]||^2 / delta_d``; ``inv_delta`` (T, D_m);
-        ``log_delta`` (T,) ``sum_d log delta_d``.
-        """
-        key = np.asarray(local, dtype=np.int64).tobytes()
-        c = self._arrays.get(key)
-        if c is None:
-            mu = self.mu[:, local]  # (T, Dm, K)
-            delta = self.delta[:, local]
-            w = self.w[:, local]
-            n_task, dm, k = mu.shape
-            w_k = (w / self.sqrt_delta[:, local, None, None]).transpose(0, 2, 1, 3)
-            c = {
-                "mu_k": np.ascontiguousarray(mu.transpose(0, 2, 1)),
-                "mu_rows": np.ascontiguousarray(mu.reshape(n_task * dm, k)),
-                "w_k": np.ascontiguousarray(w_k.reshape(n_task, k * dm, self.rank)),
-                "w_1": np.ascontiguousarray(w.transpose(0, 2, 1, 3).reshape(n_task, k * dm, -1)),
-                "w_s": np.ascontiguousarray(w.transpose(2, 3, 1, 0).reshape(k, -1)),
-                "mu2": np.ascontiguousarray(
-                    np.concatenate(
-                        [
-                            np.zeros((n_task, 1)),
-                            np.cumsum(np.einsum("tdk,td->tk", mu * mu, 1.0 / delta), axis=1),
-                        ],
-                        axis=1,
-                    )
-                ),
-                "inv_delta": np.ascontiguousarray(1.0 / delta),
-                "log_delta": np.ascontiguousarray(np.sum(np.log(delta), axis=1)),
-            }
-            self._arrays[key] = c
-        return c
-
-
 class InferenceEngine:
     """Exact batched likelihood of an observation for every task and phase candidate.
 
@@ -363,9 +151,15 @@ class InferenceEngine:
         z_budget_bytes: Largest size of the precomputed ``Z`` tensors of a block.
 
     Attributes:
+        alphas: (T, C) every task's phase candidates; ``log_prior`` (T, C) their log prior weights.
+        alpha_unique: (U,) the distinct candidates of all tasks (one lattice), ``inv_duration`` (U,)
+            their ``1 / (alpha T_norm)`` in [1/s]; ``starts`` (T,) the index of each task's first
+            candidate among them (a task's candidates are consecutive).
         blocks: The independent blocks of observed dims (:class:`LatentBlock`).
         lane_groups: Indices of the blocks of each rank: their per-pair arrays are laid side by side
             (:meth:`lane_arrays`) and factorised in one call.
+        fuse_rows: ``(first, end)`` unique candidates of the one ``Z`` product per part that serves
+            every task and block (:data:`FUSE_SPAN`, :data:`FUSE_BYTES`), or None (one per task).
     """
 
     def __init__(
@@ -412,7 +206,7 @@ class InferenceEngine:
         span = int(self.starts.max()) - first + self.alphas.shape[1]
         fused_bytes = span * len(models) * sum(b.ia.size for b in self.blocks) * 8
         fuse = span <= FUSE_SPAN * self.alphas.shape[1] and fused_bytes <= FUSE_BYTES
-        self._fuse_rows = (first, first + span) if fuse else None
+        self.fuse_rows = (first, first + span) if fuse else None
         self._fused: dict[bytes, tuple[np.ndarray, list[int]]] = {}
 
     @property
@@ -440,18 +234,18 @@ class InferenceEngine:
         ke = self.basis.support_count(float(part.t[-1]) * inv_max)
         b = self.basis
         pair_step, overlap = b.gram_factors()
-        gram, proj, sq = _kernels().part_stats(
-            np.ascontiguousarray(part.t, dtype=float), inv_dur, b.centres, b.width, b._step_factor, pair_step,
+        gram, proj, sq = kernels().part_stats(
+            np.ascontiguousarray(part.t, dtype=float), inv_dur, b.centres, b.width, b.step_factor, pair_step,
             overlap, ke, np.ascontiguousarray(part.y, dtype=float),
         )  # fmt: skip
         return PartStats(part.dims, part.t.size, ke, gram, proj, sq)
 
     def x_inverse(self, gram: np.ndarray, nu: float, ke: int | None = None) -> tuple[np.ndarray, np.ndarray]:
         """``X^-1`` (U, ke, ke) and ``log|X|`` (U,) of ``X = nu I + gram[:ke, :ke]``, ``gram`` (K', K', U)."""
-        xinv, _, logdet, _ = self._x_factors(gram, float(nu), gram.shape[0] if ke is None else int(ke))
+        xinv, _, logdet, _ = self.x_factors(gram, float(nu), gram.shape[0] if ke is None else int(ke))
         return np.moveaxis(xinv, 2, 0), logdet
 
-    def _x_factors(self, gram: np.ndarray, nu: float, ke: int) -> tuple[np.ndarray, ...]:
+    def x_factors(self, gram: np.ndarray, nu: float, ke: int) -> tuple[np.ndarray, ...]:
         """``X^-1``, ``L^-1`` (ke, ke, U), ``log|X|`` (U,) (candidate index last) and the packed
         ``I - nu X^-1`` (U, ke(ke+1)/2) (see ``kernels.x_inverse``)."""
         gram = np.ascontiguousarray(gram, dtype=float)
@@ -459,13 +253,14 @@ class InferenceEngine:
         xinv = np.empty((ke, ke, n_u))
         linv = np.empty_like(xinv)
         coef = np.empty((n_u, ke * (ke + 1) // 2))
-        logdet = _kernels().x_inverse(gram, ke, nu, xinv, linv, coef)
+        logdet = kernels().x_inverse(gram, ke, nu, xinv, linv, coef)
         if not math.isfinite(float(logdet.sum())):
             raise ModelError("X = nu I + B^T B is not numerically positive definite")
         return xinv, linv, logdet, coef
 
-    def terms(self, stats: list[PartStats], t_last: float, nu: float | None = None) -> Terms:
-        """Log likelihood per (task, candidate) from part statistics (compiled kernels).
+    def log_likelihood(self, stats: list[PartStats], t_last: float, nu: float | None = None) -> np.ndarray:
+        """Log likelihood (T, C) per (task, candidate) from part statistics (compiled kernels); -inf
+        where the observation would extend past the end of the motion.
 
         Per part and block, with ``h_d = B^T y_d + nu mu_d`` the data terms reduce to
         ``e_d^T e_d - b_d^T X^-1 b_d = y_d^T y_d + nu ||mu_d||^2 - h_d^T X^-1 h_d`` and
@@ -480,17 +275,17 @@ class InferenceEngine:
             nu: Noise ratio (default the engine's).
         """
         nu = self.nu if nu is None else float(nu)
-        factors = [self._x_factors(st.gram, nu, st.ke) for st in stats]
-        return Terms(loglik=self.finish_groups(self.group_terms(stats, factors, nu), t_last))
+        factors = [self.x_factors(st.gram, nu, st.ke) for st in stats]
+        return self.finish_groups(self.group_terms(stats, factors, nu), t_last)
 
     def group_terms(self, stats: list[PartStats], factors: list[tuple], nu: float) -> list[tuple]:
         """Per lane group (:attr:`lane_groups`), the terms of every block and (task, candidate) pair
         (:meth:`lane_arrays`, filled by :meth:`block_terms`), from part statistics and their
-        ``X`` factors (:meth:`_x_factors`). ``P`` comes from one product per part for all tasks and
+        ``X`` factors (:meth:`x_factors`). ``P`` comes from one product per part for all tasks and
         blocks (:meth:`fused_z`) when the tasks' candidate windows overlap enough, else from one
         product per task and block."""
-        kern = _kernels()
-        fused = self._fuse_rows is not None and self.use_z
+        kern = kernels()
+        fused = self.fuse_rows is not None and self.use_z
         mode = kern.P_BY_CALLER if fused else (kern.P_FROM_Z if self.use_z else kern.P_FROM_W)
         out = []
         for group in self.lane_groups:
@@ -499,7 +294,7 @@ class InferenceEngine:
                 self.block_terms(self.blocks[b], stats, factors, nu, *arrays, lane0, mode)
             out.append(arrays)
         if fused:
-            u0, u1 = self._fuse_rows
+            u0, u1 = self.fuse_rows
             n_c = self.alphas.shape[1]
             for st, (_, _, _, coef) in zip(stats, factors, strict=True):
                 zcat, cols = self.fused_z(st.dims)
@@ -535,7 +330,7 @@ class InferenceEngine:
     def finish_groups(self, terms: list[tuple], t_last: float) -> np.ndarray:
         """Log likelihood (T, C) from the lane groups' terms (:meth:`group_terms`): the sum of the
         blocks' (``kernels.finish_soa``)."""
-        finish = _kernels().finish_soa
+        finish = kernels().finish_soa
         loglik = np.empty(self.alphas.shape)
         t_last = float(t_last)
         for i, (group, (total, a, pq)) in enumerate(zip(self.lane_groups, terms, strict=True)):
@@ -578,7 +373,7 @@ class InferenceEngine:
         """Add one block's terms of every (task, candidate) pair (task-major, innermost) to the lanes
         from ``lane0`` of ``total``, ``a`` and ``pq`` (see :meth:`lane_arrays`); ``P`` as ``p_mode``
         says (``kernels.part_terms``)."""
-        kern = _kernels()
+        kern = kernels()
         n_cand = self.alphas.shape[1]
         for st, (xinv, linv, logdet, coef) in zip(stats, factors, strict=True):
             inputs = block.part_inputs(st.dims, with_z=p_mode == kern.P_FROM_Z)
@@ -596,11 +391,11 @@ class IncrementalTerms:
     """Log likelihood of a growing observation, updated sample by sample (streaming).
 
     Holds per unique candidate ``X^-1`` and ``log|X|`` (shared by the blocks) and, per block of
-    observed dims and (task, candidate), the terms of :meth:`InferenceEngine.terms` (``P``, ``a``
+    observed dims and (task, candidate), the terms of :meth:`InferenceEngine.log_likelihood` (``P``, ``a``
     and the scalar terms) for ONE observation part with every observed dim; :meth:`reset` computes
     them from part statistics, :meth:`add` adds one sample with the same active basis functions
     exactly (Sherman-Morrison update of ``X^-1``, rank-D update of ``P``, one compiled call per lane
-    group: :func:`ipromp_pin.kernels.stream_group`); ``log|Q|`` and ``a^T Q^-1 a`` are recomputed
+    group: ``kernels.stream_group``); ``log|Q|`` and ``a^T Q^-1 a`` are recomputed
     from ``Q`` on every call.
 
     Args:
@@ -609,7 +404,7 @@ class IncrementalTerms:
 
     def __init__(self, engine: InferenceEngine) -> None:
         self.engine = engine
-        self._kern = _kernels()
+        self._kern = kernels()
         self.ke = -1
         e = engine
         # per lane group: the W_d and nu mu_d of its blocks (K, M) and the model arguments of
@@ -646,7 +441,7 @@ class IncrementalTerms:
     def reset(self, stats: PartStats, t_last: float) -> np.ndarray:
         """Terms from part statistics ``stats`` (all observed dims) -> log likelihood (T, C)."""
         e = self.engine
-        factors = e._x_factors(stats.gram, e.nu, stats.ke)
+        factors = e.x_factors(stats.gram, e.nu, stats.ke)
         self.xinv, _, self.logdet, _ = factors
         self.terms = e.group_terms([stats], [factors], e.nu)
         self.ke = stats.ke
@@ -671,82 +466,3 @@ class IncrementalTerms:
                 self.ke = -1
                 raise ModelError("Q = I + P is not numerically positive definite")
         return loglik
-
-
-REFINE_STEPS = 8
-"""Fine points per candidate spacing at which :func:`refine_peak` interpolates the log posterior."""
-
-REFINE_NODES = np.arange(-2, 4)
-"""Stencil of the interpolation, in candidate spacings from the left end of the interval (6 points)."""
-
-
-def _refine_weights() -> np.ndarray:
-    """Lagrange weights (REFINE_STEPS, 6) of the stencil at the fractions ``j / REFINE_STEPS`` of one
-    interval."""
-    x = np.arange(REFINE_STEPS) / REFINE_STEPS
-    w = np.ones((REFINE_STEPS, REFINE_NODES.size))
-    for p, xp in enumerate(REFINE_NODES):
-        for q, xq in enumerate(REFINE_NODES):
-            if q != p:
-                w[:, p] *= (x - xq) / (xp - xq)
-    return w
-
-
-REFINE_WEIGHTS = _refine_weights()
-
-
-def refine_peaks(grids: np.ndarray, logpost: np.ndarray) -> np.ndarray:
-    """:func:`refine_peak` of every row of ``logpost`` (T, C) on ``grids`` (T, C) -> (T,)."""
-    return np.array([refine_peak(g, lp) for g, lp in zip(grids, logpost, strict=True)])
-
-
-def _parabola_vertex(x0: float, x1: float, x2: float, y0: float, y1: float, y2: float) -> float:
-    """Vertex of the parabola through three points with ``y1`` the largest, kept in ``[x0, x2]``
-    (``x1`` when the points are not concave)."""
-    denom = (x0 - x1) * (x0 - x2) * (x1 - x2)
-    ca = (x2 * (y1 - y0) + x1 * (y0 - y2) + x0 * (y2 - y1)) / denom
-    cb = (x2 * x2 * (y0 - y1) + x1 * x1 * (y2 - y0) + x0 * x0 * (y1 - y2)) / denom
-    if not ca < 0.0:
-        return float(x1)
-    return float(min(max(-cb / (2.0 * ca), x0), x2))
-
-
-def refine_peak(grid: np.ndarray, logpost: np.ndarray) -> float:
-    """Continuous maximum of a log posterior sampled on a uniform ``grid`` (reference implementation).
-
-    The log posterior is a smooth function of the phase; around the best candidate ``i`` it is
-    interpolated on the two neighbouring intervals at ``REFINE_STEPS`` points per spacing, each
-    interval by the degree-5 polynomial through the 6 candidates around it (error ``O(h^6)`` for a
-    spacing ``h``), and the best fine point is refined by a parabola through it and its two fine
-    neighbours. Where the stencil would leave the grid or meet an impossible candidate the parabola
-    goes through the candidates ``i - 1, i, i + 1`` instead; at the grid's edge (or next to an
-    impossible candidate) the best candidate itself is returned. Same arithmetic as the compiled
-    :func:`ipromp_pin.kernels.phase_posterior`.
-    """
-    i = int(np.argmax(logpost))
-    n = grid.size
-    if i == 0 or i == n - 1 or not np.all(np.isfinite(logpost[i - 1 : i + 2])):
-        return float(grid[i])
-    if i < 3 or i > n - 4 or not np.all(np.isfinite(logpost[i - 3 : i + 4])):
-        return _parabola_vertex(*grid[i - 1 : i + 2], *logpost[i - 1 : i + 2])
-    steps = REFINE_STEPS
-    fine = np.empty(2 * steps + 1)
-    for half in range(2):
-        left = i - 1 + half  # interval [left, left + 1]
-        for j in range(steps):
-            v = 0.0
-            for q in range(REFINE_NODES.size):
-                v += REFINE_WEIGHTS[j, q] * logpost[left + REFINE_NODES[q]]
-            fine[half * steps + j] = v
-    fine[2 * steps] = logpost[i + 1]
-    h = (grid[i + 1] - grid[i - 1]) / (2 * steps)
-    j = int(np.argmax(fine))
-    if j == 0 or j == 2 * steps:
-        return float(grid[i - 1] + j * h)
-    x0 = grid[i - 1] + (j - 1) * h
-    return _parabola_vertex(x0, x0 + h, x0 + 2.0 * h, fine[j - 1], fine[j], fine[j + 1])
-
-
-def log_prior_density(alpha: np.ndarray | float, mu: float, sigma: float) -> np.ndarray:
-    """Log density of the Gaussian phase prior (up to a constant)."""
-    return -0.5 * ((np.asarray(alpha, dtype=float) - mu) / sigma) ** 2

@@ -1,4 +1,4 @@
-"""Versioned, pickle-free model files.
+"""Versioned, pickle-free model files: the estimator's parameters and its fitted state.
 
 A model file is a single ``.npz`` archive (``numpy.savez``) read back with
 ``allow_pickle=False``. It holds
@@ -32,15 +32,15 @@ from __future__ import annotations
 import json
 import zipfile
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .exceptions import IPrompPinError, ModelFileError
-from .model import ChannelScaler, TaskModel
-
-if TYPE_CHECKING:
-    from .recognition import IProMP
+from ..exceptions import IPrompPinError, ModelFileError
+from ..version import __version__
+from .basis import GaussianBasis
+from .distribution import ChannelScaler, TaskModel
+from .fitted import FittedModel
+from .layout import ChannelLayout
 
 FORMAT_NAME = "ipromp_pin.IProMP"
 """Value of the header's ``format`` field."""
@@ -51,59 +51,68 @@ FORMAT_VERSION = 1
 _TASK_ARRAYS = ("mean", "diag", "factor", "alpha_grid", "alpha_log_prior", "train_weights", "train_alpha")
 
 
-def save_model(model: IProMP, path: str | Path) -> None:
-    """Write a fitted :class:`~ipromp_pin.recognition.IProMP` to ``path`` (``.npz``)."""
-    from . import __version__
+def _header_params(params: dict) -> dict:
+    """The estimator parameters as JSON values (lists for sequences, floats for numbers)."""
+    coupling = params["coupling"]
+    noise = params["noise"]
+    return {
+        "observe": list(params["observe"]),
+        "n_basis": int(params["n_basis"]),
+        "width": None if params["width"] is None else float(params["width"]),
+        "ridge": float(params["ridge"]),
+        "margin": float(params["margin"]),
+        "blas_threads": params["blas_threads"],
+        "n_alpha": int(params["n_alpha"]),
+        "alpha_width": float(params["alpha_width"]),
+        "noise": noise if isinstance(noise, str) else float(noise),
+        "n_points": int(params["n_points"]),
+        "task_prior": None if params["task_prior"] is None else dict(params["task_prior"]),
+        "robot_group": params["robot_group"],
+        "log_groups": list(params["log_groups"]),
+        "pooling": float(params["pooling"]),
+        "coupling": coupling if isinstance(coupling, str) else list(coupling),
+    }
 
+
+def write_model(params: dict, fitted: FittedModel, path: str | Path) -> None:
+    """Write an estimator's parameters (``IProMP.get_params()``) and fitted state to ``path`` (``.npz``).
+
+    ``params["observe"]`` is written as the fitted layout's observed groups (a list).
+    """
+    layout = fitted.layout
+    robot_lo = layout.slices[layout.robot_group][0]
     header = {
         "format": FORMAT_NAME,
         "format_version": FORMAT_VERSION,
         "package_version": __version__,
-        "params": {
-            "observe": list(model.observe),
-            "n_basis": int(model.n_basis),
-            "width": None if model.width is None else float(model.width),
-            "ridge": float(model.ridge),
-            "margin": float(model.margin),
-            "blas_threads": model.blas_threads,
-            "n_alpha": int(model.n_alpha),
-            "alpha_width": float(model.alpha_width),
-            "noise": model.noise if isinstance(model.noise, str) else float(model.noise),
-            "n_points": int(model.n_points),
-            "task_prior": model.task_prior,
-            "robot_group": model.robot_group,
-            "log_groups": list(model.log_groups),
-            "pooling": float(model.pooling),
-            "coupling": model.coupling if isinstance(model.coupling, str) else list(model.coupling),
-        },
-        "tasks": list(model.tasks_),
-        "groups": list(model.groups_),
-        "channel_names": {g: list(v) for g, v in model.channel_names_.items()},
-        "duration_nominal_s": float(model.duration_nominal_s_),
-        "noise_ratio": float(model.noise_ratio_),
-        "cv_scores": [[float(k), float(v)] for k, v in model.cv_scores_.items()],
-        "coupled_groups": list(model.coupled_groups_),
-        "coupling_cv_scores": [[k, float(v)] for k, v in model.coupling_cv_scores_.items()],
+        "params": _header_params({**params, "observe": layout.observe}),
+        "tasks": list(fitted.tasks),
+        "groups": list(layout.groups),
+        "channel_names": {g: list(v) for g, v in layout.channel_names.items()},
+        "duration_nominal_s": float(fitted.duration_nominal_s),
+        "noise_ratio": float(fitted.noise_ratio),
+        "cv_scores": [[float(k), float(v)] for k, v in fitted.noise_cv_scores.items()],
+        "coupled_groups": list(fitted.coupled_groups),
+        "coupling_cv_scores": [[k, float(v)] for k, v in fitted.coupling_cv_scores.items()],
         "task_scalars": [
             {
                 # the robot's intensity, as a scalar for readers of files without task{i}_shrinkage
-                "shrinkage": float(m.shrinkage[model.group_slices_[model.robot_group][0]]),
+                "shrinkage": float(m.shrinkage[robot_lo]),
                 "alpha_mu": float(m.alpha_mu),
                 "alpha_sigma": float(m.alpha_sigma),
             }
-            for m in (model.models_[t] for t in model.tasks_)
+            for m in fitted.task_models()
         ],
     }
     arrays = {
         "header": np.array(json.dumps(header)),
-        "scaler_offset": model.scaler_.offset,
-        "scaler_scale": model.scaler_.scale,
-        "scaler_log_shift": model.scaler_.log_shift,
-        "task_log_prior": model.task_log_prior_,
-        "residual_var": model.residual_var_,
+        "scaler_offset": fitted.scaler.offset,
+        "scaler_scale": fitted.scaler.scale,
+        "scaler_log_shift": fitted.scaler.log_shift,
+        "task_log_prior": fitted.task_log_prior,
+        "residual_var": fitted.residual_var,
     }
-    for i, t in enumerate(model.tasks_):
-        m = model.models_[t]
+    for i, m in enumerate(fitted.task_models()):
         for name in _TASK_ARRAYS:
             arrays[f"task{i}_{name}"] = np.asarray(getattr(m, name), dtype=float)
         arrays[f"task{i}_shrinkage"] = np.asarray(m.shrinkage, dtype=float)
@@ -112,14 +121,12 @@ def save_model(model: IProMP, path: str | Path) -> None:
         np.savez(fh, **arrays)
 
 
-def load_model(path: str | Path) -> IProMP:
-    """Read a model file written by :func:`save_model`.
+def read_model(path: str | Path) -> tuple[dict, FittedModel]:
+    """Read a model file written by :func:`write_model` -> the estimator parameters and fitted state.
 
     Raises:
         ModelFileError: missing, truncated or corrupt file, not a model, or a newer format version.
     """
-    from .recognition import IProMP
-
     path = Path(path)
     if not path.is_file():
         raise ModelFileError(f"{path}: model file not found")
@@ -135,8 +142,8 @@ def load_model(path: str | Path) -> IProMP:
     except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile, json.JSONDecodeError) as exc:
         raise ModelFileError(f"{path}: not a readable model file ({type(exc).__name__}: {exc})") from exc
     try:
-        return _build(IProMP, header, arrays)
-    except (KeyError, TypeError, ValueError, IndexError, IPrompPinError) as exc:
+        return _params(header), _fitted(header, arrays)
+    except (KeyError, TypeError, ValueError, IndexError, AttributeError, IPrompPinError) as exc:
         raise ModelFileError(f"{path}: corrupt model file ({type(exc).__name__}: {exc})") from exc
 
 
@@ -155,53 +162,35 @@ def _check_header(path: Path, header: object) -> None:
         raise ModelFileError(f"{path}: invalid format_version {version}")
 
 
-def _build(cls: type, header: dict, arrays: dict[str, np.ndarray]) -> IProMP:
+def _params(header: dict) -> dict:
+    """The estimator parameters of a header (files before the coupling: ``coupling="all"``)."""
     p = header["params"]
-    model = cls(
-        observe=p["observe"],
-        n_basis=p["n_basis"],
-        width=p["width"],
-        ridge=p["ridge"],
-        margin=p["margin"],
-        blas_threads=p["blas_threads"],
-        n_alpha=p["n_alpha"],
-        alpha_width=p["alpha_width"],
-        noise=p["noise"],
-        n_points=p["n_points"],
-        task_prior=p["task_prior"],
-        robot_group=p["robot_group"],
-        log_groups=p["log_groups"],
-        pooling=p["pooling"],
-        coupling=p.get("coupling", "all"),
-    )
-    from .basis import GaussianBasis
+    names = (
+        "observe", "n_basis", "width", "ridge", "margin", "blas_threads", "n_alpha", "alpha_width", "noise",
+        "n_points", "task_prior", "robot_group", "log_groups", "pooling",
+    )  # fmt: skip
+    return {**{name: p[name] for name in names}, "coupling": p.get("coupling", "all")}
 
+
+def _fitted(header: dict, arrays: dict[str, np.ndarray]) -> FittedModel:
+    """The fitted state of a header and its arrays (shapes checked)."""
+    p = header["params"]
     groups = list(header["groups"])
-    model.groups_ = groups
-    model.channel_names_ = {g: tuple(header["channel_names"][g]) for g in groups}
-    sizes = [len(model.channel_names_[g]) for g in groups]
-    starts = np.concatenate([[0], np.cumsum(sizes)])
-    model.group_slices_ = {g: (int(starts[i]), int(starts[i + 1])) for i, g in enumerate(groups)}
-    model.n_dims_ = int(starts[-1])
-    model.n_obs_dims_ = int(starts[-2])
-    model.joint_names_ = model.channel_names_[model.robot_group]
-    model.basis_ = GaussianBasis(model.n_basis, model.width, model.ridge, model.margin)
-    model.scaler_ = ChannelScaler(
+    observe = list(p["observe"])
+    if groups != [*observe, p["robot_group"]]:
+        raise ValueError(f"groups {groups} are not the observed groups then the robot group")
+    layout = ChannelLayout(tuple(observe), p["robot_group"], {g: header["channel_names"][g] for g in groups})
+    basis = GaussianBasis(p["n_basis"], p["width"], p["ridge"], p["margin"])
+    scaler = ChannelScaler(
         offset=arrays["scaler_offset"], scale=arrays["scaler_scale"], log_shift=arrays["scaler_log_shift"]
     )
-    model.duration_nominal_s_ = float(header["duration_nominal_s"])
-    model.tasks_ = list(header["tasks"])
-    model.task_log_prior_ = arrays["task_log_prior"]
-    model.residual_var_ = arrays["residual_var"]
-    model.noise_ratio_ = float(header["noise_ratio"])
-    model.cv_scores_ = {float(k): float(v) for k, v in header["cv_scores"]}
-    model.coupled_groups_ = list(header.get("coupled_groups", model.observe))
-    model.coupling_cv_scores_ = {str(k): float(v) for k, v in header.get("coupling_cv_scores", [])}
-    if any(g not in model.observe for g in model.coupled_groups_):
-        raise ValueError(f"coupled groups {model.coupled_groups_} are not observed groups")
+    tasks = tuple(header["tasks"])
+    coupled = tuple(header.get("coupled_groups", observe))
+    if any(g not in observe for g in coupled):
+        raise ValueError(f"coupled groups {list(coupled)} are not observed groups")
+    n_dims, k = layout.n_dims, basis.n_basis
     models = {}
-    n_dims, k = model.n_dims_, model.basis_.n_basis
-    for i, t in enumerate(model.tasks_):
+    for i, t in enumerate(tasks):
         sc = header["task_scalars"][i]
         a = {name: arrays[f"task{i}_{name}"] for name in _TASK_ARRAYS}
         shrinkage = arrays.get(f"task{i}_shrinkage")
@@ -221,8 +210,20 @@ def _build(cls: type, header: dict, arrays: dict[str, np.ndarray]) -> IProMP:
             alpha_sigma=float(sc["alpha_sigma"]),
             **a,
         )
-    if model.scaler_.offset.shape != (n_dims,) or model.task_log_prior_.shape != (len(model.tasks_),):
+    task_log_prior = arrays["task_log_prior"]
+    if scaler.offset.shape != (n_dims,) or task_log_prior.shape != (len(tasks),):
         raise ValueError("scaling or task prior arrays have inconsistent shapes")
-    model.models_ = models
-    model._set_noise()
-    return model
+    return FittedModel(
+        layout=layout,
+        basis=basis,
+        scaler=scaler,
+        tasks=tasks,
+        models=models,
+        duration_nominal_s=float(header["duration_nominal_s"]),
+        task_log_prior=task_log_prior,
+        noise_ratio=float(header["noise_ratio"]),
+        coupled_groups=coupled,
+        residual_var=arrays["residual_var"],
+        noise_cv_scores={float(k): float(v) for k, v in header["cv_scores"]},
+        coupling_cv_scores={str(k): float(v) for k, v in header.get("coupling_cv_scores", [])},
+    )

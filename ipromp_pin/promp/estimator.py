@@ -1,0 +1,335 @@
+"""The multi-task EMG-augmented Interaction ProMP estimator (:class:`IProMP`), a thin facade.
+
+:meth:`IProMP.fit` learns one :class:`~ipromp_pin.promp.distribution.TaskModel` per task from
+demonstrations (observed human channel groups + the robot's joint angles)
+(:mod:`~ipromp_pin.promp.training`), choosing the observation-noise ratio and the groups coupled
+to the robot by cross-validation on the training demos (:mod:`~ipromp_pin.promp.selection`), and
+freezes the result in a :class:`~ipromp_pin.promp.fitted.FittedModel`. From the first part of a new
+human motion (times from motion start; the total duration is unknown) it then computes
+
+1. per task the phase posterior over the candidates of ``alpha = T / T_norm`` (exact marginal
+   likelihood, :mod:`~ipromp_pin.promp.likelihood`) and its continuous MAP estimate;
+2. the task posterior ``p(k | obs)`` in log space (:mod:`~ipromp_pin.promp.posterior`);
+3. for the most probable task, the Gaussian conditioning of its weights on the observation at the
+   MAP phase, giving the robot joint trajectory (mean and covariance, in [rad]) over
+   ``t in [0, alpha T_norm]`` (:mod:`~ipromp_pin.promp.conditioning`).
+
+Samples can also arrive one by one (:meth:`IProMP.stream`, :mod:`~ipromp_pin.promp.streaming`).
+"""
+
+from __future__ import annotations
+
+import contextlib
+from collections.abc import Iterable, Mapping
+from pathlib import Path
+
+import numpy as np
+from threadpoolctl import ThreadpoolController
+
+from ..data import ROBOT, Dataset, Demo, parse_groups
+from ..exceptions import ModelError, ModelFileError, NotFittedError
+from .basis import GaussianBasis
+from .distribution import ChannelScaler, TaskModel
+from .fitted import FittedModel
+from .posterior import Prediction, Recognition
+from .predictor import Predictor
+from .selection import choose_coupling, choose_noise
+from .serialization import read_model, write_model
+from .streaming import StreamingEstimator
+from .training import PhaseSettings, demos_by_task, log_task_prior, prepare_training, task_models
+
+
+class IProMP:
+    """EMG-augmented Interaction ProMP over several tasks (scikit-learn style estimator).
+
+    Args:
+        observe: Observed human channel groups, e.g. ``["orientation", "emg"]`` (or "orientation,emg").
+        n_basis: Number of Gaussian basis functions per channel ``K``.
+        width: Basis width in phase units (default 0.75 x centre spacing).
+        ridge: Relative ridge of the per-demo weight fit.
+        margin: Basis centres extend this many spacings beyond each end of the phase range.
+        n_alpha: Minimum number of phase candidates inside every task's prior support (>= 3).
+        alpha_width: Candidates span ``mu +- alpha_width sigma`` of the phase prior.
+        noise: Noise ratio ``nu`` (float > 0) or ``"auto"`` (leave-one-out CV over
+            :data:`~ipromp_pin.promp.selection.NOISE_GRID`).
+        n_points: Number M of points of the predicted trajectories.
+        task_prior: Prior task probabilities (task -> p, or None for uniform).
+        robot_group: Name of the robot's joint-angle group.
+        log_groups: Observed groups modelled in log space (EMG envelopes: see
+            :class:`~ipromp_pin.promp.distribution.ChannelScaler`); groups not observed are ignored.
+        pooling: Weight in [0, 1] of the covariance pooled over tasks in each task's covariance
+            (see :func:`~ipromp_pin.promp.distribution.shrink_covariances`).
+        coupling: Observed groups whose weights covary with the robot's (the others are modelled
+            for recognition only, independent of the robot and of the coupled groups): ``"auto"``
+            (chosen by leave-one-out cross-validation of the robot prediction,
+            :mod:`~ipromp_pin.promp.selection`), ``"all"`` (every observed group, the textbook
+            Interaction ProMP) or a list of observed groups (empty: the robot's prediction is its prior).
+        blas_threads: BLAS threads used while fitting and inferring (None = leave unchanged).
+            Inference works on many small matrices, for which more threads only add overhead.
+
+    ``__init__`` only stores the parameters; :meth:`fit` validates them.
+
+    Fitted attributes:
+        fitted_: The frozen :class:`~ipromp_pin.promp.fitted.FittedModel` (everything below).
+        predictor_: Its :class:`~ipromp_pin.promp.predictor.Predictor`.
+        observe_: Observed groups (a list, parsed from ``observe``).
+        tasks_: Task names.
+        models_: Task name -> :class:`~ipromp_pin.promp.distribution.TaskModel`.
+        basis_: The :class:`~ipromp_pin.promp.basis.GaussianBasis`.
+        scaler_: Per-channel :class:`~ipromp_pin.promp.distribution.ChannelScaler` (all dims).
+        groups_: Modelled groups (observed then robot); ``group_slices_`` their dim ranges.
+        channel_names_: Group -> channel names; ``joint_names_`` the robot's.
+        n_dims_, n_obs_dims_: Number of modelled and of observed dims.
+        duration_nominal_s_: ``T_norm`` in [s] (mean training duration).
+        noise_ratio_: Chosen ``nu``; ``noise_var_`` task -> (D_obs,) noise variances (scaled units).
+        cv_scores_: ``nu`` -> CV score (only with ``noise="auto"``).
+        coupled_groups_: Observed groups coupled to the robot (see ``coupling``).
+        coupling_cv_scores_: Candidate coupled groups (``"+"``-joined) -> CV RMSE of the robot
+            prediction in [rad] (only with ``coupling="auto"`` and more than one candidate).
+        task_log_prior_: (K,) log task prior.
+        residual_var_: (D,) mean per-sample residual variance of the basis fit (scaled units).
+    """
+
+    def __init__(
+        self,
+        observe: Iterable[str] | str = ("orientation", "emg"),
+        n_basis: int = 31,
+        width: float | None = None,
+        ridge: float = 1e-6,
+        margin: float = 1.0,
+        n_alpha: int = 20,
+        alpha_width: float = 3.0,
+        noise: float | str = "auto",
+        n_points: int = 100,
+        task_prior: Mapping[str, float] | None = None,
+        robot_group: str = ROBOT,
+        log_groups: Iterable[str] = ("emg",),
+        pooling: float = 0.0,
+        coupling: str | Iterable[str] = "auto",
+        blas_threads: int | None = 1,
+    ) -> None:
+        self.observe = observe
+        self.n_basis = n_basis
+        self.width = width
+        self.ridge = ridge
+        self.margin = margin
+        self.n_alpha = n_alpha
+        self.alpha_width = alpha_width
+        self.noise = noise
+        self.n_points = n_points
+        self.task_prior = task_prior
+        self.robot_group = robot_group
+        self.log_groups = log_groups
+        self.pooling = pooling
+        self.coupling = coupling
+        self.blas_threads = blas_threads
+
+    # ------------------------------------------------------------------ parameters
+    def get_params(self, deep: bool = True) -> dict[str, object]:
+        """The constructor parameters (scikit-learn convention; ``deep`` is accepted and ignored)."""
+        return {name: getattr(self, name) for name in _PARAMS}
+
+    def set_params(self, **params: object) -> IProMP:
+        """Set constructor parameters (scikit-learn convention); refit to use them."""
+        for name, value in params.items():
+            if name not in _PARAMS:
+                raise ModelError(f"unknown parameter '{name}' (parameters: {', '.join(_PARAMS)})")
+            setattr(self, name, value)
+        return self
+
+    def _checked_params(self) -> tuple[list[str], str | list[str]]:
+        """Validate the parameters -> the observed groups and the coupling (parsed)."""
+        observe = parse_groups(self.observe)
+        coupling = self.coupling if isinstance(self.coupling, str) else list(self.coupling)
+        if self.robot_group in observe:
+            raise ModelError(f"the robot group '{self.robot_group}' cannot be an observed group")
+        noise = self.noise
+        if not (isinstance(noise, str) and noise == "auto"):
+            if isinstance(noise, str) or not (float(noise) > 0 and np.isfinite(float(noise))):
+                raise ModelError(f"noise must be 'auto' or a positive float, got {noise!r}")
+        if not 0.0 <= float(self.pooling) <= 1.0:
+            raise ModelError(f"pooling must be in [0, 1], got {self.pooling!r}")
+        if isinstance(coupling, str):
+            if coupling not in ("auto", "all"):
+                raise ModelError(
+                    f"coupling must be 'auto', 'all' or a list of observed groups, got {self.coupling!r}"
+                )
+        elif any(g not in observe for g in coupling) or len(set(coupling)) != len(coupling):
+            raise ModelError(f"coupling {coupling} must list distinct observed groups ({observe})")
+        if int(self.n_alpha) != self.n_alpha or self.n_alpha < 3:
+            raise ModelError(f"n_alpha must be an integer >= 3, got {self.n_alpha!r}")
+        if int(self.n_points) != self.n_points or self.n_points < 2:
+            raise ModelError(f"n_points must be an integer >= 2, got {self.n_points!r}")
+        return observe, coupling
+
+    # ------------------------------------------------------------------ fit
+    def fit(self, data: Dataset | Iterable[Demo]) -> IProMP:
+        """Learn the scaling, per-task weight distributions, phase priors, noise ratio and coupling.
+
+        Args:
+            data: A :class:`~ipromp_pin.data.Dataset` or demos (grouped by ``demo.task``).
+        """
+        observe, coupling = self._checked_params()
+        basis = GaussianBasis(self.n_basis, self.width, self.ridge, self.margin)
+        training = prepare_training(demos_by_task(data), observe, self.robot_group, basis, self.log_groups)
+        settings = PhaseSettings(int(self.n_alpha), float(self.alpha_width), float(self.pooling))
+        prior = log_task_prior(training.tasks, self.task_prior)
+        with self._limit_threads():
+            if isinstance(self.noise, str):
+                nu, nu_scores = choose_noise(training, settings, prior)
+            else:
+                nu, nu_scores = float(self.noise), {}
+            if coupling == "auto":
+                coupled, coupling_scores = choose_coupling(training, settings, nu)
+            else:
+                coupled = list(observe) if coupling == "all" else coupling
+                coupling_scores = {}
+        models = task_models(training, training.weights, training.alphas, coupled, settings)
+        fitted = FittedModel(
+            layout=training.layout,
+            basis=basis,
+            scaler=training.scaler,
+            tasks=training.tasks,
+            models=models,
+            duration_nominal_s=training.duration_nominal_s,
+            task_log_prior=prior,
+            noise_ratio=nu,
+            coupled_groups=tuple(coupled),
+            residual_var=training.residual_var,
+            noise_cv_scores=nu_scores,
+            coupling_cv_scores=coupling_scores,
+        )
+        return self._set_fitted(fitted)
+
+    def _set_fitted(self, fitted: FittedModel) -> IProMP:
+        """Store a fitted state and its predictor, and expose it as the fitted attributes."""
+        layout = fitted.layout
+        self.fitted_ = fitted
+        self.predictor_ = Predictor(fitted, int(self.n_points))
+        self.observe_ = list(layout.observe)
+        self.tasks_ = list(fitted.tasks)
+        self.models_: dict[str, TaskModel] = dict(fitted.models)
+        self.basis_: GaussianBasis = fitted.basis
+        self.scaler_: ChannelScaler = fitted.scaler
+        self.groups_ = list(layout.groups)
+        self.group_slices_ = dict(layout.slices)
+        self.channel_names_ = dict(layout.channel_names)
+        self.joint_names_ = layout.joint_names
+        self.n_dims_ = layout.n_dims
+        self.n_obs_dims_ = layout.n_obs_dims
+        self.duration_nominal_s_ = fitted.duration_nominal_s
+        self.noise_ratio_ = fitted.noise_ratio
+        self.noise_var_ = fitted.noise_var()
+        self.cv_scores_ = dict(fitted.noise_cv_scores)
+        self.coupled_groups_ = list(fitted.coupled_groups)
+        self.coupling_cv_scores_ = dict(fitted.coupling_cv_scores)
+        self.task_log_prior_ = fitted.task_log_prior
+        self.residual_var_ = fitted.residual_var
+        return self
+
+    # ---------------------------------------------------------- inference
+    def _limit_threads(self) -> contextlib.AbstractContextManager:
+        """Context limiting BLAS threads to ``blas_threads`` (the controller is created once per model)."""
+        if self.blas_threads is None:
+            return contextlib.nullcontext()
+        controller = getattr(self, "_threads", None)
+        if controller is None:
+            controller = self._threads = ThreadpoolController()
+        return controller.limit(limits=int(self.blas_threads), user_api="blas")
+
+    def _predictor(self) -> Predictor:
+        predictor = getattr(self, "predictor_", None)
+        if predictor is None:
+            raise NotFittedError("IProMP is not fitted: call fit() before predict/recognise/stream/save")
+        return predictor
+
+    def recognise(self, observation: Demo) -> Recognition:
+        """Task posterior and phase estimates of a partial observation (no trajectory).
+
+        Args:
+            observation: Partial demo with the observed groups (>= 2 samples), times in [s] from motion start.
+        """
+        predictor = self._predictor()
+        parts, t_last = predictor.encode(observation)
+        with self._limit_threads():
+            return predictor.recognise(parts, t_last)
+
+    recognize = recognise
+
+    def predict(self, observation: Demo) -> Prediction:
+        """Recognise the task and predict the robot's trajectory conditioned on the observation.
+
+        Args:
+            observation: Partial demo with the observed groups (>= 2 samples), times in [s] from motion start.
+        """
+        predictor = self._predictor()
+        parts, t_last = predictor.encode(observation)
+        with self._limit_threads():
+            return predictor.predict(parts, t_last)
+
+    def stream(self) -> StreamingEstimator:
+        """A streaming estimator that refreshes the estimate as samples arrive one by one."""
+        return StreamingEstimator(self._predictor(), self._limit_threads)
+
+    # ------------------------------------------------------------- plots
+    def distribution(self, task: str, z: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[str]]:
+        """Learned mean and std (n, D) of every channel over phases ``z`` (n,), in original units.
+
+        Returns:
+            mean, std and the channel names as ``"group/channel"`` (observed groups, then robot).
+        """
+        m = self._task_model(task)
+        mean, std = m.distribution(self.basis_(np.asarray(z, dtype=float)))
+        return self.scaler_.inverse(mean), std * self.scaler_.scale, self.channel_labels()
+
+    def train_trajectories(self, task: str, z: np.ndarray) -> np.ndarray:
+        """Basis-fitted trajectories (N, n, D) of the training demos at phases ``z``, original units."""
+        m = self._task_model(task)
+        return self.scaler_.inverse(
+            np.einsum("nk,idk->ind", self.basis_(np.asarray(z, float)), m.train_weights)
+        )
+
+    def channel_labels(self) -> list[str]:
+        """``"group/channel"`` labels of all modelled dims (observed groups, then robot)."""
+        return self._predictor().fitted.layout.labels()
+
+    def _task_model(self, task: str) -> TaskModel:
+        fitted = self._predictor().fitted
+        if task not in fitted.models:
+            raise ModelError(f"unknown task '{task}' (tasks: {', '.join(fitted.tasks)})")
+        return fitted.models[task]
+
+    # ------------------------------------------------------------ files
+    def save(self, path: str | Path) -> None:
+        """Write the fitted model to a versioned, pickle-free ``.npz`` file."""
+        write_model(self.get_params(), self._predictor().fitted, path)
+
+    @classmethod
+    def load(cls, path: str | Path) -> IProMP:
+        """Read a model written by :meth:`save` (raises ModelFileError on a bad file)."""
+        params, fitted = read_model(path)
+        model = cls(**params)
+        try:
+            model._checked_params()
+        except ModelError as exc:
+            raise ModelFileError(f"{path}: corrupt model file (parameters: {exc})") from exc
+        return model._set_fitted(fitted)
+
+
+_PARAMS = (
+    "observe",
+    "n_basis",
+    "width",
+    "ridge",
+    "margin",
+    "n_alpha",
+    "alpha_width",
+    "noise",
+    "n_points",
+    "task_prior",
+    "robot_group",
+    "log_groups",
+    "pooling",
+    "coupling",
+    "blas_threads",
+)

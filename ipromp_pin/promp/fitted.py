@@ -1,0 +1,68 @@
+"""The fitted state of a multi-task Interaction ProMP: everything inference reads, frozen.
+
+:class:`FittedModel` is what :meth:`IProMP.fit <ipromp_pin.promp.estimator.IProMP.fit>` learns and
+what a model file stores (:mod:`ipromp_pin.promp.serialization`): the channel layout and scaling,
+the basis, one :class:`~ipromp_pin.promp.distribution.TaskModel` per task, the nominal duration,
+the task prior, the noise ratio and the observed groups coupled to the robot, with the
+cross-validation scores that chose them. Inference (:mod:`ipromp_pin.promp.predictor`) never
+changes it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from .basis import GaussianBasis
+from .distribution import ChannelScaler, TaskModel
+from .layout import ChannelLayout
+
+
+@dataclass(frozen=True)
+class FittedModel:
+    """A fitted multi-task Interaction ProMP (scaled units unless said otherwise).
+
+    Attributes:
+        layout: Channel layout (observed groups, then the robot).
+        basis: The Gaussian basis of every channel.
+        scaler: Per-channel scaling of all dims (:class:`ChannelScaler`).
+        tasks: Task names (the order of every per-task array).
+        models: Task name -> its :class:`TaskModel`.
+        duration_nominal_s: ``T_norm`` in [s], the mean training duration (phase ``alpha = T / T_norm``).
+        task_log_prior: (K,) log prior probability of every task.
+        noise_ratio: ``nu``: observed dim ``d`` has white noise of variance ``nu delta_d``.
+        coupled_groups: Observed groups whose weights covary with the robot's.
+        residual_var: (D,) mean per-sample residual variance of the demos' basis fits.
+        noise_cv_scores: Candidate ``nu`` -> cross-validation score (empty when ``nu`` was given).
+        coupling_cv_scores: Candidate coupled groups (``"+"``-joined) -> CV RMSE of the robot
+            prediction in [rad] (empty when the coupling was given or had one candidate).
+    """
+
+    layout: ChannelLayout
+    basis: GaussianBasis
+    scaler: ChannelScaler
+    tasks: tuple[str, ...]
+    models: Mapping[str, TaskModel]
+    duration_nominal_s: float
+    task_log_prior: np.ndarray
+    noise_ratio: float
+    coupled_groups: tuple[str, ...]
+    residual_var: np.ndarray
+    noise_cv_scores: Mapping[float, float]
+    coupling_cv_scores: Mapping[str, float]
+
+    def task_models(self) -> list[TaskModel]:
+        """The task models in :attr:`tasks` order."""
+        return [self.models[t] for t in self.tasks]
+
+    @property
+    def longest_s(self) -> float:
+        """Longest plausible motion of any task in [s]: its largest phase candidate times ``T_norm``."""
+        return max(float(m.alpha_grid[-1]) for m in self.models.values()) * self.duration_nominal_s
+
+    def noise_var(self) -> dict[str, np.ndarray]:
+        """Task -> (D_o,) observation noise variances ``nu delta_d`` of the observed dims."""
+        n_obs = self.layout.n_obs_dims
+        return {t: self.noise_ratio * m.diag[:n_obs] for t, m in self.models.items()}

@@ -1,0 +1,190 @@
+"""Independent blocks of observed dims: the latent structure the likelihood engine exploits.
+
+Two observed dims belong to one block when some task's low-rank covariance factor ``F`` has a
+column that is non-zero on both (directly or through other dims). Blocks are independent in every
+task, so an observation's likelihood is the product of the blocks' and each block needs only its
+own factor columns (:func:`latent_blocks`). A :class:`LatentBlock` holds one block's scaled factors
+and the precomputed tensors of :mod:`ipromp_pin.promp.likelihood`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .distribution import TaskModel
+
+
+def latent_blocks(models: list[TaskModel], n_obs: int) -> list[tuple[np.ndarray, list[np.ndarray]]]:
+    """Independent blocks of the observed dims: dims linked by a shared factor column of any task.
+
+    Two observed dims are in one block when some task's low-rank factor ``F`` has a column that is
+    non-zero on both (directly or through other dims). The weights of different blocks are
+    independent in every task, so the likelihood of an observation is the product of the blocks'
+    likelihoods and each block needs only its own factor columns.
+
+    Returns:
+        Per block: its observed dims (sorted) and, per task, the factor columns non-zero on them.
+    """
+    parent = list(range(n_obs))
+
+    def root(i: int) -> int:
+        while parent[i] != i:
+            parent[i] = parent[parent[i]]
+            i = parent[i]
+        return i
+
+    active = [np.any(m.factor[:n_obs] != 0.0, axis=1) for m in models]  # (D_o, r_t) per task
+    for act in active:
+        for col in act.T:
+            dims = np.flatnonzero(col)
+            for d in dims[1:]:
+                parent[root(int(d))] = root(int(dims[0]))
+    roots = np.array([root(i) for i in range(n_obs)])
+    blocks = []
+    for r in np.unique(roots):
+        dims = np.flatnonzero(roots == r)
+        cols = [np.flatnonzero(np.any(act[dims], axis=0)) for act in active]
+        blocks.append((dims, cols))
+    return blocks
+
+
+class LatentBlock:
+    """One block of observed dims with its own latent factors (see :func:`latent_blocks`).
+
+    Holds the block's scaled factors ``W = F / sqrt(delta)`` (T, D_b, K, r_b) (tasks with fewer
+    columns padded with zeros; at least one column), its packed-triangle index arrays and, when it
+    fits in ``z_budget_bytes``, the tensor ``Z[(k, l), (a, b)] = sum_d W_dka W_dlb`` (symmetrised and
+    packed) that turns ``P = sum_d W_d^T (I - nu X^-1) W_d`` into one matrix product per task.
+
+    Args:
+        models: Task models.
+        dims: (D_b,) the block's observed dims.
+        cols: Per task, its factor columns used by the block.
+        mu, delta: (T, D_o, K) observed means and (T, D_o) diagonal variances of all observed dims.
+        z_budget_bytes: Largest size of the precomputed ``Z`` tensors.
+    """
+
+    def __init__(
+        self,
+        models: list[TaskModel],
+        dims: np.ndarray,
+        cols: list[np.ndarray],
+        mu: np.ndarray,
+        delta: np.ndarray,
+        z_budget_bytes: float,
+    ) -> None:
+        n_task = len(models)
+        k = mu.shape[2]
+        self.dims = np.asarray(dims, dtype=np.int64)
+        self.cols = [np.asarray(c, dtype=np.int64) for c in cols]  # per task, its factor columns used
+        self.rank = r = max(1, max(c.size for c in cols))
+        self.mu = np.ascontiguousarray(mu[:, self.dims])  # (T, D_b, K)
+        self.delta = np.ascontiguousarray(delta[:, self.dims])
+        self.sqrt_delta = np.sqrt(self.delta)
+        self.w = np.zeros((n_task, self.dims.size, k, r))
+        for i, (m, c) in enumerate(zip(models, cols, strict=True)):
+            self.w[i, :, :, : c.size] = m.factor[self.dims][:, :, c] / self.sqrt_delta[i][:, None, None]
+        pk, pl = [], []
+        for ll in range(k):
+            for kk in range(ll + 1):
+                pk.append(kk)
+                pl.append(ll)
+        self.pk, self.pl = np.array(pk, dtype=np.int64), np.array(pl, dtype=np.int64)
+        ia, ib = np.triu_indices(r)
+        self.ia, self.ib = ia.astype(np.int64), ib.astype(np.int64)
+        unpack = np.zeros((r, r), dtype=np.int64)  # index of Q[i, j] in the packed upper triangle
+        unpack[ia, ib] = np.arange(ia.size)
+        unpack[ib, ia] = np.arange(ia.size)
+        self.unpack = unpack
+        self.use_z = n_task * self.pk.size * ia.size * 8 <= z_budget_bytes
+        self.no_z = np.zeros((1, 1, 1))
+        self._z: dict[bytes, np.ndarray] = {}
+        self._arrays: dict[bytes, dict[str, np.ndarray]] = {}
+        self._local = {int(d): i for i, d in enumerate(self.dims)}
+        self._select: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
+        self._inputs: dict[tuple[bytes, bool], tuple] = {}
+
+    def select(self, dims: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Positions in ``dims`` (observed dims of a part) of the block's dims and their block-local
+        indices (cached)."""
+        key = dims.tobytes()
+        out = self._select.get(key)
+        if out is None:
+            pos = [i for i, d in enumerate(dims) if int(d) in self._local]
+            local = [self._local[int(dims[i])] for i in pos]
+            self._select[key] = out = (np.array(pos, dtype=np.int64), np.array(local, dtype=np.int64))
+        return out
+
+    def part_inputs(
+        self, dims: np.ndarray, with_z: bool = True
+    ) -> tuple[np.ndarray, dict[str, np.ndarray], np.ndarray] | None:
+        """For a part observing the dims ``dims``: the positions of the block's dims in it, the model
+        arrays (:meth:`arrays`) and ``Z`` (:meth:`z_tensor`; a placeholder without ``use_z`` or
+        ``with_z``) of its dims; None when the part observes none of them (cached)."""
+        with_z = with_z and self.use_z
+        key = (dims.tobytes(), with_z)
+        out = self._inputs.get(key, False)
+        if out is False:
+            pos, local = self.select(dims)
+            out = None
+            if pos.size:
+                out = (pos, self.arrays(local), self.z_tensor(local) if with_z else self.no_z)
+            self._inputs[key] = out
+        return out
+
+    def z_tensor(self, local: np.ndarray, cache: bool = True) -> np.ndarray:
+        """Packed ``Z`` (T, K(K+1)/2, r(r+1)/2) of the block-local dims ``local`` (cached unless
+        ``cache`` is False)."""
+        key = np.asarray(local, dtype=np.int64).tobytes()
+        z = self._z.get(key)
+        if z is None:
+            w = self.w[:, local]
+            n_task, dm, k, r = w.shape
+            flat = w.reshape(n_task, dm, k * r)
+            full = (np.swapaxes(flat, 1, 2) @ flat).reshape(n_task, k, r, k, r).transpose(0, 1, 3, 2, 4)
+            z = full[:, self.pk, self.pl][:, :, self.ia, self.ib]
+            off = self.pk != self.pl
+            z[:, off] += full[:, self.pl[off], self.pk[off]][:, :, self.ia, self.ib]
+            z = np.ascontiguousarray(z)
+            if cache:
+                self._z[key] = z
+        return z
+
+    def arrays(self, local: np.ndarray) -> dict[str, np.ndarray]:
+        """Model arrays of the block-local dims ``local`` in basis-major layouts (cached).
+
+        ``mu_k`` (T, K, D_m) task means; ``mu_rows`` (T D_m, K) the means with rows (task, dim);
+        ``w_k`` (T, K D_m, r) ``W_d / sqrt(delta_d)`` with rows ordered (basis, dim), so that the
+        first ``ke D_m`` rows are the first ``ke`` basis functions; ``w_1`` (T, K D_m, r) ``W_d``
+        with rows (basis, dim); ``w_s`` (K, r D_m T) ``W_d`` ordered (basis, latent, dim, task);
+        ``mu2`` (T, K + 1) cumulative ``sum_d ||mu_d[:k]||^2 / delta_d``; ``inv_delta`` (T, D_m);
+        ``log_delta`` (T,) ``sum_d log delta_d``.
+        """
+        key = np.asarray(local, dtype=np.int64).tobytes()
+        c = self._arrays.get(key)
+        if c is None:
+            mu = self.mu[:, local]  # (T, Dm, K)
+            delta = self.delta[:, local]
+            w = self.w[:, local]
+            n_task, dm, k = mu.shape
+            w_k = (w / self.sqrt_delta[:, local, None, None]).transpose(0, 2, 1, 3)
+            c = {
+                "mu_k": np.ascontiguousarray(mu.transpose(0, 2, 1)),
+                "mu_rows": np.ascontiguousarray(mu.reshape(n_task * dm, k)),
+                "w_k": np.ascontiguousarray(w_k.reshape(n_task, k * dm, self.rank)),
+                "w_1": np.ascontiguousarray(w.transpose(0, 2, 1, 3).reshape(n_task, k * dm, -1)),
+                "w_s": np.ascontiguousarray(w.transpose(2, 3, 1, 0).reshape(k, -1)),
+                "mu2": np.ascontiguousarray(
+                    np.concatenate(
+                        [
+                            np.zeros((n_task, 1)),
+                            np.cumsum(np.einsum("tdk,td->tk", mu * mu, 1.0 / delta), axis=1),
+                        ],
+                        axis=1,
+                    )
+                ),
+                "inv_delta": np.ascontiguousarray(1.0 / delta),
+                "log_delta": np.ascontiguousarray(np.sum(np.log(delta), axis=1)),
+            }
+            self._arrays[key] = c
+        return c

@@ -1,0 +1,69 @@
+"""Inference with one fitted model: encode an observation, recognise the task, predict the robot.
+
+A :class:`Predictor` bundles what every inference of a :class:`~ipromp_pin.promp.fitted.FittedModel`
+shares: the observation encoder, the likelihood engine (built once: its tensors depend only on the
+model), the phase and task priors, and the conditioner with its caches. The one-shot calls of
+:class:`~ipromp_pin.promp.estimator.IProMP` and the streaming estimator both go through it.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..data import Demo
+from .conditioning import Conditioner
+from .fitted import FittedModel
+from .likelihood import InferenceEngine
+from .observation import ObservationEncoder, ObservationPart
+from .posterior import PhasePriors, Prediction, Recognition, recognise_from_loglik
+
+
+class Predictor:
+    """Recognition and prediction of one fitted model.
+
+    Args:
+        fitted: The fitted model.
+        n_points: Number M of points of the predicted trajectories.
+
+    Attributes:
+        fitted: The fitted model.
+        encoder: Its :class:`ObservationEncoder`.
+        engine: Its :class:`InferenceEngine`.
+        priors: Its :class:`PhasePriors`.
+        conditioner: Its :class:`Conditioner`.
+    """
+
+    def __init__(self, fitted: FittedModel, n_points: int) -> None:
+        self.fitted = fitted
+        self.encoder = ObservationEncoder(fitted.layout, fitted.scaler, fitted.longest_s)
+        models = fitted.task_models()
+        self.engine = InferenceEngine(
+            fitted.basis, models, fitted.layout.n_obs_dims, fitted.duration_nominal_s, fitted.noise_ratio
+        )
+        self.priors = PhasePriors(
+            tasks=fitted.tasks,
+            alphas=self.engine.alphas,
+            log_prior=self.engine.log_prior,
+            alpha_mu=np.array([m.alpha_mu for m in models]),
+            task_log_prior=fitted.task_log_prior,
+            duration_nominal_s=fitted.duration_nominal_s,
+        )
+        self.conditioner = Conditioner(fitted, self.engine, self.encoder, n_points)
+
+    def encode(self, observation: Demo, check_length: bool = True) -> tuple[list[ObservationPart], float]:
+        """Validate and scale an observation (:meth:`ObservationEncoder.encode`)."""
+        return self.encoder.encode(observation, check_length)
+
+    def recognition_from_loglik(self, loglik: np.ndarray, t_last: float) -> Recognition:
+        """The recognition from the log likelihood (T, C) of every (task, candidate)."""
+        return recognise_from_loglik(self.priors, loglik, t_last)[0]
+
+    def recognise(self, parts: list[ObservationPart], t_last: float) -> Recognition:
+        """Task posterior and phase estimates of encoded observation parts."""
+        engine = self.engine
+        loglik = engine.log_likelihood([engine.part_stats(p) for p in parts], t_last)
+        return self.recognition_from_loglik(loglik, t_last)
+
+    def predict(self, parts: list[ObservationPart], t_last: float) -> Prediction:
+        """Recognition and the conditioned prediction of the most probable task."""
+        return self.conditioner.condition(self.recognise(parts, t_last), parts)

@@ -1,0 +1,165 @@
+"""Textbook reference implementation of the inference, beside the fast one, for tests and benchmarks.
+
+:func:`direct_loglik` is the marginal likelihood ``N(y; Phi mu, Phi Sigma Phi^T + R)`` with a dense
+block-diagonal observation matrix ``Phi`` and one dense Cholesky factorisation per candidate;
+:func:`direct_predict` the whole recognition and prediction with it and dense Gaussian conditioning;
+:func:`refine_peak` the continuous MAP phase in plain Python (the compiled ``phase_posterior``
+kernel does the same arithmetic). They read only the public fitted state and are hundreds of times
+slower than :class:`~ipromp_pin.promp.predictor.Predictor`, which the tests check against them.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.linalg import cho_factor, cho_solve
+
+from ..data import Demo
+from .basis import GaussianBasis
+from .distribution import TaskModel
+from .likelihood import LOG_2PI
+from .observation import ObservationPart
+from .posterior import REFINE_NODES, REFINE_STEPS, REFINE_WEIGHTS, Prediction, finish_recognition
+from .predictor import Predictor
+
+
+def parabola_vertex(x0: float, x1: float, x2: float, y0: float, y1: float, y2: float) -> float:
+    """Vertex of the parabola through three points with ``y1`` the largest, kept in ``[x0, x2]``
+    (``x1`` when the points are not concave)."""
+    denom = (x0 - x1) * (x0 - x2) * (x1 - x2)
+    ca = (x2 * (y1 - y0) + x1 * (y0 - y2) + x0 * (y2 - y1)) / denom
+    cb = (x2 * x2 * (y0 - y1) + x1 * x1 * (y2 - y0) + x0 * x0 * (y1 - y2)) / denom
+    if not ca < 0.0:
+        return float(x1)
+    return float(min(max(-cb / (2.0 * ca), x0), x2))
+
+
+def refine_peak(grid: np.ndarray, logpost: np.ndarray) -> float:
+    """Continuous maximum of a log posterior sampled on a uniform ``grid``.
+
+    The log posterior is a smooth function of the phase; around the best candidate ``i`` it is
+    interpolated on the two neighbouring intervals at ``REFINE_STEPS`` points per spacing, each
+    interval by the degree-5 polynomial through the 6 candidates around it (error ``O(h^6)`` for a
+    spacing ``h``), and the best fine point is refined by a parabola through it and its two fine
+    neighbours. Where the stencil would leave the grid or meet an impossible candidate the parabola
+    goes through the candidates ``i - 1, i, i + 1`` instead; at the grid's edge (or next to an
+    impossible candidate) the best candidate itself is returned.
+    """
+    i = int(np.argmax(logpost))
+    n = grid.size
+    if i == 0 or i == n - 1 or not np.all(np.isfinite(logpost[i - 1 : i + 2])):
+        return float(grid[i])
+    if i < 3 or i > n - 4 or not np.all(np.isfinite(logpost[i - 3 : i + 4])):
+        return parabola_vertex(*grid[i - 1 : i + 2], *logpost[i - 1 : i + 2])
+    steps = REFINE_STEPS
+    fine = np.empty(2 * steps + 1)
+    for half in range(2):
+        left = i - 1 + half  # interval [left, left + 1]
+        for j in range(steps):
+            v = 0.0
+            for q in range(REFINE_NODES.size):
+                v += REFINE_WEIGHTS[j, q] * logpost[left + REFINE_NODES[q]]
+            fine[half * steps + j] = v
+    fine[2 * steps] = logpost[i + 1]
+    h = (grid[i + 1] - grid[i - 1]) / (2 * steps)
+    j = int(np.argmax(fine))
+    if j == 0 or j == 2 * steps:
+        return float(grid[i - 1] + j * h)
+    x0 = grid[i - 1] + (j - 1) * h
+    return parabola_vertex(x0, x0 + h, x0 + 2.0 * h, fine[j - 1], fine[j], fine[j + 1])
+
+
+def dense_observation_matrix(
+    basis: GaussianBasis, parts: list[ObservationPart], alpha: float, t_norm: float, n_dims: int, k: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Dense observation matrix (n_y, n_dims * K), the stacked values (n_y,) and their dims (n_y,)."""
+    rows, ys, dims_of_rows = [], [], []
+    for part in parts:
+        phi = basis(part.t / (alpha * t_norm))
+        for j, d in enumerate(part.dims):
+            blk = np.zeros((phi.shape[0], n_dims * k))
+            blk[:, d * k : (d + 1) * k] = phi
+            rows.append(blk)
+            ys.append(part.y[:, j])
+            dims_of_rows.append(np.full(phi.shape[0], d))
+    return np.concatenate(rows), np.concatenate(ys), np.concatenate(dims_of_rows)
+
+
+def direct_loglik(
+    basis: GaussianBasis,
+    task: TaskModel,
+    parts: list[ObservationPart],
+    alpha: float,
+    t_norm: float,
+    nu: float,
+    sigma: np.ndarray | None = None,
+) -> float:
+    """Textbook log N(y; Phi mu, Phi Sigma Phi^T + R) with a dense Cholesky.
+
+    Args:
+        basis, task, parts: Model basis, task model and observation parts (scaled).
+        alpha: Phase candidate.
+        t_norm: Nominal duration in [s].
+        nu: Noise ratio (``R = nu * delta_d`` per observed dim).
+        sigma: Dense weight covariance of the task (computed when None).
+    """
+    n_dims, k = task.mean.shape
+    t_last = max(float(p.t[-1]) for p in parts)
+    if t_last > alpha * t_norm * (1.0 + 1e-12):
+        return -np.inf
+    phi, y, dd = dense_observation_matrix(basis, parts, alpha, t_norm, n_dims, k)
+    sigma = task.covariance() if sigma is None else sigma
+    cov = phi @ sigma @ phi.T + np.diag(nu * task.diag[dd])
+    c, low = cho_factor(cov, lower=True)
+    e = y - phi @ task.mean.reshape(-1)
+    sol = cho_solve((c, low), e)
+    return float(-0.5 * (y.size * LOG_2PI + 2.0 * np.sum(np.log(np.diag(c))) + e @ sol))
+
+
+def direct_predict(predictor: Predictor, observation: Demo) -> Prediction:
+    """Reference recognition and prediction by the textbook equations (slow; tests and benchmarks)."""
+    fm = predictor.fitted
+    parts, t_last = predictor.encode(observation)
+    nu = fm.noise_ratio
+    tn = fm.duration_nominal_s
+    grids = np.stack([fm.models[t].alpha_grid for t in fm.tasks])
+    logpost = np.empty_like(grids)
+    evidence = np.empty(len(fm.tasks))
+    alpha = np.empty(len(fm.tasks))
+    for i, task in enumerate(fm.tasks):
+        m = fm.models[task]
+        sigma = m.covariance()
+        ll = np.array([direct_loglik(fm.basis, m, parts, a, tn, nu, sigma) for a in m.alpha_grid])
+        lp = ll + m.alpha_log_prior
+        evidence[i] = np.logaddexp.reduce(lp)
+        logpost[i] = lp - evidence[i]
+        alpha[i] = refine_peak(m.alpha_grid, lp)
+    rec = finish_recognition(predictor.priors, evidence, alpha, logpost, t_last)
+    m = fm.models[rec.task]
+    a_best = float(rec.alpha[fm.tasks.index(rec.task)])
+    n_dims, k = m.mean.shape
+    phi, y, dd = dense_observation_matrix(fm.basis, parts, a_best, tn, n_dims, k)
+    sigma = m.covariance()
+    cov = phi @ sigma @ phi.T + np.diag(nu * m.diag[dd])
+    c = cho_factor(cov, lower=True)
+    gain_t = cho_solve(c, phi @ sigma)  # C^-1 Phi Sigma, (n_y, p)
+    w_mean = m.mean.reshape(-1) + gain_t.T @ (y - phi @ m.mean.reshape(-1))
+    w_cov = sigma - (phi @ sigma).T @ gain_t
+    rs = fm.layout.robot_slice
+    nj = rs.stop - rs.start
+    z = np.linspace(0.0, 1.0, predictor.conditioner.n_points)
+    b = fm.basis(z)
+    big = np.zeros((z.size * nj, nj * k))
+    for j in range(nj):
+        big[j::nj, j * k : (j + 1) * k] = b
+    sel = slice(rs.start * k, rs.stop * k)
+    scale = fm.scaler.scale[rs]
+    q_mean = (big @ w_mean[sel]).reshape(z.size, nj)
+    q_cov = np.stack(
+        [big[i * nj : (i + 1) * nj] @ w_cov[sel, sel] @ big[i * nj : (i + 1) * nj].T for i in range(z.size)]
+    )
+    wr = w_mean.reshape(n_dims, k)
+    # the prediction's other fields from the fast assembly; its trajectories replaced by the dense ones
+    pred = predictor.conditioner.prediction(rec, m.factor, m, a_best, wr, np.eye(m.rank), "all")
+    pred.q_mean = fm.scaler.inverse(q_mean, rs)
+    pred.q_cov = q_cov * scale[None, :, None] * scale[None, None, :]
+    return pred

@@ -1,0 +1,268 @@
+"""Streaming recognition: the estimate refreshed as the human's samples arrive one by one.
+
+Each :meth:`StreamingEstimator.update` adds the new sample's contribution to running sufficient
+statistics (``B^T B``, ``B^T y`` and ``y^T y`` for every phase candidate; one basis row per candidate
+instead of the whole basis matrix). While every sample has every observed group and the number of
+active basis functions stays the same, the likelihood terms are updated incrementally
+(:class:`~ipromp_pin.promp.likelihood.IncrementalTerms`: Sherman-Morrison update of ``X^-1``, rank-D
+update of ``P``, one Cholesky factorisation of ``Q`` per (task, candidate)); otherwise they are
+recomputed from the statistics. The result equals the one-shot recognition and prediction of a
+:class:`~ipromp_pin.data.Demo` holding the same samples (to rounding).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+from collections.abc import Callable, Mapping
+
+import numpy as np
+
+from ..data import Demo
+from ..exceptions import ObservationError
+from .compiled import kernels
+from .likelihood import IncrementalTerms, PartStats
+from .posterior import Prediction, Recognition
+from .predictor import Predictor
+
+STREAM_EXTRA_BASIS = 4
+"""Basis functions a stream keeps beyond the observed window's support, so that its incremental terms
+are rebuilt only when the window reaches past them."""
+
+
+class StreamingEstimator:
+    """Refreshes the estimate as human samples arrive one by one.
+
+    Channel groups that are missing in some samples are tracked separately: groups with identical
+    presence histories share their statistics, as in the one-shot call.
+
+    Used as a context manager (``with model.stream() as s: ...``), the estimator limits the BLAS
+    threads once for the whole block instead of on every update.
+
+    Args:
+        predictor: The fitted model's :class:`~ipromp_pin.promp.predictor.Predictor`.
+        limit_threads: Returns a context that limits the BLAS threads during an update.
+
+    Attributes:
+        incremental: The incremental likelihood terms while every sample had every observed group
+            (None once a group went missing).
+    """
+
+    def __init__(
+        self,
+        predictor: Predictor,
+        limit_threads: Callable[[], contextlib.AbstractContextManager] = contextlib.nullcontext,
+    ) -> None:
+        self.predictor = predictor
+        self._limit_threads = limit_threads
+        fm = predictor.fitted
+        layout = fm.layout
+        self._engine = engine = predictor.engine
+        self._t: list[float] = []
+        self._rows: list[np.ndarray] = []  # raw samples (D_o,), NaN in missing groups
+        self._absent: list[int] = []  # per sample, bit i set when observed group i is missing
+        self._last: Recognition | None = None
+        u, k = engine.alpha_unique.size, fm.basis.n_basis
+        n_obs = layout.n_obs_dims
+        self._inv_dur = 1.0 / (engine.alpha_unique * fm.duration_nominal_s)
+        self._inv_dur_max = float(self._inv_dur.max())
+        self._slices = [(g, *layout.slices[g]) for g in layout.observe]
+        self._groups = set(layout.observe)
+        # presence pattern -> [groups, gram (K, K, U), n, last time]
+        self._patterns: list[list] = [[list(layout.observe), np.zeros((k, k, u)), 0, 0.0]]
+        self._proj = np.zeros((k, u, n_obs))  # B^T y of every observed dim (missing samples add 0)
+        self._sq = np.zeros(n_obs)
+        self._no_gram = np.zeros((k, 0, u))  # placeholders of kernels.add_sample
+        self._no_proj = np.zeros((k, u, 0))
+        self._no_y = np.zeros(0)
+        self.incremental: IncrementalTerms | None = IncrementalTerms(engine)
+        self._kern = kernels()
+        self._longest = fm.longest_s
+        self._held: contextlib.AbstractContextManager | None = None
+        self._support_until = -np.inf  # phases below this need at most incremental.ke basis functions
+        b, enc = fm.basis, predictor.encoder
+        self._sample_basis = (self._inv_dur, b.centres, b.width, b.step_factor)  # kernels.stream_sample
+        self._sample_scaling = (enc.log_idx, enc.log_shift, enc.offset, enc.scale)
+
+    def __enter__(self) -> StreamingEstimator:
+        self._held = self._limit_threads()
+        self._held.__enter__()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        held, self._held = self._held, None
+        if held is not None:
+            held.__exit__(*exc)
+
+    @property
+    def n_samples(self) -> int:
+        """Number of samples received."""
+        return len(self._t)
+
+    def update(self, t_s: float, sample: Mapping[str, np.ndarray | None]) -> Recognition | None:
+        """Add one sample and return the refreshed recognition (None until 2 samples arrived).
+
+        Args:
+            t_s: Sample time in [s] from motion start (strictly increasing).
+            sample: Observed group -> values (D,) in original units; a group that is absent or
+                None is missing for this sample (e.g. a lost skeleton frame).
+        """
+        t_s = float(t_s)
+        if not math.isfinite(t_s) or (self._t and t_s <= self._t[-1]) or t_s < -1e-9:
+            raise ObservationError("stream", "t", f"sample time {t_s} is not after the previous sample")
+        if t_s > self._longest:
+            raise ObservationError(
+                "stream", "t", f"observation lasts {t_s:.2f} s, longer than any task's plausible motion"
+            )
+        if not self._groups.issuperset(sample):
+            g = next(g for g in sample if g not in self._groups)
+            raise ObservationError(
+                "stream", g, f"not an observed group ({list(self.predictor.fitted.layout.observe)})"
+            )
+        y = np.empty(self._sq.size)
+        present = []
+        absent = 0
+        for i, (g, lo, hi) in enumerate(self._slices):
+            v = sample.get(g)
+            if v is None:
+                y[lo:hi] = np.nan
+                absent |= 1 << i
+                continue
+            v = np.asarray(v, dtype=float).reshape(-1)
+            if v.size != hi - lo:
+                raise ObservationError(
+                    "stream", g, f"sample has {v.size} values, the model expects {hi - lo}"
+                )
+            y[lo:hi] = v
+            present.append(g)
+        if self._held is None:
+            with self._limit_threads():
+                return self._add(t_s, y, absent, present)
+        return self._add(t_s, y, absent, present)
+
+    def _check_finite(self, t_s: float, y: np.ndarray, present: list[str]) -> None:
+        """Raise ObservationError naming the first present group of ``y`` with a NaN or inf."""
+        for g, lo, hi in self._slices:
+            if g in present and not np.all(np.isfinite(y[lo:hi])):
+                raise ObservationError("stream", g, f"NaN or inf in the sample at t={t_s:.3f} s")
+
+    def _add(self, t_s: float, y: np.ndarray, absent: int, present: list[str]) -> Recognition | None:
+        """Check and add the sample ``y`` (D,) (raw values, NaN in the groups flagged in ``absent``)
+        to the statistics and refresh the recognition."""
+        encoder = self.predictor.encoder
+        if not absent and len(self._patterns) == 1:
+            # every group present and one presence history: finiteness check, scaling, basis row and
+            # running sums in one call
+            pattern = self._patterns[0]
+            phi, ys, finite = self._kern.stream_sample(
+                t_s, *self._sample_basis, y, *self._sample_scaling, pattern[1], self._proj, self._sq
+            )
+            if not finite:
+                self._check_finite(t_s, y, present)  # raises: every group is present
+            pattern[2] += 1
+            pattern[3] = t_s
+        else:
+            self._check_finite(t_s, y, present)
+            if not absent:
+                ys = encoder.scale_samples(y.reshape(1, -1))[0].reshape(-1)
+            else:
+                ys = np.zeros(self._sq.size)
+                self.incremental = None  # the incremental terms hold one part with every observed dim
+                for g, lo, hi in self._slices:
+                    if g in present:
+                        ys[lo:hi] = encoder.scale_group(g, y[lo:hi])
+            phi = self._accumulate(t_s, set(present), ys)
+        self._t.append(t_s)
+        self._rows.append(y)
+        self._absent.append(absent)
+        if len(self._t) < 2:
+            return None
+        self._last = self._recognise(phi, ys)
+        return self._last
+
+    def _accumulate(self, t_s: float, present: set[str], y: np.ndarray) -> np.ndarray:
+        """Add the sample (scaled values ``y`` (D,), 0 in missing groups) -> basis values (K, U)."""
+        kern = self._kern
+        b = self.predictor.fitted.basis
+        phi = kern.basis_rows(t_s * self._inv_dur, b.centres, b.width, b.step_factor)
+        patterns = []
+        for groups, gram, n, t_last in self._patterns:
+            have = [g for g in groups if g in present]
+            absent = [g for g in groups if g not in present]
+            if absent:
+                patterns.append([absent, gram.copy() if have else gram, n, t_last])
+            if have:
+                kern.add_sample(gram, self._no_proj, phi, self._no_y)
+                patterns.append([have, gram, n + 1, t_s])
+        self._patterns = patterns
+        kern.add_sample(self._no_gram, self._proj, phi, y)
+        self._sq += y * y
+        return phi
+
+    def _stats(self) -> list[PartStats]:
+        layout = self.predictor.fitted.layout
+        basis = self.predictor.fitted.basis
+        stats = []
+        for groups, gram, n, t_last in self._patterns:
+            if n == 0:
+                continue
+            ke = basis.support_count(t_last * self._inv_dur_max)
+            dims = layout.dims([g for g in layout.observe if g in groups])
+            if dims.size == self._sq.size:
+                proj, sq = self._proj, self._sq
+            else:
+                proj, sq = np.ascontiguousarray(self._proj[:, :, dims]), self._sq[dims]
+            stats.append(PartStats(dims, n, ke, gram, proj, sq))
+        if sum(s.n for s in stats) < 2:
+            raise ObservationError("stream", "t", "need at least 2 observed samples")
+        return stats
+
+    def _recognise(self, phi: np.ndarray, y: np.ndarray) -> Recognition:
+        t_last = self._t[-1]
+        inc = self.incremental
+        if inc is None:
+            loglik = self._engine.log_likelihood(self._stats(), t_last)
+        else:
+            basis = self.predictor.fitted.basis
+            z_last = t_last * self._inv_dur_max
+            need = inc.ke if 0 <= inc.ke and z_last < self._support_until else basis.support_count(z_last)
+            if inc.ke >= need:
+                loglik = inc.add(phi, y, self._proj, t_last)
+            else:
+                # a few more basis functions than needed (each below the support threshold on the
+                # observed window, as the one-shot truncation) so that resets stay rare
+                stats = self._stats()[0]
+                stats.ke = min(basis.n_basis, need + STREAM_EXTRA_BASIS)
+                loglik = inc.reset(stats, t_last)
+                self._support_until = basis.support_limit(stats.ke)
+        return self.predictor.recognition_from_loglik(loglik, t_last)
+
+    def observation(self) -> Demo:
+        """The samples received so far as a :class:`Demo`."""
+        layout = self.predictor.fitted.layout
+        rows = np.array(self._rows).reshape(len(self._rows), self._sq.size)
+        bits = np.array(self._absent, dtype=np.int64)
+        gaps = (bits[:, None] >> np.arange(len(self._slices))[None, :]) & 1 == 1  # (n, groups)
+        return Demo(
+            task="",
+            name="stream",
+            source="stream",
+            t=np.array(self._t),
+            groups={g: rows[:, lo:hi].copy() for g, lo, hi in self._slices},
+            channel_names={g: layout.channel_names[g] for g in layout.observe},
+            missing={g: gaps[:, i] for i, g in enumerate(layout.observe) if gaps[:, i].any()},
+        )
+
+    def recognition(self) -> Recognition:
+        """Latest recognition (raises ObservationError before 2 samples)."""
+        if self._last is None:
+            raise ObservationError("stream", "t", f"need at least 2 samples, got {len(self._t)}")
+        return self._last
+
+    def prediction(self) -> Prediction:
+        """Conditioned prediction on all samples received so far."""
+        if len(self._t) < 2:
+            raise ObservationError("stream", "t", f"need at least 2 samples, got {len(self._t)}")
+        with self._limit_threads():
+            parts, t_last = self.predictor.encode(self.observation())
+            return self.predictor.predict(parts, t_last)

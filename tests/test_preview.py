@@ -163,7 +163,7 @@ def test_unknown_collision_link_is_an_error(baxter):
 
 def test_tube_is_a_closed_valid_mesh():
     points = np.stack([np.linspace(0, 1, 20), np.sin(np.linspace(0, 3, 20)), np.zeros(20)], -1)
-    vertices, faces = preview._tube(points, np.linspace(0.01, 0.05, 20), sides=8)
+    vertices, faces = preview.tube_mesh(points, np.linspace(0.01, 0.05, 20), sides=8)
     assert faces.min() >= 0 and faces.max() < len(vertices)
     # Every edge of a closed surface is shared by exactly two triangles.
     edges = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), axis=1)
@@ -340,7 +340,7 @@ def test_live_preview_listens_on_loopback_only_and_streams_updates(content):
         live.update_feasibility([("self-collision", True, "")], near_limit_joints=["left_w1"])
         assert live.content.collision_links == ()
         painted = {}
-        for data in live._window.commands():
+        for data in live.commands():
             message = umsgpack.unpackb(data)
             if message["type"] == "set_property" and message["property"] == "color":
                 painted[message["path"].rsplit("/", 1)[1]] = message["value"]

@@ -1,0 +1,272 @@
+"""Content of a preview: everything one 3-D preview shows, validated, in plain arrays.
+
+:class:`PreviewContent` holds the Pinocchio model handles plus plain arrays (robot trajectory,
+predicted end-effector path and its spread, human hand path, task posterior, feasibility results),
+so that the preview does not depend on the recognition or planning internals. All positions are in
+[m] in the robot's base frame, times in [s] from the start of the motion. Bad input raises
+:class:`~ipromp_pin.exceptions.DataError` naming the field.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any, NamedTuple
+
+import numpy as np
+import pinocchio as pin
+
+from ..exceptions import DataError
+
+__all__ = ["SOURCE", "FeasibilityCheck", "PreviewContent", "finite_array", "preview_error"]
+
+#: ``source`` of every :class:`~ipromp_pin.exceptions.DataError` raised by the preview.
+SOURCE = "preview"
+
+
+def preview_error(field_name: str | None, problem: str) -> DataError:
+    """Error about the preview input ``field_name`` (``source`` is :data:`SOURCE`)."""
+    return DataError(SOURCE, field_name, problem)
+
+
+def finite_array(value: Any, field_name: str, ndim: int, last: int | None = None) -> np.ndarray:
+    """Finite float array with ``ndim`` dimensions (and last dimension ``last``).
+
+    Raises:
+        DataError: Not numeric, wrong shape, empty, or with NaN / infinite values.
+    """
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise preview_error(field_name, f"not a numeric array ({exc})") from exc
+    if arr.ndim != ndim:
+        raise preview_error(field_name, f"expected {ndim} dimensions, got shape {arr.shape}")
+    if last is not None and arr.shape[-1] != last:
+        raise preview_error(field_name, f"expected last dimension {last}, got shape {arr.shape}")
+    if arr.size == 0:
+        raise preview_error(field_name, "is empty")
+    if not np.all(np.isfinite(arr)):
+        raise preview_error(field_name, "contains NaN or infinite values")
+    return arr
+
+
+def _optional_array(value: Any, field_name: str, ndim: int, last: int | None = None) -> np.ndarray | None:
+    return None if value is None else finite_array(value, field_name, ndim, last)
+
+
+class FeasibilityCheck(NamedTuple):
+    """One line of the feasibility panel.
+
+    Attributes:
+        name: Check name, e.g. ``"joint limits"``.
+        passed: Whether the check passed.
+        detail: Short detail, e.g. ``"left_e1 within 0.02 rad of its limit"``.
+    """
+
+    name: str
+    passed: bool
+    detail: str = ""
+
+
+@dataclass
+class PreviewContent:
+    """Everything one preview shows (built by the pipeline from the model and planner outputs).
+
+    Attributes:
+        model: Pinocchio model of the whole robot.
+        visual_model: Visual geometry (meshes) of the robot; ``None`` draws ``collision_model``.
+        t_s: (N,) trajectory time in [s], strictly increasing, starting at the motion start.
+        q: (N, J) arm joint positions in [rad] at ``t_s``.
+        joint_names: (J,) model joint names of the columns of ``q``.
+        q_full: (nq,) full configuration giving the other joints' fixed values (``None``: neutral).
+        collision_model: Collision geometry (used when ``visual_model`` is ``None``).
+        ee_mean: (M, 3) predicted end-effector path in [m] (mean).
+        ee_samples: (S, M, 3) end-effector paths of trajectories sampled from the prediction.
+        ee_std: (M, 3) per-point standard deviation of the end-effector path in [m]; computed
+            from ``ee_samples`` when only those are given.
+        ee_truth: (G, 3) recorded robot end-effector path (ground truth of a known demo).
+        hand_path: (H, 3) human hand path in [m] in the robot base frame.
+        hand_t_s: (H,) times of ``hand_path`` in [s] (animates a hand marker, splits the path
+            at ``observed_until_s``).
+        hand_observed_index: Number of ``hand_path`` points that were observed (overrides the
+            split computed from ``hand_t_s`` and ``observed_until_s``).
+        observed_until_s: End of the observed window in [s] from the motion start.
+        handover_point: (3,) hand-over point in [m].
+        task: Recognised task name.
+        tasks: (K,) names of all tasks.
+        posterior: (K,) posterior probability of every task (sums to 1).
+        feasibility: Feasibility results as :class:`FeasibilityCheck` or ``(name, passed, detail)``.
+        collision_links: Links (frame or geometry names) found in collision: drawn red.
+        near_limit_joints: Joints near a limit: the link they move is drawn orange.
+        title: Title of the page / panel.
+    """
+
+    model: pin.Model
+    visual_model: pin.GeometryModel | None
+    t_s: np.ndarray
+    q: np.ndarray
+    joint_names: Sequence[str]
+    q_full: np.ndarray | None = None
+    collision_model: pin.GeometryModel | None = None
+    ee_mean: np.ndarray | None = None
+    ee_samples: np.ndarray | None = None
+    ee_std: np.ndarray | None = None
+    ee_truth: np.ndarray | None = None
+    hand_path: np.ndarray | None = None
+    hand_t_s: np.ndarray | None = None
+    hand_observed_index: int | None = None
+    observed_until_s: float | None = None
+    handover_point: np.ndarray | None = None
+    task: str = ""
+    tasks: Sequence[str] = ()
+    posterior: np.ndarray | None = None
+    feasibility: Sequence[FeasibilityCheck | tuple] = ()
+    collision_links: Sequence[str] = ()
+    near_limit_joints: Sequence[str] = ()
+    title: str = "ipromp_pin preview"
+    _q_index: np.ndarray = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.model, pin.Model):
+            raise preview_error("model", f"expected a pinocchio.Model, got {type(self.model).__name__}")
+        if self.visual_model is None and self.collision_model is None:
+            raise preview_error("visual_model", "neither a visual nor a collision model was given")
+        self.t_s = finite_array(self.t_s, "t_s", 1)
+        if self.t_s.size >= 2 and np.any(np.diff(self.t_s) <= 0.0):
+            raise preview_error("t_s", "times must be strictly increasing")
+        self.joint_names = tuple(str(n) for n in self.joint_names)
+        self.q = finite_array(self.q, "q", 2, len(self.joint_names))
+        if self.q.shape[0] != self.t_s.size:
+            raise preview_error("q", f"has {self.q.shape[0]} rows but t_s has {self.t_s.size} samples")
+        index = []
+        for name in self.joint_names:
+            if not self.model.existJointName(name):
+                raise preview_error("joint_names", f"joint '{name}' is not in the robot model")
+            joint = self.model.joints[self.model.getJointId(name)]
+            if joint.nq != 1:
+                raise preview_error(
+                    "joint_names", f"joint '{name}' has {joint.nq} configuration variables, expected 1"
+                )
+            index.append(joint.idx_q)
+        self._q_index = np.asarray(index, dtype=int)
+        if self.q_full is None:
+            self.q_full = pin.neutral(self.model)
+        self.q_full = finite_array(self.q_full, "q_full", 1)
+        if self.q_full.size != self.model.nq:
+            raise preview_error(
+                "q_full", f"expected {self.model.nq} values (model.nq), got {self.q_full.size}"
+            )
+
+        self.ee_mean = _optional_array(self.ee_mean, "ee_mean", 2, 3)
+        self.ee_samples = _optional_array(self.ee_samples, "ee_samples", 3, 3)
+        self.ee_std = _optional_array(self.ee_std, "ee_std", 2, 3)
+        if self.ee_samples is not None:
+            if self.ee_mean is None:
+                self.ee_mean = self.ee_samples.mean(axis=0)
+            if self.ee_samples.shape[1] != self.ee_mean.shape[0]:
+                raise preview_error(
+                    "ee_samples",
+                    f"paths have {self.ee_samples.shape[1]} points, ee_mean has {self.ee_mean.shape[0]}",
+                )
+            if self.ee_std is None and self.ee_samples.shape[0] >= 2:
+                self.ee_std = self.ee_samples.std(axis=0, ddof=1)
+        if self.ee_std is not None:
+            if self.ee_mean is None:
+                raise preview_error("ee_std", "given without ee_mean")
+            if self.ee_std.shape != self.ee_mean.shape:
+                raise preview_error(
+                    "ee_std", f"shape {self.ee_std.shape} differs from ee_mean {self.ee_mean.shape}"
+                )
+            if np.any(self.ee_std < 0.0):
+                raise preview_error("ee_std", "standard deviations must be >= 0")
+        self.ee_truth = _optional_array(self.ee_truth, "ee_truth", 2, 3)
+
+        self.hand_path = _optional_array(self.hand_path, "hand_path", 2, 3)
+        self.hand_t_s = _optional_array(self.hand_t_s, "hand_t_s", 1)
+        if self.hand_t_s is not None:
+            if self.hand_path is None:
+                raise preview_error("hand_t_s", "given without hand_path")
+            if self.hand_t_s.size != self.hand_path.shape[0]:
+                raise preview_error(
+                    "hand_t_s", f"has {self.hand_t_s.size} samples, hand_path has {self.hand_path.shape[0]}"
+                )
+            if self.hand_t_s.size >= 2 and np.any(np.diff(self.hand_t_s) <= 0.0):
+                raise preview_error("hand_t_s", "times must be strictly increasing")
+        if self.hand_observed_index is not None:
+            if self.hand_path is None:
+                raise preview_error("hand_observed_index", "given without hand_path")
+            idx = int(self.hand_observed_index)
+            if not 0 <= idx <= self.hand_path.shape[0]:
+                raise preview_error("hand_observed_index", f"{idx} outside [0, {self.hand_path.shape[0]}]")
+            self.hand_observed_index = idx
+        if self.observed_until_s is not None:
+            self.observed_until_s = float(self.observed_until_s)
+            if not np.isfinite(self.observed_until_s) or self.observed_until_s < 0.0:
+                raise preview_error(
+                    "observed_until_s", f"must be a finite time >= 0, got {self.observed_until_s}"
+                )
+        self.handover_point = _optional_array(self.handover_point, "handover_point", 1, 3)
+
+        self.tasks = tuple(str(t) for t in self.tasks)
+        self.task = str(self.task)
+        if self.posterior is not None:
+            self.posterior = finite_array(self.posterior, "posterior", 1)
+            if self.posterior.size != len(self.tasks):
+                raise preview_error(
+                    "posterior", f"has {self.posterior.size} values for {len(self.tasks)} tasks"
+                )
+            if np.any(self.posterior < 0.0) or abs(float(self.posterior.sum()) - 1.0) > 1e-6:
+                raise preview_error("posterior", "must be probabilities >= 0 summing to 1")
+        if self.task and self.tasks and self.task not in self.tasks:
+            raise preview_error("task", f"'{self.task}' is not one of the tasks {list(self.tasks)}")
+        checks = []
+        for item in self.feasibility:
+            if not isinstance(item, (tuple, list)) or not 2 <= len(item) <= 3:
+                raise preview_error("feasibility", f"expected (name, passed, detail), got {item!r}")
+            checks.append(
+                FeasibilityCheck(str(item[0]), bool(item[1]), str(item[2]) if len(item) > 2 else "")
+            )
+        self.feasibility = tuple(checks)
+        self.collision_links = tuple(str(n) for n in self.collision_links)
+        for name in self.collision_links:
+            self.link_frame(name)
+        self.near_limit_joints = tuple(str(n) for n in self.near_limit_joints)
+        for name in self.near_limit_joints:
+            if not self.model.existJointName(name):
+                raise preview_error("near_limit_joints", f"joint '{name}' is not in the robot model")
+
+    def link_frame(self, name: str) -> int:
+        """Frame id of a link given by its frame name or by a geometry object's name."""
+        if self.model.existFrame(name):
+            return self.model.getFrameId(name)
+        for geometry in (self.collision_model, self.visual_model):
+            if geometry is not None and geometry.existGeometryName(name):
+                return geometry.geometryObjects[geometry.getGeometryId(name)].parentFrame
+        raise preview_error("collision_links", f"'{name}' is neither a frame nor a geometry of the robot")
+
+    @property
+    def duration_s(self) -> float:
+        """Duration of the robot trajectory in [s]."""
+        return float(self.t_s[-1])
+
+    def configurations(self, t_s: np.ndarray) -> np.ndarray:
+        """Full configurations (len(t_s), nq) at times ``t_s`` [s], arm joints linearly interpolated."""
+        qs = np.repeat(self.q_full[None, :], len(t_s), axis=0)
+        for j, iq in enumerate(self._q_index):
+            qs[:, iq] = np.interp(t_s, self.t_s, self.q[:, j])
+        return qs
+
+    def hand_observed_count(self) -> int | None:
+        """Number of observed ``hand_path`` points, ``None`` when unknown."""
+        if self.hand_path is None:
+            return None
+        if self.hand_observed_index is not None:
+            return self.hand_observed_index
+        if self.hand_t_s is not None and self.observed_until_s is not None:
+            return int(np.searchsorted(self.hand_t_s, self.observed_until_s, side="right"))
+        return None
+
+    def replace(self, **changes: Any) -> PreviewContent:
+        """Copy with some fields changed (validated again)."""
+        return dataclasses.replace(self, **changes)

@@ -1,0 +1,387 @@
+"""Drawing of a :class:`~ipromp_pin.preview.content.PreviewContent` into a meshcat scene.
+
+The scene is built with Pinocchio's :class:`pinocchio.visualize.MeshcatVisualizer` on a meshcat
+viewer whose window is a :class:`~ipromp_pin.preview.recorder.SceneRecorder`:
+
+- the robot's (decimated) visual meshes, failing links coloured (in collision red, moved by a joint
+  near its limit orange), playing the arm trajectory in real time as a meshcat animation;
+- the human hand path (observed part green, the rest grey), an animated hand marker and the
+  hand-over point (gold);
+- the predicted end-effector path (blue tube), its uncertainty (translucent tube of radius 2 sigma,
+  thin sampled paths) and the recorded robot path (purple);
+- the recognised task on a text plane above the robot, the background, grid and camera;
+- the state of the HTML panel (:func:`overlay_state`).
+
+Positions in [m] in the robot's base frame, times in [s] from the start of the motion.
+"""
+
+from __future__ import annotations
+
+import warnings
+from typing import Any
+
+import coal
+import meshcat
+import meshcat.animation
+import meshcat.geometry as mg
+import numpy as np
+import pinocchio as pin
+from pinocchio.visualize import MeshcatVisualizer
+
+from .content import PreviewContent
+from .meshes import simplify_visual_model, sphere_mesh, tube_mesh
+from .recorder import SceneRecorder
+
+__all__ = [
+    "COLOR_COLLISION",
+    "COLOR_EE_BAND",
+    "COLOR_EE_MEAN",
+    "COLOR_EE_TRUTH",
+    "COLOR_HANDOVER",
+    "COLOR_HAND_OBSERVED",
+    "COLOR_HAND_REST",
+    "COLOR_NEAR_LIMIT",
+    "RobotView",
+    "build_scene",
+    "overlay_state",
+    "update_scene",
+]
+
+# Colours (0xRRGGBB) of the scene elements; the HTML legend uses the same values. The two link
+# highlights are RGBA in [0, 1] (meshcat's colour property).
+COLOR_HAND_OBSERVED = 0x2CA02C
+COLOR_HAND_REST = 0x9E9E9E
+COLOR_HANDOVER = 0xFFB000
+COLOR_EE_MEAN = 0x1F77B4
+COLOR_EE_BAND = 0x6BAED6
+COLOR_EE_TRUTH = 0x9467BD
+COLOR_COLLISION = (1.0, 0.0, 0.0, 1.0)
+COLOR_NEAR_LIMIT = (1.0, 0.55, 0.0, 1.0)
+
+# Scene paths (under meshcat's root "/meshcat").
+_ROBOT_NODE = "robot"
+_HUMAN_NODES = ("human/observed", "human/rest", "human/hand", "human/handover")
+_PREDICTION_NODES = ("prediction/mean", "prediction/band", "prediction/samples", "prediction/truth")
+_LABEL_NODE = "labels/task"
+
+
+def _highlight(content: PreviewContent, geometry_model: pin.GeometryModel) -> dict[str, tuple]:
+    """Colour override per geometry object name: collision links red, near-limit joints orange."""
+    model = content.model
+    colors: dict[str, tuple] = {}
+    by_frame: dict[int, list[str]] = {}
+    by_joint: dict[int, list[str]] = {}
+    for obj in geometry_model.geometryObjects:
+        by_frame.setdefault(obj.parentFrame, []).append(obj.name)
+        by_joint.setdefault(obj.parentJoint, []).append(obj.name)
+    for name in content.near_limit_joints:
+        for geom in by_joint.get(model.getJointId(name), []):
+            colors[geom] = COLOR_NEAR_LIMIT
+    for name in content.collision_links:
+        frame_id = content.link_frame(name)
+        geoms = by_frame.get(frame_id) or by_joint.get(model.frames[frame_id].parentJoint, [])
+        for geom in geoms:
+            colors[geom] = COLOR_COLLISION
+    return colors
+
+
+def _material(color: int, opacity: float = 1.0) -> mg.MeshPhongMaterial:
+    return mg.MeshPhongMaterial(color=color, opacity=opacity, transparent=opacity < 1.0)
+
+
+def _set_mesh(
+    node: meshcat.Visualizer, mesh: tuple[np.ndarray, np.ndarray], color: int, opacity: float = 1.0
+) -> None:
+    node.set_object(mg.TriangularMeshGeometry(mesh[0], mesh[1]), _material(color, opacity))
+
+
+class _PlaneGeometry(mg.Geometry):
+    """three.js PlaneGeometry (in the XY plane, facing +z, with texture coordinates)."""
+
+    def __init__(self, width: float, height: float) -> None:
+        super().__init__()
+        self.width = width
+        self.height = height
+
+    def lower(self, object_data: Any) -> dict[str, Any]:
+        return {
+            "uuid": self.uuid,
+            "type": "PlaneGeometry",
+            "width": self.width,
+            "height": self.height,
+            "widthSegments": 1,
+            "heightSegments": 1,
+        }
+
+
+def _text_plane(text: str) -> mg.Mesh:
+    """Square plane showing ``text`` on meshcat's canvas texture (one line, 256 px canvas)."""
+    texture = mg.GenericTexture({"type": "_text", "text": text, "font_size": 44, "font_face": "sans-serif"})
+    material = mg.MeshBasicMaterial(map=texture, transparent=True)
+    return mg.Mesh(_PlaneGeometry(1.0, 1.0), material)
+
+
+def _plane_facing_x(position: np.ndarray, size: float) -> np.ndarray:
+    """Transform putting an XY plane upright, readable from the front (+x) of the robot."""
+    T = np.eye(4)
+    T[:3, :3] = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]) * size
+    T[:3, 3] = position
+    return T
+
+
+class RobotView:
+    """Pinocchio MeshcatVisualizer of the (decimated) robot inside a meshcat scene.
+
+    Built once per robot (decimating the meshes is the slow part) and reused by every redraw.
+
+    Attributes:
+        geometry: Decimated copy of the content's visual (or collision) model.
+        visualizer: Pinocchio visualizer drawing ``geometry`` (its viewer is set by :meth:`load`).
+    """
+
+    def __init__(self, content: PreviewContent, max_triangles: int) -> None:
+        """Decimate ``content``'s visual (else collision) model to about ``max_triangles`` triangles."""
+        source = content.visual_model if content.visual_model is not None else content.collision_model
+        self.geometry = simplify_visual_model(source, max_triangles)
+        self.visualizer = MeshcatVisualizer(content.model, None, self.geometry)
+        self._painted: dict[str, tuple] = {}
+
+    def load(self, viewer: meshcat.Visualizer, content: PreviewContent) -> None:
+        """Send the robot meshes (description colours), paint failing links, show the start pose."""
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UserWarning)
+            self.visualizer.initViewer(viewer=viewer)
+            self.visualizer.loadViewerModel(rootNodeName=_ROBOT_NODE)
+        self._painted = {}
+        self.paint(viewer, content)
+        self.visualizer.display(content.configurations(np.array([0.0]))[0])
+
+    def paint(self, viewer: meshcat.Visualizer, content: PreviewContent) -> None:
+        """Colour links in collision red and links moved by a joint near its limit orange.
+
+        Only the colour property of the affected nodes is sent (no mesh is sent again), which keeps
+        live updates small.
+        """
+        colors = _highlight(content, self.geometry)
+        for obj in self.geometry.geometryObjects:
+            color = colors.get(obj.name)
+            if color is None and obj.name not in self._painted:
+                continue
+            if color is None:
+                color = tuple(float(c) for c in obj.meshColor)
+            if self._painted.get(obj.name) == color:
+                continue
+            node = viewer[self.visualizer.getViewerNodeName(obj, pin.GeometryType.VISUAL)]
+            node.set_property("color", list(color))
+            self._painted[obj.name] = color
+
+    def placements(self, q: np.ndarray) -> list[np.ndarray]:
+        """(4, 4) world placement of every geometry object at full configuration ``q`` (nq,)."""
+        viz = self.visualizer
+        pin.forwardKinematics(viz.model, viz.data, q)
+        pin.updateGeometryPlacements(viz.model, viz.data, self.geometry, viz.visual_data)
+        return [viz.visual_data.oMg[i].homogeneous.copy() for i in range(self.geometry.ngeoms)]
+
+    def floor_height(self, q: np.ndarray) -> float:
+        """Lowest vertex height in [m] of the robot at configuration ``q``."""
+        low = np.inf
+        for obj, T in zip(self.geometry.geometryObjects, self.placements(q), strict=True):
+            if isinstance(obj.geometry, coal.BVHModelBase):
+                v = np.asarray(obj.geometry.vertices())
+                low = min(low, float((v @ T[:3, :3].T + T[:3, 3])[:, 2].min()))
+        return low if np.isfinite(low) else 0.0
+
+
+def _animate(viewer: meshcat.Visualizer, robot: RobotView, content: PreviewContent, fps: float) -> None:
+    """Meshcat animation of the robot (and of the hand marker) in real time at ``fps`` frames/s."""
+    duration = content.duration_s
+    if content.hand_t_s is not None:
+        duration = max(duration, float(content.hand_t_s[-1]))
+    n_frames = max(2, int(np.ceil(duration * fps)) + 1)
+    times = np.arange(n_frames) / fps
+    qs = content.configurations(times)
+    frames = [robot.placements(q) for q in qs]
+    names = [
+        robot.visualizer.getViewerNodeName(o, pin.GeometryType.VISUAL) for o in robot.geometry.geometryObjects
+    ]
+    moving = [
+        i for i in range(len(names)) if any(not np.allclose(f[i], frames[0][i], atol=1e-9) for f in frames)
+    ]
+    animation = meshcat.animation.Animation(default_framerate=fps)
+    hand = None
+    if content.hand_path is not None and content.hand_t_s is not None:
+        hand = np.stack([np.interp(times, content.hand_t_s, content.hand_path[:, d]) for d in range(3)], -1)
+    for k in range(n_frames):
+        with animation.at_frame(viewer, k) as frame:
+            for i in moving:
+                frame[names[i]].set_transform(frames[k][i])
+            if hand is not None:
+                T = np.eye(4)
+                T[:3, 3] = hand[k]
+                frame["human/hand"].set_transform(T)
+    viewer.set_animation(animation, play=True, repetitions=1)
+
+
+def _draw_human(viewer: meshcat.Visualizer, content: PreviewContent) -> None:
+    for name in _HUMAN_NODES:
+        viewer[name].delete()
+    if content.hand_path is not None:
+        path = content.hand_path
+        n_obs = content.hand_observed_count()
+        if n_obs is None:
+            _set_mesh(viewer["human/rest"], tube_mesh(path, 0.006), COLOR_HAND_REST, 0.8)
+        else:
+            if n_obs >= 1:
+                _set_mesh(viewer["human/observed"], tube_mesh(path[:n_obs], 0.009), COLOR_HAND_OBSERVED)
+            if n_obs < len(path):
+                rest = path[max(0, n_obs - 1) :]
+                _set_mesh(viewer["human/rest"], tube_mesh(rest, 0.006), COLOR_HAND_REST, 0.8)
+        if content.hand_t_s is not None:
+            _set_mesh(viewer["human/hand"], sphere_mesh(np.zeros(3), 0.03), COLOR_HAND_OBSERVED, 0.9)
+            T = np.eye(4)
+            T[:3, 3] = path[0]
+            viewer["human/hand"].set_transform(T)
+    if content.handover_point is not None:
+        _set_mesh(viewer["human/handover"], sphere_mesh(content.handover_point, 0.035), COLOR_HANDOVER)
+
+
+def _draw_prediction(viewer: meshcat.Visualizer, content: PreviewContent) -> None:
+    for name in _PREDICTION_NODES:
+        viewer[name].delete()
+    if content.ee_mean is not None:
+        _set_mesh(viewer["prediction/mean"], tube_mesh(content.ee_mean, 0.006), COLOR_EE_MEAN)
+        if content.ee_std is not None:
+            # Radius: 2 sigma of the root-mean-square per-axis standard deviation.
+            radius = 2.0 * np.sqrt(np.mean(content.ee_std**2, axis=1))
+            _set_mesh(
+                viewer["prediction/band"],
+                tube_mesh(content.ee_mean, np.maximum(radius, 0.007), 16),
+                COLOR_EE_BAND,
+                0.25,
+            )
+        if content.ee_samples is not None:
+            samples = content.ee_samples[:30]
+            # One LineSegments object: consecutive point pairs of every sampled path.
+            segments = np.concatenate([np.stack([s[:-1], s[1:]], 1).reshape(-1, 3) for s in samples])
+            material = mg.LineBasicMaterial(color=COLOR_EE_MEAN, opacity=0.35, transparent=True)
+            viewer["prediction/samples"].set_object(mg.LineSegments(mg.PointsGeometry(segments.T), material))
+    if content.ee_truth is not None:
+        _set_mesh(viewer["prediction/truth"], tube_mesh(content.ee_truth, 0.005), COLOR_EE_TRUTH)
+
+
+def _task_label(content: PreviewContent) -> str:
+    if not content.task:
+        return "task: (none)"
+    if content.posterior is not None and content.task in content.tasks:
+        p = float(content.posterior[content.tasks.index(content.task)])
+        return f"{content.task} ({p:.2f})"
+    return content.task
+
+
+def _draw_label(viewer: meshcat.Visualizer, content: PreviewContent) -> None:
+    node = viewer[_LABEL_NODE]
+    node.set_object(_text_plane(_task_label(content)))
+    node.set_transform(_plane_facing_x(np.array([0.35, 0.0, 0.95]), 0.6))
+
+
+def _setup_view(viewer: meshcat.Visualizer, floor_z: float) -> None:
+    viewer["/Background"].set_property("top_color", [0.97, 0.97, 0.98])
+    viewer["/Background"].set_property("bottom_color", [0.78, 0.80, 0.84])
+    # The grid on the floor under the pedestal; hidden by default (software WebGL draws its lines
+    # badly), "Open Controls > Grid" shows it.
+    T = np.eye(4)
+    T[2, 3] = floor_z
+    viewer["/Grid"].set_transform(T)
+    viewer["/Grid"].set_property("visible", False)
+    viewer["/Axes"].set_property("visible", False)
+    # Camera in three.js coordinates (x, z, -y): in front of Baxter, to its left, above.
+    viewer["/Cameras/default/rotated/<object>"].set_property("position", [2.0, 0.8, -1.2])
+
+
+def overlay_state(content: PreviewContent) -> dict[str, Any]:
+    """JSON-serialisable state of the HTML panel (task, posterior, observation, feasibility, legend)."""
+    posterior = [] if content.posterior is None else [float(p) for p in content.posterior]
+    observed = None
+    if content.observed_until_s is not None:
+        observed = {"until_s": content.observed_until_s, "duration_s": content.duration_s}
+    legend = []
+    if content.hand_path is not None:
+        legend.append({"label": "hand path (observed)", "color": f"#{COLOR_HAND_OBSERVED:06x}"})
+        legend.append({"label": "hand path (not yet observed)", "color": f"#{COLOR_HAND_REST:06x}"})
+    if content.handover_point is not None:
+        legend.append({"label": "hand-over point", "color": f"#{COLOR_HANDOVER:06x}"})
+    if content.ee_mean is not None:
+        legend.append({"label": "predicted gripper path", "color": f"#{COLOR_EE_MEAN:06x}"})
+    if content.ee_std is not None:
+        legend.append({"label": "uncertainty (2 sigma)", "color": f"#{COLOR_EE_BAND:06x}"})
+    if content.ee_truth is not None:
+        legend.append({"label": "recorded robot path", "color": f"#{COLOR_EE_TRUTH:06x}"})
+    return {
+        "title": content.title,
+        "task": content.task,
+        "tasks": list(content.tasks),
+        "posterior": posterior,
+        "observed": observed,
+        "feasibility": [
+            {"name": c.name, "passed": c.passed, "detail": c.detail} for c in content.feasibility
+        ],
+        "collision_links": list(content.collision_links),
+        "near_limit_joints": list(content.near_limit_joints),
+        "legend": legend,
+    }
+
+
+def _new_viewer(window: SceneRecorder) -> meshcat.Visualizer:
+    return meshcat.Visualizer(window=window)
+
+
+def build_scene(window: SceneRecorder, content: PreviewContent, *, robot: RobotView, fps: float) -> None:
+    """Draw the whole scene of ``content`` into ``window``: robot, view, human, prediction, label,
+    animation at ``fps`` frames/s, and the HTML panel's state."""
+    viewer = _new_viewer(window)
+    robot.load(viewer, content)
+    _setup_view(viewer, robot.floor_height(content.configurations(np.array([0.0]))[0]))
+    _draw_human(viewer, content)
+    _draw_prediction(viewer, content)
+    _draw_label(viewer, content)
+    _animate(viewer, robot, content, fps)
+    window.set_overlay(overlay_state(content))
+
+
+def update_scene(
+    window: SceneRecorder,
+    content: PreviewContent,
+    *,
+    robot: RobotView,
+    fps: float,
+    human: bool = False,
+    prediction: bool = False,
+    label: bool = False,
+    animation: bool = False,
+    paint: bool = False,
+) -> None:
+    """Redraw only some parts of the scene of ``content`` in ``window``, then the HTML panel's state.
+
+    Args:
+        window: Recorder holding the scene (built by :func:`build_scene`).
+        content: Content to show.
+        robot: Robot view the scene was built with.
+        fps: Frames per second of the animation.
+        human: Redraw the hand path, hand marker and hand-over point.
+        prediction: Redraw the predicted, sampled and recorded end-effector paths.
+        label: Redraw the task label.
+        animation: Recompute the animation (robot and hand marker).
+        paint: Recolour the robot's failing links (colour properties only).
+    """
+    viewer = _new_viewer(window)
+    if paint:
+        robot.paint(viewer, content)
+    if human:
+        _draw_human(viewer, content)
+    if prediction:
+        _draw_prediction(viewer, content)
+    if label:
+        _draw_label(viewer, content)
+    if animation:
+        _animate(viewer, robot, content, fps)
+    window.set_overlay(overlay_state(content))

@@ -1,0 +1,320 @@
+"""Live preview server: the preview served on the loopback interface, updatable while a recognition streams.
+
+The web server of ``meshcat.Visualizer()`` listens on every interface, so this module runs its own
+tornado server on ``127.0.0.1`` (or another loopback address) only, and never starts meshcat's. The
+page (:func:`~ipromp_pin.preview.page.live_page`) connects to the websocket ``/ws``; a new page
+receives the whole recorded scene followed by an ``ipromp_synced`` message with the number of
+commands, then every new command as the scene is updated.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import ipaddress
+import threading
+import time
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+import tornado.httpserver
+import tornado.ioloop
+import tornado.netutil
+import tornado.web
+import tornado.websocket
+import umsgpack
+
+from .content import FeasibilityCheck, PreviewContent, finite_array, preview_error
+from .meshes import DEFAULT_MAX_TRIANGLES
+from .page import live_page
+from .recorder import SceneRecorder
+from .scene import RobotView, build_scene, update_scene
+
+__all__ = ["LivePreview", "serve_preview"]
+
+
+def _check_loopback(host: str) -> str:
+    """Normalised loopback IP address of ``host`` (``"localhost"`` is ``127.0.0.1``).
+
+    Raises:
+        DataError: ``host`` is not an IP address, or not a loopback one.
+    """
+    name = "127.0.0.1" if host == "localhost" else host
+    try:
+        address = ipaddress.ip_address(name)
+    except ValueError as exc:
+        raise preview_error("host", f"'{host}' is not an IP address") from exc
+    if not address.is_loopback:
+        raise preview_error("host", f"the live preview only listens on a loopback address, not '{host}'")
+    return str(address)
+
+
+class LivePreview:
+    """Preview served on the loopback interface, updatable while a recognition streams.
+
+    Example::
+
+        with LivePreview(content, port=7000) as live:
+            print(live.url)
+            live.update_posterior(posterior, task="handover_cup")
+
+    Attributes:
+        url: Address of the page, ``http://127.0.0.1:<port>/``.
+        host: Loopback address the server listens on.
+        port: Port the server listens on.
+        content: Content currently shown.
+        fps: Frames per second of the scene's animation.
+    """
+
+    def __init__(
+        self,
+        content: PreviewContent,
+        *,
+        host: str = "127.0.0.1",
+        port: int = 7000,
+        max_triangles: int = DEFAULT_MAX_TRIANGLES,
+        fps: float = 30.0,
+        port_attempts: int = 50,
+    ) -> None:
+        self.host = _check_loopback(host)
+        self.content = content
+        self.fps = float(fps)
+        self._recorder = SceneRecorder()
+        self._robot = RobotView(content, max_triangles)
+        build_scene(self._recorder, content, robot=self._robot, fps=self.fps)
+        self._clients: set = set()
+        self._loop = None
+        self._server = None
+        self._thread: threading.Thread | None = None
+        self._sockets = self._bind(port, port_attempts)
+        self.port = int(self._sockets[0].getsockname()[1])
+        self.url = (
+            f"http://{self.host}:{self.port}/"
+            if ":" not in self.host
+            else f"http://[{self.host}]:{self.port}/"
+        )
+        self._start()
+
+    # -- server ---------------------------------------------------------------------------------
+    def _bind(self, port: int, attempts: int) -> list:
+        if port == 0:
+            return tornado.netutil.bind_sockets(0, address=self.host)
+        last: OSError | None = None
+        for candidate in range(port, port + max(1, attempts)):
+            try:
+                return tornado.netutil.bind_sockets(candidate, address=self.host)
+            except OSError as exc:
+                last = exc
+        raise preview_error("port", f"no free port in [{port}, {port + attempts}) on {self.host}: {last}")
+
+    def _start(self) -> None:
+        preview = self
+        page = live_page(self.content.title).encode("utf-8")
+
+        class PageHandler(tornado.web.RequestHandler):
+            def get(self) -> None:
+                self.set_header("Content-Type", "text/html; charset=utf-8")
+                self.set_header("Cache-Control", "no-store")
+                self.write(page)
+
+        class NoIconHandler(tornado.web.RequestHandler):
+            def get(self) -> None:
+                self.set_status(204)
+
+        class SocketHandler(tornado.websocket.WebSocketHandler):
+            def open(self) -> None:
+                preview._on_open(self)
+
+            def on_close(self) -> None:
+                preview._clients.discard(self)
+
+            def on_message(self, message: Any) -> None:  # the viewer only sends image captures
+                pass
+
+        ready = threading.Event()
+
+        def run() -> None:
+            asyncio.set_event_loop(asyncio.new_event_loop())
+            self._loop = tornado.ioloop.IOLoop.current()
+            app = tornado.web.Application(
+                [(r"/", PageHandler), (r"/favicon.ico", NoIconHandler), (r"/ws", SocketHandler)]
+            )
+            self._server = tornado.httpserver.HTTPServer(app)
+            self._server.add_sockets(self._sockets)
+            ready.set()
+            self._loop.start()
+            self._loop.close(all_fds=True)
+
+        self._thread = threading.Thread(target=run, name=f"ipromp-preview-{self.port}", daemon=True)
+        self._thread.start()
+        ready.wait()
+        self._recorder.listener = self._forward
+
+    def _on_open(self, socket: Any) -> None:
+        with self._recorder.lock:
+            commands = self._recorder.commands()
+            self._clients.add(socket)
+        for data in commands:
+            socket.write_message(data, binary=True)
+        socket.write_message(umsgpack.packb({"type": "ipromp_synced", "count": len(commands)}), binary=True)
+
+    def _forward(self, data: bytes) -> None:
+        if self._loop is not None:
+            self._loop.add_callback(self._broadcast, data)
+
+    def _broadcast(self, data: bytes) -> None:
+        for socket in list(self._clients):
+            try:
+                socket.write_message(data, binary=True)
+            except tornado.websocket.WebSocketClosedError:
+                self._clients.discard(socket)
+
+    @property
+    def running(self) -> bool:
+        """Whether the server thread is running."""
+        return self._thread is not None and self._thread.is_alive()
+
+    @property
+    def n_clients(self) -> int:
+        """Number of connected browser pages."""
+        return len(self._clients)
+
+    def commands(self) -> list[bytes]:
+        """Every msgpack-encoded command that rebuilds the current scene (what a new page receives)."""
+        return self._recorder.commands()
+
+    def close(self, timeout_s: float = 5.0) -> None:
+        """Stop the server, close every connection and the listening socket (idempotent)."""
+        if self._thread is None:
+            return
+        loop, server = self._loop, self._server
+        self._recorder.listener = None
+
+        def stop() -> None:
+            for socket in list(self._clients):
+                socket.close()
+            self._clients.clear()
+            server.stop()
+            loop.stop()
+
+        loop.add_callback(stop)
+        self._thread.join(timeout_s)
+        self._thread = None
+
+    def __enter__(self) -> LivePreview:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # -- updates --------------------------------------------------------------------------------
+    def show(self, content: PreviewContent) -> None:
+        """Show new content (same robot model): redraws everything but the robot meshes' geometry."""
+        self.content = content
+        build_scene(self._recorder, content, robot=self._robot, fps=self.fps)
+
+    def _redraw(
+        self,
+        content: PreviewContent,
+        *,
+        human: bool = False,
+        prediction: bool = False,
+        label: bool = False,
+        animation: bool = False,
+        paint: bool = False,
+    ) -> None:
+        self.content = content
+        update_scene(
+            self._recorder,
+            content,
+            robot=self._robot,
+            fps=self.fps,
+            human=human,
+            prediction=prediction,
+            label=label,
+            animation=animation,
+            paint=paint,
+        )
+
+    def update_posterior(
+        self, posterior: np.ndarray, *, task: str | None = None, tasks: Sequence[str] | None = None
+    ) -> None:
+        """New task posterior (K,); ``task`` defaults to the most probable one."""
+        tasks = tuple(self.content.tasks if tasks is None else tasks)
+        posterior = finite_array(posterior, "posterior", 1)
+        if task is None and len(tasks) == posterior.size:
+            task = tasks[int(np.argmax(posterior))]
+        content = self.content.replace(posterior=posterior, tasks=tasks, task=task or "")
+        self._redraw(content, label=True)
+
+    def update_observation(
+        self,
+        observed_until_s: float,
+        *,
+        hand_path: np.ndarray | None = None,
+        hand_t_s: np.ndarray | None = None,
+        hand_observed_index: int | None = None,
+    ) -> None:
+        """New end of the observed window in [s] (and optionally a new/extended hand path)."""
+        changes: dict[str, Any] = {
+            "observed_until_s": observed_until_s,
+            "hand_observed_index": hand_observed_index,
+        }
+        if hand_path is not None:
+            changes.update(hand_path=hand_path, hand_t_s=hand_t_s)
+        self._redraw(self.content.replace(**changes), human=True, animation=hand_path is not None)
+
+    def update_prediction(
+        self,
+        t_s: np.ndarray,
+        q: np.ndarray,
+        *,
+        ee_mean: np.ndarray | None = None,
+        ee_samples: np.ndarray | None = None,
+        ee_std: np.ndarray | None = None,
+        handover_point: np.ndarray | None = None,
+    ) -> None:
+        """New predicted robot trajectory (N,) [s], (N, J) [rad] and end-effector path (M, 3) [m]."""
+        content = self.content.replace(
+            t_s=t_s,
+            q=q,
+            ee_mean=ee_mean,
+            ee_samples=ee_samples,
+            ee_std=ee_std,
+            handover_point=self.content.handover_point if handover_point is None else handover_point,
+        )
+        self._redraw(content, prediction=True, animation=True, human=True)
+
+    def update_feasibility(
+        self,
+        feasibility: Sequence[FeasibilityCheck | tuple],
+        *,
+        collision_links: Sequence[str] = (),
+        near_limit_joints: Sequence[str] = (),
+    ) -> None:
+        """New feasibility results; recolours the robot's failing links."""
+        content = self.content.replace(
+            feasibility=feasibility, collision_links=collision_links, near_limit_joints=near_limit_joints
+        )
+        self._redraw(content, paint=True)
+
+
+def serve_preview(
+    content: PreviewContent,
+    *,
+    port: int = 7000,
+    max_triangles: int = DEFAULT_MAX_TRIANGLES,
+    duration_s: float | None = None,
+    print_fn: Any = print,
+) -> None:
+    """Serve ``content`` on 127.0.0.1 and print the URL; blocks until Ctrl-C (or ``duration_s``)."""
+    with LivePreview(content, port=port, max_triangles=max_triangles) as live:
+        print_fn(f"Preview at {live.url} (Ctrl-C to stop)")
+        try:
+            if duration_s is None:
+                while True:
+                    time.sleep(1.0)
+            else:
+                time.sleep(duration_s)
+        except KeyboardInterrupt:
+            pass

@@ -1,0 +1,1 @@
+viewer.connect((location.protocol === "https:" ? "wss://" : "ws://") + location.host + "/ws");

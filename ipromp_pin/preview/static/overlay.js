@@ -1,0 +1,69 @@
+function iprompEl(tag, attrs, text) {
+  const e = document.createElement(tag);
+  for (const k in (attrs || {})) e.setAttribute(k, attrs[k]);
+  if (text !== undefined) e.textContent = text;
+  return e;
+}
+function iprompRender(s) {
+  const root = document.getElementById("ipromp-overlay");
+  root.replaceChildren();
+  root.appendChild(iprompEl("h1", {id: "ipromp-title"}, s.title));
+  const task = iprompEl("div", {id: "ipromp-task"}, "Recognised task: ");
+  task.appendChild(iprompEl("b", {id: "ipromp-task-name"}, s.task || "(none)"));
+  root.appendChild(task);
+  if (s.tasks.length) {
+    const table = iprompEl("table", {id: "ipromp-posterior"});
+    s.tasks.forEach((name, i) => {
+      const p = s.posterior.length ? s.posterior[i] : NaN;
+      const row = iprompEl("tr", {"data-task": name, "class": name === s.task ? "winner" : ""});
+      row.appendChild(iprompEl("td", {}, name));
+      const bar = iprompEl("td");
+      const fill = iprompEl("span", {"class": "ipromp-bar"});
+      fill.style.width = (isNaN(p) ? 0 : Math.round(120 * p)) + "px";
+      bar.appendChild(fill);
+      row.appendChild(bar);
+      row.appendChild(iprompEl("td", {"class": "ipromp-p"}, isNaN(p) ? "?" : p.toFixed(3)));
+      table.appendChild(row);
+    });
+    root.appendChild(table);
+  }
+  if (s.observed) {
+    const pct = s.observed.duration_s > 0 ? Math.round(100 * s.observed.until_s / s.observed.duration_s) : 0;
+    root.appendChild(iprompEl("div", {id: "ipromp-observed"},
+      "Observed: " + s.observed.until_s.toFixed(2) + " s of " + s.observed.duration_s.toFixed(2) +
+      " s (" + pct + " %)"));
+  }
+  if (s.feasibility.length) {
+    const list = iprompEl("ul", {id: "ipromp-feasibility"});
+    for (const c of s.feasibility) {
+      list.appendChild(iprompEl("li", {"class": c.passed ? "pass" : "fail"},
+        c.name + (c.detail ? ": " + c.detail : "")));
+    }
+    root.appendChild(list);
+  }
+  if (s.collision_links.length) {
+    root.appendChild(iprompEl("div", {}, "In collision (red): " + s.collision_links.join(", ")));
+  }
+  if (s.near_limit_joints.length) {
+    root.appendChild(iprompEl("div", {}, "Near a joint limit (orange): " + s.near_limit_joints.join(", ")));
+  }
+  const legend = iprompEl("div", {id: "ipromp-legend"});
+  for (const item of s.legend) {
+    const row = iprompEl("div");
+    const sw = iprompEl("span", {"class": "ipromp-swatch"});
+    sw.style.background = item.color;
+    row.appendChild(sw);
+    row.appendChild(document.createTextNode(item.label));
+    legend.appendChild(row);
+  }
+  root.appendChild(legend);
+  root.appendChild(iprompEl("div", {id: "ipromp-hint"}, "Play / pause / scrub: Open Controls > Animations"));
+}
+(function () {
+  const original = viewer.handle_command.bind(viewer);
+  viewer.handle_command = function (cmd) {
+    if (cmd && cmd.type === "ipromp_overlay") { iprompRender(cmd.state); viewer.set_dirty(); return; }
+    if (cmd && cmd.type === "ipromp_synced") { window.iprompSynced = cmd.count; return; }
+    original(cmd);
+  };
+})();

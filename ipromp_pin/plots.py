@@ -22,7 +22,6 @@ from .exceptions import DataError  # noqa: E402
 
 __all__ = [
     "plot_accuracy",
-    "plot_accuracy_chart",
     "plot_distributions",
     "plot_phase_posterior",
     "plot_prediction",
@@ -339,6 +338,3 @@ def plot_accuracy(
     fig.suptitle(title)
     return _save(fig, path, dpi)
 
-
-#: Alias of :func:`plot_accuracy`.
-plot_accuracy_chart = plot_accuracy

@@ -141,7 +141,7 @@ def test_plot_accuracy(tmp_path):
     cells = [
         dict(r, observe=r["observe"].split(","), protocol=p) for r in records for p in ("paper", "splits")
     ]
-    assert_png(plots.plot_accuracy_chart(cells, tmp_path / "acc2.png", dpi=50), (600, 225))
+    assert_png(plots.plot_accuracy(cells, tmp_path / "acc2.png", dpi=50), (600, 225))
     with pytest.raises(DataError, match="lacks"):
         plots.plot_accuracy([{"n_train": 5, "obs_ratio": 0.2}], tmp_path / "x.png")
     with pytest.raises(DataError, match="outside"):

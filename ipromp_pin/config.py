@@ -1,0 +1,151 @@
+"""Pipeline definitions: the TOML file that says what ``ipromp-pin run`` and ``preview`` do.
+
+A pipeline definition is a TOML file (see ``pipelines/baxter_handover.toml``) with the sections
+``[data]``, ``[model]``, ``[observation]``, ``[robot]``, ``[timing]`` and ``[outputs]``; relative
+paths in it are relative to its folder. :func:`load_pipeline` reads and validates it into a
+:class:`PipelineConfig`; command-line overrides replace single values.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+
+import numpy as np
+
+from .data import ROBOT
+from .exceptions import PipelineError
+
+_SCHEMA: dict[str, dict[str, type | tuple[type, ...]]] = {
+    "data": {"dataset": str, "format": str, "rate_hz": (int, float), "frames": list, "synthetic_seed": int},
+    "model": {"observe": list, "load": str, "save": str},
+    "observation": {"task": str, "demo": int, "ratio": (int, float)},
+    "robot": {"settings": str},
+    "timing": {"control_rate_hz": (int, float)},
+    "outputs": {"dir": str, "preview_html": bool, "plots": bool},
+}
+
+
+@dataclass
+class PipelineConfig:
+    """A validated pipeline definition.
+
+    Attributes:
+        source: The definition file (or ``"<defaults>"``).
+        dataset: Dataset folder; ``None`` uses the built-in synthetic demos.
+        format: Reader format (``auto``, ``chen2017``, ``multimodal``, ``bag``, ``native``).
+        rate_hz: Common sampling rate of the aligned streams, in [Hz].
+        frames: Skeleton frames to read (multimodal data).
+        synthetic_seed: Seed of the synthetic demos.
+        observe: Observed human channel groups.
+        load_model: A saved model file to use instead of training.
+        save_model: Where to save the trained model.
+        task: Task of the observed demo (``None``: the first task).
+        demo: Index of the observed demo within its task (negative counts from the end).
+        ratio: Observed fraction of the human's motion, in (0, 1].
+        robot: Robot settings file or name.
+        control_rate_hz: Output trajectory sampling rate, in [Hz].
+        out_dir: Output folder.
+        preview_html: Write ``preview.html``.
+        plots: Write PNG figures.
+    """
+
+    source: str = "<defaults>"
+    dataset: Path | None = None
+    format: str = "auto"
+    rate_hz: float = 50.0
+    frames: list[str] = field(default_factory=list)
+    synthetic_seed: int = 0
+    observe: list[str] = field(default_factory=lambda: ["orientation", "emg"])
+    load_model: Path | None = None
+    save_model: Path | None = None
+    task: str | None = None
+    demo: int = -1
+    ratio: float = 0.2
+    robot: str = "baxter_left"
+    control_rate_hz: float = 100.0
+    out_dir: Path = Path("out")
+    preview_html: bool = True
+    plots: bool = False
+
+    def validate(self) -> PipelineConfig:
+        """Check value ranges; raise :class:`PipelineError` naming the field."""
+        if not (0.0 < self.ratio <= 1.0):
+            raise PipelineError(
+                f"{self.source}: field 'observation.ratio': must be in (0, 1], got {self.ratio}"
+            )
+        if not self.observe:
+            raise PipelineError(f"{self.source}: field 'model.observe': no channel group given")
+        if ROBOT in self.observe:
+            raise PipelineError(f"{self.source}: field 'model.observe': the robot group cannot be observed")
+        for name, value in (("data.rate_hz", self.rate_hz), ("timing.control_rate_hz", self.control_rate_hz)):
+            if not (np.isfinite(value) and value > 0):
+                raise PipelineError(f"{self.source}: field '{name}': must be a positive rate, got {value}")
+        return self
+
+
+def load_pipeline(path: str | Path, **overrides) -> PipelineConfig:
+    """Read a pipeline definition; ``overrides`` (non-``None`` values) replace its fields.
+
+    Raises:
+        PipelineError: unreadable file, unknown section or key, wrong type or value.
+    """
+    path = Path(path)
+    try:
+        doc = tomllib.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise PipelineError(f"{path}: pipeline file not found") from None
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise PipelineError(f"{path}: not a valid TOML pipeline file: {exc}") from None
+    for section, table in doc.items():
+        if section not in _SCHEMA:
+            raise PipelineError(f"{path}: unknown section [{section}] (known: {', '.join(_SCHEMA)})")
+        if not isinstance(table, dict):
+            raise PipelineError(f"{path}: field '{section}': expected a table")
+        for key, value in table.items():
+            kind = _SCHEMA[section].get(key)
+            if kind is None:
+                raise PipelineError(f"{path}: field '{section}.{key}': unknown key")
+            if not isinstance(value, kind) or (kind in (int, (int, float)) and isinstance(value, bool)):
+                raise PipelineError(f"{path}: field '{section}.{key}': wrong type {type(value).__name__}")
+    base = path.resolve().parent
+
+    def get(section: str, key: str, default):
+        return doc.get(section, {}).get(key, default)
+
+    def rel(value: str) -> Path | None:
+        if not value:
+            return None
+        p = Path(value).expanduser()
+        return p if p.is_absolute() else base / p
+
+    robot = get("robot", "settings", "baxter_left")
+    if "/" in robot or robot.endswith(".toml"):
+        robot = str(rel(robot))
+    cfg = PipelineConfig(
+        source=str(path),
+        dataset=rel(get("data", "dataset", "")),
+        format=get("data", "format", "auto"),
+        rate_hz=float(get("data", "rate_hz", 50.0)),
+        frames=[str(f) for f in get("data", "frames", [])],
+        synthetic_seed=int(get("data", "synthetic_seed", 0)),
+        observe=[str(g) for g in get("model", "observe", ["orientation", "emg"])],
+        load_model=rel(get("model", "load", "")),
+        save_model=rel(get("model", "save", "")),
+        task=get("observation", "task", "") or None,
+        demo=int(get("observation", "demo", -1)),
+        ratio=float(get("observation", "ratio", 0.2)),
+        robot=robot,
+        control_rate_hz=float(get("timing", "control_rate_hz", 100.0)),
+        out_dir=Path(get("outputs", "dir", "out")),
+        preview_html=bool(get("outputs", "preview_html", True)),
+        plots=bool(get("outputs", "plots", False)),
+    )
+    names = {f.name for f in fields(PipelineConfig)}
+    for key, value in overrides.items():
+        if key not in names:
+            raise PipelineError(f"unknown pipeline override '{key}'")
+        if value is not None:
+            setattr(cfg, key, value)
+    return cfg.validate()

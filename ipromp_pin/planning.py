@@ -1,0 +1,97 @@
+"""The online stages of a hand-over: recognise and predict, check, time-parameterise.
+
+:func:`plan` takes a fitted model, a loaded robot and the observed first part of the human's motion
+and returns a :class:`PlanResult`: the prediction, its feasibility report (Pinocchio checks), the
+time-parameterised, jerk-limited trajectory (toppra + ruckig) and its verification. These are the
+stages ``benchmarks/pipeline.py`` times.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from .data import Demo
+from .promp import IProMP, Prediction
+from .robot import FeasibilityReport, Robot, check_path
+from .timing import JointLimits, TimingReport, Trajectory, time_path
+
+LogFn = Callable[[str], None]
+"""Where progress messages go (one line each)."""
+
+N_UNCERTAINTY_SAMPLES = 16
+"""Joint trajectories drawn from the prediction for the uncertainty check and the preview."""
+
+
+@dataclass
+class PlanResult:
+    """Output of the online stages for one observation.
+
+    Attributes:
+        prediction: The model's conditioned prediction.
+        report: Feasibility report of the predicted path.
+        trajectory: Time-parameterised, jerk-limited trajectory.
+        timing_report: Verification of the trajectory against the limits and the path.
+        stage_ms: Wall time of every stage in [ms].
+        q_samples: (n, M, n_joints) joint trajectories in [rad] drawn from the conditioned
+            prediction, used by the uncertainty check and shown by the preview.
+    """
+
+    prediction: Prediction
+    report: FeasibilityReport
+    trajectory: Trajectory
+    timing_report: TimingReport
+    stage_ms: dict[str, float]
+    q_samples: np.ndarray
+
+    @property
+    def passed(self) -> bool:
+        """Whether the feasibility checks and the trajectory verification passed."""
+        return bool(self.report.passed and self.timing_report.passed)
+
+
+def plan(
+    model: IProMP,
+    robot: Robot,
+    observation: Demo,
+    control_rate_hz: float = 100.0,
+    hand_position_m: np.ndarray | None = None,
+    log: LogFn | None = None,
+) -> PlanResult:
+    """Online stages: recognise + predict, check, time-parameterise, smooth.
+
+    Args:
+        model: A fitted :class:`~ipromp_pin.promp.IProMP`.
+        robot: A loaded :class:`~ipromp_pin.robot.Robot`.
+        observation: The observed first part of the human's motion.
+        control_rate_hz: Output sampling rate in [Hz].
+        hand_position_m: Human hand position at the hand-over (3,) in [m], if known.
+        log: Progress messages (``None``: silent).
+    """
+    say = log or (lambda _msg: None)
+    ms: dict[str, float] = {}
+    t0 = time.perf_counter()
+    prediction = model.predict(observation)
+    t1 = time.perf_counter()
+    ms["recognise_predict"] = (t1 - t0) * 1e3
+    say(
+        f"[recognise] {prediction.task} (posterior {float(np.max(prediction.posterior)):.3f}), "
+        f"predicted duration {prediction.duration_s:.2f} s"
+    )
+    samples = prediction.sample_q(N_UNCERTAINTY_SAMPLES, np.random.default_rng(0))
+    report = check_path(
+        robot, prediction.q_mean, t_s=prediction.t, q_samples=samples, hand_position_m=hand_position_m
+    )
+    t2 = time.perf_counter()
+    ms["check"] = (t2 - t1) * 1e3
+    say(f"[check] {'pass' if report.passed else 'FAIL: ' + ', '.join(report.failures)}")
+    trajectory, timing_report = time_path(
+        prediction.q_mean, JointLimits.from_robot(robot), rate_hz=control_rate_hz
+    )
+    t3 = time.perf_counter()
+    ms["time_parameterise_smooth"] = (t3 - t2) * 1e3
+    say(f"[timing] {trajectory.t_s[-1]:.2f} s at {control_rate_hz:g} Hz, {len(trajectory.t_s)} samples")
+    return PlanResult(prediction, report, trajectory, timing_report, ms, samples)

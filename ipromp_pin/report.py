@@ -1,0 +1,79 @@
+"""The run's report: what was recognised, predicted and checked, as JSON, as text and as a summary.
+
+:func:`report_dict` is ``report.json`` (its fields are listed in ``docs/formats.md``),
+:func:`report_text` is ``report.txt`` and :func:`summary_text` the end-of-run lines on the console.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from .data import Demo
+from .planning import PlanResult
+
+REPORT_FORMAT = "ipromp_pin.report"
+"""Value of ``report.json``'s ``format`` field."""
+
+REPORT_VERSION = 1
+"""Value of ``report.json``'s ``version`` field."""
+
+
+def report_dict(result: PlanResult, observation: Demo | None = None) -> dict:
+    """The machine-readable pipeline report (JSON-serialisable)."""
+    p = result.prediction
+    return {
+        "format": REPORT_FORMAT,
+        "version": REPORT_VERSION,
+        "recognised_task": p.task,
+        "posterior": {t: float(v) for t, v in zip(p.tasks, p.posterior, strict=True)},
+        "alpha": {t: float(v) for t, v in zip(p.tasks, p.alpha, strict=True)},
+        "predicted_duration_s": float(p.duration_s),
+        "observed_until_s": float(p.observed_until_s),
+        "observation": None
+        if observation is None
+        else {"task": observation.task, "demo": observation.name, "source": observation.source},
+        "feasibility": result.report.to_dict(),
+        "trajectory": result.timing_report.to_dict(),
+        "passed": result.passed,
+        "stage_ms": {k: round(v, 3) for k, v in result.stage_ms.items()},
+    }
+
+
+def report_text(result: PlanResult, observation: Demo | None = None) -> str:
+    """The human-readable report: recognition, feasibility checks and trajectory verification."""
+    p = result.prediction
+    lines = []
+    if observation is not None:
+        lines.append(f"Observed: {observation.task}/{observation.name} ({observation.source})")
+    lines.append(
+        f"Recognised task: {p.task}; posterior "
+        + ", ".join(f"{t} {v:.3f}" for t, v in zip(p.tasks, p.posterior, strict=True))
+    )
+    lines.append(
+        f"Predicted duration of the motion: {p.duration_s:.2f} s (observed {p.observed_until_s:.2f} s)"
+    )
+    lines.append(result.report.to_text())
+    lines.append(result.timing_report.to_text())
+    return "\n".join(lines)
+
+
+def summary_text(result: PlanResult, files: dict[str, Path], elapsed_s: float) -> str:
+    """Short end-of-run summary: task, hand-over pose, checks, trajectory, files, total time in [s]."""
+    p = result.prediction
+    r = result.report
+    pose = r.handover_pose
+    post = ", ".join(f"{t} {v:.3f}" for t, v in zip(p.tasks, p.posterior, strict=True))
+    checks = ", ".join(f"{c.name} {c.status}" for c in r.checks)
+    tr = result.trajectory
+    lines = [
+        "",
+        f"Recognised task: {p.task}   posterior: {post}",
+        f"Hand-over pose: position ({pose[0]:.3f}, {pose[1]:.3f}, {pose[2]:.3f}) m, "
+        f"quaternion xyzw ({pose[3]:.3f}, {pose[4]:.3f}, {pose[5]:.3f}, {pose[6]:.3f})",
+        f"Checks: {'PASS' if r.passed else 'FAIL'} ({checks})",
+        f"Trajectory: {tr.t_s[-1]:.2f} s, {len(tr.t_s)} samples; online stages "
+        + ", ".join(f"{k} {v:.1f} ms" for k, v in result.stage_ms.items()),
+        "Files: " + ", ".join(str(f) for f in files.values()),
+        f"Total {elapsed_s:.1f} s",
+    ]
+    return "\n".join(lines)

@@ -166,7 +166,7 @@ def cmd_train(args: argparse.Namespace) -> int:
 
 
 def cmd_calibrate(args: argparse.Namespace) -> int:
-    from .kinematics import run_calibration
+    from .calibrate import run_calibration
 
     run_calibration(args.dataset, args.robot, write=args.write)
     return 0

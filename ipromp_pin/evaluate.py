@@ -305,8 +305,7 @@ def _run_job(job: _Job) -> tuple[_Job, dict[float, list[TrialResult]], str]:
 def _robot_fk(robot: str | None) -> Callable[[np.ndarray], np.ndarray] | None:
     if robot is None:
         return None
-    from .kinematics import ee_positions
-    from .robot import load_robot
+    from .robot import ee_positions, load_robot  # deferred: Pinocchio only when the error is wanted
 
     loaded = load_robot(robot)
     return lambda q: ee_positions(loaded, q)

@@ -21,7 +21,7 @@ import numpy as np
 
 from .data import ROBOT, Dataset, Demo, skeleton_frames
 from .exceptions import PipelineError
-from .kinematics import check_path, ee_positions
+from .robot import check_path, ee_positions
 from .timing import JointLimits, time_path
 
 LogFn = Callable[[str], None]

@@ -37,7 +37,10 @@ def _progress():
 
 def _add_pipeline_overrides(p: argparse.ArgumentParser) -> None:
     p.add_argument(
-        "pipeline", type=Path, help="pipeline definition (TOML), e.g. pipelines/baxter_handover.toml"
+        "pipeline",
+        type=Path,
+        help="pipeline definition (TOML), e.g. pipelines/baxter_handover.toml, or the name of a shipped one, "
+        "e.g. baxter_handover (used when no file of that name is in the current folder)",
     )
     p.add_argument("--out", type=Path, help="output folder (default: the pipeline's outputs.dir)")
     p.add_argument("--dataset", type=Path, help="dataset folder (default: built-in synthetic demos)")

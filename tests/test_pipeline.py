@@ -11,8 +11,9 @@ import pytest
 from ipromp_pin.cli import main
 from ipromp_pin.exceptions import PipelineError
 from ipromp_pin.export import read_trajectory_csv, read_trajectory_json
-from ipromp_pin.pipeline import load_pipeline
+from ipromp_pin.pipeline import load_pipeline, resolve_pipeline_path
 from ipromp_pin.robot import load_robot
+from ipromp_pin.shipped import PIPELINES_DIR
 from ipromp_pin.timing import JointLimits
 
 PIPELINE = Path(__file__).resolve().parents[1] / "pipelines" / "baxter_handover.toml"
@@ -92,6 +93,20 @@ def test_bad_pipeline_files_fail_clearly(tmp_path, capsys):
     # the command line turns errors into one line and exit status 2
     assert main(["run", str(bad), "--out", str(tmp_path / "x")]) == 2
     assert "error:" in capsys.readouterr().err
+
+
+def test_pipeline_named_instead_of_a_path_is_the_shipped_one(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert PIPELINES_DIR == PIPELINE.parent  # a source checkout ships its own pipelines/ folder
+    assert resolve_pipeline_path("baxter_handover") == PIPELINE
+    cfg = load_pipeline("baxter_handover")
+    assert Path(cfg.source) == PIPELINE and cfg.robot == "baxter_left" and cfg.ratio == 0.2
+    # a file of that name in the current folder wins over the shipped one
+    (tmp_path / "baxter_handover").write_text("[observation]\nratio = 0.3\n")
+    assert resolve_pipeline_path("baxter_handover") == Path("baxter_handover")
+    assert load_pipeline("baxter_handover").ratio == 0.3
+    with pytest.raises(PipelineError, match=r"no_such_pipeline: .* \(shipped pipelines: baxter_handover"):
+        load_pipeline("no_such_pipeline")
 
 
 def test_unknown_task_and_demo_index_fail_clearly(tmp_path, capsys):

@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from ..exceptions import RobotError
+from ..shipped import ROBOTS_DIR
 
 __all__ = [
     "EE_FRAME",
@@ -33,9 +34,6 @@ __all__ = [
     "resolve_settings_path",
     "settings_error",
 ]
-
-ROBOTS_DIR = Path(__file__).resolve().parents[2] / "robots"
-"""Folder of the project's robot settings files (``robots/`` beside the package)."""
 
 EE_FRAME = "ee"
 """Default name of the end-effector frame added to the model (parent frame * tool offset)."""

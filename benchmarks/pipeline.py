@@ -24,7 +24,9 @@ from pathlib import Path
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from ipromp_pin.pipeline import PipelineConfig, choose_demo, get_model, load_data, plan, write_outputs
+from ipromp_pin.config import PipelineConfig
+from ipromp_pin.pipeline import choose_demo, get_model, load_data, write_outputs
+from ipromp_pin.planning import plan
 from ipromp_pin.robot import load_robot
 
 

@@ -28,10 +28,9 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from ipromp_pin.evaluate import score_trial
-from ipromp_pin.kinematics import ee_positions
 from ipromp_pin.readers import load_dataset
 from ipromp_pin.recognition import IProMP
-from ipromp_pin.robot import load_robot
+from ipromp_pin.robot import ee_positions, load_robot
 
 
 def main() -> None:

@@ -37,7 +37,10 @@ def _progress():
 
 def _add_pipeline_overrides(p: argparse.ArgumentParser) -> None:
     p.add_argument(
-        "pipeline", type=Path, help="pipeline definition (TOML), e.g. pipelines/baxter_handover.toml"
+        "pipeline",
+        type=Path,
+        help="pipeline definition (TOML), e.g. pipelines/baxter_handover.toml, or the name of a shipped one, "
+        "e.g. baxter_handover (used when no file of that name is in the current folder)",
     )
     p.add_argument("--out", type=Path, help="output folder (default: the pipeline's outputs.dir)")
     p.add_argument("--dataset", type=Path, help="dataset folder (default: built-in synthetic demos)")
@@ -56,7 +59,7 @@ def _add_pipeline_overrides(p: argparse.ArgumentParser) -> None:
 
 
 def _pipeline_config(args: argparse.Namespace):
-    from .pipeline import load_pipeline
+    from .config import load_pipeline
 
     return load_pipeline(
         args.pipeline,
@@ -128,7 +131,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         from . import plots
 
         args.plots.mkdir(parents=True, exist_ok=True)
-        plots.plot_accuracy_chart(
+        plots.plot_accuracy(
             [c.__dict__ for c in cells],
             args.plots / "accuracy.png",
             title=f"Recognition accuracy: {args.dataset.name}",
@@ -166,7 +169,7 @@ def cmd_train(args: argparse.Namespace) -> int:
 
 
 def cmd_calibrate(args: argparse.Namespace) -> int:
-    from .kinematics import run_calibration
+    from .calibrate import run_calibration
 
     run_calibration(args.dataset, args.robot, write=args.write)
     return 0

@@ -16,6 +16,7 @@ import numpy as np
 
 from .data import ROBOT
 from .exceptions import PipelineError
+from .shipped import PIPELINES_DIR
 
 _SCHEMA: dict[str, dict[str, type | tuple[type, ...]]] = {
     "data": {"dataset": str, "format": str, "rate_hz": (int, float), "frames": list, "synthetic_seed": int},
@@ -85,17 +86,36 @@ class PipelineConfig:
         return self
 
 
+def resolve_pipeline_path(path_or_name: str | Path) -> Path:
+    """The pipeline file to read: ``path_or_name`` if it is a file, else, for a bare name such as
+    ``"baxter_handover"``, the shipped definition of that name (:data:`ipromp_pin.shipped.PIPELINES_DIR`).
+
+    A name that matches neither is returned unchanged (:func:`load_pipeline` reports it as not found).
+    """
+    path = Path(path_or_name)
+    if not path.is_file() and path.suffix == "" and len(path.parts) == 1:
+        shipped = PIPELINES_DIR / f"{path.name}.toml"
+        if shipped.is_file():
+            return shipped
+    return path
+
+
 def load_pipeline(path: str | Path, **overrides) -> PipelineConfig:
     """Read a pipeline definition; ``overrides`` (non-``None`` values) replace its fields.
+
+    Args:
+        path: A pipeline file, or the name of a shipped one (see :func:`resolve_pipeline_path`).
+        **overrides: Field values that replace the file's.
 
     Raises:
         PipelineError: unreadable file, unknown section or key, wrong type or value.
     """
-    path = Path(path)
+    path = resolve_pipeline_path(path)
     try:
         doc = tomllib.loads(path.read_text(encoding="utf-8"))
     except FileNotFoundError:
-        raise PipelineError(f"{path}: pipeline file not found") from None
+        known = ", ".join(sorted(f.stem for f in PIPELINES_DIR.glob("*.toml"))) or "none"
+        raise PipelineError(f"{path}: pipeline file not found (shipped pipelines: {known})") from None
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise PipelineError(f"{path}: not a valid TOML pipeline file: {exc}") from None
     for section, table in doc.items():

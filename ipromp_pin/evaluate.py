@@ -25,7 +25,9 @@ how well the robot's motion is predicted, next to the unconditioned task mean
 from __future__ import annotations
 
 import json
+import multiprocessing as mp
 from collections.abc import Callable, Sequence
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -33,6 +35,8 @@ import numpy as np
 
 from .data import ROBOT, Dataset, Demo
 from .exceptions import DataError
+from .promp import IProMP
+from .robot import ee_positions, load_robot
 
 PAPER_GRID: tuple[tuple[int, float], ...] = ((20, 0.1), (15, 0.1), (10, 0.1), (10, 0.2))
 """(n_train, obs_ratio) cells of the paper's table."""
@@ -288,8 +292,6 @@ def _run_job(job: _Job) -> tuple[_Job, dict[float, list[TrialResult]], str]:
         The job, per ratio the trials, and the observed groups the fitted model couples to the
         robot (``"+"``-joined).
     """
-    from .promp import IProMP
-
     dataset: Dataset = _WORKER["dataset"]
     fk = _WORKER["fk"]
     train, test = _take(dataset, job.indices)
@@ -305,9 +307,6 @@ def _run_job(job: _Job) -> tuple[_Job, dict[float, list[TrialResult]], str]:
 def _robot_fk(robot: str | None) -> Callable[[np.ndarray], np.ndarray] | None:
     if robot is None:
         return None
-    from .kinematics import ee_positions
-    from .robot import load_robot
-
     loaded = load_robot(robot)
     return lambda q: ee_positions(loaded, q)
 
@@ -374,9 +373,6 @@ def _map(work: list[_Job], jobs: int):
     if jobs <= 1 or len(work) <= 1:
         yield from map(_run_job, work)
         return
-    import multiprocessing as mp
-    from concurrent.futures import ProcessPoolExecutor, as_completed
-
     with ProcessPoolExecutor(max_workers=jobs, mp_context=mp.get_context("fork")) as pool:
         futures = [pool.submit(_run_job, job) for job in work]
         for f in as_completed(futures):

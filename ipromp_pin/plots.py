@@ -337,4 +337,3 @@ def plot_accuracy(
     ax.legend(fontsize=8, loc="lower left")
     fig.suptitle(title)
     return _save(fig, path, dpi)
-

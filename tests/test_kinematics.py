@@ -1,4 +1,4 @@
-"""FK, feasibility checks and FK calibration (ipromp_pin.kinematics)."""
+"""FK, feasibility checks and calibration (ipromp_pin.robot: kinematics, checks, collision, calibration)."""
 
 from __future__ import annotations
 
@@ -10,17 +10,16 @@ import pytest
 
 from ipromp_pin.data import ROBOT, Demo
 from ipromp_pin.exceptions import DataError, InfeasibleError
-from ipromp_pin.kinematics import (
+from ipromp_pin.robot import ROBOTS_DIR, load_robot
+from ipromp_pin.robot.calibration import (
     calibrate_tool_offset,
-    check_path,
-    check_self_collision,
     endpoint_residuals_mm,
-    forward_kinematics,
-    frame_placements,
     uncalibrated_robot,
     write_calibration,
 )
-from ipromp_pin.robot import ROBOTS_DIR, load_robot
+from ipromp_pin.robot.checks import check_path
+from ipromp_pin.robot.collision import check_self_collision
+from ipromp_pin.robot.kinematics import forward_kinematics, frame_placements
 
 # A typical hand-over start pose of the recordings and a pose with the forearm folded into the torso.
 Q_START = np.array([-0.839, -0.969, 0.377, 1.262, -0.204, 1.189, 1.661])

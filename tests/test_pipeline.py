@@ -9,10 +9,11 @@ import numpy as np
 import pytest
 
 from ipromp_pin.cli import main
+from ipromp_pin.config import load_pipeline, resolve_pipeline_path
 from ipromp_pin.exceptions import PipelineError
 from ipromp_pin.export import read_trajectory_csv, read_trajectory_json
-from ipromp_pin.pipeline import load_pipeline
 from ipromp_pin.robot import load_robot
+from ipromp_pin.shipped import PIPELINES_DIR
 from ipromp_pin.timing import JointLimits
 
 PIPELINE = Path(__file__).resolve().parents[1] / "pipelines" / "baxter_handover.toml"
@@ -33,8 +34,12 @@ def _check_outputs(out: Path) -> dict:
     assert np.allclose(csv_traj.qd[-1], 0.0, atol=1e-6) and np.allclose(csv_traj.qd[0], 0.0, atol=1e-6)
     assert set(report["posterior"]) and abs(sum(report["posterior"].values()) - 1.0) < 1e-9
     assert report["recognised_task"] == max(report["posterior"], key=report["posterior"].get)
-    for name in ("joint_limits", "self_collision", "workspace"):
-        assert report["feasibility"]["checks"][name]["status"] in ("pass", "fail")
+    checks = report["feasibility"]["checks"]
+    for name in ("joint_limits", "self_collision", "workspace"):  # the planned hand-overs are feasible
+        assert checks[name]["status"] == "pass", checks[name]["reason"]
+    failed = [n for n, c in checks.items() if c["required"] and c["status"] == "fail"]
+    assert report["feasibility"]["failures"] == failed
+    assert report["passed"] == (not failed and report["trajectory"]["passed"])
     return report
 
 
@@ -92,6 +97,20 @@ def test_bad_pipeline_files_fail_clearly(tmp_path, capsys):
     # the command line turns errors into one line and exit status 2
     assert main(["run", str(bad), "--out", str(tmp_path / "x")]) == 2
     assert "error:" in capsys.readouterr().err
+
+
+def test_pipeline_named_instead_of_a_path_is_the_shipped_one(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert PIPELINES_DIR == PIPELINE.parent  # a source checkout ships its own pipelines/ folder
+    assert resolve_pipeline_path("baxter_handover") == PIPELINE
+    cfg = load_pipeline("baxter_handover")
+    assert Path(cfg.source) == PIPELINE and cfg.robot == "baxter_left" and cfg.ratio == 0.2
+    # a file of that name in the current folder wins over the shipped one
+    (tmp_path / "baxter_handover").write_text("[observation]\nratio = 0.3\n")
+    assert resolve_pipeline_path("baxter_handover") == Path("baxter_handover")
+    assert load_pipeline("baxter_handover").ratio == 0.3
+    with pytest.raises(PipelineError, match=r"no_such_pipeline: .* \(shipped pipelines: baxter_handover"):
+        load_pipeline("no_such_pipeline")
 
 
 def test_unknown_task_and_demo_index_fail_clearly(tmp_path, capsys):

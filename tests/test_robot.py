@@ -1,4 +1,4 @@
-"""Robot settings and model loading (robots/*.toml, ipromp_pin.robot)."""
+"""Robot settings and model loading (robots/*.toml, ipromp_pin.robot.settings and .model)."""
 
 from __future__ import annotations
 
@@ -12,6 +12,7 @@ import pytest
 from ipromp_pin.exceptions import RobotError
 from ipromp_pin.robot import (
     ROBOTS_DIR,
+    build_robot,
     find_robot_data_dir,
     load_robot,
     load_robot_settings,
@@ -142,3 +143,30 @@ def test_placeholder_velocity_limit_in_urdf_is_rejected(tmp_path):
 def test_unknown_robot_name():
     with pytest.raises(RobotError, match="not found"):
         load_robot_settings("no_such_robot")
+
+
+def test_old_import_paths_keep_working():
+    """``ipromp_pin.kinematics`` re-exports the robot package's functions; ``run_calibration`` moved up."""
+    import ipromp_pin.kinematics as old
+    import ipromp_pin.robot as robot
+    from ipromp_pin.calibrate import run_calibration
+
+    assert old.__all__
+    for name in old.__all__:
+        obj = getattr(old, name)
+        assert obj.__module__.startswith("ipromp_pin.robot."), (name, obj.__module__)
+        assert getattr(robot, name, obj) is obj
+    assert old.check_path is robot.check_path and old.forward_kinematics is robot.forward_kinematics
+    assert not hasattr(old, "run_calibration") and run_calibration.__module__ == "ipromp_pin.calibrate"
+    assert robot.load_robot.__module__ == "ipromp_pin.robot.model"
+    assert robot.load_robot_settings.__module__ == "ipromp_pin.robot.settings"
+
+
+def test_kinematics_only_robot_has_no_collision_model():
+    s = load_robot_settings("baxter_left")
+    robot = build_robot(s, collision=False)
+    assert robot.collision_model is None and robot.collision_data is None
+    full = load_robot("baxter_left")
+    np.testing.assert_array_equal(robot.q_neutral, full.q_neutral)
+    np.testing.assert_array_equal(robot.arm_q_index, full.arm_q_index)
+    assert robot.model.frames[robot.ee_frame_id].name == s.ee_frame

@@ -1,0 +1,76 @@
+"""The robot side: settings files, the Pinocchio model, forward kinematics, feasibility checks, calibration.
+
+Modules, each one concept, from the bottom up:
+
+* :mod:`~ipromp_pin.robot.settings`: robot settings files (``robots/*.toml``), validated;
+* :mod:`~ipromp_pin.robot.model`: the :class:`Robot` (kinematic + collision models) built from them,
+  and :func:`load_robot`'s cache;
+* :mod:`~ipromp_pin.robot.kinematics`: forward kinematics along a joint path;
+* :mod:`~ipromp_pin.robot.report`: check results and the feasibility report;
+* :mod:`~ipromp_pin.robot.collision`: the self-collision check;
+* :mod:`~ipromp_pin.robot.checks`: the other checks and :func:`check_path`, which runs them all;
+* :mod:`~ipromp_pin.robot.calibration`: FK offset calibration and the settings-file writer.
+
+The names below are re-exported here, so ``from ipromp_pin.robot import load_robot, check_path``
+works (``ipromp_pin.robot`` was a single module before).
+"""
+
+from .calibration import (
+    CalibrationResult,
+    calibrate_tool_offset,
+    endpoint_residuals_mm,
+    uncalibrated_robot,
+    write_calibration,
+)
+from .checks import (
+    check_hand_distance,
+    check_joint_limits,
+    check_path,
+    check_uncertainty,
+    check_workspace,
+)
+from .collision import check_self_collision
+from .kinematics import ee_positions, forward_kinematics, frame_placements
+from .model import Robot, build_robot, clear_robot_cache, load_robot, load_visual_model, map_recorded_joints
+from .report import CheckResult, FeasibilityReport
+from .settings import (
+    EE_FRAME,
+    ROBOTS_DIR,
+    RobotSettings,
+    Workspace,
+    find_robot_data_dir,
+    load_robot_settings,
+    resolve_settings_path,
+)
+
+__all__ = [
+    "EE_FRAME",
+    "ROBOTS_DIR",
+    "CalibrationResult",
+    "CheckResult",
+    "FeasibilityReport",
+    "Robot",
+    "RobotSettings",
+    "Workspace",
+    "build_robot",
+    "calibrate_tool_offset",
+    "check_hand_distance",
+    "check_joint_limits",
+    "check_path",
+    "check_self_collision",
+    "check_uncertainty",
+    "check_workspace",
+    "clear_robot_cache",
+    "ee_positions",
+    "endpoint_residuals_mm",
+    "find_robot_data_dir",
+    "forward_kinematics",
+    "frame_placements",
+    "load_robot",
+    "load_robot_settings",
+    "load_visual_model",
+    "map_recorded_joints",
+    "resolve_settings_path",
+    "uncalibrated_robot",
+    "write_calibration",
+]

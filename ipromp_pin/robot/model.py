@@ -1,0 +1,329 @@
+"""The Pinocchio robot built from a settings file: kinematic + collision models, arm indices, limits.
+
+:func:`build_robot` builds the kinematic model (~3 ms) and, unless asked not to, the collision
+model (~50 ms) with the SRDF's disabled pairs removed, checking the settings against the model.
+:func:`load_robot` builds a robot once per settings file and caches it in this module's
+dictionary ``_ROBOT_CACHE`` (module-level state, keyed by the resolved settings path and the
+file's modification time and size, so a re-calibrated file is reloaded; :func:`clear_robot_cache`
+empties it; ``cache=False`` bypasses it). Visual meshes (~2 s) are never loaded by the checks;
+previews call :func:`load_visual_model`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+
+from ..exceptions import RobotError
+from .settings import RobotSettings, load_robot_settings, resolve_settings_path, settings_error
+
+
+@dataclass
+class Robot:
+    """A loaded robot: Pinocchio kinematic + collision models and the arm's indices and limits.
+
+    The ``data``/``collision_data`` work buffers are shared by every user of the cached robot (not
+    thread-safe: use one robot per thread, e.g. via ``load_robot(..., cache=False)``).
+
+    Attributes:
+        settings: The validated settings.
+        model: Kinematic model (with the added end-effector frame).
+        data: Its work data.
+        collision_model: Collision geometries with the SRDF-disabled pairs removed (``None`` for a
+            kinematics-only robot, ``build_robot(settings, collision=False)``).
+        collision_data: Its work data (only pairs whose distance the arm can change are active).
+        arm_joint_ids: Model joint ids of the arm joints (n_joints,).
+        arm_q_index: Indices of the arm joints in the model configuration vector (n_joints,).
+        arm_v_index: Indices of the arm joints in the model velocity vector (n_joints,).
+        ee_frame_id: Id of the end-effector frame (parent frame * tool offset).
+        ee_parent_frame_id: Id of the parent frame (e.g. ``left_gripper``).
+        q_neutral: Full configuration (nq,) with non-arm joints at their fixed values, arm at 0 clipped.
+        lower_rad: Arm position lower limits (n_joints,) from the URDF in [rad].
+        upper_rad: Arm position upper limits (n_joints,) in [rad].
+        velocity_rad_s: Arm velocity limits (n_joints,) in [rad/s] (URDF or settings override).
+        n_pairs_total: Collision pairs before removing the SRDF's disabled pairs.
+        n_pairs_srdf_removed: Pairs the SRDF disabled.
+        active_pair_ids: Indices (into ``collision_model.collisionPairs``) of pairs whose distance
+            can change when the arm moves.
+        static_min_distance_m: Smallest distance among the other (static) pairs at ``q_neutral``.
+    """
+
+    settings: RobotSettings
+    model: pin.Model
+    data: pin.Data
+    collision_model: pin.GeometryModel | None
+    collision_data: pin.GeometryData | None
+    arm_joint_ids: np.ndarray
+    arm_q_index: np.ndarray
+    arm_v_index: np.ndarray
+    ee_frame_id: int
+    ee_parent_frame_id: int
+    q_neutral: np.ndarray
+    lower_rad: np.ndarray
+    upper_rad: np.ndarray
+    velocity_rad_s: np.ndarray
+    n_pairs_total: int = 0
+    n_pairs_srdf_removed: int = 0
+    active_pair_ids: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
+    static_min_distance_m: float = math.inf
+
+    @property
+    def joint_names(self) -> tuple[str, ...]:
+        """Arm joint names in kinematic order."""
+        return self.settings.arm_joints
+
+    @property
+    def n_joints(self) -> int:
+        """Number of arm joints."""
+        return len(self.settings.arm_joints)
+
+    def full_configuration(self, q_arm: np.ndarray) -> np.ndarray:
+        """Full model configuration(s) (..., nq) from arm joint angles (..., n_joints) in [rad]."""
+        q_arm = np.asarray(q_arm, dtype=float)
+        if q_arm.shape[-1] != self.n_joints:
+            raise ValueError(f"expected {self.n_joints} arm joints in the last axis, got shape {q_arm.shape}")
+        q = np.broadcast_to(self.q_neutral, q_arm.shape[:-1] + (self.model.nq,)).copy()
+        q[..., self.arm_q_index] = q_arm
+        return q
+
+    def pair_names(self, pair_id: int) -> tuple[str, str]:
+        """Geometry names of collision pair ``pair_id``."""
+        cp = self.collision_model.collisionPairs[int(pair_id)]
+        g = self.collision_model.geometryObjects
+        return g[cp.first].name, g[cp.second].name
+
+    def pair_links(self, pair_id: int) -> tuple[str, str]:
+        """Link (parent frame) names of collision pair ``pair_id``."""
+        cp = self.collision_model.collisionPairs[int(pair_id)]
+        g = self.collision_model.geometryObjects
+        return (
+            self.model.frames[g[cp.first].parentFrame].name,
+            self.model.frames[g[cp.second].parentFrame].name,
+        )
+
+
+_ROBOT_CACHE: dict[tuple, Robot] = {}
+"""Loaded robots keyed by (resolved settings path, mtime_ns, size); see :func:`load_robot`."""
+
+
+def clear_robot_cache() -> None:
+    """Forget every cached robot (the next :func:`load_robot` rebuilds the models)."""
+    _ROBOT_CACHE.clear()
+
+
+def load_robot(settings: RobotSettings | str | Path, *, cache: bool = True) -> Robot:
+    """Load the kinematic and collision models described by ``settings`` (cached, no visual meshes).
+
+    Args:
+        settings: Validated settings, or a settings path / robot name (read with
+            :func:`load_robot_settings`).
+        cache: Reuse (and store) the robot loaded from the same settings file.
+
+    Raises:
+        RobotError: unknown joint or frame names, non-revolute or out-of-order arm joints, invalid
+            URDF limits, fixed joint values outside their limits, a held configuration in collision.
+    """
+    key = None
+    if cache:
+        path = settings.path if isinstance(settings, RobotSettings) else resolve_settings_path(settings)
+        st = path.stat()
+        key = (str(path), st.st_mtime_ns, st.st_size)
+        robot = _ROBOT_CACHE.get(key)
+        if robot is not None:
+            return robot
+    if not isinstance(settings, RobotSettings):
+        settings = load_robot_settings(settings)
+    robot = build_robot(settings)
+    if key is not None:
+        for k in [k for k in _ROBOT_CACHE if k[0] == key[0]]:
+            del _ROBOT_CACHE[k]
+        _ROBOT_CACHE[key] = robot
+    return robot
+
+
+def build_robot(s: RobotSettings, collision: bool = True) -> Robot:
+    """Build the robot described by validated settings (not cached; see :func:`load_robot`).
+
+    Args:
+        s: Validated settings (:func:`load_robot_settings`).
+        collision: Also build the collision model (~50 ms) and check the held configuration;
+            ``False`` gives a kinematics-only robot (~3 ms, ``collision_model`` is ``None``).
+
+    Raises:
+        RobotError: as :func:`load_robot`.
+    """
+    src = s.path
+    try:
+        model = pin.buildModelFromUrdf(str(s.urdf_path))
+    except (RuntimeError, ValueError) as exc:
+        raise settings_error(src, "description.urdf", f"cannot be parsed: {exc}") from exc
+
+    joint_ids = []
+    for name in s.arm_joints:
+        if not model.existJointName(name):
+            raise settings_error(
+                src, "arm.joints", f"unknown joint '{name}' (not a movable joint of {s.urdf_path.name})"
+            )
+        jid = model.getJointId(name)
+        if model.joints[jid].nq != 1 or model.joints[jid].nv != 1:
+            raise settings_error(src, "arm.joints", f"joint '{name}' is not a 1-dof joint")
+        joint_ids.append(jid)
+    for a, b, ja, jb in zip(s.arm_joints[:-1], s.arm_joints[1:], joint_ids[:-1], joint_ids[1:], strict=True):
+        if jb not in model.subtrees[ja]:
+            raise settings_error(src, "arm.joints", f"not in kinematic order: '{b}' does not follow '{a}'")
+    joint_ids = np.asarray(joint_ids, dtype=int)
+    q_idx = np.array([model.joints[int(j)].idx_q for j in joint_ids], dtype=int)
+    v_idx = np.array([model.joints[int(j)].idx_v for j in joint_ids], dtype=int)
+
+    lower = np.asarray(model.lowerPositionLimit, dtype=float)[q_idx]
+    upper = np.asarray(model.upperPositionLimit, dtype=float)[q_idx]
+    urdf_vel = np.asarray(model.velocityLimit, dtype=float)[v_idx]
+    for i, name in enumerate(s.arm_joints):
+        lo, hi, v = lower[i], upper[i], urdf_vel[i]
+        if not (np.isfinite(lo) and np.isfinite(hi)) or lo >= hi:
+            raise settings_error(s.urdf_path, f"joint {name} limit", f"invalid position limits [{lo}, {hi}]")
+        if s.velocity_override_rad_s is None and not (np.isfinite(v) and 0 < v < 1e3):
+            raise settings_error(
+                s.urdf_path,
+                f"joint {name} limit velocity",
+                f"invalid velocity limit {v} (not finite and positive, or a placeholder); "
+                f"set limits.velocity_rad_s in {src.name}",
+            )
+        if 2 * s.position_margin_rad[i] >= hi - lo:
+            raise settings_error(
+                src,
+                "limits.position_margin_rad",
+                f"margin {s.position_margin_rad[i]} leaves no range for {name}",
+            )
+    vel = urdf_vel if s.velocity_override_rad_s is None else s.velocity_override_rad_s
+
+    q0 = pin.neutral(model)
+    q0 = np.clip(q0, model.lowerPositionLimit, model.upperPositionLimit)
+    q0[q_idx] = np.clip(0.0, lower + s.position_margin_rad, upper - s.position_margin_rad)
+    for name, value in s.fixed_joints.items():
+        if not model.existJointName(name):
+            raise settings_error(
+                src, f"fixed_joints.{name}", "unknown joint (not a movable joint of the model)"
+            )
+        j = model.joints[model.getJointId(name)]
+        if j.nq != 1:
+            raise settings_error(src, f"fixed_joints.{name}", "only 1-dof joints can be fixed by value")
+        lo, hi = model.lowerPositionLimit[j.idx_q], model.upperPositionLimit[j.idx_q]
+        if not lo <= value <= hi:
+            raise settings_error(
+                src, f"fixed_joints.{name}", f"value {value} outside the joint's limits [{lo}, {hi}]"
+            )
+        q0[j.idx_q] = value
+
+    if not model.existFrame(s.ee_parent_frame):
+        raise settings_error(src, "end_effector.parent_frame", f"unknown frame '{s.ee_parent_frame}'")
+    parent_id = model.getFrameId(s.ee_parent_frame)
+    if model.existFrame(s.ee_frame):
+        raise settings_error(src, "end_effector.frame", f"frame '{s.ee_frame}' already exists in the model")
+    parent = model.frames[parent_id]
+    if parent.parentJoint not in model.subtrees[int(joint_ids[-1])]:
+        raise settings_error(
+            src, "end_effector.parent_frame", f"frame '{s.ee_parent_frame}' is not moved by the arm"
+        )
+    offset = pin.SE3(np.eye(3), s.tool_offset_m)
+    ee_id = model.addFrame(
+        pin.Frame(
+            s.ee_frame, parent.parentJoint, parent_id, parent.placement * offset, pin.FrameType.OP_FRAME
+        )
+    )
+    root = int(joint_ids[0])
+    model.jointPlacements[root] = pin.SE3(np.eye(3), s.mount_offset_m) * model.jointPlacements[root]
+    data = model.createData()
+    kinematic = dict(
+        settings=s,
+        model=model,
+        data=data,
+        arm_joint_ids=joint_ids,
+        arm_q_index=q_idx,
+        arm_v_index=v_idx,
+        ee_frame_id=int(ee_id),
+        ee_parent_frame_id=int(parent_id),
+        q_neutral=q0,
+        lower_rad=lower,
+        upper_rad=upper,
+        velocity_rad_s=np.asarray(vel, dtype=float),
+    )
+    if not collision:
+        return Robot(collision_model=None, collision_data=None, **kinematic)
+
+    try:
+        cmodel = pin.buildGeomFromUrdf(
+            model, str(s.urdf_path), pin.COLLISION, package_dirs=list(s.package_dirs)
+        )
+    except (RuntimeError, ValueError) as exc:
+        raise settings_error(src, "description.urdf", f"collision geometry cannot be loaded: {exc}") from exc
+    cmodel.addAllCollisionPairs()
+    n_total = len(cmodel.collisionPairs)
+    if s.srdf_path is not None:
+        try:
+            pin.removeCollisionPairs(model, cmodel, str(s.srdf_path))
+        except (RuntimeError, ValueError) as exc:
+            raise settings_error(src, "description.srdf", f"cannot be applied: {exc}") from exc
+    n_removed = n_total - len(cmodel.collisionPairs)
+    cdata = pin.GeometryData(cmodel)
+
+    # A pair's distance can change only if an arm joint lies between its two geometries: each
+    # geometry gets the number of arm joints among its parent joint's ancestors ("segment"), and
+    # pairs on the same segment (e.g. gripper fingers vs hand, torso vs other arm) are static.
+    segment = np.zeros(model.njoints, dtype=int)
+    for jid in joint_ids:
+        segment[list(model.subtrees[int(jid)])] += 1
+    geom_segment = np.array([segment[g.parentJoint] for g in cmodel.geometryObjects], dtype=int)
+    active, static = [], []
+    for k, cp in enumerate(cmodel.collisionPairs):
+        (active if geom_segment[cp.first] != geom_segment[cp.second] else static).append(k)
+    robot = Robot(
+        collision_model=cmodel,
+        collision_data=cdata,
+        **kinematic,
+        n_pairs_total=n_total,
+        n_pairs_srdf_removed=n_removed,
+        active_pair_ids=np.asarray(active, dtype=int),
+    )
+    # Static pairs (neither geometry moves with the arm) are checked once, here.
+    if static:
+        pin.updateGeometryPlacements(model, data, cmodel, cdata, q0)
+        dists = [(pin.computeDistance(cmodel, cdata, k).min_distance, k) for k in static]
+        dmin, kmin = min(dists)
+        robot.static_min_distance_m = float(dmin)
+        if dmin <= s.min_clearance_m:
+            a, b = robot.pair_names(kmin)
+            raise settings_error(
+                src, "fixed_joints", f"held configuration is in self-collision: {a} - {b} ({dmin:.4f} m)"
+            )
+    for k in static:
+        cdata.deactivateCollisionPair(k)
+    return robot
+
+
+def load_visual_model(robot: Robot) -> pin.GeometryModel:
+    """Visual geometry (meshes) of ``robot``, for previews only (slow: ~2 s; never used by the checks)."""
+    s = robot.settings
+    try:
+        return pin.buildGeomFromUrdf(
+            robot.model, str(s.urdf_path), pin.VISUAL, package_dirs=list(s.package_dirs)
+        )
+    except (RuntimeError, ValueError) as exc:
+        raise settings_error(s.path, "description.urdf", f"visual geometry cannot be loaded: {exc}") from exc
+
+
+def map_recorded_joints(settings: RobotSettings, names: list[str] | tuple[str, ...]) -> np.ndarray:
+    """Column index, in a recording with joint ``names``, of each arm joint (in kinematic order).
+
+    Raises:
+        RobotError: an arm joint has no recorded column.
+    """
+    index = {settings.recorded_names.get(n): i for i, n in enumerate(names) if n in settings.recorded_names}
+    missing = [j for j in settings.arm_joints if j not in index]
+    if missing:
+        raise RobotError(f"{settings.path}: recorded joints {list(names)} lack arm joints {missing}")
+    return np.array([index[j] for j in settings.arm_joints], dtype=int)

@@ -1,0 +1,394 @@
+"""Robot settings files (``robots/*.toml``): reading and validating them, no Pinocchio model yet.
+
+A settings file names the URDF/SRDF (from the example-robot-data package or relative to the file),
+the arm's joints in kinematic order, the recorded-to-model joint name mapping, the end-effector
+frame and its calibrated tool offset, the limits, the configuration at which every non-arm joint is
+held and the hand-over workspace. Adding an arm or a robot needs a new settings file, not new code.
+The schema is described in ``robots/README.md``; the checks that need the model (joint and frame
+names, URDF limits, held configuration) are made when it is built (:mod:`ipromp_pin.robot.model`).
+
+A bare name such as ``"baxter_left"`` is looked up among the shipped settings files
+(:data:`ROBOTS_DIR`).
+"""
+
+from __future__ import annotations
+
+import importlib.metadata
+import math
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..exceptions import RobotError
+from ..shipped import ROBOTS_DIR
+
+__all__ = [
+    "EE_FRAME",
+    "ROBOTS_DIR",
+    "RobotSettings",
+    "Workspace",
+    "find_robot_data_dir",
+    "load_robot_settings",
+    "resolve_settings_path",
+    "settings_error",
+]
+
+EE_FRAME = "ee"
+"""Default name of the end-effector frame added to the model (parent frame * tool offset)."""
+
+_SCHEMA_VERSION = 1
+
+
+def settings_error(source: object, field_name: str | None, problem: str) -> RobotError:
+    """The error for a bad settings file or model: ``"<source>: field '<field_name>': <problem>"``."""
+    where = str(source)
+    if field_name:
+        where += f": field '{field_name}'"
+    return RobotError(f"{where}: {problem}")
+
+
+@dataclass(frozen=True)
+class Workspace:
+    """Region of the base frame in which a hand-over position must lie.
+
+    Attributes:
+        shape: ``"box"`` or ``"sphere"``.
+        min_m: Box lower corner (3,) in [m] (box only).
+        max_m: Box upper corner (3,) in [m] (box only).
+        center_m: Sphere centre (3,) in [m] (sphere only).
+        radius_m: Sphere radius in [m] (sphere only).
+    """
+
+    shape: str
+    min_m: np.ndarray | None = None
+    max_m: np.ndarray | None = None
+    center_m: np.ndarray | None = None
+    radius_m: float | None = None
+
+    def contains(self, p: np.ndarray) -> bool:
+        """Whether position ``p`` (3,) in [m] lies inside."""
+        return self.distance_outside(p) <= 0.0
+
+    def distance_outside(self, p: np.ndarray) -> float:
+        """Distance in [m] from ``p`` (3,) to the region; negative inside (depth below the surface)."""
+        p = np.asarray(p, dtype=float)
+        if self.shape == "sphere":
+            return float(np.linalg.norm(p - self.center_m) - self.radius_m)
+        below = self.min_m - p
+        above = p - self.max_m
+        outside = np.maximum(np.maximum(below, above), 0.0)
+        if np.any(outside > 0):
+            return float(np.linalg.norm(outside))
+        return float(np.max(np.maximum(below, above)))
+
+    def to_dict(self) -> dict:
+        """JSON-serialisable description."""
+        if self.shape == "sphere":
+            return {"shape": "sphere", "center_m": self.center_m.tolist(), "radius_m": self.radius_m}
+        return {"shape": "box", "min_m": self.min_m.tolist(), "max_m": self.max_m.tolist()}
+
+
+@dataclass(frozen=True)
+class RobotSettings:
+    """Validated content of a robot settings file (see ``robots/README.md``).
+
+    Attributes:
+        name: Robot/arm name, e.g. ``"baxter_left"``.
+        path: Resolved settings file path.
+        urdf_path: Resolved URDF path.
+        srdf_path: Resolved SRDF path, or ``None`` (no disabled collision pairs).
+        package_dirs: Folders searched for ``package://`` mesh URIs.
+        arm_joints: The arm's model joint names in kinematic order (n_joints,).
+        recorded_names: Recorded joint name -> model joint name.
+        ee_parent_frame: Model frame the tool offset is expressed in, e.g. ``"left_gripper"``.
+        ee_frame: Name of the added end-effector frame (parent frame * offset).
+        tool_offset_m: Tool offset (3,) in [m] in the parent frame's axes.
+        mount_offset_m: Translation (3,) in [m] of the arm's mount (the placement of its first joint),
+            in the frame of that joint's parent (Baxter: the base frame). Each Baxter has its own
+            arm-mount origins in its on-robot URDF; this corrects the generic URDF's.
+        calibration_info: Calibration provenance (fit, command, date, residuals), as in the file.
+        position_margin_rad: Joint-limit margin(s) (n_joints,) in [rad].
+        velocity_override_rad_s: Optional velocity limits (n_joints,) in [rad/s] that replace the URDF's.
+        acceleration_rad_s2: Acceleration limits (n_joints,) in [rad/s^2].
+        jerk_rad_s3: Jerk limits (n_joints,) in [rad/s^3].
+        fixed_joints: Non-arm model joint name -> held value in [rad] or [m].
+        workspace: Hand-over workspace.
+        min_clearance_m: Required minimum self-collision clearance in [m].
+        collision_max_step_rad: Largest joint step between collision-checked path samples in [rad].
+        max_hand_distance_m: Largest gripper-hand distance at the hand-over in [m].
+    """
+
+    name: str
+    path: Path
+    urdf_path: Path
+    srdf_path: Path | None
+    package_dirs: tuple[str, ...]
+    arm_joints: tuple[str, ...]
+    recorded_names: dict[str, str]
+    ee_parent_frame: str
+    ee_frame: str
+    tool_offset_m: np.ndarray
+    mount_offset_m: np.ndarray
+    calibration_info: dict
+    position_margin_rad: np.ndarray
+    velocity_override_rad_s: np.ndarray | None
+    acceleration_rad_s2: np.ndarray
+    jerk_rad_s3: np.ndarray
+    fixed_joints: dict[str, float]
+    workspace: Workspace
+    min_clearance_m: float
+    collision_max_step_rad: float
+    max_hand_distance_m: float
+
+    @property
+    def n_joints(self) -> int:
+        """Number of arm joints."""
+        return len(self.arm_joints)
+
+    @property
+    def recorded_arm_joints(self) -> tuple[str, ...]:
+        """The arm's joints as the recordings name them, in kinematic order (what readers ask for)."""
+        inverse = {model: rec for rec, model in self.recorded_names.items()}
+        return tuple(inverse[j] for j in self.arm_joints)
+
+
+def find_robot_data_dir(package: str = "example-robot-data") -> Path:
+    """Data folder of an installed robot-description package (its cmeel ``share`` folder).
+
+    Raises:
+        RobotError: the package is not installed or ships no data folder.
+    """
+    try:
+        dist = importlib.metadata.distribution(package)
+    except importlib.metadata.PackageNotFoundError as exc:
+        raise RobotError(f"robot description package '{package}' is not installed") from exc
+    share = Path(str(dist.locate_file("cmeel.prefix/share")))
+    if not share.is_dir():
+        raise RobotError(f"package '{package}' has no data folder at {share}")
+    return share
+
+
+def resolve_settings_path(path_or_name: str | Path) -> Path:
+    """Resolve a settings file path, or a bare name (``"baxter_left"``) in :data:`ROBOTS_DIR`."""
+    p = Path(path_or_name)
+    if p.is_file():
+        return p.resolve()
+    if p.suffix == "" and len(p.parts) == 1:
+        candidate = ROBOTS_DIR / f"{p.name}.toml"
+        if candidate.is_file():
+            return candidate.resolve()
+    known = ", ".join(sorted(f.stem for f in ROBOTS_DIR.glob("*.toml"))) if ROBOTS_DIR.is_dir() else ""
+    raise RobotError(f"{path_or_name}: robot settings file not found (known robots: {known or 'none'})")
+
+
+def _table(doc: dict, key: str, source: Path, required: bool = True) -> dict:
+    value = doc.get(key)
+    if value is None:
+        if required:
+            raise settings_error(source, key, "missing table")
+        return {}
+    if not isinstance(value, dict):
+        raise settings_error(source, key, "must be a table")
+    return value
+
+
+def _get(
+    table: dict, key: str, source: Path, prefix: str, kind: type | tuple, default: object = ...
+) -> object:
+    if key not in table:
+        if default is ...:
+            raise settings_error(source, f"{prefix}.{key}", "missing")
+        return default
+    value = table[key]
+    if kind is float and isinstance(value, int) and not isinstance(value, bool):
+        value = float(value)
+    if not isinstance(value, kind) or isinstance(value, bool) and kind is not bool:
+        raise settings_error(source, f"{prefix}.{key}", f"must be of type {getattr(kind, '__name__', kind)}")
+    return value
+
+
+def _positive_vector(value: object, n: int, source: Path, name: str, allow_zero: bool = False) -> np.ndarray:
+    if isinstance(value, int | float) and not isinstance(value, bool):
+        value = [value] * n
+    if not isinstance(value, list) or len(value) != n:
+        raise settings_error(source, name, f"must be a number or a list of {n} numbers")
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise settings_error(source, name, "must contain numbers only") from exc
+    if not np.all(np.isfinite(arr)):
+        raise settings_error(source, name, f"must be finite, got {arr.tolist()}")
+    bad = arr < 0 if allow_zero else arr <= 0
+    if np.any(bad):
+        which = "negative" if allow_zero else "zero or negative"
+        raise settings_error(source, name, f"{which} value {arr[bad][0]} (values: {arr.tolist()})")
+    return arr
+
+
+def _vector3(value: object, source: Path, name: str) -> np.ndarray:
+    if not isinstance(value, list) or len(value) != 3:
+        raise settings_error(source, name, "must be a list of 3 numbers")
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise settings_error(source, name, "must contain numbers only") from exc
+    if not np.all(np.isfinite(arr)):
+        raise settings_error(source, name, f"must be finite, got {arr.tolist()}")
+    return arr
+
+
+def load_robot_settings(path_or_name: str | Path) -> RobotSettings:
+    """Read and validate a robot settings file (file-level checks; model checks are in :func:`load_robot`).
+
+    Args:
+        path_or_name: Path of a ``.toml`` settings file, or the name of one in ``robots/``.
+
+    Raises:
+        RobotError: unreadable file, missing or malformed field, infeasible limits; the message
+            names the file, the field and the problem.
+    """
+    path = resolve_settings_path(path_or_name)
+    try:
+        with open(path, "rb") as fh:
+            doc = tomllib.load(fh)
+    except tomllib.TOMLDecodeError as exc:
+        raise settings_error(path, None, f"not valid TOML: {exc}") from exc
+    version = doc.get("schema_version", _SCHEMA_VERSION)
+    if version != _SCHEMA_VERSION:
+        raise settings_error(
+            path, "schema_version", f"unsupported version {version} (this code reads {_SCHEMA_VERSION})"
+        )
+    name = _get(doc, "name", path, "", str, path.stem)
+
+    desc = _table(doc, "description", path)
+    package = _get(desc, "package", path, "description", str, "")
+    base = find_robot_data_dir(package) if package else path.parent
+    urdf_rel = _get(desc, "urdf", path, "description", str)
+    if Path(urdf_rel).is_absolute():
+        raise settings_error(
+            path, "description.urdf", "must be a relative path (no absolute paths in settings)"
+        )
+    urdf_path = (base / urdf_rel).resolve()
+    if not urdf_path.is_file():
+        raise settings_error(path, "description.urdf", f"file not found: {urdf_path}")
+    srdf_rel = _get(desc, "srdf", path, "description", str, "")
+    srdf_path = None
+    if srdf_rel:
+        if Path(srdf_rel).is_absolute():
+            raise settings_error(
+                path, "description.srdf", "must be a relative path (no absolute paths in settings)"
+            )
+        srdf_path = (base / srdf_rel).resolve()
+        if not srdf_path.is_file():
+            raise settings_error(path, "description.srdf", f"file not found: {srdf_path}")
+
+    arm = _table(doc, "arm", path)
+    joints = _get(arm, "joints", path, "arm", list)
+    if not joints or not all(isinstance(j, str) and j for j in joints):
+        raise settings_error(path, "arm.joints", "must be a non-empty list of joint names")
+    if len(set(joints)) != len(joints):
+        raise settings_error(path, "arm.joints", f"joint listed twice in {joints}")
+    n = len(joints)
+    recorded = _get(arm, "recorded_names", path, "arm", dict, {j: j for j in joints})
+    for rec, mod in recorded.items():
+        if not isinstance(mod, str) or mod not in joints:
+            raise settings_error(
+                path, f"arm.recorded_names.{rec}", f"maps to '{mod}', which is not one of arm.joints"
+            )
+    missing = [j for j in joints if j not in recorded.values()]
+    if missing:
+        raise settings_error(path, "arm.recorded_names", f"no recorded name maps to {missing}")
+
+    ee = _table(doc, "end_effector", path)
+    parent_frame = _get(ee, "parent_frame", path, "end_effector", str)
+    ee_frame = _get(ee, "frame", path, "end_effector", str, EE_FRAME)
+
+    calib = _table(doc, "calibration", path, required=False)
+    offset = _vector3(calib.get("tool_offset_m", [0.0, 0.0, 0.0]), path, "calibration.tool_offset_m")
+    mount = _vector3(calib.get("mount_offset_m", [0.0, 0.0, 0.0]), path, "calibration.mount_offset_m")
+    calib_info = {k: v for k, v in calib.items() if k not in ("tool_offset_m", "mount_offset_m")}
+
+    limits = _table(doc, "limits", path)
+    margin = _positive_vector(
+        limits.get("position_margin_rad", 0.0), n, path, "limits.position_margin_rad", allow_zero=True
+    )
+    vel = None
+    if "velocity_rad_s" in limits:
+        vel = _positive_vector(limits["velocity_rad_s"], n, path, "limits.velocity_rad_s")
+    if "acceleration_rad_s2" not in limits:
+        raise settings_error(
+            path, "limits.acceleration_rad_s2", "missing (the URDF has no acceleration limits)"
+        )
+    acc = _positive_vector(limits["acceleration_rad_s2"], n, path, "limits.acceleration_rad_s2")
+    if "jerk_rad_s3" not in limits:
+        raise settings_error(path, "limits.jerk_rad_s3", "missing (the URDF has no jerk limits)")
+    jerk = _positive_vector(limits["jerk_rad_s3"], n, path, "limits.jerk_rad_s3")
+
+    fixed_raw = _table(doc, "fixed_joints", path, required=False)
+    fixed: dict[str, float] = {}
+    for k, v in fixed_raw.items():
+        if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+            raise settings_error(path, f"fixed_joints.{k}", f"must be a finite number, got {v!r}")
+        if k in joints:
+            raise settings_error(
+                path, f"fixed_joints.{k}", "is an arm joint; only non-arm joints can be fixed"
+            )
+        fixed[k] = float(v)
+
+    ws = _table(doc, "workspace", path)
+    shape = _get(ws, "shape", path, "workspace", str, "box")
+    if shape == "box":
+        lo = _vector3(ws.get("min_m"), path, "workspace.min_m")
+        hi = _vector3(ws.get("max_m"), path, "workspace.max_m")
+        if np.any(lo >= hi):
+            raise settings_error(path, "workspace", f"min_m {lo.tolist()} must be below max_m {hi.tolist()}")
+        workspace = Workspace("box", min_m=lo, max_m=hi)
+    elif shape == "sphere":
+        c = _vector3(ws.get("center_m"), path, "workspace.center_m")
+        r = _get(ws, "radius_m", path, "workspace", float)
+        if not (math.isfinite(r) and r > 0):
+            raise settings_error(path, "workspace.radius_m", f"must be positive and finite, got {r}")
+        workspace = Workspace("sphere", center_m=c, radius_m=float(r))
+    else:
+        raise settings_error(path, "workspace.shape", f"must be 'box' or 'sphere', got '{shape}'")
+
+    checks = _table(doc, "checks", path, required=False)
+    clearance = _get(checks, "min_clearance_m", path, "checks", float, 0.0)
+    step = _get(checks, "collision_max_step_rad", path, "checks", float, 0.05)
+    hand = _get(checks, "max_hand_distance_m", path, "checks", float, 0.25)
+    for key, value, lo_ok in (
+        ("min_clearance_m", clearance, True),
+        ("collision_max_step_rad", step, False),
+        ("max_hand_distance_m", hand, False),
+    ):
+        if not math.isfinite(value) or value < 0 or (value == 0 and not lo_ok):
+            raise settings_error(
+                path, f"checks.{key}", f"must be {'>= 0' if lo_ok else '> 0'} and finite, got {value}"
+            )
+
+    share = find_robot_data_dir(package) if package else path.parent
+    return RobotSettings(
+        name=name,
+        path=path,
+        urdf_path=urdf_path,
+        srdf_path=srdf_path,
+        package_dirs=(str(share),),
+        arm_joints=tuple(joints),
+        recorded_names=dict(recorded),
+        ee_parent_frame=parent_frame,
+        ee_frame=ee_frame,
+        tool_offset_m=offset,
+        mount_offset_m=mount,
+        calibration_info=calib_info,
+        position_margin_rad=margin,
+        velocity_override_rad_s=vel,
+        acceleration_rad_s2=acc,
+        jerk_rad_s3=jerk,
+        fixed_joints=fixed,
+        workspace=workspace,
+        min_clearance_m=float(clearance),
+        collision_max_step_rad=float(step),
+        max_hand_distance_m=float(hand),
+    )

@@ -213,7 +213,7 @@ def cold_compile_time() -> float:
 
     code = (
         "import time\n"
-        "from ipromp_pin.recognition import IProMP\n"
+        "from ipromp_pin import IProMP\n"
         "from ipromp_pin.synthetic import make_synthetic_dataset\n"
         "ds = make_synthetic_dataset(n_tasks=2, n_demos=4, seed=0)\n"
         "m = IProMP(['orientation', 'emg'], noise=1.0).fit(ds)\n"

@@ -27,9 +27,9 @@ from pathlib import Path
 import numpy as np
 from threadpoolctl import threadpool_limits
 
+from ipromp_pin import IProMP
 from ipromp_pin.evaluate import score_trial
 from ipromp_pin.readers import load_dataset
-from ipromp_pin.recognition import IProMP
 from ipromp_pin.robot import ee_positions, load_robot
 
 

@@ -7,6 +7,9 @@ Stable interface (people script against it)::
 
 Errors of the user's input exit with status 2 and a one-line message naming
 the file, field and problem; no traceback.
+
+Each command imports the modules it runs when it runs (the scientific stack takes a second or
+two to import), so that ``--help`` and argument errors answer at once.
 """
 
 from __future__ import annotations
@@ -54,7 +57,7 @@ def _add_pipeline_overrides(p: argparse.ArgumentParser) -> None:
     p.add_argument("--ratio", type=float, help="observed fraction of the motion, in (0, 1] (default 0.2)")
     p.add_argument("--model", type=Path, help="use this saved model instead of training")
     p.add_argument("--save-model", type=Path, help="save the trained model here")
-    p.add_argument("--robot", help="robot settings file or name (default robots/baxter_left.toml)")
+    p.add_argument("--robot", help="robot settings file or shipped name (default: the pipeline's)")
     p.add_argument("--rate", type=float, help="output control rate in [Hz] (default 100)")
 
 

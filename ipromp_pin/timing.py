@@ -406,7 +406,7 @@ def _update(otg: Ruckig, inp: InputParameter, out: OutputParameter) -> Result:
             inp.max_velocity, inp.max_acceleration, inp.max_jerk = v, a, j
 
 
-def _reachable_target(v: float, a: float, v_max: float, a_max: float, j_max: float) -> tuple[float, float]:
+def reachable_target(v: float, a: float, v_max: float, a_max: float, j_max: float) -> tuple[float, float]:
     """Clamp a 1-D target state (path velocity, acceleration) to one ruckig accepts.
 
     A target state with velocity ``v`` and acceleration ``a`` passes through ``v + a^2 / (2 j_max)``
@@ -456,7 +456,7 @@ def _ruckig_track_1d(
         k += 1
         i = min(k + lookahead, n_ref - 1)
         inp.target_position = [ref_s[i]]
-        v_t, a_t = _reachable_target(ref_v[i], ref_a[i], v_max, a_max, j_max)
+        v_t, a_t = reachable_target(ref_v[i], ref_a[i], v_max, a_max, j_max)
         inp.target_velocity = [v_t]
         inp.target_acceleration = [a_t]
         result = _update(otg, inp, out)

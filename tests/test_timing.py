@@ -138,12 +138,12 @@ def test_no_network_access_during_smoothing(limits, monkeypatch):
 
 
 def test_reachable_target_never_implies_exceeding_the_velocity_limit():
-    from ipromp_pin.timing import _reachable_target
+    from ipromp_pin.timing import reachable_target
 
     rng = np.random.default_rng(0)
     for _ in range(2000):
         v_max, a_max, j_max = rng.uniform(0.2, 2.0), rng.uniform(0.5, 3.0), rng.uniform(1.0, 20.0)
-        v, a = _reachable_target(rng.uniform(-0.5, 3.0), rng.uniform(-4, 4), v_max, a_max, j_max)
+        v, a = reachable_target(rng.uniform(-0.5, 3.0), rng.uniform(-4, 4), v_max, a_max, j_max)
         assert 0.0 <= v <= v_max and abs(a) <= a_max
         assert v + a * a / (2 * j_max) <= v_max  # both when accelerating and decelerating
         if a < 0:

@@ -547,7 +547,8 @@ def condition_block(
 ) -> bool:
     """Condition one independent latent block of a task on every observation part at one phase.
 
-    The whole of ``IProMP._condition`` for one block in one call: per part, :func:`condition_part`
+    The conditioning of :mod:`ipromp_pin.promp.conditioning` for one block in one call (``P``, ``a``,
+    ``Q`` as in :mod:`ipromp_pin.promp.likelihood`): per part, :func:`condition_part`
     (its basis rows from :func:`basis_rows`); then the latent posterior ``N(Q^-1 a, Q^-1)``
     (:func:`latent_posterior`), ``w_post += F Q^-1 a`` and, per part, the observed dims' correction
     ``X^-1 (b_d - G F_d eta)``.

@@ -80,6 +80,9 @@ def _pipeline_config(args: argparse.Namespace):
         control_rate_hz=args.rate,
         preview_html=False if getattr(args, "no_preview", False) else None,
         plots=True if getattr(args, "plots", False) else None,
+        ros=getattr(args, "ros", None),
+        rosbag=False if getattr(args, "no_rosbag", False) else None,
+        ros1_bag=True if getattr(args, "ros1_bag", False) else None,
     )
 
 
@@ -150,6 +153,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
 
 
 def cmd_train(args: argparse.Namespace) -> int:
+    from .model_warnings import single_task_warning, warn_stderr
     from .promp import IProMP
     from .readers import load_dataset
 
@@ -159,6 +163,9 @@ def cmd_train(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     coupling = args.coupling if args.coupling in ("auto", "all") else parse_groups(args.coupling)
     model = IProMP(observe=observe, coupling=coupling).fit(ds.all_demos())
+    single = single_task_warning(model)
+    if single is not None:
+        warn_stderr(single)
     model.save(args.out)
     print(
         f"trained on {len(ds.all_demos())} demos of {', '.join(ds.tasks)} in {time.perf_counter() - t0:.2f} s"
@@ -215,6 +222,16 @@ def build_parser() -> argparse.ArgumentParser:
     _add_pipeline_overrides(p)
     p.add_argument("--no-preview", action="store_true", help="do not write preview.html")
     p.add_argument("--plots", action="store_true", help="also write PNG figures")
+    p.add_argument(
+        "--ros",
+        type=int,
+        choices=[1, 2],
+        help="ROS version of trajectory.json's JointTrajectory: 2 = ROS 2 field names (default), 1 = ROS 1",
+    )
+    p.add_argument("--no-rosbag", action="store_true", help="do not write the rosbag2 folder rosbag/ (MCAP)")
+    p.add_argument(
+        "--ros1-bag", action="store_true", help="also write run.bag (ROS 1) with the same messages"
+    )
     p.set_defaults(func=cmd_run)
 
     p = sub.add_parser("evaluate", help="recognition accuracy and prediction error on a dataset")

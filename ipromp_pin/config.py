@@ -24,7 +24,14 @@ _SCHEMA: dict[str, dict[str, type | tuple[type, ...]]] = {
     "observation": {"task": str, "demo": int, "ratio": (int, float)},
     "robot": {"settings": str},
     "timing": {"control_rate_hz": (int, float)},
-    "outputs": {"dir": str, "preview_html": bool, "plots": bool},
+    "outputs": {
+        "dir": str,
+        "preview_html": bool,
+        "plots": bool,
+        "ros": int,
+        "rosbag": bool,
+        "ros1_bag": bool,
+    },
 }
 
 
@@ -50,6 +57,9 @@ class PipelineConfig:
         out_dir: Output folder.
         preview_html: Write ``preview.html``.
         plots: Write PNG figures.
+        ros: ROS version of ``trajectory.json``'s message (2: ``sec``/``nanosec``; 1: ``secs``/``nsecs``).
+        rosbag: Write the rosbag2 folder ``rosbag/`` (MCAP storage).
+        ros1_bag: Also write the ROS 1 bag ``run.bag``.
     """
 
     source: str = "<defaults>"
@@ -69,6 +79,9 @@ class PipelineConfig:
     out_dir: Path = Path("out")
     preview_html: bool = True
     plots: bool = False
+    ros: int = 2
+    rosbag: bool = True
+    ros1_bag: bool = False
 
     def validate(self) -> PipelineConfig:
         """Check value ranges; raise :class:`PipelineError` naming the field."""
@@ -80,6 +93,8 @@ class PipelineConfig:
             raise PipelineError(f"{self.source}: field 'model.observe': no channel group given")
         if ROBOT in self.observe:
             raise PipelineError(f"{self.source}: field 'model.observe': the robot group cannot be observed")
+        if self.ros not in (1, 2):
+            raise PipelineError(f"{self.source}: field 'outputs.ros': must be 1 or 2, got {self.ros}")
         for name, value in (("data.rate_hz", self.rate_hz), ("timing.control_rate_hz", self.control_rate_hz)):
             if not (np.isfinite(value) and value > 0):
                 raise PipelineError(f"{self.source}: field '{name}': must be a positive rate, got {value}")
@@ -161,6 +176,9 @@ def load_pipeline(path: str | Path, **overrides) -> PipelineConfig:
         out_dir=Path(get("outputs", "dir", "out")),
         preview_html=bool(get("outputs", "preview_html", True)),
         plots=bool(get("outputs", "plots", False)),
+        ros=int(get("outputs", "ros", 2)),
+        rosbag=bool(get("outputs", "rosbag", True)),
+        ros1_bag=bool(get("outputs", "ros1_bag", False)),
     )
     names = {f.name for f in fields(PipelineConfig)}
     for key, value in overrides.items():

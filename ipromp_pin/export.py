@@ -1,16 +1,25 @@
-"""Trajectory files: CSV with named columns and JSON shaped like ROS ``trajectory_msgs/JointTrajectory``.
+"""Trajectory files: CSV with named columns and JSON holding a ROS ``JointTrajectory`` message.
 
 CSV: header ``time_s``, then ``q.<joint>`` for every joint, ``qd.<joint>``, ``qdd.<joint>``; one row per
 sample; numbers written with 17 significant digits so they read back exactly.
 
-JSON (ROS JointTrajectory field names)::
+JSON: the message with the field names of ROS 2 ``trajectory_msgs/msg/JointTrajectory`` (default)
+or of ROS 1 ``trajectory_msgs/JointTrajectory`` (``ros=1``), inside a small envelope that says
+which::
 
-    {"header": {"seq": 0, "stamp": {"secs": 0, "nsecs": 0}, "frame_id": ""},
-     "joint_names": [...],
-     "points": [{"positions": [...], "velocities": [...], "accelerations": [...], "effort": [],
-                 "time_from_start": {"secs": 1, "nsecs": 250000000}}, ...]}
+    {"format": "ipromp_pin.trajectory", "version": 2, "ros": 2,
+     "type": "trajectory_msgs/msg/JointTrajectory",
+     "message": {"header": {"stamp": {"sec": 0, "nanosec": 0}, "frame_id": ""},
+                 "joint_names": [...],
+                 "points": [{"positions": [...], "velocities": [...], "accelerations": [...],
+                             "effort": [], "time_from_start": {"sec": 1, "nanosec": 250000000}}, ...]}}
 
-Times are split into integer seconds and nanoseconds, so they round to 1 ns on reading.
+ROS 1 form: ``"ros": 1``, ``"type": "trajectory_msgs/JointTrajectory"``, a header with ``seq`` and
+times as ``{"secs": .., "nsecs": ..}``. ``message`` is exactly the message (no other keys), so
+``rosidl_runtime_py.set_message_fields(JointTrajectory(), doc["message"])`` (ROS 2) or
+``rospy_message_converter`` (ROS 1) builds it. The readers accept both forms, with or without the
+envelope (files of version 1 were the bare ROS 1 message). Times are split into integer seconds
+and nanoseconds, so they round to 1 ns on reading.
 """
 
 from __future__ import annotations
@@ -93,16 +102,49 @@ def read_trajectory_csv(path: str | Path) -> Trajectory:
     return traj
 
 
-def _duration(t: float) -> dict[str, int]:
+TRAJECTORY_FORMAT = "ipromp_pin.trajectory"
+"""Value of ``trajectory.json``'s ``format`` field."""
+
+TRAJECTORY_VERSION = 2
+"""Value of ``trajectory.json``'s ``version`` field (1: the bare ROS 1 message, no envelope)."""
+
+ROS_TYPES = {1: "trajectory_msgs/JointTrajectory", 2: "trajectory_msgs/msg/JointTrajectory"}
+"""The message type named in the envelope, per ROS version."""
+
+_TIME_KEYS = {1: ("secs", "nsecs"), 2: ("sec", "nanosec")}
+
+
+def _check_ros(ros: int) -> int:
+    if ros not in ROS_TYPES:
+        raise DataError(None, "ros", f"ROS version must be 1 or 2, got {ros!r}")
+    return int(ros)
+
+
+def _duration(t: float, ros: int = 2) -> dict[str, int]:
     ns = int(round(t * 1e9))
-    return {"secs": ns // 1_000_000_000, "nsecs": ns % 1_000_000_000}
+    sec, nsec = _TIME_KEYS[ros]
+    return {sec: ns // 1_000_000_000, nsec: ns % 1_000_000_000}
 
 
-def trajectory_to_ros(traj: Trajectory, frame_id: str = "", stamp_s: float = 0.0) -> dict:
-    """A ``trajectory_msgs/JointTrajectory``-shaped dictionary of ``traj``."""
+def _header(frame_id: str, stamp_s: float, ros: int) -> dict:
+    if ros == 1:
+        return {"seq": 0, "stamp": _duration(stamp_s, 1), "frame_id": frame_id}
+    return {"stamp": _duration(stamp_s, 2), "frame_id": frame_id}
+
+
+def trajectory_to_ros(traj: Trajectory, frame_id: str = "", stamp_s: float = 0.0, ros: int = 2) -> dict:
+    """A ``JointTrajectory`` message of ``traj`` as a dictionary with ROS 2 (default) or ROS 1 field names.
+
+    Args:
+        traj: The trajectory.
+        frame_id: ``header.frame_id``.
+        stamp_s: ``header.stamp`` in [s].
+        ros: 2 (``sec``/``nanosec``, no ``seq``) or 1 (``secs``/``nsecs``, ``seq``).
+    """
+    ros = _check_ros(ros)
     _check(traj)
     return {
-        "header": {"seq": 0, "stamp": _duration(stamp_s), "frame_id": frame_id},
+        "header": _header(frame_id, stamp_s, ros),
         "joint_names": list(traj.joint_names),
         "points": [
             {
@@ -110,27 +152,27 @@ def trajectory_to_ros(traj: Trajectory, frame_id: str = "", stamp_s: float = 0.0
                 "velocities": traj.qd[k].tolist(),
                 "accelerations": traj.qdd[k].tolist(),
                 "effort": [],
-                "time_from_start": _duration(float(traj.t_s[k])),
+                "time_from_start": _duration(float(traj.t_s[k]), ros),
             }
             for k in range(traj.t_s.size)
         ],
     }
 
 
-def write_trajectory_json(traj: Trajectory, path: str | Path, frame_id: str = "") -> Path:
-    """Write ``traj`` as ROS JointTrajectory-shaped JSON."""
+def write_trajectory_json(traj: Trajectory, path: str | Path, frame_id: str = "", ros: int = 2) -> Path:
+    """Write ``traj`` as a ``JointTrajectory`` message in its envelope (ROS 2 field names by default)."""
+    ros = _check_ros(ros)
     path = Path(path)
     _check(traj)
-    head = json.dumps(
-        {
-            "header": {"seq": 0, "stamp": _duration(0.0), "frame_id": frame_id},
-            "joint_names": list(traj.joint_names),
-        }
+    envelope = json.dumps(
+        {"format": TRAJECTORY_FORMAT, "version": TRAJECTORY_VERSION, "ros": ros, "type": ROS_TYPES[ros]}
     )[:-1]
+    head = json.dumps({"header": _header(frame_id, 0.0, ros), "joint_names": list(traj.joint_names)})[:-1]
+    sec, nsec = _TIME_KEYS[ros]
     # one point per line, formatted directly (repr round-trips float64; faster than json.dump)
     lines = []
     for k in range(traj.t_s.size):
-        t = _duration(float(traj.t_s[k]))
+        t = _duration(float(traj.t_s[k]), ros)
         lines.append(
             '{"positions": ['
             + ", ".join(map(repr, traj.q[k].tolist()))
@@ -138,16 +180,23 @@ def write_trajectory_json(traj: Trajectory, path: str | Path, frame_id: str = ""
             + ", ".join(map(repr, traj.qd[k].tolist()))
             + '], "accelerations": ['
             + ", ".join(map(repr, traj.qdd[k].tolist()))
-            + f'], "effort": [], "time_from_start": {{"secs": {t["secs"]}, "nsecs": {t["nsecs"]}}}}}'
+            + f'], "effort": [], "time_from_start": {{"{sec}": {t[sec]}, "{nsec}": {t[nsec]}}}}}'
         )
     body = ",\n".join(lines)
     with open(path, "w", encoding="utf-8") as fh:
-        fh.write(f'{head}, "points": [\n{body}\n]}}\n')
+        fh.write(f'{envelope},\n "message": {head}, "points": [\n{body}\n]}}}}\n')
     return path
 
 
+def _seconds(d: dict) -> float:
+    """Seconds of a ROS 2 (``sec``/``nanosec``) or ROS 1 (``secs``/``nsecs``) time dictionary."""
+    if "sec" in d:
+        return d["sec"] + d["nanosec"] * 1e-9
+    return d["secs"] + d["nsecs"] * 1e-9
+
+
 def trajectory_from_ros(msg: dict, source: object = None) -> Trajectory:
-    """Inverse of :func:`trajectory_to_ros`.
+    """Inverse of :func:`trajectory_to_ros` (either ROS version's field names).
 
     Raises:
         DataError: missing fields or inconsistent lengths.
@@ -155,7 +204,7 @@ def trajectory_from_ros(msg: dict, source: object = None) -> Trajectory:
     try:
         names = [str(n) for n in msg["joint_names"]]
         points = msg["points"]
-        t = [p["time_from_start"]["secs"] + p["time_from_start"]["nsecs"] * 1e-9 for p in points]
+        t = [_seconds(p["time_from_start"]) for p in points]
         q = [p["positions"] for p in points]
         qd = [p.get("velocities") or [math.nan] * len(names) for p in points]
         qdd = [p.get("accelerations") or [math.nan] * len(names) for p in points]
@@ -179,11 +228,18 @@ def trajectory_from_ros(msg: dict, source: object = None) -> Trajectory:
 
 
 def read_trajectory_json(path: str | Path) -> Trajectory:
-    """Read a JSON file written by :func:`write_trajectory_json`."""
+    """Read a JSON file written by :func:`write_trajectory_json`: the envelope (ROS 1 or 2 message
+    inside) or a bare ``JointTrajectory`` message with either ROS version's field names."""
     path = Path(path)
     try:
         with open(path, encoding="utf-8") as fh:
-            msg = json.load(fh)
+            doc = json.load(fh)
     except (OSError, json.JSONDecodeError) as exc:
         raise DataError(path, None, f"cannot read JSON: {exc}") from exc
-    return trajectory_from_ros(msg, path)
+    if isinstance(doc, dict) and "message" in doc:
+        if doc.get("format") != TRAJECTORY_FORMAT:
+            raise DataError(path, "format", f"not an ipromp_pin trajectory (format {doc.get('format')!r})")
+        if not isinstance(doc.get("version"), int) or doc["version"] > TRAJECTORY_VERSION:
+            raise DataError(path, "version", f"unsupported version {doc.get('version')!r}")
+        doc = doc["message"]
+    return trajectory_from_ros(doc, path)

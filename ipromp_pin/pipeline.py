@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import json
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -20,12 +20,14 @@ from .config import PipelineConfig
 from .data import ROBOT, Dataset, Demo, skeleton_frames
 from .exceptions import PipelineError
 from .export import write_trajectory_csv, write_trajectory_json
+from .model_warnings import loaded_model_warnings, single_task_warning, warn_stderr
 from .planning import LogFn, PlanResult, plan
 from .preview import LivePreview, PreviewContent, write_html
 from .promp import IProMP
 from .readers import load_dataset
 from .report import report_dict, report_text, summary_text
 from .robot import Robot, ee_positions, load_robot, load_robot_settings, load_visual_model
+from .rosbag_writer import BagContent, write_ros1_bag, write_rosbag2
 from .synthetic import make_synthetic_dataset
 
 
@@ -40,6 +42,7 @@ class Prepared:
         robot: The loaded robot.
         observation: The observed first ``ratio`` of the demo's human motion.
         hand_position_m: (3,) the human hand's last known position in [m] (the hand-over point), or None.
+        warnings: Warnings about the model and the data (:mod:`ipromp_pin.model_warnings`), one line each.
     """
 
     dataset: Dataset
@@ -48,6 +51,7 @@ class Prepared:
     robot: Robot
     observation: Demo
     hand_position_m: np.ndarray | None
+    warnings: list[str] = field(default_factory=list)
 
 
 def load_data(cfg: PipelineConfig, log: LogFn = print) -> Dataset:
@@ -113,28 +117,50 @@ def hand_at_handover(demo: Demo) -> np.ndarray | None:
     return hand[finite[-1]] if finite.size else None
 
 
-def prepare(cfg: PipelineConfig, log: LogFn = print) -> Prepared:
-    """The set-up shared by :func:`run_pipeline` and :func:`run_preview`."""
+def model_warnings(cfg: PipelineConfig, ds: Dataset, demo: Demo, model: IProMP) -> list[str]:
+    """Warnings about the model: a loaded one that does not match the data or was trained on ``demo``,
+    or a single-task one."""
+    if cfg.load_model is not None:
+        return loaded_model_warnings(model, ds, demo, str(cfg.load_model))
+    single = single_task_warning(model)
+    return [] if single is None else [single]
+
+
+def prepare(cfg: PipelineConfig, log: LogFn = print, warn: LogFn = warn_stderr) -> Prepared:
+    """The set-up shared by :func:`run_pipeline` and :func:`run_preview` (``warn``: where warnings go)."""
     ds = load_data(cfg, log)
     demo = choose_demo(ds, cfg)
     model = get_model(cfg, ds, demo, log)
+    warnings = model_warnings(cfg, ds, demo, model)
+    for w in warnings:
+        warn(w)
     robot = load_robot(cfg.robot)
     observation = demo.head(cfg.ratio, groups=cfg.observe)
     log(
         f"[observe] {demo.task}/{demo.name}: first {cfg.ratio:.0%} "
         f"({observation.t[-1]:.2f} s, {observation.n_samples} samples) of {', '.join(cfg.observe)}"
     )
-    return Prepared(ds, demo, model, robot, observation, hand_at_handover(demo))
+    return Prepared(ds, demo, model, robot, observation, hand_at_handover(demo), warnings)
 
 
-def run_pipeline(cfg: PipelineConfig, log: LogFn = print) -> dict:
-    """Run every stage of ``cfg`` and write its outputs; returns the report dictionary."""
+def run_pipeline(cfg: PipelineConfig, log: LogFn = print, warn: LogFn = warn_stderr) -> dict:
+    """Run every stage of ``cfg`` and write its outputs; returns the report dictionary (``warn``:
+    where warnings go, one line each; they are also in the report)."""
     t_start = time.perf_counter()
-    prep = prepare(cfg, log)
+    prep = prepare(cfg, log, warn)
     result = plan(
         prep.model, prep.robot, prep.observation, cfg.control_rate_hz, prep.hand_position_m, log=log
     )
-    files = write_outputs(result, cfg.out_dir, prep.observation)
+    files = write_outputs(
+        result,
+        cfg.out_dir,
+        prep.observation,
+        ros=cfg.ros,
+        rosbag=cfg.rosbag,
+        ros1_bag=cfg.ros1_bag,
+        base_frame=prep.robot.base_frame,
+        warnings=prep.warnings,
+    )
     if cfg.preview_html:
         t0 = time.perf_counter()
         files["preview"] = write_preview(result, prep.robot, prep.demo, cfg.out_dir / "preview.html")
@@ -144,24 +170,49 @@ def run_pipeline(cfg: PipelineConfig, log: LogFn = print) -> dict:
         )
     if cfg.plots:
         files.update(write_plots(result, prep.model, prep.demo, cfg.out_dir))
-    report = report_dict(result, prep.observation)
+    report = report_dict(result, prep.observation, prep.warnings)
     report["files"] = {k: str(v) for k, v in files.items()}
     log(summary_text(result, files, time.perf_counter() - t_start))
     return report
 
 
-def write_outputs(result: PlanResult, out_dir: Path, observation: Demo | None = None) -> dict[str, Path]:
-    """Write ``trajectory.csv``, ``trajectory.json``, ``report.json`` and ``report.txt`` into ``out_dir``."""
+def write_outputs(
+    result: PlanResult,
+    out_dir: Path,
+    observation: Demo | None = None,
+    *,
+    ros: int = 2,
+    rosbag: bool = True,
+    ros1_bag: bool = False,
+    base_frame: str = "base",
+    warnings: list[str] | None = None,
+) -> dict[str, Path]:
+    """Write ``trajectory.csv``, ``trajectory.json`` (``ros``: the message's ROS version),
+    ``report.json``, ``report.txt`` and, when asked, the bags ``rosbag/`` (rosbag2, MCAP) and
+    ``run.bag`` (ROS 1) into ``out_dir`` (``base_frame``: the robot's base frame, the poses' frame;
+    ``warnings``: listed in the report)."""
     out_dir.mkdir(parents=True, exist_ok=True)
     files = {
         "trajectory_csv": write_trajectory_csv(result.trajectory, out_dir / "trajectory.csv"),
-        "trajectory_json": write_trajectory_json(result.trajectory, out_dir / "trajectory.json"),
+        "trajectory_json": write_trajectory_json(result.trajectory, out_dir / "trajectory.json", ros=ros),
     }
+    if rosbag or ros1_bag:
+        content = BagContent(
+            trajectory=result.trajectory,
+            plan_time_s=float(result.prediction.observed_until_s),
+            handover_pose=result.report.handover_pose,
+            base_frame=base_frame,
+            observation=observation,
+        )
+        if rosbag:
+            files["rosbag"] = write_rosbag2(content, out_dir / "rosbag")
+        if ros1_bag:
+            files["ros1_bag"] = write_ros1_bag(content, out_dir / "run.bag")
     report_path = out_dir / "report.json"
-    report_path.write_text(json.dumps(report_dict(result, observation), indent=1, allow_nan=False))
+    report_path.write_text(json.dumps(report_dict(result, observation, warnings), indent=1, allow_nan=False))
     files["report"] = report_path
     text_path = out_dir / "report.txt"
-    text_path.write_text(report_text(result, observation) + "\n")
+    text_path.write_text(report_text(result, observation, warnings) + "\n")
     files["report_text"] = text_path
     return files
 

@@ -18,8 +18,11 @@ REPORT_VERSION = 1
 """Value of ``report.json``'s ``version`` field."""
 
 
-def report_dict(result: PlanResult, observation: Demo | None = None) -> dict:
-    """The machine-readable pipeline report (JSON-serialisable)."""
+def report_dict(
+    result: PlanResult, observation: Demo | None = None, warnings: list[str] | None = None
+) -> dict:
+    """The machine-readable pipeline report (JSON-serialisable; schema:
+    ``ipromp_pin/schemas/report.schema.json``)."""
     p = result.prediction
     return {
         "format": REPORT_FORMAT,
@@ -36,13 +39,16 @@ def report_dict(result: PlanResult, observation: Demo | None = None) -> dict:
         "trajectory": result.timing_report.to_dict(),
         "passed": result.passed,
         "stage_ms": {k: round(v, 3) for k, v in result.stage_ms.items()},
+        "warnings": list(warnings or []),
     }
 
 
-def report_text(result: PlanResult, observation: Demo | None = None) -> str:
-    """The human-readable report: recognition, feasibility checks and trajectory verification."""
+def report_text(
+    result: PlanResult, observation: Demo | None = None, warnings: list[str] | None = None
+) -> str:
+    """The human-readable report: warnings, recognition, feasibility checks and trajectory verification."""
     p = result.prediction
-    lines = []
+    lines = [f"Warning: {w}" for w in warnings or []]
     if observation is not None:
         lines.append(f"Observed: {observation.task}/{observation.name} ({observation.source})")
     lines.append(

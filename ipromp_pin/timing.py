@@ -540,18 +540,23 @@ def verify_trajectory(
     n_path_points: int = 0,
     time_scale: float = 1.0,
     timings_ms: dict[str, float] | None = None,
+    rate_hz: float | None = None,
 ) -> TimingReport:
     """Check a trajectory against limits at every sample and measure its deviation from ``path``.
 
     The jerk is the finite difference of consecutive accelerations (what a controller replaying the
-    samples sees).
+    samples sees). ``rate_hz`` is the control rate reported in [Hz] (default: the reciprocal of
+    the median sample spacing, to 9 significant digits).
     """
     q, qd, qdd = traj.q, traj.qd, traj.qdd
     path = np.asarray(path, dtype=float)
     excess = np.maximum(np.maximum(limits.lower_rad - q, q - limits.upper_rad), 0.0)
     dt = np.diff(traj.t_s)
     jerk = np.diff(qdd, axis=0) / dt[:, None] if dt.size else np.zeros_like(qdd)
-    rate = float(1.0 / np.median(dt)) if dt.size else float("nan")
+    if rate_hz is not None:
+        rate = float(rate_hz)
+    else:
+        rate = float(f"{1.0 / np.median(dt):.9g}") if dt.size else float("nan")
     return TimingReport(
         duration_s=traj.duration_s,
         toppra_duration_s=float(toppra_duration_s),
@@ -703,6 +708,7 @@ def time_path(
         n_path_points=int(pts.shape[0]),
         time_scale=k,
         timings_ms=timings,
+        rate_hz=float(rate_hz),
     )
     timings["verify_ms"] = (time.perf_counter() - t4) * 1e3
     timings["total_ms"] = (time.perf_counter() - t0) * 1e3

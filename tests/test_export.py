@@ -42,14 +42,16 @@ def test_csv_round_trip_is_exact(traj, tmp_path):
 
 def test_json_is_ros_joint_trajectory_and_round_trips(traj, tmp_path):
     path = write_trajectory_json(traj, tmp_path / "traj.json")
-    msg = json.loads(path.read_text())
+    doc = json.loads(path.read_text())
+    assert set(doc) == {"format", "version", "ros", "type", "message"}
+    msg = doc["message"]
     assert set(msg) == {"header", "joint_names", "points"}
     assert msg["joint_names"] == list(traj.joint_names)
     p = msg["points"][-1]
     assert set(p) >= {"positions", "velocities", "accelerations", "time_from_start"}
     t = p["time_from_start"]
-    assert isinstance(t["secs"], int) and 0 <= t["nsecs"] < 1_000_000_000
-    assert t["secs"] + t["nsecs"] * 1e-9 == pytest.approx(traj.t_s[-1], abs=1e-9)
+    assert isinstance(t["sec"], int) and 0 <= t["nanosec"] < 1_000_000_000
+    assert t["sec"] + t["nanosec"] * 1e-9 == pytest.approx(traj.t_s[-1], abs=1e-9)
     back = read_trajectory_json(path)
     np.testing.assert_allclose(back.t_s, traj.t_s, atol=1e-9, rtol=0)
     for name in ("q", "qd", "qdd"):

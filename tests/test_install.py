@@ -68,6 +68,10 @@ def test_wheel_holds_every_module_and_the_shipped_settings(installed):
         files = {f"ipromp_pin/{folder}/{p.name}" for p in (PROJECT_ROOT / folder).glob("*.toml")}
         assert files and not files - names, f"missing from the wheel: {sorted(files - names)}"
     assert "ipromp_pin/robots/README.md" in names and "ipromp_pin/py.typed" in names
+    schemas = {
+        p.relative_to(PROJECT_ROOT).as_posix() for p in (PROJECT_ROOT / "ipromp_pin").rglob("*.schema.json")
+    }
+    assert schemas and not schemas - names, f"missing from the wheel: {sorted(schemas - names)}"
 
 
 def test_installed_copy_runs_the_main_job_from_another_folder(installed):

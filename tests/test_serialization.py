@@ -43,7 +43,7 @@ def test_file_has_no_pickled_objects(tmp_path: Path, model_and_obs) -> None:
     with np.load(path, allow_pickle=False) as npz:
         header = json.loads(str(npz["header"][()]))
         assert all(npz[name].dtype != object for name in npz.files)
-    assert header["format"] == "ipromp_pin.IProMP" and header["format_version"] == 1
+    assert header["format"] == "ipromp_pin.IProMP" and header["format_version"] == 2
     assert header["tasks"] == ["task0", "task1", "task2"]
 
 
@@ -104,3 +104,27 @@ def test_missing_file_and_unfitted_model(tmp_path: Path) -> None:
         IProMP.load(tmp_path / "none.npz")
     with pytest.raises(NotFittedError):
         IProMP(["a"]).save(tmp_path / "u.npz")
+
+
+def test_model_remembers_its_training_demos_and_version_1_files_still_load(tmp_path: Path, model_and_obs):
+    model, obs = model_and_obs
+    train, test = split(random_dataset(21, missing_group="b"), 6)
+    assert [(r.task, r.name) for r in model.trained_on_] == [(d.task, d.name) for d in train.all_demos()]
+    assert len({r.sha256 for r in model.trained_on_}) == len(model.trained_on_)  # one digest per demo
+    path = tmp_path / "model.npz"
+    model.save(path)
+    loaded = IProMP.load(path)
+    assert loaded.trained_on_ == model.trained_on_
+    header = json.loads(str(np.load(path)["header"][()]))
+    assert header["format_version"] == 2 and header["trained_on"][0]["sha256"] == model.trained_on_[0].sha256
+
+    # a version-1 file (no trained_on) loads, predicts the same, and says it does not know its demos
+    def to_v1(h: dict) -> None:
+        h["format_version"] = 1
+        del h["trained_on"]
+
+    old = tmp_path / "v1.npz"
+    _rewrite_header(path, old, to_v1)
+    v1 = IProMP.load(old)
+    assert v1.trained_on_ is None
+    assert np.array_equal(v1.predict(obs).q_mean, model.predict(obs).q_mean)

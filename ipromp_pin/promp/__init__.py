@@ -7,6 +7,7 @@ The estimator is :class:`IProMP` (:mod:`.estimator`); its parts, one concept per
 - :mod:`.layout`, :mod:`.training`: channel layout, and the task models learned from demonstrations;
 - :mod:`.selection`: cross-validation of the noise ratio and of the groups coupled to the robot;
 - :mod:`.fitted`: the frozen fitted state; :mod:`.serialization` reads and writes it;
+  :mod:`.provenance`: the records of the demos it was trained on;
 - :mod:`.observation`: a partial observation checked and scaled into parts;
 - :mod:`.latent_blocks`, :mod:`.likelihood`: the exact batched likelihood of every (task, phase);
 - :mod:`.posterior`: task and phase posteriors (:class:`Recognition`, :class:`Prediction`);

@@ -33,6 +33,7 @@ from .distribution import ChannelScaler, TaskModel
 from .fitted import FittedModel
 from .posterior import Prediction, Recognition
 from .predictor import Predictor
+from .provenance import demo_record
 from .selection import choose_coupling, choose_noise
 from .serialization import read_model, write_model
 from .streaming import StreamingEstimator
@@ -88,6 +89,8 @@ class IProMP:
             prediction in [rad] (only with ``coupling="auto"`` and more than one candidate).
         task_log_prior_: (K,) log task prior.
         residual_var_: (D,) mean per-sample residual variance of the basis fit (scaled units).
+        trained_on_: One :class:`~ipromp_pin.promp.provenance.DemoRecord` per training demo (None
+            for a model loaded from a format-version-1 file, which does not record them).
     """
 
     def __init__(
@@ -171,7 +174,8 @@ class IProMP:
         """
         observe, coupling = self._checked_params()
         basis = GaussianBasis(self.n_basis, self.width, self.ridge, self.margin)
-        training = prepare_training(demos_by_task(data), observe, self.robot_group, basis, self.log_groups)
+        by_task = demos_by_task(data)
+        training = prepare_training(by_task, observe, self.robot_group, basis, self.log_groups)
         settings = PhaseSettings(int(self.n_alpha), float(self.alpha_width), float(self.pooling))
         prior = log_task_prior(training.tasks, self.task_prior)
         with self._limit_threads():
@@ -198,6 +202,7 @@ class IProMP:
             residual_var=training.residual_var,
             noise_cv_scores=nu_scores,
             coupling_cv_scores=coupling_scores,
+            trained_on=tuple(demo_record(d) for demos in by_task.values() for d in demos),
         )
         return self._set_fitted(fitted)
 
@@ -225,6 +230,7 @@ class IProMP:
         self.coupling_cv_scores_ = dict(fitted.coupling_cv_scores)
         self.task_log_prior_ = fitted.task_log_prior
         self.residual_var_ = fitted.residual_var
+        self.trained_on_ = fitted.trained_on
         return self
 
     # ---------------------------------------------------------- inference

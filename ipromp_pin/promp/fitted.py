@@ -18,6 +18,7 @@ import numpy as np
 from .basis import GaussianBasis
 from .distribution import ChannelScaler, TaskModel
 from .layout import ChannelLayout
+from .provenance import DemoRecord
 
 
 @dataclass(frozen=True)
@@ -38,6 +39,8 @@ class FittedModel:
         noise_cv_scores: Candidate ``nu`` -> cross-validation score (empty when ``nu`` was given).
         coupling_cv_scores: Candidate coupled groups (``"+"``-joined) -> CV RMSE of the robot
             prediction in [rad] (empty when the coupling was given or had one candidate).
+        trained_on: One :class:`~ipromp_pin.promp.provenance.DemoRecord` per training demo, or
+            None when unknown (a model file of format version 1).
     """
 
     layout: ChannelLayout
@@ -52,6 +55,7 @@ class FittedModel:
     residual_var: np.ndarray
     noise_cv_scores: Mapping[float, float]
     coupling_cv_scores: Mapping[str, float]
+    trained_on: tuple[DemoRecord, ...] | None = None
 
     def task_models(self) -> list[TaskModel]:
         """The task models in :attr:`tasks` order."""

@@ -8,7 +8,9 @@ A model file is a single ``.npz`` archive (``numpy.savez``) read back with
   constructor parameters, task names, channel groups and names, and the fitted
   scalars (``T_norm`` in [s], noise ratio, CV scores, observed groups coupled to
   the robot and their CV scores, per-task phase prior and the robot's shrinkage
-  intensity);
+  intensity) and, since format version 2, ``trained_on``: one object per
+  training demo with its ``task``, ``name``, ``source`` and ``sha256`` (content
+  digest, :mod:`ipromp_pin.promp.provenance`);
 * plain float arrays: the channel scaling (``scaler_offset``, ``scaler_scale``,
   ``scaler_log_shift``: NaN for linear channels),
   ``task_log_prior``, ``residual_var`` and, per task index ``i``,
@@ -16,7 +18,8 @@ A model file is a single ``.npz`` archive (``numpy.savez``) read back with
   ``task{i}_alpha_grid``, ``task{i}_alpha_log_prior``, ``task{i}_train_weights``
   (N, D, K), ``task{i}_train_alpha`` (N,), ``task{i}_shrinkage`` (D,).
 
-Files written before the coupling was introduced (no ``coupling`` parameter, no
+Files of format version 1 (no ``trained_on``) load with ``trained_on`` None
+(unknown). Files written before the coupling was introduced (no ``coupling`` parameter, no
 ``task{i}_shrinkage``) load as fully coupled models with one shrinkage intensity;
 the covariance is entirely in ``diag`` and ``factor``, so older readers also load
 newer files and predict the same.
@@ -41,12 +44,13 @@ from .basis import GaussianBasis
 from .distribution import ChannelScaler, TaskModel
 from .fitted import FittedModel
 from .layout import ChannelLayout
+from .provenance import DemoRecord
 
 FORMAT_NAME = "ipromp_pin.IProMP"
 """Value of the header's ``format`` field."""
 
-FORMAT_VERSION = 1
-"""Current (and highest readable) format version."""
+FORMAT_VERSION = 2
+"""Current (and highest readable) format version (2: ``trained_on`` added; 1 still reads)."""
 
 _TASK_ARRAYS = ("mean", "diag", "factor", "alpha_grid", "alpha_log_prior", "train_weights", "train_alpha")
 
@@ -103,6 +107,7 @@ def write_model(params: dict, fitted: FittedModel, path: str | Path) -> None:
             }
             for m in fitted.task_models()
         ],
+        "trained_on": None if fitted.trained_on is None else [r.to_json() for r in fitted.trained_on],
     }
     arrays = {
         "header": np.array(json.dumps(header)),
@@ -226,4 +231,12 @@ def _fitted(header: dict, arrays: dict[str, np.ndarray]) -> FittedModel:
         residual_var=arrays["residual_var"],
         noise_cv_scores={float(k): float(v) for k, v in header["cv_scores"]},
         coupling_cv_scores={str(k): float(v) for k, v in header.get("coupling_cv_scores", [])},
+        trained_on=_trained_on(header),
     )
+
+
+def _trained_on(header: dict) -> tuple[DemoRecord, ...] | None:
+    """The training demos of a header (None for format version 1, which does not record them)."""
+    if header["format_version"] < 2 or header.get("trained_on") is None:
+        return None
+    return tuple(DemoRecord.from_json(r) for r in header["trained_on"])

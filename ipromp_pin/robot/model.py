@@ -81,6 +81,11 @@ class Robot:
         """Number of arm joints."""
         return len(self.settings.arm_joints)
 
+    @property
+    def base_frame(self) -> str:
+        """Name of the model's root link (the base frame of poses and positions), e.g. ``base``."""
+        return next(f.name for f in self.model.frames if f.type == pin.FrameType.BODY)
+
     def full_configuration(self, q_arm: np.ndarray) -> np.ndarray:
         """Full model configuration(s) (..., nq) from arm joint angles (..., n_joints) in [rad]."""
         q_arm = np.asarray(q_arm, dtype=float)

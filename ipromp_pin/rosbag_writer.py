@@ -1,0 +1,313 @@
+"""A run's outputs as a ROS bag: rosbag2 with MCAP storage (ROS 2), optionally a ROS 1 ``.bag``.
+
+The messages are built from the message definitions that ``rosbags`` ships (ROS 2 Humble store for
+rosbag2, Noetic for ROS 1) and serialised by it (CDR / ROS 1 wire format), so ``ros2 bag play``,
+``ros2 bag info``, Foxglove Studio and PlotJuggler read the bag as any recorded one.
+
+Topics (names of human groups are made ROS-safe by :func:`human_topic`):
+
+* ``/ipromp_pin/planned_trajectory``, ``trajectory_msgs/msg/JointTrajectory``: the timed,
+  jerk-limited trajectory (one message, at the plan time);
+* ``/ipromp_pin/joint_states``, ``sensor_msgs/msg/JointState``: the robot's planned joint states
+  along it, one per control period;
+* ``/ipromp_pin/handover_pose``, ``geometry_msgs/msg/PoseStamped``: the predicted hand-over pose of
+  the end-effector, in the base frame;
+* ``/ipromp_pin/human/orientation``, ``geometry_msgs/msg/QuaternionStamped``: the observed forearm
+  orientation (a 4-channel group with channels named ``qw, qx, qy, qz`` or ``w, x, y, z``);
+* ``/ipromp_pin/human/<frame>``, ``geometry_msgs/msg/PointStamped``: an observed tracked frame
+  (a 3-channel group whose name starts with ``/``, e.g. ``/left_hand_1``) in [m], base frame;
+* ``/ipromp_pin/human/hand_position``, ``geometry_msgs/msg/PointStamped``: the human hand in [m],
+  base frame (when the observation has the extra ``hand_position``);
+* ``/ipromp_pin/human/<group>``, ``std_msgs/msg/Float64MultiArray``: any other observed group, e.g.
+  ``emg`` (one value per channel, in the group's channel order).
+
+Time: the human's motion starts at ``start_time_ns`` (default 0); a human sample at ``t`` [s] of the
+observation is stamped ``start + t``; the plan is published at the end of the observation
+(``start + observed_until_s``: the trajectory's ``header.stamp``, the hand-over pose's stamp), and
+the joint state of trajectory sample ``k`` is stamped ``plan time + t_s[k]``. The bag's record
+time of every message is its stamp (``Float64MultiArray`` has no header: its record time is its
+stamp). Missing samples (a tracker that lost the hand) are not written. The metadata's custom data
+``ipromp_pin.channels`` (rosbag2) lists the channel names of every array topic as JSON.
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+import re
+import shutil
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .data import Demo
+from .exceptions import DataError
+from .timing import Trajectory
+
+TOPIC_PREFIX = "/ipromp_pin"
+TOPIC_TRAJECTORY = f"{TOPIC_PREFIX}/planned_trajectory"
+TOPIC_JOINT_STATES = f"{TOPIC_PREFIX}/joint_states"
+TOPIC_HANDOVER_POSE = f"{TOPIC_PREFIX}/handover_pose"
+TOPIC_HUMAN = f"{TOPIC_PREFIX}/human"
+
+JOINT_TRAJECTORY = "trajectory_msgs/msg/JointTrajectory"
+JOINT_STATE = "sensor_msgs/msg/JointState"
+POSE_STAMPED = "geometry_msgs/msg/PoseStamped"
+QUATERNION_STAMPED = "geometry_msgs/msg/QuaternionStamped"
+POINT_STAMPED = "geometry_msgs/msg/PointStamped"
+FLOAT64_MULTI_ARRAY = "std_msgs/msg/Float64MultiArray"
+
+ROSBAG2_VERSION = 8
+"""rosbag2 metadata version written (8: read by ROS 2 Humble and later)."""
+
+
+@dataclass(frozen=True)
+class BagContent:
+    """What goes into the bag.
+
+    Attributes:
+        trajectory: The timed trajectory (joint names, positions [rad], velocities [rad/s], ...).
+        plan_time_s: When the plan is published, in [s] from the start of the human's motion (the
+            end of the observation).
+        handover_pose: (7,) the predicted hand-over pose: position x, y, z [m] and quaternion x, y,
+            z, w, in ``base_frame``.
+        base_frame: The robot's base frame (``frame_id`` of the pose and of positions).
+        observation: The observed human channels (times in [s] from the start of the motion), or None.
+        start_time_ns: Stamp of the start of the human's motion in [ns].
+    """
+
+    trajectory: Trajectory
+    plan_time_s: float
+    handover_pose: np.ndarray
+    base_frame: str = "base"
+    observation: Demo | None = None
+    start_time_ns: int = 0
+
+
+@dataclass(frozen=True)
+class BagMessage:
+    """One message: its topic, type, stamp in [ns] and the ``rosbags`` message object."""
+
+    topic: str
+    msgtype: str
+    stamp_ns: int
+    msg: object
+
+
+def human_topic(group: str) -> str:
+    """The topic of an observed group or extra (characters outside ``[A-Za-z0-9_]`` become ``_``)."""
+    name = re.sub(r"[^A-Za-z0-9_]", "_", group.strip("/")) or "group"
+    if name[0].isdigit():
+        name = "g" + name
+    return f"{TOPIC_HUMAN}/{name}"
+
+
+def _ns(t_s: float) -> int:
+    return int(round(float(t_s) * 1e9))
+
+
+@functools.lru_cache(maxsize=2)
+def _builder(ros1: bool) -> _Builder:
+    return _Builder(ros1)
+
+
+class _Builder:
+    """Message objects of one ``rosbags`` typestore (ROS 2, or ROS 1 with ``seq`` in headers)."""
+
+    def __init__(self, ros1: bool) -> None:
+        from rosbags.typesys import Stores, get_typestore  # deferred: ~0.3 s to import
+
+        self.ros1 = ros1
+        self.store = get_typestore(Stores.ROS1_NOETIC if ros1 else Stores.ROS2_HUMBLE)
+        self.t = self.store.types
+
+    def time(self, ns: int) -> object:
+        return self.t["builtin_interfaces/msg/Time"](sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
+
+    def duration(self, ns: int) -> object:
+        return self.t["builtin_interfaces/msg/Duration"](sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
+
+    def header(self, ns: int, frame_id: str) -> object:
+        h = self.t["std_msgs/msg/Header"]
+        if self.ros1:
+            return h(seq=0, stamp=self.time(ns), frame_id=frame_id)
+        return h(stamp=self.time(ns), frame_id=frame_id)
+
+    def joint_trajectory(self, traj: Trajectory, ns: int) -> object:
+        point = self.t["trajectory_msgs/msg/JointTrajectoryPoint"]
+        empty = np.zeros(0)
+        points = [
+            point(
+                positions=np.asarray(traj.q[k], dtype=np.float64),
+                velocities=np.asarray(traj.qd[k], dtype=np.float64),
+                accelerations=np.asarray(traj.qdd[k], dtype=np.float64),
+                effort=empty,
+                time_from_start=self.duration(_ns(traj.t_s[k])),
+            )
+            for k in range(traj.n_samples)
+        ]
+        return self.t[JOINT_TRAJECTORY](
+            header=self.header(ns, ""), joint_names=list(traj.joint_names), points=points
+        )
+
+    def joint_state(self, ns: int, names: list[str], q: np.ndarray, qd: np.ndarray) -> object:
+        return self.t[JOINT_STATE](
+            header=self.header(ns, ""),
+            name=names,
+            position=np.asarray(q, dtype=np.float64),
+            velocity=np.asarray(qd, dtype=np.float64),
+            effort=np.zeros(0),
+        )
+
+    def point(self, xyz: np.ndarray) -> object:
+        return self.t["geometry_msgs/msg/Point"](x=float(xyz[0]), y=float(xyz[1]), z=float(xyz[2]))
+
+    def quaternion(self, xyzw: np.ndarray) -> object:
+        x, y, z, w = (float(v) for v in xyzw)
+        return self.t["geometry_msgs/msg/Quaternion"](x=x, y=y, z=z, w=w)
+
+    def pose_stamped(self, ns: int, frame: str, pose: np.ndarray) -> object:
+        p = self.t["geometry_msgs/msg/Pose"](
+            position=self.point(pose[:3]), orientation=self.quaternion(pose[3:])
+        )
+        return self.t[POSE_STAMPED](header=self.header(ns, frame), pose=p)
+
+    def quaternion_stamped(self, ns: int, frame: str, xyzw: np.ndarray) -> object:
+        return self.t[QUATERNION_STAMPED](header=self.header(ns, frame), quaternion=self.quaternion(xyzw))
+
+    def point_stamped(self, ns: int, frame: str, xyz: np.ndarray) -> object:
+        return self.t[POINT_STAMPED](header=self.header(ns, frame), point=self.point(xyz))
+
+    def array(self, label: str, values: np.ndarray) -> object:
+        dim = self.t["std_msgs/msg/MultiArrayDimension"](label=label, size=values.size, stride=values.size)
+        layout = self.t["std_msgs/msg/MultiArrayLayout"](dim=[dim], data_offset=0)
+        return self.t[FLOAT64_MULTI_ARRAY](layout=layout, data=np.asarray(values, dtype=np.float64))
+
+
+def _quaternion_columns(names: tuple[str, ...]) -> list[int] | None:
+    """Column indices of x, y, z, w in an orientation group's channels (names ``qx`` or ``x`` ...)."""
+    short = [n.lower().removeprefix("q") for n in names]
+    if sorted(short) == ["w", "x", "y", "z"]:
+        return [short.index(c) for c in "xyzw"]
+    return None
+
+
+def _human_messages(b: _Builder, obs: Demo, start_ns: int, base_frame: str) -> Iterator[BagMessage]:
+    stamps = [start_ns + _ns(t) for t in obs.t]
+    for group, values in obs.groups.items():
+        names = obs.channel_names[group]
+        ok = ~obs.missing.get(group, np.zeros(obs.n_samples, dtype=bool)) & np.all(
+            np.isfinite(values), axis=1
+        )
+        topic = human_topic(group)
+        quat = _quaternion_columns(names) if values.shape[1] == 4 else None
+        for i in np.flatnonzero(ok):
+            ns, v = stamps[i], values[i]
+            if quat is not None:
+                yield BagMessage(topic, QUATERNION_STAMPED, ns, b.quaternion_stamped(ns, "", v[quat]))
+            elif group.startswith("/") and values.shape[1] == 3:
+                yield BagMessage(topic, POINT_STAMPED, ns, b.point_stamped(ns, base_frame, v))
+            else:
+                yield BagMessage(topic, FLOAT64_MULTI_ARRAY, ns, b.array(group, v))
+    hand = obs.extras.get("hand_position")
+    if hand is not None and hand.ndim == 2 and hand.shape[1] == 3:
+        topic = human_topic("hand_position")
+        for i in np.flatnonzero(np.all(np.isfinite(hand), axis=1)):
+            yield BagMessage(topic, POINT_STAMPED, stamps[i], b.point_stamped(stamps[i], base_frame, hand[i]))
+
+
+def bag_messages(content: BagContent, ros1: bool = False) -> list[BagMessage]:
+    """Every message of ``content``, sorted by stamp (stable: plan messages before the states)."""
+    b = _builder(ros1)
+    traj = content.trajectory
+    pose = np.asarray(content.handover_pose, dtype=float)
+    if pose.shape != (7,) or not np.all(np.isfinite(pose)):
+        raise DataError(None, "handover_pose", f"expected 7 finite values, got shape {pose.shape}")
+    start = int(content.start_time_ns)
+    plan_ns = start + _ns(content.plan_time_s)
+    out = []
+    if content.observation is not None:
+        out.extend(_human_messages(b, content.observation, start, content.base_frame))
+    out.append(BagMessage(TOPIC_TRAJECTORY, JOINT_TRAJECTORY, plan_ns, b.joint_trajectory(traj, plan_ns)))
+    out.append(
+        BagMessage(
+            TOPIC_HANDOVER_POSE, POSE_STAMPED, plan_ns, b.pose_stamped(plan_ns, content.base_frame, pose)
+        )
+    )
+    names = list(traj.joint_names)
+    for k in range(traj.n_samples):
+        ns = plan_ns + _ns(traj.t_s[k])
+        out.append(
+            BagMessage(TOPIC_JOINT_STATES, JOINT_STATE, ns, b.joint_state(ns, names, traj.q[k], traj.qd[k]))
+        )
+    out.sort(key=lambda m: m.stamp_ns)
+    return out
+
+
+def _channels(content: BagContent) -> dict[str, list[str]]:
+    """Array topic -> channel names (what a ``Float64MultiArray``'s values are)."""
+    obs = content.observation
+    if obs is None:
+        return {}
+    return {human_topic(g): list(obs.channel_names[g]) for g in obs.groups}
+
+
+def _clear(path: Path, is_ours: bool) -> None:
+    if not path.exists():
+        return
+    if not is_ours:
+        raise DataError(
+            path, None, "exists and is not a bag written by ipromp_pin; choose another output folder"
+        )
+    if path.is_dir():
+        shutil.rmtree(path)
+    else:
+        path.unlink()
+
+
+def write_rosbag2(content: BagContent, folder: str | Path) -> Path:
+    """Write ``content`` as a rosbag2 folder with MCAP storage (``metadata.yaml`` beside the ``.mcap``).
+
+    A folder of that name that holds a bag (only ``metadata.yaml`` and ``.mcap`` files) is replaced;
+    any other existing path raises :class:`~ipromp_pin.exceptions.DataError`.
+
+    Returns:
+        The bag folder.
+    """
+    from rosbags.rosbag2 import StoragePlugin, Writer
+
+    folder = Path(folder)
+    ours = folder.is_dir() and all(p.name == "metadata.yaml" or p.suffix == ".mcap" for p in folder.iterdir())
+    _clear(folder, ours)
+    messages = bag_messages(content)
+    b = _builder(False)
+    with Writer(folder, version=ROSBAG2_VERSION, storage_plugin=StoragePlugin.MCAP) as writer:
+        writer.set_custom_data("ipromp_pin.channels", json.dumps(_channels(content)))
+        conns = {}
+        for m in messages:
+            if m.topic not in conns:
+                conns[m.topic] = writer.add_connection(m.topic, m.msgtype, typestore=b.store)
+            writer.write(conns[m.topic], m.stamp_ns, b.store.serialize_cdr(m.msg, m.msgtype))
+    return folder
+
+
+def write_ros1_bag(content: BagContent, path: str | Path) -> Path:
+    """Write the same messages as :func:`write_rosbag2` into a ROS 1 ``.bag`` file (Noetic types).
+
+    An existing ``.bag`` file at ``path`` is replaced.
+    """
+    from rosbags.rosbag1 import Writer
+
+    path = Path(path)
+    _clear(path, path.is_file() and path.suffix == ".bag")
+    messages = bag_messages(content, ros1=True)
+    b = _builder(True)
+    with Writer(path) as writer:
+        conns = {}
+        for m in messages:
+            if m.topic not in conns:
+                conns[m.topic] = writer.add_connection(m.topic, m.msgtype, typestore=b.store)
+            writer.write(conns[m.topic], m.stamp_ns, b.store.serialize_ros1(m.msg, m.msgtype))
+    return path

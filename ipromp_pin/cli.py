@@ -190,12 +190,13 @@ def cmd_synth(args: argparse.Namespace) -> int:
     from .synthetic import make_synthetic_dataset
 
     ds = make_synthetic_dataset(n_tasks=args.tasks, n_demos=args.demos, seed=args.seed)
+    suffix = ".csv" if args.csv else ".npz"
     n = 0
     for task, demos in ds.demos.items():
         for d in demos:
-            write_demo(d, args.out / task / f"{d.name}.npz")
+            write_demo(d, args.out / task / f"{d.name}{suffix}")
             n += 1
-    print(f"wrote {n} demos of {', '.join(ds.tasks)} into {args.out}")
+    print(f"wrote {n} demos of {', '.join(ds.tasks)} into {args.out} ({suffix} files)")
     return 0
 
 
@@ -292,6 +293,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--tasks", type=int, default=3)
     p.add_argument("--demos", type=int, default=20)
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--csv", action="store_true", help="write .csv files (one row per sample) instead of .npz")
     p.set_defaults(func=cmd_synth)
     return parser
 

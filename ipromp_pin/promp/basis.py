@@ -89,6 +89,12 @@ class GaussianBasis:
         d = (z[..., None] - self.centres) * (1.0 / self.width)
         return np.exp(-0.5 * d * d)
 
+    def derivative(self, z: np.ndarray) -> np.ndarray:
+        """Derivatives ``d phi / dz`` at phases ``z`` (any shape S) -> array of shape S + (K,)."""
+        z = np.asarray(z, dtype=float)
+        d = (z[..., None] - self.centres) * (1.0 / self.width)
+        return -d / self.width * np.exp(-0.5 * d * d)
+
     def values_prefix_t(self, z: np.ndarray, n_first: int) -> np.ndarray:
         """Values of the first ``n_first`` basis functions at ``z`` (any shape S), basis axis first.
 

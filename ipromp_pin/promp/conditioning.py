@@ -362,5 +362,6 @@ class Conditioner:
                 phi=phi,
                 offset=offset,
                 scale=scale,
+                basis=fm.basis,
             ),
         )

@@ -20,7 +20,7 @@ Samples can also arrive one by one (:meth:`IProMP.stream`, :mod:`~ipromp_pin.pro
 from __future__ import annotations
 
 import contextlib
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -33,6 +33,7 @@ from .distribution import ChannelScaler, TaskModel
 from .fitted import FittedModel
 from .posterior import Prediction, Recognition
 from .predictor import Predictor
+from .prior_sampling import sample_task_prior
 from .provenance import demo_record
 from .selection import choose_coupling, choose_noise
 from .serialization import read_model, write_model
@@ -140,6 +141,18 @@ class IProMP:
             setattr(self, name, value)
         return self
 
+    def __sklearn_tags__(self):
+        """scikit-learn's estimator tags (called by scikit-learn only, so it imports it): demos are
+        not arrays (no input validation), ``y`` (the tasks) is optional."""
+        from sklearn.utils import InputTags, Tags, TargetTags
+
+        return Tags(
+            estimator_type=None,
+            target_tags=TargetTags(required=False),
+            no_validation=True,
+            input_tags=InputTags(two_d_array=False),
+        )
+
     def _checked_params(self) -> tuple[list[str], str | list[str]]:
         """Validate the parameters -> the observed groups and the coupling (parsed)."""
         observe = parse_groups(self.observe)
@@ -166,13 +179,17 @@ class IProMP:
         return observe, coupling
 
     # ------------------------------------------------------------------ fit
-    def fit(self, data: Dataset | Iterable[Demo]) -> IProMP:
+    def fit(self, data: Dataset | Iterable[Demo], y: Sequence[str] | None = None) -> IProMP:
         """Learn the scaling, per-task weight distributions, phase priors, noise ratio and coupling.
 
         Args:
             data: A :class:`~ipromp_pin.data.Dataset` or demos (grouped by ``demo.task``).
+            y: The demos' task names, optional (scikit-learn's ``fit(X, y)``: checked against
+                ``demo.task``, so that stratified cross-validation splitters can use them).
         """
         observe, coupling = self._checked_params()
+        if y is not None:
+            _check_labels(data, y)
         basis = GaussianBasis(self.n_basis, self.width, self.ridge, self.margin)
         by_task = demos_by_task(data)
         training = prepare_training(by_task, observe, self.robot_group, basis, self.log_groups)
@@ -249,29 +266,59 @@ class IProMP:
             raise NotFittedError("IProMP is not fitted: call fit() before predict/recognise/stream/save")
         return predictor
 
-    def recognise(self, observation: Demo) -> Recognition:
+    def recognise(self, observation: Demo | Sequence[Demo]) -> Recognition | list[Recognition]:
         """Task posterior and phase estimates of a partial observation (no trajectory).
 
         Args:
-            observation: Partial demo with the observed groups (>= 2 samples), times in [s] from motion start.
+            observation: Partial demo with the observed groups (>= 2 samples), times in [s] from
+                motion start; or a sequence of them (batch: a list of recognitions, in order).
         """
         predictor = self._predictor()
+        if not isinstance(observation, Demo):
+            return [self.recognise(o) for o in _batch(observation)]
         parts, t_last = predictor.encode(observation)
         with self._limit_threads():
             return predictor.recognise(parts, t_last)
 
     recognize = recognise
 
-    def predict(self, observation: Demo) -> Prediction:
+    def predict(self, observation: Demo | Sequence[Demo]) -> Prediction | list[Prediction]:
         """Recognise the task and predict the robot's trajectory conditioned on the observation.
 
         Args:
-            observation: Partial demo with the observed groups (>= 2 samples), times in [s] from motion start.
+            observation: Partial demo with the observed groups (>= 2 samples), times in [s] from
+                motion start; or a sequence of them (batch: a list of predictions, in order).
         """
         predictor = self._predictor()
+        if not isinstance(observation, Demo):
+            return [self.predict(o) for o in _batch(observation)]
         parts, t_last = predictor.encode(observation)
         with self._limit_threads():
             return predictor.predict(parts, t_last)
+
+    def score(self, demos: Sequence[Demo], y: Sequence[str] | None = None, ratio: float = 0.2) -> float:
+        """Recognition accuracy: the fraction of ``demos`` whose first ``ratio`` of the motion is
+        recognised as their task (scikit-learn's ``score``, so ``GridSearchCV`` can use it).
+
+        Args:
+            demos: Full demos (the observed groups are taken from them).
+            y: Their task names (default: ``demo.task``; checked against it when given).
+            ratio: Observed fraction of each demo, in (0, 1].
+        """
+        demos = list(_batch(demos))
+        if y is not None:
+            _check_labels(demos, y)
+        observe = self.observe_ if hasattr(self, "observe_") else parse_groups(self.observe)
+        recs = self.recognise([d.head(ratio, groups=observe) for d in demos])
+        return float(np.mean([r.task == d.task for r, d in zip(recs, demos, strict=True)]))
+
+    def sample_prior(
+        self, task: str, n: int, random_state: np.random.Generator | int | None = None
+    ) -> list[Demo]:
+        """``n`` demonstrations drawn from the prior of ``task`` (every modelled group, ``n_points``
+        samples over a duration drawn from the task's phase prior; see
+        :mod:`~ipromp_pin.promp.prior_sampling`)."""
+        return sample_task_prior(self._predictor().fitted, task, n, int(self.n_points), random_state)
 
     def stream(self) -> StreamingEstimator:
         """A streaming estimator that refreshes the estimate as samples arrive one by one."""
@@ -320,6 +367,28 @@ class IProMP:
         except ModelError as exc:
             raise ModelFileError(f"{path}: corrupt model file (parameters: {exc})") from exc
         return model._set_fitted(fitted)
+
+
+def _batch(observations: Iterable[Demo]) -> list[Demo]:
+    """A batch of observations as a list (raises ModelError for anything else)."""
+    if isinstance(observations, str | bytes) or not isinstance(observations, Iterable):
+        raise ModelError(f"expected a Demo or a sequence of Demo objects, got {type(observations).__name__}")
+    out = list(observations)
+    for o in out:
+        if not isinstance(o, Demo):
+            raise ModelError(f"expected a Demo or a sequence of Demo objects, got an item {type(o).__name__}")
+    return out
+
+
+def _check_labels(data: Dataset | Iterable[Demo], y: Sequence[str]) -> None:
+    """Raise ModelError when the labels ``y`` are not the demos' tasks."""
+    demos = data.all_demos() if isinstance(data, Dataset) else list(data)
+    labels = [str(v) for v in y]
+    if len(labels) != len(demos):
+        raise ModelError(f"y has {len(labels)} labels for {len(demos)} demos")
+    for d, label in zip(demos, labels, strict=True):
+        if label != d.task:
+            raise ModelError(f"y says '{label}' for demo {d.name} of task '{d.task}'")
 
 
 _PARAMS = (

@@ -18,13 +18,19 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Iterable, Iterator, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
-from scipy.linalg import solve_triangular
 
 from ..exceptions import ObservationError
 from .compiled import kernels
+from .weight_posterior import RobotWeightPosterior
+
+VIA_POINT_STD_RAD = 1e-3
+"""Default standard deviation of a joint-angle via-point in [rad]."""
+
+VIA_POINT_STD_RAD_S = 1e-2
+"""Default standard deviation of a joint-velocity via-point in [rad/s]."""
 
 REFINE_STEPS = 8
 """Fine points per candidate spacing at which the log phase posterior is interpolated."""
@@ -112,41 +118,6 @@ class Recognition:
     log_evidence: np.ndarray
 
 
-@dataclass(frozen=True)
-class RobotWeightPosterior:
-    """The conditioned robot weights in latent form: ``w = mean + sqrt(diag) xi + factor eta`` with
-    ``xi ~ N(0, I)`` and ``eta ~ N(0, Q^-1)``, ``Q = L L^T`` (scaled units).
-
-    Attributes:
-        mean: (J, K) posterior mean of the robot weights.
-        diag: (J,) per-joint diagonal variance ``delta_j``.
-        factor: (J, K, r) the robot rows of the covariance factor.
-        q_chol: (r, r) lower Cholesky factor ``L`` of the latent posterior precision ``Q``.
-        phi: (M, K) basis values at the prediction's phases.
-        offset, scale: (J,) the robot channels' scaling (original = scaled * scale + offset, in [rad]).
-    """
-
-    mean: np.ndarray
-    diag: np.ndarray
-    factor: np.ndarray
-    q_chol: np.ndarray
-    phi: np.ndarray
-    offset: np.ndarray
-    scale: np.ndarray
-
-    def sample_q(self, n: int, rng: np.random.Generator | int | None = None) -> np.ndarray:
-        """Draw ``n`` robot trajectories (n, M, J) in [rad] (exactly the conditioned Gaussian,
-        without forming it)."""
-        rng = np.random.default_rng(rng)
-        j, k, r = self.factor.shape
-        xi = rng.standard_normal((n, j, k)) * np.sqrt(self.diag)[None, :, None]
-        zeta = rng.standard_normal((r, n))
-        eta = solve_triangular(self.q_chol, zeta, lower=True, trans="T").T if r else zeta.T
-        w = self.mean[None] + xi + np.einsum("jkr,nr->njk", self.factor, eta)
-        q = np.einsum("mk,njk->nmj", self.phi, w)
-        return q * self.scale + self.offset
-
-
 @dataclass
 class Prediction(Recognition):
     """Recognition plus the conditioned robot (and human) trajectory of the most probable task.
@@ -162,6 +133,11 @@ class Prediction(Recognition):
             (computed on first access: the latent blocks that do not load on the robot are
             conditioned then).
         robot_weights: The conditioned robot weights (what :meth:`sample_q` draws from).
+
+    :meth:`condition_joints` and :meth:`condition_state` add joint via-points (the robot's current
+    state, a goal configuration ...) and return a new prediction whose ``q_mean``, ``q_cov``,
+    ``robot_weights`` and samples are conditioned on them; the task and phase estimates and
+    ``human_mean`` stay those of the observation.
     """
 
     t: np.ndarray = field(default_factory=lambda: np.zeros(0))
@@ -178,6 +154,98 @@ class Prediction(Recognition):
         if self.robot_weights is None:
             raise ValueError("this prediction holds no weight posterior to sample from")
         return self.robot_weights.sample_q(n, rng)
+
+    def condition_joints(
+        self,
+        t_s: float | np.ndarray,
+        q_rad: np.ndarray,
+        std_rad: float | np.ndarray = VIA_POINT_STD_RAD,
+        joints: Iterable[str | int] | None = None,
+    ) -> Prediction:
+        """The prediction conditioned on joint via-points (like ``condition_position`` of ProMP
+        libraries, with the covariance updated).
+
+        Args:
+            t_s: (n,) times of the via-points in [s] on this prediction's time axis, in
+                ``[0, duration_s]`` (``duration_s``: the hand-over).
+            q_rad: (n, J_sel) joint angles in [rad] (or (J_sel,) with one time); NaN leaves a joint
+                free at that time.
+            std_rad: Standard deviation of each via-point in [rad] (> 0; scalar or per value): how
+                closely the conditioned trajectory must pass.
+            joints: The joints (names or indices) of ``q_rad``'s columns (default: all, in order).
+
+        Returns:
+            A new :class:`Prediction`.
+        """
+        t = np.atleast_1d(np.asarray(t_s, dtype=float))
+        given, cols, vals, std = self._via_points(t, q_rad, std_rad, joints, "t_s")
+        if self.robot_weights is None or self.robot_weights.basis is None:
+            raise ValueError("this prediction holds no weight posterior to condition")
+        z = np.repeat(t / self.duration_s, cols.shape[1])[given]
+        phi = self.robot_weights.basis(z)
+        return self._conditioned(phi, cols.reshape(-1)[given], vals, std, np.zeros(vals.size, dtype=bool))
+
+    def condition_state(
+        self,
+        q_rad: np.ndarray,
+        qd_rad_s: np.ndarray | None = None,
+        t_s: float | None = None,
+        std_rad: float = VIA_POINT_STD_RAD,
+        std_rad_s: float = VIA_POINT_STD_RAD_S,
+    ) -> Prediction:
+        """The prediction conditioned on the robot's current joint state.
+
+        Args:
+            q_rad: (J,) current joint angles in [rad].
+            qd_rad_s: (J,) current joint velocities in [rad/s] (None: positions only).
+            t_s: Time of the state in [s] on this prediction's time axis (default ``observed_until_s``,
+                the end of the observation: now).
+            std_rad, std_rad_s: Standard deviations of the positions [rad] and velocities [rad/s].
+        """
+        t = float(self.observed_until_s if t_s is None else t_s)
+        out = self.condition_joints(t, q_rad, std_rad)
+        if qd_rad_s is None:
+            return out
+        given, cols, vals, std = self._via_points(np.array([t]), qd_rad_s, std_rad_s, None, "t_s")
+        dphi = out.robot_weights.basis.derivative(np.full(vals.size, t / self.duration_s)) / self.duration_s
+        return out._conditioned(dphi, cols.reshape(-1)[given], vals, std, np.ones(vals.size, dtype=bool))
+
+    def _via_points(
+        self, t: np.ndarray, values: np.ndarray, std: float | np.ndarray, joints, field_name: str
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Flattened via-points: mask of the given (non-NaN) values, joint indices (n, J_sel),
+        their values and standard deviations."""
+        names = list(self.joint_names)
+        if joints is None:
+            idx = np.arange(len(names))
+        else:
+            unknown = [j for j in joints if isinstance(j, str) and j not in names]
+            if unknown:
+                raise ObservationError(
+                    None, "joints", f"unknown joints {unknown} (joints: {', '.join(names)})"
+                )
+            idx = np.array([names.index(j) if isinstance(j, str) else int(j) for j in joints], dtype=np.int64)
+            if np.any((idx < 0) | (idx >= len(names))):
+                raise ObservationError(None, "joints", f"index out of range for {len(names)} joints")
+        v = np.asarray(values, dtype=float)
+        if v.ndim < 2 and v.size == t.size * idx.size:
+            v = v.reshape(t.size, idx.size)
+        if v.shape != (t.size, idx.size):
+            raise ObservationError(None, "q", f"expected shape ({t.size}, {idx.size}), got {v.shape}")
+        if not np.all(np.isfinite(t)) or np.any(t < -1e-9) or np.any(t > self.duration_s + 1e-9):
+            raise ObservationError(
+                None, field_name, f"via-point times must be in [0, {self.duration_s:.3f}] s, got {t}"
+            )
+        s = np.broadcast_to(np.asarray(std, dtype=float), v.shape).reshape(-1)
+        cols = np.broadcast_to(idx, v.shape)
+        given = ~np.isnan(v.reshape(-1))
+        return given, cols, v.reshape(-1)[given], s[given]
+
+    def _conditioned(
+        self, rows: np.ndarray, joints: np.ndarray, values: np.ndarray, std: np.ndarray, deriv: np.ndarray
+    ) -> Prediction:
+        rw = self.robot_weights.condition(rows, joints, values, std, deriv)
+        return replace(self, q_mean=rw.q_mean(), q_cov=rw.q_cov(), robot_weights=rw)
 
 
 @dataclass(frozen=True)

@@ -6,6 +6,7 @@ Modules, each one concept, from the bottom up:
 * :mod:`~ipromp_pin.robot.model`: the :class:`Robot` (kinematic + collision models) built from them,
   and :func:`load_robot`'s cache;
 * :mod:`~ipromp_pin.robot.kinematics`: forward kinematics along a joint path;
+* :mod:`~ipromp_pin.robot.inverse_kinematics`: damped least-squares inverse kinematics;
 * :mod:`~ipromp_pin.robot.report`: check results and the feasibility report;
 * :mod:`~ipromp_pin.robot.collision`: the self-collision check;
 * :mod:`~ipromp_pin.robot.checks`: the other checks and :func:`check_path`, which runs them all;
@@ -30,6 +31,7 @@ from .checks import (
     check_workspace,
 )
 from .collision import check_self_collision
+from .inverse_kinematics import IKResult, solve_ik
 from .kinematics import ee_positions, forward_kinematics, frame_placements
 from .model import Robot, build_robot, clear_robot_cache, load_robot, load_visual_model, map_recorded_joints
 from .report import CheckResult, FeasibilityReport
@@ -49,6 +51,7 @@ __all__ = [
     "CalibrationResult",
     "CheckResult",
     "FeasibilityReport",
+    "IKResult",
     "Robot",
     "RobotSettings",
     "Workspace",
@@ -71,6 +74,7 @@ __all__ = [
     "load_visual_model",
     "map_recorded_joints",
     "resolve_settings_path",
+    "solve_ik",
     "uncalibrated_robot",
     "write_calibration",
 ]

@@ -1,0 +1,182 @@
+"""The conditioned robot weights in latent form, and their exact conditioning on joint via-points.
+
+After the observation, the robot's weights (J joints x K basis functions, scaled units) are
+
+    w = mean + G u,   G = [diag(sqrt(delta_j)) (x) I_K | F],   u = (xi, eta) ~ N(0, Lambda^-1)
+
+with ``xi`` (J K) and ``eta`` (r) the latent coordinates: straight after the observation
+``Lambda = blockdiag(I, Q)`` and ``Q = L L^T`` is the latent posterior precision of
+:mod:`ipromp_pin.promp.conditioning`. The weight covariance ``G Lambda^-1 G^T`` is never formed.
+
+Conditioning on via-points (joint positions or velocities at given phases, each with Gaussian noise
+of standard deviation ``s > 0``) is a Kalman update in the latent space, in information form: with
+``H`` the rows that pick the observed values out of ``w`` and ``V = S^-1 H G`` (``S`` the noise
+standard deviations), the posterior precision is ``Lambda' = Lambda + V^T V`` (symmetric positive
+definite by construction: an SPD matrix plus a positive semi-definite one) and the posterior mean
+moves by ``G Lambda'^-1 V^T S^-1 (y - H mean)``. Everything is Cholesky factorisations and
+triangular solves (``J K + r`` is a few hundred); no inverse is formed. Conditioning again starts
+from the updated form, so via-points can be added one call at a time.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+from scipy.linalg import LinAlgError, cho_solve, cholesky, solve_triangular
+
+from ..exceptions import ModelError
+from .basis import GaussianBasis
+
+
+@dataclass(frozen=True)
+class RobotWeightPosterior:
+    """The conditioned robot weights in latent form: ``w = mean + sqrt(diag) xi + factor eta`` with
+    ``(xi, eta) ~ N(0, Lambda^-1)`` (scaled units). Without via-points ``Lambda = blockdiag(I, Q)``,
+    ``Q = L L^T`` (``xi ~ N(0, I)`` and ``eta ~ N(0, Q^-1)`` independent).
+
+    Attributes:
+        mean: (J, K) posterior mean of the robot weights.
+        diag: (J,) per-joint diagonal variance ``delta_j``.
+        factor: (J, K, r) the robot rows of the covariance factor.
+        q_chol: (r, r) lower Cholesky factor ``L`` of the latent posterior precision ``Q``.
+        phi: (M, K) basis values at the prediction's phases.
+        offset, scale: (J,) the robot channels' scaling (original = scaled * scale + offset, in [rad]).
+        basis: The basis (to evaluate it at via-points' phases); None: via-points cannot be added.
+        info_chol: (J K + r, J K + r) lower Cholesky factor of ``Lambda`` once via-points were added
+            (None: ``Lambda = blockdiag(I, Q)``).
+    """
+
+    mean: np.ndarray
+    diag: np.ndarray
+    factor: np.ndarray
+    q_chol: np.ndarray
+    phi: np.ndarray
+    offset: np.ndarray
+    scale: np.ndarray
+    basis: GaussianBasis | None = None
+    info_chol: np.ndarray | None = None
+
+    @property
+    def n_latent(self) -> int:
+        """Number of latent coordinates ``J K + r``."""
+        j, k, r = self.factor.shape
+        return j * k + r
+
+    def precision_chol(self) -> np.ndarray:
+        """Lower Cholesky factor of the latent precision ``Lambda`` (J K + r, J K + r)."""
+        if self.info_chol is not None:
+            return self.info_chol
+        j, k, r = self.factor.shape
+        out = np.eye(j * k + r)
+        out[j * k :, j * k :] = self.q_chol
+        return out
+
+    def loadings(self, rows: np.ndarray, joints: np.ndarray) -> np.ndarray:
+        """``H G`` (m, J K + r) for ``m`` scalar read-outs ``rows[i] . w[joints[i]]`` (rows: (m, K))."""
+        rows = np.asarray(rows, dtype=float)
+        joints = np.asarray(joints, dtype=np.int64)
+        j, k, r = self.factor.shape
+        out = np.zeros((rows.shape[0], j * k + r))
+        sd = np.sqrt(self.diag)
+        for i, (row, jj) in enumerate(zip(rows, joints, strict=True)):
+            out[i, jj * k : (jj + 1) * k] = sd[jj] * row
+            out[i, j * k :] = row @ self.factor[jj]
+        return out
+
+    def trajectory_loadings(self, rows: np.ndarray) -> np.ndarray:
+        """``G^T P^T`` for the read-outs of every joint at every row: (J K + r, M, J) for rows (M, K)."""
+        rows = np.asarray(rows, dtype=float)
+        j, k, r = self.factor.shape
+        m = rows.shape[0]
+        out = np.zeros((j * k + r, m, j))
+        sd = np.sqrt(self.diag)
+        for jj in range(j):
+            out[jj * k : (jj + 1) * k, :, jj] = (sd[jj] * rows).T
+        out[j * k :] = np.einsum("mk,jkr->rmj", rows, self.factor)
+        return out
+
+    def q_mean(self, rows: np.ndarray | None = None) -> np.ndarray:
+        """Mean joint values (M, J) in [rad] at the basis rows (default: the prediction's phases)."""
+        rows = self.phi if rows is None else rows
+        return rows @ self.mean.T * self.scale + self.offset
+
+    def q_cov(self, rows: np.ndarray | None = None) -> np.ndarray:
+        """Covariance (M, J, J) in [rad^2] of the joints at the basis rows (default: the prediction's
+        phases): ``S P G Lambda^-1 G^T P^T S`` by one triangular solve."""
+        rows = self.phi if rows is None else rows
+        a = self.trajectory_loadings(rows)  # (n_u, M, J)
+        n_u, m, j = a.shape
+        b = solve_triangular(self.precision_chol(), a.reshape(n_u, m * j), lower=True).reshape(n_u, m, j)
+        cov = np.einsum("umi,umj->mij", b, b)
+        return cov * self.scale[None, :, None] * self.scale[None, None, :]
+
+    def sample_q(self, n: int, rng: np.random.Generator | int | None = None) -> np.ndarray:
+        """Draw ``n`` robot trajectories (n, M, J) in [rad] (exactly the conditioned Gaussian,
+        without forming it)."""
+        rng = np.random.default_rng(rng)
+        j, k, r = self.factor.shape
+        if self.info_chol is None:
+            xi = rng.standard_normal((n, j, k)) * np.sqrt(self.diag)[None, :, None]
+            zeta = rng.standard_normal((r, n))
+            eta = solve_triangular(self.q_chol, zeta, lower=True, trans="T").T if r else zeta.T
+            w = self.mean[None] + xi + np.einsum("jkr,nr->njk", self.factor, eta)
+        else:
+            u = solve_triangular(self.info_chol, rng.standard_normal((j * k + r, n)), lower=True, trans="T")
+            xi = u[: j * k].T.reshape(n, j, k) * np.sqrt(self.diag)[None, :, None]
+            w = self.mean[None] + xi + np.einsum("jkr,rn->njk", self.factor, u[j * k :])
+        q = np.einsum("mk,njk->nmj", self.phi, w)
+        return q * self.scale + self.offset
+
+    def condition(
+        self,
+        rows: np.ndarray,
+        joints: np.ndarray,
+        values: np.ndarray,
+        std: np.ndarray,
+        derivative: np.ndarray | None = None,
+    ) -> RobotWeightPosterior:
+        """The posterior after ``m`` noisy scalar via-points ``values[i] = rows[i] . w[joints[i]]``
+        in original units (+ noise of standard deviation ``std[i] > 0``).
+
+        Args:
+            rows: (m, K) basis values at the via-points' phases (or, for a velocity, the basis
+                derivative with respect to time, in [1/s]).
+            joints: (m,) joint indices.
+            values: (m,) target values in [rad] (or [rad/s] for derivative rows).
+            std: (m,) noise standard deviations in the same units (> 0).
+            derivative: (m,) True where the row is a derivative (no offset).
+
+        Raises:
+            ModelError: bad shapes, non-positive or non-finite ``std``, or a numerically singular update.
+        """
+        rows = np.atleast_2d(np.asarray(rows, dtype=float))
+        joints = np.asarray(joints, dtype=np.int64).reshape(-1)
+        values = np.asarray(values, dtype=float).reshape(-1)
+        std = np.asarray(std, dtype=float).reshape(-1)
+        m = rows.shape[0]
+        deriv = np.zeros(m, dtype=bool) if derivative is None else np.asarray(derivative, bool).reshape(-1)
+        nj, k, _ = self.factor.shape
+        if rows.shape[1] != k or not (joints.size == values.size == std.size == deriv.size == m):
+            raise ModelError(f"via-points: {m} rows of {rows.shape[1]} values (need {k}) do not match")
+        if np.any((joints < 0) | (joints >= nj)):
+            raise ModelError(f"via-points: joint index out of range 0..{nj - 1}")
+        if not np.all(np.isfinite(values)) or not np.all(np.isfinite(rows)):
+            raise ModelError("via-points: values must be finite")
+        if not np.all((std > 0) & np.isfinite(std)):
+            raise ModelError(f"via-points: noise standard deviations must be positive and finite, got {std}")
+        scale = self.scale[joints]
+        y = (values - np.where(deriv, 0.0, self.offset[joints])) / scale  # scaled units
+        s = std / scale
+        v = self.loadings(rows, joints) / s[:, None]  # S^-1 H G, (m, n_u)
+        resid = (y - np.einsum("mk,mk->m", rows, self.mean[joints])) / s
+        chol = self.precision_chol()
+        lam = chol @ chol.T + v.T @ v
+        try:
+            new_chol = cholesky(lam, lower=True)
+        except LinAlgError as exc:
+            raise ModelError(f"via-point update is not numerically positive definite ({exc})") from exc
+        u_mean = cho_solve((new_chol, True), v.T @ resid)
+        jk = nj * k
+        dw = u_mean[:jk].reshape(nj, k) * np.sqrt(self.diag)[:, None] + self.factor @ u_mean[jk:]
+        return replace(self, mean=self.mean + dw, info_chol=new_chol)

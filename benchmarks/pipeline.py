@@ -3,10 +3,11 @@
 Paper setting: 3 tasks, orientation + EMG observed, 7 Baxter joints, 20 % of the
 motion observed. Model training and process start are excluded; everything
 after the observation is timed: recognition + prediction, feasibility checks,
-toppra + ruckig, writing ``trajectory.csv``, ``trajectory.json`` and
-``report.json``. BLAS is pinned to one thread (one core).
+toppra + ruckig, writing ``trajectory.csv``, ``trajectory.json``, ``report.json``,
+``report.txt`` and the rosbag2 folder ``rosbag/`` (as ``ipromp-pin run`` does). BLAS is pinned to
+one thread (one core).
 
-    python benchmarks/pipeline.py [--repeats 50] [--dataset DATASET] [--json FILE]
+    python benchmarks/pipeline.py [--repeats 50] [--dataset DATASET] [--json FILE] [--no-rosbag]
 
 Prints the median total and each stage's median and share.
 """
@@ -38,6 +39,7 @@ def main() -> None:
     parser.add_argument("--dataset", type=Path, default=None, help="real dataset (default: synthetic)")
     parser.add_argument("--ratio", type=float, default=0.2)
     parser.add_argument("--json", type=Path, default=None)
+    parser.add_argument("--no-rosbag", action="store_true", help="do not write the rosbag2 folder")
     args = parser.parse_args()
 
     cfg = PipelineConfig(dataset=args.dataset, ratio=args.ratio, preview_html=False).validate()
@@ -57,7 +59,7 @@ def main() -> None:
             t0 = time.perf_counter()
             result = plan(model, robot, obs, cfg.control_rate_hz)
             t1 = time.perf_counter()
-            write_outputs(result, Path(tmp), obs)
+            write_outputs(result, Path(tmp), obs, rosbag=not args.no_rosbag)
             t2 = time.perf_counter()
             if i < 3:  # warm-up
                 continue

@@ -216,3 +216,27 @@ def test_ros1_bag_has_the_same_messages(content, tmp_path):
     assert [s for s, _ in js1] == [s for s, _ in js2]
     np.testing.assert_array_equal(js1[7][1].position, js2[7][1].position)
     assert hasattr(js1[0][1].header, "seq")
+
+
+def test_run_writes_the_bags_and_the_requested_ros_form(tmp_path):
+    from ipromp_pin.cli import main
+    from ipromp_pin.export import read_trajectory_csv
+
+    pipeline = "baxter_handover"
+    out = tmp_path / "out"
+    assert main(["run", pipeline, "--out", str(out), "--no-preview", "--ros", "1", "--ros1-bag"]) == 0
+    doc = json.loads((out / "trajectory.json").read_text())
+    assert doc["ros"] == 1 and "secs" in doc["message"]["points"][0]["time_from_start"]
+    traj = read_trajectory_csv(out / "trajectory.csv")
+    types, msgs = _read_rosbag2(out / "rosbag")
+    assert len(msgs[TOPIC_JOINT_STATES]) == traj.n_samples and len(types) >= 5
+    np.testing.assert_array_equal(np.array([m.position for _, m in msgs[TOPIC_JOINT_STATES]]), traj.q)
+    report = json.loads((out / "report.json").read_text())
+    [(_, pose)] = msgs[TOPIC_HANDOVER_POSE]
+    p = pose.pose.position
+    np.testing.assert_array_equal([p.x, p.y, p.z], report["feasibility"]["handover_position_m"])
+    assert (out / "run.bag").stat().st_size > 0
+    bare = tmp_path / "bare"
+    assert main(["run", pipeline, "--out", str(bare), "--no-preview", "--no-rosbag"]) == 0
+    assert not (bare / "rosbag").exists() and not (bare / "run.bag").exists()
+    assert json.loads((bare / "trajectory.json").read_text())["ros"] == 2

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 import json
 from pathlib import Path
 
@@ -46,6 +47,10 @@ def test_demo_in_the_training_set_is_found_by_content(fitted):
     other = random_dataset(6).demos["task2"][3]
     assert (other.task, other.name) == (demo.task, demo.name)
     assert held_out_warning(model, other, "m.npz") is None
+    # a model file of format version 1 does not know its training demos: say so
+    old = copy.copy(model)
+    old.trained_on_ = None
+    assert "does not record its training demos" in held_out_warning(old, other, "old.npz")
 
 
 def test_model_of_other_tasks_or_channels_is_flagged(fitted):

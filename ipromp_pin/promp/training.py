@@ -126,8 +126,9 @@ def prepare_training(
         basis: The basis of every channel.
         log_groups: Observed groups modelled in log space (others and the robot: linear).
     """
+    layout = ChannelLayout.from_demos([d for demos in by_task.values() for d in demos], observe, robot_group)
+    by_task = {task: [layout.aligned(d) for d in demos] for task, demos in by_task.items()}
     all_demos = [d for demos in by_task.values() for d in demos]
-    layout = ChannelLayout.from_demos(all_demos, observe, robot_group)
     log_dims = np.zeros(layout.n_dims, dtype=bool)
     for g in log_groups:
         if g in layout.slices and g != robot_group:

@@ -337,6 +337,9 @@ class OutputSet:
                 _remove(final)
             for final, backup in reversed(backups):
                 with contextlib.suppress(OSError):
+                    if final.exists() and os.path.samefile(final, backup):
+                        backup.unlink()  # a hard link to the file, which was not replaced
+                        continue
                     if final.is_dir() and not final.is_symlink():
                         shutil.rmtree(final)
                     os.replace(backup, final)

@@ -118,6 +118,16 @@ def check_norms(
 ) -> None:
     """Raise :class:`DataError` when the norm of a finite row of ``values`` (N, D) is outside [low, high]."""
     v = np.asarray(values, dtype=float)
+    with np.errstate(invalid="ignore"):
+        big = np.abs(v) > high  # a component beyond the bound: its norm is too (and may overflow)
+    if np.any(big):
+        row, col = _first_bad(big)
+        raise DataError(
+            source,
+            field,
+            f"implausible component {v[row, col]:.6g} {unit} in {what} {row} (the norm must be in "
+            f"[{low:g}, {high:g}] {unit}; {int(np.any(big, axis=1).sum())} such {what}s)",
+        )
     norm = np.linalg.norm(v, axis=1)
     with np.errstate(invalid="ignore"):
         bad = (norm < low) | (norm > high)

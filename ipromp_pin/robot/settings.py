@@ -56,8 +56,8 @@ PLAUSIBLE_RANGES: dict[str, tuple[float, float]] = {
 is computed: the limits of real arms lie well inside them (Baxter: 1.5-4 rad/s, 1 rad/s^2), and
 values outside make the planner allocate absurd amounts (a velocity limit of 1e-9 rad/s: a
 trajectory of 1e9 s, or a collision step of 1e-12 rad: 1e12 checked samples) or make every check
-meaningless. Calibration offsets are corrections of millimetres (bound: their norm); positions are
-within the tracking range of the hand (bound: each coordinate)."""
+meaningless. Calibration offsets are corrections of millimetres, positions are within the tracking
+range of the hand (bounds: each coordinate)."""
 
 
 def settings_error(source: object, field_name: str | None, problem: str) -> RobotError:
@@ -342,7 +342,7 @@ def load_robot_settings(path_or_name: str | Path) -> RobotSettings:
     offset = _vector3(calib.get("tool_offset_m", [0.0, 0.0, 0.0]), path, "calibration.tool_offset_m")
     mount = _vector3(calib.get("mount_offset_m", [0.0, 0.0, 0.0]), path, "calibration.mount_offset_m")
     for key, v in (("calibration.tool_offset_m", offset), ("calibration.mount_offset_m", mount)):
-        _in_range(np.array([np.linalg.norm(v)]), path, key, "calibration offsets [m]")
+        _in_range(np.abs(v), path, key, "calibration offsets [m]")
     calib_info = {k: v for k, v in calib.items() if k not in ("tool_offset_m", "mount_offset_m")}
 
     limits = _table(doc, "limits", path)

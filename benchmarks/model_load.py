@@ -47,7 +47,9 @@ def main(argv: list[str] | None = None) -> int:
         path = Path(tmp) / "model.npz"
         model.save(path)
         obs = ds.demos[model.tasks_[0]][20].head(0.2, OBSERVE)
-        other_obs = other_synthetic(n_tasks=3, n_demos=21, seed=1).demos[model.tasks_[0]][20].head(0.2, OBSERVE)
+        other_obs = (
+            other_synthetic(n_tasks=3, n_demos=21, seed=1).demos[model.tasks_[0]][20].head(0.2, OBSERVE)
+        )
         this, other = IProMP.load(path), OtherIProMP.load(path)  # warm both (imports, caches)
         if not np.array_equal(this.predict(obs).q_mean, other.predict(other_obs).q_mean):
             print("the two versions predict differently from the same file")

@@ -193,8 +193,12 @@ def run_pipeline(cfg: PipelineConfig, log: LogFn = print, *, allow_failing_check
             content = preview_content(
                 result, prep.robot, prep.demo, visual_model=load_visual_model(prep.robot)
             )
-            out.write_text("preview.html", render_html(content))
-            log(f"[preview] {out.path('preview.html')} ({time.perf_counter() - t0:.1f} s)")
+            html = render_html(content).encode("utf-8")
+            out.write_bytes("preview.html", html)
+            log(
+                f"[preview] {out.path('preview.html')} ({len(html) / 1e6:.1f} MB, "
+                f"{time.perf_counter() - t0:.1f} s)"
+            )
         if cfg.plots:
             write_plots(result, prep.model, prep.demo, out)
         files = out.commit()

@@ -14,7 +14,7 @@ import pytest
 from helpers_model import random_dataset
 
 from ipromp_pin.data import Demo
-from ipromp_pin.exceptions import ModelError, ModelFileError
+from ipromp_pin.exceptions import DataError, ModelError, ModelFileError
 from ipromp_pin.promp import IProMP
 
 
@@ -181,14 +181,18 @@ def test_model_is_checked_before_saving_and_a_failed_save_keeps_the_old_file(tmp
     assert [p.name for p in tmp_path.iterdir()] == ["m.npz"]
 
 
-def test_training_on_absurd_data_is_refused(saved):
+@pytest.mark.parametrize(("group", "value"), [("a", 1e300), ("a", -1e200), ("robot", 1e300), ("robot", 1e13)])
+@pytest.mark.parametrize("noise", [10.0, "auto"])
+def test_training_on_absurd_data_is_refused(group, value, noise):
+    # demos built in code skip the readers' plausibility checks: training refuses them itself
     ds = random_dataset(7, n_tasks=2, n_demos=4)
     demo = ds.demos["task0"][1]
-    values = demo.groups["a"].copy()
-    values[3:, 0] = 1e300  # a sensor that ran away (finite, absurd)
-    ds.demos["task0"][1] = dataclasses.replace(demo, groups={**demo.groups, "a": values})
-    with pytest.raises(ModelError, match="unusable model.*scaler"):
-        IProMP(["a", "b"], n_basis=9, noise=10.0).fit(ds)
+    values = demo.groups[group].copy()
+    values[3:, 0] = value  # a sensor that ran away (finite, absurd)
+    ds.demos["task0"][1] = dataclasses.replace(demo, groups={**demo.groups, group: values})
+    with pytest.raises(DataError, match="implausible training value") as info:
+        IProMP(["a", "b"], n_basis=9, noise=noise).fit(ds)
+    assert info.value.source == demo.source and info.value.field.startswith(f"{group}/")
 
 
 def test_round_trip_still_exact(tmp_path, saved):

@@ -178,7 +178,8 @@ def _check_readable(folder: Path) -> None:
         if d is not folder and not d.is_dir():
             continue
         try:
-            next(os.scandir(d), None)
+            with os.scandir(d) as entries:
+                next(entries, None)
         except OSError as exc:
             raise DataError(d, None, f"cannot read the task folder: {exc.strerror or exc}") from None
         if not os.access(d, os.R_OK | os.X_OK):

@@ -26,7 +26,7 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from ipromp_pin.config import PipelineConfig
-from ipromp_pin.pipeline import choose_demo, get_model, load_data, write_outputs
+from ipromp_pin.pipeline import OutputOptions, choose_demo, get_model, load_data, write_outputs
 from ipromp_pin.planning import plan
 from ipromp_pin.robot import load_robot
 
@@ -59,7 +59,7 @@ def main() -> None:
             t0 = time.perf_counter()
             result = plan(model, robot, obs, cfg.control_rate_hz)
             t1 = time.perf_counter()
-            write_outputs(result, Path(tmp), obs, rosbag=not args.no_rosbag)
+            write_outputs(result, Path(tmp), obs, options=OutputOptions(rosbag=not args.no_rosbag))
             t2 = time.perf_counter()
             if i < 3:  # warm-up
                 continue

@@ -41,8 +41,9 @@ def run_calibration(
     robot = load_robot(settings)
     recorded = settings.recorded_arm_joints
     demos, labels = [], []
+    limits = robot.recorded_joint_limits()
     for path in dataset_paths:
-        ds = load_dataset(path, robot_joints=recorded)
+        ds = load_dataset(path, robot_joints=recorded, joint_limits=limits)
         for d in ds.all_demos():
             demos.append(d)
             labels.append(Path(path).name)

@@ -6,7 +6,9 @@ Stable interface (people script against it)::
     ipromp-pin evaluate DATASET --protocol paper|splits --observe GROUPS --json FILE
 
 Errors of the user's input exit with status 2 and a one-line message naming
-the file, field and problem; no traceback.
+the file, field and problem; no traceback. ``run`` exits with status 3 when the
+planned motion fails its checks (it then writes no trajectory file unless
+``--allow-failing-checks``). Progress lines are shown on a terminal only.
 
 Each command imports the modules it runs when it runs (the scientific stack takes a second or
 two to import), so that ``--help`` and argument errors answer at once.
@@ -15,6 +17,7 @@ two to import), so that ``--help`` and argument errors answer at once.
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import sys
 import time
@@ -23,19 +26,74 @@ from pathlib import Path
 from .data import parse_groups, skeleton_frames
 from .exceptions import IPrompPinError
 
+EXIT_ERROR = 2
+"""Exit status of a user error (bad input, unwritable output): one line on standard error."""
 
-def _progress():
-    """A progress callable printing ``[done/total] label  elapsed`` on standard error."""
-    t0 = time.perf_counter()
+EXIT_CHECKS_FAILED = 3
+"""Exit status of ``run`` when the planned motion fails a required check or its timing verification."""
 
-    def show(done: int, total: int, label: str) -> None:
+
+class _ProgressLine:
+    """Progress ``[done/total] label  elapsed`` rewritten in place on standard error, on a terminal
+    only (to a file or a pipe it would be a stream of carriage returns). :meth:`end` finishes an
+    unfinished line, so that an error message starts on a line of its own."""
+
+    open_line = False
+
+    def __init__(self) -> None:
+        self.t0 = time.perf_counter()
+        self.tty = sys.stderr.isatty()
+
+    def __call__(self, done: int, total: int, label: str) -> None:
+        if not self.tty:
+            return
         stream = sys.stderr
-        stream.write(f"\r[{done}/{total}] {label}  ({time.perf_counter() - t0:.0f} s)\033[K")
+        stream.write(f"\r[{done}/{total}] {label}  ({time.perf_counter() - self.t0:.0f} s)\033[K")
+        _ProgressLine.open_line = done != total
         if done == total:
             stream.write("\n")
         stream.flush()
 
-    return show
+    @staticmethod
+    def end() -> None:
+        if _ProgressLine.open_line:
+            sys.stderr.write("\n")
+            sys.stderr.flush()
+            _ProgressLine.open_line = False
+
+
+def _progress() -> _ProgressLine:
+    """A progress callable (see :class:`_ProgressLine`)."""
+    return _ProgressLine()
+
+
+def _port(text: str) -> int:
+    try:
+        port = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a port number: {text!r}") from None
+    if not 1 <= port <= 65535:
+        raise argparse.ArgumentTypeError(f"port {port} is outside 1-65535")
+    return port
+
+
+def _bounded(kind: type, low: float, high: float | None = None, *, open_low: bool = False):
+    """An argparse type: a finite ``kind`` number in [low, high] (``(low, high]`` with ``open_low``)."""
+
+    def parse(text: str):
+        try:
+            value = kind(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+        ok = math.isfinite(value) and (value > low if open_low else value >= low)
+        if not ok or (high is not None and value > high):
+            lo = f"({low:g}" if open_low else f"[{low:g}"
+            raise argparse.ArgumentTypeError(
+                f"{value!r} is outside {lo}, {'inf' if high is None else f'{high:g}'}]"
+            )
+        return value
+
+    return parse
 
 
 def _add_pipeline_overrides(p: argparse.ArgumentParser) -> None:
@@ -54,11 +112,15 @@ def _add_pipeline_overrides(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--demo", type=int, help="index of the demo in its task, held out of training (default -1)"
     )
-    p.add_argument("--ratio", type=float, help="observed fraction of the motion, in (0, 1] (default 0.2)")
+    p.add_argument(
+        "--ratio",
+        type=_bounded(float, 0.0, 1.0, open_low=True),
+        help="observed fraction of the motion, in (0, 1] (default 0.2)",
+    )
     p.add_argument("--model", type=Path, help="use this saved model instead of training")
     p.add_argument("--save-model", type=Path, help="save the trained model here")
     p.add_argument("--robot", help="robot settings file or shipped name (default: the pipeline's)")
-    p.add_argument("--rate", type=float, help="output control rate in [Hz] (default 100)")
+    p.add_argument("--rate", type=float, help="output control rate in [Hz], in [1, 1000] (default 100)")
 
 
 def _pipeline_config(args: argparse.Namespace):
@@ -90,21 +152,40 @@ def cmd_run(args: argparse.Namespace) -> int:
     from .pipeline import run_pipeline
 
     cfg = _pipeline_config(args)
-    run_pipeline(cfg, log=print)
-    return 0
+    report = run_pipeline(cfg, log=print, allow_failing_checks=args.allow_failing_checks)
+    if report["passed"]:
+        return 0
+    failures = list(report["feasibility"]["failures"])
+    if not report["trajectory"]["passed"]:
+        failures.append("timing")
+    written = "written marked as failing" if "trajectory_csv" in report["files"] else "not written"
+    _error("run", f"the planned motion failed its checks ({', '.join(failures)}); trajectory {written}")
+    return EXIT_CHECKS_FAILED
 
 
 def cmd_evaluate(args: argparse.Namespace) -> int:
+    from . import atomic
     from .evaluate import PAPER_GRID, EvaluationConfig, evaluate, overall, to_markdown, write_results
     from .readers import load_dataset
-    from .robot import load_robot_settings
+    from .robot import load_robot
 
     observe = [parse_groups(o) for o in (args.observe or ["orientation", "orientation,emg"])]
     frames = skeleton_frames(g for o in observe for g in o) or None
-    joints = load_robot_settings(args.robot).recorded_arm_joints
+    md = args.md or (args.json.with_suffix(".md") if args.json else None)
+    for path in (args.json, md):
+        if path is not None:
+            atomic.check_output_file(path)
+    if args.plots:
+        atomic.check_output_dir(args.plots, "plots folder")
+    robot = load_robot(args.robot)
     t0 = time.perf_counter()
     ds = load_dataset(
-        args.dataset, format=args.format, frames=frames, robot_joints=joints, progress=_progress()
+        args.dataset,
+        format=args.format,
+        frames=frames,
+        robot_joints=robot.settings.recorded_arm_joints,
+        joint_limits=robot.recorded_joint_limits(),
+        progress=_progress(),
     )
     print(f"read {len(ds.all_demos())} demos of {', '.join(ds.tasks)} in {time.perf_counter() - t0:.1f} s")
     if args.grid == "paper":
@@ -131,12 +212,10 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         "command": " ".join(["ipromp-pin", *sys.argv[1:]]),
         "seconds": round(time.perf_counter() - t0, 2),
     }
-    md = args.md or (args.json.with_suffix(".md") if args.json else None)
     write_results(cells, args.json, md, meta)
     if args.plots:
         from . import plots
 
-        args.plots.mkdir(parents=True, exist_ok=True)
         plots.plot_accuracy(
             [c.__dict__ for c in cells],
             args.plots / "accuracy.png",
@@ -153,20 +232,32 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
 
 
 def cmd_train(args: argparse.Namespace) -> int:
+    from . import atomic
     from .model_warnings import single_task_warning, warn_stderr
     from .promp import IProMP
     from .readers import load_dataset
+    from .robot import load_robot
 
+    atomic.check_output_file(args.out, "model file")
     observe = parse_groups(args.observe)
-    frames = skeleton_frames(observe) or None
-    ds = load_dataset(args.dataset, format=args.format, frames=frames, progress=_progress())
-    t0 = time.perf_counter()
     coupling = args.coupling if args.coupling in ("auto", "all") else parse_groups(args.coupling)
+    IProMP(observe=observe, coupling=coupling).check_params()  # before reading the data
+    frames = skeleton_frames(observe) or None
+    robot = load_robot(args.robot)
+    ds = load_dataset(
+        args.dataset,
+        format=args.format,
+        frames=frames,
+        robot_joints=robot.settings.recorded_arm_joints,
+        joint_limits=robot.recorded_joint_limits(),
+        progress=_progress(),
+    )
+    t0 = time.perf_counter()
     model = IProMP(observe=observe, coupling=coupling).fit(ds.all_demos())
     single = single_task_warning(model)
     if single is not None:
         warn_stderr(single)
-    model.save(args.out)
+    model.save(args.out)  # atomic: a failed save leaves an earlier model file intact
     print(
         f"trained on {len(ds.all_demos())} demos of {', '.join(ds.tasks)} in {time.perf_counter() - t0:.2f} s"
     )
@@ -186,8 +277,11 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
 
 
 def cmd_synth(args: argparse.Namespace) -> int:
+    from . import atomic
     from .readers.native import write_demo
     from .synthetic import make_synthetic_dataset
+
+    atomic.check_output_dir(args.out)
 
     ds = make_synthetic_dataset(n_tasks=args.tasks, n_demos=args.demos, seed=args.seed)
     suffix = ".csv" if args.csv else ".npz"
@@ -201,8 +295,11 @@ def cmd_synth(args: argparse.Namespace) -> int:
 
 
 def cmd_preview(args: argparse.Namespace) -> int:
+    from . import atomic
     from .pipeline import run_preview
 
+    if args.html is not None:
+        atomic.check_output_file(args.html, "preview page")
     run_preview(
         _pipeline_config(args), html=args.html, port=args.port, speed=args.speed, wait=not args.no_wait
     )
@@ -233,6 +330,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--ros1-bag", action="store_true", help="also write run.bag (ROS 1) with the same messages"
     )
+    p.add_argument(
+        "--allow-failing-checks",
+        action="store_true",
+        help="write the trajectory files even when the checks fail, marked as failing (exit status 3 still)",
+    )
     p.set_defaults(func=cmd_run)
 
     p = sub.add_parser("evaluate", help="recognition accuracy and prediction error on a dataset")
@@ -250,14 +352,22 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--grid", choices=["paper", "full"], default="paper", help="paper's 4 cells or --n-train x --ratios"
     )
-    p.add_argument("--n-train", type=int, nargs="+", default=[10, 15, 20])
-    p.add_argument("--ratios", type=float, nargs="+", default=[0.1, 0.2])
-    p.add_argument("--n-test", type=int, default=10, help="test demos per task (default 10)")
-    p.add_argument("--splits", type=int, default=20, help="random splits of the splits protocol (default 20)")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--n-train", type=_bounded(int, 2), nargs="+", default=[10, 15, 20])
+    p.add_argument("--ratios", type=_bounded(float, 0.0, 1.0, open_low=True), nargs="+", default=[0.1, 0.2])
+    p.add_argument("--n-test", type=_bounded(int, 1), default=10, help="test demos per task (default 10)")
+    p.add_argument(
+        "--splits",
+        type=_bounded(int, 1),
+        default=20,
+        help="random splits of the splits protocol (default 20)",
+    )
+    p.add_argument("--seed", type=_bounded(int, 0), default=0)
     p.add_argument("--robot", default="baxter_left", help="robot settings for the hand-over error")
     p.add_argument(
-        "--jobs", type=int, default=os.cpu_count() or 1, help="worker processes (default: all cores)"
+        "--jobs",
+        type=_bounded(int, 1, 1024),
+        default=os.cpu_count() or 1,
+        help="worker processes (default: all cores)",
     )
     p.add_argument("--plots", type=Path, help="write PNG figures into this folder")
     p.set_defaults(func=cmd_evaluate)
@@ -268,6 +378,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--format", default="auto")
     p.add_argument("--out", type=Path, required=True, help="model file (.npz)")
     p.add_argument(
+        "--robot",
+        default="baxter_left",
+        help="robot settings: the recorded joints of the robot group and their limits (default baxter_left)",
+    )
+    p.add_argument(
         "--coupling",
         default="auto",
         help="observed groups that predict the robot: auto (cross-validated), all, or a comma-separated list",
@@ -277,8 +392,15 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("preview", help="meshcat preview: live on 127.0.0.1, or a self-contained HTML file")
     _add_pipeline_overrides(p)
     p.add_argument("--html", type=Path, help="write a self-contained HTML file instead of serving live")
-    p.add_argument("--port", type=int, default=7000, help="live server port on 127.0.0.1 (default 7000)")
-    p.add_argument("--speed", type=float, default=1.0, help="live streaming speed factor (default real time)")
+    p.add_argument(
+        "--port", type=_port, default=7000, help="live server port on 127.0.0.1, 1-65535 (default 7000)"
+    )
+    p.add_argument(
+        "--speed",
+        type=_bounded(float, 0.0, 1e6, open_low=True),
+        default=1.0,
+        help="live streaming speed factor, > 0 (default 1: real time)",
+    )
     p.add_argument("--no-wait", action="store_true", help="live: exit when streaming is done")
     p.set_defaults(func=cmd_preview)
 
@@ -290,9 +412,11 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("synth", help="write the built-in synthetic demos in the native format")
     p.add_argument("out", type=Path)
-    p.add_argument("--tasks", type=int, default=3)
-    p.add_argument("--demos", type=int, default=20)
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--tasks", type=_bounded(int, 1, 20), default=3, help="number of tasks, 1-20 (default 3)")
+    p.add_argument(
+        "--demos", type=_bounded(int, 2, 1000), default=20, help="demos per task, 2-1000 (default 20)"
+    )
+    p.add_argument("--seed", type=_bounded(int, 0), default=0)
     p.add_argument("--csv", action="store_true", help="write .csv files (one row per sample) instead of .npz")
     p.set_defaults(func=cmd_synth)
     return parser
@@ -305,11 +429,23 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return int(args.func(args) or 0)
     except IPrompPinError as exc:
-        print(f"ipromp-pin {args.command}: error: {exc}", file=sys.stderr)
-        return 2
+        _error(args.command, str(exc))
+        return EXIT_ERROR
+    except OSError as exc:  # a file the checks could not foresee (a full disk, a vanished folder)
+        where = f"{exc.filename}: " if getattr(exc, "filename", None) else ""
+        _error(args.command, f"{where}{exc.strerror or exc}")
+        return EXIT_ERROR
     except KeyboardInterrupt:
+        _ProgressLine.end()
         print("interrupted", file=sys.stderr)
         return 130
+
+
+def _error(command: str, message: str) -> None:
+    """Print ``message`` as one line, starting on a line of its own (after an unfinished progress line)."""
+    _ProgressLine.end()
+    text = " ".join(message.split("\n"))
+    print(f"ipromp-pin {command}: error: {text}", file=sys.stderr)
 
 
 if __name__ == "__main__":

@@ -2,8 +2,11 @@
 
 A pipeline definition is a TOML file (see ``pipelines/baxter_handover.toml``) with the sections
 ``[data]``, ``[model]``, ``[observation]``, ``[robot]``, ``[timing]`` and ``[outputs]``; relative
-paths in it are relative to its folder. :func:`load_pipeline` reads and validates it into a
-:class:`PipelineConfig`; command-line overrides replace single values.
+paths in it, ``outputs.dir`` included, are relative to its folder (an empty ``outputs.dir``, the
+shipped default, means ``out`` in the current folder, so that a shipped definition never writes
+into the installed package). :func:`load_pipeline` reads and validates it into a
+:class:`PipelineConfig`; command-line overrides replace single values (paths given on the command
+line are relative to the current folder).
 """
 
 from __future__ import annotations
@@ -34,6 +37,14 @@ _SCHEMA: dict[str, dict[str, type | tuple[type, ...]]] = {
     },
 }
 
+RATE_RANGE_HZ = (1.0, 1000.0)
+"""Plausible sampling rates in [Hz] of the aligned streams (``data.rate_hz``; the recordings run at
+50-100 Hz) and of the output trajectory (``timing.control_rate_hz``; Baxter's joint command loop
+runs at 100 Hz, the fastest common arms at 1 kHz). Outside it a run would allocate absurd arrays."""
+
+DEFAULT_OUT_DIR = Path("out")
+"""Output folder when neither the pipeline file nor the command line names one (current folder)."""
+
 
 @dataclass
 class PipelineConfig:
@@ -54,7 +65,7 @@ class PipelineConfig:
         ratio: Observed fraction of the human's motion, in (0, 1].
         robot: Robot settings file or name.
         control_rate_hz: Output trajectory sampling rate, in [Hz].
-        out_dir: Output folder.
+        out_dir: Output folder (relative to the pipeline file's folder when the file names it).
         preview_html: Write ``preview.html``.
         plots: Write PNG figures.
         ros: ROS version of ``trajectory.json``'s message (2: ``sec``/``nanosec``; 1: ``secs``/``nsecs``).
@@ -76,7 +87,7 @@ class PipelineConfig:
     ratio: float = 0.2
     robot: str = "baxter_left"
     control_rate_hz: float = 100.0
-    out_dir: Path = Path("out")
+    out_dir: Path = DEFAULT_OUT_DIR
     preview_html: bool = True
     plots: bool = False
     ros: int = 2
@@ -95,9 +106,29 @@ class PipelineConfig:
             raise PipelineError(f"{self.source}: field 'model.observe': the robot group cannot be observed")
         if self.ros not in (1, 2):
             raise PipelineError(f"{self.source}: field 'outputs.ros': must be 1 or 2, got {self.ros}")
+        lo, hi = RATE_RANGE_HZ
         for name, value in (("data.rate_hz", self.rate_hz), ("timing.control_rate_hz", self.control_rate_hz)):
-            if not (np.isfinite(value) and value > 0):
-                raise PipelineError(f"{self.source}: field '{name}': must be a positive rate, got {value}")
+            if not (np.isfinite(value) and lo <= value <= hi):
+                raise PipelineError(
+                    f"{self.source}: field '{name}': must be a rate in [{lo:g}, {hi:g}] Hz, got {value}"
+                )
+        if self.synthetic_seed < 0:
+            raise PipelineError(
+                f"{self.source}: field 'data.synthetic_seed': must be >= 0, got {self.synthetic_seed}"
+            )
+        if not isinstance(self.demo, int) or isinstance(self.demo, bool) or abs(self.demo) > 10**9:
+            raise PipelineError(
+                f"{self.source}: field 'observation.demo': must be an index, got {self.demo!r}"
+            )
+        for name, items in (("data.frames", self.frames), ("model.observe", self.observe)):
+            if not all(isinstance(x, str) and x for x in items):
+                raise PipelineError(
+                    f"{self.source}: field '{name}': must list non-empty names, got {items!r}"
+                )
+        if len(set(self.observe)) != len(self.observe):
+            raise PipelineError(
+                f"{self.source}: field 'model.observe': a group is listed twice in {self.observe}"
+            )
         return self
 
 
@@ -126,6 +157,8 @@ def load_pipeline(path: str | Path, **overrides) -> PipelineConfig:
         PipelineError: unreadable file, unknown section or key, wrong type or value.
     """
     path = resolve_pipeline_path(path)
+    if path.is_dir():
+        raise PipelineError(f"{path}: is a folder, not a pipeline file (e.g. pipelines/baxter_handover.toml)")
     try:
         doc = tomllib.loads(path.read_text(encoding="utf-8"))
     except FileNotFoundError:
@@ -133,6 +166,8 @@ def load_pipeline(path: str | Path, **overrides) -> PipelineConfig:
         raise PipelineError(f"{path}: pipeline file not found (shipped pipelines: {known})") from None
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise PipelineError(f"{path}: not a valid TOML pipeline file: {exc}") from None
+    except OSError as exc:
+        raise PipelineError(f"{path}: cannot read the pipeline file: {exc.strerror or exc}") from None
     for section, table in doc.items():
         if section not in _SCHEMA:
             raise PipelineError(f"{path}: unknown section [{section}] (known: {', '.join(_SCHEMA)})")
@@ -144,6 +179,10 @@ def load_pipeline(path: str | Path, **overrides) -> PipelineConfig:
                 raise PipelineError(f"{path}: field '{section}.{key}': unknown key")
             if not isinstance(value, kind) or (kind in (int, (int, float)) and isinstance(value, bool)):
                 raise PipelineError(f"{path}: field '{section}.{key}': wrong type {type(value).__name__}")
+            if kind is list and not all(isinstance(x, str) and x for x in value):
+                raise PipelineError(
+                    f"{path}: field '{section}.{key}': must be a list of names, got {value!r}"
+                )
     base = path.resolve().parent
 
     def get(section: str, key: str, default):
@@ -173,7 +212,7 @@ def load_pipeline(path: str | Path, **overrides) -> PipelineConfig:
         ratio=float(get("observation", "ratio", 0.2)),
         robot=robot,
         control_rate_hz=float(get("timing", "control_rate_hz", 100.0)),
-        out_dir=Path(get("outputs", "dir", "out")),
+        out_dir=rel(get("outputs", "dir", "")) or DEFAULT_OUT_DIR,
         preview_html=bool(get("outputs", "preview_html", True)),
         plots=bool(get("outputs", "plots", False)),
         ros=int(get("outputs", "ros", 2)),

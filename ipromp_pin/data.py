@@ -148,6 +148,43 @@ class Demo:
             duration_s=self.duration_s,
         )
 
+    def with_channel_order(self, order: Mapping[str, Iterable[str]]) -> Demo:
+        """The demo with the channels of some groups rearranged by name (channels are matched by
+        name, never by position).
+
+        Args:
+            order: Group -> the wanted channel names (a permutation of the group's names).
+
+        Raises:
+            DataError: a group's channels are not the wanted ones (naming both lists).
+        """
+        groups, names = dict(self.groups), dict(self.channel_names)
+        changed = False
+        for g, wanted in order.items():
+            wanted = tuple(wanted)
+            have = tuple(self.channel_names[g])
+            if have == wanted:
+                continue
+            if sorted(have) != sorted(wanted) or len(set(have)) != len(have):
+                raise DataError(self.source, g, f"channels {list(have)} are not the expected {list(wanted)}")
+            idx = [have.index(c) for c in wanted]
+            groups[g] = self.groups[g][:, idx]
+            names[g] = wanted
+            changed = True
+        if not changed:
+            return self
+        return Demo(
+            task=self.task,
+            name=self.name,
+            source=self.source,
+            t=self.t,
+            groups=groups,
+            channel_names=names,
+            missing=dict(self.missing),
+            extras=dict(self.extras),
+            duration_s=self.duration_s,
+        )
+
     def head(self, ratio: float, groups: Iterable[str] | None = None) -> Demo:
         """First ``ratio`` of the demo in time: what is observed online.
 

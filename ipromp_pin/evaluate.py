@@ -33,6 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
+from . import atomic
 from .data import ROBOT, Dataset, Demo
 from .exceptions import DataError
 from .promp import IProMP
@@ -535,10 +536,8 @@ def _finite(x):
 
 
 def write_results(cells: Sequence[Cell], json_path: Path | None, md_path: Path | None, meta: dict) -> None:
-    """Write the JSON and Markdown results."""
+    """Write the JSON and Markdown results (each atomically: a temporary file renamed into place)."""
     if json_path is not None:
-        json_path.parent.mkdir(parents=True, exist_ok=True)
-        json_path.write_text(json.dumps(to_json(cells, meta), indent=1, allow_nan=False))
+        atomic.write_text(json_path, json.dumps(to_json(cells, meta), indent=1, allow_nan=False))
     if md_path is not None:
-        md_path.parent.mkdir(parents=True, exist_ok=True)
-        md_path.write_text(to_markdown(cells))
+        atomic.write_text(md_path, to_markdown(cells))

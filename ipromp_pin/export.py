@@ -20,17 +20,28 @@ times as ``{"secs": .., "nsecs": ..}``. ``message`` is exactly the message (no o
 ``rospy_message_converter`` (ROS 1) builds it. The readers accept both forms, with or without the
 envelope (files of version 1 were the bare ROS 1 message). Times are split into integer seconds
 and nanoseconds, so they round to 1 ns on reading.
+
+Files are written atomically (:mod:`ipromp_pin.atomic`): a temporary file in the same folder,
+renamed into place when complete. The ``*_text`` functions give the content, for callers that
+stage several files together (:class:`ipromp_pin.atomic.OutputSet`).
+
+Marked files. A trajectory whose checks failed is written only when the user asks for it
+(``ipromp-pin run --allow-failing-checks``), and then marked: the CSV starts with a comment line
+``# ipromp_pin: ...`` (which :func:`read_trajectory_csv` skips) and the JSON's envelope has an
+``"ipromp_pin_checks"`` object (``{"passed": false, "failures": [...]}``) beside ``message``.
 """
 
 from __future__ import annotations
 
 import csv
+import io
 import json
 import math
 from pathlib import Path
 
 import numpy as np
 
+from . import atomic
 from .exceptions import DataError
 from .timing import Trajectory
 
@@ -49,16 +60,25 @@ def _check(traj: Trajectory) -> None:
         raise DataError(None, "time_s", "times must be finite and strictly increasing")
 
 
-def write_trajectory_csv(traj: Trajectory, path: str | Path) -> Path:
-    """Write ``traj`` as CSV (columns ``time_s``, ``q.<joint>``..., ``qd.<joint>``..., ``qdd.<joint>``...)."""
+def trajectory_csv_text(traj: Trajectory, comment: str | None = None) -> str:
+    """The CSV content of ``traj`` (see :func:`write_trajectory_csv`); ``comment`` (one line) is
+    written first as ``# <comment>``."""
     _check(traj)
-    path = Path(path)
     names = list(traj.joint_names)
     header = ["time_s"] + [f"{p}.{j}" for p in ("q", "qd", "qdd") for j in names]
     data = np.column_stack([traj.t_s, traj.q, traj.qd, traj.qdd])
+    buf = io.StringIO()
+    if comment is not None:
+        buf.write("# " + " ".join(comment.splitlines()) + "\n")
     # %.17g round-trips every float64 exactly
-    np.savetxt(path, data, fmt="%.17g", delimiter=",", header=",".join(header), comments="")
-    return path
+    np.savetxt(buf, data, fmt="%.17g", delimiter=",", header=",".join(header), comments="")
+    return buf.getvalue()
+
+
+def write_trajectory_csv(traj: Trajectory, path: str | Path, comment: str | None = None) -> Path:
+    """Write ``traj`` as CSV (columns ``time_s``, ``q.<joint>``..., ``qd.<joint>``..., ``qdd.<joint>``...),
+    atomically; ``comment`` (one line) is written first as ``# <comment>``."""
+    return atomic.write_text(path, trajectory_csv_text(traj, comment))
 
 
 def read_trajectory_csv(path: str | Path) -> Trajectory:
@@ -73,6 +93,8 @@ def read_trajectory_csv(path: str | Path) -> Trajectory:
             rows = list(csv.reader(fh))
     except OSError as exc:
         raise DataError(path, None, f"cannot read: {exc}") from exc
+    while rows and rows[0][:1] and rows[0][0].startswith("#"):
+        rows.pop(0)  # comment lines (a marked file)
     if not rows or rows[0][:1] != ["time_s"]:
         raise DataError(path, "time_s", "first column must be 'time_s'")
     header = rows[0]
@@ -159,13 +181,21 @@ def trajectory_to_ros(traj: Trajectory, frame_id: str = "", stamp_s: float = 0.0
     }
 
 
-def write_trajectory_json(traj: Trajectory, path: str | Path, frame_id: str = "", ros: int = 2) -> Path:
-    """Write ``traj`` as a ``JointTrajectory`` message in its envelope (ROS 2 field names by default)."""
+def trajectory_json_text(
+    traj: Trajectory, frame_id: str = "", ros: int = 2, extra: dict | None = None
+) -> str:
+    """The JSON content of ``traj`` (see :func:`write_trajectory_json`): a ``JointTrajectory`` message in
+    its envelope; ``extra`` adds envelope fields (e.g. the ``"ipromp_pin_checks"`` mark)."""
     ros = _check_ros(ros)
-    path = Path(path)
     _check(traj)
     envelope = json.dumps(
-        {"format": TRAJECTORY_FORMAT, "version": TRAJECTORY_VERSION, "ros": ros, "type": ROS_TYPES[ros]}
+        {
+            "format": TRAJECTORY_FORMAT,
+            "version": TRAJECTORY_VERSION,
+            "ros": ros,
+            "type": ROS_TYPES[ros],
+            **(extra or {}),
+        }
     )[:-1]
     head = json.dumps({"header": _header(frame_id, 0.0, ros), "joint_names": list(traj.joint_names)})[:-1]
     sec, nsec = _TIME_KEYS[ros]
@@ -183,9 +213,15 @@ def write_trajectory_json(traj: Trajectory, path: str | Path, frame_id: str = ""
             + f'], "effort": [], "time_from_start": {{"{sec}": {t[sec]}, "{nsec}": {t[nsec]}}}}}'
         )
     body = ",\n".join(lines)
-    with open(path, "w", encoding="utf-8") as fh:
-        fh.write(f'{envelope},\n "message": {head}, "points": [\n{body}\n]}}}}\n')
-    return path
+    return f'{envelope},\n "message": {head}, "points": [\n{body}\n]}}}}\n'
+
+
+def write_trajectory_json(
+    traj: Trajectory, path: str | Path, frame_id: str = "", ros: int = 2, extra: dict | None = None
+) -> Path:
+    """Write ``traj`` as a ``JointTrajectory`` message in its envelope (ROS 2 field names by default),
+    atomically (``extra``: envelope fields)."""
+    return atomic.write_text(path, trajectory_json_text(traj, frame_id, ros, extra))
 
 
 def _seconds(d: dict) -> float:

@@ -16,19 +16,42 @@ from pathlib import Path
 
 import numpy as np
 
+from . import atomic
 from .config import PipelineConfig
 from .data import ROBOT, Dataset, Demo, skeleton_frames
 from .exceptions import PipelineError
-from .export import write_trajectory_csv, write_trajectory_json
+from .export import trajectory_csv_text, trajectory_json_text
 from .model_warnings import loaded_model_warnings, single_task_warning, warn_stderr
-from .planning import LogFn, PlanResult, plan
-from .preview import LivePreview, PreviewContent, write_html
+from .planning import LogFn, PlanResult, check_model_joints, plan
+from .preview import LivePreview, PreviewContent, render_html, write_html
 from .promp import IProMP
 from .readers import load_dataset
 from .report import report_dict, report_text, summary_text
-from .robot import Robot, ee_positions, load_robot, load_robot_settings, load_visual_model
+from .robot import Robot, ee_positions, load_robot, load_visual_model
 from .rosbag_writer import BagContent, write_ros1_bag, write_rosbag2
 from .synthetic import make_synthetic_dataset
+
+RUN_OUTPUTS = (
+    "trajectory.csv",
+    "trajectory.json",
+    "rosbag",
+    "run.bag",
+    "report.json",
+    "report.txt",
+    "preview.html",
+    "prediction.png",
+    "phase_posterior.png",
+    "distributions.png",
+)
+"""Every file ``ipromp-pin run`` may write into its output folder. A run stages its files and
+commits them together (:class:`ipromp_pin.atomic.OutputSet`): those of an earlier run that this
+run does not write (e.g. ``preview.html`` with ``--no-preview``, or the trajectory of a run whose
+checks failed) are removed, so the folder always holds one run's files. A new output of the run
+must be added here."""
+
+TRAJECTORY_OUTPUTS = ("trajectory.csv", "trajectory.json", "rosbag", "run.bag")
+"""The outputs a robot executes (or replays): written only when the checks pass (or, marked, when the user
+allows failing checks)."""
 
 
 @dataclass
@@ -54,16 +77,26 @@ class Prepared:
     warnings: list[str] = field(default_factory=list)
 
 
-def load_data(cfg: PipelineConfig, log: LogFn = print) -> Dataset:
-    """The dataset of ``cfg``: real recordings, or the built-in synthetic demos."""
+def load_data(cfg: PipelineConfig, log: LogFn = print, robot: Robot | None = None) -> Dataset:
+    """The dataset of ``cfg``: real recordings, or the built-in synthetic demos.
+
+    Recordings are read with the robot's joints (by name) and checked against its joint limits;
+    the robot's forward kinematics locates the gripper when a recording lacks the end-point stream.
+    """
     if cfg.dataset is None:
         log(f"[data] built-in synthetic hand-over demos (seed {cfg.synthetic_seed})")
         return make_synthetic_dataset(seed=cfg.synthetic_seed, rate_hz=cfg.rate_hz)
-    joints = load_robot_settings(cfg.robot).recorded_arm_joints
+    robot = robot if robot is not None else load_robot(cfg.robot)
     log(f"[data] reading {cfg.dataset} (format {cfg.format})")
     frames = skeleton_frames([*cfg.frames, *cfg.observe])
     ds = load_dataset(
-        cfg.dataset, format=cfg.format, frames=frames or None, rate_hz=cfg.rate_hz, robot_joints=joints
+        cfg.dataset,
+        format=cfg.format,
+        frames=frames or None,
+        rate_hz=cfg.rate_hz,
+        robot_joints=robot.settings.recorded_arm_joints,
+        joint_limits=robot.recorded_joint_limits(),
+        end_effector=lambda q: ee_positions(robot, q),
     )
     log(f"[data] {len(ds.all_demos())} demos of tasks {', '.join(ds.tasks)}")
     return ds
@@ -103,7 +136,7 @@ def get_model(cfg: PipelineConfig, ds: Dataset, held_out: Demo, log: LogFn = pri
         f"{time.perf_counter() - t0:.2f} s"
     )
     if cfg.save_model is not None:
-        model.save(cfg.save_model)
+        model.save(cfg.save_model)  # atomic: an earlier file is replaced only by a complete one
         log(f"[model] saved {cfg.save_model}")
     return model
 
@@ -127,14 +160,20 @@ def model_warnings(cfg: PipelineConfig, ds: Dataset, demo: Demo, model: IProMP) 
 
 
 def prepare(cfg: PipelineConfig, log: LogFn = print, warn: LogFn = warn_stderr) -> Prepared:
-    """The set-up shared by :func:`run_pipeline` and :func:`run_preview` (``warn``: where warnings go)."""
-    ds = load_data(cfg, log)
+    """The set-up shared by :func:`run_pipeline` and :func:`run_preview` (``warn``: where warnings go).
+
+    Raises:
+        ModelError: the model's joints are not the robot's (e.g. a left-arm model run with
+            ``--robot baxter_right``).
+    """
+    robot = load_robot(cfg.robot)
+    ds = load_data(cfg, log, robot)
     demo = choose_demo(ds, cfg)
     model = get_model(cfg, ds, demo, log)
+    check_model_joints(model, robot)
     warnings = model_warnings(cfg, ds, demo, model)
     for w in warnings:
         warn(w)
-    robot = load_robot(cfg.robot)
     observation = demo.head(cfg.ratio, groups=cfg.observe)
     log(
         f"[observe] {demo.task}/{demo.name}: first {cfg.ratio:.0%} "
@@ -143,37 +182,138 @@ def prepare(cfg: PipelineConfig, log: LogFn = print, warn: LogFn = warn_stderr) 
     return Prepared(ds, demo, model, robot, observation, hand_at_handover(demo), warnings)
 
 
-def run_pipeline(cfg: PipelineConfig, log: LogFn = print, warn: LogFn = warn_stderr) -> dict:
+def check_outputs(cfg: PipelineConfig) -> None:
+    """Refuse, before any computation, output paths that cannot be written (a file where the output
+    folder should be, a read-only folder, a folder where the model file should be)."""
+    atomic.check_output_dir(cfg.out_dir)
+    if cfg.save_model is not None:
+        atomic.check_output_file(cfg.save_model, "model file")
+
+
+def run_pipeline(
+    cfg: PipelineConfig, log: LogFn = print, warn: LogFn = warn_stderr, *, allow_failing_checks: bool = False
+) -> dict:
     """Run every stage of ``cfg`` and write its outputs; returns the report dictionary (``warn``:
-    where warnings go, one line each; they are also in the report)."""
+    where warnings go, one line each; they are also in the report).
+
+    The outputs are written together (:data:`RUN_OUTPUTS`): complete, or the folder's earlier files
+    untouched. When the plan fails its checks (``report["passed"]`` is False) the trajectory files
+    and bags are not written (and an earlier run's are removed) unless ``allow_failing_checks``,
+    which writes them marked as failing (see :mod:`ipromp_pin.export`).
+    """
     t_start = time.perf_counter()
+    check_outputs(cfg)
     prep = prepare(cfg, log, warn)
     result = plan(
         prep.model, prep.robot, prep.observation, cfg.control_rate_hz, prep.hand_position_m, log=log
     )
-    files = write_outputs(
-        result,
-        cfg.out_dir,
-        prep.observation,
-        ros=cfg.ros,
-        rosbag=cfg.rosbag,
-        ros1_bag=cfg.ros1_bag,
-        base_frame=prep.robot.base_frame,
-        warnings=prep.warnings,
-    )
-    if cfg.preview_html:
-        t0 = time.perf_counter()
-        files["preview"] = write_preview(result, prep.robot, prep.demo, cfg.out_dir / "preview.html")
-        log(
-            f"[preview] {files['preview']} ({files['preview'].stat().st_size / 1e6:.1f} MB, "
-            f"{time.perf_counter() - t0:.1f} s)"
-        )
-    if cfg.plots:
-        files.update(write_plots(result, prep.model, prep.demo, cfg.out_dir))
+    options = OutputOptions(cfg.ros, cfg.rosbag, cfg.ros1_bag, prep.robot.base_frame, prep.warnings)
+    with atomic.OutputSet(cfg.out_dir, managed=RUN_OUTPUTS) as out:
+        stage_outputs(result, out, prep.observation, options, allow_failing_checks=allow_failing_checks)
+        if cfg.preview_html:
+            t0 = time.perf_counter()
+            content = preview_content(
+                result, prep.robot, prep.demo, visual_model=load_visual_model(prep.robot)
+            )
+            html = render_html(content).encode("utf-8")
+            out.write_bytes("preview.html", html)
+            log(
+                f"[preview] {out.path('preview.html')} ({len(html) / 1e6:.1f} MB, "
+                f"{time.perf_counter() - t0:.1f} s)"
+            )
+        if cfg.plots:
+            write_plots(result, prep.model, prep.demo, out)
+        files = out.commit()
+    files = {_FILE_KEYS.get(name, name): path for name, path in files.items()}
     report = report_dict(result, prep.observation, prep.warnings)
     report["files"] = {k: str(v) for k, v in files.items()}
     log(summary_text(result, files, time.perf_counter() - t_start))
+    if not result.passed:
+        written = [n for n in TRAJECTORY_OUTPUTS if _FILE_KEYS[n] in files]
+        log(
+            "Checks FAILED: "
+            + (
+                f"the trajectory was written marked as failing ({', '.join(written)})"
+                if written
+                else "no trajectory written (--allow-failing-checks writes it, marked)"
+            )
+        )
     return report
+
+
+_FILE_KEYS = {
+    "trajectory.csv": "trajectory_csv",
+    "trajectory.json": "trajectory_json",
+    "report.json": "report",
+    "report.txt": "report_text",
+    "preview.html": "preview",
+    "prediction.png": "plot_prediction",
+    "phase_posterior.png": "plot_phase",
+    "distributions.png": "plot_distributions",
+    "rosbag": "rosbag",
+    "run.bag": "ros1_bag",
+}
+"""File name -> key of the run report's ``files`` (kept from earlier versions)."""
+
+
+@dataclass(frozen=True)
+class OutputOptions:
+    """How a run's files are written.
+
+    Attributes:
+        ros: ROS version of ``trajectory.json``'s message (2: ``sec``/``nanosec``; 1: ``secs``/``nsecs``).
+        rosbag: Write the rosbag2 folder ``rosbag/`` (MCAP storage).
+        ros1_bag: Also write the ROS 1 bag ``run.bag``.
+        base_frame: The robot's base frame (the frame of the poses in the bags).
+        warnings: Warnings of the run, listed in the report.
+    """
+
+    ros: int = 2
+    rosbag: bool = True
+    ros1_bag: bool = False
+    base_frame: str = "base"
+    warnings: tuple[str, ...] | list[str] = ()
+
+
+def stage_outputs(
+    result: PlanResult,
+    out: atomic.OutputSet,
+    observation: Demo | None = None,
+    options: OutputOptions = OutputOptions(),
+    *,
+    allow_failing_checks: bool = False,
+) -> None:
+    """Stage ``trajectory.csv``, ``trajectory.json``, the bags (see :func:`run_pipeline` for failing
+    checks), ``report.json`` and ``report.txt`` in ``out``."""
+    warnings = list(options.warnings)
+    if result.passed or allow_failing_checks:
+        comment, extra = None, None
+        if not result.passed:
+            failures = list(result.report.failures) + ([] if result.timing_report.passed else ["timing"])
+            comment = (
+                f"ipromp_pin: checks FAILED ({', '.join(failures)}); "
+                "written because of --allow-failing-checks"
+            )
+            extra = {"ipromp_pin_checks": {"passed": False, "failures": failures}}
+        out.write_text("trajectory.csv", trajectory_csv_text(result.trajectory, comment))
+        out.write_text(
+            "trajectory.json", trajectory_json_text(result.trajectory, ros=options.ros, extra=extra)
+        )
+        if options.rosbag or options.ros1_bag:
+            content = BagContent(
+                trajectory=result.trajectory,
+                plan_time_s=float(result.prediction.observed_until_s),
+                handover_pose=result.report.handover_pose,
+                base_frame=options.base_frame,
+                observation=observation,
+            )
+            if options.rosbag:
+                write_rosbag2(content, out.stage_dir("rosbag"))
+            if options.ros1_bag:
+                write_ros1_bag(content, out.stage("run.bag"))
+    report = report_dict(result, observation, warnings)
+    out.write_text("report.json", json.dumps(report, indent=1, allow_nan=False))
+    out.write_text("report.txt", report_text(result, observation, warnings) + "\n")
 
 
 def write_outputs(
@@ -181,40 +321,16 @@ def write_outputs(
     out_dir: Path,
     observation: Demo | None = None,
     *,
-    ros: int = 2,
-    rosbag: bool = True,
-    ros1_bag: bool = False,
-    base_frame: str = "base",
-    warnings: list[str] | None = None,
+    options: OutputOptions = OutputOptions(),
+    allow_failing_checks: bool = False,
 ) -> dict[str, Path]:
-    """Write ``trajectory.csv``, ``trajectory.json`` (``ros``: the message's ROS version),
-    ``report.json``, ``report.txt`` and, when asked, the bags ``rosbag/`` (rosbag2, MCAP) and
-    ``run.bag`` (ROS 1) into ``out_dir`` (``base_frame``: the robot's base frame, the poses' frame;
-    ``warnings``: listed in the report)."""
-    out_dir.mkdir(parents=True, exist_ok=True)
-    files = {
-        "trajectory_csv": write_trajectory_csv(result.trajectory, out_dir / "trajectory.csv"),
-        "trajectory_json": write_trajectory_json(result.trajectory, out_dir / "trajectory.json", ros=ros),
-    }
-    if rosbag or ros1_bag:
-        content = BagContent(
-            trajectory=result.trajectory,
-            plan_time_s=float(result.prediction.observed_until_s),
-            handover_pose=result.report.handover_pose,
-            base_frame=base_frame,
-            observation=observation,
-        )
-        if rosbag:
-            files["rosbag"] = write_rosbag2(content, out_dir / "rosbag")
-        if ros1_bag:
-            files["ros1_bag"] = write_ros1_bag(content, out_dir / "run.bag")
-    report_path = out_dir / "report.json"
-    report_path.write_text(json.dumps(report_dict(result, observation, warnings), indent=1, allow_nan=False))
-    files["report"] = report_path
-    text_path = out_dir / "report.txt"
-    text_path.write_text(report_text(result, observation, warnings) + "\n")
-    files["report_text"] = text_path
-    return files
+    """Write ``trajectory.csv``, ``trajectory.json``, ``report.json``, ``report.txt`` and, as ``options``
+    say, the bags ``rosbag/`` (rosbag2, MCAP) and ``run.bag`` (ROS 1) into ``out_dir`` together
+    (:func:`stage_outputs`); returns report key -> path."""
+    with atomic.OutputSet(out_dir) as out:
+        stage_outputs(result, out, observation, options, allow_failing_checks=allow_failing_checks)
+        files = out.commit()
+    return {_FILE_KEYS[name]: path for name, path in files.items()}
 
 
 def preview_content(
@@ -269,9 +385,23 @@ def write_preview(result: PlanResult, robot: Robot, demo: Demo | None, path: Pat
     return path
 
 
-def write_plots(result: PlanResult, model: IProMP, demo: Demo, out_dir: Path) -> dict[str, Path]:
-    """PNG figures of the prediction, the phase posterior and the learned distributions."""
+def write_plots(
+    result: PlanResult, model: IProMP, demo: Demo, out_dir: Path | atomic.OutputSet
+) -> dict[str, Path]:
+    """PNG figures of the prediction, the phase posterior and the learned distributions, written into
+    a folder or staged in an :class:`~ipromp_pin.atomic.OutputSet` (then they appear at its commit)."""
     from . import plots  # deferred: matplotlib is only needed with --plots (about 0.4 s to import)
+
+    if isinstance(out_dir, atomic.OutputSet):
+        out = out_dir
+
+        def target(name: str) -> Path:
+            return out.stage(name)  # a temporary file, renamed into place by the set's commit
+
+    else:
+
+        def target(name: str) -> Path:
+            return Path(out_dir) / name
 
     files = {}
     p = result.prediction
@@ -279,7 +409,7 @@ def write_plots(result: PlanResult, model: IProMP, demo: Demo, out_dir: Path) ->
         p.t,
         p.q_mean,
         np.sqrt(np.maximum(np.diagonal(p.q_cov, axis1=1, axis2=2), 0.0)),
-        out_dir / "prediction.png",
+        target("prediction.png"),
         truth_t_s=demo.t,
         q_truth=demo.groups.get(ROBOT),
         observed_until_s=p.observed_until_s,
@@ -289,7 +419,7 @@ def write_plots(result: PlanResult, model: IProMP, demo: Demo, out_dir: Path) ->
     files["plot_phase"] = plots.plot_phase_posterior(
         {t: p.phase_grid[k] for k, t in enumerate(p.tasks)},
         {t: p.phase_log_post[k] for k, t in enumerate(p.tasks)},
-        out_dir / "phase_posterior.png",
+        target("phase_posterior.png"),
         tasks=list(p.tasks),
     )
     z = np.linspace(0.0, 1.0, 100)
@@ -298,11 +428,14 @@ def write_plots(result: PlanResult, model: IProMP, demo: Demo, out_dir: Path) ->
         z,
         mean,
         std,
-        out_dir / "distributions.png",
+        target("distributions.png"),
         demos=model.train_trajectories(p.task, z),
         dim_names=labels,
         title=f"learned distribution of task {p.task} (mean, 2 sigma, training demos)",
     )
+    if isinstance(out_dir, atomic.OutputSet):  # where the staged figures will be after the commit
+        names = {key: name for name, key in _FILE_KEYS.items()}
+        return {key: out_dir.path(names[key]) for key in files}
     return files
 
 
@@ -324,6 +457,8 @@ def run_preview(
     Returns:
         The HTML file written, or ``None`` in live mode.
     """
+    if not (np.isfinite(speed) and speed > 0):
+        raise PipelineError(f"preview speed must be a positive factor, got {speed}")
     prep = prepare(cfg, log)
     observation = prep.observation
     result = plan(prep.model, prep.robot, observation, cfg.control_rate_hz, prep.hand_position_m, log=log)
@@ -348,7 +483,7 @@ def run_preview(
                     f"  t={t:5.2f} s  "
                     + "  ".join(f"{k} {v:.2f}" for k, v in zip(rec.tasks, rec.posterior, strict=True))
                 )
-            delay = t / max(speed, 1e-6) - (time.perf_counter() - t_wall)
+            delay = t / speed - (time.perf_counter() - t_wall)
             if delay > 0:
                 time.sleep(delay)
         live.show(content)

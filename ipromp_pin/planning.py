@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .data import Demo
+from .exceptions import ModelError
 from .promp import IProMP, Prediction
 from .robot import FeasibilityReport, Robot, check_path
 from .timing import JointLimits, TimingReport, Trajectory, time_path
@@ -53,6 +54,30 @@ class PlanResult:
         return bool(self.report.passed and self.timing_report.passed)
 
 
+def check_model_joints(model: IProMP, robot: Robot) -> None:
+    """Refuse a model whose robot joints are not the robot's arm joints in kinematic order, matched
+    by name through the settings' recorded names (a left-arm model run with a right-arm robot would
+    otherwise command the right arm with the left arm's angles).
+
+    Raises:
+        ModelError: naming both joint lists.
+    """
+    names = tuple(model.joint_names_)
+    recorded = robot.settings.recorded_names
+    if tuple(recorded.get(n, n) for n in names) == robot.joint_names:
+        return
+    have = robot.settings.recorded_arm_joints
+    hint = (
+        "the same joints in another order"
+        if sorted(recorded.get(n, n) for n in names) == sorted(robot.joint_names)
+        else f"a model trained for robot '{robot.settings.name}' is needed"
+    )
+    raise ModelError(
+        f"the model predicts joints {list(names)} but robot '{robot.settings.name}' moves "
+        f"{list(have)} ({hint})"
+    )
+
+
 def plan(
     model: IProMP,
     robot: Robot,
@@ -72,6 +97,7 @@ def plan(
         log: Progress messages (``None``: silent).
     """
     say = log or (lambda _msg: None)
+    check_model_joints(model, robot)
     ms: dict[str, float] = {}
     t0 = time.perf_counter()
     prediction = model.predict(observation)

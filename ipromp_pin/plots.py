@@ -18,6 +18,7 @@ matplotlib.use("Agg")  # no display needed; set before pyplot is imported
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from . import atomic  # noqa: E402
 from .exceptions import DataError  # noqa: E402
 
 __all__ = [
@@ -71,10 +72,13 @@ def _panels(n: int, figsize: tuple[float, float], max_cols: int = 4) -> tuple[pl
 
 
 def _save(fig: plt.Figure, path: str | Path, dpi: int) -> Path:
+    """Save ``fig`` as PNG, atomically (a temporary file renamed into place), and close it."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, format="png", dpi=dpi)
-    plt.close(fig)
+    try:
+        with atomic.replacing(path) as tmp:
+            fig.savefig(tmp, format="png", dpi=dpi)
+    finally:
+        plt.close(fig)
     return path
 
 

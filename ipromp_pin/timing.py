@@ -51,6 +51,10 @@ from .exceptions import InfeasibleError
 
 _TOL = 1e-9
 
+MAX_TRAJECTORY_SAMPLES = 1_000_000
+"""Largest number of samples :func:`time_path` produces (10 000 s at 100 Hz; hand-overs last seconds).
+A path that the limits would stretch beyond it is refused before anything is allocated."""
+
 
 @dataclass(frozen=True)
 class JointLimits:
@@ -627,6 +631,7 @@ def time_path(
     dt = 1.0 / rate_hz
     n = limits.n_joints
     q_in = _check_path_input(q_path, limits)
+    _check_sample_budget(q_in, limits, rate_hz)
     q_start = q_in[0] if start_q is None else np.asarray(start_q, dtype=float).reshape(-1)
     qd_start = np.zeros(n) if start_qd is None else np.asarray(start_qd, dtype=float).reshape(-1)
     qdd_start = np.zeros(n) if start_qdd is None else np.asarray(start_qdd, dtype=float).reshape(-1)
@@ -644,6 +649,11 @@ def time_path(
     timings["toppra_ms"] = (t2 - t1) * 1e3
 
     # Reference sampled at the control rate, then tracked by a 1-D ruckig on the path coordinate.
+    if not t_grid[-1] * rate_hz <= MAX_TRAJECTORY_SAMPLES:
+        raise InfeasibleError(
+            f"the time-optimal trajectory lasts {t_grid[-1]:.3g} s: more than {MAX_TRAJECTORY_SAMPLES} "
+            f"samples at {rate_hz:g} Hz (are the velocity and acceleration limits plausible?)"
+        )
     n_ref = int(math.ceil(t_grid[-1] / dt)) + 1
     ref_s, ref_v, ref_a = _sample_profile(t_grid, s_grid, sd, sdd, np.arange(n_ref) * dt)
     d1 = np.abs(spline(s_grid, 1)).max(axis=0)  # max |c'_j| over the path
@@ -714,6 +724,34 @@ def time_path(
     timings["total_ms"] = (time.perf_counter() - t0) * 1e3
     report.timings_ms = timings
     return traj, report
+
+
+def _check_sample_budget(q: np.ndarray, limits: JointLimits, rate_hz: float) -> None:
+    """Refuse a path whose duration under ``limits`` is certain to exceed :data:`MAX_TRAJECTORY_SAMPLES`
+    samples at ``rate_hz``, from lower bounds that cost nothing: each joint must travel its total
+    variation at most at its velocity limit, and reach its farthest point from the start (from rest)
+    at most at its acceleration and jerk limits."""
+    travel = np.sum(np.abs(np.diff(q, axis=0)), axis=0)
+    reach = np.max(np.abs(q - q[0]), axis=0)
+    with np.errstate(over="ignore"):
+        bound = np.max(
+            np.stack(
+                [
+                    travel / limits.velocity_rad_s,
+                    np.sqrt(2.0 * reach / limits.acceleration_rad_s2),
+                    np.cbrt(6.0 * reach / limits.jerk_rad_s3),
+                ]
+            ),
+            axis=0,
+        )
+    j = int(np.argmax(bound))
+    if not bound[j] * rate_hz <= MAX_TRAJECTORY_SAMPLES:
+        raise InfeasibleError(
+            f"the path would take at least {bound[j]:.3g} s ({limits.joint_names[j]}: velocity limit "
+            f"{limits.velocity_rad_s[j]:g} rad/s, acceleration {limits.acceleration_rad_s2[j]:g} rad/s^2, "
+            f"jerk {limits.jerk_rad_s3[j]:g} rad/s^3): more than {MAX_TRAJECTORY_SAMPLES} samples at "
+            f"{rate_hz:g} Hz"
+        )
 
 
 def _joint_states(

@@ -97,7 +97,7 @@ def test_recorded_names_are_mapped_by_name_not_position():
         (r"^min_m = .*$", "min_m = [1.5, -0.45, -0.08]", r"workspace.*below"),
         (r"^right_e1 = .*$", "right_e1 = 5.0", r"fixed_joints\.right_e1.*outside"),
         (r"^right_e1 = .*$", "right_elbow = 1.0", r"fixed_joints\.right_elbow.*unknown joint"),
-        (r"^position_margin_rad = .*$", "position_margin_rad = 2.0", r"position_margin_rad.*no range"),
+        (r"^position_margin_rad = .*$", "position_margin_rad = 2.0", r"position_margin_rad.*implausible"),
         (r'"left_s1", "left_e0"', '"left_e0", "left_s1"', "not in kinematic order"),
         (r'^urdf = ".*"$', 'urdf = "/abs/baxter.urdf"', "relative path"),
         (r'^urdf = ".*"$', 'urdf = "nowhere/baxter.urdf"', "file not found"),

@@ -19,6 +19,7 @@ from pathlib import Path
 
 import meshcat
 
+from .. import atomic
 from .content import PreviewContent, preview_error
 from .meshes import DEFAULT_MAX_TRIANGLES
 from .recorder import SceneRecorder
@@ -85,6 +86,4 @@ def write_html(
     """
     path = Path(path)
     text = render_html(content, max_triangles=max_triangles, fps=fps)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(text, encoding="utf-8")
-    return path
+    return atomic.write_text(path, text)  # a temporary file renamed into place

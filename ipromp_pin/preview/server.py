@@ -5,6 +5,11 @@ tornado server on ``127.0.0.1`` (or another loopback address) only, and never st
 page (:func:`~ipromp_pin.preview.page.live_page`) connects to the websocket ``/ws``; a new page
 receives the whole recorded scene followed by an ``ipromp_synced`` message with the number of
 commands, then every new command as the scene is updated.
+
+Safety. Requests whose ``Host`` header is not a loopback name (``localhost``, ``127.0.0.1``, the
+address served on) are refused with 403: a page of another site that makes its own name resolve to
+127.0.0.1 (DNS rebinding) cannot read the preview or open its websocket. A browser that goes away
+abruptly (a closed tab, a killed connection) is dropped quietly, without a traceback.
 """
 
 from __future__ import annotations
@@ -19,6 +24,7 @@ from typing import Any
 import numpy as np
 import tornado.httpserver
 import tornado.ioloop
+import tornado.iostream
 import tornado.netutil
 import tornado.web
 import tornado.websocket
@@ -31,6 +37,26 @@ from .recorder import SceneRecorder
 from .scene import RobotView, build_scene, update_scene
 
 __all__ = ["LivePreview", "serve_preview"]
+
+ALLOWED_HOST_NAMES = ("localhost", "127.0.0.1")
+"""``Host`` header names the live server answers (besides the loopback address it listens on)."""
+
+
+def host_allowed(host_header: str, served_host: str) -> bool:
+    """Whether a request's ``Host`` header (``name`` or ``name:port``, IPv6 in brackets) names this
+    machine: ``localhost``, ``127.0.0.1`` or the loopback address ``served_host``."""
+    h = host_header.strip().lower()
+    if h.startswith("["):
+        name = h[1 : h.find("]")] if "]" in h else h
+    else:
+        name = h.rsplit(":", 1)[0] if h.count(":") == 1 else h
+    return bool(name) and (name in ALLOWED_HOST_NAMES or name == served_host.lower())
+
+
+def _check_port(port: object) -> int:
+    if isinstance(port, bool) or not isinstance(port, int) or not 0 <= port <= 65535:
+        raise preview_error("port", f"must be 0 (any free port) or in 1-65535, got {port!r}")
+    return port
 
 
 def _check_loopback(host: str) -> str:
@@ -86,7 +112,7 @@ class LivePreview:
         self._loop = None
         self._server = None
         self._thread: threading.Thread | None = None
-        self._sockets = self._bind(port, port_attempts)
+        self._sockets = self._bind(_check_port(port), port_attempts)
         self.port = int(self._sockets[0].getsockname()[1])
         self.url = (
             f"http://{self.host}:{self.port}/"
@@ -100,7 +126,7 @@ class LivePreview:
         if port == 0:
             return tornado.netutil.bind_sockets(0, address=self.host)
         last: OSError | None = None
-        for candidate in range(port, port + max(1, attempts)):
+        for candidate in range(port, min(port + max(1, attempts), 65536)):
             try:
                 return tornado.netutil.bind_sockets(candidate, address=self.host)
             except OSError as exc:
@@ -111,17 +137,31 @@ class LivePreview:
         preview = self
         page = live_page(self.content.title).encode("utf-8")
 
+        def refuse_foreign_host(handler: tornado.web.RequestHandler) -> None:
+            if not host_allowed(handler.request.host or "", preview.host):
+                handler.set_status(403)
+                handler.finish("403: the live preview answers only requests for localhost or 127.0.0.1\n")
+
         class PageHandler(tornado.web.RequestHandler):
+            def prepare(self) -> None:
+                refuse_foreign_host(self)
+
             def get(self) -> None:
                 self.set_header("Content-Type", "text/html; charset=utf-8")
                 self.set_header("Cache-Control", "no-store")
                 self.write(page)
 
         class NoIconHandler(tornado.web.RequestHandler):
+            def prepare(self) -> None:
+                refuse_foreign_host(self)
+
             def get(self) -> None:
                 self.set_status(204)
 
         class SocketHandler(tornado.websocket.WebSocketHandler):
+            def prepare(self) -> None:
+                refuse_foreign_host(self)
+
             def open(self) -> None:
                 preview._on_open(self)
 
@@ -137,7 +177,8 @@ class LivePreview:
             asyncio.set_event_loop(asyncio.new_event_loop())
             self._loop = tornado.ioloop.IOLoop.current()
             app = tornado.web.Application(
-                [(r"/", PageHandler), (r"/favicon.ico", NoIconHandler), (r"/ws", SocketHandler)]
+                [(r"/", PageHandler), (r"/favicon.ico", NoIconHandler), (r"/ws", SocketHandler)],
+                log_function=lambda handler: None,  # no access log lines on the console
             )
             self._server = tornado.httpserver.HTTPServer(app)
             self._server.add_sockets(self._sockets)
@@ -155,8 +196,24 @@ class LivePreview:
             commands = self._recorder.commands()
             self._clients.add(socket)
         for data in commands:
-            socket.write_message(data, binary=True)
-        socket.write_message(umsgpack.packb({"type": "ipromp_synced", "count": len(commands)}), binary=True)
+            if not self._send(socket, data):
+                return
+        self._send(socket, umsgpack.packb({"type": "ipromp_synced", "count": len(commands)}))
+
+    def _send(self, socket: Any, data: bytes) -> bool:
+        """Send ``data`` to one page; a page that went away is dropped quietly (no traceback, now or
+        when the write completes). Returns whether the page is still connected."""
+        try:
+            future = socket.write_message(data, binary=True)
+        except (tornado.websocket.WebSocketClosedError, tornado.iostream.StreamClosedError):
+            self._clients.discard(socket)
+            return False
+        future.add_done_callback(lambda f, s=socket: self._sent(f, s))
+        return True
+
+    def _sent(self, future: Any, socket: Any) -> None:
+        if not future.cancelled() and future.exception() is not None:
+            self._clients.discard(socket)
 
     def _forward(self, data: bytes) -> None:
         if self._loop is not None:
@@ -164,10 +221,7 @@ class LivePreview:
 
     def _broadcast(self, data: bytes) -> None:
         for socket in list(self._clients):
-            try:
-                socket.write_message(data, binary=True)
-            except tornado.websocket.WebSocketClosedError:
-                self._clients.discard(socket)
+            self._send(socket, data)
 
     @property
     def running(self) -> bool:

@@ -14,6 +14,19 @@ from numba import njit
 
 _JIT = {"cache": True, "nogil": True, "fastmath": False, "error_model": "numpy"}
 _JIT_FMA = {**_JIT, "fastmath": {"contract"}}  # fused multiply-add only (no reassociation)
+
+MAX_SCALED_MAGNITUDE = 1e4
+"""Largest magnitude of a scaled observed value (``(f(y) - offset) / scale``: standard deviations of
+the channel's training samples from their mean). Beyond it a sample cannot come from the sensors the
+model was trained on, and its square would swamp (or overflow) the running sums of squares, so
+:func:`scale_samples` reports it like a NaN."""
+
+MAX_LOG_SCALED_MAGNITUDE = 30.0
+"""The same bound for channels modelled in log space (EMG envelopes), whose logarithm compresses
+absurd values (an envelope of 1e300 is only about 1000 standard deviations of log-EMG away): 30
+standard deviations of the training data's logarithm is a factor of about e^20 beyond anything
+recorded. Negative values, which the logarithm's clamp ``max(y, 0)`` hides, are refused below
+``-MAX_SCALED_MAGNITUDE`` times the channel's shift ``c``."""
 LOG_2PI = float(np.log(2.0 * np.pi))
 
 P_FROM_W = 0
@@ -876,7 +889,8 @@ def scale_samples(
 ) -> bool:
     """Scaled values (into ``out`` (n, D)) of raw samples ``raw`` (n, D), as ``ChannelScaler.transform``:
     ``log(max(y, 0) + c)`` on the dims ``log_idx`` with shifts ``log_c``, then ``(y - offset) / scale``
-    (D,). Returns whether every raw value is finite."""
+    (D,). Returns whether every raw value is finite and every scaled one at most
+    :data:`MAX_SCALED_MAGNITUDE` (:data:`MAX_LOG_SCALED_MAGNITUDE` for log dims) in magnitude."""
     n, n_d = raw.shape
     finite = True
     for j in range(n):
@@ -888,9 +902,13 @@ def scale_samples(
             oj[d] = v
         for i in range(log_idx.shape[0]):
             d = log_idx[i]
+            finite = finite and oj[d] >= -MAX_SCALED_MAGNITUDE * log_c[i]  # (a log is blind below 0)
             oj[d] = np.log(max(oj[d], 0.0) + log_c[i])
         for d in range(n_d):
             oj[d] = (oj[d] - offset[d]) / scale[d]
+            finite = finite and abs(oj[d]) <= MAX_SCALED_MAGNITUDE
+        for i in range(log_idx.shape[0]):
+            finite = finite and abs(oj[log_idx[i]]) <= MAX_LOG_SCALED_MAGNITUDE
     return finite
 
 
@@ -916,7 +934,8 @@ def stream_sample(
     dims ``log_idx`` with shifts ``log_c``, then ``(y - offset) / scale``), computes the basis values
     (K, U) at the phases ``t_s inv_dur`` (:func:`basis_rows`) and adds the sample to ``gram``
     (K, K, U), ``proj`` (K, U, D) and ``sq`` (D,) (:func:`add_sample`). Returns the basis values, the
-    scaled values and whether every raw value is finite (if not, the statistics are left unchanged).
+    scaled values and whether every raw value is finite and plausible (:func:`scale_samples`; if
+    not, the statistics are left unchanged).
     """
     ys = np.empty((1, y.shape[0]))
     if not scale_samples(y.reshape(1, -1), log_idx, log_c, offset, scale, ys):

@@ -27,7 +27,7 @@ import numpy as np
 from threadpoolctl import ThreadpoolController
 
 from ..data import ROBOT, Dataset, Demo, parse_groups
-from ..exceptions import ModelError, ModelFileError, NotFittedError
+from ..exceptions import IPrompPinError, ModelError, ModelFileError, NotFittedError
 from .basis import GaussianBasis
 from .distribution import ChannelScaler, TaskModel
 from .fitted import FittedModel
@@ -39,6 +39,13 @@ from .selection import choose_coupling, choose_noise
 from .serialization import read_model, write_model
 from .streaming import StreamingEstimator
 from .training import PhaseSettings, demos_by_task, log_task_prior, prepare_training, task_models
+from .validation import check_fitted
+
+MAX_POINTS = 100_000
+"""Largest number of points of a predicted trajectory (``n_points``)."""
+
+MAX_BLAS_THREADS = 1024
+"""Largest ``blas_threads``."""
 
 
 class IProMP:
@@ -153,7 +160,7 @@ class IProMP:
             input_tags=InputTags(two_d_array=False),
         )
 
-    def _checked_params(self) -> tuple[list[str], str | list[str]]:
+    def check_params(self) -> tuple[list[str], str | list[str]]:
         """Validate the parameters -> the observed groups and the coupling (parsed)."""
         observe = parse_groups(self.observe)
         coupling = self.coupling if isinstance(self.coupling, str) else list(self.coupling)
@@ -172,10 +179,29 @@ class IProMP:
                 )
         elif any(g not in observe for g in coupling) or len(set(coupling)) != len(coupling):
             raise ModelError(f"coupling {coupling} must list distinct observed groups ({observe})")
-        if int(self.n_alpha) != self.n_alpha or self.n_alpha < 3:
-            raise ModelError(f"n_alpha must be an integer >= 3, got {self.n_alpha!r}")
-        if int(self.n_points) != self.n_points or self.n_points < 2:
-            raise ModelError(f"n_points must be an integer >= 2, got {self.n_points!r}")
+        for name, value, low, high in (
+            ("n_alpha", self.n_alpha, 3, None),
+            ("n_points", self.n_points, 2, MAX_POINTS),
+            ("n_basis", self.n_basis, 2, None),
+        ):
+            if not _is_int(value) or value < low or (high is not None and value > high):
+                bound = f">= {low}" if high is None else f"in [{low}, {high}]"
+                raise ModelError(f"{name} must be an integer {bound}, got {value!r}")
+        threads = self.blas_threads
+        if threads is not None and (not _is_int(threads) or not 1 <= threads <= MAX_BLAS_THREADS):
+            raise ModelError(
+                f"blas_threads must be None or an integer in [1, {MAX_BLAS_THREADS}], got {threads!r}"
+            )
+        prior = self.task_prior
+        if prior is not None:
+            if not isinstance(prior, Mapping) or not all(
+                isinstance(t, str) and _is_number(p) and np.isfinite(p) and p >= 0 for t, p in prior.items()
+            ):
+                raise ModelError(f"task_prior must map task names to non-negative numbers, got {prior!r}")
+        for name in ("ridge", "margin", "alpha_width"):
+            value = getattr(self, name)
+            if not _is_number(value) or not np.isfinite(value):
+                raise ModelError(f"{name} must be a finite number, got {value!r}")
         return observe, coupling
 
     # ------------------------------------------------------------------ fit
@@ -187,7 +213,7 @@ class IProMP:
             y: The demos' task names, optional (scikit-learn's ``fit(X, y)``: checked against
                 ``demo.task``, so that stratified cross-validation splitters can use them).
         """
-        observe, coupling = self._checked_params()
+        observe, coupling = self.check_params()
         if y is not None:
             _check_labels(data, y)
         basis = GaussianBasis(self.n_basis, self.width, self.ridge, self.margin)
@@ -221,6 +247,12 @@ class IProMP:
             coupling_cv_scores=coupling_scores,
             trained_on=tuple(demo_record(d) for demos in by_task.values() for d in demos),
         )
+        try:
+            check_fitted(fitted)
+        except ModelError as exc:
+            raise ModelError(
+                f"training produced an unusable model (implausible training data?): {exc}"
+            ) from None
         return self._set_fitted(fitted)
 
     def _set_fitted(self, fitted: FittedModel) -> IProMP:
@@ -363,10 +395,13 @@ class IProMP:
         params, fitted = read_model(path)
         model = cls(**params)
         try:
-            model._checked_params()
-        except ModelError as exc:
+            model.check_params()
+        except (ModelError, TypeError, ValueError) as exc:
             raise ModelFileError(f"{path}: corrupt model file (parameters: {exc})") from exc
-        return model._set_fitted(fitted)
+        try:
+            return model._set_fitted(fitted)
+        except (IPrompPinError, ValueError, TypeError, IndexError) as exc:
+            raise ModelFileError(f"{path}: corrupt model file ({exc})") from exc
 
 
 def _batch(observations: Iterable[Demo]) -> list[Demo]:
@@ -408,3 +443,13 @@ _PARAMS = (
     "coupling",
     "blas_threads",
 )
+
+
+def _is_int(value: object) -> bool:
+    """Whether ``value`` is an integer (``int`` or an integral NumPy integer, not a bool)."""
+    return isinstance(value, int | np.integer) and not isinstance(value, bool)
+
+
+def _is_number(value: object) -> bool:
+    """Whether ``value`` is a real number (not a bool)."""
+    return isinstance(value, int | float | np.integer | np.floating) and not isinstance(value, bool)

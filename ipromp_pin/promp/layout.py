@@ -43,7 +43,8 @@ class ChannelLayout:
     @classmethod
     def from_demos(cls, demos: Iterable[Demo], observe: Iterable[str], robot_group: str) -> ChannelLayout:
         """The layout of demos that all hold the observed groups and the robot group with the same
-        channels (raises :class:`DataError` naming the first demo that differs)."""
+        channels, in the first demo's order (others may list them in another order, see
+        :meth:`aligned`; raises :class:`DataError` naming the first demo whose channels differ)."""
         observe = tuple(observe)
         groups = [*observe, robot_group]
         names: dict[str, tuple[str, ...]] = {}
@@ -51,11 +52,18 @@ class ChannelLayout:
             d.require(groups)
             for g in groups:
                 ref = names.setdefault(g, tuple(d.channel_names[g]))
-                if tuple(d.channel_names[g]) != ref:
+                have = tuple(d.channel_names[g])
+                if have != ref and sorted(have) != sorted(ref):
                     raise DataError(
-                        d.source, g, f"channels {d.channel_names[g]} differ from the first demo's {ref}"
+                        d.source, g, f"channels {list(have)} differ from the first demo's {list(ref)}"
                     )
         return cls(observe, robot_group, names)
+
+    def aligned(self, demo: Demo) -> Demo:
+        """``demo`` with the channels of its modelled groups in this layout's order, matched by name
+        (raises :class:`DataError` when a group's channel names are not the layout's)."""
+        order = {g: self.channel_names[g] for g in self.groups if g in demo.groups}
+        return demo.with_channel_order(order)
 
     @property
     def groups(self) -> tuple[str, ...]:

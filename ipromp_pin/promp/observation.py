@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..data import Demo
-from ..exceptions import ObservationError
+from ..exceptions import DataError, ObservationError
 from .compiled import kernels
 from .distribution import ChannelScaler
 from .layout import ChannelLayout
@@ -101,14 +101,15 @@ class ObservationEncoder:
                 raise ObservationError(
                     src, g, f"has {n_ch} channels, the model expects {hi - lo} {layout.channel_names[g]}"
                 )
+            if tuple(obs.channel_names[g]) != layout.channel_names[g]:
+                obs = self._by_name(obs)
             gaps = gaps or (g in obs.missing and bool(obs.missing[g].any()))
         if not gaps:  # every group in every sample: one part with all observed dims
             raw = np.concatenate([obs.groups[g] for g in layout.observe], axis=1, dtype=float)
             y, finite = self.scale_samples(raw)
             if not finite:
                 for g in layout.observe:
-                    if not np.all(np.isfinite(obs.groups[g])):
-                        raise ObservationError(src, g, "NaN or inf values in samples not flagged as missing")
+                    self.check_values(src, g, obs.groups[g])
             parts = [ObservationPart(t=t, dims=self.dims, y=y)]
         else:
             parts = self._parts_with_gaps(obs)
@@ -125,6 +126,42 @@ class ObservationEncoder:
             )
         return parts, t_last
 
+    def check_values(self, source: object, group: str, values: np.ndarray, what: str = "samples") -> None:
+        """Raise ObservationError when raw values (n, D_g) of an observed group are NaN or inf, or
+        scale to more than :data:`~ipromp_pin.promp._kernels.MAX_SCALED_MAGNITUDE` standard deviations
+        of the training data (a value no sensor the model was trained on gives)."""
+        v = np.asarray(values, dtype=float)
+        if not np.all(np.isfinite(v)):
+            raise ObservationError(source, group, f"NaN or inf values in {what} not flagged as missing")
+        with np.errstate(all="ignore"):
+            scaled = np.abs(self.scale_group(group, v))
+        k = kernels()
+        dims = slice(*self.layout.slices[group])
+        log = self.scaler.log_mask[dims]
+        bound = np.where(log, k.MAX_LOG_SCALED_MAGNITUDE, k.MAX_SCALED_MAGNITUDE)
+        floor = np.where(log, -k.MAX_SCALED_MAGNITUDE * np.nan_to_num(self.scaler.log_shift[dims]), -np.inf)
+        bad = ~(scaled <= bound) | (v < floor)
+        if np.any(bad):
+            row, col = np.argwhere(bad)[0]
+            name = self.layout.channel_names[group][col]
+            space = " (in log space)" if self.scaler.log_mask[dims][col] else ""
+            raise ObservationError(
+                source,
+                f"{group}/{name}",
+                f"implausible value {v[row, col]:.6g} in {what}: more than {bound[col]:g} standard "
+                f"deviations of the training data{space} from its mean",
+            )
+
+    def _by_name(self, obs: Demo) -> Demo:
+        """``obs`` with its observed channels in the model's order, matched by name."""
+        order = {g: self.layout.channel_names[g] for g in self.layout.observe}
+        try:
+            return obs.with_channel_order(order)
+        except DataError as exc:
+            raise ObservationError(
+                exc.source, exc.field, exc.problem + " (channels are matched by name)"
+            ) from None
+
     def _parts_with_gaps(self, obs: Demo) -> list[ObservationPart]:
         """Parts of an observation with missing samples: groups with identical presence masks share
         a part (their samples and times)."""
@@ -133,8 +170,7 @@ class ObservationEncoder:
             v = obs.groups[g]
             lo, hi = self.layout.slices[g]
             valid = ~obs.missing[g] if g in obs.missing else np.ones(obs.t.size, dtype=bool)
-            if not np.all(np.isfinite(v[valid])):
-                raise ObservationError(obs.source, g, "NaN or inf values in samples not flagged as missing")
+            self.check_values(obs.source, g, v[valid])
             if not np.any(valid):
                 continue
             entry = masks.setdefault(valid.tobytes(), (valid, [], []))

@@ -36,7 +36,7 @@ from itertools import combinations
 import numpy as np
 
 from ..data import Demo
-from ..exceptions import ObservationError
+from ..exceptions import ModelError, ObservationError
 from .conditioning import robot_posterior_mean
 from .distribution import shrink_covariances
 from .likelihood import InferenceEngine
@@ -204,6 +204,10 @@ def choose_coupling(
         return list(layout.observe), {}
     mse = np.array(rows)
     mean = mse.mean(axis=0)
+    if not np.all(np.isfinite(mean)):
+        raise ModelError(
+            "the cross-validation of the coupling gave non-finite errors (implausible training data?)"
+        )
     best = int(np.argmin(mean))
     # one-standard-error rule: the fewest coupled dims whose error is within one standard error
     # (of its paired difference to the best, over the same held-out observations) of the best

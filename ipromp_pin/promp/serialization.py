@@ -28,6 +28,15 @@ Floats are stored exactly (binary arrays; JSON floats use Python's
 round-tripping repr), so a loaded model gives bitwise identical predictions. A
 file of a newer format version, a truncated or corrupt file, or a file that is
 not a model raises :class:`~ipromp_pin.exceptions.ModelFileError`.
+
+Checks. A model is checked (:func:`~ipromp_pin.promp.validation.check_fitted`: finite numbers,
+positive variances, consistent shapes) before it is written and after it is read. Reading first
+inspects the archive's directory and each array's ``.npy`` header, without loading any data: a
+member that is not one of the arrays above, an array that is not float64 or whose shape does not
+fit the header's channels, tasks and basis, a header above :data:`MAX_HEADER_BYTES`, or a member
+that expands to more than :data:`MAX_EXPANSION` times its stored size is refused at once (a
+0.9 MB file cannot make the reader allocate 800 MB). The file is written atomically (a temporary
+file renamed into place): a failed save leaves an earlier file of that name intact.
 """
 
 from __future__ import annotations
@@ -38,13 +47,15 @@ from pathlib import Path
 
 import numpy as np
 
-from ..exceptions import IPrompPinError, ModelFileError
+from .. import atomic
+from ..exceptions import IPrompPinError, ModelError, ModelFileError
 from ..version import __version__
 from .basis import GaussianBasis
 from .distribution import ChannelScaler, TaskModel
 from .fitted import FittedModel
 from .layout import ChannelLayout
 from .provenance import DemoRecord
+from .validation import check_fitted
 
 FORMAT_NAME = "ipromp_pin.IProMP"
 """Value of the header's ``format`` field."""
@@ -53,6 +64,26 @@ FORMAT_VERSION = 2
 """Current (and highest readable) format version (2: ``trained_on`` added; 1 still reads)."""
 
 _TASK_ARRAYS = ("mean", "diag", "factor", "alpha_grid", "alpha_log_prior", "train_weights", "train_alpha")
+_GLOBAL_ARRAYS = ("scaler_offset", "scaler_scale", "scaler_log_shift", "task_log_prior", "residual_var")
+_HEADER_KEYS = {
+    "format", "format_version", "package_version", "params", "tasks", "groups", "channel_names",
+    "duration_nominal_s", "noise_ratio", "cv_scores", "coupled_groups", "coupling_cv_scores", "task_scalars",
+    "trained_on",
+}  # fmt: skip
+_PARAM_KEYS = {
+    "observe", "n_basis", "width", "ridge", "margin", "blas_threads", "n_alpha", "alpha_width", "noise",
+    "n_points", "task_prior", "robot_group", "log_groups", "pooling", "coupling",
+}  # fmt: skip
+
+MAX_HEADER_BYTES = 1_000_000
+"""Largest header (the JSON member) a model file may have, in bytes."""
+
+MAX_EXPANSION = 20.0
+"""Largest ratio of an archive member's size to its stored (compressed) size: float arrays compress
+little (``write_model`` stores them uncompressed), a member of zeros a thousandfold."""
+
+MAX_DEMOS_PER_TASK = 100_000
+"""Largest number of training demos (or phase candidates) of a task a model file may declare."""
 
 
 def _header_params(params: dict) -> dict:
@@ -79,10 +110,16 @@ def _header_params(params: dict) -> dict:
 
 
 def write_model(params: dict, fitted: FittedModel, path: str | Path) -> None:
-    """Write an estimator's parameters (``IProMP.get_params()``) and fitted state to ``path`` (``.npz``).
+    """Write an estimator's parameters (``IProMP.get_params()``) and fitted state to ``path`` (``.npz``),
+    atomically (an earlier file is replaced only by a complete new one).
 
     ``params["observe"]`` is written as the fitted layout's observed groups (a list).
+
+    Raises:
+        ModelError: the fitted state fails :func:`~ipromp_pin.promp.validation.check_fitted`.
+        OutputError: the file cannot be written.
     """
+    check_fitted(fitted)
     layout = fitted.layout
     robot_lo = layout.slices[layout.robot_group][0]
     header = {
@@ -121,8 +158,7 @@ def write_model(params: dict, fitted: FittedModel, path: str | Path) -> None:
         for name in _TASK_ARRAYS:
             arrays[f"task{i}_{name}"] = np.asarray(getattr(m, name), dtype=float)
         arrays[f"task{i}_shrinkage"] = np.asarray(m.shrinkage, dtype=float)
-    path = Path(path)
-    with open(path, "wb") as fh:
+    with atomic.replacing(path) as tmp, open(tmp, "wb") as fh:
         np.savez(fh, **arrays)
 
 
@@ -130,26 +166,150 @@ def read_model(path: str | Path) -> tuple[dict, FittedModel]:
     """Read a model file written by :func:`write_model` -> the estimator parameters and fitted state.
 
     Raises:
-        ModelFileError: missing, truncated or corrupt file, not a model, or a newer format version.
+        ModelFileError: missing, truncated or corrupt file, not a model, a newer format version,
+            an unknown, oversized or inconsistent array, or a state that fails
+            :func:`~ipromp_pin.promp.validation.check_fitted`.
     """
     path = Path(path)
+    if path.is_dir():
+        raise ModelFileError(f"{path}: is a folder, not a model file")
     if not path.is_file():
         raise ModelFileError(f"{path}: model file not found")
     try:
-        with np.load(path, allow_pickle=False) as npz:
-            if "header" not in npz.files:
+        with zipfile.ZipFile(path) as zf:
+            members = {info.filename: info for info in zf.infolist()}
+            if "header.npy" not in members:
                 raise ModelFileError(f"{path}: not an ipromp_pin model file (no header)")
-            header = json.loads(str(npz["header"][()]))
+            if members["header.npy"].file_size > MAX_HEADER_BYTES:
+                raise ModelFileError(
+                    f"{path}: model header of {members['header.npy'].file_size} bytes is too large"
+                )
+            header_array = _read_member(zf, members["header.npy"], path)
+            if header_array.dtype.kind != "U" or header_array.shape != ():
+                raise ModelFileError(f"{path}: not an ipromp_pin model file (header is not a string)")
+            header = json.loads(str(header_array[()]))
             _check_header(path, header)
-            arrays = {name: np.array(npz[name]) for name in npz.files if name != "header"}
+            expected = _expected_shapes(path, header)
+            _check_members(path, members, expected)
+            arrays = {
+                name[: -len(".npy")]: _read_member(zf, info, path, expected[name[: -len(".npy")]])
+                for name, info in members.items()
+                if name != "header.npy"
+            }
     except ModelFileError:
         raise
     except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile, json.JSONDecodeError) as exc:
         raise ModelFileError(f"{path}: not a readable model file ({type(exc).__name__}: {exc})") from exc
     try:
-        return _params(header), _fitted(header, arrays)
+        return _params(header), check_fitted(_fitted(header, arrays))
+    except ModelError as exc:
+        raise ModelFileError(f"{path}: corrupt model file ({exc})") from exc
     except (KeyError, TypeError, ValueError, IndexError, AttributeError, IPrompPinError) as exc:
         raise ModelFileError(f"{path}: corrupt model file ({type(exc).__name__}: {exc})") from exc
+
+
+def _npy_header(fh) -> tuple[tuple[int, ...], np.dtype, int]:
+    """Shape, dtype and header length of an ``.npy`` stream (reads only its header)."""
+    version = np.lib.format.read_magic(fh)
+    if version == (1, 0):
+        shape, fortran, dtype = np.lib.format.read_array_header_1_0(fh)
+    elif version == (2, 0):
+        shape, fortran, dtype = np.lib.format.read_array_header_2_0(fh)
+    else:
+        raise ValueError(f"unsupported .npy version {version}")
+    if fortran and len(shape) > 1:
+        raise ValueError("Fortran-ordered arrays are not written by ipromp_pin")
+    return tuple(shape), dtype, fh.tell()
+
+
+def _read_member(
+    zf: zipfile.ZipFile, info: zipfile.ZipInfo, path: Path, shape: tuple[int | None, ...] | None = None
+) -> np.ndarray:
+    """Load one ``.npy`` member (no pickles). Its declared size must match its stored size and, for
+    an array, its dtype must be float64 and its shape ``shape`` (None: any length up to
+    :data:`MAX_DEMOS_PER_TASK`), all checked before any data is read."""
+    if info.file_size > MAX_EXPANSION * info.compress_size + 65536:
+        raise ModelFileError(
+            f"{path}: array '{info.filename}' expands {info.file_size / max(info.compress_size, 1):.0f}-fold "
+            "(not a model written by ipromp_pin)"
+        )
+    with zf.open(info) as fh:
+        got, dtype, header_len = _npy_header(fh)
+        if dtype.hasobject:
+            raise ModelFileError(f"{path}: array '{info.filename}' holds Python objects")
+        if shape is not None:
+            if dtype != np.dtype("<f8"):
+                raise ModelFileError(f"{path}: array '{info.filename}' holds {dtype}, not float64 numbers")
+            fits = len(got) == len(shape) and all(
+                (w is None and 0 <= n <= MAX_DEMOS_PER_TASK) or w == n
+                for w, n in zip(shape, got, strict=True)
+            )
+            if not fits:
+                want = "(" + ", ".join("N" if w is None else str(w) for w in shape) + ")"
+                raise ModelFileError(f"{path}: array '{info.filename}' has shape {got}, expected {want}")
+        nbytes = int(np.prod(got, dtype=np.int64)) * dtype.itemsize
+        if header_len + nbytes != info.file_size:
+            raise ModelFileError(f"{path}: array '{info.filename}' is truncated or has trailing data")
+        data = fh.read(nbytes)
+    return np.frombuffer(data, dtype=dtype).reshape(got).copy()
+
+
+def _expected_shapes(path: Path, header: dict) -> dict[str, tuple[int | None, ...]]:
+    """Member name -> expected shape (None: a length checked later) of every array of the header's model."""
+    unknown = set(header) - _HEADER_KEYS
+    if unknown:
+        raise ModelFileError(f"{path}: unknown header fields {sorted(unknown)}")
+    params = header["params"]
+    if not isinstance(params, dict) or set(params) - _PARAM_KEYS:
+        extra = sorted(set(params) - _PARAM_KEYS) if isinstance(params, dict) else params
+        raise ModelFileError(f"{path}: unknown model parameters {extra}")
+    names = header["channel_names"]
+    groups = header["groups"]
+    if not isinstance(names, dict) or not isinstance(groups, list):
+        raise ModelFileError(f"{path}: header fields 'groups' and 'channel_names' are malformed")
+    d = sum(len(names[g]) for g in groups)
+    k = params["n_basis"]
+    tasks = header["tasks"]
+    if not isinstance(k, int) or isinstance(k, bool) or not 2 <= k <= 10_000:
+        raise ModelFileError(f"{path}: n_basis must be an integer in [2, 10000], got {k!r}")
+    if not isinstance(tasks, list) or not tasks:
+        raise ModelFileError(f"{path}: header field 'tasks' must be a non-empty list")
+    shapes: dict[str, tuple[int | None, ...]] = {
+        "scaler_offset": (d,),
+        "scaler_scale": (d,),
+        "scaler_log_shift": (d,),
+        "task_log_prior": (len(tasks),),
+        "residual_var": (d,),
+    }
+    for i in range(len(tasks)):
+        shapes.update(
+            {
+                f"task{i}_mean": (d, k),
+                f"task{i}_diag": (d,),
+                f"task{i}_factor": (d, k, None),
+                f"task{i}_alpha_grid": (None,),
+                f"task{i}_alpha_log_prior": (None,),
+                f"task{i}_train_weights": (None, d, k),
+                f"task{i}_train_alpha": (None,),
+                f"task{i}_shrinkage": (d,),
+            }
+        )
+    return shapes
+
+
+def _check_members(path: Path, members: dict[str, zipfile.ZipInfo], expected: dict) -> None:
+    """Refuse unknown members and arrays whose declared dtype or shape do not fit (headers only)."""
+    for name, info in members.items():
+        if name == "header.npy":
+            continue
+        key = name[: -len(".npy")] if name.endswith(".npy") else None
+        if key not in expected:
+            raise ModelFileError(f"{path}: unknown array '{name}' ({info.file_size} bytes) in the model file")
+    for key in expected:
+        optional = key.endswith("_shrinkage")  # absent from files written before the coupling
+        if f"{key}.npy" not in members and not optional:
+            raise ModelFileError(f"{path}: corrupt model file (array '{key}' is missing)")
+    return None
 
 
 def _check_header(path: Path, header: object) -> None:

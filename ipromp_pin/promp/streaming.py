@@ -107,7 +107,14 @@ class StreamingEstimator:
             sample: Observed group -> values (D,) in original units; a group that is absent or
                 None is missing for this sample (e.g. a lost skeleton frame).
         """
-        t_s = float(t_s)
+        try:
+            t_s = float(t_s)
+        except (TypeError, ValueError):
+            raise ObservationError("stream", "t", f"sample time {t_s!r} is not a number") from None
+        if not isinstance(sample, Mapping):
+            raise ObservationError(
+                "stream", "sample", f"expected a mapping group -> values, got {type(sample).__name__}"
+            )
         if not math.isfinite(t_s) or (self._t and t_s <= self._t[-1]) or t_s < -1e-9:
             raise ObservationError("stream", "t", f"sample time {t_s} is not after the previous sample")
         if t_s > self._longest:
@@ -128,7 +135,10 @@ class StreamingEstimator:
                 y[lo:hi] = np.nan
                 absent |= 1 << i
                 continue
-            v = np.asarray(v, dtype=float).reshape(-1)
+            try:
+                v = np.asarray(v, dtype=float).reshape(-1)
+            except (TypeError, ValueError):
+                raise ObservationError("stream", g, f"sample values are not numbers: {v!r:.80}") from None
             if v.size != hi - lo:
                 raise ObservationError(
                     "stream", g, f"sample has {v.size} values, the model expects {hi - lo}"
@@ -141,10 +151,13 @@ class StreamingEstimator:
         return self._add(t_s, y, absent, present)
 
     def _check_finite(self, t_s: float, y: np.ndarray, present: list[str]) -> None:
-        """Raise ObservationError naming the first present group of ``y`` with a NaN or inf."""
+        """Raise ObservationError naming the first present group of ``y`` with a NaN, an inf or an
+        implausible value (:meth:`ObservationEncoder.check_values`); the stream is left as if the
+        sample had never arrived."""
+        encoder = self.predictor.encoder
         for g, lo, hi in self._slices:
-            if g in present and not np.all(np.isfinite(y[lo:hi])):
-                raise ObservationError("stream", g, f"NaN or inf in the sample at t={t_s:.3f} s")
+            if g in present:
+                encoder.check_values("stream", g, y[None, lo:hi], f"the sample at t={t_s:.3f} s")
 
     def _add(self, t_s: float, y: np.ndarray, absent: int, present: list[str]) -> Recognition | None:
         """Check and add the sample ``y`` (D,) (raw values, NaN in the groups flagged in ``absent``)
@@ -157,8 +170,11 @@ class StreamingEstimator:
             phi, ys, finite = self._kern.stream_sample(
                 t_s, *self._sample_basis, y, *self._sample_scaling, pattern[1], self._proj, self._sq
             )
-            if not finite:
-                self._check_finite(t_s, y, present)  # raises: every group is present
+            if not finite:  # the statistics are unchanged
+                self._check_finite(t_s, y, present)  # raises, naming the group
+                raise ObservationError(
+                    "stream", "sample", f"implausible value in the sample at t={t_s:.3f} s"
+                )
             pattern[2] += 1
             pattern[3] = t_s
         else:

@@ -26,6 +26,7 @@ from .distribution import (
     shrink_covariances,
 )
 from .layout import ChannelLayout
+from .validation import MAX_ORIGINAL
 
 
 @dataclass(frozen=True)
@@ -126,13 +127,17 @@ def prepare_training(
         basis: The basis of every channel.
         log_groups: Observed groups modelled in log space (others and the robot: linear).
     """
+    layout = ChannelLayout.from_demos([d for demos in by_task.values() for d in demos], observe, robot_group)
+    by_task = {task: [layout.aligned(d) for d in demos] for task, demos in by_task.items()}
     all_demos = [d for demos in by_task.values() for d in demos]
-    layout = ChannelLayout.from_demos(all_demos, observe, robot_group)
     log_dims = np.zeros(layout.n_dims, dtype=bool)
     for g in log_groups:
         if g in layout.slices and g != robot_group:
             log_dims[slice(*layout.slices[g])] = True
-    scaler = ChannelScaler.fit(np.concatenate([stack_channels(layout, d) for d in all_demos]), log_dims)
+    stacked = [stack_channels(layout, d) for d in all_demos]
+    with np.errstate(over="ignore", invalid="ignore"):
+        scaler = ChannelScaler.fit(np.concatenate(stacked), log_dims)
+    _check_scaling(layout, scaler, all_demos, stacked)
     durations = {task: np.array([d.t[-1] - d.t[0] for d in demos]) for task, demos in by_task.items()}
     t_norm = float(np.mean(np.concatenate(list(durations.values()))))
     weights = {}
@@ -156,6 +161,28 @@ def prepare_training(
         alphas={task: durations[task] / t_norm for task in by_task},
         duration_nominal_s=t_norm,
         residual_var=rss / np.maximum(count, 1),
+    )
+
+
+def _check_scaling(
+    layout: ChannelLayout, scaler: ChannelScaler, demos: list[Demo], stacked: list[np.ndarray]
+) -> None:
+    """Refuse training data whose channel scaling is not finite or implausibly large (a finite but
+    absurd value such as 1e300 in some demo), naming the demo that holds the most extreme value."""
+    with np.errstate(invalid="ignore"):
+        bad = ~(np.isfinite(scaler.offset) & np.isfinite(scaler.scale))
+        bad |= (np.abs(scaler.offset) > MAX_ORIGINAL) | (scaler.scale > MAX_ORIGINAL)
+    if not bad.any():
+        return
+    d = int(np.flatnonzero(bad)[0])
+    with np.errstate(invalid="ignore"):
+        extreme = [float(np.nanmax(np.abs(x[:, d]))) for x in stacked]
+    k = int(np.nanargmax(extreme))
+    raise DataError(
+        demos[k].source,
+        layout.labels()[d],
+        f"implausible training value {extreme[k]:.6g} (the channel's scaling would be "
+        f"{scaler.scale[d]:.3g}; check the readers' plausibility limits)",
     )
 
 

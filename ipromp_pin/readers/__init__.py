@@ -18,13 +18,16 @@ the CSVs (faster), ``format="bag"`` the bags (the same demos, see the tests).
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+import os
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
+
+import numpy as np
 
 from ..data import Dataset, Demo
 from ..exceptions import DataError
 from ..preprocess import DEFAULT_EMG_CUTOFF_HZ
-from . import chen2017, multimodal, native, rosbag
+from . import chen2017, multimodal, native, plausibility, rosbag
 from ._common import BAXTER_LEFT_JOINTS
 from .native import write_dataset, write_demo
 
@@ -37,6 +40,7 @@ __all__ = [
     "detect_format",
     "list_demos",
     "load_dataset",
+    "plausibility",
     "read_demo",
     "write_dataset",
     "write_demo",
@@ -104,8 +108,10 @@ def read_demo(
     rate_hz: float | None = 50.0,
     robot_joints: Sequence[str] = BAXTER_LEFT_JOINTS,
     emg_cutoff_hz: float = DEFAULT_EMG_CUTOFF_HZ,
+    joint_limits: Mapping[str, tuple[float, float]] | None = None,
+    end_effector: Callable[[np.ndarray], np.ndarray] | None = None,
 ) -> Demo:
-    """Read one demonstration.
+    """Read one demonstration and check that its values are physically plausible.
 
     Args:
         path: The demo: a chen2017 ``<task>/csv/<stamp>`` prefix or one of its CSV files,
@@ -119,9 +125,18 @@ def read_demo(
             ``None`` keeps a native demo's rate).
         robot_joints: Joint names of the ``"robot"`` group, in the wanted order.
         emg_cutoff_hz: EMG envelope cut-off in [Hz] (recorded formats).
+        joint_limits: Recorded joint name -> (lower, upper) in [rad]: the robot's limits, which the
+            recorded angles must respect (see :mod:`.plausibility`; default: a generic bound).
+        end_effector: Forward kinematics of the robot group, (T, J) [rad] -> (T, 3) [m] in the base
+            frame; used by the multimodal reader to find the human's handing hand when the
+            robot's end-point stream was not recorded.
 
     Returns:
         The demo on a uniform time grid starting at 0.
+
+    Raises:
+        DataError: unreadable, malformed or implausible data (see :mod:`.plausibility`), naming the
+            file, the field and the problem.
     """
     path = Path(path)
     if format not in FORMATS:
@@ -135,18 +150,40 @@ def read_demo(
     if rate_hz is None and format != "native":
         rate_hz = 50.0
     if format == "chen2017":
-        return chen2017.read_demo(
+        demo = chen2017.read_demo(
             path, task, rate_hz=rate_hz, robot_joints=robot_joints, emg_cutoff_hz=emg_cutoff_hz
         )
-    if format == "multimodal":
-        return multimodal.read_demo(
-            path, task, frames=frames, rate_hz=rate_hz, robot_joints=robot_joints, emg_cutoff_hz=emg_cutoff_hz
+    elif format == "multimodal":
+        demo = multimodal.read_demo(
+            path,
+            task,
+            frames=frames,
+            rate_hz=rate_hz,
+            robot_joints=robot_joints,
+            emg_cutoff_hz=emg_cutoff_hz,
+            end_effector=end_effector,
         )
-    if format == "bag":
-        return rosbag.read_demo(
+    elif format == "bag":
+        demo = rosbag.read_demo(
             path, task, rate_hz=rate_hz, robot_joints=robot_joints, emg_cutoff_hz=emg_cutoff_hz
         )
-    return native.read_demo(path, task, rate_hz=rate_hz, frames=frames, robot_joints=robot_joints)
+    else:
+        demo = native.read_demo(path, task, rate_hz=rate_hz, frames=frames, robot_joints=robot_joints)
+    return plausibility.check_demo(demo, joint_limits)
+
+
+def _check_readable(folder: Path) -> None:
+    """Raise DataError when ``folder`` (or its ``csv`` sub-folder) cannot be listed."""
+    for d in (folder, folder / "csv"):
+        if d is not folder and not d.is_dir():
+            continue
+        try:
+            with os.scandir(d) as entries:
+                next(entries, None)
+        except OSError as exc:
+            raise DataError(d, None, f"cannot read the task folder: {exc.strerror or exc}") from None
+        if not os.access(d, os.R_OK | os.X_OK):
+            raise DataError(d, None, "cannot read the task folder: permission denied")
 
 
 def load_dataset(
@@ -159,12 +196,15 @@ def load_dataset(
     order: str = "config",
     progress: Callable[[int, int, str], None] | None = None,
     emg_cutoff_hz: float = DEFAULT_EMG_CUTOFF_HZ,
+    joint_limits: Mapping[str, tuple[float, float]] | None = None,
+    end_effector: Callable[[np.ndarray], np.ndarray] | None = None,
 ) -> Dataset:
     """Load a dataset: a folder with one sub-folder per task.
 
     Args:
-        path: The dataset folder (sub-folders without demos, or hidden ones, are ignored
-            when ``format="auto"``).
+        path: The dataset folder: every sub-folder is a task, except hidden ones and those whose
+            name starts with ``_`` (a sub-folder without demos is an error, not a task that
+            silently disappears).
         format: One of :data:`FORMATS`; ``"auto"`` detects it per task folder.
         frames: Skeleton frames to read as human groups (multimodal format).
         rate_hz: Output sampling rate in [Hz].
@@ -172,33 +212,47 @@ def load_dataset(
         order: ``"config"`` (the authors' cfg order when there is one) or ``"recorded"`` (by stamp).
         progress: Optional ``callable(done, total, name)`` called after each demo.
         emg_cutoff_hz: EMG envelope cut-off in [Hz].
+        joint_limits, end_effector: See :func:`read_demo`.
 
     Returns:
         Dataset with tasks in sorted folder-name order.
 
     Raises:
-        DataError: no task sub-folder, undetectable format, a task with fewer than 2 demos,
-            or any bad demo (naming its file).
+        DataError: no task sub-folder, a sub-folder that cannot be read, a file where a task folder
+            is expected (a broken link), undetectable format, a task with fewer than 2 demos, any
+            bad or implausible demo, or a demo whose duration is an outlier of its task (naming
+            its file).
     """
     root = Path(path)
     if not root.is_dir():
         raise DataError(root, None, "dataset folder not found")
     if format not in FORMATS:
         raise DataError(root, "format", f"unknown format {format!r} (use one of {', '.join(FORMATS)})")
-    subdirs = sorted(p for p in root.iterdir() if p.is_dir() and not p.name.startswith((".", "_")))
+    try:
+        entries = sorted(p for p in root.iterdir() if not p.name.startswith((".", "_")))
+    except OSError as exc:
+        raise DataError(root, None, f"cannot read the dataset folder: {exc.strerror or exc}") from None
+    for p in entries:
+        if p.is_symlink() and not p.exists():
+            raise DataError(p, None, "broken link where a task folder was expected")
+    subdirs = [p for p in entries if p.is_dir()]
     plan: list[tuple[str, str, list[Path]]] = []
     for d in subdirs:
+        _check_readable(d)
         if format == "auto":
             try:
                 fmt = detect_format(d)
-            except DataError:
-                continue
+            except DataError as exc:
+                raise DataError(
+                    d,
+                    "format",
+                    f"{exc.problem}; a task folder must hold demos (rename the folder with a leading '_' "
+                    "to leave it out)",
+                ) from None
         else:
             fmt = format
         plan.append((d.name, fmt, list_demos(d, fmt, order)))
     if not plan:
-        if subdirs and format == "auto":
-            detect_format(subdirs[0])  # raises, naming the folder
         raise DataError(root, None, "no task sub-folders (expected one folder of demos per task)")
     for task, _, files in plan:
         if len(files) < 2:
@@ -218,9 +272,12 @@ def load_dataset(
                     rate_hz=rate_hz,
                     robot_joints=robot_joints,
                     emg_cutoff_hz=emg_cutoff_hz,
+                    joint_limits=joint_limits,
+                    end_effector=end_effector,
                 )
             )
             done += 1
             if progress is not None:
                 progress(done, total, f"{task}/{out[-1].name}")
+    plausibility.check_durations(demos)
     return Dataset(root=str(root), demos=demos)

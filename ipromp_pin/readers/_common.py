@@ -25,6 +25,15 @@ from ..preprocess import (
     estimate_clock_offset,
     quaternion_continuity,
 )
+from .plausibility import (
+    ACCELERATION_MAX_G,
+    EMG_RAW_RANGE,
+    POSITION_BOUND_M,
+    UNIT_QUATERNION_TOLERANCE,
+    check_joint_angles,
+    check_norms,
+    check_range,
+)
 
 BAXTER_LEFT_JOINTS: tuple[str, ...] = (
     "left_s0",
@@ -65,7 +74,7 @@ class CsvTable:
     def __init__(self, path: Path) -> None:
         self.path = Path(path)
         try:
-            with open(self.path, newline="") as fh:
+            with open(self.path, newline="", encoding="utf-8-sig") as fh:
                 rows = list(csv.reader(fh))
         except FileNotFoundError:
             raise DataError(self.path, None, "file not found") from None
@@ -164,6 +173,44 @@ def parse_receive_times(path: object, values: Sequence[str]) -> np.ndarray:
     return out
 
 
+# ------------------------------------------------------------------------------ raw plausibility
+def check_raw_imu(
+    source: object, orientation_field: str, acc_field: str, q: np.ndarray, acc: np.ndarray
+) -> None:
+    """Myo IMU messages after the firmware scaling: unit quaternions (N, 4), accelerations (N, 3)
+    in [g] within the accelerometer's range (:mod:`.plausibility`); DataError otherwise."""
+    tol = UNIT_QUATERNION_TOLERANCE
+    check_norms(
+        source,
+        orientation_field,
+        q,
+        1 - tol,
+        1 + tol,
+        f"(after the Myo scaling 1/{MYO_ORIENTATION_SCALE:g})",
+        what="message",
+    )
+    check_norms(source, acc_field, acc, 0.0, ACCELERATION_MAX_G, "g", what="message")
+
+
+def check_raw_endpoint(source: object, field: str, pose: np.ndarray) -> None:
+    """End-point messages (N, 7): position x, y, z [m] near the robot, unit quaternion x, y, z, w."""
+    tol = UNIT_QUATERNION_TOLERANCE
+    check_norms(source, f"{field}.position", pose[:, :3], 0.0, POSITION_BOUND_M, "m", what="message")
+    check_norms(source, f"{field}.orientation", pose[:, 3:7], 1 - tol, 1 + tol, "", what="message")
+
+
+def stream_received(stream: RawStream | None) -> RawStream | None:
+    """``stream`` without the messages never received (header stamp 0), or None when no message was."""
+    if stream is None:
+        return None
+    ok = stream.header_s > 0
+    if not np.any(ok):
+        return None
+    if np.all(ok):
+        return stream
+    return RawStream(stream.header_s[ok], stream.receive_s[ok], stream.values[ok], stream.source)
+
+
 # ------------------------------------------------------------------------------- chen2017 assembly
 @dataclass
 class RawStream:
@@ -187,7 +234,8 @@ class RawRecording:
     """The four chen2017 streams of one demo (Myo EMG, Myo IMU, arm joints, end-point).
 
     ``joints.values`` holds the requested joints in the requested order; ``endpoint``
-    (position xyz, quaternion xyzw) may be absent.
+    (position xyz, quaternion xyzw) is optional: ``None`` when it was not recorded (no file, no
+    message, or only messages stamped 0).
     """
 
     emg: RawStream
@@ -268,6 +316,7 @@ def assemble_chen2017(
     resampled then turned into a causal envelope; quaternions are made
     unit-norm and sign-continuous.
     """
+    raw.endpoint = stream_received(raw.endpoint)
     streams = {"emg": raw.emg, "imu": raw.imu, "robot": raw.joints}
     if raw.endpoint is not None:
         streams["endpoint"] = raw.endpoint
@@ -282,15 +331,11 @@ def assemble_chen2017(
 
     imu = raw.imu.values
     q_raw = imu[:, :4] / MYO_ORIENTATION_SCALE
-    norm = np.linalg.norm(q_raw, axis=1)
-    bad = np.flatnonzero(~(np.abs(norm - 1.0) < 0.1))
-    if bad.size:
-        raise DataError(
-            raw.imu.source,
-            ".quat0-3",
-            f"{bad.size} quaternions whose norm is not 1 after the Myo scaling 1/{MYO_ORIENTATION_SCALE:g} "
-            f"(first: {norm[bad[0]]:.3f} in message {bad[0]})",
-        )
+    check_raw_imu(raw.imu.source, ".quat0-3", ".acc0-2", q_raw, imu[:, 4:7] / MYO_ACCELEROMETER_SCALE)
+    check_range(raw.emg.source, ".ch0-7", raw.emg.values, *EMG_RAW_RANGE, "", EMG_CHANNELS, what="message")
+    check_joint_angles(raw.joints.source, ".position", raw.joints.values, robot_joints, what="message")
+    if raw.endpoint is not None:
+        check_raw_endpoint(raw.endpoint.source, ".pose", raw.endpoint.values)
     on_pc = {k: s.header_s - offsets[k] for k, s in streams.items()}
     aligned_in = {
         "emg": Stream(on_pc["emg"], raw.emg.values, EMG_CHANNELS, "previous", raw.emg.source),

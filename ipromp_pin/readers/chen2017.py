@@ -28,7 +28,9 @@ Resulting :class:`~ipromp_pin.data.Demo` groups, on a uniform grid at
 * ``"robot"`` (T, J): the requested joints in [rad], mapped by name from the
   joint-state messages; messages lacking them (Baxter's one-name gripper
   messages on the same topic) are dropped.
-* ``extras["endpoint_pose"]`` (T, 7): end-point position [m] + quaternion xyzw.
+* ``extras["endpoint_pose"]`` (T, 7): end-point position [m] + quaternion xyzw; absent when the
+  end-point was not recorded (no ``robot-limb-left-endpoint_state`` file, or one without messages
+  or with every stamp 0): it serves calibration only.
 
 Demo order (``order="config"``): the stamps of ``csv/filename_<task>.cfg``;
 stamps listed there but without files are skipped with a warning, demos on disk
@@ -156,9 +158,12 @@ def _header_seconds(table: CsvTable) -> np.ndarray:
     return st[:, 0] + st[:, 1] * 1e-9
 
 
-def _read_stream(path: Path, columns: Sequence[str]) -> RawStream:
+def _read_stream(path: Path, columns: Sequence[str], optional: bool = False) -> RawStream | None:
+    """The messages of one topic's CSV (None for an ``optional`` file without messages)."""
     table = CsvTable(path)
     if len(table) == 0:
+        if optional:
+            return None
         raise DataError(path, None, "stream is empty (no messages)")
     values = table.numbers(columns)
     return RawStream(_header_seconds(table), parse_receive_times(path, table.text("time")), values, str(path))
@@ -223,11 +228,15 @@ def read_raw(prefix: Path, robot_joints: Sequence[str] = BAXTER_LEFT_JOINTS) -> 
         return prefix.parent / f"{prefix.name}-{TOPIC_SUFFIXES[key]}.csv"
 
     endpoint_file = file("endpoint")
+    # optional: not recorded in every session
+    endpoint = (
+        _read_stream(endpoint_file, ENDPOINT_COLUMNS, optional=True) if endpoint_file.exists() else None
+    )
     return RawRecording(
         emg=_read_stream(file("emg"), EMG_COLUMNS),
         imu=_read_stream(file("imu"), IMU_COLUMNS),
         joints=_read_joints(file("joints"), robot_joints),
-        endpoint=_read_stream(endpoint_file, ENDPOINT_COLUMNS) if endpoint_file.exists() else None,
+        endpoint=endpoint,
     )
 
 

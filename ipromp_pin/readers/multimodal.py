@@ -37,11 +37,24 @@ Extras: ``"endpoint_pose"`` (T, 7) and ``"hand_position"`` (T, 3): the human han
 frame (``/left_hand_1`` or ``/right_hand_1``, whichever ends closer to the robot's
 end-point; in this session always ``/left_hand_1``), gaps linearly filled
 (extras are for previews).
+
+Optional streams. The robot's end-point (``endpointStates``) is not modelled: it serves the
+calibration and the choice of the handing hand. In sessions where it was never recorded (every
+``endpointStates.header.stamp`` is 0) the demo loads without ``"endpoint_pose"``; the hand is then
+chosen against the tracked gripper frame (:data:`GRIPPER_FRAMES`, the same position as the
+end-point: 1.3 mm apart in this session), or else against the forward kinematics of the recorded
+joints when the caller passes ``end_effector``; without either, the demo has no
+``"hand_position"``. The tracked frames are optional as well (only requested ones must be there).
+The EMG, IMU and joint streams are required.
+
+Plausibility. Raw EMG samples, accelerations, end-point positions and quaternions are checked
+against the physical limits of :mod:`.plausibility` (as are the resampled demo's joint angles and
+tracked positions, by :func:`ipromp_pin.readers.read_demo`).
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -64,8 +77,11 @@ from ._common import (
     MYO_ORIENTATION_SCALE,
     ORIENTATION_CHANNELS,
     CsvTable,
+    check_raw_endpoint,
+    check_raw_imu,
     select_joint_messages,
 )
+from .plausibility import EMG_RAW_RANGE, POSITION_BOUND_M, check_joint_angles, check_norms, check_range
 
 FILE_NAME = "multiModal_states.csv"
 JUMP_THRESHOLD_M = 0.25
@@ -73,6 +89,9 @@ JUMP_THRESHOLD_M = 0.25
 JUMP_WINDOW = 5
 """Number of valid samples (centred) whose median a tracked position is compared with."""
 HAND_FRAMES = ("/left_hand_1", "/right_hand_1")
+GRIPPER_FRAMES = ("left_gripper", "/left_gripper")
+"""Tracked frames at the robot's end-point (the tf of Baxter's left gripper), used to choose the
+handing hand when the end-point stream was not recorded."""
 N_TRANSFORMS_MAX = 64
 
 P = "field."
@@ -102,13 +121,17 @@ def _sub_stream(
     stamp_column: str,
     columns: Sequence[str],
     receive: np.ndarray,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(header stamps, receive times, values) of a bundled message, without never-received rows."""
+    optional: bool = False,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """(header stamps, receive times, values) of a bundled message, without never-received rows;
+    None for an ``optional`` stream of which no message was received (else DataError)."""
     header = _stamps(table, stamp_column)
-    values = table.numbers(columns)
     ok = header > 0
     if not np.any(ok):
+        if optional:
+            return None
         raise DataError(table.path, stamp_column, "no message of this stream was received (all stamps 0)")
+    values = table.numbers(columns)
     return header[ok], receive[ok], values[ok]
 
 
@@ -179,6 +202,7 @@ def read_demo(
     rate_hz: float = 50.0,
     robot_joints: Sequence[str] = BAXTER_LEFT_JOINTS,
     emg_cutoff_hz: float = DEFAULT_EMG_CUTOFF_HZ,
+    end_effector: Callable[[np.ndarray], np.ndarray] | None = None,
 ) -> Demo:
     """Read one ``multiModal_states.csv`` demo.
 
@@ -189,6 +213,8 @@ def read_demo(
         rate_hz: Output sampling rate in [Hz].
         robot_joints: Joint names of the robot group, in the wanted order.
         emg_cutoff_hz: EMG envelope cut-off in [Hz].
+        end_effector: Forward kinematics of the robot group, (T, J) [rad] -> (T, 3) [m]; chooses the
+            handing hand when neither the end-point nor the gripper frame was recorded.
     """
     path = Path(path)
     if path.is_dir():
@@ -208,7 +234,8 @@ def read_demo(
     imu_h, imu_r, imu = _sub_stream(table, P + "imuStates.header.stamp", imu_cols, receive)
     ep_cols = [f"{P}endpointStates.pose.position.{a}" for a in "xyz"]
     ep_cols += [f"{P}endpointStates.pose.orientation.{a}" for a in "xyzw"]
-    ep_h, ep_r, ep = _sub_stream(table, P + "endpointStates.header.stamp", ep_cols, receive)
+    endpoint = _sub_stream(table, P + "endpointStates.header.stamp", ep_cols, receive, optional=True)
+    check_range(path, P + "emgStates", emg, *EMG_RAW_RANGE, "", EMG_CHANNELS, what="message")
 
     # Joints by name, per row.
     name_cols = []
@@ -227,18 +254,14 @@ def read_demo(
     j_h_all = _stamps(table, P + "jointStates.header.stamp")
     keep &= j_h_all > 0
     j_h, j_r, jpos = j_h_all[keep], receive[keep], jpos[keep][:, cols]
+    check_joint_angles(path, P + "jointStates.position", jpos, robot_joints, what="message")
 
-    # Orientation sanity (raw Myo ints).
+    # Orientation and acceleration sanity (raw Myo ints), end-point positions and quaternions.
     q = imu[:, :4] / MYO_ORIENTATION_SCALE
-    norm = np.linalg.norm(q, axis=1)
-    bad = np.flatnonzero(~(np.abs(norm - 1.0) < 0.1))
-    if bad.size:
-        raise DataError(
-            path,
-            P + "imuStates.orientation",
-            f"{bad.size} quaternions whose norm is not 1 after the Myo scaling 1/{MYO_ORIENTATION_SCALE:g} "
-            f"(first: {norm[bad[0]]:.3f} in row {bad[0] + 2})",
-        )
+    acc = imu[:, 4:7] / MYO_ACCELEROMETER_SCALE
+    check_raw_imu(path, P + "imuStates.orientation", P + "imuStates.linear_acceleration", q, acc)
+    if endpoint is not None:
+        check_raw_endpoint(path, P + "endpointStates.pose", endpoint[2])
 
     def on_pc(h: np.ndarray, r: np.ndarray) -> np.ndarray:
         return h - estimate_clock_offset(h, r)
@@ -248,15 +271,15 @@ def read_demo(
         "orientation": Stream(
             on_pc(imu_h, imu_r), quaternion_continuity(q), ORIENTATION_CHANNELS, "quaternion", src
         ),
-        "acc": Stream(
-            on_pc(imu_h, imu_r), imu[:, 4:7] / MYO_ACCELEROMETER_SCALE, ACC_CHANNELS, "linear", src
-        ),
+        "acc": Stream(on_pc(imu_h, imu_r), acc, ACC_CHANNELS, "linear", src),
         ROBOT: Stream(on_pc(j_h, j_r), jpos, tuple(robot_joints), "linear", src),
-        "endpoint_position": Stream(on_pc(ep_h, ep_r), ep[:, :3], ("x", "y", "z"), "linear", src),
-        "endpoint_orientation": Stream(
-            on_pc(ep_h, ep_r), ep[:, 3:7], ("qx", "qy", "qz", "qw"), "quaternion", src
-        ),
     }
+    if endpoint is not None:
+        ep_h, ep_r, ep = endpoint
+        streams["endpoint_position"] = Stream(on_pc(ep_h, ep_r), ep[:, :3], ("x", "y", "z"), "linear", src)
+        streams["endpoint_orientation"] = Stream(
+            on_pc(ep_h, ep_r), ep[:, 3:7], ("qx", "qy", "qz", "qw"), "quaternion", src
+        )
     sk_t = on_pc(pc_stamp, receive)
     prefixes = _find_transforms(table)
     frames = list(frames or [])
@@ -265,8 +288,11 @@ def read_demo(
         if f in reserved:
             raise DataError(path, f, "frame name clashes with a channel group name")
     skeleton: dict[str, np.ndarray] = {}
-    for f in dict.fromkeys(frames + list(HAND_FRAMES)):
+    gripper = [] if endpoint is not None else list(GRIPPER_FRAMES)
+    for f in dict.fromkeys(frames + list(HAND_FRAMES) + gripper):
         p = _frame_positions(table, prefixes, f)
+        if p is not None:
+            check_norms(path, f, p, 0.0, POSITION_BOUND_M, "m", what="row")
         if p is None:
             if f in frames:
                 available = sorted({s for pr in prefixes for s in table.text(pr + "child_frame_id") if s})
@@ -301,15 +327,26 @@ def read_demo(
             missing[f] = m
     groups[ROBOT] = values[ROBOT]
     names[ROBOT] = tuple(robot_joints)
-    endpoint = np.hstack([values["endpoint_position"], values["endpoint_orientation"]])
-    extras = {"endpoint_pose": endpoint}
+    extras = {}
+    reference = None  # where the robot's gripper is: the hand handing over ends near it
+    if endpoint is not None:
+        extras["endpoint_pose"] = np.hstack([values["endpoint_position"], values["endpoint_orientation"]])
+        reference = extras["endpoint_pose"][:, :3]
+    else:
+        for f in GRIPPER_FRAMES:
+            v = values.get("frame:" + f)
+            if v is not None and np.any(np.all(np.isfinite(v[int(0.8 * t.size) :]), axis=1)):
+                reference = v
+                break
+        if reference is None and end_effector is not None:
+            reference = np.asarray(end_effector(values[ROBOT]), dtype=float).reshape(t.size, 3)
     best, best_d = None, np.inf
     for f in HAND_FRAMES:
         v = values.get("frame:" + f)
-        if v is None:
+        if v is None or reference is None:
             continue
         tail = slice(int(0.8 * t.size), None)
-        d = np.linalg.norm(v[tail] - endpoint[tail, :3], axis=1)
+        d = np.linalg.norm(v[tail] - reference[tail], axis=1)
         d = float(np.nanmedian(d)) if np.any(np.isfinite(d)) else np.inf
         if d < best_d:
             best, best_d = v, d

@@ -63,6 +63,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import atomic
 from ..data import ROBOT, Dataset, Demo
 from ..exceptions import DataError
 from ..preprocess import Stream, align_streams
@@ -109,7 +110,7 @@ def list_demos(folder: Path, order: str = "config") -> list[Path]:
 
 # ------------------------------------------------------------------------------------------ writing
 def write_demo(demo: Demo, path: str | Path) -> Path:
-    """Write a demo as ``.npz`` or ``.csv`` (chosen by the suffix of ``path``); returns the path."""
+    """Write a demo as ``.npz`` or ``.csv`` (by the suffix of ``path``), atomically; returns the path."""
     path = Path(path)
     if path.suffix == ".npz":
         arrays: dict[str, np.ndarray] = {
@@ -129,8 +130,8 @@ def write_demo(demo: Demo, path: str | Path) -> Path:
                 arrays[f"group{i}_missing"] = np.asarray(demo.missing[g], dtype=bool)
         for j, v in enumerate(demo.extras.values()):
             arrays[f"extra{j}"] = np.asarray(v, dtype=float)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        np.savez_compressed(path, **arrays)
+        with atomic.replacing(path) as tmp, open(tmp, "wb") as fh:
+            np.savez_compressed(fh, **arrays)
         return path
     if path.suffix == ".csv":
         header = ["t"]
@@ -146,8 +147,7 @@ def write_demo(demo: Demo, path: str | Path) -> Path:
             header += [f"extras:{name}.{k}" for k in range(v.shape[1])]
             cols.append(v)
         data = np.hstack(cols)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        with open(path, "w", newline="") as fh:
+        with atomic.replacing(path) as tmp, open(tmp, "w", newline="") as fh:
             fh.write(",".join(header) + "\n")
             np.savetxt(fh, data, delimiter=",", fmt="%.12g")
         return path
@@ -183,39 +183,88 @@ def _check_time(path: Path, t: np.ndarray) -> np.ndarray:
     return t - t[0]
 
 
-def _read_npz(path: Path, task: str | None) -> Demo:
+MAX_EXPANSION = 50.0
+"""Largest ratio of a ``.npz`` member's size to its compressed size (plus 1 MB): numeric demo data
+compress a few-fold; a member that expands a thousandfold is not a demo (and would exhaust memory)."""
+
+
+def _npz_arrays(path: Path) -> dict[str, np.ndarray]:
+    """The arrays of a ``.npz`` demo file, after checking that none expands implausibly."""
     try:
+        with zipfile.ZipFile(path) as zf:
+            for info in zf.infolist():
+                if info.file_size > MAX_EXPANSION * info.compress_size + 1_000_000:
+                    raise DataError(
+                        path, info.filename, f"member expands to {info.file_size} bytes: not a demo file"
+                    )
         with np.load(path, allow_pickle=False) as z:
-            data = {k: z[k] for k in z.files}
-    except (OSError, ValueError, zipfile.BadZipFile, EOFError) as exc:
+            return {k: z[k] for k in z.files}
+    except DataError:
+        raise
+    except (OSError, ValueError, zipfile.BadZipFile, EOFError, KeyError) as exc:
         raise DataError(path, None, f"corrupt or truncated .npz file ({exc})") from None
+
+
+def _read_npz(path: Path, task: str | None) -> Demo:
+    data = _npz_arrays(path)
 
     def get(key: str) -> np.ndarray:
         if key not in data:
             raise DataError(path, key, "missing array")
         return data[key]
 
-    fmt = str(data.get("format", np.array("")))
+    def text(key: str) -> str:
+        v = get(key)
+        if v.shape != () or v.dtype.kind != "U":
+            raise DataError(path, key, f"must be a text scalar, got {v.dtype} of shape {v.shape}")
+        return str(v[()])
+
+    def names(key: str) -> list[str]:
+        v = get(key)
+        if v.ndim != 1 or v.dtype.kind != "U":
+            raise DataError(path, key, f"must be a 1-D array of names, got {v.dtype} of shape {v.shape}")
+        return [str(x) for x in v.tolist()]
+
+    def numbers(key: str, kinds: str = "fiu") -> np.ndarray:
+        v = get(key)
+        if v.dtype.kind not in kinds:
+            raise DataError(path, key, f"must hold numbers, holds {v.dtype}")
+        return np.asarray(v, dtype=float)
+
+    def scalar(key: str) -> float:
+        v = numbers(key)
+        if v.shape != ():
+            raise DataError(path, key, f"must be a number, got shape {v.shape}")
+        return float(v)
+
+    fmt = text("format") if "format" in data else ""
     if fmt != FORMAT_TAG:
         raise DataError(path, "format", f"not an ipromp_pin demo file (format {fmt!r})")
-    version = int(get("version"))
+    version = scalar("version")
+    if version != int(version) or version < 1:
+        raise DataError(path, "version", f"must be a positive integer, got {version}")
     if version > VERSION:
-        raise DataError(path, "version", f"written by a newer ipromp_pin (version {version} > {VERSION})")
-    t = _check_time(path, get("t"))
-    groups, names, missing = {}, {}, {}
-    for i, g in enumerate(get("groups").tolist()):
-        v = np.asarray(get(f"group{i}"), dtype=float)
+        raise DataError(
+            path, "version", f"written by a newer ipromp_pin (version {int(version)} > {VERSION})"
+        )
+    t = _check_time(path, numbers("t"))
+    groups, channels, missing = {}, {}, {}
+    group_names = names("groups")
+    if len(set(group_names)) != len(group_names):
+        raise DataError(path, "groups", f"a group is listed twice in {group_names}")
+    for i, g in enumerate(group_names):
+        v = numbers(f"group{i}")
         if v.ndim != 2 or v.shape[0] != t.size:
             raise DataError(path, g, f"values of shape {v.shape} do not match {t.size} samples")
         groups[g] = v
-        names[g] = tuple(get(f"group{i}_channels").tolist())
+        channels[g] = tuple(names(f"group{i}_channels"))
         if f"group{i}_missing" in data:
-            missing[g] = np.asarray(data[f"group{i}_missing"], dtype=bool)
-    extras = {n: np.asarray(get(f"extra{j}"), dtype=float) for j, n in enumerate(get("extras").tolist())}
+            missing[g] = numbers(f"group{i}_missing", "bfiu").astype(bool)
+    extras = {n: numbers(f"extra{j}") for j, n in enumerate(names("extras"))}
     for n, v in extras.items():
         if v.shape[:1] != (t.size,):
             raise DataError(path, f"extras:{n}", f"shape {v.shape} does not match {t.size} samples")
-    duration = float(get("duration_s")) if "duration_s" in data else None
+    duration = scalar("duration_s") if "duration_s" in data else None
     if duration is not None and not (np.isfinite(duration) and duration >= t[-1] - 1e-9):
         raise DataError(path, "duration_s", f"{duration} is shorter than the demo's {t[-1]:.3f} s")
     return Demo(
@@ -224,7 +273,7 @@ def _read_npz(path: Path, task: str | None) -> Demo:
         source=str(path),
         t=t,
         groups=groups,
-        channel_names=names,
+        channel_names=channels,
         missing=missing,
         extras=extras,
         duration_s=duration,
@@ -233,7 +282,7 @@ def _read_npz(path: Path, task: str | None) -> Demo:
 
 def _read_csv(path: Path, task: str | None) -> Demo:
     try:
-        text = path.read_text()
+        text = path.read_text(encoding="utf-8-sig")  # a byte-order mark (spreadsheet exports) is dropped
     except FileNotFoundError:
         raise DataError(path, None, "file not found") from None
     except (OSError, UnicodeDecodeError) as exc:

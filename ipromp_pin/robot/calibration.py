@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
+from .. import atomic
 from ..data import ROBOT, Demo
 from ..exceptions import DataError, RobotError
 from .kinematics import ee_positions, frame_placements, rotations_to_quat_xyzw
@@ -52,6 +53,8 @@ class CalibrationResult:
         after_mm: The same with the fitted offsets.
         rotation_error_deg: Median angle in [deg] between the FK and recorded end-point orientations.
         per_source_mm: Source label -> {"before": median, "after": median} residual in [mm].
+        skipped: Demos left out because they hold no recorded end-point (``"task/name"``; sessions
+            where the end-point stream was not recorded).
     """
 
     robot: str
@@ -66,6 +69,7 @@ class CalibrationResult:
     after_mm: dict[str, float]
     rotation_error_deg: float
     per_source_mm: dict[str, dict[str, float]] = field(default_factory=dict)
+    skipped: list[str] = field(default_factory=list)
 
     def to_dict(self) -> dict:
         """JSON-serialisable form."""
@@ -82,6 +86,7 @@ class CalibrationResult:
             "after_mm": self.after_mm,
             "rotation_error_deg": self.rotation_error_deg,
             "per_source_mm": self.per_source_mm,
+            "skipped": list(self.skipped),
         }
 
     def to_text(self) -> str:
@@ -103,13 +108,23 @@ class CalibrationResult:
             lines.append(
                 f"  {src}: median residual {med['before']:.2f} mm before, {med['after']:.2f} mm after"
             )
+        if self.skipped:
+            lines.append(
+                f"  skipped {len(self.skipped)} demos without a recorded end-point: {', '.join(self.skipped)}"
+            )
         return "\n".join(lines)
 
 
-def _demo_pairs(robot: Robot, demos: Iterable[Demo]) -> list[tuple[int, np.ndarray, np.ndarray]]:
+def _demo_pairs(
+    robot: Robot, demos: Iterable[Demo], skipped: list[str] | None = None
+) -> list[tuple[int, np.ndarray, np.ndarray]]:
+    """(index, joint angles, end-point poses) of the demos with both; the others are appended to
+    ``skipped`` as ``"task/name"``."""
     out = []
     for k, d in enumerate(demos):
         if ROBOT not in d.groups or "endpoint_pose" not in d.extras:
+            if skipped is not None:
+                skipped.append(f"{d.task}/{d.name}")
             continue
         q = np.asarray(d.groups[ROBOT], dtype=float)
         ep = np.asarray(d.extras["endpoint_pose"], dtype=float)
@@ -121,6 +136,8 @@ def _demo_pairs(robot: Robot, demos: Iterable[Demo]) -> list[tuple[int, np.ndarr
         ok = np.all(np.isfinite(q), axis=1) & np.all(np.isfinite(ep[:, :3]), axis=1)
         if ok.sum() >= 1:
             out.append((k, q[ok], ep[ok]))
+        elif skipped is not None:
+            skipped.append(f"{d.task}/{d.name}")
     return out
 
 
@@ -156,7 +173,8 @@ def calibrate_tool_offset(
         fit: ``"mount"``, ``"tool"`` or ``"both"``.
 
     Raises:
-        DataError: no demo has both joint angles and end-point poses.
+        DataError: no demo has both joint angles and end-point poses (demos without end-point
+            poses are left out and listed in ``skipped``).
         ValueError: unknown ``fit``.
     """
     if fit not in _FITS:
@@ -164,10 +182,13 @@ def calibrate_tool_offset(
     demos = list(demos)
     if labels is not None and len(labels) != len(demos):
         raise ValueError(f"{len(labels)} labels for {len(demos)} demos")
-    pairs = _demo_pairs(robot, demos)
+    skipped: list[str] = []
+    pairs = _demo_pairs(robot, demos, skipped)
     if not pairs:
         raise DataError(
-            None, "endpoint_pose", "no demo has both robot joint angles and recorded end-point poses"
+            None,
+            "endpoint_pose",
+            f"no demo has both robot joint angles and recorded end-point poses ({len(skipped)} without)",
         )
     nominal = uncalibrated_robot(robot)
     pid = nominal.ee_parent_frame_id
@@ -229,6 +250,7 @@ def calibrate_tool_offset(
         after_mm=_stats_mm(after),
         rotation_error_deg=float(np.nanmedian(rot_err)) if np.isfinite(rot_err).any() else float("nan"),
         per_source_mm=per_source,
+        skipped=skipped,
     )
 
 
@@ -285,15 +307,16 @@ def write_calibration(settings_path: str | Path, result: CalibrationResult, comm
             else:
                 section = section.rstrip("\n") + f"\n{key} = {value}\n" + ("\n" if nxt else "")
         text = text[:start] + section + text[end:]
-    tmp = path.with_suffix(path.suffix + ".tmp")
-    tmp.write_text(text, encoding="utf-8")
-    tmp.replace(path)
-    check = load_robot_settings(path)
-    if not (
-        np.allclose(check.tool_offset_m, result.offset_m, atol=1e-6)
-        and np.allclose(check.mount_offset_m, result.mount_offset_m, atol=1e-6)
-    ):
-        raise RobotError(f"{path}: field 'calibration': written offsets did not read back")
+    with atomic.replacing(path) as tmp:  # replaced only once the new text reads back
+        tmp.write_text(text, encoding="utf-8")
+        check = load_robot_settings(tmp)
+        if not (
+            np.allclose(check.tool_offset_m, result.offset_m, atol=1e-6)
+            and np.allclose(check.mount_offset_m, result.mount_offset_m, atol=1e-6)
+        ):
+            raise RobotError(
+                f"{path}: field 'calibration': written offsets did not read back (file unchanged)"
+            )
     return path
 
 

@@ -86,6 +86,15 @@ class Robot:
         """Name of the model's root link (the base frame of poses and positions), e.g. ``base``."""
         return next(f.name for f in self.model.frames if f.type == pin.FrameType.BODY)
 
+    def recorded_joint_limits(self) -> dict[str, tuple[float, float]]:
+        """Recorded joint name (as the recordings name it) -> URDF (lower, upper) limits in [rad] of
+        the arm's joints: what readers check recorded angles against."""
+        inverse = {model: rec for rec, model in self.settings.recorded_names.items()}
+        return {
+            inverse[j]: (float(lo), float(hi))
+            for j, lo, hi in zip(self.joint_names, self.lower_rad, self.upper_rad, strict=True)
+        }
+
     def full_configuration(self, q_arm: np.ndarray) -> np.ndarray:
         """Full model configuration(s) (..., nq) from arm joint angles (..., n_joints) in [rad]."""
         q_arm = np.asarray(q_arm, dtype=float)

@@ -40,6 +40,25 @@ EE_FRAME = "ee"
 
 _SCHEMA_VERSION = 1
 
+PLAUSIBLE_RANGES: dict[str, tuple[float, float]] = {
+    "limits.position_margin_rad": (0.0, 0.5),
+    "limits.velocity_rad_s": (1e-3, 100.0),
+    "limits.acceleration_rad_s2": (1e-3, 1e4),
+    "limits.jerk_rad_s3": (1e-2, 1e6),
+    "checks.min_clearance_m": (0.0, 1.0),
+    "checks.collision_max_step_rad": (1e-3, 1.0),
+    "checks.max_hand_distance_m": (1e-3, 10.0),
+    "calibration offsets [m]": (0.0, 1.0),
+    "workspace [m]": (-10.0, 10.0),
+    "fixed_joints [rad or m]": (-10.0, 10.0),
+}
+"""Ranges, in the units of each field, outside which a settings value is refused before anything
+is computed: the limits of real arms lie well inside them (Baxter: 1.5-4 rad/s, 1 rad/s^2), and
+values outside make the planner allocate absurd amounts (a velocity limit of 1e-9 rad/s: a
+trajectory of 1e9 s, or a collision step of 1e-12 rad: 1e12 checked samples) or make every check
+meaningless. Calibration offsets are corrections of millimetres, positions are within the tracking
+range of the hand (bounds: each coordinate)."""
+
 
 def settings_error(source: object, field_name: str | None, problem: str) -> RobotError:
     """The error for a bad settings file or model: ``"<source>: field '<field_name>': <problem>"``."""
@@ -209,6 +228,18 @@ def _get(
     return value
 
 
+def _in_range(arr: np.ndarray, source: Path, name: str, key: str | None = None) -> np.ndarray:
+    lo, hi = PLAUSIBLE_RANGES[key or name]
+    bad = (arr < lo) | (arr > hi)
+    if np.any(bad):
+        raise settings_error(
+            source,
+            name,
+            f"implausible value {arr[bad][0]:g} (plausible range [{lo:g}, {hi:g}]; values: {arr.tolist()})",
+        )
+    return arr
+
+
 def _positive_vector(value: object, n: int, source: Path, name: str, allow_zero: bool = False) -> np.ndarray:
     if isinstance(value, int | float) and not isinstance(value, bool):
         value = [value] * n
@@ -224,7 +255,7 @@ def _positive_vector(value: object, n: int, source: Path, name: str, allow_zero:
     if np.any(bad):
         which = "negative" if allow_zero else "zero or negative"
         raise settings_error(source, name, f"{which} value {arr[bad][0]} (values: {arr.tolist()})")
-    return arr
+    return _in_range(arr, source, name) if name in PLAUSIBLE_RANGES else arr
 
 
 def _vector3(value: object, source: Path, name: str) -> np.ndarray:
@@ -253,8 +284,10 @@ def load_robot_settings(path_or_name: str | Path) -> RobotSettings:
     try:
         with open(path, "rb") as fh:
             doc = tomllib.load(fh)
-    except tomllib.TOMLDecodeError as exc:
-        raise settings_error(path, None, f"not valid TOML: {exc}") from exc
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise settings_error(path, None, f"not valid TOML: {exc}") from None
+    except OSError as exc:
+        raise settings_error(path, None, f"cannot read: {exc.strerror or exc}") from None
     version = doc.get("schema_version", _SCHEMA_VERSION)
     if version != _SCHEMA_VERSION:
         raise settings_error(
@@ -308,6 +341,8 @@ def load_robot_settings(path_or_name: str | Path) -> RobotSettings:
     calib = _table(doc, "calibration", path, required=False)
     offset = _vector3(calib.get("tool_offset_m", [0.0, 0.0, 0.0]), path, "calibration.tool_offset_m")
     mount = _vector3(calib.get("mount_offset_m", [0.0, 0.0, 0.0]), path, "calibration.mount_offset_m")
+    for key, v in (("calibration.tool_offset_m", offset), ("calibration.mount_offset_m", mount)):
+        _in_range(np.abs(v), path, key, "calibration offsets [m]")
     calib_info = {k: v for k, v in calib.items() if k not in ("tool_offset_m", "mount_offset_m")}
 
     limits = _table(doc, "limits", path)
@@ -335,21 +370,28 @@ def load_robot_settings(path_or_name: str | Path) -> RobotSettings:
             raise settings_error(
                 path, f"fixed_joints.{k}", "is an arm joint; only non-arm joints can be fixed"
             )
-        fixed[k] = float(v)
+        fixed[k] = float(
+            _in_range(np.array([float(v)]), path, f"fixed_joints.{k}", "fixed_joints [rad or m]")[0]
+        )
 
     ws = _table(doc, "workspace", path)
     shape = _get(ws, "shape", path, "workspace", str, "box")
     if shape == "box":
-        lo = _vector3(ws.get("min_m"), path, "workspace.min_m")
-        hi = _vector3(ws.get("max_m"), path, "workspace.max_m")
+        lo = _in_range(
+            _vector3(ws.get("min_m"), path, "workspace.min_m"), path, "workspace.min_m", "workspace [m]"
+        )
+        hi = _in_range(
+            _vector3(ws.get("max_m"), path, "workspace.max_m"), path, "workspace.max_m", "workspace [m]"
+        )
         if np.any(lo >= hi):
             raise settings_error(path, "workspace", f"min_m {lo.tolist()} must be below max_m {hi.tolist()}")
         workspace = Workspace("box", min_m=lo, max_m=hi)
     elif shape == "sphere":
         c = _vector3(ws.get("center_m"), path, "workspace.center_m")
+        _in_range(c, path, "workspace.center_m", "workspace [m]")
         r = _get(ws, "radius_m", path, "workspace", float)
-        if not (math.isfinite(r) and r > 0):
-            raise settings_error(path, "workspace.radius_m", f"must be positive and finite, got {r}")
+        if not (math.isfinite(r) and 0 < r <= PLAUSIBLE_RANGES["workspace [m]"][1]):
+            raise settings_error(path, "workspace.radius_m", f"must be in (0, 10] m, got {r}")
         workspace = Workspace("sphere", center_m=c, radius_m=float(r))
     else:
         raise settings_error(path, "workspace.shape", f"must be 'box' or 'sphere', got '{shape}'")
@@ -367,6 +409,7 @@ def load_robot_settings(path_or_name: str | Path) -> RobotSettings:
             raise settings_error(
                 path, f"checks.{key}", f"must be {'>= 0' if lo_ok else '> 0'} and finite, got {value}"
             )
+        _in_range(np.array([value]), path, f"checks.{key}")
 
     share = find_robot_data_dir(package) if package else path.parent
     return RobotSettings(

@@ -38,6 +38,12 @@ def _progress():
     return show
 
 
+def default_jobs() -> int:
+    """Default ``evaluate --jobs``: every core but one (at least 1), so that the machine stays usable."""
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+    return max(1, cores - 1)
+
+
 def _add_pipeline_overrides(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "pipeline",
@@ -92,26 +98,28 @@ def cmd_run(args: argparse.Namespace) -> int:
 
 
 def cmd_evaluate(args: argparse.Namespace) -> int:
-    from .evaluate import PAPER_GRID, EvaluationConfig, evaluate, overall, to_markdown, write_results
-    from .readers import load_dataset
+    from .evaluate import (
+        PAPER_GRID,
+        EvaluationConfig,
+        check_dataset_size,
+        evaluate,
+        overall,
+        to_markdown,
+        write_results,
+    )
+    from .readers import count_demos, load_dataset
     from .robot import load_robot_settings
 
     observe = [parse_groups(o) for o in (args.observe or ["orientation", "orientation,emg"])]
     frames = skeleton_frames(g for o in observe for g in o) or None
     joints = load_robot_settings(args.robot).recorded_arm_joints
-    t0 = time.perf_counter()
-    ds = load_dataset(
-        args.dataset, format=args.format, frames=frames, robot_joints=joints, progress=_progress()
-    )
-    print(f"read {len(ds.all_demos())} demos of {', '.join(ds.tasks)} in {time.perf_counter() - t0:.1f} s")
     if args.grid == "paper":
         grid = list(PAPER_GRID)
     else:
         grid = [(n, r) for n in args.n_train for r in args.ratios]
     protocols = ["paper", "splits"] if args.protocol == "both" else [args.protocol]
-    cells = []
-    for protocol in protocols:
-        cfg = EvaluationConfig(
+    configs = [
+        EvaluationConfig(
             protocol=protocol,
             observe=observe,
             grid=grid,
@@ -119,6 +127,19 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
             n_splits=args.splits,
             seed=args.seed,
         )
+        for protocol in protocols
+    ]
+    counts = count_demos(args.dataset, format=args.format)  # lists the demo files, reads none
+    for cfg in configs:
+        check_dataset_size(counts, cfg, args.dataset)
+    t0 = time.perf_counter()
+    ds = load_dataset(
+        args.dataset, format=args.format, frames=frames, robot_joints=joints, progress=_progress()
+    )
+    print(f"read {len(ds.all_demos())} demos of {', '.join(ds.tasks)} in {time.perf_counter() - t0:.1f} s")
+    cells = []
+    for cfg in configs:
+        protocol = cfg.protocol
         t1 = time.perf_counter()
         cells += evaluate(ds, cfg, robot=args.robot, progress=_progress(), jobs=args.jobs)
         print(f"protocol {protocol}: {time.perf_counter() - t1:.1f} s")
@@ -219,7 +240,15 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("evaluate", help="recognition accuracy and prediction error on a dataset")
     p.add_argument("dataset", type=Path, help="dataset folder (one sub-folder per task)")
-    p.add_argument("--protocol", choices=["paper", "splits", "both"], default="paper")
+    p.add_argument(
+        "--protocol",
+        choices=["paper", "splits", "both"],
+        default="paper",
+        help="paper: the paper's experiment, per task the first n_train demos train and the next --n-test "
+        "test (its cells train on up to 20: 21+ demos per task); splits: every cell over --splits random "
+        "train/test splits per task, mean and standard deviation (for smaller datasets, with --grid full "
+        "--n-train); both: one after the other (default: paper)",
+    )
     p.add_argument(
         "--observe",
         action="append",
@@ -232,14 +261,21 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--grid", choices=["paper", "full"], default="paper", help="paper's 4 cells or --n-train x --ratios"
     )
-    p.add_argument("--n-train", type=int, nargs="+", default=[10, 15, 20])
-    p.add_argument("--ratios", type=float, nargs="+", default=[0.1, 0.2])
+    p.add_argument(
+        "--n-train", type=int, nargs="+", default=[10, 15, 20], help="training demos per task (--grid full)"
+    )
+    p.add_argument(
+        "--ratios", type=float, nargs="+", default=[0.1, 0.2], help="observed fractions (--grid full)"
+    )
     p.add_argument("--n-test", type=int, default=10, help="test demos per task (default 10)")
     p.add_argument("--splits", type=int, default=20, help="random splits of the splits protocol (default 20)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--robot", default="baxter_left", help="robot settings for the hand-over error")
     p.add_argument(
-        "--jobs", type=int, default=os.cpu_count() or 1, help="worker processes (default: all cores)"
+        "--jobs",
+        type=int,
+        default=default_jobs(),
+        help=f"worker processes (default: all cores but one, here {default_jobs()}: the machine stays usable)",
     )
     p.add_argument("--plots", type=Path, help="write PNG figures into this folder")
     p.set_defaults(func=cmd_evaluate)

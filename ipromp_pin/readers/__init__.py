@@ -34,6 +34,7 @@ FORMATS = ("auto", "chen2017", "multimodal", "bag", "native")
 __all__ = [
     "BAXTER_LEFT_JOINTS",
     "FORMATS",
+    "count_demos",
     "detect_format",
     "list_demos",
     "load_dataset",
@@ -149,6 +150,42 @@ def read_demo(
     return native.read_demo(path, task, rate_hz=rate_hz, frames=frames, robot_joints=robot_joints)
 
 
+def _dataset_plan(root: Path, format: str, order: str) -> list[tuple[str, str, list[Path]]]:
+    """(task, format, demo files) of every task folder of a dataset, without reading a demo."""
+    if not root.is_dir():
+        raise DataError(root, None, "dataset folder not found")
+    if format not in FORMATS:
+        raise DataError(root, "format", f"unknown format {format!r} (use one of {', '.join(FORMATS)})")
+    subdirs = sorted(p for p in root.iterdir() if p.is_dir() and not p.name.startswith((".", "_")))
+    plan: list[tuple[str, str, list[Path]]] = []
+    for d in subdirs:
+        if format == "auto":
+            try:
+                fmt = detect_format(d)
+            except DataError:
+                continue
+        else:
+            fmt = format
+        plan.append((d.name, fmt, list_demos(d, fmt, order)))
+    if not plan:
+        if subdirs and format == "auto":
+            detect_format(subdirs[0])  # raises, naming the folder
+        raise DataError(root, None, "no task sub-folders (expected one folder of demos per task)")
+    for task, _, files in plan:
+        if len(files) < 2:
+            raise DataError(root / task, None, f"a task needs at least 2 demos, found {len(files)}")
+    return plan
+
+
+def count_demos(path: str | Path, *, format: str = "auto") -> dict[str, int]:
+    """Number of demos of every task of a dataset folder, found without reading them (fast).
+
+    Raises:
+        DataError: as :func:`load_dataset` before it reads a demo.
+    """
+    return {task: len(files) for task, _, files in _dataset_plan(Path(path), format, "recorded")}
+
+
 def load_dataset(
     path: str | Path,
     *,
@@ -181,28 +218,7 @@ def load_dataset(
             or any bad demo (naming its file).
     """
     root = Path(path)
-    if not root.is_dir():
-        raise DataError(root, None, "dataset folder not found")
-    if format not in FORMATS:
-        raise DataError(root, "format", f"unknown format {format!r} (use one of {', '.join(FORMATS)})")
-    subdirs = sorted(p for p in root.iterdir() if p.is_dir() and not p.name.startswith((".", "_")))
-    plan: list[tuple[str, str, list[Path]]] = []
-    for d in subdirs:
-        if format == "auto":
-            try:
-                fmt = detect_format(d)
-            except DataError:
-                continue
-        else:
-            fmt = format
-        plan.append((d.name, fmt, list_demos(d, fmt, order)))
-    if not plan:
-        if subdirs and format == "auto":
-            detect_format(subdirs[0])  # raises, naming the folder
-        raise DataError(root, None, "no task sub-folders (expected one folder of demos per task)")
-    for task, _, files in plan:
-        if len(files) < 2:
-            raise DataError(root / task, None, f"a task needs at least 2 demos, found {len(files)}")
+    plan = _dataset_plan(root, format, order)
     total = sum(len(files) for _, _, files in plan)
     done = 0
     demos: dict[str, list[Demo]] = {}

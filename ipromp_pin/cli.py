@@ -275,7 +275,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--jobs",
         type=int,
         default=default_jobs(),
-        help=f"worker processes (default: all cores but one, here {default_jobs()}: the machine stays usable)",
+        help=f"worker processes (default: every core but one, here {default_jobs()}, so the machine stays "
+        "usable)",
     )
     p.add_argument("--plots", type=Path, help="write PNG figures into this folder")
     p.set_defaults(func=cmd_evaluate)

@@ -123,7 +123,7 @@ def test_evaluate_help_documents_the_protocols_and_spares_a_core(capsys, monkeyp
         main(["evaluate", "--help"])
     text = " ".join(capsys.readouterr().out.split())
     assert "paper: the paper's experiment" in text and "splits: every cell over --splits random" in text
-    assert "all cores but one" in text
+    assert "every core but one" in text
 
 
 def test_train_command_sets_the_coupled_groups(tmp_path, capsys):

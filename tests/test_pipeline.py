@@ -135,3 +135,37 @@ def test_live_preview_streams_the_observation_on_loopback(capsys):
     assert "live at http://127.0.0.1:" in out
     # the posterior is printed as samples stream in, then the final recognition
     assert out.count("  t=") >= 5 and "[preview] recognised" in out
+
+
+def test_preview_content_shows_one_time_base_and_skipped_checks():
+    """The page's observed fraction is of the human's motion, the check times are on the robot
+    trajectory's clock, and a check that could not be made is marked skipped."""
+    import re
+
+    from ipromp_pin.pipeline import prepare, preview_content
+    from ipromp_pin.planning import plan
+    from ipromp_pin.timing import path_times
+
+    cfg = load_pipeline(PIPELINE, task="tape", demo=2)
+    prep = prepare(cfg, log=lambda _msg: None)
+    result = plan(prep.model, prep.robot, prep.observation, cfg.control_rate_hz, prep.hand_position_m)
+    content = preview_content(result, prep.robot, prep.demo)
+    assert content.human_duration_s == prep.demo.duration_s and content.human_duration_source == "recorded"
+    assert content.observed_fraction() == pytest.approx(prep.observation.t[-1] / prep.demo.duration_s)
+    assert content.observed_fraction() == pytest.approx(cfg.ratio, abs=0.02)
+    assert abs(content.duration_s - result.prediction.duration_s) > 0.1  # robot and human clocks differ
+    times = path_times(result.trajectory, result.prediction.q_mean)
+    limits = result.report["joint_limits"]
+    shown = [c for c in content.feasibility if c.name == "joint_limits"][0].detail
+    t_shown = float(re.search(r"t=(\d+\.\d+) s", shown).group(1))
+    assert t_shown == pytest.approx(times[limits.values["sample"]], abs=0.006)
+    for check in content.feasibility:
+        for t in re.findall(r"t=(\d+\.\d+) s", check.detail):
+            assert 0.0 <= float(t) <= content.duration_s + 0.005
+    # without the human hand's position the distance check is skipped, and shown as skipped
+    blind = plan(prep.model, prep.robot, prep.observation, cfg.control_rate_hz, None)
+    skipped = [c for c in preview_content(blind, prep.robot, None).feasibility if c.status == "skip"]
+    assert [c.name for c in skipped] == ["hand_distance"] and skipped[0].passed and not skipped[0].required
+    unknown = preview_content(blind, prep.robot, None)
+    assert unknown.human_duration_source == "predicted"
+    assert unknown.human_duration_s == pytest.approx(result.prediction.duration_s)

@@ -182,11 +182,10 @@ def tube_mesh(
 
 
 def sphere_mesh(center: np.ndarray, radius: float, n: int = 12) -> tuple[np.ndarray, np.ndarray]:
-    """Closed mesh meant as a sphere of ``radius`` [m] around ``center`` (3,) [m].
+    """Closed sphere mesh of ``radius`` [m] around ``center`` (3,) [m].
 
-    ``n - 1`` rings of ``2 n`` vertices between two poles; returns ``(vertices (V, 3) in [m],
-    faces (F, 3))``. Known defect, kept as it is (the display is fixed separately): the rings' z
-    component is 0, so the rings lie in the plane through ``center`` and the mesh is a double cone.
+    ``n - 1`` rings of ``2 n`` vertices (at polar angles ``pi k / n``) between two poles; returns
+    ``(vertices (V, 3) in [m], faces (F, 3))``, faces wound outwards.
     """
     theta = np.linspace(0.0, np.pi, n + 1)[1:-1]
     phi = 2.0 * np.pi * np.arange(2 * n) / (2 * n)
@@ -194,7 +193,7 @@ def sphere_mesh(center: np.ndarray, radius: float, n: int = 12) -> tuple[np.ndar
         [
             np.outer(np.sin(theta), np.cos(phi)),
             np.outer(np.sin(theta), np.sin(phi)),
-            np.outer(np.cos(theta), phi * 0),
+            np.outer(np.cos(theta), np.ones_like(phi)),
         ],
         -1,
     ).reshape(-1, 3)
@@ -204,12 +203,12 @@ def sphere_mesh(center: np.ndarray, radius: float, n: int = 12) -> tuple[np.ndar
     a = i * cols + k
     b = i * cols + (k + 1) % cols
     faces = [
-        np.stack([a, b, b + cols], -1).reshape(-1, 3),
-        np.stack([a, b + cols, a + cols], -1).reshape(-1, 3),
+        np.stack([a, b + cols, b], -1).reshape(-1, 3),
+        np.stack([a, a + cols, b + cols], -1).reshape(-1, 3),
     ]
     top, bottom = len(ring), len(ring) + 1
     k = np.arange(cols)
-    faces.append(np.stack([np.full(cols, top), (k + 1) % cols, k], -1))
+    faces.append(np.stack([np.full(cols, top), k, (k + 1) % cols], -1))
     last = (rows - 1) * cols
-    faces.append(np.stack([np.full(cols, bottom), last + k, last + (k + 1) % cols], -1))
+    faces.append(np.stack([np.full(cols, bottom), last + (k + 1) % cols, last + k], -1))
     return vertices, np.vstack(faces)

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from .config import PipelineConfig
-from .data import ROBOT, Dataset, Demo, skeleton_frames
+from .data import ROBOT, Dataset, Demo, group_unit, skeleton_frames
 from .exceptions import PipelineError
 from .export import write_trajectory_csv, write_trajectory_json
 from .planning import LogFn, PlanResult, plan
@@ -238,22 +238,29 @@ def write_plots(result: PlanResult, model: IProMP, demo: Demo, out_dir: Path) ->
         joint_names=list(p.joint_names),
         title=f"{p.task}: conditioned prediction vs recorded",
     )
+    # The joint posterior log p(task, alpha | obs) = log p(task | obs) + log p(alpha | task, obs):
+    # one scale for every task (each task's phase posterior alone is normalised on its own).
     files["plot_phase"] = plots.plot_phase_posterior(
         {t: p.phase_grid[k] for k, t in enumerate(p.tasks)},
-        {t: p.phase_log_post[k] for k, t in enumerate(p.tasks)},
+        {t: p.log_posterior[k] + p.phase_log_post[k] for k, t in enumerate(p.tasks)},
         out_dir / "phase_posterior.png",
         tasks=list(p.tasks),
+        ylabel="log p(task, alpha | observation)",
+        title="joint posterior of task and phase over the phase candidates",
     )
     z = np.linspace(0.0, 1.0, 100)
-    mean, std, labels = model.distribution(p.task, z)
+    _, std, _ = model.distribution(p.task, z)
+    centre, lower, upper, labels = model.distribution_band(p.task, z, 2.0)
     files["plot_distributions"] = plots.plot_distributions(
         z,
-        mean,
+        centre,
         std,
         out_dir / "distributions.png",
+        band=(lower, upper),
         demos=model.train_trajectories(p.task, z),
         dim_names=labels,
-        title=f"learned distribution of task {p.task} (mean, 2 sigma, training demos)",
+        units=[group_unit(label.split("/", 1)[0]) for label in labels],
+        title=f"learned distribution of task {p.task} (mean or median, 2-sigma band, training demos)",
     )
     return files
 

@@ -169,3 +169,29 @@ def test_preview_content_shows_one_time_base_and_skipped_checks():
     unknown = preview_content(blind, prep.robot, None)
     assert unknown.human_duration_source == "predicted"
     assert unknown.human_duration_s == pytest.approx(result.prediction.duration_s)
+
+
+def test_phase_plot_gets_the_joint_posterior_of_task_and_phase(tmp_path, monkeypatch):
+    from scipy.special import logsumexp
+
+    from ipromp_pin import plots
+
+    seen = {}
+    original = plots.plot_phase_posterior
+
+    def spy(alphas, log_posterior, path, **kwargs):
+        seen.update(log_posterior=log_posterior, ylabel=kwargs.get("ylabel"))
+        return original(alphas, log_posterior, path, **kwargs)
+
+    monkeypatch.setattr(plots, "plot_phase_posterior", spy)
+    out = tmp_path / "plots"
+    assert main(["run", str(PIPELINE), "--out", str(out), "--no-preview", "--plots", "--task", "rod"]) == 0
+    report = json.loads((out / "report.json").read_text())
+    joint = seen["log_posterior"]
+    assert seen["ylabel"] == "log p(task, alpha | observation)"
+    # one distribution over every (task, phase candidate): its task marginals are the task posterior
+    assert logsumexp(np.concatenate(list(joint.values()))) == pytest.approx(0.0, abs=1e-9)
+    for task, values in joint.items():
+        assert np.exp(logsumexp(values)) == pytest.approx(report["posterior"][task], abs=1e-9)
+    for name in ("prediction.png", "phase_posterior.png", "distributions.png"):
+        assert (out / name).stat().st_size > 5000

@@ -320,6 +320,14 @@ def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``ipromp-pin`` console script."""
     parser = build_parser()
     args = parser.parse_args(argv)
+    # The kernels: for the short commands, the compiled ones when cached, else their numpy version
+    # while they compile in the background (a fresh install's first run does not wait); the long
+    # ones compile them first (announced). $IPROMP_PIN_KERNELS overrides.
+    from .promp.compiled import BACKEND_ENV, set_announcer, set_kernel_backend
+
+    short = args.command in ("run", "preview", "train", "synth")
+    previous = set_kernel_backend(os.environ.get(BACKEND_ENV) or ("auto" if short else "numba"))
+    set_announcer(lambda message: print(message, file=sys.stderr, flush=True))
     try:
         return int(args.func(args) or 0)
     except IPrompPinError as exc:
@@ -328,6 +336,9 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130
+    finally:
+        set_kernel_backend(previous)
+        set_announcer(None)
 
 
 if __name__ == "__main__":

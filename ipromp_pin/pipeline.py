@@ -21,7 +21,8 @@ from .data import ROBOT, Dataset, Demo, group_unit, skeleton_frames
 from .exceptions import PipelineError
 from .export import write_trajectory_csv, write_trajectory_json
 from .planning import LogFn, PlanResult, plan
-from .preview import LivePreview, PreviewContent, write_html
+from .preview import DEFAULT_MAX_TRIANGLES, LivePreview, PreviewContent, write_html
+from .preview.mesh_cache import cached_visual_model
 from .promp import IProMP
 from .readers import load_dataset
 from .report import report_dict, report_text, summary_text
@@ -215,9 +216,18 @@ def preview_content(
     )
 
 
+def preview_visual_model(robot: Robot) -> object:
+    """The robot's decimated visual model for the preview, from the on-disk mesh cache when there
+    (:func:`~ipromp_pin.preview.mesh_cache.cached_visual_model`; loaded and decimated otherwise)."""
+    s = robot.settings
+    return cached_visual_model(
+        robot.model, s.urdf_path, s.package_dirs, DEFAULT_MAX_TRIANGLES, lambda: load_visual_model(robot)
+    )
+
+
 def write_preview(result: PlanResult, robot: Robot, demo: Demo | None, path: Path) -> Path:
     """Write the self-contained offline preview page."""
-    write_html(preview_content(result, robot, demo, visual_model=load_visual_model(robot)), path)
+    write_html(preview_content(result, robot, demo, visual_model=preview_visual_model(robot)), path)
     return path
 
 
@@ -290,7 +300,7 @@ def run_preview(
         path = write_preview(result, prep.robot, prep.demo, html)
         log(f"[preview] wrote {path} ({path.stat().st_size / 1e6:.1f} MB): open it in a browser (no server)")
         return path
-    content = preview_content(result, prep.robot, prep.demo, visual_model=load_visual_model(prep.robot))
+    content = preview_content(result, prep.robot, prep.demo, visual_model=preview_visual_model(prep.robot))
     tasks = list(result.prediction.tasks)
     start = content.replace(posterior=np.full(len(tasks), 1.0 / len(tasks)), task="", observed_until_s=0.0)
     live = LivePreview(start, port=port)

@@ -20,6 +20,8 @@ from .content import preview_error
 __all__ = [
     "DEFAULT_MAX_TRIANGLES",
     "count_triangles",
+    "decimated_meshes",
+    "mesh_arrays",
     "simplify_visual_model",
     "sphere_mesh",
     "tube_mesh",
@@ -35,7 +37,8 @@ DEFAULT_MAX_TRIANGLES = 100_000
 _SIMPLIFIED_MESHES: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
 
 
-def _triangles(geometry: Any) -> tuple[np.ndarray, np.ndarray]:
+def mesh_arrays(geometry: Any) -> tuple[np.ndarray, np.ndarray]:
+    """(vertices (V, 3), faces (F, 3) int64) of a coal BVH mesh."""
     vertices = np.asarray(geometry.vertices(), dtype=float)
     faces = np.empty((geometry.num_tris, 3), dtype=np.int64)
     for k in range(geometry.num_tris):
@@ -58,7 +61,7 @@ def _decimated(obj: pin.GeometryObject, target: int) -> tuple[np.ndarray, np.nda
     scale = np.asarray(obj.meshScale, dtype=float)
     source = (obj.meshPath, tuple(scale), obj.geometry.num_tris)
     if source + (None,) not in _SIMPLIFIED_MESHES:
-        vertices, faces = _triangles(obj.geometry)
+        vertices, faces = mesh_arrays(obj.geometry)
         _SIMPLIFIED_MESHES[source + (None,)] = (vertices * scale, faces)
     key = source + (target,)
     if key not in _SIMPLIFIED_MESHES:
@@ -74,7 +77,8 @@ def _decimated(obj: pin.GeometryObject, target: int) -> tuple[np.ndarray, np.nda
 def simplify_visual_model(
     visual_model: pin.GeometryModel, max_triangles: int = DEFAULT_MAX_TRIANGLES
 ) -> pin.GeometryModel:
-    """Copy of ``visual_model`` whose meshes have at most about ``max_triangles`` triangles in total.
+    """Copy of ``visual_model`` whose meshes have at most about ``max_triangles`` triangles in total
+    (``visual_model`` itself when it already is such a model: within the budget, no mesh files).
 
     Meshes are decimated with quadric edge collapse (``fast_simplification``) by a common ratio;
     meshes that cannot be reduced that far (many small parts) keep more triangles, and the ratio
@@ -87,6 +91,27 @@ def simplify_visual_model(
         raise preview_error("max_triangles", f"must be >= 100, got {max_triangles}")
     meshes = [g for g in visual_model.geometryObjects if isinstance(g.geometry, coal.BVHModelBase)]
     total = sum(g.geometry.num_tris for g in meshes)
+    if total <= 1.05 * max_triangles and all(g.meshPath == "" and np.all(g.meshScale == 1.0) for g in meshes):
+        return visual_model  # already decimated (e.g. from the mesh cache): nothing to do
+    decimated = decimated_meshes(visual_model, max_triangles)
+    result = pin.GeometryModel()
+    for obj in visual_model.geometryObjects:
+        new = pin.GeometryObject(obj)
+        if obj.name in decimated:
+            new.geometry = _bvh(*decimated[obj.name])
+            new.meshPath = ""
+            new.meshScale = np.ones(3)
+        result.addGeometryObject(new)
+    return result
+
+
+def decimated_meshes(
+    visual_model: pin.GeometryModel, max_triangles: int = DEFAULT_MAX_TRIANGLES
+) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """The triangles ``(vertices (V, 3) in [m], faces (F, 3))`` of every mesh object of
+    ``visual_model`` (by name), scale baked in, decimated as :func:`simplify_visual_model` does."""
+    meshes = [g for g in visual_model.geometryObjects if isinstance(g.geometry, coal.BVHModelBase)]
+    total = sum(g.geometry.num_tris for g in meshes)
     ratio = min(1.0, max_triangles / total) if total else 1.0
     targets: dict[str, int] = {}
     for _ in range(4):
@@ -95,15 +120,7 @@ def simplify_visual_model(
         if reached <= 1.05 * max_triangles or ratio * total < 12 * len(meshes):
             break
         ratio *= max_triangles / reached
-    result = pin.GeometryModel()
-    for obj in visual_model.geometryObjects:
-        new = pin.GeometryObject(obj)
-        if obj.name in targets:
-            new.geometry = _bvh(*_decimated(obj, targets[obj.name]))
-            new.meshPath = ""
-            new.meshScale = np.ones(3)
-        result.addGeometryObject(new)
-    return result
+    return {g.name: _decimated(g, targets[g.name]) for g in meshes}
 
 
 def count_triangles(geometry_model: pin.GeometryModel) -> int:

@@ -341,5 +341,24 @@ def main(argv: list[str] | None = None) -> int:
         set_announcer(None)
 
 
+def console_main() -> None:
+    """The ``ipromp-pin`` console script: :func:`main`, then a fast exit.
+
+    After the command, the exit handlers run and the output is flushed, then the process ends without
+    tearing down the interpreter's modules and objects one by one: that teardown does nothing a
+    finished command needs and takes about 0.5 s of a 3 s run (measured with ``os._exit``). Every
+    file the command writes is closed when it returns.
+    """
+    code = main()
+    import atexit
+
+    run_exit_handlers = getattr(atexit, "_run_exitfuncs", None)
+    if run_exit_handlers is not None:
+        run_exit_handlers()
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(code)
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    console_main()

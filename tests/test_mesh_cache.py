@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
 import stat
@@ -138,3 +139,27 @@ def test_cache_folder_follows_the_environment(monkeypatch, tmp_path):
     monkeypatch.setattr(cache.sys, "platform", "linux")
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
     assert cache.cache_dir() == tmp_path / "xdg" / "ipromp_pin"
+
+
+def test_unchanged_mesh_files_are_not_read_again(tmp_path):
+    mesh = tmp_path / "part.stl"
+    mesh.write_bytes(b"solid a\nendsolid a\n")
+    urdf = tmp_path / "robot.urdf"
+    urdf.write_text(
+        '<robot name="r"><link name="base"><visual><geometry><mesh filename="part.stl"/></geometry>'
+        "</visual></link></robot>"
+    )
+    memo = tmp_path / "cache" / "file_digests.json"
+    key = visual_model_key(urdf, [], 1000, memo)
+    assert key == visual_model_key(urdf, [], 1000)  # the memo changes nothing
+    entry = json.loads(memo.read_text())[str(mesh.resolve())]
+    assert entry[:2] == [mesh.stat().st_size, mesh.stat().st_mtime_ns]
+    # an entry for the file's current size and time is used as it is (the file is not read)
+    memo.write_text(json.dumps({str(mesh.resolve()): [*entry[:2], "00" * 32]}))
+    assert visual_model_key(urdf, [], 1000, memo) != key
+    # a changed file (new size and time) is hashed again; a corrupt memo is ignored
+    mesh.write_bytes(b"solid b\nendsolid b\n.")
+    other = visual_model_key(urdf, [], 1000, memo)
+    assert other not in (None, key) and other == visual_model_key(urdf, [], 1000)
+    memo.write_text("{not json")
+    assert visual_model_key(urdf, [], 1000, memo) == other

@@ -195,3 +195,24 @@ def test_phase_plot_gets_the_joint_posterior_of_task_and_phase(tmp_path, monkeyp
         assert np.exp(logsumexp(values)) == pytest.approx(report["posterior"][task], abs=1e-9)
     for name in ("prediction.png", "phase_posterior.png", "distributions.png"):
         assert (out / name).stat().st_size > 5000
+
+
+def test_console_script_exits_fast_with_the_commands_status_and_output(tmp_path):
+    """``ipromp-pin`` (cli.console_main) skips the interpreter's teardown but keeps the exit status,
+    the flushed output and the written files."""
+    import os
+    import subprocess
+    import sys
+
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1])}
+    command = [sys.executable, "-c", "from ipromp_pin.cli import console_main; console_main()"]
+    ok = subprocess.run(
+        [*command, "synth", str(tmp_path / "d"), "--tasks", "2", "--demos", "2"],
+        env=env, capture_output=True, text=True, check=False,
+    )  # fmt: skip
+    assert ok.returncode == 0 and "wrote 4 demos" in ok.stdout
+    assert len(list((tmp_path / "d").rglob("*.npz"))) == 4
+    bad = subprocess.run(
+        [*command, "run", str(tmp_path / "missing.toml")], env=env, capture_output=True, text=True
+    )
+    assert bad.returncode == 2 and "missing.toml" in bad.stderr and "Traceback" not in bad.stderr

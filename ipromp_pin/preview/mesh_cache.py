@@ -29,7 +29,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..cache import cache_dir, write_atomically
-from .meshes import count_triangles, decimated_meshes, mesh_arrays, simplify_visual_model
+from .meshes import count_triangles, decimated_meshes, display_mesh, mesh_arrays, simplify_visual_model
 
 __all__ = ["CACHE_VERSION", "cached_visual_model", "visual_model_key"]
 
@@ -60,9 +60,42 @@ def _mesh_file(uri: str, urdf_dir: Path, package_dirs: Sequence[str]) -> Path | 
     return path if path.is_file() else None
 
 
-def visual_model_key(urdf_path: str | Path, package_dirs: Sequence[str], max_triangles: int) -> str | None:
+def _file_digests(paths: list[Path], memo_path: Path | None) -> list[bytes] | None:
+    """SHA-256 of the files' contents (None if one cannot be read). ``memo_path``, a JSON file, keeps
+    the digests of files by path, size and modification time, so that an unchanged file is not read
+    again (Baxter's visual meshes are 26 MB); it is only an optimisation: unreadable, it is ignored."""
+    memo: dict[str, list] = {}
+    if memo_path is not None:
+        try:
+            memo = json.loads(memo_path.read_text())
+            if not isinstance(memo, dict):
+                memo = {}
+        except (OSError, ValueError):
+            memo = {}
+    out, changed = [], False
+    for path in paths:
+        try:
+            st = path.stat()
+            known = memo.get(str(path))
+            if isinstance(known, list) and known[:2] == [st.st_size, st.st_mtime_ns]:
+                out.append(bytes.fromhex(known[2]))
+                continue
+            digest = hashlib.sha256(path.read_bytes()).digest()
+        except (OSError, ValueError, IndexError, TypeError):
+            return None
+        memo[str(path)] = [st.st_size, st.st_mtime_ns, digest.hex()]
+        changed = True
+        out.append(digest)
+    if changed and memo_path is not None:
+        write_atomically(memo_path, lambda tmp: tmp.write_text(json.dumps(memo)))
+    return out
+
+
+def visual_model_key(
+    urdf_path: str | Path, package_dirs: Sequence[str], max_triangles: int, memo_path: Path | None = None
+) -> str | None:
     """Cache key (hex SHA-256) of a description's decimated visual model, or None when a visual mesh
-    file cannot be found (then nothing is cached)."""
+    file cannot be found (then nothing is cached). ``memo_path``: see :func:`_file_digests`."""
     urdf = Path(urdf_path)
     try:
         text = urdf.read_bytes()
@@ -78,17 +111,20 @@ def visual_model_key(urdf_path: str | Path, package_dirs: Sequence[str], max_tri
     }
     digest.update(json.dumps(header, sort_keys=True).encode())
     digest.update(hashlib.sha256(text).digest())
+    uris, paths = [], []
     for visual in root.iter("visual"):
         for mesh in visual.iter("mesh"):
             uri = mesh.get("filename")
             path = None if uri is None else _mesh_file(uri, urdf.parent, package_dirs)
             if path is None:
                 return None
-            try:
-                content = path.read_bytes()
-            except OSError:
-                return None
-            digest.update(uri.encode() + b"\0" + hashlib.sha256(content).digest())
+            uris.append(uri)
+            paths.append(path.resolve())
+    digests = _file_digests(paths, memo_path)
+    if digests is None:
+        return None
+    for uri, file_digest in zip(uris, digests, strict=True):
+        digest.update(uri.encode() + b"\0" + file_digest)
     return digest.hexdigest()
 
 
@@ -146,11 +182,7 @@ def _from_arrays(model: pin.Model, arrays) -> pin.GeometryModel:
                 raise ValueError("bad mesh arrays")
             if f.size and (f.min() < 0 or f.max() >= len(v)):
                 raise ValueError("face index out of range")
-            shape = coal.BVHModelOBBRSS()
-            shape.beginModel(len(f), len(v))
-            shape.addVertices(np.ascontiguousarray(v))
-            shape.addTriangles(np.ascontiguousarray(f))
-            shape.endModel()
+            shape = display_mesh(v, f)
         else:
             shape = _BUILD[entry["primitive"]](np.asarray(entry["params"], dtype=float))
         obj = pin.GeometryObject(
@@ -190,8 +222,9 @@ def cached_visual_model(
         A decimated geometry model (mesh scales baked in, no mesh file references), the same with or
         without the cache.
     """
-    key = visual_model_key(urdf_path, package_dirs, max_triangles)
-    path = (folder or cache_dir("meshes")) / f"{key}.npz" if key else None
+    folder = folder or cache_dir("meshes")
+    key = visual_model_key(urdf_path, package_dirs, max_triangles, folder / "file_digests.json")
+    path = folder / f"{key}.npz" if key else None
     if path is not None and path.is_file():
         try:
             with np.load(path, allow_pickle=False) as arrays:

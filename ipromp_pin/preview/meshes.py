@@ -21,6 +21,7 @@ __all__ = [
     "DEFAULT_MAX_TRIANGLES",
     "count_triangles",
     "decimated_meshes",
+    "display_mesh",
     "mesh_arrays",
     "simplify_visual_model",
     "sphere_mesh",
@@ -47,12 +48,14 @@ def mesh_arrays(geometry: Any) -> tuple[np.ndarray, np.ndarray]:
     return vertices, faces
 
 
-def _bvh(vertices: np.ndarray, faces: np.ndarray) -> Any:
+def display_mesh(vertices: np.ndarray, faces: np.ndarray) -> Any:
+    """A coal mesh (vertices (V, 3) in [m], faces (F, 3)) for display only: its bounding-volume tree
+    is not built (``endModel`` is not called: that takes about 0.3 s for Baxter's 100,000 preview
+    triangles and only collision queries need it), so it must not be used for collision checks."""
     bvh = coal.BVHModelOBBRSS()
     bvh.beginModel(len(faces), len(vertices))
     bvh.addVertices(np.ascontiguousarray(vertices, dtype=float))
     bvh.addTriangles(np.ascontiguousarray(faces, dtype=np.int64))
-    bvh.endModel()
     return bvh
 
 
@@ -85,7 +88,8 @@ def simplify_visual_model(
     of the others is lowered to stay within the budget (a few passes). Primitives (boxes,
     cylinders, spheres) are kept as they are. Mesh scales are baked into the vertices and mesh file
     references dropped, so that meshcat receives the decimated triangles instead of the original
-    files. Colours are the description's ``meshColor``.
+    files. Colours are the description's ``meshColor``. The meshes are for display only
+    (:func:`display_mesh`: no collision queries on them).
     """
     if max_triangles < 100:
         raise preview_error("max_triangles", f"must be >= 100, got {max_triangles}")
@@ -98,7 +102,7 @@ def simplify_visual_model(
     for obj in visual_model.geometryObjects:
         new = pin.GeometryObject(obj)
         if obj.name in decimated:
-            new.geometry = _bvh(*decimated[obj.name])
+            new.geometry = display_mesh(*decimated[obj.name])
             new.meshPath = ""
             new.meshScale = np.ones(3)
         result.addGeometryObject(new)

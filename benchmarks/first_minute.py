@@ -12,12 +12,12 @@ the CPU time of the command's process (user + system):
   long it took) before the next run;
 * **warm**: the next run in the same clone (same caches).
 
-With ``--baseline`` it also measures the behaviour before the fast first minute on the same machine
-(in fresh clones too): the kernels compiled in the run itself (``IPROMP_PIN_KERNELS=numba``) and no
-mesh cache (a new empty ``IPROMP_PIN_CACHE_DIR`` each run, so the meshes are loaded and decimated
-every time). Uncommitted changes are not measured: commit first.
+With ``--baseline REV`` it also measures another commit the same way (fresh clones of ``REV``, empty
+numba cache): e.g. the version before the fast first minute, whose first run compiles the kernels
+and whose every preview decimates the meshes again. Uncommitted changes are not measured: commit
+first.
 
-    python benchmarks/first_minute.py [--repeats 3] [--baseline] [--json FILE]
+    python benchmarks/first_minute.py [--repeats 3] [--baseline REV] [--json FILE]
 
 Prints the medians (and every run) and the machine's load average, which on a shared machine says
 how much the wall times are stretched (the CPU times much less so).
@@ -40,9 +40,11 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def clone(folder: Path) -> Path:
-    """A fresh clone of the committed tree of this checkout."""
+def clone(folder: Path, rev: str | None = None) -> Path:
+    """A fresh clone of the committed tree of this checkout (at ``rev`` when given)."""
     subprocess.run(["git", "clone", "-q", "--no-hardlinks", str(ROOT), str(folder)], check=True)
+    if rev is not None:
+        subprocess.run(["git", "-C", str(folder), "checkout", "-q", rev], check=True)
     return folder
 
 
@@ -87,7 +89,9 @@ def main() -> None:
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     parser.add_argument("--repeats", type=int, default=3, help="cold runs and warm runs each (default 3)")
-    parser.add_argument("--baseline", action="store_true", help="also measure the old behaviour")
+    parser.add_argument(
+        "--baseline", metavar="REV", help="also measure this commit (e.g. the version before)"
+    )
     parser.add_argument("--json", type=Path, help="write the results here")
     args = parser.parse_args()
 
@@ -110,11 +114,10 @@ def main() -> None:
         if args.baseline:
             results["baseline_cold"], results["baseline_warm"] = [], []
             for i in range(args.repeats):
-                tree = clone(tmp / f"bclone{i}")
-                env = {**base_env, "IPROMP_PIN_KERNELS": "numba", "IPROMP_PIN_CACHE_DIR": str(tmp / f"bc{i}")}
+                tree = clone(tmp / f"bclone{i}", args.baseline)
+                env = {**base_env, "IPROMP_PIN_CACHE_DIR": str(tmp / f"bc{i}")}
                 cold = run_once(env, tree, tmp / f"bcold{i}")
                 results["baseline_cold"].append(cold)
-                env["IPROMP_PIN_CACHE_DIR"] = str(tmp / f"bc{i}w")  # meshes decimated again
                 warm = run_once(env, tree, tmp / f"bwarm{i}")
                 results["baseline_warm"].append(warm)
                 print(
@@ -152,6 +155,10 @@ def main() -> None:
             "cores": os.cpu_count(),
             "python": platform.python_version(),
             "command": " ".join(["python", "benchmarks/first_minute.py", *sys.argv[1:]]),
+            "commit": subprocess.run(
+                ["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"], capture_output=True, text=True
+            ).stdout.strip(),
+            "baseline": args.baseline,
         }
         args.json.write_text(json.dumps(doc, indent=1))
 

@@ -282,6 +282,32 @@ def test_camera_is_fitted_to_each_robot_and_scene(page, content, tmp_path):
     assert np.linalg.norm(far_eye) > 1.5 * np.linalg.norm(eyes["panda"])
 
 
+def test_decimation_that_stops_above_its_target_is_the_same_for_lower_targets(baxter):
+    """What the decimation's reuse relies on (meshes._decimated): fast_simplification's target only
+    stops it early, so a run that ends above its target gives the same mesh for any lower target."""
+    import fast_simplification
+
+    from ipromp_pin.preview.meshes import mesh_arrays
+
+    _, visual = baxter
+    checked = 0
+    for obj in visual.geometryObjects:
+        if not isinstance(obj.geometry, coal.BVHModelBase) or obj.geometry.num_tris < 8000:
+            continue
+        v, f = mesh_arrays(obj.geometry)
+        v, f = (v * obj.meshScale).astype(np.float32), f.astype(np.int32)
+        target = len(f) // 5
+        first = fast_simplification.simplify(v, f, target_count=target)
+        if len(first[1]) <= target:
+            continue
+        lower = fast_simplification.simplify(v, f, target_count=target // 2)
+        assert np.array_equal(first[0], lower[0]) and np.array_equal(first[1], lower[1])
+        checked += 1
+        if checked == 1:
+            break
+    assert checked >= 1
+
+
 def test_simplify_visual_model_keeps_objects_and_meets_budget(baxter):
     _, visual = baxter
     simple = preview.simplify_visual_model(visual)  # default budget: shares the page's cached meshes

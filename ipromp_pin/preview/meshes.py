@@ -68,6 +68,12 @@ def _decimated(obj: pin.GeometryObject, target: int) -> tuple[np.ndarray, np.nda
         _SIMPLIFIED_MESHES[source + (None,)] = (vertices * scale, faces)
     key = source + (target,)
     if key not in _SIMPLIFIED_MESHES:
+        # The decimation's target only stops it early: a run that ended above its target went
+        # through every iteration, so any lower target gives the very same mesh; reuse it.
+        for (*other, done), mesh in list(_SIMPLIFIED_MESHES.items()):
+            if tuple(other) == source and done is not None and done >= target and len(mesh[1]) > done:
+                _SIMPLIFIED_MESHES[key] = mesh
+                return mesh
         vertices, faces = _SIMPLIFIED_MESHES[source + (None,)]
         if target < len(faces):
             vertices, faces = fast_simplification.simplify(

@@ -25,6 +25,7 @@ import subprocess
 import sys
 import time
 from collections.abc import Callable, Iterator
+from pathlib import Path
 from types import ModuleType
 
 __all__ = [
@@ -38,6 +39,7 @@ __all__ = [
     "numba_kernels",
     "set_announcer",
     "set_kernel_backend",
+    "start_background_compile",
     "use_kernels",
 ]
 
@@ -181,13 +183,13 @@ def _auto() -> ModuleType:
     return _numpy_module()
 
 
-def _lock_path():
+def _lock_path() -> Path:
     from ..cache import cache_dir
 
     return cache_dir("kernels") / "compile.lock"
 
 
-def _lock_is_stale(lock, max_age_s: float = 600.0) -> bool:
+def _lock_is_stale(lock: Path, max_age_s: float = 600.0) -> bool:
     try:
         return time.time() - lock.stat().st_mtime > max_age_s
     except OSError:

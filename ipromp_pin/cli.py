@@ -137,6 +137,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         args.dataset, format=args.format, frames=frames, robot_joints=joints, progress=_progress()
     )
     print(f"read {len(ds.all_demos())} demos of {', '.join(ds.tasks)} in {time.perf_counter() - t0:.1f} s")
+    _compile_kernels_once()
     cells = []
     for cfg in configs:
         protocol = cfg.protocol
@@ -168,6 +169,20 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     if args.json:
         print(f"wrote {args.json}" + (f" and {md}" if md else ""))
     return 0
+
+
+def _compile_kernels_once() -> None:
+    """Compile the numba kernels in this process (announced) before worker processes are forked,
+    which then inherit them, instead of each worker compiling its own copy."""
+    from .promp.compiled import compiled_kernels_cached, kernel_backend, numba_kernels
+    from .promp.warmup import compile_kernels
+
+    if kernel_backend() == "numba" and not compiled_kernels_cached():
+        numba_kernels()  # announces the compile
+        try:
+            compile_kernels()
+        except RuntimeError:  # compiled but not cached (read-only cache): the workers compile again
+            pass
 
 
 def cmd_train(args: argparse.Namespace) -> int:

@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import json
 import multiprocessing as mp
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -226,6 +226,33 @@ def _check_size(dataset: Dataset, task: str, n_train: int) -> int:
     return n
 
 
+def check_dataset_size(counts: Mapping[str, int], config: EvaluationConfig, source: object = None) -> None:
+    """Check, before any model is fitted, that every task has enough demos for ``config``.
+
+    Every cell needs ``n_train`` training demos and at least one test demo per task; the paper
+    protocol's largest cell trains on 20 (21 demos per task). Raises a :class:`DataError` naming
+    the smallest task and the settings that fit it (``--protocol splits`` with a smaller
+    ``--n-train``).
+
+    Args:
+        counts: Task -> number of demos.
+        config: The evaluation settings.
+        source: The dataset (folder) named in the error.
+    """
+    need = max(n for n, _ in config.grid) + 1
+    task, have = min(counts.items(), key=lambda kv: kv[1])
+    if have >= need:
+        return
+    fits = [n for n in sorted({n for n, _ in config.grid} | {5, 10, 15}) if n < have] or [have - 1]
+    raise DataError(
+        source,
+        None,
+        f"too small for the {config.protocol} protocol: task '{task}' has {have} demos, cells up to "
+        f"n_train={need - 1} need {need} per task (n_train to train, 1+ to test); use --protocol splits "
+        f"--grid full --n-train {' '.join(str(n) for n in fits)}",
+    )
+
+
 def _paper_indices(dataset: Dataset, n_train: int, n_test: int) -> Indices:
     out = {}
     for task in dataset.tasks:
@@ -331,6 +358,7 @@ def evaluate(
     """
     if config.protocol not in ("paper", "splits"):
         raise DataError(None, "protocol", f"unknown protocol '{config.protocol}' (use paper or splits)")
+    check_dataset_size({t: len(d) for t, d in dataset.demos.items()}, config, dataset.root)
     for observe in config.observe:
         for demo in dataset.all_demos():
             demo.require(list(observe) + [ROBOT])

@@ -18,12 +18,13 @@ import numpy as np
 
 from . import atomic
 from .config import PipelineConfig
-from .data import ROBOT, Dataset, Demo, skeleton_frames
+from .data import ROBOT, Dataset, Demo, group_unit, skeleton_frames
 from .exceptions import PipelineError
 from .export import trajectory_csv_text, trajectory_json_text
 from .model_warnings import loaded_model_warnings, single_task_warning, warn_stderr
 from .planning import LogFn, PlanResult, check_model_joints, plan
-from .preview import LivePreview, PreviewContent, render_html, write_html
+from .preview import DEFAULT_MAX_TRIANGLES, LivePreview, PreviewContent, render_html, write_html
+from .preview.mesh_cache import cached_visual_model
 from .promp import IProMP
 from .readers import load_dataset
 from .report import report_dict, report_text, summary_text
@@ -213,7 +214,7 @@ def run_pipeline(
         if cfg.preview_html:
             t0 = time.perf_counter()
             content = preview_content(
-                result, prep.robot, prep.demo, visual_model=load_visual_model(prep.robot)
+                result, prep.robot, prep.demo, visual_model=preview_visual_model(prep.robot)
             )
             html = render_html(content).encode("utf-8")
             out.write_bytes("preview.html", html)
@@ -368,20 +369,32 @@ def preview_content(
         hand_path=hand,
         hand_t_s=hand_t,
         observed_until_s=p.observed_until_s,
+        # the observed fraction is of the human's motion: the recorded demo's, else the predicted one
+        human_duration_s=p.duration_s if demo is None else demo.duration_s,
+        human_duration_source="predicted" if demo is None else "recorded",
         handover_point=r.handover_pose[:3],
         task=p.task,
         tasks=list(p.tasks),
         posterior=p.posterior,
-        feasibility=[(c.name, c.passed, c.reason) for c in r.checks],
+        feasibility=[(c.name, c.passed, c.reason, c.status, c.required) for c in r.checks],
         collision_links=collision_links,
         near_limit_joints=near_limit,
         title=f"ipromp_pin: {p.task}" + ("" if demo is None else f" ({demo.task}/{demo.name})"),
     )
 
 
+def preview_visual_model(robot: Robot) -> object:
+    """The robot's decimated visual model for the preview, from the on-disk mesh cache when there
+    (:func:`~ipromp_pin.preview.mesh_cache.cached_visual_model`; loaded and decimated otherwise)."""
+    s = robot.settings
+    return cached_visual_model(
+        robot.model, s.urdf_path, s.package_dirs, DEFAULT_MAX_TRIANGLES, lambda: load_visual_model(robot)
+    )
+
+
 def write_preview(result: PlanResult, robot: Robot, demo: Demo | None, path: Path) -> Path:
     """Write the self-contained offline preview page."""
-    write_html(preview_content(result, robot, demo, visual_model=load_visual_model(robot)), path)
+    write_html(preview_content(result, robot, demo, visual_model=preview_visual_model(robot)), path)
     return path
 
 
@@ -416,22 +429,29 @@ def write_plots(
         joint_names=list(p.joint_names),
         title=f"{p.task}: conditioned prediction vs recorded",
     )
+    # The joint posterior log p(task, alpha | obs) = log p(task | obs) + log p(alpha | task, obs):
+    # one scale for every task (each task's phase posterior alone is normalised on its own).
     files["plot_phase"] = plots.plot_phase_posterior(
         {t: p.phase_grid[k] for k, t in enumerate(p.tasks)},
-        {t: p.phase_log_post[k] for k, t in enumerate(p.tasks)},
+        {t: p.log_posterior[k] + p.phase_log_post[k] for k, t in enumerate(p.tasks)},
         target("phase_posterior.png"),
         tasks=list(p.tasks),
+        ylabel="log p(task, alpha | observation)",
+        title="joint posterior of task and phase over the phase candidates",
     )
     z = np.linspace(0.0, 1.0, 100)
-    mean, std, labels = model.distribution(p.task, z)
+    _, std, _ = model.distribution(p.task, z)
+    centre, lower, upper, labels = model.distribution_band(p.task, z, 2.0)
     files["plot_distributions"] = plots.plot_distributions(
         z,
-        mean,
+        centre,
         std,
         target("distributions.png"),
+        band=(lower, upper),
         demos=model.train_trajectories(p.task, z),
         dim_names=labels,
-        title=f"learned distribution of task {p.task} (mean, 2 sigma, training demos)",
+        units=[group_unit(label.split("/", 1)[0]) for label in labels],
+        title=f"learned distribution of task {p.task} (mean or median, 2-sigma band, training demos)",
     )
     if isinstance(out_dir, atomic.OutputSet):  # where the staged figures will be after the commit
         names = {key: name for name, key in _FILE_KEYS.items()}
@@ -466,7 +486,7 @@ def run_preview(
         path = write_preview(result, prep.robot, prep.demo, html)
         log(f"[preview] wrote {path} ({path.stat().st_size / 1e6:.1f} MB): open it in a browser (no server)")
         return path
-    content = preview_content(result, prep.robot, prep.demo, visual_model=load_visual_model(prep.robot))
+    content = preview_content(result, prep.robot, prep.demo, visual_model=preview_visual_model(prep.robot))
     tasks = list(result.prediction.tasks)
     start = content.replace(posterior=np.full(len(tasks), 1.0 / len(tasks)), task="", observed_until_s=0.0)
     live = LivePreview(start, port=port)

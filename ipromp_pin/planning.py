@@ -1,4 +1,4 @@
-"""The online stages of a hand-over: recognise and predict, check, time-parameterise.
+"""The online stages of a hand-over: recognise and predict, time-parameterise, check.
 
 :func:`plan` takes a fitted model, a loaded robot and the observed first part of the human's motion
 and returns a :class:`PlanResult`: the prediction, its feasibility report (Pinocchio checks), the
@@ -15,10 +15,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from .data import Demo
-from .exceptions import ModelError
+from .exceptions import InfeasibleError, ModelError
 from .promp import IProMP, Prediction
 from .robot import FeasibilityReport, Robot, check_path
-from .timing import JointLimits, TimingReport, Trajectory, time_path
+from .timing import JointLimits, TimingReport, Trajectory, path_times, time_path
 
 LogFn = Callable[[str], None]
 """Where progress messages go (one line each)."""
@@ -86,7 +86,12 @@ def plan(
     hand_position_m: np.ndarray | None = None,
     log: LogFn | None = None,
 ) -> PlanResult:
-    """Online stages: recognise + predict, check, time-parameterise, smooth.
+    """Online stages: recognise + predict, time-parameterise + smooth, check.
+
+    The checks run on the predicted path; the times their messages name are on the timed
+    trajectory's time base (:func:`~ipromp_pin.timing.path_times`: 0 when the robot starts, after
+    the observation), like the preview's. When the path cannot be timed, the checks are still run
+    and logged before the :class:`~ipromp_pin.exceptions.InfeasibleError` propagates.
 
     Args:
         model: A fitted :class:`~ipromp_pin.promp.IProMP`.
@@ -108,16 +113,27 @@ def plan(
         f"predicted duration {prediction.duration_s:.2f} s"
     )
     samples = prediction.sample_q(N_UNCERTAINTY_SAMPLES, np.random.default_rng(0))
-    report = check_path(
-        robot, prediction.q_mean, t_s=prediction.t, q_samples=samples, hand_position_m=hand_position_m
-    )
+    # Timed first, so that the checks name times on the trajectory's time base (the robot's clock,
+    # from its start), not the prediction's (the human's clock).
+    try:
+        trajectory, timing_report = time_path(
+            prediction.q_mean, JointLimits.from_robot(robot), rate_hz=control_rate_hz
+        )
+    except InfeasibleError:
+        report = check_path(robot, prediction.q_mean, q_samples=samples, hand_position_m=hand_position_m)
+        say(f"[check] {'pass' if report.passed else 'FAIL: ' + ', '.join(report.failures)}")
+        raise
     t2 = time.perf_counter()
-    ms["check"] = (t2 - t1) * 1e3
-    say(f"[check] {'pass' if report.passed else 'FAIL: ' + ', '.join(report.failures)}")
-    trajectory, timing_report = time_path(
-        prediction.q_mean, JointLimits.from_robot(robot), rate_hz=control_rate_hz
+    report = check_path(
+        robot,
+        prediction.q_mean,
+        t_s=path_times(trajectory, prediction.q_mean),
+        q_samples=samples,
+        hand_position_m=hand_position_m,
     )
     t3 = time.perf_counter()
-    ms["time_parameterise_smooth"] = (t3 - t2) * 1e3
+    ms["check"] = (t3 - t2) * 1e3
+    ms["time_parameterise_smooth"] = (t2 - t1) * 1e3
+    say(f"[check] {'pass' if report.passed else 'FAIL: ' + ', '.join(report.failures)}")
     say(f"[timing] {trajectory.t_s[-1]:.2f} s at {control_rate_hz:g} Hz, {len(trajectory.t_s)} samples")
     return PlanResult(prediction, report, trajectory, timing_report, ms, samples)

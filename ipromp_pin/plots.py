@@ -90,19 +90,26 @@ def plot_distributions(
     *,
     demos: Sequence[np.ndarray] | np.ndarray | None = None,
     dim_names: Sequence[str] | None = None,
+    units: Sequence[str] | None = None,
+    band: tuple[np.ndarray, np.ndarray] | None = None,
     title: str = "",
     figsize: tuple[float, float] = (12.0, 8.0),
     dpi: int = 100,
 ) -> Path:
-    """Learned distribution per dimension: mean and 2-sigma band over phase, training demos in grey.
+    """Learned distribution per dimension: centre and 2-sigma band over phase, training demos in grey.
 
     Args:
         phase: (P,) phase grid in [0, 1].
-        mean: (P, D) mean of every dimension on ``phase`` (original units).
-        std: (P, D) standard deviation on ``phase`` (same units).
+        mean: (P, D) mean (or centre) of every dimension on ``phase`` (original units).
+        std: (P, D) standard deviation on ``phase`` (same units); the band is ``mean +- 2 std``
+            unless ``band`` is given.
         path: PNG file to write.
         demos: Training demos resampled on ``phase``: (n, P, D) or a sequence of (P, D).
         dim_names: (D,) names of the dimensions (subplot titles).
+        units: (D,) unit of every dimension (y-axis labels), e.g. ``"rad"``.
+        band: (lower, upper), each (P, D), the 2-sigma band in original units, for dimensions whose
+            spread is not symmetric in them (a channel modelled in log space:
+            ``IProMP.distribution_band``); ``std`` is then not drawn.
         title: Figure title (e.g. the task name).
     """
     phase = _array(phase, "phase", 1)
@@ -114,6 +121,14 @@ def plot_distributions(
         raise _err("std", f"shape {std.shape} differs from mean {mean.shape}")
     if np.any(std < 0):
         raise _err("std", "standard deviations must be >= 0")
+    if band is None:
+        lower, upper = mean - 2 * std, mean + 2 * std
+    else:
+        lower, upper = _array(band[0], "band", 2), _array(band[1], "band", 2)
+        if lower.shape != mean.shape or upper.shape != mean.shape:
+            raise _err("band", f"shapes {lower.shape}, {upper.shape} differ from mean {mean.shape}")
+        if np.any(lower > mean + 1e-12 * np.abs(mean)) or np.any(upper < mean - 1e-12 * np.abs(mean)):
+            raise _err("band", "the band must contain the centre (lower <= mean <= upper)")
     demo_list: list[np.ndarray] = []
     if demos is not None:
         for i, demo in enumerate(demos):
@@ -123,22 +138,24 @@ def plot_distributions(
             demo_list.append(demo)
     n_dims = mean.shape[1]
     names = _names(dim_names, n_dims, "dim_names", "dim ")
+    unit_names = _names(units, n_dims, "units", "") if units is not None else None
     fig, axes, cols = _panels(n_dims, figsize)
     for d, ax in enumerate(axes):
         for k, demo in enumerate(demo_list):
             ax.plot(
                 phase, demo[:, d], color="0.6", lw=0.7, alpha=0.6, label="training demos" if k == 0 else None
             )
-        ax.fill_between(
+        ax.fill_between(phase, lower[:, d], upper[:, d], color="C0", alpha=0.25, label="2 sigma")
+        ax.plot(
             phase,
-            mean[:, d] - 2 * std[:, d],
-            mean[:, d] + 2 * std[:, d],
+            mean[:, d],
             color="C0",
-            alpha=0.25,
-            label="2 sigma",
+            lw=1.8,
+            label="mean" if band is None else "mean (log-scaled: median)",
         )
-        ax.plot(phase, mean[:, d], color="C0", lw=1.8, label="mean")
         ax.set_title(names[d], fontsize=9)
+        if unit_names is not None and unit_names[d]:
+            ax.set_ylabel(unit_names[d], fontsize=8)
         ax.tick_params(labelsize=7)
         if d + cols >= n_dims:
             ax.set_xlabel("phase", fontsize=8)
@@ -225,18 +242,24 @@ def plot_phase_posterior(
     tasks: Sequence[str] | None = None,
     true_alpha: float | None = None,
     title: str = "",
+    ylabel: str = "log p(task, alpha | observation)",
+    span: float | None = 60.0,
     figsize: tuple[float, float] = (8.0, 5.0),
     dpi: int = 100,
 ) -> Path:
-    """Log posterior over the phase (time-scaling alpha) candidates of every task.
+    """Log posterior over the phase (time-scaling alpha) candidates of every task, on one scale.
 
     Args:
         alphas: (A,) candidates shared by all tasks, or {task: (A_k,)}.
-        log_posterior: {task: (A_k,)} log posterior (or log likelihood) of each candidate, or a
-            (K, A) array with the task names in ``tasks``.
+        log_posterior: {task: (A_k,)} log posterior of each candidate, or a (K, A) array with the
+            task names in ``tasks``: the JOINT ``log p(task, alpha | observation)`` (comparable
+            across tasks; what ``ylabel`` says by default), or whatever ``ylabel`` names.
         path: PNG file to write.
         tasks: (K,) task names of the rows of an array ``log_posterior``.
         true_alpha: Ground-truth alpha of the observed demo (vertical line), when known.
+        ylabel: The y-axis label: what ``log_posterior`` is.
+        span: Range shown below the highest value (a task far below it is drawn at the bottom
+            edge, its peak value in the legend); ``None``: everything.
     """
     if not isinstance(log_posterior, Mapping):
         table = _array(log_posterior, "log_posterior", 2)
@@ -244,8 +267,8 @@ def plot_phase_posterior(
         log_posterior = dict(zip(names, table, strict=True))
     if not log_posterior:
         raise _err("log_posterior", "no task given")
-    fig, ax = plt.subplots(figsize=figsize, layout="constrained")
-    for k, (task, values) in enumerate(log_posterior.items()):
+    curves = []
+    for task, values in log_posterior.items():
         grid = alphas.get(task) if isinstance(alphas, Mapping) else alphas
         if grid is None:
             raise _err("alphas", f"no candidates for task '{task}'")
@@ -255,15 +278,24 @@ def plot_phase_posterior(
             raise _err(
                 "log_posterior", f"task '{task}' has {values.size} values for {grid.size} alpha candidates"
             )
+        curves.append((task, grid, values))
+    peaks = [float(np.max(v[np.isfinite(v)])) if np.isfinite(v).any() else -np.inf for _, _, v in curves]
+    top = max(peaks)
+    floor = top - span if span is not None and np.isfinite(top) else -np.inf
+    fig, ax = plt.subplots(figsize=figsize, layout="constrained")
+    for k, ((task, grid, values), peak) in enumerate(zip(curves, peaks, strict=True)):
         finite = np.isfinite(values)
-        ax.plot(grid[finite], values[finite], marker=".", color=f"C{k}", label=str(task))
+        shown = np.maximum(values, floor)
+        ax.plot(grid[finite], shown[finite], marker=".", color=f"C{k}", label=f"{task} (peak {peak:.1f})")
         if finite.any():
             best = int(np.flatnonzero(finite)[np.argmax(values[finite])])
-            ax.plot(grid[best], values[best], marker="o", ms=8, mfc="none", color=f"C{k}")
+            ax.plot(grid[best], shown[best], marker="o", ms=8, mfc="none", color=f"C{k}")
+    if np.isfinite(floor) and min(peaks) < floor:
+        ax.axhline(floor, color="0.5", lw=0.8, ls=":", label=f"values below {floor:.0f} drawn at it")
     if true_alpha is not None:
         ax.axvline(true_alpha, color="k", ls="--", lw=1.0, label="true alpha")
     ax.set_xlabel("alpha (time scaling)")
-    ax.set_ylabel("log posterior")
+    ax.set_ylabel(ylabel)
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3)
     if title:

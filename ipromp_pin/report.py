@@ -56,7 +56,12 @@ def report_text(
         + ", ".join(f"{t} {v:.3f}" for t, v in zip(p.tasks, p.posterior, strict=True))
     )
     lines.append(
-        f"Predicted duration of the motion: {p.duration_s:.2f} s (observed {p.observed_until_s:.2f} s)"
+        f"Predicted duration of the human's motion: {p.duration_s:.2f} s "
+        f"(observed {p.observed_until_s:.2f} s)"
+    )
+    lines.append(
+        f"Times in the checks are on the robot trajectory ({result.trajectory.duration_s:.2f} s, t = 0 at "
+        "its start)"
     )
     lines.append(result.report.to_text())
     lines.append(result.timing_report.to_text())

@@ -183,7 +183,7 @@ class _Builder:
     def array(self, label: str, values: np.ndarray) -> object:
         dim = self.t["std_msgs/msg/MultiArrayDimension"](label=label, size=values.size, stride=values.size)
         layout = self.t["std_msgs/msg/MultiArrayLayout"](dim=[dim], data_offset=0)
-        return self.t[FLOAT64_MULTI_ARRAY](layout=layout, data=np.asarray(values, dtype=np.float64))
+        return self.t[FLOAT64_MULTI_ARRAY](layout=layout, data=np.ascontiguousarray(values, dtype=np.float64))
 
 
 def _quaternion_columns(names: tuple[str, ...]) -> list[int] | None:

@@ -16,6 +16,24 @@ PROJECT_ROOT = Path(__file__).resolve().parents[1]
 DATASETS = Path(os.environ.get("IPROMP_PIN_DATASETS", PROJECT_ROOT.parent / "shared" / "datasets"))
 
 
+# The command line's "auto" kernels would compile the numba kernels in a background process when
+# numba's cache is cold: the tests use the compiled kernels in-process (tests of "auto" set it).
+os.environ.setdefault("IPROMP_PIN_KERNELS", "numba")
+
+
+@pytest.fixture(scope="session", autouse=True)
+def private_cache_dir(tmp_path_factory) -> Path:
+    """The package's cache (decimated preview meshes) in a folder of the test session, not the user's."""
+    folder = tmp_path_factory.mktemp("ipromp_pin_cache")
+    previous = os.environ.get("IPROMP_PIN_CACHE_DIR")
+    os.environ["IPROMP_PIN_CACHE_DIR"] = str(folder)
+    yield folder
+    if previous is None:
+        os.environ.pop("IPROMP_PIN_CACHE_DIR", None)
+    else:
+        os.environ["IPROMP_PIN_CACHE_DIR"] = previous
+
+
 @pytest.fixture(scope="session")
 def datasets_dir() -> Path:
     """Folder of the real recordings; skips the test when it is absent."""

@@ -8,7 +8,14 @@ import numpy as np
 import pytest
 
 from ipromp_pin.cli import main
-from ipromp_pin.evaluate import EvaluationConfig, evaluate, split_paper, split_random, to_markdown
+from ipromp_pin.evaluate import (
+    EvaluationConfig,
+    check_dataset_size,
+    evaluate,
+    split_paper,
+    split_random,
+    to_markdown,
+)
 from ipromp_pin.exceptions import DataError
 from ipromp_pin.synthetic import make_synthetic_dataset
 
@@ -74,8 +81,49 @@ def test_evaluate_command_writes_json_and_markdown(tmp_path, capsys):
 def test_evaluate_command_rejects_unknown_groups(tmp_path, capsys):
     data = tmp_path / "synthetic"
     main(["synth", str(data), "--demos", "12"])
-    assert main(["evaluate", str(data), "--observe", "orientation,gaze", "--n-test", "2"]) == 2
+    small = ["--protocol", "splits", "--grid", "full", "--n-train", "5", "--n-test", "2"]
+    assert main(["evaluate", str(data), "--observe", "orientation,gaze", *small]) == 2
     assert "gaze" in capsys.readouterr().err
+
+
+def test_evaluate_command_says_up_front_when_the_dataset_is_too_small(tmp_path, capsys, monkeypatch):
+    import ipromp_pin.readers as readers
+
+    data = tmp_path / "synthetic"
+    main(["synth", str(data), "--demos", "12"])
+    capsys.readouterr()
+
+    def no_reading(*args, **kwargs):
+        raise AssertionError("the dataset was read before its size was checked")
+
+    monkeypatch.setattr(readers, "load_dataset", no_reading)
+    assert main(["evaluate", str(data)]) == 2  # paper protocol: cells train on up to 20 demos per task
+    out = capsys.readouterr()
+    lines = out.err.strip().splitlines()
+    assert len(lines) == 1 and not out.out
+    assert "has 12 demos" in lines[0] and "need 21 per task" in lines[0]
+    assert "--protocol splits" in lines[0] and "--n-train 5 10" in lines[0]
+    # the splits protocol is held to the same need; the suggested cells pass the check
+    assert main(["evaluate", str(data), "--protocol", "splits", "--grid", "full", "--n-train", "20"]) == 2
+    assert "need 21 per task" in capsys.readouterr().err
+    counts = {"rod": 12, "wrench": 12, "tape": 12}
+    check_dataset_size(counts, EvaluationConfig(protocol="splits", grid=[(5, 0.2), (10, 0.2)]))
+    with pytest.raises(DataError, match="task 'tape' has 11 demos"):
+        check_dataset_size({**counts, "tape": 11}, EvaluationConfig(grid=[(11, 0.2)]))
+
+
+def test_evaluate_help_documents_the_protocols_and_spares_a_core(capsys, monkeypatch):
+    from ipromp_pin import cli
+
+    monkeypatch.setattr(cli.os, "sched_getaffinity", lambda pid: set(range(4)), raising=False)
+    assert cli.default_jobs() == 3
+    monkeypatch.setattr(cli.os, "sched_getaffinity", lambda pid: {0}, raising=False)
+    assert cli.default_jobs() == 1
+    with pytest.raises(SystemExit):
+        main(["evaluate", "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    assert "paper: the paper's experiment" in text and "splits: every cell over --splits random" in text
+    assert "every core but one" in text
 
 
 def test_train_command_sets_the_coupled_groups(tmp_path, capsys):

@@ -7,6 +7,7 @@ import pytest
 from helpers_model import random_dataset, split
 
 from ipromp_pin.promp import IProMP, direct_predict
+from ipromp_pin.promp.compiled import use_kernels
 
 CASES = [
     # seed, missing group, Z tensors (False: per-candidate solve route), noise ratio, observed ratio,
@@ -23,8 +24,14 @@ def _rel(a: np.ndarray, b: np.ndarray) -> float:
     return float(np.max(np.abs(a - b)) / max(float(np.max(np.abs(b))), 1e-300))
 
 
+@pytest.mark.parametrize("backend", ["numba", "numpy"])
 @pytest.mark.parametrize(("seed", "missing", "use_z", "noise", "ratio", "coupling"), CASES)
-def test_fast_prediction_equals_direct(seed, missing, use_z, noise, ratio, coupling) -> None:
+def test_fast_prediction_equals_direct(seed, missing, use_z, noise, ratio, coupling, backend) -> None:
+    with use_kernels(backend):  # the compiled kernels and their numpy version
+        _check_fast_equals_direct(seed, missing, use_z, noise, ratio, coupling)
+
+
+def _check_fast_equals_direct(seed, missing, use_z, noise, ratio, coupling) -> None:
     rng = np.random.default_rng(seed)
     train, test = split(random_dataset(seed, n_demos=9, missing_group=missing), 7)
     n_basis = int(rng.integers(6, 10))

@@ -135,3 +135,84 @@ def test_live_preview_streams_the_observation_on_loopback(capsys):
     assert "live at http://127.0.0.1:" in out
     # the posterior is printed as samples stream in, then the final recognition
     assert out.count("  t=") >= 5 and "[preview] recognised" in out
+
+
+def test_preview_content_shows_one_time_base_and_skipped_checks():
+    """The page's observed fraction is of the human's motion, the check times are on the robot
+    trajectory's clock, and a check that could not be made is marked skipped."""
+    import re
+
+    from ipromp_pin.pipeline import prepare, preview_content
+    from ipromp_pin.planning import plan
+    from ipromp_pin.timing import path_times
+
+    cfg = load_pipeline(PIPELINE, task="tape", demo=2)
+    prep = prepare(cfg, log=lambda _msg: None)
+    result = plan(prep.model, prep.robot, prep.observation, cfg.control_rate_hz, prep.hand_position_m)
+    content = preview_content(result, prep.robot, prep.demo)
+    assert content.human_duration_s == prep.demo.duration_s and content.human_duration_source == "recorded"
+    assert content.observed_fraction() == pytest.approx(prep.observation.t[-1] / prep.demo.duration_s)
+    assert content.observed_fraction() == pytest.approx(cfg.ratio, abs=0.02)
+    assert abs(content.duration_s - result.prediction.duration_s) > 0.1  # robot and human clocks differ
+    times = path_times(result.trajectory, result.prediction.q_mean)
+    limits = result.report["joint_limits"]
+    shown = [c for c in content.feasibility if c.name == "joint_limits"][0].detail
+    t_shown = float(re.search(r"t=(\d+\.\d+) s", shown).group(1))
+    assert t_shown == pytest.approx(times[limits.values["sample"]], abs=0.006)
+    for check in content.feasibility:
+        for t in re.findall(r"t=(\d+\.\d+) s", check.detail):
+            assert 0.0 <= float(t) <= content.duration_s + 0.005
+    # without the human hand's position the distance check is skipped, and shown as skipped
+    blind = plan(prep.model, prep.robot, prep.observation, cfg.control_rate_hz, None)
+    skipped = [c for c in preview_content(blind, prep.robot, None).feasibility if c.status == "skip"]
+    assert [c.name for c in skipped] == ["hand_distance"] and skipped[0].passed and not skipped[0].required
+    unknown = preview_content(blind, prep.robot, None)
+    assert unknown.human_duration_source == "predicted"
+    assert unknown.human_duration_s == pytest.approx(result.prediction.duration_s)
+
+
+def test_phase_plot_gets_the_joint_posterior_of_task_and_phase(tmp_path, monkeypatch):
+    from scipy.special import logsumexp
+
+    from ipromp_pin import plots
+
+    seen = {}
+    original = plots.plot_phase_posterior
+
+    def spy(alphas, log_posterior, path, **kwargs):
+        seen.update(log_posterior=log_posterior, ylabel=kwargs.get("ylabel"))
+        return original(alphas, log_posterior, path, **kwargs)
+
+    monkeypatch.setattr(plots, "plot_phase_posterior", spy)
+    out = tmp_path / "plots"
+    assert main(["run", str(PIPELINE), "--out", str(out), "--no-preview", "--plots", "--task", "rod"]) == 0
+    report = json.loads((out / "report.json").read_text())
+    joint = seen["log_posterior"]
+    assert seen["ylabel"] == "log p(task, alpha | observation)"
+    # one distribution over every (task, phase candidate): its task marginals are the task posterior
+    assert logsumexp(np.concatenate(list(joint.values()))) == pytest.approx(0.0, abs=1e-9)
+    for task, values in joint.items():
+        assert np.exp(logsumexp(values)) == pytest.approx(report["posterior"][task], abs=1e-9)
+    for name in ("prediction.png", "phase_posterior.png", "distributions.png"):
+        assert (out / name).stat().st_size > 5000
+
+
+def test_console_script_exits_fast_with_the_commands_status_and_output(tmp_path):
+    """``ipromp-pin`` (cli.console_main) skips the interpreter's teardown but keeps the exit status,
+    the flushed output and the written files."""
+    import os
+    import subprocess
+    import sys
+
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1])}
+    command = [sys.executable, "-c", "from ipromp_pin.cli import console_main; console_main()"]
+    ok = subprocess.run(
+        [*command, "synth", str(tmp_path / "d"), "--tasks", "2", "--demos", "2"],
+        env=env, capture_output=True, text=True, check=False,
+    )  # fmt: skip
+    assert ok.returncode == 0 and "wrote 4 demos" in ok.stdout
+    assert len(list((tmp_path / "d").rglob("*.npz"))) == 4
+    bad = subprocess.run(
+        [*command, "run", str(tmp_path / "missing.toml")], env=env, capture_output=True, text=True
+    )
+    assert bad.returncode == 2 and "missing.toml" in bad.stderr and "Traceback" not in bad.stderr

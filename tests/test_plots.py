@@ -150,3 +150,55 @@ def test_plot_accuracy(tmp_path):
         )
     with pytest.raises(DataError, match="no records"):
         plots.plot_accuracy([], tmp_path / "x.png")
+
+
+def captured(monkeypatch) -> list:
+    """Figures that the plot functions save (kept open for inspection)."""
+    figures = []
+
+    def keep(fig, path, dpi):
+        figures.append(fig)
+        return Path(path)
+
+    monkeypatch.setattr(plots, "_save", keep)
+    return figures
+
+
+def test_phase_posterior_draws_one_scale_for_every_task(tmp_path, monkeypatch):
+    figures = captured(monkeypatch)
+    alphas = np.linspace(0.6, 1.6, 21)
+    shape = -((alphas - 1.0) ** 2) / 0.02
+    joint = {"rod": shape - 36.0, "tape": shape - 21.0, "wrench": shape - 250.0}
+    plots.plot_phase_posterior(alphas, joint, tmp_path / "phase.png")
+    ax = figures[0].axes[0]
+    assert ax.get_ylabel() == "log p(task, alpha | observation)"
+    curves = {
+        line.get_label().split()[0]: line.get_ydata() for line in ax.lines if "(peak" in line.get_label()
+    }
+    assert max(curves["rod"]) == pytest.approx(-36.0) and max(curves["tape"]) == pytest.approx(-21.0)
+    # a task far below the best is drawn at the bottom of the shown range, its peak named
+    assert min(curves["wrench"]) == pytest.approx(-21.0 - 60.0)
+    assert any(line.get_label() == "wrench (peak -250.0)" for line in ax.lines)
+
+
+def test_distributions_band_and_units(tmp_path, monkeypatch, rng):
+    figures = captured(monkeypatch)
+    phase = np.linspace(0, 1, 30)
+    median = np.full((30, 2), 100.0)
+    lower, upper = median * np.exp(-0.8), median * np.exp(0.8)  # asymmetric, as a log-scaled channel's
+    plots.plot_distributions(
+        phase,
+        median,
+        np.full((30, 2), 0.4),
+        tmp_path / "d.png",
+        band=(lower, upper),
+        units=["Myo EMG units", "rad"],
+    )
+    axes = figures[0].axes
+    assert [ax.get_ylabel() for ax in axes[:2]] == ["Myo EMG units", "rad"]
+    band = axes[0].collections[0].get_paths()[0].vertices[:, 1]
+    assert band.min() == pytest.approx(lower[0, 0]) and band.max() == pytest.approx(upper[0, 0])
+    with pytest.raises(DataError, match="field 'band'"):
+        plots.plot_distributions(phase, median, median * 0, tmp_path / "x.png", band=(upper, lower))
+    with pytest.raises(DataError, match="field 'units'"):
+        plots.plot_distributions(phase, median, median * 0, tmp_path / "x.png", units=["rad"])

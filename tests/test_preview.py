@@ -18,7 +18,8 @@ import umsgpack
 
 from ipromp_pin import preview
 from ipromp_pin.exceptions import DataError
-from ipromp_pin.robot import load_robot, load_visual_model
+from ipromp_pin.preview.scene import RobotView, scene_points
+from ipromp_pin.robot import ee_positions, load_robot, load_visual_model
 
 ARM = ("left_s0", "left_s1", "left_e0", "left_e1", "left_w0", "left_w1", "left_w2")
 TASKS = ("handover_cup", "handover_rod", "handover_tape")
@@ -51,7 +52,7 @@ def make_content(model: pin.Model, visual: pin.GeometryModel, **changes) -> prev
     ee = np.array(ee)
     rng = np.random.default_rng(0)
     samples = ee[None] + np.cumsum(rng.normal(0.0, 0.003, (12, len(t), 3)), axis=1)
-    hand_t = np.linspace(0.0, 3.0, 40)
+    hand_t = np.linspace(0.0, 4.0, 40)  # the human's motion (4 s) lasts longer than the robot's (3 s)
     start = ee[-1] + np.array([0.5, -0.3, -0.2])
     hand = start + (ee[-1] + np.array([0.05, 0.0, 0.0]) - start) * (hand_t / hand_t[-1])[:, None]
     kwargs = dict(
@@ -67,6 +68,8 @@ def make_content(model: pin.Model, visual: pin.GeometryModel, **changes) -> prev
         hand_path=hand,
         hand_t_s=hand_t,
         observed_until_s=1.0,
+        human_duration_s=4.0,
+        human_duration_source="recorded",
         handover_point=ee[-1],
         task="handover_cup",
         tasks=TASKS,
@@ -74,12 +77,47 @@ def make_content(model: pin.Model, visual: pin.GeometryModel, **changes) -> prev
         feasibility=[
             ("joint limits", True, "margin 0.12 rad"),
             ("self-collision", False, "forearm vs torso"),
+            ("hand distance", True, "human hand position unknown", "skip", False),
         ],
         collision_links=["left_lower_forearm"],
         near_limit_joints=["left_e1"],
     )
     kwargs.update(changes)
     return preview.PreviewContent(**kwargs)
+
+
+PANDA_ARM = tuple(f"panda_joint{i}" for i in range(1, 8))
+
+
+def make_panda_content() -> preview.PreviewContent:
+    """A Franka Panda (the shipped ``panda`` settings) reaching from its ready pose towards a hand."""
+    robot = load_robot("panda")
+    t = np.linspace(0.0, 2.0, 41)
+    s = 0.5 - 0.5 * np.cos(np.pi * t / t[-1])
+    q0 = np.array([0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785])
+    q1 = np.array([0.3, 0.2, 0.0, -1.8, 0.0, 2.0, 0.785])
+    q = q0 + s[:, None] * (q1 - q0)
+    ee = ee_positions(robot, q)
+    hand_t = np.linspace(0.0, 2.5, 30)
+    start = ee[-1] + np.array([0.35, 0.1, 0.1])
+    hand = start + (ee[-1] + np.array([0.05, 0.0, 0.0]) - start) * (hand_t / hand_t[-1])[:, None]
+    return preview.PreviewContent(
+        model=robot.model,
+        visual_model=load_visual_model(robot),
+        t_s=t,
+        q=q,
+        joint_names=PANDA_ARM,
+        q_full=robot.full_configuration(q[0]),
+        ee_mean=ee,
+        hand_path=hand,
+        hand_t_s=hand_t,
+        observed_until_s=0.5,
+        handover_point=ee[-1],
+        task="handover",
+        tasks=["handover"],
+        posterior=[1.0],
+        title="panda",
+    )
 
 
 @pytest.fixture(scope="module")
@@ -114,7 +152,17 @@ def test_content_derives_std_from_samples(content):
     assert content.ee_std is not None and content.ee_std.shape == content.ee_mean.shape
     assert np.all(content.ee_std > 0.0)
     assert content.hand_observed_count() == int(np.sum(content.hand_t_s <= 1.0))
-    assert content.feasibility[1] == preview.FeasibilityCheck("self-collision", False, "forearm vs torso")
+    assert content.feasibility[1] == preview.FeasibilityCheck(
+        "self-collision", False, "forearm vs torso", "fail", True
+    )
+    assert content.feasibility[2].status == "skip" and not content.feasibility[2].required
+
+
+def test_observed_fraction_is_of_the_human_motion(content):
+    assert content.duration_s == pytest.approx(3.0)  # the robot trajectory
+    assert content.observed_fraction() == pytest.approx(1.0 / 4.0)  # of the human's 4 s, not 1 / 3
+    assert content.replace(human_duration_s=None).observed_fraction() is None
+    assert content.replace(observed_until_s=9.0).observed_fraction() == 1.0
 
 
 def test_configurations_interpolate_arm_joints(content):
@@ -143,6 +191,9 @@ def test_configurations_interpolate_arm_joints(content):
         ({"ee_mean": np.full((61, 3), np.nan), "ee_samples": None, "ee_std": None}, "ee_mean"),
         ({"near_limit_joints": ["elbow"]}, "near_limit_joints"),
         ({"feasibility": [("only a name",)]}, "feasibility"),
+        ({"feasibility": [("limits", True, "", "skipped")]}, "feasibility"),
+        ({"feasibility": [("limits", True, "", "fail")]}, "feasibility"),
+        ({"human_duration_s": 0.0}, "human_duration_s"),
         ({"q_full": np.zeros(3)}, "q_full"),
     ],
 )
@@ -172,6 +223,89 @@ def test_tube_is_a_closed_valid_mesh():
     # Ring vertices lie at the requested radius from the path.
     assert np.linalg.norm(vertices[0] - points[0]) == pytest.approx(0.01)
     assert np.linalg.norm(vertices[8 * 19] - points[19]) == pytest.approx(0.05)
+
+
+def test_sphere_is_a_closed_round_mesh_wound_outwards():
+    center = np.array([1.0, 2.0, 3.0])
+    vertices, faces = preview.sphere_mesh(center, 0.5)
+    assert np.allclose(np.linalg.norm(vertices - center, axis=1), 0.5)
+    assert np.ptp(vertices[:, 2]) == pytest.approx(1.0)  # a ball, not a flat double cone
+    edges = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), axis=1)
+    assert np.all(np.unique(edges, axis=0, return_counts=True)[1] == 2)
+    v = vertices - center
+    volume = np.einsum("ij,ij->i", v[faces[:, 0]], np.cross(v[faces[:, 1]], v[faces[:, 2]])).sum() / 6
+    assert 0.95 * (4 / 3 * np.pi * 0.125) < volume < 4 / 3 * np.pi * 0.125  # positive: outward normals
+
+
+def test_camera_distance_follows_the_scene_size():
+    small = np.array([[0.0, 0.0, 0.0], [0.4, 0.3, 0.8]])
+    centre, eye = preview.camera_view(small)
+    assert centre == pytest.approx([0.2, 0.15, 0.4])
+    assert np.dot(eye, [1.0, 0.0, 0.0]) > 0 and eye[2] > 0  # in front of the robot, above
+    big_centre, big_eye = preview.camera_view(small * 3.0)
+    assert big_centre == pytest.approx(3.0 * centre)
+    assert np.linalg.norm(big_eye) == pytest.approx(3.0 * np.linalg.norm(eye))
+    # the circumscribed sphere spans the vertical field of view
+    radius = 0.5 * np.linalg.norm(small[1] - small[0])
+    assert radius / np.linalg.norm(eye) == pytest.approx(np.tan(np.radians(preview.CAMERA_FOV_DEG) / 2))
+
+
+def camera_of(page: Path) -> tuple[np.ndarray, np.ndarray]:
+    """(scene shift (3,), camera position in the robot's base frame (3,)) recorded in a page."""
+    commands = scene_commands(page.read_text(encoding="utf-8"))
+    shift = [c for c in commands if c["type"] == "set_transform" and c["path"] == "/meshcat"]
+    eye = [
+        c
+        for c in commands
+        if c["type"] == "set_property" and c["path"] == "/Cameras/default/rotated/<object>"
+    ]
+    assert len(shift) == 1 and len(eye) == 1
+    x, z, minus_y = eye[0]["value"]  # three.js axes
+    return np.array(shift[0]["matrix"]).reshape(4, 4).T[:3, 3], np.array([x, -minus_y, z])
+
+
+def test_camera_is_fitted_to_each_robot_and_scene(page, content, tmp_path):
+    panda = make_panda_content()
+    panda_page = preview.write_html(panda, tmp_path / "panda.html")
+    shifts, eyes = {}, {}
+    for name, (pg, c) in {"baxter": (page, content), "panda": (panda_page, panda)}.items():
+        shifts[name], eyes[name] = camera_of(pg)
+        # the scene is moved so that the centre of its bounding box is where the camera orbits
+        points = scene_points(c, RobotView(c, preview.DEFAULT_MAX_TRIANGLES))
+        assert np.allclose(shifts[name], -preview.camera_view(points)[0])
+        assert np.all(points.min(0) <= c.hand_path.min(0)) and np.all(points.max(0) >= c.hand_path.max(0))
+    # the Panda's scene is far smaller than Baxter's: the camera comes much closer
+    assert np.linalg.norm(eyes["panda"]) < 0.6 * np.linalg.norm(eyes["baxter"])
+    # and the framing follows the scene: a hand path 2 m away widens the view
+    far = panda.replace(hand_path=panda.hand_path + np.array([2.0, 0.0, 0.0]))
+    _, far_eye = camera_of(preview.write_html(far, tmp_path / "far.html"))
+    assert np.linalg.norm(far_eye) > 1.5 * np.linalg.norm(eyes["panda"])
+
+
+def test_decimation_that_stops_above_its_target_is_the_same_for_lower_targets(baxter):
+    """What the decimation's reuse relies on (meshes._decimated): fast_simplification's target only
+    stops it early, so a run that ends above its target gives the same mesh for any lower target."""
+    import fast_simplification
+
+    from ipromp_pin.preview.meshes import mesh_arrays
+
+    _, visual = baxter
+    checked = 0
+    for obj in visual.geometryObjects:
+        if not isinstance(obj.geometry, coal.BVHModelBase) or obj.geometry.num_tris < 8000:
+            continue
+        v, f = mesh_arrays(obj.geometry)
+        v, f = (v * obj.meshScale).astype(np.float32), f.astype(np.int32)
+        target = len(f) // 5
+        first = fast_simplification.simplify(v, f, target_count=target)
+        if len(first[1]) <= target:
+            continue
+        lower = fast_simplification.simplify(v, f, target_count=target // 2)
+        assert np.array_equal(first[0], lower[0]) and np.array_equal(first[1], lower[1])
+        checked += 1
+        if checked == 1:
+            break
+    assert checked >= 1
 
 
 def test_simplify_visual_model_keeps_objects_and_meets_budget(baxter):
@@ -225,7 +359,15 @@ def test_offline_page_holds_every_scene_element(page, content):
     state = overlay[0]["state"]
     assert state["task"] == "handover_cup" and state["tasks"] == list(TASKS)
     assert state["posterior"] == pytest.approx([0.82, 0.13, 0.05])
-    assert [c["passed"] for c in state["feasibility"]] == [True, False]
+    assert [c["passed"] for c in state["feasibility"]] == [True, False, True]
+    assert [c["status"] for c in state["feasibility"]] == ["pass", "fail", "skip"]
+    assert state["observed"] == {
+        "until_s": 1.0,
+        "human_duration_s": 4.0,
+        "source": "recorded",
+        "fraction": 0.25,
+    }
+    assert state["robot_duration_s"] == pytest.approx(3.0)
 
 
 def test_offline_page_colours_failing_links(page):
@@ -257,6 +399,12 @@ def test_offline_page_animates_the_arm_in_real_time(page, content):
     positions = np.array([k["value"] for k in wrist["tracks"][0]["keys"]])
     assert np.linalg.norm(positions[-1] - positions[0]) > 0.1  # the wrist moves
     assert "/meshcat/human/hand" in clips
+    # One time base: the animation is the robot trajectory's (0 when the observation ends); the hand
+    # marker plays the human's motion from the end of the observation (1 s) on.
+    hand = np.array([k["value"] for k in clips["/meshcat/human/hand"]["tracks"][0]["keys"]])
+    start = np.array([np.interp(1.0, content.hand_t_s, content.hand_path[:, d]) for d in range(3)])
+    assert hand[0] == pytest.approx(start)
+    assert times[-1] / wrist["fps"] == pytest.approx(max(3.0, 4.0 - 1.0), abs=1 / 30)
     # Links that do not move (torso, right arm) carry no animation track.
     assert "/meshcat/robot/visuals/torso_0" not in clips
     assert "/meshcat/robot/visuals/right_wrist_0" not in clips

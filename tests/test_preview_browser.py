@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from test_preview import load_baxter, make_content
+from test_preview import load_baxter, make_content, make_panda_content
 
 from ipromp_pin import preview
 
@@ -242,9 +242,46 @@ def test_offline_page_panel_names_the_task(browser, offline):
         session, "[...document.querySelectorAll('#ipromp-feasibility li.fail')].map(e => e.textContent)"
     )
     assert failed == ["self-collision: forearm vs torso"]
+    # A skipped check is drawn as skipped (a dash, greyed), never with a check mark.
+    skipped = browser.evaluate(
+        session, "[...document.querySelectorAll('#ipromp-feasibility li.skip')].map(e => e.textContent)"
+    )
+    assert skipped == ["hand distance (skipped): human hand position unknown"]
+    marks = browser.evaluate(
+        session,
+        "[...document.querySelectorAll('#ipromp-feasibility li')]"
+        ".map(e => getComputedStyle(e, '::before').content)",
+    )
+    assert marks == ['"\u2714 "', '"\u2718 "', '"\u2013 "']  # (CSS: the escape eats one space)
+    # The observed fraction is of the human's motion (4 s), not of the robot trajectory (3 s).
+    observed = browser.evaluate(session, "document.getElementById('ipromp-observed').textContent")
+    assert observed == "Observed: 1.00 s of the human's 4.00 s motion (25 %, recorded duration)"
+    timebase = browser.evaluate(session, "document.getElementById('ipromp-timebase').textContent")
+    assert timebase.startswith("Robot trajectory: 3.00 s; times below are on it")
     # The animation is loaded: meshcat's animator knows the clip duration.
     duration = browser.evaluate(session, "viewer.animator.duration")
     assert duration == pytest.approx(3.0, abs=0.05)
+
+
+def scene_extent(shot: np.ndarray) -> tuple[int, float]:
+    """(pixels, 5-95 % vertical spread in pixels) of what is drawn over the background, right of the
+    panel: the background is a vertical gradient, so each row's median is its background colour."""
+    rgb = shot[:, OVERLAY_RIGHT:, :].astype(int)
+    drawn = np.abs(rgb - np.median(rgb, axis=1, keepdims=True)).max(axis=-1) > 20
+    drawn[:30] = False  # meshcat's "Open Controls" bar
+    ys = np.nonzero(drawn)[0]
+    return int(drawn.sum()), float(np.percentile(ys, 95) - np.percentile(ys, 5))
+
+
+def test_another_robot_fills_the_view(browser, tmp_path):
+    """A Panda (far smaller than Baxter) is framed by the camera, not drawn tiny in Baxter's view
+    (with Baxter's fixed camera it covered about 10,000 pixels and 150 rows)."""
+    page = preview.write_html(make_panda_content(), tmp_path / "panda.html")
+    session = browser.open(page.as_uri())
+    browser.wait_for(session, "window.iprompReady")
+    pixels, spread = scene_extent(browser.screenshot(session))
+    assert pixels > 25_000 and spread > 0.3 * HEIGHT
+    browser.call("Page.close", session=session)
 
 
 def test_live_page_renders_and_follows_updates(browser, content):

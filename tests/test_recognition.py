@@ -387,3 +387,29 @@ def test_stream_equals_one_shot_with_two_blocks(shuffled) -> None:
     assert np.allclose(rec.log_posterior, one.log_posterior, rtol=1e-9, atol=1e-9)
     assert np.allclose(rec.alpha, one.alpha, rtol=1e-9)
     assert np.allclose(stream.prediction().q_mean, one.q_mean, rtol=1e-12, atol=1e-12)
+
+
+def test_distribution_band_of_a_log_scaled_channel_is_in_original_units() -> None:
+    from ipromp_pin.synthetic import make_synthetic_dataset
+
+    ds = make_synthetic_dataset(n_tasks=2, n_demos=8, seed=4)
+    model = IProMP(["orientation", "emg"], n_basis=8, noise=10.0).fit(ds)
+    z = np.linspace(0.05, 0.95, 12)
+    centre, spread, labels = model.distribution("rod", z)
+    mid, lower, upper, band_labels = model.distribution_band("rod", z, 2.0)
+    assert band_labels == labels and np.allclose(mid, centre)
+    emg = np.array([label.startswith("emg/") for label in labels])
+    assert emg.any() and (~emg).any()
+    scaler = model.scaler_
+    c = scaler.log_shift[emg]
+    # log-scaled: the quantiles exp(mu +- 2 sigma) - c around the median exp(mu) - c (sigma in log units)
+    mu = np.log(centre[:, emg] + c)
+    assert np.allclose(lower[:, emg], np.exp(mu - 2 * spread[:, emg]) - c)
+    assert np.allclose(upper[:, emg], np.exp(mu + 2 * spread[:, emg]) - c)
+    assert np.all(upper[:, emg] - centre[:, emg] > centre[:, emg] - lower[:, emg])  # asymmetric
+    # linear channels: mean +- 2 std
+    assert np.allclose(lower[:, ~emg], centre[:, ~emg] - 2 * spread[:, ~emg])
+    # about 95 % of the training demos' values lie in the band
+    demos = model.train_trajectories("rod", z)
+    inside = (demos >= lower) & (demos <= upper)
+    assert inside[..., emg].mean() > 0.85

@@ -170,3 +170,22 @@ def test_kinematics_only_robot_has_no_collision_model():
     np.testing.assert_array_equal(robot.q_neutral, full.q_neutral)
     np.testing.assert_array_equal(robot.arm_q_index, full.arm_q_index)
     assert robot.model.frames[robot.ee_frame_id].name == s.ee_frame
+
+
+def test_panda_settings_describe_another_robot_without_code():
+    """robots/panda.toml: a Franka Panda from example-robot-data, through the same schema as Baxter."""
+    from ipromp_pin.robot import check_path, ee_positions
+    from ipromp_pin.timing import JointLimits, time_path
+
+    panda = load_robot("panda")
+    assert panda.joint_names == tuple(f"panda_joint{i}" for i in range(1, 8))
+    assert np.allclose(panda.velocity_rad_s, [2.175] * 4 + [2.61] * 3)  # from the URDF (datasheet)
+    ready = np.array([0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785])
+    # the hand's tool centre point at the ready pose: Franka's well-known (0.307, 0, 0.487) m
+    assert np.allclose(ee_positions(panda, ready[None])[0], [0.307, 0.0, 0.487], atol=2e-3)
+    reach = ready + np.array([0.3, 0.5, 0.0, 0.5, 0.0, 0.3, 0.0])
+    path = ready + np.linspace(0.0, 1.0, 40)[:, None] * (reach - ready)
+    report = check_path(panda, path)
+    assert report.passed, report.to_text()
+    traj, timing = time_path(path, JointLimits.from_robot(panda))
+    assert timing.passed and 0.5 < traj.duration_s < 5.0

@@ -41,6 +41,7 @@ from .meshes import DEFAULT_MAX_TRIANGLES, count_triangles, simplify_visual_mode
 from .page import render_html, write_html
 from .recorder import SceneRecorder
 from .scene import (
+    CAMERA_FOV_DEG,
     COLOR_COLLISION,
     COLOR_EE_BAND,
     COLOR_EE_MEAN,
@@ -49,11 +50,13 @@ from .scene import (
     COLOR_HAND_REST,
     COLOR_HANDOVER,
     COLOR_NEAR_LIMIT,
+    camera_view,
     overlay_state,
 )
 from .server import LivePreview, serve_preview
 
 __all__ = [
+    "CAMERA_FOV_DEG",
     "COLOR_COLLISION",
     "COLOR_EE_BAND",
     "COLOR_EE_MEAN",
@@ -67,6 +70,7 @@ __all__ = [
     "LivePreview",
     "PreviewContent",
     "SceneRecorder",
+    "camera_view",
     "count_triangles",
     "overlay_state",
     "render_html",

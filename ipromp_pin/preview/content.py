@@ -19,7 +19,7 @@ import pinocchio as pin
 
 from ..exceptions import DataError
 
-__all__ = ["SOURCE", "FeasibilityCheck", "PreviewContent", "finite_array", "preview_error"]
+__all__ = ["CHECK_STATUSES", "SOURCE", "FeasibilityCheck", "PreviewContent", "finite_array", "preview_error"]
 
 #: ``source`` of every :class:`~ipromp_pin.exceptions.DataError` raised by the preview.
 SOURCE = "preview"
@@ -55,18 +55,28 @@ def _optional_array(value: Any, field_name: str, ndim: int, last: int | None = N
     return None if value is None else finite_array(value, field_name, ndim, last)
 
 
+CHECK_STATUSES = ("pass", "fail", "skip")
+"""Statuses of a :class:`FeasibilityCheck`: ``"skip"`` is a check that could not be made (e.g. the
+human hand position is unknown), drawn as skipped, neither passed nor failed."""
+
+
 class FeasibilityCheck(NamedTuple):
     """One line of the feasibility panel.
 
     Attributes:
         name: Check name, e.g. ``"joint limits"``.
-        passed: Whether the check passed.
-        detail: Short detail, e.g. ``"left_e1 within 0.02 rad of its limit"``.
+        passed: Whether the check passed (``True`` for a skipped check: it does not fail the plan).
+        detail: Short detail, e.g. ``"left_e1 within 0.02 rad of its limit"``; times in it are on the
+            robot trajectory's time base (``t_s``), as everywhere on the page.
+        status: ``"pass"``, ``"fail"`` or ``"skip"`` (``""``: from ``passed``).
+        required: Whether the check counts towards the verdict (``False``: advisory).
     """
 
     name: str
     passed: bool
     detail: str = ""
+    status: str = ""
+    required: bool = True
 
 
 @dataclass
@@ -91,7 +101,11 @@ class PreviewContent:
             at ``observed_until_s``).
         hand_observed_index: Number of ``hand_path`` points that were observed (overrides the
             split computed from ``hand_t_s`` and ``observed_until_s``).
-        observed_until_s: End of the observed window in [s] from the motion start.
+        observed_until_s: End of the observed window in [s] from the start of the human's motion.
+        human_duration_s: Duration of the human's whole motion in [s] (the recorded demo's, or the
+            predicted one): the page shows the observed fraction of the HUMAN's motion.
+        human_duration_source: Where ``human_duration_s`` comes from, e.g. ``"recorded"`` or
+            ``"predicted"`` (named on the page).
         handover_point: (3,) hand-over point in [m].
         task: Recognised task name.
         tasks: (K,) names of all tasks.
@@ -117,6 +131,8 @@ class PreviewContent:
     hand_t_s: np.ndarray | None = None
     hand_observed_index: int | None = None
     observed_until_s: float | None = None
+    human_duration_s: float | None = None
+    human_duration_source: str = ""
     handover_point: np.ndarray | None = None
     task: str = ""
     tasks: Sequence[str] = ()
@@ -206,6 +222,13 @@ class PreviewContent:
                 raise preview_error(
                     "observed_until_s", f"must be a finite time >= 0, got {self.observed_until_s}"
                 )
+        if self.human_duration_s is not None:
+            self.human_duration_s = float(self.human_duration_s)
+            if not np.isfinite(self.human_duration_s) or self.human_duration_s <= 0.0:
+                raise preview_error(
+                    "human_duration_s", f"must be a finite duration > 0, got {self.human_duration_s}"
+                )
+        self.human_duration_source = str(self.human_duration_source)
         self.handover_point = _optional_array(self.handover_point, "handover_point", 1, 3)
 
         self.tasks = tuple(str(t) for t in self.tasks)
@@ -222,11 +245,19 @@ class PreviewContent:
             raise preview_error("task", f"'{self.task}' is not one of the tasks {list(self.tasks)}")
         checks = []
         for item in self.feasibility:
-            if not isinstance(item, (tuple, list)) or not 2 <= len(item) <= 3:
-                raise preview_error("feasibility", f"expected (name, passed, detail), got {item!r}")
-            checks.append(
-                FeasibilityCheck(str(item[0]), bool(item[1]), str(item[2]) if len(item) > 2 else "")
-            )
+            if not isinstance(item, (tuple, list)) or not 2 <= len(item) <= 5:
+                raise preview_error(
+                    "feasibility", f"expected (name, passed, detail, status, required), got {item!r}"
+                )
+            name, passed = str(item[0]), bool(item[1])
+            detail = str(item[2]) if len(item) > 2 else ""
+            status = str(item[3]) if len(item) > 3 and item[3] else ("pass" if passed else "fail")
+            if status not in CHECK_STATUSES:
+                raise preview_error("feasibility", f"check '{name}': unknown status {status!r}")
+            if (status == "fail") == passed:
+                raise preview_error("feasibility", f"check '{name}': status {status!r} but passed={passed}")
+            required = bool(item[4]) if len(item) > 4 else True
+            checks.append(FeasibilityCheck(name, passed, detail, status, required))
         self.feasibility = tuple(checks)
         self.collision_links = tuple(str(n) for n in self.collision_links)
         for name in self.collision_links:
@@ -249,6 +280,13 @@ class PreviewContent:
     def duration_s(self) -> float:
         """Duration of the robot trajectory in [s]."""
         return float(self.t_s[-1])
+
+    def observed_fraction(self) -> float | None:
+        """Observed fraction of the human's motion (``observed_until_s / human_duration_s``, at most 1),
+        ``None`` when either is unknown; never relative to the robot trajectory's duration."""
+        if self.observed_until_s is None or self.human_duration_s is None:
+            return None
+        return min(1.0, self.observed_until_s / self.human_duration_s)
 
     def configurations(self, t_s: np.ndarray) -> np.ndarray:
         """Full configurations (len(t_s), nq) at times ``t_s`` [s], arm joints linearly interpolated."""

@@ -20,6 +20,9 @@ from .content import preview_error
 __all__ = [
     "DEFAULT_MAX_TRIANGLES",
     "count_triangles",
+    "decimated_meshes",
+    "display_mesh",
+    "mesh_arrays",
     "simplify_visual_model",
     "sphere_mesh",
     "tube_mesh",
@@ -35,7 +38,8 @@ DEFAULT_MAX_TRIANGLES = 100_000
 _SIMPLIFIED_MESHES: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
 
 
-def _triangles(geometry: Any) -> tuple[np.ndarray, np.ndarray]:
+def mesh_arrays(geometry: Any) -> tuple[np.ndarray, np.ndarray]:
+    """(vertices (V, 3), faces (F, 3) int64) of a coal BVH mesh."""
     vertices = np.asarray(geometry.vertices(), dtype=float)
     faces = np.empty((geometry.num_tris, 3), dtype=np.int64)
     for k in range(geometry.num_tris):
@@ -44,12 +48,14 @@ def _triangles(geometry: Any) -> tuple[np.ndarray, np.ndarray]:
     return vertices, faces
 
 
-def _bvh(vertices: np.ndarray, faces: np.ndarray) -> Any:
+def display_mesh(vertices: np.ndarray, faces: np.ndarray) -> Any:
+    """A coal mesh (vertices (V, 3) in [m], faces (F, 3)) for display only: its bounding-volume tree
+    is not built (``endModel`` is not called: that takes about 0.3 s for Baxter's 100,000 preview
+    triangles and only collision queries need it), so it must not be used for collision checks."""
     bvh = coal.BVHModelOBBRSS()
     bvh.beginModel(len(faces), len(vertices))
     bvh.addVertices(np.ascontiguousarray(vertices, dtype=float))
     bvh.addTriangles(np.ascontiguousarray(faces, dtype=np.int64))
-    bvh.endModel()
     return bvh
 
 
@@ -58,10 +64,16 @@ def _decimated(obj: pin.GeometryObject, target: int) -> tuple[np.ndarray, np.nda
     scale = np.asarray(obj.meshScale, dtype=float)
     source = (obj.meshPath, tuple(scale), obj.geometry.num_tris)
     if source + (None,) not in _SIMPLIFIED_MESHES:
-        vertices, faces = _triangles(obj.geometry)
+        vertices, faces = mesh_arrays(obj.geometry)
         _SIMPLIFIED_MESHES[source + (None,)] = (vertices * scale, faces)
     key = source + (target,)
     if key not in _SIMPLIFIED_MESHES:
+        # The decimation's target only stops it early: a run that ended above its target went
+        # through every iteration, so any lower target gives the very same mesh; reuse it.
+        for (*other, done), mesh in list(_SIMPLIFIED_MESHES.items()):
+            if tuple(other) == source and done is not None and done >= target and len(mesh[1]) > done:
+                _SIMPLIFIED_MESHES[key] = mesh
+                return mesh
         vertices, faces = _SIMPLIFIED_MESHES[source + (None,)]
         if target < len(faces):
             vertices, faces = fast_simplification.simplify(
@@ -74,17 +86,40 @@ def _decimated(obj: pin.GeometryObject, target: int) -> tuple[np.ndarray, np.nda
 def simplify_visual_model(
     visual_model: pin.GeometryModel, max_triangles: int = DEFAULT_MAX_TRIANGLES
 ) -> pin.GeometryModel:
-    """Copy of ``visual_model`` whose meshes have at most about ``max_triangles`` triangles in total.
+    """Copy of ``visual_model`` whose meshes have at most about ``max_triangles`` triangles in total
+    (``visual_model`` itself when it already is such a model: within the budget, no mesh files).
 
     Meshes are decimated with quadric edge collapse (``fast_simplification``) by a common ratio;
     meshes that cannot be reduced that far (many small parts) keep more triangles, and the ratio
     of the others is lowered to stay within the budget (a few passes). Primitives (boxes,
     cylinders, spheres) are kept as they are. Mesh scales are baked into the vertices and mesh file
     references dropped, so that meshcat receives the decimated triangles instead of the original
-    files. Colours are the description's ``meshColor``.
+    files. Colours are the description's ``meshColor``. The meshes are for display only
+    (:func:`display_mesh`: no collision queries on them).
     """
     if max_triangles < 100:
         raise preview_error("max_triangles", f"must be >= 100, got {max_triangles}")
+    meshes = [g for g in visual_model.geometryObjects if isinstance(g.geometry, coal.BVHModelBase)]
+    total = sum(g.geometry.num_tris for g in meshes)
+    if total <= 1.05 * max_triangles and all(g.meshPath == "" and np.all(g.meshScale == 1.0) for g in meshes):
+        return visual_model  # already decimated (e.g. from the mesh cache): nothing to do
+    decimated = decimated_meshes(visual_model, max_triangles)
+    result = pin.GeometryModel()
+    for obj in visual_model.geometryObjects:
+        new = pin.GeometryObject(obj)
+        if obj.name in decimated:
+            new.geometry = display_mesh(*decimated[obj.name])
+            new.meshPath = ""
+            new.meshScale = np.ones(3)
+        result.addGeometryObject(new)
+    return result
+
+
+def decimated_meshes(
+    visual_model: pin.GeometryModel, max_triangles: int = DEFAULT_MAX_TRIANGLES
+) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """The triangles ``(vertices (V, 3) in [m], faces (F, 3))`` of every mesh object of
+    ``visual_model`` (by name), scale baked in, decimated as :func:`simplify_visual_model` does."""
     meshes = [g for g in visual_model.geometryObjects if isinstance(g.geometry, coal.BVHModelBase)]
     total = sum(g.geometry.num_tris for g in meshes)
     ratio = min(1.0, max_triangles / total) if total else 1.0
@@ -95,15 +130,7 @@ def simplify_visual_model(
         if reached <= 1.05 * max_triangles or ratio * total < 12 * len(meshes):
             break
         ratio *= max_triangles / reached
-    result = pin.GeometryModel()
-    for obj in visual_model.geometryObjects:
-        new = pin.GeometryObject(obj)
-        if obj.name in targets:
-            new.geometry = _bvh(*_decimated(obj, targets[obj.name]))
-            new.meshPath = ""
-            new.meshScale = np.ones(3)
-        result.addGeometryObject(new)
-    return result
+    return {g.name: _decimated(g, targets[g.name]) for g in meshes}
 
 
 def count_triangles(geometry_model: pin.GeometryModel) -> int:
@@ -182,11 +209,10 @@ def tube_mesh(
 
 
 def sphere_mesh(center: np.ndarray, radius: float, n: int = 12) -> tuple[np.ndarray, np.ndarray]:
-    """Closed mesh meant as a sphere of ``radius`` [m] around ``center`` (3,) [m].
+    """Closed sphere mesh of ``radius`` [m] around ``center`` (3,) [m].
 
-    ``n - 1`` rings of ``2 n`` vertices between two poles; returns ``(vertices (V, 3) in [m],
-    faces (F, 3))``. Known defect, kept as it is (the display is fixed separately): the rings' z
-    component is 0, so the rings lie in the plane through ``center`` and the mesh is a double cone.
+    ``n - 1`` rings of ``2 n`` vertices (at polar angles ``pi k / n``) between two poles; returns
+    ``(vertices (V, 3) in [m], faces (F, 3))``, faces wound outwards.
     """
     theta = np.linspace(0.0, np.pi, n + 1)[1:-1]
     phi = 2.0 * np.pi * np.arange(2 * n) / (2 * n)
@@ -194,7 +220,7 @@ def sphere_mesh(center: np.ndarray, radius: float, n: int = 12) -> tuple[np.ndar
         [
             np.outer(np.sin(theta), np.cos(phi)),
             np.outer(np.sin(theta), np.sin(phi)),
-            np.outer(np.cos(theta), phi * 0),
+            np.outer(np.cos(theta), np.ones_like(phi)),
         ],
         -1,
     ).reshape(-1, 3)
@@ -204,12 +230,12 @@ def sphere_mesh(center: np.ndarray, radius: float, n: int = 12) -> tuple[np.ndar
     a = i * cols + k
     b = i * cols + (k + 1) % cols
     faces = [
-        np.stack([a, b, b + cols], -1).reshape(-1, 3),
-        np.stack([a, b + cols, a + cols], -1).reshape(-1, 3),
+        np.stack([a, b + cols, b], -1).reshape(-1, 3),
+        np.stack([a, a + cols, b + cols], -1).reshape(-1, 3),
     ]
     top, bottom = len(ring), len(ring) + 1
     k = np.arange(cols)
-    faces.append(np.stack([np.full(cols, top), (k + 1) % cols, k], -1))
+    faces.append(np.stack([np.full(cols, top), k, (k + 1) % cols], -1))
     last = (rows - 1) * cols
-    faces.append(np.stack([np.full(cols, bottom), last + k, last + (k + 1) % cols], -1))
+    faces.append(np.stack([np.full(cols, bottom), last + (k + 1) % cols, last + k], -1))
     return vertices, np.vstack(faces)

@@ -9,10 +9,13 @@ viewer whose window is a :class:`~ipromp_pin.preview.recorder.SceneRecorder`:
   hand-over point (gold);
 - the predicted end-effector path (blue tube), its uncertainty (translucent tube of radius 2 sigma,
   thin sampled paths) and the recorded robot path (purple);
-- the recognised task on a text plane above the robot, the background, grid and camera;
+- the recognised task on a text plane above the robot, the background, grid and a camera fitted to
+  the scene's bounding box (:func:`camera_view`), so that any robot fills the view;
 - the state of the HTML panel (:func:`overlay_state`).
 
-Positions in [m] in the robot's base frame, times in [s] from the start of the motion.
+Positions in [m] in the robot's base frame. The animation runs on the robot trajectory's time base
+(``t_s``: 0 when the observation ends and the robot starts); the hand marker follows the human's
+motion from the end of the observation.
 """
 
 from __future__ import annotations
@@ -33,6 +36,8 @@ from .meshes import simplify_visual_model, sphere_mesh, tube_mesh
 from .recorder import SceneRecorder
 
 __all__ = [
+    "CAMERA_DIRECTION",
+    "CAMERA_FOV_DEG",
     "COLOR_COLLISION",
     "COLOR_EE_BAND",
     "COLOR_EE_MEAN",
@@ -43,7 +48,9 @@ __all__ = [
     "COLOR_NEAR_LIMIT",
     "RobotView",
     "build_scene",
+    "camera_view",
     "overlay_state",
+    "scene_points",
     "update_scene",
 ]
 
@@ -145,6 +152,7 @@ class RobotView:
         self.geometry = simplify_visual_model(source, max_triangles)
         self.visualizer = MeshcatVisualizer(content.model, None, self.geometry)
         self._painted: dict[str, tuple] = {}
+        self._local_boxes: list[np.ndarray] | None = None
 
     def load(self, viewer: meshcat.Visualizer, content: PreviewContent) -> None:
         """Send the robot meshes (description colours), paint failing links, show the start pose."""
@@ -191,12 +199,77 @@ class RobotView:
                 low = min(low, float((v @ T[:3, :3].T + T[:3, 3])[:, 2].min()))
         return low if np.isfinite(low) else 0.0
 
+    def corners(self, qs: np.ndarray) -> np.ndarray:
+        """(n, 3) world corners in [m] of every geometry's bounding box at the configurations ``qs``
+        (k, nq): the robot's extent along a motion (primitives count by their origin)."""
+        if self._local_boxes is None:
+            boxes = []
+            for obj in self.geometry.geometryObjects:
+                if isinstance(obj.geometry, coal.BVHModelBase) and obj.geometry.num_vertices:
+                    v = np.asarray(obj.geometry.vertices())
+                    lo, hi = v.min(axis=0), v.max(axis=0)
+                    boxes.append(np.array([[(hi if b else lo)[i] for i, b in enumerate(c)] for c in _CUBE]))
+                else:
+                    boxes.append(np.zeros((1, 3)))
+            self._local_boxes = boxes
+        out = []
+        for q in np.atleast_2d(qs):
+            for box, T in zip(self._local_boxes, self.placements(q), strict=True):
+                out.append(box @ T[:3, :3].T + T[:3, 3])
+        return np.vstack(out)
+
+
+_CUBE = [(i & 1, (i >> 1) & 1, (i >> 2) & 1) for i in range(8)]
+
+#: Vertical field of view of meshcat's default camera in [deg] (three.js PerspectiveCamera(75, ...)).
+CAMERA_FOV_DEG = 75.0
+#: Direction from the scene's centre to the camera, in the robot's base frame: in front of the robot
+#: (+x), to its left (+y) and above (+z).
+CAMERA_DIRECTION = np.array([2.0, 1.2, 0.8]) / np.linalg.norm([2.0, 1.2, 0.8])
+
+
+def camera_view(points: np.ndarray, fov_deg: float = CAMERA_FOV_DEG) -> tuple[np.ndarray, np.ndarray]:
+    """Where to look from so that ``points`` (n, 3) [m] fill the view: the centre of their bounding box
+    (3,) and the camera position (3,) relative to it, both in the robot's base frame [m].
+
+    The camera is along :data:`CAMERA_DIRECTION`, at the distance from which the bounding box's
+    circumscribed sphere (radius ``R``) spans the vertical field of view ``fov_deg`` seen from its
+    centre: ``R / tan(fov / 2)`` (the box's corners, which the sphere over-covers, stay in view).
+    """
+    pts = np.asarray(points, dtype=float).reshape(-1, 3)
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    radius = max(0.5 * float(np.linalg.norm(hi - lo)), 0.05)
+    distance = radius / np.tan(np.radians(fov_deg) / 2.0)
+    return (lo + hi) / 2.0, CAMERA_DIRECTION * distance
+
+
+def scene_points(content: PreviewContent, robot: RobotView, n_poses: int = 5) -> np.ndarray:
+    """(n, 3) points in [m] the view must hold: the robot's bounding boxes at ``n_poses`` times of its
+    trajectory, the hand path, the predicted and recorded gripper paths and the hand-over point."""
+    qs = content.configurations(np.linspace(0.0, content.duration_s, n_poses))
+    parts = [robot.corners(qs)]
+    for extra in (content.hand_path, content.ee_mean, content.ee_truth, content.handover_point):
+        if extra is not None:
+            parts.append(np.atleast_2d(extra))
+    return np.vstack(parts)
+
+
+def _hand_offset_s(content: PreviewContent) -> float:
+    """Human time [s] at the animation's (the robot trajectory's) time 0: the robot starts moving when
+    the observation ends, so the hand marker plays the human's motion from ``observed_until_s``."""
+    return 0.0 if content.observed_until_s is None else content.observed_until_s
+
 
 def _animate(viewer: meshcat.Visualizer, robot: RobotView, content: PreviewContent, fps: float) -> None:
-    """Meshcat animation of the robot (and of the hand marker) in real time at ``fps`` frames/s."""
+    """Meshcat animation of the robot (and of the hand marker) in real time at ``fps`` frames/s.
+
+    One time base: the animation's time is the robot trajectory's (``t_s``, 0 when the observation
+    ends); the hand marker is at the human's time ``t + observed_until_s``.
+    """
     duration = content.duration_s
+    offset = _hand_offset_s(content)
     if content.hand_t_s is not None:
-        duration = max(duration, float(content.hand_t_s[-1]))
+        duration = max(duration, float(content.hand_t_s[-1]) - offset)
     n_frames = max(2, int(np.ceil(duration * fps)) + 1)
     times = np.arange(n_frames) / fps
     qs = content.configurations(times)
@@ -210,7 +283,8 @@ def _animate(viewer: meshcat.Visualizer, robot: RobotView, content: PreviewConte
     animation = meshcat.animation.Animation(default_framerate=fps)
     hand = None
     if content.hand_path is not None and content.hand_t_s is not None:
-        hand = np.stack([np.interp(times, content.hand_t_s, content.hand_path[:, d]) for d in range(3)], -1)
+        t_human = times + offset
+        hand = np.stack([np.interp(t_human, content.hand_t_s, content.hand_path[:, d]) for d in range(3)], -1)
     for k in range(n_frames):
         with animation.at_frame(viewer, k) as frame:
             for i in moving:
@@ -239,7 +313,7 @@ def _draw_human(viewer: meshcat.Visualizer, content: PreviewContent) -> None:
         if content.hand_t_s is not None:
             _set_mesh(viewer["human/hand"], sphere_mesh(np.zeros(3), 0.03), COLOR_HAND_OBSERVED, 0.9)
             T = np.eye(4)
-            T[:3, 3] = path[0]
+            T[:3, 3] = [np.interp(_hand_offset_s(content), content.hand_t_s, path[:, d]) for d in range(3)]
             viewer["human/hand"].set_transform(T)
     if content.handover_point is not None:
         _set_mesh(viewer["human/handover"], sphere_mesh(content.handover_point, 0.035), COLOR_HANDOVER)
@@ -278,24 +352,38 @@ def _task_label(content: PreviewContent) -> str:
     return content.task
 
 
-def _draw_label(viewer: meshcat.Visualizer, content: PreviewContent) -> None:
+def _draw_label(viewer: meshcat.Visualizer, content: PreviewContent, robot: RobotView) -> None:
+    """The task label on a plane above the robot (at its start pose), sized to the robot."""
+    corners = robot.corners(content.configurations(np.array([0.0])))
+    lo, hi = corners.min(axis=0), corners.max(axis=0)
+    size = float(np.clip(0.33 * np.max(hi - lo), 0.2, 1.0))
+    position = np.array([hi[0] - 0.25 * (hi[0] - lo[0]), (lo[1] + hi[1]) / 2.0, hi[2] + 0.1 * size])
     node = viewer[_LABEL_NODE]
     node.set_object(_text_plane(_task_label(content)))
-    node.set_transform(_plane_facing_x(np.array([0.35, 0.0, 0.95]), 0.6))
+    node.set_transform(_plane_facing_x(position, size))
 
 
-def _setup_view(viewer: meshcat.Visualizer, floor_z: float) -> None:
+def _setup_view(viewer: meshcat.Visualizer, floor_z: float, points: np.ndarray) -> None:
+    """Background, floor grid and a camera fitted to the scene ``points`` (n, 3) [m].
+
+    meshcat's orbit controls turn around the world origin, so the scene (everything under
+    ``/meshcat``) is moved to put the centre of its bounding box there, and the camera is placed
+    by :func:`camera_view` (in three.js coordinates, x, z, -y).
+    """
     viewer["/Background"].set_property("top_color", [0.97, 0.97, 0.98])
     viewer["/Background"].set_property("bottom_color", [0.78, 0.80, 0.84])
-    # The grid on the floor under the pedestal; hidden by default (software WebGL draws its lines
+    center, eye = camera_view(points)
+    shift = np.eye(4)
+    shift[:3, 3] = -center
+    viewer["/meshcat"].set_transform(shift)
+    # The grid on the floor under the robot; hidden by default (software WebGL draws its lines
     # badly), "Open Controls > Grid" shows it.
     T = np.eye(4)
-    T[2, 3] = floor_z
+    T[:3, 3] = [-center[0], -center[1], floor_z - center[2]]
     viewer["/Grid"].set_transform(T)
     viewer["/Grid"].set_property("visible", False)
     viewer["/Axes"].set_property("visible", False)
-    # Camera in three.js coordinates (x, z, -y): in front of Baxter, to its left, above.
-    viewer["/Cameras/default/rotated/<object>"].set_property("position", [2.0, 0.8, -1.2])
+    viewer["/Cameras/default/rotated/<object>"].set_property("position", [eye[0], eye[2], -eye[1]])
 
 
 def overlay_state(content: PreviewContent) -> dict[str, Any]:
@@ -303,7 +391,13 @@ def overlay_state(content: PreviewContent) -> dict[str, Any]:
     posterior = [] if content.posterior is None else [float(p) for p in content.posterior]
     observed = None
     if content.observed_until_s is not None:
-        observed = {"until_s": content.observed_until_s, "duration_s": content.duration_s}
+        # Of the HUMAN's motion (its recorded or predicted duration), never of the robot trajectory.
+        observed = {
+            "until_s": content.observed_until_s,
+            "human_duration_s": content.human_duration_s,
+            "source": content.human_duration_source,
+            "fraction": content.observed_fraction(),
+        }
     legend = []
     if content.hand_path is not None:
         legend.append({"label": "hand path (observed)", "color": f"#{COLOR_HAND_OBSERVED:06x}"})
@@ -322,8 +416,16 @@ def overlay_state(content: PreviewContent) -> dict[str, Any]:
         "tasks": list(content.tasks),
         "posterior": posterior,
         "observed": observed,
+        "robot_duration_s": content.duration_s,
         "feasibility": [
-            {"name": c.name, "passed": c.passed, "detail": c.detail} for c in content.feasibility
+            {
+                "name": c.name,
+                "passed": c.passed,
+                "status": c.status,
+                "required": c.required,
+                "detail": c.detail,
+            }
+            for c in content.feasibility
         ],
         "collision_links": list(content.collision_links),
         "near_limit_joints": list(content.near_limit_joints),
@@ -340,10 +442,12 @@ def build_scene(window: SceneRecorder, content: PreviewContent, *, robot: RobotV
     animation at ``fps`` frames/s, and the HTML panel's state."""
     viewer = _new_viewer(window)
     robot.load(viewer, content)
-    _setup_view(viewer, robot.floor_height(content.configurations(np.array([0.0]))[0]))
+    _setup_view(
+        viewer, robot.floor_height(content.configurations(np.array([0.0]))[0]), scene_points(content, robot)
+    )
     _draw_human(viewer, content)
     _draw_prediction(viewer, content)
-    _draw_label(viewer, content)
+    _draw_label(viewer, content, robot)
     _animate(viewer, robot, content, fps)
     window.set_overlay(overlay_state(content))
 
@@ -381,7 +485,7 @@ def update_scene(
     if prediction:
         _draw_prediction(viewer, content)
     if label:
-        _draw_label(viewer, content)
+        _draw_label(viewer, content, robot)
     if animation:
         _animate(viewer, robot, content, fps)
     window.set_overlay(overlay_state(content))

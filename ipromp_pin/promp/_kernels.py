@@ -12,21 +12,11 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from .sample_bounds import MAX_LOG_SCALED_MAGNITUDE, MAX_SCALED_MAGNITUDE
+
 _JIT = {"cache": True, "nogil": True, "fastmath": False, "error_model": "numpy"}
 _JIT_FMA = {**_JIT, "fastmath": {"contract"}}  # fused multiply-add only (no reassociation)
 
-MAX_SCALED_MAGNITUDE = 1e4
-"""Largest magnitude of a scaled observed value (``(f(y) - offset) / scale``: standard deviations of
-the channel's training samples from their mean). Beyond it a sample cannot come from the sensors the
-model was trained on, and its square would swamp (or overflow) the running sums of squares, so
-:func:`scale_samples` reports it like a NaN."""
-
-MAX_LOG_SCALED_MAGNITUDE = 30.0
-"""The same bound for channels modelled in log space (EMG envelopes), whose logarithm compresses
-absurd values (an envelope of 1e300 is only about 1000 standard deviations of log-EMG away): 30
-standard deviations of the training data's logarithm is a factor of about e^20 beyond anything
-recorded. Negative values, which the logarithm's clamp ``max(y, 0)`` hides, are refused below
-``-MAX_SCALED_MAGNITUDE`` times the channel's shift ``c``."""
 LOG_2PI = float(np.log(2.0 * np.pi))
 
 P_FROM_W = 0

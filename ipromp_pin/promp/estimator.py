@@ -358,14 +358,34 @@ class IProMP:
 
     # ------------------------------------------------------------- plots
     def distribution(self, task: str, z: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[str]]:
-        """Learned mean and std (n, D) of every channel over phases ``z`` (n,), in original units.
+        """Learned centre and spread (n, D) of every channel over phases ``z`` (n,).
+
+        For a linear channel these are the mean and standard deviation in original units. A channel
+        modelled in log space (EMG, ``log_groups``) is Gaussian in ``log(y + c)``: its centre is the
+        median ``exp(mu) - c`` in original units but its spread is the standard deviation of
+        ``log(y + c)`` (log units); :meth:`distribution_band` gives bands in original units.
 
         Returns:
-            mean, std and the channel names as ``"group/channel"`` (observed groups, then robot).
+            centre, spread and the channel names as ``"group/channel"`` (observed groups, then robot).
         """
         m = self._task_model(task)
         mean, std = m.distribution(self.basis_(np.asarray(z, dtype=float)))
         return self.scaler_.inverse(mean), std * self.scaler_.scale, self.channel_labels()
+
+    def distribution_band(
+        self, task: str, z: np.ndarray, n_sigma: float = 2.0
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[str]]:
+        """Centre and the ``n_sigma`` band (n, D) of every channel over phases ``z`` (n,), all in
+        original units: the model's quantiles ``mu +- n_sigma sigma`` mapped through the channel
+        scaling (for log-scaled channels ``exp(.) - c``, so the band is asymmetric around the median).
+
+        Returns:
+            centre, lower, upper and the channel names as ``"group/channel"``.
+        """
+        m = self._task_model(task)
+        mean, std = m.distribution(self.basis_(np.asarray(z, dtype=float)))
+        inv = self.scaler_.inverse
+        return inv(mean), inv(mean - n_sigma * std), inv(mean + n_sigma * std), self.channel_labels()
 
     def train_trajectories(self, task: str, z: np.ndarray) -> np.ndarray:
         """Basis-fitted trajectories (N, n, D) of the training demos at phases ``z``, original units."""

@@ -17,6 +17,7 @@ from ..exceptions import DataError, ObservationError
 from .compiled import kernels
 from .distribution import ChannelScaler
 from .layout import ChannelLayout
+from .sample_bounds import MAX_LOG_SCALED_MAGNITUDE, MAX_SCALED_MAGNITUDE
 
 
 @dataclass
@@ -128,18 +129,17 @@ class ObservationEncoder:
 
     def check_values(self, source: object, group: str, values: np.ndarray, what: str = "samples") -> None:
         """Raise ObservationError when raw values (n, D_g) of an observed group are NaN or inf, or
-        scale to more than :data:`~ipromp_pin.promp._kernels.MAX_SCALED_MAGNITUDE` standard deviations
+        scale to more than :data:`~ipromp_pin.promp.sample_bounds.MAX_SCALED_MAGNITUDE` standard deviations
         of the training data (a value no sensor the model was trained on gives)."""
         v = np.asarray(values, dtype=float)
         if not np.all(np.isfinite(v)):
             raise ObservationError(source, group, f"NaN or inf values in {what} not flagged as missing")
         with np.errstate(all="ignore"):
             scaled = np.abs(self.scale_group(group, v))
-        k = kernels()
         dims = slice(*self.layout.slices[group])
         log = self.scaler.log_mask[dims]
-        bound = np.where(log, k.MAX_LOG_SCALED_MAGNITUDE, k.MAX_SCALED_MAGNITUDE)
-        floor = np.where(log, -k.MAX_SCALED_MAGNITUDE * np.nan_to_num(self.scaler.log_shift[dims]), -np.inf)
+        bound = np.where(log, MAX_LOG_SCALED_MAGNITUDE, MAX_SCALED_MAGNITUDE)
+        floor = np.where(log, -MAX_SCALED_MAGNITUDE * np.nan_to_num(self.scaler.log_shift[dims]), -np.inf)
         bad = ~(scaled <= bound) | (v < floor)
         if np.any(bad):
             row, col = np.argwhere(bad)[0]

@@ -37,6 +37,7 @@ FORMATS = ("auto", "chen2017", "multimodal", "bag", "native")
 __all__ = [
     "BAXTER_LEFT_JOINTS",
     "FORMATS",
+    "count_demos",
     "detect_format",
     "list_demos",
     "load_dataset",
@@ -186,6 +187,53 @@ def _check_readable(folder: Path) -> None:
             raise DataError(d, None, "cannot read the task folder: permission denied")
 
 
+def _dataset_plan(root: Path, format: str, order: str) -> list[tuple[str, str, list[Path]]]:
+    """(task, format, demo files) of every task folder of a dataset, without reading a demo."""
+    if not root.is_dir():
+        raise DataError(root, None, "dataset folder not found")
+    if format not in FORMATS:
+        raise DataError(root, "format", f"unknown format {format!r} (use one of {', '.join(FORMATS)})")
+    try:
+        entries = sorted(p for p in root.iterdir() if not p.name.startswith((".", "_")))
+    except OSError as exc:
+        raise DataError(root, None, f"cannot read the dataset folder: {exc.strerror or exc}") from None
+    for p in entries:
+        if p.is_symlink() and not p.exists():
+            raise DataError(p, None, "broken link where a task folder was expected")
+    subdirs = [p for p in entries if p.is_dir()]
+    plan: list[tuple[str, str, list[Path]]] = []
+    for d in subdirs:
+        _check_readable(d)
+        if format == "auto":
+            try:
+                fmt = detect_format(d)
+            except DataError as exc:
+                raise DataError(
+                    d,
+                    "format",
+                    f"{exc.problem}; a task folder must hold demos (rename the folder with a leading '_' "
+                    "to leave it out)",
+                ) from None
+        else:
+            fmt = format
+        plan.append((d.name, fmt, list_demos(d, fmt, order)))
+    if not plan:
+        raise DataError(root, None, "no task sub-folders (expected one folder of demos per task)")
+    for task, _, files in plan:
+        if len(files) < 2:
+            raise DataError(root / task, None, f"a task needs at least 2 demos, found {len(files)}")
+    return plan
+
+
+def count_demos(path: str | Path, *, format: str = "auto") -> dict[str, int]:
+    """Number of demos of every task of a dataset folder, found without reading them (fast).
+
+    Raises:
+        DataError: as :func:`load_dataset` before it reads a demo.
+    """
+    return {task: len(files) for task, _, files in _dataset_plan(Path(path), format, "recorded")}
+
+
 def load_dataset(
     path: str | Path,
     *,
@@ -224,39 +272,7 @@ def load_dataset(
             its file).
     """
     root = Path(path)
-    if not root.is_dir():
-        raise DataError(root, None, "dataset folder not found")
-    if format not in FORMATS:
-        raise DataError(root, "format", f"unknown format {format!r} (use one of {', '.join(FORMATS)})")
-    try:
-        entries = sorted(p for p in root.iterdir() if not p.name.startswith((".", "_")))
-    except OSError as exc:
-        raise DataError(root, None, f"cannot read the dataset folder: {exc.strerror or exc}") from None
-    for p in entries:
-        if p.is_symlink() and not p.exists():
-            raise DataError(p, None, "broken link where a task folder was expected")
-    subdirs = [p for p in entries if p.is_dir()]
-    plan: list[tuple[str, str, list[Path]]] = []
-    for d in subdirs:
-        _check_readable(d)
-        if format == "auto":
-            try:
-                fmt = detect_format(d)
-            except DataError as exc:
-                raise DataError(
-                    d,
-                    "format",
-                    f"{exc.problem}; a task folder must hold demos (rename the folder with a leading '_' "
-                    "to leave it out)",
-                ) from None
-        else:
-            fmt = format
-        plan.append((d.name, fmt, list_demos(d, fmt, order)))
-    if not plan:
-        raise DataError(root, None, "no task sub-folders (expected one folder of demos per task)")
-    for task, _, files in plan:
-        if len(files) < 2:
-            raise DataError(root / task, None, f"a task needs at least 2 demos, found {len(files)}")
+    plan = _dataset_plan(root, format, order)
     total = sum(len(files) for _, _, files in plan)
     done = 0
     demos: dict[str, list[Demo]] = {}

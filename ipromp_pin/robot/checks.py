@@ -171,7 +171,8 @@ def check_path(
     Args:
         robot: Loaded robot (:func:`ipromp_pin.robot.load_robot`).
         q: Predicted arm joint path (M, n_joints) in [rad]; the last sample is the hand-over.
-        t_s: Optional sample times (M,) in [s] (for messages).
+        t_s: Optional sample times (M,) in [s], named in the messages (:func:`~ipromp_pin.planning.plan`
+            passes the times at which the timed trajectory passes the samples).
         q_samples: Optional sampled trajectories (n, M, n_joints) (advisory uncertainty check).
         q_std: Optional hand-over standard deviation (n_joints,) in [rad] (used without samples).
         hand_position_m: Optional human hand position (3,) in [m] in the base frame at the hand-over.
@@ -187,7 +188,7 @@ def check_path(
     t1 = time.perf_counter()
     checks = [check_joint_limits(robot, q, t_s=t_s)]
     t2 = time.perf_counter()
-    checks.append(check_self_collision(robot, q))
+    checks.append(check_self_collision(robot, q, t_s=t_s))
     t3 = time.perf_counter()
     checks.append(check_workspace(robot, pos[-1]))
     checks.append(check_hand_distance(robot, pos[-1], hand_position_m))

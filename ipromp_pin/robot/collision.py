@@ -93,9 +93,15 @@ def in_collision(robot: Robot, q: np.ndarray) -> np.ndarray:
 
 
 def check_self_collision(
-    robot: Robot, q: np.ndarray, *, max_step_rad: float | None = None, min_clearance_m: float | None = None
+    robot: Robot,
+    q: np.ndarray,
+    *,
+    max_step_rad: float | None = None,
+    min_clearance_m: float | None = None,
+    t_s: np.ndarray | None = None,
 ) -> CheckResult:
-    """Self-collision check along a path (M, n_joints) in [rad] (see the module docstring).
+    """Self-collision check along a path (M, n_joints) in [rad] (see the module docstring); ``t_s``
+    (M,) [s], when given, names the closest sample by its time in the message.
 
     ``values``: ``min_distance_m``, ``pair`` (geometry names), ``links``, ``sample`` (index into ``q``
     when the closest configuration is one of its samples, else the index of the preceding sample),
@@ -138,7 +144,8 @@ def check_self_collision(
         "swept_clearance_bound_m": swept,
         "min_clearance_m": clearance,
     }
-    where = f"{links[0]} - {links[1]} at sample {origin[k]}"
+    at = f"sample {origin[k]}" if t_s is None else f"t={float(t_s[origin[k]]):.2f} s"
+    where = f"{links[0]} - {links[1]} at {at}"
     if dmin[k] <= clearance:
         reason = (
             f"self-collision: distance {dmin[k] * 1e3:.1f} mm <= {clearance * 1e3:.1f} mm between {where}"

@@ -28,16 +28,24 @@ function iprompRender(s) {
     root.appendChild(table);
   }
   if (s.observed) {
-    const pct = s.observed.duration_s > 0 ? Math.round(100 * s.observed.until_s / s.observed.duration_s) : 0;
-    root.appendChild(iprompEl("div", {id: "ipromp-observed"},
-      "Observed: " + s.observed.until_s.toFixed(2) + " s of " + s.observed.duration_s.toFixed(2) +
-      " s (" + pct + " %)"));
+    // The observed fraction of the HUMAN's motion (its recorded or predicted duration).
+    const o = s.observed;
+    let text = "Observed: " + o.until_s.toFixed(2) + " s of the human's motion";
+    if (o.human_duration_s) {
+      text = "Observed: " + o.until_s.toFixed(2) + " s of the human's " + o.human_duration_s.toFixed(2) +
+        " s motion (" + Math.round(100 * o.fraction) + " %" + (o.source ? ", " + o.source + " duration" : "") + ")";
+    }
+    root.appendChild(iprompEl("div", {id: "ipromp-observed"}, text));
   }
+  root.appendChild(iprompEl("div", {id: "ipromp-timebase"},
+    "Robot trajectory: " + s.robot_duration_s.toFixed(2) + " s; times below are on it (t = 0 at its start)"));
   if (s.feasibility.length) {
     const list = iprompEl("ul", {id: "ipromp-feasibility"});
     for (const c of s.feasibility) {
-      list.appendChild(iprompEl("li", {"class": c.passed ? "pass" : "fail"},
-        c.name + (c.detail ? ": " + c.detail : "")));
+      const status = c.status || (c.passed ? "pass" : "fail");
+      const tag = status === "skip" ? " (skipped)" : (!c.required ? " (advisory)" : "");
+      list.appendChild(iprompEl("li", {"class": status, "data-check": c.name},
+        c.name + tag + (c.detail ? ": " + c.detail : "")));
     }
     root.appendChild(list);
   }

@@ -97,6 +97,10 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     from .robot import load_robot_settings
 
     observe = [parse_groups(o) for o in (args.observe or ["orientation", "orientation,emg"])]
+    if args.baselines:
+        from .baselines import require_sklearn
+
+        require_sklearn()
     frames = skeleton_frames(g for o in observe for g in o) or None
     joints = load_robot_settings(args.robot).recorded_arm_joints
     t0 = time.perf_counter()
@@ -118,6 +122,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
             n_test=args.n_test,
             n_splits=args.splits,
             seed=args.seed,
+            baselines=args.baselines,
         )
         t1 = time.perf_counter()
         cells += evaluate(ds, cfg, robot=args.robot, progress=_progress(), jobs=args.jobs)
@@ -242,6 +247,12 @@ def build_parser() -> argparse.ArgumentParser:
         "--jobs", type=int, default=os.cpu_count() or 1, help="worker processes (default: all cores)"
     )
     p.add_argument("--plots", type=Path, help="write PNG figures into this folder")
+    p.add_argument(
+        "--baselines",
+        action="store_true",
+        help="also run logistic regression, LDA, ridge and kNN on window features of the same windows "
+        "(needs scikit-learn)",
+    )
     p.set_defaults(func=cmd_evaluate)
 
     p = sub.add_parser("train", help="train a model on a dataset and save it")

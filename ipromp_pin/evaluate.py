@@ -318,7 +318,7 @@ def _run_job(job: _Job) -> tuple[_Job, dict[float, list[TrialResult]], str]:
     dataset: Dataset = _WORKER["dataset"]
     fk = _WORKER["fk"]
     train, test = _take(dataset, job.indices)
-    model = IProMP(observe=list(job.observe), **_WORKER["params"]).fit(train)
+    model = IProMP(observe=list(job.observe), **_WORKER["params"]).fit(train, fk=fk)
     out = {}
     for ratio in job.ratios:
         out[ratio] = [

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Iterable, Iterator, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.linalg import solve_triangular
@@ -214,6 +214,19 @@ def recognise_from_loglik(
         alpha[~finite] = priors.alpha_mu[~finite]
     rec = finish_recognition(priors, evidence, alpha, logpost, t_last, tuple(task_post))
     return rec, logpost
+
+
+def with_task_posterior(rec: Recognition, log_posterior: np.ndarray, priors: PhasePriors) -> Recognition:
+    """``rec`` with its task posterior replaced by ``log_posterior`` (T,) (normalised): the most
+    probable task and its predicted duration follow it; the phase estimates stay."""
+    best = int(np.argmax(log_posterior))
+    return replace(
+        rec,
+        task=priors.tasks[best],
+        log_posterior=log_posterior,
+        posterior=np.exp(log_posterior),
+        duration_s=float(rec.alpha[best] * priors.duration_nominal_s),
+    )
 
 
 def finish_recognition(

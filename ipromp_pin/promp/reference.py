@@ -129,7 +129,7 @@ def direct_predict(predictor: Predictor, observation: Demo) -> Prediction:
         m = fm.models[task]
         sigma = m.covariance()
         ll = np.array([direct_loglik(fm.basis, m, parts, a, tn, nu, sigma) for a in m.alpha_grid])
-        lp = ll + m.alpha_log_prior
+        lp = fm.temperature * ll + m.alpha_log_prior
         evidence[i] = np.logaddexp.reduce(lp)
         logpost[i] = lp - evidence[i]
         alpha[i] = refine_peak(m.alpha_grid, lp)
@@ -139,7 +139,7 @@ def direct_predict(predictor: Predictor, observation: Demo) -> Prediction:
     n_dims, k = m.mean.shape
     phi, y, dd = dense_observation_matrix(fm.basis, parts, a_best, tn, n_dims, k)
     sigma = m.covariance()
-    cov = phi @ sigma @ phi.T + np.diag(nu * m.diag[dd])
+    cov = phi @ sigma @ phi.T + np.diag(fm.nu_condition * m.diag[dd])  # the conditioning's noise
     c = cho_factor(cov, lower=True)
     gain_t = cho_solve(c, phi @ sigma)  # C^-1 Phi Sigma, (n_y, p)
     w_mean = m.mean.reshape(-1) + gain_t.T @ (y - phi @ m.mean.reshape(-1))

@@ -1,0 +1,164 @@
+"""A discriminative recognition head, calibrated on the training demos, over the generative posterior.
+
+The generative task posterior of an Interaction ProMP ranks the tasks well when the observed
+channels separate them (EMG), but its scale is not a calibrated probability: the samples of a smooth
+motion are far from independent, so the likelihood's differences between tasks are hundreds of nats
+where the data support a few, and on weakly informative channels (a tracked hand position) a few
+hundred weakly estimated weights drown the few informative ones (the start position). The head
+combines both in one multinomial logistic regression fitted on held-out training demos:
+
+``log p(k | obs) = log softmax_k( b_k + W_k^T x )``,
+``x = ((first, mean, last, g) - m) / s``
+
+with, per observed dim (scaled units, :class:`~ipromp_pin.promp.distribution.ChannelScaler`), the
+first, mean and last valid value of the observed window (:class:`WindowSummary`; a dim without a
+sample is at its training mean, 0), and ``g`` the generative log posterior of every task clipped at
+:data:`LOG_POSTERIOR_CLIP`. ``m``, ``s`` standardise the features on the training rows. ``W``, ``b``
+minimise the mean log loss plus ``||W||^2 / (2 C n)``; ``C`` is chosen by grouped cross-validation
+(the rows of one demo in one fold) on the training rows (:func:`fit_head`). The rows are the
+held-out demos of the leave-one-out cross-validation (:mod:`~ipromp_pin.promp.selection`), each
+observed at several fractions, so ``g`` is what the model says about a demo it was not fitted on.
+
+The phase posterior, the MAP phase and the robot's conditioned prediction are not changed by the
+head; it only decides the task posterior.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import minimize
+from scipy.special import log_softmax
+
+from .observation import ObservationPart
+
+LOG_POSTERIOR_CLIP = -30.0
+"""The generative log posterior enters the head clipped at this value (a confident generative mistake
+then costs a bounded amount)."""
+
+HEAD_C_GRID = (0.01, 0.03, 0.1, 0.3, 1.0, 3.0, 10.0, 100.0)
+"""Candidate inverse penalties ``C`` of the head."""
+
+HEAD_FOLDS = 5
+"""Folds of the head's grouped cross-validation."""
+
+
+@dataclass(frozen=True)
+class WindowSummary:
+    """First, mean and last valid value of every observed dim over an observed window (scaled units).
+
+    Attributes:
+        first, mean, last: (D_o,) values; 0 (the training mean) for a dim without a sample.
+    """
+
+    first: np.ndarray
+    mean: np.ndarray
+    last: np.ndarray
+
+    @classmethod
+    def from_parts(cls, parts: list[ObservationPart], n_obs: int) -> WindowSummary:
+        """Summary of encoded observation parts (dims ``0 .. n_obs - 1``)."""
+        first, last, total = np.zeros(n_obs), np.zeros(n_obs), np.zeros(n_obs)
+        count = np.zeros(n_obs)
+        t_first, t_last = np.full(n_obs, np.inf), np.full(n_obs, -np.inf)
+        for p in parts:
+            if p.t.size == 0:
+                continue
+            d = p.dims
+            early = p.t[0] < t_first[d]
+            first[d] = np.where(early, p.y[0], first[d])
+            t_first[d] = np.where(early, p.t[0], t_first[d])
+            late = p.t[-1] > t_last[d]
+            last[d] = np.where(late, p.y[-1], last[d])
+            t_last[d] = np.where(late, p.t[-1], t_last[d])
+            total[d] += p.y.sum(axis=0)
+            count[d] += p.t.size
+        return cls(first, np.divide(total, count, out=np.zeros(n_obs), where=count > 0), last)
+
+    def vector(self) -> np.ndarray:
+        """(3 D_o,) first, mean and last values side by side."""
+        return np.concatenate([self.first, self.mean, self.last])
+
+
+@dataclass(frozen=True)
+class RecognitionHead:
+    """The fitted head (see the module docstring).
+
+    Attributes:
+        coef: (T, F) weights ``W`` (F = 3 D_o + T features).
+        intercept: (T,) intercepts ``b``.
+        feature_mean, feature_scale: (F,) standardisation ``m``, ``s`` of the features.
+        c: The chosen inverse penalty ``C``.
+        cv_log_loss: Candidate ``C`` -> cross-validated mean log loss on the training rows.
+    """
+
+    coef: np.ndarray
+    intercept: np.ndarray
+    feature_mean: np.ndarray
+    feature_scale: np.ndarray
+    c: float
+    cv_log_loss: dict[float, float]
+
+    def log_posterior(self, summary: WindowSummary, generative_log_posterior: np.ndarray) -> np.ndarray:
+        """(T,) normalised log posterior of the tasks."""
+        x = head_features(summary.vector(), generative_log_posterior)
+        z = self.coef @ ((x - self.feature_mean) / self.feature_scale) + self.intercept
+        # a task that cannot explain the observation at all (e.g. too long for it) stays impossible
+        z = np.where(np.isfinite(generative_log_posterior), z, -np.inf)
+        return log_softmax(z)
+
+
+def head_features(window: np.ndarray, generative_log_posterior: np.ndarray) -> np.ndarray:
+    """Raw head features (F,): the window values (3 D_o,) then the clipped generative log posterior."""
+    return np.concatenate([window, np.maximum(generative_log_posterior, LOG_POSTERIOR_CLIP)])
+
+
+def _fit_softmax(x: np.ndarray, y: np.ndarray, n_classes: int, c: float) -> tuple[np.ndarray, np.ndarray]:
+    """Multinomial logistic regression on standardised ``x`` (n, F), labels ``y`` (n,): mean log loss
+    plus ``||W||^2 / (2 C n)`` minimised by L-BFGS -> (W (T, F), b (T,))."""
+    n, f = x.shape
+    onehot = np.eye(n_classes)[y]
+    lam = 1.0 / (c * n)
+
+    def loss(theta: np.ndarray) -> tuple[float, np.ndarray]:
+        w = theta[: n_classes * f].reshape(n_classes, f)
+        b = theta[n_classes * f :]
+        logp = log_softmax(x @ w.T + b, axis=1)
+        r = (np.exp(logp) - onehot) / n
+        value = -np.sum(onehot * logp) / n + 0.5 * lam * np.sum(w * w)
+        grad = np.concatenate([(r.T @ x + lam * w).ravel(), r.sum(axis=0)])
+        return float(value), grad
+
+    res = minimize(loss, np.zeros(n_classes * (f + 1)), jac=True, method="L-BFGS-B", options={"maxiter": 500})
+    return res.x[: n_classes * f].reshape(n_classes, f), res.x[n_classes * f :]
+
+
+def fit_head(features: np.ndarray, labels: np.ndarray, groups: np.ndarray, n_tasks: int) -> RecognitionHead:
+    """Fit the head on training rows, choosing ``C`` among :data:`HEAD_C_GRID` by grouped CV.
+
+    Args:
+        features: (n, F) raw head features (:func:`head_features`).
+        labels: (n,) task index of every row.
+        groups: (n,) the demo of every row (rows of one demo share a fold).
+        n_tasks: Number of tasks T.
+    """
+    mean = features.mean(axis=0)
+    scale = features.std(axis=0)
+    scale = np.where(scale > 1e-12, scale, 1.0)
+    x = (features - mean) / scale
+    uniq = np.unique(groups)
+    fold_of = {g: i % HEAD_FOLDS for i, g in enumerate(uniq)}
+    folds = np.array([fold_of[g] for g in groups])
+    scores = {}
+    for c in HEAD_C_GRID:
+        total = 0.0
+        for k in range(min(HEAD_FOLDS, uniq.size)):
+            train, test = folds != k, folds == k
+            w, b = _fit_softmax(x[train], labels[train], n_tasks, c)
+            logp = log_softmax(x[test] @ w.T + b, axis=1)
+            total -= float(np.sum(logp[np.arange(int(test.sum())), labels[test]]))
+        scores[float(c)] = total / labels.size
+    best = min(scores, key=lambda c: (scores[c], -c))
+    w, b = _fit_softmax(x, labels, n_tasks, best)
+    return RecognitionHead(w, b, mean, scale, best, scores)

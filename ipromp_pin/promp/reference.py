@@ -16,9 +16,18 @@ from scipy.linalg import cho_factor, cho_solve
 from ..data import Demo
 from .basis import GaussianBasis
 from .distribution import TaskModel
+from .fitted import FittedModel
+from .head import LOG_POSTERIOR_CLIP
 from .likelihood import LOG_2PI
 from .observation import ObservationPart
-from .posterior import REFINE_NODES, REFINE_STEPS, REFINE_WEIGHTS, Prediction, finish_recognition
+from .posterior import (
+    REFINE_NODES,
+    REFINE_STEPS,
+    REFINE_WEIGHTS,
+    Prediction,
+    finish_recognition,
+    with_task_posterior,
+)
 from .predictor import Predictor
 
 
@@ -115,6 +124,29 @@ def direct_loglik(
     return float(-0.5 * (y.size * LOG_2PI + 2.0 * np.sum(np.log(np.diag(c))) + e @ sol))
 
 
+def direct_head(fm: FittedModel, parts: list[ObservationPart], generative: np.ndarray) -> np.ndarray:
+    """The recognition head's log task posterior written out: per observed dim the first, mean and
+    last valid scaled value (sample by sample), the clipped generative log posterior, standardised,
+    the linear logits and their log-softmax."""
+    n_obs = fm.layout.n_obs_dims
+    samples: list[list[tuple[float, float]]] = [[] for _ in range(n_obs)]
+    for part in parts:
+        for j, d in enumerate(part.dims):
+            samples[int(d)] += [(float(t), float(v)) for t, v in zip(part.t, part.y[:, j], strict=True)]
+    window = np.zeros(3 * n_obs)
+    for d, rows in enumerate(samples):
+        if rows:
+            rows.sort()
+            window[d] = rows[0][1]
+            window[n_obs + d] = sum(v for _, v in rows) / len(rows)
+            window[2 * n_obs + d] = rows[-1][1]
+    x = np.concatenate([window, np.maximum(generative, LOG_POSTERIOR_CLIP)])
+    head = fm.head
+    z = head.coef @ ((x - head.feature_mean) / head.feature_scale) + head.intercept
+    z[~np.isfinite(generative)] = -np.inf
+    return z - np.logaddexp.reduce(z)
+
+
 def direct_predict(predictor: Predictor, observation: Demo) -> Prediction:
     """Reference recognition and prediction by the textbook equations (slow; tests and benchmarks)."""
     fm = predictor.fitted
@@ -134,6 +166,8 @@ def direct_predict(predictor: Predictor, observation: Demo) -> Prediction:
         logpost[i] = lp - evidence[i]
         alpha[i] = refine_peak(m.alpha_grid, lp)
     rec = finish_recognition(predictor.priors, evidence, alpha, logpost, t_last)
+    if fm.head is not None:
+        rec = with_task_posterior(rec, direct_head(fm, parts, rec.log_posterior), predictor.priors)
     m = fm.models[rec.task]
     a_best = float(rec.alpha[fm.tasks.index(rec.task)])
     n_dims, k = m.mean.shape

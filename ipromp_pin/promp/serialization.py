@@ -14,7 +14,10 @@ A model file is a single ``.npz`` archive (``numpy.savez``) read back with
   ``task_log_prior``, ``residual_var`` and, per task index ``i``,
   ``task{i}_mean`` (D, K), ``task{i}_diag`` (D,), ``task{i}_factor`` (D, K, r),
   ``task{i}_alpha_grid``, ``task{i}_alpha_log_prior``, ``task{i}_train_weights``
-  (N, D, K), ``task{i}_train_alpha`` (N,), ``task{i}_shrinkage`` (D,).
+  (N, D, K), ``task{i}_train_alpha`` (N,), ``task{i}_shrinkage`` (D,);
+* (version 2) the header's ``temperature``, ``condition_noise_ratio`` and ``head`` (its ``C`` and CV
+  scores, or null), and with a head its arrays ``head_coef`` (T, 3 D_o + T), ``head_intercept``
+  (T,), ``head_feature_mean`` and ``head_feature_scale`` (3 D_o + T,).
 
 Files written before the coupling was introduced (no ``coupling`` parameter, no
 ``task{i}_shrinkage``) load as fully coupled models with one shrinkage intensity;
@@ -40,13 +43,18 @@ from ..version import __version__
 from .basis import GaussianBasis
 from .distribution import ChannelScaler, TaskModel
 from .fitted import FittedModel
+from .head import RecognitionHead
 from .layout import ChannelLayout
 
 FORMAT_NAME = "ipromp_pin.IProMP"
 """Value of the header's ``format`` field."""
 
-FORMAT_VERSION = 1
-"""Current (and highest readable) format version."""
+FORMAT_VERSION = 2
+"""Current (and highest readable) format version. Version 2 added the likelihood temperature, the
+conditioning noise ratio and the recognition head (``head_*`` arrays); version-1 files load with
+temperature 1, the conditioning noise ratio equal to the noise ratio and no head (as they predicted)."""
+
+_HEAD_ARRAYS = ("coef", "intercept", "feature_mean", "feature_scale")
 
 _TASK_ARRAYS = ("mean", "diag", "factor", "alpha_grid", "alpha_log_prior", "train_weights", "train_alpha")
 
@@ -65,6 +73,9 @@ def _header_params(params: dict) -> dict:
         "n_alpha": int(params["n_alpha"]),
         "alpha_width": float(params["alpha_width"]),
         "noise": noise if isinstance(noise, str) else float(noise),
+        "temperature": _number_or_text(params["temperature"]),
+        "condition_noise": _number_or_text(params["condition_noise"]),
+        "head": bool(params["head"]),
         "n_points": int(params["n_points"]),
         "task_prior": None if params["task_prior"] is None else dict(params["task_prior"]),
         "robot_group": params["robot_group"],
@@ -72,6 +83,10 @@ def _header_params(params: dict) -> dict:
         "pooling": float(params["pooling"]),
         "coupling": coupling if isinstance(coupling, str) else list(coupling),
     }
+
+
+def _number_or_text(value: object) -> float | str:
+    return value if isinstance(value, str) else float(value)  # type: ignore[arg-type]
 
 
 def write_model(params: dict, fitted: FittedModel, path: str | Path) -> None:
@@ -94,6 +109,15 @@ def write_model(params: dict, fitted: FittedModel, path: str | Path) -> None:
         "cv_scores": [[float(k), float(v)] for k, v in fitted.noise_cv_scores.items()],
         "coupled_groups": list(fitted.coupled_groups),
         "coupling_cv_scores": [[k, float(v)] for k, v in fitted.coupling_cv_scores.items()],
+        "temperature": float(fitted.temperature),
+        "condition_noise_ratio": float(fitted.nu_condition),
+        "condition_cv_scores": [[float(k), float(v)] for k, v in fitted.condition_cv_scores.items()],
+        "head": None
+        if fitted.head is None
+        else {
+            "c": fitted.head.c,
+            "cv_log_loss": [[float(k), float(v)] for k, v in fitted.head.cv_log_loss.items()],
+        },
         "task_scalars": [
             {
                 # the robot's intensity, as a scalar for readers of files without task{i}_shrinkage
@@ -112,6 +136,9 @@ def write_model(params: dict, fitted: FittedModel, path: str | Path) -> None:
         "task_log_prior": fitted.task_log_prior,
         "residual_var": fitted.residual_var,
     }
+    if fitted.head is not None:
+        for name in _HEAD_ARRAYS:
+            arrays[f"head_{name}"] = np.asarray(getattr(fitted.head, name), dtype=float)
     for i, m in enumerate(fitted.task_models()):
         for name in _TASK_ARRAYS:
             arrays[f"task{i}_{name}"] = np.asarray(getattr(m, name), dtype=float)
@@ -163,13 +190,20 @@ def _check_header(path: Path, header: object) -> None:
 
 
 def _params(header: dict) -> dict:
-    """The estimator parameters of a header (files before the coupling: ``coupling="all"``)."""
+    """The estimator parameters of a header (files before the coupling: ``coupling="all"``; version-1
+    files: temperature 1, the conditioning with the recognition's noise ratio, no head)."""
     p = header["params"]
     names = (
         "observe", "n_basis", "width", "ridge", "margin", "blas_threads", "n_alpha", "alpha_width", "noise",
         "n_points", "task_prior", "robot_group", "log_groups", "pooling",
     )  # fmt: skip
-    return {**{name: p[name] for name in names}, "coupling": p.get("coupling", "all")}
+    return {
+        **{name: p[name] for name in names},
+        "coupling": p.get("coupling", "all"),
+        "temperature": p.get("temperature", 1.0),
+        "condition_noise": p.get("condition_noise", "same"),
+        "head": bool(p.get("head", False)),
+    }
 
 
 def _fitted(header: dict, arrays: dict[str, np.ndarray]) -> FittedModel:
@@ -226,4 +260,28 @@ def _fitted(header: dict, arrays: dict[str, np.ndarray]) -> FittedModel:
         residual_var=arrays["residual_var"],
         noise_cv_scores={float(k): float(v) for k, v in header["cv_scores"]},
         coupling_cv_scores={str(k): float(v) for k, v in header.get("coupling_cv_scores", [])},
+        temperature=float(header.get("temperature", 1.0)),
+        condition_noise_ratio=header.get("condition_noise_ratio"),
+        condition_cv_scores={float(k): float(v) for k, v in header.get("condition_cv_scores", [])},
+        head=_head(header.get("head"), arrays, layout.n_obs_dims, len(tasks)),
+    )
+
+
+def _head(
+    meta: dict | None, arrays: dict[str, np.ndarray], n_obs: int, n_tasks: int
+) -> RecognitionHead | None:
+    """The recognition head of a file (None when it has none), shapes checked."""
+    if meta is None:
+        return None
+    a = {name: arrays[f"head_{name}"] for name in _HEAD_ARRAYS}
+    n_feat = 3 * n_obs + n_tasks
+    if (
+        a["coef"].shape != (n_tasks, n_feat)
+        or a["intercept"].shape != (n_tasks,)
+        or a["feature_mean"].shape != (n_feat,)
+        or a["feature_scale"].shape != (n_feat,)
+    ):
+        raise ValueError("recognition head arrays have inconsistent shapes")
+    return RecognitionHead(
+        c=float(meta["c"]), cv_log_loss={float(k): float(v) for k, v in meta["cv_log_loss"]}, **a
     )

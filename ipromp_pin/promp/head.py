@@ -83,30 +83,64 @@ class WindowSummary:
 
 @dataclass(frozen=True)
 class RecognitionHead:
-    """The fitted head (see the module docstring).
+    """The fitted head (see the module docstring): one logistic regression per observed fraction of
+    :attr:`ratios`, their logits interpolated linearly in the estimated observed fraction.
 
     Attributes:
-        coef: (T, F) weights ``W`` (F = 3 D_o + T features).
-        intercept: (T,) intercepts ``b``.
-        feature_mean, feature_scale: (F,) standardisation ``m``, ``s`` of the features.
-        c: The chosen inverse penalty ``C``.
-        cv_log_loss: Candidate ``C`` -> cross-validated mean log loss on the training rows.
+        ratios: (R,) increasing observed fractions the regressions were fitted at.
+        coef: (R, T, F) weights ``W`` (F = 3 D_o + T features).
+        intercept: (R, T) intercepts ``b``.
+        feature_mean, feature_scale: (R, F) standardisation ``m``, ``s`` of the features.
+        c: (R,) the chosen inverse penalties ``C``.
+        cv_log_loss: (R, len(HEAD_C_GRID)) cross-validated mean log loss of every candidate ``C``.
     """
 
+    ratios: np.ndarray
     coef: np.ndarray
     intercept: np.ndarray
     feature_mean: np.ndarray
     feature_scale: np.ndarray
-    c: float
-    cv_log_loss: dict[float, float]
+    c: np.ndarray
+    cv_log_loss: np.ndarray
 
-    def log_posterior(self, summary: WindowSummary, generative_log_posterior: np.ndarray) -> np.ndarray:
-        """(T,) normalised log posterior of the tasks."""
+    def log_posterior(
+        self, summary: WindowSummary, generative_log_posterior: np.ndarray, fraction: float
+    ) -> np.ndarray:
+        """(T,) normalised log posterior of the tasks.
+
+        Args:
+            summary: The observed window's summary.
+            generative_log_posterior: (T,) the generative task posterior (log).
+            fraction: Estimated observed fraction of the motion (:func:`observed_fraction`).
+        """
         x = head_features(summary.vector(), generative_log_posterior)
-        z = self.coef @ ((x - self.feature_mean) / self.feature_scale) + self.intercept
+        i, w = interpolation(self.ratios, fraction)
+        z = self.coef[i] @ ((x - self.feature_mean[i]) / self.feature_scale[i]) + self.intercept[i]
+        if w > 0.0:
+            j = i + 1
+            z_next = self.coef[j] @ ((x - self.feature_mean[j]) / self.feature_scale[j]) + self.intercept[j]
+            z = (1.0 - w) * z + w * z_next
         # a task that cannot explain the observation at all (e.g. too long for it) stays impossible
         z = np.where(np.isfinite(generative_log_posterior), z, -np.inf)
         return log_softmax(z)
+
+
+def observed_fraction(posterior: np.ndarray, alpha: np.ndarray, t_last: float, t_norm: float) -> float:
+    """Expected observed fraction of the motion under the generative posterior: the tasks' posterior
+    (T,) weighting ``t_last / (alpha_k T_norm)`` with their MAP phases ``alpha`` (T,), ``t_last`` and
+    ``T_norm`` in [s] (the motion's duration is unknown online)."""
+    return float(np.sum(posterior * (t_last / (alpha * t_norm))))
+
+
+def interpolation(ratios: np.ndarray, fraction: float) -> tuple[int, float]:
+    """Index ``i`` and weight ``w`` of the linear interpolation between ``ratios[i]`` and
+    ``ratios[i + 1]`` at ``fraction`` (``w = 0`` below the first and above the last)."""
+    if fraction <= ratios[0]:
+        return 0, 0.0
+    if fraction >= ratios[-1]:
+        return ratios.size - 1, 0.0
+    i = int(np.searchsorted(ratios, fraction, side="right")) - 1
+    return i, float((fraction - ratios[i]) / (ratios[i + 1] - ratios[i]))
 
 
 def head_features(window: np.ndarray, generative_log_posterior: np.ndarray) -> np.ndarray:
@@ -134,15 +168,31 @@ def _fit_softmax(x: np.ndarray, y: np.ndarray, n_classes: int, c: float) -> tupl
     return res.x[: n_classes * f].reshape(n_classes, f), res.x[n_classes * f :]
 
 
-def fit_head(features: np.ndarray, labels: np.ndarray, groups: np.ndarray, n_tasks: int) -> RecognitionHead:
-    """Fit the head on training rows, choosing ``C`` among :data:`HEAD_C_GRID` by grouped CV.
+def fit_head(
+    features: np.ndarray, labels: np.ndarray, groups: np.ndarray, ratios: np.ndarray, n_tasks: int
+) -> RecognitionHead:
+    """Fit the head on training rows: one regression per observed fraction, each choosing ``C`` among
+    :data:`HEAD_C_GRID` by grouped CV.
 
     Args:
         features: (n, F) raw head features (:func:`head_features`).
         labels: (n,) task index of every row.
         groups: (n,) the demo of every row (rows of one demo share a fold).
+        ratios: (n,) the observed fraction of every row.
         n_tasks: Number of tasks T.
     """
+    fits = []
+    levels = np.unique(ratios)
+    for r in levels:
+        rows = ratios == r
+        fits.append(_fit_one(features[rows], labels[rows], groups[rows], n_tasks))
+    return RecognitionHead(levels, *(np.stack(a) for a in zip(*fits, strict=True)))
+
+
+def _fit_one(
+    features: np.ndarray, labels: np.ndarray, groups: np.ndarray, n_tasks: int
+) -> tuple[np.ndarray, ...]:
+    """One regression: (W, b, m, s, C, CV log loss of every candidate C)."""
     mean = features.mean(axis=0)
     scale = features.std(axis=0)
     scale = np.where(scale > 1e-12, scale, 1.0)
@@ -150,7 +200,7 @@ def fit_head(features: np.ndarray, labels: np.ndarray, groups: np.ndarray, n_tas
     uniq = np.unique(groups)
     fold_of = {g: i % HEAD_FOLDS for i, g in enumerate(uniq)}
     folds = np.array([fold_of[g] for g in groups])
-    scores = {}
+    scores = []
     for c in HEAD_C_GRID:
         total = 0.0
         for k in range(min(HEAD_FOLDS, uniq.size)):
@@ -158,7 +208,7 @@ def fit_head(features: np.ndarray, labels: np.ndarray, groups: np.ndarray, n_tas
             w, b = _fit_softmax(x[train], labels[train], n_tasks, c)
             logp = log_softmax(x[test] @ w.T + b, axis=1)
             total -= float(np.sum(logp[np.arange(int(test.sum())), labels[test]]))
-        scores[float(c)] = total / labels.size
-    best = min(scores, key=lambda c: (scores[c], -c))
+        scores.append(total / labels.size)
+    best = float(HEAD_C_GRID[int(np.argmin(scores))])
     w, b = _fit_softmax(x, labels, n_tasks, best)
-    return RecognitionHead(w, b, mean, scale, best, scores)
+    return w, b, mean, scale, np.array(best), np.array(scores)

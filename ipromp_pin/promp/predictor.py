@@ -13,7 +13,7 @@ import numpy as np
 from ..data import Demo
 from .conditioning import Conditioner
 from .fitted import FittedModel
-from .head import WindowSummary
+from .head import WindowSummary, observed_fraction
 from .likelihood import InferenceEngine
 from .observation import ObservationEncoder, ObservationPart
 from .posterior import PhasePriors, Prediction, Recognition, recognise_from_loglik, with_task_posterior
@@ -68,7 +68,8 @@ class Predictor:
             return rec
         if window is None:
             raise ValueError("a model with a recognition head needs the observed window's summary")
-        return with_task_posterior(rec, head.log_posterior(window, rec.log_posterior), self.priors)
+        fraction = observed_fraction(rec.posterior, rec.alpha, t_last, self.fitted.duration_nominal_s)
+        return with_task_posterior(rec, head.log_posterior(window, rec.log_posterior, fraction), self.priors)
 
     def recognise(self, parts: list[ObservationPart], t_last: float) -> Recognition:
         """Task posterior and phase estimates of encoded observation parts."""

@@ -124,10 +124,14 @@ def direct_loglik(
     return float(-0.5 * (y.size * LOG_2PI + 2.0 * np.sum(np.log(np.diag(c))) + e @ sol))
 
 
-def direct_head(fm: FittedModel, parts: list[ObservationPart], generative: np.ndarray) -> np.ndarray:
+def direct_head(
+    fm: FittedModel, parts: list[ObservationPart], generative: np.ndarray, fraction: float
+) -> np.ndarray:
     """The recognition head's log task posterior written out: per observed dim the first, mean and
     last valid scaled value (sample by sample), the clipped generative log posterior, standardised,
-    the linear logits and their log-softmax."""
+    the linear logits of the regressions at the two observed fractions around ``fraction`` (the
+    expected observed fraction under the generative posterior) interpolated linearly, and their
+    log-softmax."""
     n_obs = fm.layout.n_obs_dims
     samples: list[list[tuple[float, float]]] = [[] for _ in range(n_obs)]
     for part in parts:
@@ -142,8 +146,21 @@ def direct_head(fm: FittedModel, parts: list[ObservationPart], generative: np.nd
             window[2 * n_obs + d] = rows[-1][1]
     x = np.concatenate([window, np.maximum(generative, LOG_POSTERIOR_CLIP)])
     head = fm.head
-    z = head.coef @ ((x - head.feature_mean) / head.feature_scale) + head.intercept
-    z[~np.isfinite(generative)] = -np.inf
+    logits = [
+        head.coef[i] @ ((x - head.feature_mean[i]) / head.feature_scale[i]) + head.intercept[i]
+        for i in range(head.ratios.size)
+    ]
+    s = fraction
+    r = head.ratios
+    if s <= r[0]:
+        z = logits[0]
+    elif s >= r[-1]:
+        z = logits[-1]
+    else:
+        i = max(k for k in range(r.size - 1) if r[k] <= s)
+        w = (s - r[i]) / (r[i + 1] - r[i])
+        z = (1.0 - w) * logits[i] + w * logits[i + 1]
+    z = np.where(np.isfinite(generative), z, -np.inf)
     return z - np.logaddexp.reduce(z)
 
 
@@ -167,7 +184,9 @@ def direct_predict(predictor: Predictor, observation: Demo) -> Prediction:
         alpha[i] = refine_peak(m.alpha_grid, lp)
     rec = finish_recognition(predictor.priors, evidence, alpha, logpost, t_last)
     if fm.head is not None:
-        rec = with_task_posterior(rec, direct_head(fm, parts, rec.log_posterior), predictor.priors)
+        fraction = sum(p * t_last / (a * tn) for p, a in zip(rec.posterior, rec.alpha, strict=True))
+        post = direct_head(fm, parts, rec.log_posterior, float(fraction))
+        rec = with_task_posterior(rec, post, predictor.priors)
     m = fm.models[rec.task]
     a_best = float(rec.alpha[fm.tasks.index(rec.task)])
     n_dims, k = m.mean.shape

@@ -138,6 +138,7 @@ class HeldOutRow:
         task: Index of the true task.
         demo: Index of the held-out demo among all held-out demos.
         window: (3 D_o,) its window summary (:class:`~ipromp_pin.promp.head.WindowSummary`).
+        ratio: Its observed fraction.
         loglik: Per candidate ``nu``, the log likelihood (T, C) of the leave-one-out model.
         priors: The leave-one-out model's phase priors.
         t_last: Time of the last observed sample in [s].
@@ -146,6 +147,7 @@ class HeldOutRow:
     task: int
     demo: int
     window: np.ndarray
+    ratio: float
     loglik: list[np.ndarray]
     priors: PhasePriors
     t_last: float
@@ -161,7 +163,8 @@ def fit_recognition_head(
         rec, _ = recognise_from_loglik(r.priors, temperature * r.loglik[nu_index], r.t_last)
         feats.append(head_features(r.window, rec.log_posterior))
     labels = np.array([r.task for r in rows])
-    return fit_head(np.array(feats), labels, np.array([r.demo for r in rows]), n_tasks)
+    groups = np.array([r.demo for r in rows])
+    return fit_head(np.array(feats), labels, groups, np.array([r.ratio for r in rows]), n_tasks)
 
 
 def choose_noise(
@@ -207,7 +210,7 @@ def choose_noise(
             stats = [engine.part_stats(p) for p in parts]
             logliks = [engine.log_likelihood(stats, t_last, nu=nu) for nu in noise_grid]
             summary = WindowSummary.from_parts(parts, training.layout.n_obs_dims).vector()
-            rows.append(HeldOutRow(ki, n_demo, summary, logliks, priors, t_last))
+            rows.append(HeldOutRow(ki, n_demo, summary, ratio, logliks, priors, t_last))
             if ratio not in CV_RATIOS:
                 continue
             n_eval += 1

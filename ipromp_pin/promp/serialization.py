@@ -15,9 +15,10 @@ A model file is a single ``.npz`` archive (``numpy.savez``) read back with
   ``task{i}_mean`` (D, K), ``task{i}_diag`` (D,), ``task{i}_factor`` (D, K, r),
   ``task{i}_alpha_grid``, ``task{i}_alpha_log_prior``, ``task{i}_train_weights``
   (N, D, K), ``task{i}_train_alpha`` (N,), ``task{i}_shrinkage`` (D,);
-* (version 2) the header's ``temperature``, ``condition_noise_ratio`` and ``head`` (its ``C`` and CV
-  scores, or null), and with a head its arrays ``head_coef`` (T, 3 D_o + T), ``head_intercept``
-  (T,), ``head_feature_mean`` and ``head_feature_scale`` (3 D_o + T,).
+* (version 2) the header's ``temperature``, ``condition_noise_ratio`` and ``head`` (the number R of
+  its regressions, or null), and with a head its arrays ``head_ratios`` (R,), ``head_coef``
+  (R, T, 3 D_o + T), ``head_intercept`` (R, T), ``head_feature_mean`` and ``head_feature_scale``
+  (R, 3 D_o + T), ``head_c`` (R,) and ``head_cv_log_loss`` (R, number of candidate C).
 
 Files written before the coupling was introduced (no ``coupling`` parameter, no
 ``task{i}_shrinkage``) load as fully coupled models with one shrinkage intensity;
@@ -54,7 +55,7 @@ FORMAT_VERSION = 2
 conditioning noise ratio and the recognition head (``head_*`` arrays); version-1 files load with
 temperature 1, the conditioning noise ratio equal to the noise ratio and no head (as they predicted)."""
 
-_HEAD_ARRAYS = ("coef", "intercept", "feature_mean", "feature_scale")
+_HEAD_ARRAYS = ("ratios", "coef", "intercept", "feature_mean", "feature_scale", "c", "cv_log_loss")
 
 _TASK_ARRAYS = ("mean", "diag", "factor", "alpha_grid", "alpha_log_prior", "train_weights", "train_alpha")
 
@@ -112,12 +113,7 @@ def write_model(params: dict, fitted: FittedModel, path: str | Path) -> None:
         "temperature": float(fitted.temperature),
         "condition_noise_ratio": float(fitted.nu_condition),
         "condition_cv_scores": [[float(k), float(v)] for k, v in fitted.condition_cv_scores.items()],
-        "head": None
-        if fitted.head is None
-        else {
-            "c": fitted.head.c,
-            "cv_log_loss": [[float(k), float(v)] for k, v in fitted.head.cv_log_loss.items()],
-        },
+        "head": None if fitted.head is None else {"regressions": int(fitted.head.ratios.size)},
         "task_scalars": [
             {
                 # the robot's intensity, as a scalar for readers of files without task{i}_shrinkage
@@ -275,13 +271,14 @@ def _head(
         return None
     a = {name: arrays[f"head_{name}"] for name in _HEAD_ARRAYS}
     n_feat = 3 * n_obs + n_tasks
+    n = int(meta["regressions"])
     if (
-        a["coef"].shape != (n_tasks, n_feat)
-        or a["intercept"].shape != (n_tasks,)
-        or a["feature_mean"].shape != (n_feat,)
-        or a["feature_scale"].shape != (n_feat,)
+        a["ratios"].shape != (n,)
+        or a["coef"].shape != (n, n_tasks, n_feat)
+        or a["intercept"].shape != (n, n_tasks)
+        or a["feature_mean"].shape != (n, n_feat)
+        or a["feature_scale"].shape != (n, n_feat)
+        or a["c"].shape != (n,)
     ):
         raise ValueError("recognition head arrays have inconsistent shapes")
-    return RecognitionHead(
-        c=float(meta["c"]), cv_log_loss={float(k): float(v) for k, v in meta["cv_log_loss"]}, **a
-    )
+    return RecognitionHead(**a)

@@ -25,6 +25,7 @@ head; it only decides the task posterior.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -49,16 +50,38 @@ class WindowSummary:
     """First, mean and last valid value of every observed dim over an observed window (scaled units).
 
     Attributes:
-        first, mean, last: (D_o,) values; 0 (the training mean) for a dim without a sample.
+        values: (3, D_o) rows: the first, mean and last values; 0 (the training mean) for a dim
+            without a sample.
     """
 
-    first: np.ndarray
-    mean: np.ndarray
-    last: np.ndarray
+    values: np.ndarray
+
+    @property
+    def first(self) -> np.ndarray:
+        """(D_o,) first valid values."""
+        return self.values[0]
+
+    @property
+    def mean(self) -> np.ndarray:
+        """(D_o,) mean values."""
+        return self.values[1]
+
+    @property
+    def last(self) -> np.ndarray:
+        """(D_o,) last valid values."""
+        return self.values[2]
 
     @classmethod
     def from_parts(cls, parts: list[ObservationPart], n_obs: int) -> WindowSummary:
         """Summary of encoded observation parts (dims ``0 .. n_obs - 1``)."""
+        if len(parts) == 1 and parts[0].dims.size == n_obs and parts[0].t.size:
+            y = parts[0].y
+            out = np.empty((3, n_obs))
+            dims = parts[0].dims
+            out[0, dims] = y[0]
+            out[1, dims] = y.mean(axis=0)
+            out[2, dims] = y[-1]
+            return cls(out)
         first, last, total = np.zeros(n_obs), np.zeros(n_obs), np.zeros(n_obs)
         count = np.zeros(n_obs)
         t_first, t_last = np.full(n_obs, np.inf), np.full(n_obs, -np.inf)
@@ -74,11 +97,11 @@ class WindowSummary:
             t_last[d] = np.where(late, p.t[-1], t_last[d])
             total[d] += p.y.sum(axis=0)
             count[d] += p.t.size
-        return cls(first, np.divide(total, count, out=np.zeros(n_obs), where=count > 0), last)
+        return cls(np.stack([first, np.divide(total, count, out=np.zeros(n_obs), where=count > 0), last]))
 
     def vector(self) -> np.ndarray:
         """(3 D_o,) first, mean and last values side by side."""
-        return np.concatenate([self.first, self.mean, self.last])
+        return self.values.reshape(-1)
 
 
 @dataclass(frozen=True)
@@ -103,6 +126,13 @@ class RecognitionHead:
     c: np.ndarray
     cv_log_loss: np.ndarray
 
+    def __post_init__(self) -> None:
+        # the standardisation folded into the weights: z = W (x - m) / s + b = W' x + b'
+        folded = self.coef / self.feature_scale[:, None, :]
+        object.__setattr__(self, "_w", folded)
+        object.__setattr__(self, "_ratios", [float(r) for r in self.ratios])
+        object.__setattr__(self, "_b", self.intercept - np.einsum("rtf,rf->rt", folded, self.feature_mean))
+
     def log_posterior(
         self, summary: WindowSummary, generative_log_posterior: np.ndarray, fraction: float
     ) -> np.ndarray:
@@ -114,33 +144,36 @@ class RecognitionHead:
             fraction: Estimated observed fraction of the motion (:func:`observed_fraction`).
         """
         x = head_features(summary.vector(), generative_log_posterior)
-        i, w = interpolation(self.ratios, fraction)
-        z = self.coef[i] @ ((x - self.feature_mean[i]) / self.feature_scale[i]) + self.intercept[i]
+        i, w = interpolation(self._ratios, fraction)
+        z = self._w[i] @ x + self._b[i]
         if w > 0.0:
-            j = i + 1
-            z_next = self.coef[j] @ ((x - self.feature_mean[j]) / self.feature_scale[j]) + self.intercept[j]
-            z = (1.0 - w) * z + w * z_next
+            z = (1.0 - w) * z + w * (self._w[i + 1] @ x + self._b[i + 1])
         # a task that cannot explain the observation at all (e.g. too long for it) stays impossible
-        z = np.where(np.isfinite(generative_log_posterior), z, -np.inf)
-        return log_softmax(z)
+        finite = np.isfinite(generative_log_posterior)
+        if not finite.all():
+            z = np.where(finite, z, -np.inf)
+        z = z - z.max()
+        return z - np.log(np.sum(np.exp(z)))
 
 
 def observed_fraction(posterior: np.ndarray, alpha: np.ndarray, t_last: float, t_norm: float) -> float:
     """Expected observed fraction of the motion under the generative posterior: the tasks' posterior
     (T,) weighting ``t_last / (alpha_k T_norm)`` with their MAP phases ``alpha`` (T,), ``t_last`` and
     ``T_norm`` in [s] (the motion's duration is unknown online)."""
-    return float(np.sum(posterior * (t_last / (alpha * t_norm))))
+    return float(t_last / t_norm * np.dot(posterior, 1.0 / alpha))
 
 
-def interpolation(ratios: np.ndarray, fraction: float) -> tuple[int, float]:
+def interpolation(ratios: Sequence[float], fraction: float) -> tuple[int, float]:
     """Index ``i`` and weight ``w`` of the linear interpolation between ``ratios[i]`` and
     ``ratios[i + 1]`` at ``fraction`` (``w = 0`` below the first and above the last)."""
     if fraction <= ratios[0]:
         return 0, 0.0
-    if fraction >= ratios[-1]:
-        return ratios.size - 1, 0.0
-    i = int(np.searchsorted(ratios, fraction, side="right")) - 1
-    return i, float((fraction - ratios[i]) / (ratios[i + 1] - ratios[i]))
+    i = 0
+    while i + 1 < len(ratios) and ratios[i + 1] <= fraction:
+        i += 1
+    if i + 1 == len(ratios):
+        return i, 0.0
+    return i, (fraction - ratios[i]) / (ratios[i + 1] - ratios[i])
 
 
 def head_features(window: np.ndarray, generative_log_posterior: np.ndarray) -> np.ndarray:

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Iterable, Iterator, Mapping
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.linalg import solve_triangular
@@ -217,16 +217,15 @@ def recognise_from_loglik(
 
 
 def with_task_posterior(rec: Recognition, log_posterior: np.ndarray, priors: PhasePriors) -> Recognition:
-    """``rec`` with its task posterior replaced by ``log_posterior`` (T,) (normalised): the most
-    probable task and its predicted duration follow it; the phase estimates stay."""
+    """``rec`` (changed in place and returned) with its task posterior replaced by ``log_posterior``
+    (T,) (normalised): the most probable task and its predicted duration follow it; the phase
+    estimates stay."""
     best = int(np.argmax(log_posterior))
-    return replace(
-        rec,
-        task=priors.tasks[best],
-        log_posterior=log_posterior,
-        posterior=np.exp(log_posterior),
-        duration_s=float(rec.alpha[best] * priors.duration_nominal_s),
-    )
+    rec.task = priors.tasks[best]  # rec is the caller's fresh object: changed in place (no copy)
+    rec.log_posterior = log_posterior
+    rec.posterior = np.exp(log_posterior)
+    rec.duration_s = float(rec.alpha[best] * priors.duration_nominal_s)
+    return rec
 
 
 def finish_recognition(

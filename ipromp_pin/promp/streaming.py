@@ -207,7 +207,7 @@ class StreamingEstimator:
         """Summary of the samples received so far (scaled units), as the recognition head reads it."""
         count = self._w_count
         mean = np.divide(self._w_sum, count, out=np.zeros(count.size), where=count > 0)
-        return WindowSummary(self._w_first.copy(), mean, self._w_last.copy())
+        return WindowSummary(np.stack([self._w_first, mean, self._w_last]))
 
     def _accumulate(self, t_s: float, present: set[str], y: np.ndarray) -> np.ndarray:
         """Add the sample (scaled values ``y`` (D,), 0 in missing groups) -> basis values (K, U)."""

@@ -217,31 +217,38 @@ def fit_head(
     fits = []
     levels = np.unique(ratios)
     for r in levels:
-        rows = ratios == r
-        fits.append(_fit_one(features[rows], labels[rows], groups[rows], n_tasks))
+        fits.append(_fit_one(features, labels, groups, ratios == r, n_tasks))
     return RecognitionHead(levels, *(np.stack(a) for a in zip(*fits, strict=True)))
 
 
 def _fit_one(
-    features: np.ndarray, labels: np.ndarray, groups: np.ndarray, n_tasks: int
+    features: np.ndarray, labels: np.ndarray, groups: np.ndarray, here: np.ndarray, n_tasks: int
 ) -> tuple[np.ndarray, ...]:
-    """One regression: (W, b, m, s, C, CV log loss of every candidate C)."""
-    mean = features.mean(axis=0)
-    scale = features.std(axis=0)
-    scale = np.where(scale > 1e-12, scale, 1.0)
-    x = (features - mean) / scale
+    """The regression of the rows ``here`` (one observed fraction): trained on these rows alone or on
+    the rows of every fraction (more demos, features less specific), and its ``C``, both chosen by
+    grouped CV scored on the rows ``here`` -> (W, b, m, s, C, CV log loss of every candidate C at the
+    chosen training rows)."""
     uniq = np.unique(groups)
     fold_of = {g: i % HEAD_FOLDS for i, g in enumerate(uniq)}
     folds = np.array([fold_of[g] for g in groups])
-    scores = []
-    for c in HEAD_C_GRID:
-        total = 0.0
-        for k in range(min(HEAD_FOLDS, uniq.size)):
-            train, test = folds != k, folds == k
-            w, b = _fit_softmax(x[train], labels[train], n_tasks, c)
-            logp = log_softmax(x[test] @ w.T + b, axis=1)
-            total -= float(np.sum(logp[np.arange(int(test.sum())), labels[test]]))
-        scores.append(total / labels.size)
-    best = float(HEAD_C_GRID[int(np.argmin(scores))])
-    w, b = _fit_softmax(x, labels, n_tasks, best)
-    return w, b, mean, scale, np.array(best), np.array(scores)
+    best_score, best = np.inf, None
+    for pool in (here, np.ones_like(here)):
+        mean = features[pool].mean(axis=0)
+        scale = features[pool].std(axis=0)
+        scale = np.where(scale > 1e-12, scale, 1.0)
+        x = (features - mean) / scale
+        scores = []
+        for c in HEAD_C_GRID:
+            total = 0.0
+            for k in range(min(HEAD_FOLDS, uniq.size)):
+                train, test = pool & (folds != k), here & (folds == k)
+                w, b = _fit_softmax(x[train], labels[train], n_tasks, c)
+                logp = log_softmax(x[test] @ w.T + b, axis=1)
+                total -= float(np.sum(logp[np.arange(int(test.sum())), labels[test]]))
+            scores.append(total / int(here.sum()))
+        j = int(np.argmin(scores))
+        if scores[j] < best_score:
+            best_score, best = scores[j], (pool, mean, scale, x, float(HEAD_C_GRID[j]), np.array(scores))
+    pool, mean, scale, x, c, scores = best
+    w, b = _fit_softmax(x[pool], labels[pool], n_tasks, c)
+    return w, b, mean, scale, np.array(c), scores

@@ -14,10 +14,15 @@ with, per observed dim (scaled units, :class:`~ipromp_pin.promp.distribution.Cha
 first, mean and last valid value of the observed window (:class:`WindowSummary`; a dim without a
 sample is at its training mean, 0), and ``g`` the generative log posterior of every task clipped at
 :data:`LOG_POSTERIOR_CLIP`. ``m``, ``s`` standardise the features on the training rows. ``W``, ``b``
-minimise the mean log loss plus ``||W||^2 / (2 C n)``; ``C`` is chosen by grouped cross-validation
-(the rows of one demo in one fold) on the training rows (:func:`fit_head`). The rows are the
-held-out demos of the leave-one-out cross-validation (:mod:`~ipromp_pin.promp.selection`), each
-observed at several fractions, so ``g`` is what the model says about a demo it was not fitted on.
+minimise the mean log loss plus ``||W||^2 / (2 C n)``. The rows are the held-out demos of the
+leave-one-out cross-validation (:mod:`~ipromp_pin.promp.selection`), each observed at several
+fractions (:data:`~ipromp_pin.promp.selection.HEAD_RATIOS`), so ``g`` is what the model says about a
+demo it was not fitted on. There is one regression per observed fraction; each is trained on the
+rows of its fraction or on the rows of every fraction, with its ``C``, both chosen by grouped
+cross-validation (the rows of one demo in one fold) scored on the rows of its fraction
+(:func:`fit_head`). Online the fraction is unknown: the logits of the two regressions around the
+expected observed fraction under the generative posterior (:func:`observed_fraction`) are
+interpolated linearly.
 
 The phase posterior, the MAP phase and the robot's conditioned prediction are not changed by the
 head; it only decides the task posterior.

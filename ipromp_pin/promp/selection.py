@@ -1,15 +1,18 @@
-"""Model selection on training demos: the observation-noise ratio and the groups coupled to the robot.
+"""Model selection on training demos: noise ratio, temperature, coupling, conditioning noise, head rows.
 
 Both are chosen by leave-one-out cross-validation on the training demos only: every held-out demo
 (at most :data:`CV_MAX_FOLDS` in all, spread evenly over tasks and demos) is in turn removed from its
 task's model (the pooled covariance target and phase priors are refitted without it), and its first
 10 % and 20 % (:data:`CV_RATIOS`) are observed.
 
-Noise ratio (:func:`choose_noise`). The observation noise of dim ``d`` is ``r_d = nu delta_d``; the
-score of a candidate ``nu`` (:data:`NOISE_GRID`) is the mean log posterior of the held-out demo's true
-task plus the mean log posterior density of its true phase (each observation's score clipped at
--100). A too-small ``nu`` makes the phase estimate overconfident (worse than the prior alone); a
-too-large one ignores the observation. It is chosen on the fully coupled model.
+Noise ratio and temperature (:func:`choose_noise`). The observation noise of dim ``d`` is
+``r_d = nu delta_d`` and the posteriors use the likelihood to the power ``tau``; the score of a
+candidate (``nu``, ``tau``) (:data:`NOISE_GRID` x :data:`TEMPERATURE_GRID`) is the mean log
+posterior of the held-out demo's true task plus the mean log posterior density of its true phase
+(each observation's score clipped at -100). A too-small ``nu`` makes the phase estimate
+overconfident (worse than the prior alone); a too-large one ignores the observation. It is chosen on
+the fully coupled model. The same held-out demos, observed at :data:`HEAD_RATIOS`, are the training
+rows of the recognition head (:func:`fit_recognition_head`, :mod:`~ipromp_pin.promp.head`).
 
 Coupling (:func:`choose_coupling`). Not every observed group need inform the robot: on the hand-over
 data the forearm EMG amplitudes differ strongly between repetitions of a task (which is what tells
@@ -19,8 +22,11 @@ into prediction error. The model therefore has two independent blocks of dims: t
 observed groups with the robot, and the remaining observed groups (still modelled, with their
 correlations, for recognition and phase), each with its own Ledoit-Wolf shrinkage. The candidates
 are the non-empty subsets of the observed groups (:func:`coupling_candidates`); each held-out demo's
-task weights are conditioned on its observation at its true phase, and the score is the RMSE in
-[rad] of the predicted robot trajectory over the unobserved phases. With 10-20 demos per task these
+task weights are conditioned on its observation (at 10-80 %, :data:`CONDITION_CV_RATIOS`) at its true
+phase with every candidate conditioning noise ratio ``nu_c`` (:data:`NOISE_GRID`; each candidate at
+its best), and the score is the RMSE in [rad] of the predicted robot trajectory over the unobserved
+phases, or with the robot's forward kinematics the hand-over position error in [m]. With 10-20 demos
+per task these
 scores are noisy, so the one-standard-error rule picks the candidate with the fewest coupled dims
 among those whose mean squared error exceeds the best one's by at most :data:`COUPLING_SE` standard
 errors of their paired difference. The empty set (the prediction is the prior) is not a candidate:

@@ -186,19 +186,25 @@ def head_features(window: np.ndarray, generative_log_posterior: np.ndarray) -> n
     return np.concatenate([window, np.maximum(generative_log_posterior, LOG_POSTERIOR_CLIP)])
 
 
-def _fit_softmax(x: np.ndarray, y: np.ndarray, n_classes: int, c: float) -> tuple[np.ndarray, np.ndarray]:
-    """Multinomial logistic regression on standardised ``x`` (n, F), labels ``y`` (n,): mean log loss
-    plus ``||W||^2 / (2 C n)`` minimised by L-BFGS -> (W (T, F), b (T,))."""
+def _fit_softmax(
+    x: np.ndarray, y: np.ndarray, n_classes: int, c: float, weight: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """Multinomial logistic regression on standardised ``x`` (n, F), labels ``y`` (n,), row weights
+    ``weight`` (n,) (default 1): weighted mean log loss plus ``||W||^2 / (2 C S)`` (``S`` the sum of
+    the weights) minimised by L-BFGS -> (W (T, F), b (T,))."""
     n, f = x.shape
+    weight = np.ones(n) if weight is None else weight
+    total = float(weight.sum())
     onehot = np.eye(n_classes)[y]
-    lam = 1.0 / (c * n)
+    lam = 1.0 / (c * total)
+    sw = weight[:, None] / total
 
     def loss(theta: np.ndarray) -> tuple[float, np.ndarray]:
         w = theta[: n_classes * f].reshape(n_classes, f)
         b = theta[n_classes * f :]
         logp = log_softmax(x @ w.T + b, axis=1)
-        r = (np.exp(logp) - onehot) / n
-        value = -np.sum(onehot * logp) / n + 0.5 * lam * np.sum(w * w)
+        r = (np.exp(logp) - onehot) * sw
+        value = -np.sum(sw * onehot * logp) + 0.5 * lam * np.sum(w * w)
         grad = np.concatenate([(r.T @ x + lam * w).ravel(), r.sum(axis=0)])
         return float(value), grad
 
@@ -207,30 +213,43 @@ def _fit_softmax(x: np.ndarray, y: np.ndarray, n_classes: int, c: float) -> tupl
 
 
 def fit_head(
-    features: np.ndarray, labels: np.ndarray, groups: np.ndarray, ratios: np.ndarray, n_tasks: int
+    features: np.ndarray,
+    labels: np.ndarray,
+    groups: np.ndarray,
+    ratios: np.ndarray,
+    n_tasks: int,
+    fractions: np.ndarray | None = None,
 ) -> RecognitionHead:
-    """Fit the head on training rows: one regression per observed fraction, each choosing ``C`` among
-    :data:`HEAD_C_GRID` by grouped CV.
+    """Fit the head on training rows: one regression per observed fraction, each choosing its training
+    rows and ``C`` among :data:`HEAD_C_GRID` by grouped CV.
 
     Args:
         features: (n, F) raw head features (:func:`head_features`).
         labels: (n,) task index of every row.
         groups: (n,) the demo of every row (rows of one demo share a fold).
-        ratios: (n,) the observed fraction of every row.
+        ratios: (n,) the observed fraction of every row (the regressions' fractions are these values).
         n_tasks: Number of tasks T.
+        fractions: (n,) the observed fraction of every row as estimated online
+            (:func:`observed_fraction`): a row then counts for the regressions with the weights of
+            the interpolation at its estimate, as online (default: ``ratios``).
     """
-    fits = []
     levels = np.unique(ratios)
-    for r in levels:
-        fits.append(_fit_one(features, labels, groups, ratios == r, n_tasks))
+    fractions = ratios if fractions is None else fractions
+    weights = np.zeros((levels.size, labels.size))
+    for n, frac in enumerate(fractions):
+        i, w = interpolation([float(r) for r in levels], float(frac))
+        weights[i, n] += 1.0 - w
+        if w > 0.0:
+            weights[i + 1, n] += w
+    fits = [_fit_one(features, labels, groups, weights[i], n_tasks) for i in range(levels.size)]
     return RecognitionHead(levels, *(np.stack(a) for a in zip(*fits, strict=True)))
 
 
 def _fit_one(
     features: np.ndarray, labels: np.ndarray, groups: np.ndarray, here: np.ndarray, n_tasks: int
 ) -> tuple[np.ndarray, ...]:
-    """The regression of the rows ``here`` (one observed fraction): trained on these rows alone or on
-    the rows of every fraction (more demos, features less specific), and its ``C``, both chosen by
+    """The regression of one observed fraction, whose rows have the weights ``here`` (n,): trained on
+    them, or on every row alike (more demos, features less specific), and its ``C``, both chosen by
     grouped CV scored on the rows ``here`` -> (W, b, m, s, C, CV log loss of every candidate C at the
     chosen training rows)."""
     uniq = np.unique(groups)
@@ -238,22 +257,25 @@ def _fit_one(
     folds = np.array([fold_of[g] for g in groups])
     best_score, best = np.inf, None
     for pool in (here, np.ones_like(here)):
-        mean = features[pool].mean(axis=0)
-        scale = features[pool].std(axis=0)
+        used = pool > 0.0
+        mean = features[used].mean(axis=0)
+        scale = features[used].std(axis=0)
         scale = np.where(scale > 1e-12, scale, 1.0)
         x = (features - mean) / scale
         scores = []
         for c in HEAD_C_GRID:
             total = 0.0
             for k in range(min(HEAD_FOLDS, uniq.size)):
-                train, test = pool & (folds != k), here & (folds == k)
-                w, b = _fit_softmax(x[train], labels[train], n_tasks, c)
+                train = used & (folds != k)
+                test = (here > 0.0) & (folds == k)
+                w, b = _fit_softmax(x[train], labels[train], n_tasks, c, pool[train])
                 logp = log_softmax(x[test] @ w.T + b, axis=1)
-                total -= float(np.sum(logp[np.arange(int(test.sum())), labels[test]]))
-            scores.append(total / int(here.sum()))
+                total -= float(np.sum(here[test] * logp[np.arange(int(test.sum())), labels[test]]))
+            scores.append(total / float(here.sum()))
         j = int(np.argmin(scores))
         if scores[j] < best_score:
             best_score, best = scores[j], (pool, mean, scale, x, float(HEAD_C_GRID[j]), np.array(scores))
     pool, mean, scale, x, c, scores = best
-    w, b = _fit_softmax(x[pool], labels[pool], n_tasks, c)
+    used = pool > 0.0
+    w, b = _fit_softmax(x[used], labels[used], n_tasks, c, pool[used])
     return w, b, mean, scale, np.array(c), scores

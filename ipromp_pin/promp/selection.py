@@ -46,7 +46,7 @@ from ..data import Demo
 from ..exceptions import ObservationError
 from .conditioning import robot_posterior_mean
 from .distribution import shrink_covariances
-from .head import RecognitionHead, WindowSummary, fit_head, head_features
+from .head import RecognitionHead, WindowSummary, fit_head, head_features, observed_fraction
 from .likelihood import InferenceEngine
 from .observation import ObservationEncoder, ObservationPart
 from .posterior import PhasePriors, recognise_from_loglik
@@ -164,13 +164,15 @@ def fit_recognition_head(
 ) -> RecognitionHead:
     """The recognition head (:func:`~ipromp_pin.promp.head.fit_head`) fitted on the held-out rows with
     the generative posterior at the chosen ``nu`` (index into the noise grid) and temperature."""
-    feats = []
+    feats, fractions = [], []
     for r in rows:
         rec, _ = recognise_from_loglik(r.priors, temperature * r.loglik[nu_index], r.t_last)
         feats.append(head_features(r.window, rec.log_posterior))
+        fractions.append(observed_fraction(rec.posterior, rec.alpha, r.t_last, r.priors.duration_nominal_s))
     labels = np.array([r.task for r in rows])
     groups = np.array([r.demo for r in rows])
-    return fit_head(np.array(feats), labels, groups, np.array([r.ratio for r in rows]), n_tasks)
+    ratios = np.array([r.ratio for r in rows])
+    return fit_head(np.array(feats), labels, groups, ratios, n_tasks, np.array(fractions))
 
 
 def choose_noise(

@@ -184,6 +184,10 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     from .robot import load_robot
 
     observe = [parse_groups(o) for o in (args.observe or ["orientation", "orientation,emg"])]
+    if args.baselines:
+        from .baselines import require_sklearn
+
+        require_sklearn()
     frames = skeleton_frames(g for o in observe for g in o) or None
     md = args.md or (args.json.with_suffix(".md") if args.json else None)
     for path in (args.json, md):
@@ -204,6 +208,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
             n_test=args.n_test,
             n_splits=args.splits,
             seed=args.seed,
+            baselines=args.baselines,
         )
         for protocol in protocols
     ]
@@ -427,6 +432,12 @@ def build_parser() -> argparse.ArgumentParser:
         "usable)",
     )
     p.add_argument("--plots", type=Path, help="write PNG figures into this folder")
+    p.add_argument(
+        "--baselines",
+        action="store_true",
+        help="also run logistic regression, LDA, ridge and kNN on window features of the same windows "
+        "(needs scikit-learn)",
+    )
     p.set_defaults(func=cmd_evaluate)
 
     p = sub.add_parser("train", help="train a model on a dataset and save it")

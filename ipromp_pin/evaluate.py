@@ -34,6 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from . import atomic
+from .baselines import CLASSIFIERS, REGRESSORS, BaselineTrial, WindowBaselines
 from .data import ROBOT, Dataset, Demo
 from .exceptions import DataError
 from .promp import IProMP
@@ -73,6 +74,9 @@ class TrialResult:
         handover_error_cm: Gripper position error at the hand-over, in [cm] (NaN without FK).
         handover_error_prior_cm: The same for the prior mean, in [cm].
         duration_error_s: Predicted minus true duration of the motion, in [s].
+        brier: Multi-class Brier score of the task posterior (sum over tasks of squared errors).
+        baselines: Baseline name -> its outcome on the same window (``--baselines``,
+            :mod:`ipromp_pin.baselines`).
     """
 
     task: str
@@ -86,6 +90,8 @@ class TrialResult:
     handover_error_cm: float
     handover_error_prior_cm: float
     duration_error_s: float
+    brier: float = float("nan")
+    baselines: dict[str, BaselineTrial] = field(default_factory=dict)
 
     @property
     def correct(self) -> bool:
@@ -99,6 +105,12 @@ class Cell:
 
     ``coupled_groups`` counts, over the cell's model fits, the observed groups each fitted model
     coupled to the robot (``"+"``-joined, ``""`` for none; see ``IProMP(coupling=...)``).
+    ``log_loss`` (mean of ``-log p(true task)``, posteriors floored at :data:`PROBABILITY_FLOOR`) and
+    ``brier`` (mean multi-class Brier score) say how well calibrated the task posterior is.
+    ``baselines`` (``--baselines``): baseline name -> ``accuracy``, ``log_loss``, ``brier`` (and
+    ``accuracy_std`` over splits) for the classifiers, the median ``handover_error_cm``,
+    ``joint_rmse_rad`` and ``final_joint_error_rad`` over the trials ipromp_pin recognised for the
+    regressors (the true task given to them).
     """
 
     protocol: str
@@ -119,7 +131,14 @@ class Cell:
     handover_error_prior_cm: float | None = None
     duration_error_s: float | None = None
     coupled_groups: dict[str, int] = field(default_factory=dict)
+    log_loss: float | None = None
+    brier: float | None = None
+    baselines: dict[str, dict[str, float | None]] = field(default_factory=dict)
     trials: list[dict] = field(default_factory=list)
+
+
+PROBABILITY_FLOOR = 1e-15
+"""Posteriors are floored at this value in the log loss (a confident mistake costs at most 34.5)."""
 
 
 def observe_key(observe: Sequence[str]) -> str:
@@ -168,6 +187,7 @@ def score_trial(
         ho = float(np.linalg.norm(p[1] - p[0]) * 100.0)
         ho_prior = float(np.linalg.norm(p[2] - p[0]) * 100.0)
     k_true = prediction.tasks.index(demo.task) if demo.task in prediction.tasks else None
+    onehot = np.array([t == demo.task for t in prediction.tasks], dtype=float)
     return TrialResult(
         task=demo.task,
         demo=demo.name,
@@ -180,6 +200,7 @@ def score_trial(
         handover_error_cm=ho,
         handover_error_prior_cm=ho_prior,
         duration_error_s=float(prediction.duration_s - demo.duration_s),
+        brier=float(np.sum((np.asarray(prediction.posterior) - onehot) ** 2)),
     )
 
 
@@ -287,6 +308,7 @@ class EvaluationConfig:
         n_splits: Random splits (``splits`` protocol).
         seed: Seed of the random splits.
         model_params: Keyword arguments of the model's constructor.
+        baselines: Also run the reference baselines on the same windows (:mod:`ipromp_pin.baselines`).
     """
 
     protocol: str = "paper"
@@ -296,6 +318,7 @@ class EvaluationConfig:
     n_splits: int = 20
     seed: int = 0
     model_params: dict = field(default_factory=dict)
+    baselines: bool = False
 
 
 @dataclass
@@ -323,12 +346,16 @@ def _run_job(job: _Job) -> tuple[_Job, dict[float, list[TrialResult]], str]:
     dataset: Dataset = _WORKER["dataset"]
     fk = _WORKER["fk"]
     train, test = _take(dataset, job.indices)
-    model = IProMP(observe=list(job.observe), **_WORKER["params"]).fit(train)
+    model = IProMP(observe=list(job.observe), **_WORKER["params"]).fit(train, fk=fk)
     out = {}
     for ratio in job.ratios:
         out[ratio] = [
             score_trial(model.predict(d.head(ratio, groups=job.observe)), d, ratio, fk) for d in test
         ]
+        if _WORKER["baselines"]:
+            scored = WindowBaselines(job.observe, ratio, fk).fit(train).score(test)
+            for trial, base in zip(out[ratio], scored, strict=True):
+                trial.baselines = base
     return job, out, "+".join(getattr(model, "coupled_groups_", job.observe))
 
 
@@ -374,7 +401,9 @@ def evaluate(
                 indices = _random_indices(dataset, n_train, config.n_test, rng)
             ratios = [r for n, r in config.grid if n == n_train]
             work += [_Job(rep, n_train, list(o), indices, ratios) for o in config.observe]
-    _WORKER.update(dataset=dataset, fk=_robot_fk(robot), params=dict(config.model_params))
+    _WORKER.update(
+        dataset=dataset, fk=_robot_fk(robot), params=dict(config.model_params), baselines=config.baselines
+    )
     # (n_train, ratio, observe_key, task) -> per repeat, the trials of that task
     results: dict[tuple[int, float, str, str], list[list[TrialResult]]] = {}
     # (n_train, observe_key) -> coupled groups of the fitted models -> number of fits
@@ -437,6 +466,8 @@ def _cells(dataset: Dataset, config: EvaluationConfig, results, couplings) -> li
                     duration_error_s=summary["duration_error_s"],
                     coupled_groups=dict(sorted(couplings.get((n_train, key), {}).items())),
                 )
+                cell.log_loss, cell.brier = _calibration([(r.posterior, r.brier) for r in flat])
+                cell.baselines = _baseline_summary(reps, config.protocol == "splits")
                 if config.protocol == "splits":
                     cell.accuracy_std = float(np.std(accs)) if accs else float("nan")
                     cell.n_splits = len(accs)
@@ -444,6 +475,39 @@ def _cells(dataset: Dataset, config: EvaluationConfig, results, couplings) -> li
                     cell.trials = [asdict(r) | {"correct": r.correct} for r in flat]
                 cells.append(cell)
     return cells
+
+
+def _calibration(rows: Sequence[tuple[float, float]]) -> tuple[float | None, float | None]:
+    """Mean log loss and mean Brier score of (posterior of the true task, Brier score) rows."""
+    if not rows:
+        return None, None
+    p = np.maximum(np.array([r[0] for r in rows], dtype=float), PROBABILITY_FLOOR)
+    return float(np.mean(-np.log(p))), float(np.mean([r[1] for r in rows]))
+
+
+def _baseline_summary(reps: list[list[TrialResult]], splits: bool) -> dict[str, dict[str, float | None]]:
+    """Baseline name -> its summary over a cell's trials (see :class:`Cell`)."""
+    flat = [r for rep in reps for r in rep]
+    out: dict[str, dict[str, float | None]] = {}
+    for name in CLASSIFIERS:
+        rows = [r.baselines[name] for r in flat if name in r.baselines]
+        if not rows:
+            continue
+        task = flat[0].task
+        accs = [np.mean([r.baselines[name].predicted == task for r in rep]) for rep in reps if rep]
+        log_loss, brier = _calibration([(b.posterior, b.brier) for b in rows])
+        out[name] = {"accuracy": float(np.mean(accs)), "log_loss": log_loss, "brier": brier}
+        if splits:
+            out[name]["accuracy_std"] = float(np.std(accs))
+    for name in REGRESSORS:
+        rows = [r.baselines[name] for r in flat if r.correct and name in r.baselines]
+        if not any(name in r.baselines for r in flat):
+            continue
+        out[name] = {
+            key: _median([getattr(b, key) for b in rows])
+            for key in ("joint_rmse_rad", "final_joint_error_rad", "handover_error_cm")
+        }
+    return out
 
 
 def overall(cells: Sequence[Cell]) -> dict[str, dict[str, float]]:
@@ -525,6 +589,8 @@ def to_markdown(cells: Sequence[Cell]) -> str:
                 f"| {_fmt(c.duration_error_s, 2)} |"
             )
         lines.append("")
+        if any(c.baselines for c in pc):
+            lines += baseline_markdown(pc)
         fits = {(c.n_train, observe_key(c.observe)): c.coupled_groups for c in pc if c.coupled_groups}
         for (n_train, key), counts in fits.items():
             chosen = ", ".join(f"{g or 'none'} ({n})" for g, n in counts.items())
@@ -532,6 +598,54 @@ def to_markdown(cells: Sequence[Cell]) -> str:
         if fits:
             lines.append("")
     return "\n".join(lines)
+
+
+def _row_mean(values: Sequence[float | None]) -> float | None:
+    vals = [v for v in values if v is not None and np.isfinite(v)]
+    return float(np.mean(vals)) if vals else None
+
+
+def baseline_markdown(cells: Sequence[Cell]) -> list[str]:
+    """Markdown lines: ipromp_pin beside the baselines, one row per (n_train, ratio, observed set),
+    each number the mean over the row's tasks (of the per-task accuracy, log loss, or median error)."""
+    protocol = cells[0].protocol
+    rows: dict[tuple[int, float, str], list[Cell]] = {}
+    for c in cells:
+        rows.setdefault((c.n_train, c.obs_ratio, observe_key(c.observe)), []).append(c)
+    names = ["ipromp_pin", *CLASSIFIERS]
+    lines = [
+        f"### ipromp_pin and the baselines, protocol `{protocol}` (means over tasks)\n",
+        "| n_train | obs ratio | observed | accuracy: "
+        + " / ".join(names)
+        + " | log loss: "
+        + " / ".join(names)
+        + " | hand-over err [cm]: ipromp_pin / "
+        + " / ".join(REGRESSORS)
+        + " | joint RMSE [rad]: ipromp_pin / "
+        + " / ".join(REGRESSORS)
+        + " |",
+        "|---|---|---|---|---|---|---|",
+    ]
+
+    def base(row: list[Cell], name: str, key: str) -> float | None:
+        return _row_mean([c.baselines.get(name, {}).get(key) for c in row])
+
+    for (n_train, ratio, key), row in rows.items():
+        acc = [_row_mean([c.accuracy for c in row])] + [base(row, n, "accuracy") for n in CLASSIFIERS]
+        loss = [_row_mean([c.log_loss for c in row])] + [base(row, n, "log_loss") for n in CLASSIFIERS]
+        ho = [_row_mean([c.handover_error_cm for c in row])] + [
+            base(row, n, "handover_error_cm") for n in REGRESSORS
+        ]
+        rmse = [_row_mean([c.joint_rmse_rad for c in row])] + [
+            base(row, n, "joint_rmse_rad") for n in REGRESSORS
+        ]
+        lines.append(
+            f"| {n_train} | {ratio:g} | {key} | "
+            + " / ".join(_fmt(v) for v in acc) + " | " + " / ".join(_fmt(v) for v in loss) + " | "
+            + " / ".join(_fmt(v, 1) for v in ho) + " | " + " / ".join(_fmt(v, 3) for v in rmse) + " |"
+        )  # fmt: skip
+    lines.append("")
+    return lines
 
 
 def to_json(cells: Sequence[Cell], meta: dict | None = None) -> dict:

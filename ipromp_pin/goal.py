@@ -15,8 +15,12 @@ import numpy as np
 
 from .exceptions import InfeasibleError
 from .promp import Prediction
-from .promp.posterior import VIA_POINT_STD_RAD
 from .robot import IKResult, Robot, solve_ik
+
+GOAL_STD_RAD = 1e-4
+"""Default standard deviation in [rad] of the goal configuration's joint angles: a goal pose is a target
+the motion must reach, so it must outweigh a confident prediction (whose hand-over joint standard
+deviations can be a few milliradians); 1e-4 rad moves the end-effector by about 0.1 mm."""
 
 
 @dataclass(frozen=True)
@@ -41,7 +45,7 @@ def condition_on_goal_pose(
     quat_xyzw: np.ndarray | None = None,
     *,
     t_s: float | None = None,
-    std_rad: float = VIA_POINT_STD_RAD,
+    std_rad: float = GOAL_STD_RAD,
 ) -> GoalConditioning:
     """Condition ``prediction`` on reaching an end-effector pose.
 

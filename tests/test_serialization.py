@@ -12,6 +12,7 @@ from helpers_model import random_dataset, split
 
 from ipromp_pin.exceptions import ModelFileError, NotFittedError
 from ipromp_pin.promp import IProMP
+from ipromp_pin.promp.serialization import FORMAT_VERSION
 
 
 @pytest.fixture(scope="module")
@@ -43,8 +44,40 @@ def test_file_has_no_pickled_objects(tmp_path: Path, model_and_obs) -> None:
     with np.load(path, allow_pickle=False) as npz:
         header = json.loads(str(npz["header"][()]))
         assert all(npz[name].dtype != object for name in npz.files)
-    assert header["format"] == "ipromp_pin.IProMP" and header["format_version"] == 2
+    assert header["format"] == "ipromp_pin.IProMP" and header["format_version"] == FORMAT_VERSION == 2
     assert header["tasks"] == ["task0", "task1", "task2"]
+
+
+def test_version_1_file_loads_as_the_model_it_was(tmp_path: Path, model_and_obs) -> None:
+    """A version-1 file (no temperature, conditioning noise ratio or head) predicts as a version-2
+    model with temperature 1, the conditioning at the recognition's noise ratio and no head."""
+    model, obs = model_and_obs
+    model.save(tmp_path / "m.npz")
+
+    def as_v1(h: dict) -> None:
+        for key in ("temperature", "condition_noise_ratio", "condition_cv_scores", "head"):
+            h.pop(key)
+        for key in ("temperature", "condition_noise", "head"):
+            h["params"].pop(key)
+        h["format_version"] = 1
+
+    with np.load(tmp_path / "m.npz", allow_pickle=False) as npz:
+        arrays = {k: npz[k] for k in npz.files if not k.startswith("head_")}
+    header = json.loads(str(arrays["header"][()]))
+    as_v1(header)
+    arrays["header"] = np.array(json.dumps(header))
+    np.savez(tmp_path / "v1.npz", **arrays)
+    old = IProMP.load(tmp_path / "v1.npz")
+    assert old.head_ is None and old.temperature_ == 1.0
+    assert old.condition_noise_ratio_ == old.noise_ratio_ == model.noise_ratio_
+    same = IProMP(**{**model.get_params(), "head": False, "temperature": 1.0, "condition_noise": "same"})
+    fitted = model.fitted_
+    from dataclasses import replace
+
+    same._set_fitted(replace(fitted, head=None, temperature=1.0, condition_noise_ratio=None))
+    a, b = old.predict(obs), same.predict(obs)
+    for name in ("log_posterior", "alpha", "q_mean", "q_cov"):
+        assert np.array_equal(getattr(a, name), getattr(b, name)), name
 
 
 def _rewrite_header(src: Path, dst: Path, change) -> None:

@@ -203,7 +203,7 @@ class Conditioner:
             lq = np.empty((r, r))
             ok = kern.condition_block(
                 *args[:5], lay.positions, lay.dims, lay.offsets, args[5], inv_dur,
-                basis.centres, basis.width, basis.step_factor, m.mean, m.diag, factor, fm.noise_ratio,
+                basis.centres, basis.width, basis.step_factor, m.mean, m.diag, factor, fm.nu_condition,
                 w, lq,
             )  # fmt: skip
             if not ok:

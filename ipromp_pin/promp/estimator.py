@@ -20,7 +20,7 @@ Samples can also arrive one by one (:meth:`IProMP.stream`, :mod:`~ipromp_pin.pro
 from __future__ import annotations
 
 import contextlib
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -35,7 +35,7 @@ from .posterior import Prediction, Recognition
 from .predictor import Predictor
 from .prior_sampling import sample_task_prior
 from .provenance import demo_record
-from .selection import choose_coupling, choose_noise
+from .selection import NOISE_GRID, TEMPERATURE_GRID, choose_coupling, choose_noise, fit_recognition_head
 from .serialization import read_model, write_model
 from .streaming import StreamingEstimator
 from .training import PhaseSettings, demos_by_task, log_task_prior, prepare_training, task_models
@@ -61,6 +61,19 @@ class IProMP:
         alpha_width: Candidates span ``mu +- alpha_width sigma`` of the phase prior.
         noise: Noise ratio ``nu`` (float > 0) or ``"auto"`` (leave-one-out CV over
             :data:`~ipromp_pin.promp.selection.NOISE_GRID`).
+        temperature: Likelihood temperature ``tau`` in (0, 1]: the task and phase posteriors use the
+            likelihood to the power ``tau`` (the samples of a smooth motion are not independent, so the
+            white-noise likelihood counts their evidence many times over; ``tau`` calibrates the
+            posteriors). ``"auto"``: chosen jointly with ``noise`` by leave-one-out CV over
+            :data:`~ipromp_pin.promp.selection.TEMPERATURE_GRID`; 1.0 is the textbook likelihood.
+        condition_noise: Noise ratio ``nu_c`` with which the robot's weights are conditioned on the
+            observation: ``"auto"`` (leave-one-out CV of the robot prediction over
+            :data:`~ipromp_pin.promp.selection.NOISE_GRID`, jointly with the coupling), ``"same"``
+            (the recognition's ``nu``) or a float > 0. The recognition's ``nu`` is chosen for the task
+            and phase posteriors; the robot's prediction may trust the observation more or less.
+        head: Decide the task posterior by the discriminative head calibrated on held-out training
+            demos (:mod:`~ipromp_pin.promp.head`: window summary + generative posterior); False: the
+            generative posterior alone.
         n_points: Number M of points of the predicted trajectories.
         task_prior: Prior task probabilities (task -> p, or None for uniform).
         robot_group: Name of the robot's joint-angle group.
@@ -91,6 +104,10 @@ class IProMP:
         n_dims_, n_obs_dims_: Number of modelled and of observed dims.
         duration_nominal_s_: ``T_norm`` in [s] (mean training duration).
         noise_ratio_: Chosen ``nu``; ``noise_var_`` task -> (D_obs,) noise variances (scaled units).
+        temperature_: Chosen likelihood temperature ``tau``.
+        head_: The fitted :class:`~ipromp_pin.promp.head.RecognitionHead` (None with ``head=False``).
+        condition_noise_ratio_: Chosen ``nu_c`` (see ``condition_noise``); ``condition_cv_scores_``
+            ``nu_c`` -> CV RMSE of the robot prediction in [rad] (only with ``condition_noise="auto"``).
         cv_scores_: ``nu`` -> CV score (only with ``noise="auto"``).
         coupled_groups_: Observed groups coupled to the robot (see ``coupling``).
         coupling_cv_scores_: Candidate coupled groups (``"+"``-joined) -> CV RMSE of the robot
@@ -111,6 +128,9 @@ class IProMP:
         n_alpha: int = 20,
         alpha_width: float = 3.0,
         noise: float | str = "auto",
+        temperature: float | str = "auto",
+        condition_noise: float | str = "auto",
+        head: bool = True,
         n_points: int = 100,
         task_prior: Mapping[str, float] | None = None,
         robot_group: str = ROBOT,
@@ -127,6 +147,9 @@ class IProMP:
         self.n_alpha = n_alpha
         self.alpha_width = alpha_width
         self.noise = noise
+        self.temperature = temperature
+        self.condition_noise = condition_noise
+        self.head = head
         self.n_points = n_points
         self.task_prior = task_prior
         self.robot_group = robot_group
@@ -170,6 +193,14 @@ class IProMP:
         if not (isinstance(noise, str) and noise == "auto"):
             if isinstance(noise, str) or not (float(noise) > 0 and np.isfinite(float(noise))):
                 raise ModelError(f"noise must be 'auto' or a positive float, got {noise!r}")
+        tau = self.temperature
+        if not (isinstance(tau, str) and tau == "auto"):
+            if isinstance(tau, str) or not (0.0 < float(tau) <= 1.0):
+                raise ModelError(f"temperature must be 'auto' or a float in (0, 1], got {tau!r}")
+        nu_c = self.condition_noise
+        if not (isinstance(nu_c, str) and nu_c in ("auto", "same")):
+            if isinstance(nu_c, str) or not (float(nu_c) > 0 and np.isfinite(float(nu_c))):
+                raise ModelError(f"condition_noise must be 'auto', 'same' or a positive float, got {nu_c!r}")
         if not 0.0 <= float(self.pooling) <= 1.0:
             raise ModelError(f"pooling must be in [0, 1], got {self.pooling!r}")
         if isinstance(coupling, str):
@@ -205,13 +236,23 @@ class IProMP:
         return observe, coupling
 
     # ------------------------------------------------------------------ fit
-    def fit(self, data: Dataset | Iterable[Demo], y: Sequence[str] | None = None) -> IProMP:
+    def fit(
+        self,
+        data: Dataset | Iterable[Demo],
+        y: Sequence[str] | None = None,
+        *,
+        fk: Callable[[np.ndarray], np.ndarray] | None = None,
+    ) -> IProMP:
         """Learn the scaling, per-task weight distributions, phase priors, noise ratio and coupling.
 
         Args:
             data: A :class:`~ipromp_pin.data.Dataset` or demos (grouped by ``demo.task``).
             y: The demos' task names, optional (scikit-learn's ``fit(X, y)``: checked against
                 ``demo.task``, so that stratified cross-validation splitters can use them).
+            fk: The robot's forward kinematics, joint angles (n, J) in [rad] -> hand-over positions
+                (n, 3) in [m] (e.g. :func:`ipromp_pin.robot.ee_positions` of a loaded robot). When
+                given, the coupling and the conditioning noise ratio are chosen for the hand-over
+                position error instead of the joint RMSE (see ``choose_coupling``).
         """
         observe, coupling = self.check_params()
         if y is not None:
@@ -222,15 +263,22 @@ class IProMP:
         settings = PhaseSettings(int(self.n_alpha), float(self.alpha_width), float(self.pooling))
         prior = log_task_prior(training.tasks, self.task_prior)
         with self._limit_threads():
-            if isinstance(self.noise, str):
-                nu, nu_scores = choose_noise(training, settings, prior)
+            nus = NOISE_GRID if isinstance(self.noise, str) else (float(self.noise),)
+            taus = TEMPERATURE_GRID if isinstance(self.temperature, str) else (float(self.temperature),)
+            head = None
+            if len(nus) > 1 or len(taus) > 1 or self.head:
+                noise = choose_noise(training, settings, prior, nus, taus)
+                nu, tau = noise.nu, noise.temperature
+                nu_scores = noise.scores if len(nus) > 1 else {}
+                if self.head and noise.rows:
+                    head = fit_recognition_head(noise.rows, nus.index(nu), tau, len(training.tasks))
             else:
-                nu, nu_scores = float(self.noise), {}
-            if coupling == "auto":
-                coupled, coupling_scores = choose_coupling(training, settings, nu)
-            else:
-                coupled = list(observe) if coupling == "all" else coupling
-                coupling_scores = {}
+                nu, tau, nu_scores = nus[0], taus[0], {}
+            nu_c = {"auto": None, "same": nu}.get(self.condition_noise, self.condition_noise)  # type: ignore[arg-type]
+            nu_c = None if nu_c is None else float(nu_c)
+            cands = None if coupling == "auto" else [list(observe) if coupling == "all" else coupling]
+            choice = choose_coupling(training, settings, nu_c, cands, fk)
+            coupled = choice.groups
         models = task_models(training, training.weights, training.alphas, coupled, settings)
         fitted = FittedModel(
             layout=training.layout,
@@ -241,10 +289,14 @@ class IProMP:
             duration_nominal_s=training.duration_nominal_s,
             task_log_prior=prior,
             noise_ratio=nu,
+            temperature=tau,
+            head=head,
             coupled_groups=tuple(coupled),
             residual_var=training.residual_var,
             noise_cv_scores=nu_scores,
-            coupling_cv_scores=coupling_scores,
+            coupling_cv_scores=choice.scores,
+            condition_noise_ratio=choice.nu_condition,
+            condition_cv_scores=choice.nu_scores,
             trained_on=tuple(demo_record(d) for demos in by_task.values() for d in demos),
         )
         try:
@@ -273,6 +325,10 @@ class IProMP:
         self.n_obs_dims_ = layout.n_obs_dims
         self.duration_nominal_s_ = fitted.duration_nominal_s
         self.noise_ratio_ = fitted.noise_ratio
+        self.temperature_ = fitted.temperature
+        self.head_ = fitted.head
+        self.condition_noise_ratio_ = fitted.nu_condition
+        self.condition_cv_scores_ = dict(fitted.condition_cv_scores)
         self.noise_var_ = fitted.noise_var()
         self.cv_scores_ = dict(fitted.noise_cv_scores)
         self.coupled_groups_ = list(fitted.coupled_groups)
@@ -455,6 +511,9 @@ _PARAMS = (
     "n_alpha",
     "alpha_width",
     "noise",
+    "temperature",
+    "condition_noise",
+    "head",
     "n_points",
     "task_prior",
     "robot_group",

@@ -11,12 +11,13 @@ changes it.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from .basis import GaussianBasis
 from .distribution import ChannelScaler, TaskModel
+from .head import RecognitionHead
 from .layout import ChannelLayout
 from .provenance import DemoRecord
 
@@ -41,6 +42,13 @@ class FittedModel:
             prediction in [rad] (empty when the coupling was given or had one candidate).
         trained_on: One :class:`~ipromp_pin.promp.provenance.DemoRecord` per training demo, or
             None when unknown (a model file of format version 1).
+        head: The discriminative recognition head deciding the task posterior (None: the generative
+            posterior).
+        temperature: Likelihood temperature ``tau`` of the task and phase posteriors (1: textbook).
+        condition_noise_ratio: ``nu_c``, the noise ratio of the conditioning of the robot's weights
+            (None: ``noise_ratio``; models fitted before it existed).
+        condition_cv_scores: Candidate ``nu_c`` -> CV RMSE of the robot prediction in [rad] with the
+            chosen coupling (empty when ``nu_c`` was given).
     """
 
     layout: ChannelLayout
@@ -56,6 +64,16 @@ class FittedModel:
     noise_cv_scores: Mapping[float, float]
     coupling_cv_scores: Mapping[str, float]
     trained_on: tuple[DemoRecord, ...] | None = None
+    temperature: float = 1.0
+    head: RecognitionHead | None = None
+    condition_noise_ratio: float | None = None
+    condition_cv_scores: Mapping[float, float] = field(default_factory=dict)
+
+    @property
+    def nu_condition(self) -> float:
+        """The noise ratio the robot's weights are conditioned with (``condition_noise_ratio``, else
+        ``noise_ratio``)."""
+        return self.noise_ratio if self.condition_noise_ratio is None else float(self.condition_noise_ratio)
 
     def task_models(self) -> list[TaskModel]:
         """The task models in :attr:`tasks` order."""

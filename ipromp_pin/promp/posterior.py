@@ -284,6 +284,18 @@ def recognise_from_loglik(
     return rec, logpost
 
 
+def with_task_posterior(rec: Recognition, log_posterior: np.ndarray, priors: PhasePriors) -> Recognition:
+    """``rec`` (changed in place and returned) with its task posterior replaced by ``log_posterior``
+    (T,) (normalised): the most probable task and its predicted duration follow it; the phase
+    estimates stay."""
+    best = int(np.argmax(log_posterior))
+    rec.task = priors.tasks[best]  # rec is the caller's fresh object: changed in place (no copy)
+    rec.log_posterior = log_posterior
+    rec.posterior = np.exp(log_posterior)
+    rec.duration_s = float(rec.alpha[best] * priors.duration_nominal_s)
+    return rec
+
+
 def finish_recognition(
     priors: PhasePriors,
     evidence: np.ndarray,

@@ -13,9 +13,10 @@ import numpy as np
 from ..data import Demo
 from .conditioning import Conditioner
 from .fitted import FittedModel
+from .head import WindowSummary, observed_fraction
 from .likelihood import InferenceEngine
 from .observation import ObservationEncoder, ObservationPart
-from .posterior import PhasePriors, Prediction, Recognition, recognise_from_loglik
+from .posterior import PhasePriors, Prediction, Recognition, recognise_from_loglik, with_task_posterior
 
 
 class Predictor:
@@ -54,15 +55,28 @@ class Predictor:
         """Validate and scale an observation (:meth:`ObservationEncoder.encode`)."""
         return self.encoder.encode(observation, check_length)
 
-    def recognition_from_loglik(self, loglik: np.ndarray, t_last: float) -> Recognition:
-        """The recognition from the log likelihood (T, C) of every (task, candidate)."""
-        return recognise_from_loglik(self.priors, loglik, t_last)[0]
+    def recognition_from_loglik(
+        self, loglik: np.ndarray, t_last: float, window: WindowSummary | None = None
+    ) -> Recognition:
+        """The recognition from the log likelihood (T, C) of every (task, candidate) (tempered by the
+        model's ``temperature``); with a recognition head, its task posterior given the observed
+        ``window`` (needed then)."""
+        tau = self.fitted.temperature
+        rec = recognise_from_loglik(self.priors, loglik if tau == 1.0 else tau * loglik, t_last)[0]
+        head = self.fitted.head
+        if head is None:
+            return rec
+        if window is None:
+            raise ValueError("a model with a recognition head needs the observed window's summary")
+        fraction = observed_fraction(rec.posterior, rec.alpha, t_last, self.fitted.duration_nominal_s)
+        return with_task_posterior(rec, head.log_posterior(window, rec.log_posterior, fraction), self.priors)
 
     def recognise(self, parts: list[ObservationPart], t_last: float) -> Recognition:
         """Task posterior and phase estimates of encoded observation parts."""
         engine = self.engine
         loglik = engine.log_likelihood([engine.part_stats(p) for p in parts], t_last)
-        return self.recognition_from_loglik(loglik, t_last)
+        window = WindowSummary.from_parts(parts, self.fitted.layout.n_obs_dims) if self.fitted.head else None
+        return self.recognition_from_loglik(loglik, t_last, window)
 
     def predict(self, parts: list[ObservationPart], t_last: float) -> Prediction:
         """Recognition and the conditioned prediction of the most probable task."""

@@ -16,9 +16,18 @@ from scipy.linalg import cho_factor, cho_solve
 from ..data import Demo
 from .basis import GaussianBasis
 from .distribution import TaskModel
+from .fitted import FittedModel
+from .head import LOG_POSTERIOR_CLIP
 from .likelihood import LOG_2PI
 from .observation import ObservationPart
-from .posterior import REFINE_NODES, REFINE_STEPS, REFINE_WEIGHTS, Prediction, finish_recognition
+from .posterior import (
+    REFINE_NODES,
+    REFINE_STEPS,
+    REFINE_WEIGHTS,
+    Prediction,
+    finish_recognition,
+    with_task_posterior,
+)
 from .predictor import Predictor
 
 
@@ -115,6 +124,46 @@ def direct_loglik(
     return float(-0.5 * (y.size * LOG_2PI + 2.0 * np.sum(np.log(np.diag(c))) + e @ sol))
 
 
+def direct_head(
+    fm: FittedModel, parts: list[ObservationPart], generative: np.ndarray, fraction: float
+) -> np.ndarray:
+    """The recognition head's log task posterior written out: per observed dim the first, mean and
+    last valid scaled value (sample by sample), the clipped generative log posterior, standardised,
+    the linear logits of the regressions at the two observed fractions around ``fraction`` (the
+    expected observed fraction under the generative posterior) interpolated linearly, and their
+    log-softmax."""
+    n_obs = fm.layout.n_obs_dims
+    samples: list[list[tuple[float, float]]] = [[] for _ in range(n_obs)]
+    for part in parts:
+        for j, d in enumerate(part.dims):
+            samples[int(d)] += [(float(t), float(v)) for t, v in zip(part.t, part.y[:, j], strict=True)]
+    window = np.zeros(3 * n_obs)
+    for d, rows in enumerate(samples):
+        if rows:
+            rows.sort()
+            window[d] = rows[0][1]
+            window[n_obs + d] = sum(v for _, v in rows) / len(rows)
+            window[2 * n_obs + d] = rows[-1][1]
+    x = np.concatenate([window, np.maximum(generative, LOG_POSTERIOR_CLIP)])
+    head = fm.head
+    logits = [
+        head.coef[i] @ ((x - head.feature_mean[i]) / head.feature_scale[i]) + head.intercept[i]
+        for i in range(head.ratios.size)
+    ]
+    s = fraction
+    r = head.ratios
+    if s <= r[0]:
+        z = logits[0]
+    elif s >= r[-1]:
+        z = logits[-1]
+    else:
+        i = max(k for k in range(r.size - 1) if r[k] <= s)
+        w = (s - r[i]) / (r[i + 1] - r[i])
+        z = (1.0 - w) * logits[i] + w * logits[i + 1]
+    z = np.where(np.isfinite(generative), z, -np.inf)
+    return z - np.logaddexp.reduce(z)
+
+
 def direct_predict(predictor: Predictor, observation: Demo) -> Prediction:
     """Reference recognition and prediction by the textbook equations (slow; tests and benchmarks)."""
     fm = predictor.fitted
@@ -129,17 +178,21 @@ def direct_predict(predictor: Predictor, observation: Demo) -> Prediction:
         m = fm.models[task]
         sigma = m.covariance()
         ll = np.array([direct_loglik(fm.basis, m, parts, a, tn, nu, sigma) for a in m.alpha_grid])
-        lp = ll + m.alpha_log_prior
+        lp = fm.temperature * ll + m.alpha_log_prior
         evidence[i] = np.logaddexp.reduce(lp)
         logpost[i] = lp - evidence[i]
         alpha[i] = refine_peak(m.alpha_grid, lp)
     rec = finish_recognition(predictor.priors, evidence, alpha, logpost, t_last)
+    if fm.head is not None:
+        fraction = sum(p * t_last / (a * tn) for p, a in zip(rec.posterior, rec.alpha, strict=True))
+        post = direct_head(fm, parts, rec.log_posterior, float(fraction))
+        rec = with_task_posterior(rec, post, predictor.priors)
     m = fm.models[rec.task]
     a_best = float(rec.alpha[fm.tasks.index(rec.task)])
     n_dims, k = m.mean.shape
     phi, y, dd = dense_observation_matrix(fm.basis, parts, a_best, tn, n_dims, k)
     sigma = m.covariance()
-    cov = phi @ sigma @ phi.T + np.diag(nu * m.diag[dd])
+    cov = phi @ sigma @ phi.T + np.diag(fm.nu_condition * m.diag[dd])  # the conditioning's noise
     c = cho_factor(cov, lower=True)
     gain_t = cho_solve(c, phi @ sigma)  # C^-1 Phi Sigma, (n_y, p)
     w_mean = m.mean.reshape(-1) + gain_t.T @ (y - phi @ m.mean.reshape(-1))

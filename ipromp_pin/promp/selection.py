@@ -1,15 +1,18 @@
-"""Model selection on training demos: the observation-noise ratio and the groups coupled to the robot.
+"""Model selection on training demos: noise ratio, temperature, coupling, conditioning noise, head rows.
 
 Both are chosen by leave-one-out cross-validation on the training demos only: every held-out demo
 (at most :data:`CV_MAX_FOLDS` in all, spread evenly over tasks and demos) is in turn removed from its
 task's model (the pooled covariance target and phase priors are refitted without it), and its first
 10 % and 20 % (:data:`CV_RATIOS`) are observed.
 
-Noise ratio (:func:`choose_noise`). The observation noise of dim ``d`` is ``r_d = nu delta_d``; the
-score of a candidate ``nu`` (:data:`NOISE_GRID`) is the mean log posterior of the held-out demo's true
-task plus the mean log posterior density of its true phase (each observation's score clipped at
--100). A too-small ``nu`` makes the phase estimate overconfident (worse than the prior alone); a
-too-large one ignores the observation. It is chosen on the fully coupled model.
+Noise ratio and temperature (:func:`choose_noise`). The observation noise of dim ``d`` is
+``r_d = nu delta_d`` and the posteriors use the likelihood to the power ``tau``; the score of a
+candidate (``nu``, ``tau``) (:data:`NOISE_GRID` x :data:`TEMPERATURE_GRID`) is the mean log
+posterior of the held-out demo's true task plus the mean log posterior density of its true phase
+(each observation's score clipped at -100). A too-small ``nu`` makes the phase estimate
+overconfident (worse than the prior alone); a too-large one ignores the observation. It is chosen on
+the fully coupled model. The same held-out demos, observed at :data:`HEAD_RATIOS`, are the training
+rows of the recognition head (:func:`fit_recognition_head`, :mod:`~ipromp_pin.promp.head`).
 
 Coupling (:func:`choose_coupling`). Not every observed group need inform the robot: on the hand-over
 data the forearm EMG amplitudes differ strongly between repetitions of a task (which is what tells
@@ -19,8 +22,11 @@ into prediction error. The model therefore has two independent blocks of dims: t
 observed groups with the robot, and the remaining observed groups (still modelled, with their
 correlations, for recognition and phase), each with its own Ledoit-Wolf shrinkage. The candidates
 are the non-empty subsets of the observed groups (:func:`coupling_candidates`); each held-out demo's
-task weights are conditioned on its observation at its true phase, and the score is the RMSE in
-[rad] of the predicted robot trajectory over the unobserved phases. With 10-20 demos per task these
+task weights are conditioned on its observation (at 10-80 %, :data:`CONDITION_CV_RATIOS`) at its true
+phase with every candidate conditioning noise ratio ``nu_c`` (:data:`NOISE_GRID`; each candidate at
+its best), and the score is the RMSE in [rad] of the predicted robot trajectory over the unobserved
+phases, or with the robot's forward kinematics the hand-over position error in [m]. With 10-20 demos
+per task these
 scores are noisy, so the one-standard-error rule picks the candidate with the fewest coupled dims
 among those whose mean squared error exceeds the best one's by at most :data:`COUPLING_SE` standard
 errors of their paired difference. The empty set (the prediction is the prior) is not a candidate:
@@ -30,7 +36,8 @@ best coupling's; it can be chosen explicitly (``coupling=[]``).
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
 from itertools import combinations
 
 import numpy as np
@@ -39,6 +46,7 @@ from ..data import Demo
 from ..exceptions import ModelError, ObservationError
 from .conditioning import robot_posterior_mean
 from .distribution import shrink_covariances
+from .head import RecognitionHead, WindowSummary, fit_head, head_features, observed_fraction
 from .likelihood import InferenceEngine
 from .observation import ObservationEncoder, ObservationPart
 from .posterior import PhasePriors, recognise_from_loglik
@@ -47,10 +55,21 @@ from .training import PhaseSettings, TrainingSet, coupling_blocks, task_models
 NOISE_GRID = (0.03, 0.1, 0.3, 1.0, 3.0, 10.0, 30.0, 100.0, 300.0, 1000.0)
 """Candidate noise ratios ``nu`` for ``noise="auto"``."""
 
+TEMPERATURE_GRID = (1.0, 0.5, 0.3, 0.2, 0.1, 0.05, 0.03, 0.02, 0.01)
+"""Candidate likelihood temperatures ``tau`` for ``temperature="auto"`` (chosen jointly with ``nu``)."""
+
 CV_RATIOS = (0.1, 0.2)
 """Observed fractions of the held-out demo used by the cross-validations."""
 
-CV_MAX_FOLDS = 30
+CONDITION_CV_RATIOS = (0.1, 0.2, 0.4, 0.6, 0.8)
+"""Observed fractions of the held-out demo at which the robot's prediction is cross-validated (the
+coupling and the conditioning noise ratio): the robot is predicted all along the human's motion."""
+
+HEAD_RATIOS = (0.1, 0.2, 0.4, 0.6, 0.8)
+"""Observed fractions of the held-out demos on which the recognition head is fitted (it recognises the
+task all along the human's motion)."""
+
+CV_MAX_FOLDS = 45
 """Largest number of held-out demos of the cross-validations (spread evenly over tasks and demos)."""
 
 CV_PHASES = 50
@@ -80,12 +99,12 @@ def held_out(by_task: Mapping[str, list[Demo]]) -> list[tuple[str, int]]:
 
 
 def cv_observations(
-    encoder: ObservationEncoder, demo: Demo
+    encoder: ObservationEncoder, demo: Demo, ratios: Sequence[float] = CV_RATIOS
 ) -> list[tuple[float, list[ObservationPart], float]]:
-    """(observed ratio, encoded parts, last sample time in [s]) of the first :data:`CV_RATIOS` of a
+    """(observed ratio, encoded parts, last sample time in [s]) of the first ``ratios`` of a
     held-out training demo (ratios the demo is too short for are left out)."""
     out = []
-    for ratio in CV_RATIOS:
+    for ratio in ratios:
         try:
             obs = demo.head(ratio, encoder.layout.observe)
         except ObservationError:
@@ -100,19 +119,77 @@ def _without(values: Mapping[str, np.ndarray], task: str, keep: np.ndarray) -> d
     return {**values, task: values[task][keep]}
 
 
-def choose_noise(
-    training: TrainingSet, settings: PhaseSettings, task_log_prior: np.ndarray
-) -> tuple[float, dict[float, float]]:
-    """Leave-one-out choice of the noise ratio among :data:`NOISE_GRID` (see the module docstring).
+@dataclass(frozen=True)
+class NoiseChoice:
+    """What :func:`choose_noise` chose.
 
-    Returns:
-        The chosen ``nu`` (1.0 when no demo could be held out) and every candidate's score.
+    Attributes:
+        nu: The noise ratio (1.0 when no demo could be held out).
+        temperature: The likelihood temperature ``tau``.
+        scores: Candidate ``nu`` -> CV score (at its best ``tau``).
+        rows: The held-out observations (at :data:`HEAD_RATIOS`), for the recognition head.
     """
+
+    nu: float
+    temperature: float
+    scores: dict[float, float]
+    rows: list[HeldOutRow] = field(default_factory=list)
+
+
+@dataclass(frozen=True)
+class HeldOutRow:
+    """One held-out observation of the noise cross-validation.
+
+    Attributes:
+        task: Index of the true task.
+        demo: Index of the held-out demo among all held-out demos.
+        window: (3 D_o,) its window summary (:class:`~ipromp_pin.promp.head.WindowSummary`).
+        ratio: Its observed fraction.
+        loglik: Per candidate ``nu``, the log likelihood (T, C) of the leave-one-out model.
+        priors: The leave-one-out model's phase priors.
+        t_last: Time of the last observed sample in [s].
+    """
+
+    task: int
+    demo: int
+    window: np.ndarray
+    ratio: float
+    loglik: list[np.ndarray]
+    priors: PhasePriors
+    t_last: float
+
+
+def fit_recognition_head(
+    rows: list[HeldOutRow], nu_index: int, temperature: float, n_tasks: int
+) -> RecognitionHead:
+    """The recognition head (:func:`~ipromp_pin.promp.head.fit_head`) fitted on the held-out rows with
+    the generative posterior at the chosen ``nu`` (index into the noise grid) and temperature."""
+    feats, fractions = [], []
+    for r in rows:
+        rec, _ = recognise_from_loglik(r.priors, temperature * r.loglik[nu_index], r.t_last)
+        feats.append(head_features(r.window, rec.log_posterior))
+        fractions.append(observed_fraction(rec.posterior, rec.alpha, r.t_last, r.priors.duration_nominal_s))
+    labels = np.array([r.task for r in rows])
+    groups = np.array([r.demo for r in rows])
+    ratios = np.array([r.ratio for r in rows])
+    return fit_head(np.array(feats), labels, groups, ratios, n_tasks, np.array(fractions))
+
+
+def choose_noise(
+    training: TrainingSet,
+    settings: PhaseSettings,
+    task_log_prior: np.ndarray,
+    noise_grid: Sequence[float] = NOISE_GRID,
+    temperature_grid: Sequence[float] = TEMPERATURE_GRID,
+) -> NoiseChoice:
+    """Leave-one-out choice of the noise ratio and of the likelihood temperature (see the module
+    docstring) among ``noise_grid`` x ``temperature_grid`` (a one-element grid fixes a value)."""
     encoder = ObservationEncoder(training.layout, training.scaler, np.inf)
-    scores = np.zeros(len(NOISE_GRID))
+    scores = np.zeros((len(noise_grid), len(temperature_grid)))
     n_eval = 0
     everything = training.layout.observe
-    for task, i in held_out(training.demos):
+    rows: list[HeldOutRow] = []
+    for n_demo, (task, i) in enumerate(held_out(training.demos)):
         ki = training.tasks.index(task)
         keep = np.arange(len(training.demos[task])) != i
         models = task_models(
@@ -125,7 +202,7 @@ def choose_noise(
         ordered = [models[t] for t in training.tasks]
         m = models[task]
         engine = InferenceEngine(
-            training.basis, ordered, training.layout.n_obs_dims, training.duration_nominal_s, NOISE_GRID[0]
+            training.basis, ordered, training.layout.n_obs_dims, training.duration_nominal_s, noise_grid[0]
         )
         priors = PhasePriors(
             tasks=training.tasks,
@@ -137,22 +214,33 @@ def choose_noise(
         )
         dens_shift = np.log(m.alpha_grid[1] - m.alpha_grid[0])
         alpha_true = training.alphas[task][i]
-        for _, parts, t_last in cv_observations(encoder, training.demos[task][i]):
+        for ratio, parts, t_last in cv_observations(encoder, training.demos[task][i], HEAD_RATIOS):
             stats = [engine.part_stats(p) for p in parts]
+            logliks = [engine.log_likelihood(stats, t_last, nu=nu) for nu in noise_grid]
+            summary = WindowSummary.from_parts(parts, training.layout.n_obs_dims).vector()
+            rows.append(HeldOutRow(ki, n_demo, summary, ratio, logliks, priors, t_last))
+            if ratio not in CV_RATIOS:
+                continue
             n_eval += 1
-            for j, nu in enumerate(NOISE_GRID):
-                loglik = engine.log_likelihood(stats, t_last, nu=nu)
-                rec, logpost = recognise_from_loglik(priors, loglik, t_last)
-                s = rec.log_posterior[ki]
-                # log posterior density of the true phase (interpolated between candidates)
-                dens = logpost[ki] - dens_shift
-                s += float(np.interp(alpha_true, m.alpha_grid, dens, left=-50.0, right=-50.0))
-                scores[j] += max(float(s), -100.0)
+            for j, loglik in enumerate(logliks):
+                for k, tau in enumerate(temperature_grid):
+                    rec, logpost = recognise_from_loglik(priors, tau * loglik, t_last)
+                    s = rec.log_posterior[ki]
+                    # log posterior density of the true phase (interpolated between candidates)
+                    dens = logpost[ki] - dens_shift
+                    s += float(np.interp(alpha_true, m.alpha_grid, dens, left=-50.0, right=-50.0))
+                    scores[j, k] += max(float(s), -100.0)
     if n_eval == 0:
-        return 1.0, {}
+        return NoiseChoice(1.0, float(temperature_grid[0]), {}, rows)
     scores /= n_eval
-    best = int(np.argmax(scores))
-    return float(NOISE_GRID[best]), {float(nu): float(v) for nu, v in zip(NOISE_GRID, scores, strict=True)}
+    j, k = np.unravel_index(int(np.argmax(scores)), scores.shape)
+    best = scores.max(axis=1)
+    return NoiseChoice(
+        float(noise_grid[j]),
+        float(temperature_grid[k]),
+        {float(nu): float(v) for nu, v in zip(noise_grid, best, strict=True)},
+        rows,
+    )
 
 
 def coupling_candidates(observe: Sequence[str]) -> list[list[str]]:
@@ -163,23 +251,55 @@ def coupling_candidates(observe: Sequence[str]) -> list[list[str]]:
     return [[g for g in observe if g in c] for size in sizes for c in combinations(observe, size)]
 
 
-def choose_coupling(
-    training: TrainingSet, settings: PhaseSettings, noise_ratio: float
-) -> tuple[list[str], dict[str, float]]:
-    """Leave-one-out choice of the observed groups coupled to the robot (see the module docstring).
+@dataclass(frozen=True)
+class CouplingChoice:
+    """What :func:`choose_coupling` chose.
 
-    Returns:
-        The chosen groups and, with more than one candidate, every candidate's (``"+"``-joined) CV
-        RMSE of the robot prediction in [rad].
+    Attributes:
+        groups: The observed groups coupled to the robot.
+        scores: With more than one candidate, every candidate's (``"+"``-joined) CV RMSE of the robot
+            prediction in [rad] (at its best conditioning noise ratio).
+        nu_condition: The conditioning noise ratio ``nu_c`` (the given one when not chosen).
+        nu_scores: Candidate ``nu_c`` -> CV RMSE in [rad] with the chosen groups (empty when given).
+    """
+
+    groups: list[str]
+    scores: dict[str, float]
+    nu_condition: float
+    nu_scores: dict[float, float]
+
+
+def choose_coupling(
+    training: TrainingSet,
+    settings: PhaseSettings,
+    noise_ratio: float | None,
+    candidates: list[list[str]] | None = None,
+    fk: Callable[[np.ndarray], np.ndarray] | None = None,
+) -> CouplingChoice:
+    """Leave-one-out choice of the observed groups coupled to the robot and of the conditioning noise
+    ratio (see the module docstring).
+
+    Args:
+        training: The training set.
+        settings: Phase and covariance settings.
+        noise_ratio: The conditioning noise ratio ``nu_c``, or None to choose it among
+            :data:`NOISE_GRID` (jointly with the groups).
+        candidates: The candidate coupled groups (default :func:`coupling_candidates`).
+        fk: The robot's forward kinematics, joint angles (n, J) in [rad] -> hand-over (gripper)
+            positions (n, 3) in [m]: when given, the score is the hand-over position error at the end
+            of the motion (what a hand-over needs: joint errors in the arm's null space do not count)
+            instead of the joint RMSE over the unobserved phases.
     """
     layout = training.layout
-    cands = coupling_candidates(layout.observe)
-    if len(cands) == 1:
-        return cands[0], {}
+    cands = coupling_candidates(layout.observe) if candidates is None else candidates
+    nus = NOISE_GRID if noise_ratio is None else (float(noise_ratio),)
+    if len(cands) == 1 and len(nus) == 1:
+        return CouplingChoice(list(cands[0]), {}, nus[0], {})
     encoder = ObservationEncoder(layout, training.scaler, np.inf)
     rs = layout.robot_slice
     scale = training.scaler.scale[rs]
-    rows = []  # per held-out observation, the mean squared error of every candidate in [rad^2]
+    offset = training.scaler.offset[rs]
+    rows = []  # per held-out observation, the MSE of every (candidate, nu_c) in [rad^2]
     for task, i in held_out(training.demos):
         keep = np.arange(len(training.demos[task])) != i
         weights = [training.weights[t][keep] if t == task else training.weights[t] for t in training.tasks]
@@ -189,20 +309,36 @@ def choose_coupling(
         ]
         alpha = float(training.alphas[task][i])
         w_true = training.weights[task][i][rs]
-        for ratio, parts, _ in cv_observations(encoder, training.demos[task][i]):
+        for ratio, parts, _ in cv_observations(encoder, training.demos[task][i], CONDITION_CV_RATIOS):
             phi = training.basis(np.linspace(ratio, 1.0, CV_PHASES))
-            row = []
-            for cov in covs:
-                w = robot_posterior_mean(
-                    training.basis, rs, training.duration_nominal_s, noise_ratio,
-                    cov.mean, cov.diag, cov.factor, parts, alpha,
+            ws = [
+                robot_posterior_mean(
+                    training.basis,
+                    rs,
+                    training.duration_nominal_s,
+                    nu,
+                    cov.mean,
+                    cov.diag,
+                    cov.factor,
+                    parts,
+                    alpha,
                 )  # fmt: skip
-                err = (phi @ (w - w_true).T) * scale
-                row.append(float(np.mean(err * err)))
-            rows.append(row)
+                for cov in covs
+                for nu in nus
+            ]
+            if fk is None:  # mean squared joint error over the unobserved phases [rad^2]
+                errs = [(phi @ (w - w_true).T) * scale for w in ws]
+                rows.append([float(np.mean(e * e)) for e in errs])
+            else:  # squared hand-over position error [m^2]
+                q_end = np.stack([phi[-1] @ w.T for w in [w_true, *ws]]) * scale + offset
+                p_end = fk(q_end)
+                rows.append(np.sum((p_end[1:] - p_end[0]) ** 2, axis=1).tolist())
     if not rows:
-        return list(layout.observe), {}
-    mse = np.array(rows)
+        return CouplingChoice(list(layout.observe), {}, 1.0 if noise_ratio is None else nus[0], {})
+    per_nu = np.array(rows).reshape(len(rows), len(cands), len(nus))
+    # every candidate at its best nu_c
+    best_nu = per_nu.mean(axis=0).argmin(axis=1)
+    mse = per_nu[:, np.arange(len(cands)), best_nu]
     mean = mse.mean(axis=0)
     if not np.all(np.isfinite(mean)):
         raise ModelError(
@@ -217,4 +353,9 @@ def choose_coupling(
     ok = [j for j in range(len(cands)) if mean[j] - mean[best] <= COUPLING_SE * se[j]]
     chosen = min(ok, key=lambda j: (size[j], mean[j]))
     rmse = np.sqrt(mean)
-    return cands[chosen], {"+".join(c): float(v) for c, v in zip(cands, rmse, strict=True)}
+    scores = {"+".join(c): float(v) for c, v in zip(cands, rmse, strict=True)} if len(cands) > 1 else {}
+    nu_rmse = np.sqrt(per_nu[:, chosen, :].mean(axis=0))
+    nu_scores = {float(nu): float(v) for nu, v in zip(nus, nu_rmse, strict=True)}
+    if noise_ratio is not None:
+        nu_scores = {}
+    return CouplingChoice(list(cands[chosen]), scores, float(nus[best_nu[chosen]]), nu_scores)

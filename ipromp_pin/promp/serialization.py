@@ -16,7 +16,11 @@ A model file is a single ``.npz`` archive (``numpy.savez``) read back with
   ``task_log_prior``, ``residual_var`` and, per task index ``i``,
   ``task{i}_mean`` (D, K), ``task{i}_diag`` (D,), ``task{i}_factor`` (D, K, r),
   ``task{i}_alpha_grid``, ``task{i}_alpha_log_prior``, ``task{i}_train_weights``
-  (N, D, K), ``task{i}_train_alpha`` (N,), ``task{i}_shrinkage`` (D,).
+  (N, D, K), ``task{i}_train_alpha`` (N,), ``task{i}_shrinkage`` (D,);
+* (version 2) the header's ``temperature``, ``condition_noise_ratio`` and ``head`` (the number R of
+  its regressions, or null), and with a head its arrays ``head_ratios`` (R,), ``head_coef``
+  (R, T, 3 D_o + T), ``head_intercept`` (R, T), ``head_feature_mean`` and ``head_feature_scale``
+  (R, 3 D_o + T), ``head_c`` (R,) and ``head_cv_log_loss`` (R, number of candidate C).
 
 Files of format version 1 (no ``trained_on``) load with ``trained_on`` None
 (unknown). Files written before the coupling was introduced (no ``coupling`` parameter, no
@@ -53,6 +57,7 @@ from ..version import __version__
 from .basis import GaussianBasis
 from .distribution import ChannelScaler, TaskModel
 from .fitted import FittedModel
+from .head import RecognitionHead
 from .layout import ChannelLayout
 from .provenance import DemoRecord
 from .validation import check_fitted
@@ -61,19 +66,28 @@ FORMAT_NAME = "ipromp_pin.IProMP"
 """Value of the header's ``format`` field."""
 
 FORMAT_VERSION = 2
-"""Current (and highest readable) format version (2: ``trained_on`` added; 1 still reads)."""
+"""Current (and highest readable) format version. Version 2 added ``trained_on`` (the training demos),
+the likelihood temperature, the conditioning noise ratio and the recognition head (``head_*``
+arrays); version-1 files load with no record of their training demos, temperature 1, the
+conditioning noise ratio equal to the noise ratio and no head (as they predicted)."""
+
+_HEAD_ARRAYS = ("ratios", "coef", "intercept", "feature_mean", "feature_scale", "c", "cv_log_loss")
 
 _TASK_ARRAYS = ("mean", "diag", "factor", "alpha_grid", "alpha_log_prior", "train_weights", "train_alpha")
 _GLOBAL_ARRAYS = ("scaler_offset", "scaler_scale", "scaler_log_shift", "task_log_prior", "residual_var")
 _HEADER_KEYS = {
     "format", "format_version", "package_version", "params", "tasks", "groups", "channel_names",
     "duration_nominal_s", "noise_ratio", "cv_scores", "coupled_groups", "coupling_cv_scores", "task_scalars",
-    "trained_on",
+    "trained_on", "temperature", "condition_noise_ratio", "condition_cv_scores", "head",
 }  # fmt: skip
 _PARAM_KEYS = {
     "observe", "n_basis", "width", "ridge", "margin", "blas_threads", "n_alpha", "alpha_width", "noise",
-    "n_points", "task_prior", "robot_group", "log_groups", "pooling", "coupling",
+    "n_points", "task_prior", "robot_group", "log_groups", "pooling", "coupling", "temperature",
+    "condition_noise", "head",
 }  # fmt: skip
+
+MAX_HEAD_REGRESSIONS = 100
+"""Largest number of regressions (observed fractions) of a recognition head a model file may declare."""
 
 MAX_HEADER_BYTES = 1_000_000
 """Largest header (the JSON member) a model file may have, in bytes."""
@@ -100,6 +114,9 @@ def _header_params(params: dict) -> dict:
         "n_alpha": int(params["n_alpha"]),
         "alpha_width": float(params["alpha_width"]),
         "noise": noise if isinstance(noise, str) else float(noise),
+        "temperature": _number_or_text(params["temperature"]),
+        "condition_noise": _number_or_text(params["condition_noise"]),
+        "head": bool(params["head"]),
         "n_points": int(params["n_points"]),
         "task_prior": None if params["task_prior"] is None else dict(params["task_prior"]),
         "robot_group": params["robot_group"],
@@ -107,6 +124,10 @@ def _header_params(params: dict) -> dict:
         "pooling": float(params["pooling"]),
         "coupling": coupling if isinstance(coupling, str) else list(coupling),
     }
+
+
+def _number_or_text(value: object) -> float | str:
+    return value if isinstance(value, str) else float(value)  # type: ignore[arg-type]
 
 
 def write_model(params: dict, fitted: FittedModel, path: str | Path) -> None:
@@ -135,6 +156,10 @@ def write_model(params: dict, fitted: FittedModel, path: str | Path) -> None:
         "cv_scores": [[float(k), float(v)] for k, v in fitted.noise_cv_scores.items()],
         "coupled_groups": list(fitted.coupled_groups),
         "coupling_cv_scores": [[k, float(v)] for k, v in fitted.coupling_cv_scores.items()],
+        "temperature": float(fitted.temperature),
+        "condition_noise_ratio": float(fitted.nu_condition),
+        "condition_cv_scores": [[float(k), float(v)] for k, v in fitted.condition_cv_scores.items()],
+        "head": None if fitted.head is None else {"regressions": int(fitted.head.ratios.size)},
         "task_scalars": [
             {
                 # the robot's intensity, as a scalar for readers of files without task{i}_shrinkage
@@ -154,6 +179,9 @@ def write_model(params: dict, fitted: FittedModel, path: str | Path) -> None:
         "task_log_prior": fitted.task_log_prior,
         "residual_var": fitted.residual_var,
     }
+    if fitted.head is not None:
+        for name in _HEAD_ARRAYS:
+            arrays[f"head_{name}"] = np.asarray(getattr(fitted.head, name), dtype=float)
     for i, m in enumerate(fitted.task_models()):
         for name in _TASK_ARRAYS:
             arrays[f"task{i}_{name}"] = np.asarray(getattr(m, name), dtype=float)
@@ -294,6 +322,26 @@ def _expected_shapes(path: Path, header: dict) -> dict[str, tuple[int | None, ..
                 f"task{i}_shrinkage": (d,),
             }
         )
+    head = header.get("head")
+    if head is not None:
+        n = head.get("regressions") if isinstance(head, dict) else None
+        if not isinstance(n, int) or isinstance(n, bool) or not 1 <= n <= MAX_HEAD_REGRESSIONS:
+            raise ModelFileError(
+                f"{path}: header field 'head' must give 1-{MAX_HEAD_REGRESSIONS} regressions"
+            )
+        t = len(tasks)
+        n_feat = 3 * sum(len(names[g]) for g in groups[:-1]) + t
+        shapes.update(
+            {
+                "head_ratios": (n,),
+                "head_coef": (n, t, n_feat),
+                "head_intercept": (n, t),
+                "head_feature_mean": (n, n_feat),
+                "head_feature_scale": (n, n_feat),
+                "head_c": (n,),
+                "head_cv_log_loss": (n, None),
+            }
+        )
     return shapes
 
 
@@ -328,13 +376,20 @@ def _check_header(path: Path, header: object) -> None:
 
 
 def _params(header: dict) -> dict:
-    """The estimator parameters of a header (files before the coupling: ``coupling="all"``)."""
+    """The estimator parameters of a header (files before the coupling: ``coupling="all"``; version-1
+    files: temperature 1, the conditioning with the recognition's noise ratio, no head)."""
     p = header["params"]
     names = (
         "observe", "n_basis", "width", "ridge", "margin", "blas_threads", "n_alpha", "alpha_width", "noise",
         "n_points", "task_prior", "robot_group", "log_groups", "pooling",
     )  # fmt: skip
-    return {**{name: p[name] for name in names}, "coupling": p.get("coupling", "all")}
+    return {
+        **{name: p[name] for name in names},
+        "coupling": p.get("coupling", "all"),
+        "temperature": p.get("temperature", 1.0),
+        "condition_noise": p.get("condition_noise", "same"),
+        "head": bool(p.get("head", False)),
+    }
 
 
 def _fitted(header: dict, arrays: dict[str, np.ndarray]) -> FittedModel:
@@ -391,8 +446,33 @@ def _fitted(header: dict, arrays: dict[str, np.ndarray]) -> FittedModel:
         residual_var=arrays["residual_var"],
         noise_cv_scores={float(k): float(v) for k, v in header["cv_scores"]},
         coupling_cv_scores={str(k): float(v) for k, v in header.get("coupling_cv_scores", [])},
+        temperature=float(header.get("temperature", 1.0)),
+        condition_noise_ratio=header.get("condition_noise_ratio"),
+        condition_cv_scores={float(k): float(v) for k, v in header.get("condition_cv_scores", [])},
         trained_on=_trained_on(header),
+        head=_head(header.get("head"), arrays, layout.n_obs_dims, len(tasks)),
     )
+
+
+def _head(
+    meta: dict | None, arrays: dict[str, np.ndarray], n_obs: int, n_tasks: int
+) -> RecognitionHead | None:
+    """The recognition head of a file (None when it has none), shapes checked."""
+    if meta is None:
+        return None
+    a = {name: arrays[f"head_{name}"] for name in _HEAD_ARRAYS}
+    n_feat = 3 * n_obs + n_tasks
+    n = int(meta["regressions"])
+    if (
+        a["ratios"].shape != (n,)
+        or a["coef"].shape != (n, n_tasks, n_feat)
+        or a["intercept"].shape != (n, n_tasks)
+        or a["feature_mean"].shape != (n, n_feat)
+        or a["feature_scale"].shape != (n, n_feat)
+        or a["c"].shape != (n,)
+    ):
+        raise ValueError("recognition head arrays have inconsistent shapes")
+    return RecognitionHead(**a)
 
 
 def _trained_on(header: dict) -> tuple[DemoRecord, ...] | None:

@@ -21,6 +21,7 @@ import numpy as np
 from ..data import Demo
 from ..exceptions import ObservationError
 from .compiled import kernels
+from .head import WindowSummary
 from .likelihood import IncrementalTerms, PartStats
 from .posterior import Prediction, Recognition
 from .predictor import Predictor
@@ -72,6 +73,10 @@ class StreamingEstimator:
         self._patterns: list[list] = [[list(layout.observe), np.zeros((k, k, u)), 0, 0.0]]
         self._proj = np.zeros((k, u, n_obs))  # B^T y of every observed dim (missing samples add 0)
         self._sq = np.zeros(n_obs)
+        # the observed window's summary for the recognition head: first, sum, count, last (scaled)
+        self._w_first, self._w_sum = np.zeros(n_obs), np.zeros(n_obs)
+        self._w_count, self._w_last = np.zeros(n_obs), np.zeros(n_obs)
+        self._dim_group = np.concatenate([np.full(hi - lo, i) for i, (_, lo, hi) in enumerate(self._slices)])
         self._no_gram = np.zeros((k, 0, u))  # placeholders of kernels.add_sample
         self._no_proj = np.zeros((k, u, 0))
         self._no_y = np.zeros(0)
@@ -188,6 +193,8 @@ class StreamingEstimator:
                     if g in present:
                         ys[lo:hi] = encoder.scale_group(g, y[lo:hi])
             phi = self._accumulate(t_s, set(present), ys)
+        if self.predictor.fitted.head is not None:
+            self._add_to_window(ys, absent)
         self._t.append(t_s)
         self._rows.append(y)
         self._absent.append(absent)
@@ -195,6 +202,28 @@ class StreamingEstimator:
             return None
         self._last = self._recognise(phi, ys)
         return self._last
+
+    def _add_to_window(self, ys: np.ndarray, absent: int) -> None:
+        """Add the scaled sample ``ys`` (D,) to the window summary (groups flagged in ``absent`` skipped)."""
+        if absent:
+            have = ((absent >> self._dim_group) & 1) == 0
+            self._w_first[have & (self._w_count == 0)] = ys[have & (self._w_count == 0)]
+            self._w_sum[have] += ys[have]
+            self._w_count[have] += 1
+            self._w_last[have] = ys[have]
+            return
+        first = self._w_count == 0
+        if first.any():
+            self._w_first[first] = ys[first]
+        self._w_sum += ys
+        self._w_count += 1
+        self._w_last[:] = ys
+
+    def window(self) -> WindowSummary:
+        """Summary of the samples received so far (scaled units), as the recognition head reads it."""
+        count = self._w_count
+        mean = np.divide(self._w_sum, count, out=np.zeros(count.size), where=count > 0)
+        return WindowSummary(np.stack([self._w_first, mean, self._w_last]))
 
     def _accumulate(self, t_s: float, present: set[str], y: np.ndarray) -> np.ndarray:
         """Add the sample (scaled values ``y`` (D,), 0 in missing groups) -> basis values (K, U)."""
@@ -251,7 +280,8 @@ class StreamingEstimator:
                 stats.ke = min(basis.n_basis, need + STREAM_EXTRA_BASIS)
                 loglik = inc.reset(stats, t_last)
                 self._support_until = basis.support_limit(stats.ke)
-        return self.predictor.recognition_from_loglik(loglik, t_last)
+        window = self.window() if self.predictor.fitted.head is not None else None
+        return self.predictor.recognition_from_loglik(loglik, t_last, window)
 
     def observation(self) -> Demo:
         """The samples received so far as a :class:`Demo`."""

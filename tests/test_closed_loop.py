@@ -50,7 +50,8 @@ def test_reference_motion_is_the_prediction_with_exact_derivatives(setup):
     for k, (lo, hi, d) in enumerate(((0, 0, 1), (1, 1, 2), (2, 2, 3))):
         fd = (ref.evaluate(t + h)[lo] - ref.evaluate(t - h)[hi]) / (2 * h)
         exact = ref.evaluate(t)[d]
-        np.testing.assert_allclose(fd, exact, atol=1e-5 * (1 + np.abs(exact).max()), err_msg=f"derivative {k + 1}")
+        tol = 1e-5 * (1 + np.abs(exact).max())
+        np.testing.assert_allclose(fd, exact, atol=tol, err_msg=f"derivative {k + 1}")
     # held at the ends, at rest
     q_after, qd_after, _, _ = ref.evaluate(np.array([pred.duration_s + 1.0]))
     np.testing.assert_allclose(q_after[0], pred.q_mean[-1], atol=1e-12)
@@ -151,9 +152,8 @@ def test_a_refused_replan_keeps_the_last_safe_plan(setup, certifier):
     model, robot, train, test = setup
     demo = test[0]
     profile = demonstrated_profile(robot, train)
-    planner = ClosedLoopPlanner(
-        model, robot, profile, demo.groups[ROBOT][0], float(demo.head(0.2).t[-1]), ClosedLoopSettings(), certifier
-    )
+    start = float(demo.head(0.2).t[-1])
+    planner = ClosedLoopPlanner(model, robot, profile, demo.groups[ROBOT][0], start, None, certifier)
     calls = {"n": 0}
     certify = certifier.certify
 
@@ -188,7 +188,8 @@ def test_a_change_of_task_is_followed_smoothly(setup, certifier):
     cut = int(0.45 * n)
     samples = demo_samples(a, OBSERVE)[:cut] + demo_samples(b, OBSERVE)[cut:n]
     profile = demonstrated_profile(robot, train)
-    planner = ClosedLoopPlanner(model, robot, profile, a.groups[ROBOT][0], float(a.t[cut // 2]), None, certifier)
+    start = float(a.t[cut // 2])
+    planner = ClosedLoopPlanner(model, robot, profile, a.groups[ROBOT][0], start, None, certifier)
     for t, sample in zip(a.t[:n], samples, strict=True):
         planner.step(float(t), sample)
     result = planner.finish()

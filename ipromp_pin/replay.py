@@ -313,7 +313,7 @@ def write_replay_preview(
         path_m = None
         if r.committed:
             q = next(plans).q
-            path_m = ee_positions(robot, q[:: max(1, q.shape[0] // 60)])
+            path_m = ee_positions(robot, q[:: max(1, q.shape[0] // 40)])
         events.append(
             TimelineEvent(
                 t_s=r.t_s,
@@ -366,7 +366,7 @@ def write_replay_preview(
         f"({score.handover_time_s:.2f} s); {score.final_error_cm:.1f} cm at rest",
         f"Arrival {score.arrival_s:.2f} s vs recorded {score.recorded_arrival_s:.2f} s "
         f"(delay {score.arrival_delay_s:+.2f} s); {result.profile.name} limits",
-        "Blue tube: commanded gripper path; purple: recorded robot; grey/green: human hand.",
+        "Blue: commanded gripper path; cyan: the latest plan; purple: recorded robot; green: hand observed.",
     ]
     return write_timeline_html(content, events, path, motion_s=score.handover_time_s, summary=summary)
 

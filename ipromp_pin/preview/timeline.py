@@ -6,7 +6,7 @@ trajectory, beside the recorded robot's gripper path (purple), the commanded gri
 the human's hand path (grey) when hand positions are known. On top of it, as functions of time:
 
 - the hand-over point (gold) moves to each re-plan's predicted hand-over position;
-- the gripper path planned by the latest committed re-plan (thin line) replaces the previous one;
+- the gripper path planned by the latest committed re-plan (cyan) replaces the previous one;
 - the human's hand path observed so far grows (green), the hand marker moves along it;
 - the HTML panel shows, at the scrubbed time, the task posterior of the latest re-plan, the observed
   part of the human's motion, and a second panel (``static/timeline.js``) the re-plan's predicted
@@ -34,15 +34,18 @@ import numpy as np
 import pinocchio as pin
 
 from .content import PreviewContent, finite_array, preview_error
-from .meshes import DEFAULT_MAX_TRIANGLES, sphere_mesh
+from .meshes import DEFAULT_MAX_TRIANGLES, sphere_mesh, tube_mesh
 from .page import recorded_page
 from .recorder import SceneRecorder
-from .scene import COLOR_EE_MEAN, COLOR_HAND_OBSERVED, COLOR_HANDOVER, RobotView, build_scene, overlay_state
+from .scene import COLOR_HAND_OBSERVED, COLOR_HANDOVER, RobotView, build_scene, overlay_state
 
 __all__ = ["TimelineEvent", "render_timeline_html", "write_timeline_html"]
 
 _TRAIL_PIECES = 40
 """The observed hand trail is drawn in this many pieces, each shown from its time on."""
+
+COLOR_PLAN = 0x17BECF
+"""Colour of the gripper path planned by the latest committed re-plan."""
 
 
 @dataclass(frozen=True)
@@ -108,9 +111,12 @@ def _check_events(content: PreviewContent, events: Sequence[TimelineEvent]) -> l
     return out
 
 
-def _line(points: np.ndarray, color: int, width: float = 2.0) -> mg.Line:
-    material = mg.LineBasicMaterial(color=color, linewidth=width)
-    return mg.Line(mg.PointsGeometry(np.asarray(points, dtype=np.float32).T), material)
+def _tube(
+    node: meshcat.Visualizer, points: np.ndarray, radius: float, color: int, opacity: float = 1.0
+) -> None:
+    vertices, faces = tube_mesh(np.asarray(points, dtype=float), radius, 6)
+    material = mg.MeshPhongMaterial(color=color, opacity=opacity, transparent=opacity < 1.0)
+    node.set_object(mg.TriangularMeshGeometry(vertices, faces), material)
 
 
 def _timeline_scene(
@@ -120,7 +126,7 @@ def _timeline_scene(
     viewer = meshcat.Visualizer(window=window)
     plans = [i for i, e in enumerate(events) if e.committed and e.planned_path is not None]
     for k, i in enumerate(plans):
-        viewer[f"timeline/plans/{k}"].set_object(_line(events[i].planned_path, COLOR_EE_MEAN))
+        _tube(viewer[f"timeline/plans/{k}"], events[i].planned_path, 0.009, COLOR_PLAN, 0.7)
         viewer[f"timeline/plans/{k}"].set_property("visible", False)
     points = [i for i, e in enumerate(events) if e.handover_point is not None]
     if points:
@@ -133,9 +139,7 @@ def _timeline_scene(
         n = content.hand_path.shape[0]
         cuts = np.unique(np.linspace(0, n - 1, _TRAIL_PIECES + 1).round().astype(int))
         for k, (a, b) in enumerate(zip(cuts[:-1], cuts[1:], strict=True)):
-            viewer[f"timeline/trail/{k}"].set_object(
-                _line(content.hand_path[a : b + 1], COLOR_HAND_OBSERVED, 4.0)
-            )
+            _tube(viewer[f"timeline/trail/{k}"], content.hand_path[a : b + 1], 0.01, COLOR_HAND_OBSERVED)
             viewer[f"timeline/trail/{k}"].set_property("visible", False)
             trail_t.append(float(content.hand_t_s[b]))
 
@@ -188,7 +192,7 @@ def _timeline_scene(
                     if f == 0 or shown_trail <= k < n_trail:
                         frame[f"timeline/trail/{k}"].set_property("visible", "boolean", k < n_trail)
                 shown_trail = n_trail
-    viewer.set_animation(animation, play=False, repetitions=1)
+    viewer.set_animation(animation, play=True, repetitions=1)
 
 
 def render_timeline_html(
@@ -226,7 +230,7 @@ def render_timeline_html(
     overlay = overlay_state(base)
     overlay["legend"] = overlay["legend"] + [
         {"label": "predicted hand-over point", "color": f"#{COLOR_HANDOVER:06x}"},
-        {"label": "plan of the latest re-plan (line)", "color": f"#{COLOR_EE_MEAN:06x}"},
+        {"label": "plan of the latest committed re-plan", "color": f"#{COLOR_PLAN:06x}"},
     ]
     duration = max(base.duration_s, events[-1].t_s if events else 0.0)
     data = {

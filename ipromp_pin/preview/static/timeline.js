@@ -57,10 +57,13 @@
   }
   slider.addEventListener("input", function () {
     const t = parseFloat(slider.value);
-    if (viewer.animator) {
-      viewer.animator.pause();
-      viewer.animator.seek(t);
-      viewer.animator.display_progress(t);
+    const animator = viewer.animator;
+    if (animator) {
+      // the clip's actions must be active for a seek to pose the scene (they are once played)
+      for (const action of animator.actions) { action.enabled = true; action.paused = false; action.play(); }
+      animator.pause();
+      animator.seek(t);
+      animator.display_progress(t);
     }
     last = t;
     show(t);

@@ -102,7 +102,7 @@ class ReferenceMotion:
         self.duration_s = float(duration_s)
         if not (self.duration_s > 0 and math.isfinite(self.duration_s)):
             raise InfeasibleError(f"reference motion: duration must be positive, got {duration_s}")
-        self._ws = (self.weights * self.scale[:, None]).T  # (K, J), in [rad]
+        self._ws = np.ascontiguousarray((self.weights * self.scale[:, None]).T)  # (K, J), in [rad]
 
     @classmethod
     def from_prediction(cls, prediction, centres: np.ndarray, width: float) -> ReferenceMotion:
@@ -113,28 +113,40 @@ class ReferenceMotion:
             raise InfeasibleError("reference motion: the prediction holds no robot weights")
         return cls(w.mean, centres, width, w.scale, w.offset, prediction.duration_s)
 
-    def evaluate(self, t_s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def evaluate(
+        self, t_s: np.ndarray, order: int = 3
+    ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None, np.ndarray | None]:
         """Position [rad], velocity [rad/s], acceleration [rad/s^2] and jerk [rad/s^3], each
-        (len(t_s), J), at times ``t_s`` [s] (derivatives 0 outside [0, D])."""
+        (len(t_s), J), at times ``t_s`` [s] (derivatives 0 outside [0, D]); derivatives above
+        ``order`` are None."""
         t = np.atleast_1d(np.asarray(t_s, dtype=float))
         d = self.duration_s
-        z = np.clip(t, 0.0, d) / d
         inv_h2 = 1.0 / (self.width * self.width)
-        u = (z[:, None] - self.centres[None, :]) * inv_h2  # (n, K)
-        phi = np.exp(-0.5 * (z[:, None] - self.centres[None, :]) ** 2 * inv_h2)
-        d1 = -u * phi
-        d2 = (u * u - inv_h2) * phi
-        d3 = (-(u**3) + 3.0 * u * inv_h2) * phi
-        inside = ((t >= 0.0) & (t <= d))[:, None]
-        q = phi @ self._ws + self.offset
-        qd = np.where(inside, d1 @ self._ws / d, 0.0)
-        qdd = np.where(inside, d2 @ self._ws / d**2, 0.0)
-        qddd = np.where(inside, d3 @ self._ws / d**3, 0.0)
+        diff = np.clip(t, 0.0, d)[:, None] * (1.0 / d) - self.centres  # (n, K)
+        phi = np.exp(diff * diff * (-0.5 * inv_h2))
+        m0 = phi @ self._ws
+        q = m0 + self.offset
+        qd = qdd = qddd = None
+        if order >= 1:
+            u = diff * inv_h2
+            up = u * phi
+            m1 = up @ self._ws
+            qd = m1 * (-1.0 / d)
+            if order >= 2:
+                u2p = u * up
+                m2 = u2p @ self._ws
+                qdd = (m2 - inv_h2 * m0) * (1.0 / d**2)
+                if order >= 3:
+                    m3 = (u * u2p) @ self._ws
+                    qddd = (3.0 * inv_h2 * m1 - m3) * (1.0 / d**3)
+        if t.size and (t[0] < 0.0 or t[-1] > d or np.any((t < 0.0) | (t > d))):
+            outside = ((t < 0.0) | (t > d))[:, None]
+            qd, qdd, qddd = (None if x is None else np.where(outside, 0.0, x) for x in (qd, qdd, qddd))
         return q, qd, qdd, qddd
 
     def end(self) -> np.ndarray:
         """The hand-over configuration ``q(D)`` (J,) in [rad]."""
-        return self.evaluate(np.array([self.duration_s]))[0][0]
+        return self.evaluate(np.array([self.duration_s]), order=0)[0][0]
 
 
 @dataclass
@@ -325,7 +337,7 @@ class Retargeter:
             k_follow = k
             for _ in range(CATCH_UP_ITERATIONS):
                 tau0 = target_t
-                q0, v0, a0, _ = reference.evaluate(np.array([tau0]))
+                q0, v0, a0, _ = reference.evaluate(np.array([tau0]), order=2)
                 k = self.reachable_scale(v0[0], a0[0], k_follow)
                 blend = self._ruckig(start, (q0[0], v0[0] / k, a0[0] / k**2), tau0 - t_c)
                 if blend.duration <= tau0 - t_c + 1e-9 or tau0 >= d_follow:
@@ -336,7 +348,7 @@ class Retargeter:
             t_f = t_b + k * (d_follow - tau0)
             pieces.append(("ruckig", t_c, t_b, blend))
             pieces.append(("follow", t_b, t_f, (tau0, k)))
-            q_f, v_f, a_f, _ = reference.evaluate(np.array([d_follow]))
+            q_f, v_f, a_f, _ = reference.evaluate(np.array([d_follow]), order=2)
             settle = self._ruckig(
                 (q_f[0], v_f[0] / k, a_f[0] / k**2), (q_end, zeros, zeros), k * self.settle_s
             )
@@ -356,7 +368,7 @@ class Retargeter:
                 q[sel], qd[sel], qdd[sel] = _sample_traj(data, times[sel] - t0)
             else:
                 tau0_, k_ = data
-                tq, tv, ta, _ = reference.evaluate(tau0_ + (times[sel] - t0) / k_)
+                tq, tv, ta, _ = reference.evaluate(tau0_ + (times[sel] - t0) / k_, order=2)
                 q[sel], qd[sel], qdd[sel] = tq, tv / k_, ta / k_**2
         last = times >= arrival - 1e-12
         q[last], qd[last], qdd[last] = q_end, 0.0, 0.0

@@ -30,7 +30,7 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from .data import Demo
-from .exceptions import IPrompPinError, PipelineError
+from .exceptions import IPrompPinError, ObservationError, PipelineError
 from .limits import LimitProfile
 from .promp import IProMP
 from .retarget import (
@@ -399,7 +399,15 @@ def start_time(demo: Demo, start_ratio: float) -> float:
     Raises:
         ObservationError: the start window holds fewer than 2 samples.
     """
-    return float(demo.head(start_ratio).t[-1])
+    try:
+        return float(demo.head(start_ratio).t[-1])
+    except ObservationError:
+        raise ObservationError(
+            demo.source,
+            "start_ratio",
+            f"the start window ({start_ratio:.0%} of a {demo.t[-1] - demo.t[0]:.2f} s demo of "
+            f"{demo.n_samples} samples) holds fewer than 2 samples",
+        ) from None
 
 
 def replay_demo(

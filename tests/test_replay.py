@@ -96,7 +96,8 @@ def test_replay_bad_limit_profile_and_short_demo(tmp_path, capsys):
         ["replay", str(PIPELINE), "--out", str(tmp_path / "o"), "--dataset", str(data), "--demo", "-1"]
     )
     captured = capsys.readouterr()
-    assert code == 2 and "field 'obs_ratio'" in captured.err and "fewer than 2 samples" in captured.err
+    assert code == 2 and "field 'start_ratio': the start window" in captured.err
+    assert "holds fewer than 2 samples" in captured.err and ".npz" in captured.err
     assert "[model]" not in captured.out
 
 

@@ -215,6 +215,11 @@ def limit_ratios(plan_qd: np.ndarray, plan_qdd: np.ndarray, dt_s: float, limits:
     return np.array([rv, ra, rj])
 
 
+RUCKIG_MARGIN = 1e-6
+"""Relative margin below the limits given to ruckig: its time-optimal segments reach their limits
+exactly, so the sampled values would otherwise exceed them by rounding (1e-13)."""
+
+
 class _Ruckig:
     """A reusable 7-DoF ruckig calculator for state-to-state trajectories."""
 
@@ -222,9 +227,10 @@ class _Ruckig:
         n = limits.n_joints
         self.otg = Ruckig(n)
         self.inp = InputParameter(n)
-        self.inp.max_velocity = limits.velocity_rad_s
-        self.inp.max_acceleration = limits.acceleration_rad_s2
-        self.inp.max_jerk = limits.jerk_rad_s3
+        keep = 1.0 - RUCKIG_MARGIN
+        self.inp.max_velocity = limits.velocity_rad_s * keep
+        self.inp.max_acceleration = limits.acceleration_rad_s2 * keep
+        self.inp.max_jerk = limits.jerk_rad_s3 * keep
 
     def __call__(
         self, start: tuple[np.ndarray, ...], target: tuple[np.ndarray, ...], min_duration: float | None

@@ -74,7 +74,7 @@ class ClosedLoopSettings:
     blend_s: float = 0.2
     settle_s: float = SETTLE_S
     headroom: float = HEADROOM
-    freeze_phase: float = 1.0
+    freeze_phase: float = 0.9
 
     def validate(self, source: str = "closed loop") -> ClosedLoopSettings:
         """Check the values; raise :class:`PipelineError` naming ``source`` and the field."""

@@ -139,7 +139,7 @@ class ReferenceMotion:
                 if order >= 3:
                     m3 = (u * u2p) @ self._ws
                     qddd = (3.0 * inv_h2 * m1 - m3) * (1.0 / d**3)
-        if t.size and (t[0] < 0.0 or t[-1] > d or np.any((t < 0.0) | (t > d))):
+        if t.size and (t.min() < 0.0 or t.max() > d):
             outside = ((t < 0.0) | (t > d))[:, None]
             qd, qdd, qddd = (None if x is None else np.where(outside, 0.0, x) for x in (qd, qdd, qddd))
         return q, qd, qdd, qddd
@@ -367,17 +367,18 @@ class Retargeter:
         qd = np.empty((n, nj))
         qdd = np.empty((n, nj))
         for kind, t0, t1, data in pieces:
-            sel = (times >= t0 - 1e-12) & (times < t1)
-            if not np.any(sel):
+            i0 = max(0, int(math.ceil((t0 - t_c) / dt - 1e-9)))
+            i1 = min(n, int(math.ceil((t1 - t_c) / dt - 1e-9)))
+            if i1 <= i0:
                 continue
+            sel = slice(i0, i1)
             if kind == "ruckig":
                 q[sel], qd[sel], qdd[sel] = _sample_traj(data, times[sel] - t0)
             else:
                 tau0_, k_ = data
                 tq, tv, ta, _ = reference.evaluate(tau0_ + (times[sel] - t0) / k_, order=2)
                 q[sel], qd[sel], qdd[sel] = tq, tv / k_, ta / k_**2
-        last = times >= arrival - 1e-12
-        q[last], qd[last], qdd[last] = q_end, 0.0, 0.0
+        q[-1], qd[-1], qdd[-1] = q_end, 0.0, 0.0
         q[0], qd[0], qdd[0] = state.q, state.qd, state.qdd
         return MotionPlan(t_c, dt, q, qd, qdd, float(arrival), d_end, float(k), float(blend_s))
 

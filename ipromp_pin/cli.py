@@ -114,6 +114,12 @@ def _add_closed_loop_options(p: argparse.ArgumentParser) -> None:
         help="limit profile: demonstrated (from the training demos, default), conservative (robot settings) "
         "or a profile file (TOML, e.g. a replay's limits.toml)",
     )
+    p.add_argument(
+        "--noise",
+        default=None,
+        help="observation-noise ratio of the closed loop's model: a positive number or auto "
+        "(default 10, chosen by cross-validation of the closed loop)",
+    )
     p.add_argument("--replan-rate", type=float, help="re-plan rate in [Hz] (default 20)")
     p.add_argument("--blend", type=float, help="blend horizon in [s] of a re-plan (default 0.2)")
     p.add_argument(
@@ -124,6 +130,12 @@ def _add_closed_loop_options(p: argparse.ArgumentParser) -> None:
     )
 
 
+def _closed_loop_noise(args: argparse.Namespace) -> float | str:
+    from .closed_loop import MODEL_NOISE, parse_noise
+
+    return MODEL_NOISE if args.noise is None else parse_noise(args.noise)
+
+
 def cmd_replay(args: argparse.Namespace) -> int:
     from .closed_loop import ClosedLoopSettings
     from .replay import run_replay
@@ -131,7 +143,8 @@ def cmd_replay(args: argparse.Namespace) -> int:
     cfg = _pipeline_config(args)
     start = ClosedLoopSettings().start_ratio if args.start_ratio is None else args.start_ratio
     settings = _closed_loop_settings(args, cfg.control_rate_hz, start)
-    run_replay(cfg, settings, limits=args.limits, preview=not args.no_preview, log=print)
+    noise = _closed_loop_noise(args)
+    run_replay(cfg, settings, limits=args.limits, preview=not args.no_preview, log=print, noise=noise)
     return 0
 
 
@@ -212,6 +225,7 @@ def _evaluate_closed_loop(args: argparse.Namespace) -> int:
     for _, ratio in grid:  # every cell's obs_ratio is a start ratio: checked before any computation
         _closed_loop_settings(args, 100.0, ratio)
     settings = _closed_loop_settings(args, 100.0, grid[0][1])
+    noise = _closed_loop_noise(args)
     check_limits_choice(args.limits, load_robot(args.robot), "command line")
     frames = skeleton_frames(g for o in observe for g in o) or None
     joints = load_robot_settings(args.robot).recorded_arm_joints
@@ -221,7 +235,7 @@ def _evaluate_closed_loop(args: argparse.Namespace) -> int:
     )
     print(f"read {len(ds.all_demos())} demos of {', '.join(ds.tasks)} in {time.perf_counter() - t0:.1f} s")
     protocols = ["paper", "splits"] if args.protocol == "both" else [args.protocol]
-    options = ClosedLoopOptions(limits=args.limits, settings=settings)
+    options = ClosedLoopOptions(limits=args.limits, settings=settings, noise=noise)
     cells = []
     for protocol in protocols:
         cfg = EvaluationConfig(
@@ -242,7 +256,12 @@ def _evaluate_closed_loop(args: argparse.Namespace) -> int:
         "dataset": str(args.dataset),
         "command": " ".join(["ipromp-pin", *sys.argv[1:]]),
         "seconds": round(time.perf_counter() - t0, 2),
-        "closed_loop": {"limits": args.limits, **settings.to_dict(), "start_ratio": "obs_ratio of each cell"},
+        "closed_loop": {
+            "limits": args.limits,
+            "noise": noise,
+            **settings.to_dict(),
+            "start_ratio": "obs_ratio of each cell",
+        },
     }
     md = args.md or (args.json.with_suffix(".md") if args.json else None)
     write_closed_loop_results(cells, args.json, md, meta)

@@ -50,6 +50,28 @@ from .timing import Trajectory
 LIMIT_TOLERANCE = 1e-6
 """Relative tolerance of the velocity, acceleration and jerk checks of a re-plan."""
 
+MODEL_NOISE = 10.0
+"""Observation-noise ratio ``nu`` of the model the closed loop trains (``IProMP(noise=...)``).
+``fit``'s own choice (``"auto"``) scores recognition and phase early in the motion and picks 30-100
+on the real data; the closed loop's hand-over is predicted from most of the motion, where a tighter
+noise conditions the robot more on the observation. Chosen by cross-validation of the closed loop on
+training demos (``benchmarks/closed_loop_cv.py --study noise``, ``docs/closed_loop.md``)."""
+
+
+def parse_noise(value: str | float, source: str = "command line") -> float | str:
+    """A noise ratio: ``"auto"`` or a positive finite number (raises :class:`PipelineError`)."""
+    if isinstance(value, str) and value.strip() == "auto":
+        return "auto"
+    try:
+        nu = float(value)
+    except (TypeError, ValueError):
+        raise PipelineError(
+            f"{source}: field 'noise': must be 'auto' or a positive number, got {value!r}"
+        ) from None
+    if not (math.isfinite(nu) and nu > 0):
+        raise PipelineError(f"{source}: field 'noise': must be 'auto' or a positive number, got {value!r}")
+    return nu
+
 
 @dataclass(frozen=True)
 class ClosedLoopSettings:

@@ -28,10 +28,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .closed_loop import ClosedLoopResult, ClosedLoopSettings, replay_demo, start_time
+from .closed_loop import MODEL_NOISE, ClosedLoopResult, ClosedLoopSettings, replay_demo, start_time
 from .closed_loop_score import ARRIVAL_TOLERANCE_M, ClosedLoopScore, score_closed_loop
 from .config import PipelineConfig
-from .data import ROBOT, Dataset, Demo
+from .data import ROBOT, Demo
 from .exceptions import IPrompPinError, PipelineError
 from .export import write_trajectory_csv, write_trajectory_json
 from .limits import (
@@ -101,8 +101,10 @@ def run_replay(
     limits: str = "demonstrated",
     preview: bool = True,
     log: LogFn = print,
+    noise: float | str = MODEL_NOISE,
 ) -> ReplayOutcome:
-    """Replay the pipeline's held-out demo in the closed loop and write the files into ``cfg.out_dir``."""
+    """Replay the pipeline's held-out demo in the closed loop and write the files into ``cfg.out_dir``
+    (``noise``: the observation-noise ratio of the trained model; a loaded model keeps its own)."""
     t_start = time.perf_counter()
     settings = settings.validate(f"{cfg.source}: closed loop")
     robot = load_robot(cfg.robot)
@@ -111,7 +113,7 @@ def run_replay(
     demo = choose_demo(ds, cfg)
     demo.require(list(cfg.observe) + [ROBOT])
     start_s = start_time(demo, settings.start_ratio)
-    model = get_model(cfg, ds, demo, log)
+    model = get_model(cfg, ds, demo, log, noise=noise)
     missing = [g for g in cfg.observe if g not in model.observe_]
     if missing:
         raise PipelineError(f"{cfg.load_model}: model does not observe {missing}")
@@ -133,7 +135,7 @@ def run_replay(
     )
     result = replay_demo(model, robot, demo, profile, settings, certifier)
     score = score_closed_loop(result, demo, robot)
-    files = write_replay(cfg.out_dir, demo, result, score, robot, model, ds)
+    files = write_replay(cfg.out_dir, demo, result, score, model)
     if preview:
         t0 = time.perf_counter()
         files["preview"] = write_replay_preview(cfg.out_dir / "preview.html", demo, result, score, robot)
@@ -175,7 +177,9 @@ def replans_json(result: ClosedLoopResult, demo: Demo) -> dict:
     }
 
 
-def report_dict(result: ClosedLoopResult, score: ClosedLoopScore, demo: Demo) -> dict:
+def report_dict(
+    result: ClosedLoopResult, score: ClosedLoopScore, demo: Demo, model: IProMP | None = None
+) -> dict:
     """The machine-readable replay report (JSON-serialisable)."""
     cycles = np.array([r.cycle_ms for r in result.replans]) if result.replans else np.zeros(0)
     reasons: dict[str, int] = {}
@@ -190,6 +194,9 @@ def report_dict(result: ClosedLoopResult, score: ClosedLoopScore, demo: Demo) ->
             "format": REPLAY_FORMAT,
             "version": REPLAY_VERSION,
             "demo": {"task": demo.task, "name": demo.name, "source": demo.source},
+            "model": None
+            if model is None
+            else {"observe": list(model.observe_), "noise_ratio": float(model.noise_ratio_)},
             "settings": result.settings.to_dict(),
             "limit_profile": result.profile.to_dict(),
             "start_s": result.start_s,
@@ -269,13 +276,7 @@ def summary_lines(demo: Demo, result: ClosedLoopResult, score: ClosedLoopScore, 
 
 
 def write_replay(
-    out_dir: Path,
-    demo: Demo,
-    result: ClosedLoopResult,
-    score: ClosedLoopScore,
-    robot: Robot,
-    model: IProMP,
-    ds: Dataset,
+    out_dir: Path, demo: Demo, result: ClosedLoopResult, score: ClosedLoopScore, model: IProMP | None = None
 ) -> dict[str, Path]:
     """Write the trajectory files, ``replans.json``, ``limits.toml`` and the reports."""
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -288,7 +289,7 @@ def write_replay(
     files["limits"] = out_dir / "limits.toml"
     files["limits"].write_text(result.profile.to_toml())
     files["report"] = out_dir / "report.json"
-    files["report"].write_text(json.dumps(report_dict(result, score, demo), indent=1, allow_nan=False))
+    files["report"].write_text(json.dumps(report_dict(result, score, demo, model), indent=1, allow_nan=False))
     files["report_text"] = out_dir / "report.txt"
     files["report_text"].write_text(report_text(result, score, demo) + "\n")
     return files

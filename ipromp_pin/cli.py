@@ -98,12 +98,19 @@ def _closed_loop_settings(args: argparse.Namespace, control_rate_hz: float, star
     from .closed_loop import ClosedLoopSettings
 
     defaults = ClosedLoopSettings()
+    noise = defaults.condition_noise
+    if args.condition_noise is not None:
+        try:
+            noise = None if args.condition_noise == "model" else float(args.condition_noise)
+        except ValueError:
+            noise = args.condition_noise  # validate() names the field
     return ClosedLoopSettings(
         start_ratio=start_ratio,
         replan_rate_hz=defaults.replan_rate_hz if args.replan_rate is None else args.replan_rate,
         control_rate_hz=control_rate_hz,
         blend_s=defaults.blend_s if args.blend is None else args.blend,
         freeze_phase=defaults.freeze_phase if args.freeze_phase is None else args.freeze_phase,
+        condition_noise=noise,
     ).validate("command line")
 
 
@@ -115,10 +122,10 @@ def _add_closed_loop_options(p: argparse.ArgumentParser) -> None:
         "or a profile file (TOML, e.g. a replay's limits.toml)",
     )
     p.add_argument(
-        "--noise",
+        "--condition-noise",
         default=None,
-        help="observation-noise ratio of the closed loop's model: a positive number or auto "
-        "(default 10, chosen by cross-validation of the closed loop)",
+        help="noise ratio with which the closed loop conditions the robot trajectory: a positive number, "
+        "or model for the model's own (default 10, chosen by cross-validation of the closed loop)",
     )
     p.add_argument("--replan-rate", type=float, help="re-plan rate in [Hz] (default 20)")
     p.add_argument("--blend", type=float, help="blend horizon in [s] of a re-plan (default 0.2)")
@@ -130,12 +137,6 @@ def _add_closed_loop_options(p: argparse.ArgumentParser) -> None:
     )
 
 
-def _closed_loop_noise(args: argparse.Namespace) -> float | str:
-    from .closed_loop import MODEL_NOISE, parse_noise
-
-    return MODEL_NOISE if args.noise is None else parse_noise(args.noise)
-
-
 def cmd_replay(args: argparse.Namespace) -> int:
     from .closed_loop import ClosedLoopSettings
     from .replay import run_replay
@@ -143,8 +144,7 @@ def cmd_replay(args: argparse.Namespace) -> int:
     cfg = _pipeline_config(args)
     start = ClosedLoopSettings().start_ratio if args.start_ratio is None else args.start_ratio
     settings = _closed_loop_settings(args, cfg.control_rate_hz, start)
-    noise = _closed_loop_noise(args)
-    run_replay(cfg, settings, limits=args.limits, preview=not args.no_preview, log=print, noise=noise)
+    run_replay(cfg, settings, limits=args.limits, preview=not args.no_preview, log=print)
     return 0
 
 
@@ -225,7 +225,6 @@ def _evaluate_closed_loop(args: argparse.Namespace) -> int:
     for _, ratio in grid:  # every cell's obs_ratio is a start ratio: checked before any computation
         _closed_loop_settings(args, 100.0, ratio)
     settings = _closed_loop_settings(args, 100.0, grid[0][1])
-    noise = _closed_loop_noise(args)
     check_limits_choice(args.limits, load_robot(args.robot), "command line")
     frames = skeleton_frames(g for o in observe for g in o) or None
     joints = load_robot_settings(args.robot).recorded_arm_joints
@@ -235,7 +234,7 @@ def _evaluate_closed_loop(args: argparse.Namespace) -> int:
     )
     print(f"read {len(ds.all_demos())} demos of {', '.join(ds.tasks)} in {time.perf_counter() - t0:.1f} s")
     protocols = ["paper", "splits"] if args.protocol == "both" else [args.protocol]
-    options = ClosedLoopOptions(limits=args.limits, settings=settings, noise=noise)
+    options = ClosedLoopOptions(limits=args.limits, settings=settings)
     cells = []
     for protocol in protocols:
         cfg = EvaluationConfig(
@@ -258,7 +257,6 @@ def _evaluate_closed_loop(args: argparse.Namespace) -> int:
         "seconds": round(time.perf_counter() - t0, 2),
         "closed_loop": {
             "limits": args.limits,
-            "noise": noise,
             **settings.to_dict(),
             "start_ratio": "obs_ratio of each cell",
         },

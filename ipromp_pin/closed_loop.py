@@ -22,6 +22,7 @@ the last committed plan to its end and returns the commanded trajectory with eve
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from collections.abc import Mapping
@@ -32,7 +33,7 @@ import numpy as np
 from .data import Demo
 from .exceptions import IPrompPinError, ObservationError, PipelineError
 from .limits import LimitProfile
-from .promp import IProMP
+from .promp import IProMP, Predictor
 from .retarget import (
     HEADROOM,
     SETTLE_S,
@@ -50,27 +51,23 @@ from .timing import Trajectory
 LIMIT_TOLERANCE = 1e-6
 """Relative tolerance of the velocity, acceleration and jerk checks of a re-plan."""
 
-MODEL_NOISE = 10.0
-"""Observation-noise ratio ``nu`` of the model the closed loop trains (``IProMP(noise=...)``).
-``fit``'s own choice (``"auto"``) scores recognition and phase early in the motion and picks 30-100
-on the real data; the closed loop's hand-over is predicted from most of the motion, where a tighter
-noise conditions the robot more on the observation. Chosen by cross-validation of the closed loop on
-training demos (``benchmarks/closed_loop_cv.py --study noise``, ``docs/closed_loop.md``)."""
+CONDITION_NOISE = 10.0
+"""Observation-noise ratio ``nu`` with which the closed loop conditions the robot trajectory (the
+task and phase are recognised with the model's own ``nu``). ``fit`` chooses its ``nu`` (30-100 on the
+real data) for recognition and phase early in the motion; the closed loop's hand-over is predicted
+from most of the motion, where a tighter noise conditions the robot more on what was observed.
+Chosen by cross-validation of the closed loop on training demos (``benchmarks/closed_loop_cv.py
+--study noise``, ``docs/closed_loop.md``)."""
 
 
-def parse_noise(value: str | float, source: str = "command line") -> float | str:
-    """A noise ratio: ``"auto"`` or a positive finite number (raises :class:`PipelineError`)."""
-    if isinstance(value, str) and value.strip() == "auto":
-        return "auto"
-    try:
-        nu = float(value)
-    except (TypeError, ValueError):
-        raise PipelineError(
-            f"{source}: field 'noise': must be 'auto' or a positive number, got {value!r}"
-        ) from None
-    if not (math.isfinite(nu) and nu > 0):
-        raise PipelineError(f"{source}: field 'noise': must be 'auto' or a positive number, got {value!r}")
-    return nu
+def conditioning_predictor(model: IProMP, noise: float | None) -> Predictor:
+    """The predictor whose conditioner the closed loop uses: the model's own (``noise`` None) or one
+    that conditions with the noise ratio ``noise`` (the same fitted model otherwise)."""
+    predictor = model.predictor_
+    if noise is None or noise == predictor.fitted.noise_ratio:
+        return predictor
+    fitted = dataclasses.replace(predictor.fitted, noise_ratio=float(noise))
+    return Predictor(fitted, predictor.conditioner.n_points)
 
 
 @dataclass(frozen=True)
@@ -88,6 +85,8 @@ class ClosedLoopSettings:
         freeze_phase: Re-planning stops once the human's motion is this far through its predicted
             duration (observed time / predicted hand-over time); the robot then completes its last
             plan. 1: re-plan while samples arrive.
+        condition_noise: Noise ratio with which the robot trajectory is conditioned (None: the
+            model's own).
     """
 
     start_ratio: float = 0.2
@@ -97,6 +96,7 @@ class ClosedLoopSettings:
     settle_s: float = SETTLE_S
     headroom: float = HEADROOM
     freeze_phase: float = 0.9
+    condition_noise: float | None = CONDITION_NOISE
 
     def validate(self, source: str = "closed loop") -> ClosedLoopSettings:
         """Check the values; raise :class:`PipelineError` naming ``source`` and the field."""
@@ -122,6 +122,9 @@ class ClosedLoopSettings:
             raise bad("headroom", f"must be in (0, 1], got {self.headroom}")
         if not (math.isfinite(self.freeze_phase) and 0 < self.freeze_phase <= 1):
             raise bad("freeze_phase", f"must be in (0, 1], got {self.freeze_phase}")
+        nu = self.condition_noise
+        if nu is not None and not (isinstance(nu, int | float) and math.isfinite(nu) and nu > 0):
+            raise bad("condition_noise", f"must be a positive number (or the model's own), got {nu}")
         return self
 
     def to_dict(self) -> dict:
@@ -235,6 +238,8 @@ class ClosedLoopPlanner:
         settings: Closed-loop settings (validated here).
         certifier: Self-collision certifier to use (default: a new one; reuse one across runs of the
             same robot to keep its cache of computed distances).
+        conditioner: The predictor whose conditioner conditions the robot trajectory (default:
+            :func:`conditioning_predictor` of ``settings.condition_noise``; pass one to reuse it).
     """
 
     def __init__(
@@ -246,6 +251,7 @@ class ClosedLoopPlanner:
         start_s: float,
         settings: ClosedLoopSettings | None = None,
         certifier: ClearanceCertifier | None = None,
+        conditioner: Predictor | None = None,
     ) -> None:
         self.settings = (settings or ClosedLoopSettings()).validate()
         self.model = model
@@ -257,6 +263,7 @@ class ClosedLoopPlanner:
         s = self.settings
         self.retargeter = Retargeter(profile.limits, self.dt_s, s.blend_s, s.headroom, s.settle_s)
         self._predictor = model.predictor_
+        self._conditioning = conditioner or conditioning_predictor(model, self.settings.condition_noise)
         self._stream = model.stream()
         self._stream.__enter__()
         self._centres = model.basis_.centres
@@ -323,7 +330,7 @@ class ClosedLoopPlanner:
         try:
             rec = stream.recognition()
             parts, _ = self._predictor.encode(stream.observation())
-            pred = self._predictor.conditioner.condition(rec, parts)
+            pred = self._conditioning.conditioner.condition(rec, parts)
             reference = ReferenceMotion.from_prediction(pred, self._centres, self._width)
         except IPrompPinError as exc:
             r.reason = f"prediction failed: {exc}"
@@ -439,6 +446,7 @@ def replay_demo(
     profile: LimitProfile,
     settings: ClosedLoopSettings | None = None,
     certifier: ClearanceCertifier | None = None,
+    conditioner: Predictor | None = None,
 ) -> ClosedLoopResult:
     """Run the closed loop on a recorded demo at its recorded timing (simulated clock, no waiting).
 
@@ -454,7 +462,7 @@ def replay_demo(
     demo.require(groups + [model.robot_group])
     start = start_time(demo, settings.start_ratio)
     planner = ClosedLoopPlanner(
-        model, robot, profile, demo.groups[model.robot_group][0], start, settings, certifier
+        model, robot, profile, demo.groups[model.robot_group][0], start, settings, certifier, conditioner
     )
     for t, sample in zip(demo.t - demo.t[0], demo_samples(demo, groups), strict=True):
         planner.step(float(t), sample)

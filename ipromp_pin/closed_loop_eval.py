@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .closed_loop import MODEL_NOISE, ClosedLoopSettings, replay_demo
+from .closed_loop import ClosedLoopSettings, conditioning_predictor, replay_demo
 from .closed_loop_score import score_closed_loop
 from .data import ROBOT, Dataset, Demo
 from .evaluate import (
@@ -61,15 +61,12 @@ class ClosedLoopOptions:
         settings: Closed-loop settings; each cell's ``obs_ratio`` replaces ``start_ratio``.
         recipe: How the demonstrated profile is derived (default: the robot settings').
         check_collisions: Contact-test every commanded control sample.
-        noise: Observation-noise ratio of the closed loop's model (``IProMP(noise=...)``); the
-            one-shot prediction uses the evaluation's own model (``fit``'s default).
     """
 
     limits: str = "demonstrated"
     settings: ClosedLoopSettings = field(default_factory=ClosedLoopSettings)
     recipe: DemoLimitRecipe | None = None
     check_collisions: bool = True
-    noise: float | str = MODEL_NOISE
 
 
 @dataclass
@@ -107,25 +104,21 @@ def closed_loop_trials(
     settings: ClosedLoopSettings,
     certifier: ClearanceCertifier | None = None,
     check_collisions: bool = True,
-    one_shot_model: IProMP | None = None,
 ) -> list[dict]:
     """Replay every test demo with ``ratio`` as the start ratio; one record per demo (the one-shot
     prediction's :class:`~ipromp_pin.evaluate.TrialResult` fields, then the closed loop's
-    :class:`~ipromp_pin.closed_loop_score.ClosedLoopScore` fields prefixed ``closed_loop_``).
-
-    ``one_shot_model`` makes the one-shot prediction (default: ``model``, which runs the closed loop).
-    """
+    :class:`~ipromp_pin.closed_loop_score.ClosedLoopScore` fields prefixed ``closed_loop_``)."""
     observe = list(model.observe_)
-    one_shot_model = one_shot_model or model
 
     def fk(q: np.ndarray) -> np.ndarray:
         return ee_positions(robot, q)
 
     run = ClosedLoopSettings(**{**settings.to_dict(), "start_ratio": float(ratio)}).validate()
+    conditioner = conditioning_predictor(model, run.condition_noise)
     out = []
     for d in test:
-        one_shot = score_trial(one_shot_model.predict(d.head(ratio, groups=observe)), d, ratio, fk)
-        result = replay_demo(model, robot, d, profile, run, certifier)
+        one_shot = score_trial(model.predict(d.head(ratio, groups=observe)), d, ratio, fk)
+        result = replay_demo(model, robot, d, profile, run, certifier, conditioner)
         score = score_closed_loop(result, d, robot, check_collisions=check_collisions)
         row = asdict(one_shot) | {"correct": one_shot.correct}
         row |= {f"closed_loop_{k}": v for k, v in score.to_dict().items()}
@@ -158,16 +151,12 @@ def _run_job(job: _Job) -> tuple[_Job, dict[float, list[dict]], str, str]:
         _WORKER["certifier"] = ClearanceCertifier(robot)
     train = [_demo(r) for r in job.train]
     test = [_demo(r) for r in job.test]
-    params = dict(_WORKER["params"])
-    one_shot = IProMP(observe=list(job.observe), **params).fit(train)
-    closed = one_shot
-    if params.get("noise", "auto") != options.noise:
-        closed = IProMP(observe=list(job.observe), **{**params, "noise": options.noise}).fit(train)
+    model = IProMP(observe=list(job.observe), **_WORKER["params"]).fit(train)
     profile = profile_for(options, robot, train, _WORKER["label"])
     out = {}
     for ratio in job.ratios:
         rows = closed_loop_trials(
-            closed,
+            model,
             robot,
             test,
             ratio,
@@ -175,12 +164,11 @@ def _run_job(job: _Job) -> tuple[_Job, dict[float, list[dict]], str, str]:
             options.settings,
             _WORKER["certifier"],
             options.check_collisions,
-            one_shot_model=one_shot,
         )
         for row in rows:
             row["split"] = job.rep
         out[ratio] = rows
-    return job, out, "+".join(one_shot.coupled_groups_), profile.name
+    return job, out, "+".join(model.coupled_groups_), profile.name
 
 
 def _map(work: list[_Job], jobs: int):

@@ -80,11 +80,8 @@ def choose_demo(ds: Dataset, cfg: PipelineConfig) -> Demo:
     return demos[cfg.demo]
 
 
-def get_model(
-    cfg: PipelineConfig, ds: Dataset, held_out: Demo, log: LogFn = print, **params: object
-) -> IProMP:
-    """Load the saved model, or train one on every demo but ``held_out`` (``params``: further
-    :class:`~ipromp_pin.promp.IProMP` parameters of the trained model)."""
+def get_model(cfg: PipelineConfig, ds: Dataset, held_out: Demo, log: LogFn = print) -> IProMP:
+    """Load the saved model, or train one on every demo but ``held_out``."""
     if cfg.load_model is not None:
         log(f"[model] loading {cfg.load_model}")
         model = IProMP.load(cfg.load_model)
@@ -96,7 +93,7 @@ def get_model(
         return model
     train = [d for d in ds.all_demos() if d is not held_out]
     t0 = time.perf_counter()
-    model = IProMP(observe=cfg.observe, **params).fit(train)
+    model = IProMP(observe=cfg.observe).fit(train)
     log(
         f"[model] trained on {len(train)} demos ({', '.join(cfg.observe)} + robot), "
         f"{time.perf_counter() - t0:.2f} s"

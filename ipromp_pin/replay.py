@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .closed_loop import MODEL_NOISE, ClosedLoopResult, ClosedLoopSettings, replay_demo, start_time
+from .closed_loop import ClosedLoopResult, ClosedLoopSettings, replay_demo, start_time
 from .closed_loop_score import ARRIVAL_TOLERANCE_M, ClosedLoopScore, score_closed_loop
 from .config import PipelineConfig
 from .data import ROBOT, Demo
@@ -101,10 +101,8 @@ def run_replay(
     limits: str = "demonstrated",
     preview: bool = True,
     log: LogFn = print,
-    noise: float | str = MODEL_NOISE,
 ) -> ReplayOutcome:
-    """Replay the pipeline's held-out demo in the closed loop and write the files into ``cfg.out_dir``
-    (``noise``: the observation-noise ratio of the trained model; a loaded model keeps its own)."""
+    """Replay the pipeline's held-out demo in the closed loop and write the files into ``cfg.out_dir``."""
     t_start = time.perf_counter()
     settings = settings.validate(f"{cfg.source}: closed loop")
     robot = load_robot(cfg.robot)
@@ -113,7 +111,7 @@ def run_replay(
     demo = choose_demo(ds, cfg)
     demo.require(list(cfg.observe) + [ROBOT])
     start_s = start_time(demo, settings.start_ratio)
-    model = get_model(cfg, ds, demo, log, noise=noise)
+    model = get_model(cfg, ds, demo, log)
     missing = [g for g in cfg.observe if g not in model.observe_]
     if missing:
         raise PipelineError(f"{cfg.load_model}: model does not observe {missing}")

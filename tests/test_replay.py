@@ -38,7 +38,7 @@ def test_replay_of_the_synthetic_default_writes_every_file(tmp_path, capsys):
     assert np.all(limit_ratios(traj.qd, traj.qdd, dt, profile.limits) <= 1 + 1e-5)
     assert not np.abs(traj.qd[0]).any() and not np.abs(traj.qd[-1]).any()
     assert report["demo"]["task"] == "tape" and report["settings"]["start_ratio"] == 0.25
-    assert report["model"]["noise_ratio"] == 10.0  # the closed loop's model (MODEL_NOISE)
+    assert report["settings"]["condition_noise"] == 10.0 and report["model"]["noise_ratio"] > 0
     assert report["collisions"] == 0 and report["max_limit_ratio"] <= 1 + 1e-6
     assert report["replans"] == len(replans["replans"]) > 10
     first = replans["replans"][0]
@@ -73,7 +73,8 @@ def _write_dataset(folder: Path, short: bool = False) -> Path:
         (["--replan-rate", "0"], "field 'replan_rate_hz': must be a positive rate, got 0.0"),
         (["--replan-rate", "200"], "field 'replan_rate_hz': 200 Hz is faster than the control rate 100 Hz"),
         (["--limits", "fast"], "field 'limits': unknown limit profile 'fast'"),
-        (["--noise", "-1"], "field 'noise': must be 'auto' or a positive number, got '-1'"),
+        (["--condition-noise", "-1"], "field 'condition_noise': must be a positive number"),
+        (["--condition-noise", "x"], "field 'condition_noise': must be a positive number"),
         (["--observe", "orientation,/left_hand_1"], "field '/left_hand_1': channel group not in demo"),
     ],
 )

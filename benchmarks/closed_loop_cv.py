@@ -121,7 +121,7 @@ def main() -> None:
             candidates = [base]
             ratios = [0.1, 0.2, 0.3]
         else:
-            candidates = [{**base, "condition_noise": nu} for nu in (None, 1.0, 3.0, 10.0, 30.0)]
+            candidates = [{**base, "condition_noise": nu} for nu in (None, 0.1, 0.3, 1.0, 3.0, 10.0, 30.0)]
             ratios = [0.1, 0.2]
     work = []
     for fold in range(args.folds):

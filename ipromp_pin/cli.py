@@ -125,7 +125,7 @@ def _add_closed_loop_options(p: argparse.ArgumentParser) -> None:
         "--condition-noise",
         default=None,
         help="noise ratio with which the closed loop conditions the robot trajectory: a positive number, "
-        "or model for the model's own (default 10, chosen by cross-validation of the closed loop)",
+        "or model for the model's own (default 0.3, chosen by cross-validation of the closed loop)",
     )
     p.add_argument("--replan-rate", type=float, help="re-plan rate in [Hz] (default 20)")
     p.add_argument("--blend", type=float, help="blend horizon in [s] of a re-plan (default 0.2)")

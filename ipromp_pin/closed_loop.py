@@ -51,7 +51,7 @@ from .timing import Trajectory
 LIMIT_TOLERANCE = 1e-6
 """Relative tolerance of the velocity, acceleration and jerk checks of a re-plan."""
 
-CONDITION_NOISE = 10.0
+CONDITION_NOISE = 0.3
 """Observation-noise ratio ``nu`` with which the closed loop conditions the robot trajectory (the
 task and phase are recognised with the model's own ``nu``). ``fit`` chooses its ``nu`` (30-100 on the
 real data) for recognition and phase early in the motion; the closed loop's hand-over is predicted

@@ -38,7 +38,7 @@ def test_replay_of_the_synthetic_default_writes_every_file(tmp_path, capsys):
     assert np.all(limit_ratios(traj.qd, traj.qdd, dt, profile.limits) <= 1 + 1e-5)
     assert not np.abs(traj.qd[0]).any() and not np.abs(traj.qd[-1]).any()
     assert report["demo"]["task"] == "tape" and report["settings"]["start_ratio"] == 0.25
-    assert report["settings"]["condition_noise"] == 10.0 and report["model"]["noise_ratio"] > 0
+    assert report["settings"]["condition_noise"] == 0.3 and report["model"]["noise_ratio"] > 0
     assert report["collisions"] == 0 and report["max_limit_ratio"] <= 1 + 1e-6
     assert report["replans"] == len(replans["replans"]) > 10
     first = replans["replans"][0]

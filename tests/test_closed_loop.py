@@ -5,7 +5,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ipromp_pin.closed_loop import ClosedLoopPlanner, ClosedLoopSettings, demo_samples, replay_demo
+from ipromp_pin.closed_loop import (
+    ClosedLoopPlanner,
+    ClosedLoopSettings,
+    conditioning_predictor,
+    demo_samples,
+    replay_demo,
+)
 from ipromp_pin.closed_loop_score import arrival_time, score_closed_loop
 from ipromp_pin.data import ROBOT
 from ipromp_pin.exceptions import PipelineError
@@ -138,10 +144,16 @@ def test_replay_starts_late_stays_within_limits_and_reaches_the_handover(setup, 
     assert all(r.task == demo.task for r in result.replans[-5:])
     score = score_closed_loop(result, demo, robot)
     assert score.collisions == 0 and score.max_limit_ratio <= 1 + 1e-6
-    # it comes to rest where the model, given what the last re-plan had observed, predicts the hand-over
+    # it comes to rest where the model, given what the last re-plan had observed, predicts the hand-over:
+    # task and phase recognised with the model's noise ratio, the robot conditioned with condition_noise
     last = result.replans[-1]
-    q_end = model.predict(demo.slice(last.n_observed, OBSERVE)).q_mean[-1]
+    observed = demo.slice(last.n_observed, OBSERVE)
+    parts, _ = model.predictor_.encode(observed)
+    conditioner = conditioning_predictor(model, settings.condition_noise).conditioner
+    q_end = conditioner.condition(model.recognise(observed), parts).q_mean[-1]
     np.testing.assert_allclose(traj.q[-1], q_end, atol=1e-9)
+    own = model.predict(observed).q_mean[-1]  # conditioned with the model's own, larger noise ratio
+    assert settings.condition_noise < model.noise_ratio_ and np.abs(own - q_end).max() > 1e-4
     assert score.handover_error_cm < 10.0
     # re-plans come at the re-plan rate
     dt = np.diff([r.t_s for r in result.replans])

@@ -118,6 +118,8 @@ def run_replay(
     demo.require(list(model.observe_))
     train = [d for d in ds.all_demos() if d is not demo]
     label = "the built-in synthetic demos" if cfg.dataset is None else Path(str(cfg.dataset)).name
+    if cfg.load_model is not None:  # its training demos are unknown: every demo but the replayed one
+        label += " (every demo but the replayed one; the loaded model's training set is unknown)"
     profile = choose_profile(limits, robot, train, label, from_file)
     log(f"[limits] {profile.name}: {profile.source}")
     certifier = ClearanceCertifier(robot)

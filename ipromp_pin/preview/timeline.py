@@ -228,6 +228,9 @@ def render_timeline_html(
         build_scene(window, base, robot=robot, fps=fps)
     _timeline_scene(window, base, events, robot, fps)
     overlay = overlay_state(base)
+    for item in overlay["legend"]:  # the blue tube is what was commanded, not one prediction
+        if item["label"] == "predicted gripper path":
+            item["label"] = "commanded gripper path"
     overlay["legend"] = overlay["legend"] + [
         {"label": "predicted hand-over point", "color": f"#{COLOR_HANDOVER:06x}"},
         {"label": "plan of the latest committed re-plan", "color": f"#{COLOR_PLAN:06x}"},

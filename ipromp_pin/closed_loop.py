@@ -382,11 +382,15 @@ class ClosedLoopPlanner:
             return f"self_collision: {clearance.to_check().reason}"
         return ""
 
-    def finish(self) -> ClosedLoopResult:
-        """Stop receiving samples and return the commanded trajectory until it comes to rest."""
+    def close(self) -> None:
+        """Stop receiving samples (releases the streaming estimator's BLAS thread limit)."""
         if not self._finished:
             self._stream.__exit__(None, None, None)
             self._finished = True
+
+    def finish(self) -> ClosedLoopResult:
+        """Stop receiving samples and return the commanded trajectory until it comes to rest."""
+        self.close()
         k_last, last = self._plans[-1]
         n = k_last + last.n_samples
         nj = last.q.shape[1]
@@ -464,6 +468,9 @@ def replay_demo(
     planner = ClosedLoopPlanner(
         model, robot, profile, demo.groups[model.robot_group][0], start, settings, certifier, conditioner
     )
-    for t, sample in zip(demo.t - demo.t[0], demo_samples(demo, groups), strict=True):
-        planner.step(float(t), sample)
+    try:
+        for t, sample in zip(demo.t - demo.t[0], demo_samples(demo, groups), strict=True):
+            planner.step(float(t), sample)
+    finally:
+        planner.close()
     return planner.finish()

@@ -72,8 +72,10 @@ def conditioning_predictor(model: IProMP, noise: float | None) -> Predictor:
 
 @dataclass(frozen=True)
 class ClosedLoopSettings:
-    """Settings of the closed loop (defaults chosen by cross-validation on training demos:
-    ``docs/closed_loop.md``).
+    """Settings of the closed loop. The defaults of the start ratio, re-plan rate, blend horizon,
+    freeze phase and conditioning noise were chosen by cross-validation on training demos
+    (``docs/closed_loop.md``); the settle window and the headroom are technical margins
+    (:mod:`ipromp_pin.retarget`).
 
     Attributes:
         start_ratio: Fraction of the human's motion observed before the robot starts, in (0, 1).

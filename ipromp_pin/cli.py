@@ -22,7 +22,9 @@ import math
 import os
 import sys
 import time
+from functools import partial
 from pathlib import Path
+from typing import NoReturn
 
 from .data import parse_groups, skeleton_frames
 from .exceptions import IPrompPinError
@@ -222,8 +224,23 @@ def cmd_replay(args: argparse.Namespace) -> int:
     cfg = _pipeline_config(args)
     start = ClosedLoopSettings().start_ratio if args.start_ratio is None else args.start_ratio
     settings = _closed_loop_settings(args, cfg.control_rate_hz, start)
-    run_replay(cfg, settings, limits=args.limits, preview=not args.no_preview, log=print)
-    return 0
+    outcome = run_replay(
+        cfg,
+        settings,
+        limits=args.limits,
+        preview=not args.no_preview,
+        log=print,
+        allow_failing_checks=args.allow_failing_checks,
+    )
+    if outcome.passed:
+        return 0
+    written = "written marked as failing" if "trajectory_csv" in outcome.files else "not written"
+    _error(
+        "replay",
+        f"the commanded motion failed its checks ({outcome.score.collisions} samples in collision, "
+        f"max limit ratio {outcome.score.max_limit_ratio:.3f}); trajectory {written}",
+    )
+    return EXIT_CHECKS_FAILED
 
 
 def cmd_evaluate(args: argparse.Namespace) -> int:
@@ -332,31 +349,49 @@ def _compile_kernels_once() -> None:
 
 
 def _evaluate_closed_loop(args: argparse.Namespace) -> int:
+    from . import atomic
     from .closed_loop_eval import (
         ClosedLoopOptions,
         closed_loop_markdown,
         evaluate_closed_loop,
         write_closed_loop_results,
     )
-    from .evaluate import PAPER_GRID, EvaluationConfig
-    from .readers import load_dataset
+    from .evaluate import PAPER_GRID, EvaluationConfig, check_dataset_size
+    from .readers import count_demos, load_dataset
     from .replay import check_limits_choice
-    from .robot import load_robot, load_robot_settings
+    from .robot import load_robot
 
     observe = [parse_groups(o) for o in (args.observe or ["orientation", "orientation,emg"])]
     grid = list(PAPER_GRID) if args.grid == "paper" else [(n, r) for n in args.n_train for r in args.ratios]
     for _, ratio in grid:  # every cell's obs_ratio is a start ratio: checked before any computation
         _closed_loop_settings(args, 100.0, ratio)
     settings = _closed_loop_settings(args, 100.0, grid[0][1])
-    check_limits_choice(args.limits, load_robot(args.robot), "command line")
+    robot = load_robot(args.robot)
+    check_limits_choice(args.limits, robot, "command line")
+    md = args.md or (args.json.with_suffix(".md") if args.json else None)
+    for path in (args.json, md):
+        if path is not None:
+            atomic.check_output_file(path)
+    protocols = ["paper", "splits"] if args.protocol == "both" else [args.protocol]
+    counts = count_demos(args.dataset, format=args.format)  # lists the demo files, reads none
+    for protocol in protocols:
+        check_dataset_size(
+            counts,
+            EvaluationConfig(protocol=protocol, observe=observe, grid=grid, n_test=args.n_test),
+            args.dataset,
+        )
     frames = skeleton_frames(g for o in observe for g in o) or None
-    joints = load_robot_settings(args.robot).recorded_arm_joints
     t0 = time.perf_counter()
     ds = load_dataset(
-        args.dataset, format=args.format, frames=frames, robot_joints=joints, progress=_progress()
+        args.dataset,
+        format=args.format,
+        frames=frames,
+        robot_joints=robot.settings.recorded_arm_joints,
+        joint_limits=robot.recorded_joint_limits(),
+        progress=_progress(),
     )
     print(f"read {len(ds.all_demos())} demos of {', '.join(ds.tasks)} in {time.perf_counter() - t0:.1f} s")
-    protocols = ["paper", "splits"] if args.protocol == "both" else [args.protocol]
+    _compile_kernels_once()
     options = ClosedLoopOptions(limits=args.limits, settings=settings)
     cells = []
     for protocol in protocols:
@@ -384,7 +419,6 @@ def _evaluate_closed_loop(args: argparse.Namespace) -> int:
             "start_ratio": "obs_ratio of each cell",
         },
     }
-    md = args.md or (args.json.with_suffix(".md") if args.json else None)
     write_closed_loop_results(cells, args.json, md, meta)
     if args.json:
         print(f"wrote {args.json}" + (f" and {md}" if md else ""))
@@ -396,7 +430,7 @@ def cmd_train(args: argparse.Namespace) -> int:
     from .model_warnings import single_task_warning, warn_stderr
     from .promp import IProMP
     from .readers import load_dataset
-    from .robot import load_robot
+    from .robot import ee_positions, load_robot
 
     atomic.check_output_file(args.out, "model file")
     observe = parse_groups(args.observe)
@@ -413,7 +447,8 @@ def cmd_train(args: argparse.Namespace) -> int:
         progress=_progress(),
     )
     t0 = time.perf_counter()
-    model = IProMP(observe=observe, coupling=coupling).fit(ds.all_demos())
+    fk = partial(ee_positions, robot)  # settings chosen for the hand-over position of this robot
+    model = IProMP(observe=observe, coupling=coupling).fit(ds.all_demos(), fk=fk)
     single = single_task_warning(model)
     if single is not None:
         warn_stderr(single)
@@ -466,9 +501,16 @@ def cmd_preview(args: argparse.Namespace) -> int:
     return 0
 
 
+class _Parser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line (exit status 2), like every other input error."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``ipromp-pin``."""
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="ipromp-pin",
         description="EMG-augmented Interaction ProMPs: recognise a hand-over task, plan Baxter's part.",
     )
@@ -505,11 +547,17 @@ def build_parser() -> argparse.ArgumentParser:
     _add_pipeline_overrides(p, ratio=False)
     p.add_argument(
         "--start-ratio",
-        type=float,
+        type=float,  # checked with the other closed-loop settings (one line naming start_ratio)
         help="fraction of the human's motion observed before the robot starts, in (0, 1) (default 0.2)",
     )
     _add_closed_loop_options(p)
     p.add_argument("--no-preview", action="store_true", help="do not write preview.html")
+    p.add_argument(
+        "--allow-failing-checks",
+        action="store_true",
+        help="write the commanded trajectory even when it collides or exceeds the limits, marked as "
+        "failing (exit status 3 still)",
+    )
     p.set_defaults(func=cmd_replay)
 
     p = sub.add_parser("evaluate", help="recognition accuracy and prediction error on a dataset")

@@ -28,6 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
+from . import atomic
 from .closed_loop import ClosedLoopSettings, conditioning_predictor, replay_demo
 from .closed_loop_score import score_closed_loop
 from .data import ROBOT, Dataset, Demo
@@ -386,10 +387,8 @@ def write_closed_loop_results(
     cells: Sequence[ClosedLoopCell], json_path: Path | None, md_path: Path | None, meta: dict
 ) -> None:
     """Write the JSON (the evaluation format, cells with the closed-loop fields) and the Markdown
-    (the closed-loop table, then the usual recognition and prediction tables)."""
+    (the closed-loop table, then the usual recognition and prediction tables), each atomically."""
     if json_path is not None:
-        json_path.parent.mkdir(parents=True, exist_ok=True)
-        json_path.write_text(json.dumps(to_json(cells, meta), indent=1, allow_nan=False))
+        atomic.write_text(json_path, json.dumps(to_json(cells, meta), indent=1, allow_nan=False))
     if md_path is not None:
-        md_path.parent.mkdir(parents=True, exist_ok=True)
-        md_path.write_text(closed_loop_markdown(cells) + "\n" + to_markdown(cells))
+        atomic.write_text(md_path, closed_loop_markdown(cells) + "\n" + to_markdown(cells))

@@ -28,12 +28,13 @@ from pathlib import Path
 
 import numpy as np
 
-from .closed_loop import ClosedLoopResult, ClosedLoopSettings, replay_demo, start_time
+from . import atomic
+from .closed_loop import LIMIT_TOLERANCE, ClosedLoopResult, ClosedLoopSettings, replay_demo, start_time
 from .closed_loop_score import ARRIVAL_TOLERANCE_M, ClosedLoopScore, score_closed_loop
 from .config import PipelineConfig
 from .data import ROBOT, Demo
 from .exceptions import IPrompPinError, PipelineError
-from .export import write_trajectory_csv, write_trajectory_json
+from .export import trajectory_csv_text, trajectory_json_text
 from .limits import (
     PROFILE_NAMES,
     LimitProfile,
@@ -41,18 +42,44 @@ from .limits import (
     demonstrated_profile,
     read_limit_profile,
 )
-from .pipeline import choose_demo, get_model, load_data
-from .planning import LogFn
+from .model_warnings import warn_stderr
+from .pipeline import check_outputs, choose_demo, get_model, load_data, model_warnings, preview_visual_model
+from .planning import LogFn, check_model_joints
 from .preview import PreviewContent
-from .preview.timeline import TimelineEvent, write_timeline_html
+from .preview.timeline import TimelineEvent, render_timeline_html
 from .promp import IProMP
-from .robot import Robot, ee_positions, load_robot, load_visual_model
+from .robot import Robot, ee_positions, load_robot
 from .robot.clearance import ClearanceCertifier
 
 REPLAY_FORMAT = "ipromp_pin.replay"
 """Value of the replay ``report.json``'s ``format`` field."""
 
 REPLAY_VERSION = 1
+
+REPLAY_OUTPUTS = (
+    "trajectory.csv",
+    "trajectory.json",
+    "replans.json",
+    "report.json",
+    "report.txt",
+    "limits.toml",
+    "preview.html",
+)
+"""Every file ``ipromp-pin replay`` may write into its output folder (committed together, see
+:class:`ipromp_pin.atomic.OutputSet`; an earlier replay's files that this one does not write are removed)."""
+
+TRAJECTORY_OUTPUTS = ("trajectory.csv", "trajectory.json")
+"""The outputs a robot executes: written only when the replay passed (or marked, when allowed)."""
+
+_FILE_KEYS = {
+    "trajectory.csv": "trajectory_csv",
+    "trajectory.json": "trajectory_json",
+    "replans.json": "replans",
+    "report.json": "report",
+    "report.txt": "report_text",
+    "limits.toml": "limits",
+    "preview.html": "preview",
+}
 
 
 @dataclass
@@ -64,12 +91,14 @@ class ReplayOutcome:
         result: The closed loop's commanded trajectory and re-plans.
         score: Hand-over error, arrival delay, limit ratios, collisions.
         files: Written files by kind.
+        passed: Whether the commanded trajectory passed (:func:`replay_passed`).
     """
 
     demo: Demo
     result: ClosedLoopResult
     score: ClosedLoopScore
     files: dict[str, Path]
+    passed: bool = True
 
 
 def check_limits_choice(limits: str, robot: Robot, source: str) -> LimitProfile | None:
@@ -101,21 +130,31 @@ def run_replay(
     limits: str = "demonstrated",
     preview: bool = True,
     log: LogFn = print,
+    warn: LogFn = warn_stderr,
+    *,
+    allow_failing_checks: bool = False,
 ) -> ReplayOutcome:
-    """Replay the pipeline's held-out demo in the closed loop and write the files into ``cfg.out_dir``."""
+    """Replay the pipeline's held-out demo in the closed loop and write the files into ``cfg.out_dir``
+    together (:data:`REPLAY_OUTPUTS`): complete, or the folder's earlier files untouched.
+
+    The commanded trajectory is written only when it passed (no commanded sample in collision, every
+    limit ratio at most 1), unless ``allow_failing_checks`` (then marked, as ``run`` marks its files).
+    """
     t_start = time.perf_counter()
     settings = settings.validate(f"{cfg.source}: closed loop")
+    check_outputs(cfg)
     robot = load_robot(cfg.robot)
     from_file = check_limits_choice(limits, robot, cfg.source)
-    ds = load_data(cfg, log)
+    ds = load_data(cfg, log, robot)
     demo = choose_demo(ds, cfg)
     demo.require(list(cfg.observe) + [ROBOT])
     start_s = start_time(demo, settings.start_ratio)
-    model = get_model(cfg, ds, demo, log)
-    missing = [g for g in cfg.observe if g not in model.observe_]
-    if missing:
-        raise PipelineError(f"{cfg.load_model}: model does not observe {missing}")
+    model = get_model(cfg, ds, demo, log, robot)
+    check_model_joints(model, robot)
     demo.require(list(model.observe_))
+    warnings = model_warnings(cfg, ds, demo, model)
+    for w in warnings:
+        warn(w)
     train = [d for d in ds.all_demos() if d is not demo]
     label = "the built-in synthetic demos" if cfg.dataset is None else Path(str(cfg.dataset)).name
     if cfg.load_model is not None:  # its training demos are unknown: every demo but the replayed one
@@ -135,16 +174,24 @@ def run_replay(
     )
     result = replay_demo(model, robot, demo, profile, settings, certifier)
     score = score_closed_loop(result, demo, robot)
-    files = write_replay(cfg.out_dir, demo, result, score, model)
-    if preview:
-        t0 = time.perf_counter()
-        files["preview"] = write_replay_preview(cfg.out_dir / "preview.html", demo, result, score, robot)
-        log(f"[preview] {files['preview']} ({time.perf_counter() - t0:.1f} s)")
-    report = json.loads(files["report"].read_text())
-    report["files"] = {k: str(v) for k, v in files.items()}
-    files["report"].write_text(json.dumps(report, indent=1, allow_nan=False))
+    with atomic.OutputSet(cfg.out_dir, managed=REPLAY_OUTPUTS) as out:
+        write_trajectory = replay_passed(score) or allow_failing_checks
+        names = [n for n in REPLAY_OUTPUTS if write_trajectory or n not in TRAJECTORY_OUTPUTS]
+        if not preview:
+            names.remove("preview.html")
+        report = report_dict(result, score, demo, model, warnings)
+        report["files"] = {_FILE_KEYS[n]: str(out.path(n)) for n in names}
+        stage_replay(out, demo, result, score, report, allow_failing_checks=allow_failing_checks)
+        if preview:
+            t0 = time.perf_counter()
+            html = replay_preview_html(demo, result, score, robot, preview_visual_model(robot))
+            out.write_text("preview.html", html)
+            log(f"[preview] {out.path('preview.html')} ({time.perf_counter() - t0:.1f} s)")
+        files = out.commit()
     log(summary_lines(demo, result, score, time.perf_counter() - t_start))
-    return ReplayOutcome(demo, result, score, files)
+    return ReplayOutcome(
+        demo, result, score, {_FILE_KEYS[n]: p for n, p in files.items()}, replay_passed(score)
+    )
 
 
 def _round(x: object) -> object:
@@ -178,9 +225,14 @@ def replans_json(result: ClosedLoopResult, demo: Demo) -> dict:
 
 
 def report_dict(
-    result: ClosedLoopResult, score: ClosedLoopScore, demo: Demo, model: IProMP | None = None
+    result: ClosedLoopResult,
+    score: ClosedLoopScore,
+    demo: Demo,
+    model: IProMP | None = None,
+    warnings: list[str] | None = None,
 ) -> dict:
-    """The machine-readable replay report (JSON-serialisable)."""
+    """The machine-readable replay report (JSON-serialisable; its schema:
+    ``ipromp_pin/schemas/replay_report.schema.json``)."""
     cycles = np.array([r.cycle_ms for r in result.replans]) if result.replans else np.zeros(0)
     reasons: dict[str, int] = {}
     for r in result.replans:
@@ -194,6 +246,8 @@ def report_dict(
             "format": REPLAY_FORMAT,
             "version": REPLAY_VERSION,
             "demo": {"task": demo.task, "name": demo.name, "source": demo.source},
+            "warnings": list(warnings or []),
+            "passed": replay_passed(score),
             "model": None
             if model is None
             else {"observe": list(model.observe_), "noise_ratio": float(model.noise_ratio_)},
@@ -229,11 +283,14 @@ def report_dict(
     )
 
 
-def report_text(result: ClosedLoopResult, score: ClosedLoopScore, demo: Demo) -> str:
+def report_text(
+    result: ClosedLoopResult, score: ClosedLoopScore, demo: Demo, warnings: list[str] | None = None
+) -> str:
     """The human-readable replay report."""
     p = result.profile
     s = result.settings
-    lines = [
+    lines = [f"Warning: {w}" for w in warnings or []]
+    lines += [
         f"Replayed: {demo.task}/{demo.name} ({demo.source}), {score.handover_time_s:.2f} s",
         f"Closed loop: start after {s.start_ratio:.0%} ({result.start_s:.2f} s), re-plan "
         f"{s.replan_rate_hz:g} Hz, control {s.control_rate_hz:g} Hz, blend {s.blend_s:g} s, "
@@ -275,30 +332,51 @@ def summary_lines(demo: Demo, result: ClosedLoopResult, score: ClosedLoopScore, 
     )
 
 
-def write_replay(
-    out_dir: Path, demo: Demo, result: ClosedLoopResult, score: ClosedLoopScore, model: IProMP | None = None
-) -> dict[str, Path]:
-    """Write the trajectory files, ``replans.json``, ``limits.toml`` and the reports."""
-    out_dir.mkdir(parents=True, exist_ok=True)
-    files = {
-        "trajectory_csv": write_trajectory_csv(result.trajectory, out_dir / "trajectory.csv"),
-        "trajectory_json": write_trajectory_json(result.trajectory, out_dir / "trajectory.json"),
-    }
-    files["replans"] = out_dir / "replans.json"
-    files["replans"].write_text(json.dumps(_round(replans_json(result, demo)), indent=1, allow_nan=False))
-    files["limits"] = out_dir / "limits.toml"
-    files["limits"].write_text(result.profile.to_toml())
-    files["report"] = out_dir / "report.json"
-    files["report"].write_text(json.dumps(report_dict(result, score, demo, model), indent=1, allow_nan=False))
-    files["report_text"] = out_dir / "report.txt"
-    files["report_text"].write_text(report_text(result, score, demo) + "\n")
-    return files
+def replay_passed(score: ClosedLoopScore) -> bool:
+    """Whether the commanded trajectory is safe to execute: no commanded sample in collision and every
+    velocity, acceleration and jerk within the limit profile at every control sample."""
+    return score.collisions == 0 and score.max_limit_ratio <= 1.0 + LIMIT_TOLERANCE
 
 
-def write_replay_preview(
-    path: Path, demo: Demo, result: ClosedLoopResult, score: ClosedLoopScore, robot: Robot
-) -> Path:
-    """Write the time-scrubbing ``preview.html`` of a replay."""
+def stage_replay(
+    out: atomic.OutputSet,
+    demo: Demo,
+    result: ClosedLoopResult,
+    score: ClosedLoopScore,
+    report: dict,
+    *,
+    allow_failing_checks: bool = False,
+) -> None:
+    """Stage the trajectory files (when :func:`replay_passed`, or marked with
+    ``allow_failing_checks``), ``replans.json``, ``limits.toml`` and the reports in ``out``."""
+    if replay_passed(score) or allow_failing_checks:
+        comment, extra = None, None
+        if not replay_passed(score):
+            failures = [
+                name
+                for name, bad in (
+                    ("collisions", score.collisions > 0),
+                    ("limits", score.max_limit_ratio > 1.0 + LIMIT_TOLERANCE),
+                )
+                if bad
+            ]
+            comment = (
+                f"ipromp_pin: checks FAILED ({', '.join(failures)}); "
+                "written because of --allow-failing-checks"
+            )
+            extra = {"ipromp_pin_checks": {"passed": False, "failures": failures}}
+        out.write_text("trajectory.csv", trajectory_csv_text(result.trajectory, comment))
+        out.write_text("trajectory.json", trajectory_json_text(result.trajectory, extra=extra))
+    out.write_text("replans.json", json.dumps(_round(replans_json(result, demo)), indent=1, allow_nan=False))
+    out.write_text("limits.toml", result.profile.to_toml())
+    out.write_text("report.json", json.dumps(report, indent=1, allow_nan=False))
+    out.write_text("report.txt", report_text(result, score, demo, report.get("warnings", [])) + "\n")
+
+
+def replay_preview_html(
+    demo: Demo, result: ClosedLoopResult, score: ClosedLoopScore, robot: Robot, visual_model: object
+) -> str:
+    """The time-scrubbing ``preview.html`` of a replay (one self-contained page)."""
     traj = result.trajectory
     tasks = list(result.replans[0].posterior) if result.replans else []
     committed = [r for r in result.replans if r.committed]
@@ -334,7 +412,7 @@ def write_replay_preview(
     final = committed[-1] if committed else None
     content = PreviewContent(
         model=robot.model,
-        visual_model=load_visual_model(robot),
+        visual_model=visual_model,
         collision_model=robot.collision_model,
         t_s=traj.t_s,
         q=traj.q,
@@ -369,7 +447,7 @@ def write_replay_preview(
         f"(delay {score.arrival_delay_s:+.2f} s); {result.profile.name} limits",
         "Blue: commanded gripper path; cyan: the latest plan; purple: recorded robot; green: hand observed.",
     ]
-    return write_timeline_html(content, events, path, motion_s=score.handover_time_s, summary=summary)
+    return render_timeline_html(content, events, motion_s=score.handover_time_s, summary=summary)
 
 
 def replay_error(exc: IPrompPinError) -> str:

@@ -129,6 +129,11 @@ def _add_pipeline_overrides(p: argparse.ArgumentParser, ratio: bool = True) -> N
         )
     p.add_argument("--model", type=Path, help="use this saved model instead of training")
     p.add_argument("--save-model", type=Path, help="save the trained model here")
+    p.add_argument(
+        "--retrain",
+        action="store_true",
+        help="train even if an earlier run trained a model on the same demos and settings",
+    )
     p.add_argument("--robot", help="robot settings file or shipped name (default: the pipeline's)")
     p.add_argument("--rate", type=float, help="output control rate in [Hz], in [1, 1000] (default 100)")
 
@@ -148,6 +153,7 @@ def _pipeline_config(args: argparse.Namespace):
         ratio=getattr(args, "ratio", None),
         load_model=args.model,
         save_model=args.save_model,
+        model_cache=False if getattr(args, "retrain", False) else None,
         robot=args.robot,
         control_rate_hz=args.rate,
         preview_html=False if getattr(args, "no_preview", False) else None,

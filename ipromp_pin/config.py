@@ -23,7 +23,7 @@ from .shipped import PIPELINES_DIR
 
 _SCHEMA: dict[str, dict[str, type | tuple[type, ...]]] = {
     "data": {"dataset": str, "format": str, "rate_hz": (int, float), "frames": list, "synthetic_seed": int},
-    "model": {"observe": list, "load": str, "save": str},
+    "model": {"observe": list, "load": str, "save": str, "cache": bool},
     "observation": {"task": str, "demo": int, "ratio": (int, float)},
     "robot": {"settings": str},
     "timing": {"control_rate_hz": (int, float)},
@@ -60,6 +60,8 @@ class PipelineConfig:
         observe: Observed human channel groups.
         load_model: A saved model file to use instead of training.
         save_model: Where to save the trained model.
+        model_cache: Reuse the model an earlier run trained on the same demos with the same settings
+            (kept in the user's cache folder, see :mod:`ipromp_pin.model_cache`).
         task: Task of the observed demo (``None``: the first task).
         demo: Index of the observed demo within its task (negative counts from the end).
         ratio: Observed fraction of the human's motion, in (0, 1].
@@ -82,6 +84,7 @@ class PipelineConfig:
     observe: list[str] = field(default_factory=lambda: ["orientation", "emg"])
     load_model: Path | None = None
     save_model: Path | None = None
+    model_cache: bool = True
     task: str | None = None
     demo: int = -1
     ratio: float = 0.2
@@ -207,6 +210,7 @@ def load_pipeline(path: str | Path, **overrides) -> PipelineConfig:
         observe=[str(g) for g in get("model", "observe", ["orientation", "emg"])],
         load_model=rel(get("model", "load", "")),
         save_model=rel(get("model", "save", "")),
+        model_cache=bool(get("model", "cache", True)),
         task=get("observation", "task", "") or None,
         demo=int(get("observation", "demo", -1)),
         ratio=float(get("observation", "ratio", 0.2)),

@@ -22,6 +22,7 @@ from .config import PipelineConfig
 from .data import ROBOT, Dataset, Demo, group_unit, skeleton_frames
 from .exceptions import PipelineError
 from .export import trajectory_csv_text, trajectory_json_text
+from .model_cache import fit_cached
 from .model_warnings import loaded_model_warnings, single_task_warning, warn_stderr
 from .planning import LogFn, PlanResult, check_model_joints, plan
 from .preview import DEFAULT_MAX_TRIANGLES, LivePreview, PreviewContent, render_html, write_html
@@ -136,11 +137,15 @@ def get_model(
     train = [d for d in ds.all_demos() if d is not held_out]
     t0 = time.perf_counter()
     fk = None if robot is None else partial(ee_positions, robot)
-    model = IProMP(observe=cfg.observe).fit(train, fk=fk)
-    log(
-        f"[model] trained on {len(train)} demos ({', '.join(cfg.observe)} + robot), "
-        f"{time.perf_counter() - t0:.2f} s"
-    )
+    what = f"{len(train)} demos ({', '.join(cfg.observe)} + robot)"
+    if cfg.model_cache:
+        model, cached = fit_cached(IProMP(observe=cfg.observe), train, fk)
+    else:
+        model, cached = IProMP(observe=cfg.observe).fit(train, fk=fk), None
+    if cached is not None:
+        log(f"[model] reused the model an earlier run trained on {what}: {cached} (--retrain: train again)")
+    else:
+        log(f"[model] trained on {what}, {time.perf_counter() - t0:.2f} s")
     if cfg.save_model is not None:
         model.save(cfg.save_model)  # atomic: an earlier file is replaced only by a complete one
         log(f"[model] saved {cfg.save_model}")

@@ -46,7 +46,7 @@ from .retarget import (
 )
 from .robot import Robot, check_joint_limits, check_workspace, ee_positions
 from .robot.clearance import ClearanceCertifier
-from .timing import Trajectory
+from .trajectory import Trajectory
 
 LIMIT_TOLERANCE = 1e-6
 """Relative tolerance of the velocity, acceleration and jerk checks of a re-plan."""

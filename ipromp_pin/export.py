@@ -43,7 +43,7 @@ import numpy as np
 
 from . import atomic
 from .exceptions import DataError
-from .timing import Trajectory
+from .trajectory import Trajectory
 
 
 def _check(traj: Trajectory) -> None:

@@ -2,7 +2,7 @@
 from the training demonstrations.
 
 * ``conservative``: the URDF's velocity limits and the settings file's acceleration and jerk limits
-  (:meth:`~ipromp_pin.timing.JointLimits.from_robot`; for Baxter 1.0 rad/s^2 and 10 rad/s^3 on every
+  (:meth:`~ipromp_pin.trajectory.JointLimits.from_robot`; for Baxter 1.0 rad/s^2 and 10 rad/s^3 on every
   joint, sources in ``robots/baxter_left.toml``).
 * ``demonstrated``: per joint, a high percentile of the training demonstrations' own peak |velocity|,
   |acceleration| and |jerk| (Savitzky-Golay derivatives of the recorded joint angles over a window of
@@ -31,7 +31,7 @@ from scipy.signal import savgol_filter
 from .data import ROBOT, Demo
 from .exceptions import PipelineError
 from .robot import DemoLimitRecipe, Robot
-from .timing import JointLimits
+from .trajectory import JointLimits
 
 PROFILE_NAMES = ("conservative", "demonstrated")
 """Built-in limit profiles (anything else is read as a profile file)."""

@@ -18,7 +18,8 @@ from .data import Demo
 from .exceptions import InfeasibleError, ModelError
 from .promp import IProMP, Prediction
 from .robot import FeasibilityReport, Robot, check_path
-from .timing import JointLimits, TimingReport, Trajectory, path_times, time_path
+from .timing import TimingReport, path_times, time_path
+from .trajectory import JointLimits, Trajectory
 
 LogFn = Callable[[str], None]
 """Where progress messages go (one line each)."""

@@ -31,7 +31,7 @@ import numpy as np
 from ruckig import InputParameter, Result, Ruckig, RuckigError, Trajectory
 
 from .exceptions import InfeasibleError
-from .timing import JointLimits
+from .trajectory import JointLimits
 
 HEADROOM = 0.95
 """Fraction of the velocity, acceleration and jerk limits the followed reference may use; the rest

@@ -44,7 +44,7 @@ import numpy as np
 
 from .data import Demo
 from .exceptions import DataError
-from .timing import Trajectory
+from .trajectory import Trajectory
 
 TOPIC_PREFIX = "/ipromp_pin"
 TOPIC_TRAJECTORY = f"{TOPIC_PREFIX}/planned_trajectory"

@@ -35,9 +35,9 @@ _STREAMING = ("stream_sample", "sherman_morrison", "stream_group", "add_sample")
 def __getattr__(name: str):
     """The compiled streaming kernels (no numpy version of them)."""
     if name in _STREAMING:
-        from .compiled import numba_kernels  # deferred: only streaming needs the compiled module here
+        from . import _kernels  # deferred: numba is heavy and only streaming needs it here
 
-        return getattr(numba_kernels(), name)
+        return getattr(_kernels, name)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 

@@ -70,6 +70,27 @@ def _progress() -> _ProgressLine:
     return _ProgressLine()
 
 
+def _read_dataset(args: argparse.Namespace, frames, robot, timed: bool = False):
+    """The dataset ``args.dataset`` (``args.format``), its arm joints and limits those of ``robot``,
+    with a progress line (and, when ``timed``, a line saying what was read in how long)."""
+    from .readers import load_dataset
+
+    t0 = time.perf_counter()
+    ds = load_dataset(
+        args.dataset,
+        format=args.format,
+        frames=frames,
+        robot_joints=robot.settings.recorded_arm_joints,
+        joint_limits=robot.recorded_joint_limits(),
+        progress=_progress(),
+    )
+    if timed:
+        print(
+            f"read {len(ds.all_demos())} demos of {', '.join(ds.tasks)} in {time.perf_counter() - t0:.1f} s"
+        )
+    return ds
+
+
 def _port(text: str) -> int:
     try:
         port = int(text)
@@ -260,7 +281,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         to_markdown,
         write_results,
     )
-    from .readers import count_demos, load_dataset
+    from .readers import count_demos
     from .robot import load_robot
 
     if args.closed_loop:
@@ -299,15 +320,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         check_dataset_size(counts, cfg, args.dataset)
     robot = load_robot(args.robot)
     t0 = time.perf_counter()
-    ds = load_dataset(
-        args.dataset,
-        format=args.format,
-        frames=frames,
-        robot_joints=robot.settings.recorded_arm_joints,
-        joint_limits=robot.recorded_joint_limits(),
-        progress=_progress(),
-    )
-    print(f"read {len(ds.all_demos())} demos of {', '.join(ds.tasks)} in {time.perf_counter() - t0:.1f} s")
+    ds = _read_dataset(args, frames, robot, timed=True)
     _compile_kernels_once()
     cells = []
     for cfg in configs:
@@ -363,7 +376,7 @@ def _evaluate_closed_loop(args: argparse.Namespace) -> int:
         write_closed_loop_results,
     )
     from .evaluate import PAPER_GRID, EvaluationConfig, check_dataset_size
-    from .readers import count_demos, load_dataset
+    from .readers import count_demos
     from .replay import check_limits_choice
     from .robot import load_robot
 
@@ -388,15 +401,7 @@ def _evaluate_closed_loop(args: argparse.Namespace) -> int:
         )
     frames = skeleton_frames(g for o in observe for g in o) or None
     t0 = time.perf_counter()
-    ds = load_dataset(
-        args.dataset,
-        format=args.format,
-        frames=frames,
-        robot_joints=robot.settings.recorded_arm_joints,
-        joint_limits=robot.recorded_joint_limits(),
-        progress=_progress(),
-    )
-    print(f"read {len(ds.all_demos())} demos of {', '.join(ds.tasks)} in {time.perf_counter() - t0:.1f} s")
+    ds = _read_dataset(args, frames, robot, timed=True)
     _compile_kernels_once()
     options = ClosedLoopOptions(limits=args.limits, settings=settings)
     cells = []
@@ -435,7 +440,6 @@ def cmd_train(args: argparse.Namespace) -> int:
     from . import atomic
     from .model_warnings import single_task_warning, warn_stderr
     from .promp import IProMP
-    from .readers import load_dataset
     from .robot import ee_positions, load_robot
 
     atomic.check_output_file(args.out, "model file")
@@ -444,14 +448,7 @@ def cmd_train(args: argparse.Namespace) -> int:
     IProMP(observe=observe, coupling=coupling).check_params()  # before reading the data
     frames = skeleton_frames(observe) or None
     robot = load_robot(args.robot)
-    ds = load_dataset(
-        args.dataset,
-        format=args.format,
-        frames=frames,
-        robot_joints=robot.settings.recorded_arm_joints,
-        joint_limits=robot.recorded_joint_limits(),
-        progress=_progress(),
-    )
+    ds = _read_dataset(args, frames, robot)
     t0 = time.perf_counter()
     fk = partial(ee_positions, robot)  # settings chosen for the hand-over position of this robot
     model = IProMP(observe=observe, coupling=coupling).fit(ds.all_demos(), fk=fk)

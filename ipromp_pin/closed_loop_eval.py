@@ -20,9 +20,7 @@ Each cell gains, over all its test trials (recognised or not): ``closed_loop_han
 from __future__ import annotations
 
 import json
-import multiprocessing as mp
 from collections.abc import Callable, Sequence
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -37,6 +35,7 @@ from .evaluate import (
     Cell,
     EvaluationConfig,
     observe_key,
+    run_jobs,
     score_trial,
     split_paper,
     split_random,
@@ -44,6 +43,7 @@ from .evaluate import (
     to_json,
     to_markdown,
 )
+from .evaluate import format_number as _fmt
 from .exceptions import DataError
 from .limits import LimitProfile, conservative_profile, demonstrated_profile, read_limit_profile
 from .promp import IProMP
@@ -172,16 +172,6 @@ def _run_job(job: _Job) -> tuple[_Job, dict[float, list[dict]], str, str]:
     return job, out, "+".join(model.coupled_groups_), profile.name
 
 
-def _map(work: list[_Job], jobs: int):
-    if jobs <= 1 or len(work) <= 1:
-        yield from map(_run_job, work)
-        return
-    with ProcessPoolExecutor(max_workers=jobs, mp_context=mp.get_context("fork")) as pool:
-        futures = [pool.submit(_run_job, job) for job in work]
-        for f in as_completed(futures):
-            yield f.result()
-
-
 def _refs(dataset: Dataset, demos: list[Demo]) -> list[tuple[str, int]]:
     index = {id(d): (t, i) for t, ds in dataset.demos.items() for i, d in enumerate(ds)}
     return [index[id(d)] for d in demos]
@@ -233,7 +223,7 @@ def evaluate_closed_loop(
     couplings: dict[tuple[int, str], dict[str, int]] = {}
     profile_name = options.limits
     try:
-        for done, (job, trials, coupled, name) in enumerate(_map(work, jobs), start=1):
+        for done, (job, trials, coupled, name) in enumerate(run_jobs(_run_job, work, jobs), start=1):
             profile_name = name
             key = observe_key(job.observe)
             counts = couplings.setdefault((job.n_train, key), {})
@@ -333,10 +323,6 @@ _TRIAL_KEYS = (
 def _compact(row: dict) -> dict:
     out = {k: row[k] for k in _TRIAL_KEYS if k in row}
     return {k: round(v, 4) if isinstance(v, float) else v for k, v in out.items()}
-
-
-def _fmt(x: float | None, digits: int = 2) -> str:
-    return "-" if x is None or not np.isfinite(x) else f"{x:.{digits}f}"
 
 
 def closed_loop_markdown(cells: Sequence[ClosedLoopCell]) -> str:

@@ -26,10 +26,11 @@ from __future__ import annotations
 
 import json
 import multiprocessing as mp
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
+from typing import TypeVar
 
 import numpy as np
 
@@ -39,6 +40,9 @@ from .data import ROBOT, Dataset, Demo
 from .exceptions import DataError
 from .promp import IProMP
 from .robot import ee_positions, load_robot
+
+J = TypeVar("J")
+R = TypeVar("R")
 
 PAPER_GRID: tuple[tuple[int, float], ...] = ((20, 0.1), (15, 0.1), (10, 0.1), (10, 0.2))
 """(n_train, obs_ratio) cells of the paper's table."""
@@ -409,7 +413,7 @@ def evaluate(
     # (n_train, observe_key) -> coupled groups of the fitted models -> number of fits
     couplings: dict[tuple[int, str], dict[str, int]] = {}
     try:
-        for done, (job, trials, coupled) in enumerate(_map(work, jobs), start=1):
+        for done, (job, trials, coupled) in enumerate(run_jobs(_run_job, work, jobs), start=1):
             key = observe_key(job.observe)
             counts = couplings.setdefault((job.n_train, key), {})
             counts[coupled] = counts.get(coupled, 0) + 1
@@ -426,13 +430,14 @@ def evaluate(
     return _cells(dataset, config, results, couplings)
 
 
-def _map(work: list[_Job], jobs: int):
-    """Run the jobs, in ``jobs`` forked worker processes when > 1 (results in completion order)."""
+def run_jobs(run: Callable[[J], R], work: list[J], jobs: int) -> Iterator[R]:
+    """``run`` over the jobs, in ``jobs`` forked worker processes when > 1 (results in completion
+    order; the workers inherit the parent's module state, e.g. a dataset set before the call)."""
     if jobs <= 1 or len(work) <= 1:
-        yield from map(_run_job, work)
+        yield from map(run, work)
         return
     with ProcessPoolExecutor(max_workers=jobs, mp_context=mp.get_context("fork")) as pool:
-        futures = [pool.submit(_run_job, job) for job in work]
+        futures = [pool.submit(run, job) for job in work]
         for f in as_completed(futures):
             yield f.result()
 
@@ -537,8 +542,12 @@ def overall(cells: Sequence[Cell]) -> dict[str, dict[str, float]]:
     return result
 
 
-def _fmt(x: float | None, digits: int = 2) -> str:
+def format_number(x: float | None, digits: int = 2) -> str:
+    """``x`` with ``digits`` decimals for a table, ``-`` when it is missing or not finite."""
     return "-" if x is None or not np.isfinite(x) else f"{x:.{digits}f}"
+
+
+_fmt = format_number
 
 
 def to_markdown(cells: Sequence[Cell]) -> str:

@@ -1,9 +1,10 @@
-"""Command line: ``ipromp-pin run | evaluate | train | preview | calibrate | synth``.
+"""Command line: ``ipromp-pin run | replay | evaluate | train | preview | calibrate | synth``.
 
 Stable interface (people script against it)::
 
     ipromp-pin run PIPELINE [--out DIR] [--dataset PATH] [--task T] [--demo I] [--ratio R] ...
-    ipromp-pin evaluate DATASET --protocol paper|splits --observe GROUPS --json FILE
+    ipromp-pin replay PIPELINE [--dataset D --task T --demo I] --out DIR [--start-ratio R] [--limits L]
+    ipromp-pin evaluate DATASET --protocol paper|splits --observe GROUPS --json FILE [--closed-loop]
 
 Errors of the user's input exit with status 2 and a one-line message naming
 the file, field and problem; no traceback. ``run`` exits with status 3 when the
@@ -21,7 +22,9 @@ import math
 import os
 import sys
 import time
+from functools import partial
 from pathlib import Path
+from typing import NoReturn
 
 from .data import parse_groups, skeleton_frames
 from .exceptions import IPrompPinError
@@ -102,7 +105,7 @@ def default_jobs() -> int:
     return max(1, cores - 1)
 
 
-def _add_pipeline_overrides(p: argparse.ArgumentParser) -> None:
+def _add_pipeline_overrides(p: argparse.ArgumentParser, ratio: bool = True) -> None:
     p.add_argument(
         "pipeline",
         type=Path,
@@ -118,11 +121,12 @@ def _add_pipeline_overrides(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--demo", type=int, help="index of the demo in its task, held out of training (default -1)"
     )
-    p.add_argument(
-        "--ratio",
-        type=_bounded(float, 0.0, 1.0, open_low=True),
-        help="observed fraction of the motion, in (0, 1] (default 0.2)",
-    )
+    if ratio:
+        p.add_argument(
+            "--ratio",
+            type=_bounded(float, 0.0, 1.0, open_low=True),
+            help="observed fraction of the motion, in (0, 1] (default 0.2)",
+        )
     p.add_argument("--model", type=Path, help="use this saved model instead of training")
     p.add_argument("--save-model", type=Path, help="save the trained model here")
     p.add_argument("--robot", help="robot settings file or shipped name (default: the pipeline's)")
@@ -141,7 +145,7 @@ def _pipeline_config(args: argparse.Namespace):
         observe=parse_groups(args.observe) if args.observe else None,
         task=args.task,
         demo=args.demo,
-        ratio=args.ratio,
+        ratio=getattr(args, "ratio", None),
         load_model=args.model,
         save_model=args.save_model,
         robot=args.robot,
@@ -169,6 +173,76 @@ def cmd_run(args: argparse.Namespace) -> int:
     return EXIT_CHECKS_FAILED
 
 
+def _closed_loop_settings(args: argparse.Namespace, control_rate_hz: float, start_ratio: float):
+    """The closed-loop settings of the command line (validated: one-line errors naming the option)."""
+    from .closed_loop import ClosedLoopSettings
+
+    defaults = ClosedLoopSettings()
+    noise = defaults.condition_noise
+    if args.condition_noise is not None:
+        try:
+            noise = None if args.condition_noise == "model" else float(args.condition_noise)
+        except ValueError:
+            noise = args.condition_noise  # validate() names the field
+    return ClosedLoopSettings(
+        start_ratio=start_ratio,
+        replan_rate_hz=defaults.replan_rate_hz if args.replan_rate is None else args.replan_rate,
+        control_rate_hz=control_rate_hz,
+        blend_s=defaults.blend_s if args.blend is None else args.blend,
+        freeze_phase=defaults.freeze_phase if args.freeze_phase is None else args.freeze_phase,
+        condition_noise=noise,
+    ).validate("command line")
+
+
+def _add_closed_loop_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--limits",
+        default="demonstrated",
+        help="limit profile: demonstrated (from the training demos, default), conservative (robot settings) "
+        "or a profile file (TOML, e.g. a replay's limits.toml)",
+    )
+    p.add_argument(
+        "--condition-noise",
+        default=None,
+        help="noise ratio with which the closed loop conditions the robot trajectory: a positive number, "
+        "or model for the model's own (default 0.3, chosen by cross-validation of the closed loop)",
+    )
+    p.add_argument("--replan-rate", type=float, help="re-plan rate in [Hz] (default 20)")
+    p.add_argument("--blend", type=float, help="blend horizon in [s] of a re-plan (default 0.2)")
+    p.add_argument(
+        "--freeze-phase",
+        type=float,
+        help="stop re-planning once this fraction of the predicted motion is observed, in (0, 1] "
+        "(default 0.9)",
+    )
+
+
+def cmd_replay(args: argparse.Namespace) -> int:
+    from .closed_loop import ClosedLoopSettings
+    from .replay import run_replay
+
+    cfg = _pipeline_config(args)
+    start = ClosedLoopSettings().start_ratio if args.start_ratio is None else args.start_ratio
+    settings = _closed_loop_settings(args, cfg.control_rate_hz, start)
+    outcome = run_replay(
+        cfg,
+        settings,
+        limits=args.limits,
+        preview=not args.no_preview,
+        log=print,
+        allow_failing_checks=args.allow_failing_checks,
+    )
+    if outcome.passed:
+        return 0
+    written = "written marked as failing" if "trajectory_csv" in outcome.files else "not written"
+    _error(
+        "replay",
+        f"the commanded motion failed its checks ({outcome.score.collisions} samples in collision, "
+        f"max limit ratio {outcome.score.max_limit_ratio:.3f}); trajectory {written}",
+    )
+    return EXIT_CHECKS_FAILED
+
+
 def cmd_evaluate(args: argparse.Namespace) -> int:
     from . import atomic
     from .evaluate import (
@@ -183,6 +257,8 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     from .readers import count_demos, load_dataset
     from .robot import load_robot
 
+    if args.closed_loop:
+        return _evaluate_closed_loop(args)
     observe = [parse_groups(o) for o in (args.observe or ["orientation", "orientation,emg"])]
     if args.baselines:
         from .baselines import require_sklearn
@@ -272,12 +348,89 @@ def _compile_kernels_once() -> None:
             pass
 
 
+def _evaluate_closed_loop(args: argparse.Namespace) -> int:
+    from . import atomic
+    from .closed_loop_eval import (
+        ClosedLoopOptions,
+        closed_loop_markdown,
+        evaluate_closed_loop,
+        write_closed_loop_results,
+    )
+    from .evaluate import PAPER_GRID, EvaluationConfig, check_dataset_size
+    from .readers import count_demos, load_dataset
+    from .replay import check_limits_choice
+    from .robot import load_robot
+
+    observe = [parse_groups(o) for o in (args.observe or ["orientation", "orientation,emg"])]
+    grid = list(PAPER_GRID) if args.grid == "paper" else [(n, r) for n in args.n_train for r in args.ratios]
+    for _, ratio in grid:  # every cell's obs_ratio is a start ratio: checked before any computation
+        _closed_loop_settings(args, 100.0, ratio)
+    settings = _closed_loop_settings(args, 100.0, grid[0][1])
+    robot = load_robot(args.robot)
+    check_limits_choice(args.limits, robot, "command line")
+    md = args.md or (args.json.with_suffix(".md") if args.json else None)
+    for path in (args.json, md):
+        if path is not None:
+            atomic.check_output_file(path)
+    protocols = ["paper", "splits"] if args.protocol == "both" else [args.protocol]
+    counts = count_demos(args.dataset, format=args.format)  # lists the demo files, reads none
+    for protocol in protocols:
+        check_dataset_size(
+            counts,
+            EvaluationConfig(protocol=protocol, observe=observe, grid=grid, n_test=args.n_test),
+            args.dataset,
+        )
+    frames = skeleton_frames(g for o in observe for g in o) or None
+    t0 = time.perf_counter()
+    ds = load_dataset(
+        args.dataset,
+        format=args.format,
+        frames=frames,
+        robot_joints=robot.settings.recorded_arm_joints,
+        joint_limits=robot.recorded_joint_limits(),
+        progress=_progress(),
+    )
+    print(f"read {len(ds.all_demos())} demos of {', '.join(ds.tasks)} in {time.perf_counter() - t0:.1f} s")
+    _compile_kernels_once()
+    options = ClosedLoopOptions(limits=args.limits, settings=settings)
+    cells = []
+    for protocol in protocols:
+        cfg = EvaluationConfig(
+            protocol=protocol,
+            observe=observe,
+            grid=grid,
+            n_test=args.n_test,
+            n_splits=args.splits,
+            seed=args.seed,
+        )
+        t1 = time.perf_counter()
+        cells += evaluate_closed_loop(
+            ds, cfg, options, robot=args.robot, progress=_progress(), jobs=args.jobs
+        )
+        print(f"protocol {protocol} (closed loop): {time.perf_counter() - t1:.1f} s")
+    print(closed_loop_markdown(cells))
+    meta = {
+        "dataset": str(args.dataset),
+        "command": " ".join(["ipromp-pin", *sys.argv[1:]]),
+        "seconds": round(time.perf_counter() - t0, 2),
+        "closed_loop": {
+            "limits": args.limits,
+            **settings.to_dict(),
+            "start_ratio": "obs_ratio of each cell",
+        },
+    }
+    write_closed_loop_results(cells, args.json, md, meta)
+    if args.json:
+        print(f"wrote {args.json}" + (f" and {md}" if md else ""))
+    return 0
+
+
 def cmd_train(args: argparse.Namespace) -> int:
     from . import atomic
     from .model_warnings import single_task_warning, warn_stderr
     from .promp import IProMP
     from .readers import load_dataset
-    from .robot import load_robot
+    from .robot import ee_positions, load_robot
 
     atomic.check_output_file(args.out, "model file")
     observe = parse_groups(args.observe)
@@ -294,7 +447,8 @@ def cmd_train(args: argparse.Namespace) -> int:
         progress=_progress(),
     )
     t0 = time.perf_counter()
-    model = IProMP(observe=observe, coupling=coupling).fit(ds.all_demos())
+    fk = partial(ee_positions, robot)  # settings chosen for the hand-over position of this robot
+    model = IProMP(observe=observe, coupling=coupling).fit(ds.all_demos(), fk=fk)
     single = single_task_warning(model)
     if single is not None:
         warn_stderr(single)
@@ -347,9 +501,16 @@ def cmd_preview(args: argparse.Namespace) -> int:
     return 0
 
 
+class _Parser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line (exit status 2), like every other input error."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``ipromp-pin``."""
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="ipromp-pin",
         description="EMG-augmented Interaction ProMPs: recognise a hand-over task, plan Baxter's part.",
     )
@@ -377,6 +538,27 @@ def build_parser() -> argparse.ArgumentParser:
         help="write the trajectory files even when the checks fail, marked as failing (exit status 3 still)",
     )
     p.set_defaults(func=cmd_run)
+
+    p = sub.add_parser(
+        "replay",
+        help="replay a held-out demo in the closed loop: the robot starts early and re-plans as the "
+        "human moves",
+    )
+    _add_pipeline_overrides(p, ratio=False)
+    p.add_argument(
+        "--start-ratio",
+        type=float,  # checked with the other closed-loop settings (one line naming start_ratio)
+        help="fraction of the human's motion observed before the robot starts, in (0, 1) (default 0.2)",
+    )
+    _add_closed_loop_options(p)
+    p.add_argument("--no-preview", action="store_true", help="do not write preview.html")
+    p.add_argument(
+        "--allow-failing-checks",
+        action="store_true",
+        help="write the commanded trajectory even when it collides or exceeds the limits, marked as "
+        "failing (exit status 3 still)",
+    )
+    p.set_defaults(func=cmd_replay)
 
     p = sub.add_parser("evaluate", help="recognition accuracy and prediction error on a dataset")
     p.add_argument("dataset", type=Path, help="dataset folder (one sub-folder per task)")
@@ -438,6 +620,13 @@ def build_parser() -> argparse.ArgumentParser:
         help="also run logistic regression, LDA, ridge and kNN on window features of the same windows "
         "(needs scikit-learn)",
     )
+    p.add_argument(
+        "--closed-loop",
+        action="store_true",
+        help="replay every test demo in the closed loop (start ratio = the cell's obs ratio) and add "
+        "its hand-over error, arrival delay, limit ratio, refused re-plans and collisions to each cell",
+    )
+    _add_closed_loop_options(p)
     p.set_defaults(func=cmd_evaluate)
 
     p = sub.add_parser("train", help="train a model on a dataset and save it")

@@ -12,6 +12,7 @@ from __future__ import annotations
 import json
 import time
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -118,8 +119,11 @@ def choose_demo(ds: Dataset, cfg: PipelineConfig) -> Demo:
     return demos[cfg.demo]
 
 
-def get_model(cfg: PipelineConfig, ds: Dataset, held_out: Demo, log: LogFn = print) -> IProMP:
-    """Load the saved model, or train one on every demo but ``held_out``."""
+def get_model(
+    cfg: PipelineConfig, ds: Dataset, held_out: Demo, log: LogFn = print, robot: Robot | None = None
+) -> IProMP:
+    """Load the saved model, or train one on every demo but ``held_out`` (with the ``robot``'s forward
+    kinematics when given, so that its settings are chosen for the hand-over position error)."""
     if cfg.load_model is not None:
         log(f"[model] loading {cfg.load_model}")
         model = IProMP.load(cfg.load_model)
@@ -131,7 +135,8 @@ def get_model(cfg: PipelineConfig, ds: Dataset, held_out: Demo, log: LogFn = pri
         return model
     train = [d for d in ds.all_demos() if d is not held_out]
     t0 = time.perf_counter()
-    model = IProMP(observe=cfg.observe).fit(train)
+    fk = None if robot is None else partial(ee_positions, robot)
+    model = IProMP(observe=cfg.observe).fit(train, fk=fk)
     log(
         f"[model] trained on {len(train)} demos ({', '.join(cfg.observe)} + robot), "
         f"{time.perf_counter() - t0:.2f} s"
@@ -170,7 +175,7 @@ def prepare(cfg: PipelineConfig, log: LogFn = print, warn: LogFn = warn_stderr) 
     robot = load_robot(cfg.robot)
     ds = load_data(cfg, log, robot)
     demo = choose_demo(ds, cfg)
-    model = get_model(cfg, ds, demo, log)
+    model = get_model(cfg, ds, demo, log, robot)
     check_model_joints(model, robot)
     warnings = model_warnings(cfg, ds, demo, model)
     for w in warnings:

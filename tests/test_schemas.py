@@ -96,3 +96,37 @@ def test_docs_list_every_field_of_the_report_schema():
     traj = schema["properties"]["trajectory"]["properties"]
     feas = schema["properties"]["feasibility"]["properties"]
     assert set(traj) <= documented and set(feas) <= documented
+
+
+@pytest.fixture(scope="module")
+def written_replay(tmp_path_factory) -> tuple[dict, dict]:
+    out = tmp_path_factory.mktemp("replay")
+    assert main(["replay", str(PIPELINE), "--out", str(out), "--no-preview"]) == 0
+    return json.loads((out / "report.json").read_text()), json.loads((out / "replans.json").read_text())
+
+
+def test_written_replay_files_validate(written_replay):
+    report, replans = written_replay
+    _validate(report, "replay_report")
+    _validate(replans, "replans")
+    assert replans["replans"] and report["replans"] == len(replans["replans"])
+    bad = copy.deepcopy(replans)
+    bad["replans"][0]["committed"] = "yes"
+    with pytest.raises(jsonschema.ValidationError):
+        _validate(bad, "replans")
+    bad = copy.deepcopy(report)
+    bad["surprise"] = 1
+    with pytest.raises(jsonschema.ValidationError):
+        _validate(bad, "replay_report")
+
+
+def test_docs_list_every_field_of_the_replay_schemas():
+    text = (ROOT / "docs" / "closed_loop.md").read_text()
+    section = text[text.index("\n## Files\n") :]
+    named = set(re.findall(r"`([A-Za-z_0-9]+)`", section))
+    for name in ("replans", "replay_report"):
+        schema = load_schema(name)
+        fields = set(schema["properties"])
+        if name == "replans":
+            fields |= set(schema["properties"]["replans"]["items"]["properties"])
+        assert fields <= named, (name, fields - named)

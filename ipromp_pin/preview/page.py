@@ -25,7 +25,7 @@ from .meshes import DEFAULT_MAX_TRIANGLES
 from .recorder import SceneRecorder
 from .scene import RobotView, build_scene
 
-__all__ = ["live_page", "render_html", "write_html"]
+__all__ = ["live_page", "recorded_page", "render_html", "write_html"]
 
 _VIEWER_JS_PATH = Path(meshcat.__file__).resolve().parent / "viewer" / "dist" / "main.min.js"
 
@@ -67,9 +67,22 @@ def render_html(
         raise preview_error("fps", f"must be > 0, got {fps}")
     window = SceneRecorder()
     build_scene(window, content, robot=RobotView(content, max_triangles), fps=fps)
+    return recorded_page(window, content.title)
+
+
+def recorded_page(window: SceneRecorder, title: str, extra_js: str = "", extra_html: str = "") -> str:
+    """Self-contained page that replays the scene recorded in ``window`` on load (no network).
+
+    Args:
+        window: The recorded scene.
+        title: Page title.
+        extra_js: Script run after the scene is loaded (e.g. another panel).
+        extra_html: HTML placed before the scripts (e.g. a JSON data block, a style sheet).
+    """
     encoded = [base64.b64encode(c).decode("ascii") for c in window.commands()]
     data = f'<script type="application/json" id="ipromp-scene">{json.dumps(encoded)}</script>\n'
-    return _page(content.title, _static("static_loader.js"), data)
+    body = _static("static_loader.js") + ("\n" + extra_js if extra_js else "")
+    return _page(title, body, data + extra_html)
 
 
 def write_html(

@@ -38,6 +38,7 @@ from .report import CheckResult, FeasibilityReport
 from .settings import (
     EE_FRAME,
     ROBOTS_DIR,
+    DemoLimitRecipe,
     RobotSettings,
     Workspace,
     find_robot_data_dir,
@@ -50,6 +51,7 @@ __all__ = [
     "ROBOTS_DIR",
     "CalibrationResult",
     "CheckResult",
+    "DemoLimitRecipe",
     "FeasibilityReport",
     "IKResult",
     "Robot",

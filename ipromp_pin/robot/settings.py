@@ -26,6 +26,7 @@ from ..shipped import ROBOTS_DIR
 
 __all__ = [
     "EE_FRAME",
+    "DemoLimitRecipe",
     "ROBOTS_DIR",
     "RobotSettings",
     "Workspace",
@@ -66,6 +67,21 @@ def settings_error(source: object, field_name: str | None, problem: str) -> Robo
     if field_name:
         where += f": field '{field_name}'"
     return RobotError(f"{where}: {problem}")
+
+
+@dataclass(frozen=True)
+class DemoLimitRecipe:
+    """How a limit profile is derived from demonstrations (``[limits.demonstrated]``; used by
+    :func:`ipromp_pin.limits.demonstrated_profile`).
+
+    Attributes:
+        percentile: Percentile, in (0, 100], of the per-demo peak |velocity|, |acceleration| and
+            |jerk| taken as the limit.
+        window_s: Savitzky-Golay differentiation window in [s] (polynomial order 4).
+    """
+
+    percentile: float = 90.0
+    window_s: float = 0.34
 
 
 @dataclass(frozen=True)
@@ -132,6 +148,7 @@ class RobotSettings:
         velocity_override_rad_s: Optional velocity limits (n_joints,) in [rad/s] that replace the URDF's.
         acceleration_rad_s2: Acceleration limits (n_joints,) in [rad/s^2].
         jerk_rad_s3: Jerk limits (n_joints,) in [rad/s^3].
+        demonstrated_limits: How the ``demonstrated`` limit profile is derived from training demos.
         fixed_joints: Non-arm model joint name -> held value in [rad] or [m].
         workspace: Hand-over workspace.
         min_clearance_m: Required minimum self-collision clearance in [m].
@@ -155,6 +172,7 @@ class RobotSettings:
     velocity_override_rad_s: np.ndarray | None
     acceleration_rad_s2: np.ndarray
     jerk_rad_s3: np.ndarray
+    demonstrated_limits: DemoLimitRecipe
     fixed_joints: dict[str, float]
     workspace: Workspace
     min_clearance_m: float
@@ -270,6 +288,27 @@ def _vector3(value: object, source: Path, name: str) -> np.ndarray:
     return arr
 
 
+def _demo_limit_recipe(limits: dict, path: Path) -> DemoLimitRecipe:
+    """The optional ``[limits.demonstrated]`` table (percentile in (0, 100], window_s > 0)."""
+    table = limits.get("demonstrated", {})
+    if not isinstance(table, dict):
+        raise settings_error(path, "limits.demonstrated", "must be a table")
+    known = {"percentile", "window_s"}
+    for key in table:
+        if key not in known:
+            raise settings_error(
+                path, f"limits.demonstrated.{key}", "unknown key (known: percentile, window_s)"
+            )
+    default = DemoLimitRecipe()
+    pct = _get(table, "percentile", path, "limits.demonstrated", float, default.percentile)
+    win = _get(table, "window_s", path, "limits.demonstrated", float, default.window_s)
+    if not (math.isfinite(pct) and 0 < pct <= 100):
+        raise settings_error(path, "limits.demonstrated.percentile", f"must be in (0, 100], got {pct}")
+    if not (math.isfinite(win) and win > 0):
+        raise settings_error(path, "limits.demonstrated.window_s", f"must be positive and finite, got {win}")
+    return DemoLimitRecipe(float(pct), float(win))
+
+
 def load_robot_settings(path_or_name: str | Path) -> RobotSettings:
     """Read and validate a robot settings file (file-level checks; model checks are in :func:`load_robot`).
 
@@ -360,6 +399,7 @@ def load_robot_settings(path_or_name: str | Path) -> RobotSettings:
     if "jerk_rad_s3" not in limits:
         raise settings_error(path, "limits.jerk_rad_s3", "missing (the URDF has no jerk limits)")
     jerk = _positive_vector(limits["jerk_rad_s3"], n, path, "limits.jerk_rad_s3")
+    demo_limits = _demo_limit_recipe(limits, path)
 
     fixed_raw = _table(doc, "fixed_joints", path, required=False)
     fixed: dict[str, float] = {}
@@ -429,6 +469,7 @@ def load_robot_settings(path_or_name: str | Path) -> RobotSettings:
         velocity_override_rad_s=vel,
         acceleration_rad_s2=acc,
         jerk_rad_s3=jerk,
+        demonstrated_limits=demo_limits,
         fixed_joints=fixed,
         workspace=workspace,
         min_clearance_m=float(clearance),

@@ -4,12 +4,13 @@
 file                          schema                        written by
 ============================  ============================  ==========================================
 ``report.json``               ``report.schema.json``        ``ipromp-pin run`` (:mod:`ipromp_pin.report`)
-``replans.json``              ``replans.schema.json``       the replay command (to be added with it)
+``replans.json``              ``replans.schema.json``       ``ipromp-pin replay`` (:mod:`ipromp_pin.replay`)
+replay ``report.json``        ``replay_report.schema.json`` ``ipromp-pin replay`` (:mod:`ipromp_pin.replay`)
 ============================  ============================  ==========================================
 
 The schemas are strict (``additionalProperties: false`` where the fields are documented), so a
 field added to a file without being added to its schema and to ``docs/formats.md`` fails the tests
-(``tests/test_schemas.py`` validates files written by the pipeline). Use them with any JSON Schema
+(``tests/test_schemas.py`` validates files written by ``run`` and ``replay``). Use them with any JSON Schema
 validator, e.g. ``jsonschema.validate(doc, load_schema("report"))``.
 """
 
@@ -23,7 +24,8 @@ SCHEMAS_DIR = Path(__file__).resolve().parent
 
 SCHEMA_FILES = {
     "report": "report.schema.json",
-    # "replans": "replans.schema.json",  # the replay command's replans.json: add its schema file here
+    "replans": "replans.schema.json",
+    "replay_report": "replay_report.schema.json",
 }
 """Schema name -> file in :data:`SCHEMAS_DIR`."""
 

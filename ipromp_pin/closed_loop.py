@@ -1,0 +1,479 @@
+"""Closed-loop hand-over: the robot starts moving early and re-plans, jerk-limited, as the human moves.
+
+:class:`ClosedLoopPlanner` receives the human's samples one by one (:meth:`~ClosedLoopPlanner.step`)
+and runs a simulated control loop at ``control_rate_hz`` (no waiting):
+
+* every sample goes into the model's streaming estimator (:meth:`~ipromp_pin.promp.IProMP.stream`);
+* from ``start_s`` on (the replay's start ratio of the human's motion), at ``replan_rate_hz`` the
+  task, phase and conditioned robot trajectory are re-estimated and the commanded motion is
+  re-targeted with ruckig from the commanded position, velocity and acceleration at the next
+  control tick (:mod:`ipromp_pin.retarget`): it follows the predicted robot trajectory on the
+  human's predicted timeline, slowed only where the limits demand;
+* the remaining motion of every re-plan is checked before it is committed: velocity,
+  acceleration and jerk at every control sample against the :class:`~ipromp_pin.limits.LimitProfile`,
+  joint limits with the settings' margin, the hand-over position inside the workspace, and
+  self-collision certified between samples (:class:`~ipromp_pin.robot.clearance.ClearanceCertifier`).
+  A re-plan that fails is not committed: the robot keeps the last safe plan and the
+  :class:`Replan` record says why. A change of recognised task is handled the same way.
+
+Before its first committed plan the robot rests at its start configuration. :meth:`finish` plays
+the last committed plan to its end and returns the commanded trajectory with every re-plan.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from collections.abc import Mapping
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+from .data import Demo
+from .exceptions import IPrompPinError, ObservationError, PipelineError
+from .limits import LimitProfile
+from .promp import IProMP, Predictor
+from .retarget import (
+    HEADROOM,
+    SETTLE_S,
+    MotionPlan,
+    MotionState,
+    ReferenceMotion,
+    Retargeter,
+    hold_plan,
+    limit_ratios,
+)
+from .robot import Robot, check_joint_limits, check_workspace, ee_positions
+from .robot.clearance import ClearanceCertifier
+from .timing import Trajectory
+
+LIMIT_TOLERANCE = 1e-6
+"""Relative tolerance of the velocity, acceleration and jerk checks of a re-plan."""
+
+CONDITION_NOISE = 0.3
+"""Observation-noise ratio ``nu`` with which the closed loop conditions the robot trajectory (the
+task and phase are recognised with the model's own ``nu``). ``fit`` chooses its ``nu`` (30-100 on the
+real data) for recognition and phase early in the motion; the closed loop's hand-over is predicted
+from most of the motion, where a tighter noise conditions the robot more on what was observed.
+Chosen by cross-validation of the closed loop on training demos (``benchmarks/closed_loop_cv.py
+--study noise``, ``docs/closed_loop.md``)."""
+
+
+def conditioning_predictor(model: IProMP, noise: float | None) -> Predictor:
+    """The predictor whose conditioner the closed loop uses: the model's own (``noise`` None) or one
+    that conditions the robot's weights with the noise ratio ``noise`` (its ``condition_noise_ratio``;
+    the same fitted model otherwise: recognition and phase keep the model's own)."""
+    predictor = model.predictor_
+    if noise is None or noise == predictor.fitted.nu_condition:
+        return predictor
+    fitted = dataclasses.replace(predictor.fitted, condition_noise_ratio=float(noise))
+    return Predictor(fitted, predictor.conditioner.n_points)
+
+
+@dataclass(frozen=True)
+class ClosedLoopSettings:
+    """Settings of the closed loop. The defaults of the start ratio, re-plan rate, blend horizon,
+    freeze phase and conditioning noise were chosen by cross-validation on training demos
+    (``docs/closed_loop.md``); the settle window and the headroom are technical margins
+    (:mod:`ipromp_pin.retarget`).
+
+    Attributes:
+        start_ratio: Fraction of the human's motion observed before the robot starts, in (0, 1).
+        replan_rate_hz: Re-plan rate in [Hz] (> 0, at most the control rate).
+        control_rate_hz: Control rate in [Hz] of the commanded trajectory.
+        blend_s: Blend horizon in [s]: a re-plan joins the predicted trajectory this much later.
+        settle_s: The last part of the predicted trajectory, in [s], replaced by a ruckig settle.
+        headroom: Fraction of the limits the followed prediction may use.
+        freeze_phase: Re-planning stops once the human's motion is this far through its predicted
+            duration (observed time / predicted hand-over time); the robot then completes its last
+            plan. 1: re-plan while samples arrive.
+        condition_noise: Noise ratio with which the robot trajectory is conditioned (None: the
+            model's own).
+    """
+
+    start_ratio: float = 0.2
+    replan_rate_hz: float = 20.0
+    control_rate_hz: float = 100.0
+    blend_s: float = 0.2
+    settle_s: float = SETTLE_S
+    headroom: float = HEADROOM
+    freeze_phase: float = 0.9
+    condition_noise: float | None = CONDITION_NOISE
+
+    def validate(self, source: str = "closed loop") -> ClosedLoopSettings:
+        """Check the values; raise :class:`PipelineError` naming ``source`` and the field."""
+
+        def bad(name: str, problem: str) -> PipelineError:
+            return PipelineError(f"{source}: field '{name}': {problem}")
+
+        r = self.start_ratio
+        if not (isinstance(r, int | float) and math.isfinite(r) and 0.0 < r < 1.0):
+            raise bad("start_ratio", f"must be in (0, 1), got {r}")
+        c = self.control_rate_hz
+        if not (math.isfinite(c) and c > 0):
+            raise bad("control_rate_hz", f"must be a positive rate, got {c}")
+        p = self.replan_rate_hz
+        if not (math.isfinite(p) and p > 0):
+            raise bad("replan_rate_hz", f"must be a positive rate, got {p}")
+        if p > c:
+            raise bad("replan_rate_hz", f"{p:g} Hz is faster than the control rate {c:g} Hz")
+        for name, v in (("blend_s", self.blend_s), ("settle_s", self.settle_s)):
+            if not (math.isfinite(v) and v >= 0) or (name == "blend_s" and v == 0):
+                raise bad(name, f"must be {'positive' if name == 'blend_s' else '>= 0'} and finite, got {v}")
+        if not (math.isfinite(self.headroom) and 0 < self.headroom <= 1):
+            raise bad("headroom", f"must be in (0, 1], got {self.headroom}")
+        if not (math.isfinite(self.freeze_phase) and 0 < self.freeze_phase <= 1):
+            raise bad("freeze_phase", f"must be in (0, 1], got {self.freeze_phase}")
+        nu = self.condition_noise
+        if nu is not None and not (isinstance(nu, int | float) and math.isfinite(nu) and nu > 0):
+            raise bad("condition_noise", f"must be a positive number (or the model's own), got {nu}")
+        return self
+
+    def to_dict(self) -> dict:
+        """JSON-serialisable form."""
+        return asdict(self)
+
+
+@dataclass
+class Replan:
+    """One re-plan of the closed loop.
+
+    Attributes:
+        index: Re-plan number (from 0).
+        t_s: Control tick at which the new plan would take over, in [s] from the motion start.
+        observed_until_s: Time of the last human sample used, in [s].
+        n_observed: Human samples received.
+        task: Recognised task.
+        posterior: Task -> posterior probability.
+        predicted_handover_s: Predicted hand-over time (end of the human's motion) in [s].
+        predicted_handover_position_m: Gripper position (3,) at the predicted hand-over in [m].
+        planned_arrival_s: When the planned motion comes to rest, in [s] (None if no plan was made).
+        lateness_s: ``planned_arrival_s - predicted_handover_s`` in [s] (how late the limits make it).
+        time_scale: Slow-down of the followed prediction (1: on the human's timeline).
+        committed: Whether the plan was committed.
+        reason: Why it was refused (empty when committed).
+        limit_ratios: Largest |v|, |a|, |jerk| over their limits in the plan (3,).
+        min_distance_m: Closest computed self-collision distance near the plan, in [m].
+        cycle_ms: Wall time of the cycle in [ms]: stream update of the latest sample, conditioning,
+            re-target, checks.
+        stage_ms: Wall time per stage in [ms].
+    """
+
+    index: int
+    t_s: float
+    observed_until_s: float
+    n_observed: int
+    task: str = ""
+    posterior: dict[str, float] = field(default_factory=dict)
+    predicted_handover_s: float | None = None
+    predicted_handover_position_m: list[float] | None = None
+    planned_arrival_s: float | None = None
+    lateness_s: float | None = None
+    time_scale: float | None = None
+    committed: bool = False
+    reason: str = ""
+    limit_ratios: list[float] | None = None
+    min_distance_m: float | None = None
+    cycle_ms: float = 0.0
+    stage_ms: dict[str, float] = field(default_factory=dict)
+
+    def to_dict(self) -> dict:
+        """JSON-serialisable form (rounded)."""
+        out = asdict(self)
+        for k, v in out.items():
+            if isinstance(v, float):
+                out[k] = round(v, 6)
+        out["stage_ms"] = {k: round(v, 4) for k, v in self.stage_ms.items()}
+        out["cycle_ms"] = round(self.cycle_ms, 4)
+        return out
+
+
+@dataclass
+class ClosedLoopResult:
+    """What a closed-loop run commanded.
+
+    Attributes:
+        trajectory: The commanded trajectory at the control rate, from the motion start (t = 0)
+            until it comes to rest (``qddd``: jerk between samples).
+        replans: Every re-plan, committed or refused.
+        profile: The limit profile used.
+        settings: The closed-loop settings.
+        start_s: When the robot was allowed to start, in [s].
+        stopped: Why re-planning stopped before the human's last sample (empty if it did not).
+        plans: The committed plans, in the order of the committed re-plans.
+    """
+
+    trajectory: Trajectory
+    replans: list[Replan]
+    profile: LimitProfile
+    settings: ClosedLoopSettings
+    start_s: float
+    stopped: str = ""
+    plans: list[MotionPlan] = field(default_factory=list)
+
+    @property
+    def n_refused(self) -> int:
+        """Re-plans that were not committed."""
+        return sum(not r.committed for r in self.replans)
+
+    @property
+    def n_committed(self) -> int:
+        """Re-plans that were committed."""
+        return sum(r.committed for r in self.replans)
+
+    @property
+    def arrival_s(self) -> float:
+        """When the commanded motion comes to rest (its last sample), in [s]."""
+        return float(self.trajectory.t_s[-1])
+
+
+class ClosedLoopPlanner:
+    """Runs the closed loop on a stream of human samples (see the module docstring).
+
+    Args:
+        model: A fitted model.
+        robot: The loaded robot.
+        profile: Velocity, acceleration and jerk limits (and position limits with margin).
+        q_start: The robot's configuration (n_joints,) in [rad] at the motion start (at rest).
+        start_s: Time in [s] from the motion start at which the robot may start (its first re-plan
+            is at the first sample at or after it).
+        settings: Closed-loop settings (validated here).
+        certifier: Self-collision certifier to use (default: a new one; reuse one across runs of the
+            same robot to keep its cache of computed distances).
+        conditioner: The predictor whose conditioner conditions the robot trajectory (default:
+            :func:`conditioning_predictor` of ``settings.condition_noise``; pass one to reuse it).
+    """
+
+    def __init__(
+        self,
+        model: IProMP,
+        robot: Robot,
+        profile: LimitProfile,
+        q_start: np.ndarray,
+        start_s: float,
+        settings: ClosedLoopSettings | None = None,
+        certifier: ClearanceCertifier | None = None,
+        conditioner: Predictor | None = None,
+    ) -> None:
+        self.settings = (settings or ClosedLoopSettings()).validate()
+        self.model = model
+        self.robot = robot
+        self.profile = profile
+        self.start_s = float(start_s)
+        self.dt_s = 1.0 / self.settings.control_rate_hz
+        self.certifier = certifier if certifier is not None else ClearanceCertifier(robot)
+        s = self.settings
+        self.retargeter = Retargeter(profile.limits, self.dt_s, s.blend_s, s.headroom, s.settle_s)
+        self._predictor = model.predictor_
+        self._conditioning = conditioner or conditioning_predictor(model, self.settings.condition_noise)
+        self._stream = model.stream()
+        self._stream.__enter__()
+        self._centres = model.basis_.centres
+        self._width = model.basis_.width
+        self._plans: list[tuple[int, MotionPlan]] = [
+            (0, hold_plan(MotionState.at_rest(0.0, q_start), self.dt_s))
+        ]
+        self.replans: list[Replan] = []
+        self._next_replan = self.start_s
+        self._stopped = ""
+        self._finished = False
+
+    # ------------------------------------------------------------------ loop
+    def _tick(self, t_s: float) -> int:
+        """The control tick at or after ``t_s`` (a sample at a tick's time is at that tick)."""
+        x = t_s / self.dt_s
+        k = round(x)
+        return int(k) if abs(x - k) < 1e-6 else int(math.ceil(x))
+
+    def state_at(self, tick: int) -> MotionState:
+        """The commanded state at control tick ``tick`` (of the plan in force then)."""
+        k0, plan = next((k, p) for k, p in reversed(self._plans) if k <= tick)
+        st = plan.state(tick - k0)
+        return MotionState(tick * self.dt_s, st.q, st.qd, st.qdd)
+
+    def step(self, t_s: float, sample: Mapping[str, np.ndarray | None]) -> Replan | None:
+        """Receive one human sample (time in [s] from the motion start; observed group -> values,
+        None for a missing group) and re-plan when one is due; returns the re-plan, if any."""
+        if self._finished:
+            raise PipelineError("closed loop: step() after finish()")
+        t0 = time.perf_counter()
+        if self._stopped:
+            return None
+        try:
+            rec = self._stream.update(t_s, sample)
+        except IPrompPinError as exc:
+            self._stopped = f"stream stopped at t={t_s:.3f} s: {exc}"
+            return None
+        t1 = time.perf_counter()
+        if rec is None or t_s < self.start_s - 1e-9 or t_s < self._next_replan - 1e-9:
+            return None
+        freeze = self.settings.freeze_phase
+        if freeze < 1.0 and len(self._plans) > 1 and t_s >= freeze * rec.duration_s:
+            self._stopped = (
+                f"re-planning stopped at t={t_s:.3f} s: {t_s / rec.duration_s:.0%} of the predicted "
+                f"motion observed (freeze_phase {self.settings.freeze_phase:g})"
+            )
+            return None
+        period = 1.0 / self.settings.replan_rate_hz
+        while self._next_replan <= t_s + 1e-9:
+            self._next_replan += period
+        replan = self._replan(t_s, t1 - t0)
+        replan.cycle_ms = (time.perf_counter() - t0) * 1e3
+        self.replans.append(replan)
+        return replan
+
+    def _replan(self, t_s: float, update_s: float) -> Replan:
+        tick = self._tick(t_s)
+        state = self.state_at(tick)
+        stream = self._stream
+        ms: dict[str, float] = {"stream_update": update_s * 1e3}
+        r = Replan(len(self.replans), tick * self.dt_s, float(t_s), stream.n_samples)
+        t0 = time.perf_counter()
+        try:
+            rec = stream.recognition()
+            parts, _ = self._predictor.encode(stream.observation())
+            pred = self._conditioning.conditioner.condition(rec, parts)
+            reference = ReferenceMotion.from_prediction(pred, self._centres, self._width)
+        except IPrompPinError as exc:
+            r.reason = f"prediction failed: {exc}"
+            return r
+        t1 = time.perf_counter()
+        ms["condition"] = (t1 - t0) * 1e3
+        r.task = pred.task
+        r.posterior = {k: float(v) for k, v in zip(pred.tasks, pred.posterior, strict=True)}
+        r.predicted_handover_s = float(pred.duration_s)
+        try:
+            plan = self.retargeter.plan(state, reference)
+        except IPrompPinError as exc:
+            r.reason = f"re-target failed: {exc}"
+            ms["retarget"] = (time.perf_counter() - t1) * 1e3
+            r.stage_ms = ms
+            return r
+        t2 = time.perf_counter()
+        ms["retarget"] = (t2 - t1) * 1e3
+        r.planned_arrival_s = plan.arrival_s
+        r.lateness_s = plan.lateness_s
+        r.time_scale = plan.time_scale
+        r.reason = self._check(plan, r)
+        ms["checks"] = (time.perf_counter() - t2) * 1e3
+        r.stage_ms = ms
+        if not r.reason:
+            r.committed = True
+            self._plans.append((tick, plan))
+        return r
+
+    def _check(self, plan: MotionPlan, r: Replan) -> str:
+        """Check a plan's remaining motion -> the reason to refuse it ("" if it passes)."""
+        ratios = limit_ratios(plan.qd, plan.qdd, self.dt_s, self.profile.limits)
+        r.limit_ratios = [float(x) for x in ratios]
+        if np.any(ratios > 1.0 + LIMIT_TOLERANCE):
+            names = ("velocity", "acceleration", "jerk")
+            i = int(np.argmax(ratios))
+            return f"{names[i]} limit exceeded ({ratios[i]:.3f} of the limit)"
+        end = ee_positions(self.robot, plan.q[-1])[0]
+        r.predicted_handover_position_m = [float(x) for x in end]
+        lim = check_joint_limits(self.robot, plan.q, t_s=plan.t_s)
+        if not lim.passed:
+            return f"joint_limits: {lim.reason}"
+        ws = check_workspace(self.robot, end)
+        if not ws.passed:
+            return f"workspace: {ws.reason}"
+        clearance = self.certifier.certify(plan.q)
+        r.min_distance_m = clearance.min_distance_m
+        if not clearance.certified:
+            return f"self_collision: {clearance.to_check().reason}"
+        return ""
+
+    def close(self) -> None:
+        """Stop receiving samples (releases the streaming estimator's BLAS thread limit)."""
+        if not self._finished:
+            self._stream.__exit__(None, None, None)
+            self._finished = True
+
+    def finish(self) -> ClosedLoopResult:
+        """Stop receiving samples and return the commanded trajectory until it comes to rest."""
+        self.close()
+        k_last, last = self._plans[-1]
+        n = k_last + last.n_samples
+        nj = last.q.shape[1]
+        q = np.empty((n, nj))
+        qd = np.empty((n, nj))
+        qdd = np.empty((n, nj))
+        bounds = [k for k, _ in self._plans[1:]] + [n]
+        for (k0, plan), k1 in zip(self._plans, bounds, strict=True):
+            idx = np.arange(k0, k1) - k0
+            inside = idx < plan.n_samples
+            j = np.minimum(idx, plan.n_samples - 1)
+            q[k0:k1] = plan.q[j]
+            qd[k0:k1] = np.where(inside[:, None], plan.qd[j], 0.0)
+            qdd[k0:k1] = np.where(inside[:, None], plan.qdd[j], 0.0)
+        t = np.arange(n) * self.dt_s
+        qddd = np.zeros_like(qdd)
+        if n > 1:
+            qddd[1:] = np.diff(qdd, axis=0) / self.dt_s
+        traj = Trajectory(t, q, qd, qdd, tuple(self.robot.joint_names), qddd)
+        plans = [p for _, p in self._plans[1:]]
+        return ClosedLoopResult(
+            traj, self.replans, self.profile, self.settings, self.start_s, self._stopped, plans
+        )
+
+
+def demo_samples(demo: Demo, groups: list[str]) -> list[dict[str, np.ndarray | None]]:
+    """The demo's human samples as the planner receives them: group -> values, None where missing."""
+    out = []
+    for i in range(demo.n_samples):
+        out.append(
+            {g: None if (g in demo.missing and demo.missing[g][i]) else demo.groups[g][i] for g in groups}
+        )
+    return out
+
+
+def start_time(demo: Demo, start_ratio: float) -> float:
+    """Time in [s] of the last sample of the first ``start_ratio`` of ``demo`` (when the robot starts).
+
+    Raises:
+        ObservationError: the start window holds fewer than 2 samples.
+    """
+    try:
+        return float(demo.head(start_ratio).t[-1])
+    except ObservationError:
+        raise ObservationError(
+            demo.source,
+            "start_ratio",
+            f"the start window ({start_ratio:.0%} of a {demo.t[-1] - demo.t[0]:.2f} s demo of "
+            f"{demo.n_samples} samples) holds fewer than 2 samples",
+        ) from None
+
+
+def replay_demo(
+    model: IProMP,
+    robot: Robot,
+    demo: Demo,
+    profile: LimitProfile,
+    settings: ClosedLoopSettings | None = None,
+    certifier: ClearanceCertifier | None = None,
+    conditioner: Predictor | None = None,
+) -> ClosedLoopResult:
+    """Run the closed loop on a recorded demo at its recorded timing (simulated clock, no waiting).
+
+    The robot starts at rest at the demo's first recorded configuration; the human's observed groups
+    (``model.observe_``) arrive sample by sample.
+
+    Raises:
+        DataError: the demo lacks an observed group or the robot group.
+        ObservationError: the start window holds fewer than 2 samples.
+    """
+    settings = (settings or ClosedLoopSettings()).validate()
+    groups = list(model.observe_)
+    demo.require(groups + [model.robot_group])
+    start = start_time(demo, settings.start_ratio)
+    planner = ClosedLoopPlanner(
+        model, robot, profile, demo.groups[model.robot_group][0], start, settings, certifier, conditioner
+    )
+    try:
+        for t, sample in zip(demo.t - demo.t[0], demo_samples(demo, groups), strict=True):
+            planner.step(float(t), sample)
+    finally:
+        planner.close()
+    return planner.finish()

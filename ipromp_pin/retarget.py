@@ -1,0 +1,396 @@
+"""Jerk-limited re-targeting (ruckig) from the robot's current state onto a predicted trajectory's timeline.
+
+A re-plan at time ``t_c`` [s] (a control tick) starts from the robot's commanded state
+(``q``, ``qd``, ``qdd``) and a :class:`ReferenceMotion` ``r(t)``: the predicted robot trajectory on
+the human's predicted timeline, ``t`` in [0, D] from the start of the human's motion, the hand-over
+at ``D``. :func:`retarget` builds the remaining commanded motion in three pieces:
+
+1. **blend**: a 7-DoF ruckig state-to-state trajectory from the current state to the reference's
+   state at ``t_c + h`` (``h``: the blend horizon), in at least ``h`` (ruckig's minimum duration),
+   time-synchronised. When the limits make it longer, the target is moved to the later reference
+   time it reaches (a few iterations), so the robot catches up as fast as the limits allow;
+2. **follow**: the reference itself on its own timeline up to ``D - settle``, slowed uniformly by the
+   factor ``k >= 1`` that keeps its velocity, acceleration and jerk within ``headroom`` of the
+   limits (``k = 1`` when they already hold: then the hand-over happens when the human gets there);
+3. **settle**: ruckig from the reference's state at ``D - settle`` to rest at ``r(D)``, in at least
+   the (slowed) time the reference takes for that last part.
+
+The pieces meet with equal position, velocity and acceleration, so the acceleration is continuous
+and the jerk between two control samples (the difference of their accelerations over the period)
+is bounded by the pieces' jerks. The plan is sampled at the control rate; :func:`limit_ratios`
+measures it against the limits (position limits and collisions are the caller's checks).
+Ruckig is only asked for state-to-state trajectories (no intermediate waypoints).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from ruckig import InputParameter, Result, Ruckig, RuckigError, Trajectory
+
+from .exceptions import InfeasibleError
+from .timing import JointLimits
+
+HEADROOM = 0.95
+"""Fraction of the velocity, acceleration and jerk limits the followed reference may use; the rest
+absorbs the difference between the reference's values on the control grid and between samples."""
+
+SETTLE_S = 0.2
+"""The last part of the reference, in [s], replaced by a ruckig settle to rest at the hand-over:
+the Gaussian basis fits the demonstrations' slopes up to the ends of the phase range, which gives the
+predicted mean's third derivative spurious peaks in its last few percent (e.g. 128 rad/s^3 at the
+end against at most 46 rad/s^3 inside, on a ``chen2017_handover`` prediction); following them would
+slow the whole motion down."""
+
+CATCH_UP_ITERATIONS = 4
+"""Re-targets of the blend to a later reference time when the limits make it longer than ``h``."""
+
+
+@dataclass(frozen=True)
+class MotionState:
+    """Commanded state of the arm at one control tick.
+
+    Attributes:
+        t_s: Time in [s] from the start of the human's motion.
+        q: Positions (n_joints,) in [rad].
+        qd: Velocities (n_joints,) in [rad/s].
+        qdd: Accelerations (n_joints,) in [rad/s^2].
+    """
+
+    t_s: float
+    q: np.ndarray
+    qd: np.ndarray
+    qdd: np.ndarray
+
+    @classmethod
+    def at_rest(cls, t_s: float, q: np.ndarray) -> MotionState:
+        """The state at rest at ``q`` (n_joints,) in [rad]."""
+        q = np.asarray(q, dtype=float).reshape(-1)
+        return cls(float(t_s), q, np.zeros_like(q), np.zeros_like(q))
+
+
+class ReferenceMotion:
+    """A predicted joint trajectory with exact derivatives: ``q_j(t) = sum_k phi_k(t / D) w_jk s_j + o_j``
+    for ``t`` in [0, D] (Gaussian basis ``phi_k(z) = exp(-(z - c_k)^2 / (2 h^2))``); held at
+    ``q(D)`` after ``D`` and at ``q(0)`` before 0.
+
+    Args:
+        weights: (J, K) basis weights (scaled units).
+        centres: (K,) basis centres in phase units.
+        width: Basis width ``h`` in phase units.
+        scale: (J,) scaling to [rad] (``q = scaled * scale + offset``).
+        offset: (J,) offset in [rad].
+        duration_s: ``D`` in [s] (the predicted hand-over time, from the start of the motion).
+    """
+
+    def __init__(
+        self,
+        weights: np.ndarray,
+        centres: np.ndarray,
+        width: float,
+        scale: np.ndarray,
+        offset: np.ndarray,
+        duration_s: float,
+    ) -> None:
+        self.weights = np.asarray(weights, dtype=float)
+        self.centres = np.asarray(centres, dtype=float)
+        self.width = float(width)
+        self.scale = np.asarray(scale, dtype=float)
+        self.offset = np.asarray(offset, dtype=float)
+        self.duration_s = float(duration_s)
+        if not (self.duration_s > 0 and math.isfinite(self.duration_s)):
+            raise InfeasibleError(f"reference motion: duration must be positive, got {duration_s}")
+        self._ws = np.ascontiguousarray((self.weights * self.scale[:, None]).T)  # (K, J), in [rad]
+
+    @classmethod
+    def from_prediction(cls, prediction, centres: np.ndarray, width: float) -> ReferenceMotion:
+        """The conditioned mean of a :class:`~ipromp_pin.promp.Prediction` (its ``robot_weights``)
+        with the model's basis ``centres`` and ``width`` (``IProMP.basis_``)."""
+        w = prediction.robot_weights
+        if w is None:
+            raise InfeasibleError("reference motion: the prediction holds no robot weights")
+        return cls(w.mean, centres, width, w.scale, w.offset, prediction.duration_s)
+
+    def evaluate(
+        self, t_s: np.ndarray, order: int = 3
+    ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None, np.ndarray | None]:
+        """Position [rad], velocity [rad/s], acceleration [rad/s^2] and jerk [rad/s^3], each
+        (len(t_s), J), at times ``t_s`` [s] (derivatives 0 outside [0, D]); derivatives above
+        ``order`` are None."""
+        t = np.atleast_1d(np.asarray(t_s, dtype=float))
+        d = self.duration_s
+        inv_h2 = 1.0 / (self.width * self.width)
+        diff = np.clip(t, 0.0, d)[:, None] * (1.0 / d) - self.centres  # (n, K)
+        phi = np.exp(diff * diff * (-0.5 * inv_h2))
+        m0 = phi @ self._ws
+        q = m0 + self.offset
+        qd = qdd = qddd = None
+        if order >= 1:
+            u = diff * inv_h2
+            up = u * phi
+            m1 = up @ self._ws
+            qd = m1 * (-1.0 / d)
+            if order >= 2:
+                u2p = u * up
+                m2 = u2p @ self._ws
+                qdd = (m2 - inv_h2 * m0) * (1.0 / d**2)
+                if order >= 3:
+                    m3 = (u * u2p) @ self._ws
+                    qddd = (3.0 * inv_h2 * m1 - m3) * (1.0 / d**3)
+        if t.size and (t.min() < 0.0 or t.max() > d):
+            outside = ((t < 0.0) | (t > d))[:, None]
+            qd, qdd, qddd = (None if x is None else np.where(outside, 0.0, x) for x in (qd, qdd, qddd))
+        return q, qd, qdd, qddd
+
+    def end(self) -> np.ndarray:
+        """The hand-over configuration ``q(D)`` (J,) in [rad]."""
+        return self.evaluate(np.array([self.duration_s]), order=0)[0][0]
+
+
+@dataclass
+class MotionPlan:
+    """The remaining commanded motion from one re-plan, sampled at the control rate.
+
+    Attributes:
+        t0_s: Time of sample 0 (the re-plan's control tick) in [s]; sample ``i`` is at ``t0 + i dt``.
+        dt_s: Control period in [s].
+        q: (N, J) positions in [rad]; sample 0 is the start state, the last one is at rest.
+        qd: (N, J) velocities in [rad/s].
+        qdd: (N, J) accelerations in [rad/s^2].
+        arrival_s: Time in [s] at which the motion comes to rest at the hand-over configuration.
+        target_s: The reference's hand-over time ``D`` in [s].
+        time_scale: Slow-down factor ``k`` of the followed reference (1: on the human's timeline).
+        blend_s: Duration of the blend in [s].
+    """
+
+    t0_s: float
+    dt_s: float
+    q: np.ndarray
+    qd: np.ndarray
+    qdd: np.ndarray
+    arrival_s: float
+    target_s: float
+    time_scale: float = 1.0
+    blend_s: float = 0.0
+
+    @property
+    def lateness_s(self) -> float:
+        """How much later than the reference's hand-over time the motion comes to rest, in [s]."""
+        return self.arrival_s - self.target_s
+
+    @property
+    def n_samples(self) -> int:
+        """Number of samples N."""
+        return int(self.q.shape[0])
+
+    @property
+    def t_s(self) -> np.ndarray:
+        """Sample times (N,) in [s]."""
+        return self.t0_s + self.dt_s * np.arange(self.n_samples)
+
+    def state(self, i: int) -> MotionState:
+        """State at sample ``i`` (the final rest state after the last sample)."""
+        j = min(max(int(i), 0), self.n_samples - 1)
+        if i >= self.n_samples:
+            return MotionState.at_rest(self.t0_s + i * self.dt_s, self.q[-1])
+        return MotionState(self.t0_s + i * self.dt_s, self.q[j].copy(), self.qd[j].copy(), self.qdd[j].copy())
+
+
+def hold_plan(state: MotionState, dt_s: float) -> MotionPlan:
+    """The plan that stays at rest at ``state.q`` (the robot before its first plan)."""
+    q = np.asarray(state.q, dtype=float)[None, :]
+    z = np.zeros_like(q)
+    return MotionPlan(state.t_s, dt_s, q, z, z.copy(), state.t_s, state.t_s)
+
+
+def limit_ratios(plan_qd: np.ndarray, plan_qdd: np.ndarray, dt_s: float, limits: JointLimits) -> np.ndarray:
+    """Largest |velocity|, |acceleration| and |jerk| over their limits (3,), the jerk being the
+    difference of consecutive accelerations over the control period (what a controller sees)."""
+    rv = float(np.max(np.abs(plan_qd) / limits.velocity_rad_s)) if plan_qd.size else 0.0
+    ra = float(np.max(np.abs(plan_qdd) / limits.acceleration_rad_s2)) if plan_qdd.size else 0.0
+    jerk = np.diff(plan_qdd, axis=0) / dt_s
+    rj = float(np.max(np.abs(jerk) / limits.jerk_rad_s3)) if jerk.size else 0.0
+    return np.array([rv, ra, rj])
+
+
+RUCKIG_MARGIN = 1e-6
+"""Relative margin below the limits given to ruckig: its time-optimal segments reach their limits
+exactly, so the sampled values would otherwise exceed them by rounding (1e-13)."""
+
+
+class _Ruckig:
+    """A reusable 7-DoF ruckig calculator for state-to-state trajectories."""
+
+    def __init__(self, limits: JointLimits) -> None:
+        n = limits.n_joints
+        self.otg = Ruckig(n)
+        self.inp = InputParameter(n)
+        keep = 1.0 - RUCKIG_MARGIN
+        self.inp.max_velocity = limits.velocity_rad_s * keep
+        self.inp.max_acceleration = limits.acceleration_rad_s2 * keep
+        self.inp.max_jerk = limits.jerk_rad_s3 * keep
+
+    def __call__(
+        self, start: tuple[np.ndarray, ...], target: tuple[np.ndarray, ...], min_duration: float | None
+    ) -> Trajectory:
+        inp = self.inp
+        inp.current_position, inp.current_velocity, inp.current_acceleration = start
+        inp.target_position, inp.target_velocity, inp.target_acceleration = target
+        inp.minimum_duration = None if min_duration is None or min_duration <= 0 else float(min_duration)
+        traj = Trajectory(len(start[0]))
+        try:
+            result = self.otg.calculate(inp, traj)
+        except RuckigError as exc:
+            raise InfeasibleError("ruckig: " + " ".join(str(exc).split())) from exc
+        if result not in (Result.Working, Result.Finished):
+            raise InfeasibleError(f"ruckig: no trajectory to the target ({result})")
+        return traj
+
+
+def _sample_traj(traj: Trajectory, times: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Positions, velocities and accelerations (len(times), J) of a ruckig trajectory."""
+    out = [traj.at_time(float(t)) for t in times]
+    return (
+        np.array([o[0] for o in out]).reshape(len(out), -1),
+        np.array([o[1] for o in out]).reshape(len(out), -1),
+        np.array([o[2] for o in out]).reshape(len(out), -1),
+    )
+
+
+class Retargeter:
+    """Builds :class:`MotionPlan` s under one set of limits (:func:`retarget` for one call).
+
+    Args:
+        limits: Velocity, acceleration and jerk limits (positions are checked by the caller).
+        dt_s: Control period in [s].
+        blend_s: Blend horizon ``h`` in [s].
+        headroom: Fraction of the limits the followed reference may use.
+        settle_s: The last part of the reference, in [s], that is not followed: ruckig settles from
+            the reference's state there to rest at the hand-over configuration, arriving no earlier
+            than the reference does.
+    """
+
+    def __init__(
+        self,
+        limits: JointLimits,
+        dt_s: float,
+        blend_s: float,
+        headroom: float = HEADROOM,
+        settle_s: float = SETTLE_S,
+    ) -> None:
+        if not (dt_s > 0 and math.isfinite(dt_s)):
+            raise InfeasibleError(f"control period must be positive, got {dt_s}")
+        if not (blend_s > 0 and math.isfinite(blend_s)):
+            raise InfeasibleError(f"blend horizon must be positive, got {blend_s}")
+        if not 0 < headroom <= 1:
+            raise InfeasibleError(f"headroom must be in (0, 1], got {headroom}")
+        self.limits = limits
+        self.dt_s = float(dt_s)
+        self.blend_s = float(blend_s)
+        self.headroom = float(headroom)
+        if not (settle_s >= 0 and math.isfinite(settle_s)):
+            raise InfeasibleError(f"settle window must be >= 0, got {settle_s}")
+        self.settle_s = float(settle_s)
+        self._ruckig = _Ruckig(limits)
+
+    def time_scale(self, qd: np.ndarray, qdd: np.ndarray, qddd: np.ndarray) -> float:
+        """Smallest uniform slow-down ``k >= 1`` keeping derivatives (n, J) within headroom of the limits."""
+        lim = self.limits
+        h = self.headroom
+        rv = float(np.max(np.abs(qd) / lim.velocity_rad_s)) / h if qd.size else 0.0
+        ra = float(np.max(np.abs(qdd) / lim.acceleration_rad_s2)) / h if qdd.size else 0.0
+        rj = float(np.max(np.abs(qddd) / lim.jerk_rad_s3)) / h if qddd.size else 0.0
+        return max(1.0, rv, math.sqrt(ra), rj ** (1.0 / 3.0))
+
+    def reachable_scale(self, v: np.ndarray, a: np.ndarray, k: float) -> float:
+        """The smallest slow-down ``>= k`` that makes the state (``v / k``, ``a / k^2``) (J,) a valid
+        ruckig target: a state with acceleration ``a`` passes through the velocity ``|v| + a^2 / 2j``
+        (before it when decelerating, after it when accelerating), which must stay below the limit."""
+        lim = self.limits
+        cap = 0.98 * lim.velocity_rad_s
+        for _ in range(200):
+            if np.all(np.abs(v) / k + (a / k**2) ** 2 / (2.0 * lim.jerk_rad_s3) <= cap):
+                return k
+            k *= 1.02
+        return k
+
+    def plan(self, state: MotionState, reference: ReferenceMotion) -> MotionPlan:
+        """The remaining motion from ``state`` (at a control tick) onto ``reference``'s timeline.
+
+        Raises:
+            InfeasibleError: ruckig finds no trajectory, or the sampled plan exceeds a limit.
+        """
+        dt, h = self.dt_s, self.blend_s
+        t_c = float(state.t_s)
+        d_end = reference.duration_s
+        start = (state.q, state.qd, state.qdd)
+        q_end = reference.end()
+        pieces: list[tuple[str, float, float, object]] = []  # (kind, t_begin, t_end, data)
+        k = 1.0
+        zeros = np.zeros_like(q_end)
+        d_follow = d_end - self.settle_s
+        if t_c + h >= d_follow:
+            blend = self._ruckig(start, (q_end, zeros, zeros), d_end - t_c)
+            pieces.append(("ruckig", t_c, t_c + blend.duration, blend))
+            blend_s = blend.duration
+        else:
+            grid = np.append(np.arange(t_c + h, d_follow, dt), d_follow)
+            _, v, a, j = reference.evaluate(grid)
+            k = self.time_scale(v, a, j)
+            target_t = t_c + h
+            k_follow = k
+            for _ in range(CATCH_UP_ITERATIONS):
+                tau0 = target_t
+                q0, v0, a0, _ = reference.evaluate(np.array([tau0]), order=2)
+                k = self.reachable_scale(v0[0], a0[0], k_follow)
+                blend = self._ruckig(start, (q0[0], v0[0] / k, a0[0] / k**2), tau0 - t_c)
+                if blend.duration <= tau0 - t_c + 1e-9 or tau0 >= d_follow:
+                    break
+                target_t = min(t_c + blend.duration, d_follow)
+            blend_s = blend.duration
+            t_b = t_c + blend.duration
+            t_f = t_b + k * (d_follow - tau0)
+            pieces.append(("ruckig", t_c, t_b, blend))
+            pieces.append(("follow", t_b, t_f, (tau0, k)))
+            q_f, v_f, a_f, _ = reference.evaluate(np.array([d_follow]), order=2)
+            settle = self._ruckig(
+                (q_f[0], v_f[0] / k, a_f[0] / k**2), (q_end, zeros, zeros), k * self.settle_s
+            )
+            pieces.append(("ruckig", t_f, t_f + settle.duration, settle))
+        arrival = pieces[-1][2]
+        n = int(math.ceil((arrival - t_c) / dt - 1e-9)) + 1
+        times = t_c + dt * np.arange(n)
+        nj = q_end.size
+        q = np.empty((n, nj))
+        qd = np.empty((n, nj))
+        qdd = np.empty((n, nj))
+        for kind, t0, t1, data in pieces:
+            i0 = max(0, int(math.ceil((t0 - t_c) / dt - 1e-9)))
+            i1 = min(n, int(math.ceil((t1 - t_c) / dt - 1e-9)))
+            if i1 <= i0:
+                continue
+            sel = slice(i0, i1)
+            if kind == "ruckig":
+                q[sel], qd[sel], qdd[sel] = _sample_traj(data, times[sel] - t0)
+            else:
+                tau0_, k_ = data
+                tq, tv, ta, _ = reference.evaluate(tau0_ + (times[sel] - t0) / k_, order=2)
+                q[sel], qd[sel], qdd[sel] = tq, tv / k_, ta / k_**2
+        q[-1], qd[-1], qdd[-1] = q_end, 0.0, 0.0
+        q[0], qd[0], qdd[0] = state.q, state.qd, state.qdd
+        return MotionPlan(t_c, dt, q, qd, qdd, float(arrival), d_end, float(k), float(blend_s))
+
+
+def retarget(
+    state: MotionState,
+    reference: ReferenceMotion,
+    limits: JointLimits,
+    dt_s: float,
+    blend_s: float,
+    headroom: float = HEADROOM,
+    settle_s: float = SETTLE_S,
+) -> MotionPlan:
+    """The remaining motion from ``state`` onto ``reference``'s timeline (see the module docstring)."""
+    return Retargeter(limits, dt_s, blend_s, headroom, settle_s).plan(state, reference)

@@ -1,0 +1,244 @@
+"""The closed loop: reference motion, jerk-limited re-targeting, the planner and its checks."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from ipromp_pin.closed_loop import (
+    ClosedLoopPlanner,
+    ClosedLoopSettings,
+    conditioning_predictor,
+    demo_samples,
+    replay_demo,
+)
+from ipromp_pin.closed_loop_score import arrival_time, score_closed_loop
+from ipromp_pin.data import ROBOT
+from ipromp_pin.exceptions import PipelineError
+from ipromp_pin.limits import LimitProfile, conservative_profile, demonstrated_profile
+from ipromp_pin.promp import IProMP
+from ipromp_pin.retarget import MotionState, ReferenceMotion, Retargeter, limit_ratios
+from ipromp_pin.robot import ee_positions, load_robot
+from ipromp_pin.robot.clearance import ClearanceCertifier
+from ipromp_pin.synthetic import make_synthetic_dataset
+
+OBSERVE = ["orientation", "emg"]
+
+
+@pytest.fixture(scope="module")
+def setup():
+    """A model trained on synthetic Baxter hand-overs (all but the last demo of each task)."""
+    ds = make_synthetic_dataset(n_tasks=3, n_demos=8, seed=3)
+    train = [d for demos in ds.demos.values() for d in demos[:-1]]
+    test = [demos[-1] for demos in ds.demos.values()]
+    model = IProMP(observe=OBSERVE).fit(train)
+    robot = load_robot("baxter_left")
+    return model, robot, train, test
+
+
+@pytest.fixture(scope="module")
+def certifier(setup):
+    return ClearanceCertifier(setup[1])
+
+
+def _reference(model, demo, ratio=0.5):
+    pred = model.predict(demo.head(ratio, groups=OBSERVE))
+    return pred, ReferenceMotion.from_prediction(pred, model.basis_.centres, model.basis_.width)
+
+
+def test_reference_motion_is_the_prediction_with_exact_derivatives(setup):
+    model, _, _, test = setup
+    pred, ref = _reference(model, test[0])
+    q, qd, qdd, qddd = ref.evaluate(pred.t)
+    np.testing.assert_allclose(q, pred.q_mean, atol=1e-12)
+    t = np.linspace(0.3, pred.duration_s - 0.3, 7)
+    h = 1e-5
+    for k, (lo, hi, d) in enumerate(((0, 0, 1), (1, 1, 2), (2, 2, 3))):
+        fd = (ref.evaluate(t + h)[lo] - ref.evaluate(t - h)[hi]) / (2 * h)
+        exact = ref.evaluate(t)[d]
+        tol = 1e-5 * (1 + np.abs(exact).max())
+        np.testing.assert_allclose(fd, exact, atol=tol, err_msg=f"derivative {k + 1}")
+    # held at the ends, at rest
+    q_after, qd_after, _, _ = ref.evaluate(np.array([pred.duration_s + 1.0]))
+    np.testing.assert_allclose(q_after[0], pred.q_mean[-1], atol=1e-12)
+    assert not qd_after.any()
+
+
+def _check_plan(plan, state, limits, dt):
+    # starts exactly at the current state, ends at rest, within every limit at every sample
+    np.testing.assert_allclose(plan.q[0], state.q)
+    np.testing.assert_allclose(plan.qd[0], state.qd)
+    np.testing.assert_allclose(plan.qdd[0], state.qdd)
+    assert not plan.qd[-1].any() and not plan.qdd[-1].any()
+    assert np.all(limit_ratios(plan.qd, plan.qdd, dt, limits) <= 1 + 1e-6)
+    # positions consistent with the velocities (no jump between samples)
+    vel_fd = np.diff(plan.q, axis=0) / dt
+    assert np.max(np.abs(vel_fd) / limits.velocity_rad_s) <= 1.0 + 1e-6
+
+
+def test_retarget_follows_the_prediction_on_time_when_the_limits_allow(setup):
+    model, robot, _, test = setup
+    pred, ref = _reference(model, test[1])
+    limits = conservative_profile(robot).limits.scaled(4.0, 20.0, 200.0)
+    dt = 0.01
+    t_c = 1.0
+    q0, v0, a0, _ = ref.evaluate(np.array([t_c]))
+    state = MotionState(t_c, q0[0], v0[0], a0[0])  # on the reference
+    plan = Retargeter(limits, dt, 0.2).plan(state, ref)
+    _check_plan(plan, state, limits, dt)
+    assert plan.time_scale == 1.0
+    assert abs(plan.arrival_s - ref.duration_s) < 2 * dt  # rests when the human gets there
+    # between the blend and the settle it is the prediction itself, on the human's timeline
+    mid = (plan.t_s > t_c + 0.3) & (plan.t_s < ref.duration_s - 0.3)
+    np.testing.assert_allclose(plan.q[mid], ref.evaluate(plan.t_s[mid])[0], atol=1e-9)
+    np.testing.assert_allclose(plan.q[-1], ref.end(), atol=1e-12)
+
+
+def test_retarget_is_late_only_as_much_as_the_limits_demand(setup):
+    model, robot, _, test = setup
+    pred, ref = _reference(model, test[1])
+    dt = 0.01
+    state = MotionState.at_rest(0.5, test[1].groups[ROBOT][0])
+    tight = conservative_profile(robot).limits.scaled(1.0, 0.5, 0.5)
+    loose = conservative_profile(robot).limits.scaled(4.0, 20.0, 200.0)
+    late = Retargeter(tight, dt, 0.2).plan(state, ref)
+    fast = Retargeter(loose, dt, 0.2).plan(state, ref)
+    _check_plan(late, state, tight, dt)
+    _check_plan(fast, state, loose, dt)
+    assert late.time_scale > 1.0 and late.lateness_s > 0.3
+    assert late.lateness_s > fast.lateness_s
+    assert fast.lateness_s < 0.1
+    np.testing.assert_allclose(late.q[-1], fast.q[-1], atol=1e-12)  # same hand-over, later
+
+
+def test_settings_are_validated_naming_the_field():
+    for kwargs, field in (
+        ({"start_ratio": 0.0}, "start_ratio"),
+        ({"start_ratio": 1.0}, "start_ratio"),
+        ({"replan_rate_hz": 0.0}, "replan_rate_hz"),
+        ({"replan_rate_hz": 200.0}, "replan_rate_hz"),
+        ({"blend_s": float("nan")}, "blend_s"),
+        ({"freeze_phase": 0.0}, "freeze_phase"),
+    ):
+        with pytest.raises(PipelineError, match=f"somewhere: field '{field}'"):
+            ClosedLoopSettings(**kwargs).validate("somewhere")
+
+
+def test_replay_starts_late_stays_within_limits_and_reaches_the_handover(setup, certifier):
+    model, robot, train, test = setup
+    demo = test[2]
+    profile = demonstrated_profile(robot, train)
+    settings = ClosedLoopSettings(start_ratio=0.2)
+    result = replay_demo(model, robot, demo, profile, settings, certifier)
+    traj = result.trajectory
+    start = result.start_s
+    assert 0.15 * demo.duration_s < start <= 0.21 * demo.duration_s
+    # at rest at the recorded start configuration until the start
+    before = traj.t_s < start - 1e-9
+    assert before.any() and np.abs(traj.q[before] - demo.groups[ROBOT][0]).max() < 1e-12
+    assert not traj.qd[before].any()
+    # every control sample within the profile's limits, continuous acceleration, at rest at the end
+    assert np.all(limit_ratios(traj.qd, traj.qdd, traj.t_s[1] - traj.t_s[0], profile.limits) <= 1 + 1e-6)
+    assert not traj.qd[-1].any()
+    assert result.replans and result.n_refused == 0
+    assert all(r.task == demo.task for r in result.replans[-5:])
+    score = score_closed_loop(result, demo, robot)
+    assert score.collisions == 0 and score.max_limit_ratio <= 1 + 1e-6
+    # it comes to rest where the model, given what the last re-plan had observed, predicts the hand-over:
+    # task and phase recognised with the model's noise ratio, the robot conditioned with condition_noise
+    last = result.replans[-1]
+    observed = demo.slice(last.n_observed, OBSERVE)
+    parts, _ = model.predictor_.encode(observed)
+    conditioner = conditioning_predictor(model, settings.condition_noise).conditioner
+    q_end = conditioner.condition(model.recognise(observed), parts).q_mean[-1]
+    np.testing.assert_allclose(traj.q[-1], q_end, atol=1e-9)
+    # another conditioning noise ratio (the recognition unchanged) ends elsewhere: the setting is used
+    other = conditioning_predictor(model, 10.0 * settings.condition_noise).conditioner
+    q_other = other.condition(model.recognise(observed), parts).q_mean[-1]
+    assert np.abs(q_other - q_end).max() > 1e-4
+    assert score.handover_error_cm < 10.0
+    # re-plans come at the re-plan rate
+    dt = np.diff([r.t_s for r in result.replans])
+    assert np.median(dt) == pytest.approx(1.0 / settings.replan_rate_hz, abs=0.011)
+
+
+def test_a_refused_replan_keeps_the_last_safe_plan(setup, certifier):
+    model, robot, train, test = setup
+    demo = test[0]
+    profile = demonstrated_profile(robot, train)
+    start = float(demo.head(0.2).t[-1])
+    planner = ClosedLoopPlanner(model, robot, profile, demo.groups[ROBOT][0], start, None, certifier)
+    calls = {"n": 0}
+    certify = certifier.certify
+
+    def refuse_after_five(q):
+        calls["n"] += 1
+        result = certify(q)
+        if calls["n"] > 5:
+            result.certified = False
+        return result
+
+    planner.certifier = type("C", (), {"certify": staticmethod(refuse_after_five)})()
+    for t, sample in zip(demo.t, demo_samples(demo, OBSERVE), strict=True):
+        planner.step(float(t), sample)
+    result = planner.finish()
+    committed = [r for r in result.replans if r.committed]
+    refused = [r for r in result.replans if not r.committed]
+    assert len(committed) == 5 and refused
+    assert all(r.reason.startswith("self_collision") for r in refused)
+    # after the fifth re-plan the commanded motion is exactly that plan, to its end
+    last = result.plans[-1]
+    k0 = int(round(committed[-1].t_s / planner.dt_s))
+    np.testing.assert_allclose(result.trajectory.q[k0:], last.q, atol=1e-12)
+    assert result.arrival_s == pytest.approx(last.t_s[-1])
+
+
+def test_a_change_of_task_is_followed_smoothly(setup, certifier):
+    model, robot, train, test = setup
+    a, b = test[0], test[1]
+    assert a.task != b.task
+    # the human starts like demo a and continues like demo b (same clock)
+    n = min(a.n_samples, b.n_samples)
+    cut = int(0.45 * n)
+    samples = demo_samples(a, OBSERVE)[:cut] + demo_samples(b, OBSERVE)[cut:n]
+    profile = demonstrated_profile(robot, train)
+    start = float(a.t[cut // 2])
+    planner = ClosedLoopPlanner(model, robot, profile, a.groups[ROBOT][0], start, None, certifier)
+    for t, sample in zip(a.t[:n], samples, strict=True):
+        planner.step(float(t), sample)
+    result = planner.finish()
+    tasks = [r.task for r in result.replans if r.committed]
+    assert tasks[0] == a.task and tasks[-1] == b.task
+    traj = result.trajectory
+    assert np.all(limit_ratios(traj.qd, traj.qdd, planner.dt_s, profile.limits) <= 1 + 1e-6)
+    # it ends at the new task's hand-over, at rest
+    end = ee_positions(robot, np.stack([traj.q[-1], result.plans[-1].q[-1]]))
+    assert np.linalg.norm(end[0] - end[1]) < 1e-9
+
+
+def test_arrival_time_is_when_the_gripper_stays_near_its_end():
+    t = np.linspace(0.0, 2.0, 201)
+    p = np.zeros((201, 3))
+    p[:, 0] = np.minimum(t, 1.0) * 0.5  # moves 0.5 m in 1 s, then rests
+    assert arrival_time(t, p, 0.01) == pytest.approx(0.98, abs=0.011)
+    p[150, 0] = 0.3  # leaves again at 1.5 s
+    assert arrival_time(t, p, 0.01) == pytest.approx(1.51, abs=0.011)
+
+
+def test_tighter_limits_make_the_robot_late_and_the_report_says_so(setup, certifier):
+    model, robot, train, test = setup
+    demo = test[1]
+    conservative = conservative_profile(robot)
+    loose = LimitProfile("loose", conservative.limits.scaled(2.0, 10.0, 50.0), "test")
+    out = {}
+    for profile in (conservative, loose):
+        result = replay_demo(model, robot, demo, profile, ClosedLoopSettings(), certifier)
+        score = score_closed_loop(result, demo, robot, check_collisions=False)
+        assert score.max_limit_ratio <= 1 + 1e-6
+        out[profile.name] = (result.replans[0], score)
+    first_c, score_c = out["conservative"]
+    first_l, score_l = out["loose"]
+    # the first re-plan starts from rest behind the human: the tight limits make it late, and say by how much
+    assert first_c.lateness_s > 0.1
+    assert first_c.planned_arrival_s == pytest.approx(first_c.predicted_handover_s + first_c.lateness_s)
+    assert first_l.lateness_s < first_c.lateness_s

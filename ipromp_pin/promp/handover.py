@@ -146,6 +146,12 @@ class HandoverRegression:
     residual_cov: np.ndarray
     trust: float
 
+    def __post_init__(self) -> None:
+        # C-contiguous copies: a fitted and a loaded regression then give bitwise identical products
+        for name in ("ratios", "readout", "coef", "intercept", "residual_cov"):
+            object.__setattr__(self, name, np.ascontiguousarray(getattr(self, name), dtype=float))
+        object.__setattr__(self, "dims", np.ascontiguousarray(self.dims))
+
     def observation(
         self, task: int, window: WindowSummary, fraction: float
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -227,4 +227,7 @@ def _cross_validate(
     else:
         err = np.sqrt(np.mean((q - truth[:, None]) ** 2, axis=2))
     mean_err = err.mean(axis=0)
-    return {np.inf: float(mean_err[0]), **{t: float(v) for t, v in zip(TRUST_GRID, mean_err[1:], strict=True)}}
+    return {
+        np.inf: float(mean_err[0]),
+        **{t: float(v) for t, v in zip(TRUST_GRID, mean_err[1:], strict=True)},
+    }

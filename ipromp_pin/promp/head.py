@@ -244,7 +244,9 @@ def _fit_softmax(
     return res.x[:n_w].reshape(n_classes, f), res.x[n_w:], res.x
 
 
-def _fit_lda(x: np.ndarray, y: np.ndarray, n_classes: int, weight: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _fit_lda(
+    x: np.ndarray, y: np.ndarray, n_classes: int, weight: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """Linear discriminant analysis on standardised ``x`` (n, F) with row weights ``weight`` (n,):
     weighted class means, their pooled covariance shrunk toward a multiple of the identity with the
     Ledoit-Wolf intensity, class priors from the weights -> the logits' (W (T, F), b (T,))."""
@@ -309,7 +311,9 @@ def fit_head(
     n_feat = features.shape[1]
     column_sets = (np.arange(n_feat), np.arange(n_feat - n_tasks))  # all features, the window alone
     # training on every row alike is the same problem for every fraction (only its score differs)
-    shared = [_CvPath(features[:, cols], labels, folds, np.ones(labels.size), n_tasks) for cols in column_sets]
+    shared = [
+        _CvPath(features[:, cols], labels, folds, np.ones(labels.size), n_tasks) for cols in column_sets
+    ]
     fits = []
     for here in weights:
         best_score, best = np.inf, None
@@ -326,7 +330,9 @@ def fit_head(
         mean, scale = np.zeros(n_feat), np.ones(n_feat)
         mean[cols], scale[cols] = path.mean, path.scale
         kind = LOGISTIC if j < len(HEAD_C_GRID) else LDA
-        fits.append((coef, b, mean, scale, np.array(_CvPath.parameter(j)), scores, kind, float(cols.size == n_feat)))
+        fits.append(
+            (coef, b, mean, scale, np.array(_CvPath.parameter(j)), scores, kind, float(cols.size == n_feat))
+        )
     arrays = [np.stack(a) for a in zip(*fits, strict=True)]
     return RecognitionHead(levels, *arrays[:6], kind=arrays[6].astype(float), generative=arrays[7])
 

@@ -185,7 +185,9 @@ class _Fold:
 
 
 def _fold_engine(training: TrainingSet, models: list, nu: float) -> InferenceEngine:
-    return InferenceEngine(training.basis, models, training.layout.n_obs_dims, training.duration_nominal_s, nu)
+    return InferenceEngine(
+        training.basis, models, training.layout.n_obs_dims, training.duration_nominal_s, nu
+    )
 
 
 def choose_noise(
@@ -352,7 +354,9 @@ def choose_coupling(
                 errs = np.einsum("mk,cnjk->cnmj", phi, ws - w_true) * scale
                 rows.append(np.mean(errs * errs, axis=(2, 3)).ravel())
             else:  # final configurations, the true one first
-                ends.append(np.concatenate([(phi[-1] @ w_true.T)[None], (ws @ phi[-1]).reshape(-1, scale.size)]))
+                ends.append(
+                    np.concatenate([(phi[-1] @ w_true.T)[None], (ws @ phi[-1]).reshape(-1, scale.size)])
+                )
     if fk is not None and ends:  # squared hand-over position errors [m^2]
         n_conf = ends[0].shape[0]
         p_end = fk(np.concatenate(ends) * scale + offset).reshape(len(ends), n_conf, -1)

@@ -30,7 +30,8 @@ A model file is a single ``.npz`` archive (``numpy.savez``) read back with
   and ``handover_residual_cov`` (R, M, M) (:mod:`~ipromp_pin.promp.handover`).
 
 Files of format version 1 (no ``trained_on``) load with ``trained_on`` None
-(unknown); files of format version 2 load with an all-logistic head and no hand-over regression. Files written before the coupling was introduced (no ``coupling`` parameter, no
+(unknown); files of format version 2 load with an all-logistic head and no hand-over regression.
+Files written before the coupling was introduced (no ``coupling`` parameter, no
 ``task{i}_shrinkage``) load as fully coupled models with one shrinkage intensity;
 the covariance is entirely in ``diag`` and ``factor``, so older readers also load
 newer files and predict the same.
@@ -179,14 +180,17 @@ def write_model(params: dict, fitted: FittedModel, path: str | Path) -> None:
         "condition_noise_ratio": float(fitted.nu_condition),
         "condition_cv_scores": [[float(k), float(v)] for k, v in fitted.condition_cv_scores.items()],
         "head": None if fitted.head is None else {"regressions": int(fitted.head.ratios.size)},
-        "handover": None if ho is None else {
+        "handover": None
+        if ho is None
+        else {
             "ratios": int(ho.ratios.size),
             "outputs": int(ho.readout.shape[1]),
             "features": int(ho.dims.size),
             "trust": float(ho.trust),
         },
         "handover_cv_scores": [
-            ["off" if not np.isfinite(k) else float(k), float(v)] for k, v in fitted.handover_cv_scores.items()
+            ["off" if not np.isfinite(k) else float(k), float(v)]
+            for k, v in fitted.handover_cv_scores.items()
         ],
         "task_scalars": [
             {
@@ -213,7 +217,9 @@ def write_model(params: dict, fitted: FittedModel, path: str | Path) -> None:
             arrays[f"head_{name}"] = np.asarray(getattr(head, name), dtype=float)
         n = head.ratios.size
         arrays["head_kind"] = np.zeros(n) if head.kind is None else np.asarray(head.kind, dtype=float)
-        arrays["head_generative"] = np.ones(n) if head.generative is None else np.asarray(head.generative, float)
+        arrays["head_generative"] = (
+            np.ones(n) if head.generative is None else np.asarray(head.generative, float)
+        )
     if ho is not None:
         for name in _HANDOVER_ARRAYS:
             arrays[f"handover_{name}"] = np.asarray(getattr(ho, name), dtype=float)
@@ -382,9 +388,11 @@ def _expected_shapes(path: Path, header: dict) -> dict[str, tuple[int | None, ..
     ho = header.get("handover")
     if ho is not None:
         sizes = [ho.get(key) if isinstance(ho, dict) else None for key in ("ratios", "outputs", "features")]
-        if not all(isinstance(v, int) and not isinstance(v, bool) and 1 <= v <= MAX_HANDOVER_SIZE for v in sizes):
+        if not all(
+            isinstance(v, int) and not isinstance(v, bool) and 1 <= v <= MAX_HANDOVER_SIZE for v in sizes
+        ):
             raise ModelFileError(
-                f"{path}: header field 'handover' must give 1-{MAX_HANDOVER_SIZE} ratios, outputs and features"
+                f"{path}: header field 'handover' must give 1-{MAX_HANDOVER_SIZE} ratios, outputs, features"
             )
         r, m, f = sizes
         t, nj = len(tasks), len(names[groups[-1]])

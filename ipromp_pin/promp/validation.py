@@ -180,7 +180,9 @@ def _check_head(head: RecognitionHead, n_tasks: int, n_obs: int) -> None:
     _bounded("head coef", _array("head coef", head.coef, (r, n_tasks, f)), MAX_SCALED)
     _bounded("head intercept", _array("head intercept", head.intercept, (r, n_tasks)), MAX_SCALED)
     _bounded("head feature_mean", _array("head feature_mean", head.feature_mean, (r, f)), MAX_SCALED)
-    _positive("head feature_scale", _array("head feature_scale", head.feature_scale, (r, f)), bound=MAX_SCALED)
+    _positive(
+        "head feature_scale", _array("head feature_scale", head.feature_scale, (r, f)), bound=MAX_SCALED
+    )
     _positive("head c", _array("head c", head.c, (r,)), bound=MAX_SCALED)
     for name, value in (("kind", head.kind), ("generative", head.generative)):
         if value is not None:

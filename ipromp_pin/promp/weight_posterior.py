@@ -144,7 +144,9 @@ class RobotWeightPosterior:
             eta = solve_triangular(self.q_chol, zeta, lower=True, trans="T").T if r else zeta.T
             w = self.mean[None] + xi + np.einsum("jkr,nr->njk", self.factor, eta)
         else:
-            u = solve_triangular(self.precision_chol(), rng.standard_normal((j * k + r, n)), lower=True, trans="T")
+            u = solve_triangular(
+                self.precision_chol(), rng.standard_normal((j * k + r, n)), lower=True, trans="T"
+            )
             xi = u[: j * k].T.reshape(n, j, k) * np.sqrt(self.diag)[None, :, None]
             w = self.mean[None] + xi + np.einsum("jkr,rn->njk", self.factor, u[j * k :])
         q = np.einsum("mk,njk->nmj", self.phi, w)

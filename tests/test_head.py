@@ -60,8 +60,10 @@ def test_head_is_a_calibrated_classifier_of_its_features():
     assert head.c[0] in (HEAD_C_GRID if head.kind[0] == LOGISTIC else LDA_TEMPERATURE_GRID)
     assert head.cv_log_loss.shape == (1, len(HEAD_C_GRID) + len(LDA_TEMPERATURE_GRID))
     # the chosen candidate has the smallest cross-validated log loss of its features and rows
-    chosen = list(HEAD_C_GRID).index(head.c[0]) if head.kind[0] == LOGISTIC else (
-        len(HEAD_C_GRID) + list(LDA_TEMPERATURE_GRID).index(head.c[0])
+    chosen = (
+        list(HEAD_C_GRID).index(head.c[0])
+        if head.kind[0] == LOGISTIC
+        else (len(HEAD_C_GRID) + list(LDA_TEMPERATURE_GRID).index(head.c[0]))
     )
     assert head.cv_log_loss[0, chosen] == head.cv_log_loss[0].min()
     # the generative log posterior is uninformative here: its weights are 0 when the window alone won

@@ -73,7 +73,13 @@ def test_version_1_file_loads_as_the_model_it_was(tmp_path: Path, model_and_obs)
     assert old.condition_noise_ratio_ == old.noise_ratio_ == model.noise_ratio_
     assert old.handover_ is None
     same = IProMP(
-        **{**model.get_params(), "head": False, "handover": False, "temperature": 1.0, "condition_noise": "same"}
+        **{
+            **model.get_params(),
+            "head": False,
+            "handover": False,
+            "temperature": 1.0,
+            "condition_noise": "same",
+        }
     )
     fitted = model.fitted_
     from dataclasses import replace
@@ -153,7 +159,10 @@ def test_model_remembers_its_training_demos_and_version_1_files_still_load(tmp_p
     loaded = IProMP.load(path)
     assert loaded.trained_on_ == model.trained_on_
     header = json.loads(str(np.load(path)["header"][()]))
-    assert header["format_version"] == FORMAT_VERSION and header["trained_on"][0]["sha256"] == model.trained_on_[0].sha256
+    assert (
+        header["format_version"] == FORMAT_VERSION
+        and header["trained_on"][0]["sha256"] == model.trained_on_[0].sha256
+    )
 
     # a version-1 file (no trained_on) loads, predicts the same, and says it does not know its demos
     def to_v1(h: dict) -> None:

@@ -15,10 +15,13 @@ with, per task,
   task's mean final configuration (M = 3, [m/rad]: the position to first order, so the regression
   acts on what the hand-over needs and not on the arm's null space); without it the identity
   (M = J, joint space);
-* features: the mean and the last value of each observed dim coupled to the robot (scaled units) over
-  the observed window (:class:`~ipromp_pin.promp.head.WindowSummary`);
+* features: the mean and the last value over the observed window of each dim of the groups coupled
+  to the robot, or of every observed group (chosen by cross-validation; scaled units;
+  :class:`~ipromp_pin.promp.head.WindowSummary`);
 * the regression ``y = W x + c``: one ridge regression per observed fraction (:data:`RATIOS`) on the
-  task's training demos (targets ``A q_i(T)``), its penalty chosen by exact leave-one-out
+  task's training demos (targets: their recorded final configurations ``q_i``, as gripper positions
+  in the read-out's linearisation ``A q_bar + fk(q_i) - fk(q_bar)``, ``q_bar`` the task's mean;
+  without forward kinematics ``q_i``), its penalty chosen by exact leave-one-out
   (:func:`fit_ridge`); online the predictions of the two fractions around the estimated observed
   fraction are interpolated linearly (as the recognition head's logits);
 * ``R``: the covariance of the leave-one-out residuals, pooled over the tasks, per fraction;
@@ -46,7 +49,7 @@ RATIOS = (0.1, 0.2, 0.4, 0.6, 0.8)
 RIDGE_PENALTIES = tuple(float(v) for v in np.logspace(-3, 5, 17))
 """Candidate ridge penalties (standardised features), chosen by leave-one-out."""
 
-TRUST_GRID = (0.25, 0.5, 1.0, 2.0, 4.0, 8.0)
+TRUST_GRID = (0.1, 0.25, 0.5, 1.0, 2.0, 4.0, 8.0, 16.0)
 """Candidate trust factors ``s`` (the regression's noise is ``s R``); "off" is also a candidate."""
 
 JACOBIAN_STEP_RAD = 1e-6

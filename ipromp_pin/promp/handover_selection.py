@@ -10,7 +10,10 @@ leave-one-out covariance, and the regression is refitted without the held-out de
 residuals by leave-one-out among the others), interpolated at the estimated observed fraction. The
 score of every candidate (each of :data:`~ipromp_pin.promp.handover.TRUST_GRID`, and "off") is the
 mean hand-over position error in [m] (with the robot's forward kinematics; else the RMS error of the
-final joint angles in [rad]); the best one is chosen ("off": the model has no regression).
+final joint angles in [rad]); the best one is chosen ("off": the model has no regression). The
+regression's features are the window of the groups coupled to the robot or of every observed group
+(when they differ), chosen by the same cross-validation; the robot's leave-one-out conditioning is
+computed once for all candidates.
 """
 
 from __future__ import annotations
@@ -45,11 +48,43 @@ class HandoverChoice:
 
 
 def final_configurations(training: TrainingSet) -> dict[str, np.ndarray]:
-    """Task -> (N, J) the final joint angles in [rad] of its demos' basis fits (phase 1)."""
+    """Task -> (N, J) the final joint angles in [rad] of its demos: the last sample with every joint
+    (what the hand-over is measured against; the basis fit at phase 1 for a demo without one)."""
     rs = training.layout.robot_slice
     phi = training.basis(np.array([1.0]))[0]
     scale, offset = training.scaler.scale[rs], training.scaler.offset[rs]
-    return {t: (w[:, rs] @ phi) * scale + offset for t, w in training.weights.items()}
+    robot = training.layout.robot_group
+    out = {}
+    for t, w in training.weights.items():
+        q = (w[:, rs] @ phi) * scale + offset
+        for i, demo in enumerate(training.demos[t]):
+            values = np.asarray(demo.groups[robot], dtype=float)
+            rows = np.flatnonzero(np.all(np.isfinite(values), axis=1))
+            if rows.size:
+                q[i] = values[rows[-1]]
+        out[t] = q
+    return out
+
+
+def readout_targets(
+    q_end: dict[str, np.ndarray],
+    readout: np.ndarray,
+    tasks: Sequence[str],
+    fk: Callable[[np.ndarray], np.ndarray] | None,
+) -> dict[str, np.ndarray]:
+    """Task -> (N, M) the regression's targets: with the forward kinematics the gripper positions
+    ``p_i`` [m] in the read-out's linearisation at the task's mean final configuration ``q_bar``,
+    ``A q_bar + p_i - fk(q_bar)`` (so that ``A q(T)`` equal to the target puts the linearised gripper
+    at ``p_i``); without it the final joint angles [rad]."""
+    out = {}
+    for k, t in enumerate(tasks):
+        if fk is None:
+            out[t] = q_end[t] @ readout[k].T
+            continue
+        q_bar = q_end[t].mean(axis=0)
+        p = np.asarray(fk(np.vstack([q_bar[None], q_end[t]])), dtype=float)
+        out[t] = (readout[k] @ q_bar - p[0])[None] + p[1:]
+    return out
 
 
 def _features(training: TrainingSet, dims: np.ndarray) -> dict[str, np.ndarray]:
@@ -88,40 +123,58 @@ def choose_handover(
     temperature: float,
     fk: Callable[[np.ndarray], np.ndarray] | None = None,
 ) -> HandoverChoice:
-    """Fit the hand-over regressions on the coupled groups' window features and choose their trust
-    factor by cross-validation (see the module docstring).
+    """Fit the hand-over regressions and choose their features (the coupled groups' window or every
+    observed group's) and trust factor by cross-validation (see the module docstring).
 
     Args:
         training: The training set.
         settings: Phase and covariance settings.
-        coupled: The observed groups coupled to the robot (the features are theirs).
+        coupled: The observed groups coupled to the robot (the robot is conditioned on them).
         nu_condition: The conditioning noise ratio of the robot's weights.
         rows: The held-out observations of :func:`~ipromp_pin.promp.selection.choose_noise` (their
             log likelihood at the chosen noise ratio).
         temperature: The chosen likelihood temperature.
         fk: The robot's forward kinematics (joint angles (n, J) in [rad] -> positions (n, 3) in [m]).
+
+    Returns:
+        The chosen regression (None: "off") and the CV errors of the trust factors with the chosen
+        features.
     """
     layout = training.layout
-    dims = layout.dims(list(coupled))
-    if dims.size == 0:
+    if not layout.dims(list(coupled)).size:  # the robot is independent of the human: nothing to fuse
         return HandoverChoice(None, {})
     tasks = training.tasks
     q_end = final_configurations(training)
     readout = readouts(np.stack([q_end[t].mean(axis=0) for t in tasks]), fk)
-    targets = {t: q_end[t] @ readout[k].T for k, t in enumerate(tasks)}
-    feats = _features(training, dims)
-    fits = {(r, t): _fit(feats[t][r], targets[t]) for r in range(len(RATIOS)) for t in tasks}
-    if any(f is None for f in fits.values()):
+    targets = readout_targets(q_end, readout, tasks, fk)
+    candidates = []
+    for groups in (list(coupled), list(layout.observe)):
+        dims = layout.dims(groups)
+        if dims.size == 0 or any(np.array_equal(dims, c[0]) for c in candidates):
+            continue
+        feats = _features(training, dims)
+        fits = {(r, t): _fit(feats[t][r], targets[t]) for r in range(len(RATIOS)) for t in tasks}
+        if all(f is not None for f in fits.values()):
+            candidates.append((dims, feats, fits))
+    if not candidates:
         return HandoverChoice(None, {})
-    scores = _cross_validate(training, settings, coupled, nu_condition, rows, temperature, fk, feats, fits)
+    held = _held_out_predictions(training, settings, coupled, nu_condition, rows, temperature)
+    best = None
+    for dims, feats, fits in candidates:
+        scores = _cross_validate(training, held, readout, fk, dims, feats, fits, q_end, targets)
+        if scores and (best is None or min(scores.values()) < min(best[3].values())):
+            best = (dims, feats, fits, scores)
+    if best is None:
+        return HandoverChoice(None, {})
+    dims, _, fits, scores = best
+    trust = min(scores, key=scores.get)
+    if not np.isfinite(trust):
+        return HandoverChoice(None, scores)
     n_ratio, n_task = len(RATIOS), len(tasks)
     m = readout.shape[1]
     coef = np.stack([np.stack([fits[(r, t)].coef for t in tasks]) for r in range(n_ratio)])
     intercept = np.stack([np.stack([fits[(r, t)].intercept for t in tasks]) for r in range(n_ratio)])
     cov = np.stack([_pooled([fits[(r, t)].residuals for t in tasks]) for r in range(n_ratio)])
-    trust = min(scores, key=scores.get) if scores else np.inf
-    if not np.isfinite(trust):
-        return HandoverChoice(None, scores)
     regression = HandoverRegression(
         ratios=np.asarray(RATIOS, dtype=float),
         dims=np.asarray(dims, dtype=np.int64),
@@ -142,31 +195,41 @@ def _pooled(residuals: list[np.ndarray]) -> np.ndarray:
     return cov + 1e-9 * max(float(np.trace(cov)) / cov.shape[0], 1e-12) * np.eye(cov.shape[0])
 
 
-def _cross_validate(
+@dataclass(frozen=True)
+class _HeldOutPrediction:
+    """The leave-one-out robot prediction of one held-out row: its demo (task, index), the window
+    (3 D_o,), the estimated observed fraction, the conditioned final configuration's mean (J,) in
+    [rad] and covariance (J, J) in [rad^2]."""
+
+    task: str
+    index: int
+    window: np.ndarray
+    fraction: float
+    mean: np.ndarray
+    cov: np.ndarray
+
+
+def _held_out_predictions(
     training: TrainingSet,
     settings: PhaseSettings,
     coupled: Sequence[str],
     nu_condition: float,
     rows: list[HeldOutRow],
     temperature: float,
-    fk: Callable[[np.ndarray], np.ndarray] | None,
-    feats: dict[str, np.ndarray],
-    fits: dict[tuple[int, str], RidgeFit],
-) -> dict[float, float]:
-    """Candidate trust factor -> CV error (``inf``: off); empty when no row could be scored."""
+) -> list[_HeldOutPrediction]:
+    """The robot conditioned as online on every held-out row (its task's MAP phase under the
+    leave-one-out model, the chosen coupling and conditioning noise ratio, the leave-one-out
+    covariance); rows without a phase or observation are left out."""
     layout = training.layout
     tasks = training.tasks
     rs = layout.robot_slice
     scale, offset = training.scaler.scale[rs], training.scaler.offset[rs]
     phi_end = training.basis(np.array([1.0]))[0]
-    q_end = final_configurations(training)
-    readout = readouts(np.stack([q_end[t].mean(axis=0) for t in tasks]), fk)
     encoder = ObservationEncoder(layout, training.scaler, np.inf)
     folds = held_out(training.demos)
     blocks = coupling_blocks(layout, coupled)
     covs: dict[int, object] = {}
-    nested: dict[tuple[int, int], RidgeFit | None] = {}
-    configs, truths = [], []
+    out = []
     for row in rows:
         task, i = folds[row.demo]
         k = tasks.index(task)
@@ -188,34 +251,57 @@ def _cross_validate(
         path = robot_path(spectrum, parts, rs, [nu_condition], cov.mean, cov.diag, cov.factor)
         mean = (path.mean[0] @ phi_end) * scale + offset  # (J,) [rad]
         s_cov = path.readout_cov(phi_end)[0] * scale[:, None] * scale[None, :]
+        out.append(_HeldOutPrediction(task, i, np.asarray(row.window, dtype=float), fraction, mean, s_cov))
+    return out
+
+
+def _cross_validate(
+    training: TrainingSet,
+    held: list[_HeldOutPrediction],
+    readout: np.ndarray,
+    fk: Callable[[np.ndarray], np.ndarray] | None,
+    dims: np.ndarray,
+    feats: dict[str, np.ndarray],
+    fits: dict[tuple[int, str], RidgeFit],
+    q_end: dict[str, np.ndarray],
+    targets: dict[str, np.ndarray],
+) -> dict[float, float]:
+    """Candidate trust factor -> CV error (``inf``: off) of the regression on the features of
+    ``dims`` (final configurations ``q_end``, regression targets ``targets``); empty when no row
+    could be scored."""
+    tasks = training.tasks
+    nested: dict[tuple[int, str, int], RidgeFit | None] = {}
+    configs, truths = [], []
+    for h in held:
+        k = tasks.index(h.task)
         # the regression without the held-out demo, interpolated at the estimated fraction
-        j, w = interpolation(list(RATIOS), fraction)
-        x = window_features(row.window, layout.dims(list(coupled)))
+        j, w = interpolation(list(RATIOS), h.fraction)
+        x = window_features(h.window, dims)
         pred, noise = np.zeros(readout.shape[1]), np.zeros((readout.shape[1],) * 2)
         ok = True
         for level, weight in ((j, 1.0 - w), (j + 1, w)):
             if weight <= 0.0:
                 continue
-            key = (level, row.demo)
+            key = (level, h.task, h.index)
             if key not in nested:
-                nested[key] = _fit(feats[task][level], q_end[task] @ readout[k].T, drop=i)
+                nested[key] = _fit(feats[h.task][level], targets[h.task], drop=h.index)
             fit = nested[key]
             if fit is None:
                 ok = False
                 break
             pred += weight * (fit.coef @ x + fit.intercept)
-            others = [fits[(level, t)].residuals for t in tasks if t != task]
+            others = [fits[(level, t)].residuals for t in tasks if t != h.task]
             noise += weight * _pooled([*others, fit.residuals])
         if not ok:
             continue
         a = readout[k]
-        gain_base = s_cov @ a.T  # (J, M)
-        innov = pred - a @ mean
-        outs = [mean]
+        gain_base = h.cov @ a.T  # (J, M)
+        innov = pred - a @ h.mean
+        outs = [h.mean]
         for trust in TRUST_GRID:
-            outs.append(mean + gain_base @ np.linalg.solve(a @ gain_base + trust * noise, innov))
+            outs.append(h.mean + gain_base @ np.linalg.solve(a @ gain_base + trust * noise, innov))
         configs.append(np.stack(outs))
-        truths.append(q_end[task][i])
+        truths.append(q_end[h.task][h.index])
     if not configs:
         return {}
     q = np.stack(configs)  # (n, 1 + len(TRUST_GRID), J)
@@ -227,7 +313,6 @@ def _cross_validate(
     else:
         err = np.sqrt(np.mean((q - truth[:, None]) ** 2, axis=2))
     mean_err = err.mean(axis=0)
-    return {
-        np.inf: float(mean_err[0]),
-        **{t: float(v) for t, v in zip(TRUST_GRID, mean_err[1:], strict=True)},
-    }
+    scores = {np.inf: float(mean_err[0])}
+    scores.update({t: float(v) for t, v in zip(TRUST_GRID, mean_err[1:], strict=True)})
+    return scores

@@ -111,8 +111,7 @@ class IProMP:
         temperature_: Chosen likelihood temperature ``tau``.
         head_: The fitted :class:`~ipromp_pin.promp.head.RecognitionHead` (None with ``head=False``).
         handover_: The fitted :class:`~ipromp_pin.promp.handover.HandoverRegression` (None: not used);
-            ``handover_cv_scores_`` its candidate trust factors (``inf``: off) -> CV error (pooled over
-            the fractions; the trust is chosen per fraction).
+            ``handover_cv_scores_`` its candidate trust factors (``inf``: off) -> CV error.
         condition_noise_ratio_: Chosen ``nu_c`` (see ``condition_noise``); ``condition_cv_scores_``
             ``nu_c`` -> CV RMSE of the robot prediction in [rad] (only with ``condition_noise="auto"``).
         cv_scores_: ``nu`` -> CV score (only with ``noise="auto"``).

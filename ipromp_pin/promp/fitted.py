@@ -52,8 +52,8 @@ class FittedModel:
             chosen coupling (empty when ``nu_c`` was given).
         handover: The hand-over regression fused into the robot's prediction
             (:mod:`~ipromp_pin.promp.handover`; None: none).
-        handover_cv_scores: Candidate trust factor (``inf``: off) -> its CV error pooled over the
-            fractions (empty when not cross-validated).
+        handover_cv_scores: Candidate trust factor (``inf``: off) -> its CV error (empty when not
+            cross-validated).
     """
 
     layout: ChannelLayout

@@ -25,11 +25,9 @@ with, per task,
   (:func:`fit_ridge`); online the predictions of the two fractions around the estimated observed
   fraction are interpolated linearly (as the recognition head's logits);
 * ``R``: the covariance of the leave-one-out residuals, pooled over the tasks, per fraction;
-* ``s``: a trust factor per observed fraction chosen by cross-validation of the hand-over error on
-  the training demos (:func:`~ipromp_pin.promp.handover_selection.choose_handover`; among
-  :data:`TRUST_GRID` and "off", ``inf``: the regression is not used at that fraction); online the
-  precisions ``1 / s`` of the two fractions around the estimated one are interpolated linearly (0:
-  no evidence).
+* ``s``: a trust factor chosen by cross-validation of the hand-over error on the training demos
+  (:func:`~ipromp_pin.promp.handover_selection.choose_handover`; among :data:`TRUST_GRID` and "off":
+  the regression is then not used).
 
 The conditioned prediction (mean and covariance of the whole trajectory) is updated by exact Gaussian
 conditioning on ``y`` (:meth:`~ipromp_pin.promp.weight_posterior.RobotWeightPosterior.readout_update`);
@@ -140,8 +138,7 @@ class HandoverRegression:
         coef: (R, T, M, 2 F) regression weights on the features (scaled units).
         intercept: (R, T, M) intercepts.
         residual_cov: (R, M, M) leave-one-out residual covariance ``R`` (pooled over tasks).
-        trust: (R,) the trust factor ``s`` of every fraction (the noise covariance is ``s R``; ``inf``:
-            the regression is not used at that fraction).
+        trust: The trust factor ``s`` (the noise covariance is ``s R``).
     """
 
     ratios: np.ndarray
@@ -150,30 +147,25 @@ class HandoverRegression:
     coef: np.ndarray
     intercept: np.ndarray
     residual_cov: np.ndarray
-    trust: np.ndarray
+    trust: float
 
     def __post_init__(self) -> None:
         # C-contiguous copies: a fitted and a loaded regression then give bitwise identical products
-        for name in ("ratios", "readout", "coef", "intercept", "residual_cov", "trust"):
+        for name in ("ratios", "readout", "coef", "intercept", "residual_cov"):
             object.__setattr__(self, name, np.ascontiguousarray(getattr(self, name), dtype=float))
         object.__setattr__(self, "dims", np.ascontiguousarray(self.dims))
 
     def observation(
         self, task: int, window: WindowSummary, fraction: float
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The read-out ``A`` (M, J), the regression's prediction ``y`` (M,) and its noise covariance
-        ``R / p`` (M, M) for task index ``task`` given the observed window and the estimated observed
-        fraction (the regressions, residual covariances ``R`` and precisions ``p = 1 / s`` of the two
-        fractions around it interpolated linearly); None where the interpolated precision is 0 (the
-        regression is off there)."""
-        i, w = interpolation([float(r) for r in self.ratios], fraction)
-        precision = (1.0 - w) / float(self.trust[i]) + (w / float(self.trust[i + 1]) if w > 0.0 else 0.0)
-        if not precision > 0.0:
-            return None
+        ``s R`` (M, M) for task index ``task`` given the observed window and the estimated observed
+        fraction (the regressions of the two fractions around it interpolated linearly)."""
         x = window_features(window.values, self.dims)
+        i, w = interpolation([float(r) for r in self.ratios], fraction)
         y = self.coef[i, task] @ x + self.intercept[i, task]
         cov = self.residual_cov[i]
         if w > 0.0:
             y = (1.0 - w) * y + w * (self.coef[i + 1, task] @ x + self.intercept[i + 1, task])
             cov = (1.0 - w) * cov + w * self.residual_cov[i + 1]
-        return self.readout[task], y, cov / precision
+        return self.readout[task], y, self.trust * cov

@@ -1,20 +1,19 @@
 """Fitting the hand-over regression and choosing how much to trust it, on the training demos only.
 
 The regressions (:mod:`~ipromp_pin.promp.handover`) are fitted per task and observed fraction on
-every training demo of the task. Their trust factor ``s``, one per fraction, is chosen by
-cross-validation of the hand-over on the held-out demos of the noise cross-validation
-(:mod:`~ipromp_pin.promp.selection`), each observed at :data:`~ipromp_pin.promp.handover.RATIOS`, as
-online: its task's phase is the leave-one-out model's MAP estimate (the recognition rows of
-:func:`~ipromp_pin.promp.selection.choose_noise`), the robot is conditioned with the chosen coupling
-and conditioning noise ratio on the leave-one-out covariance, and the regression is refitted without
-the held-out demo (its penalty and residuals by leave-one-out among the others), interpolated at the
-estimated observed fraction. The score of every candidate (each of
-:data:`~ipromp_pin.promp.handover.TRUST_GRID`, and "off") is the mean hand-over position error in
-[m] (with the robot's forward kinematics; else the RMS error of the final joint angles in [rad]);
-per fraction the best one on the rows observed at that fraction is chosen ("off" at every fraction:
-the model has no regression). The regression's features are the window of the groups coupled to the
-robot or of every observed group (when they differ), chosen by the same cross-validation; the
-robot's leave-one-out conditioning is computed once for all candidates.
+every training demo of the task. Their trust factor ``s`` is chosen by cross-validation of the
+hand-over on the held-out demos of the noise cross-validation (:mod:`~ipromp_pin.promp.selection`),
+each observed at :data:`~ipromp_pin.promp.handover.RATIOS`, as online: its task's phase is the
+leave-one-out model's MAP estimate (the recognition rows of :func:`~ipromp_pin.promp.selection.
+choose_noise`), the robot is conditioned with the chosen coupling and conditioning noise ratio on the
+leave-one-out covariance, and the regression is refitted without the held-out demo (its penalty and
+residuals by leave-one-out among the others), interpolated at the estimated observed fraction. The
+score of every candidate (each of :data:`~ipromp_pin.promp.handover.TRUST_GRID`, and "off") is the
+mean hand-over position error in [m] (with the robot's forward kinematics; else the RMS error of the
+final joint angles in [rad]); the best one is chosen ("off": the model has no regression). The
+regression's features are the window of the groups coupled to the robot or of every observed group
+(when they differ), chosen by the same cross-validation; the robot's leave-one-out conditioning is
+computed once for all candidates.
 """
 
 from __future__ import annotations
@@ -162,16 +161,14 @@ def choose_handover(
     held = _held_out_predictions(training, settings, coupled, nu_condition, rows, temperature)
     best = None
     for dims, feats, fits in candidates:
-        scored = _cross_validate(training, held, readout, fk, dims, feats, fits, q_end, targets)
-        if scored is None:
-            continue
-        trust, total, scores = _per_fraction_trust(*scored)
-        if best is None or total < best[3]:
-            best = (dims, fits, trust, total, scores)
+        scores = _cross_validate(training, held, readout, fk, dims, feats, fits, q_end, targets)
+        if scores and (best is None or min(scores.values()) < min(best[3].values())):
+            best = (dims, feats, fits, scores)
     if best is None:
         return HandoverChoice(None, {})
-    dims, fits, trust, _, scores = best
-    if not np.isfinite(trust).any():
+    dims, _, fits, scores = best
+    trust = min(scores, key=scores.get)
+    if not np.isfinite(trust):
         return HandoverChoice(None, scores)
     n_ratio, n_task = len(RATIOS), len(tasks)
     m = readout.shape[1]
@@ -185,27 +182,9 @@ def choose_handover(
         coef=coef.reshape(n_ratio, n_task, m, -1),
         intercept=intercept,
         residual_cov=cov,
-        trust=trust,
+        trust=float(trust),
     )
     return HandoverChoice(regression, scores)
-
-
-def _per_fraction_trust(err: np.ndarray, ratios: np.ndarray) -> tuple[np.ndarray, float, dict[float, float]]:
-    """From the CV errors ``err`` (n, 1 + len(TRUST_GRID)) (column 0: off) of held-out rows observed
-    at the fractions ``ratios`` (n,): per fraction of :data:`RATIOS` the trust factor of the smallest
-    mean error over its rows (``inf``: off; the pooled choice for a fraction without rows), the mean
-    error with those choices, and the pooled mean error of every candidate (``inf``: off)."""
-    pooled = err.mean(axis=0)
-    grid = np.array([np.inf, *TRUST_GRID])
-    trust = np.empty(len(RATIOS))
-    total = 0.0
-    for level, r in enumerate(RATIOS):
-        sel = np.isclose(ratios, r)
-        col = int(np.argmin(err[sel].mean(axis=0) if sel.any() else pooled))
-        trust[level] = grid[col]
-        total += float(err[sel, col].sum())
-    scores = {float(t): float(v) for t, v in zip(grid, pooled, strict=True)}
-    return trust, total / err.shape[0], scores
 
 
 def _pooled(residuals: list[np.ndarray]) -> np.ndarray:
@@ -225,7 +204,6 @@ class _HeldOutPrediction:
     task: str
     index: int
     window: np.ndarray
-    ratio: float
     fraction: float
     mean: np.ndarray
     cov: np.ndarray
@@ -273,9 +251,7 @@ def _held_out_predictions(
         path = robot_path(spectrum, parts, rs, [nu_condition], cov.mean, cov.diag, cov.factor)
         mean = (path.mean[0] @ phi_end) * scale + offset  # (J,) [rad]
         s_cov = path.readout_cov(phi_end)[0] * scale[:, None] * scale[None, :]
-        out.append(
-            _HeldOutPrediction(task, i, np.asarray(row.window, dtype=float), row.ratio, fraction, mean, s_cov)
-        )
+        out.append(_HeldOutPrediction(task, i, np.asarray(row.window, dtype=float), fraction, mean, s_cov))
     return out
 
 
@@ -289,14 +265,13 @@ def _cross_validate(
     fits: dict[tuple[int, str], RidgeFit],
     q_end: dict[str, np.ndarray],
     targets: dict[str, np.ndarray],
-) -> tuple[np.ndarray, np.ndarray] | None:
-    """The CV errors (n, 1 + len(TRUST_GRID)) of the scored held-out rows (column 0: off, then every
-    trust factor; hand-over position error in [m] with ``fk``, else final joint RMS error in [rad]) of
-    the regression on the features of ``dims`` (final configurations ``q_end``, regression targets
-    ``targets``), and the rows' observed fractions (n,); None when no row could be scored."""
+) -> dict[float, float]:
+    """Candidate trust factor -> CV error (``inf``: off) of the regression on the features of
+    ``dims`` (final configurations ``q_end``, regression targets ``targets``); empty when no row
+    could be scored."""
     tasks = training.tasks
     nested: dict[tuple[int, str, int], RidgeFit | None] = {}
-    configs, truths, ratios = [], [], []
+    configs, truths = [], []
     for h in held:
         k = tasks.index(h.task)
         # the regression without the held-out demo, interpolated at the estimated fraction
@@ -327,9 +302,8 @@ def _cross_validate(
             outs.append(h.mean + gain_base @ np.linalg.solve(a @ gain_base + trust * noise, innov))
         configs.append(np.stack(outs))
         truths.append(q_end[h.task][h.index])
-        ratios.append(h.ratio)
     if not configs:
-        return None
+        return {}
     q = np.stack(configs)  # (n, 1 + len(TRUST_GRID), J)
     truth = np.stack(truths)
     if fk is not None:
@@ -338,4 +312,7 @@ def _cross_validate(
         err = np.linalg.norm(pos[n:].reshape(n, c, -1) - pos[:n, None], axis=2)
     else:
         err = np.sqrt(np.mean((q - truth[:, None]) ** 2, axis=2))
-    return err, np.asarray(ratios, dtype=float)
+    mean_err = err.mean(axis=0)
+    scores = {np.inf: float(mean_err[0])}
+    scores.update({t: float(v) for t, v in zip(TRUST_GRID, mean_err[1:], strict=True)})
+    return scores

@@ -94,7 +94,5 @@ class Predictor:
             return pred
         k = fm.tasks.index(pred.task)
         fraction = t_last / (float(pred.alpha[k]) * fm.duration_nominal_s)
-        evidence = fm.handover.observation(k, window, fraction)
-        if evidence is None:  # the regression is off at this fraction
-            return pred
-        return self.conditioner.observe_handover(pred, *evidence)
+        readout, values, cov = fm.handover.observation(k, window, fraction)
+        return self.conditioner.observe_handover(pred, readout, values, cov)

@@ -143,11 +143,10 @@ def direct_window(parts: list[ObservationPart], n_obs: int) -> np.ndarray:
 
 def direct_handover(
     fm: FittedModel, parts: list[ObservationPart], task: int, fraction: float
-) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The hand-over regression's evidence written out: the read-out ``A`` (M, J), the prediction
     ``y`` (M,) of the features (window mean and last value of its dims) of the regressions at the two
-    fractions around ``fraction`` interpolated linearly, and its noise covariance ``R / p`` (M, M)
-    (``R`` and the precision ``p = 1 / s`` interpolated alike); None where ``p`` is 0."""
+    fractions around ``fraction`` interpolated linearly, and its noise covariance ``s R`` (M, M)."""
     ho = fm.handover
     window = direct_window(parts, fm.layout.n_obs_dims).reshape(3, -1)
     x = np.concatenate([window[1, ho.dims], window[2, ho.dims]])
@@ -159,15 +158,12 @@ def direct_handover(
     else:
         i = max(k for k in range(r.size - 1) if r[k] <= fraction)
         w = (fraction - r[i]) / (r[i + 1] - r[i])
-    precision = (1.0 - w) / ho.trust[i] + (w / ho.trust[i + 1] if w > 0.0 else 0.0)
-    if precision == 0.0:
-        return None
     y = ho.coef[i, task] @ x + ho.intercept[i, task]
     cov = ho.residual_cov[i]
     if w > 0.0:
         y = (1.0 - w) * y + w * (ho.coef[i + 1, task] @ x + ho.intercept[i + 1, task])
         cov = (1.0 - w) * cov + w * ho.residual_cov[i + 1]
-    return ho.readout[task], y, cov / precision
+    return ho.readout[task], y, ho.trust * cov
 
 
 def direct_head(
@@ -237,11 +233,9 @@ def direct_predict(predictor: Predictor, observation: Demo) -> Prediction:
     sel = slice(rs.start * k, rs.stop * k)
     scale = fm.scaler.scale[rs]
     wr = w_mean.reshape(n_dims, k)  # the human's estimates do not use the hand-over regression
-    evidence = None
-    if fm.handover is not None:
-        evidence = direct_handover(fm, parts, fm.tasks.index(rec.task), t_last / (a_best * tn))
-    if evidence is not None:  # y = A q(T) + e, q(T) = scale * (phi(1) w_robot) + offset
-        readout, values, noise = evidence
+    if fm.handover is not None:  # y = A q(T) + e, q(T) = scale * (phi(1) w_robot) + offset
+        task = fm.tasks.index(rec.task)
+        readout, values, noise = direct_handover(fm, parts, task, t_last / (a_best * tn))
         phi_end = fm.basis(np.array([1.0]))[0]
         h = np.zeros((readout.shape[0], n_dims * k))
         h[:, sel] = np.kron(readout * scale[None, :], phi_end[None, :])

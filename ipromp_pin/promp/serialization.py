@@ -23,8 +23,7 @@ A model file is a single ``.npz`` archive (``numpy.savez``) read back with
   (R, 3 D_o + T), ``head_c`` (R,) and ``head_cv_log_loss`` (R, number of candidates);
 * (version 3) the head's ``head_kind`` (R,) (0 logistic regression, 1 LDA) and ``head_generative``
   (R,) (1 where the generative posterior is a feature); the header's ``handover`` (null, or the
-  numbers R, M and F of its fractions, outputs and feature dims, and its trust factor per fraction,
-  a number or ``"off"``) and
+  numbers R, M and F of its fractions, outputs and feature dims, and its trust factor) and
   ``handover_cv_scores`` (trust factor or ``"off"`` -> CV error), and with a hand-over regression its
   arrays ``handover_ratios`` (R,), ``handover_dims`` (F,) (observed dims, as floats),
   ``handover_readout`` (T, M, J), ``handover_coef`` (R, T, M, 2 F), ``handover_intercept`` (R, T, M)
@@ -187,7 +186,7 @@ def write_model(params: dict, fitted: FittedModel, path: str | Path) -> None:
             "ratios": int(ho.ratios.size),
             "outputs": int(ho.readout.shape[1]),
             "features": int(ho.dims.size),
-            "trust": ["off" if not np.isfinite(v) else float(v) for v in ho.trust],
+            "trust": float(ho.trust),
         },
         "handover_cv_scores": [
             ["off" if not np.isfinite(k) else float(k), float(v)]
@@ -557,25 +556,8 @@ def _handover(meta: dict | None, arrays: dict[str, np.ndarray]) -> HandoverRegre
     return HandoverRegression(
         **{name: arrays[f"handover_{name}"] for name in _HANDOVER_ARRAYS},
         dims=dims.astype(np.int64),
-        trust=_trust(meta.get("trust"), arrays["handover_ratios"].size),
+        trust=float(meta["trust"]),
     )
-
-
-def _trust(value: object, n: int) -> np.ndarray:
-    """The hand-over regression's trust factors (n,) of a header: a list of positive numbers or
-    ``"off"`` (``inf``), one per fraction, or one number for all."""
-    items = value if isinstance(value, list) else [value] * n
-    if len(items) != n:
-        raise ValueError(f"handover trust must give {n} values")
-    out = []
-    for v in items:
-        if v == "off":
-            out.append(np.inf)
-        elif isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v) and v > 0:
-            out.append(float(v))
-        else:
-            raise ValueError("handover trust must be positive numbers or 'off'")
-    return np.array(out)
 
 
 def _trained_on(header: dict) -> tuple[DemoRecord, ...] | None:

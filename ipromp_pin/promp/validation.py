@@ -193,7 +193,7 @@ def _check_head(head: RecognitionHead, n_tasks: int, n_obs: int) -> None:
 
 def _check_handover(ho: HandoverRegression, n_tasks: int, n_obs: int, n_joints: int) -> None:
     """The hand-over regression's arrays: shapes, finite numbers, observed feature dims, positive
-    definite residual covariances, positive trust factors (inf: off at that fraction)."""
+    definite residual covariances, a positive trust factor."""
     ratios = _array("handover ratios", ho.ratios, (None,))
     _increasing_fractions("handover ratios", ratios)
     dims = np.asarray(ho.dims)
@@ -211,8 +211,4 @@ def _check_handover(ho: HandoverRegression, n_tasks: int, n_obs: int, n_joints: 
         raise _fail("handover residual_cov", "must be symmetric")
     if (np.linalg.eigvalsh(cov) <= 0).any():
         raise _fail("handover residual_cov", "must be positive definite")
-    trust = _array("handover trust", ho.trust, (r,))
-    finite = np.isfinite(trust)
-    bad = np.isnan(trust).any() or (trust <= 0).any() or (trust[finite] > MAX_ORIGINAL).any()
-    if bad or not finite.any():
-        raise _fail("handover trust", f"must be factors in (0, {MAX_ORIGINAL:g}] or inf (off), one finite")
+    _scalar("handover trust", ho.trust, 0.0, MAX_ORIGINAL)

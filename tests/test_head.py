@@ -9,7 +9,10 @@ from helpers_model import random_dataset, split
 from ipromp_pin.promp import IProMP
 from ipromp_pin.promp.head import (
     HEAD_C_GRID,
+    LDA,
+    LDA_TEMPERATURE_GRID,
     LOG_POSTERIOR_CLIP,
+    LOGISTIC,
     WindowSummary,
     fit_head,
     interpolation,
@@ -53,8 +56,19 @@ def test_head_is_a_calibrated_classifier_of_its_features():
     generative = np.log(np.full((n, n_tasks), 1.0 / n_tasks))
     x = np.hstack([window, generative])
     head = fit_head(x, labels, np.arange(n), np.full(n, 0.2), n_tasks)
-    assert head.ratios.tolist() == [0.2] and head.c[0] in HEAD_C_GRID
-    assert head.cv_log_loss.shape == (1, len(HEAD_C_GRID))
+    assert head.ratios.tolist() == [0.2] and head.kind[0] in (LOGISTIC, LDA)
+    assert head.c[0] in (HEAD_C_GRID if head.kind[0] == LOGISTIC else LDA_TEMPERATURE_GRID)
+    assert head.cv_log_loss.shape == (1, len(HEAD_C_GRID) + len(LDA_TEMPERATURE_GRID))
+    # the chosen candidate has the smallest cross-validated log loss of its features and rows
+    chosen = (
+        list(HEAD_C_GRID).index(head.c[0])
+        if head.kind[0] == LOGISTIC
+        else (len(HEAD_C_GRID) + list(LDA_TEMPERATURE_GRID).index(head.c[0]))
+    )
+    assert head.cv_log_loss[0, chosen] == head.cv_log_loss[0].min()
+    # the generative log posterior is uninformative here: its weights are 0 when the window alone won
+    if head.generative[0] == 0.0:
+        assert np.all(head.coef[0][:, -n_tasks:] == 0.0)
     assert head.cv_log_loss.min() < np.log(n_tasks)  # better than chance in cross-validation
     post = [head.log_posterior(WindowSummary(window[i].reshape(3, 2)), generative[i], 0.2) for i in range(n)]
     assert np.allclose([np.logaddexp.reduce(p) for p in post], 0.0)

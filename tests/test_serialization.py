@@ -44,7 +44,7 @@ def test_file_has_no_pickled_objects(tmp_path: Path, model_and_obs) -> None:
     with np.load(path, allow_pickle=False) as npz:
         header = json.loads(str(npz["header"][()]))
         assert all(npz[name].dtype != object for name in npz.files)
-    assert header["format"] == "ipromp_pin.IProMP" and header["format_version"] == FORMAT_VERSION == 2
+    assert header["format"] == "ipromp_pin.IProMP" and header["format_version"] == FORMAT_VERSION == 3
     assert header["tasks"] == ["task0", "task1", "task2"]
 
 
@@ -55,14 +55,15 @@ def test_version_1_file_loads_as_the_model_it_was(tmp_path: Path, model_and_obs)
     model.save(tmp_path / "m.npz")
 
     def as_v1(h: dict) -> None:
-        for key in ("temperature", "condition_noise_ratio", "condition_cv_scores", "head"):
+        for key in ("temperature", "condition_noise_ratio", "condition_cv_scores", "head", "handover"):
             h.pop(key)
-        for key in ("temperature", "condition_noise", "head"):
+        h.pop("handover_cv_scores")
+        for key in ("temperature", "condition_noise", "head", "handover"):
             h["params"].pop(key)
         h["format_version"] = 1
 
     with np.load(tmp_path / "m.npz", allow_pickle=False) as npz:
-        arrays = {k: npz[k] for k in npz.files if not k.startswith("head_")}
+        arrays = {k: npz[k] for k in npz.files if not k.startswith(("head_", "handover_"))}
     header = json.loads(str(arrays["header"][()]))
     as_v1(header)
     arrays["header"] = np.array(json.dumps(header))
@@ -70,11 +71,20 @@ def test_version_1_file_loads_as_the_model_it_was(tmp_path: Path, model_and_obs)
     old = IProMP.load(tmp_path / "v1.npz")
     assert old.head_ is None and old.temperature_ == 1.0
     assert old.condition_noise_ratio_ == old.noise_ratio_ == model.noise_ratio_
-    same = IProMP(**{**model.get_params(), "head": False, "temperature": 1.0, "condition_noise": "same"})
+    assert old.handover_ is None
+    same = IProMP(
+        **{
+            **model.get_params(),
+            "head": False,
+            "handover": False,
+            "temperature": 1.0,
+            "condition_noise": "same",
+        }
+    )
     fitted = model.fitted_
     from dataclasses import replace
 
-    same._set_fitted(replace(fitted, head=None, temperature=1.0, condition_noise_ratio=None))
+    same._set_fitted(replace(fitted, head=None, handover=None, temperature=1.0, condition_noise_ratio=None))
     a, b = old.predict(obs), same.predict(obs)
     for name in ("log_posterior", "alpha", "q_mean", "q_cov"):
         assert np.array_equal(getattr(a, name), getattr(b, name)), name
@@ -149,7 +159,10 @@ def test_model_remembers_its_training_demos_and_version_1_files_still_load(tmp_p
     loaded = IProMP.load(path)
     assert loaded.trained_on_ == model.trained_on_
     header = json.loads(str(np.load(path)["header"][()]))
-    assert header["format_version"] == 2 and header["trained_on"][0]["sha256"] == model.trained_on_[0].sha256
+    assert (
+        header["format_version"] == FORMAT_VERSION
+        and header["trained_on"][0]["sha256"] == model.trained_on_[0].sha256
+    )
 
     # a version-1 file (no trained_on) loads, predicts the same, and says it does not know its demos
     def to_v1(h: dict) -> None:

@@ -17,7 +17,7 @@ caches (:class:`TaskBlocks`, :class:`BlockLayout`, :class:`PhaseGridTerms`).
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -224,6 +224,19 @@ class Conditioner:
         n_free = info.robot_cols.size - sum(c.shape[0] for c in robot_chol)
         lq = robot_chol[0] if len(robot_chol) == 1 and n_free == 0 else block_diag_chol(robot_chol, n_free)
         return self.prediction(rec, info.robot_factor, m, alpha, w_post, lq, human=human_weights)
+
+    def observe_handover(
+        self, pred: Prediction, readout: np.ndarray, values: np.ndarray, cov: np.ndarray
+    ) -> Prediction:
+        """The prediction also conditioned on an observation ``values = readout q(T) + e``,
+        ``e ~ N(0, cov)``, of its final joint angles (the hand-over regression of
+        :mod:`~ipromp_pin.promp.handover`): exact Gaussian conditioning of the robot's weights
+        (:meth:`~ipromp_pin.promp.weight_posterior.RobotWeightPosterior.readout_update`); the task,
+        phase and human estimates are unchanged."""
+        info = self.task_blocks(pred.task)
+        c = self.grid_terms(pred.task, info.robot_factor, "robot")
+        rw, d_mean, d_cov = pred.robot_weights.readout_update(c.phi[-1], readout, values, cov, c.phi_f)
+        return replace(pred, q_mean=pred.q_mean + d_mean, q_cov=pred.q_cov - d_cov, robot_weights=rw)
 
     def block_layouts(self, task: str, parts: list[ObservationPart]) -> list[BlockLayout | None]:
         """Per latent block of a task, where its observed dims are in the parts (None when no part

@@ -31,6 +31,7 @@ from ..exceptions import IPrompPinError, ModelError, ModelFileError, NotFittedEr
 from .basis import GaussianBasis
 from .distribution import ChannelScaler, TaskModel
 from .fitted import FittedModel
+from .handover_selection import choose_handover
 from .posterior import Prediction, Recognition
 from .predictor import Predictor
 from .prior_sampling import sample_task_prior
@@ -74,6 +75,9 @@ class IProMP:
         head: Decide the task posterior by the discriminative head calibrated on held-out training
             demos (:mod:`~ipromp_pin.promp.head`: window summary + generative posterior); False: the
             generative posterior alone.
+        handover: Fit the hand-over regression (:mod:`~ipromp_pin.promp.handover`: per task a ridge
+            regression from the coupled groups' window to the hand-over) and condition the robot's
+            prediction on it as far as cross-validation trusts it (possibly not at all); False: never.
         n_points: Number M of points of the predicted trajectories.
         task_prior: Prior task probabilities (task -> p, or None for uniform).
         robot_group: Name of the robot's joint-angle group.
@@ -106,6 +110,8 @@ class IProMP:
         noise_ratio_: Chosen ``nu``; ``noise_var_`` task -> (D_obs,) noise variances (scaled units).
         temperature_: Chosen likelihood temperature ``tau``.
         head_: The fitted :class:`~ipromp_pin.promp.head.RecognitionHead` (None with ``head=False``).
+        handover_: The fitted :class:`~ipromp_pin.promp.handover.HandoverRegression` (None: not used);
+            ``handover_cv_scores_`` its candidate trust factors (``inf``: off) -> CV error.
         condition_noise_ratio_: Chosen ``nu_c`` (see ``condition_noise``); ``condition_cv_scores_``
             ``nu_c`` -> CV RMSE of the robot prediction in [rad] (only with ``condition_noise="auto"``).
         cv_scores_: ``nu`` -> CV score (only with ``noise="auto"``).
@@ -131,6 +137,7 @@ class IProMP:
         temperature: float | str = "auto",
         condition_noise: float | str = "auto",
         head: bool = True,
+        handover: bool = True,
         n_points: int = 100,
         task_prior: Mapping[str, float] | None = None,
         robot_group: str = ROBOT,
@@ -150,6 +157,7 @@ class IProMP:
         self.temperature = temperature
         self.condition_noise = condition_noise
         self.head = head
+        self.handover = handover
         self.n_points = n_points
         self.task_prior = task_prior
         self.robot_group = robot_group
@@ -265,13 +273,13 @@ class IProMP:
         with self._limit_threads():
             nus = NOISE_GRID if isinstance(self.noise, str) else (float(self.noise),)
             taus = TEMPERATURE_GRID if isinstance(self.temperature, str) else (float(self.temperature),)
-            head = None
-            if len(nus) > 1 or len(taus) > 1 or self.head:
+            head, rows = None, []
+            if len(nus) > 1 or len(taus) > 1 or self.head or self.handover:
                 noise = choose_noise(training, settings, prior, nus, taus)
-                nu, tau = noise.nu, noise.temperature
+                nu, tau, rows = noise.nu, noise.temperature, noise.rows
                 nu_scores = noise.scores if len(nus) > 1 else {}
-                if self.head and noise.rows:
-                    head = fit_recognition_head(noise.rows, nus.index(nu), tau, len(training.tasks))
+                if self.head and rows:
+                    head = fit_recognition_head(rows, tau, len(training.tasks))
             else:
                 nu, tau, nu_scores = nus[0], taus[0], {}
             nu_c = {"auto": None, "same": nu}.get(self.condition_noise, self.condition_noise)  # type: ignore[arg-type]
@@ -279,6 +287,10 @@ class IProMP:
             cands = None if coupling == "auto" else [list(observe) if coupling == "all" else coupling]
             choice = choose_coupling(training, settings, nu_c, cands, fk)
             coupled = choice.groups
+            handover, handover_scores = None, {}
+            if self.handover and rows:
+                ho = choose_handover(training, settings, coupled, choice.nu_condition, rows, tau, fk)
+                handover, handover_scores = ho.regression, ho.scores
         models = task_models(training, training.weights, training.alphas, coupled, settings)
         fitted = FittedModel(
             layout=training.layout,
@@ -297,6 +309,8 @@ class IProMP:
             coupling_cv_scores=choice.scores,
             condition_noise_ratio=choice.nu_condition,
             condition_cv_scores=choice.nu_scores,
+            handover=handover,
+            handover_cv_scores=handover_scores,
             trained_on=tuple(demo_record(d) for demos in by_task.values() for d in demos),
         )
         try:
@@ -327,6 +341,8 @@ class IProMP:
         self.noise_ratio_ = fitted.noise_ratio
         self.temperature_ = fitted.temperature
         self.head_ = fitted.head
+        self.handover_ = fitted.handover
+        self.handover_cv_scores_ = dict(fitted.handover_cv_scores)
         self.condition_noise_ratio_ = fitted.nu_condition
         self.condition_cv_scores_ = dict(fitted.condition_cv_scores)
         self.noise_var_ = fitted.noise_var()
@@ -514,6 +530,7 @@ _PARAMS = (
     "temperature",
     "condition_noise",
     "head",
+    "handover",
     "n_points",
     "task_prior",
     "robot_group",

@@ -17,6 +17,7 @@ import numpy as np
 
 from .basis import GaussianBasis
 from .distribution import ChannelScaler, TaskModel
+from .handover import HandoverRegression
 from .head import RecognitionHead
 from .layout import ChannelLayout
 from .provenance import DemoRecord
@@ -49,6 +50,10 @@ class FittedModel:
             (None: ``noise_ratio``; models fitted before it existed).
         condition_cv_scores: Candidate ``nu_c`` -> CV RMSE of the robot prediction in [rad] with the
             chosen coupling (empty when ``nu_c`` was given).
+        handover: The hand-over regression fused into the robot's prediction
+            (:mod:`~ipromp_pin.promp.handover`; None: none).
+        handover_cv_scores: Candidate trust factor (``inf``: off) -> its CV error (empty when not
+            cross-validated).
     """
 
     layout: ChannelLayout
@@ -68,6 +73,8 @@ class FittedModel:
     head: RecognitionHead | None = None
     condition_noise_ratio: float | None = None
     condition_cv_scores: Mapping[float, float] = field(default_factory=dict)
+    handover: HandoverRegression | None = None
+    handover_cv_scores: Mapping[float, float] = field(default_factory=dict)
 
     @property
     def nu_condition(self) -> float:

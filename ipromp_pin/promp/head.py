@@ -17,12 +17,16 @@ sample is at its training mean, 0), and ``g`` the generative log posterior of ev
 minimise the mean log loss plus ``||W||^2 / (2 C n)``. The rows are the held-out demos of the
 leave-one-out cross-validation (:mod:`~ipromp_pin.promp.selection`), each observed at several
 fractions (:data:`~ipromp_pin.promp.selection.HEAD_RATIOS`), so ``g`` is what the model says about a
-demo it was not fitted on. There is one regression per observed fraction; each is trained on the
-rows of its fraction or on the rows of every fraction, with its ``C``, both chosen by grouped
-cross-validation (the rows of one demo in one fold) scored on the rows of its fraction
-(:func:`fit_head`). Online the fraction is unknown: the logits of the two regressions around the
-expected observed fraction under the generative posterior (:func:`observed_fraction`) are
-interpolated linearly.
+demo it was not fitted on. There is one regression per observed fraction. Each is chosen by grouped
+cross-validation of the log loss (the rows of one demo in one fold, scored on the rows of its
+fraction; :func:`fit_head`) among: a multinomial logistic regression (its ``C`` among
+:data:`HEAD_C_GRID`) or a linear discriminant analysis (class means and a pooled covariance with
+Ledoit-Wolf shrinkage, its logits scaled by a temperature among :data:`LDA_TEMPERATURE_GRID`, which
+calibrates them), on all the features or on the window features alone (the weights of ``g`` are then
+0), trained on the rows of its fraction or on the rows of every fraction. Both are linear in ``x``,
+so inference is the same for all. Online the fraction is unknown: the logits of the two regressions
+around the expected observed fraction under the generative posterior (:func:`observed_fraction`)
+are interpolated linearly.
 
 The phase posterior, the MAP phase and the robot's conditioned prediction are not changed by the
 head; it only decides the task posterior.
@@ -35,7 +39,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import minimize
-from scipy.special import log_softmax
 
 from .observation import ObservationPart
 
@@ -46,8 +49,14 @@ then costs a bounded amount)."""
 HEAD_C_GRID = (0.01, 0.03, 0.1, 0.3, 1.0, 3.0, 10.0, 100.0)
 """Candidate inverse penalties ``C`` of the head."""
 
+LDA_TEMPERATURE_GRID = (0.1, 0.2, 0.3, 0.5, 0.7, 1.0)
+"""Candidate temperatures (factors of the logits) of the linear discriminant analysis."""
+
 HEAD_FOLDS = 5
 """Folds of the head's grouped cross-validation."""
+
+LOGISTIC, LDA = 0, 1
+"""Codes of the head's model families (:attr:`RecognitionHead.kind`)."""
 
 
 @dataclass(frozen=True)
@@ -111,7 +120,7 @@ class WindowSummary:
 
 @dataclass(frozen=True)
 class RecognitionHead:
-    """The fitted head (see the module docstring): one logistic regression per observed fraction of
+    """The fitted head (see the module docstring): one linear classifier per observed fraction of
     :attr:`ratios`, their logits interpolated linearly in the estimated observed fraction.
 
     Attributes:
@@ -119,8 +128,13 @@ class RecognitionHead:
         coef: (R, T, F) weights ``W`` (F = 3 D_o + T features).
         intercept: (R, T) intercepts ``b``.
         feature_mean, feature_scale: (R, F) standardisation ``m``, ``s`` of the features.
-        c: (R,) the chosen inverse penalties ``C``.
-        cv_log_loss: (R, len(HEAD_C_GRID)) cross-validated mean log loss of every candidate ``C``.
+        c: (R,) the chosen inverse penalty ``C`` (logistic regression) or temperature (LDA).
+        cv_log_loss: (R, len(HEAD_C_GRID) + len(LDA_TEMPERATURE_GRID)) cross-validated mean log loss
+            of every candidate ``C`` then every LDA temperature, with the chosen rows and features.
+        kind: (R,) the model family (:data:`LOGISTIC` or :data:`LDA`; None: all logistic, as in
+            model files of format version 2).
+        generative: (R,) 1 where the generative log posterior is among the features, 0 where only
+            the window is (None: all 1).
     """
 
     ratios: np.ndarray
@@ -130,6 +144,8 @@ class RecognitionHead:
     feature_scale: np.ndarray
     c: np.ndarray
     cv_log_loss: np.ndarray
+    kind: np.ndarray | None = None
+    generative: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         # the standardisation folded into the weights: z = W (x - m) / s + b = W' x + b'
@@ -186,30 +202,76 @@ def head_features(window: np.ndarray, generative_log_posterior: np.ndarray) -> n
     return np.concatenate([window, np.maximum(generative_log_posterior, LOG_POSTERIOR_CLIP)])
 
 
+def _log_softmax(z: np.ndarray) -> np.ndarray:
+    """Row-wise log softmax of ``z`` (n, T)."""
+    z = z - z.max(axis=1, keepdims=True)
+    return z - np.log(np.exp(z).sum(axis=1, keepdims=True))
+
+
 def _fit_softmax(
-    x: np.ndarray, y: np.ndarray, n_classes: int, c: float, weight: np.ndarray | None = None
-) -> tuple[np.ndarray, np.ndarray]:
+    x: np.ndarray,
+    y: np.ndarray,
+    n_classes: int,
+    c: float,
+    weight: np.ndarray | None = None,
+    start: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Multinomial logistic regression on standardised ``x`` (n, F), labels ``y`` (n,), row weights
     ``weight`` (n,) (default 1): weighted mean log loss plus ``||W||^2 / (2 C S)`` (``S`` the sum of
-    the weights) minimised by L-BFGS -> (W (T, F), b (T,))."""
+    the weights) minimised by L-BFGS from ``start`` (the parameters of a nearby problem; default 0)
+    -> (W (T, F), b (T,), the parameters (T (F + 1),))."""
     n, f = x.shape
     weight = np.ones(n) if weight is None else weight
     total = float(weight.sum())
     onehot = np.eye(n_classes)[y]
     lam = 1.0 / (c * total)
     sw = weight[:, None] / total
+    target = sw * onehot
+    n_w = n_classes * f
 
     def loss(theta: np.ndarray) -> tuple[float, np.ndarray]:
-        w = theta[: n_classes * f].reshape(n_classes, f)
-        b = theta[n_classes * f :]
-        logp = log_softmax(x @ w.T + b, axis=1)
-        r = (np.exp(logp) - onehot) * sw
-        value = -np.sum(sw * onehot * logp) + 0.5 * lam * np.sum(w * w)
-        grad = np.concatenate([(r.T @ x + lam * w).ravel(), r.sum(axis=0)])
-        return float(value), grad
+        w = theta[:n_w].reshape(n_classes, f)
+        logp = _log_softmax(x @ w.T + theta[n_w:])
+        r = np.exp(logp) * sw - target
+        value = -float(np.sum(target * logp)) + 0.5 * lam * float(np.sum(w * w))
+        grad = np.empty_like(theta)
+        grad[:n_w] = (r.T @ x + lam * w).ravel()
+        grad[n_w:] = r.sum(axis=0)
+        return value, grad
 
-    res = minimize(loss, np.zeros(n_classes * (f + 1)), jac=True, method="L-BFGS-B", options={"maxiter": 500})
-    return res.x[: n_classes * f].reshape(n_classes, f), res.x[n_classes * f :]
+    theta0 = np.zeros(n_classes * (f + 1)) if start is None else start
+    res = minimize(loss, theta0, jac=True, method="L-BFGS-B", options={"maxiter": 500})
+    return res.x[:n_w].reshape(n_classes, f), res.x[n_w:], res.x
+
+
+def _fit_lda(
+    x: np.ndarray, y: np.ndarray, n_classes: int, weight: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Linear discriminant analysis on standardised ``x`` (n, F) with row weights ``weight`` (n,):
+    weighted class means, their pooled covariance shrunk toward a multiple of the identity with the
+    Ledoit-Wolf intensity, class priors from the weights -> the logits' (W (T, F), b (T,))."""
+    n, f = x.shape
+    total = float(weight.sum())
+    counts = np.array([weight[y == k].sum() for k in range(n_classes)])
+    means = np.zeros((n_classes, f))
+    have = counts > 0
+    means[have] = np.stack([weight[y == k] @ x[y == k] / counts[k] for k in np.flatnonzero(have)])
+    xc = x - means[y]
+    cov = (xc * weight[:, None]).T @ xc / total
+    mu = float(np.trace(cov)) / f
+    target = cov - mu * np.eye(f)
+    dist = float(np.sum(target * target))
+    # sum_i w_i^2 ||x_i x_i^T - S||^2 / W^2, with ||x x^T - S||^2 = |x|^4 - 2 x^T S x + ||S||^2
+    sq = np.sum(xc * xc, axis=1)
+    err = sq * sq - 2.0 * np.einsum("ni,ij,nj->n", xc, cov, xc) + float(np.sum(cov * cov))
+    beta = float(np.sum(weight * weight * err)) / (total * total)
+    lam = 1.0 if dist <= 0.0 else min(1.0, beta / dist)
+    shrunk = (1.0 - lam) * cov + lam * mu * np.eye(f)
+    coef = np.linalg.solve(shrunk, means.T).T  # (T, F)
+    with np.errstate(divide="ignore"):
+        prior = np.log(counts / total)
+    intercept = np.where(have, prior - 0.5 * np.sum(coef * means, axis=1), -1e3)
+    return coef, intercept
 
 
 def fit_head(
@@ -220,11 +282,13 @@ def fit_head(
     n_tasks: int,
     fractions: np.ndarray | None = None,
 ) -> RecognitionHead:
-    """Fit the head on training rows: one regression per observed fraction, each choosing its training
-    rows and ``C`` among :data:`HEAD_C_GRID` by grouped CV.
+    """Fit the head on training rows: one linear classifier per observed fraction, each choosing its
+    model family, features, training rows and ``C`` (or LDA temperature) by grouped CV (see the module
+    docstring).
 
     Args:
-        features: (n, F) raw head features (:func:`head_features`).
+        features: (n, F) raw head features (:func:`head_features`; the last ``n_tasks`` columns are the
+            generative log posterior).
         labels: (n,) task index of every row.
         groups: (n,) the demo of every row (rows of one demo share a fold).
         ratios: (n,) the observed fraction of every row (the regressions' fractions are these values).
@@ -241,41 +305,94 @@ def fit_head(
         weights[i, n] += 1.0 - w
         if w > 0.0:
             weights[i + 1, n] += w
-    fits = [_fit_one(features, labels, groups, weights[i], n_tasks) for i in range(levels.size)]
-    return RecognitionHead(levels, *(np.stack(a) for a in zip(*fits, strict=True)))
-
-
-def _fit_one(
-    features: np.ndarray, labels: np.ndarray, groups: np.ndarray, here: np.ndarray, n_tasks: int
-) -> tuple[np.ndarray, ...]:
-    """The regression of one observed fraction, whose rows have the weights ``here`` (n,): trained on
-    them, or on every row alike (more demos, features less specific), and its ``C``, both chosen by
-    grouped CV scored on the rows ``here`` -> (W, b, m, s, C, CV log loss of every candidate C at the
-    chosen training rows)."""
     uniq = np.unique(groups)
     fold_of = {g: i % HEAD_FOLDS for i, g in enumerate(uniq)}
     folds = np.array([fold_of[g] for g in groups])
-    best_score, best = np.inf, None
-    for pool in (here, np.ones_like(here)):
+    n_feat = features.shape[1]
+    column_sets = (np.arange(n_feat), np.arange(n_feat - n_tasks))  # all features, the window alone
+    # training on every row alike is the same problem for every fraction (only its score differs)
+    shared = [
+        _CvPath(features[:, cols], labels, folds, np.ones(labels.size), n_tasks) for cols in column_sets
+    ]
+    fits = []
+    for here in weights:
+        best_score, best = np.inf, None
+        for cols, all_rows in zip(column_sets, shared, strict=True):
+            for path in (_CvPath(features[:, cols], labels, folds, here, n_tasks), all_rows):
+                scores = (path.log_loss @ here) / float(here.sum())
+                j = int(np.argmin(scores))
+                if scores[j] < best_score:
+                    best_score, best = scores[j], (cols, path, j, scores)
+        cols, path, j, scores = best
+        w, b = path.final(j)
+        coef = np.zeros((n_tasks, n_feat))
+        coef[:, cols] = w
+        mean, scale = np.zeros(n_feat), np.ones(n_feat)
+        mean[cols], scale[cols] = path.mean, path.scale
+        kind = LOGISTIC if j < len(HEAD_C_GRID) else LDA
+        fits.append(
+            (coef, b, mean, scale, np.array(_CvPath.parameter(j)), scores, kind, float(cols.size == n_feat))
+        )
+    arrays = [np.stack(a) for a in zip(*fits, strict=True)]
+    return RecognitionHead(levels, *arrays[:6], kind=arrays[6].astype(float), generative=arrays[7])
+
+
+class _CvPath:
+    """The grouped cross-validation of one set of training rows (row weights ``pool`` (n,)) and
+    features: standardisation on the used rows, per fold the logistic regressions along the path of
+    increasing ``C`` (each warm-started from the previous one) and the LDA (each temperature), and
+    every row's held-out log loss.
+
+    Attributes:
+        mean, scale: (F,) the standardisation.
+        log_loss: (len(HEAD_C_GRID) + len(LDA_TEMPERATURE_GRID), n) per candidate, every row's log
+            loss when its fold was held out.
+    """
+
+    def __init__(
+        self, features: np.ndarray, labels: np.ndarray, folds: np.ndarray, pool: np.ndarray, n_tasks: int
+    ) -> None:
         used = pool > 0.0
-        mean = features[used].mean(axis=0)
+        self.mean = features[used].mean(axis=0)
         scale = features[used].std(axis=0)
-        scale = np.where(scale > 1e-12, scale, 1.0)
-        x = (features - mean) / scale
-        scores = []
-        for c in HEAD_C_GRID:
-            total = 0.0
-            for k in range(min(HEAD_FOLDS, uniq.size)):
-                train = used & (folds != k)
-                test = (here > 0.0) & (folds == k)
-                w, b = _fit_softmax(x[train], labels[train], n_tasks, c, pool[train])
-                logp = log_softmax(x[test] @ w.T + b, axis=1)
-                total -= float(np.sum(here[test] * logp[np.arange(int(test.sum())), labels[test]]))
-            scores.append(total / float(here.sum()))
-        j = int(np.argmin(scores))
-        if scores[j] < best_score:
-            best_score, best = scores[j], (pool, mean, scale, x, float(HEAD_C_GRID[j]), np.array(scores))
-    pool, mean, scale, x, c, scores = best
-    used = pool > 0.0
-    w, b = _fit_softmax(x[used], labels[used], n_tasks, c, pool[used])
-    return w, b, mean, scale, np.array(c), scores
+        self.scale = np.where(scale > 1e-12, scale, 1.0)
+        self.x = (features - self.mean) / self.scale
+        self.labels, self.pool, self.used, self.n_tasks = labels, pool, used, n_tasks
+        n_c = len(HEAD_C_GRID)
+        self.log_loss = np.zeros((n_c + len(LDA_TEMPERATURE_GRID), labels.size))
+        self._final: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+        gammas = np.asarray(LDA_TEMPERATURE_GRID)
+        for k in range(int(folds.max()) + 1):
+            train = used & (folds != k)
+            test = folds == k
+            rows = np.arange(int(test.sum()))
+            theta = None
+            for j, c in enumerate(HEAD_C_GRID):
+                w, b, theta = _fit_softmax(self.x[train], labels[train], n_tasks, c, pool[train], theta)
+                logp = _log_softmax(self.x[test] @ w.T + b)
+                self.log_loss[j, test] = -logp[rows, labels[test]]
+            w, b = _fit_lda(self.x[train], labels[train], n_tasks, pool[train])
+            z = self.x[test] @ w.T + b
+            for j, g in enumerate(gammas):
+                logp = _log_softmax(g * z)
+                self.log_loss[n_c + j, test] = -logp[rows, labels[test]]
+
+    @staticmethod
+    def parameter(j: int) -> float:
+        """The ``C`` (logistic regression) or temperature (LDA) of candidate ``j``."""
+        n_c = len(HEAD_C_GRID)
+        return float(HEAD_C_GRID[j] if j < n_c else LDA_TEMPERATURE_GRID[j - n_c])
+
+    def final(self, j: int) -> tuple[np.ndarray, np.ndarray]:
+        """The classifier (W, b) of candidate ``j`` on every used row (cached)."""
+        if j not in self._final:
+            u = self.used
+            x, y, pool = self.x[u], self.labels[u], self.pool[u]
+            if j < len(HEAD_C_GRID):
+                w, b, _ = _fit_softmax(x, y, self.n_tasks, HEAD_C_GRID[j], pool)
+            else:
+                w, b = _fit_lda(x, y, self.n_tasks, pool)
+                gamma = self.parameter(j)
+                w, b = gamma * w, gamma * b
+            self._final[j] = (w, b)
+        return self._final[j]

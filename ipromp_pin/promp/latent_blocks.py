@@ -9,6 +9,8 @@ and the precomputed tensors of :mod:`ipromp_pin.promp.likelihood`.
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from .distribution import TaskModel
@@ -156,13 +158,7 @@ class LatentBlock:
         """Flat indices into ``W^T W`` (K r, K r) of ``Z``'s entries ``(k, l, a, b)`` and of their
         mirror ``(l, k, a, b)``, (K(K+1)/2, r(r+1)/2) each, and the rows with ``k != l`` (cached)."""
         if self._gather is None:
-            k = self.w.shape[2]
-            r = self.rank
-            rows_kl = self.pk[:, None] * r + self.ia[None, :]
-            cols_kl = self.pl[:, None] * r + self.ib[None, :]
-            rows_lk = self.pl[:, None] * r + self.ia[None, :]
-            cols_lk = self.pk[:, None] * r + self.ib[None, :]
-            self._gather = (rows_kl * (k * r) + cols_kl, rows_lk * (k * r) + cols_lk, self.pk != self.pl)
+            self._gather = z_gather(self.w.shape[2], self.rank)
         return self._gather
 
     def arrays(self, local: np.ndarray) -> dict[str, np.ndarray]:
@@ -203,3 +199,22 @@ class LatentBlock:
             }
             self._arrays[key] = c
         return c
+
+
+@functools.lru_cache(maxsize=16)
+def z_gather(k: int, r: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Flat indices into ``W^T W`` (K r, K r) of the packed ``Z`` entries ``(k, l, a, b)`` (``k <= l``,
+    ``a <= b``) and of their mirror ``(l, k, a, b)``, (K(K+1)/2, r(r+1)/2) each, and the rows with
+    ``k != l``, for ``K = k`` basis functions and rank ``r`` (cached: the cross-validations build many
+    blocks of the same shape)."""
+    pk = np.concatenate([np.arange(ll + 1) for ll in range(k)]).astype(np.int64)
+    pl = np.concatenate([np.full(ll + 1, ll) for ll in range(k)]).astype(np.int64)
+    ia, ib = np.triu_indices(r)
+    rows_kl = pk[:, None] * r + ia[None, :]
+    cols_kl = pl[:, None] * r + ib[None, :]
+    rows_lk = pl[:, None] * r + ia[None, :]
+    cols_lk = pk[:, None] * r + ib[None, :]
+    out = (rows_kl * (k * r) + cols_kl, rows_lk * (k * r) + cols_lk, pk != pl)
+    for a in out:
+        a.setflags(write=False)
+    return out

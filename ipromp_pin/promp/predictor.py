@@ -71,13 +71,28 @@ class Predictor:
         fraction = observed_fraction(rec.posterior, rec.alpha, t_last, self.fitted.duration_nominal_s)
         return with_task_posterior(rec, head.log_posterior(window, rec.log_posterior, fraction), self.priors)
 
-    def recognise(self, parts: list[ObservationPart], t_last: float) -> Recognition:
-        """Task posterior and phase estimates of encoded observation parts."""
+    def recognise(
+        self, parts: list[ObservationPart], t_last: float, window: WindowSummary | None = None
+    ) -> Recognition:
+        """Task posterior and phase estimates of encoded observation parts (``window``: their summary,
+        computed when the model needs it and it is not given)."""
         engine = self.engine
         loglik = engine.log_likelihood([engine.part_stats(p) for p in parts], t_last)
-        window = WindowSummary.from_parts(parts, self.fitted.layout.n_obs_dims) if self.fitted.head else None
+        if window is None and self.fitted.head is not None:
+            window = WindowSummary.from_parts(parts, self.fitted.layout.n_obs_dims)
         return self.recognition_from_loglik(loglik, t_last, window)
 
     def predict(self, parts: list[ObservationPart], t_last: float) -> Prediction:
-        """Recognition and the conditioned prediction of the most probable task."""
-        return self.conditioner.condition(self.recognise(parts, t_last), parts)
+        """Recognition and the conditioned prediction of the most probable task (with a hand-over
+        regression, conditioned on it as well: :meth:`Conditioner.observe_handover`)."""
+        fm = self.fitted
+        window = None
+        if fm.head is not None or fm.handover is not None:
+            window = WindowSummary.from_parts(parts, fm.layout.n_obs_dims)
+        pred = self.conditioner.condition(self.recognise(parts, t_last, window), parts)
+        if fm.handover is None:
+            return pred
+        k = fm.tasks.index(pred.task)
+        fraction = t_last / (float(pred.alpha[k]) * fm.duration_nominal_s)
+        readout, values, cov = fm.handover.observation(k, window, fraction)
+        return self.conditioner.observe_handover(pred, readout, values, cov)

@@ -124,15 +124,9 @@ def direct_loglik(
     return float(-0.5 * (y.size * LOG_2PI + 2.0 * np.sum(np.log(np.diag(c))) + e @ sol))
 
 
-def direct_head(
-    fm: FittedModel, parts: list[ObservationPart], generative: np.ndarray, fraction: float
-) -> np.ndarray:
-    """The recognition head's log task posterior written out: per observed dim the first, mean and
-    last valid scaled value (sample by sample), the clipped generative log posterior, standardised,
-    the linear logits of the regressions at the two observed fractions around ``fraction`` (the
-    expected observed fraction under the generative posterior) interpolated linearly, and their
-    log-softmax."""
-    n_obs = fm.layout.n_obs_dims
+def direct_window(parts: list[ObservationPart], n_obs: int) -> np.ndarray:
+    """Per observed dim the first, mean and last valid scaled value of the parts, sample by sample
+    ((3 n_obs,): the firsts, then the means, then the lasts; zeros where a dim has no sample)."""
     samples: list[list[tuple[float, float]]] = [[] for _ in range(n_obs)]
     for part in parts:
         for j, d in enumerate(part.dims):
@@ -144,6 +138,43 @@ def direct_head(
             window[d] = rows[0][1]
             window[n_obs + d] = sum(v for _, v in rows) / len(rows)
             window[2 * n_obs + d] = rows[-1][1]
+    return window
+
+
+def direct_handover(
+    fm: FittedModel, parts: list[ObservationPart], task: int, fraction: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The hand-over regression's evidence written out: the read-out ``A`` (M, J), the prediction
+    ``y`` (M,) of the features (window mean and last value of its dims) of the regressions at the two
+    fractions around ``fraction`` interpolated linearly, and its noise covariance ``s R`` (M, M)."""
+    ho = fm.handover
+    window = direct_window(parts, fm.layout.n_obs_dims).reshape(3, -1)
+    x = np.concatenate([window[1, ho.dims], window[2, ho.dims]])
+    r = ho.ratios
+    if fraction <= r[0]:
+        i, w = 0, 0.0
+    elif fraction >= r[-1]:
+        i, w = r.size - 1, 0.0
+    else:
+        i = max(k for k in range(r.size - 1) if r[k] <= fraction)
+        w = (fraction - r[i]) / (r[i + 1] - r[i])
+    y = ho.coef[i, task] @ x + ho.intercept[i, task]
+    cov = ho.residual_cov[i]
+    if w > 0.0:
+        y = (1.0 - w) * y + w * (ho.coef[i + 1, task] @ x + ho.intercept[i + 1, task])
+        cov = (1.0 - w) * cov + w * ho.residual_cov[i + 1]
+    return ho.readout[task], y, ho.trust * cov
+
+
+def direct_head(
+    fm: FittedModel, parts: list[ObservationPart], generative: np.ndarray, fraction: float
+) -> np.ndarray:
+    """The recognition head's log task posterior written out: per observed dim the first, mean and
+    last valid scaled value (sample by sample), the clipped generative log posterior, standardised,
+    the linear logits of the regressions at the two observed fractions around ``fraction`` (the
+    expected observed fraction under the generative posterior) interpolated linearly, and their
+    log-softmax."""
+    window = direct_window(parts, fm.layout.n_obs_dims)
     x = np.concatenate([window, np.maximum(generative, LOG_POSTERIOR_CLIP)])
     head = fm.head
     logits = [
@@ -199,18 +230,30 @@ def direct_predict(predictor: Predictor, observation: Demo) -> Prediction:
     w_cov = sigma - (phi @ sigma).T @ gain_t
     rs = fm.layout.robot_slice
     nj = rs.stop - rs.start
+    sel = slice(rs.start * k, rs.stop * k)
+    scale = fm.scaler.scale[rs]
+    wr = w_mean.reshape(n_dims, k)  # the human's estimates do not use the hand-over regression
+    if fm.handover is not None:  # y = A q(T) + e, q(T) = scale * (phi(1) w_robot) + offset
+        task = fm.tasks.index(rec.task)
+        readout, values, noise = direct_handover(fm, parts, task, t_last / (a_best * tn))
+        phi_end = fm.basis(np.array([1.0]))[0]
+        h = np.zeros((readout.shape[0], n_dims * k))
+        h[:, sel] = np.kron(readout * scale[None, :], phi_end[None, :])
+        q_end = w_mean[sel].reshape(nj, k) @ phi_end * scale + fm.scaler.offset[rs]
+        s_cov = h @ w_cov @ h.T + noise
+        c = cho_factor(s_cov, lower=True)
+        gain_t = cho_solve(c, h @ w_cov)  # (M, p)
+        w_mean = w_mean + gain_t.T @ (values - readout @ q_end)
+        w_cov = w_cov - (h @ w_cov).T @ gain_t
     z = np.linspace(0.0, 1.0, predictor.conditioner.n_points)
     b = fm.basis(z)
     big = np.zeros((z.size * nj, nj * k))
     for j in range(nj):
         big[j::nj, j * k : (j + 1) * k] = b
-    sel = slice(rs.start * k, rs.stop * k)
-    scale = fm.scaler.scale[rs]
     q_mean = (big @ w_mean[sel]).reshape(z.size, nj)
     q_cov = np.stack(
         [big[i * nj : (i + 1) * nj] @ w_cov[sel, sel] @ big[i * nj : (i + 1) * nj].T for i in range(z.size)]
     )
-    wr = w_mean.reshape(n_dims, k)
     # the prediction's other fields from the fast assembly; its trajectories replaced by the dense ones
     pred = predictor.conditioner.prediction(rec, m.factor, m, a_best, wr, np.eye(m.rank), "all")
     pred.q_mean = fm.scaler.inverse(q_mean, rs)

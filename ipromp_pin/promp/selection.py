@@ -44,10 +44,10 @@ import numpy as np
 
 from ..data import Demo
 from ..exceptions import ModelError, ObservationError
-from .conditioning import robot_posterior_mean
 from .distribution import shrink_covariances
 from .head import RecognitionHead, WindowSummary, fit_head, head_features, observed_fraction
 from .likelihood import InferenceEngine
+from .noise_path import part_spectrum, robot_path
 from .observation import ObservationEncoder, ObservationPart
 from .posterior import PhasePriors, recognise_from_loglik
 from .training import PhaseSettings, TrainingSet, coupling_blocks, task_models
@@ -145,7 +145,7 @@ class HeldOutRow:
         demo: Index of the held-out demo among all held-out demos.
         window: (3 D_o,) its window summary (:class:`~ipromp_pin.promp.head.WindowSummary`).
         ratio: Its observed fraction.
-        loglik: Per candidate ``nu``, the log likelihood (T, C) of the leave-one-out model.
+        loglik: The log likelihood (T, C) of the leave-one-out model at the chosen ``nu``.
         priors: The leave-one-out model's phase priors.
         t_last: Time of the last observed sample in [s].
     """
@@ -154,25 +154,40 @@ class HeldOutRow:
     demo: int
     window: np.ndarray
     ratio: float
-    loglik: list[np.ndarray]
+    loglik: np.ndarray
     priors: PhasePriors
     t_last: float
 
 
-def fit_recognition_head(
-    rows: list[HeldOutRow], nu_index: int, temperature: float, n_tasks: int
-) -> RecognitionHead:
+def fit_recognition_head(rows: list[HeldOutRow], temperature: float, n_tasks: int) -> RecognitionHead:
     """The recognition head (:func:`~ipromp_pin.promp.head.fit_head`) fitted on the held-out rows with
-    the generative posterior at the chosen ``nu`` (index into the noise grid) and temperature."""
+    the generative posterior at the chosen noise ratio and temperature."""
     feats, fractions = [], []
     for r in rows:
-        rec, _ = recognise_from_loglik(r.priors, temperature * r.loglik[nu_index], r.t_last)
+        rec, _ = recognise_from_loglik(r.priors, temperature * r.loglik, r.t_last)
         feats.append(head_features(r.window, rec.log_posterior))
         fractions.append(observed_fraction(rec.posterior, rec.alpha, r.t_last, r.priors.duration_nominal_s))
     labels = np.array([r.task for r in rows])
     groups = np.array([r.demo for r in rows])
     ratios = np.array([r.ratio for r in rows])
     return fit_head(np.array(feats), labels, groups, ratios, n_tasks, np.array(fractions))
+
+
+@dataclass
+class _Fold:
+    """One held-out demo of :func:`choose_noise`: its leave-one-out task models and observations."""
+
+    task: int
+    models: list  # the leave-one-out TaskModel of every task, in task order
+    priors: PhasePriors
+    observations: list  # (ratio, parts, t_last, window summary (3 D_o,))
+    logliks: dict  # (observation index, nu) -> log likelihood (T, C)
+
+
+def _fold_engine(training: TrainingSet, models: list, nu: float) -> InferenceEngine:
+    return InferenceEngine(
+        training.basis, models, training.layout.n_obs_dims, training.duration_nominal_s, nu
+    )
 
 
 def choose_noise(
@@ -183,13 +198,17 @@ def choose_noise(
     temperature_grid: Sequence[float] = TEMPERATURE_GRID,
 ) -> NoiseChoice:
     """Leave-one-out choice of the noise ratio and of the likelihood temperature (see the module
-    docstring) among ``noise_grid`` x ``temperature_grid`` (a one-element grid fixes a value)."""
+    docstring) among ``noise_grid`` x ``temperature_grid`` (a one-element grid fixes a value).
+
+    Two passes over the held-out demos: the first scores every candidate on the observations at
+    :data:`CV_RATIOS` (few active basis functions: cheap); the second computes the log likelihood
+    of the recognition head's rows (:data:`HEAD_RATIOS`) at the chosen ``nu`` only."""
     encoder = ObservationEncoder(training.layout, training.scaler, np.inf)
     scores = np.zeros((len(noise_grid), len(temperature_grid)))
     n_eval = 0
     everything = training.layout.observe
-    rows: list[HeldOutRow] = []
-    for n_demo, (task, i) in enumerate(held_out(training.demos)):
+    folds: list[_Fold] = []
+    for task, i in held_out(training.demos):
         ki = training.tasks.index(task)
         keep = np.arange(len(training.demos[task])) != i
         models = task_models(
@@ -201,9 +220,7 @@ def choose_noise(
         )
         ordered = [models[t] for t in training.tasks]
         m = models[task]
-        engine = InferenceEngine(
-            training.basis, ordered, training.layout.n_obs_dims, training.duration_nominal_s, noise_grid[0]
-        )
+        engine = _fold_engine(training, ordered, noise_grid[0])
         priors = PhasePriors(
             tasks=training.tasks,
             alphas=engine.alphas,
@@ -212,17 +229,20 @@ def choose_noise(
             task_log_prior=task_log_prior,
             duration_nominal_s=training.duration_nominal_s,
         )
+        fold = _Fold(ki, ordered, priors, [], {})
+        folds.append(fold)
         dens_shift = np.log(m.alpha_grid[1] - m.alpha_grid[0])
         alpha_true = training.alphas[task][i]
         for ratio, parts, t_last in cv_observations(encoder, training.demos[task][i], HEAD_RATIOS):
-            stats = [engine.part_stats(p) for p in parts]
-            logliks = [engine.log_likelihood(stats, t_last, nu=nu) for nu in noise_grid]
             summary = WindowSummary.from_parts(parts, training.layout.n_obs_dims).vector()
-            rows.append(HeldOutRow(ki, n_demo, summary, ratio, logliks, priors, t_last))
+            fold.observations.append((ratio, parts, t_last, summary))
             if ratio not in CV_RATIOS:
                 continue
             n_eval += 1
-            for j, loglik in enumerate(logliks):
+            stats = [engine.part_stats(p) for p in parts]
+            for j, nu in enumerate(noise_grid):
+                loglik = engine.log_likelihood(stats, t_last, nu=nu)
+                fold.logliks[(len(fold.observations) - 1, j)] = loglik
                 for k, tau in enumerate(temperature_grid):
                     rec, logpost = recognise_from_loglik(priors, tau * loglik, t_last)
                     s = rec.log_posterior[ki]
@@ -231,14 +251,29 @@ def choose_noise(
                     s += float(np.interp(alpha_true, m.alpha_grid, dens, left=-50.0, right=-50.0))
                     scores[j, k] += max(float(s), -100.0)
     if n_eval == 0:
-        return NoiseChoice(1.0, float(temperature_grid[0]), {}, rows)
-    scores /= n_eval
-    j, k = np.unravel_index(int(np.argmax(scores)), scores.shape)
-    best = scores.max(axis=1)
+        j, k, best = 0, 0, None
+        nu = float(noise_grid[0]) if len(noise_grid) == 1 else 1.0
+    else:
+        scores /= n_eval
+        j, k = (int(v) for v in np.unravel_index(int(np.argmax(scores)), scores.shape))
+        best = scores.max(axis=1)
+        nu = float(noise_grid[j])
+    rows: list[HeldOutRow] = []
+    for n_demo, fold in enumerate(folds):
+        engine = None
+        for n_obs, (ratio, parts, t_last, summary) in enumerate(fold.observations):
+            loglik = fold.logliks.get((n_obs, j)) if best is not None else None
+            if loglik is None:
+                if engine is None:
+                    engine = _fold_engine(training, fold.models, nu)
+                loglik = engine.log_likelihood([engine.part_stats(p) for p in parts], t_last, nu=nu)
+            rows.append(HeldOutRow(fold.task, n_demo, summary, ratio, loglik, fold.priors, t_last))
+    if best is None:
+        return NoiseChoice(nu, float(temperature_grid[0]), {}, rows)
     return NoiseChoice(
-        float(noise_grid[j]),
+        nu,
         float(temperature_grid[k]),
-        {float(nu): float(v) for nu, v in zip(noise_grid, best, strict=True)},
+        {float(v): float(b) for v, b in zip(noise_grid, best, strict=True)},
         rows,
     )
 
@@ -300,6 +335,7 @@ def choose_coupling(
     scale = training.scaler.scale[rs]
     offset = training.scaler.offset[rs]
     rows = []  # per held-out observation, the MSE of every (candidate, nu_c) in [rad^2]
+    ends = []  # with fk: per held-out observation, the final robot configurations in [rad]
     for task, i in held_out(training.demos):
         keep = np.arange(len(training.demos[task])) != i
         weights = [training.weights[t][keep] if t == task else training.weights[t] for t in training.tasks]
@@ -311,28 +347,20 @@ def choose_coupling(
         w_true = training.weights[task][i][rs]
         for ratio, parts, _ in cv_observations(encoder, training.demos[task][i], CONDITION_CV_RATIOS):
             phi = training.basis(np.linspace(ratio, 1.0, CV_PHASES))
-            ws = [
-                robot_posterior_mean(
-                    training.basis,
-                    rs,
-                    training.duration_nominal_s,
-                    nu,
-                    cov.mean,
-                    cov.diag,
-                    cov.factor,
-                    parts,
-                    alpha,
-                )  # fmt: skip
-                for cov in covs
-                for nu in nus
-            ]
+            spectrum = part_spectrum(training.basis, parts, alpha * training.duration_nominal_s)
+            # (candidates, nu_c, J, K) conditioned robot weights
+            ws = np.stack([robot_path(spectrum, parts, rs, nus, c.mean, c.diag, c.factor).mean for c in covs])
             if fk is None:  # mean squared joint error over the unobserved phases [rad^2]
-                errs = [(phi @ (w - w_true).T) * scale for w in ws]
-                rows.append([float(np.mean(e * e)) for e in errs])
-            else:  # squared hand-over position error [m^2]
-                q_end = np.stack([phi[-1] @ w.T for w in [w_true, *ws]]) * scale + offset
-                p_end = fk(q_end)
-                rows.append(np.sum((p_end[1:] - p_end[0]) ** 2, axis=1).tolist())
+                errs = np.einsum("mk,cnjk->cnmj", phi, ws - w_true) * scale
+                rows.append(np.mean(errs * errs, axis=(2, 3)).ravel())
+            else:  # final configurations, the true one first
+                ends.append(
+                    np.concatenate([(phi[-1] @ w_true.T)[None], (ws @ phi[-1]).reshape(-1, scale.size)])
+                )
+    if fk is not None and ends:  # squared hand-over position errors [m^2]
+        n_conf = ends[0].shape[0]
+        p_end = fk(np.concatenate(ends) * scale + offset).reshape(len(ends), n_conf, -1)
+        rows = list(np.sum((p_end[:, 1:] - p_end[:, :1]) ** 2, axis=2))
     if not rows:
         return CouplingChoice(list(layout.observe), {}, 1.0 if noise_ratio is None else nus[0], {})
     per_nu = np.array(rows).reshape(len(rows), len(cands), len(nus))

@@ -20,10 +20,18 @@ A model file is a single ``.npz`` archive (``numpy.savez``) read back with
 * (version 2) the header's ``temperature``, ``condition_noise_ratio`` and ``head`` (the number R of
   its regressions, or null), and with a head its arrays ``head_ratios`` (R,), ``head_coef``
   (R, T, 3 D_o + T), ``head_intercept`` (R, T), ``head_feature_mean`` and ``head_feature_scale``
-  (R, 3 D_o + T), ``head_c`` (R,) and ``head_cv_log_loss`` (R, number of candidate C).
+  (R, 3 D_o + T), ``head_c`` (R,) and ``head_cv_log_loss`` (R, number of candidates);
+* (version 3) the head's ``head_kind`` (R,) (0 logistic regression, 1 LDA) and ``head_generative``
+  (R,) (1 where the generative posterior is a feature); the header's ``handover`` (null, or the
+  numbers R, M and F of its fractions, outputs and feature dims, and its trust factor) and
+  ``handover_cv_scores`` (trust factor or ``"off"`` -> CV error), and with a hand-over regression its
+  arrays ``handover_ratios`` (R,), ``handover_dims`` (F,) (observed dims, as floats),
+  ``handover_readout`` (T, M, J), ``handover_coef`` (R, T, M, 2 F), ``handover_intercept`` (R, T, M)
+  and ``handover_residual_cov`` (R, M, M) (:mod:`~ipromp_pin.promp.handover`).
 
 Files of format version 1 (no ``trained_on``) load with ``trained_on`` None
-(unknown). Files written before the coupling was introduced (no ``coupling`` parameter, no
+(unknown); files of format version 2 load with an all-logistic head and no hand-over regression.
+Files written before the coupling was introduced (no ``coupling`` parameter, no
 ``task{i}_shrinkage``) load as fully coupled models with one shrinkage intensity;
 the covariance is entirely in ``diag`` and ``factor``, so older readers also load
 newer files and predict the same.
@@ -57,6 +65,7 @@ from ..version import __version__
 from .basis import GaussianBasis
 from .distribution import ChannelScaler, TaskModel
 from .fitted import FittedModel
+from .handover import HandoverRegression
 from .head import RecognitionHead
 from .layout import ChannelLayout
 from .provenance import DemoRecord
@@ -65,29 +74,38 @@ from .validation import check_fitted
 FORMAT_NAME = "ipromp_pin.IProMP"
 """Value of the header's ``format`` field."""
 
-FORMAT_VERSION = 2
+FORMAT_VERSION = 3
 """Current (and highest readable) format version. Version 2 added ``trained_on`` (the training demos),
 the likelihood temperature, the conditioning noise ratio and the recognition head (``head_*``
-arrays); version-1 files load with no record of their training demos, temperature 1, the
-conditioning noise ratio equal to the noise ratio and no head (as they predicted)."""
+arrays); version 3 the head's model families and features and the hand-over regression
+(``handover_*`` arrays). Version-1 files load with no record of their training demos, temperature 1,
+the conditioning noise ratio equal to the noise ratio and no head; version-2 files with an
+all-logistic head and no hand-over regression (as they predicted)."""
 
 _HEAD_ARRAYS = ("ratios", "coef", "intercept", "feature_mean", "feature_scale", "c", "cv_log_loss")
+_HEAD_V3_ARRAYS = ("kind", "generative")
+_HANDOVER_ARRAYS = ("ratios", "readout", "coef", "intercept", "residual_cov")
 
 _TASK_ARRAYS = ("mean", "diag", "factor", "alpha_grid", "alpha_log_prior", "train_weights", "train_alpha")
 _GLOBAL_ARRAYS = ("scaler_offset", "scaler_scale", "scaler_log_shift", "task_log_prior", "residual_var")
 _HEADER_KEYS = {
     "format", "format_version", "package_version", "params", "tasks", "groups", "channel_names",
     "duration_nominal_s", "noise_ratio", "cv_scores", "coupled_groups", "coupling_cv_scores", "task_scalars",
-    "trained_on", "temperature", "condition_noise_ratio", "condition_cv_scores", "head",
+    "trained_on", "temperature", "condition_noise_ratio", "condition_cv_scores", "head", "handover",
+    "handover_cv_scores",
 }  # fmt: skip
 _PARAM_KEYS = {
     "observe", "n_basis", "width", "ridge", "margin", "blas_threads", "n_alpha", "alpha_width", "noise",
     "n_points", "task_prior", "robot_group", "log_groups", "pooling", "coupling", "temperature",
-    "condition_noise", "head",
+    "condition_noise", "head", "handover",
 }  # fmt: skip
 
 MAX_HEAD_REGRESSIONS = 100
 """Largest number of regressions (observed fractions) of a recognition head a model file may declare."""
+
+MAX_HANDOVER_SIZE = 10_000
+"""Largest number of fractions, outputs or feature dims of a hand-over regression a model file may
+declare."""
 
 MAX_HEADER_BYTES = 1_000_000
 """Largest header (the JSON member) a model file may have, in bytes."""
@@ -117,6 +135,7 @@ def _header_params(params: dict) -> dict:
         "temperature": _number_or_text(params["temperature"]),
         "condition_noise": _number_or_text(params["condition_noise"]),
         "head": bool(params["head"]),
+        "handover": bool(params["handover"]),
         "n_points": int(params["n_points"]),
         "task_prior": None if params["task_prior"] is None else dict(params["task_prior"]),
         "robot_group": params["robot_group"],
@@ -142,6 +161,7 @@ def write_model(params: dict, fitted: FittedModel, path: str | Path) -> None:
     """
     check_fitted(fitted)
     layout = fitted.layout
+    ho = fitted.handover
     robot_lo = layout.slices[layout.robot_group][0]
     header = {
         "format": FORMAT_NAME,
@@ -160,6 +180,18 @@ def write_model(params: dict, fitted: FittedModel, path: str | Path) -> None:
         "condition_noise_ratio": float(fitted.nu_condition),
         "condition_cv_scores": [[float(k), float(v)] for k, v in fitted.condition_cv_scores.items()],
         "head": None if fitted.head is None else {"regressions": int(fitted.head.ratios.size)},
+        "handover": None
+        if ho is None
+        else {
+            "ratios": int(ho.ratios.size),
+            "outputs": int(ho.readout.shape[1]),
+            "features": int(ho.dims.size),
+            "trust": float(ho.trust),
+        },
+        "handover_cv_scores": [
+            ["off" if not np.isfinite(k) else float(k), float(v)]
+            for k, v in fitted.handover_cv_scores.items()
+        ],
         "task_scalars": [
             {
                 # the robot's intensity, as a scalar for readers of files without task{i}_shrinkage
@@ -180,8 +212,18 @@ def write_model(params: dict, fitted: FittedModel, path: str | Path) -> None:
         "residual_var": fitted.residual_var,
     }
     if fitted.head is not None:
+        head = fitted.head
         for name in _HEAD_ARRAYS:
-            arrays[f"head_{name}"] = np.asarray(getattr(fitted.head, name), dtype=float)
+            arrays[f"head_{name}"] = np.asarray(getattr(head, name), dtype=float)
+        n = head.ratios.size
+        arrays["head_kind"] = np.zeros(n) if head.kind is None else np.asarray(head.kind, dtype=float)
+        arrays["head_generative"] = (
+            np.ones(n) if head.generative is None else np.asarray(head.generative, float)
+        )
+    if ho is not None:
+        for name in _HANDOVER_ARRAYS:
+            arrays[f"handover_{name}"] = np.asarray(getattr(ho, name), dtype=float)
+        arrays["handover_dims"] = np.asarray(ho.dims, dtype=float)
     for i, m in enumerate(fitted.task_models()):
         for name in _TASK_ARRAYS:
             arrays[f"task{i}_{name}"] = np.asarray(getattr(m, name), dtype=float)
@@ -342,6 +384,28 @@ def _expected_shapes(path: Path, header: dict) -> dict[str, tuple[int | None, ..
                 "head_cv_log_loss": (n, None),
             }
         )
+        shapes.update({"head_kind": (n,), "head_generative": (n,)})  # since version 3
+    ho = header.get("handover")
+    if ho is not None:
+        sizes = [ho.get(key) if isinstance(ho, dict) else None for key in ("ratios", "outputs", "features")]
+        if not all(
+            isinstance(v, int) and not isinstance(v, bool) and 1 <= v <= MAX_HANDOVER_SIZE for v in sizes
+        ):
+            raise ModelFileError(
+                f"{path}: header field 'handover' must give 1-{MAX_HANDOVER_SIZE} ratios, outputs, features"
+            )
+        r, m, f = sizes
+        t, nj = len(tasks), len(names[groups[-1]])
+        shapes.update(
+            {
+                "handover_ratios": (r,),
+                "handover_dims": (f,),
+                "handover_readout": (t, m, nj),
+                "handover_coef": (r, t, m, 2 * f),
+                "handover_intercept": (r, t, m),
+                "handover_residual_cov": (r, m, m),
+            }
+        )
     return shapes
 
 
@@ -354,7 +418,8 @@ def _check_members(path: Path, members: dict[str, zipfile.ZipInfo], expected: di
         if key not in expected:
             raise ModelFileError(f"{path}: unknown array '{name}' ({info.file_size} bytes) in the model file")
     for key in expected:
-        optional = key.endswith("_shrinkage")  # absent from files written before the coupling
+        # absent from files written before the coupling, and before version 3
+        optional = key.endswith("_shrinkage") or key in ("head_kind", "head_generative")
         if f"{key}.npy" not in members and not optional:
             raise ModelFileError(f"{path}: corrupt model file (array '{key}' is missing)")
     return None
@@ -389,6 +454,7 @@ def _params(header: dict) -> dict:
         "temperature": p.get("temperature", 1.0),
         "condition_noise": p.get("condition_noise", "same"),
         "head": bool(p.get("head", False)),
+        "handover": bool(p.get("handover", False)),
     }
 
 
@@ -451,6 +517,10 @@ def _fitted(header: dict, arrays: dict[str, np.ndarray]) -> FittedModel:
         condition_cv_scores={float(k): float(v) for k, v in header.get("condition_cv_scores", [])},
         trained_on=_trained_on(header),
         head=_head(header.get("head"), arrays, layout.n_obs_dims, len(tasks)),
+        handover=_handover(header.get("handover"), arrays),
+        handover_cv_scores={
+            (np.inf if k == "off" else float(k)): float(v) for k, v in header.get("handover_cv_scores", [])
+        },
     )
 
 
@@ -472,7 +542,22 @@ def _head(
         or a["c"].shape != (n,)
     ):
         raise ValueError("recognition head arrays have inconsistent shapes")
-    return RecognitionHead(**a)
+    extra = {name: arrays.get(f"head_{name}") for name in _HEAD_V3_ARRAYS}  # absent before version 3
+    return RecognitionHead(**a, **extra)
+
+
+def _handover(meta: dict | None, arrays: dict[str, np.ndarray]) -> HandoverRegression | None:
+    """The hand-over regression of a file (None when it has none)."""
+    if meta is None:
+        return None
+    dims = arrays["handover_dims"]
+    if not np.all(np.isfinite(dims)) or np.any(dims != np.round(dims)) or np.any(dims < 0):
+        raise ValueError("handover_dims must hold non-negative integers")
+    return HandoverRegression(
+        **{name: arrays[f"handover_{name}"] for name in _HANDOVER_ARRAYS},
+        dims=dims.astype(np.int64),
+        trust=float(meta["trust"]),
+    )
 
 
 def _trained_on(header: dict) -> tuple[DemoRecord, ...] | None:

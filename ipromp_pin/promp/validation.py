@@ -17,6 +17,8 @@ import numpy as np
 
 from ..exceptions import ModelError
 from .fitted import FittedModel
+from .handover import HandoverRegression
+from .head import RecognitionHead
 
 MAX_DURATION_S = 86400.0
 """Largest nominal duration ``T_norm`` of a model in [s] (one day: hand-overs last seconds)."""
@@ -157,4 +159,56 @@ def check_fitted(fitted: FittedModel) -> FittedModel:
         _positive(f"{w} train_alpha", _array(f"{w} train_alpha", m.train_alpha, (n,)), bound=MAX_PHASE)
         if factor.shape[2] > max(n - 1, 1) * n_blocks:
             raise _fail(f"{w} factor", f"rank {factor.shape[2]} exceeds what {n} demos can give")
+    if fitted.head is not None:
+        _check_head(fitted.head, len(tasks), layout.n_obs_dims)
+    if fitted.handover is not None:
+        _check_handover(fitted.handover, len(tasks), layout.n_obs_dims, d - layout.n_obs_dims)
     return fitted
+
+
+def _increasing_fractions(where: str, ratios: np.ndarray) -> None:
+    _finite(where, ratios)
+    if ratios.size < 1 or (np.diff(ratios) <= 0).any() or (ratios <= 0).any() or (ratios > 1).any():
+        raise _fail(where, "must be increasing observed fractions in (0, 1]")
+
+
+def _check_head(head: RecognitionHead, n_tasks: int, n_obs: int) -> None:
+    """The recognition head's arrays: shapes, finite numbers, positive scales, known model codes."""
+    ratios = _array("head ratios", head.ratios, (None,))
+    _increasing_fractions("head ratios", ratios)
+    r, f = ratios.size, 3 * n_obs + n_tasks
+    _bounded("head coef", _array("head coef", head.coef, (r, n_tasks, f)), MAX_SCALED)
+    _bounded("head intercept", _array("head intercept", head.intercept, (r, n_tasks)), MAX_SCALED)
+    _bounded("head feature_mean", _array("head feature_mean", head.feature_mean, (r, f)), MAX_SCALED)
+    _positive(
+        "head feature_scale", _array("head feature_scale", head.feature_scale, (r, f)), bound=MAX_SCALED
+    )
+    _positive("head c", _array("head c", head.c, (r,)), bound=MAX_SCALED)
+    for name, value in (("kind", head.kind), ("generative", head.generative)):
+        if value is not None:
+            codes = _array(f"head {name}", value, (r,))
+            if not np.isin(codes, (0.0, 1.0)).all():
+                raise _fail(f"head {name}", "codes must be 0 or 1")
+
+
+def _check_handover(ho: HandoverRegression, n_tasks: int, n_obs: int, n_joints: int) -> None:
+    """The hand-over regression's arrays: shapes, finite numbers, observed feature dims, positive
+    definite residual covariances, a positive trust factor."""
+    ratios = _array("handover ratios", ho.ratios, (None,))
+    _increasing_fractions("handover ratios", ratios)
+    dims = np.asarray(ho.dims)
+    if dims.ndim != 1 or dims.size < 1 or dims.dtype.kind != "i" or (dims < 0).any() or (dims >= n_obs).any():
+        raise _fail("handover dims", f"must be observed dims in [0, {n_obs}), got {dims.tolist()}")
+    r, f = ratios.size, dims.size
+    readout = _array("handover readout", ho.readout, (n_tasks, None, n_joints))
+    m = readout.shape[1]
+    _bounded("handover readout", readout, MAX_ORIGINAL)
+    _bounded("handover coef", _array("handover coef", ho.coef, (r, n_tasks, m, 2 * f)), MAX_ORIGINAL)
+    _bounded("handover intercept", _array("handover intercept", ho.intercept, (r, n_tasks, m)), MAX_ORIGINAL)
+    cov = _array("handover residual_cov", ho.residual_cov, (r, m, m))
+    _bounded("handover residual_cov", cov, MAX_ORIGINAL)
+    if not np.allclose(cov, np.swapaxes(cov, 1, 2), rtol=1e-9, atol=0.0):
+        raise _fail("handover residual_cov", "must be symmetric")
+    if (np.linalg.eigvalsh(cov) <= 0).any():
+        raise _fail("handover residual_cov", "must be positive definite")
+    _scalar("handover trust", ho.trust, 0.0, MAX_ORIGINAL)

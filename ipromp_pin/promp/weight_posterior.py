@@ -16,6 +16,13 @@ definite by construction: an SPD matrix plus a positive semi-definite one) and t
 moves by ``G Lambda'^-1 V^T S^-1 (y - H mean)``. Everything is Cholesky factorisations and
 triangular solves (``J K + r`` is a few hundred); no inverse is formed. Conditioning again starts
 from the updated form, so via-points can be added one call at a time.
+
+A few linear read-outs of the final configuration (the hand-over regression of
+:mod:`~ipromp_pin.promp.handover`) are added by :meth:`RobotWeightPosterior.readout_update` without
+factorising ``Lambda'``: by the Woodbury identity the update of the mean and of the trajectory's
+covariance needs only ``Lambda^-1 V^T`` (``V`` has a handful of rows), and ``Lambda' = Lambda + V^T V``
+is kept as the pending rows ``V`` (:attr:`RobotWeightPosterior.extra_rows`), factorised only when
+something asks for it (another via-point, samples).
 """
 
 from __future__ import annotations
@@ -45,6 +52,8 @@ class RobotWeightPosterior:
         basis: The basis (to evaluate it at via-points' phases); None: via-points cannot be added.
         info_chol: (J K + r, J K + r) lower Cholesky factor of ``Lambda`` once via-points were added
             (None: ``Lambda = blockdiag(I, Q)``).
+        extra_rows: (m, J K + r) rows ``V`` not yet factorised: the precision is ``Lambda + V^T V``
+            (None: none; see :meth:`readout_update`).
     """
 
     mean: np.ndarray
@@ -56,6 +65,7 @@ class RobotWeightPosterior:
     scale: np.ndarray
     basis: GaussianBasis | None = None
     info_chol: np.ndarray | None = None
+    extra_rows: np.ndarray | None = None
 
     @property
     def n_latent(self) -> int:
@@ -64,7 +74,19 @@ class RobotWeightPosterior:
         return j * k + r
 
     def precision_chol(self) -> np.ndarray:
-        """Lower Cholesky factor of the latent precision ``Lambda`` (J K + r, J K + r)."""
+        """Lower Cholesky factor of the latent precision ``Lambda`` (J K + r, J K + r) (with pending
+        :attr:`extra_rows`, factorised on the first call and cached)."""
+        if self.extra_rows is not None:
+            cached = self.__dict__.get("_extra_chol")
+            if cached is None:
+                base = replace(self, extra_rows=None).precision_chol()
+                lam = base @ base.T + self.extra_rows.T @ self.extra_rows
+                try:
+                    cached = cholesky(lam, lower=True)
+                except LinAlgError as exc:
+                    raise ModelError(f"read-out update is not numerically positive definite ({exc})") from exc
+                object.__setattr__(self, "_extra_chol", cached)
+            return cached
         if self.info_chol is not None:
             return self.info_chol
         j, k, r = self.factor.shape
@@ -116,13 +138,15 @@ class RobotWeightPosterior:
         without forming it)."""
         rng = np.random.default_rng(rng)
         j, k, r = self.factor.shape
-        if self.info_chol is None:
+        if self.info_chol is None and self.extra_rows is None:
             xi = rng.standard_normal((n, j, k)) * np.sqrt(self.diag)[None, :, None]
             zeta = rng.standard_normal((r, n))
             eta = solve_triangular(self.q_chol, zeta, lower=True, trans="T").T if r else zeta.T
             w = self.mean[None] + xi + np.einsum("jkr,nr->njk", self.factor, eta)
         else:
-            u = solve_triangular(self.info_chol, rng.standard_normal((j * k + r, n)), lower=True, trans="T")
+            u = solve_triangular(
+                self.precision_chol(), rng.standard_normal((j * k + r, n)), lower=True, trans="T"
+            )
             xi = u[: j * k].T.reshape(n, j, k) * np.sqrt(self.diag)[None, :, None]
             w = self.mean[None] + xi + np.einsum("jkr,rn->njk", self.factor, u[j * k :])
         q = np.einsum("mk,njk->nmj", self.phi, w)
@@ -179,4 +203,74 @@ class RobotWeightPosterior:
         u_mean = cho_solve((new_chol, True), v.T @ resid)
         jk = nj * k
         dw = u_mean[:jk].reshape(nj, k) * np.sqrt(self.diag)[:, None] + self.factor @ u_mean[jk:]
-        return replace(self, mean=self.mean + dw, info_chol=new_chol)
+        return replace(self, mean=self.mean + dw, info_chol=new_chol, extra_rows=None)
+
+    def readout_update(
+        self,
+        row: np.ndarray,
+        readout: np.ndarray,
+        values: np.ndarray,
+        cov: np.ndarray,
+        phi_f: np.ndarray | None = None,
+    ) -> tuple[RobotWeightPosterior, np.ndarray, np.ndarray]:
+        """The posterior after observing ``values = readout q(z) + e``, ``e ~ N(0, cov)``: linear
+        read-outs of the joints at one phase (``row`` (K,): the basis there; e.g. the gripper position
+        to first order at the hand-over), and the change of the prediction at the phases :attr:`phi`.
+
+        Exact Gaussian conditioning in the latent space, by the Woodbury identity (see the module
+        docstring): the precision update is kept as :attr:`extra_rows`.
+
+        Args:
+            row: (K,) basis values at the read-out's phase.
+            readout: (m, J) read-out of the joint angles in [rad] (values in its units, e.g. [m]).
+            values: (m,) the observed values.
+            cov: (m, m) their noise covariance (symmetric positive definite).
+            phi_f: (r, J, M) ``phi`` times the robot rows of the factor (computed when not given).
+
+        Returns:
+            The new posterior, the change (M, J) of the mean joint angles in [rad] and the decrease
+            (M, J, J) of their covariance in [rad^2] at the phases :attr:`phi`.
+        """
+        if self.info_chol is not None or self.extra_rows is not None:
+            chol = self.precision_chol()
+            base = None
+        else:
+            chol, base = None, self.q_chol
+        nj, k, r = self.factor.shape
+        readout = np.atleast_2d(np.asarray(readout, dtype=float))
+        m = readout.shape[0]
+        try:
+            cov_chol = cholesky(np.asarray(cov, dtype=float), lower=True)
+        except LinAlgError as exc:
+            raise ModelError(f"read-out noise covariance is not positive definite ({exc})") from exc
+        a_s = readout * self.scale[None, :]  # read-out of the scaled joints
+        g0 = self.loadings(np.repeat(np.asarray(row, dtype=float)[None], nj, axis=0), np.arange(nj))
+        v = solve_triangular(cov_chol, a_s @ g0, lower=True)  # whitened rows (m, n_u)
+        predicted = readout @ (self.mean @ row * self.scale + self.offset)
+        resid = solve_triangular(cov_chol, np.asarray(values, dtype=float) - predicted, lower=True)
+        jk = nj * k
+        if chol is None:  # Lambda = blockdiag(I, Q): Lambda^-1 V^T blockwise
+            u = v.T.copy()
+            if r:
+                u[jk:] = cho_solve((base, True), u[jk:])
+        else:
+            u = cho_solve((chol, True), v.T)
+        s_chol = cholesky(np.eye(m) + v @ u, lower=True)
+        du = u @ cho_solve((s_chol, True), resid)
+        sd = np.sqrt(self.diag)
+        dw = du[:jk].reshape(nj, k) * sd[:, None] + self.factor @ du[jk:]
+        # cross-covariance of the trajectory's joints with the whitened read-outs: (M, J, m)
+        cross = np.einsum("mk,jkc->mjc", self.phi, u[:jk].reshape(nj, k, m) * sd[:, None, None])
+        if r:
+            if phi_f is None:
+                phi_f = np.einsum("mk,jkr->rjm", self.phi, self.factor)
+            cross += np.einsum("rjm,rc->mjc", phi_f, u[jk:])
+        d = solve_triangular(s_chol, cross.reshape(-1, m).T, lower=True).T.reshape(cross.shape)
+        d_mean = (self.phi @ dw.T) * self.scale
+        d_cov = np.einsum("mic,mjc->mij", d, d) * self.scale[None, :, None] * self.scale[None, None, :]
+        rows = v if self.extra_rows is None else np.vstack([self.extra_rows, v])
+        if chol is not None and self.extra_rows is None:  # on top of earlier via-points: factorise now
+            new = replace(self, mean=self.mean + dw, info_chol=chol, extra_rows=rows)
+        else:
+            new = replace(self, mean=self.mean + dw, extra_rows=rows)
+        return new, d_mean, d_cov

@@ -75,8 +75,9 @@ class IProMP:
         head: Decide the task posterior by the discriminative head calibrated on held-out training
             demos (:mod:`~ipromp_pin.promp.head`: window summary + generative posterior); False: the
             generative posterior alone.
-        handover: Fit the hand-over regression (:mod:`~ipromp_pin.promp.handover`: per task a ridge
-            regression from the coupled groups' window to the hand-over) and condition the robot's
+        handover: Fit the hand-over regression (:mod:`~ipromp_pin.promp.handover`: per task and
+            observed fraction a ridge or k-nearest-neighbour regression from the window to the
+            hand-over) and condition the robot's
             prediction on it as far as cross-validation trusts it (possibly not at all); False: never.
         n_points: Number M of points of the predicted trajectories.
         task_prior: Prior task probabilities (task -> p, or None for uniform).

@@ -18,13 +18,16 @@ with, per task,
 * features: the mean and the last value over the observed window of each dim of the groups coupled
   to the robot, or of every observed group (chosen by cross-validation; scaled units;
   :class:`~ipromp_pin.promp.head.WindowSummary`);
-* the regression ``y = W x + c``: one ridge regression per observed fraction (:data:`RATIOS`) on the
-  task's training demos (targets: their recorded final configurations ``q_i``, as gripper positions
-  in the read-out's linearisation ``A q_bar + fk(q_i) - fk(q_bar)``, ``q_bar`` the task's mean;
-  without forward kinematics ``q_i``), its penalty chosen by exact leave-one-out
-  (:func:`fit_ridge`); online the predictions of the two fractions around the estimated observed
-  fraction are interpolated linearly (as the recognition head's logits);
-* ``R``: the covariance of the leave-one-out residuals, pooled over the tasks, per fraction;
+* the regression: per observed fraction (:data:`RATIOS`) a ridge regression ``y = W x + c`` or a
+  k-nearest-neighbour regression (:func:`fit_knn`), whichever has the smaller leave-one-out squared
+  error summed over the tasks at that fraction, on the task's training demos (targets: their
+  recorded final configurations ``q_i``, as gripper positions in the read-out's linearisation
+  ``A q_bar + fk(q_i) - fk(q_bar)``, ``q_bar`` the task's mean; without forward kinematics ``q_i``),
+  the ridge penalty chosen by exact leave-one-out (:func:`fit_ridge`); online the predictions of
+  the two fractions around the estimated observed fraction are interpolated linearly (as the
+  recognition head's logits);
+* ``R``: the covariance of the chosen estimator's leave-one-out residuals, pooled over the tasks,
+  per fraction;
 * ``s``: a trust factor chosen by cross-validation of the hand-over error on the training demos
   (:func:`~ipromp_pin.promp.handover_selection.choose_handover`; among :data:`TRUST_GRID` and "off":
   the regression is then not used).
@@ -52,6 +55,18 @@ RIDGE_PENALTIES = tuple(float(v) for v in np.logspace(-3, 5, 17))
 TRUST_GRID = (0.1, 0.25, 0.5, 1.0, 2.0, 4.0, 8.0, 16.0)
 """Candidate trust factors ``s`` (the regression's noise is ``s R``); "off" is also a candidate."""
 
+NEIGHBOUR_ARRAYS = (
+    "kind",
+    "neighbour_x",
+    "neighbour_y",
+    "neighbour_count",
+    "neighbour_mean",
+    "neighbour_scale",
+    "neighbour_k",
+    "neighbour_distance",
+)
+"""The optional arrays of :class:`HandoverRegression` for k-nearest-neighbour estimates."""
+
 JACOBIAN_STEP_RAD = 1e-6
 """Step of the central finite differences of the forward kinematics, in [rad]."""
 
@@ -78,6 +93,81 @@ class RidgeFit:
     intercept: np.ndarray
     residuals: np.ndarray
     penalty: float
+
+    def predict(self, x: np.ndarray) -> np.ndarray:
+        """(M,) prediction for raw features ``x`` (F,)."""
+        return self.coef @ x + self.intercept
+
+
+KNN_NEIGHBOURS = tuple(range(1, 11))
+"""Candidate numbers of neighbours of the k-nearest-neighbour estimate, chosen by leave-one-out."""
+
+
+@dataclass(frozen=True)
+class KnnFit:
+    """A k-nearest-neighbour regression (Euclidean distance on standardised features), its number of
+    neighbours and weighting chosen by leave-one-out.
+
+    Attributes:
+        x: (N, F) standardised training features.
+        y: (N, M) training targets.
+        mean, scale: (F,) the standardisation of the raw features.
+        k: Number of neighbours.
+        distance: Whether the neighbours are weighted by inverse distance (else uniformly).
+        residuals: (N, M) leave-one-out residuals (truth minus prediction) of the training rows.
+    """
+
+    x: np.ndarray
+    y: np.ndarray
+    mean: np.ndarray
+    scale: np.ndarray
+    k: int
+    distance: bool
+    residuals: np.ndarray
+
+    def predict(self, x: np.ndarray) -> np.ndarray:
+        """(M,) prediction for raw features ``x`` (F,)."""
+        d = np.linalg.norm(self.x - (x - self.mean) / self.scale, axis=1)
+        return knn_predict(d, self.y, self.k, self.distance)
+
+
+def knn_predict(d: np.ndarray, y: np.ndarray, k: int, distance: bool) -> np.ndarray:
+    """(M,) mean of the targets ``y`` (N, M) of the ``k`` rows nearest by distances ``d`` (N,), uniform
+    or by inverse distance (rows at distance 0 then take all the weight)."""
+    k = min(k, d.size)
+    idx = np.argpartition(d, k - 1)[:k] if k < d.size else np.arange(d.size)
+    if not distance:
+        return y[idx].mean(axis=0)
+    dk = d[idx]
+    w = (dk <= 0.0).astype(float) if np.any(dk <= 0.0) else 1.0 / dk
+    return w @ y[idx] / w.sum()
+
+
+def fit_knn(x: np.ndarray, y: np.ndarray, neighbours: Sequence[int] = KNN_NEIGHBOURS) -> KnnFit | None:
+    """k-nearest-neighbour regression of ``y`` (n, M) on ``x`` (n, F): features standardised on the
+    rows, the number of neighbours (at most ``n - 1``) and the weighting minimising the leave-one-out
+    squared error (None for fewer than 2 rows)."""
+    n = x.shape[0]
+    if n < 2:
+        return None
+    mean = x.mean(axis=0)
+    scale = x.std(axis=0)
+    scale = np.where(scale > 1e-12, scale, 1.0)
+    xs = (x - mean) / scale
+    d = np.sqrt(np.maximum(np.sum((xs[:, None] - xs[None]) ** 2, axis=2), 0.0))
+    np.fill_diagonal(d, np.inf)
+    best = (np.inf, 1, False, y)
+    for k in neighbours:
+        if k > n - 1:
+            break
+        for distance in (False, True):
+            pred = np.stack([knn_predict(d[i], y, k, distance) for i in range(n)])
+            resid = y - pred
+            score = float(np.sum(resid * resid))
+            if score < best[0]:
+                best = (score, k, distance, resid)
+    _, k, distance, resid = best
+    return KnnFit(xs, y, mean, scale, int(k), bool(distance), resid)
 
 
 def fit_ridge(x: np.ndarray, y: np.ndarray, penalties: Sequence[float] = RIDGE_PENALTIES) -> RidgeFit:
@@ -139,6 +229,17 @@ class HandoverRegression:
         intercept: (R, T, M) intercepts.
         residual_cov: (R, M, M) leave-one-out residual covariance ``R`` (pooled over tasks).
         trust: The trust factor ``s`` (the noise covariance is ``s R``).
+        kind: (R,) per fraction 0 where the estimate is the ridge regression (``coef``,
+            ``intercept``), 1 where it is the k-nearest-neighbour regression (the ``neighbour_*``
+            arrays; ``coef`` and ``intercept`` are then 0); None: all ridge (model files of format
+            version 3).
+        neighbour_x: (R, T, N, 2 F) standardised features of the training demos (N the most demos of a
+            task; rows beyond ``neighbour_count`` are 0 and unused).
+        neighbour_y: (R, T, N, M) their targets.
+        neighbour_count: (R, T) number of training demos (rows) of every regression.
+        neighbour_mean, neighbour_scale: (R, T, 2 F) the standardisation of the raw features.
+        neighbour_k: (R, T) number of neighbours.
+        neighbour_distance: (R, T) 1 where the neighbours are weighted by inverse distance, else 0.
     """
 
     ratios: np.ndarray
@@ -148,11 +249,21 @@ class HandoverRegression:
     intercept: np.ndarray
     residual_cov: np.ndarray
     trust: float
+    kind: np.ndarray | None = None
+    neighbour_x: np.ndarray | None = None
+    neighbour_y: np.ndarray | None = None
+    neighbour_count: np.ndarray | None = None
+    neighbour_mean: np.ndarray | None = None
+    neighbour_scale: np.ndarray | None = None
+    neighbour_k: np.ndarray | None = None
+    neighbour_distance: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         # C-contiguous copies: a fitted and a loaded regression then give bitwise identical products
-        for name in ("ratios", "readout", "coef", "intercept", "residual_cov"):
-            object.__setattr__(self, name, np.ascontiguousarray(getattr(self, name), dtype=float))
+        for name in ("ratios", "readout", "coef", "intercept", "residual_cov", *NEIGHBOUR_ARRAYS):
+            value = getattr(self, name)
+            if value is not None:
+                object.__setattr__(self, name, np.ascontiguousarray(value, dtype=float))
         object.__setattr__(self, "dims", np.ascontiguousarray(self.dims))
 
     def observation(
@@ -163,9 +274,50 @@ class HandoverRegression:
         fraction (the regressions of the two fractions around it interpolated linearly)."""
         x = window_features(window.values, self.dims)
         i, w = interpolation([float(r) for r in self.ratios], fraction)
-        y = self.coef[i, task] @ x + self.intercept[i, task]
+        y = self._predict(i, task, x)
         cov = self.residual_cov[i]
         if w > 0.0:
-            y = (1.0 - w) * y + w * (self.coef[i + 1, task] @ x + self.intercept[i + 1, task])
+            y = (1.0 - w) * y + w * self._predict(i + 1, task, x)
             cov = (1.0 - w) * cov + w * self.residual_cov[i + 1]
         return self.readout[task], y, self.trust * cov
+
+    def _predict(self, level: int, task: int, x: np.ndarray) -> np.ndarray:
+        """(M,) the regression's prediction of fraction index ``level`` for task index ``task`` from
+        the raw features ``x`` (2 F,)."""
+        if self.kind is None or self.kind[level] == 0:
+            return self.coef[level, task] @ x + self.intercept[level, task]
+        n = int(self.neighbour_count[level, task])
+        xs = (x - self.neighbour_mean[level, task]) / self.neighbour_scale[level, task]
+        d = np.linalg.norm(self.neighbour_x[level, task, :n] - xs, axis=1)
+        k, distance = int(self.neighbour_k[level, task]), bool(self.neighbour_distance[level, task])
+        return knn_predict(d, self.neighbour_y[level, task, :n], k, distance)
+
+
+def neighbour_arrays(fits: list[list[RidgeFit | KnnFit]], n_out: int, n_feat: int) -> dict[str, np.ndarray]:
+    """The ``kind`` and ``neighbour_*`` arrays of :class:`HandoverRegression` from the fits (R lists of
+    T, one kind per fraction) with M = ``n_out`` outputs and ``n_feat`` (2 F) features."""
+    n_ratio, n_task = len(fits), len(fits[0])
+    n_rows = max((f.x.shape[0] for row in fits for f in row if isinstance(f, KnnFit)), default=1)
+    out = {
+        "kind": np.array([float(isinstance(row[0], KnnFit)) for row in fits]),
+        "neighbour_x": np.zeros((n_ratio, n_task, n_rows, n_feat)),
+        "neighbour_y": np.zeros((n_ratio, n_task, n_rows, n_out)),
+        "neighbour_count": np.zeros((n_ratio, n_task)),
+        "neighbour_mean": np.zeros((n_ratio, n_task, n_feat)),
+        "neighbour_scale": np.ones((n_ratio, n_task, n_feat)),
+        "neighbour_k": np.ones((n_ratio, n_task)),
+        "neighbour_distance": np.zeros((n_ratio, n_task)),
+    }
+    for r, row in enumerate(fits):
+        for t, f in enumerate(row):
+            if not isinstance(f, KnnFit):
+                continue
+            n = f.x.shape[0]
+            out["neighbour_x"][r, t, :n] = f.x
+            out["neighbour_y"][r, t, :n] = f.y
+            out["neighbour_count"][r, t] = n
+            out["neighbour_mean"][r, t] = f.mean
+            out["neighbour_scale"][r, t] = f.scale
+            out["neighbour_k"][r, t] = f.k
+            out["neighbour_distance"][r, t] = float(f.distance)
+    return out

@@ -24,7 +24,18 @@ from dataclasses import dataclass
 import numpy as np
 
 from .distribution import shrink_covariances
-from .handover import RATIOS, TRUST_GRID, HandoverRegression, RidgeFit, fit_ridge, readouts, window_features
+from .handover import (
+    RATIOS,
+    TRUST_GRID,
+    HandoverRegression,
+    KnnFit,
+    RidgeFit,
+    fit_knn,
+    fit_ridge,
+    neighbour_arrays,
+    readouts,
+    window_features,
+)
 from .head import WindowSummary, interpolation
 from .noise_path import part_spectrum, robot_path
 from .observation import ObservationEncoder
@@ -103,15 +114,38 @@ def _features(training: TrainingSet, dims: np.ndarray) -> dict[str, np.ndarray]:
     return out
 
 
-def _fit(x: np.ndarray, y: np.ndarray, drop: int | None = None) -> RidgeFit | None:
-    """The ridge of targets ``y`` (N, M) on features ``x`` (N, F) over the demos with features, without
-    demo ``drop`` (None when fewer than 2 remain)."""
+def _fit(
+    x: np.ndarray, y: np.ndarray, drop: int | None = None, knn: bool = False
+) -> RidgeFit | KnnFit | None:
+    """The ridge (or k-nearest-neighbour) regression of targets ``y`` (N, M) on features ``x`` (N, F)
+    over the demos with features, without demo ``drop`` (None when fewer than 2 remain)."""
     keep = ~np.isnan(x[:, 0])
     if drop is not None:
         keep[drop] = False
     if keep.sum() < 2:
         return None
-    return fit_ridge(x[keep], y[keep])
+    return fit_knn(x[keep], y[keep]) if knn else fit_ridge(x[keep], y[keep])
+
+
+def _choose_kinds(
+    feats: dict[str, np.ndarray], targets: dict[str, np.ndarray], tasks: Sequence[str]
+) -> tuple[dict[tuple[int, str], RidgeFit | KnnFit], list[bool]] | None:
+    """Per fraction of :data:`RATIOS`, the ridge or the k-nearest-neighbour regressions of every task,
+    whichever has the smaller leave-one-out squared error summed over the tasks -> (fits (ratio index,
+    task) -> fit, kinds (R,) True where k-nearest-neighbour), or None when a fit is missing."""
+    fits, kinds = {}, []
+    for r in range(len(RATIOS)):
+        ridge = {t: _fit(feats[t][r], targets[t]) for t in tasks}
+        knn = {t: _fit(feats[t][r], targets[t], knn=True) for t in tasks}
+        if any(f is None for f in ridge.values()) or any(f is None for f in knn.values()):
+            return None
+        sse_r = sum(float(np.sum(f.residuals**2)) for f in ridge.values())
+        sse_k = sum(float(np.sum(f.residuals**2)) for f in knn.values())
+        use_knn = sse_k < sse_r
+        kinds.append(use_knn)
+        for t in tasks:
+            fits[(r, t)] = knn[t] if use_knn else ridge[t]
+    return fits, kinds
 
 
 def choose_handover(
@@ -153,28 +187,41 @@ def choose_handover(
         if dims.size == 0 or any(np.array_equal(dims, c[0]) for c in candidates):
             continue
         feats = _features(training, dims)
-        fits = {(r, t): _fit(feats[t][r], targets[t]) for r in range(len(RATIOS)) for t in tasks}
-        if all(f is not None for f in fits.values()):
-            candidates.append((dims, feats, fits))
+        chosen = _choose_kinds(feats, targets, tasks)
+        if chosen is not None:
+            candidates.append((dims, feats, *chosen))
     if not candidates:
         return HandoverChoice(None, {})
     held = _held_out_predictions(training, settings, coupled, nu_condition, rows, temperature)
     best = None
-    for dims, feats, fits in candidates:
-        scores = _cross_validate(training, held, readout, fk, dims, feats, fits, q_end, targets)
+    for dims, feats, fits, kinds in candidates:
+        scores = _cross_validate(training, held, readout, fk, dims, feats, fits, kinds, q_end, targets)
         if scores and (best is None or min(scores.values()) < min(best[3].values())):
-            best = (dims, feats, fits, scores)
+            best = (dims, fits, kinds, scores)
     if best is None:
         return HandoverChoice(None, {})
-    dims, _, fits, scores = best
+    dims, fits, kinds, scores = best
     trust = min(scores, key=scores.get)
     if not np.isfinite(trust):
         return HandoverChoice(None, scores)
     n_ratio, n_task = len(RATIOS), len(tasks)
     m = readout.shape[1]
-    coef = np.stack([np.stack([fits[(r, t)].coef for t in tasks]) for r in range(n_ratio)])
-    intercept = np.stack([np.stack([fits[(r, t)].intercept for t in tasks]) for r in range(n_ratio)])
+    n_feat = 2 * dims.size
+    coef = np.stack(
+        [
+            np.stack([getattr(fits[(r, t)], "coef", np.zeros((m, n_feat))) for t in tasks])
+            for r in range(n_ratio)
+        ]
+    )
+    intercept = np.stack(
+        [np.stack([getattr(fits[(r, t)], "intercept", np.zeros(m)) for t in tasks]) for r in range(n_ratio)]
+    )
     cov = np.stack([_pooled([fits[(r, t)].residuals for t in tasks]) for r in range(n_ratio)])
+    extra = (
+        neighbour_arrays([[fits[(r, t)] for t in tasks] for r in range(n_ratio)], m, n_feat)
+        if any(kinds)
+        else {}
+    )
     regression = HandoverRegression(
         ratios=np.asarray(RATIOS, dtype=float),
         dims=np.asarray(dims, dtype=np.int64),
@@ -183,6 +230,7 @@ def choose_handover(
         intercept=intercept,
         residual_cov=cov,
         trust=float(trust),
+        **extra,
     )
     return HandoverChoice(regression, scores)
 
@@ -262,7 +310,8 @@ def _cross_validate(
     fk: Callable[[np.ndarray], np.ndarray] | None,
     dims: np.ndarray,
     feats: dict[str, np.ndarray],
-    fits: dict[tuple[int, str], RidgeFit],
+    fits: dict[tuple[int, str], RidgeFit | KnnFit],
+    kinds: list[bool],
     q_end: dict[str, np.ndarray],
     targets: dict[str, np.ndarray],
 ) -> dict[float, float]:
@@ -270,7 +319,7 @@ def _cross_validate(
     ``dims`` (final configurations ``q_end``, regression targets ``targets``); empty when no row
     could be scored."""
     tasks = training.tasks
-    nested: dict[tuple[int, str, int], RidgeFit | None] = {}
+    nested: dict[tuple[int, str, int], RidgeFit | KnnFit | None] = {}
     configs, truths = [], []
     for h in held:
         k = tasks.index(h.task)
@@ -284,12 +333,12 @@ def _cross_validate(
                 continue
             key = (level, h.task, h.index)
             if key not in nested:
-                nested[key] = _fit(feats[h.task][level], targets[h.task], drop=h.index)
+                nested[key] = _fit(feats[h.task][level], targets[h.task], drop=h.index, knn=kinds[level])
             fit = nested[key]
             if fit is None:
                 ok = False
                 break
-            pred += weight * (fit.coef @ x + fit.intercept)
+            pred += weight * fit.predict(x)
             others = [fits[(level, t)].residuals for t in tasks if t != h.task]
             noise += weight * _pooled([*others, fit.residuals])
         if not ok:

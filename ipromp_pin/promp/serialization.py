@@ -27,10 +27,17 @@ A model file is a single ``.npz`` archive (``numpy.savez``) read back with
   ``handover_cv_scores`` (trust factor or ``"off"`` -> CV error), and with a hand-over regression its
   arrays ``handover_ratios`` (R,), ``handover_dims`` (F,) (observed dims, as floats),
   ``handover_readout`` (T, M, J), ``handover_coef`` (R, T, M, 2 F), ``handover_intercept`` (R, T, M)
-  and ``handover_residual_cov`` (R, M, M) (:mod:`~ipromp_pin.promp.handover`).
+  and ``handover_residual_cov`` (R, M, M) (:mod:`~ipromp_pin.promp.handover`);
+* (version 4) the header's ``handover`` gains ``neighbours`` (the number N of rows of the
+  k-nearest-neighbour estimates, or null when every fraction uses the ridge regression), and with N
+  the arrays ``handover_kind`` (R,) (0 ridge, 1 k-nearest neighbours), ``handover_neighbour_x``
+  (R, T, N, 2 F), ``handover_neighbour_y`` (R, T, N, M), ``handover_neighbour_count``,
+  ``handover_neighbour_k``, ``handover_neighbour_distance`` (R, T), ``handover_neighbour_mean`` and
+  ``handover_neighbour_scale`` (R, T, 2 F).
 
 Files of format version 1 (no ``trained_on``) load with ``trained_on`` None
-(unknown); files of format version 2 load with an all-logistic head and no hand-over regression.
+(unknown); files of format version 2 load with an all-logistic head and no hand-over regression;
+files of format version 3 with an all-ridge hand-over regression.
 Files written before the coupling was introduced (no ``coupling`` parameter, no
 ``task{i}_shrinkage``) load as fully coupled models with one shrinkage intensity;
 the covariance is entirely in ``diag`` and ``factor``, so older readers also load
@@ -65,7 +72,7 @@ from ..version import __version__
 from .basis import GaussianBasis
 from .distribution import ChannelScaler, TaskModel
 from .fitted import FittedModel
-from .handover import HandoverRegression
+from .handover import NEIGHBOUR_ARRAYS, HandoverRegression
 from .head import RecognitionHead
 from .layout import ChannelLayout
 from .provenance import DemoRecord
@@ -74,13 +81,15 @@ from .validation import check_fitted
 FORMAT_NAME = "ipromp_pin.IProMP"
 """Value of the header's ``format`` field."""
 
-FORMAT_VERSION = 3
+FORMAT_VERSION = 4
 """Current (and highest readable) format version. Version 2 added ``trained_on`` (the training demos),
 the likelihood temperature, the conditioning noise ratio and the recognition head (``head_*``
 arrays); version 3 the head's model families and features and the hand-over regression
-(``handover_*`` arrays). Version-1 files load with no record of their training demos, temperature 1,
-the conditioning noise ratio equal to the noise ratio and no head; version-2 files with an
-all-logistic head and no hand-over regression (as they predicted)."""
+(``handover_*`` arrays); version 4 the hand-over's k-nearest-neighbour estimates
+(``handover_kind``, ``handover_neighbour_*``). Version-1 files load with no record of their training
+demos, temperature 1, the conditioning noise ratio equal to the noise ratio and no head; version-2
+files with an all-logistic head and no hand-over regression (as they predicted); version-3 files with
+an all-ridge hand-over regression (as they predicted)."""
 
 _HEAD_ARRAYS = ("ratios", "coef", "intercept", "feature_mean", "feature_scale", "c", "cv_log_loss")
 _HEAD_V3_ARRAYS = ("kind", "generative")
@@ -187,6 +196,7 @@ def write_model(params: dict, fitted: FittedModel, path: str | Path) -> None:
             "outputs": int(ho.readout.shape[1]),
             "features": int(ho.dims.size),
             "trust": float(ho.trust),
+            "neighbours": None if ho.kind is None else int(ho.neighbour_x.shape[2]),
         },
         "handover_cv_scores": [
             ["off" if not np.isfinite(k) else float(k), float(v)]
@@ -224,6 +234,9 @@ def write_model(params: dict, fitted: FittedModel, path: str | Path) -> None:
         for name in _HANDOVER_ARRAYS:
             arrays[f"handover_{name}"] = np.asarray(getattr(ho, name), dtype=float)
         arrays["handover_dims"] = np.asarray(ho.dims, dtype=float)
+        if ho.kind is not None:
+            for name in NEIGHBOUR_ARRAYS:
+                arrays[f"handover_{name}"] = np.asarray(getattr(ho, name), dtype=float)
     for i, m in enumerate(fitted.task_models()):
         for name in _TASK_ARRAYS:
             arrays[f"task{i}_{name}"] = np.asarray(getattr(m, name), dtype=float)
@@ -406,6 +419,24 @@ def _expected_shapes(path: Path, header: dict) -> dict[str, tuple[int | None, ..
                 "handover_residual_cov": (r, m, m),
             }
         )
+        n = ho.get("neighbours")  # since version 4
+        if n is not None:
+            if not isinstance(n, int) or isinstance(n, bool) or not 1 <= n <= MAX_HANDOVER_SIZE:
+                raise ModelFileError(
+                    f"{path}: header field 'handover' must give 1-{MAX_HANDOVER_SIZE} neighbours or null"
+                )
+            shapes.update(
+                {
+                    "handover_kind": (r,),
+                    "handover_neighbour_x": (r, t, n, 2 * f),
+                    "handover_neighbour_y": (r, t, n, m),
+                    "handover_neighbour_count": (r, t),
+                    "handover_neighbour_mean": (r, t, 2 * f),
+                    "handover_neighbour_scale": (r, t, 2 * f),
+                    "handover_neighbour_k": (r, t),
+                    "handover_neighbour_distance": (r, t),
+                }
+            )
     return shapes
 
 
@@ -555,6 +586,7 @@ def _handover(meta: dict | None, arrays: dict[str, np.ndarray]) -> HandoverRegre
         raise ValueError("handover_dims must hold non-negative integers")
     return HandoverRegression(
         **{name: arrays[f"handover_{name}"] for name in _HANDOVER_ARRAYS},
+        **{name: arrays.get(f"handover_{name}") for name in NEIGHBOUR_ARRAYS},  # absent before version 4
         dims=dims.astype(np.int64),
         trust=float(meta["trust"]),
     )

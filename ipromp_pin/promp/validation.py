@@ -212,3 +212,48 @@ def _check_handover(ho: HandoverRegression, n_tasks: int, n_obs: int, n_joints: 
     if (np.linalg.eigvalsh(cov) <= 0).any():
         raise _fail("handover residual_cov", "must be positive definite")
     _scalar("handover trust", ho.trust, 0.0, MAX_ORIGINAL)
+    if ho.kind is not None:
+        _check_neighbours(ho, r, n_tasks, m, 2 * f)
+
+
+def _check_neighbours(ho: HandoverRegression, r: int, n_tasks: int, m: int, n_feat: int) -> None:
+    """The hand-over's k-nearest-neighbour arrays: shapes, finite numbers, 0/1 codes, row counts in
+    ``[0, N]`` (at least 1 at the k-nearest-neighbour fractions), whole numbers of neighbours at least
+    1, positive scales."""
+    kind = _array("handover kind", ho.kind, (r,))
+    if not np.isin(kind, (0.0, 1.0)).all():
+        raise _fail("handover kind", "codes must be 0 or 1")
+    for name in ("neighbour_x", "neighbour_y", "neighbour_mean", "neighbour_scale"):
+        if getattr(ho, name) is None:
+            raise _fail(f"handover {name}", "is missing")
+    x = _array("handover neighbour_x", ho.neighbour_x, (r, n_tasks, None, n_feat))
+    n_rows = x.shape[2]
+    _bounded("handover neighbour_x", x, MAX_ORIGINAL)
+    _bounded(
+        "handover neighbour_y",
+        _array("handover neighbour_y", ho.neighbour_y, (r, n_tasks, n_rows, m)),
+        MAX_ORIGINAL,
+    )
+    _bounded(
+        "handover neighbour_mean",
+        _array("handover neighbour_mean", ho.neighbour_mean, (r, n_tasks, n_feat)),
+        MAX_ORIGINAL,
+    )
+    _positive(
+        "handover neighbour_scale",
+        _array("handover neighbour_scale", ho.neighbour_scale, (r, n_tasks, n_feat)),
+        bound=MAX_ORIGINAL,
+    )
+    for name, low, high in (
+        ("neighbour_count", 0, n_rows),
+        ("neighbour_k", 1, MAX_ORIGINAL),
+        ("neighbour_distance", 0, 1),
+    ):
+        value = getattr(ho, name)
+        if value is None:
+            raise _fail(f"handover {name}", "is missing")
+        v = _array(f"handover {name}", value, (r, n_tasks))
+        if not np.all(np.isfinite(v)) or (v != np.round(v)).any() or (v < low).any() or (v > high).any():
+            raise _fail(f"handover {name}", f"must hold whole numbers in [{low}, {high:g}]")
+    if (ho.neighbour_count[kind == 1] < 1).any():
+        raise _fail("handover neighbour_count", "must be at least 1 at the k-nearest-neighbour fractions")

@@ -22,6 +22,7 @@ from __future__ import annotations
 import json
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -152,7 +153,8 @@ def _run_job(job: _Job) -> tuple[_Job, dict[float, list[dict]], str, str]:
         _WORKER["certifier"] = ClearanceCertifier(robot)
     train = [_demo(r) for r in job.train]
     test = [_demo(r) for r in job.test]
-    model = IProMP(observe=list(job.observe), **_WORKER["params"]).fit(train)
+    fk = partial(ee_positions, robot)  # settings chosen for the hand-over position, as run and evaluate do
+    model = IProMP(observe=list(job.observe), **_WORKER["params"]).fit(train, fk=fk)
     profile = profile_for(options, robot, train, _WORKER["label"])
     out = {}
     for ratio in job.ratios:

@@ -11,6 +11,7 @@ import pytest
 from ipromp_pin.cli import main
 from ipromp_pin.export import read_trajectory_csv, read_trajectory_json
 from ipromp_pin.limits import read_limit_profile
+from ipromp_pin.promp import IProMP
 from ipromp_pin.readers.native import write_demo
 from ipromp_pin.retarget import limit_ratios
 from ipromp_pin.robot import load_robot
@@ -137,3 +138,23 @@ def test_evaluate_closed_loop_adds_the_closed_loop_fields(tmp_path, capsys):
         assert main([*args, *extra]) == 2
         captured = capsys.readouterr()
         assert f"command line: field '{field}'" in captured.err and "read " not in captured.out
+
+
+def test_closed_loop_evaluation_chooses_the_model_settings_for_the_hand_over(tmp_path, monkeypatch):
+    """The closed loop's models are fitted with the robot's kinematics (coupling and conditioning
+    chosen for the hand-over position, as run, replay and evaluate choose them)."""
+    seen = []
+    fit = IProMP.fit
+
+    def spy(self, data, y=None, *, fk=None):
+        seen.append(fk)
+        return fit(self, data, y, fk=fk)
+
+    monkeypatch.setattr(IProMP, "fit", spy)
+    data = _write_dataset(tmp_path / "data")
+    args = ["evaluate", str(data), "--protocol", "splits", "--closed-loop", "--observe", "orientation,emg"]
+    args += ["--grid", "full", "--n-train", "4", "--ratios", "0.2", "--splits", "1", "--n-test", "2"]
+    args += ["--json", str(tmp_path / "eval.json"), "--jobs", "1"]
+    assert main(args) == 0
+    assert seen and all(fk is not None for fk in seen)
+    assert seen[0](np.zeros((2, 7))).shape == (2, 3)

@@ -10,6 +10,7 @@ the human's hand at the hand-over); :func:`~ipromp_pin.planning.plan` runs the o
 from __future__ import annotations
 
 import json
+import multiprocessing as mp
 import time
 from dataclasses import dataclass, field
 from functools import partial
@@ -26,7 +27,7 @@ from .model_cache import fit_cached
 from .model_warnings import loaded_model_warnings, single_task_warning, warn_stderr
 from .planning import LogFn, PlanResult, check_model_joints, plan
 from .preview import DEFAULT_MAX_TRIANGLES, LivePreview, PreviewContent, render_html, write_html
-from .preview.mesh_cache import cached_visual_model
+from .preview.mesh_cache import cache_entry, cached_visual_model
 from .promp import IProMP
 from .readers import load_dataset
 from .report import report_dict, report_text, summary_text
@@ -69,6 +70,8 @@ class Prepared:
         observation: The observed first ``ratio`` of the demo's human motion.
         hand_position_m: (3,) the human hand's last known position in [m] (the hand-over point), or None.
         warnings: Warnings about the model and the data (:mod:`ipromp_pin.model_warnings`), one line each.
+        mesh_prefetch: The process decimating the preview meshes meanwhile (:func:`start_mesh_prefetch`),
+            or None.
     """
 
     dataset: Dataset
@@ -78,6 +81,7 @@ class Prepared:
     observation: Demo
     hand_position_m: np.ndarray | None
     warnings: list[str] = field(default_factory=list)
+    mesh_prefetch: mp.process.BaseProcess | None = None
 
 
 def load_data(cfg: PipelineConfig, log: LogFn = print, robot: Robot | None = None) -> Dataset:
@@ -170,8 +174,11 @@ def model_warnings(cfg: PipelineConfig, ds: Dataset, demo: Demo, model: IProMP) 
     return [] if single is None else [single]
 
 
-def prepare(cfg: PipelineConfig, log: LogFn = print, warn: LogFn = warn_stderr) -> Prepared:
-    """The set-up shared by :func:`run_pipeline` and :func:`run_preview` (``warn``: where warnings go).
+def prepare(
+    cfg: PipelineConfig, log: LogFn = print, warn: LogFn = warn_stderr, prefetch_meshes: bool = False
+) -> Prepared:
+    """The set-up shared by :func:`run_pipeline` and :func:`run_preview` (``warn``: where warnings go;
+    ``prefetch_meshes``: decimate the preview meshes meanwhile when they are not cached yet).
 
     Raises:
         ModelError: the model's joints are not the robot's (e.g. a left-arm model run with
@@ -180,6 +187,7 @@ def prepare(cfg: PipelineConfig, log: LogFn = print, warn: LogFn = warn_stderr) 
     robot = load_robot(cfg.robot)
     ds = load_data(cfg, log, robot)
     demo = choose_demo(ds, cfg)
+    prefetch = start_mesh_prefetch(robot) if prefetch_meshes else None
     model = get_model(cfg, ds, demo, log, robot)
     check_model_joints(model, robot)
     warnings = model_warnings(cfg, ds, demo, model)
@@ -190,7 +198,7 @@ def prepare(cfg: PipelineConfig, log: LogFn = print, warn: LogFn = warn_stderr) 
         f"[observe] {demo.task}/{demo.name}: first {cfg.ratio:.0%} "
         f"({observation.t[-1]:.2f} s, {observation.n_samples} samples) of {', '.join(cfg.observe)}"
     )
-    return Prepared(ds, demo, model, robot, observation, hand_at_handover(demo), warnings)
+    return Prepared(ds, demo, model, robot, observation, hand_at_handover(demo), warnings, prefetch)
 
 
 def check_outputs(cfg: PipelineConfig) -> None:
@@ -214,7 +222,7 @@ def run_pipeline(
     """
     t_start = time.perf_counter()
     check_outputs(cfg)
-    prep = prepare(cfg, log, warn)
+    prep = prepare(cfg, log, warn, prefetch_meshes=cfg.preview_html)
     result = plan(
         prep.model, prep.robot, prep.observation, cfg.control_rate_hz, prep.hand_position_m, log=log
     )
@@ -223,9 +231,8 @@ def run_pipeline(
         stage_outputs(result, out, prep.observation, options, allow_failing_checks=allow_failing_checks)
         if cfg.preview_html:
             t0 = time.perf_counter()
-            content = preview_content(
-                result, prep.robot, prep.demo, visual_model=preview_visual_model(prep.robot)
-            )
+            visual = preview_visual_model(prep.robot, prep.mesh_prefetch)
+            content = preview_content(result, prep.robot, prep.demo, visual_model=visual)
             html = render_html(content).encode("utf-8")
             out.write_bytes("preview.html", html)
             log(
@@ -393,9 +400,28 @@ def preview_content(
     )
 
 
-def preview_visual_model(robot: Robot) -> object:
+def start_mesh_prefetch(robot: Robot) -> mp.process.BaseProcess | None:
+    """Start decimating the robot's preview meshes into the disk cache in a forked process, when they
+    are not cached yet, so that a first run does it while it trains (about 3 s of CPU for Baxter).
+    None when they are cached, or where processes cannot be forked."""
+    s = robot.settings
+    entry = cache_entry(s.urdf_path, s.package_dirs, DEFAULT_MAX_TRIANGLES)
+    if entry is None or entry.is_file() or "fork" not in mp.get_all_start_methods():
+        return None
+    process = mp.get_context("fork").Process(target=preview_visual_model, args=(robot,), daemon=True)
+    try:
+        process.start()
+    except OSError:
+        return None
+    return process
+
+
+def preview_visual_model(robot: Robot, prefetch: mp.process.BaseProcess | None = None) -> object:
     """The robot's decimated visual model for the preview, from the on-disk mesh cache when there
-    (:func:`~ipromp_pin.preview.mesh_cache.cached_visual_model`; loaded and decimated otherwise)."""
+    (:func:`~ipromp_pin.preview.mesh_cache.cached_visual_model`; loaded and decimated otherwise),
+    after the ``prefetch`` process (:func:`start_mesh_prefetch`), if any, has finished."""
+    if prefetch is not None:
+        prefetch.join()
     s = robot.settings
     return cached_visual_model(
         robot.model, s.urdf_path, s.package_dirs, DEFAULT_MAX_TRIANGLES, lambda: load_visual_model(robot)
@@ -489,14 +515,15 @@ def run_preview(
     """
     if not (np.isfinite(speed) and speed > 0):
         raise PipelineError(f"preview speed must be a positive factor, got {speed}")
-    prep = prepare(cfg, log)
+    prep = prepare(cfg, log, prefetch_meshes=True)
     observation = prep.observation
     result = plan(prep.model, prep.robot, observation, cfg.control_rate_hz, prep.hand_position_m, log=log)
     if html is not None:
         path = write_preview(result, prep.robot, prep.demo, html)
         log(f"[preview] wrote {path} ({path.stat().st_size / 1e6:.1f} MB): open it in a browser (no server)")
         return path
-    content = preview_content(result, prep.robot, prep.demo, visual_model=preview_visual_model(prep.robot))
+    visual = preview_visual_model(prep.robot, prep.mesh_prefetch)
+    content = preview_content(result, prep.robot, prep.demo, visual_model=visual)
     tasks = list(result.prediction.tasks)
     start = content.replace(posterior=np.full(len(tasks), 1.0 / len(tasks)), task="", observed_until_s=0.0)
     live = LivePreview(start, port=port)

@@ -163,3 +163,19 @@ def test_unchanged_mesh_files_are_not_read_again(tmp_path):
     assert other not in (None, key) and other == visual_model_key(urdf, [], 1000)
     memo.write_text("{not json")
     assert visual_model_key(urdf, [], 1000, memo) == other
+
+
+def test_a_first_run_decimates_the_preview_meshes_while_it_trains(tmp_path, monkeypatch):
+    from ipromp_pin.pipeline import preview_visual_model, start_mesh_prefetch
+    from ipromp_pin.robot import load_robot
+
+    monkeypatch.setenv("IPROMP_PIN_CACHE_DIR", str(tmp_path / "cache"))
+    robot = load_robot("baxter_left")
+    process = start_mesh_prefetch(robot)
+    assert process is not None  # nothing cached yet: decimated in another process
+    visual = preview_visual_model(robot, process)
+    assert process.exitcode == 0 and visual.ngeoms > 0
+    assert list((tmp_path / "cache" / "meshes").glob("*.npz"))  # the other process wrote the cache
+    assert start_mesh_prefetch(robot) is None  # cached: nothing to do
+    again = preview_visual_model(robot)
+    assert again.ngeoms == visual.ngeoms

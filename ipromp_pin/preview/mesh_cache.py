@@ -31,7 +31,7 @@ import pinocchio as pin
 from ..cache import cache_dir, write_atomically
 from .meshes import count_triangles, decimated_meshes, display_mesh, mesh_arrays, simplify_visual_model
 
-__all__ = ["CACHE_VERSION", "cached_visual_model", "visual_model_key"]
+__all__ = ["CACHE_VERSION", "cache_entry", "cached_visual_model", "visual_model_key"]
 
 CACHE_VERSION = 1
 """Version of the cache entries' layout (part of the key: a new layout never reads an old file)."""
@@ -200,6 +200,16 @@ def _from_arrays(model: pin.Model, arrays) -> pin.GeometryModel:
     return geometry
 
 
+def cache_entry(
+    urdf_path: str | Path, package_dirs: Sequence[str], max_triangles: int, folder: Path | None = None
+) -> Path | None:
+    """The cache file of a description's decimated visual model (it may not exist yet), or None when
+    the description cannot be cached (a visual mesh file cannot be found)."""
+    folder = folder or cache_dir("meshes")
+    key = visual_model_key(urdf_path, package_dirs, max_triangles, folder / "file_digests.json")
+    return folder / f"{key}.npz" if key else None
+
+
 def cached_visual_model(
     model: pin.Model,
     urdf_path: str | Path,
@@ -222,9 +232,7 @@ def cached_visual_model(
         A decimated geometry model (mesh scales baked in, no mesh file references), the same with or
         without the cache.
     """
-    folder = folder or cache_dir("meshes")
-    key = visual_model_key(urdf_path, package_dirs, max_triangles, folder / "file_digests.json")
-    path = folder / f"{key}.npz" if key else None
+    path = cache_entry(urdf_path, package_dirs, max_triangles, folder)
     if path is not None and path.is_file():
         try:
             with np.load(path, allow_pickle=False) as arrays:

@@ -32,9 +32,9 @@ from .closed_loop import ClosedLoopSettings, conditioning_predictor, replay_demo
 from .closed_loop_score import score_closed_loop
 from .data import ROBOT, Dataset, Demo
 from .evaluate import (
-    PAPER_ACCURACY,
     Cell,
     EvaluationConfig,
+    cell_fields,
     observe_key,
     run_jobs,
     score_trial,
@@ -261,7 +261,6 @@ def _cells(
     dataset: Dataset, config: EvaluationConfig, results, couplings, profile: str
 ) -> list[ClosedLoopCell]:
     cells = []
-    chen = Path(str(dataset.root)).name == "chen2017_handover"
     for n_train, ratio in config.grid:
         for observe in config.observe:
             key = observe_key(observe)
@@ -271,21 +270,7 @@ def _cells(
                 summary = summarise([_Trial(r) for r in flat])
                 accs = [float(np.mean([r["correct"] for r in rep])) for rep in reps if rep]
                 cell = ClosedLoopCell(
-                    protocol=config.protocol,
-                    n_train=n_train,
-                    obs_ratio=ratio,
-                    observe=list(observe),
-                    task=task,
-                    accuracy=float(np.mean(accs)) if accs else float("nan"),
-                    n_test=len(flat),
-                    paper_accuracy=PAPER_ACCURACY.get((n_train, ratio, key), {}).get(task) if chen else None,
-                    joint_rmse_rad=summary["joint_rmse_rad"],
-                    joint_rmse_prior_rad=summary["joint_rmse_prior_rad"],
-                    final_joint_error_rad=summary["final_joint_error_rad"],
-                    final_joint_error_prior_rad=summary["final_joint_error_prior_rad"],
-                    handover_error_cm=summary["handover_error_cm"],
-                    handover_error_prior_cm=summary["handover_error_prior_cm"],
-                    duration_error_s=summary["duration_error_s"],
+                    **cell_fields(dataset, config, (n_train, ratio, observe, task), len(flat), accs, summary),
                     coupled_groups=dict(sorted(couplings.get((n_train, key), {}).items())),
                     limit_profile=profile,
                     closed_loop_handover_error_cm=_median([r["closed_loop_handover_error_cm"] for r in flat]),

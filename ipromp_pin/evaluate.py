@@ -442,6 +442,41 @@ def run_jobs(run: Callable[[J], R], work: list[J], jobs: int) -> Iterator[R]:
             yield f.result()
 
 
+def cell_fields(
+    dataset: Dataset,
+    config: EvaluationConfig,
+    where: tuple[int, float, Sequence[str], str],
+    n_test: int,
+    accs: Sequence[float],
+    summary: Mapping[str, float | None],
+) -> dict:
+    """The :class:`Cell` fields shared by every evaluation of one cell ``where`` = (n_train, obs
+    ratio, observed groups, task): ``accs`` the accuracies per split (or the one of the paper's
+    protocol), ``summary`` the :func:`summarise` of all its test trials."""
+    n_train, ratio, observe, task = where
+    paper = PAPER_ACCURACY.get((n_train, ratio, observe_key(observe)), {}).get(task)
+    errors = (
+        "joint_rmse_rad",
+        "joint_rmse_prior_rad",
+        "final_joint_error_rad",
+        "final_joint_error_prior_rad",
+        "handover_error_cm",
+        "handover_error_prior_cm",
+        "duration_error_s",
+    )
+    return {
+        "protocol": config.protocol,
+        "n_train": n_train,
+        "obs_ratio": ratio,
+        "observe": list(observe),
+        "task": task,
+        "accuracy": float(np.mean(accs)) if accs else float("nan"),
+        "n_test": n_test,
+        "paper_accuracy": paper if Path(str(dataset.root)).name == "chen2017_handover" else None,
+        **{name: summary[name] for name in errors},
+    }
+
+
 def _cells(dataset: Dataset, config: EvaluationConfig, results, couplings) -> list[Cell]:
     cells = []
     for n_train, ratio in config.grid:
@@ -452,23 +487,8 @@ def _cells(dataset: Dataset, config: EvaluationConfig, results, couplings) -> li
                 flat = [r for rep in reps for r in rep]
                 summary = summarise(flat)
                 accs = [summarise(rep)["accuracy"] for rep in reps if rep]
-                paper = PAPER_ACCURACY.get((n_train, ratio, key), {}).get(task)
                 cell = Cell(
-                    protocol=config.protocol,
-                    n_train=n_train,
-                    obs_ratio=ratio,
-                    observe=list(observe),
-                    task=task,
-                    accuracy=float(np.mean(accs)) if accs else float("nan"),
-                    n_test=len(flat),
-                    paper_accuracy=paper if Path(dataset.root).name == "chen2017_handover" else None,
-                    joint_rmse_rad=summary["joint_rmse_rad"],
-                    joint_rmse_prior_rad=summary["joint_rmse_prior_rad"],
-                    final_joint_error_rad=summary["final_joint_error_rad"],
-                    final_joint_error_prior_rad=summary["final_joint_error_prior_rad"],
-                    handover_error_cm=summary["handover_error_cm"],
-                    handover_error_prior_cm=summary["handover_error_prior_cm"],
-                    duration_error_s=summary["duration_error_s"],
+                    **cell_fields(dataset, config, (n_train, ratio, observe, task), len(flat), accs, summary),
                     coupled_groups=dict(sorted(couplings.get((n_train, key), {}).items())),
                 )
                 cell.log_loss, cell.brier = _calibration([(r.posterior, r.brier) for r in flat])

@@ -27,13 +27,13 @@ from pathlib import Path
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from ipromp_pin.closed_loop import ClosedLoopSettings, replay_demo
-from ipromp_pin.limits import demonstrated_profile
+from ipromp_pin.handover.closed_loop import ClosedLoopSettings, replay_demo
+from ipromp_pin.motion.limits import demonstrated_profile
 from ipromp_pin.promp import IProMP
 from ipromp_pin.readers import load_dataset
+from ipromp_pin.readers.synthetic import make_synthetic_dataset
 from ipromp_pin.robot import load_robot, load_robot_settings
 from ipromp_pin.robot.clearance import ClearanceCertifier
-from ipromp_pin.synthetic import make_synthetic_dataset
 
 
 def main() -> None:

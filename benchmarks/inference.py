@@ -6,7 +6,7 @@ about a minute); ``--json FILE`` writes the medians in seconds. Everything runs 
 
 Settings. "paper": 3 tasks, 4 orientation + 8 EMG observed dims, 7 robot joints, 31 basis
 functions, 20 training demos per task, 50 Hz synthetic hand-overs of 2.5-4.2 s
-(:func:`ipromp_pin.synthetic.make_synthetic_dataset`), observed ratios 0.1 and 0.2, the model's
+(:func:`ipromp_pin.readers.synthetic.make_synthetic_dataset`), observed ratios 0.1 and 0.2, the model's
 default ``coupling="auto"`` (on these demos it couples orientation alone to the robot, so the EMG
 forms a second independent block: ranks 19 + 19). "paper1blk" is the same with ``coupling="all"``
 (one block of rank 19, the textbook model). Scaled settings change one factor at a time: 10 / 30
@@ -45,7 +45,7 @@ from threadpoolctl import threadpool_info, threadpool_limits
 from ipromp_pin.data import Dataset, Demo
 from ipromp_pin.promp import IProMP, direct_predict
 from ipromp_pin.promp.reference import parabola_vertex
-from ipromp_pin.synthetic import make_synthetic_dataset
+from ipromp_pin.readers.synthetic import make_synthetic_dataset
 
 OBSERVE = ["orientation", "emg"]
 
@@ -214,7 +214,7 @@ def cold_compile_time() -> float:
     code = (
         "import time\n"
         "from ipromp_pin import IProMP\n"
-        "from ipromp_pin.synthetic import make_synthetic_dataset\n"
+        "from ipromp_pin.readers.synthetic import make_synthetic_dataset\n"
         "ds = make_synthetic_dataset(n_tasks=2, n_demos=4, seed=0)\n"
         "m = IProMP(['orientation', 'emg'], noise=1.0).fit(ds)\n"
         "d = ds.demos[m.tasks_[0]][0].head(0.2, m.observe)\n"

@@ -39,7 +39,7 @@ def main(argv: list[str] | None = None) -> int:
         from ipromp_other.synthetic import make_synthetic_dataset as other_synthetic
 
         from ipromp_pin.promp import IProMP
-        from ipromp_pin.synthetic import make_synthetic_dataset
+        from ipromp_pin.readers.synthetic import make_synthetic_dataset
 
         ds = make_synthetic_dataset(n_tasks=3, n_demos=21, seed=1)
         train = type(ds)(ds.root, {t: d[:20] for t, d in ds.demos.items()})

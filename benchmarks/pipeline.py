@@ -25,9 +25,9 @@ from pathlib import Path
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from ipromp_pin.config import PipelineConfig
-from ipromp_pin.pipeline import OutputOptions, choose_demo, get_model, load_data, write_outputs
-from ipromp_pin.planning import plan
+from ipromp_pin.commands.config import PipelineConfig
+from ipromp_pin.commands.pipeline import OutputOptions, choose_demo, get_model, load_data, write_outputs
+from ipromp_pin.handover.one_shot import plan
 from ipromp_pin.robot import load_robot
 
 

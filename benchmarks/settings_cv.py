@@ -28,7 +28,7 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from ipromp_pin import IProMP
-from ipromp_pin.evaluate import score_trial
+from ipromp_pin.evaluation.evaluate import score_trial
 from ipromp_pin.readers import load_dataset
 from ipromp_pin.robot import ee_positions, load_robot
 

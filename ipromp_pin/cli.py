@@ -160,7 +160,7 @@ def _add_pipeline_overrides(p: argparse.ArgumentParser, ratio: bool = True) -> N
 
 
 def _pipeline_config(args: argparse.Namespace):
-    from .config import load_pipeline
+    from .commands.config import load_pipeline
 
     return load_pipeline(
         args.pipeline,
@@ -186,7 +186,7 @@ def _pipeline_config(args: argparse.Namespace):
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    from .pipeline import run_pipeline
+    from .commands.pipeline import run_pipeline
 
     cfg = _pipeline_config(args)
     report = run_pipeline(cfg, log=print, allow_failing_checks=args.allow_failing_checks)
@@ -202,7 +202,7 @@ def cmd_run(args: argparse.Namespace) -> int:
 
 def _closed_loop_settings(args: argparse.Namespace, control_rate_hz: float, start_ratio: float):
     """The closed-loop settings of the command line (validated: one-line errors naming the option)."""
-    from .closed_loop import ClosedLoopSettings
+    from .handover.closed_loop import ClosedLoopSettings
 
     defaults = ClosedLoopSettings()
     noise = defaults.condition_noise
@@ -245,8 +245,8 @@ def _add_closed_loop_options(p: argparse.ArgumentParser) -> None:
 
 
 def cmd_replay(args: argparse.Namespace) -> int:
-    from .closed_loop import ClosedLoopSettings
-    from .replay import run_replay
+    from .commands.replay import run_replay
+    from .handover.closed_loop import ClosedLoopSettings
 
     cfg = _pipeline_config(args)
     start = ClosedLoopSettings().start_ratio if args.start_ratio is None else args.start_ratio
@@ -272,7 +272,7 @@ def cmd_replay(args: argparse.Namespace) -> int:
 
 def cmd_evaluate(args: argparse.Namespace) -> int:
     from . import atomic
-    from .evaluate import (
+    from .evaluation.evaluate import (
         PAPER_GRID,
         EvaluationConfig,
         check_dataset_size,
@@ -288,7 +288,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         return _evaluate_closed_loop(args)
     observe = [parse_groups(o) for o in (args.observe or ["orientation", "orientation,emg"])]
     if args.baselines:
-        from .baselines import require_sklearn
+        from .evaluation.baselines import require_sklearn
 
         require_sklearn()
     frames = skeleton_frames(g for o in observe for g in o) or None
@@ -336,7 +336,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     }
     write_results(cells, args.json, md, meta)
     if args.plots:
-        from . import plots
+        from .outputs import plots
 
         plots.plot_accuracy(
             [c.__dict__ for c in cells],
@@ -369,15 +369,15 @@ def _compile_kernels_once() -> None:
 
 def _evaluate_closed_loop(args: argparse.Namespace) -> int:
     from . import atomic
-    from .closed_loop_eval import (
+    from .commands.replay import check_limits_choice
+    from .evaluation.closed_loop import (
         ClosedLoopOptions,
         closed_loop_markdown,
         evaluate_closed_loop,
         write_closed_loop_results,
     )
-    from .evaluate import PAPER_GRID, EvaluationConfig, check_dataset_size
+    from .evaluation.evaluate import PAPER_GRID, EvaluationConfig, check_dataset_size
     from .readers import count_demos
-    from .replay import check_limits_choice
     from .robot import load_robot
 
     observe = [parse_groups(o) for o in (args.observe or ["orientation", "orientation,emg"])]
@@ -438,7 +438,7 @@ def _evaluate_closed_loop(args: argparse.Namespace) -> int:
 
 def cmd_train(args: argparse.Namespace) -> int:
     from . import atomic
-    from .model_warnings import single_task_warning, warn_stderr
+    from .commands.model_warnings import single_task_warning, warn_stderr
     from .promp import IProMP
     from .robot import ee_positions, load_robot
 
@@ -468,7 +468,7 @@ def cmd_train(args: argparse.Namespace) -> int:
 
 
 def cmd_calibrate(args: argparse.Namespace) -> int:
-    from .calibrate import run_calibration
+    from .commands.calibrate import run_calibration
 
     run_calibration(args.dataset, args.robot, write=args.write)
     return 0
@@ -477,7 +477,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
 def cmd_synth(args: argparse.Namespace) -> int:
     from . import atomic
     from .readers.native import write_demo
-    from .synthetic import make_synthetic_dataset
+    from .readers.synthetic import make_synthetic_dataset
 
     atomic.check_output_dir(args.out)
 
@@ -494,7 +494,7 @@ def cmd_synth(args: argparse.Namespace) -> int:
 
 def cmd_preview(args: argparse.Namespace) -> int:
     from . import atomic
-    from .pipeline import run_preview
+    from .commands.pipeline import run_preview
 
     if args.html is not None:
         atomic.check_output_file(args.html, "preview page")

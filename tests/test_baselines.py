@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 from helpers_model import random_dataset, split
 
-from ipromp_pin.baselines import (
+from ipromp_pin.cli import main
+from ipromp_pin.evaluation.baselines import (
     CLASSIFIERS,
     REGRESSORS,
     MissingDependencyError,
@@ -18,9 +19,8 @@ from ipromp_pin.baselines import (
     require_sklearn,
     window_features,
 )
-from ipromp_pin.cli import main
-from ipromp_pin.evaluate import EvaluationConfig, evaluate, to_json, to_markdown
-from ipromp_pin.synthetic import make_synthetic_dataset
+from ipromp_pin.evaluation.evaluate import EvaluationConfig, evaluate, to_json, to_markdown
+from ipromp_pin.readers.synthetic import make_synthetic_dataset
 
 pytest.importorskip("sklearn")
 

@@ -1,4 +1,5 @@
-"""``ipromp-pin calibrate`` (ipromp_pin.calibrate): reads the datasets, reports the fit, stores it."""
+"""``ipromp-pin calibrate`` (ipromp_pin.commands.calibrate): reads the datasets, reports the fit,
+stores it."""
 
 from __future__ import annotations
 

@@ -6,10 +6,10 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
+from ipromp_pin.readers.synthetic import make_synthetic_dataset
 from ipromp_pin.robot import load_robot
 from ipromp_pin.robot.clearance import ClearanceCertifier, pair_weights
 from ipromp_pin.robot.collision import in_collision
-from ipromp_pin.synthetic import make_synthetic_dataset
 
 
 @pytest.fixture(scope="module")

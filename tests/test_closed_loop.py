@@ -5,22 +5,22 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ipromp_pin.closed_loop import (
+from ipromp_pin.data import ROBOT
+from ipromp_pin.exceptions import PipelineError
+from ipromp_pin.handover.closed_loop import (
     ClosedLoopPlanner,
     ClosedLoopSettings,
     conditioning_predictor,
     demo_samples,
     replay_demo,
 )
-from ipromp_pin.closed_loop_score import arrival_time, score_closed_loop
-from ipromp_pin.data import ROBOT
-from ipromp_pin.exceptions import PipelineError
-from ipromp_pin.limits import LimitProfile, conservative_profile, demonstrated_profile
+from ipromp_pin.handover.score import arrival_time, score_closed_loop
+from ipromp_pin.motion.limits import LimitProfile, conservative_profile, demonstrated_profile
+from ipromp_pin.motion.retarget import MotionState, ReferenceMotion, Retargeter, limit_ratios
 from ipromp_pin.promp import IProMP
-from ipromp_pin.retarget import MotionState, ReferenceMotion, Retargeter, limit_ratios
+from ipromp_pin.readers.synthetic import make_synthetic_dataset
 from ipromp_pin.robot import ee_positions, load_robot
 from ipromp_pin.robot.clearance import ClearanceCertifier
-from ipromp_pin.synthetic import make_synthetic_dataset
 
 OBSERVE = ["orientation", "emg"]
 

@@ -12,7 +12,7 @@ import pytest
 from helpers_model import random_dataset, split
 
 from ipromp_pin.exceptions import DataError, InfeasibleError, ModelError
-from ipromp_pin.goal import condition_on_goal_pose
+from ipromp_pin.handover.goal import condition_on_goal_pose
 from ipromp_pin.promp import IProMP
 from ipromp_pin.robot import forward_kinematics, load_robot, solve_ik
 
@@ -147,7 +147,7 @@ def test_goal_pose_through_inverse_kinematics():
     assert not far.converged and far.position_error_m > 1.0
 
     # a prediction over Baxter's joints, conditioned on a goal pose, reaches it
-    from ipromp_pin.synthetic import make_synthetic_dataset
+    from ipromp_pin.readers.synthetic import make_synthetic_dataset
 
     data = make_synthetic_dataset(n_demos=6, seed=2)
     model = IProMP(["orientation"], noise=30.0, coupling="all").fit(

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from ipromp_pin.cli import main
-from ipromp_pin.evaluate import (
+from ipromp_pin.evaluation.evaluate import (
     EvaluationConfig,
     check_dataset_size,
     evaluate,
@@ -17,7 +17,7 @@ from ipromp_pin.evaluate import (
     to_markdown,
 )
 from ipromp_pin.exceptions import DataError
-from ipromp_pin.synthetic import make_synthetic_dataset
+from ipromp_pin.readers.synthetic import make_synthetic_dataset
 
 
 @pytest.fixture(scope="module")

@@ -1,4 +1,4 @@
-"""Trajectory CSV and ROS JointTrajectory JSON (ipromp_pin.export)."""
+"""Trajectory CSV and ROS JointTrajectory JSON (ipromp_pin.outputs.trajectory_files)."""
 
 from __future__ import annotations
 
@@ -9,14 +9,14 @@ import numpy as np
 import pytest
 
 from ipromp_pin.exceptions import DataError
-from ipromp_pin.export import (
+from ipromp_pin.motion.timing import JointLimits, Trajectory, time_path
+from ipromp_pin.outputs.trajectory_files import (
     read_trajectory_csv,
     read_trajectory_json,
     write_trajectory_csv,
     write_trajectory_json,
 )
 from ipromp_pin.robot import load_robot
-from ipromp_pin.timing import JointLimits, Trajectory, time_path
 
 
 @pytest.fixture(scope="module")

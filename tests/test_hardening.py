@@ -24,16 +24,17 @@ import numpy as np
 import pytest
 from helpers_model import random_dataset
 
-from ipromp_pin import cli, pipeline
+from ipromp_pin import cli
 from ipromp_pin.cli import main
-from ipromp_pin.config import load_pipeline
+from ipromp_pin.commands import pipeline
+from ipromp_pin.commands.config import load_pipeline
 from ipromp_pin.exceptions import DataError, InfeasibleError, ModelError, ObservationError
-from ipromp_pin.export import read_trajectory_csv, read_trajectory_json
-from ipromp_pin.planning import check_model_joints
+from ipromp_pin.handover.one_shot import check_model_joints
+from ipromp_pin.motion.timing import MAX_TRAJECTORY_SAMPLES, JointLimits, time_path
+from ipromp_pin.outputs.trajectory_files import read_trajectory_csv, read_trajectory_json
 from ipromp_pin.promp import IProMP
 from ipromp_pin.readers import load_dataset, read_demo, write_demo
 from ipromp_pin.robot import load_robot
-from ipromp_pin.timing import MAX_TRAJECTORY_SAMPLES, JointLimits, time_path
 
 ROOT = Path(__file__).resolve().parents[1]
 PIPELINE = ROOT / "pipelines" / "baxter_handover.toml"

@@ -79,7 +79,7 @@ def test_installed_copy_runs_the_main_job_from_another_folder(installed):
     work.mkdir()
     env = _env(site)
     probe = (
-        "import json, ipromp_pin, ipromp_pin.config as p\n"
+        "import json, ipromp_pin, ipromp_pin.commands.config as p\n"
         "from ipromp_pin.robot import ROBOTS_DIR, load_robot\n"
         "robot = load_robot('baxter_left')\n"
         "print(json.dumps({'package': ipromp_pin.__file__, 'robots': str(ROBOTS_DIR),\n"
@@ -102,7 +102,7 @@ def test_installed_copy_runs_the_main_job_from_another_folder(installed):
     assert "Recognised task" in run.stdout
     assert (out / "trajectory.csv").stat().st_size > 0
     report = json.loads((out / "report.json").read_text())
-    assert report["format"] == "ipromp_pin.report" and report["trajectory"]
+    assert report["format"] == "ipromp_pin.outputs.report" and report["trajectory"]
     # the run imported the installed modules (installed without .pyc files, so these are the run's)
     cache = site / "ipromp_pin" / "__pycache__"
     assert list(cache.glob("cli.*.pyc")) and list(cache.glob("pipeline.*.pyc"))

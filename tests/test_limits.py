@@ -6,15 +6,15 @@ import numpy as np
 import pytest
 
 from ipromp_pin.exceptions import PipelineError, RobotError
-from ipromp_pin.limits import (
+from ipromp_pin.motion.limits import (
     conservative_profile,
     demo_peaks,
     demonstrated_profile,
     read_limit_profile,
 )
+from ipromp_pin.readers.synthetic import make_synthetic_dataset
 from ipromp_pin.robot import DemoLimitRecipe, load_robot, load_robot_settings
 from ipromp_pin.robot.settings import ROBOTS_DIR
-from ipromp_pin.synthetic import make_synthetic_dataset
 
 
 @pytest.fixture(scope="module")

@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 
 from ipromp_pin.cli import main
-from ipromp_pin.model_cache import fit_cached, training_key
+from ipromp_pin.commands.model_cache import fit_cached, training_key
 from ipromp_pin.promp import IProMP
+from ipromp_pin.readers.synthetic import make_synthetic_dataset
 from ipromp_pin.robot import ee_positions, load_robot
-from ipromp_pin.synthetic import make_synthetic_dataset
 
 
 @pytest.fixture(scope="module")
@@ -86,7 +86,7 @@ def test_an_unwritable_cache_only_means_no_caching(tmp_path, demos):
 
 
 def test_the_cache_keeps_the_most_recent_entries(tmp_path, demos, monkeypatch):
-    monkeypatch.setattr("ipromp_pin.model_cache.MAX_ENTRIES", 2)
+    monkeypatch.setattr("ipromp_pin.commands.model_cache.MAX_ENTRIES", 2)
     for n_basis in (7, 8, 9):
         fit_cached(_small().set_params(n_basis=n_basis), demos, None, tmp_path)
     assert len(list(tmp_path.glob("*.npz"))) == 2

@@ -91,7 +91,7 @@ def test_refine_peak_finds_vertex_of_a_parabola() -> None:
 
 
 def test_phase_estimate_beats_the_prior_on_synthetic_data() -> None:
-    from ipromp_pin.synthetic import make_synthetic_dataset, true_alpha
+    from ipromp_pin.readers.synthetic import make_synthetic_dataset, true_alpha
 
     ds = make_synthetic_dataset(n_tasks=3, n_demos=26, seed=3)
     train = type(ds)(ds.root, {t: d[:16] for t, d in ds.demos.items()})

@@ -9,12 +9,12 @@ import numpy as np
 import pytest
 
 from ipromp_pin.cli import main
-from ipromp_pin.config import load_pipeline, resolve_pipeline_path
+from ipromp_pin.commands.config import load_pipeline, resolve_pipeline_path
 from ipromp_pin.exceptions import PipelineError
-from ipromp_pin.export import read_trajectory_csv, read_trajectory_json
+from ipromp_pin.motion.timing import JointLimits
+from ipromp_pin.outputs.trajectory_files import read_trajectory_csv, read_trajectory_json
 from ipromp_pin.robot import load_robot
 from ipromp_pin.shipped import PIPELINES_DIR
-from ipromp_pin.timing import JointLimits
 
 PIPELINE = Path(__file__).resolve().parents[1] / "pipelines" / "baxter_handover.toml"
 
@@ -142,9 +142,9 @@ def test_preview_content_shows_one_time_base_and_skipped_checks():
     trajectory's clock, and a check that could not be made is marked skipped."""
     import re
 
-    from ipromp_pin.pipeline import prepare, preview_content
-    from ipromp_pin.planning import plan
-    from ipromp_pin.timing import path_times
+    from ipromp_pin.commands.pipeline import prepare, preview_content
+    from ipromp_pin.handover.one_shot import plan
+    from ipromp_pin.motion.timing import path_times
 
     cfg = load_pipeline(PIPELINE, task="tape", demo=2)
     prep = prepare(cfg, log=lambda _msg: None)
@@ -174,7 +174,7 @@ def test_preview_content_shows_one_time_base_and_skipped_checks():
 def test_phase_plot_gets_the_joint_posterior_of_task_and_phase(tmp_path, monkeypatch):
     from scipy.special import logsumexp
 
-    from ipromp_pin import plots
+    from ipromp_pin.outputs import plots
 
     seen = {}
     original = plots.plot_phase_posterior

@@ -11,11 +11,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ipromp_pin.calibrate import run_calibration
+from ipromp_pin.commands.calibrate import run_calibration
 from ipromp_pin.exceptions import DataError
 from ipromp_pin.readers import load_dataset, plausibility, read_demo, write_dataset
+from ipromp_pin.readers.synthetic import make_synthetic_dataset
 from ipromp_pin.robot import load_robot
-from ipromp_pin.synthetic import make_synthetic_dataset
 
 DEMO = Path("rod") / "rod_001.npz"
 

@@ -8,8 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ipromp_pin import plots
 from ipromp_pin.exceptions import DataError
+from ipromp_pin.outputs import plots
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 

@@ -1,4 +1,4 @@
-"""Tests of ipromp_pin.preprocess: EMG envelope, quaternions, resampling, clocks, alignment."""
+"""Tests of ipromp_pin.signals.preprocess: EMG envelope, quaternions, resampling, clocks, alignment."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from ipromp_pin.exceptions import DataError
-from ipromp_pin.preprocess import (
+from ipromp_pin.signals.preprocess import (
     EnvelopeFilter,
     Stream,
     align_streams,
@@ -33,7 +33,7 @@ def test_envelope_filter_equals_scipy_signal(order):
     """The filter is designed and applied without scipy.signal (0.2 s to import), equal to it."""
     from scipy import signal
 
-    from ipromp_pin.preprocess import butter_lowpass, filter_steady_state
+    from ipromp_pin.signals.preprocess import butter_lowpass, filter_steady_state
 
     for wn in (0.05, 0.16, 0.5, 0.9):
         b, a = butter_lowpass(order, wn)

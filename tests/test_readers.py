@@ -13,7 +13,6 @@ import pytest
 
 from ipromp_pin.data import ROBOT
 from ipromp_pin.exceptions import DataError
-from ipromp_pin.preprocess import EnvelopeFilter, quaternion_continuity
 from ipromp_pin.readers import (
     BAXTER_LEFT_JOINTS,
     chen2017,
@@ -25,7 +24,8 @@ from ipromp_pin.readers import (
     write_dataset,
     write_demo,
 )
-from ipromp_pin.synthetic import make_synthetic_dataset
+from ipromp_pin.readers.synthetic import make_synthetic_dataset
+from ipromp_pin.signals.preprocess import EnvelopeFilter, quaternion_continuity
 
 TASKS = ("aluminum_hold", "spanner_handover", "tape_hold")
 STAMP = "2017-07-11-15-45-25"  # a tape_hold demo

@@ -390,7 +390,7 @@ def test_stream_equals_one_shot_with_two_blocks(shuffled) -> None:
 
 
 def test_distribution_band_of_a_log_scaled_channel_is_in_original_units() -> None:
-    from ipromp_pin.synthetic import make_synthetic_dataset
+    from ipromp_pin.readers.synthetic import make_synthetic_dataset
 
     ds = make_synthetic_dataset(n_tasks=2, n_demos=8, seed=4)
     model = IProMP(["orientation", "emg"], n_basis=8, noise=10.0).fit(ds)

@@ -9,13 +9,13 @@ import numpy as np
 import pytest
 
 from ipromp_pin.cli import main
-from ipromp_pin.export import read_trajectory_csv, read_trajectory_json
-from ipromp_pin.limits import read_limit_profile
+from ipromp_pin.motion.limits import read_limit_profile
+from ipromp_pin.motion.retarget import limit_ratios
+from ipromp_pin.outputs.trajectory_files import read_trajectory_csv, read_trajectory_json
 from ipromp_pin.promp import IProMP
 from ipromp_pin.readers.native import write_demo
-from ipromp_pin.retarget import limit_ratios
+from ipromp_pin.readers.synthetic import make_synthetic_dataset
 from ipromp_pin.robot import load_robot
-from ipromp_pin.synthetic import make_synthetic_dataset
 
 PIPELINE = Path(__file__).resolve().parents[1] / "pipelines" / "baxter_handover.toml"
 

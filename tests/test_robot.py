@@ -145,23 +145,6 @@ def test_unknown_robot_name():
         load_robot_settings("no_such_robot")
 
 
-def test_old_import_paths_keep_working():
-    """``ipromp_pin.kinematics`` re-exports the robot package's functions; ``run_calibration`` moved up."""
-    import ipromp_pin.kinematics as old
-    import ipromp_pin.robot as robot
-    from ipromp_pin.calibrate import run_calibration
-
-    assert old.__all__
-    for name in old.__all__:
-        obj = getattr(old, name)
-        assert obj.__module__.startswith("ipromp_pin.robot."), (name, obj.__module__)
-        assert getattr(robot, name, obj) is obj
-    assert old.check_path is robot.check_path and old.forward_kinematics is robot.forward_kinematics
-    assert not hasattr(old, "run_calibration") and run_calibration.__module__ == "ipromp_pin.calibrate"
-    assert robot.load_robot.__module__ == "ipromp_pin.robot.model"
-    assert robot.load_robot_settings.__module__ == "ipromp_pin.robot.settings"
-
-
 def test_kinematics_only_robot_has_no_collision_model():
     s = load_robot_settings("baxter_left")
     robot = build_robot(s, collision=False)
@@ -174,8 +157,8 @@ def test_kinematics_only_robot_has_no_collision_model():
 
 def test_panda_settings_describe_another_robot_without_code():
     """robots/panda.toml: a Franka Panda from example-robot-data, through the same schema as Baxter."""
+    from ipromp_pin.motion.timing import JointLimits, time_path
     from ipromp_pin.robot import check_path, ee_positions
-    from ipromp_pin.timing import JointLimits, time_path
 
     panda = load_robot("panda")
     assert panda.joint_names == tuple(f"panda_joint{i}" for i in range(1, 8))

@@ -14,9 +14,8 @@ from rosbags.typesys import Stores, get_typestore
 from rosbags.typesys.store import Nodetype
 
 from ipromp_pin.exceptions import DataError
-from ipromp_pin.export import read_trajectory_json, trajectory_to_ros, write_trajectory_json
-from ipromp_pin.robot import load_robot
-from ipromp_pin.rosbag_writer import (
+from ipromp_pin.motion.timing import JointLimits, Trajectory, time_path
+from ipromp_pin.outputs.rosbag import (
     TOPIC_HANDOVER_POSE,
     TOPIC_JOINT_STATES,
     TOPIC_TRAJECTORY,
@@ -25,8 +24,9 @@ from ipromp_pin.rosbag_writer import (
     write_ros1_bag,
     write_rosbag2,
 )
-from ipromp_pin.synthetic import make_synthetic_dataset
-from ipromp_pin.timing import JointLimits, Trajectory, time_path
+from ipromp_pin.outputs.trajectory_files import read_trajectory_json, trajectory_to_ros, write_trajectory_json
+from ipromp_pin.readers.synthetic import make_synthetic_dataset
+from ipromp_pin.robot import load_robot
 
 ROS2 = get_typestore(Stores.ROS2_HUMBLE)
 ROS1 = get_typestore(Stores.ROS1_NOETIC)
@@ -220,7 +220,7 @@ def test_ros1_bag_has_the_same_messages(content, tmp_path):
 
 def test_run_writes_the_bags_and_the_requested_ros_form(tmp_path):
     from ipromp_pin.cli import main
-    from ipromp_pin.export import read_trajectory_csv
+    from ipromp_pin.outputs.trajectory_files import read_trajectory_csv
 
     pipeline = "baxter_handover"
     out = tmp_path / "out"

@@ -12,10 +12,10 @@ import jsonschema
 import pytest
 
 from ipromp_pin.cli import main
-from ipromp_pin.config import load_pipeline
-from ipromp_pin.pipeline import prepare
-from ipromp_pin.planning import plan
-from ipromp_pin.report import report_dict
+from ipromp_pin.commands.config import load_pipeline
+from ipromp_pin.commands.pipeline import prepare
+from ipromp_pin.handover.one_shot import plan
+from ipromp_pin.outputs.report import report_dict
 from ipromp_pin.schemas import SCHEMA_FILES, SCHEMAS_DIR, load_schema, schema_path
 
 ROOT = Path(__file__).resolve().parents[1]

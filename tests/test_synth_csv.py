@@ -6,7 +6,7 @@ import numpy as np
 
 from ipromp_pin.cli import main
 from ipromp_pin.readers import detect_format, load_dataset
-from ipromp_pin.synthetic import make_synthetic_dataset
+from ipromp_pin.readers.synthetic import make_synthetic_dataset
 
 
 def test_synth_csv_writes_native_csv_that_reads_back(tmp_path, capsys):

@@ -1,4 +1,4 @@
-"""Tests of ipromp_pin.synthetic: realistic hand-over demos with known ground truth."""
+"""Tests of ipromp_pin.readers.synthetic: realistic hand-over demos with known ground truth."""
 
 from __future__ import annotations
 
@@ -7,11 +7,10 @@ import dataclasses
 import numpy as np
 import pytest
 
-from ipromp_pin import synthetic
 from ipromp_pin.data import ROBOT
 from ipromp_pin.exceptions import DataError
-from ipromp_pin.readers import BAXTER_LEFT_JOINTS
-from ipromp_pin.synthetic import handover_offset, make_synthetic_dataset, true_alpha
+from ipromp_pin.readers import BAXTER_LEFT_JOINTS, synthetic
+from ipromp_pin.readers.synthetic import handover_offset, make_synthetic_dataset, true_alpha
 
 
 @pytest.fixture(scope="module")
@@ -97,8 +96,7 @@ def test_hand_ends_at_the_robot_handover_point(ds):
 
 
 def test_handover_offset_has_the_real_spread_and_moves_the_gripper(ds):
-    from ipromp_pin.kinematics import ee_positions
-    from ipromp_pin.robot import load_robot
+    from ipromp_pin.robot import ee_positions, load_robot
 
     offsets = np.array([handover_offset(d) for d in ds.all_demos()])
     np.testing.assert_allclose(offsets.std(axis=0), synthetic.HANDOVER_OFFSET_STD_M, rtol=0.35)

@@ -1,4 +1,4 @@
-"""Time parameterisation (toppra) and jerk-limited smoothing (ruckig) (ipromp_pin.timing)."""
+"""Time parameterisation (toppra) and jerk-limited smoothing (ruckig) (ipromp_pin.motion.timing)."""
 
 from __future__ import annotations
 
@@ -8,8 +8,7 @@ import numpy as np
 import pytest
 
 from ipromp_pin.exceptions import InfeasibleError
-from ipromp_pin.robot import load_robot
-from ipromp_pin.timing import (
+from ipromp_pin.motion.timing import (
     JointLimits,
     path_deviation,
     path_times,
@@ -17,6 +16,7 @@ from ipromp_pin.timing import (
     time_path,
     verify_trajectory,
 )
+from ipromp_pin.robot import load_robot
 
 Q_START = np.array([-0.839, -0.969, 0.377, 1.262, -0.204, 1.189, 1.661])
 Q_HANDOVER = np.array([-1.5, -0.498, 0.38, 0.64, -0.49, 0.946, 1.274])
@@ -162,7 +162,7 @@ def test_no_network_access_during_smoothing(limits, monkeypatch):
 
 
 def test_reachable_target_never_implies_exceeding_the_velocity_limit():
-    from ipromp_pin.timing import reachable_target
+    from ipromp_pin.motion.timing import reachable_target
 
     rng = np.random.default_rng(0)
     for _ in range(2000):
@@ -177,7 +177,7 @@ def test_reachable_target_never_implies_exceeding_the_velocity_limit():
 def test_predicted_paths_of_a_model_are_all_timed_within_limits():
     """Regression: smooth predicted paths once made ruckig reject a target state (velocity overshoot)."""
     from ipromp_pin.promp import IProMP
-    from ipromp_pin.synthetic import make_synthetic_dataset
+    from ipromp_pin.readers.synthetic import make_synthetic_dataset
 
     ds = make_synthetic_dataset(n_demos=12, seed=1)
     demos = ds.all_demos()

@@ -21,7 +21,7 @@ STREAMING_KERNELS = ("stream_sample", "sherman_morrison", "stream_group", "add_s
 
 def compile_kernels() -> float:
     """Compile (or load) every kernel through the real code paths; returns the time taken in [s]."""
-    from ..synthetic import make_synthetic_dataset
+    from ..readers.synthetic import make_synthetic_dataset
     from .compiled import FIT_PREDICT_KERNELS, compiled_kernels_cached, use_kernels
     from .estimator import IProMP
 

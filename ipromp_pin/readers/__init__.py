@@ -26,7 +26,7 @@ import numpy as np
 
 from ..data import Dataset, Demo
 from ..exceptions import DataError
-from ..preprocess import DEFAULT_EMG_CUTOFF_HZ
+from ..signals.preprocess import DEFAULT_EMG_CUTOFF_HZ
 from . import chen2017, multimodal, native, plausibility, rosbag
 from ._common import BAXTER_LEFT_JOINTS
 from .native import write_dataset, write_demo

@@ -17,7 +17,7 @@ import numpy as np
 
 from ..data import ROBOT, Demo
 from ..exceptions import DataError
-from ..preprocess import (
+from ..signals.preprocess import (
     DEFAULT_EMG_CUTOFF_HZ,
     Stream,
     align_streams,

@@ -12,7 +12,7 @@ message keeps its own header stamp: a stale message is repeated in
 consecutive rows with the same stamp (only its first row is used), and the
 robot's messages carry the robot's clock. So every sub-stream is put on its own
 stamps, mapped onto the PC clock with the offset estimated against ``%time``
-(:func:`~ipromp_pin.preprocess.estimate_clock_offset`; about +0.02-0.05 s for
+(:func:`~ipromp_pin.signals.preprocess.estimate_clock_offset`; about +0.02-0.05 s for
 the robot in this session, ~0 for the Myo). The tracked frames have no stamps
 (header stamp 0) and use ``field.header.stamp``. Then all streams are resampled
 onto a uniform ``rate_hz`` grid spanning their overlap, ``t`` from 0.
@@ -61,7 +61,7 @@ import numpy as np
 
 from ..data import ROBOT, Demo
 from ..exceptions import DataError
-from ..preprocess import (
+from ..signals.preprocess import (
     DEFAULT_EMG_CUTOFF_HZ,
     Stream,
     align_streams,

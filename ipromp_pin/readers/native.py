@@ -66,7 +66,7 @@ import numpy as np
 from .. import atomic
 from ..data import ROBOT, Dataset, Demo
 from ..exceptions import DataError
-from ..preprocess import Stream, align_streams
+from ..signals.preprocess import Stream, align_streams
 
 FORMAT_TAG = "ipromp_pin.demo"
 VERSION = 1

@@ -57,7 +57,7 @@ channel as an unsigned 16-bit integer (the ROS message stores uint32). Measured:
 
 EMG_ENVELOPE_RANGE = (-0.1 * 65535.0, 65535.0)
 """Range of an EMG envelope (the rectified, low-pass filtered raw signal of
-:func:`~ipromp_pin.preprocess.emg_envelope`): the raw range, with room below 0 for the 2nd-order
+:func:`~ipromp_pin.signals.preprocess.emg_envelope`): the raw range, with room below 0 for the 2nd-order
 filter's undershoot (at most about 4 % of a step)."""
 
 ACCELERATION_MAX_G = 16.0

@@ -26,7 +26,7 @@ import numpy as np
 
 from ..data import Demo
 from ..exceptions import DataError
-from ..preprocess import DEFAULT_EMG_CUTOFF_HZ
+from ..signals.preprocess import DEFAULT_EMG_CUTOFF_HZ
 from ._common import (
     BAXTER_LEFT_JOINTS,
     RawRecording,

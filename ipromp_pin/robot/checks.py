@@ -171,8 +171,9 @@ def check_path(
     Args:
         robot: Loaded robot (:func:`ipromp_pin.robot.load_robot`).
         q: Predicted arm joint path (M, n_joints) in [rad]; the last sample is the hand-over.
-        t_s: Optional sample times (M,) in [s], named in the messages (:func:`~ipromp_pin.planning.plan`
-            passes the times at which the timed trajectory passes the samples).
+        t_s: Optional sample times (M,) in [s], named in the messages
+            (:func:`~ipromp_pin.handover.one_shot.plan` passes the times at which the timed trajectory
+            passes the samples).
         q_samples: Optional sampled trajectories (n, M, n_joints) (advisory uncertainty check).
         q_std: Optional hand-over standard deviation (n_joints,) in [rad] (used without samples).
         hand_position_m: Optional human hand position (3,) in [m] in the base frame at the hand-over.

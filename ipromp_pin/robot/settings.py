@@ -72,7 +72,7 @@ def settings_error(source: object, field_name: str | None, problem: str) -> Robo
 @dataclass(frozen=True)
 class DemoLimitRecipe:
     """How a limit profile is derived from demonstrations (``[limits.demonstrated]``; used by
-    :func:`ipromp_pin.limits.demonstrated_profile`).
+    :func:`ipromp_pin.motion.limits.demonstrated_profile`).
 
     Attributes:
         percentile: Percentile, in (0, 100], of the per-demo peak |velocity|, |acceleration| and

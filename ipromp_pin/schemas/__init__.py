@@ -1,12 +1,12 @@
 """JSON Schemas (draft 2020-12) of the JSON files ipromp_pin writes, shipped with the package.
 
-============================  ============================  ==========================================
+============================  ============================  ==================================
 file                          schema                        written by
-============================  ============================  ==========================================
-``report.json``               ``report.schema.json``        ``ipromp-pin run`` (:mod:`ipromp_pin.report`)
-``replans.json``              ``replans.schema.json``       ``ipromp-pin replay`` (:mod:`ipromp_pin.replay`)
-replay ``report.json``        ``replay_report.schema.json`` ``ipromp-pin replay`` (:mod:`ipromp_pin.replay`)
-============================  ============================  ==========================================
+============================  ============================  ==================================
+``report.json``               ``report.schema.json``        ``ipromp-pin run``
+``replans.json``              ``replans.schema.json``       ``ipromp-pin replay``
+replay ``report.json``        ``replay_report.schema.json`` ``ipromp-pin replay``
+============================  ============================  ==================================
 
 The schemas are strict (``additionalProperties: false`` where the fields are documented), so a
 field added to a file without being added to its schema and to ``docs/formats.md`` fails the tests

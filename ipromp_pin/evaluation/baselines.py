@@ -28,8 +28,8 @@ from dataclasses import dataclass
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from .data import ROBOT, Demo
-from .exceptions import IPrompPinError
+from ..data import ROBOT, Demo
+from ..exceptions import IPrompPinError
 
 CLASSIFIERS = ("logistic_regression", "lda")
 """Names of the recognition baselines."""

@@ -18,8 +18,8 @@ matplotlib.use("Agg")  # no display needed; set before pyplot is imported
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from . import atomic  # noqa: E402
-from .exceptions import DataError  # noqa: E402
+from .. import atomic  # noqa: E402
+from ..exceptions import DataError  # noqa: E402
 
 __all__ = [
     "plot_accuracy",

@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 from ruckig import InputParameter, Result, Ruckig, RuckigError, Trajectory
 
-from .exceptions import InfeasibleError
+from ..exceptions import InfeasibleError
 from .trajectory import JointLimits
 
 HEADROOM = 0.95

@@ -21,11 +21,11 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from ..data import ROBOT, Demo
+from ..motion.retarget import limit_ratios
+from ..robot import Robot, ee_positions
+from ..robot.collision import in_collision
 from .closed_loop import ClosedLoopResult
-from .data import ROBOT, Demo
-from .retarget import limit_ratios
-from .robot import Robot, ee_positions
-from .robot.collision import in_collision
 
 ARRIVAL_TOLERANCE_M = 0.01
 """A gripper has arrived once it stays within this distance [m] of its final position."""

@@ -2,11 +2,11 @@
 
 :func:`run_replay` reads the pipeline's data (the built-in synthetic demos by default), holds the
 chosen demo out, trains the model on the others (or loads one), chooses the limit profile, and
-replays the demo at its recorded timing (:func:`~ipromp_pin.closed_loop.replay_demo`, simulated
+replays the demo at its recorded timing (:func:`~ipromp_pin.handover.closed_loop.replay_demo`, simulated
 clock). It writes into the output folder:
 
 - ``trajectory.csv`` and ``trajectory.json``: the commanded trajectory at the control rate
-  (:mod:`ipromp_pin.export`, as ``run`` writes them);
+  (:mod:`ipromp_pin.outputs.trajectory_files`, as ``run`` writes them);
 - ``replans.json``: every re-plan (time, observed ratio, task posterior, predicted hand-over pose
   and time, planned arrival, committed or refused and why);
 - ``report.json`` / ``report.txt``: the reached hand-over error, arrival delay, limit profile and
@@ -28,30 +28,36 @@ from pathlib import Path
 
 import numpy as np
 
-from . import atomic
-from .closed_loop import LIMIT_TOLERANCE, ClosedLoopResult, ClosedLoopSettings, replay_demo, start_time
-from .closed_loop_score import ARRIVAL_TOLERANCE_M, ClosedLoopScore, score_closed_loop
-from .config import PipelineConfig
-from .data import ROBOT, Demo
-from .exceptions import IPrompPinError, PipelineError
-from .export import trajectory_csv_text, trajectory_json_text
-from .limits import (
+from .. import atomic
+from ..data import ROBOT, Demo
+from ..exceptions import IPrompPinError, PipelineError
+from ..handover.closed_loop import (
+    LIMIT_TOLERANCE,
+    ClosedLoopResult,
+    ClosedLoopSettings,
+    replay_demo,
+    start_time,
+)
+from ..handover.one_shot import LogFn, check_model_joints
+from ..handover.score import ARRIVAL_TOLERANCE_M, ClosedLoopScore, score_closed_loop
+from ..motion.limits import (
     PROFILE_NAMES,
     LimitProfile,
     conservative_profile,
     demonstrated_profile,
     read_limit_profile,
 )
+from ..outputs.trajectory_files import trajectory_csv_text, trajectory_json_text
+from ..preview import PreviewContent
+from ..preview.timeline import TimelineEvent, render_timeline_html
+from ..promp import IProMP
+from ..robot import Robot, ee_positions, load_robot
+from ..robot.clearance import ClearanceCertifier
+from .config import PipelineConfig
 from .model_warnings import warn_stderr
 from .pipeline import check_outputs, choose_demo, get_model, load_data, model_warnings, preview_visual_model
-from .planning import LogFn, check_model_joints
-from .preview import PreviewContent
-from .preview.timeline import TimelineEvent, render_timeline_html
-from .promp import IProMP
-from .robot import Robot, ee_positions, load_robot
-from .robot.clearance import ClearanceCertifier
 
-REPLAY_FORMAT = "ipromp_pin.replay"
+REPLAY_FORMAT = "ipromp_pin.commands.replay"
 """Value of the replay ``report.json``'s ``format`` field."""
 
 REPLAY_VERSION = 1

@@ -2,8 +2,8 @@
 from the training demonstrations.
 
 * ``conservative``: the URDF's velocity limits and the settings file's acceleration and jerk limits
-  (:meth:`~ipromp_pin.trajectory.JointLimits.from_robot`; for Baxter 1.0 rad/s^2 and 10 rad/s^3 on every
-  joint, sources in ``robots/baxter_left.toml``).
+  (:meth:`~ipromp_pin.motion.trajectory.JointLimits.from_robot`; for Baxter 1.0 rad/s^2 and 10 rad/s^3
+  on every joint, sources in ``robots/baxter_left.toml``).
 * ``demonstrated``: per joint, a high percentile of the training demonstrations' own peak |velocity|,
   |acceleration| and |jerk| (Savitzky-Golay derivatives of the recorded joint angles over a window of
   :attr:`~ipromp_pin.robot.DemoLimitRecipe.window_s`), never above the URDF's velocity limits and
@@ -28,9 +28,9 @@ from pathlib import Path
 import numpy as np
 from scipy.signal import savgol_filter
 
-from .data import ROBOT, Demo
-from .exceptions import PipelineError
-from .robot import DemoLimitRecipe, Robot
+from ..data import ROBOT, Demo
+from ..exceptions import PipelineError
+from ..robot import DemoLimitRecipe, Robot
 from .trajectory import JointLimits
 
 PROFILE_NAMES = ("conservative", "demonstrated")

@@ -34,12 +34,12 @@ from typing import TypeVar
 
 import numpy as np
 
-from . import atomic
+from .. import atomic
+from ..data import ROBOT, Dataset, Demo
+from ..exceptions import DataError
+from ..promp import IProMP
+from ..robot import ee_positions, load_robot
 from .baselines import CLASSIFIERS, REGRESSORS, BaselineTrial, WindowBaselines
-from .data import ROBOT, Dataset, Demo
-from .exceptions import DataError
-from .promp import IProMP
-from .robot import ee_positions, load_robot
 
 J = TypeVar("J")
 R = TypeVar("R")
@@ -80,7 +80,7 @@ class TrialResult:
         duration_error_s: Predicted minus true duration of the motion, in [s].
         brier: Multi-class Brier score of the task posterior (sum over tasks of squared errors).
         baselines: Baseline name -> its outcome on the same window (``--baselines``,
-            :mod:`ipromp_pin.baselines`).
+            :mod:`ipromp_pin.evaluation.baselines`).
     """
 
     task: str
@@ -312,7 +312,8 @@ class EvaluationConfig:
         n_splits: Random splits (``splits`` protocol).
         seed: Seed of the random splits.
         model_params: Keyword arguments of the model's constructor.
-        baselines: Also run the reference baselines on the same windows (:mod:`ipromp_pin.baselines`).
+        baselines: Also run the reference baselines on the same windows
+            (:mod:`ipromp_pin.evaluation.baselines`).
     """
 
     protocol: str = "paper"

@@ -7,10 +7,10 @@ and runs a simulated control loop at ``control_rate_hz`` (no waiting):
 * from ``start_s`` on (the replay's start ratio of the human's motion), at ``replan_rate_hz`` the
   task, phase and conditioned robot trajectory are re-estimated and the commanded motion is
   re-targeted with ruckig from the commanded position, velocity and acceleration at the next
-  control tick (:mod:`ipromp_pin.retarget`): it follows the predicted robot trajectory on the
+  control tick (:mod:`ipromp_pin.motion.retarget`): it follows the predicted robot trajectory on the
   human's predicted timeline, slowed only where the limits demand;
 * the remaining motion of every re-plan is checked before it is committed: velocity,
-  acceleration and jerk at every control sample against the :class:`~ipromp_pin.limits.LimitProfile`,
+  acceleration and jerk at every control sample against the :class:`~ipromp_pin.motion.limits.LimitProfile`,
   joint limits with the settings' margin, the hand-over position inside the workspace, and
   self-collision certified between samples (:class:`~ipromp_pin.robot.clearance.ClearanceCertifier`).
   A re-plan that fails is not committed: the robot keeps the last safe plan and the
@@ -30,11 +30,10 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from .data import Demo
-from .exceptions import IPrompPinError, ObservationError, PipelineError
-from .limits import LimitProfile
-from .promp import IProMP, Predictor
-from .retarget import (
+from ..data import Demo
+from ..exceptions import IPrompPinError, ObservationError, PipelineError
+from ..motion.limits import LimitProfile
+from ..motion.retarget import (
     HEADROOM,
     SETTLE_S,
     MotionPlan,
@@ -44,9 +43,10 @@ from .retarget import (
     hold_plan,
     limit_ratios,
 )
-from .robot import Robot, check_joint_limits, check_workspace, ee_positions
-from .robot.clearance import ClearanceCertifier
-from .trajectory import Trajectory
+from ..motion.trajectory import Trajectory
+from ..promp import IProMP, Predictor
+from ..robot import Robot, check_joint_limits, check_workspace, ee_positions
+from ..robot.clearance import ClearanceCertifier
 
 LIMIT_TOLERANCE = 1e-6
 """Relative tolerance of the velocity, acceleration and jerk checks of a re-plan."""
@@ -76,7 +76,7 @@ class ClosedLoopSettings:
     """Settings of the closed loop. The defaults of the start ratio, re-plan rate, blend horizon,
     freeze phase and conditioning noise were chosen by cross-validation on training demos
     (``docs/closed_loop.md``); the settle window and the headroom are technical margins
-    (:mod:`ipromp_pin.retarget`).
+    (:mod:`ipromp_pin.motion.retarget`).
 
     Attributes:
         start_ratio: Fraction of the human's motion observed before the robot starts, in (0, 1).

@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import lapack
 
-from .exceptions import DataError
+from ..exceptions import DataError
 
 DEFAULT_EMG_CUTOFF_HZ = 4.0
 """Default low-pass cut-off of the EMG envelope, in [Hz]."""

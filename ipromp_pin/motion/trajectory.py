@@ -2,8 +2,9 @@
 
 :class:`JointLimits` holds an arm's position, velocity, acceleration and jerk limits (arrays in [rad],
 [rad/s], [rad/s^2], [rad/s^3]) and validates them once; :class:`Trajectory` is a trajectory sampled at
-a fixed control rate. :mod:`ipromp_pin.timing` produces trajectories, :mod:`ipromp_pin.export` and
-:mod:`ipromp_pin.rosbag_writer` write them, :mod:`ipromp_pin.closed_loop` commands them.
+a fixed control rate. :mod:`ipromp_pin.motion.timing` produces trajectories,
+:mod:`ipromp_pin.outputs.trajectory_files` and :mod:`ipromp_pin.outputs.rosbag` write them,
+:mod:`ipromp_pin.handover.closed_loop` commands them.
 """
 
 from __future__ import annotations
@@ -12,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .exceptions import InfeasibleError
+from ..exceptions import InfeasibleError
 
 __all__ = ["JointLimits", "Trajectory"]
 

@@ -14,12 +14,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .data import Demo
-from .exceptions import InfeasibleError, ModelError
-from .promp import IProMP, Prediction
-from .robot import FeasibilityReport, Robot, check_path
-from .timing import TimingReport, path_times, time_path
-from .trajectory import JointLimits, Trajectory
+from ..data import Demo
+from ..exceptions import InfeasibleError, ModelError
+from ..motion.timing import TimingReport, path_times, time_path
+from ..motion.trajectory import JointLimits, Trajectory
+from ..promp import IProMP, Prediction
+from ..robot import FeasibilityReport, Robot, check_path
 
 LogFn = Callable[[str], None]
 """Where progress messages go (one line each)."""
@@ -90,7 +90,7 @@ def plan(
     """Online stages: recognise + predict, time-parameterise + smooth, check.
 
     The checks run on the predicted path; the times their messages name are on the timed
-    trajectory's time base (:func:`~ipromp_pin.timing.path_times`: 0 when the robot starts, after
+    trajectory's time base (:func:`~ipromp_pin.motion.timing.path_times`: 0 when the robot starts, after
     the observation), like the preview's. When the path cannot be timed, the checks are still run
     and logged before the :class:`~ipromp_pin.exceptions.InfeasibleError` propagates.
 

@@ -29,12 +29,12 @@ from pathlib import Path
 
 import numpy as np
 
-from .cache import cache_dir
-from .data import Demo
-from .exceptions import IPrompPinError
-from .promp import IProMP
-from .promp.serialization import FORMAT_VERSION
-from .version import __version__
+from ..cache import cache_dir
+from ..data import Demo
+from ..exceptions import IPrompPinError
+from ..promp import IProMP
+from ..promp.serialization import FORMAT_VERSION
+from ..version import __version__
 
 __all__ = ["CACHE_VERSION", "MAX_ENTRIES", "fit_cached", "training_key"]
 
@@ -46,7 +46,7 @@ MAX_ENTRIES = 16
 
 _PROBE_SEED = 20171128
 _N_PROBES = 8
-_PROMP_DIR = Path(__file__).resolve().parent / "promp"
+_PROMP_DIR = Path(__file__).resolve().parent.parent / "promp"
 
 
 def _source_digest() -> bytes:

@@ -47,7 +47,7 @@ from ruckig import InputParameter, OutputParameter, Result, Ruckig, RuckigError
 from scipy.interpolate import CubicSpline
 from scipy.ndimage import gaussian_filter1d
 
-from .exceptions import InfeasibleError
+from ..exceptions import InfeasibleError
 from .trajectory import JointLimits, Trajectory
 
 _TOL = 1e-9

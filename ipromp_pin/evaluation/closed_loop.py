@@ -1,6 +1,6 @@
 """``ipromp-pin evaluate --closed-loop``: every test demo of every cell replayed in the closed loop.
 
-The cells, splits and model fits are those of :func:`ipromp_pin.evaluate.evaluate` (same random
+The cells, splits and model fits are those of :func:`ipromp_pin.evaluation.evaluate.evaluate` (same random
 splits for the same seed). For every fit the limit profile is derived from that fit's training
 demos (``demonstrated``) or taken from the settings (``conservative``) or a profile file; every test
 demo is then
@@ -9,8 +9,8 @@ demo is then
   recognition, joint errors, ``one_shot_handover_error_cm`` = the gripper position error of the
   one-shot plan's end, which is the prediction's last point);
 * replayed at its recorded timing with ``obs_ratio`` as the start ratio
-  (:func:`~ipromp_pin.closed_loop.replay_demo`) and scored
-  (:func:`~ipromp_pin.closed_loop_score.score_closed_loop`).
+  (:func:`~ipromp_pin.handover.closed_loop.replay_demo`) and scored
+  (:func:`~ipromp_pin.handover.score.score_closed_loop`).
 
 Each cell gains, over all its test trials (recognised or not): ``closed_loop_handover_error_cm``,
 ``closed_loop_final_error_cm``, ``one_shot_handover_error_cm``, ``arrival_delay_s`` (medians),
@@ -27,10 +27,15 @@ from pathlib import Path
 
 import numpy as np
 
-from . import atomic
-from .closed_loop import ClosedLoopSettings, conditioning_predictor, replay_demo
-from .closed_loop_score import score_closed_loop
-from .data import ROBOT, Dataset, Demo
+from .. import atomic
+from ..data import ROBOT, Dataset, Demo
+from ..exceptions import DataError
+from ..handover.closed_loop import ClosedLoopSettings, conditioning_predictor, replay_demo
+from ..handover.score import score_closed_loop
+from ..motion.limits import LimitProfile, conservative_profile, demonstrated_profile, read_limit_profile
+from ..promp import IProMP
+from ..robot import DemoLimitRecipe, Robot, ee_positions, load_robot
+from ..robot.clearance import ClearanceCertifier
 from .evaluate import (
     Cell,
     EvaluationConfig,
@@ -45,11 +50,6 @@ from .evaluate import (
     to_markdown,
 )
 from .evaluate import format_number as _fmt
-from .exceptions import DataError
-from .limits import LimitProfile, conservative_profile, demonstrated_profile, read_limit_profile
-from .promp import IProMP
-from .robot import DemoLimitRecipe, Robot, ee_positions, load_robot
-from .robot.clearance import ClearanceCertifier
 
 ProgressFn = Callable[[int, int, str], None]
 
@@ -108,8 +108,8 @@ def closed_loop_trials(
     check_collisions: bool = True,
 ) -> list[dict]:
     """Replay every test demo with ``ratio`` as the start ratio; one record per demo (the one-shot
-    prediction's :class:`~ipromp_pin.evaluate.TrialResult` fields, then the closed loop's
-    :class:`~ipromp_pin.closed_loop_score.ClosedLoopScore` fields prefixed ``closed_loop_``)."""
+    prediction's :class:`~ipromp_pin.evaluation.evaluate.TrialResult` fields, then the closed loop's
+    :class:`~ipromp_pin.handover.score.ClosedLoopScore` fields prefixed ``closed_loop_``)."""
     observe = list(model.observe_)
 
     def fk(q: np.ndarray) -> np.ndarray:
@@ -189,7 +189,7 @@ def evaluate_closed_loop(
 ) -> list[ClosedLoopCell]:
     """Run one protocol with the closed loop over every cell of ``config`` (see the module docstring).
 
-    The random splits are those :func:`~ipromp_pin.evaluate.evaluate` draws for the same seed.
+    The random splits are those :func:`~ipromp_pin.evaluation.evaluate.evaluate` draws for the same seed.
     """
     options = options or ClosedLoopOptions()
     options.settings.validate("closed loop")

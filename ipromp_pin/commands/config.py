@@ -17,9 +17,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .data import ROBOT
-from .exceptions import PipelineError
-from .shipped import PIPELINES_DIR
+from ..data import ROBOT
+from ..exceptions import PipelineError
+from ..shipped import PIPELINES_DIR
 
 _SCHEMA: dict[str, dict[str, type | tuple[type, ...]]] = {
     "data": {"dataset": str, "format": str, "rate_hz": (int, float), "frames": list, "synthetic_seed": int},
@@ -61,7 +61,7 @@ class PipelineConfig:
         load_model: A saved model file to use instead of training.
         save_model: Where to save the trained model.
         model_cache: Reuse the model an earlier run trained on the same demos with the same settings
-            (kept in the user's cache folder, see :mod:`ipromp_pin.model_cache`).
+            (kept in the user's cache folder, see :mod:`ipromp_pin.commands.model_cache`).
         task: Task of the observed demo (``None``: the first task).
         demo: Index of the observed demo within its task (negative counts from the end).
         ratio: Observed fraction of the human's motion, in (0, 1].

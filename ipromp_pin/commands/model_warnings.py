@@ -14,9 +14,9 @@ from __future__ import annotations
 
 import sys
 
-from .data import Dataset, Demo
-from .promp import IProMP
-from .promp.provenance import find_in_training
+from ..data import Dataset, Demo
+from ..promp import IProMP
+from ..promp.provenance import find_in_training
 
 
 def warn_stderr(message: str) -> None:

@@ -10,10 +10,10 @@ import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
-from .readers import load_dataset
-from .robot.calibration import CalibrationResult, calibrate_tool_offset, write_calibration
-from .robot.model import load_robot
-from .robot.settings import load_robot_settings
+from ..readers import load_dataset
+from ..robot.calibration import CalibrationResult, calibrate_tool_offset, write_calibration
+from ..robot.model import load_robot
+from ..robot.settings import load_robot_settings
 
 
 def run_calibration(

@@ -13,9 +13,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .exceptions import InfeasibleError
-from .promp import Prediction
-from .robot import IKResult, Robot, solve_ik
+from ..exceptions import InfeasibleError
+from ..promp import Prediction
+from ..robot import IKResult, Robot, solve_ik
 
 GOAL_STD_RAD = 1e-4
 """Default standard deviation in [rad] of the goal configuration's joint angles: a goal pose is a target

@@ -8,10 +8,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from .data import Demo
-from .planning import PlanResult
+from ..data import Demo
+from ..handover.one_shot import PlanResult
 
-REPORT_FORMAT = "ipromp_pin.report"
+REPORT_FORMAT = "ipromp_pin.outputs.report"
 """Value of ``report.json``'s ``format`` field."""
 
 REPORT_VERSION = 1

@@ -46,9 +46,9 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from .data import ROBOT, Dataset, Demo
-from .exceptions import DataError
-from .preprocess import DEFAULT_EMG_CUTOFF_HZ, emg_envelope, quaternion_continuity
+from ..data import ROBOT, Dataset, Demo
+from ..exceptions import DataError
+from ..signals.preprocess import DEFAULT_EMG_CUTOFF_HZ, emg_envelope, quaternion_continuity
 
 NOMINAL_DURATION_S = 3.3
 """Nominal demo duration in [s]; a demo's true phase ratio is ``duration_s / NOMINAL_DURATION_S``."""

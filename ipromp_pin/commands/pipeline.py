@@ -2,7 +2,7 @@
 
 :func:`prepare` does the set-up that ``ipromp-pin run`` and ``ipromp-pin preview`` share (read the
 data, pick the observed demo, train or load the model, load the robot, cut the observation, find
-the human's hand at the hand-over); :func:`~ipromp_pin.planning.plan` runs the online stages;
+the human's hand at the hand-over); :func:`~ipromp_pin.handover.one_shot.plan` runs the online stages;
 :func:`run_pipeline` writes the trajectory, the report, the preview page and the figures, and
 :func:`run_preview` shows the same plan live. Every stage reports through a ``log`` callable.
 """
@@ -18,22 +18,22 @@ from pathlib import Path
 
 import numpy as np
 
-from . import atomic
+from .. import atomic
+from ..data import ROBOT, Dataset, Demo, group_unit, skeleton_frames
+from ..exceptions import PipelineError
+from ..handover.one_shot import LogFn, PlanResult, check_model_joints, plan
+from ..outputs.report import report_dict, report_text, summary_text
+from ..outputs.rosbag import BagContent, write_ros1_bag, write_rosbag2
+from ..outputs.trajectory_files import trajectory_csv_text, trajectory_json_text
+from ..preview import DEFAULT_MAX_TRIANGLES, LivePreview, PreviewContent, render_html, write_html
+from ..preview.mesh_cache import cache_entry, cached_visual_model
+from ..promp import IProMP
+from ..readers import load_dataset
+from ..readers.synthetic import make_synthetic_dataset
+from ..robot import Robot, ee_positions, load_robot, load_visual_model
 from .config import PipelineConfig
-from .data import ROBOT, Dataset, Demo, group_unit, skeleton_frames
-from .exceptions import PipelineError
-from .export import trajectory_csv_text, trajectory_json_text
 from .model_cache import fit_cached
 from .model_warnings import loaded_model_warnings, single_task_warning, warn_stderr
-from .planning import LogFn, PlanResult, check_model_joints, plan
-from .preview import DEFAULT_MAX_TRIANGLES, LivePreview, PreviewContent, render_html, write_html
-from .preview.mesh_cache import cache_entry, cached_visual_model
-from .promp import IProMP
-from .readers import load_dataset
-from .report import report_dict, report_text, summary_text
-from .robot import Robot, ee_positions, load_robot, load_visual_model
-from .rosbag_writer import BagContent, write_ros1_bag, write_rosbag2
-from .synthetic import make_synthetic_dataset
 
 RUN_OUTPUTS = (
     "trajectory.csv",
@@ -69,7 +69,8 @@ class Prepared:
         robot: The loaded robot.
         observation: The observed first ``ratio`` of the demo's human motion.
         hand_position_m: (3,) the human hand's last known position in [m] (the hand-over point), or None.
-        warnings: Warnings about the model and the data (:mod:`ipromp_pin.model_warnings`), one line each.
+        warnings: Warnings about the model and the data (:mod:`ipromp_pin.commands.model_warnings`), one
+            line each.
         mesh_prefetch: The process decimating the preview meshes meanwhile (:func:`start_mesh_prefetch`),
             or None.
     """
@@ -218,7 +219,7 @@ def run_pipeline(
     The outputs are written together (:data:`RUN_OUTPUTS`): complete, or the folder's earlier files
     untouched. When the plan fails its checks (``report["passed"]`` is False) the trajectory files
     and bags are not written (and an earlier run's are removed) unless ``allow_failing_checks``,
-    which writes them marked as failing (see :mod:`ipromp_pin.export`).
+    which writes them marked as failing (see :mod:`ipromp_pin.outputs.trajectory_files`).
     """
     t_start = time.perf_counter()
     check_outputs(cfg)
@@ -439,7 +440,7 @@ def write_plots(
 ) -> dict[str, Path]:
     """PNG figures of the prediction, the phase posterior and the learned distributions, written into
     a folder or staged in an :class:`~ipromp_pin.atomic.OutputSet` (then they appear at its commit)."""
-    from . import plots  # deferred: matplotlib is only needed with --plots (about 0.4 s to import)
+    from ..outputs import plots  # deferred: matplotlib is only needed with --plots (about 0.4 s to import)
 
     if isinstance(out_dir, atomic.OutputSet):
         out = out_dir

@@ -42,9 +42,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .data import Demo
-from .exceptions import DataError
-from .trajectory import Trajectory
+from ..data import Demo
+from ..exceptions import DataError
+from ..motion.trajectory import Trajectory
 
 TOPIC_PREFIX = "/ipromp_pin"
 TOPIC_TRAJECTORY = f"{TOPIC_PREFIX}/planned_trajectory"

@@ -57,7 +57,7 @@ from .config import PipelineConfig
 from .model_warnings import warn_stderr
 from .pipeline import check_outputs, choose_demo, get_model, load_data, model_warnings, preview_visual_model
 
-REPLAY_FORMAT = "ipromp_pin.commands.replay"
+REPLAY_FORMAT = "ipromp_pin.replay"
 """Value of the replay ``report.json``'s ``format`` field."""
 
 REPLAY_VERSION = 1

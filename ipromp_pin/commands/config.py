@@ -148,7 +148,7 @@ class OutputsConfig:
     ros1_bag: bool = False
 
 
-SECTIONS: tuple[type, ...] = (
+SECTIONS: tuple[type[Any], ...] = (
     DataConfig,
     ModelConfig,
     ObservationConfig,
@@ -190,7 +190,7 @@ def schema() -> dict[str, dict[str, type | tuple[type, ...]]]:
     }
 
 
-def _section_class(section: str) -> type:
+def _section_class(section: str) -> type[Any]:
     for cls in SECTIONS:
         if cls.SECTION == section:
             return cls
@@ -202,7 +202,7 @@ def default_of(name: str) -> Any:
     section, key = name.split(".")
     for f in fields(_section_class(section)):
         if f.name == key:
-            return f.default_factory() if f.default is MISSING else f.default  # type: ignore[misc]
+            return f.default if f.default_factory is MISSING else f.default_factory()
     raise KeyError(name)
 
 
@@ -357,11 +357,11 @@ def _check_types(path: Path, doc: dict[str, Any]) -> None:
                 raise _bad(str(path), section, key, "unknown key")
             if not isinstance(value, kind) or (kind in (int, (int, float)) and isinstance(value, bool)):
                 raise _bad(str(path), section, key, f"wrong type {type(value).__name__}")
-            if kind is list and not all(isinstance(x, str) and x for x in value):
+            if isinstance(value, list) and not all(isinstance(x, str) and x for x in value):
                 raise _bad(str(path), section, key, f"must be a list of names, got {value!r}")
 
 
-def _section_from_table(cls: type, table: dict[str, Any], base: Path) -> Any:
+def _section_from_table(cls: type[Any], table: dict[str, Any], base: Path) -> Any:
     """Section ``cls`` from its (type-checked) TOML table: missing keys take the field's default,
     relative paths are relative to ``base``, an empty string in a path or optional field is its default."""
     hints = typing.get_type_hints(cls)

@@ -24,3 +24,6 @@ ROBOTS_DIR = shipped_dir("robots")
 
 PIPELINES_DIR = shipped_dir("pipelines")
 """Folder of the shipped pipeline definitions (``pipelines/*.toml``)."""
+
+DEFAULT_ROBOT = "baxter_left"
+"""The robot settings used when none is named: a shipped settings file (``robots/baxter_left.toml``)."""

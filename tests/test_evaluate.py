@@ -113,12 +113,12 @@ def test_evaluate_command_says_up_front_when_the_dataset_is_too_small(tmp_path, 
 
 
 def test_evaluate_help_documents_the_protocols_and_spares_a_core(capsys, monkeypatch):
-    from ipromp_pin import cli
+    from ipromp_pin.cli import evaluate as cli_evaluate
 
-    monkeypatch.setattr(cli.os, "sched_getaffinity", lambda pid: set(range(4)), raising=False)
-    assert cli.default_jobs() == 3
-    monkeypatch.setattr(cli.os, "sched_getaffinity", lambda pid: {0}, raising=False)
-    assert cli.default_jobs() == 1
+    monkeypatch.setattr(cli_evaluate.os, "sched_getaffinity", lambda pid: set(range(4)), raising=False)
+    assert cli_evaluate.default_jobs() == 3
+    monkeypatch.setattr(cli_evaluate.os, "sched_getaffinity", lambda pid: {0}, raising=False)
+    assert cli_evaluate.default_jobs() == 1
     with pytest.raises(SystemExit):
         main(["evaluate", "--help"])
     text = " ".join(capsys.readouterr().out.split())

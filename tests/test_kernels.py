@@ -166,7 +166,7 @@ def test_unknown_backend_is_an_error():
 
 
 def test_evaluate_compiles_once_before_forking_its_workers(monkeypatch):
-    from ipromp_pin import cli
+    from ipromp_pin.cli import evaluate as cli_evaluate
 
     calls, messages = [], []
     monkeypatch.setattr(compiled, "compiled_kernels_cached", lambda *a: False)
@@ -176,9 +176,9 @@ def test_evaluate_compiles_once_before_forking_its_workers(monkeypatch):
     compiled.set_announcer(messages.append)
     try:
         with use_kernels("numba"):
-            cli._compile_kernels_once()
+            cli_evaluate.compile_kernels_once()
         with use_kernels("numpy"):  # nothing to compile
-            cli._compile_kernels_once()
+            cli_evaluate.compile_kernels_once()
     finally:
         compiled.set_announcer(None)
     assert calls == [1] and len(messages) == 1 and "compiling the inference kernels" in messages[0]

@@ -14,11 +14,12 @@ from ..readers import load_dataset
 from ..robot.calibration import CalibrationResult, calibrate_tool_offset, write_calibration
 from ..robot.model import load_robot
 from ..robot.settings import load_robot_settings
+from ..shipped import DEFAULT_ROBOT
 
 
 def run_calibration(
     dataset_paths: str | Path | Sequence[str | Path],
-    settings_path: str | Path = "baxter_left",
+    settings_path: str | Path = DEFAULT_ROBOT,
     write: bool = False,
     *,
     fit: str = "mount",

@@ -36,6 +36,7 @@ from ..motion.limits import LimitProfile, conservative_profile, demonstrated_pro
 from ..promp import IProMP
 from ..robot import DemoLimitRecipe, Robot, ee_positions, load_robot
 from ..robot.clearance import ClearanceCertifier
+from ..shipped import DEFAULT_ROBOT
 from .evaluate import (
     Cell,
     EvaluationConfig,
@@ -183,7 +184,7 @@ def evaluate_closed_loop(
     dataset: Dataset,
     config: EvaluationConfig,
     options: ClosedLoopOptions | None = None,
-    robot: str = "baxter_left",
+    robot: str = DEFAULT_ROBOT,
     progress: ProgressFn | None = None,
     jobs: int = 1,
 ) -> list[ClosedLoopCell]:

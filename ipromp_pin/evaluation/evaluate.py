@@ -39,6 +39,7 @@ from ..data import ROBOT, Dataset, Demo
 from ..exceptions import DataError
 from ..promp import IProMP
 from ..robot import ee_positions, load_robot
+from ..shipped import DEFAULT_ROBOT
 from .baselines import CLASSIFIERS, REGRESSORS, BaselineTrial, WindowBaselines
 
 J = TypeVar("J")
@@ -374,7 +375,7 @@ def _robot_fk(robot: str | None) -> Callable[[np.ndarray], np.ndarray] | None:
 def evaluate(
     dataset: Dataset,
     config: EvaluationConfig,
-    robot: str | None = "baxter_left",
+    robot: str | None = DEFAULT_ROBOT,
     progress: ProgressFn | None = None,
     jobs: int = 1,
 ) -> list[Cell]:

@@ -59,8 +59,9 @@ class RosMessage:
     Attributes:
         msgtype: The message type, e.g. ``"geometry_msgs/msg/PointStamped"``.
         build: ``build(types, header, label, values, channel_names)`` -> the message object, from the
-            typestore's classes, a ready ``std_msgs/Header`` (stamp and frame set), the group's name,
-            one sample (D,) and the D channel names.
+            typestore's classes, a ready ``std_msgs/Header`` (stamp and frame set; None when not
+            ``stamped``), the group's name, one sample (D,) and the D channel names.
+        stamped: The message has a header (its stamp is the sample's time).
         in_base_frame: The header's ``frame_id`` is the robot's base frame (else ``""``).
         fits: ``fits(channel_names)``: whether this message can carry the group (e.g. a quaternion
             needs channels named w, x, y, z); when not, the sample is written as
@@ -69,6 +70,7 @@ class RosMessage:
 
     msgtype: str
     build: Callable[[RosTypes, object, str, np.ndarray, tuple[str, ...]], object]
+    stamped: bool = True
     in_base_frame: bool = False
     fits: Callable[[tuple[str, ...]], bool] = lambda names: True
 
@@ -101,7 +103,7 @@ def _array(types: RosTypes, header: object, label: str, v: np.ndarray, names) ->
     return types[FLOAT64_MULTI_ARRAY](layout=layout, data=np.ascontiguousarray(v, dtype=np.float64))
 
 
-ARRAY_MESSAGE = RosMessage(FLOAT64_MULTI_ARRAY, _array)
+ARRAY_MESSAGE = RosMessage(FLOAT64_MULTI_ARRAY, _array, stamped=False)
 """Any group: ``std_msgs/msg/Float64MultiArray`` (no header; one value per channel)."""
 QUATERNION_MESSAGE = RosMessage(
     QUATERNION_STAMPED, _quaternion_stamped, fits=lambda names: quaternion_columns(names) is not None
@@ -336,3 +338,8 @@ HAND_POSITION = register_group(
         extra=True,
     )
 )
+
+DEFAULT_LOG_GROUPS: tuple[str, ...] = default_log_groups()
+"""The IProMP's default ``log_groups``: the built-in groups with ``log_space`` (``("emg",)``). A group
+registered later with ``log_space`` is named in ``log_groups`` by its user (the default is fixed at
+import, so a model's parameters do not change with what else was registered)."""

@@ -57,7 +57,7 @@ PRESSURE = ChannelGroup(
 
 @pytest.fixture
 def pressure_group():
-    register_group(PRESSURE)
+    register_group(PRESSURE, replace=True)
     yield PRESSURE
     unregister_group("pressure")
 

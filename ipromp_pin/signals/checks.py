@@ -174,6 +174,10 @@ GENERIC_MAGNITUDE_BOUND = 1e12
 of a hand-over reports 1e12 in its unit, a corrupt sample (1e300) does."""
 
 
+JointLimitMap = Mapping[str, tuple[float, float]]
+"""Recorded joint name -> (lower, upper) limits in [rad] (the robot's URDF limits)."""
+
+
 class GroupCheck:
     """The plausibility check of one channel group's values (N, D); subclasses fill :meth:`check`."""
 
@@ -183,7 +187,7 @@ class GroupCheck:
         field: str,
         values: np.ndarray,
         channel_names: Sequence[str],
-        joint_limits: Mapping[str, tuple[float, float]] | None = None,
+        joint_limits: JointLimitMap | None = None,
     ) -> None:
         """Raise :class:`DataError` naming ``source`` and ``field`` when a value is implausible."""
         raise NotImplementedError
@@ -207,7 +211,14 @@ class RangeCheck(GroupCheck):
     high: float
     unit: str = ""
 
-    def check(self, source, field, values, channel_names, joint_limits=None) -> None:  # noqa: D102
+    def check(
+        self,
+        source: object,
+        field: str,
+        values: np.ndarray,
+        channel_names: Sequence[str],
+        joint_limits: JointLimitMap | None = None,
+    ) -> None:  # noqa: D102
         check_range(source, field, values, self.low, self.high, self.unit, channel_names)
 
 
@@ -219,7 +230,14 @@ class NormCheck(GroupCheck):
     high: float
     unit: str = ""
 
-    def check(self, source, field, values, channel_names, joint_limits=None) -> None:  # noqa: D102
+    def check(
+        self,
+        source: object,
+        field: str,
+        values: np.ndarray,
+        channel_names: Sequence[str],
+        joint_limits: JointLimitMap | None = None,
+    ) -> None:  # noqa: D102
         check_norms(source, field, values, self.low, self.high, self.unit)
 
 
@@ -227,7 +245,14 @@ class NormCheck(GroupCheck):
 class JointAngleCheck(GroupCheck):
     """Joint angles in [rad] inside the robot's limits (``joint_limits``) widened by the margin."""
 
-    def check(self, source, field, values, channel_names, joint_limits=None) -> None:  # noqa: D102
+    def check(
+        self,
+        source: object,
+        field: str,
+        values: np.ndarray,
+        channel_names: Sequence[str],
+        joint_limits: JointLimitMap | None = None,
+    ) -> None:  # noqa: D102
         check_joint_angles(source, field, values, channel_names, joint_limits)
 
 
@@ -235,7 +260,14 @@ class JointAngleCheck(GroupCheck):
 class ActivityCheck(GroupCheck):
     """Not every channel constant over the demo (an EMG armband that sent nothing)."""
 
-    def check(self, source, field, values, channel_names, joint_limits=None) -> None:  # noqa: D102
+    def check(
+        self,
+        source: object,
+        field: str,
+        values: np.ndarray,
+        channel_names: Sequence[str],
+        joint_limits: JointLimitMap | None = None,
+    ) -> None:  # noqa: D102
         check_emg_activity(source, field, values)
 
 
@@ -246,7 +278,14 @@ class PoseCheck(GroupCheck):
     position_bound_m: float = POSITION_BOUND_M
     tolerance: float = UNIT_QUATERNION_TOLERANCE
 
-    def check(self, source, field, values, channel_names, joint_limits=None) -> None:  # noqa: D102
+    def check(
+        self,
+        source: object,
+        field: str,
+        values: np.ndarray,
+        channel_names: Sequence[str],
+        joint_limits: JointLimitMap | None = None,
+    ) -> None:  # noqa: D102
         v = np.asarray(values, dtype=float)
         check_norms(source, f"{field}/position", v[:, :3], 0.0, self.position_bound_m, "m")
         check_norms(source, f"{field}/orientation", v[:, 3:], 1 - self.tolerance, 1 + self.tolerance, "")
@@ -258,7 +297,14 @@ class MagnitudeCheck(GroupCheck):
 
     bound: float = GENERIC_MAGNITUDE_BOUND
 
-    def check(self, source, field, values, channel_names, joint_limits=None) -> None:  # noqa: D102
+    def check(
+        self,
+        source: object,
+        field: str,
+        values: np.ndarray,
+        channel_names: Sequence[str],
+        joint_limits: JointLimitMap | None = None,
+    ) -> None:  # noqa: D102
         v = np.asarray(values, dtype=float).reshape(np.shape(values)[0], -1)
         with np.errstate(invalid="ignore"):
             bad = np.abs(v) > self.bound
@@ -280,6 +326,13 @@ class AllChecks(GroupCheck):
 
     checks: tuple[GroupCheck, ...]
 
-    def check(self, source, field, values, channel_names, joint_limits=None) -> None:  # noqa: D102
+    def check(
+        self,
+        source: object,
+        field: str,
+        values: np.ndarray,
+        channel_names: Sequence[str],
+        joint_limits: JointLimitMap | None = None,
+    ) -> None:  # noqa: D102
         for c in self.checks:
             c.check(source, field, values, channel_names, joint_limits)

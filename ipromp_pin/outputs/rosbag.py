@@ -188,16 +188,19 @@ def _sample_messages(
     rows: np.ndarray,
     stamps: list[int],
     base_frame: str,
-) -> Iterator[BagMessage]:
+) -> list[BagMessage]:
     """One message per sample ``rows`` of a group or extra, of its specification's message type."""
     m = group_spec(label).ros_message_for(names)
     if m is None:
-        return
+        return []
     frame = base_frame if m.in_base_frame else ""
-    for i in rows:
+    build, msgtype, types, header = m.build, m.msgtype, b.t, b.header if m.stamped else None
+    out = []
+    for i in rows.tolist():
         ns = stamps[i]
-        header = b.header(ns, frame) if m.stamped else None
-        yield BagMessage(topic, m.msgtype, ns, m.build(b.t, header, label, values[i], names))
+        msg = build(types, None if header is None else header(ns, frame), label, values[i], names)
+        out.append(BagMessage(topic, msgtype, ns, msg))
+    return out
 
 
 def _human_messages(b: _Builder, obs: Demo, start_ns: int, base_frame: str) -> Iterator[BagMessage]:

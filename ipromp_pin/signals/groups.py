@@ -18,6 +18,7 @@ generic magnitude check (:class:`~.checks.MagnitudeCheck`), never silently unche
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -77,9 +78,15 @@ class RosMessage:
 
 def quaternion_columns(names: Sequence[str]) -> list[int] | None:
     """Column indices of x, y, z, w among quaternion channel names (``qx`` or ``x`` ...), or None."""
+    cols = _quaternion_columns(tuple(names))
+    return None if cols is None else list(cols)
+
+
+@functools.lru_cache(maxsize=64)
+def _quaternion_columns(names: tuple[str, ...]) -> tuple[int, ...] | None:
     short = [n.lower().removeprefix("q") for n in names]
     if len(short) == 4 and sorted(short) == ["w", "x", "y", "z"]:
-        return [short.index(c) for c in "xyzw"]
+        return tuple(short.index(c) for c in "xyzw")
     return None
 
 

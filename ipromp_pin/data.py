@@ -265,23 +265,6 @@ def parse_groups(text: str | Iterable[str]) -> list[str]:
     return groups
 
 
-GROUP_UNITS: Mapping[str, str] = {
-    ROBOT: "rad",
-    "orientation": "unitless",
-    "emg": "Myo EMG units",
-    "acc": "g",
-}
-"""Unit of the values of each known channel group (skeleton frames ``"/..."`` are in [m])."""
-
-
-def group_unit(group: str) -> str:
-    """Unit of a channel group's values (:data:`GROUP_UNITS`; ``"m"`` for a skeleton frame, ``""`` if
-    unknown)."""
-    if group.startswith("/"):
-        return "m"
-    return GROUP_UNITS.get(group, "")
-
-
 def skeleton_frames(groups: Iterable[str]) -> list[str]:
     """The tracked skeleton frames (``"/left_hand_1"`` ...) among channel group names, once each, in order."""
     return list(dict.fromkeys(g for g in groups if g.startswith("/")))

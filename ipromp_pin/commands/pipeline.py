@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import atomic
-from ..data import ROBOT, Dataset, Demo, group_unit, skeleton_frames
+from ..data import ROBOT, Dataset, Demo, skeleton_frames
 from ..exceptions import PipelineError
 from ..handover.one_shot import LogFn, PlanResult, check_model_joints, plan
 from ..outputs.report import report_dict, report_text, summary_text
@@ -31,6 +31,7 @@ from ..promp import IProMP
 from ..readers import load_dataset
 from ..readers.synthetic import make_synthetic_dataset
 from ..robot import Robot, ee_positions, load_robot, load_visual_model
+from ..signals.groups import group_unit
 from .config import PipelineConfig
 from .model_cache import fit_cached
 from .model_warnings import loaded_model_warnings, single_task_warning, warn_stderr

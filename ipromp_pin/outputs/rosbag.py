@@ -4,7 +4,9 @@ The messages are built from the message definitions that ``rosbags`` ships (ROS 
 rosbag2, Noetic for ROS 1) and serialised by it (CDR / ROS 1 wire format), so ``ros2 bag play``,
 ``ros2 bag info``, Foxglove Studio and PlotJuggler read the bag as any recorded one.
 
-Topics (names of human groups are made ROS-safe by :func:`human_topic`):
+Topics (names of human groups are made ROS-safe by :func:`human_topic`); the message of an observed
+group or extra is the one of its channel-group specification
+(:func:`ipromp_pin.signals.groups.group_spec`):
 
 * ``/ipromp_pin/planned_trajectory``, ``trajectory_msgs/msg/JointTrajectory``: the timed,
   jerk-limited trajectory (one message, at the plan time);
@@ -13,13 +15,14 @@ Topics (names of human groups are made ROS-safe by :func:`human_topic`):
 * ``/ipromp_pin/handover_pose``, ``geometry_msgs/msg/PoseStamped``: the predicted hand-over pose of
   the end-effector, in the base frame;
 * ``/ipromp_pin/human/orientation``, ``geometry_msgs/msg/QuaternionStamped``: the observed forearm
-  orientation (a 4-channel group with channels named ``qw, qx, qy, qz`` or ``w, x, y, z``);
+  orientation (when its 4 channels are named ``qw, qx, qy, qz`` or ``w, x, y, z``);
 * ``/ipromp_pin/human/<frame>``, ``geometry_msgs/msg/PointStamped``: an observed tracked frame
   (a 3-channel group whose name starts with ``/``, e.g. ``/left_hand_1``) in [m], base frame;
 * ``/ipromp_pin/human/hand_position``, ``geometry_msgs/msg/PointStamped``: the human hand in [m],
   base frame (when the observation has the extra ``hand_position``);
 * ``/ipromp_pin/human/<group>``, ``std_msgs/msg/Float64MultiArray``: any other observed group, e.g.
-  ``emg`` (one value per channel, in the group's channel order).
+  ``emg`` (one value per channel, in the group's channel order), or a group registered with its own
+  message type.
 
 Time: the human's motion starts at ``start_time_ns`` (default 0); a human sample at ``t`` [s] of the
 observation is stamped ``start + t``; the plan is published at the end of the observation
@@ -45,6 +48,10 @@ import numpy as np
 from ..data import Demo
 from ..exceptions import DataError
 from ..motion.trajectory import Trajectory
+from ..signals.groups import FLOAT64_MULTI_ARRAY as FLOAT64_MULTI_ARRAY  # message types, re-exported
+from ..signals.groups import POINT_STAMPED as POINT_STAMPED
+from ..signals.groups import QUATERNION_STAMPED as QUATERNION_STAMPED
+from ..signals.groups import group_spec, registered_groups
 
 TOPIC_PREFIX = "/ipromp_pin"
 TOPIC_TRAJECTORY = f"{TOPIC_PREFIX}/planned_trajectory"
@@ -55,9 +62,6 @@ TOPIC_HUMAN = f"{TOPIC_PREFIX}/human"
 JOINT_TRAJECTORY = "trajectory_msgs/msg/JointTrajectory"
 JOINT_STATE = "sensor_msgs/msg/JointState"
 POSE_STAMPED = "geometry_msgs/msg/PoseStamped"
-QUATERNION_STAMPED = "geometry_msgs/msg/QuaternionStamped"
-POINT_STAMPED = "geometry_msgs/msg/PointStamped"
-FLOAT64_MULTI_ARRAY = "std_msgs/msg/Float64MultiArray"
 
 ROSBAG2_VERSION = 8
 """rosbag2 metadata version written (8: read by ROS 2 Humble and later)."""
@@ -174,48 +178,49 @@ class _Builder:
         )
         return self.t[POSE_STAMPED](header=self.header(ns, frame), pose=p)
 
-    def quaternion_stamped(self, ns: int, frame: str, xyzw: np.ndarray) -> object:
-        return self.t[QUATERNION_STAMPED](header=self.header(ns, frame), quaternion=self.quaternion(xyzw))
 
-    def point_stamped(self, ns: int, frame: str, xyz: np.ndarray) -> object:
-        return self.t[POINT_STAMPED](header=self.header(ns, frame), point=self.point(xyz))
-
-    def array(self, label: str, values: np.ndarray) -> object:
-        dim = self.t["std_msgs/msg/MultiArrayDimension"](label=label, size=values.size, stride=values.size)
-        layout = self.t["std_msgs/msg/MultiArrayLayout"](dim=[dim], data_offset=0)
-        return self.t[FLOAT64_MULTI_ARRAY](layout=layout, data=np.ascontiguousarray(values, dtype=np.float64))
-
-
-def _quaternion_columns(names: tuple[str, ...]) -> list[int] | None:
-    """Column indices of x, y, z, w in an orientation group's channels (names ``qx`` or ``x`` ...)."""
-    short = [n.lower().removeprefix("q") for n in names]
-    if sorted(short) == ["w", "x", "y", "z"]:
-        return [short.index(c) for c in "xyzw"]
-    return None
+def _sample_messages(
+    b: _Builder,
+    topic: str,
+    label: str,
+    values: np.ndarray,
+    names: tuple[str, ...],
+    rows: np.ndarray,
+    stamps: list[int],
+    base_frame: str,
+) -> list[BagMessage]:
+    """One message per sample ``rows`` of a group or extra, of its specification's message type."""
+    m = group_spec(label).ros_message_for(names)
+    if m is None:
+        return []
+    frame = base_frame if m.in_base_frame else ""
+    build, msgtype, types, header = m.build, m.msgtype, b.t, b.header if m.stamped else None
+    out = []
+    for i in rows.tolist():
+        ns = stamps[i]
+        msg = build(types, None if header is None else header(ns, frame), label, values[i], names)
+        out.append(BagMessage(topic, msgtype, ns, msg))
+    return out
 
 
 def _human_messages(b: _Builder, obs: Demo, start_ns: int, base_frame: str) -> Iterator[BagMessage]:
     stamps = [start_ns + _ns(t) for t in obs.t]
     for group, values in obs.groups.items():
-        names = obs.channel_names[group]
+        names = tuple(obs.channel_names[group])
         ok = ~obs.missing.get(group, np.zeros(obs.n_samples, dtype=bool)) & np.all(
             np.isfinite(values), axis=1
         )
-        topic = human_topic(group)
-        quat = _quaternion_columns(names) if values.shape[1] == 4 else None
-        for i in np.flatnonzero(ok):
-            ns, v = stamps[i], values[i]
-            if quat is not None:
-                yield BagMessage(topic, QUATERNION_STAMPED, ns, b.quaternion_stamped(ns, "", v[quat]))
-            elif group.startswith("/") and values.shape[1] == 3:
-                yield BagMessage(topic, POINT_STAMPED, ns, b.point_stamped(ns, base_frame, v))
-            else:
-                yield BagMessage(topic, FLOAT64_MULTI_ARRAY, ns, b.array(group, v))
-    hand = obs.extras.get("hand_position")
-    if hand is not None and hand.ndim == 2 and hand.shape[1] == 3:
-        topic = human_topic("hand_position")
-        for i in np.flatnonzero(np.all(np.isfinite(hand), axis=1)):
-            yield BagMessage(topic, POINT_STAMPED, stamps[i], b.point_stamped(stamps[i], base_frame, hand[i]))
+        yield from _sample_messages(
+            b, human_topic(group), group, values, names, np.flatnonzero(ok), stamps, base_frame
+        )
+    for spec in registered_groups():
+        v = obs.extras.get(spec.name) if spec.extra else None
+        if v is None or v.ndim != 2 or not spec.fits(v.shape[1]):
+            continue
+        rows = np.flatnonzero(np.all(np.isfinite(v), axis=1))
+        yield from _sample_messages(
+            b, human_topic(spec.name), spec.name, v, spec.channels, rows, stamps, base_frame
+        )
 
 
 def bag_messages(content: BagContent, ros1: bool = False) -> list[BagMessage]:

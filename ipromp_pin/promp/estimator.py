@@ -28,6 +28,7 @@ from threadpoolctl import ThreadpoolController
 
 from ..data import ROBOT, Dataset, Demo, parse_groups
 from ..exceptions import IPrompPinError, ModelError, ModelFileError, NotFittedError
+from ..signals.groups import DEFAULT_LOG_GROUPS
 from .basis import GaussianBasis
 from .distribution import ChannelScaler, TaskModel
 from .fitted import FittedModel
@@ -142,7 +143,7 @@ class IProMP:
         n_points: int = 100,
         task_prior: Mapping[str, float] | None = None,
         robot_group: str = ROBOT,
-        log_groups: Iterable[str] = ("emg",),
+        log_groups: Iterable[str] = DEFAULT_LOG_GROUPS,
         pooling: float = 0.0,
         coupling: str | Iterable[str] = "auto",
         blas_threads: int | None = 1,

@@ -28,8 +28,8 @@ from ..data import Dataset, Demo
 from ..exceptions import DataError
 from ..signals.preprocess import DEFAULT_EMG_CUTOFF_HZ
 from . import chen2017, multimodal, native, plausibility, rosbag
-from ._common import BAXTER_LEFT_JOINTS
 from .native import write_dataset, write_demo
+from .streams import BAXTER_LEFT_JOINTS
 
 FORMATS = ("auto", "chen2017", "multimodal", "bag", "native")
 """Accepted values of ``format``."""

@@ -13,7 +13,7 @@ Every file has ``time`` (the recording PC's receive time as local wall-clock
 text) and ``.header.stamp.secs``/``.nsecs``. The robot stamps its messages with
 its own clock (about 3.95 s ahead of the PC in these recordings; estimated per
 stream and per demo, never assumed) while the PC stamps the Myo messages; see
-:func:`ipromp_pin.readers._common.assemble_chen2017` for the alignment.
+:func:`ipromp_pin.readers.streams.assemble_chen2017` for the alignment.
 
 Resulting :class:`~ipromp_pin.data.Demo` groups, on a uniform grid at
 ``rate_hz`` spanning the streams' overlap, ``t`` from 0:
@@ -50,7 +50,7 @@ import numpy as np
 from ..data import Demo
 from ..exceptions import DataError
 from ..signals.preprocess import DEFAULT_EMG_CUTOFF_HZ
-from ._common import (
+from .streams import (
     BAXTER_LEFT_JOINTS,
     CsvTable,
     RawRecording,

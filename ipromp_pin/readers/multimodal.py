@@ -61,27 +61,22 @@ import numpy as np
 
 from ..data import ROBOT, Demo
 from ..exceptions import DataError
-from ..signals.preprocess import (
-    DEFAULT_EMG_CUTOFF_HZ,
-    Stream,
-    align_streams,
-    emg_envelope,
-    estimate_clock_offset,
-    quaternion_continuity,
-)
-from ._common import (
-    ACC_CHANNELS,
+from ..signals.checks import EMG_RAW_RANGE, POSITION_BOUND_M, check_joint_angles, check_norms, check_range
+from ..signals.groups import EMG
+from ..signals.groups import SKELETON_FRAME as FRAME
+from ..signals.preprocess import DEFAULT_EMG_CUTOFF_HZ, Stream, align_streams, estimate_clock_offset
+from .streams import (
     BAXTER_LEFT_JOINTS,
-    EMG_CHANNELS,
     MYO_ACCELEROMETER_SCALE,
     MYO_ORIENTATION_SCALE,
-    ORIENTATION_CHANNELS,
     CsvTable,
     check_raw_endpoint,
     check_raw_imu,
+    endpoint_extras,
+    myo_groups,
+    recorded_streams,
     select_joint_messages,
 )
-from .plausibility import EMG_RAW_RANGE, POSITION_BOUND_M, check_joint_angles, check_norms, check_range
 
 FILE_NAME = "multiModal_states.csv"
 JUMP_THRESHOLD_M = 0.25
@@ -194,6 +189,136 @@ def _fill_gaps(t: np.ndarray, x: np.ndarray) -> np.ndarray:
     return np.stack([np.interp(t, t[ok], x[ok, j]) for j in range(x.shape[1])], axis=1)
 
 
+def _joint_stream(
+    table: CsvTable, receive: np.ndarray, robot_joints: Sequence[str]
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(header stamps, receive times, angles (N, J) of ``robot_joints``) of the joint-state messages
+    that carry the arm (joints found by name, per row)."""
+    path = table.path
+    name_cols = []
+    k = 0
+    while table.has(f"{P}jointStates.name{k}"):
+        name_cols.append(f"{P}jointStates.name{k}")
+        k += 1
+    if not name_cols:
+        raise DataError(path, P + "jointStates.name0", "missing column")
+    name_text = [table.text(c) for c in name_cols]
+    names_per_row = [tuple(n[r] for n in name_text if n[r]) for r in range(len(table))]
+    keep, cols = select_joint_messages(path, names_per_row, robot_joints)
+    pos_cols = [f"{P}jointStates.position{k}" for k in range(len(name_cols))]
+    layout_len = len(names_per_row[int(np.flatnonzero(keep)[0])])
+    jpos = table.numbers(pos_cols[:layout_len])
+    j_h_all = _stamps(table, P + "jointStates.header.stamp")
+    keep &= j_h_all > 0
+    j_h, j_r, jpos = j_h_all[keep], receive[keep], jpos[keep][:, cols]
+    check_joint_angles(path, P + "jointStates.position", jpos, robot_joints, what="message")
+    return j_h, j_r, jpos
+
+
+def _message_streams(table: CsvTable, receive: np.ndarray, robot_joints: Sequence[str]) -> dict[str, Stream]:
+    """The bundled Myo, joint and (when recorded) end-point streams on the PC's clock, checked."""
+    path = table.path
+    emg_h, emg_r, emg = _sub_stream(
+        table, P + "emgStates.header.stamp", [f"{P}emgStates.ch{i}" for i in range(8)], receive
+    )
+    imu_cols = [f"{P}imuStates.orientation.{a}" for a in "wxyz"]
+    imu_cols += [f"{P}imuStates.linear_acceleration.{a}" for a in "xyz"]
+    imu_h, imu_r, imu = _sub_stream(table, P + "imuStates.header.stamp", imu_cols, receive)
+    ep_cols = [f"{P}endpointStates.pose.position.{a}" for a in "xyz"]
+    ep_cols += [f"{P}endpointStates.pose.orientation.{a}" for a in "xyzw"]
+    endpoint = _sub_stream(table, P + "endpointStates.header.stamp", ep_cols, receive, optional=True)
+    check_range(path, P + "emgStates", emg, *EMG_RAW_RANGE, "", EMG.channels, what="message")
+    j_h, j_r, jpos = _joint_stream(table, receive, robot_joints)
+
+    # Orientation and acceleration sanity (raw Myo ints), end-point positions and quaternions.
+    q = imu[:, :4] / MYO_ORIENTATION_SCALE
+    acc = imu[:, 4:7] / MYO_ACCELEROMETER_SCALE
+    check_raw_imu(path, P + "imuStates.orientation", P + "imuStates.linear_acceleration", q, acc)
+    if endpoint is not None:
+        check_raw_endpoint(path, P + "endpointStates.pose", endpoint[2])
+
+    def on_pc(h: np.ndarray, r: np.ndarray) -> np.ndarray:
+        return h - estimate_clock_offset(h, r)
+
+    t = {"emg": on_pc(emg_h, emg_r), "imu": on_pc(imu_h, imu_r), "robot": on_pc(j_h, j_r)}
+    if endpoint is not None:
+        t["endpoint"] = on_pc(endpoint[0], endpoint[1])
+    src = str(path)
+    sources = dict.fromkeys(("emg", "imu", "robot", "endpoint"), src)
+    ep = None if endpoint is None else endpoint[2]
+    return recorded_streams(t, emg, q, acc, jpos, robot_joints, ep, sources)
+
+
+def _frame_streams(
+    table: CsvTable, frames: list[str], t: np.ndarray, reserved: set[str], with_gripper: bool
+) -> dict[str, Stream]:
+    """Streams ``"frame:<f>"`` of the requested frames, the hand frames and (``with_gripper``) the
+    gripper frames, on the skeleton's time base ``t`` [s]; jumps and untracked samples missing."""
+    path = table.path
+    for f in frames:
+        if f in reserved:
+            raise DataError(path, f, "frame name clashes with a channel group name")
+    prefixes = _find_transforms(table)
+    out = {}
+    gripper = list(GRIPPER_FRAMES) if with_gripper else []
+    for f in dict.fromkeys(frames + list(HAND_FRAMES) + gripper):
+        p = _frame_positions(table, prefixes, f)
+        if p is not None:
+            check_norms(path, f, p, 0.0, POSITION_BOUND_M, "m", what="row")
+        if p is None:
+            if f in frames:
+                available = sorted({s for pr in prefixes for s in table.text(pr + "child_frame_id") if s})
+                raise DataError(path, f, f"frame never tracked (child_frame_ids: {', '.join(available)})")
+            continue
+        p[flag_jumps(p)] = np.nan
+        if np.sum(np.all(np.isfinite(p), axis=1)) < 2:
+            if f in frames:
+                raise DataError(path, f, "fewer than 2 valid samples of the frame")
+            continue
+        out["frame:" + f] = Stream(t, p, FRAME.channels, FRAME.raw_kind, str(path), allow_missing=True)
+    return out
+
+
+def _hand_position(
+    t: np.ndarray,
+    values: dict[str, np.ndarray],
+    reference: np.ndarray | None,
+) -> np.ndarray | None:
+    """The hand frame that ends closest to ``reference`` (T, 3) [m], gaps filled; None without one."""
+    best, best_d = None, np.inf
+    for f in HAND_FRAMES:
+        v = values.get("frame:" + f)
+        if v is None or reference is None:
+            continue
+        tail = slice(int(0.8 * t.size), None)
+        d = np.linalg.norm(v[tail] - reference[tail], axis=1)
+        d = float(np.nanmedian(d)) if np.any(np.isfinite(d)) else np.inf
+        if d < best_d:
+            best, best_d = v, d
+    if best is not None and np.sum(np.all(np.isfinite(best), axis=1)) >= 2:
+        return _fill_gaps(t, best)
+    return None
+
+
+def _gripper_reference(
+    t: np.ndarray,
+    values: dict[str, np.ndarray],
+    extras: dict[str, np.ndarray],
+    end_effector: Callable[[np.ndarray], np.ndarray] | None,
+) -> np.ndarray | None:
+    """Where the robot's gripper is (T, 3) [m]: the end-point, else a tracked gripper frame, else the
+    forward kinematics ``end_effector`` of the joints; None without any."""
+    if "endpoint_pose" in extras:
+        return extras["endpoint_pose"][:, :3]
+    for f in GRIPPER_FRAMES:
+        v = values.get("frame:" + f)
+        if v is not None and np.any(np.all(np.isfinite(v[int(0.8 * t.size) :]), axis=1)):
+            return v
+    if end_effector is not None:
+        return np.asarray(end_effector(values[ROBOT]), dtype=float).reshape(t.size, 3)
+    return None
+
+
 def read_demo(
     path: Path,
     task: str | None = None,
@@ -225,100 +350,19 @@ def read_demo(
     src = str(path)
     receive = _stamps(table, "%time")
     pc_stamp = _stamps(table, P + "header.stamp")
-
-    emg_h, emg_r, emg = _sub_stream(
-        table, P + "emgStates.header.stamp", [f"{P}emgStates.ch{i}" for i in range(8)], receive
-    )
-    imu_cols = [f"{P}imuStates.orientation.{a}" for a in "wxyz"]
-    imu_cols += [f"{P}imuStates.linear_acceleration.{a}" for a in "xyz"]
-    imu_h, imu_r, imu = _sub_stream(table, P + "imuStates.header.stamp", imu_cols, receive)
-    ep_cols = [f"{P}endpointStates.pose.position.{a}" for a in "xyz"]
-    ep_cols += [f"{P}endpointStates.pose.orientation.{a}" for a in "xyzw"]
-    endpoint = _sub_stream(table, P + "endpointStates.header.stamp", ep_cols, receive, optional=True)
-    check_range(path, P + "emgStates", emg, *EMG_RAW_RANGE, "", EMG_CHANNELS, what="message")
-
-    # Joints by name, per row.
-    name_cols = []
-    k = 0
-    while table.has(f"{P}jointStates.name{k}"):
-        name_cols.append(f"{P}jointStates.name{k}")
-        k += 1
-    if not name_cols:
-        raise DataError(path, P + "jointStates.name0", "missing column")
-    name_text = [table.text(c) for c in name_cols]
-    names_per_row = [tuple(n[r] for n in name_text if n[r]) for r in range(len(table))]
-    keep, cols = select_joint_messages(path, names_per_row, robot_joints)
-    pos_cols = [f"{P}jointStates.position{k}" for k in range(len(name_cols))]
-    layout_len = len(names_per_row[int(np.flatnonzero(keep)[0])])
-    jpos = table.numbers(pos_cols[:layout_len])
-    j_h_all = _stamps(table, P + "jointStates.header.stamp")
-    keep &= j_h_all > 0
-    j_h, j_r, jpos = j_h_all[keep], receive[keep], jpos[keep][:, cols]
-    check_joint_angles(path, P + "jointStates.position", jpos, robot_joints, what="message")
-
-    # Orientation and acceleration sanity (raw Myo ints), end-point positions and quaternions.
-    q = imu[:, :4] / MYO_ORIENTATION_SCALE
-    acc = imu[:, 4:7] / MYO_ACCELEROMETER_SCALE
-    check_raw_imu(path, P + "imuStates.orientation", P + "imuStates.linear_acceleration", q, acc)
-    if endpoint is not None:
-        check_raw_endpoint(path, P + "endpointStates.pose", endpoint[2])
-
-    def on_pc(h: np.ndarray, r: np.ndarray) -> np.ndarray:
-        return h - estimate_clock_offset(h, r)
-
-    streams = {
-        "emg": Stream(on_pc(emg_h, emg_r), emg, EMG_CHANNELS, "previous", src),
-        "orientation": Stream(
-            on_pc(imu_h, imu_r), quaternion_continuity(q), ORIENTATION_CHANNELS, "quaternion", src
-        ),
-        "acc": Stream(on_pc(imu_h, imu_r), acc, ACC_CHANNELS, "linear", src),
-        ROBOT: Stream(on_pc(j_h, j_r), jpos, tuple(robot_joints), "linear", src),
-    }
-    if endpoint is not None:
-        ep_h, ep_r, ep = endpoint
-        streams["endpoint_position"] = Stream(on_pc(ep_h, ep_r), ep[:, :3], ("x", "y", "z"), "linear", src)
-        streams["endpoint_orientation"] = Stream(
-            on_pc(ep_h, ep_r), ep[:, 3:7], ("qx", "qy", "qz", "qw"), "quaternion", src
-        )
-    sk_t = on_pc(pc_stamp, receive)
-    prefixes = _find_transforms(table)
+    streams = _message_streams(table, receive, robot_joints)
+    sk_t = pc_stamp - estimate_clock_offset(pc_stamp, receive)
     frames = list(frames or [])
     reserved = set(streams) | {"hand_position"}
-    for f in frames:
-        if f in reserved:
-            raise DataError(path, f, "frame name clashes with a channel group name")
-    skeleton: dict[str, np.ndarray] = {}
-    gripper = [] if endpoint is not None else list(GRIPPER_FRAMES)
-    for f in dict.fromkeys(frames + list(HAND_FRAMES) + gripper):
-        p = _frame_positions(table, prefixes, f)
-        if p is not None:
-            check_norms(path, f, p, 0.0, POSITION_BOUND_M, "m", what="row")
-        if p is None:
-            if f in frames:
-                available = sorted({s for pr in prefixes for s in table.text(pr + "child_frame_id") if s})
-                raise DataError(path, f, f"frame never tracked (child_frame_ids: {', '.join(available)})")
-            continue
-        p[flag_jumps(p)] = np.nan
-        if np.sum(np.all(np.isfinite(p), axis=1)) < 2:
-            if f in frames:
-                raise DataError(path, f, "fewer than 2 valid samples of the frame")
-            continue
-        skeleton[f] = p
-        streams["frame:" + f] = Stream(sk_t, p, ("x", "y", "z"), "linear", src, allow_missing=True)
+    streams.update(_frame_streams(table, frames, sk_t, reserved, "endpoint_position" not in streams))
 
     t, values, _ = align_streams(streams, rate_hz, src)
-    dt = 1.0 / rate_hz
-    groups = {
-        "orientation": values["orientation"],
-        "emg": emg_envelope(values["emg"], dt, emg_cutoff_hz),
-        "acc": values["acc"],
-    }
-    names = {"orientation": ORIENTATION_CHANNELS, "emg": EMG_CHANNELS, "acc": ACC_CHANNELS}
+    groups, names = myo_groups(values, rate_hz, emg_cutoff_hz)
     missing = {}
     for f in frames:
         v = values["frame:" + f]
         groups[f] = v
-        names[f] = ("x", "y", "z")
+        names[f] = FRAME.channels
         m = ~np.all(np.isfinite(v), axis=1)
         if m.all():
             raise DataError(path, f, "frame missing over the whole demo")
@@ -327,31 +371,10 @@ def read_demo(
             missing[f] = m
     groups[ROBOT] = values[ROBOT]
     names[ROBOT] = tuple(robot_joints)
-    extras = {}
-    reference = None  # where the robot's gripper is: the hand handing over ends near it
-    if endpoint is not None:
-        extras["endpoint_pose"] = np.hstack([values["endpoint_position"], values["endpoint_orientation"]])
-        reference = extras["endpoint_pose"][:, :3]
-    else:
-        for f in GRIPPER_FRAMES:
-            v = values.get("frame:" + f)
-            if v is not None and np.any(np.all(np.isfinite(v[int(0.8 * t.size) :]), axis=1)):
-                reference = v
-                break
-        if reference is None and end_effector is not None:
-            reference = np.asarray(end_effector(values[ROBOT]), dtype=float).reshape(t.size, 3)
-    best, best_d = None, np.inf
-    for f in HAND_FRAMES:
-        v = values.get("frame:" + f)
-        if v is None or reference is None:
-            continue
-        tail = slice(int(0.8 * t.size), None)
-        d = np.linalg.norm(v[tail] - reference[tail], axis=1)
-        d = float(np.nanmedian(d)) if np.any(np.isfinite(d)) else np.inf
-        if d < best_d:
-            best, best_d = v, d
-    if best is not None and np.sum(np.all(np.isfinite(best), axis=1)) >= 2:
-        extras["hand_position"] = _fill_gaps(t, best)
+    extras = endpoint_extras(values)
+    hand = _hand_position(t, values, _gripper_reference(t, values, extras, end_effector))
+    if hand is not None:
+        extras["hand_position"] = hand
     return Demo(
         task=task if task is not None else path.parent.parent.parent.name,
         name=path.parent.name,

@@ -66,6 +66,7 @@ import numpy as np
 from .. import atomic
 from ..data import ROBOT, Dataset, Demo
 from ..exceptions import DataError
+from ..signals.groups import group_spec
 from ..signals.preprocess import Stream, align_streams
 
 FORMAT_TAG = "ipromp_pin.demo"
@@ -385,15 +386,16 @@ def _select_joints(demo: Demo, joints: tuple[str, ...]) -> Demo:
 
 
 def resample_demo(demo: Demo, rate_hz: float) -> Demo:
-    """The demo on a uniform grid at ``rate_hz`` (linear interpolation; ``"orientation"``
-    renormalised; a grid sample next to a missing one is missing)."""
+    """The demo on a uniform grid at ``rate_hz`` (each group by the interpolation of its channel-group
+    specification: linear, ``"orientation"`` as quaternions; extras linear; a grid sample next to a
+    missing one is missing)."""
     if not (np.isfinite(rate_hz) and rate_hz > 0):
         raise DataError(demo.source, "rate_hz", f"must be positive, got {rate_hz}")
     if abs(demo.dt * rate_hz - 1.0) < 1e-6:
         return demo
     streams = {}
     for g, v in demo.groups.items():
-        kind = "quaternion" if g == "orientation" and v.shape[1] == 4 else "linear"
+        kind = group_spec(g).interpolation_kind(v.shape[1])
         streams[g] = Stream(
             demo.t, v, demo.channel_names[g], kind, demo.source, allow_missing=g in demo.missing
         )

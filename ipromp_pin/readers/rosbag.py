@@ -27,7 +27,7 @@ import numpy as np
 from ..data import Demo
 from ..exceptions import DataError
 from ..signals.preprocess import DEFAULT_EMG_CUTOFF_HZ
-from ._common import (
+from .streams import (
     BAXTER_LEFT_JOINTS,
     RawRecording,
     RawStream,

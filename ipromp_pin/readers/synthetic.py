@@ -43,11 +43,14 @@ Everything is deterministic for a given ``seed``.
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
+
 import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ..data import ROBOT, Dataset, Demo
 from ..exceptions import DataError
+from ..signals.groups import ACC, EMG, ORIENTATION
 from ..signals.preprocess import DEFAULT_EMG_CUTOFF_HZ, emg_envelope, quaternion_continuity
 
 NOMINAL_DURATION_S = 3.3
@@ -349,85 +352,106 @@ def make_synthetic_dataset(
     if not (np.isfinite(coupling) and 0.0 <= coupling <= 1.5):
         raise DataError("synthetic", "coupling", f"must be in [0, 1.5], got {coupling}")
     rng = np.random.default_rng(seed)
-    defs = _task_definitions(int(n_tasks))
-    r_start = Rotation.from_quat(np.roll(ORIENTATION_START_WXYZ, -1))
-    r_end = Rotation.from_quat(np.roll(ORIENTATION_END_WXYZ, -1))
-    lo, hi = BAXTER_LEFT_LIMITS_RAD[:, 0] + LIMIT_MARGIN_RAD, BAXTER_LEFT_LIMITS_RAD[:, 1] - LIMIT_MARGIN_RAD
-    dt = 1.0 / rate_hz
+    setting = _Setting(_task_definitions(int(n_tasks)), rate_hz, noise, emg_cutoff_hz, coupling, seed)
     demos: dict[str, list[Demo]] = {}
-    for k, task in enumerate(defs["names"]):
+    for k, task in enumerate(setting.defs["names"]):
         # Task-specific small tilt of the end orientation about a fixed axis per task.
         axis = np.array([np.cos(2.1 * k), np.sin(2.1 * k), 0.3])
         tilt = Rotation.from_rotvec(np.deg2rad(TASK_ORIENTATION_TILT_DEG) * k * axis / np.linalg.norm(axis))
-        out = demos[task] = []
-        for i in range(int(n_demos)):
-            duration = rng.uniform(*DURATION_RANGE_S)
-            n = int(round(duration * rate_hz)) + 1
-            t = dt * np.arange(n)
-            phase = t / t[-1]
-            # Latent hand-over offset [m] (base frame) shared by the human's and the robot's motion,
-            # and the robot's hand-over configuration: the task's, changed by its response to the
-            # offset plus a residual that leaves the gripper's position unchanged (to first order),
-            # as on the real robot. An offset the arm cannot follow inside its joint limits is
-            # shortened (the human hands over where the robot can reach).
-            offset = np.clip(rng.normal(0.0, 1.0, 3), -2.5, 2.5) * HANDOVER_OFFSET_STD_M * noise
-            residual = rng.normal(0, RESIDUAL_SCALE * noise, 7) * HANDOVER_Q_RESIDUAL_STD_RAD
-            q_base = np.clip(defs["q_end"][k] + defs["null_space"][k] @ residual, lo, hi)
-            dq = coupling * defs["offset_to_q"][k] @ offset
-            offset = offset * _feasible_fraction(q_base, dq, lo, hi)
-            q1 = np.clip(q_base + coupling * defs["offset_to_q"][k] @ offset, lo, hi)
-
-            # Human forearm orientation: shared path, turned early towards the hand-over point,
-            # demo-to-demo variation, sensor noise.
-            jitter0 = Rotation.from_rotvec(rng.normal(0, np.deg2rad(ORIENTATION_JITTER_DEG) * noise, 3))
-            jitter1 = Rotation.from_rotvec(rng.normal(0, np.deg2rad(ORIENTATION_JITTER_DEG) * noise, 3))
-            ra, rb = jitter0 * r_start, jitter1 * tilt * r_end
-            rel = (ra.inv() * rb).as_rotvec()
-            s_h = min_jerk((phase - rng.uniform(0.0, 0.05)) / rng.uniform(0.7, 0.8))
-            r = ra * Rotation.from_rotvec(s_h[:, None] * rel[None, :])
-            s_aim = min_jerk(phase / AIM_PHASE)
-            r = Rotation.from_rotvec(s_aim[:, None] * (AIM_GAIN_RAD_PER_M @ offset)[None, :]) * r
-            r = Rotation.from_rotvec(rng.normal(0, 0.004 * noise, (n, 3))) * r
-            quat = quaternion_continuity(np.roll(r.as_quat(), 1, axis=1))
-            if quat[0, 0] < 0:
-                quat = -quat
-            # Accelerometer: gravity in the sensor frame [g] plus the hand's motion and noise.
-            acc = r.inv().apply([0.0, 0.0, 1.0]) + rng.normal(0, 0.02 * noise, (n, 3))
-
-            # EMG: task pattern, demo gain, grasp activation over the phase, noisy raw samples.
-            gain = np.exp(rng.normal(0, EMG_GAIN_LOG_STD * noise, 8))
-            act = 0.35 + 0.65 * min_jerk(phase / 0.12) - 0.35 * min_jerk((phase - 0.6) / 0.4)
-            prof = defs["rest"][k] + (defs["active"][k] - defs["rest"][k]) * act[:, None]
-            raw = np.abs(prof * gain * (1.0 + rng.normal(0, EMG_RAW_NOISE * noise, (n, 8))))
-            emg = emg_envelope(raw, dt, emg_cutoff_hz)
-
-            # Robot: minimum-jerk from the start to the demo's hand-over configuration q1.
-            q0 = START_Q_RAD + rng.normal(0, 0.005 * noise, 7)
-            a, b = rng.uniform(0.02, 0.08), rng.uniform(0.80, 0.90)
-            s_r = min_jerk((phase - a) / (b - a))
-            q = q0 + s_r[:, None] * (q1 - q0)
-
-            # Human hand: from its start to just in front of the robot's hand-over point, slight arc.
-            h1 = defs["point"][k] + offset + HAND_BEYOND_GRIPPER_M + rng.normal(0, 0.01 * noise, 3)
-            h0 = HAND_START_M + rng.normal(0, 0.03 * noise, 3)
-            arc = np.array([0.0, 0.0, 0.10]) * np.sin(np.pi * s_h)[:, None]
-            hand = h0 + s_h[:, None] * (h1 - h0) + arc + rng.normal(0, 0.003 * noise, (n, 3))
-
-            out.append(
-                Demo(
-                    task=task,
-                    name=f"{task}_{i:03d}",
-                    source=f"synthetic(seed={seed})/{task}/{i}",
-                    t=t,
-                    groups={"orientation": quat, "emg": emg, "acc": acc, ROBOT: q},
-                    channel_names={
-                        "orientation": ("qw", "qx", "qy", "qz"),
-                        "emg": tuple(f"emg{c}" for c in range(8)),
-                        "acc": ("ax", "ay", "az"),
-                        ROBOT: JOINT_NAMES,
-                    },
-                    extras={"hand_position": hand, "handover_offset": np.tile(offset, (n, 1))},
-                    duration_s=float(t[-1]),
-                )
-            )
+        demos[task] = [_synthetic_demo(rng, setting, k, task, i, tilt) for i in range(int(n_demos))]
     return Dataset(root=f"synthetic(seed={seed})", demos=demos)
+
+
+@dataclass(frozen=True)
+class _Setting:
+    """What every demo of one synthetic dataset shares (see :func:`make_synthetic_dataset`)."""
+
+    defs: dict[str, np.ndarray | list[str]]
+    rate_hz: float
+    noise: float
+    emg_cutoff_hz: float
+    coupling: float
+    seed: int | None
+    r_start: Rotation = field(default_factory=lambda: Rotation.from_quat(np.roll(ORIENTATION_START_WXYZ, -1)))
+    r_end: Rotation = field(default_factory=lambda: Rotation.from_quat(np.roll(ORIENTATION_END_WXYZ, -1)))
+    lo: np.ndarray = field(default_factory=lambda: BAXTER_LEFT_LIMITS_RAD[:, 0] + LIMIT_MARGIN_RAD)
+    hi: np.ndarray = field(default_factory=lambda: BAXTER_LEFT_LIMITS_RAD[:, 1] - LIMIT_MARGIN_RAD)
+
+
+def _demo_offset(rng: np.random.Generator, s: _Setting, k: int) -> tuple[np.ndarray, np.ndarray]:
+    """A demo's latent hand-over offset (3,) in [m] (base frame) and the robot's hand-over
+    configuration (7,) in [rad].
+
+    The configuration is the task's, changed by its response to the offset plus a residual that
+    leaves the gripper's position unchanged (to first order), as on the real robot. An offset the arm
+    cannot follow inside its joint limits is shortened (the human hands over where the robot can
+    reach).
+    """
+    offset = np.clip(rng.normal(0.0, 1.0, 3), -2.5, 2.5) * HANDOVER_OFFSET_STD_M * s.noise
+    residual = rng.normal(0, RESIDUAL_SCALE * s.noise, 7) * HANDOVER_Q_RESIDUAL_STD_RAD
+    q_base = np.clip(s.defs["q_end"][k] + s.defs["null_space"][k] @ residual, s.lo, s.hi)
+    dq = s.coupling * s.defs["offset_to_q"][k] @ offset
+    offset = offset * _feasible_fraction(q_base, dq, s.lo, s.hi)
+    q1 = np.clip(q_base + s.coupling * s.defs["offset_to_q"][k] @ offset, s.lo, s.hi)
+    return offset, q1
+
+
+def _synthetic_demo(rng: np.random.Generator, s: _Setting, k: int, task: str, i: int, tilt: Rotation) -> Demo:
+    """Demo ``i`` of task ``k`` (the draws from ``rng`` in a fixed order: same seed, same demos)."""
+    noise, dt = s.noise, 1.0 / s.rate_hz
+    duration = rng.uniform(*DURATION_RANGE_S)
+    n = int(round(duration * s.rate_hz)) + 1
+    t = dt * np.arange(n)
+    phase = t / t[-1]
+    offset, q1 = _demo_offset(rng, s, k)
+
+    # Human forearm orientation: shared path, turned early towards the hand-over point,
+    # demo-to-demo variation, sensor noise.
+    jitter0 = Rotation.from_rotvec(rng.normal(0, np.deg2rad(ORIENTATION_JITTER_DEG) * noise, 3))
+    jitter1 = Rotation.from_rotvec(rng.normal(0, np.deg2rad(ORIENTATION_JITTER_DEG) * noise, 3))
+    ra, rb = jitter0 * s.r_start, jitter1 * tilt * s.r_end
+    rel = (ra.inv() * rb).as_rotvec()
+    s_h = min_jerk((phase - rng.uniform(0.0, 0.05)) / rng.uniform(0.7, 0.8))
+    r = ra * Rotation.from_rotvec(s_h[:, None] * rel[None, :])
+    s_aim = min_jerk(phase / AIM_PHASE)
+    r = Rotation.from_rotvec(s_aim[:, None] * (AIM_GAIN_RAD_PER_M @ offset)[None, :]) * r
+    r = Rotation.from_rotvec(rng.normal(0, 0.004 * noise, (n, 3))) * r
+    quat = quaternion_continuity(np.roll(r.as_quat(), 1, axis=1))
+    if quat[0, 0] < 0:
+        quat = -quat
+    # Accelerometer: gravity in the sensor frame [g] plus the hand's motion and noise.
+    acc = r.inv().apply([0.0, 0.0, 1.0]) + rng.normal(0, 0.02 * noise, (n, 3))
+
+    # EMG: task pattern, demo gain, grasp activation over the phase, noisy raw samples.
+    gain = np.exp(rng.normal(0, EMG_GAIN_LOG_STD * noise, 8))
+    act = 0.35 + 0.65 * min_jerk(phase / 0.12) - 0.35 * min_jerk((phase - 0.6) / 0.4)
+    prof = s.defs["rest"][k] + (s.defs["active"][k] - s.defs["rest"][k]) * act[:, None]
+    raw = np.abs(prof * gain * (1.0 + rng.normal(0, EMG_RAW_NOISE * noise, (n, 8))))
+    emg = emg_envelope(raw, dt, s.emg_cutoff_hz)
+
+    # Robot: minimum-jerk from the start to the demo's hand-over configuration q1.
+    q0 = START_Q_RAD + rng.normal(0, 0.005 * noise, 7)
+    a, b = rng.uniform(0.02, 0.08), rng.uniform(0.80, 0.90)
+    s_r = min_jerk((phase - a) / (b - a))
+    q = q0 + s_r[:, None] * (q1 - q0)
+
+    # Human hand: from its start to just in front of the robot's hand-over point, slight arc.
+    h1 = s.defs["point"][k] + offset + HAND_BEYOND_GRIPPER_M + rng.normal(0, 0.01 * noise, 3)
+    h0 = HAND_START_M + rng.normal(0, 0.03 * noise, 3)
+    arc = np.array([0.0, 0.0, 0.10]) * np.sin(np.pi * s_h)[:, None]
+    hand = h0 + s_h[:, None] * (h1 - h0) + arc + rng.normal(0, 0.003 * noise, (n, 3))
+    return Demo(
+        task=task,
+        name=f"{task}_{i:03d}",
+        source=f"synthetic(seed={s.seed})/{task}/{i}",
+        t=t,
+        groups={"orientation": quat, "emg": emg, "acc": acc, ROBOT: q},
+        channel_names={
+            "orientation": ORIENTATION.channels,
+            "emg": EMG.channels,
+            "acc": ACC.channels,
+            ROBOT: JOINT_NAMES,
+        },
+        extras={"hand_position": hand, "handover_offset": np.tile(offset, (n, 1))},
+        duration_s=float(t[-1]),
+    )

@@ -1,8 +1,11 @@
-"""Pieces shared by the readers: joint names, CSV access, and the chen2017 demo assembly.
+"""Pieces shared by the readers: joint names, CSV access, the recorded streams and the demo assembly.
 
 The chen2017 CSV export and the original ROS bags hold the same four message
 streams; both readers parse them into :class:`RawRecording` and build the demo
 with :func:`assemble_chen2017`, so the two formats give the same :class:`Demo`.
+The multimodal reader bundles the same Myo and Baxter streams: every reader builds them with
+:func:`recorded_streams` and the demo's Myo groups with :func:`myo_groups`; channel names and
+interpolation kinds come from the channel-group specifications (:mod:`ipromp_pin.signals.groups`).
 """
 
 from __future__ import annotations
@@ -17,15 +20,7 @@ import numpy as np
 
 from ..data import ROBOT, Demo
 from ..exceptions import DataError
-from ..signals.preprocess import (
-    DEFAULT_EMG_CUTOFF_HZ,
-    Stream,
-    align_streams,
-    emg_envelope,
-    estimate_clock_offset,
-    quaternion_continuity,
-)
-from .plausibility import (
+from ..signals.checks import (
     ACCELERATION_MAX_G,
     EMG_RAW_RANGE,
     POSITION_BOUND_M,
@@ -33,6 +28,15 @@ from .plausibility import (
     check_joint_angles,
     check_norms,
     check_range,
+)
+from ..signals.groups import ACC, EMG, ORIENTATION, ROBOT_GROUP, SKELETON_FRAME
+from ..signals.preprocess import (
+    DEFAULT_EMG_CUTOFF_HZ,
+    Stream,
+    align_streams,
+    emg_envelope,
+    estimate_clock_offset,
+    quaternion_continuity,
 )
 
 BAXTER_LEFT_JOINTS: tuple[str, ...] = (
@@ -46,9 +50,9 @@ BAXTER_LEFT_JOINTS: tuple[str, ...] = (
 )
 """Baxter's left-arm joints in the URDF's kinematic order (the default robot group)."""
 
-ORIENTATION_CHANNELS = ("qw", "qx", "qy", "qz")
-EMG_CHANNELS = tuple(f"emg{i}" for i in range(8))
-ACC_CHANNELS = ("ax", "ay", "az")
+ORIENTATION_CHANNELS = ORIENTATION.channels
+EMG_CHANNELS = EMG.channels
+ACC_CHANNELS = ACC.channels
 
 MYO_ORIENTATION_SCALE = 16384.0
 """Myo firmware quaternion scaling (myohw.h: MYOHW_ORIENTATION_SCALE), raw units per 1."""
@@ -337,41 +341,85 @@ def assemble_chen2017(
     if raw.endpoint is not None:
         check_raw_endpoint(raw.endpoint.source, ".pose", raw.endpoint.values)
     on_pc = {k: s.header_s - offsets[k] for k, s in streams.items()}
-    aligned_in = {
-        "emg": Stream(on_pc["emg"], raw.emg.values, EMG_CHANNELS, "previous", raw.emg.source),
-        "orientation": Stream(
-            on_pc["imu"], quaternion_continuity(q_raw), ORIENTATION_CHANNELS, "quaternion", raw.imu.source
-        ),
-        "acc": Stream(
-            on_pc["imu"], imu[:, 4:7] / MYO_ACCELEROMETER_SCALE, ACC_CHANNELS, "linear", raw.imu.source
-        ),
-        ROBOT: Stream(on_pc["robot"], raw.joints.values, tuple(robot_joints), "linear", raw.joints.source),
-    }
-    if raw.endpoint is not None:
-        ep = raw.endpoint
-        aligned_in["endpoint_position"] = Stream(
-            on_pc["endpoint"], ep.values[:, :3], ("x", "y", "z"), "linear", ep.source
-        )
-        aligned_in["endpoint_orientation"] = Stream(
-            on_pc["endpoint"], ep.values[:, 3:7], ("qx", "qy", "qz", "qw"), "quaternion", ep.source
-        )
+    sources = {k: s.source for k, s in streams.items()}
+    ep = None if raw.endpoint is None else raw.endpoint.values
+    emg = raw.emg.values
+    aligned_in = recorded_streams(
+        on_pc, emg, q_raw, imu[:, 4:7] / MYO_ACCELEROMETER_SCALE, raw.joints.values, robot_joints, ep, sources
+    )
     t, values, _ = align_streams(aligned_in, rate_hz, source)
-    dt = 1.0 / rate_hz
-    groups = {
-        "orientation": values["orientation"],
-        "emg": emg_envelope(values["emg"], dt, emg_cutoff_hz),
-        "acc": values["acc"],
-        ROBOT: values[ROBOT],
-    }
-    names = {
-        "orientation": ORIENTATION_CHANNELS,
-        "emg": EMG_CHANNELS,
-        "acc": ACC_CHANNELS,
-        ROBOT: tuple(robot_joints),
-    }
-    extras = {}
-    if raw.endpoint is not None:
-        extras["endpoint_pose"] = np.hstack([values["endpoint_position"], values["endpoint_orientation"]])
+    groups, names = myo_groups(values, rate_hz, emg_cutoff_hz)
+    groups[ROBOT] = values[ROBOT]
+    names[ROBOT] = tuple(robot_joints)
+    extras = endpoint_extras(values)
     return Demo(
         task=task, name=name, source=str(source), t=t, groups=groups, channel_names=names, extras=extras
     )
+
+
+def recorded_streams(
+    t: dict[str, np.ndarray],
+    emg: np.ndarray,
+    orientation: np.ndarray,
+    acc: np.ndarray,
+    joints: np.ndarray,
+    robot_joints: Sequence[str],
+    endpoint: np.ndarray | None,
+    sources: dict[str, str],
+) -> dict[str, Stream]:
+    """The streams a reader aligns: raw EMG, Myo orientation and acceleration, the robot's joints
+    and the optional end-point, with the interpolation kinds of their channel groups.
+
+    Args:
+        t: Stream (``"emg"``, ``"imu"``, ``"robot"``, ``"endpoint"``) -> its times on the
+            recording PC's clock in [s], shape (N_stream,).
+        emg: Raw EMG samples (N_emg, 8).
+        orientation: Unit quaternions w, x, y, z (N_imu, 4) (made sign-continuous here).
+        acc: Accelerations (N_imu, 3) in [g].
+        joints: Joint angles (N_robot, J) in [rad] of ``robot_joints``.
+        endpoint: End-point poses (N_endpoint, 7), position [m] and quaternion x, y, z, w, or None.
+        sources: Stream -> file it came from.
+    """
+    out = {
+        "emg": Stream(t["emg"], emg, EMG.channels, EMG.raw_kind, sources["emg"]),
+        "orientation": Stream(
+            t["imu"],
+            quaternion_continuity(orientation),
+            ORIENTATION.channels,
+            ORIENTATION.raw_kind,
+            sources["imu"],
+        ),
+        "acc": Stream(t["imu"], acc, ACC.channels, ACC.raw_kind, sources["imu"]),
+        ROBOT: Stream(t["robot"], joints, tuple(robot_joints), ROBOT_GROUP.raw_kind, sources["robot"]),
+    }
+    if endpoint is not None:
+        ep_t, src = t["endpoint"], sources["endpoint"]
+        out["endpoint_position"] = Stream(
+            ep_t, endpoint[:, :3], SKELETON_FRAME.channels, SKELETON_FRAME.raw_kind, src
+        )
+        out["endpoint_orientation"] = Stream(
+            ep_t, endpoint[:, 3:7], ("qx", "qy", "qz", "qw"), ORIENTATION.raw_kind, src
+        )
+    return out
+
+
+def myo_groups(
+    values: dict[str, np.ndarray], rate_hz: float, emg_cutoff_hz: float
+) -> tuple[dict[str, np.ndarray], dict[str, tuple[str, ...]]]:
+    """The demo's Myo groups from the aligned streams: ``"orientation"``, ``"emg"`` (the causal
+    envelope of the held raw EMG, cut-off ``emg_cutoff_hz`` [Hz]) and ``"acc"``, with their
+    channel names."""
+    groups = {
+        "orientation": values["orientation"],
+        "emg": emg_envelope(values["emg"], 1.0 / rate_hz, emg_cutoff_hz),
+        "acc": values["acc"],
+    }
+    names = {"orientation": ORIENTATION.channels, "emg": EMG.channels, "acc": ACC.channels}
+    return groups, names
+
+
+def endpoint_extras(values: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """``{"endpoint_pose": (T, 7)}`` from the aligned end-point streams, or ``{}`` without them."""
+    if "endpoint_position" not in values:
+        return {}
+    return {"endpoint_pose": np.hstack([values["endpoint_position"], values["endpoint_orientation"]])}

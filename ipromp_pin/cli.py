@@ -186,7 +186,7 @@ def _pipeline_config(args: argparse.Namespace):
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    from .commands.pipeline import run_pipeline
+    from .commands.run import run_pipeline
 
     cfg = _pipeline_config(args)
     report = run_pipeline(cfg, log=print, allow_failing_checks=args.allow_failing_checks)
@@ -494,7 +494,7 @@ def cmd_synth(args: argparse.Namespace) -> int:
 
 def cmd_preview(args: argparse.Namespace) -> int:
     from . import atomic
-    from .commands.pipeline import run_preview
+    from .commands.preview import run_preview
 
     if args.html is not None:
         atomic.check_output_file(args.html, "preview page")

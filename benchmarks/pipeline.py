@@ -25,8 +25,8 @@ from pathlib import Path
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from ipromp_pin.commands.config import PipelineConfig
 from ipromp_pin import atomic
+from ipromp_pin.commands.config import PipelineConfig
 from ipromp_pin.commands.setup import choose_demo, get_model, load_data
 from ipromp_pin.handover.one_shot import plan
 from ipromp_pin.outputs.report import report_dict, report_text

@@ -102,9 +102,11 @@ def test_installed_copy_runs_the_main_job_from_another_folder(installed):
     assert "Recognised task" in run.stdout
     assert (out / "trajectory.csv").stat().st_size > 0
     report = json.loads((out / "report.json").read_text())
-    assert report["format"] == "ipromp_pin.outputs.report" and report["trajectory"]
+    assert report["format"] == "ipromp_pin.report" and report["trajectory"]
     # the run imported the installed modules (installed without .pyc files, so these are the run's)
     cache = site / "ipromp_pin" / "__pycache__"
-    assert list(cache.glob("cli.*.pyc")) and list(cache.glob("pipeline.*.pyc"))
+    assert list(cache.glob("cli.*.pyc")) and list(
+        (site / "ipromp_pin" / "commands" / "__pycache__").glob("run.*.pyc")
+    )
     assert list((site / "ipromp_pin" / "robot" / "__pycache__").glob("checks.*.pyc"))
     assert not list(site.rglob("*.nbi"))  # and no numba kernel was compiled

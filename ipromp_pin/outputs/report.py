@@ -11,7 +11,7 @@ from pathlib import Path
 from ..data import Demo
 from ..handover.one_shot import PlanResult
 
-REPORT_FORMAT = "ipromp_pin.outputs.report"
+REPORT_FORMAT = "ipromp_pin.report"
 """Value of ``report.json``'s ``format`` field."""
 
 REPORT_VERSION = 1

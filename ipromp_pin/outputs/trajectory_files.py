@@ -7,7 +7,7 @@ JSON: the message with the field names of ROS 2 ``trajectory_msgs/msg/JointTraje
 or of ROS 1 ``trajectory_msgs/JointTrajectory`` (``ros=1``), inside a small envelope that says
 which::
 
-    {"format": "ipromp_pin.motion.trajectory", "version": 2, "ros": 2,
+    {"format": "ipromp_pin.trajectory", "version": 2, "ros": 2,
      "type": "trajectory_msgs/msg/JointTrajectory",
      "message": {"header": {"stamp": {"sec": 0, "nanosec": 0}, "frame_id": ""},
                  "joint_names": [...],
@@ -124,7 +124,7 @@ def read_trajectory_csv(path: str | Path) -> Trajectory:
     return traj
 
 
-TRAJECTORY_FORMAT = "ipromp_pin.motion.trajectory"
+TRAJECTORY_FORMAT = "ipromp_pin.trajectory"
 """Value of ``trajectory.json``'s ``format`` field."""
 
 TRAJECTORY_VERSION = 2

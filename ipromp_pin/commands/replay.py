@@ -1,8 +1,8 @@
 """``ipromp-pin replay``: one held-out demo replayed in the closed loop, and its files.
 
-:func:`run_replay` reads the pipeline's data (the built-in synthetic demos by default), holds the
-chosen demo out, trains the model on the others (or loads one), chooses the limit profile, and
-replays the demo at its recorded timing (:func:`~ipromp_pin.handover.closed_loop.replay_demo`, simulated
+:func:`run_replay` sets up the command as ``run`` does (:func:`~ipromp_pin.commands.setup.prepare_session`:
+the pipeline's data, the chosen demo held out, the model trained on the others or loaded), chooses the
+limit profile, and replays the demo at its recorded timing (:func:`~ipromp_pin.handover.closed_loop.replay_demo`, simulated
 clock). It writes into the output folder:
 
 - ``trajectory.csv`` and ``trajectory.json``: the commanded trajectory at the control rate
@@ -14,8 +14,9 @@ clock). It writes into the output folder:
 - ``limits.toml``: the limit profile used (reusable with ``--limits limits.toml``);
 - ``preview.html``: the time-scrubbing preview (:mod:`ipromp_pin.preview.timeline`).
 
-Every input is checked before anything is computed (one-line errors naming the file and field):
-the closed-loop settings, the limit profile, the demo's observed and robot groups and the length
+The files are listed in :mod:`ipromp_pin.outputs.files`, staged by :mod:`ipromp_pin.outputs.staging`
+and built by :mod:`ipromp_pin.outputs.replay_report`. Every input is checked before anything is computed (one-line errors naming the file and field):
+the closed-loop settings (by the caller: the command line validates them), the limit profile, the demo's observed and robot groups and the length
 of its start window.
 """
 
@@ -102,10 +103,12 @@ class ReplayChecks(SetupChecks):
     start_s: float = 0.0
 
     def check_demo(self, demo: Demo) -> None:
+        """Refuse a demo without the observed and robot groups or with a start window under 2 samples."""
         demo.require(list(self.observe) + [ROBOT])
         self.start_s = start_time(demo, self.start_ratio)
 
     def check_model(self, model: IProMP, demo: Demo) -> None:
+        """Refuse a demo without every group the model observes."""
         demo.require(list(model.observe_))
 
 

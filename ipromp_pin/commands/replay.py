@@ -1,9 +1,10 @@
 """``ipromp-pin replay``: one held-out demo replayed in the closed loop, and its files.
 
-:func:`run_replay` sets up the command as ``run`` does (:func:`~ipromp_pin.commands.setup.prepare_session`:
-the pipeline's data, the chosen demo held out, the model trained on the others or loaded), chooses the
-limit profile, and replays the demo at its recorded timing (:func:`~ipromp_pin.handover.closed_loop.replay_demo`, simulated
-clock). It writes into the output folder:
+:func:`run_replay` sets up the command as ``run`` does
+(:func:`~ipromp_pin.commands.setup.prepare_session`: the pipeline's data, the chosen demo held out,
+the model trained on the others or loaded), chooses the limit profile, and replays the demo at its
+recorded timing (:func:`~ipromp_pin.handover.closed_loop.replay_demo`, simulated clock). It writes
+into the output folder:
 
 - ``trajectory.csv`` and ``trajectory.json``: the commanded trajectory at the control rate
   (:mod:`ipromp_pin.outputs.trajectory_files`, as ``run`` writes them);
@@ -15,9 +16,10 @@ clock). It writes into the output folder:
 - ``preview.html``: the time-scrubbing preview (:mod:`ipromp_pin.preview.timeline`).
 
 The files are listed in :mod:`ipromp_pin.outputs.files`, staged by :mod:`ipromp_pin.outputs.staging`
-and built by :mod:`ipromp_pin.outputs.replay_report`. Every input is checked before anything is computed (one-line errors naming the file and field):
-the closed-loop settings (by the caller: the command line validates them), the limit profile, the demo's observed and robot groups and the length
-of its start window.
+and built by :mod:`ipromp_pin.outputs.replay_report`. Every input is checked before anything is
+computed (one-line errors naming the file and field): the closed-loop settings (by the caller: the
+command line validates them), the limit profile, the demo's observed and robot groups and the
+length of its start window.
 """
 
 from __future__ import annotations

@@ -25,9 +25,12 @@ from pathlib import Path
 import numpy as np
 from threadpoolctl import threadpool_limits
 
+from ipromp_pin import atomic
 from ipromp_pin.commands.config import PipelineConfig
-from ipromp_pin.commands.pipeline import OutputOptions, choose_demo, get_model, load_data, write_outputs
+from ipromp_pin.commands.setup import choose_demo, get_model, load_data
 from ipromp_pin.handover.one_shot import plan
+from ipromp_pin.outputs.report import report_dict, report_text
+from ipromp_pin.outputs.staging import OutputOptions, stage_plan, stage_report
 from ipromp_pin.robot import load_robot
 
 
@@ -59,7 +62,10 @@ def main() -> None:
             t0 = time.perf_counter()
             result = plan(model, robot, obs, cfg.control_rate_hz)
             t1 = time.perf_counter()
-            write_outputs(result, Path(tmp), obs, options=OutputOptions(rosbag=not args.no_rosbag))
+            with atomic.OutputSet(tmp) as out:  # the files as ``ipromp-pin run`` stages them
+                stage_plan(result, out, obs, OutputOptions(rosbag=not args.no_rosbag))
+                stage_report(out, report_dict(result, obs), report_text(result, obs))
+                out.commit()
             t2 = time.perf_counter()
             if i < 3:  # warm-up
                 continue

@@ -65,7 +65,3 @@ class PipelineError(IPrompPinError):
 class OutputError(IPrompPinError):
     """An output file or folder cannot be written (a file where a folder is needed, a read-only
     folder, a full disk); earlier files are left as they were."""
-
-
-class ChecksFailedError(IPrompPinError):
-    """The planned motion failed a required feasibility check or its timing verification."""

@@ -26,11 +26,12 @@ from helpers_model import random_dataset
 
 from ipromp_pin import cli
 from ipromp_pin.cli import main
-from ipromp_pin.commands import pipeline
+from ipromp_pin.commands import run as run_command
 from ipromp_pin.commands.config import load_pipeline
 from ipromp_pin.exceptions import DataError, InfeasibleError, ModelError, ObservationError
 from ipromp_pin.handover.one_shot import check_model_joints
 from ipromp_pin.motion.timing import MAX_TRAJECTORY_SAMPLES, JointLimits, time_path
+from ipromp_pin.outputs import staging
 from ipromp_pin.outputs.trajectory_files import read_trajectory_csv, read_trajectory_json
 from ipromp_pin.promp import IProMP
 from ipromp_pin.readers import load_dataset, read_demo, write_demo
@@ -190,8 +191,11 @@ def _snapshot(folder: Path) -> dict[str, bytes]:
     return {p.relative_to(folder).as_posix(): p.read_bytes() for p in folder.rglob("*") if p.is_file()}
 
 
-@pytest.mark.parametrize("stage", ["report_text", "trajectory_json_text", "render_html"])
-def test_run_failing_midway_leaves_the_earlier_outputs(tmp_path, tiny, monkeypatch, capsys, stage):
+@pytest.mark.parametrize(
+    "module, stage",
+    [(run_command, "report_text"), (staging, "trajectory_json_text"), (run_command, "render_html")],
+)
+def test_run_failing_midway_leaves_the_earlier_outputs(tmp_path, tiny, monkeypatch, capsys, module, stage):
     out = tmp_path / "out"
     ds, model = tiny
     args = ["run", str(PIPELINE), "--dataset", str(ds), "--model", str(model), "--out", str(out)]
@@ -202,7 +206,7 @@ def test_run_failing_midway_leaves_the_earlier_outputs(tmp_path, tiny, monkeypat
     def boom(*a, **k):
         raise OSError(28, "No space left on device")
 
-    monkeypatch.setattr(pipeline, stage, boom)
+    monkeypatch.setattr(module, stage, boom)
     assert main([*args, "--task", "wrench", "--demo", "0"]) == 2
     assert "No space left" in _one_error_line(capsys.readouterr().err)
     assert _snapshot(out) == before

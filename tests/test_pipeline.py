@@ -57,6 +57,28 @@ def test_pipeline_runs_on_synthetic_default(tmp_path, capsys):
     assert "Recognised task: wrench" in text and "joint_limits" in text
 
 
+def test_written_report_equals_the_returned_report(tmp_path):
+    """``run``'s report.json is the report run_pipeline returns, its ``files`` included (every file
+    the run wrote, the report itself too); a failing plan without --allow-failing-checks lists no
+    trajectory file."""
+    from ipromp_pin.commands.run import run_pipeline
+
+    out = tmp_path / "out"
+    cfg = load_pipeline(PIPELINE, out_dir=out, task="wrench", demo=3, preview_html=False, ros1_bag=True)
+    report = run_pipeline(cfg, log=lambda _m: None, warn=lambda _m: None)
+    written = json.loads((out / "report.json").read_text())
+    assert written == report
+    assert report["files"] == {
+        "trajectory_csv": str(out / "trajectory.csv"),
+        "trajectory_json": str(out / "trajectory.json"),
+        "rosbag": str(out / "rosbag"),
+        "ros1_bag": str(out / "run.bag"),
+        "report": str(out / "report.json"),
+        "report_text": str(out / "report.txt"),
+    }
+    assert sorted(p.name for p in out.iterdir()) == sorted(Path(f).name for f in report["files"].values())
+
+
 def test_pipeline_saved_model_gives_the_same_result(tmp_path):
     model = tmp_path / "model.npz"
     a, b = tmp_path / "a", tmp_path / "b"
@@ -142,12 +164,13 @@ def test_preview_content_shows_one_time_base_and_skipped_checks():
     trajectory's clock, and a check that could not be made is marked skipped."""
     import re
 
-    from ipromp_pin.commands.pipeline import prepare, preview_content
+    from ipromp_pin.commands.setup import prepare_session
     from ipromp_pin.handover.one_shot import plan
     from ipromp_pin.motion.timing import path_times
+    from ipromp_pin.outputs.preview_content import preview_content
 
     cfg = load_pipeline(PIPELINE, task="tape", demo=2)
-    prep = prepare(cfg, log=lambda _msg: None)
+    prep = prepare_session(cfg, log=lambda _msg: None)
     result = plan(prep.model, prep.robot, prep.observation, cfg.control_rate_hz, prep.hand_position_m)
     content = preview_content(result, prep.robot, prep.demo)
     assert content.human_duration_s == prep.demo.duration_s and content.human_duration_source == "recorded"

@@ -31,7 +31,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 def cmd_preview(args: argparse.Namespace) -> int:
     """Serve the preview live, or write it as an HTML file."""
     from .. import atomic
-    from ..commands.pipeline import run_preview
+    from ..commands.preview import run_preview
 
     if args.html is not None:
         atomic.check_output_file(args.html, "preview page")

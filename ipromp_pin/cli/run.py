@@ -36,7 +36,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 def cmd_run(args: argparse.Namespace) -> int:
     """Run the pipeline; exit status 3 when the planned motion fails its checks."""
-    from ..commands.pipeline import run_pipeline
+    from ..commands.run import run_pipeline
 
     cfg = pipeline_config(args)
     report = run_pipeline(cfg, log=print, allow_failing_checks=args.allow_failing_checks)

@@ -86,6 +86,8 @@ def plan(
     control_rate_hz: float = 100.0,
     hand_position_m: np.ndarray | None = None,
     log: LogFn | None = None,
+    *,
+    check_joints: bool = True,
 ) -> PlanResult:
     """Online stages: recognise + predict, time-parameterise + smooth, check.
 
@@ -101,9 +103,12 @@ def plan(
         control_rate_hz: Output sampling rate in [Hz].
         hand_position_m: Human hand position at the hand-over (3,) in [m], if known.
         log: Progress messages (``None``: silent).
+        check_joints: Refuse a model whose joints are not the robot's (:func:`check_model_joints`);
+            False when the caller has checked them already.
     """
     say = log or (lambda _msg: None)
-    check_model_joints(model, robot)
+    if check_joints:
+        check_model_joints(model, robot)
     ms: dict[str, float] = {}
     t0 = time.perf_counter()
     prediction = model.predict(observation)

@@ -1,0 +1,95 @@
+"""``ipromp-pin run``: data -> model -> observe -> recognise -> predict -> check -> time -> files.
+
+:func:`run_pipeline` sets up the command (:func:`~ipromp_pin.commands.setup.prepare_session`), runs
+the online stages (:func:`~ipromp_pin.handover.one_shot.plan`) and writes the trajectory, the bags,
+the report, the preview page and the figures together (:data:`RUN_OUTPUTS`). Every stage reports
+through a ``log`` callable.
+"""
+
+from __future__ import annotations
+
+import time
+
+from .. import atomic
+from ..handover.one_shot import LogFn, PlanResult, plan
+from ..outputs.figures import write_plots
+from ..outputs.files import RUN, command_outputs, keyed, trajectory_outputs
+from ..outputs.preview_content import preview_content
+from ..outputs.report import report_dict, report_text, summary_text
+from ..outputs.staging import OutputOptions, stage_plan, stage_report
+from ..preview import render_html
+from .config import PipelineConfig
+from .meshes import preview_visual_model
+from .model_warnings import warn_stderr
+from .setup import Session, check_outputs, prepare_session
+
+RUN_OUTPUTS = command_outputs(RUN)
+"""Every file ``ipromp-pin run`` may write into its output folder (:mod:`ipromp_pin.outputs.files`). A
+run stages its files and commits them together (:class:`ipromp_pin.atomic.OutputSet`): those of an
+earlier run that this run does not write (e.g. ``preview.html`` with ``--no-preview``, or the
+trajectory of a run whose checks failed) are removed, so the folder always holds one run's files."""
+
+TRAJECTORY_OUTPUTS = trajectory_outputs(RUN)
+"""The outputs a robot executes (or replays): written only when the checks pass (or, marked, when the user
+allows failing checks)."""
+
+
+def run_pipeline(
+    cfg: PipelineConfig, log: LogFn = print, warn: LogFn = warn_stderr, *, allow_failing_checks: bool = False
+) -> dict:
+    """Run every stage of ``cfg`` and write its outputs; returns the report dictionary, equal to the
+    written ``report.json`` (``warn``: where warnings go, one line each; they are also in the report).
+
+    The outputs are written together (:data:`RUN_OUTPUTS`): complete, or the folder's earlier files
+    untouched. When the plan fails its checks (``report["passed"]`` is False) the trajectory files
+    and bags are not written (and an earlier run's are removed) unless ``allow_failing_checks``,
+    which writes them marked as failing (see :mod:`ipromp_pin.outputs.staging`).
+    """
+    t_start = time.perf_counter()
+    check_outputs(cfg)
+    session = prepare_session(cfg, log, warn, prefetch_meshes=cfg.preview_html)
+    robot, observation = session.robot, session.observation
+    result = plan(
+        session.model,
+        robot,
+        observation,
+        cfg.control_rate_hz,
+        session.hand_position_m,
+        log=log,
+        check_joints=False,
+    )
+    options = OutputOptions(cfg.ros, cfg.rosbag, cfg.ros1_bag, robot.base_frame, session.warnings)
+    with atomic.OutputSet(cfg.out_dir, managed=RUN_OUTPUTS) as out:
+        stage_plan(result, out, observation, options, allow_failing_checks=allow_failing_checks)
+        if cfg.preview_html:
+            _stage_preview(result, session, out, log)
+        if cfg.plots:
+            write_plots(result, session.model, session.demo, out)
+        report = stage_report(
+            out,
+            report_dict(result, observation, session.warnings),
+            report_text(result, observation, session.warnings),
+        )
+        files = keyed(out.commit())
+    log(summary_text(result, files, time.perf_counter() - t_start))
+    if not result.passed:
+        written = [n for n in TRAJECTORY_OUTPUTS if n in out.files]
+        log(
+            "Checks FAILED: "
+            + (
+                f"the trajectory was written marked as failing ({', '.join(written)})"
+                if written
+                else "no trajectory written (--allow-failing-checks writes it, marked)"
+            )
+        )
+    return report
+
+
+def _stage_preview(result: PlanResult, session: Session, out: atomic.OutputSet, log: LogFn) -> None:
+    """Stage ``preview.html``: the self-contained preview page of the planned hand-over."""
+    t0 = time.perf_counter()
+    visual = preview_visual_model(session.robot, session.mesh_prefetch)
+    content = preview_content(result, session.robot, session.demo, visual_model=visual)
+    html = render_html(content).encode("utf-8")
+    out.write_bytes("preview.html", html)
+    log(f"[preview] {out.path('preview.html')} ({len(html) / 1e6:.1f} MB, {time.perf_counter() - t0:.1f} s)")

@@ -1,0 +1,221 @@
+"""The set-up every command that plans on one held-out demo shares (``run``, ``preview``, ``replay``).
+
+:func:`prepare_session` builds a :class:`Session` from a pipeline definition, once per command: it
+loads the robot, reads the data (the built-in synthetic demos by default), picks the observed demo
+(held out of training), starts decimating the preview meshes meanwhile when asked, trains, reuses
+or loads the model, checks its joints against the robot's, collects the warnings and cuts the
+observation. A command's own checks of the demo and the model run as soon as their inputs exist
+(:class:`SetupChecks`), so that bad input fails before the computation that needs it.
+"""
+
+from __future__ import annotations
+
+import multiprocessing as mp
+import time
+from dataclasses import dataclass, field
+from functools import partial
+
+import numpy as np
+
+from .. import atomic
+from ..data import Dataset, Demo, skeleton_frames
+from ..exceptions import PipelineError
+from ..handover.one_shot import LogFn, check_model_joints
+from ..promp import IProMP
+from ..readers import load_dataset
+from ..readers.synthetic import make_synthetic_dataset
+from ..robot import Robot, ee_positions, load_robot
+from .config import PipelineConfig
+from .meshes import start_mesh_prefetch
+from .model_cache import fit_cached
+from .model_warnings import loaded_model_warnings, single_task_warning, warn_stderr
+
+
+@dataclass
+class Session:
+    """Everything a command needs after the set-up, built by :func:`prepare_session`.
+
+    Attributes:
+        cfg: The pipeline definition.
+        robot: The loaded robot.
+        dataset: The demonstrations.
+        demo: The demo whose first part is observed (held out of training).
+        train: Every demo but ``demo`` (the model's training demos, unless it was loaded).
+        model: The fitted model (trained, reused from the cache or loaded).
+        warnings: Warnings about the model and the data (:mod:`ipromp_pin.commands.model_warnings`), one
+            line each.
+        mesh_prefetch: The process decimating the preview meshes meanwhile
+            (:func:`~ipromp_pin.commands.meshes.start_mesh_prefetch`), or None.
+        observation: The observed first ``cfg.ratio`` of the demo's human motion (None when not cut).
+        hand_position_m: (3,) the human hand's last known position in [m] (the hand-over point), or None.
+    """
+
+    cfg: PipelineConfig
+    robot: Robot
+    dataset: Dataset
+    demo: Demo
+    train: list[Demo]
+    model: IProMP
+    warnings: list[str] = field(default_factory=list)
+    mesh_prefetch: mp.process.BaseProcess | None = None
+    observation: Demo | None = None
+    hand_position_m: np.ndarray | None = None
+
+
+class SetupChecks:
+    """A command's checks of the held-out demo and the model, run by :func:`prepare_session` as soon
+    as their inputs exist (these do nothing; a command overrides what it needs)."""
+
+    def check_demo(self, demo: Demo) -> None:
+        """Refuse a held-out demo the command cannot use (called before the model is trained)."""
+
+    def check_model(self, model: IProMP, demo: Demo) -> None:
+        """Refuse a model the command cannot use on ``demo`` (called before the warnings are shown)."""
+
+
+def prepare_session(
+    cfg: PipelineConfig,
+    log: LogFn = print,
+    warn: LogFn = warn_stderr,
+    *,
+    robot: Robot | None = None,
+    checks: SetupChecks | None = None,
+    prefetch_meshes: bool = False,
+    observe: bool = True,
+) -> Session:
+    """The set-up of one command on ``cfg`` (``warn``: where warnings go; ``robot``: the loaded
+    robot, loaded here when None; ``checks``: the command's own checks; ``prefetch_meshes``: decimate
+    the preview meshes meanwhile when they are not cached yet; ``observe``: cut the observation).
+
+    Raises:
+        ModelError: the model's joints are not the robot's (e.g. a left-arm model run with
+            ``--robot baxter_right``).
+    """
+    checks = checks or SetupChecks()
+    robot = robot if robot is not None else load_robot(cfg.robot)
+    ds = load_data(cfg, log, robot)
+    demo = choose_demo(ds, cfg)
+    checks.check_demo(demo)
+    prefetch = start_mesh_prefetch(robot) if prefetch_meshes else None
+    train = [d for d in ds.all_demos() if d is not demo]
+    model = get_model(cfg, ds, demo, log, robot, train=train)
+    check_model_joints(model, robot)
+    checks.check_model(model, demo)
+    warnings = model_warnings(cfg, ds, demo, model)
+    for w in warnings:
+        warn(w)
+    session = Session(cfg, robot, ds, demo, train, model, warnings, prefetch)
+    if observe:
+        session.observation = observation = demo.head(cfg.ratio, groups=cfg.observe)
+        session.hand_position_m = hand_at_handover(demo)
+        log(
+            f"[observe] {demo.task}/{demo.name}: first {cfg.ratio:.0%} "
+            f"({observation.t[-1]:.2f} s, {observation.n_samples} samples) of {', '.join(cfg.observe)}"
+        )
+    return session
+
+
+def check_outputs(cfg: PipelineConfig) -> None:
+    """Refuse, before any computation, output paths that cannot be written (a file where the output
+    folder should be, a read-only folder, a folder where the model file should be)."""
+    atomic.check_output_dir(cfg.out_dir)
+    if cfg.save_model is not None:
+        atomic.check_output_file(cfg.save_model, "model file")
+
+
+def load_data(cfg: PipelineConfig, log: LogFn = print, robot: Robot | None = None) -> Dataset:
+    """The dataset of ``cfg``: real recordings, or the built-in synthetic demos.
+
+    Recordings are read with the robot's joints (by name) and checked against its joint limits;
+    the robot's forward kinematics locates the gripper when a recording lacks the end-point stream.
+    """
+    if cfg.dataset is None:
+        log(f"[data] built-in synthetic hand-over demos (seed {cfg.synthetic_seed})")
+        return make_synthetic_dataset(seed=cfg.synthetic_seed, rate_hz=cfg.rate_hz)
+    robot = robot if robot is not None else load_robot(cfg.robot)
+    log(f"[data] reading {cfg.dataset} (format {cfg.format})")
+    frames = skeleton_frames([*cfg.frames, *cfg.observe])
+    ds = load_dataset(
+        cfg.dataset,
+        format=cfg.format,
+        frames=frames or None,
+        rate_hz=cfg.rate_hz,
+        robot_joints=robot.settings.recorded_arm_joints,
+        joint_limits=robot.recorded_joint_limits(),
+        end_effector=lambda q: ee_positions(robot, q),
+    )
+    log(f"[data] {len(ds.all_demos())} demos of tasks {', '.join(ds.tasks)}")
+    return ds
+
+
+def choose_demo(ds: Dataset, cfg: PipelineConfig) -> Demo:
+    """The demo to observe (raises :class:`PipelineError` for an unknown task or index)."""
+    task = cfg.task or ds.tasks[0]
+    if task not in ds.demos:
+        raise PipelineError(
+            f"{cfg.source}: field 'observation.task': unknown task '{task}' ({', '.join(ds.tasks)})"
+        )
+    demos = ds.demos[task]
+    if not -len(demos) <= cfg.demo < len(demos):
+        raise PipelineError(
+            f"{cfg.source}: field 'observation.demo': index {cfg.demo} out of range for {len(demos)} demos"
+        )
+    return demos[cfg.demo]
+
+
+def get_model(
+    cfg: PipelineConfig,
+    ds: Dataset,
+    held_out: Demo,
+    log: LogFn = print,
+    robot: Robot | None = None,
+    *,
+    train: list[Demo] | None = None,
+) -> IProMP:
+    """Load the saved model, or train one on ``train`` (default: every demo but ``held_out``), with
+    the ``robot``'s forward kinematics when given, so that its settings are chosen for the hand-over
+    position error."""
+    if cfg.load_model is not None:
+        log(f"[model] loading {cfg.load_model}")
+        model = IProMP.load(cfg.load_model)
+        missing = [g for g in cfg.observe if g not in model.observe_]
+        if missing:
+            raise PipelineError(
+                f"{cfg.load_model}: model does not observe {missing} (observes {model.observe_})"
+            )
+        return model
+    if train is None:
+        train = [d for d in ds.all_demos() if d is not held_out]
+    t0 = time.perf_counter()
+    fk = None if robot is None else partial(ee_positions, robot)
+    what = f"{len(train)} demos ({', '.join(cfg.observe)} + robot)"
+    if cfg.model_cache:
+        model, cached = fit_cached(IProMP(observe=cfg.observe), train, fk)
+    else:
+        model, cached = IProMP(observe=cfg.observe).fit(train, fk=fk), None
+    if cached is not None:
+        log(f"[model] reused the model an earlier run trained on {what}: {cached} (--retrain: train again)")
+    else:
+        log(f"[model] trained on {what}, {time.perf_counter() - t0:.2f} s")
+    if cfg.save_model is not None:
+        model.save(cfg.save_model)  # atomic: an earlier file is replaced only by a complete one
+        log(f"[model] saved {cfg.save_model}")
+    return model
+
+
+def hand_at_handover(demo: Demo) -> np.ndarray | None:
+    """The human hand's last finite position (3,) in [m] in the demo, or None when it is unknown."""
+    hand = demo.extras.get("hand_position")
+    if hand is None:
+        return None
+    finite = np.flatnonzero(np.all(np.isfinite(hand), axis=1))
+    return hand[finite[-1]] if finite.size else None
+
+
+def model_warnings(cfg: PipelineConfig, ds: Dataset, demo: Demo, model: IProMP) -> list[str]:
+    """Warnings about the model: a loaded one that does not match the data or was trained on ``demo``,
+    or a single-task one."""
+    if cfg.load_model is not None:
+        return loaded_model_warnings(model, ds, demo, str(cfg.load_model))
+    single = single_task_warning(model)
+    return [] if single is None else [single]

@@ -1,0 +1,88 @@
+"""The table of every file a command writes into its output folder.
+
+One row per file: its name in the output folder, its key in the report's ``files`` (kept from
+earlier versions), whether a robot executes it (trajectory-carrying: written only when the checks
+pass, or marked as failing when the user allows failing checks) and which commands write it. A new
+output of a command is one row here; the command's :class:`~ipromp_pin.atomic.OutputSet` then
+manages it (an earlier run's copy that a later run does not write is removed).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TypeVar
+
+RUN = "run"
+"""Command name of ``ipromp-pin run``."""
+
+REPLAY = "replay"
+"""Command name of ``ipromp-pin replay``."""
+
+T = TypeVar("T")
+
+
+@dataclass(frozen=True)
+class OutputFile:
+    """One output file (or folder).
+
+    Attributes:
+        name: Its name in the output folder.
+        key: Its key in the report's ``files``.
+        trajectory: Whether a robot executes (or replays) it.
+        commands: The commands that write it (:data:`RUN`, :data:`REPLAY`).
+    """
+
+    name: str
+    key: str
+    trajectory: bool
+    commands: frozenset[str]
+
+
+def _row(name: str, key: str, trajectory: bool, *commands: str) -> OutputFile:
+    return OutputFile(name, key, trajectory, frozenset(commands))
+
+
+OUTPUT_FILES: tuple[OutputFile, ...] = (
+    _row("trajectory.csv", "trajectory_csv", True, RUN, REPLAY),
+    _row("trajectory.json", "trajectory_json", True, RUN, REPLAY),
+    _row("rosbag", "rosbag", True, RUN),
+    _row("run.bag", "ros1_bag", True, RUN),
+    _row("replans.json", "replans", False, REPLAY),
+    _row("report.json", "report", False, RUN, REPLAY),
+    _row("report.txt", "report_text", False, RUN, REPLAY),
+    _row("limits.toml", "limits", False, REPLAY),
+    _row("preview.html", "preview", False, RUN, REPLAY),
+    _row("prediction.png", "plot_prediction", False, RUN),
+    _row("phase_posterior.png", "plot_phase", False, RUN),
+    _row("distributions.png", "plot_distributions", False, RUN),
+)
+"""Every output file of the commands, in the order the reports list them."""
+
+FILE_KEYS: dict[str, str] = {f.name: f.key for f in OUTPUT_FILES}
+"""File name -> key of the report's ``files``."""
+
+
+def command_outputs(command: str) -> tuple[str, ...]:
+    """The names of every file ``command`` may write (its :class:`~ipromp_pin.atomic.OutputSet`'s
+    managed names), in table order."""
+    return tuple(f.name for f in OUTPUT_FILES if command in f.commands)
+
+
+def trajectory_outputs(command: str) -> tuple[str, ...]:
+    """The names of the files of ``command`` that a robot executes, in table order."""
+    return tuple(f.name for f in OUTPUT_FILES if command in f.commands and f.trajectory)
+
+
+def keyed(files: Mapping[str, T]) -> dict[str, T]:
+    """File name -> value (e.g. its path) as report key -> value, in table order (names outside the
+    table keep their name as key and come last)."""
+    known = [f.name for f in OUTPUT_FILES if f.name in files]
+    rest = [n for n in files if n not in FILE_KEYS]
+    return {FILE_KEYS.get(n, n): files[n] for n in [*known, *rest]}
+
+
+def report_listing(paths: Mapping[str, Path]) -> dict[str, str]:
+    """The report's ``files``: report key -> path as text, in table order."""
+    return {k: str(v) for k, v in keyed(paths).items()}

@@ -1,0 +1,144 @@
+"""What the preview pages show: a planned hand-over (``run``, ``preview``) and a replay's timeline.
+
+:func:`preview_content` is the :class:`~ipromp_pin.preview.PreviewContent` of a planned hand-over
+(rendered by :func:`~ipromp_pin.preview.render_html` or shown live); :func:`replay_preview_html` is
+the time-scrubbing ``preview.html`` of a replay (:mod:`ipromp_pin.preview.timeline`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..data import ROBOT, Demo
+from ..handover.closed_loop import ClosedLoopResult
+from ..handover.one_shot import PlanResult
+from ..handover.score import ClosedLoopScore
+from ..preview import PreviewContent
+from ..preview.timeline import TimelineEvent, render_timeline_html
+from ..robot import Robot, ee_positions
+
+
+def preview_content(
+    result: PlanResult, robot: Robot, demo: Demo | None, visual_model: object = None
+) -> PreviewContent:
+    """The :class:`~ipromp_pin.preview.PreviewContent` of a planned hand-over."""
+    p = result.prediction
+    tr = result.trajectory
+    ee_samples = np.stack([ee_positions(robot, s) for s in result.q_samples])
+    truth = None
+    hand = hand_t = None
+    if demo is not None and ROBOT in demo.groups:
+        truth = ee_positions(robot, demo.groups[ROBOT])
+        if "hand_position" in demo.extras:
+            hand, hand_t = demo.extras["hand_position"], demo.t
+    r = result.report
+    collision_links: list[str] = []
+    near_limit: list[str] = []
+    for c in r.checks:
+        if c.name == "self_collision" and c.status == "fail":
+            collision_links = list(c.values.get("colliding_links", c.values.get("min_distance_links", [])))
+        if c.name == "joint_limits":
+            near_limit = list(c.values.get("near_limit_joints", c.values.get("violating_joints", [])))
+    return PreviewContent(
+        model=robot.model,
+        visual_model=visual_model,
+        collision_model=robot.collision_model,
+        t_s=tr.t_s,
+        q=tr.q,
+        joint_names=robot.joint_names,
+        q_full=robot.full_configuration(tr.q[0]),
+        ee_mean=r.ee_path,
+        ee_samples=ee_samples,
+        ee_truth=truth,
+        hand_path=hand,
+        hand_t_s=hand_t,
+        observed_until_s=p.observed_until_s,
+        # the observed fraction is of the human's motion: the recorded demo's, else the predicted one
+        human_duration_s=p.duration_s if demo is None else demo.duration_s,
+        human_duration_source="predicted" if demo is None else "recorded",
+        handover_point=r.handover_pose[:3],
+        task=p.task,
+        tasks=list(p.tasks),
+        posterior=p.posterior,
+        feasibility=[(c.name, c.passed, c.reason, c.status, c.required) for c in r.checks],
+        collision_links=collision_links,
+        near_limit_joints=near_limit,
+        title=f"ipromp_pin: {p.task}" + ("" if demo is None else f" ({demo.task}/{demo.name})"),
+    )
+
+
+def replay_preview_html(
+    demo: Demo, result: ClosedLoopResult, score: ClosedLoopScore, robot: Robot, visual_model: object
+) -> str:
+    """The time-scrubbing ``preview.html`` of a replay (one self-contained page)."""
+    traj = result.trajectory
+    tasks = list(result.replans[0].posterior) if result.replans else []
+    committed = [r for r in result.replans if r.committed]
+    hand = hand_t = None
+    if "hand_position" in demo.extras:
+        hp = demo.extras["hand_position"]
+        ok = np.all(np.isfinite(hp), axis=1)
+        if ok.sum() >= 2:
+            hand, hand_t = hp[ok], (demo.t - demo.t[0])[ok]
+    plans = iter(result.plans)
+    events = []
+    for r in result.replans:
+        path_m = None
+        if r.committed:
+            q = next(plans).q
+            path_m = ee_positions(robot, q[:: max(1, q.shape[0] // 40)])
+        events.append(
+            TimelineEvent(
+                t_s=r.t_s,
+                observed_until_s=r.observed_until_s,
+                task=r.task,
+                posterior=[r.posterior[t] for t in tasks] if r.posterior else [],
+                predicted_handover_s=r.predicted_handover_s,
+                handover_point=None
+                if r.predicted_handover_position_m is None
+                else np.asarray(r.predicted_handover_position_m),
+                planned_path=path_m if path_m is not None and path_m.shape[0] >= 2 else None,
+                arrival_s=r.planned_arrival_s,
+                committed=r.committed,
+                reason=r.reason,
+            )
+        )
+    final = committed[-1] if committed else None
+    content = PreviewContent(
+        model=robot.model,
+        visual_model=visual_model,
+        collision_model=robot.collision_model,
+        t_s=traj.t_s,
+        q=traj.q,
+        joint_names=robot.joint_names,
+        q_full=robot.full_configuration(traj.q[0]),
+        ee_mean=ee_positions(robot, traj.q[:: max(1, traj.n_samples // 200)]),
+        ee_truth=ee_positions(robot, demo.groups[ROBOT]),
+        hand_path=hand,
+        hand_t_s=hand_t,
+        task=final.task if final else "",
+        tasks=tasks,
+        posterior=np.array([final.posterior[t] for t in tasks]) if final else None,
+        feasibility=[
+            (
+                "re-plans",
+                score.refused_replans == 0,
+                f"{result.n_committed} committed, {score.refused_replans} refused",
+            ),
+            (
+                "limits",
+                score.max_limit_ratio <= 1 + 1e-6,
+                f"max ratio {score.max_limit_ratio:.3f} ({result.profile.name})",
+            ),
+            ("collisions", score.collisions == 0, f"{score.collisions} commanded samples in contact"),
+        ],
+        title=f"ipromp_pin replay: {demo.task}/{demo.name}",
+    )
+    summary = [
+        f"Hand-over error {score.handover_error_cm:.1f} cm at the recorded hand-over time "
+        f"({score.handover_time_s:.2f} s); {score.final_error_cm:.1f} cm at rest",
+        f"Arrival {score.arrival_s:.2f} s vs recorded {score.recorded_arrival_s:.2f} s "
+        f"(delay {score.arrival_delay_s:+.2f} s); {result.profile.name} limits",
+        "Blue: commanded gripper path; cyan: the latest plan; purple: recorded robot; green: hand observed.",
+    ]
+    return render_timeline_html(content, events, motion_s=score.handover_time_s, summary=summary)

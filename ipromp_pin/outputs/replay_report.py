@@ -1,0 +1,189 @@
+"""The replay's reports: ``replans.json``, ``report.json``, ``report.txt`` and the console summary.
+
+:func:`replans_json` lists every re-plan of the closed loop; :func:`report_dict` is the replay's
+``report.json`` (schema ``ipromp_pin/schemas/replay_report.schema.json``, fields in
+``docs/closed_loop.md``), :func:`report_text` its ``report.txt`` and :func:`summary_lines` the
+end-of-replay lines. :func:`replay_failures` says whether the commanded trajectory may be executed.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+
+from ..data import Demo
+from ..handover.closed_loop import LIMIT_TOLERANCE, ClosedLoopResult
+from ..handover.score import ARRIVAL_TOLERANCE_M, ClosedLoopScore
+from ..promp import IProMP
+
+REPLAY_FORMAT = "ipromp_pin.replay"
+"""Value of the replay ``report.json``'s ``format`` field."""
+
+REPLAY_VERSION = 1
+"""Value of the replay ``report.json``'s ``version`` field."""
+
+
+def _round(x: object) -> object:
+    """``x`` with every float rounded to 6 decimals (in dicts, lists and tuples too)."""
+    if isinstance(x, float | np.floating):
+        return round(float(x), 6)
+    if isinstance(x, dict):
+        return {k: _round(v) for k, v in x.items()}
+    if isinstance(x, list | tuple):
+        return [_round(v) for v in x]
+    return x
+
+
+def replans_json(result: ClosedLoopResult, demo: Demo) -> dict:
+    """``replans.json``: settings, limit profile and one record per re-plan."""
+    duration = float(demo.t[-1] - demo.t[0])
+    rows = []
+    for r in result.replans:
+        d = r.to_dict()
+        d["observed_ratio"] = round(r.observed_until_s / duration, 4) if duration > 0 else None
+        rows.append(d)
+    return {
+        "format": "ipromp_pin.replans",
+        "version": 1,
+        "demo": {"task": demo.task, "name": demo.name, "source": demo.source, "duration_s": duration},
+        "settings": result.settings.to_dict(),
+        "limit_profile": result.profile.to_dict(),
+        "start_s": result.start_s,
+        "stopped": result.stopped,
+        "replans": rows,
+    }
+
+
+def report_dict(
+    result: ClosedLoopResult,
+    score: ClosedLoopScore,
+    demo: Demo,
+    model: IProMP | None = None,
+    warnings: list[str] | None = None,
+) -> dict:
+    """The machine-readable replay report (JSON-serialisable; its schema:
+    ``ipromp_pin/schemas/replay_report.schema.json``)."""
+    cycles = np.array([r.cycle_ms for r in result.replans]) if result.replans else np.zeros(0)
+    reasons: dict[str, int] = {}
+    for r in result.replans:
+        if not r.committed:
+            key = r.reason.split(":")[0]
+            reasons[key] = reasons.get(key, 0) + 1
+    committed = [r for r in result.replans if r.committed]
+    last = committed[-1] if committed else None
+    return _round(
+        {
+            "format": REPLAY_FORMAT,
+            "version": REPLAY_VERSION,
+            "demo": {"task": demo.task, "name": demo.name, "source": demo.source},
+            "warnings": list(warnings or []),
+            "passed": replay_passed(score),
+            "model": None
+            if model is None
+            else {"observe": list(model.observe_), "noise_ratio": float(model.noise_ratio_)},
+            "settings": result.settings.to_dict(),
+            "limit_profile": result.profile.to_dict(),
+            "start_s": result.start_s,
+            "handover_error_cm": score.handover_error_cm,
+            "final_error_cm": score.final_error_cm,
+            "arrival_delay_s": score.arrival_delay_s,
+            "arrival_s": score.arrival_s,
+            "recorded_arrival_s": score.recorded_arrival_s,
+            "arrival_tolerance_m": ARRIVAL_TOLERANCE_M,
+            "handover_time_s": score.handover_time_s,
+            "rest_s": score.rest_s,
+            "limit_ratios": dict(zip(("velocity", "acceleration", "jerk"), score.limit_ratios, strict=True)),
+            "max_limit_ratio": score.max_limit_ratio,
+            "position_excess_rad": score.position_excess_rad,
+            "collisions": score.collisions,
+            "replans": score.replans,
+            "committed_replans": result.n_committed,
+            "refused_replans": score.refused_replans,
+            "refusals": reasons,
+            "stopped": result.stopped,
+            "final_task": score.final_task,
+            "final_posterior": last.posterior if last else {},
+            "predicted_handover_s": last.predicted_handover_s if last else None,
+            "cycle_ms": {
+                "median": float(np.median(cycles)) if cycles.size else None,
+                "p95": float(np.percentile(cycles, 95)) if cycles.size else None,
+                "max": float(cycles.max()) if cycles.size else None,
+            },
+        }
+    )
+
+
+def report_text(
+    result: ClosedLoopResult, score: ClosedLoopScore, demo: Demo, warnings: list[str] | None = None
+) -> str:
+    """The human-readable replay report."""
+    p = result.profile
+    s = result.settings
+    lines = [f"Warning: {w}" for w in warnings or []]
+    lines += [
+        f"Replayed: {demo.task}/{demo.name} ({demo.source}), {score.handover_time_s:.2f} s",
+        f"Closed loop: start after {s.start_ratio:.0%} ({result.start_s:.2f} s), re-plan "
+        f"{s.replan_rate_hz:g} Hz, control {s.control_rate_hz:g} Hz, blend {s.blend_s:g} s, "
+        f"freeze phase {s.freeze_phase:g}",
+        f"Limit profile: {p.name} ({p.source})",
+        f"Re-plans: {score.replans} ({result.n_committed} committed, {score.refused_replans} refused); "
+        f"final task {score.final_task or '(none)'}",
+        f"Hand-over error at the recorded hand-over time: {score.handover_error_cm:.2f} cm; where the motion "
+        f"comes to rest: {score.final_error_cm:.2f} cm",
+        f"Arrival: {score.arrival_s:.2f} s (recorded robot {score.recorded_arrival_s:.2f} s): delay "
+        f"{score.arrival_delay_s:+.2f} s; at rest at {score.rest_s:.2f} s",
+        "Limits: max ratio velocity {:.3f}, acceleration {:.3f}, jerk {:.3f}; position excess {:.1e} rad; "
+        "collisions {}".format(*score.limit_ratios, score.position_excess_rad, score.collisions),
+    ]
+    if result.stopped:
+        lines.append(f"Re-planning stopped: {result.stopped}")
+    refused = [r for r in result.replans if not r.committed]
+    for r in refused[:10]:
+        lines.append(f"  refused at {r.t_s:.2f} s: {r.reason}")
+    if len(refused) > 10:
+        lines.append(f"  ... {len(refused) - 10} more refused re-plans in replans.json")
+    return "\n".join(lines)
+
+
+def summary_lines(demo: Demo, result: ClosedLoopResult, score: ClosedLoopScore, elapsed_s: float) -> str:
+    """End-of-run lines on the console."""
+    cycles = [r.cycle_ms for r in result.replans]
+    return "\n".join(
+        [
+            "",
+            f"Replayed {demo.task}/{demo.name}: final task {score.final_task or '(none)'}; "
+            f"{score.replans} re-plans, {score.refused_replans} refused",
+            f"Hand-over error {score.handover_error_cm:.2f} cm at the recorded hand-over time; arrival delay "
+            f"{score.arrival_delay_s:+.2f} s ({result.profile.name} limits, max ratio "
+            f"{score.max_limit_ratio:.3f}); collisions {score.collisions}",
+            f"Re-plan cycle median {np.median(cycles):.2f} ms" if cycles else "No re-plan",
+            f"Total {elapsed_s:.1f} s",
+        ]
+    )
+
+
+def replay_passed(score: ClosedLoopScore) -> bool:
+    """Whether the commanded trajectory is safe to execute: no commanded sample in collision and every
+    velocity, acceleration and jerk within the limit profile at every control sample."""
+    return score.collisions == 0 and score.max_limit_ratio <= 1.0 + LIMIT_TOLERANCE
+
+
+def replay_failures(score: ClosedLoopScore) -> list[str] | None:
+    """None when the commanded trajectory passed (:func:`replay_passed`), else what failed:
+    ``collisions`` and/or ``limits``."""
+    if replay_passed(score):
+        return None
+    return [
+        name
+        for name, bad in (
+            ("collisions", score.collisions > 0),
+            ("limits", score.max_limit_ratio > 1.0 + LIMIT_TOLERANCE),
+        )
+        if bad
+    ]
+
+
+def replans_text(result: ClosedLoopResult, demo: Demo) -> str:
+    """The content of ``replans.json`` (:func:`replans_json`, floats rounded to 6 decimals)."""
+    return json.dumps(_round(replans_json(result, demo)), indent=1, allow_nan=False)

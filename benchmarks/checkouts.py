@@ -4,6 +4,7 @@ and ``model_load.py``), and module look-ups that work across the package's layou
 from __future__ import annotations
 
 import importlib
+import os
 import shutil
 import sys
 from pathlib import Path
@@ -13,16 +14,22 @@ ROOT = Path(__file__).resolve().parents[1]
 OTHER = "ipromp_other"
 
 
-def add_other(checkout: Path, tmp: Path, link: bool = False) -> None:
-    """Make ``checkout``'s ``ipromp_pin`` importable as :data:`OTHER` from the folder ``tmp``, with this
-    checkout's ``ipromp_pin`` importable too. ``link``: a symbolic link instead of a copy (for a
-    checkout compared with itself: the same files, so numba's on-disk cache is shared, no compile)."""
+def add_other(checkout: Path, tmp: Path) -> None:
+    """Make a copy of ``checkout``'s ``ipromp_pin`` importable as :data:`OTHER` from the folder ``tmp``,
+    with this checkout's ``ipromp_pin`` importable too. (A copy, never a link: numba's on-disk cache
+    beside a linked package would get entries that name :data:`OTHER`, which this package's processes
+    then fail to load.)"""
     source = Path(checkout).resolve() / "ipromp_pin"
-    if link:
-        (tmp / OTHER).symlink_to(source, target_is_directory=True)
-    else:
-        shutil.copytree(source, tmp / OTHER, ignore=shutil.ignore_patterns("__pycache__"))
+    shutil.copytree(source, tmp / OTHER, ignore=shutil.ignore_patterns("__pycache__"))
     sys.path[:0] = [str(tmp), str(ROOT)]
+
+
+def smoke_kernels(*packages: str) -> None:
+    """For a smoke run: the numpy kernels in ``packages`` and numba's JIT off (set before numba is
+    first imported), so that a fresh copy of a package compiles nothing."""
+    os.environ["NUMBA_DISABLE_JIT"] = "1"
+    for package in packages:
+        first_module(package, "promp.compiled").set_kernel_backend("numpy")
 
 
 def first_module(package: str, *names: str) -> ModuleType:

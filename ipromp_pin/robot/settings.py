@@ -18,6 +18,7 @@ import math
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -231,9 +232,9 @@ def _table(doc: dict, key: str, source: Path, required: bool = True) -> dict:
     return value
 
 
-def _get(
-    table: dict, key: str, source: Path, prefix: str, kind: type | tuple, default: object = ...
-) -> object:
+def _get(table: dict, key: str, source: Path, prefix: str, kind: type | tuple, default: Any = ...) -> Any:
+    """``table[key]``, which must be of type ``kind`` (an int is accepted as a float), or ``default``
+    when absent (``...``: the key is required)."""
     if key not in table:
         if default is ...:
             raise settings_error(source, f"{prefix}.{key}", "missing")

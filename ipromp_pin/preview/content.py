@@ -295,6 +295,13 @@ class PreviewContent:
         raise preview_error("collision_links", f"'{name}' is neither a frame nor a geometry of the robot")
 
     @property
+    def checks(self) -> tuple[FeasibilityCheck, ...]:
+        """The feasibility results as checked :class:`FeasibilityCheck` lines."""
+        return tuple(
+            c if isinstance(c, FeasibilityCheck) else _feasibility_check(c) for c in self.feasibility
+        )
+
+    @property
     def duration_s(self) -> float:
         """Duration of the robot trajectory in [s]."""
         return float(self.t_s[-1])
@@ -308,6 +315,7 @@ class PreviewContent:
 
     def configurations(self, t_s: np.ndarray) -> np.ndarray:
         """Full configurations (len(t_s), nq) at times ``t_s`` [s], arm joints linearly interpolated."""
+        assert self.q_full is not None  # set by __post_init__
         qs = np.repeat(self.q_full[None, :], len(t_s), axis=0)
         for j, iq in enumerate(self._q_index):
             qs[:, iq] = np.interp(t_s, self.t_s, self.q[:, j])

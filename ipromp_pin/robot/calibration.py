@@ -10,7 +10,7 @@ from __future__ import annotations
 import dataclasses
 import datetime as _dt
 import re
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -190,6 +190,11 @@ def _rotation_error_deg(r: np.ndarray, quat: np.ndarray) -> np.ndarray:
     return rot_err
 
 
+def _replacement(text: str) -> Callable[[re.Match[str]], str]:
+    """A ``re.sub`` replacement inserting ``text`` literally (no group references, no escapes)."""
+    return lambda _match: text
+
+
 def calibrate_tool_offset(
     robot: Robot, demos: Iterable[Demo], labels: Sequence[str] | None = None, fit: str = "mount"
 ) -> CalibrationResult:
@@ -314,7 +319,7 @@ def write_calibration(settings_path: str | Path, result: CalibrationResult, comm
         for key, value in new_values.items():
             pattern = re.compile(rf"^{key}[ \t]*=.*$", flags=re.M)
             if pattern.search(section):
-                section = pattern.sub(lambda _m, k=key, v=value: f"{k} = {v}", section, count=1)
+                section = pattern.sub(_replacement(f"{key} = {value}"), section, count=1)
             else:
                 section = section.rstrip("\n") + f"\n{key} = {value}\n" + ("\n" if nxt else "")
         text = text[:start] + section + text[end:]

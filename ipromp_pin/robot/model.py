@@ -104,16 +104,28 @@ class Robot:
         q[..., self.arm_q_index] = q_arm
         return q
 
+    def collision(self) -> tuple[pin.GeometryModel, pin.GeometryData]:
+        """The collision model and its data.
+
+        Raises:
+            RobotError: a kinematics-only robot (``build_robot(settings, collision=False)``).
+        """
+        if self.collision_model is None or self.collision_data is None:
+            raise settings_error(self.settings.path, None, "robot built without its collision model")
+        return self.collision_model, self.collision_data
+
     def pair_names(self, pair_id: int) -> tuple[str, str]:
         """Geometry names of collision pair ``pair_id``."""
-        cp = self.collision_model.collisionPairs[int(pair_id)]
-        g = self.collision_model.geometryObjects
+        cmodel, _ = self.collision()
+        cp = cmodel.collisionPairs[int(pair_id)]
+        g = cmodel.geometryObjects
         return g[cp.first].name, g[cp.second].name
 
     def pair_links(self, pair_id: int) -> tuple[str, str]:
         """Link (parent frame) names of collision pair ``pair_id``."""
-        cp = self.collision_model.collisionPairs[int(pair_id)]
-        g = self.collision_model.geometryObjects
+        cmodel, _ = self.collision()
+        cp = cmodel.collisionPairs[int(pair_id)]
+        g = cmodel.geometryObjects
         return (
             self.model.frames[g[cp.first].parentFrame].name,
             self.model.frames[g[cp.second].parentFrame].name,
@@ -309,8 +321,8 @@ def _split_pairs(
 def _check_static_pairs(robot: Robot, static: list[int]) -> None:
     """Check the static pairs once at the held configuration (their smallest distance is stored in
     ``robot.static_min_distance_m``), then deactivate them."""
-    model, data, cdata = robot.model, robot.data, robot.collision_data
-    cmodel = robot.collision_model
+    model, data = robot.model, robot.data
+    cmodel, cdata = robot.collision()
     s = robot.settings
     # Static pairs (neither geometry moves with the arm) are checked once, here.
     if static:

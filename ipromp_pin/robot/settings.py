@@ -111,9 +111,11 @@ class Workspace:
         """Distance in [m] from ``p`` (3,) to the region; negative inside (depth below the surface)."""
         p = np.asarray(p, dtype=float)
         if self.shape == "sphere":
-            return float(np.linalg.norm(p - self.center_m) - self.radius_m)
-        below = self.min_m - p
-        above = p - self.max_m
+            center, radius = self._sphere()
+            return float(np.linalg.norm(p - center) - radius)
+        lo, hi = self._box()
+        below = lo - p
+        above = p - hi
         outside = np.maximum(np.maximum(below, above), 0.0)
         if np.any(outside > 0):
             return float(np.linalg.norm(outside))
@@ -122,8 +124,20 @@ class Workspace:
     def to_dict(self) -> dict:
         """JSON-serialisable description."""
         if self.shape == "sphere":
-            return {"shape": "sphere", "center_m": self.center_m.tolist(), "radius_m": self.radius_m}
-        return {"shape": "box", "min_m": self.min_m.tolist(), "max_m": self.max_m.tolist()}
+            center, radius = self._sphere()
+            return {"shape": "sphere", "center_m": center.tolist(), "radius_m": radius}
+        lo, hi = self._box()
+        return {"shape": "box", "min_m": lo.tolist(), "max_m": hi.tolist()}
+
+    def _sphere(self) -> tuple[np.ndarray, float]:
+        if self.center_m is None or self.radius_m is None:
+            raise ValueError("a sphere workspace needs center_m and radius_m")
+        return self.center_m, self.radius_m
+
+    def _box(self) -> tuple[np.ndarray, np.ndarray]:
+        if self.min_m is None or self.max_m is None:
+            raise ValueError("a box workspace needs min_m and max_m")
+        return self.min_m, self.max_m
 
 
 @dataclass(frozen=True)

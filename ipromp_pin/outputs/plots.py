@@ -234,7 +234,7 @@ def plot_prediction(
             label="2 sigma",
         )
         ax.plot(t_s, q_mean[:, j], color="C0", lw=1.8, label="prediction")
-        if q_truth is not None:
+        if q_truth is not None and truth_t_s is not None:
             ax.plot(truth_t_s, q_truth[:, j], color="k", lw=1.2, ls="--", label="ground truth")
         ax.set_title(names[j], fontsize=9)
         ax.set_ylabel("rad", fontsize=8)
@@ -361,10 +361,10 @@ def plot_accuracy(
     width = 0.8 / len(settings)
     x = np.arange(len(cells))
     for k, setting in enumerate(settings):
-        mean = []
+        mean: list[float] = []
         for n_train, ratio in cells:
             values = [r[3] for r in rows if (r[0], r[1], r[2]) == (n_train, ratio, setting)]
-            mean.append(np.mean(values) if values else np.nan)
+            mean.append(float(np.mean(values)) if values else float("nan"))
         pos = x - 0.4 + (k + 0.5) * width
         hatch = None if "emg" in setting else "//"
         ax.bar(pos, mean, width, color=f"C{k}", hatch=hatch, edgecolor="white", label=setting)

@@ -63,6 +63,7 @@ from __future__ import annotations
 import json
 import zipfile
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -411,12 +412,13 @@ def _handover_shapes(
 ) -> dict[str, tuple[int | None, ...]]:
     """Expected shapes of the hand-over regression's arrays (header field ``handover``; ``t`` tasks,
     the robot's joints are the channels of the last group)."""
-    sizes = [ho.get(key) if isinstance(ho, dict) else None for key in ("ratios", "outputs", "features")]
+    table: dict = ho if isinstance(ho, dict) else {}
+    sizes: list[Any] = [table.get(key) for key in ("ratios", "outputs", "features")]
     if not all(isinstance(v, int) and not isinstance(v, bool) and 1 <= v <= MAX_HANDOVER_SIZE for v in sizes):
         raise ModelFileError(
             f"{path}: header field 'handover' must give 1-{MAX_HANDOVER_SIZE} ratios, outputs, features"
         )
-    r, m, f = sizes
+    r, m, f = (int(v) for v in sizes)
     nj = len(names[groups[-1]])
     shapes: dict[str, tuple[int | None, ...]] = {
         "handover_ratios": (r,),
@@ -426,7 +428,7 @@ def _handover_shapes(
         "handover_intercept": (r, t, m),
         "handover_residual_cov": (r, m, m),
     }
-    n = ho.get("neighbours")  # since version 4
+    n = table.get("neighbours")  # since version 4
     if n is not None:
         if not isinstance(n, int) or isinstance(n, bool) or not 1 <= n <= MAX_HANDOVER_SIZE:
             raise ModelFileError(

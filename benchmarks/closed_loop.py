@@ -11,6 +11,9 @@ workspace, certified self-collision). The process is pinned to one CPU and BLAS 
 
     python benchmarks/closed_loop.py [--dataset DATASET] [--n-train 15] [--replays 20] [--json FILE]
 
+``--smoke``: 2 synthetic tasks, 4 training demos each, one replay (after the warm-up): seconds, what
+the test suite runs.
+
 Prints the median and 95th percentile of the cycle and of each stage, over every re-plan of every
 replay after the first replay (warm-up).
 """
@@ -44,13 +47,17 @@ def main() -> None:
     parser.add_argument("--n-train", type=int, default=15)
     parser.add_argument("--replays", type=int, default=20)
     parser.add_argument("--json", type=Path, default=None)
+    parser.add_argument("--smoke", action="store_true", help="2 synthetic tasks, 4 demos, 1 replay: seconds")
     args = parser.parse_args()
+    if args.smoke:
+        args.dataset, args.n_train, args.replays = None, 4, 1
 
     if hasattr(os, "sched_setaffinity"):
         os.sched_setaffinity(0, {sorted(os.sched_getaffinity(0))[0]})
     observe = ["orientation", "emg"]
     if args.dataset is None:
-        ds = make_synthetic_dataset(n_tasks=3, n_demos=args.n_train + 8, seed=0)
+        n_tasks, n_test = (2, 1) if args.smoke else (3, 8)
+        ds = make_synthetic_dataset(n_tasks=n_tasks, n_demos=args.n_train + n_test, seed=0)
     else:
         ds = load_dataset(args.dataset, robot_joints=load_robot_settings("baxter_left").recorded_arm_joints)
     train = [d for demos in ds.demos.values() for d in demos[: args.n_train]]
@@ -58,7 +65,8 @@ def main() -> None:
     test = [test[i] for i in np.linspace(0, len(test) - 1, min(args.replays, len(test))).round().astype(int)]
     robot = load_robot("baxter_left")
     with threadpool_limits(limits=1):
-        model = IProMP(observe=observe).fit(train)
+        smoke_model = {"head": False, "handover": False, "coupling": "all"} if args.smoke else {}
+        model = IProMP(observe=observe, **smoke_model).fit(train)
         profile = demonstrated_profile(robot, train)
         certifier = ClearanceCertifier(robot)
         t0 = time.perf_counter()

@@ -20,6 +20,9 @@ Prints, per candidate, the median (over held-out replays) closed-loop hand-over 
 arrival delay [s], the largest limit ratio and the refused re-plans. The rule (fixed before running
 it): the lowest hand-over error (mean of the datasets' medians) among the candidates whose median
 arrival delay is at most 0.2 s on every dataset.
+
+``--smoke`` (no dataset): the start study's one candidate at ratio 0.2, 2 folds over 4 synthetic
+demos per task: seconds, what the test suite runs.
 """
 
 from __future__ import annotations
@@ -39,6 +42,7 @@ from ipromp_pin.handover.score import score_closed_loop
 from ipromp_pin.motion.limits import demonstrated_profile
 from ipromp_pin.promp import IProMP
 from ipromp_pin.readers import load_dataset
+from ipromp_pin.readers.synthetic import make_synthetic_dataset
 from ipromp_pin.robot import DemoLimitRecipe, load_robot, load_robot_settings
 from ipromp_pin.robot.clearance import ClearanceCertifier
 
@@ -46,10 +50,10 @@ _STATE: dict = {}
 
 
 def _fold(args: tuple) -> list[dict]:
-    fold, train, test, candidates, ratios, observe = args
+    fold, train, test, candidates, ratios, observe, model_settings = args
     robot = load_robot("baxter_left")
     cert = _STATE.setdefault("cert", ClearanceCertifier(robot))
-    model = IProMP(observe=observe).fit(train)
+    model = IProMP(observe=observe, **model_settings).fit(train)
     profiles = {}
     rows = []
     for cand in candidates:
@@ -87,7 +91,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
-    parser.add_argument("dataset", type=Path)
+    parser.add_argument("dataset", type=Path, nargs="?", help="dataset folder (not with --smoke)")
     parser.add_argument("--observe", default="orientation,emg")
     parser.add_argument("--n-train", type=int, default=10)
     parser.add_argument("--folds", type=int, default=5)
@@ -98,11 +102,22 @@ def main() -> None:
     parser.add_argument("--freeze", type=float, default=0.9, help="freeze phase of --study start|noise")
     parser.add_argument("--percentile", type=float, default=90.0, help="limit percentile of --study start")
     parser.add_argument("--json", type=Path)
+    parser.add_argument(
+        "--smoke", action="store_true", help="synthetic demos, one candidate, 2 folds: seconds"
+    )
     args = parser.parse_args()
+    if args.dataset is None and not args.smoke:
+        parser.error("the dataset is required (or --smoke)")
 
     observe = parse_groups(args.observe)
     joints = load_robot_settings("baxter_left").recorded_arm_joints
-    ds = load_dataset(args.dataset, frames=skeleton_frames(observe) or None, robot_joints=joints)
+    model_settings: dict = {}
+    if args.smoke:  # one candidate at one ratio; nothing else selected inside ``fit``
+        ds = make_synthetic_dataset(n_tasks=2, n_demos=4, seed=0)
+        args.dataset, args.n_train, args.folds, args.study = Path(ds.root), 4, 2, "start"
+        model_settings = {"head": False, "handover": False, "coupling": "all", "noise": 10.0}
+    else:
+        ds = load_dataset(args.dataset, frames=skeleton_frames(observe) or None, robot_joints=joints)
     pool = {task: demos[: args.n_train] for task, demos in ds.demos.items()}
     if args.study == "settings":
         grid = itertools.product([0.1, 0.2, 0.4], [5.0, 10.0, 20.0], [0.8, 0.9, 1.0], [90.0, 100.0])
@@ -119,7 +134,7 @@ def main() -> None:
         }
         if args.study == "start":
             candidates = [base]
-            ratios = [0.1, 0.2, 0.3]
+            ratios = [0.2] if args.smoke else [0.1, 0.2, 0.3]
         else:
             candidates = [{**base, "condition_noise": nu} for nu in (None, 0.1, 0.3, 1.0, 3.0, 10.0, 30.0)]
             ratios = [0.1, 0.2]
@@ -127,7 +142,7 @@ def main() -> None:
     for fold in range(args.folds):
         test = [d for demos in pool.values() for i, d in enumerate(demos) if i % args.folds == fold]
         train = [d for demos in pool.values() for i, d in enumerate(demos) if i % args.folds != fold]
-        work.append((fold, train, test, candidates, ratios, observe))
+        work.append((fold, train, test, candidates, ratios, observe, model_settings))
     if args.jobs > 1:
         with ProcessPoolExecutor(args.jobs, mp_context=mp.get_context("fork")) as ex:
             rows = [r for part in ex.map(_fold, work) for r in part]

@@ -19,6 +19,9 @@ first.
 
     python benchmarks/first_minute.py [--repeats 3] [--baseline REV] [--json FILE]
 
+``--smoke``: one run of this checkout in place (no clone), with a small model trained first and
+no preview: seconds, what the test suite runs so that the script cannot silently rot.
+
 Prints the medians (and every run) and the machine's load average, which on a shared machine says
 how much the wall times are stretched (the CPU times much less so).
 """
@@ -48,9 +51,12 @@ def clone(folder: Path, rev: str | None = None) -> Path:
     return folder
 
 
-def run_once(env: dict[str, str], tree: Path, out: Path) -> dict[str, float | str]:
-    """One ``ipromp-pin run`` of ``tree`` in a new process: wall and CPU time in [s], and its output."""
-    command = [sys.executable, "-m", "ipromp_pin.cli", "run", "pipelines/baxter_handover.toml"]
+def run_once(
+    env: dict[str, str], tree: Path, out: Path, extra: tuple[str, ...] = ()
+) -> dict[str, float | str]:
+    """One ``ipromp-pin run`` of ``tree`` in a new process (``extra``: more arguments): wall and CPU
+    time in [s], and its output."""
+    command = [sys.executable, "-m", "ipromp_pin.cli", "run", "pipelines/baxter_handover.toml", *extra]
     env = {**env, "PYTHONPATH": str(tree)}
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
@@ -84,6 +90,26 @@ def median(rows: list[dict], key: str) -> float:
     return statistics.median(float(r[key]) for r in rows)
 
 
+def smoke(tmp: Path) -> dict[str, list]:
+    """``--smoke``: one run of this checkout in place (no clone) with an empty cache, the numpy kernels
+    (no background compile), a small model trained here (no training in the run), no preview."""
+    from threadpoolctl import threadpool_limits
+
+    from ipromp_pin import IProMP
+    from ipromp_pin.readers.synthetic import make_synthetic_dataset
+
+    model = tmp / "small.npz"
+    with threadpool_limits(1):
+        ds = make_synthetic_dataset(n_tasks=3, n_demos=4, seed=0)
+        IProMP(noise=10.0, head=False, handover=False, coupling="all").fit(ds).save(model)
+    env = {k: v for k, v in os.environ.items() if k not in ("NUMBA_CACHE_DIR", "PYTHONPATH")}
+    env.update(IPROMP_PIN_CACHE_DIR=str(tmp / "cache"), IPROMP_PIN_KERNELS="numpy")
+    extra = ("--model", str(model), "--no-preview")
+    cold = run_once(env, ROOT, tmp / "smoke", extra)
+    print(f"smoke: {cold['wall_s']:.1f} s wall, {cold['cpu_s']:.1f} s CPU", flush=True)
+    return {"cold": [cold], "warm": [], "compile_s": []}
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
@@ -93,6 +119,7 @@ def main() -> None:
         "--baseline", metavar="REV", help="also measure this commit (e.g. the version before)"
     )
     parser.add_argument("--json", type=Path, help="write the results here")
+    parser.add_argument("--smoke", action="store_true", help="one run in place, small model: seconds")
     args = parser.parse_args()
 
     drop = ("IPROMP_PIN_KERNELS", "NUMBA_CACHE_DIR", "IPROMP_PIN_CACHE_DIR", "PYTHONPATH")
@@ -101,6 +128,9 @@ def main() -> None:
     results: dict[str, list[dict]] = {"cold": [], "warm": [], "compile_s": []}
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
+        if args.smoke:
+            results = smoke(tmp)
+            args.repeats, args.baseline = 0, None
         for i in range(args.repeats):
             tree = clone(tmp / f"clone{i}")
             env = {**base_env, "IPROMP_PIN_CACHE_DIR": str(tmp / f"c{i}")}
@@ -131,7 +161,7 @@ def main() -> None:
         f"{platform.python_version()}; load average {load0[0]:.1f} at the start, {load1[0]:.1f} at the end"
     )
     summary = {}
-    for kind in [k for k in ("cold", "warm", "baseline_cold", "baseline_warm") if k in results]:
+    for kind in [k for k in ("cold", "warm", "baseline_cold", "baseline_warm") if results.get(k)]:
         rows = results[kind]
         summary[kind] = {"wall_s": median(rows, "wall_s"), "cpu_s": median(rows, "cpu_s")}
         print(

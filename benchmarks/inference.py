@@ -1,7 +1,8 @@
 """Inference benchmark: training, full update, streaming update, direct reference, scaling, phase accuracy.
 
-Run ``python benchmarks/inference.py`` (full, several minutes) or ``--quick`` (smoke run,
-about a minute); ``--json FILE`` writes the medians in seconds. Everything runs on ONE core
+Run ``python benchmarks/inference.py`` (full, several minutes), ``--quick`` (about a minute) or
+``--smoke`` (tiny settings, seconds: what the test suite runs so that the script cannot silently
+rot); ``--json FILE`` writes the medians in seconds. Everything runs on ONE core
 (process pinned to one CPU when possible, BLAS limited to one thread).
 
 Settings. "paper": 3 tasks, 4 orientation + 8 EMG observed dims, 7 robot joints, 31 basis
@@ -130,6 +131,7 @@ def run_setting(
     stream: bool = True,
     coupling: str = "auto",
     rounds: int = 1,
+    **model_kw: object,
 ) -> dict[str, float]:
     """Train on one setting and time the inference; returns medians in [s] and sizes.
 
@@ -145,7 +147,7 @@ def run_setting(
     train, test = split(ds, n_demos)
     # the whole benchmark runs with BLAS limited to one thread, so the model's own per-call
     # limit (blas_threads, about 15-45 us a call) is switched off
-    kw = {} if n_alpha is None else {"n_alpha": n_alpha}
+    kw = dict(model_kw) if n_alpha is None else {**model_kw, "n_alpha": n_alpha}
     model = IProMP(observe, n_basis=n_basis, noise=10.0, blas_threads=None, coupling=coupling, **kw)
     tracemalloc.start()
     t0 = time.perf_counter()
@@ -342,85 +344,91 @@ def machine_info() -> list[str]:
     ]
 
 
-def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument(
-        "--quick", action="store_true", help="fast smoke run (fewer repeats, extrapolated direct)"
-    )
-    ap.add_argument("--json", metavar="FILE", help="write medians in [s] to FILE")
-    args = ap.parse_args(argv)
-    if hasattr(os, "sched_setaffinity"):
-        try:
-            os.sched_setaffinity(0, {sorted(os.sched_getaffinity(0))[0]})
-        except OSError:
-            pass
-    reps = 5 if args.quick else 30
+SMOKE_MODEL = {"head": False, "handover": False}
+"""Model settings of ``--smoke`` (no recognition head or hand-over regression to fit: seconds)."""
+
+SCALED = [
+    ("paper1blk", {"coupling": "all"}),
+    ("10tasks", {"n_tasks": 10}),
+    ("30tasks", {"n_tasks": 30}),
+    ("dims30", {"n_extra": 18}),
+    ("basis61", {"n_basis": 61}),
+    ("demos100", {"n_demos": 100}),
+    ("alpha50", {"n_alpha": 50}),
+]
+"""Scaled settings (one factor changed from the paper setting); the full run adds 100 and 200
+candidates."""
+
+
+def measure(mode: str) -> dict:
+    """Every measurement of one run; ``mode`` is ``"full"``, ``"quick"`` or ``"smoke"`` (2 tasks of 4
+    demos, a few calls, no cold compile, no phase search, only two scaled settings: seconds)."""
+    quick, smoke = mode == "quick", mode == "smoke"
+    reps = 5 if quick else 30
     # the paper settings' full updates take about a millisecond: many repeats make their medians
     # robust to this VM's bursts of interference
-    paper_reps = 5 if args.quick else 300
-    paper_rounds = 1 if args.quick else 6
-    results: dict[str, float] = {}
-    with threadpool_limits(1):
-        print("\n".join(machine_info()))
-        cold = float("nan") if args.quick else cold_compile_time()
+    paper_reps = 2 if smoke else 5 if quick else 300
+    paper_rounds = 6 if mode == "full" else 1
+    tiny = {"n_tasks": 2, "n_demos": 4, **SMOKE_MODEL} if smoke else {}
+    out: dict = {"mode": mode}
+    print("\n".join(machine_info()))
+    out["cold"] = cold_compile_time() if mode == "full" else float("nan")
+    if not smoke:
         warm_up()
-        paper = run_setting("paper", repeats=paper_reps, rounds=paper_rounds)
-        model, test = paper.pop("_model"), paper.pop("_test")
-        settings = {"paper": paper}
-        scaled = [
-            ("paper1blk", {"coupling": "all"}),
-            ("10tasks", {"n_tasks": 10}),
-            ("30tasks", {"n_tasks": 30}),
-            ("dims30", {"n_extra": 18}),
-            ("basis61", {"n_basis": 61}),
-            ("demos100", {"n_demos": 100}),
-        ]
-        if not args.quick:
-            scaled += [
-                ("alpha50", {"n_alpha": 50}),
-                ("alpha100", {"n_alpha": 100}),
-                ("alpha200", {"n_alpha": 200}),
-            ]
+    paper = run_setting("paper", repeats=paper_reps, rounds=paper_rounds, **tiny)
+    model, test = paper.pop("_model"), paper.pop("_test")
+    settings = {"paper": paper}
+    scaled = list(SCALED)
+    if mode == "full":
+        scaled += [("alpha100", {"n_alpha": 100}), ("alpha200", {"n_alpha": 200})]
+    if smoke:
+        scaled = [(name, kw) for name, kw in scaled if name in ("paper1blk", "dims30")]
+    models = {"paper": model}
+    for name, kw in scaled:
+        if name == "paper1blk":
+            r = run_setting(name, repeats=paper_reps, rounds=paper_rounds, **{**tiny, **kw})
         else:
-            scaled += [("alpha50", {"n_alpha": 50})]
-        models = {"paper": model}
-        for name, kw in scaled:
-            if name == "paper1blk":
-                r = run_setting(name, repeats=paper_reps, rounds=paper_rounds, **kw)
-            else:
-                r = run_setting(name, repeats=max(3, reps // 3), **kw)
-            models[name] = r.pop("_model")
-            r.pop("_test")
-            settings[name] = r
-        # direct reference, same run
-        demo = test[model.tasks_[0]][0]
-        direct = {}
-        for ratio in (0.1, 0.2):
-            if args.quick and ratio == 0.2:
-                continue
-            obs = demo.head(ratio, model.observe)
-            direct[ratio] = direct_time(model, obs, 1 if args.quick else 3)
-        per_task = direct[0.1][0] / 3.0  # direct cost is linear in the number of tasks
-        direct_scaled = {}
-        for name in ("10tasks", "30tasks"):
-            m = models[name]
-            if args.quick:
-                direct_scaled[name] = (per_task * len(m.tasks_), float("nan"), True)
-            else:
-                obs = demo.head(0.1, m.observe)
-                t, diff = direct_time(m, obs, 1)
-                direct_scaled[name] = (t, diff, False)
-        auto = IProMP(OBSERVE)
-        train_auto, _ = split(make_synthetic_dataset(n_tasks=3, n_demos=22, seed=1), 20)
-        t0 = time.perf_counter()
-        auto.fit(train_auto)
-        train_auto_s = (time.perf_counter() - t0) / 3
-        accuracy = phase_accuracy(auto, test)
-        search = phase_search_accuracy()
+            r = run_setting(name, repeats=1 if smoke else max(3, reps // 3), **{**tiny, **kw})
+        models[name] = r.pop("_model")
+        r.pop("_test")
+        settings[name] = r
+    # direct reference, same run
+    demo = test[model.tasks_[0]][0]
+    direct = {}
+    for ratio in (0.1, 0.2):
+        if mode != "full" and ratio == 0.2:
+            continue
+        obs = demo.head(ratio, model.observe)
+        direct[ratio] = direct_time(model, obs, 3 if mode == "full" else 1)
+    per_task = direct[0.1][0] / len(model.tasks_)  # direct cost is linear in the number of tasks
+    direct_scaled = {}
+    for name in [n for n in ("10tasks", "30tasks") if n in models]:
+        m = models[name]
+        if quick:
+            direct_scaled[name] = (per_task * len(m.tasks_), float("nan"), True)
+        else:
+            t, diff = direct_time(m, demo.head(0.1, m.observe), 1)
+            direct_scaled[name] = (t, diff, False)
+    n_tasks, n_train = (2, 4) if smoke else (3, 20)
+    auto = IProMP(OBSERVE, **(SMOKE_MODEL if smoke else {}))
+    train_auto, _ = split(make_synthetic_dataset(n_tasks=n_tasks, n_demos=n_train + 2, seed=1), n_train)
+    t0 = time.perf_counter()
+    auto.fit(train_auto)
+    out["train_auto_s"] = (time.perf_counter() - t0) / n_tasks
+    out["accuracy"] = phase_accuracy(auto, test)
+    out["search"] = ["  not measured (--smoke)"] if smoke else phase_search_accuracy()
+    out.update(model=model, paper=paper, settings=settings, direct=direct, direct_scaled=direct_scaled)
+    out["auto"] = auto
+    return out
 
-    def ms(x: float) -> str:
-        return f"{x * 1e3:9.3f}"
 
+def ms(x: float) -> str:
+    return f"{x * 1e3:9.3f}"
+
+
+def print_times(m: dict) -> None:
+    """The table of medians per setting and the direct reference."""
+    settings, paper = m["settings"], m["paper"]
     print("\nmedian times on one core (ms); r10/r20 = observed ratio 0.1/0.2")
     head = (
         f"{'setting':10s} {'cands':>5s} {'dims':>4s} {'rank':>4s} {'train/task':>10s} {'full r10':>9s} "
@@ -437,13 +445,13 @@ def main(argv: list[str] | None = None) -> int:
             f"{r['peak_predict_r20_mb']:12.2f}"
         )
     print("\ndirect (textbook) reference, same run:")
-    for ratio, (t, diff) in direct.items():
+    for ratio, (t, diff) in m["direct"].items():
         key = f"full_update_r{int(round(ratio * 100)):02d}_s"
         print(
             f"  paper ratio {ratio:.1f}: direct {t * 1e3:.1f} ms, fast {paper[key] * 1e3:.3f} ms, "
             f"speed-up {t / paper[key]:.0f}x, max relative difference {diff:.1e}"
         )
-    for name, (t, diff, extrapolated) in direct_scaled.items():
+    for name, (t, diff, extrapolated) in m["direct_scaled"].items():
         note = (
             " (extrapolated: paper per-task direct time x tasks)"
             if extrapolated
@@ -451,51 +459,68 @@ def main(argv: list[str] | None = None) -> int:
         )
         fast = settings[name]["full_update_r10_s"]
         print(f"  {name} ratio 0.1: direct {t * 1e3:.1f} ms, speed-up {t / fast:.0f}x{note}")
+
+
+def print_growth(m: dict) -> None:
+    """How the full update grows with each factor (the settings this run measured)."""
+    settings, paper = m["settings"], m["paper"]
+
+    def r20(name: str) -> str:
+        return ms(settings[name]["full_update_r20_s"]).strip()
+
     print("\ngrowth (full update, ratio 0.2, ms):")
+    tasks = [k for k in ("paper", "10tasks", "30tasks") if k in settings]
     print(
-        "  tasks 3/10/30: "
-        + " / ".join(ms(settings[k]["full_update_r20_s"]).strip() for k in ("paper", "10tasks", "30tasks"))
+        "  tasks "
+        + "/".join(str(len(m["model"].tasks_)) if k == "paper" else k[:2] for k in tasks)
+        + ": "
+        + " / ".join(r20(k) for k in tasks)
     )
-    alphas = ["paper", "alpha50"] + [k for k in ("alpha100", "alpha200") if k in settings]
+    alphas = [k for k in ("paper", "alpha50", "alpha100", "alpha200") if k in settings]
     print(
         "  candidates "
         + "/".join(str(int(settings[k]["n_candidates"])) for k in alphas)
         + ": "
-        + " / ".join(ms(settings[k]["full_update_r20_s"]).strip() for k in alphas)
+        + " / ".join(r20(k) for k in alphas)
     )
     print(
         f"  observed samples {int(paper['n_samples_r10'])}/{int(paper['n_samples_r20'])}: "
-        f"{ms(paper['full_update_r10_s']).strip()} / {ms(paper['full_update_r20_s']).strip()}"
+        f"{ms(paper['full_update_r10_s']).strip()} / {r20('paper')}"
     )
-    print(
-        f"  observed dims 12/30: {ms(paper['full_update_r20_s']).strip()} / "
-        f"{ms(settings['dims30']['full_update_r20_s']).strip()}"
-    )
-    print(
-        f"  basis 31/61: {ms(paper['full_update_r20_s']).strip()} / "
-        f"{ms(settings['basis61']['full_update_r20_s']).strip()}"
-    )
-    print(
-        f"  demos 20/100 (rank {int(paper['rank'])}/{int(settings['demos100']['rank'])}): "
-        f"{ms(paper['full_update_r20_s']).strip()} / {ms(settings['demos100']['full_update_r20_s']).strip()}"
-    )
+    for name, label in (("dims30", "observed dims 12/30"), ("basis61", "basis 31/61")):
+        if name in settings:
+            print(f"  {label}: {r20('paper')} / {r20(name)}")
+    if "demos100" in settings:
+        print(
+            f"  demos 20/100 (rank {int(paper['rank'])}/{int(settings['demos100']['rank'])}): "
+            f"{r20('paper')} / {r20('demos100')}"
+        )
+
+
+def print_accuracy(m: dict) -> None:
+    """Kernel load/compile times, the noise chosen by cross-validation and the phase/task accuracy."""
+    paper, model, auto = m["paper"], m["model"], m["auto"]
     print(
         f"\nnumba kernels: first inference of this process {paper['first_call_s']:.2f} s (cache load or"
         f" compile); fresh process with an empty cache (full compile) "
-        + ("not measured (--quick)" if args.quick else f"{cold:.1f} s")
+        + (f"not measured (--{m['mode']})" if m["mode"] != "full" else f"{m['cold']:.1f} s")
     )
-    print(f"basis Gram condition number (K=31): {model.basis_.condition_number():.3g}")
+    print(f"basis Gram condition number (K={model.n_basis}): {model.basis_.condition_number():.3g}")
     print(
         f"noise='auto' (leave-one-out CV): chose nu = {auto.noise_ratio_:g}, "
-        f"training {train_auto_s:.2f} s per task "
+        f"training {m['train_auto_s']:.2f} s per task "
         f"(scores: {', '.join(f'{k:g}: {v:.2f}' for k, v in auto.cv_scores_.items())})"
     )
     print("phase / task accuracy on held-out synthetic demos (paper setting, CV-chosen noise):")
-    print("\n".join(accuracy))
+    print("\n".join(m["accuracy"]))
     print("continuous phase estimate vs the exact MAP (1000 candidates), held-out synthetic demos:")
-    print("\n".join(search))
+    print("\n".join(m["search"]))
 
-    for name, r in settings.items():
+
+def json_results(m: dict) -> dict:
+    """The medians in [s] (and a few sizes) written by ``--json``."""
+    results: dict = {}
+    for name, r in m["settings"].items():
         suffix = "paper" if name == "paper" else name
         results[f"full_update_{suffix}_s"] = r["full_update_r20_s"]
         results[f"full_update_r10_{suffix}_s"] = r["full_update_r10_s"]
@@ -503,18 +528,38 @@ def main(argv: list[str] | None = None) -> int:
         results[f"recognise_r20_{suffix}_s"] = r["recognise_r20_s"]
         results[f"streaming_update_{suffix}_s"] = r["streaming_update_s"]
         results[f"train_per_task_{suffix}_s"] = r["train_per_task_s"]
+    direct = m["direct"]
     results["direct_full_update_paper_s"] = direct[0.2][0] if 0.2 in direct else direct[0.1][0]
     results["direct_full_update_r10_paper_s"] = direct[0.1][0]
-    for name, (t, _, _) in direct_scaled.items():
+    for name, (t, _, _) in m["direct_scaled"].items():
         results[f"direct_full_update_{name}_s"] = t
-    results["direct_extrapolated"] = bool(args.quick)
-    results["train_per_task_auto_noise_paper_s"] = train_auto_s
-    results["basis_condition_number"] = model.basis_.condition_number()
-    results["first_call_paper_s"] = paper["first_call_s"]
-    results["jit_compile_cold_s"] = cold
+    results["direct_extrapolated"] = m["mode"] == "quick"
+    results["train_per_task_auto_noise_paper_s"] = m["train_auto_s"]
+    results["basis_condition_number"] = m["model"].basis_.condition_number()
+    results["first_call_paper_s"] = m["paper"]["first_call_s"]
+    results["jit_compile_cold_s"] = m["cold"]
+    return results
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="fast run (fewer repeats, extrapolated direct)")
+    ap.add_argument("--smoke", action="store_true", help="tiny settings, a few calls: seconds (the tests)")
+    ap.add_argument("--json", metavar="FILE", help="write medians in [s] to FILE")
+    args = ap.parse_args(argv)
+    if hasattr(os, "sched_setaffinity"):
+        try:
+            os.sched_setaffinity(0, {sorted(os.sched_getaffinity(0))[0]})
+        except OSError:
+            pass
+    with threadpool_limits(1):
+        m = measure("smoke" if args.smoke else "quick" if args.quick else "full")
+    print_times(m)
+    print_growth(m)
+    print_accuracy(m)
     if args.json:
         with open(args.json, "w") as fh:
-            json.dump(results, fh, indent=2, sort_keys=True)
+            json.dump(json_results(m), fh, indent=2, sort_keys=True)
         print(f"\nwrote {args.json}")
     return 0
 

@@ -7,49 +7,59 @@ setting: 3 tasks x 20 demos, orientation + EMG) and saved once; then both versio
 file alternately, ``--repeats`` times each, in one process, so that a shared machine's drift
 affects both alike. Prints the median load time of each in [ms], the median of the paired
 differences and the file's size. Both loaded models must predict the same.
+
+``--smoke`` compares this checkout with itself (numpy kernels, numba's JIT off: no compile) on a small model
+loaded a few times: seconds; the test suite runs it so that the script cannot silently rot.
 """
 
 from __future__ import annotations
 
 import argparse
-import shutil
 import sys
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
+from checkouts import OTHER, ROOT, add_other, first_module, smoke_kernels
 
-ROOT = Path(__file__).resolve().parents[1]
 OBSERVE = ["orientation", "emg"]
+SMOKE_MODEL = {"head": False, "handover": False, "coupling": "all"}
+"""Model settings of ``--smoke`` (nothing selected by cross-validation inside ``fit``: seconds)."""
 
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("other", help="checkout of the commit to compare with")
+    ap.add_argument("other", nargs="?", help="checkout of the commit to compare with")
     ap.add_argument("--repeats", type=int, default=200, help="loads per version (default 200)")
+    ap.add_argument("--smoke", action="store_true", help="this checkout against itself, tiny: seconds")
     args = ap.parse_args(argv)
-    source = Path(args.other) / "ipromp_pin"
-    if not (source / "__init__.py").is_file():
+    if args.smoke:
+        args.other = args.other or str(ROOT)
+        args.repeats = 3
+    elif args.other is None:
+        ap.error("the checkout to compare with is required (or --smoke)")
+    if not (Path(args.other) / "ipromp_pin" / "__init__.py").is_file():
         ap.error(f"{args.other}: no ipromp_pin package there")
+    n_tasks, n_train = (2, 4) if args.smoke else (3, 20)
     with tempfile.TemporaryDirectory() as tmp:
-        shutil.copytree(source, Path(tmp) / "ipromp_other", ignore=shutil.ignore_patterns("__pycache__"))
-        sys.path[:0] = [tmp, str(ROOT)]
-        from ipromp_other.promp import IProMP as OtherIProMP
-        from ipromp_other.synthetic import make_synthetic_dataset as other_synthetic
+        add_other(Path(args.other), Path(tmp))
+        if args.smoke:
+            smoke_kernels(OTHER, "ipromp_pin")
+        OtherIProMP = first_module(OTHER, "promp", "recognition").IProMP
+        other_synthetic = first_module(OTHER, "readers.synthetic", "synthetic").make_synthetic_dataset
 
         from ipromp_pin.promp import IProMP
         from ipromp_pin.readers.synthetic import make_synthetic_dataset
 
-        ds = make_synthetic_dataset(n_tasks=3, n_demos=21, seed=1)
-        train = type(ds)(ds.root, {t: d[:20] for t, d in ds.demos.items()})
-        model = IProMP(OBSERVE, noise=10.0).fit(train)
+        ds = make_synthetic_dataset(n_tasks=n_tasks, n_demos=n_train + 1, seed=1)
+        train = type(ds)(ds.root, {t: d[:n_train] for t, d in ds.demos.items()})
+        model = IProMP(OBSERVE, noise=10.0, **(SMOKE_MODEL if args.smoke else {})).fit(train)
         path = Path(tmp) / "model.npz"
         model.save(path)
-        obs = ds.demos[model.tasks_[0]][20].head(0.2, OBSERVE)
-        other_obs = (
-            other_synthetic(n_tasks=3, n_demos=21, seed=1).demos[model.tasks_[0]][20].head(0.2, OBSERVE)
-        )
+        obs = ds.demos[model.tasks_[0]][n_train].head(0.2, OBSERVE)
+        other_ds = other_synthetic(n_tasks=n_tasks, n_demos=n_train + 1, seed=1)
+        other_obs = other_ds.demos[model.tasks_[0]][n_train].head(0.2, OBSERVE)
         this, other = IProMP.load(path), OtherIProMP.load(path)  # warm both (imports, caches)
         if not np.array_equal(this.predict(obs).q_mean, other.predict(other_obs).q_mean):
             print("the two versions predict differently from the same file")

@@ -9,7 +9,8 @@ one thread (one core).
 
     python benchmarks/pipeline.py [--repeats 50] [--dataset DATASET] [--json FILE] [--no-rosbag]
 
-Prints the median total and each stage's median and share.
+Prints the median total and each stage's median and share. ``--smoke``: a model trained on 4
+synthetic demos per task, 2 timed runs: seconds, what the test suite runs.
 """
 
 from __future__ import annotations
@@ -43,11 +44,16 @@ def main() -> None:
     parser.add_argument("--ratio", type=float, default=0.2)
     parser.add_argument("--json", type=Path, default=None)
     parser.add_argument("--no-rosbag", action="store_true", help="do not write the rosbag2 folder")
+    parser.add_argument("--smoke", action="store_true", help="train on 4 synthetic demos per task, 2 runs")
     args = parser.parse_args()
+    if args.smoke:
+        args.dataset, args.repeats = None, 2
 
     cfg = PipelineConfig(dataset=args.dataset, ratio=args.ratio, preview_html=False).validate()
     quiet = lambda _msg: None  # noqa: E731
     ds = load_data(cfg, quiet)
+    if args.smoke:  # a small model (trained, not cached: the cache is keyed by the demos)
+        ds = type(ds)(ds.root, {task: demos[-5:] for task, demos in ds.demos.items()})
     robot = load_robot(cfg.robot)
     demos = [d for task in ds.tasks for d in ds.demos[task][-3:]]
     cfg.demo = -1

@@ -1,6 +1,7 @@
 """Where the time of an update goes: stage timers inside back-to-back updates (paper setting).
 
-Run ``taskset -c 0 python benchmarks/profile_update.py``. A full update is timed stage by stage
+Run ``taskset -c 0 python benchmarks/profile_update.py`` (``--smoke``: 2 tasks of 4 demos, a few
+calls, seconds: what the test suite runs). A full update is timed stage by stage
 through the calls that :meth:`IProMP.predict` makes (input checks, basis statistics, the likelihood
 of every (task, candidate) pair, the posteriors, the conditioning); a streaming update is split into
 its compiled kernels (each call timed) and the rest (Python). Medians in [us]; the stages of a full
@@ -71,13 +72,15 @@ class _TimedKernels:
 
 def streaming_stages(model: IProMP, obs, passes: int = 30) -> dict[str, float]:
     """Median time in [us] of a streaming update and the per-update time of each kernel."""
-    kernels = compiled.kernels()
+    kernels = compiled.numba_kernels()  # the streaming kernels are the compiled ones on every backend
     timed = _TimedKernels(kernels)
-    compiled._LOADED[0] = timed  # the streams created below call the timed kernels
+    previous = compiled.set_kernel_backend("numba")
+    compiled._state["numba"] = timed  # the streams created below call the timed kernels
     try:
         updates = stream_update_times(model, obs, passes)
     finally:
-        compiled._LOADED[0] = kernels
+        compiled._state["numba"] = kernels
+        compiled.set_kernel_backend(previous)
     n = len(updates) + 2 * passes  # every update calls the kernels, the first two included
     out = {"update (median)": float(np.median(updates)) * 1e6}
     for name, ts in timed.times.items():
@@ -85,19 +88,23 @@ def streaming_stages(model: IProMP, obs, passes: int = 30) -> dict[str, float]:
     return out
 
 
-def main() -> int:
+def main(argv: list[str] | None = None) -> int:
+    smoke = "--smoke" in (sys.argv[1:] if argv is None else argv)  # 2 tasks of 4 demos, few calls
     with threadpool_limits(1):
-        warm_up()
-        train, test = split(make_synthetic_dataset(n_tasks=3, n_demos=22, seed=1), 20)
-        model = IProMP(OBSERVE, noise=10.0, blas_threads=None).fit(train)
+        if not smoke:
+            warm_up()
+        n_tasks, n_train = (2, 4) if smoke else (3, 20)
+        train, test = split(make_synthetic_dataset(n_tasks=n_tasks, n_demos=n_train + 2, seed=1), n_train)
+        settings = {"head": False, "handover": False} if smoke else {}
+        model = IProMP(OBSERVE, noise=10.0, blas_threads=None, **settings).fit(train)
         obs = test[model.tasks_[0]][0].head(0.2, OBSERVE)
         model.predict(obs)
         print(f"paper setting, 20 % observed ({obs.n_samples} samples), medians in us")
         print("full update:")
-        for name, us in full_update_stages(model, obs).items():
+        for name, us in full_update_stages(model, obs, repeats=3 if smoke else 2000).items():
             print(f"  {name:28s} {us:8.1f}")
         print("streaming update (kernel times are means per update, resets included):")
-        for name, us in streaming_stages(model, obs).items():
+        for name, us in streaming_stages(model, obs, passes=1 if smoke else 30).items():
             print(f"  {name:28s} {us:8.1f}")
     return 0
 

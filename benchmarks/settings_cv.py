@@ -15,7 +15,8 @@ Prints, per setting, recognition accuracy and, over the correctly recognised
 held-out demos, the median and mean hand-over position error in [cm] and the
 mean joint RMSE over the unobserved part in [rad], each for the conditioned
 prediction and for the prior, at observation ratios 0.1 and 0.2, observing
-orientation + EMG.
+orientation + EMG. ``--smoke`` (no dataset): one setting, ratio 0.2, 2 folds over 4 synthetic
+demos per task: seconds, what the test suite runs.
 """
 
 from __future__ import annotations
@@ -30,6 +31,7 @@ from threadpoolctl import threadpool_limits
 from ipromp_pin import IProMP
 from ipromp_pin.evaluation.evaluate import score_trial
 from ipromp_pin.readers import load_dataset
+from ipromp_pin.readers.synthetic import make_synthetic_dataset
 from ipromp_pin.robot import ee_positions, load_robot
 
 
@@ -37,7 +39,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
-    parser.add_argument("dataset", type=Path)
+    parser.add_argument("dataset", type=Path, nargs="?", help="dataset folder (not with --smoke)")
     parser.add_argument("--n-train", type=int, default=10)
     parser.add_argument("--folds", type=int, default=5)
     parser.add_argument("--observe", default="orientation,emg")
@@ -47,10 +49,17 @@ def main() -> None:
         default="scaling",
         help="which settings to compare",
     )
+    parser.add_argument("--smoke", action="store_true", help="synthetic demos, one setting, 2 folds: seconds")
     args = parser.parse_args()
+    if args.dataset is None and not args.smoke:
+        parser.error("the dataset is required (or --smoke)")
 
     observe = args.observe.split(",")
-    ds = load_dataset(args.dataset)
+    if args.smoke:
+        ds = make_synthetic_dataset(n_tasks=2, n_demos=4, seed=0)
+        args.n_train, args.folds, args.dataset = 4, 2, Path(ds.root)
+    else:
+        ds = load_dataset(args.dataset)
     robot = load_robot("baxter_left")
     pool = {task: demos[: args.n_train] for task, demos in ds.demos.items()}
     if args.study == "scaling":
@@ -61,6 +70,10 @@ def main() -> None:
         settings = [{"n_basis": k} for k in (11, 16, 21, 31)]
     else:
         settings = [{"coupling": c} for c in ("all", *[(g,) for g in observe], "auto")]
+    ratios = (0.1, 0.2)
+    fixed = {}
+    if args.smoke:  # one setting, one ratio, nothing else selected inside ``fit``
+        settings, ratios, fixed = settings[:1], (0.2,), {"head": False, "handover": False, "noise": 10.0}
     print(f"{args.folds}-fold CV over the first {args.n_train} demos of each task of {args.dataset.name}")
     print(
         f"{'setting':<28}{'ratio':>7}{'accuracy':>10}{'hand-over cm median':>22}"
@@ -72,7 +85,7 @@ def main() -> None:
 
     with threadpool_limits(1):
         for s in settings:
-            for ratio in (0.1, 0.2):
+            for ratio in ratios:
                 correct, trials = [], []
                 for fold in range(args.folds):
                     test = [
@@ -81,7 +94,7 @@ def main() -> None:
                     train = [
                         d for demos in pool.values() for i, d in enumerate(demos) if i % args.folds != fold
                     ]
-                    model = IProMP(observe=observe, **s).fit(train)
+                    model = IProMP(observe=observe, **fixed, **s).fit(train)
                     for d in test:
                         r = score_trial(model.predict(d.head(ratio, groups=observe)), d, ratio, fk)
                         correct.append(r.correct)

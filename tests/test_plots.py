@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import os
 import struct
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -202,3 +205,27 @@ def test_distributions_band_and_units(tmp_path, monkeypatch, rng):
         plots.plot_distributions(phase, median, median * 0, tmp_path / "x.png", band=(upper, lower))
     with pytest.raises(DataError, match="field 'units'"):
         plots.plot_distributions(phase, median, median * 0, tmp_path / "x.png", units=["rad"])
+
+
+def test_plots_leave_the_importers_backend_alone(tmp_path):
+    """Importing and drawing neither switches matplotlib's backend nor loads pyplot."""
+    png = tmp_path / "a.png"
+    script = f"""
+import sys
+import matplotlib
+matplotlib.use("svg")
+from ipromp_pin.outputs import plots
+assert matplotlib.get_backend() == "svg", matplotlib.get_backend()
+record = dict(n_train=3, obs_ratio=0.5, observe="emg", accuracy=0.5)
+plots.plot_accuracy([record], {str(png)!r})
+assert matplotlib.get_backend() == "svg", matplotlib.get_backend()
+assert "matplotlib.pyplot" not in sys.modules
+print("ok")
+"""
+    env = {k: v for k, v in os.environ.items() if k != "MPLBACKEND"}
+    done = subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, env=env, timeout=120
+    )
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "ok"
+    assert_png(png, (1200, 450))

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from ruckig import InputParameter, Result, Ruckig, RuckigError, Trajectory
@@ -327,7 +328,8 @@ class Retargeter:
         d_end = reference.duration_s
         start = (state.q, state.qd, state.qdd)
         q_end = reference.end()
-        pieces: list[tuple[str, float, float, object]] = []  # (kind, t_begin, t_end, data)
+        # (kind, t_begin, t_end, data): data a ruckig trajectory, or (tau0, k) of a followed piece
+        pieces: list[tuple[str, float, float, Any]] = []
         k = 1.0
         zeros = np.zeros_like(q_end)
         d_follow = d_end - self.settle_s
@@ -338,12 +340,14 @@ class Retargeter:
         else:
             grid = np.append(np.arange(t_c + h, d_follow, dt), d_follow)
             _, v, a, j = reference.evaluate(grid)
+            assert v is not None and a is not None and j is not None  # order 3: every derivative
             k = self.time_scale(v, a, j)
             target_t = t_c + h
             k_follow = k
             for _ in range(CATCH_UP_ITERATIONS):
                 tau0 = target_t
                 q0, v0, a0, _ = reference.evaluate(np.array([tau0]), order=2)
+                assert v0 is not None and a0 is not None
                 k = self.reachable_scale(v0[0], a0[0], k_follow)
                 blend = self._ruckig(start, (q0[0], v0[0] / k, a0[0] / k**2), tau0 - t_c)
                 if blend.duration <= tau0 - t_c + 1e-9 or tau0 >= d_follow:
@@ -355,6 +359,7 @@ class Retargeter:
             pieces.append(("ruckig", t_c, t_b, blend))
             pieces.append(("follow", t_b, t_f, (tau0, k)))
             q_f, v_f, a_f, _ = reference.evaluate(np.array([d_follow]), order=2)
+            assert v_f is not None and a_f is not None
             settle = self._ruckig(
                 (q_f[0], v_f[0] / k, a_f[0] / k**2), (q_end, zeros, zeros), k * self.settle_s
             )
@@ -377,6 +382,7 @@ class Retargeter:
             else:
                 tau0_, k_ = data
                 tq, tv, ta, _ = reference.evaluate(tau0_ + (times[sel] - t0) / k_, order=2)
+                assert tv is not None and ta is not None
                 q[sel], qd[sel], qdd[sel] = tq, tv / k_, ta / k_**2
         q[-1], qd[-1], qdd[-1] = q_end, 0.0, 0.0
         q[0], qd[0], qdd[0] = state.q, state.qd, state.qdd

@@ -562,53 +562,13 @@ def time_path(
     t2 = time.perf_counter()
     timings["toppra_ms"] = (t2 - t1) * 1e3
 
-    # Reference sampled at the control rate, then tracked by a 1-D ruckig on the path coordinate.
-    if not t_grid[-1] * rate_hz <= MAX_TRAJECTORY_SAMPLES:
-        raise InfeasibleError(
-            f"the time-optimal trajectory lasts {t_grid[-1]:.3g} s: more than {MAX_TRAJECTORY_SAMPLES} "
-            f"samples at {rate_hz:g} Hz (are the velocity and acceleration limits plausible?)"
-        )
-    n_ref = int(math.ceil(t_grid[-1] / dt)) + 1
-    ref_s, ref_v, ref_a = _sample_profile(t_grid, s_grid, sd, sdd, np.arange(n_ref) * dt)
-    d1 = np.abs(spline(s_grid, 1)).max(axis=0)  # max |c'_j| over the path
-    v_max = float(np.min(limits.velocity_rad_s / np.maximum(d1, 1e-9)))
-    a_max = float(max(np.abs(sdd).max(), 1e-6)) / toppra_headroom
-    j_max = float(np.min(limits.jerk_rad_s3 / np.maximum(d1, 1e-9)))
-    v_max = max(v_max, float(sd.max()) * 1.0001)
-    s_t, v_t, a_t, j_t = _ruckig_track_1d(
-        ref_s, ref_v, ref_a, length, dt, v_max, a_max, j_max, int(round(lookahead_s / dt)), 20 * n_ref + 10000
+    s_t, v_t, a_t, j_t = _track_profile(
+        spline, s_grid, t_grid, sd, sdd, limits, rate_hz, toppra_headroom, lookahead_s
     )
-    s_t = np.clip(s_t, 0.0, length)
     t3 = time.perf_counter()
     timings["ruckig_ms"] = (t3 - t2) * 1e3
 
-    # Joint derivatives along the path, then the uniform slow-down that meets every limit (the
-    # jerk is checked as a controller replaying the samples sees it: differences of accelerations).
-    t_old = np.arange(s_t.size) * dt
-    k = 1.0
-    for _ in range(6):
-        if k == 1.0:
-            s_q, v_q, a_q, j_q = s_t, v_t, a_t, j_t
-        else:
-            n_new = int(math.ceil(t_old[-1] * k / dt)) + 1
-            t_query = np.minimum(np.arange(n_new) * dt / k, t_old[-1])
-            s_q = np.clip(_hermite_quintic(t_old, s_t, v_t, a_t, t_query), 0.0, length)
-            v_q = np.interp(t_query, t_old, v_t) / k
-            a_q = np.interp(t_query, t_old, a_t) / k**2
-            j_q = np.interp(t_query, t_old, j_t) / k**3
-            v_q[-1] = a_q[-1] = 0.0
-            s_q[-1] = length
-        q, qd, qdd, qddd = _joint_states(spline, s_q, v_q, a_q, j_q)
-        jerk_fd = np.diff(qdd, axis=0) / dt
-        r_v = np.max(np.abs(qd) / limits.velocity_rad_s)
-        r_a = np.max(np.abs(qdd) / limits.acceleration_rad_s2)
-        r_j = np.max(np.abs(jerk_fd) / limits.jerk_rad_s3) if jerk_fd.size else 0.0
-        factor = max(r_v, math.sqrt(r_a), r_j ** (1.0 / 3.0))
-        if factor <= 1.0:
-            break
-        k *= factor * (1.0 + (1e-3 if k == 1.0 else 1e-2))
-    else:
-        raise InfeasibleError(f"could not meet the limits by slowing down (last factor {factor:.3f})")
+    q, qd, qdd, qddd, k = _meet_limits(spline, s_t, v_t, a_t, j_t, length, limits, dt)
     q[-1], qd[-1], qdd[-1] = pts[-1], 0.0, 0.0
     q = np.clip(q, limits.lower_rad, limits.upper_rad)
 
@@ -638,6 +598,90 @@ def time_path(
     timings["total_ms"] = (time.perf_counter() - t0) * 1e3
     report.timings_ms = timings
     return traj, report
+
+
+def _track_profile(
+    spline: CubicSpline,
+    s_grid: np.ndarray,
+    t_grid: np.ndarray,
+    sd: np.ndarray,
+    sdd: np.ndarray,
+    limits: JointLimits,
+    rate_hz: float,
+    toppra_headroom: float,
+    lookahead_s: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Step 3 of :func:`time_path`: the toppra profile (grid ``t_grid`` (G,) in [s], ``sd`` (G,),
+    ``sdd`` (G-1,)) sampled at the control rate and tracked by a 1-D ruckig on the path coordinate.
+
+    Returns:
+        Path position ``s`` in [rad] (clipped to the path length), velocity, acceleration and jerk,
+        each (N,), at the control rate.
+    """
+    dt = 1.0 / rate_hz
+    length = float(s_grid[-1])
+    if not t_grid[-1] * rate_hz <= MAX_TRAJECTORY_SAMPLES:
+        raise InfeasibleError(
+            f"the time-optimal trajectory lasts {t_grid[-1]:.3g} s: more than {MAX_TRAJECTORY_SAMPLES} "
+            f"samples at {rate_hz:g} Hz (are the velocity and acceleration limits plausible?)"
+        )
+    n_ref = int(math.ceil(t_grid[-1] / dt)) + 1
+    ref_s, ref_v, ref_a = _sample_profile(t_grid, s_grid, sd, sdd, np.arange(n_ref) * dt)
+    d1 = np.abs(spline(s_grid, 1)).max(axis=0)  # max |c'_j| over the path
+    v_max = float(np.min(limits.velocity_rad_s / np.maximum(d1, 1e-9)))
+    a_max = float(max(np.abs(sdd).max(), 1e-6)) / toppra_headroom
+    j_max = float(np.min(limits.jerk_rad_s3 / np.maximum(d1, 1e-9)))
+    v_max = max(v_max, float(sd.max()) * 1.0001)
+    s_t, v_t, a_t, j_t = _ruckig_track_1d(
+        ref_s, ref_v, ref_a, length, dt, v_max, a_max, j_max, int(round(lookahead_s / dt)), 20 * n_ref + 10000
+    )
+    return np.clip(s_t, 0.0, length), v_t, a_t, j_t
+
+
+def _meet_limits(
+    spline: CubicSpline,
+    s_t: np.ndarray,
+    v_t: np.ndarray,
+    a_t: np.ndarray,
+    j_t: np.ndarray,
+    length: float,
+    limits: JointLimits,
+    dt: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, float]:
+    """Step 4 of :func:`time_path`: joint derivatives along the path of the tracked path coordinate
+    (``s_t`` etc., (N,) each, sampled every ``dt`` [s], on a path of ``length`` [rad]), then the
+    uniform slow-down that meets every limit (the jerk is checked as a controller replaying the
+    samples sees it: differences of accelerations).
+
+    Returns:
+        Joint position, velocity, acceleration and jerk (N', n_joints) each, and the slow-down factor.
+    """
+    t_old = np.arange(s_t.size) * dt
+    k = 1.0
+    for _ in range(6):
+        if k == 1.0:
+            s_q, v_q, a_q, j_q = s_t, v_t, a_t, j_t
+        else:
+            n_new = int(math.ceil(t_old[-1] * k / dt)) + 1
+            t_query = np.minimum(np.arange(n_new) * dt / k, t_old[-1])
+            s_q = np.clip(_hermite_quintic(t_old, s_t, v_t, a_t, t_query), 0.0, length)
+            v_q = np.interp(t_query, t_old, v_t) / k
+            a_q = np.interp(t_query, t_old, a_t) / k**2
+            j_q = np.interp(t_query, t_old, j_t) / k**3
+            v_q[-1] = a_q[-1] = 0.0
+            s_q[-1] = length
+        q, qd, qdd, qddd = _joint_states(spline, s_q, v_q, a_q, j_q)
+        jerk_fd = np.diff(qdd, axis=0) / dt
+        r_v = np.max(np.abs(qd) / limits.velocity_rad_s)
+        r_a = np.max(np.abs(qdd) / limits.acceleration_rad_s2)
+        r_j = np.max(np.abs(jerk_fd) / limits.jerk_rad_s3) if jerk_fd.size else 0.0
+        factor = max(r_v, math.sqrt(r_a), r_j ** (1.0 / 3.0))
+        if factor <= 1.0:
+            break
+        k *= factor * (1.0 + (1e-3 if k == 1.0 else 1e-2))
+    else:
+        raise InfeasibleError(f"could not meet the limits by slowing down (last factor {factor:.3f})")
+    return q, qd, qdd, qddd, k
 
 
 def _check_sample_budget(q: np.ndarray, limits: JointLimits, rate_hz: float) -> None:

@@ -3,6 +3,10 @@
 Every function takes plain arrays (the pipeline passes model outputs), writes one PNG of a fixed
 pixel size (``figsize`` in inches times ``dpi``) and returns its path. Mismatched shapes raise
 :class:`~ipromp_pin.exceptions.DataError` naming the argument.
+
+The figures are :class:`matplotlib.figure.Figure` objects drawn by their own Agg canvas: no pyplot
+state, no display, and the importer's matplotlib backend is left as it is (importing this module
+does not select one).
 """
 
 from __future__ import annotations
@@ -11,15 +15,13 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-import matplotlib
+import numpy as np
+from matplotlib.axes import Axes
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
 
-matplotlib.use("Agg")  # no display needed; set before pyplot is imported
-
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from .. import atomic  # noqa: E402
-from ..exceptions import DataError  # noqa: E402
+from .. import atomic
+from ..exceptions import DataError
 
 __all__ = [
     "plot_accuracy",
@@ -56,7 +58,20 @@ def _names(names: Sequence[str] | None, n: int, name: str, prefix: str) -> list[
     return names
 
 
-def _panels(n: int, figsize: tuple[float, float], max_cols: int = 4) -> tuple[plt.Figure, list, int]:
+def _figure(figsize: tuple[float, float]) -> Figure:
+    """An empty figure of ``figsize`` in inches with a constrained layout, drawn by an Agg canvas."""
+    fig = Figure(figsize=figsize, layout="constrained")
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def _axes(figsize: tuple[float, float]) -> tuple[Figure, Axes]:
+    """A figure with one panel."""
+    fig = _figure(figsize)
+    return fig, fig.subplots()
+
+
+def _panels(n: int, figsize: tuple[float, float], max_cols: int = 4) -> tuple[Figure, list[Axes], int]:
     """A figure with ``n`` panels on a grid of at most ``max_cols`` columns (unused cells hidden).
 
     Returns:
@@ -65,20 +80,18 @@ def _panels(n: int, figsize: tuple[float, float], max_cols: int = 4) -> tuple[pl
     """
     cols = min(n, max_cols)
     rows = int(np.ceil(n / cols))
-    fig, grid = plt.subplots(rows, cols, figsize=figsize, squeeze=False, layout="constrained")
+    fig = _figure(figsize)
+    grid = fig.subplots(rows, cols, squeeze=False)
     for ax in grid.flat[n:]:
         ax.set_visible(False)
     return fig, list(grid.flat[:n]), cols
 
 
-def _save(fig: plt.Figure, path: str | Path, dpi: int) -> Path:
-    """Save ``fig`` as PNG, atomically (a temporary file renamed into place), and close it."""
+def _save(fig: Figure, path: str | Path, dpi: int) -> Path:
+    """Save ``fig`` as PNG, atomically (a temporary file renamed into place)."""
     path = Path(path)
-    try:
-        with atomic.replacing(path) as tmp:
-            fig.savefig(tmp, format="png", dpi=dpi)
-    finally:
-        plt.close(fig)
+    with atomic.replacing(path) as tmp:
+        fig.savefig(tmp, format="png", dpi=dpi)
     return path
 
 
@@ -221,7 +234,7 @@ def plot_prediction(
             label="2 sigma",
         )
         ax.plot(t_s, q_mean[:, j], color="C0", lw=1.8, label="prediction")
-        if q_truth is not None:
+        if q_truth is not None and truth_t_s is not None:
             ax.plot(truth_t_s, q_truth[:, j], color="k", lw=1.2, ls="--", label="ground truth")
         ax.set_title(names[j], fontsize=9)
         ax.set_ylabel("rad", fontsize=8)
@@ -282,7 +295,7 @@ def plot_phase_posterior(
     peaks = [float(np.max(v[np.isfinite(v)])) if np.isfinite(v).any() else -np.inf for _, _, v in curves]
     top = max(peaks)
     floor = top - span if span is not None and np.isfinite(top) else -np.inf
-    fig, ax = plt.subplots(figsize=figsize, layout="constrained")
+    fig, ax = _axes(figsize)
     for k, ((task, grid, values), peak) in enumerate(zip(curves, peaks, strict=True)):
         finite = np.isfinite(values)
         shown = np.maximum(values, floor)
@@ -344,14 +357,14 @@ def plot_accuracy(
         ]
     cells = sorted({(r[0], r[1]) for r in rows}, key=lambda c: (-c[0], c[1]))
     settings = sorted({r[2] for r in rows}, key=lambda s: ("emg" in s, s))
-    fig, ax = plt.subplots(figsize=figsize, layout="constrained")
+    fig, ax = _axes(figsize)
     width = 0.8 / len(settings)
     x = np.arange(len(cells))
     for k, setting in enumerate(settings):
-        mean = []
+        mean: list[float] = []
         for n_train, ratio in cells:
             values = [r[3] for r in rows if (r[0], r[1], r[2]) == (n_train, ratio, setting)]
-            mean.append(np.mean(values) if values else np.nan)
+            mean.append(float(np.mean(values)) if values else float("nan"))
         pos = x - 0.4 + (k + 0.5) * width
         hatch = None if "emg" in setting else "//"
         ax.bar(pos, mean, width, color=f"C{k}", hatch=hatch, edgecolor="white", label=setting)

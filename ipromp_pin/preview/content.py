@@ -79,6 +79,22 @@ class FeasibilityCheck(NamedTuple):
     required: bool = True
 
 
+def _feasibility_check(item: object) -> FeasibilityCheck:
+    """One ``PreviewContent.feasibility`` item, ``(name, passed[, detail[, status[, required]]])``,
+    as a checked :class:`FeasibilityCheck`."""
+    if not isinstance(item, (tuple, list)) or not 2 <= len(item) <= 5:
+        raise preview_error("feasibility", f"expected (name, passed, detail, status, required), got {item!r}")
+    name, passed = str(item[0]), bool(item[1])
+    detail = str(item[2]) if len(item) > 2 else ""
+    status = str(item[3]) if len(item) > 3 and item[3] else ("pass" if passed else "fail")
+    if status not in CHECK_STATUSES:
+        raise preview_error("feasibility", f"check '{name}': unknown status {status!r}")
+    if (status == "fail") == passed:
+        raise preview_error("feasibility", f"check '{name}': status {status!r} but passed={passed}")
+    required = bool(item[4]) if len(item) > 4 else True
+    return FeasibilityCheck(name, passed, detail, status, required)
+
+
 @dataclass
 class PreviewContent:
     """Everything one preview shows (built by the pipeline from the model and planner outputs).
@@ -144,6 +160,15 @@ class PreviewContent:
     _q_index: np.ndarray = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
+        self._check_motion()
+        self._check_prediction()
+        self._check_human()
+        self._check_recognition()
+        self.feasibility = tuple(_feasibility_check(item) for item in self.feasibility)
+        self._check_highlights()
+
+    def _check_motion(self) -> None:
+        """The model, the trajectory (``t_s``, ``q``, ``joint_names``) and ``q_full``."""
         if not isinstance(self.model, pin.Model):
             raise preview_error("model", f"expected a pinocchio.Model, got {type(self.model).__name__}")
         if self.visual_model is None and self.collision_model is None:
@@ -174,6 +199,8 @@ class PreviewContent:
                 "q_full", f"expected {self.model.nq} values (model.nq), got {self.q_full.size}"
             )
 
+    def _check_prediction(self) -> None:
+        """The predicted end-effector path: ``ee_mean``, ``ee_samples``, ``ee_std``, ``ee_truth``."""
         self.ee_mean = _optional_array(self.ee_mean, "ee_mean", 2, 3)
         self.ee_samples = _optional_array(self.ee_samples, "ee_samples", 3, 3)
         self.ee_std = _optional_array(self.ee_std, "ee_std", 2, 3)
@@ -198,6 +225,8 @@ class PreviewContent:
                 raise preview_error("ee_std", "standard deviations must be >= 0")
         self.ee_truth = _optional_array(self.ee_truth, "ee_truth", 2, 3)
 
+    def _check_human(self) -> None:
+        """The human's side: hand path and times, observed window, duration, hand-over point."""
         self.hand_path = _optional_array(self.hand_path, "hand_path", 2, 3)
         self.hand_t_s = _optional_array(self.hand_t_s, "hand_t_s", 1)
         if self.hand_t_s is not None:
@@ -231,6 +260,8 @@ class PreviewContent:
         self.human_duration_source = str(self.human_duration_source)
         self.handover_point = _optional_array(self.handover_point, "handover_point", 1, 3)
 
+    def _check_recognition(self) -> None:
+        """The recognised ``task`` among ``tasks`` and their ``posterior``."""
         self.tasks = tuple(str(t) for t in self.tasks)
         self.task = str(self.task)
         if self.posterior is not None:
@@ -243,22 +274,9 @@ class PreviewContent:
                 raise preview_error("posterior", "must be probabilities >= 0 summing to 1")
         if self.task and self.tasks and self.task not in self.tasks:
             raise preview_error("task", f"'{self.task}' is not one of the tasks {list(self.tasks)}")
-        checks = []
-        for item in self.feasibility:
-            if not isinstance(item, (tuple, list)) or not 2 <= len(item) <= 5:
-                raise preview_error(
-                    "feasibility", f"expected (name, passed, detail, status, required), got {item!r}"
-                )
-            name, passed = str(item[0]), bool(item[1])
-            detail = str(item[2]) if len(item) > 2 else ""
-            status = str(item[3]) if len(item) > 3 and item[3] else ("pass" if passed else "fail")
-            if status not in CHECK_STATUSES:
-                raise preview_error("feasibility", f"check '{name}': unknown status {status!r}")
-            if (status == "fail") == passed:
-                raise preview_error("feasibility", f"check '{name}': status {status!r} but passed={passed}")
-            required = bool(item[4]) if len(item) > 4 else True
-            checks.append(FeasibilityCheck(name, passed, detail, status, required))
-        self.feasibility = tuple(checks)
+
+    def _check_highlights(self) -> None:
+        """The links drawn red (``collision_links``) and the joints drawn orange (``near_limit_joints``)."""
         self.collision_links = tuple(str(n) for n in self.collision_links)
         for name in self.collision_links:
             self.link_frame(name)
@@ -277,6 +295,13 @@ class PreviewContent:
         raise preview_error("collision_links", f"'{name}' is neither a frame nor a geometry of the robot")
 
     @property
+    def checks(self) -> tuple[FeasibilityCheck, ...]:
+        """The feasibility results as checked :class:`FeasibilityCheck` lines."""
+        return tuple(
+            c if isinstance(c, FeasibilityCheck) else _feasibility_check(c) for c in self.feasibility
+        )
+
+    @property
     def duration_s(self) -> float:
         """Duration of the robot trajectory in [s]."""
         return float(self.t_s[-1])
@@ -290,6 +315,7 @@ class PreviewContent:
 
     def configurations(self, t_s: np.ndarray) -> np.ndarray:
         """Full configurations (len(t_s), nq) at times ``t_s`` [s], arm joints linearly interpolated."""
+        assert self.q_full is not None  # set by __post_init__
         qs = np.repeat(self.q_full[None, :], len(t_s), axis=0)
         for j, iq in enumerate(self._q_index):
             qs[:, iq] = np.interp(t_s, self.t_s, self.q[:, j])

@@ -22,6 +22,7 @@ import xml.etree.ElementTree as ET
 import zipfile
 from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import Any
 
 import coal
 import fast_simplification
@@ -37,7 +38,7 @@ CACHE_VERSION = 1
 """Version of the cache entries' layout (part of the key: a new layout never reads an old file)."""
 
 # primitive type -> (name, its parameters, built from them)
-_PRIMITIVES: dict[type, tuple[str, Callable[[object], list[float]], Callable[[np.ndarray], object]]] = {
+_PRIMITIVES: dict[type, tuple[str, Callable[[Any], list[float]], Callable[[np.ndarray], object]]] = {
     coal.Box: ("box", lambda g: list(2.0 * np.asarray(g.halfSide)), lambda p: coal.Box(*p)),
     coal.Sphere: ("sphere", lambda g: [g.radius], lambda p: coal.Sphere(p[0])),
     coal.Cylinder: ("cylinder", lambda g: [g.radius, 2.0 * g.halfLength], lambda p: coal.Cylinder(*p)),
@@ -87,7 +88,12 @@ def _file_digests(paths: list[Path], memo_path: Path | None) -> list[bytes] | No
         changed = True
         out.append(digest)
     if changed and memo_path is not None:
-        write_atomically(memo_path, lambda tmp: tmp.write_text(json.dumps(memo)))
+        text = json.dumps(memo)
+
+        def write(tmp: Path) -> None:
+            tmp.write_text(text)
+
+        write_atomically(memo_path, write)
     return out
 
 
@@ -111,12 +117,13 @@ def visual_model_key(
     }
     digest.update(json.dumps(header, sort_keys=True).encode())
     digest.update(hashlib.sha256(text).digest())
-    uris, paths = [], []
+    uris: list[str] = []
+    paths: list[Path] = []
     for visual in root.iter("visual"):
         for mesh in visual.iter("mesh"):
             uri = mesh.get("filename")
             path = None if uri is None else _mesh_file(uri, urdf.parent, package_dirs)
-            if path is None:
+            if uri is None or path is None:
                 return None
             uris.append(uri)
             paths.append(path.resolve())
@@ -133,7 +140,9 @@ def _to_arrays(
 ) -> dict[str, np.ndarray] | None:
     """Plain arrays of a decimated geometry model whose meshes' triangles are ``triangles`` (by
     object name), or None when it holds something not cached."""
-    objects, vertices, faces = [], [], []
+    objects: list[dict] = []
+    vertices: list[np.ndarray] = []
+    faces: list[np.ndarray] = []
     for obj in geometry.geometryObjects:
         if type(obj.meshMaterial).__name__ != "GeometryNoMaterial" or obj.meshTexturePath:
             return None
@@ -247,7 +256,7 @@ def cached_visual_model(
 
             def save(tmp: Path) -> None:
                 with tmp.open("wb") as f:
-                    np.savez(f, **arrays)
+                    np.savez(f, **arrays)  # type: ignore[arg-type]  # numpy stubs: a key could be allow_pickle
 
             write_atomically(path, save)
     return decimated

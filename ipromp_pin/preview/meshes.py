@@ -190,18 +190,18 @@ def tube_mesh(
         )
     ).reshape(-1, 3)
     m = len(pts)
-    i, k = np.meshgrid(np.arange(m - 1), np.arange(sides), indexing="ij")
-    a = i * sides + k
-    b = i * sides + (k + 1) % sides
+    ii, kk = np.meshgrid(np.arange(m - 1), np.arange(sides), indexing="ij")
+    a = ii * sides + kk
+    b = ii * sides + (kk + 1) % sides
     c = a + sides
     d = b + sides
     faces = np.concatenate([np.stack([a, b, d], -1).reshape(-1, 3), np.stack([a, d, c], -1).reshape(-1, 3)])
     start, end = len(ring), len(ring) + 1
-    k = np.arange(sides)
+    kr = np.arange(sides)
     caps = np.concatenate(
         [
-            np.stack([np.full(sides, start), (k + 1) % sides, k], -1),
-            np.stack([np.full(sides, end), (m - 1) * sides + k, (m - 1) * sides + (k + 1) % sides], -1),
+            np.stack([np.full(sides, start), (kr + 1) % sides, kr], -1),
+            np.stack([np.full(sides, end), (m - 1) * sides + kr, (m - 1) * sides + (kr + 1) % sides], -1),
         ]
     )
     vertices = np.vstack([ring, pts[0], pts[-1]])
@@ -226,16 +226,16 @@ def sphere_mesh(center: np.ndarray, radius: float, n: int = 12) -> tuple[np.ndar
     ).reshape(-1, 3)
     vertices = np.vstack([ring, [0.0, 0.0, 1.0], [0.0, 0.0, -1.0]]) * radius + np.asarray(center, dtype=float)
     rows, cols = len(theta), len(phi)
-    i, k = np.meshgrid(np.arange(rows - 1), np.arange(cols), indexing="ij")
-    a = i * cols + k
-    b = i * cols + (k + 1) % cols
+    ii, kk = np.meshgrid(np.arange(rows - 1), np.arange(cols), indexing="ij")
+    a = ii * cols + kk
+    b = ii * cols + (kk + 1) % cols
     faces = [
         np.stack([a, b + cols, b], -1).reshape(-1, 3),
         np.stack([a, a + cols, b + cols], -1).reshape(-1, 3),
     ]
     top, bottom = len(ring), len(ring) + 1
-    k = np.arange(cols)
-    faces.append(np.stack([np.full(cols, top), k, (k + 1) % cols], -1))
+    kr = np.arange(cols)
+    faces.append(np.stack([np.full(cols, top), kr, (kr + 1) % cols], -1))
     last = (rows - 1) * cols
-    faces.append(np.stack([np.full(cols, bottom), last + (k + 1) % cols, last + k], -1))
+    faces.append(np.stack([np.full(cols, bottom), last + (kr + 1) % cols, last + kr], -1))
     return vertices, np.vstack(faces)

@@ -425,7 +425,7 @@ def overlay_state(content: PreviewContent) -> dict[str, Any]:
                 "required": c.required,
                 "detail": c.detail,
             }
-            for c in content.feasibility
+            for c in content.checks
         ],
         "collision_links": list(content.collision_links),
         "near_limit_joints": list(content.near_limit_joints),

@@ -109,8 +109,8 @@ class LivePreview:
         self._robot = RobotView(content, max_triangles)
         build_scene(self._recorder, content, robot=self._robot, fps=self.fps)
         self._clients: set = set()
-        self._loop = None
-        self._server = None
+        self._loop: tornado.ioloop.IOLoop | None = None
+        self._server: tornado.httpserver.HTTPServer | None = None
         self._thread: threading.Thread | None = None
         self._sockets = self._bind(_check_port(port), port_attempts)
         self.port = int(self._sockets[0].getsockname()[1])
@@ -175,16 +175,16 @@ class LivePreview:
 
         def run() -> None:
             asyncio.set_event_loop(asyncio.new_event_loop())
-            self._loop = tornado.ioloop.IOLoop.current()
+            self._loop = loop = tornado.ioloop.IOLoop.current()
             app = tornado.web.Application(
                 [(r"/", PageHandler), (r"/favicon.ico", NoIconHandler), (r"/ws", SocketHandler)],
                 log_function=lambda handler: None,  # no access log lines on the console
             )
-            self._server = tornado.httpserver.HTTPServer(app)
-            self._server.add_sockets(self._sockets)
+            self._server = server = tornado.httpserver.HTTPServer(app)
+            server.add_sockets(self._sockets)
             ready.set()
-            self._loop.start()
-            self._loop.close(all_fds=True)
+            loop.start()
+            loop.close(all_fds=True)
 
         self._thread = threading.Thread(target=run, name=f"ipromp-preview-{self.port}", daemon=True)
         self._thread.start()
@@ -243,6 +243,8 @@ class LivePreview:
             return
         loop, server = self._loop, self._server
         self._recorder.listener = None
+        if loop is None or server is None:  # the server thread never started
+            return
 
         def stop() -> None:
             for socket in list(self._clients):

@@ -125,8 +125,9 @@ def _timeline_scene(
     """Add the time-dependent objects and replace the animation by one that also drives them."""
     viewer = meshcat.Visualizer(window=window)
     plans = [i for i, e in enumerate(events) if e.committed and e.planned_path is not None]
-    for k, i in enumerate(plans):
-        _tube(viewer[f"timeline/plans/{k}"], events[i].planned_path, 0.009, COLOR_PLAN, 0.7)
+    paths = [path for e in events if e.committed and (path := e.planned_path) is not None]
+    for k, path in enumerate(paths):
+        _tube(viewer[f"timeline/plans/{k}"], path, 0.009, COLOR_PLAN, 0.7)
         viewer[f"timeline/plans/{k}"].set_property("visible", False)
     points = [i for i, e in enumerate(events) if e.handover_point is not None]
     if points:

@@ -63,6 +63,7 @@ from __future__ import annotations
 import json
 import zipfile
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -379,64 +380,72 @@ def _expected_shapes(path: Path, header: dict) -> dict[str, tuple[int | None, ..
         )
     head = header.get("head")
     if head is not None:
-        n = head.get("regressions") if isinstance(head, dict) else None
-        if not isinstance(n, int) or isinstance(n, bool) or not 1 <= n <= MAX_HEAD_REGRESSIONS:
-            raise ModelFileError(
-                f"{path}: header field 'head' must give 1-{MAX_HEAD_REGRESSIONS} regressions"
-            )
-        t = len(tasks)
-        n_feat = 3 * sum(len(names[g]) for g in groups[:-1]) + t
-        shapes.update(
-            {
-                "head_ratios": (n,),
-                "head_coef": (n, t, n_feat),
-                "head_intercept": (n, t),
-                "head_feature_mean": (n, n_feat),
-                "head_feature_scale": (n, n_feat),
-                "head_c": (n,),
-                "head_cv_log_loss": (n, None),
-            }
-        )
-        shapes.update({"head_kind": (n,), "head_generative": (n,)})  # since version 3
+        n_feat = 3 * sum(len(names[g]) for g in groups[:-1]) + len(tasks)
+        shapes.update(_head_shapes(path, head, len(tasks), n_feat))
     ho = header.get("handover")
     if ho is not None:
-        sizes = [ho.get(key) if isinstance(ho, dict) else None for key in ("ratios", "outputs", "features")]
-        if not all(
-            isinstance(v, int) and not isinstance(v, bool) and 1 <= v <= MAX_HANDOVER_SIZE for v in sizes
-        ):
+        shapes.update(_handover_shapes(path, ho, len(tasks), names, groups))
+    return shapes
+
+
+def _head_shapes(path: Path, head: object, t: int, n_feat: int) -> dict[str, tuple[int | None, ...]]:
+    """Expected shapes of the recognition head's arrays (header field ``head``; ``t`` tasks,
+    ``n_feat`` features)."""
+    n = head.get("regressions") if isinstance(head, dict) else None
+    if not isinstance(n, int) or isinstance(n, bool) or not 1 <= n <= MAX_HEAD_REGRESSIONS:
+        raise ModelFileError(f"{path}: header field 'head' must give 1-{MAX_HEAD_REGRESSIONS} regressions")
+    shapes: dict[str, tuple[int | None, ...]] = {
+        "head_ratios": (n,),
+        "head_coef": (n, t, n_feat),
+        "head_intercept": (n, t),
+        "head_feature_mean": (n, n_feat),
+        "head_feature_scale": (n, n_feat),
+        "head_c": (n,),
+        "head_cv_log_loss": (n, None),
+    }
+    shapes.update({"head_kind": (n,), "head_generative": (n,)})  # since version 3
+    return shapes
+
+
+def _handover_shapes(
+    path: Path, ho: object, t: int, names: dict, groups: list
+) -> dict[str, tuple[int | None, ...]]:
+    """Expected shapes of the hand-over regression's arrays (header field ``handover``; ``t`` tasks,
+    the robot's joints are the channels of the last group)."""
+    table: dict = ho if isinstance(ho, dict) else {}
+    sizes: list[Any] = [table.get(key) for key in ("ratios", "outputs", "features")]
+    if not all(isinstance(v, int) and not isinstance(v, bool) and 1 <= v <= MAX_HANDOVER_SIZE for v in sizes):
+        raise ModelFileError(
+            f"{path}: header field 'handover' must give 1-{MAX_HANDOVER_SIZE} ratios, outputs, features"
+        )
+    r, m, f = (int(v) for v in sizes)
+    nj = len(names[groups[-1]])
+    shapes: dict[str, tuple[int | None, ...]] = {
+        "handover_ratios": (r,),
+        "handover_dims": (f,),
+        "handover_readout": (t, m, nj),
+        "handover_coef": (r, t, m, 2 * f),
+        "handover_intercept": (r, t, m),
+        "handover_residual_cov": (r, m, m),
+    }
+    n = table.get("neighbours")  # since version 4
+    if n is not None:
+        if not isinstance(n, int) or isinstance(n, bool) or not 1 <= n <= MAX_HANDOVER_SIZE:
             raise ModelFileError(
-                f"{path}: header field 'handover' must give 1-{MAX_HANDOVER_SIZE} ratios, outputs, features"
+                f"{path}: header field 'handover' must give 1-{MAX_HANDOVER_SIZE} neighbours or null"
             )
-        r, m, f = sizes
-        t, nj = len(tasks), len(names[groups[-1]])
         shapes.update(
             {
-                "handover_ratios": (r,),
-                "handover_dims": (f,),
-                "handover_readout": (t, m, nj),
-                "handover_coef": (r, t, m, 2 * f),
-                "handover_intercept": (r, t, m),
-                "handover_residual_cov": (r, m, m),
+                "handover_kind": (r,),
+                "handover_neighbour_x": (r, t, n, 2 * f),
+                "handover_neighbour_y": (r, t, n, m),
+                "handover_neighbour_count": (r, t),
+                "handover_neighbour_mean": (r, t, 2 * f),
+                "handover_neighbour_scale": (r, t, 2 * f),
+                "handover_neighbour_k": (r, t),
+                "handover_neighbour_distance": (r, t),
             }
         )
-        n = ho.get("neighbours")  # since version 4
-        if n is not None:
-            if not isinstance(n, int) or isinstance(n, bool) or not 1 <= n <= MAX_HANDOVER_SIZE:
-                raise ModelFileError(
-                    f"{path}: header field 'handover' must give 1-{MAX_HANDOVER_SIZE} neighbours or null"
-                )
-            shapes.update(
-                {
-                    "handover_kind": (r,),
-                    "handover_neighbour_x": (r, t, n, 2 * f),
-                    "handover_neighbour_y": (r, t, n, m),
-                    "handover_neighbour_count": (r, t),
-                    "handover_neighbour_mean": (r, t, 2 * f),
-                    "handover_neighbour_scale": (r, t, 2 * f),
-                    "handover_neighbour_k": (r, t),
-                    "handover_neighbour_distance": (r, t),
-                }
-            )
     return shapes
 
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 import dataclasses
 import datetime as _dt
 import re
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -151,6 +151,50 @@ def uncalibrated_robot(robot: Robot) -> Robot:
 _FITS = ("mount", "tool", "both")
 
 
+def _stacked_frames(
+    nominal: Robot, pairs: list[tuple[int, np.ndarray, np.ndarray]], labels: Sequence[str] | None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Every sample of ``pairs`` (demo index, joints (T, n_joints), end-point pose (T, 7)) stacked:
+    the uncalibrated parent frame's position (N, 3) in [m] and rotation (N, 3, 3), the arm mount's
+    parent rotation (N, 3, 3), the recorded poses (N, 7) and each sample's source label (N,)."""
+    pid = nominal.ee_parent_frame_id
+    mount_parent = int(nominal.model.parents[int(nominal.arm_joint_ids[0])])
+    ps, rs, r0s, recs, srcs = [], [], [], [], []
+    for k, q, ep in pairs:
+        p, r = frame_placements(nominal, q, pid)
+        ps.append(p)
+        rs.append(r)
+        if mount_parent == 0:
+            r0s.append(np.broadcast_to(np.eye(3), r.shape))
+        else:
+            r0 = np.empty_like(r)
+            for i, row in enumerate(nominal.full_configuration(q)):
+                pin.forwardKinematics(nominal.model, nominal.data, row)
+                r0[i] = nominal.data.oMi[mount_parent].rotation
+            r0s.append(r0)
+        recs.append(ep)
+        srcs.extend([labels[k] if labels is not None else "all"] * q.shape[0])
+    return np.vstack(ps), np.concatenate(rs), np.concatenate(r0s), np.vstack(recs), np.asarray(srcs)
+
+
+def _rotation_error_deg(r: np.ndarray, quat: np.ndarray) -> np.ndarray:
+    """Angle (N,) in [deg] between rotations ``r`` (N, 3, 3) and recorded quaternions ``quat``
+    (N, 4) xyzw; NaN where a quaternion is missing (norm not above 0.5)."""
+    rot_err = np.full(r.shape[0], np.nan)
+    qn = np.linalg.norm(quat, axis=1)
+    good = np.isfinite(qn) & (qn > 0.5)
+    if good.any():
+        qf = rotations_to_quat_xyzw(r[good])
+        dots = np.abs(np.sum(qf * quat[good] / qn[good, None], axis=1))
+        rot_err[good] = np.degrees(2 * np.arccos(np.clip(dots, 0, 1)))
+    return rot_err
+
+
+def _replacement(text: str) -> Callable[[re.Match[str]], str]:
+    """A ``re.sub`` replacement inserting ``text`` literally (no group references, no escapes)."""
+    return lambda _match: text
+
+
 def calibrate_tool_offset(
     robot: Robot, demos: Iterable[Demo], labels: Sequence[str] | None = None, fit: str = "mount"
 ) -> CalibrationResult:
@@ -191,28 +235,7 @@ def calibrate_tool_offset(
             f"no demo has both robot joint angles and recorded end-point poses ({len(skipped)} without)",
         )
     nominal = uncalibrated_robot(robot)
-    pid = nominal.ee_parent_frame_id
-    mount_parent = int(nominal.model.parents[int(nominal.arm_joint_ids[0])])
-    ps, rs, r0s, recs, srcs = [], [], [], [], []
-    for k, q, ep in pairs:
-        p, r = frame_placements(nominal, q, pid)
-        ps.append(p)
-        rs.append(r)
-        if mount_parent == 0:
-            r0s.append(np.broadcast_to(np.eye(3), r.shape))
-        else:
-            r0 = np.empty_like(r)
-            for i, row in enumerate(nominal.full_configuration(q)):
-                pin.forwardKinematics(nominal.model, nominal.data, row)
-                r0[i] = nominal.data.oMi[mount_parent].rotation
-            r0s.append(r0)
-        recs.append(ep)
-        srcs.extend([labels[k] if labels is not None else "all"] * q.shape[0])
-    p = np.vstack(ps)
-    r = np.concatenate(rs)
-    r0 = np.concatenate(r0s)
-    rec = np.vstack(recs)
-    srcs = np.asarray(srcs)
+    p, r, r0, rec, srcs = _stacked_frames(nominal, pairs, labels)
     diff = rec[:, :3] - p
     blocks = {"mount": [r0], "tool": [r], "both": [r0, r]}[fit]
     a = np.concatenate(blocks, axis=2)  # (N, 3, 3 or 6)
@@ -221,14 +244,7 @@ def calibrate_tool_offset(
     tool = x[-3:] if fit in ("tool", "both") else np.zeros(3)
     before = np.linalg.norm(diff, axis=1)
     after = np.linalg.norm(diff - a @ x, axis=1)
-    rot_err = np.full(p.shape[0], np.nan)
-    quat = rec[:, 3:7]
-    qn = np.linalg.norm(quat, axis=1)
-    good = np.isfinite(qn) & (qn > 0.5)
-    if good.any():
-        qf = rotations_to_quat_xyzw(r[good])
-        dots = np.abs(np.sum(qf * quat[good] / qn[good, None], axis=1))
-        rot_err[good] = np.degrees(2 * np.arccos(np.clip(dots, 0, 1)))
+    rot_err = _rotation_error_deg(r, rec[:, 3:7])
     per_source = {}
     if labels is not None:
         for lab in dict.fromkeys(srcs.tolist()):
@@ -303,7 +319,7 @@ def write_calibration(settings_path: str | Path, result: CalibrationResult, comm
         for key, value in new_values.items():
             pattern = re.compile(rf"^{key}[ \t]*=.*$", flags=re.M)
             if pattern.search(section):
-                section = pattern.sub(lambda _m, k=key, v=value: f"{k} = {v}", section, count=1)
+                section = pattern.sub(_replacement(f"{key} = {value}"), section, count=1)
             else:
                 section = section.rstrip("\n") + f"\n{key} = {value}\n" + ("\n" if nxt else "")
         text = text[:start] + section + text[end:]

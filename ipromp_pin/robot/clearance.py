@@ -65,7 +65,7 @@ def pair_weights(robot: Robot) -> np.ndarray:
     other, else an upper bound, valid in every configuration, of the distance from joint ``k``'s
     origin (on its axis) to any point of the geometry it moves.
     """
-    model, cmodel = robot.model, robot.collision_model
+    model, (cmodel, _) = robot.model, robot.collision()
     data = model.createData()
     pin.forwardKinematics(model, data, robot.q_neutral)
     link = np.array([np.linalg.norm(data.liMi[j].translation) for j in range(model.njoints)])
@@ -220,7 +220,7 @@ class ClearanceCertifier:
             return None
         left = self._split_segment(p, a, mid, depth + 1)
         right = None if left is None else self._split_segment(p, mid, b, depth + 1)
-        return None if right is None else min(left, right)
+        return None if left is None or right is None else min(left, right)
 
     def certify(self, q: np.ndarray) -> ClearanceResult:
         """Certify the piecewise-linear joint path through ``q`` (N, n_joints) in [rad].

@@ -58,7 +58,7 @@ def densify_path(q: np.ndarray, max_step_rad: float) -> np.ndarray:
 def _sample_distances(robot: Robot, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Min distance [m], its pair id and the swept-motion reach (n_joints,) per configuration row."""
     model, data = robot.model, robot.data
-    cmodel, cdata = robot.collision_model, robot.collision_data
+    cmodel, cdata = robot.collision()
     active = robot.active_pair_ids
     full = robot.full_configuration(q)
     dmin = np.empty(q.shape[0])

@@ -104,16 +104,28 @@ class Robot:
         q[..., self.arm_q_index] = q_arm
         return q
 
+    def collision(self) -> tuple[pin.GeometryModel, pin.GeometryData]:
+        """The collision model and its data.
+
+        Raises:
+            RobotError: a kinematics-only robot (``build_robot(settings, collision=False)``).
+        """
+        if self.collision_model is None or self.collision_data is None:
+            raise settings_error(self.settings.path, None, "robot built without its collision model")
+        return self.collision_model, self.collision_data
+
     def pair_names(self, pair_id: int) -> tuple[str, str]:
         """Geometry names of collision pair ``pair_id``."""
-        cp = self.collision_model.collisionPairs[int(pair_id)]
-        g = self.collision_model.geometryObjects
+        cmodel, _ = self.collision()
+        cp = cmodel.collisionPairs[int(pair_id)]
+        g = cmodel.geometryObjects
         return g[cp.first].name, g[cp.second].name
 
     def pair_links(self, pair_id: int) -> tuple[str, str]:
         """Link (parent frame) names of collision pair ``pair_id``."""
-        cp = self.collision_model.collisionPairs[int(pair_id)]
-        g = self.collision_model.geometryObjects
+        cmodel, _ = self.collision()
+        cp = cmodel.collisionPairs[int(pair_id)]
+        g = cmodel.geometryObjects
         return (
             self.model.frames[g[cp.first].parentFrame].name,
             self.model.frames[g[cp.second].parentFrame].name,
@@ -159,24 +171,19 @@ def load_robot(settings: RobotSettings | str | Path, *, cache: bool = True) -> R
     return robot
 
 
-def build_robot(s: RobotSettings, collision: bool = True) -> Robot:
-    """Build the robot described by validated settings (not cached; see :func:`load_robot`).
-
-    Args:
-        s: Validated settings (:func:`load_robot_settings`).
-        collision: Also build the collision model (~50 ms) and check the held configuration;
-            ``False`` gives a kinematics-only robot (~3 ms, ``collision_model`` is ``None``).
-
-    Raises:
-        RobotError: as :func:`load_robot`.
-    """
-    src = s.path
+def _parse_urdf(s: RobotSettings) -> pin.Model:
+    """The kinematic model of the settings' URDF."""
     try:
-        model = pin.buildModelFromUrdf(str(s.urdf_path))
+        return pin.buildModelFromUrdf(str(s.urdf_path))
     except (RuntimeError, ValueError) as exc:
-        raise settings_error(src, "description.urdf", f"cannot be parsed: {exc}") from exc
+        raise settings_error(s.path, "description.urdf", f"cannot be parsed: {exc}") from exc
 
-    joint_ids = []
+
+def _arm_indices(model: pin.Model, s: RobotSettings) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The arm's joint ids, configuration indices and velocity indices (n_joints,) each, checked to be
+    1-dof joints of the model in kinematic order."""
+    src = s.path
+    ids = []
     for name in s.arm_joints:
         if not model.existJointName(name):
             raise settings_error(
@@ -185,14 +192,22 @@ def build_robot(s: RobotSettings, collision: bool = True) -> Robot:
         jid = model.getJointId(name)
         if model.joints[jid].nq != 1 or model.joints[jid].nv != 1:
             raise settings_error(src, "arm.joints", f"joint '{name}' is not a 1-dof joint")
-        joint_ids.append(jid)
-    for a, b, ja, jb in zip(s.arm_joints[:-1], s.arm_joints[1:], joint_ids[:-1], joint_ids[1:], strict=True):
+        ids.append(jid)
+    for a, b, ja, jb in zip(s.arm_joints[:-1], s.arm_joints[1:], ids[:-1], ids[1:], strict=True):
         if jb not in model.subtrees[ja]:
             raise settings_error(src, "arm.joints", f"not in kinematic order: '{b}' does not follow '{a}'")
-    joint_ids = np.asarray(joint_ids, dtype=int)
+    joint_ids = np.asarray(ids, dtype=int)
     q_idx = np.array([model.joints[int(j)].idx_q for j in joint_ids], dtype=int)
     v_idx = np.array([model.joints[int(j)].idx_v for j in joint_ids], dtype=int)
+    return joint_ids, q_idx, v_idx
 
+
+def _arm_limits(
+    model: pin.Model, s: RobotSettings, q_idx: np.ndarray, v_idx: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The arm's URDF position limits (n_joints,) in [rad] and its velocity limits (n_joints,) in
+    [rad/s] (the URDF's or the settings' override), checked against the settings' margins."""
+    src = s.path
     lower = np.asarray(model.lowerPositionLimit, dtype=float)[q_idx]
     upper = np.asarray(model.upperPositionLimit, dtype=float)[q_idx]
     urdf_vel = np.asarray(model.velocityLimit, dtype=float)[v_idx]
@@ -214,7 +229,15 @@ def build_robot(s: RobotSettings, collision: bool = True) -> Robot:
                 f"margin {s.position_margin_rad[i]} leaves no range for {name}",
             )
     vel = urdf_vel if s.velocity_override_rad_s is None else s.velocity_override_rad_s
+    return lower, upper, np.asarray(vel, dtype=float)
 
+
+def _held_configuration(
+    model: pin.Model, s: RobotSettings, q_idx: np.ndarray, lower: np.ndarray, upper: np.ndarray
+) -> np.ndarray:
+    """The full configuration (nq,): non-arm joints at their fixed values (checked), arm at 0 clipped
+    into its limits less the margins."""
+    src = s.path
     q0 = pin.neutral(model)
     q0 = np.clip(q0, model.lowerPositionLimit, model.upperPositionLimit)
     q0[q_idx] = np.clip(0.0, lower + s.position_margin_rad, upper - s.position_margin_rad)
@@ -232,14 +255,19 @@ def build_robot(s: RobotSettings, collision: bool = True) -> Robot:
                 src, f"fixed_joints.{name}", f"value {value} outside the joint's limits [{lo}, {hi}]"
             )
         q0[j.idx_q] = value
+    return q0
 
+
+def _add_ee_frame(model: pin.Model, s: RobotSettings, last_joint_id: int) -> tuple[int, int]:
+    """Add the end-effector frame (parent frame * tool offset) to ``model``; its id and the parent's."""
+    src = s.path
     if not model.existFrame(s.ee_parent_frame):
         raise settings_error(src, "end_effector.parent_frame", f"unknown frame '{s.ee_parent_frame}'")
     parent_id = model.getFrameId(s.ee_parent_frame)
     if model.existFrame(s.ee_frame):
         raise settings_error(src, "end_effector.frame", f"frame '{s.ee_frame}' already exists in the model")
     parent = model.frames[parent_id]
-    if parent.parentJoint not in model.subtrees[int(joint_ids[-1])]:
+    if parent.parentJoint not in model.subtrees[last_joint_id]:
         raise settings_error(
             src, "end_effector.parent_frame", f"frame '{s.ee_parent_frame}' is not moved by the arm"
         )
@@ -249,26 +277,13 @@ def build_robot(s: RobotSettings, collision: bool = True) -> Robot:
             s.ee_frame, parent.parentJoint, parent_id, parent.placement * offset, pin.FrameType.OP_FRAME
         )
     )
-    root = int(joint_ids[0])
-    model.jointPlacements[root] = pin.SE3(np.eye(3), s.mount_offset_m) * model.jointPlacements[root]
-    data = model.createData()
-    kinematic = dict(
-        settings=s,
-        model=model,
-        data=data,
-        arm_joint_ids=joint_ids,
-        arm_q_index=q_idx,
-        arm_v_index=v_idx,
-        ee_frame_id=int(ee_id),
-        ee_parent_frame_id=int(parent_id),
-        q_neutral=q0,
-        lower_rad=lower,
-        upper_rad=upper,
-        velocity_rad_s=np.asarray(vel, dtype=float),
-    )
-    if not collision:
-        return Robot(collision_model=None, collision_data=None, **kinematic)
+    return int(ee_id), int(parent_id)
 
+
+def _collision_model(model: pin.Model, s: RobotSettings) -> tuple[pin.GeometryModel, int, int]:
+    """The collision model with the SRDF's disabled pairs removed, the number of pairs before and the
+    number the SRDF removed."""
+    src = s.path
     try:
         cmodel = pin.buildGeomFromUrdf(
             model, str(s.urdf_path), pin.COLLISION, package_dirs=list(s.package_dirs)
@@ -282,9 +297,13 @@ def build_robot(s: RobotSettings, collision: bool = True) -> Robot:
             pin.removeCollisionPairs(model, cmodel, str(s.srdf_path))
         except (RuntimeError, ValueError) as exc:
             raise settings_error(src, "description.srdf", f"cannot be applied: {exc}") from exc
-    n_removed = n_total - len(cmodel.collisionPairs)
-    cdata = pin.GeometryData(cmodel)
+    return cmodel, n_total, n_total - len(cmodel.collisionPairs)
 
+
+def _split_pairs(
+    model: pin.Model, cmodel: pin.GeometryModel, joint_ids: np.ndarray
+) -> tuple[list[int], list[int]]:
+    """Indices of the collision pairs whose distance the arm can change (active) and of the others."""
     # A pair's distance can change only if an arm joint lies between its two geometries: each
     # geometry gets the number of arm joints among its parent joint's ancestors ("segment"), and
     # pairs on the same segment (e.g. gripper fingers vs hand, torso vs other arm) are static.
@@ -292,9 +311,73 @@ def build_robot(s: RobotSettings, collision: bool = True) -> Robot:
     for jid in joint_ids:
         segment[list(model.subtrees[int(jid)])] += 1
     geom_segment = np.array([segment[g.parentJoint] for g in cmodel.geometryObjects], dtype=int)
-    active, static = [], []
+    active: list[int] = []
+    static: list[int] = []
     for k, cp in enumerate(cmodel.collisionPairs):
         (active if geom_segment[cp.first] != geom_segment[cp.second] else static).append(k)
+    return active, static
+
+
+def _check_static_pairs(robot: Robot, static: list[int]) -> None:
+    """Check the static pairs once at the held configuration (their smallest distance is stored in
+    ``robot.static_min_distance_m``), then deactivate them."""
+    model, data = robot.model, robot.data
+    cmodel, cdata = robot.collision()
+    s = robot.settings
+    # Static pairs (neither geometry moves with the arm) are checked once, here.
+    if static:
+        pin.updateGeometryPlacements(model, data, cmodel, cdata, robot.q_neutral)
+        dists = [(pin.computeDistance(cmodel, cdata, k).min_distance, k) for k in static]
+        dmin, kmin = min(dists)
+        robot.static_min_distance_m = float(dmin)
+        if dmin <= s.min_clearance_m:
+            a, b = robot.pair_names(kmin)
+            raise settings_error(
+                s.path, "fixed_joints", f"held configuration is in self-collision: {a} - {b} ({dmin:.4f} m)"
+            )
+    for k in static:
+        cdata.deactivateCollisionPair(k)
+
+
+def build_robot(s: RobotSettings, collision: bool = True) -> Robot:
+    """Build the robot described by validated settings (not cached; see :func:`load_robot`).
+
+    Args:
+        s: Validated settings (:func:`load_robot_settings`).
+        collision: Also build the collision model (~50 ms) and check the held configuration;
+            ``False`` gives a kinematics-only robot (~3 ms, ``collision_model`` is ``None``).
+
+    Raises:
+        RobotError: as :func:`load_robot`.
+    """
+    model = _parse_urdf(s)
+    joint_ids, q_idx, v_idx = _arm_indices(model, s)
+    lower, upper, vel = _arm_limits(model, s, q_idx, v_idx)
+    q0 = _held_configuration(model, s, q_idx, lower, upper)
+    ee_id, parent_id = _add_ee_frame(model, s, int(joint_ids[-1]))
+    root = int(joint_ids[0])
+    model.jointPlacements[root] = pin.SE3(np.eye(3), s.mount_offset_m) * model.jointPlacements[root]
+    data = model.createData()
+    kinematic = dict(
+        settings=s,
+        model=model,
+        data=data,
+        arm_joint_ids=joint_ids,
+        arm_q_index=q_idx,
+        arm_v_index=v_idx,
+        ee_frame_id=ee_id,
+        ee_parent_frame_id=parent_id,
+        q_neutral=q0,
+        lower_rad=lower,
+        upper_rad=upper,
+        velocity_rad_s=vel,
+    )
+    if not collision:
+        return Robot(collision_model=None, collision_data=None, **kinematic)
+
+    cmodel, n_total, n_removed = _collision_model(model, s)
+    cdata = pin.GeometryData(cmodel)
+    active, static = _split_pairs(model, cmodel, joint_ids)
     robot = Robot(
         collision_model=cmodel,
         collision_data=cdata,
@@ -303,19 +386,7 @@ def build_robot(s: RobotSettings, collision: bool = True) -> Robot:
         n_pairs_srdf_removed=n_removed,
         active_pair_ids=np.asarray(active, dtype=int),
     )
-    # Static pairs (neither geometry moves with the arm) are checked once, here.
-    if static:
-        pin.updateGeometryPlacements(model, data, cmodel, cdata, q0)
-        dists = [(pin.computeDistance(cmodel, cdata, k).min_distance, k) for k in static]
-        dmin, kmin = min(dists)
-        robot.static_min_distance_m = float(dmin)
-        if dmin <= s.min_clearance_m:
-            a, b = robot.pair_names(kmin)
-            raise settings_error(
-                src, "fixed_joints", f"held configuration is in self-collision: {a} - {b} ({dmin:.4f} m)"
-            )
-    for k in static:
-        cdata.deactivateCollisionPair(k)
+    _check_static_pairs(robot, static)
     return robot
 
 

@@ -18,6 +18,7 @@ import math
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -110,9 +111,11 @@ class Workspace:
         """Distance in [m] from ``p`` (3,) to the region; negative inside (depth below the surface)."""
         p = np.asarray(p, dtype=float)
         if self.shape == "sphere":
-            return float(np.linalg.norm(p - self.center_m) - self.radius_m)
-        below = self.min_m - p
-        above = p - self.max_m
+            center, radius = self._sphere()
+            return float(np.linalg.norm(p - center) - radius)
+        lo, hi = self._box()
+        below = lo - p
+        above = p - hi
         outside = np.maximum(np.maximum(below, above), 0.0)
         if np.any(outside > 0):
             return float(np.linalg.norm(outside))
@@ -121,8 +124,20 @@ class Workspace:
     def to_dict(self) -> dict:
         """JSON-serialisable description."""
         if self.shape == "sphere":
-            return {"shape": "sphere", "center_m": self.center_m.tolist(), "radius_m": self.radius_m}
-        return {"shape": "box", "min_m": self.min_m.tolist(), "max_m": self.max_m.tolist()}
+            center, radius = self._sphere()
+            return {"shape": "sphere", "center_m": center.tolist(), "radius_m": radius}
+        lo, hi = self._box()
+        return {"shape": "box", "min_m": lo.tolist(), "max_m": hi.tolist()}
+
+    def _sphere(self) -> tuple[np.ndarray, float]:
+        if self.center_m is None or self.radius_m is None:
+            raise ValueError("a sphere workspace needs center_m and radius_m")
+        return self.center_m, self.radius_m
+
+    def _box(self) -> tuple[np.ndarray, np.ndarray]:
+        if self.min_m is None or self.max_m is None:
+            raise ValueError("a box workspace needs min_m and max_m")
+        return self.min_m, self.max_m
 
 
 @dataclass(frozen=True)
@@ -231,9 +246,9 @@ def _table(doc: dict, key: str, source: Path, required: bool = True) -> dict:
     return value
 
 
-def _get(
-    table: dict, key: str, source: Path, prefix: str, kind: type | tuple, default: object = ...
-) -> object:
+def _get(table: dict, key: str, source: Path, prefix: str, kind: type | tuple, default: Any = ...) -> Any:
+    """``table[key]``, which must be of type ``kind`` (an int is accepted as a float), or ``default``
+    when absent (``...``: the key is required)."""
     if key not in table:
         if default is ...:
             raise settings_error(source, f"{prefix}.{key}", "missing")
@@ -309,17 +324,8 @@ def _demo_limit_recipe(limits: dict, path: Path) -> DemoLimitRecipe:
     return DemoLimitRecipe(float(pct), float(win))
 
 
-def load_robot_settings(path_or_name: str | Path) -> RobotSettings:
-    """Read and validate a robot settings file (file-level checks; model checks are in :func:`load_robot`).
-
-    Args:
-        path_or_name: Path of a ``.toml`` settings file, or the name of one in ``robots/``.
-
-    Raises:
-        RobotError: unreadable file, missing or malformed field, infeasible limits; the message
-            names the file, the field and the problem.
-    """
-    path = resolve_settings_path(path_or_name)
+def _read_document(path: Path) -> dict:
+    """The parsed TOML document of ``path``, its ``schema_version`` checked."""
     try:
         with open(path, "rb") as fh:
             doc = tomllib.load(fh)
@@ -332,37 +338,28 @@ def load_robot_settings(path_or_name: str | Path) -> RobotSettings:
         raise settings_error(
             path, "schema_version", f"unsupported version {version} (this code reads {_SCHEMA_VERSION})"
         )
-    name = _get(doc, "name", path, "", str, path.stem)
+    return doc
 
-    desc = _table(doc, "description", path)
-    package = _get(desc, "package", path, "description", str, "")
-    base = find_robot_data_dir(package) if package else path.parent
-    urdf_rel = _get(desc, "urdf", path, "description", str)
-    if Path(urdf_rel).is_absolute():
+
+def _description_file(rel: str, key: str, base: Path, path: Path) -> Path:
+    """The resolved file of ``description.<key>`` (``rel``, relative to ``base``), which must exist."""
+    if Path(rel).is_absolute():
         raise settings_error(
-            path, "description.urdf", "must be a relative path (no absolute paths in settings)"
+            path, f"description.{key}", "must be a relative path (no absolute paths in settings)"
         )
-    urdf_path = (base / urdf_rel).resolve()
-    if not urdf_path.is_file():
-        raise settings_error(path, "description.urdf", f"file not found: {urdf_path}")
-    srdf_rel = _get(desc, "srdf", path, "description", str, "")
-    srdf_path = None
-    if srdf_rel:
-        if Path(srdf_rel).is_absolute():
-            raise settings_error(
-                path, "description.srdf", "must be a relative path (no absolute paths in settings)"
-            )
-        srdf_path = (base / srdf_rel).resolve()
-        if not srdf_path.is_file():
-            raise settings_error(path, "description.srdf", f"file not found: {srdf_path}")
+    resolved = (base / rel).resolve()
+    if not resolved.is_file():
+        raise settings_error(path, f"description.{key}", f"file not found: {resolved}")
+    return resolved
 
-    arm = _table(doc, "arm", path)
+
+def _arm_joints(arm: dict, path: Path) -> tuple[list[str], dict[str, str]]:
+    """The ``[arm]`` table: joint names in kinematic order and the recorded -> model name mapping."""
     joints = _get(arm, "joints", path, "arm", list)
     if not joints or not all(isinstance(j, str) and j for j in joints):
         raise settings_error(path, "arm.joints", "must be a non-empty list of joint names")
     if len(set(joints)) != len(joints):
         raise settings_error(path, "arm.joints", f"joint listed twice in {joints}")
-    n = len(joints)
     recorded = _get(arm, "recorded_names", path, "arm", dict, {j: j for j in joints})
     for rec, mod in recorded.items():
         if not isinstance(mod, str) or mod not in joints:
@@ -372,19 +369,24 @@ def load_robot_settings(path_or_name: str | Path) -> RobotSettings:
     missing = [j for j in joints if j not in recorded.values()]
     if missing:
         raise settings_error(path, "arm.recorded_names", f"no recorded name maps to {missing}")
+    return joints, recorded
 
-    ee = _table(doc, "end_effector", path)
-    parent_frame = _get(ee, "parent_frame", path, "end_effector", str)
-    ee_frame = _get(ee, "frame", path, "end_effector", str, EE_FRAME)
 
-    calib = _table(doc, "calibration", path, required=False)
+def _calibration(calib: dict, path: Path) -> tuple[np.ndarray, np.ndarray, dict]:
+    """The optional ``[calibration]`` table: tool offset (3,) and mount offset (3,) in [m], provenance."""
     offset = _vector3(calib.get("tool_offset_m", [0.0, 0.0, 0.0]), path, "calibration.tool_offset_m")
     mount = _vector3(calib.get("mount_offset_m", [0.0, 0.0, 0.0]), path, "calibration.mount_offset_m")
     for key, v in (("calibration.tool_offset_m", offset), ("calibration.mount_offset_m", mount)):
         _in_range(np.abs(v), path, key, "calibration offsets [m]")
     calib_info = {k: v for k, v in calib.items() if k not in ("tool_offset_m", "mount_offset_m")}
+    return offset, mount, calib_info
 
-    limits = _table(doc, "limits", path)
+
+def _joint_limits(
+    limits: dict, n: int, path: Path
+) -> tuple[np.ndarray, np.ndarray | None, np.ndarray, np.ndarray]:
+    """The ``[limits]`` vectors (n,): position margin [rad], velocity override [rad/s] or ``None``,
+    acceleration [rad/s^2] and jerk [rad/s^3]."""
     margin = _positive_vector(
         limits.get("position_margin_rad", 0.0), n, path, "limits.position_margin_rad", allow_zero=True
     )
@@ -399,9 +401,11 @@ def load_robot_settings(path_or_name: str | Path) -> RobotSettings:
     if "jerk_rad_s3" not in limits:
         raise settings_error(path, "limits.jerk_rad_s3", "missing (the URDF has no jerk limits)")
     jerk = _positive_vector(limits["jerk_rad_s3"], n, path, "limits.jerk_rad_s3")
-    demo_limits = _demo_limit_recipe(limits, path)
+    return margin, vel, acc, jerk
 
-    fixed_raw = _table(doc, "fixed_joints", path, required=False)
+
+def _fixed_joints(fixed_raw: dict, joints: list[str], path: Path) -> dict[str, float]:
+    """The optional ``[fixed_joints]`` table: non-arm joint name -> held value in [rad] or [m]."""
     fixed: dict[str, float] = {}
     for k, v in fixed_raw.items():
         if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
@@ -413,8 +417,11 @@ def load_robot_settings(path_or_name: str | Path) -> RobotSettings:
         fixed[k] = float(
             _in_range(np.array([float(v)]), path, f"fixed_joints.{k}", "fixed_joints [rad or m]")[0]
         )
+    return fixed
 
-    ws = _table(doc, "workspace", path)
+
+def _workspace(ws: dict, path: Path) -> Workspace:
+    """The ``[workspace]`` table: a box (``min_m``, ``max_m``) or a sphere (``center_m``, ``radius_m``)."""
     shape = _get(ws, "shape", path, "workspace", str, "box")
     if shape == "box":
         lo = _in_range(
@@ -425,18 +432,19 @@ def load_robot_settings(path_or_name: str | Path) -> RobotSettings:
         )
         if np.any(lo >= hi):
             raise settings_error(path, "workspace", f"min_m {lo.tolist()} must be below max_m {hi.tolist()}")
-        workspace = Workspace("box", min_m=lo, max_m=hi)
-    elif shape == "sphere":
+        return Workspace("box", min_m=lo, max_m=hi)
+    if shape == "sphere":
         c = _vector3(ws.get("center_m"), path, "workspace.center_m")
         _in_range(c, path, "workspace.center_m", "workspace [m]")
         r = _get(ws, "radius_m", path, "workspace", float)
         if not (math.isfinite(r) and 0 < r <= PLAUSIBLE_RANGES["workspace [m]"][1]):
             raise settings_error(path, "workspace.radius_m", f"must be in (0, 10] m, got {r}")
-        workspace = Workspace("sphere", center_m=c, radius_m=float(r))
-    else:
-        raise settings_error(path, "workspace.shape", f"must be 'box' or 'sphere', got '{shape}'")
+        return Workspace("sphere", center_m=c, radius_m=float(r))
+    raise settings_error(path, "workspace.shape", f"must be 'box' or 'sphere', got '{shape}'")
 
-    checks = _table(doc, "checks", path, required=False)
+
+def _check_thresholds(checks: dict, path: Path) -> tuple[float, float, float]:
+    """The optional ``[checks]`` table: min clearance [m], collision step [rad], hand distance [m]."""
     clearance = _get(checks, "min_clearance_m", path, "checks", float, 0.0)
     step = _get(checks, "collision_max_step_rad", path, "checks", float, 0.05)
     hand = _get(checks, "max_hand_distance_m", path, "checks", float, 0.25)
@@ -450,14 +458,52 @@ def load_robot_settings(path_or_name: str | Path) -> RobotSettings:
                 path, f"checks.{key}", f"must be {'>= 0' if lo_ok else '> 0'} and finite, got {value}"
             )
         _in_range(np.array([value]), path, f"checks.{key}")
+    return float(clearance), float(step), float(hand)
 
-    share = find_robot_data_dir(package) if package else path.parent
+
+def load_robot_settings(path_or_name: str | Path) -> RobotSettings:
+    """Read and validate a robot settings file (file-level checks; model checks are in :func:`load_robot`).
+
+    Args:
+        path_or_name: Path of a ``.toml`` settings file, or the name of one in ``robots/``.
+
+    Raises:
+        RobotError: unreadable file, missing or malformed field, infeasible limits; the message
+            names the file, the field and the problem.
+    """
+    path = resolve_settings_path(path_or_name)
+    doc = _read_document(path)
+    name = _get(doc, "name", path, "", str, path.stem)
+
+    desc = _table(doc, "description", path)
+    package = _get(desc, "package", path, "description", str, "")
+    base = find_robot_data_dir(package) if package else path.parent
+    urdf_path = _description_file(_get(desc, "urdf", path, "description", str), "urdf", base, path)
+    srdf_rel = _get(desc, "srdf", path, "description", str, "")
+    srdf_path = _description_file(srdf_rel, "srdf", base, path) if srdf_rel else None
+
+    joints, recorded = _arm_joints(_table(doc, "arm", path), path)
+
+    ee = _table(doc, "end_effector", path)
+    parent_frame = _get(ee, "parent_frame", path, "end_effector", str)
+    ee_frame = _get(ee, "frame", path, "end_effector", str, EE_FRAME)
+
+    offset, mount, calib_info = _calibration(_table(doc, "calibration", path, required=False), path)
+
+    limits = _table(doc, "limits", path)
+    margin, vel, acc, jerk = _joint_limits(limits, len(joints), path)
+    demo_limits = _demo_limit_recipe(limits, path)
+
+    fixed = _fixed_joints(_table(doc, "fixed_joints", path, required=False), joints, path)
+    workspace = _workspace(_table(doc, "workspace", path), path)
+    clearance, step, hand = _check_thresholds(_table(doc, "checks", path, required=False), path)
+
     return RobotSettings(
         name=name,
         path=path,
         urdf_path=urdf_path,
         srdf_path=srdf_path,
-        package_dirs=(str(share),),
+        package_dirs=(str(base),),
         arm_joints=tuple(joints),
         recorded_names=dict(recorded),
         ee_parent_frame=parent_frame,
@@ -472,7 +518,7 @@ def load_robot_settings(path_or_name: str | Path) -> RobotSettings:
         demonstrated_limits=demo_limits,
         fixed_joints=fixed,
         workspace=workspace,
-        min_clearance_m=float(clearance),
-        collision_max_step_rad=float(step),
-        max_hand_distance_m=float(hand),
+        min_clearance_m=clearance,
+        collision_max_step_rad=step,
+        max_hand_distance_m=hand,
     )

@@ -361,8 +361,8 @@ def align_streams(
     checked = {name: check_stream(name, s) for name, s in streams.items()}
     starts = {n: s.t[0] for n, s in checked.items()}
     ends = {n: s.t[-1] for n, s in checked.items()}
-    first_end = min(ends, key=ends.get)
-    last_start = max(starts, key=starts.get)
+    first_end = min(ends, key=lambda n: ends[n])
+    last_start = max(starts, key=lambda n: starts[n])
     t0, t1 = starts[last_start], ends[first_end]
     dt = 1.0 / rate_hz
     n = int(np.floor((t1 - t0) / dt + 1e-9)) + 1 if t1 >= t0 else 0

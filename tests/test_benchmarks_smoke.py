@@ -1,0 +1,61 @@
+"""Every benchmark script still runs: its ``--smoke`` setting (tiny synthetic data, a few calls, no
+shared datasets, no clone) as a subprocess, two at a time, each exiting 0 and printing its result
+lines. A benchmark added without an entry here fails the test."""
+
+from __future__ import annotations
+
+import os
+import re
+import subprocess
+import sys
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+BENCHMARKS = ROOT / "benchmarks"
+
+HELPERS = {"checkouts.py"}
+"""Modules of ``benchmarks/`` that are imported by the scripts, not run."""
+
+EXPECTED = {
+    "ab_compare.py": [r"full update, 10% observed: [\d.]+ -> [\d.]+", r"streaming update: [\d.]+ -> [\d.]+"],
+    "closed_loop.py": [r"(?m)^cycle\s+[\d.]+\s+[\d.]+", r"first re-plan of a replay: median [\d.]+ ms"],
+    "closed_loop_cv.py": [r"\| err \[cm\] \|", r"(?m)^0\.2 \| 20 \| 0\.9 \| 90 \| 0\.2 \| [\d.]+ \|"],
+    "first_minute.py": [r"(?m)^cold\s+median\s+[\d.]+ s wall"],
+    "inference.py": [r"(?m)^paper\s+\d+\s+12\s", r"speed-up \d+x", r"task accuracy [\d.]+"],
+    "model_load.py": [r"this checkout:\s+[\d.]+ ms", r"paired difference \(this - other\): median"],
+    "pipeline.py": [r"total \(observation->files\)\s+[\d.]+"],
+    "profile_update.py": [r"(?m)^  total\s+[\d.]+", r"stream_group \(per update\)\s+[\d.]+"],
+    "settings_cv.py": [r"(?m)^log_groups= pooling=0\.0\s+0\.2\s+[\d.]+"],
+}
+"""Benchmark -> patterns its smoke run must print (its result lines)."""
+
+
+def _run(name: str) -> tuple[str, subprocess.CompletedProcess]:
+    env = {**os.environ, "OPENBLAS_NUM_THREADS": "1", "MPLBACKEND": "Agg"}
+    env["PYTHONPATH"] = os.pathsep.join([str(ROOT), *filter(None, [env.get("PYTHONPATH")])])
+    done = subprocess.run(
+        [sys.executable, str(BENCHMARKS / name), "--smoke"],
+        cwd=BENCHMARKS,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    return name, done
+
+
+def test_every_benchmark_runs_its_smoke_setting():
+    scripts = sorted(p.name for p in BENCHMARKS.glob("*.py") if p.name not in HELPERS)
+    assert scripts == sorted(EXPECTED), "every benchmark needs a --smoke entry in EXPECTED"
+    with ThreadPoolExecutor(2) as pool:
+        results = dict(pool.map(_run, scripts))
+    failures = []
+    for name, done in results.items():
+        if done.returncode != 0:
+            failures.append(f"{name}: exit {done.returncode}\n{done.stdout[-2000:]}\n{done.stderr[-3000:]}")
+            continue
+        missing = [p for p in EXPECTED[name] if not re.search(p, done.stdout)]
+        if missing:
+            failures.append(f"{name}: printed no line matching {missing}:\n{done.stdout[-2000:]}")
+    assert not failures, "\n\n".join(failures)

@@ -9,9 +9,7 @@ from .lda import make_lda
 from .logistic_regression import make_logistic_regression
 from .ridge import make_ridge
 
-CLASSIFIERS = Registry(
-    "classifier", {"logistic_regression": make_logistic_regression, "lda": make_lda}
-)
+CLASSIFIERS = Registry("classifier", {"logistic_regression": make_logistic_regression, "lda": make_lda})
 """Recognition baselines: name -> factory of the labels ``y``."""
 
 REGRESSORS = Registry("regressor", {"ridge": make_ridge, "knn": make_knn})

@@ -11,7 +11,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .. import atomic
+from .. import atomic, readers
 from ..data import Dataset, skeleton_frames
 from ..evaluation.baselines import require_sklearn
 from ..evaluation.cells import Cell
@@ -27,7 +27,6 @@ from ..evaluation.tables import (
     write_results,
 )
 from ..handover.closed_loop import ClosedLoopSettings
-from ..readers import count_demos, load_dataset
 from ..robot import Robot, load_robot
 from .replay import check_limits_choice
 
@@ -144,7 +143,7 @@ def check_request(request: EvaluateRequest) -> Robot:
     robot = load_robot(request.robot)
     if request.closed_loop:
         check_limits_choice(request.limits, robot, "command line")
-    counts = count_demos(request.dataset, format=request.format)  # lists the demo files, reads none
+    counts = readers.count_demos(request.dataset, format=request.format)  # lists the demo files, reads none
     for cfg in request.configs():
         check_dataset_size(counts, cfg, request.dataset)
     return robot
@@ -153,7 +152,7 @@ def check_request(request: EvaluateRequest) -> Robot:
 def read_dataset(request: EvaluateRequest, robot: Robot) -> Dataset:
     """The dataset, its arm joints and limits those of ``robot``; says what was read in how long."""
     t0 = time.perf_counter()
-    ds = load_dataset(
+    ds = readers.load_dataset(
         request.dataset,
         format=request.format,
         frames=skeleton_frames(g for o in request.observe for g in o) or None,

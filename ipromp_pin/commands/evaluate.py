@@ -1,7 +1,14 @@
 """``ipromp-pin evaluate``: an evaluation run from a typed request (:class:`EvaluateRequest`), with
 the prologue every evaluation shares: outputs and settings checked, the dataset's size checked
 from its file list, the dataset read once, the inference kernels compiled once (before the worker
-processes fork), then every protocol run, printed and written."""
+processes fork), then every protocol run, printed and written.
+
+The command line builds the request from its arguments, e.g.
+``EvaluateRequest(dataset=args.dataset, grid=grid_from(args.grid, args.n_train, args.ratios),
+protocols=protocols_from(args.protocol), closed_loop_settings=<the --condition-noise ... options>,
+command=" ".join(["ipromp-pin", *sys.argv[1:]]), progress=<a progress-line factory>, ...)``, and
+calls :func:`run_evaluate`.
+"""
 
 from __future__ import annotations
 
@@ -109,6 +116,11 @@ class EvaluateRequest:
 def grid_from(choice: str, n_train: list[int], ratios: list[float]) -> list[tuple[int, float]]:
     """The cells of ``--grid``: the paper's (``"paper"``), else every (n_train, ratio) pair."""
     return list(PAPER_GRID) if choice == "paper" else [(n, r) for n in n_train for r in ratios]
+
+
+def protocols_from(choice: str) -> list[str]:
+    """The protocols of ``--protocol``: ``"both"`` is the paper's, then the random splits."""
+    return ["paper", "splits"] if choice == "both" else [choice]
 
 
 def compile_kernels_once() -> None:

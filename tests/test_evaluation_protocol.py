@@ -162,3 +162,24 @@ def test_the_evaluate_request_runs_the_closed_loop_with_the_baselines(tmp_path):
     too_big = EvaluateRequest(dataset=data, grid=[(6, 0.2)], protocols=["splits"], log=lines.append)
     with pytest.raises(DataError, match="has 6 demos"):
         run_evaluate(too_big)
+
+
+def test_the_evaluate_command_compiles_the_kernels_once_before_forking(monkeypatch):
+    from ipromp_pin.commands.evaluate import compile_kernels_once
+    from ipromp_pin.promp import compiled, warmup
+    from ipromp_pin.promp.compiled import use_kernels
+
+    calls, messages = [], []
+    monkeypatch.setattr(compiled, "compiled_kernels_cached", lambda *a: False)
+    monkeypatch.setattr(warmup, "compile_kernels", lambda: calls.append(1) or 1.0)
+    monkeypatch.setitem(compiled._state, "numba", None)
+    monkeypatch.setitem(compiled._state, "announced_compile", False)
+    compiled.set_announcer(messages.append)
+    try:
+        with use_kernels("numba"):
+            compile_kernels_once()
+        with use_kernels("numpy"):  # nothing to compile
+            compile_kernels_once()
+    finally:
+        compiled.set_announcer(None)
+    assert calls == [1] and len(messages) == 1 and "compiling the inference kernels" in messages[0]

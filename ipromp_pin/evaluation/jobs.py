@@ -28,6 +28,8 @@ class Job:
         observe: Observed groups.
         indices: Task -> (train, test) demo indices.
         ratios: Observed fractions at which the test demos are scored.
+        index: Position of the job in its protocol's list (results are aggregated in this order,
+            whatever order the workers finish in).
     """
 
     rep: int
@@ -35,6 +37,7 @@ class Job:
     observe: list[str]
     indices: Indices
     ratios: list[float]
+    index: int = 0
 
 
 @dataclass
@@ -53,6 +56,8 @@ def build_jobs(dataset: Dataset, config: EvaluationConfig) -> list[Job]:
     for rep, n_train, indices in iter_splits(dataset, config):
         ratios = [r for n, r in config.grid if n == n_train]
         work += [Job(rep, n_train, list(o), indices, ratios) for o in config.observe]
+    for i, job in enumerate(work):
+        job.index = i
     return work
 
 

@@ -80,10 +80,10 @@ def run_protocol(
     """
     check_inputs(dataset, config, [scorer, *extras])
     work = build_jobs(dataset, config)
-    results = CellResults(dataset.tasks)
     worker = ProtocolWorker(dataset, scorer, extras)
+    finished = []
     for done, result in enumerate(run_worker_jobs(worker, work, jobs), start=1):
-        results.add(result)
+        finished.append(result)
         if progress is not None:
             job = result.job
             label = (
@@ -91,4 +91,7 @@ def run_protocol(
                 f"n_train={job.n_train} {observe_key(job.observe)}"
             )
             progress(done, len(work), label)
+    results = CellResults(dataset.tasks)
+    for result in sorted(finished, key=lambda r: r.job.index):  # the same cells for any ``jobs``
+        results.add(result)
     return build_cells(dataset, config, results, scorer.cell_type, scorer.cell_fields)

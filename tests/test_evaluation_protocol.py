@@ -64,7 +64,7 @@ def test_workers_get_their_state_from_the_pool_initializer(synthetic):
     serial = run_protocol(synthetic, cfg, MajorityScorer(), jobs=1)
     parallel = run_protocol(synthetic, cfg, MajorityScorer(), jobs=2)
     assert serial == parallel
-    assert jobs_module._installed == []  # nothing set in the parent process
+    assert jobs_module.installed_worker() is None  # nothing set in the parent process
 
 
 def test_splitters_draw_the_random_splits_in_the_protocol_order(synthetic):

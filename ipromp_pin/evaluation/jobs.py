@@ -99,6 +99,11 @@ def install_worker(worker: Worker) -> None:
     _installed[:] = [worker]
 
 
+def installed_worker() -> Worker | None:
+    """This process's installed worker (None in the parent process and in a serial run)."""
+    return _installed[0] if _installed else None
+
+
 def run_installed(job: Job) -> JobResult:
     """Run ``job`` with this process's installed worker."""
     return _installed[0].run_job(job)

@@ -66,6 +66,15 @@ def test_workers_get_their_state_from_the_pool_initializer(synthetic):
     assert serial == parallel
     assert jobs_module.installed_worker() is None  # nothing set in the parent process
 
+    class WhereScorer(MajorityScorer):
+        def fit_facts(self):
+            worker = jobs_module.installed_worker()
+            return {"coupled": "initializer" if worker is not None and worker.scorer is self else "serial"}
+
+    for jobs, where in ((1, "serial"), (2, "initializer")):
+        [cell, *_] = run_protocol(synthetic, cfg, WhereScorer(), jobs=jobs)
+        assert cell.coupled_groups == {where: 4}
+
 
 def test_splitters_draw_the_random_splits_in_the_protocol_order(synthetic):
     cfg = EvaluationConfig(protocol="splits", grid=[(4, 0.2), (5, 0.2)], n_test=2, n_splits=2, seed=7)

@@ -1,0 +1,229 @@
+"""Cells of the evaluation table and the aggregation of trials into them, by (n_train, obs ratio,
+observed set, task): accuracy (mean over splits), median prediction errors over the correctly
+recognised trials, calibration, and the baselines' summaries."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..data import Dataset
+from .baselines import CLASSIFIERS, REGRESSORS
+from .config import PAPER_ACCURACY, EvaluationConfig, observe_key
+from .jobs import JobResult
+
+PROBABILITY_FLOOR = 1e-15
+"""Posteriors are floored at this value in the log loss (a confident mistake costs at most 34.5)."""
+
+ERROR_FIELDS = (
+    "joint_rmse_rad",
+    "joint_rmse_prior_rad",
+    "final_joint_error_rad",
+    "final_joint_error_prior_rad",
+    "handover_error_cm",
+    "handover_error_prior_cm",
+    "duration_error_s",
+)
+"""The prediction errors of a trial summarised (median) in a cell."""
+
+CellKey = tuple[int, float, str, str]
+"""(n_train, obs_ratio, observe_key, task)."""
+
+
+@dataclass
+class Cell:
+    """One cell of the accuracy table: a protocol, training size, ratio, observed set and task.
+
+    ``coupled_groups`` counts, over the cell's model fits, the observed groups each fitted model
+    coupled to the robot (``"+"``-joined, ``""`` for none; see ``IProMP(coupling=...)``).
+    ``log_loss`` (mean of ``-log p(true task)``, posteriors floored at :data:`PROBABILITY_FLOOR`) and
+    ``brier`` (mean multi-class Brier score) say how well calibrated the task posterior is.
+    ``baselines`` (``--baselines``): baseline name -> ``accuracy``, ``log_loss``, ``brier`` (and
+    ``accuracy_std`` over splits) for the classifiers, the median ``handover_error_cm``,
+    ``joint_rmse_rad`` and ``final_joint_error_rad`` over the trials ipromp_pin recognised for the
+    regressors (the true task given to them).
+    """
+
+    protocol: str
+    n_train: int
+    obs_ratio: float
+    observe: list[str]
+    task: str
+    accuracy: float
+    n_test: int
+    accuracy_std: float | None = None
+    n_splits: int | None = None
+    paper_accuracy: float | None = None
+    joint_rmse_rad: float | None = None
+    joint_rmse_prior_rad: float | None = None
+    final_joint_error_rad: float | None = None
+    final_joint_error_prior_rad: float | None = None
+    handover_error_cm: float | None = None
+    handover_error_prior_cm: float | None = None
+    duration_error_s: float | None = None
+    coupled_groups: dict[str, int] = field(default_factory=dict)
+    log_loss: float | None = None
+    brier: float | None = None
+    baselines: dict[str, dict[str, float | None]] = field(default_factory=dict)
+    trials: list[dict] = field(default_factory=list)
+
+
+@dataclass
+class ClosedLoopCell(Cell):
+    """An evaluation cell with the closed-loop measures (medians over all its test trials)."""
+
+    limit_profile: str = ""
+    closed_loop_handover_error_cm: float | None = None
+    closed_loop_final_error_cm: float | None = None
+    one_shot_handover_error_cm: float | None = None
+    arrival_delay_s: float | None = None
+    max_limit_ratio: float | None = None
+    refused_replans: int = 0
+    replans: int = 0
+    collisions: int = 0
+    closed_loop_trials: list[dict] = field(default_factory=list)
+
+
+def median(values: Sequence[float | None]) -> float | None:
+    """Median of the finite values (None and NaN skipped); None when there is none."""
+    arr = np.asarray([v for v in values if v is not None and np.isfinite(v)], dtype=float)
+    return float(np.median(arr)) if arr.size else None
+
+
+def summarise(trials: Sequence) -> dict[str, float | None]:
+    """Accuracy and median errors over the correctly recognised trials (``TrialResult``-like:
+    ``correct`` and the :data:`ERROR_FIELDS`)."""
+    ok = [r for r in trials if r.correct]
+    out: dict[str, float | None] = {"accuracy": float(len(ok) / len(trials)) if trials else float("nan")}
+    for name in ERROR_FIELDS:
+        vals = [abs(getattr(r, name)) if name == "duration_error_s" else getattr(r, name) for r in ok]
+        out[name] = median(vals)
+    return out
+
+
+def calibration(rows: Sequence[tuple[float, float]]) -> tuple[float | None, float | None]:
+    """Mean log loss and mean Brier score of (posterior of the true task, Brier score) rows."""
+    if not rows:
+        return None, None
+    p = np.maximum(np.array([r[0] for r in rows], dtype=float), PROBABILITY_FLOOR)
+    return float(np.mean(-np.log(p))), float(np.mean([r[1] for r in rows]))
+
+
+def baseline_summary(reps: Sequence[Sequence], splits: bool) -> dict[str, dict[str, float | None]]:
+    """Baseline name -> its summary over a cell's trials per split (see :class:`Cell`)."""
+    flat = [r for rep in reps for r in rep]
+    out: dict[str, dict[str, float | None]] = {}
+    for name in CLASSIFIERS:
+        rows = [r.baselines[name] for r in flat if name in r.baselines]
+        if not rows:
+            continue
+        task = flat[0].task
+        accs = [np.mean([r.baselines[name].predicted == task for r in rep]) for rep in reps if rep]
+        log_loss, brier = calibration([(b.posterior, b.brier) for b in rows])
+        out[name] = {"accuracy": float(np.mean(accs)), "log_loss": log_loss, "brier": brier}
+        if splits:
+            out[name]["accuracy_std"] = float(np.std(accs))
+    for name in REGRESSORS:
+        rows = [r.baselines[name] for r in flat if r.correct and name in r.baselines]
+        if not any(name in r.baselines for r in flat):
+            continue
+        out[name] = {
+            key: median([getattr(b, key) for b in rows])
+            for key in ("joint_rmse_rad", "final_joint_error_rad", "handover_error_cm")
+        }
+    return out
+
+
+def cell_fields(
+    dataset: Dataset,
+    config: EvaluationConfig,
+    where: tuple[int, float, Sequence[str], str],
+    n_test: int,
+    accs: Sequence[float],
+    summary: Mapping[str, float | None],
+) -> dict:
+    """The :class:`Cell` fields shared by every evaluation of one cell ``where`` = (n_train, obs
+    ratio, observed groups, task): ``accs`` the accuracies per split (or the one of the paper's
+    protocol), ``summary`` the :func:`summarise` of all its test trials."""
+    n_train, ratio, observe, task = where
+    paper = PAPER_ACCURACY.get((n_train, ratio, observe_key(observe)), {}).get(task)
+    return {
+        "protocol": config.protocol,
+        "n_train": n_train,
+        "obs_ratio": ratio,
+        "observe": list(observe),
+        "task": task,
+        "accuracy": float(np.mean(accs)) if accs else float("nan"),
+        "n_test": n_test,
+        "paper_accuracy": paper if Path(str(dataset.root)).name == "chen2017_handover" else None,
+        **{name: summary[name] for name in ERROR_FIELDS},
+    }
+
+
+class CellResults:
+    """The trials of every job, grouped by cell, and the facts of every fit (in completion order).
+
+    Attributes:
+        trials: (n_train, ratio, observe_key, task) -> per split, the trials of that task.
+        couplings: (n_train, observe_key) -> coupled groups of the fitted models -> number of fits.
+        fits: The ``fit`` facts of every job, in completion order.
+    """
+
+    def __init__(self, tasks: Sequence[str]) -> None:
+        self.tasks = list(tasks)
+        self.trials: dict[CellKey, list[list]] = {}
+        self.couplings: dict[tuple[int, str], dict[str, int]] = {}
+        self.fits: list[dict[str, str]] = []
+
+    def add(self, result: JobResult) -> None:
+        """Add one job's trials and fit facts."""
+        job = result.job
+        key = observe_key(job.observe)
+        counts = self.couplings.setdefault((job.n_train, key), {})
+        coupled = result.fit.get("coupled", "")
+        counts[coupled] = counts.get(coupled, 0) + 1
+        self.fits.append(result.fit)
+        for ratio, rows in result.trials.items():
+            for task in self.tasks:
+                self.trials.setdefault((job.n_train, ratio, key, task), []).append(
+                    [r for r in rows if r.task == task]
+                )
+
+
+def build_cells(
+    dataset: Dataset,
+    config: EvaluationConfig,
+    results: CellResults,
+    cell_type: type[Cell] = Cell,
+    extra_fields=None,
+) -> list[Cell]:
+    """The cells of ``config`` (grid, then observed set, then task) from the grouped ``results``.
+
+    Args:
+        cell_type: The cell class (:class:`Cell` or a subclass with more fields).
+        extra_fields: Called as ``extra_fields(reps, config, results)`` with a cell's trials per
+            split; returns the fields of ``cell_type`` beyond the shared ones (see the scorers'
+            ``cell_fields``).
+    """
+    cells = []
+    for n_train, ratio in config.grid:
+        for observe in config.observe:
+            key = observe_key(observe)
+            for task in dataset.tasks:
+                reps = results.trials[(n_train, ratio, key, task)]
+                flat = [r for rep in reps for r in rep]
+                accs = [summarise(rep)["accuracy"] for rep in reps if rep]
+                where = (n_train, ratio, observe, task)
+                cell = cell_type(
+                    **cell_fields(dataset, config, where, len(flat), accs, summarise(flat)),
+                    coupled_groups=dict(sorted(results.couplings.get((n_train, key), {}).items())),
+                    **(extra_fields(reps, config, results) if extra_fields is not None else {}),
+                )
+                if config.protocol == "splits":
+                    cell.accuracy_std = float(np.std(accs)) if accs else float("nan")
+                    cell.n_splits = len(accs)
+                cells.append(cell)
+    return cells

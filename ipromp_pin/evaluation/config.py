@@ -1,0 +1,71 @@
+"""Settings of an evaluation (:class:`EvaluationConfig`) and the paper's table (its cells and the
+accuracies it reports on ``chen2017_handover``)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+from ..exceptions import DataError
+
+PAPER_GRID: tuple[tuple[int, float], ...] = ((20, 0.1), (15, 0.1), (10, 0.1), (10, 0.2))
+"""(n_train, obs_ratio) cells of the paper's table."""
+
+PAPER_ACCURACY: dict[tuple[int, float, str], dict[str, float]] = {
+    (20, 0.1, "orientation"): {"aluminum_hold": 0.90, "spanner_handover": 0.60, "tape_hold": 0.10},
+    (20, 0.1, "orientation+emg"): {"aluminum_hold": 1.00, "spanner_handover": 1.00, "tape_hold": 0.70},
+    (15, 0.1, "orientation"): {"aluminum_hold": 0.60, "spanner_handover": 0.60, "tape_hold": 0.10},
+    (15, 0.1, "orientation+emg"): {"aluminum_hold": 1.00, "spanner_handover": 0.90, "tape_hold": 0.70},
+    (10, 0.1, "orientation"): {"aluminum_hold": 0.00, "spanner_handover": 0.00, "tape_hold": 0.80},
+    (10, 0.1, "orientation+emg"): {"aluminum_hold": 0.50, "spanner_handover": 0.80, "tape_hold": 0.70},
+    (10, 0.2, "orientation"): {"aluminum_hold": 0.30, "spanner_handover": 1.00, "tape_hold": 0.90},
+    (10, 0.2, "orientation+emg"): {"aluminum_hold": 1.00, "spanner_handover": 1.00, "tape_hold": 1.00},
+}
+"""Accuracies reported in the paper (Chen et al. 2017) on ``chen2017_handover``, per task."""
+
+PROTOCOLS = ("paper", "splits")
+"""The evaluation protocols."""
+
+ProgressFn = Callable[[int, int, str], None]
+"""Called as ``progress(done, total, label)`` after every model fit."""
+
+
+@dataclass
+class EvaluationConfig:
+    """Settings of an evaluation run.
+
+    Attributes:
+        protocol: ``"paper"`` or ``"splits"``.
+        observe: Observed channel sets, each a list of group names.
+        grid: (n_train, obs_ratio) cells.
+        n_test: Test demos per task.
+        n_splits: Random splits (``splits`` protocol).
+        seed: Seed of the random splits.
+        model_params: Keyword arguments of the model's constructor.
+        baselines: Also run the reference baselines on the same windows
+            (:mod:`ipromp_pin.evaluation.baselines`).
+    """
+
+    protocol: str = "paper"
+    observe: list[list[str]] = field(default_factory=lambda: [["orientation"], ["orientation", "emg"]])
+    grid: list[tuple[int, float]] = field(default_factory=lambda: list(PAPER_GRID))
+    n_test: int = 10
+    n_splits: int = 20
+    seed: int = 0
+    model_params: dict = field(default_factory=dict)
+    baselines: bool = False
+
+    def check_protocol(self) -> None:
+        """Raise a :class:`DataError` naming the field when the protocol is not one of :data:`PROTOCOLS`."""
+        if self.protocol not in PROTOCOLS:
+            raise DataError(None, "protocol", f"unknown protocol '{self.protocol}' (use paper or splits)")
+
+    @property
+    def repeats(self) -> int:
+        """Model fits per (n_train, observed set): 1 for the paper protocol, ``n_splits`` otherwise."""
+        return 1 if self.protocol == "paper" else self.n_splits
+
+
+def observe_key(observe: list[str] | tuple[str, ...]) -> str:
+    """Canonical text of an observed channel set, e.g. ``"orientation+emg"``."""
+    return "+".join(observe)

@@ -1,0 +1,117 @@
+"""The jobs of an evaluation (one model fit each: a split, a training size, an observed set) and
+the pool that runs them. Worker processes receive their state (the dataset and the scorers) from
+the pool's initializer once, at their start; nothing is read from the parent's module state."""
+
+from __future__ import annotations
+
+import multiprocessing as mp
+from collections.abc import Callable, Iterator, Sequence
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import dataclass, field
+from typing import Protocol, TypeVar
+
+from ..data import Dataset
+from .config import EvaluationConfig
+from .splits import Indices, iter_splits
+
+J = TypeVar("J")
+R = TypeVar("R")
+
+
+@dataclass
+class Job:
+    """One model fit of a protocol: a split, a training size and an observed set.
+
+    Attributes:
+        rep: Index of the split (0 for the paper protocol).
+        n_train: Training demos per task.
+        observe: Observed groups.
+        indices: Task -> (train, test) demo indices.
+        ratios: Observed fractions at which the test demos are scored.
+        index: Position of the job in its protocol's list (results are aggregated in this order,
+            whatever order the workers finish in).
+    """
+
+    rep: int
+    n_train: int
+    observe: list[str]
+    indices: Indices
+    ratios: list[float]
+    index: int = 0
+
+
+@dataclass
+class JobResult:
+    """What one job returns: per ratio the test trials, and facts about the fit (e.g. ``coupled``,
+    the observed groups the fitted model couples to the robot, ``"+"``-joined)."""
+
+    job: Job
+    trials: dict[float, list] = field(default_factory=dict)
+    fit: dict[str, str] = field(default_factory=dict)
+
+
+def build_jobs(dataset: Dataset, config: EvaluationConfig) -> list[Job]:
+    """Every job of ``config``: per split (:func:`~.splits.iter_splits`), one per observed set."""
+    work = []
+    for rep, n_train, indices in iter_splits(dataset, config):
+        ratios = [r for n, r in config.grid if n == n_train]
+        work += [Job(rep, n_train, list(o), indices, ratios) for o in config.observe]
+    for i, job in enumerate(work):
+        job.index = i
+    return work
+
+
+def run_jobs(
+    run: Callable[[J], R],
+    work: Sequence[J],
+    jobs: int,
+    initializer: Callable[..., None] | None = None,
+    initargs: tuple = (),
+) -> Iterator[R]:
+    """``run`` over the jobs, in ``jobs`` forked worker processes when > 1 (results in completion
+    order). ``initializer(*initargs)`` runs once in every worker before its first job (with fork,
+    ``initargs`` reach the worker without being pickled); serially it is not called."""
+    if jobs <= 1 or len(work) <= 1:
+        yield from map(run, work)
+        return
+    with ProcessPoolExecutor(
+        max_workers=jobs, mp_context=mp.get_context("fork"), initializer=initializer, initargs=initargs
+    ) as pool:
+        futures = [pool.submit(run, job) for job in work]
+        for f in as_completed(futures):
+            yield f.result()
+
+
+class Worker(Protocol):
+    """What runs a job in a worker (see :class:`~.protocol.ProtocolWorker`)."""
+
+    def run_job(self, job: Job) -> JobResult:
+        """Fit and score one job."""
+        ...
+
+
+_installed: list[Worker] = []
+"""This worker process's worker, installed by the pool initializer (empty in the parent)."""
+
+
+def install_worker(worker: Worker) -> None:
+    """Pool initializer: make ``worker`` the one :func:`run_installed` uses in this process."""
+    _installed[:] = [worker]
+
+
+def installed_worker() -> Worker | None:
+    """This process's installed worker (None in the parent process and in a serial run)."""
+    return _installed[0] if _installed else None
+
+
+def run_installed(job: Job) -> JobResult:
+    """Run ``job`` with this process's installed worker."""
+    return _installed[0].run_job(job)
+
+
+def run_worker_jobs(worker: Worker, work: Sequence[Job], jobs: int) -> Iterator[JobResult]:
+    """``worker.run_job`` over the jobs: in this process when ``jobs`` <= 1, else in ``jobs`` worker
+    processes, each given ``worker`` by the pool initializer (results in completion order)."""
+    if jobs <= 1 or len(work) <= 1:
+        return map(worker.run_job, work)
+    return run_jobs(run_installed, work, jobs, initializer=install_worker, initargs=(worker,))

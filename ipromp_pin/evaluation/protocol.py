@@ -1,0 +1,97 @@
+"""The one protocol runner of every evaluation: splits (paper or random), one job per model fit,
+the worker pool, the aggregation of the trials by (n_train, obs ratio, observed set, task) into
+cells. A scorer (:class:`~.scorers.base.Scorer`) says what is fitted and measured; extra scorers
+(the baselines) add their outcomes to its trials."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+from ..data import ROBOT, Dataset
+from .cells import Cell, CellResults, build_cells
+from .config import EvaluationConfig, ProgressFn, observe_key
+from .jobs import Job, JobResult, build_jobs, run_worker_jobs
+from .scorers.base import Scorer
+from .splits import check_dataset_size, take
+
+__all__ = ["EvaluationConfig", "ProtocolWorker", "run_protocol"]
+
+
+class ProtocolWorker:
+    """Runs jobs on a dataset: fits the scorers on the job's training demos, scores its test demos
+    at every ratio. Given to every worker process once, by the pool initializer.
+
+    Args:
+        dataset: Demos of every task.
+        scorer: The main scorer (its trials make the cells).
+        extras: Scorers whose per-demo outcomes (name -> record) join each trial's ``baselines``.
+    """
+
+    def __init__(self, dataset: Dataset, scorer: Scorer, extras: Sequence[Scorer] = ()) -> None:
+        self.dataset = dataset
+        self.scorer = scorer
+        self.extras = list(extras)
+
+    def run_job(self, job: Job) -> JobResult:
+        """Fit on the job's training demos and score its test demos at every ratio."""
+        train, test = take(self.dataset, job.indices)
+        self.scorer.fit(train, job.observe)
+        for extra in self.extras:
+            extra.fit(train, job.observe)
+        out = {}
+        for ratio in job.ratios:
+            trials = self.scorer.score(test, ratio, job.rep)
+            for extra in self.extras:
+                for trial, more in zip(trials, extra.score(test, ratio, job.rep), strict=True):
+                    trial.baselines = {**trial.baselines, **more}
+            out[ratio] = trials
+        return JobResult(job, out, self.scorer.fit_facts())
+
+
+def check_inputs(dataset: Dataset, config: EvaluationConfig, scorers: Sequence[Scorer]) -> None:
+    """Everything checked before any model is fitted: the protocol, the dataset's size, the groups
+    every demo must hold, the scorers' settings."""
+    config.check_protocol()
+    check_dataset_size({t: len(d) for t, d in dataset.demos.items()}, config, dataset.root)
+    for observe in config.observe:
+        for demo in dataset.all_demos():
+            demo.require(list(observe) + [ROBOT])
+    for scorer in scorers:
+        scorer.check()
+
+
+def run_protocol(
+    dataset: Dataset,
+    config: EvaluationConfig,
+    scorer: Scorer,
+    extras: Sequence[Scorer] = (),
+    progress: ProgressFn | None = None,
+    jobs: int = 1,
+) -> list[Cell]:
+    """Run one protocol of ``config`` with ``scorer`` (and ``extras``) over every cell.
+
+    Args:
+        dataset: Demos of every task, in protocol order.
+        config: Protocol, grid and observed channel sets.
+        scorer: Fitted per job, its trials aggregate into cells of its ``cell_type``.
+        extras: Scorers annotating the trials (e.g. :class:`~.scorers.baselines.BaselineScorer`).
+        progress: Called as ``progress(done, total, label)`` after every model fit.
+        jobs: Worker processes (model fits run in parallel; results do not depend on it).
+    """
+    check_inputs(dataset, config, [scorer, *extras])
+    work = build_jobs(dataset, config)
+    worker = ProtocolWorker(dataset, scorer, extras)
+    finished = []
+    for done, result in enumerate(run_worker_jobs(worker, work, jobs), start=1):
+        finished.append(result)
+        if progress is not None:
+            job = result.job
+            label = (
+                f"{scorer.label}{config.protocol} split {job.rep + 1}/{config.repeats} "
+                f"n_train={job.n_train} {observe_key(job.observe)}"
+            )
+            progress(done, len(work), label)
+    results = CellResults(dataset.tasks)
+    for result in sorted(finished, key=lambda r: r.job.index):  # the same cells for any ``jobs``
+        results.add(result)
+    return build_cells(dataset, config, results, scorer.cell_type, scorer.cell_fields)

@@ -1,0 +1,229 @@
+"""The closed-loop scorer: per fit a limit profile (derived from the fit's training demos,
+``demonstrated``, or the robot's ``conservative`` one, or a profile file); every test demo is
+
+* predicted once from its first ``obs_ratio`` (the one-shot prediction, scored as the one-shot
+  scorer does: recognition, joint errors, ``one_shot_handover_error_cm`` = the gripper position
+  error of the one-shot plan's end, which is the prediction's last point);
+* replayed at its recorded timing with ``obs_ratio`` as the start ratio
+  (:func:`~ipromp_pin.handover.closed_loop.replay_demo`) and scored
+  (:func:`~ipromp_pin.handover.score.score_closed_loop`).
+
+Each cell gains, over all its test trials (recognised or not): ``closed_loop_handover_error_cm``,
+``closed_loop_final_error_cm``, ``one_shot_handover_error_cm``, ``arrival_delay_s`` (medians),
+``max_limit_ratio`` (maximum), ``refused_replans``, ``replans`` and ``collisions`` (sums).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass, field
+from functools import partial
+
+import numpy as np
+
+from ...data import Demo
+from ...handover.closed_loop import ClosedLoopSettings, conditioning_predictor, replay_demo
+from ...handover.score import ClosedLoopScore, score_closed_loop
+from ...motion.limits import LimitProfile, conservative_profile, demonstrated_profile, read_limit_profile
+from ...promp import IProMP
+from ...robot import DemoLimitRecipe, Robot, ee_positions
+from ...robot.clearance import ClearanceCertifier
+from ..cells import CellResults, ClosedLoopCell, baseline_summary, median
+from ..config import EvaluationConfig
+from .base import Scorer
+from .one_shot import TrialResult, score_trial
+
+
+@dataclass(frozen=True)
+class ClosedLoopOptions:
+    """How the closed loop is run in an evaluation.
+
+    Attributes:
+        limits: ``"demonstrated"``, ``"conservative"`` or a limit profile file.
+        settings: Closed-loop settings; each cell's ``obs_ratio`` replaces ``start_ratio``.
+        recipe: How the demonstrated profile is derived (default: the robot settings').
+        check_collisions: Contact-test every commanded control sample.
+    """
+
+    limits: str = "demonstrated"
+    settings: ClosedLoopSettings = field(default_factory=ClosedLoopSettings)
+    recipe: DemoLimitRecipe | None = None
+    check_collisions: bool = True
+
+
+@dataclass
+class ClosedLoopTrial(TrialResult):
+    """A one-shot trial (the :class:`TrialResult` fields) with its closed-loop replay's score.
+
+    Attributes:
+        split: Index of the split of the test demo.
+        closed_loop: The replay's measures.
+    """
+
+    split: int = 0
+    closed_loop: ClosedLoopScore | None = None
+
+    def to_row(self) -> dict:
+        """The record form: the one-shot fields, ``correct``, then the closed loop's prefixed
+        ``closed_loop_`` (without ``split``)."""
+        row = asdict(self)
+        row.pop("split")
+        score = row.pop("closed_loop") or {}
+        return row | {"correct": self.correct} | {f"closed_loop_{k}": v for k, v in score.items()}
+
+
+TRIAL_KEYS = (
+    "split",
+    "demo",
+    "predicted",
+    "correct",
+    "handover_error_cm",
+    "closed_loop_handover_error_cm",
+    "closed_loop_final_error_cm",
+    "closed_loop_arrival_delay_s",
+    "closed_loop_max_limit_ratio",
+    "closed_loop_replans",
+    "closed_loop_refused_replans",
+    "closed_loop_collisions",
+    "closed_loop_final_task",
+)
+"""The fields of a trial kept in a cell's ``closed_loop_trials`` (floats rounded to 4 decimals)."""
+
+
+def compact(trial: ClosedLoopTrial) -> dict:
+    """The :data:`TRIAL_KEYS` of a trial, floats rounded to 4 decimals."""
+    row = trial.to_row() | {"split": trial.split}
+    out = {k: row[k] for k in TRIAL_KEYS if k in row}
+    return {k: round(v, 4) if isinstance(v, float) else v for k, v in out.items()}
+
+
+def profile_for(options: ClosedLoopOptions, robot: Robot, train: Sequence[Demo], label: str) -> LimitProfile:
+    """The limit profile of one model fit (the demonstrated one from its training demos)."""
+    if options.limits == "conservative":
+        return conservative_profile(robot)
+    if options.limits == "demonstrated":
+        recipe = options.recipe or robot.settings.demonstrated_limits
+        return demonstrated_profile(robot, train, recipe, label)
+    return read_limit_profile(options.limits, robot)
+
+
+def replay_trials(
+    model: IProMP,
+    robot: Robot,
+    test: Sequence[Demo],
+    ratio: float,
+    profile: LimitProfile,
+    settings: ClosedLoopSettings,
+    certifier: ClearanceCertifier | None = None,
+    check_collisions: bool = True,
+    split: int = 0,
+) -> list[ClosedLoopTrial]:
+    """Replay every test demo with ``ratio`` as the start ratio; one :class:`ClosedLoopTrial` each."""
+    observe = list(model.observe_)
+
+    def fk(q: np.ndarray) -> np.ndarray:
+        return ee_positions(robot, q)
+
+    run = ClosedLoopSettings(**{**settings.to_dict(), "start_ratio": float(ratio)}).validate()
+    conditioner = conditioning_predictor(model, run.condition_noise)
+    out = []
+    for d in test:
+        one_shot = score_trial(model.predict(d.head(ratio, groups=observe)), d, ratio, fk)
+        result = replay_demo(model, robot, d, profile, run, certifier, conditioner)
+        score = score_closed_loop(result, d, robot, check_collisions=check_collisions)
+        out.append(ClosedLoopTrial(**one_shot.__dict__, split=split, closed_loop=score))
+    return out
+
+
+def closed_loop_trials(
+    model: IProMP,
+    robot: Robot,
+    test: Sequence[Demo],
+    ratio: float,
+    profile: LimitProfile,
+    settings: ClosedLoopSettings,
+    certifier: ClearanceCertifier | None = None,
+    check_collisions: bool = True,
+) -> list[dict]:
+    """:func:`replay_trials` as records (:meth:`ClosedLoopTrial.to_row`): the one-shot prediction's
+    :class:`TrialResult` fields, then the closed loop's
+    :class:`~ipromp_pin.handover.score.ClosedLoopScore` fields prefixed ``closed_loop_``."""
+    trials = replay_trials(model, robot, test, ratio, profile, settings, certifier, check_collisions)
+    return [t.to_row() for t in trials]
+
+
+class ClosedLoopScorer(Scorer):
+    """An :class:`~ipromp_pin.promp.IProMP` and a limit profile fitted per job, every test demo
+    replayed in the closed loop.
+
+    Args:
+        robot: The robot (its kinematics choose the model's settings for the hand-over position).
+        options: How the closed loop runs.
+        model_params: Keyword arguments of the model's constructor.
+        label: Name of the dataset, in the demonstrated profile's name.
+    """
+
+    label = "closed loop "
+    cell_type = ClosedLoopCell
+
+    def __init__(
+        self, robot: Robot, options: ClosedLoopOptions, model_params: dict | None = None, label_name: str = ""
+    ) -> None:
+        self.robot = robot
+        self.options = options
+        self.model_params = dict(model_params or {})
+        self.label_name = label_name
+        self.certifier_: ClearanceCertifier | None = None
+
+    def check(self) -> None:
+        """Validate the settings and read a profile file, before any fit."""
+        self.options.settings.validate("closed loop")
+        if self.options.limits not in ("conservative", "demonstrated"):
+            read_limit_profile(self.options.limits, self.robot)
+
+    def fit(self, train: Sequence[Demo], observe: Sequence[str]) -> ClosedLoopScorer:
+        """Fit the model (with the robot's kinematics) and derive the fit's limit profile."""
+        if self.certifier_ is None:  # once per process
+            self.certifier_ = ClearanceCertifier(self.robot)
+        fk = partial(ee_positions, self.robot)  # settings chosen for the hand-over position
+        self.model_ = IProMP(observe=list(observe), **self.model_params).fit(train, fk=fk)
+        self.profile_ = profile_for(self.options, self.robot, train, self.label_name)
+        return self
+
+    def score(self, test: Sequence[Demo], obs_ratio: float, split: int = 0) -> list[ClosedLoopTrial]:
+        """One :class:`ClosedLoopTrial` per test demo."""
+        return replay_trials(
+            self.model_,
+            self.robot,
+            test,
+            obs_ratio,
+            self.profile_,
+            self.options.settings,
+            self.certifier_,
+            self.options.check_collisions,
+            split,
+        )
+
+    def fit_facts(self) -> dict[str, str]:
+        """``coupled`` (the coupled groups) and ``limit_profile`` (the profile's name)."""
+        return {"coupled": "+".join(self.model_.coupled_groups_), "limit_profile": self.profile_.name}
+
+    def cell_fields(self, reps: Sequence[Sequence], config: EvaluationConfig, results: CellResults) -> dict:
+        """The closed-loop medians, maximum and sums (see the module docstring), the baselines'
+        summaries (``--baselines``) and every trial's :func:`compact` record."""
+        flat: list[ClosedLoopTrial] = [r for rep in reps for r in rep]
+        scores = [t.closed_loop for t in flat]
+        profiles = [f["limit_profile"] for f in results.fits if "limit_profile" in f]
+        return {
+            "baselines": baseline_summary(reps, config.protocol == "splits"),
+            "limit_profile": profiles[-1] if profiles else self.options.limits,
+            "closed_loop_handover_error_cm": median([s.handover_error_cm for s in scores]),
+            "closed_loop_final_error_cm": median([s.final_error_cm for s in scores]),
+            "one_shot_handover_error_cm": median([t.handover_error_cm for t in flat]),
+            "arrival_delay_s": median([s.arrival_delay_s for s in scores]),
+            "max_limit_ratio": max((s.max_limit_ratio for s in scores), default=None),
+            "refused_replans": int(sum(s.refused_replans for s in scores)),
+            "replans": int(sum(s.replans for s in scores)),
+            "collisions": int(sum(s.collisions for s in scores)),
+            "closed_loop_trials": [compact(t) for t in flat],
+        }

@@ -1,0 +1,155 @@
+"""The one-shot scorer: the model predicts each test demo once from its first ``obs_ratio`` and the
+prediction is measured against the whole demo (recognition, joint errors in [rad], the hand-over
+gripper position error in [cm], each also for the unconditioned prior)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+from ...data import ROBOT, Demo
+from ...promp import IProMP
+from ..baselines import BaselineTrial
+from ..cells import CellResults, baseline_summary, calibration
+from ..config import EvaluationConfig
+from .base import Scorer
+
+FK = Callable[[np.ndarray], np.ndarray]
+"""Forward kinematics: joint configurations (n, 7) in [rad] -> gripper positions (n, 3) in [m]."""
+
+
+@dataclass
+class TrialResult:
+    """Outcome of one test trial.
+
+    Attributes:
+        task: True task of the test demo.
+        demo: Test demo name.
+        predicted: Recognised task.
+        posterior: Posterior of the true task.
+        joint_rmse_rad: RMSE over joints and the unobserved phase, conditioned prediction, in [rad].
+        joint_rmse_prior_rad: The same for the unconditioned task mean, in [rad].
+        final_joint_error_rad: RMS over joints of the final configuration error, in [rad].
+        final_joint_error_prior_rad: The same for the prior mean, in [rad].
+        handover_error_cm: Gripper position error at the hand-over, in [cm] (NaN without FK).
+        handover_error_prior_cm: The same for the prior mean, in [cm].
+        duration_error_s: Predicted minus true duration of the motion, in [s].
+        brier: Multi-class Brier score of the task posterior (sum over tasks of squared errors).
+        baselines: Baseline name -> its outcome on the same window (``--baselines``,
+            :mod:`ipromp_pin.evaluation.baselines`).
+    """
+
+    task: str
+    demo: str
+    predicted: str
+    posterior: float
+    joint_rmse_rad: float
+    joint_rmse_prior_rad: float
+    final_joint_error_rad: float
+    final_joint_error_prior_rad: float
+    handover_error_cm: float
+    handover_error_prior_cm: float
+    duration_error_s: float
+    brier: float = float("nan")
+    baselines: dict[str, BaselineTrial] = field(default_factory=dict)
+
+    @property
+    def correct(self) -> bool:
+        """True when the task was recognised."""
+        return self.predicted == self.task
+
+
+def phase_interp(t: np.ndarray, q: np.ndarray, duration_s: float, z: np.ndarray) -> np.ndarray:
+    """Values of a trajectory ``q`` (N, D) sampled at ``t`` (N,) in [s] at phases ``z`` of ``duration_s``."""
+    tz = z * duration_s
+    return np.stack([np.interp(tz, t, q[:, j]) for j in range(q.shape[1])], axis=1)
+
+
+def score_trial(prediction, demo: Demo, obs_ratio: float, fk: FK | None) -> TrialResult:
+    """Measure one prediction against the full test demo.
+
+    Args:
+        prediction: The model's prediction from the observed part of ``demo``.
+        demo: The full test demo (its robot group is the ground truth).
+        obs_ratio: Observed fraction, in (0, 1].
+        fk: Forward kinematics, joint configurations (n, 7) in [rad] -> gripper
+            positions (n, 3) in [m]; ``None`` skips the Cartesian error.
+    """
+    truth = demo.groups[ROBOT]
+    z = np.linspace(obs_ratio, 1.0, 50)
+    true_z = phase_interp(demo.t - demo.t[0], truth, demo.duration_s, z)
+    pred_z = phase_interp(prediction.t, prediction.q_mean, prediction.duration_s, z)
+    prior_z = phase_interp(prediction.t, prediction.q_prior_mean, prediction.duration_s, z)
+    rmse = float(np.sqrt(np.mean((pred_z - true_z) ** 2)))
+    rmse_prior = float(np.sqrt(np.mean((prior_z - true_z) ** 2)))
+    q_true_end = truth[-1]
+    q_pred_end = prediction.q_mean[-1]
+    q_prior_end = prediction.q_prior_mean[-1]
+    fin = float(np.sqrt(np.mean((q_pred_end - q_true_end) ** 2)))
+    fin_prior = float(np.sqrt(np.mean((q_prior_end - q_true_end) ** 2)))
+    ho = ho_prior = float("nan")
+    if fk is not None:
+        p = fk(np.stack([q_true_end, q_pred_end, q_prior_end]))
+        ho = float(np.linalg.norm(p[1] - p[0]) * 100.0)
+        ho_prior = float(np.linalg.norm(p[2] - p[0]) * 100.0)
+    k_true = prediction.tasks.index(demo.task) if demo.task in prediction.tasks else None
+    onehot = np.array([t == demo.task for t in prediction.tasks], dtype=float)
+    return TrialResult(
+        task=demo.task,
+        demo=demo.name,
+        predicted=prediction.task,
+        posterior=float(prediction.posterior[k_true]) if k_true is not None else 0.0,
+        joint_rmse_rad=rmse,
+        joint_rmse_prior_rad=rmse_prior,
+        final_joint_error_rad=fin,
+        final_joint_error_prior_rad=fin_prior,
+        handover_error_cm=ho,
+        handover_error_prior_cm=ho_prior,
+        duration_error_s=float(prediction.duration_s - demo.duration_s),
+        brier=float(np.sum((np.asarray(prediction.posterior) - onehot) ** 2)),
+    )
+
+
+class OneShotScorer(Scorer):
+    """An :class:`~ipromp_pin.promp.IProMP` fitted per job, every test demo predicted once.
+
+    Args:
+        model_params: Keyword arguments of the model's constructor.
+        fk: Forward kinematics for the model's settings and the hand-over error (None: skipped).
+    """
+
+    def __init__(self, model_params: dict | None = None, fk: FK | None = None) -> None:
+        self.model_params = dict(model_params or {})
+        self.fk = fk
+
+    def fit(self, train: Sequence[Demo], observe: Sequence[str]) -> OneShotScorer:
+        """Fit the model on the training demos."""
+        self.observe_ = list(observe)
+        self.model_ = IProMP(observe=list(observe), **self.model_params).fit(train, fk=self.fk)
+        return self
+
+    def score(self, test: Sequence[Demo], obs_ratio: float, split: int = 0) -> list[TrialResult]:
+        """One :class:`TrialResult` per test demo."""
+        return [
+            score_trial(self.model_.predict(d.head(obs_ratio, groups=self.observe_)), d, obs_ratio, self.fk)
+            for d in test
+        ]
+
+    def fit_facts(self) -> dict[str, str]:
+        """``coupled``: the observed groups the fitted model couples to the robot."""
+        return {"coupled": "+".join(getattr(self.model_, "coupled_groups_", self.observe_))}
+
+    def cell_fields(self, reps: Sequence[Sequence], config: EvaluationConfig, results: CellResults) -> dict:
+        """Calibration, the baselines' summaries and (paper protocol) every trial."""
+        flat = [r for rep in reps for r in rep]
+        log_loss, brier = calibration([(r.posterior, r.brier) for r in flat])
+        out = {
+            "log_loss": log_loss,
+            "brier": brier,
+            "baselines": baseline_summary(reps, config.protocol == "splits"),
+        }
+        if config.protocol != "splits":
+            out["trials"] = [asdict(r) | {"correct": r.correct} for r in flat]
+        return out

@@ -1,0 +1,250 @@
+"""Tables of evaluation cells: Markdown (recognition accuracy, motion prediction, the baselines, the
+closed loop), the JSON document, and writing both (atomically)."""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Sequence
+from dataclasses import asdict
+from pathlib import Path
+
+import numpy as np
+
+from .. import atomic
+from .baselines import CLASSIFIERS, REGRESSORS
+from .cells import Cell, ClosedLoopCell, median
+from .config import observe_key
+
+
+def overall(cells: Sequence[Cell]) -> dict[str, dict[str, float]]:
+    """Mean accuracy per (protocol, observed set), with the paper's mean where known."""
+    out: dict[str, dict[str, float]] = {}
+    for c in cells:
+        key = f"{c.protocol}:{observe_key(c.observe)}"
+        out.setdefault(key, {"cells": 0, "accuracy_sum": 0.0, "paper_sum": 0.0, "paper_cells": 0})
+        o = out[key]
+        o["cells"] += 1
+        o["accuracy_sum"] += c.accuracy
+        if c.paper_accuracy is not None:
+            o["paper_sum"] += c.paper_accuracy
+            o["paper_cells"] += 1
+    result = {}
+    for key, o in out.items():
+        result[key] = {"mean_accuracy": o["accuracy_sum"] / o["cells"], "cells": o["cells"]}
+        if o["paper_cells"]:
+            result[key]["paper_mean_accuracy"] = o["paper_sum"] / o["paper_cells"]
+            result[key]["cells_below_paper"] = sum(
+                1
+                for c in cells
+                if f"{c.protocol}:{observe_key(c.observe)}" == key
+                and c.paper_accuracy is not None
+                and c.accuracy < c.paper_accuracy - 1e-9
+            )
+    return result
+
+
+def format_number(x: float | None, digits: int = 2) -> str:
+    """``x`` with ``digits`` decimals for a table, ``-`` when it is missing or not finite."""
+    return "-" if x is None or not np.isfinite(x) else f"{x:.{digits}f}"
+
+
+_fmt = format_number
+
+
+def to_markdown(cells: Sequence[Cell]) -> str:
+    """The accuracy table (and prediction errors) as Markdown."""
+    lines = []
+    for protocol in dict.fromkeys(c.protocol for c in cells):
+        pc = [c for c in cells if c.protocol == protocol]
+        tasks = list(dict.fromkeys(c.task for c in pc))
+        lines.append(f"### Recognition accuracy, protocol `{protocol}`\n")
+        head = "| n_train | obs ratio | observed | " + " | ".join(tasks) + " | mean |"
+        lines += [head, "|" + "---|" * (4 + len(tasks))]
+        rows = dict.fromkeys((c.n_train, c.obs_ratio, observe_key(c.observe)) for c in pc)
+        for n_train, ratio, key in rows:
+            row = [c for c in pc if (c.n_train, c.obs_ratio, observe_key(c.observe)) == (n_train, ratio, key)]
+            texts = []
+            for task in tasks:
+                c = next(c for c in row if c.task == task)
+                s = _fmt(c.accuracy)
+                if c.accuracy_std is not None:
+                    s += f" ± {_fmt(c.accuracy_std)}"
+                if c.paper_accuracy is not None:
+                    s += f" (paper {_fmt(c.paper_accuracy)})"
+                texts.append(s)
+            mean = float(np.mean([c.accuracy for c in row]))
+            lines.append(f"| {n_train} | {ratio:g} | {key} | " + " | ".join(texts) + f" | {_fmt(mean)} |")
+        lines.append("")
+        for key, o in overall(pc).items():
+            s = f"- mean over cells, {key.split(':', 1)[1]}: {o['mean_accuracy']:.3f}"
+            if "paper_mean_accuracy" in o:
+                s += f" (paper {o['paper_mean_accuracy']:.3f}; cells below it: {o['cells_below_paper']})"
+            lines.append(s)
+        lines.append("")
+        lines.append(
+            f"### Robot motion prediction, protocol `{protocol}` "
+            "(medians over correctly recognised trials; conditioned vs prior mean)\n"
+        )
+        lines.append(
+            "| n_train | obs ratio | observed | task | joint RMSE [rad] | final joint err [rad] "
+            "| hand-over err [cm] | duration err [s] |"
+        )
+        lines.append("|---|---|---|---|---|---|---|---|")
+        for c in pc:
+            lines.append(
+                f"| {c.n_train} | {c.obs_ratio:g} | {observe_key(c.observe)} | {c.task} "
+                f"| {_fmt(c.joint_rmse_rad, 3)} vs {_fmt(c.joint_rmse_prior_rad, 3)} "
+                f"| {_fmt(c.final_joint_error_rad, 3)} vs {_fmt(c.final_joint_error_prior_rad, 3)} "
+                f"| {_fmt(c.handover_error_cm, 1)} vs {_fmt(c.handover_error_prior_cm, 1)} "
+                f"| {_fmt(c.duration_error_s, 2)} |"
+            )
+        lines.append("")
+        if any(c.baselines for c in pc):
+            lines += baseline_markdown(pc)
+        fits = {(c.n_train, observe_key(c.observe)): c.coupled_groups for c in pc if c.coupled_groups}
+        for (n_train, key), counts in fits.items():
+            chosen = ", ".join(f"{g or 'none'} ({n})" for g, n in counts.items())
+            lines.append(f"- observed groups coupled to the robot, n_train={n_train}, {key}: {chosen}")
+        if fits:
+            lines.append("")
+    return "\n".join(lines)
+
+
+def row_mean(values: Sequence[float | None]) -> float | None:
+    vals = [v for v in values if v is not None and np.isfinite(v)]
+    return float(np.mean(vals)) if vals else None
+
+
+def baseline_markdown(cells: Sequence[Cell]) -> list[str]:
+    """Markdown lines: ipromp_pin beside the baselines, one row per (n_train, ratio, observed set),
+    each number the mean over the row's tasks (of the per-task accuracy, log loss, or median error)."""
+    protocol = cells[0].protocol
+    rows: dict[tuple[int, float, str], list[Cell]] = {}
+    for c in cells:
+        rows.setdefault((c.n_train, c.obs_ratio, observe_key(c.observe)), []).append(c)
+    names = ["ipromp_pin", *CLASSIFIERS]
+    lines = [
+        f"### ipromp_pin and the baselines, protocol `{protocol}` (means over tasks)\n",
+        "| n_train | obs ratio | observed | accuracy: "
+        + " / ".join(names)
+        + " | log loss: "
+        + " / ".join(names)
+        + " | hand-over err [cm]: ipromp_pin / "
+        + " / ".join(REGRESSORS)
+        + " | joint RMSE [rad]: ipromp_pin / "
+        + " / ".join(REGRESSORS)
+        + " |",
+        "|---|---|---|---|---|---|---|",
+    ]
+
+    def base(row: list[Cell], name: str, key: str) -> float | None:
+        return row_mean([c.baselines.get(name, {}).get(key) for c in row])
+
+    for (n_train, ratio, key), row in rows.items():
+        acc = [row_mean([c.accuracy for c in row])] + [base(row, n, "accuracy") for n in CLASSIFIERS]
+        loss = [row_mean([c.log_loss for c in row])] + [base(row, n, "log_loss") for n in CLASSIFIERS]
+        ho = [row_mean([c.handover_error_cm for c in row])] + [
+            base(row, n, "handover_error_cm") for n in REGRESSORS
+        ]
+        rmse = [row_mean([c.joint_rmse_rad for c in row])] + [
+            base(row, n, "joint_rmse_rad") for n in REGRESSORS
+        ]
+        lines.append(
+            f"| {n_train} | {ratio:g} | {key} | "
+            + " / ".join(_fmt(v) for v in acc) + " | " + " / ".join(_fmt(v) for v in loss) + " | "
+            + " / ".join(_fmt(v, 1) for v in ho) + " | " + " / ".join(_fmt(v, 3) for v in rmse) + " |"
+        )  # fmt: skip
+    lines.append("")
+    return lines
+
+
+def to_json(cells: Sequence[Cell], meta: dict | None = None) -> dict:
+    """JSON document: ``cells`` (one record per table cell), ``overall`` and ``meta``.
+
+    Undefined numbers (e.g. an error median over no correctly recognised trial) are ``null``.
+    """
+    return finite(
+        {
+            "format": "ipromp_pin.evaluation",
+            "version": 1,
+            "meta": meta or {},
+            "overall": overall(cells),
+            "cells": [asdict(c) for c in cells],
+        }
+    )
+
+
+def finite(x):
+    """``x`` with NaN and inf floats replaced by ``None`` (strict JSON) and numpy scalars made plain."""
+    if isinstance(x, dict):
+        return {k: finite(v) for k, v in x.items()}
+    if isinstance(x, list | tuple):
+        return [finite(v) for v in x]
+    if isinstance(x, np.generic):
+        x = x.item()
+    if isinstance(x, float) and not np.isfinite(x):
+        return None
+    return x
+
+
+def write_results(cells: Sequence[Cell], json_path: Path | None, md_path: Path | None, meta: dict) -> None:
+    """Write the JSON and Markdown results (each atomically: a temporary file renamed into place)."""
+    if json_path is not None:
+        atomic.write_text(json_path, json.dumps(to_json(cells, meta), indent=1, allow_nan=False))
+    if md_path is not None:
+        atomic.write_text(md_path, to_markdown(cells))
+
+
+def closed_loop_markdown(cells: Sequence[ClosedLoopCell]) -> str:
+    """The closed-loop table (one row per cell) and its medians over cells, as Markdown."""
+    lines = []
+    for protocol in dict.fromkeys(c.protocol for c in cells):
+        pc = [c for c in cells if c.protocol == protocol]
+        profile = ", ".join(dict.fromkeys(c.limit_profile for c in pc))
+        lines.append(f"### Closed loop, protocol `{protocol}` (limit profile: {profile})\n")
+        lines.append(
+            "| n_train | obs ratio | observed | task | hand-over err [cm] closed loop | one-shot "
+            "| final err [cm] | arrival delay [s] | max limit ratio | refused / re-plans | collisions |"
+        )
+        lines.append("|---|---|---|---|---|---|---|---|---|---|---|")
+        for c in pc:
+            lines.append(
+                f"| {c.n_train} | {c.obs_ratio:g} | {observe_key(c.observe)} | {c.task} "
+                f"| {_fmt(c.closed_loop_handover_error_cm)} | {_fmt(c.one_shot_handover_error_cm)} "
+                f"| {_fmt(c.closed_loop_final_error_cm)} | {_fmt(c.arrival_delay_s)} "
+                f"| {_fmt(c.max_limit_ratio, 3)} | {c.refused_replans} / {c.replans} | {c.collisions} |"
+            )
+        lines.append("")
+        for key in dict.fromkeys(observe_key(c.observe) for c in pc):
+            kc = [c for c in pc if observe_key(c.observe) == key]
+            below = sum(
+                1
+                for c in kc
+                if c.closed_loop_handover_error_cm is not None
+                and c.one_shot_handover_error_cm is not None
+                and c.closed_loop_handover_error_cm < c.one_shot_handover_error_cm
+            )
+            lines.append(
+                f"- {key}, median over {len(kc)} cells: hand-over error "
+                f"{_fmt(median([c.closed_loop_handover_error_cm for c in kc]))} cm closed loop vs "
+                f"{_fmt(median([c.one_shot_handover_error_cm for c in kc]))} cm one-shot (closed loop "
+                f"below one-shot in {below} of {len(kc)} cells); final error "
+                f"{_fmt(median([c.closed_loop_final_error_cm for c in kc]))} cm; arrival delay "
+                f"{_fmt(median([c.arrival_delay_s for c in kc]))} s; max limit ratio "
+                f"{_fmt(max((c.max_limit_ratio or 0.0) for c in kc), 3)}; collisions "
+                f"{sum(c.collisions for c in kc)}; refused re-plans {sum(c.refused_replans for c in kc)} "
+                f"of {sum(c.replans for c in kc)}"
+            )
+        lines.append("")
+    return "\n".join(lines)
+
+
+def write_closed_loop_results(
+    cells: Sequence[ClosedLoopCell], json_path: Path | None, md_path: Path | None, meta: dict
+) -> None:
+    """Write the JSON (the evaluation format, cells with the closed-loop fields) and the Markdown
+    (the closed-loop table, then the usual recognition and prediction tables), each atomically."""
+    if json_path is not None:
+        atomic.write_text(json_path, json.dumps(to_json(cells, meta), indent=1, allow_nan=False))
+    if md_path is not None:
+        atomic.write_text(md_path, closed_loop_markdown(cells) + "\n" + to_markdown(cells))

@@ -163,22 +163,3 @@ def test_numba_backend_announces_a_cold_compile(monkeypatch):
 def test_unknown_backend_is_an_error():
     with pytest.raises(ValueError, match="unknown kernel backend 'gpu'"):
         compiled.set_kernel_backend("gpu")
-
-
-def test_evaluate_compiles_once_before_forking_its_workers(monkeypatch):
-    from ipromp_pin.cli import evaluate as cli_evaluate
-
-    calls, messages = [], []
-    monkeypatch.setattr(compiled, "compiled_kernels_cached", lambda *a: False)
-    monkeypatch.setattr(warmup, "compile_kernels", lambda: calls.append(1) or 1.0)
-    monkeypatch.setitem(compiled._state, "numba", None)
-    monkeypatch.setitem(compiled._state, "announced_compile", False)
-    compiled.set_announcer(messages.append)
-    try:
-        with use_kernels("numba"):
-            cli_evaluate.compile_kernels_once()
-        with use_kernels("numpy"):  # nothing to compile
-            cli_evaluate.compile_kernels_once()
-    finally:
-        compiled.set_announcer(None)
-    assert calls == [1] and len(messages) == 1 and "compiling the inference kernels" in messages[0]

@@ -6,11 +6,10 @@ from __future__ import annotations
 import argparse
 import os
 import sys
-import time
 from pathlib import Path
 
 from ..shipped import DEFAULT_ROBOT
-from .arguments import add_closed_loop_options, bounded, closed_loop_settings, read_dataset
+from .arguments import add_closed_loop_options, bounded, closed_loop_settings
 from .progress import progress
 
 
@@ -95,166 +94,34 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def cmd_evaluate(args: argparse.Namespace) -> int:
-    from .. import atomic
-    from ..data import parse_groups, skeleton_frames
-    from ..evaluation.evaluate import (
-        PAPER_GRID,
-        EvaluationConfig,
-        check_dataset_size,
-        evaluate,
-        overall,
-        to_markdown,
-        write_results,
+    """Run ``ipromp-pin evaluate`` (:func:`ipromp_pin.commands.evaluate.run_evaluate`)."""
+    from ..commands.evaluate import EvaluateRequest, grid_from, protocols_from, run_evaluate
+    from ..data import parse_groups
+
+    grid = grid_from(args.grid, args.n_train, args.ratios)
+    settings = None
+    if args.closed_loop:  # validated once here; each cell's ratio replaces the start ratio
+        settings = closed_loop_settings(args, control_rate_hz=100.0, start_ratio=grid[0][1])
+    request = EvaluateRequest(
+        dataset=args.dataset,
+        format=args.format,
+        observe=[parse_groups(o) for o in (args.observe or ["orientation", "orientation,emg"])],
+        grid=grid,
+        protocols=protocols_from(args.protocol),
+        n_test=args.n_test,
+        n_splits=args.splits,
+        seed=args.seed,
+        robot=args.robot,
+        jobs=args.jobs,
+        baselines=args.baselines,
+        closed_loop=args.closed_loop,
+        limits=args.limits,
+        closed_loop_settings=settings,
+        json=args.json,
+        md=args.md,
+        plots=args.plots,
+        command=" ".join(["ipromp-pin", *sys.argv[1:]]),
+        progress=progress,
     )
-    from ..readers import count_demos
-    from ..robot import load_robot
-
-    if args.closed_loop:
-        return _evaluate_closed_loop(args)
-    observe = [parse_groups(o) for o in (args.observe or ["orientation", "orientation,emg"])]
-    if args.baselines:
-        from ..evaluation.baselines import require_sklearn
-
-        require_sklearn()
-    frames = skeleton_frames(g for o in observe for g in o) or None
-    md = args.md or (args.json.with_suffix(".md") if args.json else None)
-    for path in (args.json, md):
-        if path is not None:
-            atomic.check_output_file(path)
-    if args.plots:
-        atomic.check_output_dir(args.plots, "plots folder")
-    if args.grid == "paper":
-        grid = list(PAPER_GRID)
-    else:
-        grid = [(n, r) for n in args.n_train for r in args.ratios]
-    protocols = ["paper", "splits"] if args.protocol == "both" else [args.protocol]
-    configs = [
-        EvaluationConfig(
-            protocol=protocol,
-            observe=observe,
-            grid=grid,
-            n_test=args.n_test,
-            n_splits=args.splits,
-            seed=args.seed,
-            baselines=args.baselines,
-        )
-        for protocol in protocols
-    ]
-    counts = count_demos(args.dataset, format=args.format)  # lists the demo files, reads none
-    for cfg in configs:
-        check_dataset_size(counts, cfg, args.dataset)
-    robot = load_robot(args.robot)
-    t0 = time.perf_counter()
-    ds = read_dataset(args, frames, robot, timed=True)
-    compile_kernels_once()
-    cells = []
-    for cfg in configs:
-        protocol = cfg.protocol
-        t1 = time.perf_counter()
-        cells += evaluate(ds, cfg, robot=args.robot, progress=progress(), jobs=args.jobs)
-        print(f"protocol {protocol}: {time.perf_counter() - t1:.1f} s")
-    print(to_markdown(cells))
-    meta = {
-        "dataset": str(args.dataset),
-        "command": " ".join(["ipromp-pin", *sys.argv[1:]]),
-        "seconds": round(time.perf_counter() - t0, 2),
-    }
-    write_results(cells, args.json, md, meta)
-    if args.plots:
-        from ..outputs import plots
-
-        plots.plot_accuracy(
-            [c.__dict__ for c in cells],
-            args.plots / "accuracy.png",
-            title=f"Recognition accuracy: {args.dataset.name}",
-        )
-    for key, o in overall(cells).items():
-        print(
-            f"{key}: mean accuracy {o['mean_accuracy']:.3f}"
-            + (f" (paper {o['paper_mean_accuracy']:.3f})" if "paper_mean_accuracy" in o else "")
-        )
-    if args.json:
-        print(f"wrote {args.json}" + (f" and {md}" if md else ""))
-    return 0
-
-
-def compile_kernels_once() -> None:
-    """Compile the numba kernels in this process (announced) before worker processes are forked,
-    which then inherit them, instead of each worker compiling its own copy."""
-    from ..promp.compiled import compiled_kernels_cached, kernel_backend, numba_kernels
-    from ..promp.warmup import compile_kernels
-
-    if kernel_backend() == "numba" and not compiled_kernels_cached():
-        numba_kernels()  # announces the compile
-        try:
-            compile_kernels()
-        except RuntimeError:  # compiled but not cached (read-only cache): the workers compile again
-            pass
-
-
-def _evaluate_closed_loop(args: argparse.Namespace) -> int:
-    from .. import atomic
-    from ..commands.replay import check_limits_choice
-    from ..data import parse_groups, skeleton_frames
-    from ..evaluation.closed_loop import (
-        ClosedLoopOptions,
-        closed_loop_markdown,
-        evaluate_closed_loop,
-        write_closed_loop_results,
-    )
-    from ..evaluation.evaluate import PAPER_GRID, EvaluationConfig, check_dataset_size
-    from ..readers import count_demos
-    from ..robot import load_robot
-
-    observe = [parse_groups(o) for o in (args.observe or ["orientation", "orientation,emg"])]
-    grid = list(PAPER_GRID) if args.grid == "paper" else [(n, r) for n in args.n_train for r in args.ratios]
-    for _, ratio in grid:  # every cell's obs_ratio is a start ratio: checked before any computation
-        closed_loop_settings(args, control_rate_hz=100.0, start_ratio=ratio)
-    settings = closed_loop_settings(args, control_rate_hz=100.0, start_ratio=grid[0][1])
-    robot = load_robot(args.robot)
-    check_limits_choice(args.limits, robot, "command line")
-    md = args.md or (args.json.with_suffix(".md") if args.json else None)
-    for path in (args.json, md):
-        if path is not None:
-            atomic.check_output_file(path)
-    protocols = ["paper", "splits"] if args.protocol == "both" else [args.protocol]
-    counts = count_demos(args.dataset, format=args.format)  # lists the demo files, reads none
-    for protocol in protocols:
-        check_dataset_size(
-            counts,
-            EvaluationConfig(protocol=protocol, observe=observe, grid=grid, n_test=args.n_test),
-            args.dataset,
-        )
-    frames = skeleton_frames(g for o in observe for g in o) or None
-    t0 = time.perf_counter()
-    ds = read_dataset(args, frames, robot, timed=True)
-    compile_kernels_once()
-    options = ClosedLoopOptions(limits=args.limits, settings=settings)
-    cells = []
-    for protocol in protocols:
-        cfg = EvaluationConfig(
-            protocol=protocol,
-            observe=observe,
-            grid=grid,
-            n_test=args.n_test,
-            n_splits=args.splits,
-            seed=args.seed,
-        )
-        t1 = time.perf_counter()
-        cells += evaluate_closed_loop(ds, cfg, options, robot=args.robot, progress=progress(), jobs=args.jobs)
-        print(f"protocol {protocol} (closed loop): {time.perf_counter() - t1:.1f} s")
-    print(closed_loop_markdown(cells))
-    meta = {
-        "dataset": str(args.dataset),
-        "command": " ".join(["ipromp-pin", *sys.argv[1:]]),
-        "seconds": round(time.perf_counter() - t0, 2),
-        "closed_loop": {
-            "limits": args.limits,
-            **settings.to_dict(),
-            "start_ratio": "obs_ratio of each cell",
-        },
-    }
-    write_closed_loop_results(cells, args.json, md, meta)
-    if args.json:
-        print(f"wrote {args.json}" + (f" and {md}" if md else ""))
+    run_evaluate(request)
     return 0

@@ -242,3 +242,64 @@ def test_tighter_limits_make_the_robot_late_and_the_report_says_so(setup, certif
     assert first_c.lateness_s > 0.1
     assert first_c.planned_arrival_s == pytest.approx(first_c.predicted_handover_s + first_c.lateness_s)
     assert first_l.lateness_s < first_c.lateness_s
+
+
+def test_stream_predict_is_the_conditioning_of_the_streams_recognition_on_its_samples(setup):
+    model, _, _, test = setup
+    demo = test[0]
+    n = demo.n_samples // 2
+    for gap in (False, True):
+        observed = demo.slice(n, OBSERVE)
+        if gap:  # a lost EMG frame: the stream falls back to the encoded observation's parts
+            observed.missing["emg"] = np.arange(n) == n // 3
+        with model.stream() as stream:
+            for t, sample in zip(observed.t, demo_samples(observed, OBSERVE), strict=True):
+                stream.update(float(t), sample)
+            parts, t_last = model.predictor_.encode(stream.observation())
+            got_parts, got_t = stream.parts()
+            assert got_t == t_last and len(got_parts) == len(parts)
+            for a, b in zip(got_parts, parts, strict=True):
+                assert np.array_equal(a.t, b.t) and np.array_equal(a.dims, b.dims)
+                assert np.array_equal(a.y, b.y)
+            for noise in (None, 0.3, 3.0):
+                conditioner = conditioning_predictor(model, noise).conditioner
+                ref = conditioner.condition(stream.recognition(), parts)
+                pred = stream.predict(condition_noise=noise)
+                assert pred.task == ref.task and np.array_equal(pred.q_mean, ref.q_mean)
+                assert np.array_equal(pred.q_cov, ref.q_cov)
+            # the conditioning predictor of a noise ratio is built once and kept
+            assert conditioning_predictor(model, 0.3) is conditioning_predictor(model, 0.3)
+            assert conditioning_predictor(model, None) is model.predictor_
+
+
+def test_reference_motion_reads_the_basis_from_the_prediction(setup):
+    model, _, _, test = setup
+    pred, ref = _reference(model, test[1])
+    alone = ReferenceMotion.from_prediction(pred)
+    t = np.linspace(0.0, pred.duration_s, 11)
+    for a, b in zip(alone.evaluate(t), ref.evaluate(t), strict=True):
+        assert np.array_equal(a, b)
+
+
+def test_the_planner_is_a_context_manager_that_opens_and_closes_its_stream(setup, certifier):
+    model, robot, train, test = setup
+    demo = test[1]
+    profile = demonstrated_profile(robot, train)
+    start = float(demo.head(0.2).t[-1])
+    samples = demo_samples(demo, OBSERVE)
+    with ClosedLoopPlanner(model, robot, profile, demo.groups[ROBOT][0], start, None, certifier) as planner:
+        assert planner._stream._held is not None  # the stream is open (BLAS threads limited)
+        for t, sample in zip(demo.t - demo.t[0], samples, strict=True):
+            planner.step(float(t), sample)
+    assert planner._stream._held is None
+    with pytest.raises(PipelineError, match="after finish"):
+        planner.step(float(demo.t[-1]) + 1.0, samples[-1])
+    result = planner.finish()
+    # the same as without the context manager, and as replay_demo
+    other = ClosedLoopPlanner(model, robot, profile, demo.groups[ROBOT][0], start, None, certifier)
+    for t, sample in zip(demo.t - demo.t[0], samples, strict=True):
+        other.step(float(t), sample)
+    again = other.finish()
+    assert np.array_equal(result.trajectory.q, again.trajectory.q)
+    replayed = replay_demo(model, robot, demo, profile, ClosedLoopSettings(), certifier)
+    assert np.array_equal(result.trajectory.q, replayed.trajectory.q)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import copy
+import dataclasses
 import json
 from pathlib import Path
 
@@ -48,8 +49,7 @@ def test_demo_in_the_training_set_is_found_by_content(fitted):
     assert (other.task, other.name) == (demo.task, demo.name)
     assert held_out_warning(model, other, "m.npz") is None
     # a model file of format version 1 does not know its training demos: say so
-    old = copy.copy(model)
-    old.trained_on_ = None
+    old = copy.copy(model)._set_fitted(dataclasses.replace(model.fitted_, trained_on=None))
     assert "does not record its training demos" in held_out_warning(old, other, "old.npz")
 
 

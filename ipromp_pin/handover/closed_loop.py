@@ -22,7 +22,6 @@ the last committed plan to its end and returns the commanded trajectory with eve
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import time
 from collections.abc import Mapping
@@ -63,12 +62,9 @@ Chosen by cross-validation of the closed loop on training demos (``benchmarks/cl
 def conditioning_predictor(model: IProMP, noise: float | None) -> Predictor:
     """The predictor whose conditioner the closed loop uses: the model's own (``noise`` None) or one
     that conditions the robot's weights with the noise ratio ``noise`` (its ``condition_noise_ratio``;
-    the same fitted model otherwise: recognition and phase keep the model's own)."""
-    predictor = model.predictor_
-    if noise is None or noise == predictor.fitted.nu_condition:
-        return predictor
-    fitted = dataclasses.replace(predictor.fitted, condition_noise_ratio=float(noise))
-    return Predictor(fitted, predictor.conditioner.n_points)
+    the same fitted model otherwise: recognition and phase keep the model's own;
+    :meth:`Predictor.with_condition_noise <ipromp_pin.promp.predictor.Predictor.with_condition_noise>`)."""
+    return model.predictor_.with_condition_noise(noise)
 
 
 @dataclass(frozen=True)
@@ -231,6 +227,11 @@ class ClosedLoopResult:
 class ClosedLoopPlanner:
     """Runs the closed loop on a stream of human samples (see the module docstring).
 
+    Used as a context manager (``with ClosedLoopPlanner(...) as planner:``), it opens the model's
+    streaming estimator on entry (BLAS threads limited once for the whole loop) and closes it on exit;
+    without one, the stream is opened on the first :meth:`step` and closed by :meth:`close` or
+    :meth:`finish`.
+
     Args:
         model: A fitted model.
         robot: The loaded robot.
@@ -241,8 +242,9 @@ class ClosedLoopPlanner:
         settings: Closed-loop settings (validated here).
         certifier: Self-collision certifier to use (default: a new one; reuse one across runs of the
             same robot to keep its cache of computed distances).
-        conditioner: The predictor whose conditioner conditions the robot trajectory (default:
-            :func:`conditioning_predictor` of ``settings.condition_noise``; pass one to reuse it).
+        conditioner: The predictor whose conditioner conditions the robot trajectory (default: the
+            stream's predictor for ``settings.condition_noise``,
+            :meth:`~ipromp_pin.promp.streaming.StreamingEstimator.predict`).
     """
 
     def __init__(
@@ -265,12 +267,9 @@ class ClosedLoopPlanner:
         self.certifier = certifier if certifier is not None else ClearanceCertifier(robot)
         s = self.settings
         self.retargeter = Retargeter(profile.limits, self.dt_s, s.blend_s, s.headroom, s.settle_s)
-        self._predictor = model.predictor_
-        self._conditioning = conditioner or conditioning_predictor(model, self.settings.condition_noise)
+        self._conditioner = conditioner
         self._stream = model.stream()
-        self._stream.__enter__()
-        self._centres = model.basis_.centres
-        self._width = model.basis_.width
+        self._open = False
         self._plans: list[tuple[int, MotionPlan]] = [
             (0, hold_plan(MotionState.at_rest(0.0, q_start), self.dt_s))
         ]
@@ -278,6 +277,19 @@ class ClosedLoopPlanner:
         self._next_replan = self.start_s
         self._stopped = ""
         self._finished = False
+
+    def __enter__(self) -> ClosedLoopPlanner:
+        self._open_stream()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def _open_stream(self) -> None:
+        """Open the streaming estimator (limits the BLAS threads until :meth:`close`)."""
+        if not self._open and not self._finished:
+            self._stream.__enter__()
+            self._open = True
 
     # ------------------------------------------------------------------ loop
     def _tick(self, t_s: float) -> int:
@@ -300,6 +312,8 @@ class ClosedLoopPlanner:
         t0 = time.perf_counter()
         if self._stopped:
             return None
+        if not self._open:
+            self._open_stream()
         try:
             rec = self._stream.update(t_s, sample)
         except IPrompPinError as exc:
@@ -331,10 +345,8 @@ class ClosedLoopPlanner:
         r = Replan(len(self.replans), tick * self.dt_s, float(t_s), stream.n_samples)
         t0 = time.perf_counter()
         try:
-            rec = stream.recognition()
-            parts, _ = self._predictor.encode(stream.observation())
-            pred = self._conditioning.conditioner.condition(rec, parts)
-            reference = ReferenceMotion.from_prediction(pred, self._centres, self._width)
+            pred = stream.predict(self.settings.condition_noise, self._conditioner)
+            reference = ReferenceMotion.from_prediction(pred)
         except IPrompPinError as exc:
             r.reason = f"prediction failed: {exc}"
             return r
@@ -388,7 +400,9 @@ class ClosedLoopPlanner:
     def close(self) -> None:
         """Stop receiving samples (releases the streaming estimator's BLAS thread limit)."""
         if not self._finished:
-            self._stream.__exit__(None, None, None)
+            if self._open:
+                self._stream.__exit__(None, None, None)
+                self._open = False
             self._finished = True
 
     def finish(self) -> ClosedLoopResult:
@@ -468,12 +482,10 @@ def replay_demo(
     groups = list(model.observe_)
     demo.require(groups + [model.robot_group])
     start = start_time(demo, settings.start_ratio)
-    planner = ClosedLoopPlanner(
-        model, robot, profile, demo.groups[model.robot_group][0], start, settings, certifier, conditioner
-    )
-    try:
+    q_start = demo.groups[model.robot_group][0]
+    with ClosedLoopPlanner(
+        model, robot, profile, q_start, start, settings, certifier, conditioner
+    ) as planner:
         for t, sample in zip(demo.t - demo.t[0], demo_samples(demo, groups), strict=True):
             planner.step(float(t), sample)
-    finally:
-        planner.close()
     return planner.finish()

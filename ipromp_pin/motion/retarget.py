@@ -106,12 +106,20 @@ class ReferenceMotion:
         self._ws = np.ascontiguousarray((self.weights * self.scale[:, None]).T)  # (K, J), in [rad]
 
     @classmethod
-    def from_prediction(cls, prediction, centres: np.ndarray, width: float) -> ReferenceMotion:
+    def from_prediction(
+        cls, prediction, centres: np.ndarray | None = None, width: float | None = None
+    ) -> ReferenceMotion:
         """The conditioned mean of a :class:`~ipromp_pin.promp.Prediction` (its ``robot_weights``)
-        with the model's basis ``centres`` and ``width`` (``IProMP.basis_``)."""
+        with the basis ``centres`` and ``width`` (default: the basis the prediction's robot weights
+        carry, the model's ``IProMP.basis_``)."""
         w = prediction.robot_weights
         if w is None:
             raise InfeasibleError("reference motion: the prediction holds no robot weights")
+        if centres is None or width is None:
+            if w.basis is None:
+                raise InfeasibleError("reference motion: the prediction's robot weights hold no basis")
+            centres = w.basis.centres if centres is None else centres
+            width = w.basis.width if width is None else width
         return cls(w.mean, centres, width, w.scale, w.offset, prediction.duration_s)
 
     def evaluate(

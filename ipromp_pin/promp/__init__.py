@@ -1,6 +1,7 @@
 """Multi-task EMG-augmented Interaction ProMPs: learn, recognise the task, predict the robot's motion.
 
-The estimator is :class:`IProMP` (:mod:`.estimator`); its parts, one concept per module:
+The estimator is :class:`IProMP` (:mod:`.estimator`; its parameters and their constraints:
+:mod:`.parameters`; what ``fit`` runs: :mod:`.fit`); its parts, one concept per module:
 
 - :mod:`.basis`: Gaussian basis functions of the phase;
 - :mod:`.distribution`: the per-task Gaussian over the stacked weights (shrinkage, scaling, phase prior);

@@ -22,6 +22,7 @@ from __future__ import annotations
 import contextlib
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from threadpoolctl import ThreadpoolController
@@ -29,28 +30,44 @@ from threadpoolctl import ThreadpoolController
 from ..data import ROBOT, Dataset, Demo, parse_groups
 from ..exceptions import IPrompPinError, ModelError, ModelFileError, NotFittedError
 from ..signals.groups import DEFAULT_LOG_GROUPS
-from .basis import GaussianBasis
-from .distribution import ChannelScaler, TaskModel
+from .fit import fit_model
 from .fitted import FittedModel
-from .handover_selection import choose_handover
+from .parameters import MAX_BLAS_THREADS, MAX_POINTS, PARAMETER_CONSTRAINTS, ParameterMixin, parse_params
 from .posterior import Prediction, Recognition
 from .predictor import Predictor
 from .prior_sampling import sample_task_prior
-from .provenance import demo_record
-from .selection import NOISE_GRID, TEMPERATURE_GRID, choose_coupling, choose_noise, fit_recognition_head
 from .serialization import read_model, write_model
 from .streaming import StreamingEstimator
-from .training import PhaseSettings, demos_by_task, log_task_prior, prepare_training, task_models
-from .validation import check_fitted
 
-MAX_POINTS = 100_000
-"""Largest number of points of a predicted trajectory (``n_points``)."""
-
-MAX_BLAS_THREADS = 1024
-"""Largest ``blas_threads``."""
+__all__ = ["MAX_BLAS_THREADS", "MAX_POINTS", "IProMP"]
 
 
-class IProMP:
+class FittedAttribute:
+    """A read-only fitted attribute of :class:`IProMP`: ``get`` of its ``fitted_`` state (an
+    AttributeError before ``fit``, as for an attribute that is not set)."""
+
+    def __init__(self, get: Callable[[FittedModel], Any], doc: str) -> None:
+        self.get = get
+        self.__doc__ = doc
+
+    def __set_name__(self, owner: type, name: str) -> None:
+        self.name = name
+
+    def __get__(self, model: object, owner: type | None = None) -> Any:
+        if model is None:
+            return self
+        fitted = vars(model).get("fitted_")
+        if fitted is None:
+            raise AttributeError(
+                f"'{type(model).__name__}' object has no attribute '{self.name}' (not fitted)"
+            )
+        return self.get(fitted)
+
+    def __set__(self, model: object, value: object) -> None:
+        raise AttributeError(f"{self.name} is a fitted attribute (read-only): refit or load a model")
+
+
+class IProMP(ParameterMixin):
     """EMG-augmented Interaction ProMP over several tasks (scikit-learn style estimator).
 
     Args:
@@ -97,33 +114,15 @@ class IProMP:
 
     ``__init__`` only stores the parameters; :meth:`fit` validates them.
 
-    Fitted attributes:
-        fitted_: The frozen :class:`~ipromp_pin.promp.fitted.FittedModel` (everything below).
-        predictor_: Its :class:`~ipromp_pin.promp.predictor.Predictor`.
-        observe_: Observed groups (a list, parsed from ``observe``).
-        tasks_: Task names.
-        models_: Task name -> :class:`~ipromp_pin.promp.distribution.TaskModel`.
-        basis_: The :class:`~ipromp_pin.promp.basis.GaussianBasis`.
-        scaler_: Per-channel :class:`~ipromp_pin.promp.distribution.ChannelScaler` (all dims).
-        groups_: Modelled groups (observed then robot); ``group_slices_`` their dim ranges.
-        channel_names_: Group -> channel names; ``joint_names_`` the robot's.
-        n_dims_, n_obs_dims_: Number of modelled and of observed dims.
-        duration_nominal_s_: ``T_norm`` in [s] (mean training duration).
-        noise_ratio_: Chosen ``nu``; ``noise_var_`` task -> (D_obs,) noise variances (scaled units).
-        temperature_: Chosen likelihood temperature ``tau``.
-        head_: The fitted :class:`~ipromp_pin.promp.head.RecognitionHead` (None with ``head=False``).
-        handover_: The fitted :class:`~ipromp_pin.promp.handover.HandoverRegression` (None: not used);
-            ``handover_cv_scores_`` its candidate trust factors (``inf``: off) -> CV error.
-        condition_noise_ratio_: Chosen ``nu_c`` (see ``condition_noise``); ``condition_cv_scores_``
-            ``nu_c`` -> CV RMSE of the robot prediction in [rad] (only with ``condition_noise="auto"``).
-        cv_scores_: ``nu`` -> CV score (only with ``noise="auto"``).
-        coupled_groups_: Observed groups coupled to the robot (see ``coupling``).
-        coupling_cv_scores_: Candidate coupled groups (``"+"``-joined) -> CV RMSE of the robot
-            prediction in [rad] (only with ``coupling="auto"`` and more than one candidate).
-        task_log_prior_: (K,) log task prior.
-        residual_var_: (D,) mean per-sample residual variance of the basis fit (scaled units).
-        trained_on_: One :class:`~ipromp_pin.promp.provenance.DemoRecord` per training demo (None
-            for a model loaded from a format-version-1 file, which does not record them).
+    Fitted attributes (set by :meth:`fit` and :meth:`load`; the others are read-only views of
+    ``fitted_``, each documented below): ``fitted_`` (the frozen
+    :class:`~ipromp_pin.promp.fitted.FittedModel`), ``predictor_`` (its
+    :class:`~ipromp_pin.promp.predictor.Predictor`), ``observe_``, ``tasks_``, ``models_``,
+    ``basis_``, ``scaler_``, ``groups_``, ``group_slices_``, ``channel_names_``, ``joint_names_``,
+    ``n_dims_``, ``n_obs_dims_``, ``duration_nominal_s_``, ``noise_ratio_``, ``noise_var_``,
+    ``temperature_``, ``head_``, ``handover_``, ``handover_cv_scores_``, ``condition_noise_ratio_``,
+    ``condition_cv_scores_``, ``cv_scores_``, ``coupled_groups_``, ``coupling_cv_scores_``,
+    ``task_log_prior_``, ``residual_var_``, ``trained_on_``.
     """
 
     def __init__(
@@ -168,19 +167,10 @@ class IProMP:
         self.coupling = coupling
         self.blas_threads = blas_threads
 
+    _parameter_constraints = PARAMETER_CONSTRAINTS
+    """Parameter -> its declared constraint (:mod:`~ipromp_pin.promp.parameters`)."""
+
     # ------------------------------------------------------------------ parameters
-    def get_params(self, deep: bool = True) -> dict[str, object]:
-        """The constructor parameters (scikit-learn convention; ``deep`` is accepted and ignored)."""
-        return {name: getattr(self, name) for name in _PARAMS}
-
-    def set_params(self, **params: object) -> IProMP:
-        """Set constructor parameters (scikit-learn convention); refit to use them."""
-        for name, value in params.items():
-            if name not in _PARAMS:
-                raise ModelError(f"unknown parameter '{name}' (parameters: {', '.join(_PARAMS)})")
-            setattr(self, name, value)
-        return self
-
     def __sklearn_tags__(self):
         """scikit-learn's estimator tags (called by scikit-learn only, so it imports it): demos are
         not arrays (no input validation), ``y`` (the tasks) is optional."""
@@ -194,56 +184,9 @@ class IProMP:
         )
 
     def check_params(self) -> tuple[list[str], str | list[str]]:
-        """Validate the parameters -> the observed groups and the coupling (parsed)."""
-        observe = parse_groups(self.observe)
-        coupling = self.coupling if isinstance(self.coupling, str) else list(self.coupling)
-        if self.robot_group in observe:
-            raise ModelError(f"the robot group '{self.robot_group}' cannot be an observed group")
-        noise = self.noise
-        if not (isinstance(noise, str) and noise == "auto"):
-            if isinstance(noise, str) or not (float(noise) > 0 and np.isfinite(float(noise))):
-                raise ModelError(f"noise must be 'auto' or a positive float, got {noise!r}")
-        tau = self.temperature
-        if not (isinstance(tau, str) and tau == "auto"):
-            if isinstance(tau, str) or not (0.0 < float(tau) <= 1.0):
-                raise ModelError(f"temperature must be 'auto' or a float in (0, 1], got {tau!r}")
-        nu_c = self.condition_noise
-        if not (isinstance(nu_c, str) and nu_c in ("auto", "same")):
-            if isinstance(nu_c, str) or not (float(nu_c) > 0 and np.isfinite(float(nu_c))):
-                raise ModelError(f"condition_noise must be 'auto', 'same' or a positive float, got {nu_c!r}")
-        if not 0.0 <= float(self.pooling) <= 1.0:
-            raise ModelError(f"pooling must be in [0, 1], got {self.pooling!r}")
-        if isinstance(coupling, str):
-            if coupling not in ("auto", "all"):
-                raise ModelError(
-                    f"coupling must be 'auto', 'all' or a list of observed groups, got {self.coupling!r}"
-                )
-        elif any(g not in observe for g in coupling) or len(set(coupling)) != len(coupling):
-            raise ModelError(f"coupling {coupling} must list distinct observed groups ({observe})")
-        for name, value, low, high in (
-            ("n_alpha", self.n_alpha, 3, None),
-            ("n_points", self.n_points, 2, MAX_POINTS),
-            ("n_basis", self.n_basis, 2, None),
-        ):
-            if not _is_int(value) or value < low or (high is not None and value > high):
-                bound = f">= {low}" if high is None else f"in [{low}, {high}]"
-                raise ModelError(f"{name} must be an integer {bound}, got {value!r}")
-        threads = self.blas_threads
-        if threads is not None and (not _is_int(threads) or not 1 <= threads <= MAX_BLAS_THREADS):
-            raise ModelError(
-                f"blas_threads must be None or an integer in [1, {MAX_BLAS_THREADS}], got {threads!r}"
-            )
-        prior = self.task_prior
-        if prior is not None:
-            if not isinstance(prior, Mapping) or not all(
-                isinstance(t, str) and _is_number(p) and np.isfinite(p) and p >= 0 for t, p in prior.items()
-            ):
-                raise ModelError(f"task_prior must map task names to non-negative numbers, got {prior!r}")
-        for name in ("ridge", "margin", "alpha_width"):
-            value = getattr(self, name)
-            if not _is_number(value) or not np.isfinite(value):
-                raise ModelError(f"{name} must be a finite number, got {value!r}")
-        return observe, coupling
+        """Validate the parameters against :attr:`_parameter_constraints` -> the observed groups and
+        the coupling (parsed)."""
+        return parse_params(self.get_params(), self._parameter_constraints)
 
     # ------------------------------------------------------------------ fit
     def fit(
@@ -253,7 +196,8 @@ class IProMP:
         *,
         fk: Callable[[np.ndarray], np.ndarray] | None = None,
     ) -> IProMP:
-        """Learn the scaling, per-task weight distributions, phase priors, noise ratio and coupling.
+        """Learn the scaling, per-task weight distributions, phase priors, noise ratio and coupling
+        (:func:`~ipromp_pin.promp.fit.fit_model`).
 
         Args:
             data: A :class:`~ipromp_pin.data.Dataset` or demos (grouped by ``demo.task``).
@@ -267,94 +211,45 @@ class IProMP:
         observe, coupling = self.check_params()
         if y is not None:
             _check_labels(data, y)
-        basis = GaussianBasis(self.n_basis, self.width, self.ridge, self.margin)
-        by_task = demos_by_task(data)
-        training = prepare_training(by_task, observe, self.robot_group, basis, self.log_groups)
-        settings = PhaseSettings(int(self.n_alpha), float(self.alpha_width), float(self.pooling))
-        prior = log_task_prior(training.tasks, self.task_prior)
-        with self._limit_threads():
-            nus = NOISE_GRID if isinstance(self.noise, str) else (float(self.noise),)
-            taus = TEMPERATURE_GRID if isinstance(self.temperature, str) else (float(self.temperature),)
-            head, rows = None, []
-            if len(nus) > 1 or len(taus) > 1 or self.head or self.handover:
-                noise = choose_noise(training, settings, prior, nus, taus)
-                nu, tau, rows = noise.nu, noise.temperature, noise.rows
-                nu_scores = noise.scores if len(nus) > 1 else {}
-                if self.head and rows:
-                    head = fit_recognition_head(rows, tau, len(training.tasks))
-            else:
-                nu, tau, nu_scores = nus[0], taus[0], {}
-            nu_c = {"auto": None, "same": nu}.get(self.condition_noise, self.condition_noise)  # type: ignore[arg-type]
-            nu_c = None if nu_c is None else float(nu_c)
-            cands = None if coupling == "auto" else [list(observe) if coupling == "all" else coupling]
-            choice = choose_coupling(training, settings, nu_c, cands, fk)
-            coupled = choice.groups
-            handover, handover_scores = None, {}
-            if self.handover and rows:
-                ho = choose_handover(training, settings, coupled, choice.nu_condition, rows, tau, fk)
-                handover, handover_scores = ho.regression, ho.scores
-        models = task_models(training, training.weights, training.alphas, coupled, settings)
-        fitted = FittedModel(
-            layout=training.layout,
-            basis=basis,
-            scaler=training.scaler,
-            tasks=training.tasks,
-            models=models,
-            duration_nominal_s=training.duration_nominal_s,
-            task_log_prior=prior,
-            noise_ratio=nu,
-            temperature=tau,
-            head=head,
-            coupled_groups=tuple(coupled),
-            residual_var=training.residual_var,
-            noise_cv_scores=nu_scores,
-            coupling_cv_scores=choice.scores,
-            condition_noise_ratio=choice.nu_condition,
-            condition_cv_scores=choice.nu_scores,
-            handover=handover,
-            handover_cv_scores=handover_scores,
-            trained_on=tuple(demo_record(d) for demos in by_task.values() for d in demos),
+        return self._set_fitted(
+            fit_model(data, self.get_params(), observe, coupling, fk, self._limit_threads)
         )
-        try:
-            check_fitted(fitted)
-        except ModelError as exc:
-            raise ModelError(
-                f"training produced an unusable model (implausible training data?): {exc}"
-            ) from None
-        return self._set_fitted(fitted)
 
     def _set_fitted(self, fitted: FittedModel) -> IProMP:
-        """Store a fitted state and its predictor, and expose it as the fitted attributes."""
-        layout = fitted.layout
-        self.fitted_ = fitted
-        self.predictor_ = Predictor(fitted, int(self.n_points))
-        self.observe_ = list(layout.observe)
-        self.tasks_ = list(fitted.tasks)
-        self.models_: dict[str, TaskModel] = dict(fitted.models)
-        self.basis_: GaussianBasis = fitted.basis
-        self.scaler_: ChannelScaler = fitted.scaler
-        self.groups_ = list(layout.groups)
-        self.group_slices_ = dict(layout.slices)
-        self.channel_names_ = dict(layout.channel_names)
-        self.joint_names_ = layout.joint_names
-        self.n_dims_ = layout.n_dims
-        self.n_obs_dims_ = layout.n_obs_dims
-        self.duration_nominal_s_ = fitted.duration_nominal_s
-        self.noise_ratio_ = fitted.noise_ratio
-        self.temperature_ = fitted.temperature
-        self.head_ = fitted.head
-        self.handover_ = fitted.handover
-        self.handover_cv_scores_ = dict(fitted.handover_cv_scores)
-        self.condition_noise_ratio_ = fitted.nu_condition
-        self.condition_cv_scores_ = dict(fitted.condition_cv_scores)
-        self.noise_var_ = fitted.noise_var()
-        self.cv_scores_ = dict(fitted.noise_cv_scores)
-        self.coupled_groups_ = list(fitted.coupled_groups)
-        self.coupling_cv_scores_ = dict(fitted.coupling_cv_scores)
-        self.task_log_prior_ = fitted.task_log_prior
-        self.residual_var_ = fitted.residual_var
-        self.trained_on_ = fitted.trained_on
+        """Store a fitted state and its predictor (the fitted attributes read them)."""
+        predictor = Predictor(fitted, int(self.n_points))
+        fitted.noise_var()  # raises on a corrupt state (read by noise_var_)
+        self.fitted_, self.predictor_ = fitted, predictor
         return self
+
+    fitted_: FittedModel
+    predictor_: Predictor
+    observe_ = FittedAttribute(lambda f: list(f.layout.observe), "Observed groups (a list).")
+    tasks_ = FittedAttribute(lambda f: list(f.tasks), "Task names.")
+    models_ = FittedAttribute(lambda f: dict(f.models), "Task name -> its TaskModel.")
+    basis_ = FittedAttribute(lambda f: f.basis, "The GaussianBasis.")
+    scaler_ = FittedAttribute(lambda f: f.scaler, "Per-channel ChannelScaler (all dims).")
+    groups_ = FittedAttribute(lambda f: list(f.layout.groups), "Modelled groups (observed, then robot).")
+    group_slices_ = FittedAttribute(lambda f: dict(f.layout.slices), "Group -> its (start, stop) dims.")
+    channel_names_ = FittedAttribute(lambda f: dict(f.layout.channel_names), "Group -> channel names.")
+    joint_names_ = FittedAttribute(lambda f: f.layout.joint_names, "The robot's joint names.")
+    n_dims_ = FittedAttribute(lambda f: f.layout.n_dims, "Number of modelled dims D.")
+    n_obs_dims_ = FittedAttribute(lambda f: f.layout.n_obs_dims, "Number of observed dims D_o.")
+    duration_nominal_s_ = FittedAttribute(lambda f: f.duration_nominal_s, "T_norm in [s].")
+    noise_ratio_ = FittedAttribute(lambda f: f.noise_ratio, "The chosen noise ratio nu.")
+    noise_var_ = FittedAttribute(lambda f: f.noise_var(), "Task -> (D_o,) noise variances (scaled).")
+    temperature_ = FittedAttribute(lambda f: f.temperature, "The chosen likelihood temperature tau.")
+    head_ = FittedAttribute(lambda f: f.head, "The RecognitionHead (None with head=False).")
+    handover_ = FittedAttribute(lambda f: f.handover, "The HandoverRegression (None: not used).")
+    handover_cv_scores_ = FittedAttribute(lambda f: dict(f.handover_cv_scores), "Trust factor -> CV error.")
+    condition_noise_ratio_ = FittedAttribute(lambda f: f.nu_condition, "The chosen nu_c.")
+    condition_cv_scores_ = FittedAttribute(lambda f: dict(f.condition_cv_scores), "nu_c -> CV RMSE [rad].")
+    cv_scores_ = FittedAttribute(lambda f: dict(f.noise_cv_scores), "nu -> CV score (noise='auto').")
+    coupled_groups_ = FittedAttribute(lambda f: list(f.coupled_groups), "Groups coupled to the robot.")
+    coupling_cv_scores_ = FittedAttribute(lambda f: dict(f.coupling_cv_scores), "Coupling -> CV RMSE [rad].")
+    task_log_prior_ = FittedAttribute(lambda f: f.task_log_prior, "(K,) log task prior.")
+    residual_var_ = FittedAttribute(lambda f: f.residual_var, "(D,) mean residual variance of the basis fit.")
+    trained_on_ = FittedAttribute(lambda f: f.trained_on, "DemoRecord per training demo (None: unknown).")
 
     # ---------------------------------------------------------- inference
     def _limit_threads(self) -> contextlib.AbstractContextManager:
@@ -379,12 +274,7 @@ class IProMP:
             observation: Partial demo with the observed groups (>= 2 samples), times in [s] from
                 motion start; or a sequence of them (batch: a list of recognitions, in order).
         """
-        predictor = self._predictor()
-        if not isinstance(observation, Demo):
-            return [self.recognise(o) for o in _batch(observation)]
-        parts, t_last = predictor.encode(observation)
-        with self._limit_threads():
-            return predictor.recognise(parts, t_last)
+        return self._infer(observation, Predictor.recognise)
 
     recognize = recognise
 
@@ -395,12 +285,16 @@ class IProMP:
             observation: Partial demo with the observed groups (>= 2 samples), times in [s] from
                 motion start; or a sequence of them (batch: a list of predictions, in order).
         """
+        return self._infer(observation, Predictor.predict)
+
+    def _infer(self, observation: Demo | Sequence[Demo], method: Callable) -> Any:
+        """``method`` of the predictor on the encoded observation (or on each of a batch)."""
         predictor = self._predictor()
         if not isinstance(observation, Demo):
-            return [self.predict(o) for o in _batch(observation)]
+            return [self._infer(o, method) for o in _batch(observation)]
         parts, t_last = predictor.encode(observation)
         with self._limit_threads():
-            return predictor.predict(parts, t_last)
+            return method(predictor, parts, t_last)
 
     def score(self, demos: Sequence[Demo], y: Sequence[str] | None = None, ratio: float = 0.2) -> float:
         """Recognition accuracy: the fraction of ``demos`` whose first ``ratio`` of the motion is
@@ -432,51 +326,25 @@ class IProMP:
 
     # ------------------------------------------------------------- plots
     def distribution(self, task: str, z: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[str]]:
-        """Learned centre and spread (n, D) of every channel over phases ``z`` (n,).
-
-        For a linear channel these are the mean and standard deviation in original units. A channel
-        modelled in log space (EMG, ``log_groups``) is Gaussian in ``log(y + c)``: its centre is the
-        median ``exp(mu) - c`` in original units but its spread is the standard deviation of
-        ``log(y + c)`` (log units); :meth:`distribution_band` gives bands in original units.
-
-        Returns:
-            centre, spread and the channel names as ``"group/channel"`` (observed groups, then robot).
-        """
-        m = self._task_model(task)
-        mean, std = m.distribution(self.basis_(np.asarray(z, dtype=float)))
-        return self.scaler_.inverse(mean), std * self.scaler_.scale, self.channel_labels()
+        """Learned centre and spread (n, D) of every channel over phases ``z`` (n,), and the channel
+        labels (:meth:`FittedModel.distribution <ipromp_pin.promp.fitted.FittedModel.distribution>`)."""
+        return self._predictor().fitted.distribution(task, z)
 
     def distribution_band(
         self, task: str, z: np.ndarray, n_sigma: float = 2.0
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[str]]:
-        """Centre and the ``n_sigma`` band (n, D) of every channel over phases ``z`` (n,), all in
-        original units: the model's quantiles ``mu +- n_sigma sigma`` mapped through the channel
-        scaling (for log-scaled channels ``exp(.) - c``, so the band is asymmetric around the median).
-
-        Returns:
-            centre, lower, upper and the channel names as ``"group/channel"``.
-        """
-        m = self._task_model(task)
-        mean, std = m.distribution(self.basis_(np.asarray(z, dtype=float)))
-        inv = self.scaler_.inverse
-        return inv(mean), inv(mean - n_sigma * std), inv(mean + n_sigma * std), self.channel_labels()
+        """Centre, lower and upper ``n_sigma`` band (n, D) of every channel over phases ``z`` (n,) in
+        original units, and the channel labels (:meth:`FittedModel.distribution_band
+        <ipromp_pin.promp.fitted.FittedModel.distribution_band>`)."""
+        return self._predictor().fitted.distribution_band(task, z, n_sigma)
 
     def train_trajectories(self, task: str, z: np.ndarray) -> np.ndarray:
         """Basis-fitted trajectories (N, n, D) of the training demos at phases ``z``, original units."""
-        m = self._task_model(task)
-        return self.scaler_.inverse(
-            np.einsum("nk,idk->ind", self.basis_(np.asarray(z, float)), m.train_weights)
-        )
+        return self._predictor().fitted.train_trajectories(task, z)
 
     def channel_labels(self) -> list[str]:
         """``"group/channel"`` labels of all modelled dims (observed groups, then robot)."""
         return self._predictor().fitted.layout.labels()
-
-    def _task_model(self, task: str) -> TaskModel:
-        fitted = self._predictor().fitted
-        if task not in fitted.models:
-            raise ModelError(f"unknown task '{task}' (tasks: {', '.join(fitted.tasks)})")
-        return fitted.models[task]
 
     # ------------------------------------------------------------ files
     def save(self, path: str | Path) -> None:
@@ -518,36 +386,3 @@ def _check_labels(data: Dataset | Iterable[Demo], y: Sequence[str]) -> None:
     for d, label in zip(demos, labels, strict=True):
         if label != d.task:
             raise ModelError(f"y says '{label}' for demo {d.name} of task '{d.task}'")
-
-
-_PARAMS = (
-    "observe",
-    "n_basis",
-    "width",
-    "ridge",
-    "margin",
-    "n_alpha",
-    "alpha_width",
-    "noise",
-    "temperature",
-    "condition_noise",
-    "head",
-    "handover",
-    "n_points",
-    "task_prior",
-    "robot_group",
-    "log_groups",
-    "pooling",
-    "coupling",
-    "blas_threads",
-)
-
-
-def _is_int(value: object) -> bool:
-    """Whether ``value`` is an integer (``int`` or an integral NumPy integer, not a bool)."""
-    return isinstance(value, int | np.integer) and not isinstance(value, bool)
-
-
-def _is_number(value: object) -> bool:
-    """Whether ``value`` is a real number (not a bool)."""
-    return isinstance(value, int | float | np.integer | np.floating) and not isinstance(value, bool)

@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..exceptions import ModelError
 from .basis import GaussianBasis
 from .distribution import ChannelScaler, TaskModel
 from .handover import HandoverRegression
@@ -95,3 +96,42 @@ class FittedModel:
         """Task -> (D_o,) observation noise variances ``nu delta_d`` of the observed dims."""
         n_obs = self.layout.n_obs_dims
         return {t: self.noise_ratio * m.diag[:n_obs] for t, m in self.models.items()}
+
+    def task_model(self, task: str) -> TaskModel:
+        """The model of ``task`` (raises ModelError for an unknown task)."""
+        if task not in self.models:
+            raise ModelError(f"unknown task '{task}' (tasks: {', '.join(self.tasks)})")
+        return self.models[task]
+
+    def distribution(self, task: str, z: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[str]]:
+        """Learned centre and spread (n, D) of every channel over phases ``z`` (n,).
+
+        For a linear channel these are the mean and standard deviation in original units. A channel
+        modelled in log space (EMG, ``log_groups``) is Gaussian in ``log(y + c)``: its centre is the
+        median ``exp(mu) - c`` in original units but its spread is the standard deviation of
+        ``log(y + c)`` (log units); :meth:`distribution_band` gives bands in original units.
+
+        Returns:
+            centre, spread and the channel names as ``"group/channel"`` (observed groups, then robot).
+        """
+        mean, std = self.task_model(task).distribution(self.basis(np.asarray(z, dtype=float)))
+        return self.scaler.inverse(mean), std * self.scaler.scale, self.layout.labels()
+
+    def distribution_band(
+        self, task: str, z: np.ndarray, n_sigma: float = 2.0
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[str]]:
+        """Centre and the ``n_sigma`` band (n, D) of every channel over phases ``z`` (n,), all in
+        original units: the model's quantiles ``mu +- n_sigma sigma`` mapped through the channel
+        scaling (for log-scaled channels ``exp(.) - c``, so the band is asymmetric around the median).
+
+        Returns:
+            centre, lower, upper and the channel names as ``"group/channel"``.
+        """
+        mean, std = self.task_model(task).distribution(self.basis(np.asarray(z, dtype=float)))
+        inv = self.scaler.inverse
+        return inv(mean), inv(mean - n_sigma * std), inv(mean + n_sigma * std), self.layout.labels()
+
+    def train_trajectories(self, task: str, z: np.ndarray) -> np.ndarray:
+        """Basis-fitted trajectories (N, n, D) of the training demos at phases ``z``, original units."""
+        weights = self.task_model(task).train_weights
+        return self.scaler.inverse(np.einsum("nk,idk->ind", self.basis(np.asarray(z, float)), weights))

@@ -8,6 +8,8 @@ model), the phase and task priors, and the conditioner with its caches. The one-
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from ..data import Demo
@@ -50,6 +52,21 @@ class Predictor:
             duration_nominal_s=fitted.duration_nominal_s,
         )
         self.conditioner = Conditioner(fitted, self.engine, self.encoder, n_points)
+        self._by_condition_noise: dict[float, Predictor] = {}
+
+    def with_condition_noise(self, noise: float | None) -> Predictor:
+        """A predictor whose conditioner conditions the robot's weights with the noise ratio ``noise``
+        (its ``condition_noise_ratio``; the same fitted model otherwise: recognition and phase are
+        this one's): this predictor when ``noise`` is None or its own ``nu_c``, else one built on
+        first use and kept."""
+        if noise is None or noise == self.fitted.nu_condition:
+            return self
+        key = float(noise)
+        other = self._by_condition_noise.get(key)
+        if other is None:
+            fitted = dataclasses.replace(self.fitted, condition_noise_ratio=key)
+            other = self._by_condition_noise[key] = Predictor(fitted, self.conditioner.n_points)
+        return other
 
     def encode(self, observation: Demo, check_length: bool = True) -> tuple[list[ObservationPart], float]:
         """Validate and scale an observation (:meth:`ObservationEncoder.encode`)."""

@@ -23,6 +23,7 @@ from ..exceptions import ObservationError
 from .compiled import kernels
 from .head import WindowSummary
 from .likelihood import IncrementalTerms, PartStats
+from .observation import ObservationPart
 from .posterior import Prediction, Recognition
 from .predictor import Predictor
 
@@ -62,6 +63,7 @@ class StreamingEstimator:
         self._t: list[float] = []
         self._rows: list[np.ndarray] = []  # raw samples (D_o,), NaN in missing groups
         self._absent: list[int] = []  # per sample, bit i set when observed group i is missing
+        self._gaps = False  # whether some sample missed a group
         self._last: Recognition | None = None
         u, k = engine.alpha_unique.size, fm.basis.n_basis
         n_obs = layout.n_obs_dims
@@ -198,6 +200,7 @@ class StreamingEstimator:
         self._t.append(t_s)
         self._rows.append(y)
         self._absent.append(absent)
+        self._gaps = self._gaps or bool(absent)
         if len(self._t) < 2:
             return None
         self._last = self._recognise(phi, ys)
@@ -299,14 +302,51 @@ class StreamingEstimator:
             missing={g: gaps[:, i] for i, g in enumerate(layout.observe) if gaps[:, i].any()},
         )
 
+    def parts(self) -> tuple[list[ObservationPart], float]:
+        """The samples received so far, scaled into observation parts (as
+        :meth:`Predictor.encode <ipromp_pin.promp.predictor.Predictor.encode>` of :meth:`observation`
+        gives them; the samples were checked on arrival), and the time of the last one in [s]."""
+        if len(self._t) < 2:
+            raise ObservationError("stream", "t", f"need at least 2 samples, got {len(self._t)}")
+        if self._gaps:
+            return self.predictor.encode(self.observation())
+        encoder = self.predictor.encoder
+        y, _ = encoder.scale_samples(np.array(self._rows).reshape(len(self._rows), self._sq.size))
+        return [ObservationPart(t=np.array(self._t), dims=encoder.dims, y=y)], self._t[-1]
+
     def recognition(self) -> Recognition:
         """Latest recognition (raises ObservationError before 2 samples)."""
         if self._last is None:
             raise ObservationError("stream", "t", f"need at least 2 samples, got {len(self._t)}")
         return self._last
 
+    def predict(
+        self, condition_noise: float | None = None, conditioner: Predictor | None = None
+    ) -> Prediction:
+        """The latest recognition (task and phase from the stream's statistics) with the robot
+        trajectory of its task conditioned on the samples received so far at its MAP phase, with the
+        noise ratio ``condition_noise`` (None: the model's own ``nu_c``; see
+        :meth:`Predictor.with_condition_noise <ipromp_pin.promp.predictor.Predictor.with_condition_noise>`)
+        or by ``conditioner``'s conditioner when given. The hand-over regression is not fused (see
+        :meth:`prediction`).
+
+        Raises:
+            ObservationError: fewer than 2 samples received.
+        """
+        rec = self.recognition()
+        parts, _ = self.parts()
+        condition = (
+            conditioner or self.predictor.with_condition_noise(condition_noise)
+        ).conditioner.condition
+        if self._held is None:
+            with self._limit_threads():
+                return condition(rec, parts)
+        return condition(rec, parts)
+
     def prediction(self) -> Prediction:
-        """Conditioned prediction on all samples received so far."""
+        """Conditioned prediction on all samples received so far (recognised again from the samples,
+        as :meth:`IProMP.predict <ipromp_pin.promp.estimator.IProMP.predict>` of :meth:`observation`
+        does, with the hand-over regression fused)."""
         if len(self._t) < 2:
             raise ObservationError("stream", "t", f"need at least 2 samples, got {len(self._t)}")
         with self._limit_threads():

@@ -46,7 +46,7 @@ def run_preview(
     if not (np.isfinite(speed) and speed > 0):
         raise PipelineError(f"preview speed must be a positive factor, got {speed}")
     session = prepare_session(cfg, log, prefetch_meshes=True)
-    observation = session.observation
+    observation = session.observed()
     result = plan(
         session.model,
         session.robot,

@@ -48,7 +48,7 @@ def run_pipeline(
     t_start = time.perf_counter()
     check_outputs(cfg)
     session = prepare_session(cfg, log, warn, prefetch_meshes=cfg.preview_html)
-    robot, observation = session.robot, session.observation
+    robot, observation = session.robot, session.observed()
     result = plan(
         session.model,
         robot,

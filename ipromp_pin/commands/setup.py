@@ -61,6 +61,12 @@ class Session:
     observation: Demo | None = None
     hand_position_m: np.ndarray | None = None
 
+    def observed(self) -> Demo:
+        """The observation of a session prepared with ``observe=True`` (PipelineError without one)."""
+        if self.observation is None:
+            raise PipelineError("the session has no observation (prepared with observe=False)")
+        return self.observation
+
 
 class SetupChecks:
     """A command's checks of the held-out demo and the model, run by :func:`prepare_session` as soon

@@ -29,10 +29,15 @@ def _round(x: object) -> object:
     if isinstance(x, float | np.floating):
         return round(float(x), 6)
     if isinstance(x, dict):
-        return {k: _round(v) for k, v in x.items()}
+        return _round_dict(x)
     if isinstance(x, list | tuple):
         return [_round(v) for v in x]
     return x
+
+
+def _round_dict(x: dict) -> dict:
+    """The dict ``x`` with every float rounded to 6 decimals (see :func:`_round`)."""
+    return {k: _round(v) for k, v in x.items()}
 
 
 def replans_json(result: ClosedLoopResult, demo: Demo) -> dict:
@@ -72,7 +77,7 @@ def report_dict(
             reasons[key] = reasons.get(key, 0) + 1
     committed = [r for r in result.replans if r.committed]
     last = committed[-1] if committed else None
-    return _round(
+    return _round_dict(
         {
             "format": REPLAY_FORMAT,
             "version": REPLAY_VERSION,

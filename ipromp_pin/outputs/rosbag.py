@@ -42,6 +42,7 @@ import shutil
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 
@@ -53,6 +54,9 @@ from ..signals.groups import POINT_STAMPED as POINT_STAMPED
 from ..signals.groups import QUATERNION_STAMPED as QUATERNION_STAMPED
 from ..signals.groups import group_spec, registered_groups
 
+if TYPE_CHECKING:
+    from rosbags.typesys.store import MsgType  # the message classes' protocol (typing only)
+
 TOPIC_PREFIX = "/ipromp_pin"
 TOPIC_TRAJECTORY = f"{TOPIC_PREFIX}/planned_trajectory"
 TOPIC_JOINT_STATES = f"{TOPIC_PREFIX}/joint_states"
@@ -63,7 +67,7 @@ JOINT_TRAJECTORY = "trajectory_msgs/msg/JointTrajectory"
 JOINT_STATE = "sensor_msgs/msg/JointState"
 POSE_STAMPED = "geometry_msgs/msg/PoseStamped"
 
-ROSBAG2_VERSION = 8
+ROSBAG2_VERSION: Literal[8, 9] = 8
 """rosbag2 metadata version written (8: read by ROS 2 Humble and later)."""
 
 
@@ -127,19 +131,19 @@ class _Builder:
         self.store = get_typestore(Stores.ROS1_NOETIC if ros1 else Stores.ROS2_HUMBLE)
         self.t = self.store.types
 
-    def time(self, ns: int) -> object:
+    def time(self, ns: int) -> MsgType:
         return self.t["builtin_interfaces/msg/Time"](sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
 
-    def duration(self, ns: int) -> object:
+    def duration(self, ns: int) -> MsgType:
         return self.t["builtin_interfaces/msg/Duration"](sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
 
-    def header(self, ns: int, frame_id: str) -> object:
+    def header(self, ns: int, frame_id: str) -> MsgType:
         h = self.t["std_msgs/msg/Header"]
         if self.ros1:
             return h(seq=0, stamp=self.time(ns), frame_id=frame_id)
         return h(stamp=self.time(ns), frame_id=frame_id)
 
-    def joint_trajectory(self, traj: Trajectory, ns: int) -> object:
+    def joint_trajectory(self, traj: Trajectory, ns: int) -> MsgType:
         point = self.t["trajectory_msgs/msg/JointTrajectoryPoint"]
         empty = np.zeros(0)
         points = [
@@ -156,7 +160,7 @@ class _Builder:
             header=self.header(ns, ""), joint_names=list(traj.joint_names), points=points
         )
 
-    def joint_state(self, ns: int, names: list[str], q: np.ndarray, qd: np.ndarray) -> object:
+    def joint_state(self, ns: int, names: list[str], q: np.ndarray, qd: np.ndarray) -> MsgType:
         return self.t[JOINT_STATE](
             header=self.header(ns, ""),
             name=names,
@@ -165,14 +169,14 @@ class _Builder:
             effort=np.zeros(0),
         )
 
-    def point(self, xyz: np.ndarray) -> object:
+    def point(self, xyz: np.ndarray) -> MsgType:
         return self.t["geometry_msgs/msg/Point"](x=float(xyz[0]), y=float(xyz[1]), z=float(xyz[2]))
 
-    def quaternion(self, xyzw: np.ndarray) -> object:
+    def quaternion(self, xyzw: np.ndarray) -> MsgType:
         x, y, z, w = (float(v) for v in xyzw)
         return self.t["geometry_msgs/msg/Quaternion"](x=x, y=y, z=z, w=w)
 
-    def pose_stamped(self, ns: int, frame: str, pose: np.ndarray) -> object:
+    def pose_stamped(self, ns: int, frame: str, pose: np.ndarray) -> MsgType:
         p = self.t["geometry_msgs/msg/Pose"](
             position=self.point(pose[:3]), orientation=self.quaternion(pose[3:])
         )
@@ -232,7 +236,7 @@ def bag_messages(content: BagContent, ros1: bool = False) -> list[BagMessage]:
         raise DataError(None, "handover_pose", f"expected 7 finite values, got shape {pose.shape}")
     start = int(content.start_time_ns)
     plan_ns = start + _ns(content.plan_time_s)
-    out = []
+    out: list[BagMessage] = []
     if content.observation is not None:
         out.extend(_human_messages(b, content.observation, start, content.base_frame))
     out.append(BagMessage(TOPIC_TRAJECTORY, JOINT_TRAJECTORY, plan_ns, b.joint_trajectory(traj, plan_ns)))

@@ -148,25 +148,25 @@ def read_demo(
         raise DataError(
             path, "frames", f"the {format} recordings have no tracked frames (asked for {list(frames)})"
         )
-    if rate_hz is None and format != "native":
-        rate_hz = 50.0
+    # The recordings' readers resample at 50 Hz by default; a native file keeps its own rate.
+    rate = 50.0 if rate_hz is None else rate_hz
     if format == "chen2017":
         demo = chen2017.read_demo(
-            path, task, rate_hz=rate_hz, robot_joints=robot_joints, emg_cutoff_hz=emg_cutoff_hz
+            path, task, rate_hz=rate, robot_joints=robot_joints, emg_cutoff_hz=emg_cutoff_hz
         )
     elif format == "multimodal":
         demo = multimodal.read_demo(
             path,
             task,
             frames=frames,
-            rate_hz=rate_hz,
+            rate_hz=rate,
             robot_joints=robot_joints,
             emg_cutoff_hz=emg_cutoff_hz,
             end_effector=end_effector,
         )
     elif format == "bag":
         demo = rosbag.read_demo(
-            path, task, rate_hz=rate_hz, robot_joints=robot_joints, emg_cutoff_hz=emg_cutoff_hz
+            path, task, rate_hz=rate, robot_joints=robot_joints, emg_cutoff_hz=emg_cutoff_hz
         )
     else:
         demo = native.read_demo(path, task, rate_hz=rate_hz, frames=frames, robot_joints=robot_joints)

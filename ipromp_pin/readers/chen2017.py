@@ -130,7 +130,11 @@ def list_demos(folder: Path, order: str = "config") -> list[Path]:
                 stacklevel=2,
             )
         seen: set[str] = set()
-        stamps = [s for s in listed if s in present and not (s in seen or seen.add(s))]
+        stamps: list[str] = []
+        for s in listed:
+            if s in present and s not in seen:
+                seen.add(s)
+                stamps.append(s)
         extra = [s for s in on_disk if s not in seen]
         if extra:
             warnings.warn(
@@ -158,15 +162,21 @@ def _header_seconds(table: CsvTable) -> np.ndarray:
     return st[:, 0] + st[:, 1] * 1e-9
 
 
-def _read_stream(path: Path, columns: Sequence[str], optional: bool = False) -> RawStream | None:
-    """The messages of one topic's CSV (None for an ``optional`` file without messages)."""
+def _read_optional_stream(path: Path, columns: Sequence[str]) -> RawStream | None:
+    """The messages of one topic's CSV (None for a file without messages)."""
     table = CsvTable(path)
     if len(table) == 0:
-        if optional:
-            return None
-        raise DataError(path, None, "stream is empty (no messages)")
+        return None
     values = table.numbers(columns)
     return RawStream(_header_seconds(table), parse_receive_times(path, table.text("time")), values, str(path))
+
+
+def _read_stream(path: Path, columns: Sequence[str]) -> RawStream:
+    """The messages of one topic's CSV, which must hold some (else DataError)."""
+    stream = _read_optional_stream(path, columns)
+    if stream is None:
+        raise DataError(path, None, "stream is empty (no messages)")
+    return stream
 
 
 def _parse_tuple_names(source: object, text: str) -> tuple[str, ...]:
@@ -229,9 +239,7 @@ def read_raw(prefix: Path, robot_joints: Sequence[str] = BAXTER_LEFT_JOINTS) -> 
 
     endpoint_file = file("endpoint")
     # optional: not recorded in every session
-    endpoint = (
-        _read_stream(endpoint_file, ENDPOINT_COLUMNS, optional=True) if endpoint_file.exists() else None
-    )
+    endpoint = _read_optional_stream(endpoint_file, ENDPOINT_COLUMNS) if endpoint_file.exists() else None
     return RawRecording(
         emg=_read_stream(file("emg"), EMG_COLUMNS),
         imu=_read_stream(file("imu"), IMU_COLUMNS),

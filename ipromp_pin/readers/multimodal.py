@@ -111,23 +111,27 @@ def _stamps(table: CsvTable, column: str) -> np.ndarray:
     return v * 1e-9
 
 
-def _sub_stream(
-    table: CsvTable,
-    stamp_column: str,
-    columns: Sequence[str],
-    receive: np.ndarray,
-    optional: bool = False,
+def _optional_sub_stream(
+    table: CsvTable, stamp_column: str, columns: Sequence[str], receive: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
     """(header stamps, receive times, values) of a bundled message, without never-received rows;
-    None for an ``optional`` stream of which no message was received (else DataError)."""
+    None when no message of the stream was received."""
     header = _stamps(table, stamp_column)
     ok = header > 0
     if not np.any(ok):
-        if optional:
-            return None
-        raise DataError(table.path, stamp_column, "no message of this stream was received (all stamps 0)")
+        return None
     values = table.numbers(columns)
     return header[ok], receive[ok], values[ok]
+
+
+def _sub_stream(
+    table: CsvTable, stamp_column: str, columns: Sequence[str], receive: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """As :func:`_optional_sub_stream`, for a stream that must have been received (else DataError)."""
+    stream = _optional_sub_stream(table, stamp_column, columns, receive)
+    if stream is None:
+        raise DataError(table.path, stamp_column, "no message of this stream was received (all stamps 0)")
+    return stream
 
 
 def _find_transforms(table: CsvTable) -> list[str]:
@@ -226,7 +230,7 @@ def _message_streams(table: CsvTable, receive: np.ndarray, robot_joints: Sequenc
     imu_h, imu_r, imu = _sub_stream(table, P + "imuStates.header.stamp", imu_cols, receive)
     ep_cols = [f"{P}endpointStates.pose.position.{a}" for a in "xyz"]
     ep_cols += [f"{P}endpointStates.pose.orientation.{a}" for a in "xyzw"]
-    endpoint = _sub_stream(table, P + "endpointStates.header.stamp", ep_cols, receive, optional=True)
+    endpoint = _optional_sub_stream(table, P + "endpointStates.header.stamp", ep_cols, receive)
     check_range(path, P + "emgStates", emg, *EMG_RAW_RANGE, "", EMG.channels, what="message")
     j_h, j_r, jpos = _joint_stream(table, receive, robot_joints)
 

@@ -68,6 +68,7 @@ from ..data import ROBOT, Dataset, Demo
 from ..exceptions import DataError
 from ..signals.groups import group_spec
 from ..signals.preprocess import Stream, align_streams
+from .streams import full_duration_s
 
 FORMAT_TAG = "ipromp_pin.demo"
 VERSION = 1
@@ -119,7 +120,7 @@ def write_demo(demo: Demo, path: str | Path) -> Path:
             "version": np.array(VERSION),
             "task": np.array(demo.task),
             "name": np.array(demo.name),
-            "duration_s": np.array(float(demo.duration_s)),
+            "duration_s": np.array(full_duration_s(demo)),
             "t": demo.t,
             "groups": np.array(list(demo.groups), dtype=str),
             "extras": np.array(list(demo.extras), dtype=str),
@@ -132,7 +133,8 @@ def write_demo(demo: Demo, path: str | Path) -> Path:
         for j, v in enumerate(demo.extras.values()):
             arrays[f"extra{j}"] = np.asarray(v, dtype=float)
         with atomic.replacing(path) as tmp, open(tmp, "wb") as fh:
-            np.savez_compressed(fh, **arrays)
+            # allow_pickle: numpy's default, named so that the arrays fill only its **kwds.
+            np.savez_compressed(fh, allow_pickle=True, **arrays)
         return path
     if path.suffix == ".csv":
         header = ["t"]
@@ -421,7 +423,7 @@ def resample_demo(demo: Demo, rate_hz: float) -> Demo:
         extras={
             n: values["extras:" + n].reshape((t.size,) + np.shape(demo.extras[n])[1:]) for n in demo.extras
         },
-        duration_s=max(float(demo.duration_s), float(t[-1])),
+        duration_s=max(full_duration_s(demo), float(t[-1])),
     )
 
 

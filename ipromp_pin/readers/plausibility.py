@@ -52,6 +52,7 @@ from ..signals.checks import (
     check_range,
 )
 from ..signals.groups import SKELETON_PREFIX, group_spec, registered_groups
+from .streams import full_duration_s
 
 __all__ = [
     "ACCELERATION_MAX_G",
@@ -95,9 +96,9 @@ def check_demo(demo: Demo, joint_limits: Mapping[str, tuple[float, float]] | Non
     for g, v in demo.groups.items():
         group_spec(g).check_values(src, g, v, demo.channel_names[g], joint_limits)
     for spec in registered_groups():
-        v = demo.extras.get(spec.name) if spec.extra else None
-        if v is not None and np.ndim(v) == 2 and spec.fits(np.shape(v)[1]):
-            spec.check(src, f"extras:{spec.name}", v, spec.channels, joint_limits)
+        extra = demo.extras.get(spec.name) if spec.extra else None
+        if extra is not None and np.ndim(extra) == 2 and spec.fits(np.shape(extra)[1]):
+            spec.check(src, f"extras:{spec.name}", extra, spec.channels, joint_limits)
     for name, v in demo.extras.items():
         a = np.asarray(v, dtype=float)
         if np.any(np.isinf(a)):
@@ -120,7 +121,7 @@ def check_durations(demos: Mapping[str, Iterable[Demo]]) -> None:
         items = list(items)
         if len(items) < 3:
             continue
-        d = np.array([float(x.duration_s) for x in items])
+        d = np.array([full_duration_s(x) for x in items])
         med = float(np.median(d))
         for x, dur in zip(items, d, strict=True):
             if not (lo * med <= dur <= hi * med):

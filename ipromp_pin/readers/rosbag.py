@@ -23,6 +23,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ..data import Demo
 from ..exceptions import DataError
@@ -155,7 +156,7 @@ def read_raw(
             )
     jpos = np.array([values["joints"][k] for k in idx])[:, cols]
 
-    def stream(key: str, v: np.ndarray, sel: np.ndarray | None = None) -> RawStream:
+    def stream(key: str, v: ArrayLike, sel: np.ndarray | None = None) -> RawStream:
         h, r = np.asarray(header[key]), np.asarray(receive[key])
         if sel is not None:
             h, r = h[sel], r[sel]

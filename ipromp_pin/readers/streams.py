@@ -165,8 +165,8 @@ def parse_receive_times(path: object, values: Sequence[str]) -> np.ndarray:
             day = s[:10]
             d0 = days.get(day)
             if d0 is None:
-                d0 = datetime.datetime.strptime(day, "%Y/%m/%d").replace(tzinfo=datetime.UTC)
-                d0 = days[day] = d0.timestamp()
+                midnight = datetime.datetime.strptime(day, "%Y/%m/%d").replace(tzinfo=datetime.UTC)
+                d0 = days[day] = midnight.timestamp()
             if s[10] != "/" or s[13] != ":" or s[16] != ":":
                 raise ValueError(s)
             out[k] = d0 + int(s[11:13]) * 3600 + int(s[14:16]) * 60 + float(s[17:])
@@ -423,3 +423,10 @@ def endpoint_extras(values: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
     if "endpoint_position" not in values:
         return {}
     return {"endpoint_pose": np.hstack([values["endpoint_position"], values["endpoint_orientation"]])}
+
+
+def full_duration_s(demo: Demo) -> float:
+    """The demo's full duration in [s] (``Demo`` sets it when built; DataError if it is missing)."""
+    if demo.duration_s is None:
+        raise DataError(demo.source, "duration_s", "the demo has no duration")
+    return float(demo.duration_s)

@@ -44,6 +44,7 @@ Everything is deterministic for a given ``seed``.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TypedDict
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -52,6 +53,7 @@ from ..data import ROBOT, Dataset, Demo
 from ..exceptions import DataError
 from ..signals.groups import ACC, EMG, ORIENTATION
 from ..signals.preprocess import DEFAULT_EMG_CUTOFF_HZ, emg_envelope, quaternion_continuity
+from .streams import full_duration_s
 
 NOMINAL_DURATION_S = 3.3
 """Nominal demo duration in [s]; a demo's true phase ratio is ``duration_s / NOMINAL_DURATION_S``."""
@@ -228,7 +230,7 @@ HAND_BEYOND_GRIPPER_M = np.array([0.08, 0.0, 0.0])
 
 def true_alpha(demo: Demo) -> float:
     """Ground-truth phase ratio of a synthetic demo: ``duration_s / NOMINAL_DURATION_S``."""
-    return float(demo.duration_s) / NOMINAL_DURATION_S
+    return full_duration_s(demo) / NOMINAL_DURATION_S
 
 
 def min_jerk(x: np.ndarray) -> np.ndarray:
@@ -273,7 +275,19 @@ def _feasible_fraction(q: np.ndarray, dq: np.ndarray, lo: np.ndarray, hi: np.nda
     return float(np.clip(np.min(room), 0.0, 1.0))
 
 
-def _task_definitions(n_tasks: int) -> dict[str, np.ndarray | list[str]]:
+class _TaskDefinitions(TypedDict):
+    """Per-task parameters of a synthetic dataset, one row per task (see :func:`_task_definitions`)."""
+
+    names: list[str]
+    offset_to_q: np.ndarray
+    null_space: np.ndarray
+    q_end: np.ndarray
+    point: np.ndarray
+    rest: np.ndarray
+    active: np.ndarray
+
+
+def _task_definitions(n_tasks: int) -> _TaskDefinitions:
     """Task parameters; tasks beyond the measured three are fixed blends of them."""
     names = list(TASKS[:n_tasks])
     q_end = list(HANDOVER_Q_RAD[:n_tasks])
@@ -366,7 +380,7 @@ def make_synthetic_dataset(
 class _Setting:
     """What every demo of one synthetic dataset shares (see :func:`make_synthetic_dataset`)."""
 
-    defs: dict[str, np.ndarray | list[str]]
+    defs: _TaskDefinitions
     rate_hz: float
     noise: float
     emg_cutoff_hz: float

@@ -93,11 +93,17 @@ def median(values: Sequence[float | None]) -> float | None:
     return float(np.median(arr)) if arr.size else None
 
 
+def accuracy(trials: Sequence) -> float:
+    """Fraction of the trials (``TrialResult``-like: ``correct``) recognised; NaN for none."""
+    ok = [r for r in trials if r.correct]
+    return float(len(ok) / len(trials)) if trials else float("nan")
+
+
 def summarise(trials: Sequence) -> dict[str, float | None]:
     """Accuracy and median errors over the correctly recognised trials (``TrialResult``-like:
     ``correct`` and the :data:`ERROR_FIELDS`)."""
     ok = [r for r in trials if r.correct]
-    out: dict[str, float | None] = {"accuracy": float(len(ok) / len(trials)) if trials else float("nan")}
+    out: dict[str, float | None] = {"accuracy": accuracy(trials)}
     for name in ERROR_FIELDS:
         vals = [abs(getattr(r, name)) if name == "duration_error_s" else getattr(r, name) for r in ok]
         out[name] = median(vals)
@@ -215,7 +221,7 @@ def build_cells(
             for task in dataset.tasks:
                 reps = results.trials[(n_train, ratio, key, task)]
                 flat = [r for rep in reps for r in rep]
-                accs = [summarise(rep)["accuracy"] for rep in reps if rep]
+                accs = [accuracy(rep) for rep in reps if rep]
                 where = (n_train, ratio, observe, task)
                 cell = cell_type(
                     **cell_fields(dataset, config, where, len(flat), accs, summarise(flat)),

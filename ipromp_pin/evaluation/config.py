@@ -3,7 +3,7 @@ accuracies it reports on ``chen2017_handover``)."""
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 from ..exceptions import DataError
@@ -66,6 +66,6 @@ class EvaluationConfig:
         return 1 if self.protocol == "paper" else self.n_splits
 
 
-def observe_key(observe: list[str] | tuple[str, ...]) -> str:
+def observe_key(observe: Sequence[str]) -> str:
     """Canonical text of an observed channel set, e.g. ``"orientation+emg"``."""
     return "+".join(observe)

@@ -113,6 +113,7 @@ def plan(
     t0 = time.perf_counter()
     prediction = model.predict(observation)
     t1 = time.perf_counter()
+    assert isinstance(prediction, Prediction), "IProMP.predict of one Demo returns one Prediction"
     ms["recognise_predict"] = (t1 - t0) * 1e3
     say(
         f"[recognise] {prediction.task} (posterior {float(np.max(prediction.posterior)):.3f}), "

@@ -4,15 +4,61 @@ and the registry in which a baseline is one entry (name -> estimator factory).""
 from __future__ import annotations
 
 from collections.abc import Callable, Iterator, Mapping
+from typing import Generic, Protocol, Self, TypeVar
+
+import numpy as np
 
 from ...exceptions import IPrompPinError
 
 CV_FOLDS = 5
 """Folds of the baselines' cross-validations on the training demos (fewer when a task has fewer demos)."""
 
-Factory = Callable[..., object]
+
+class Estimator(Protocol):
+    """What a baseline uses of a scikit-learn estimator (scikit-learn ships no type information)."""
+
+    def fit(self, x: np.ndarray, y: np.ndarray) -> Self:
+        """Fit on features ``x`` (n, D) and targets ``y`` (n,) or (n, K); returns the estimator."""
+        ...
+
+    def predict(self, x: np.ndarray) -> np.ndarray:
+        """Predictions for the features ``x`` (n, D)."""
+        ...
+
+
+class Classifier(Estimator, Protocol):
+    """A fitted scikit-learn classifier: its ``classes_`` and their probabilities."""
+
+    classes_: np.ndarray
+
+    def predict_proba(self, x: np.ndarray) -> np.ndarray:
+        """Probabilities (n, n_classes) of the ``classes_`` for the features ``x`` (n, D)."""
+        ...
+
+
+class Transformer(Protocol):
+    """What the baselines use of a scikit-learn transformer (the features' standardiser)."""
+
+    def fit_transform(self, x: np.ndarray) -> np.ndarray:
+        """Fit on ``x`` (n, D) and return it transformed (n, D)."""
+        ...
+
+    def transform(self, x: np.ndarray) -> np.ndarray:
+        """The features ``x`` (n, D) transformed (n, D)."""
+        ...
+
+
+Factory = Callable[..., Estimator]
 """An estimator factory: a classifier's takes the training labels ``y`` (n,), a regressor's the
 number ``n`` of training demos of its task; each returns an unfitted scikit-learn estimator."""
+
+ClassifierFactory = Callable[[np.ndarray], Classifier]
+"""A recognition baseline's factory: training labels ``y`` (n,) -> unfitted classifier."""
+
+RegressorFactory = Callable[[int], Estimator]
+"""A motion baseline's factory: number ``n`` of training demos of the task -> unfitted regressor."""
+
+F = TypeVar("F", bound=Factory)
 
 
 class MissingDependencyError(IPrompPinError):
@@ -34,7 +80,7 @@ def folds(n: int) -> int:
     return max(2, min(CV_FOLDS, n))
 
 
-class Registry(Mapping[str, Factory]):
+class Registry(Mapping[str, F], Generic[F]):
     """Baseline name -> estimator factory, in registration order. Iterating gives the names, so a
     registry reads as the tuple of names it replaced (``for name in CLASSIFIERS``, ``set(...)``).
 
@@ -43,11 +89,11 @@ class Registry(Mapping[str, Factory]):
         entries: Initial (name, factory) pairs.
     """
 
-    def __init__(self, kind: str, entries: Mapping[str, Factory]) -> None:
+    def __init__(self, kind: str, entries: Mapping[str, F]) -> None:
         self.kind = kind
-        self._entries: dict[str, Factory] = dict(entries)
+        self._entries: dict[str, F] = dict(entries)
 
-    def __getitem__(self, name: str) -> Factory:
+    def __getitem__(self, name: str) -> F:
         return self._entries[name]
 
     def __iter__(self) -> Iterator[str]:
@@ -59,7 +105,7 @@ class Registry(Mapping[str, Factory]):
     def __repr__(self) -> str:
         return f"Registry({self.kind!r}, {list(self._entries)})"
 
-    def register(self, name: str, factory: Factory) -> None:
+    def register(self, name: str, factory: F) -> None:
         """Add a baseline; its results then appear under ``name`` in every evaluation cell."""
         if name in self._entries:
             raise ValueError(f"{self.kind} baseline '{name}' is already registered")

@@ -8,6 +8,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from ...data import ROBOT, Demo
+from .base import Transformer
 
 N_PHASES = 50
 """Normalised phases over ``[obs_ratio, 1]`` at which trajectories are predicted and compared."""
@@ -40,7 +41,7 @@ def phase_trajectory(demo: Demo, obs_ratio: float) -> np.ndarray:
     return np.stack([np.interp(z * t[-1], t, q[:, j]) for j in range(q.shape[1])], axis=1)
 
 
-def standardiser() -> object:
+def standardiser() -> Transformer:
     """Imputation of missing window features by the training mean, then standardisation."""
     from sklearn.impute import SimpleImputer
     from sklearn.pipeline import make_pipeline

@@ -3,13 +3,13 @@ weighting chosen by a cross-validated grid search on the training demos."""
 
 from __future__ import annotations
 
-from .base import folds
+from .base import Estimator, folds
 
 KNN_NEIGHBOURS = (1, 2, 3, 5, 7, 10)
 """Numbers of neighbours tried by the kNN regressor's grid search (those below the fold size)."""
 
 
-def make_knn(n: int) -> object:
+def make_knn(n: int) -> Estimator:
     """An unfitted ``GridSearchCV`` over kNN regressors for ``n`` training demos."""
     from sklearn.model_selection import GridSearchCV, KFold
     from sklearn.neighbors import KNeighborsRegressor

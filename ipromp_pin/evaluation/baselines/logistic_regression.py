@@ -5,13 +5,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from .base import folds
+from .base import Classifier, folds
 
 LOGISTIC_CS = tuple(np.logspace(-3, 3, 13))
 """Inverse penalties ``C`` tried by ``LogisticRegressionCV``."""
 
 
-def make_logistic_regression(y: np.ndarray) -> object:
+def make_logistic_regression(y: np.ndarray) -> Classifier:
     """An unfitted ``LogisticRegressionCV`` for the training labels ``y`` (n,)."""
     from sklearn.linear_model import LogisticRegressionCV
     from sklearn.model_selection import StratifiedKFold

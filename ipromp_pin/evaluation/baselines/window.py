@@ -10,7 +10,7 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from ...data import ROBOT, Demo
-from .base import require_sklearn
+from .base import Estimator, require_sklearn
 from .features import FK, phase_trajectory, standardiser, window_features
 from .registry import CLASSIFIERS, REGRESSORS
 
@@ -67,10 +67,10 @@ class WindowBaselines:
         y = np.array([d.task for d in train])
         self.tasks_ = sorted(set(y.tolist()))
         self.classifiers_ = {name: make(y).fit(x, y) for name, make in CLASSIFIERS.items()}
-        self.regressors_: dict[tuple[str, str, str], object] = {}
+        self.regressors_: dict[tuple[str, str, str], Estimator] = {}
         for task in self.tasks_:
             rows = np.flatnonzero(y == task)
-            demos = [train[i] for i in rows]
+            demos = [train[int(i)] for i in rows]
             targets = {"trajectory": np.stack([phase_trajectory(d, self.obs_ratio).ravel() for d in demos])}
             if self.fk is not None:
                 targets["handover"] = self.fk(np.stack([d.groups[ROBOT][-1] for d in demos]))
@@ -102,7 +102,7 @@ class WindowBaselines:
             if d.task not in self.tasks_:
                 continue
             q_true = phase_trajectory(d, self.obs_ratio)
-            p_true = self.fk(d.groups[ROBOT][-1:])[0] if self.fk is not None else None
+            p_hand = self.fk(d.groups[ROBOT][-1:])[0] if self.fk is not None else None
             for name in REGRESSORS:
                 q = (
                     self.regressors_[(name, d.task, "trajectory")]
@@ -114,8 +114,8 @@ class WindowBaselines:
                     joint_rmse_rad=float(np.sqrt(np.mean((q - q_true) ** 2))),
                     final_joint_error_rad=float(np.sqrt(np.mean((q[-1] - q_true[-1]) ** 2))),
                 )
-                if p_true is not None:
+                if p_hand is not None:
                     p = self.regressors_[(name, d.task, "handover")].predict(x[i : i + 1])[0]
-                    trial.handover_error_cm = float(np.linalg.norm(p - p_true) * 100.0)
+                    trial.handover_error_cm = float(np.linalg.norm(p - p_hand) * 100.0)
                 out[i][name] = trial
         return out

@@ -31,7 +31,7 @@ from ...robot.clearance import ClearanceCertifier
 from ..cells import CellResults, ClosedLoopCell, baseline_summary, median
 from ..config import EvaluationConfig
 from .base import Scorer
-from .one_shot import TrialResult, score_trial
+from .one_shot import TrialResult, predict_window, score_trial
 
 
 @dataclass(frozen=True)
@@ -107,6 +107,12 @@ def profile_for(options: ClosedLoopOptions, robot: Robot, train: Sequence[Demo],
     return read_limit_profile(options.limits, robot)
 
 
+def closed_loop_score(trial: ClosedLoopTrial) -> ClosedLoopScore:
+    """The trial's closed-loop measures (:func:`replay_trials` scores every trial it makes)."""
+    assert trial.closed_loop is not None, "a replayed trial has its closed-loop score"
+    return trial.closed_loop
+
+
 def replay_trials(
     model: IProMP,
     robot: Robot,
@@ -128,7 +134,7 @@ def replay_trials(
     conditioner = conditioning_predictor(model, run.condition_noise)
     out = []
     for d in test:
-        one_shot = score_trial(model.predict(d.head(ratio, groups=observe)), d, ratio, fk)
+        one_shot = score_trial(predict_window(model, d, ratio, observe), d, ratio, fk)
         result = replay_demo(model, robot, d, profile, run, certifier, conditioner)
         score = score_closed_loop(result, d, robot, check_collisions=check_collisions)
         out.append(ClosedLoopTrial(**one_shot.__dict__, split=split, closed_loop=score))
@@ -212,7 +218,7 @@ class ClosedLoopScorer(Scorer):
         """The closed-loop medians, maximum and sums (see the module docstring), the baselines'
         summaries (``--baselines``) and every trial's :func:`compact` record."""
         flat: list[ClosedLoopTrial] = [r for rep in reps for r in rep]
-        scores = [t.closed_loop for t in flat]
+        scores = [closed_loop_score(t) for t in flat]
         profiles = [f["limit_profile"] for f in results.fits if "limit_profile" in f]
         return {
             "baselines": baseline_summary(reps, config.protocol == "splits"),

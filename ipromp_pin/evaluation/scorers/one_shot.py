@@ -6,11 +6,12 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
+from typing import Any
 
 import numpy as np
 
 from ...data import ROBOT, Demo
-from ...promp import IProMP
+from ...promp import IProMP, Prediction
 from ..baselines import BaselineTrial
 from ..cells import CellResults, baseline_summary, calibration
 from ..config import EvaluationConfig
@@ -67,7 +68,14 @@ def phase_interp(t: np.ndarray, q: np.ndarray, duration_s: float, z: np.ndarray)
     return np.stack([np.interp(tz, t, q[:, j]) for j in range(q.shape[1])], axis=1)
 
 
-def score_trial(prediction, demo: Demo, obs_ratio: float, fk: FK | None) -> TrialResult:
+def predict_window(model: IProMP, demo: Demo, obs_ratio: float, observe: Sequence[str]) -> Prediction:
+    """The model's prediction from the first ``obs_ratio`` of the demo's ``observe`` groups."""
+    prediction = model.predict(demo.head(obs_ratio, groups=observe))
+    assert isinstance(prediction, Prediction), "IProMP.predict of one Demo returns one Prediction"
+    return prediction
+
+
+def score_trial(prediction: Prediction, demo: Demo, obs_ratio: float, fk: FK | None) -> TrialResult:
     """Measure one prediction against the full test demo.
 
     Args:
@@ -77,6 +85,7 @@ def score_trial(prediction, demo: Demo, obs_ratio: float, fk: FK | None) -> Tria
         fk: Forward kinematics, joint configurations (n, 7) in [rad] -> gripper
             positions (n, 3) in [m]; ``None`` skips the Cartesian error.
     """
+    assert demo.duration_s is not None, "a Demo sets its duration when it is made"
     truth = demo.groups[ROBOT]
     z = np.linspace(obs_ratio, 1.0, 50)
     true_z = phase_interp(demo.t - demo.t[0], truth, demo.duration_s, z)
@@ -133,7 +142,7 @@ class OneShotScorer(Scorer):
     def score(self, test: Sequence[Demo], obs_ratio: float, split: int = 0) -> list[TrialResult]:
         """One :class:`TrialResult` per test demo."""
         return [
-            score_trial(self.model_.predict(d.head(obs_ratio, groups=self.observe_)), d, obs_ratio, self.fk)
+            score_trial(predict_window(self.model_, d, obs_ratio, self.observe_), d, obs_ratio, self.fk)
             for d in test
         ]
 
@@ -145,7 +154,7 @@ class OneShotScorer(Scorer):
         """Calibration, the baselines' summaries and (paper protocol) every trial."""
         flat = [r for rep in reps for r in rep]
         log_loss, brier = calibration([(r.posterior, r.brier) for r in flat])
-        out = {
+        out: dict[str, Any] = {
             "log_loss": log_loss,
             "brier": brier,
             "baselines": baseline_summary(reps, config.protocol == "splits"),

@@ -1,5 +1,6 @@
 """Pipeline configuration (``ipromp_pin.commands.config``): one source for the schema, the defaults,
-the field names of errors and the defaults the command line's help shows."""
+the field names of errors and the defaults the command line's help shows; ``outputs.dir`` relative to
+the pipeline file."""
 
 from __future__ import annotations
 

@@ -1,4 +1,5 @@
-"""End-to-end pipeline: synthetic default and a real demo, outputs re-load, bad definitions fail clearly."""
+"""End-to-end pipeline: synthetic default and a real demo, outputs re-load, bad definitions fail clearly;
+failing checks exit 3 without trajectory files, a failing write or save loses no earlier file."""
 
 from __future__ import annotations
 

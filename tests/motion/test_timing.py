@@ -1,4 +1,5 @@
-"""Time parameterisation (toppra) and jerk-limited smoothing (ruckig) (ipromp_pin.motion.timing)."""
+"""Time parameterisation (toppra) and jerk-limited smoothing (ruckig) (ipromp_pin.motion.timing);
+absurd limits refused before allocating."""
 
 from __future__ import annotations
 

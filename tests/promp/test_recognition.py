@@ -1,4 +1,5 @@
-"""IProMP: fit / predict / recognise / stream, conditioning quality and input errors."""
+"""IProMP: fit / predict / recognise / stream, conditioning quality and input errors;
+observation and training channels matched by name."""
 
 from __future__ import annotations
 

@@ -1,4 +1,5 @@
-"""Tests of the demo readers (real recordings where present, tmp copies for bad input)."""
+"""Tests of the demo readers (real recordings where present, tmp copies for bad input): native CSV
+columns matched by name, unreadable or unknown task folders refused."""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Install Debian's Chromium (headless browser for tests/test_preview_browser.py).
+# Install Debian's Chromium (headless browser for tests/preview/test_preview_browser.py).
 # Idempotent: does nothing when a chromium binary is already on PATH.
 # Needs root (CI runs as root); exits non-zero with a message when the install fails.
 set -u

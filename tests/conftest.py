@@ -1,4 +1,5 @@
-"""Shared test fixtures.
+"""Shared test fixtures: the real recordings' folders, a private package cache, and ``tiny`` (a small
+synthetic dataset and its model) for the command-line tests.
 
 Real recordings live in ``../shared/datasets`` beside the project root (or in
 ``$IPROMP_PIN_DATASETS``); tests that need them skip with a clear message when
@@ -58,3 +59,15 @@ def handover2017_dir(datasets_dir: Path) -> Path:
     if not path.is_dir():
         pytest.skip(f"{path} not found")
     return path
+
+
+@pytest.fixture(scope="session")
+def tiny(tmp_path_factory) -> tuple[Path, Path]:
+    """A native dataset of 2 tasks x 4 synthetic demos and a model trained on it, built once per session:
+    (dataset folder, model file). Tests read them and never change them."""
+    from ipromp_pin.cli import main  # imported here: after IPROMP_PIN_KERNELS is set above
+
+    root = tmp_path_factory.mktemp("tiny")
+    assert main(["synth", str(root / "ds"), "--tasks", "2", "--demos", "4"]) == 0
+    assert main(["train", str(root / "ds"), "--out", str(root / "m.npz")]) == 0
+    return root / "ds", root / "m.npz"

@@ -17,7 +17,7 @@ from ipromp_pin.readers.native import write_demo
 from ipromp_pin.readers.synthetic import make_synthetic_dataset
 from ipromp_pin.robot import load_robot
 
-PIPELINE = Path(__file__).resolve().parents[1] / "pipelines" / "baxter_handover.toml"
+PIPELINE = Path(__file__).resolve().parents[2] / "pipelines" / "baxter_handover.toml"
 
 
 def test_replay_of_the_synthetic_default_writes_every_file(tmp_path, capsys):

@@ -1,4 +1,5 @@
-"""End-to-end pipeline: synthetic default and a real demo, outputs re-load, bad definitions fail clearly."""
+"""End-to-end pipeline: synthetic default and a real demo, outputs re-load, bad definitions fail clearly;
+failing checks exit 3 without trajectory files, a failing write or save loses no earlier file."""
 
 from __future__ import annotations
 
@@ -7,16 +8,21 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers_cli import ROBOT_FILE, one_error_line, run_tiny
 
+from ipromp_pin import cli
 from ipromp_pin.cli import main
+from ipromp_pin.commands import run as run_command
 from ipromp_pin.commands.config import load_pipeline, resolve_pipeline_path
 from ipromp_pin.exceptions import PipelineError
 from ipromp_pin.motion.timing import JointLimits
+from ipromp_pin.outputs import staging
 from ipromp_pin.outputs.trajectory_files import read_trajectory_csv, read_trajectory_json
+from ipromp_pin.promp import IProMP
 from ipromp_pin.robot import load_robot
 from ipromp_pin.shipped import PIPELINES_DIR
 
-PIPELINE = Path(__file__).resolve().parents[1] / "pipelines" / "baxter_handover.toml"
+PIPELINE = Path(__file__).resolve().parents[2] / "pipelines" / "baxter_handover.toml"
 
 
 def _check_outputs(out: Path) -> dict:
@@ -227,7 +233,7 @@ def test_console_script_exits_fast_with_the_commands_status_and_output(tmp_path)
     import subprocess
     import sys
 
-    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1])}
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[2])}
     command = [sys.executable, "-c", "from ipromp_pin.cli import console_main; console_main()"]
     ok = subprocess.run(
         [*command, "synth", str(tmp_path / "d"), "--tasks", "2", "--demos", "2"],
@@ -239,3 +245,94 @@ def test_console_script_exits_fast_with_the_commands_status_and_output(tmp_path)
         [*command, "run", str(tmp_path / "missing.toml")], env=env, capture_output=True, text=True
     )
     assert bad.returncode == 2 and "missing.toml" in bad.stderr and "Traceback" not in bad.stderr
+
+
+def _tiny_workspace_robot(tmp_path: Path) -> Path:
+    """Baxter's settings with a workspace the hand-over cannot be in: every plan fails its checks."""
+    text = ROBOT_FILE.read_text().replace("max_m = [1.16, 0.45, 0.57]", "max_m = [0.56, -0.44, -0.07]")
+    path = tmp_path / "tiny_workspace.toml"
+    path.write_text(text)
+    return path
+
+
+def test_failing_checks_exit_3_without_trajectory_files(tmp_path, tiny, capsys):
+    out = tmp_path / "out"
+    assert run_tiny(tiny, out) == 0
+    assert (out / "trajectory.csv").exists()
+    robot = _tiny_workspace_robot(tmp_path)
+    assert run_tiny(tiny, out, "--robot", str(robot)) == cli.EXIT_CHECKS_FAILED
+    line = one_error_line(capsys.readouterr().err)
+    assert "failed its checks (workspace)" in line and "not written" in line
+    # the earlier run's trajectory is gone too: a script cannot pick up a stale plan
+    assert sorted(p.name for p in out.iterdir()) == ["report.json", "report.txt"]
+    report = json.loads((out / "report.json").read_text())
+    assert report["passed"] is False and report["feasibility"]["failures"] == ["workspace"]
+
+
+def test_allowed_failing_checks_write_marked_files(tmp_path, tiny, capsys):
+    out = tmp_path / "out"
+    robot = _tiny_workspace_robot(tmp_path)
+    assert run_tiny(tiny, out, "--robot", str(robot), "--allow-failing-checks") == cli.EXIT_CHECKS_FAILED
+    assert "written marked as failing" in one_error_line(capsys.readouterr().err)
+    text = (out / "trajectory.csv").read_text()
+    assert text.startswith("# ipromp_pin: checks FAILED (workspace)")
+    doc = json.loads((out / "trajectory.json").read_text())
+    assert doc["ipromp_pin_checks"] == {"passed": False, "failures": ["workspace"]}
+    a, b = read_trajectory_csv(out / "trajectory.csv"), read_trajectory_json(out / "trajectory.json")
+    assert np.array_equal(a.q, b.q) and a.q.shape[1] == 7
+
+
+def test_failed_save_over_an_existing_model_keeps_it(tmp_path, tiny, monkeypatch, capsys):
+    ds, model = tiny
+    target = tmp_path / "m.npz"
+    target.write_bytes(model.read_bytes())
+
+    def fail_midway(fh, **arrays):
+        fh.write(b"PK\x03\x04 partial")
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(np, "savez", fail_midway)
+    assert main(["train", str(ds), "--out", str(target)]) == 2
+    assert "No space left on device" in one_error_line(capsys.readouterr().err)
+    assert target.read_bytes() == model.read_bytes()
+    assert [p.name for p in tmp_path.iterdir()] == ["m.npz"]
+    monkeypatch.undo()
+    IProMP.load(target)
+
+
+def _snapshot(folder: Path) -> dict[str, bytes]:
+    """Relative path -> content of every file below ``folder`` (bag folders included)."""
+    return {p.relative_to(folder).as_posix(): p.read_bytes() for p in folder.rglob("*") if p.is_file()}
+
+
+@pytest.mark.parametrize(
+    "module, stage",
+    [(run_command, "report_text"), (staging, "trajectory_json_text"), (run_command, "render_html")],
+)
+def test_run_failing_midway_leaves_the_earlier_outputs(tmp_path, tiny, monkeypatch, capsys, module, stage):
+    out = tmp_path / "out"
+    ds, model = tiny
+    args = ["run", str(PIPELINE), "--dataset", str(ds), "--model", str(model), "--out", str(out)]
+    assert main(args) == 0
+    before = _snapshot(out)
+    assert "preview.html" in before and "rosbag/metadata.yaml" in before
+
+    def boom(*a, **k):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(module, stage, boom)
+    assert main([*args, "--task", "wrench", "--demo", "0"]) == 2
+    assert "No space left" in one_error_line(capsys.readouterr().err)
+    assert _snapshot(out) == before
+
+
+def test_run_without_preview_removes_the_stale_preview(tmp_path, tiny):
+    out = tmp_path / "out"
+    ds, model = tiny
+    args = ["run", str(PIPELINE), "--dataset", str(ds), "--model", str(model), "--out", str(out)]
+    assert main(args) == 0 and (out / "preview.html").exists()
+    (out / "notes.txt").write_text("mine")
+    assert main([*args, "--no-preview", "--task", "wrench"]) == 0
+    assert sorted(p.name for p in out.iterdir()) == [
+        "notes.txt", "report.json", "report.txt", "rosbag", "trajectory.csv", "trajectory.json",
+    ]  # fmt: skip

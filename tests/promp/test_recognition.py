@@ -1,7 +1,9 @@
-"""IProMP: fit / predict / recognise / stream, conditioning quality and input errors."""
+"""IProMP: fit / predict / recognise / stream, conditioning quality and input errors;
+observation and training channels matched by name."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import numpy as np
@@ -413,3 +415,35 @@ def test_distribution_band_of_a_log_scaled_channel_is_in_original_units() -> Non
     demos = model.train_trajectories("rod", z)
     inside = (demos >= lower) & (demos <= upper)
     assert inside[..., emg].mean() > 0.85
+
+
+def test_observation_channels_are_matched_by_name():
+    ds = random_dataset(3, n_demos=5)
+    model = IProMP(["a", "b"], n_basis=9, noise=10.0).fit(ds)
+    obs = ds.demos["task1"][0].head(0.3, ["a", "b"])
+    perm = [2, 0, 1]
+    shuffled = dataclasses.replace(
+        obs,
+        groups={**obs.groups, "b": obs.groups["b"][:, perm]},
+        channel_names={**obs.channel_names, "b": tuple(obs.channel_names["b"][i] for i in perm)},
+    )
+    a, b = model.predict(obs), model.predict(shuffled)
+    assert np.array_equal(a.q_mean, b.q_mean) and np.array_equal(a.log_posterior, b.log_posterior)
+    renamed = dataclasses.replace(obs, channel_names={**obs.channel_names, "b": ("x", "y", "z")})
+    with pytest.raises(ObservationError, match="not the expected"):
+        model.predict(renamed)
+
+
+def test_training_channels_are_matched_by_name():
+    ds = random_dataset(4, n_tasks=2, n_demos=4)
+    reference = IProMP(["a", "b"], n_basis=9, noise=10.0).fit(ds)
+    demo = ds.demos["task1"][2]
+    perm = [1, 0]
+    ds.demos["task1"][2] = dataclasses.replace(
+        demo,
+        groups={**demo.groups, "a": demo.groups["a"][:, perm]},
+        channel_names={**demo.channel_names, "a": tuple(demo.channel_names["a"][i] for i in perm)},
+    )
+    model = IProMP(["a", "b"], n_basis=9, noise=10.0).fit(ds)
+    assert np.array_equal(model.scaler_.scale, reference.scaler_.scale)
+    assert np.array_equal(model.models_["task1"].mean, reference.models_["task1"].mean)

@@ -1,7 +1,9 @@
-"""Time parameterisation (toppra) and jerk-limited smoothing (ruckig) (ipromp_pin.motion.timing)."""
+"""Time parameterisation (toppra) and jerk-limited smoothing (ruckig) (ipromp_pin.motion.timing);
+absurd limits refused before allocating."""
 
 from __future__ import annotations
 
+import dataclasses
 import socket
 
 import numpy as np
@@ -9,6 +11,7 @@ import pytest
 
 from ipromp_pin.exceptions import InfeasibleError
 from ipromp_pin.motion.timing import (
+    MAX_TRAJECTORY_SAMPLES,
     JointLimits,
     path_deviation,
     path_times,
@@ -188,3 +191,21 @@ def test_predicted_paths_of_a_model_are_all_timed_within_limits():
         prediction = model.predict(demo.head(0.2, groups=["orientation", "emg"]))
         _, report = time_path(prediction.q_mean, limits)
         assert report.passed, report.to_text()
+
+
+def test_absurd_limits_are_refused_before_allocating():
+    names = tuple(f"j{i}" for i in range(3))
+    limits = JointLimits(
+        lower_rad=np.full(3, -3.0),
+        upper_rad=np.full(3, 3.0),
+        velocity_rad_s=np.full(3, 1e-9),
+        acceleration_rad_s2=np.ones(3),
+        jerk_rad_s3=np.full(3, 10.0),
+        joint_names=names,
+    )
+    path = np.linspace([0.0, 0.0, 0.0], [1.0, -1.0, 0.5], 50)
+    with pytest.raises(InfeasibleError, match=f"at least 1e\\+09 s .*more than {MAX_TRAJECTORY_SAMPLES}"):
+        time_path(path, limits, rate_hz=100.0)
+    slow = dataclasses.replace(limits, velocity_rad_s=np.full(3, 1.0), acceleration_rad_s2=np.full(3, 1e-12))
+    with pytest.raises(InfeasibleError, match="acceleration 1e-12"):
+        time_path(path, slow, rate_hz=100.0)

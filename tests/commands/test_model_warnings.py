@@ -21,7 +21,7 @@ from ipromp_pin.commands.model_warnings import (
 from ipromp_pin.data import Dataset
 from ipromp_pin.promp import IProMP
 
-PIPELINE = Path(__file__).resolve().parents[1] / "pipelines" / "baxter_handover.toml"
+PIPELINE = Path(__file__).resolve().parents[2] / "pipelines" / "baxter_handover.toml"
 
 
 @pytest.fixture(scope="module")

@@ -18,7 +18,7 @@ from ipromp_pin.handover.one_shot import plan
 from ipromp_pin.outputs.report import report_dict
 from ipromp_pin.schemas import SCHEMA_FILES, SCHEMAS_DIR, load_schema, schema_path
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 PIPELINE = ROOT / "pipelines" / "baxter_handover.toml"
 VALIDATOR = jsonschema.Draft202012Validator
 

@@ -1,9 +1,11 @@
-"""Tests of the demo readers (real recordings where present, tmp copies for bad input)."""
+"""Tests of the demo readers (real recordings where present, tmp copies for bad input): native CSV
+columns matched by name, unreadable or unknown task folders refused."""
 
 from __future__ import annotations
 
 import csv
 import datetime
+import os
 import shutil
 import warnings
 from pathlib import Path
@@ -13,6 +15,7 @@ import pytest
 
 from ipromp_pin.data import ROBOT
 from ipromp_pin.exceptions import DataError
+from ipromp_pin.promp import IProMP
 from ipromp_pin.readers import (
     BAXTER_LEFT_JOINTS,
     chen2017,
@@ -566,3 +569,49 @@ def test_multimodal_bad_files(handover2017_dir, tmp_path):
         with pytest.raises(DataError, match=pattern) as e:
             read_demo(copy)
         assert "multiModal_states.csv" in str(e.value)
+
+
+def test_native_csv_columns_in_another_order_read_the_same(tmp_path, tiny):
+    ds, _ = tiny
+    demo = read_demo(ds / "rod" / "rod_000.npz")
+    write_demo(demo, tmp_path / "a.csv")
+    lines = (tmp_path / "a.csv").read_text().splitlines()
+    rows = [ln.split(",") for ln in lines]
+    order = [0, *range(len(rows[0]) - 1, 0, -1)]  # t first, every other column reversed
+    (tmp_path / "b.csv").write_text("\n".join(",".join(r[i] for i in order) for r in rows) + "\n")
+    a, b = read_demo(tmp_path / "a.csv"), read_demo(tmp_path / "b.csv")
+    assert np.array_equal(a.groups["robot"], b.groups["robot"])
+    assert a.channel_names["robot"] == b.channel_names["robot"]  # the robot's order, by name
+    model = IProMP.load(tiny[1])
+    pa = model.predict(a.head(0.2, model.observe_))
+    pb = model.predict(b.head(0.2, model.observe_))  # emg channels reversed: matched by name
+    assert np.array_equal(pa.q_mean, pb.q_mean)
+
+
+def test_unreadable_or_unknown_task_folder_is_an_error(tmp_path, tiny, monkeypatch):
+    ds, _ = tiny
+    data = tmp_path / "ds"
+    for task in ("rod", "wrench"):
+        (data / task).mkdir(parents=True)
+        for f in (ds / task).iterdir():
+            (data / task / f.name).write_bytes(f.read_bytes())
+    real_scandir = os.scandir
+
+    def scandir(path="."):
+        if Path(path) == data / "wrench":
+            raise PermissionError(13, "Permission denied", str(path))
+        return real_scandir(path)
+
+    monkeypatch.setattr(os, "scandir", scandir)  # (as root, chmod 000 does not stop reading)
+    with pytest.raises(DataError, match="wrench: cannot read the task folder: Permission denied"):
+        load_dataset(data)
+    monkeypatch.undo()
+    (data / "notes").mkdir()
+    (data / "notes" / "todo.txt").write_text("x")
+    with pytest.raises(DataError, match="notes: field 'format': cannot detect.*leading '_'"):
+        load_dataset(data)
+    (data / "notes").rename(data / "_notes")
+    assert load_dataset(data).tasks == ["rod", "wrench"]
+    (data / "zz").symlink_to(tmp_path / "nowhere")
+    with pytest.raises(DataError, match="broken link"):
+        load_dataset(data)

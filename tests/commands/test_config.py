@@ -1,5 +1,6 @@
 """Pipeline configuration (``ipromp_pin.commands.config``): one source for the schema, the defaults,
-the field names of errors and the defaults the command line's help shows."""
+the field names of errors and the defaults the command line's help shows; ``outputs.dir`` relative to
+the pipeline file."""
 
 from __future__ import annotations
 
@@ -8,6 +9,7 @@ import re
 from pathlib import Path
 
 import pytest
+from helpers_cli import PIPELINE
 
 from ipromp_pin.cli import main
 from ipromp_pin.cli.arguments import closed_loop_settings
@@ -166,3 +168,24 @@ def test_closed_loop_settings_take_only_the_options_given():
         closed_loop_settings(_closed_loop_args(condition_noise="lots"))
     with pytest.raises(PipelineError, match="^command line: field 'replan_rate_hz': 200 Hz is faster"):
         closed_loop_settings(_closed_loop_args(replan_rate=200.0))
+
+
+def test_outputs_dir_is_relative_to_the_pipeline_file(tmp_path, tiny, monkeypatch):
+    ds, model = tiny
+    folder = tmp_path / "pipelines"
+    folder.mkdir()
+    pipe = folder / "p.toml"
+    pipe.write_text(f'[data]\ndataset = "{ds}"\n[model]\nload = "{model}"\n[outputs]\ndir = "results"\n'
+                    "preview_html = false\n")  # fmt: skip
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)
+    assert load_pipeline(pipe).out_dir == folder / "results"
+    assert main(["run", str(pipe)]) == 0
+    assert (folder / "results" / "trajectory.csv").exists() and not (elsewhere / "results").exists()
+    # --out on the command line is relative to the current folder
+    assert main(["run", str(pipe), "--out", "here"]) == 0
+    assert (elsewhere / "here" / "trajectory.csv").exists()
+    # the shipped definition (empty outputs.dir) writes ./out, never into the package
+    assert load_pipeline(PIPELINE).out_dir == Path("out")
+    assert load_pipeline("baxter_handover").out_dir == Path("out")

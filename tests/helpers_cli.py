@@ -1,0 +1,28 @@
+"""Helpers of the command-line tests: the shipped pipeline and robot files, a ``run`` of the shared
+``tiny`` dataset and model (see conftest.py), and the one error line a refused command prints."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from ipromp_pin.cli import main
+
+PROJECT_ROOT = Path(__file__).resolve().parents[1]
+PIPELINE = PROJECT_ROOT / "pipelines" / "baxter_handover.toml"
+ROBOT_FILE = PROJECT_ROOT / "robots" / "baxter_left.toml"
+
+
+def run_tiny(tiny: tuple[Path, Path], out: Path, *extra: str) -> int:
+    """``ipromp-pin run`` of the shipped pipeline on the ``tiny`` (dataset, model), no preview; exit code."""
+    ds, model = tiny
+    return main(["run", str(PIPELINE), "--dataset", str(ds), "--model", str(model), "--out", str(out),
+                 "--no-preview", *extra])  # fmt: skip
+
+
+def one_error_line(err: str) -> str:
+    """The single ``...: error: ...`` line of a command's stderr (asserts no traceback, exactly one)."""
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert "Traceback" not in err
+    errors = [ln for ln in lines if ": error: " in ln]
+    assert len(errors) == 1, err
+    return errors[0]

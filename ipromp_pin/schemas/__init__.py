@@ -10,8 +10,8 @@ replay ``report.json``        ``replay_report.schema.json`` ``ipromp-pin replay`
 
 The schemas are strict (``additionalProperties: false`` where the fields are documented), so a
 field added to a file without being added to its schema and to ``docs/formats.md`` fails the tests
-(``tests/outputs/test_schemas.py`` validates files written by ``run`` and ``replay``). Use them with any JSON Schema
-validator, e.g. ``jsonschema.validate(doc, load_schema("report"))``.
+(``tests/outputs/test_schemas.py`` validates files written by ``run`` and ``replay``). Use them with
+any JSON Schema validator, e.g. ``jsonschema.validate(doc, load_schema("report"))``.
 """
 
 from __future__ import annotations

@@ -105,7 +105,7 @@ class LatentBlock:
         self._arrays: dict[bytes, dict[str, np.ndarray]] = {}
         self._local = {int(d): i for i, d in enumerate(self.dims)}
         self._select: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
-        self._inputs: dict[tuple[bytes, bool], tuple] = {}
+        self._inputs: dict[tuple[bytes, bool], tuple[np.ndarray, dict[str, np.ndarray], np.ndarray] | None] = {}
 
     def select(self, dims: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Positions in ``dims`` (observed dims of a part) of the block's dims and their block-local
@@ -126,13 +126,13 @@ class LatentBlock:
         ``with_z``) of its dims; None when the part observes none of them (cached)."""
         with_z = with_z and self.use_z
         key = (dims.tobytes(), with_z)
-        out = self._inputs.get(key, False)
-        if out is False:
-            pos, local = self.select(dims)
-            out = None
-            if pos.size:
-                out = (pos, self.arrays(local), self.z_tensor(local) if with_z else self.no_z)
-            self._inputs[key] = out
+        if key in self._inputs:
+            return self._inputs[key]
+        pos, local = self.select(dims)
+        out: tuple[np.ndarray, dict[str, np.ndarray], np.ndarray] | None = None
+        if pos.size:
+            out = (pos, self.arrays(local), self.z_tensor(local) if with_z else self.no_z)
+        self._inputs[key] = out
         return out
 
     def z_tensor(self, local: np.ndarray, cache: bool = True) -> np.ndarray:

@@ -586,7 +586,8 @@ def _head(
         or a["c"].shape != (n,)
     ):
         raise ValueError("recognition head arrays have inconsistent shapes")
-    extra: dict[str, Any] = {name: arrays.get(f"head_{name}") for name in _HEAD_V3_ARRAYS}  # absent before version 3
+    # absent before version 3
+    extra: dict[str, Any] = {name: arrays.get(f"head_{name}") for name in _HEAD_V3_ARRAYS}
     return RecognitionHead(**a, **extra)
 
 

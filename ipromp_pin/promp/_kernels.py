@@ -927,7 +927,7 @@ def stream_sample(
     scaled values and whether every raw value is finite and plausible (:func:`scale_samples`; if
     not, the statistics are left unchanged).
     """
-    ys = np.empty((1, y.shape[0]))
+    ys: np.ndarray = np.empty((1, y.shape[0]))
     if not scale_samples(y.reshape(1, -1), log_idx, log_c, offset, scale, ys):
         return np.empty((0, 0)), ys.reshape(-1), False
     ys = ys.reshape(-1)
@@ -1035,14 +1035,14 @@ def finish_soa(
         if t_last > alphas[t, c] * t_norm * (1.0 + 1e-12):
             loglik[t, c] = -np.inf
             continue
-        v = 0.0
+        pair = 0.0
         for b in range(n_blocks):
             lane = b * stride + p
-            v += -0.5 * (total[lane] + logdet[lane] - vv[lane])
+            pair += -0.5 * (total[lane] + logdet[lane] - vv[lane])
         if add:
-            loglik[t, c] += v
+            loglik[t, c] += pair
         else:
-            loglik[t, c] = v
+            loglik[t, c] = pair
     return True
 
 

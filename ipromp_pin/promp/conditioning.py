@@ -235,6 +235,8 @@ class Conditioner:
         phase and human estimates are unchanged."""
         info = self.task_blocks(pred.task)
         c = self.grid_terms(pred.task, info.robot_factor, "robot")
+        if pred.robot_weights is None:
+            raise ValueError("this prediction holds no weight posterior to condition")
         rw, d_mean, d_cov = pred.robot_weights.readout_update(c.phi[-1], readout, values, cov, c.phi_f)
         return replace(pred, q_mean=pred.q_mean + d_mean, q_cov=pred.q_cov - d_cov, robot_weights=rw)
 

@@ -92,6 +92,12 @@ class ChannelScaler:
         """(D,) True for the channels modelled in log space."""
         return self._log
 
+    @property
+    def shift(self) -> np.ndarray:
+        """(D,) ``log_shift`` once defaulted: the shifts ``c``, NaN for linear channels."""
+        assert self.log_shift is not None  # set by __post_init__
+        return self.log_shift
+
     @classmethod
     def fit(cls, values: np.ndarray, log_dims: np.ndarray | None = None) -> ChannelScaler:
         """Learn the scaling from stacked training samples (n, D); NaN rows are ignored per channel.
@@ -118,7 +124,7 @@ class ChannelScaler:
         if not np.any(log):
             return values
         out = np.array(values, dtype=float, copy=True)
-        out[..., log] = np.log(np.maximum(out[..., log], 0.0) + self.log_shift[dims][log])
+        out[..., log] = np.log(np.maximum(out[..., log], 0.0) + self.shift[dims][log])
         return out
 
     def transform(self, values: np.ndarray, dims: slice | np.ndarray = slice(None)) -> np.ndarray:
@@ -130,7 +136,7 @@ class ChannelScaler:
         out = values * self.scale[dims] + self.offset[dims]
         log = self._log[dims]
         if np.any(log):
-            out[..., log] = np.exp(out[..., log]) - self.log_shift[dims][log]
+            out[..., log] = np.exp(out[..., log]) - self.shift[dims][log]
         return out
 
 

@@ -310,6 +310,7 @@ class IProMP(ParameterMixin):
             _check_labels(demos, y)
         observe = self.observe_ if hasattr(self, "observe_") else parse_groups(self.observe)
         recs = self.recognise([d.head(ratio, groups=observe) for d in demos])
+        assert isinstance(recs, list)  # a batch in, a list out
         return float(np.mean([r.task == d.task for r, d in zip(recs, demos, strict=True)]))
 
     def sample_prior(

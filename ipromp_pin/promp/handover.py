@@ -286,11 +286,16 @@ class HandoverRegression:
         the raw features ``x`` (2 F,)."""
         if self.kind is None or self.kind[level] == 0:
             return self.coef[level, task] @ x + self.intercept[level, task]
-        n = int(self.neighbour_count[level, task])
-        xs = (x - self.neighbour_mean[level, task]) / self.neighbour_scale[level, task]
-        d = np.linalg.norm(self.neighbour_x[level, task, :n] - xs, axis=1)
-        k, distance = int(self.neighbour_k[level, task]), bool(self.neighbour_distance[level, task])
-        return knn_predict(d, self.neighbour_y[level, task, :n], k, distance)
+        count, mean, scale = self.neighbour_count, self.neighbour_mean, self.neighbour_scale
+        nx, ny, nk, nd = self.neighbour_x, self.neighbour_y, self.neighbour_k, self.neighbour_distance
+        # the neighbour arrays are present wherever kind is 1 (validate_fitted checks it)
+        assert count is not None and mean is not None and scale is not None
+        assert nx is not None and ny is not None and nk is not None and nd is not None
+        n = int(count[level, task])
+        xs = (x - mean[level, task]) / scale[level, task]
+        d = np.linalg.norm(nx[level, task, :n] - xs, axis=1)
+        k, distance = int(nk[level, task]), bool(nd[level, task])
+        return knn_predict(d, ny[level, task, :n], k, distance)
 
 
 def neighbour_arrays(fits: list[list[RidgeFit | KnnFit]], n_out: int, n_feat: int) -> dict[str, np.ndarray]:

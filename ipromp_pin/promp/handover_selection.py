@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .distribution import shrink_covariances
+from .distribution import ShrunkCovariance, shrink_covariances
 from .handover import (
     RATIOS,
     TRUST_GRID,
@@ -133,11 +133,14 @@ def _choose_kinds(
     """Per fraction of :data:`RATIOS`, the ridge or the k-nearest-neighbour regressions of every task,
     whichever has the smaller leave-one-out squared error summed over the tasks -> (fits (ratio index,
     task) -> fit, kinds (R,) True where k-nearest-neighbour), or None when a fit is missing."""
-    fits, kinds = {}, []
+    fits: dict[tuple[int, str], RidgeFit | KnnFit] = {}
+    kinds: list[bool] = []
     for r in range(len(RATIOS)):
-        ridge = {t: _fit(feats[t][r], targets[t]) for t in tasks}
-        knn = {t: _fit(feats[t][r], targets[t], knn=True) for t in tasks}
-        if any(f is None for f in ridge.values()) or any(f is None for f in knn.values()):
+        ridge_or_none = {t: _fit(feats[t][r], targets[t]) for t in tasks}
+        knn_or_none = {t: _fit(feats[t][r], targets[t], knn=True) for t in tasks}
+        ridge = {t: f for t, f in ridge_or_none.items() if f is not None}
+        knn = {t: f for t, f in knn_or_none.items() if f is not None}
+        if len(ridge) < len(ridge_or_none) or len(knn) < len(knn_or_none):
             return None
         sse_r = sum(float(np.sum(f.residuals**2)) for f in ridge.values())
         sse_k = sum(float(np.sum(f.residuals**2)) for f in knn.values())
@@ -181,7 +184,9 @@ def choose_handover(
     q_end = final_configurations(training)
     readout = readouts(np.stack([q_end[t].mean(axis=0) for t in tasks]), fk)
     targets = readout_targets(q_end, readout, tasks, fk)
-    candidates = []
+    candidates: list[
+        tuple[np.ndarray, dict[str, np.ndarray], dict[tuple[int, str], RidgeFit | KnnFit], list[bool]]
+    ] = []
     for groups in (list(coupled), list(layout.observe)):
         dims = layout.dims(groups)
         if dims.size == 0 or any(np.array_equal(dims, c[0]) for c in candidates):
@@ -201,7 +206,7 @@ def choose_handover(
     if best is None:
         return HandoverChoice(None, {})
     dims, fits, kinds, scores = best
-    trust = min(scores, key=scores.get)
+    trust = min(scores, key=lambda v: scores[v])
     if not np.isfinite(trust):
         return HandoverChoice(None, scores)
     n_ratio, n_task = len(RATIOS), len(tasks)
@@ -276,7 +281,7 @@ def _held_out_predictions(
     encoder = ObservationEncoder(layout, training.scaler, np.inf)
     folds = held_out(training.demos)
     blocks = coupling_blocks(layout, coupled)
-    covs: dict[int, object] = {}
+    covs: dict[int, ShrunkCovariance] = {}
     out = []
     for row in rows:
         task, i = folds[row.demo]

@@ -35,7 +35,7 @@ head; it only decides the task posterior.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.optimize import minimize
@@ -146,6 +146,10 @@ class RecognitionHead:
     cv_log_loss: np.ndarray
     kind: np.ndarray | None = None
     generative: np.ndarray | None = None
+    # derived in __post_init__ (not parameters, not compared)
+    _w: np.ndarray = field(init=False, repr=False, compare=False)
+    _ratios: list[float] = field(init=False, repr=False, compare=False)
+    _b: np.ndarray = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         # the standardisation folded into the weights: z = W (x - m) / s + b = W' x + b'
@@ -316,25 +320,31 @@ def fit_head(
     ]
     fits = []
     for here in weights:
-        best_score, best = np.inf, None
+        best_score = np.inf
+        best: tuple[np.ndarray, _CvPath, int, np.ndarray] | None = None
         for cols, all_rows in zip(column_sets, shared, strict=True):
             for path in (_CvPath(features[:, cols], labels, folds, here, n_tasks), all_rows):
                 scores = (path.log_loss @ here) / float(here.sum())
                 j = int(np.argmin(scores))
                 if scores[j] < best_score:
                     best_score, best = scores[j], (cols, path, j, scores)
+        assert best is not None  # the cross-validated log losses are finite
         cols, path, j, scores = best
-        w, b = path.final(j)
+        w_fit, b = path.final(j)
         coef = np.zeros((n_tasks, n_feat))
-        coef[:, cols] = w
+        coef[:, cols] = w_fit
         mean, scale = np.zeros(n_feat), np.ones(n_feat)
         mean[cols], scale[cols] = path.mean, path.scale
         kind = LOGISTIC if j < len(HEAD_C_GRID) else LDA
         fits.append(
             (coef, b, mean, scale, np.array(_CvPath.parameter(j)), scores, kind, float(cols.size == n_feat))
         )
-    arrays = [np.stack(a) for a in zip(*fits, strict=True)]
-    return RecognitionHead(levels, *arrays[:6], kind=arrays[6].astype(float), generative=arrays[7])
+    coefs, intercepts, means, scales, cs, cv_loss, kinds, generative = (
+        np.stack(a) for a in zip(*fits, strict=True)
+    )
+    return RecognitionHead(
+        levels, coefs, intercepts, means, scales, cs, cv_loss, kind=kinds.astype(float), generative=generative
+    )
 
 
 class _CvPath:

@@ -15,6 +15,9 @@ import numpy as np
 
 from .distribution import TaskModel
 
+PartInputs = tuple[np.ndarray, dict[str, np.ndarray], np.ndarray]
+"""What :meth:`LatentBlock.part_inputs` returns: positions, model arrays and ``Z`` of a part's dims."""
+
 
 def latent_blocks(models: list[TaskModel], n_obs: int) -> list[tuple[np.ndarray, list[np.ndarray]]]:
     """Independent blocks of the observed dims: dims linked by a shared factor column of any task.
@@ -105,7 +108,7 @@ class LatentBlock:
         self._arrays: dict[bytes, dict[str, np.ndarray]] = {}
         self._local = {int(d): i for i, d in enumerate(self.dims)}
         self._select: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
-        self._inputs: dict[tuple[bytes, bool], tuple] = {}
+        self._inputs: dict[tuple[bytes, bool], PartInputs | None] = {}
 
     def select(self, dims: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Positions in ``dims`` (observed dims of a part) of the block's dims and their block-local
@@ -118,21 +121,19 @@ class LatentBlock:
             self._select[key] = out = (np.array(pos, dtype=np.int64), np.array(local, dtype=np.int64))
         return out
 
-    def part_inputs(
-        self, dims: np.ndarray, with_z: bool = True
-    ) -> tuple[np.ndarray, dict[str, np.ndarray], np.ndarray] | None:
+    def part_inputs(self, dims: np.ndarray, with_z: bool = True) -> PartInputs | None:
         """For a part observing the dims ``dims``: the positions of the block's dims in it, the model
         arrays (:meth:`arrays`) and ``Z`` (:meth:`z_tensor`; a placeholder without ``use_z`` or
         ``with_z``) of its dims; None when the part observes none of them (cached)."""
         with_z = with_z and self.use_z
         key = (dims.tobytes(), with_z)
-        out = self._inputs.get(key, False)
-        if out is False:
-            pos, local = self.select(dims)
-            out = None
-            if pos.size:
-                out = (pos, self.arrays(local), self.z_tensor(local) if with_z else self.no_z)
-            self._inputs[key] = out
+        if key in self._inputs:
+            return self._inputs[key]
+        pos, local = self.select(dims)
+        out: PartInputs | None = None
+        if pos.size:
+            out = (pos, self.arrays(local), self.z_tensor(local) if with_z else self.no_z)
+        self._inputs[key] = out
         return out
 
     def z_tensor(self, local: np.ndarray, cache: bool = True) -> np.ndarray:

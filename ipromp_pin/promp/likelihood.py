@@ -294,6 +294,7 @@ class InferenceEngine:
                 self.block_terms(self.blocks[b], stats, factors, nu, *arrays, lane0, mode)
             out.append(arrays)
         if fused:
+            assert self.fuse_rows is not None  # fused implies it
             u0, u1 = self.fuse_rows
             n_c = self.alphas.shape[1]
             for st, (_, _, _, coef) in zip(stats, factors, strict=True):

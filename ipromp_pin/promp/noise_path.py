@@ -102,7 +102,7 @@ def robot_path(
 ) -> RobotPath:
     """The robot's weights conditioned on the parts (at the phase of ``spectrum``) for every noise
     ratio of ``nus``, from a weight distribution ``mean`` (D, K), ``diag`` (D,), ``factor`` (D, K, r)."""
-    nus = np.asarray(nus, dtype=float)
+    nu = np.asarray(nus, dtype=float)
     cols = np.flatnonzero(np.any(factor[robot] != 0.0, axis=(0, 1)))
     f = factor[:, :, cols]
     r = cols.size
@@ -119,8 +119,8 @@ def robot_path(
     lam = spectrum.values
     big_m = np.concatenate(m_blocks).reshape(lam.size, r * r)
     big_a = np.concatenate(a_blocks)
-    inv = 1.0 / (nus[:, None] + lam[None, :])  # (n_nu, I)
-    q = ((inv * lam[None, :]) @ big_m).reshape(nus.size, r, r)
+    inv = 1.0 / (nu[:, None] + lam[None, :])  # (n_nu, I)
+    q = ((inv * lam[None, :]) @ big_m).reshape(nu.size, r, r)
     q[:, np.arange(r), np.arange(r)] += 1.0
     chol = np.linalg.cholesky(q)
     a = inv @ big_a  # (n_nu, r)

@@ -57,7 +57,7 @@ class ObservationEncoder:
         # observed groups come first, in observe order: a full sample's dims are 0 .. D_o - 1
         self.dims = layout.dims(layout.observe)
         self.log_idx = np.flatnonzero(scaler.log_mask[: layout.n_obs_dims])
-        self.log_shift = scaler.log_shift[self.log_idx]
+        self.log_shift = scaler.shift[self.log_idx]
         self.offset = scaler.offset[self.dims]
         self.scale = scaler.scale[self.dims]
 
@@ -139,7 +139,7 @@ class ObservationEncoder:
         dims = slice(*self.layout.slices[group])
         log = self.scaler.log_mask[dims]
         bound = np.where(log, MAX_LOG_SCALED_MAGNITUDE, MAX_SCALED_MAGNITUDE)
-        floor = np.where(log, -MAX_SCALED_MAGNITUDE * np.nan_to_num(self.scaler.log_shift[dims]), -np.inf)
+        floor = np.where(log, -MAX_SCALED_MAGNITUDE * np.nan_to_num(self.scaler.shift[dims]), -np.inf)
         bad = ~(scaled <= bound) | (v < floor)
         if np.any(bad):
             row, col = np.argwhere(bad)[0]

@@ -12,9 +12,9 @@ scikit-learn's ``_get_param_names``).
 from __future__ import annotations
 
 import inspect
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
-from typing import Self
+from typing import Any, Self, TypeGuard, cast
 
 import numpy as np
 
@@ -42,12 +42,12 @@ class Constraint:
     test: Callable[[object], bool]
 
 
-def is_int(value: object) -> bool:
+def is_int(value: object) -> TypeGuard[int | np.integer]:
     """Whether ``value`` is an integer (``int`` or an integral NumPy integer, not a bool)."""
     return isinstance(value, int | np.integer) and not isinstance(value, bool)
 
 
-def is_number(value: object) -> bool:
+def is_number(value: object) -> TypeGuard[int | float | np.integer | np.floating]:
     """Whether ``value`` is a real number (not a bool)."""
     return isinstance(value, int | float | np.integer | np.floating) and not isinstance(value, bool)
 
@@ -67,7 +67,7 @@ def integer(low: int, high: int | None = None) -> Constraint:
     """An integer ``>= low`` (and ``<= high`` when given)."""
     bound = f">= {low}" if high is None else f"in [{low}, {high}]"
     return Constraint(
-        f"be an integer {bound}", lambda v: is_int(v) and v >= low and (high is None or v <= high)
+        f"be an integer {bound}", lambda v: bool(is_int(v) and v >= low and (high is None or v <= high))
     )
 
 
@@ -104,7 +104,7 @@ PARAMETER_CONSTRAINTS: dict[str, Constraint | None] = {
     "n_basis": integer(2),
     "blas_threads": Constraint(
         f"be None or an integer in [1, {MAX_BLAS_THREADS}]",
-        lambda v: v is None or (is_int(v) and 1 <= v <= MAX_BLAS_THREADS),  # type: ignore[operator]
+        lambda v: v is None or bool(is_int(v) and 1 <= v <= MAX_BLAS_THREADS),
     ),
     "task_prior": Constraint("map task names to non-negative numbers", _task_prior),
     "ridge": finite_number(),
@@ -131,7 +131,8 @@ def parse_params(
     params: Mapping[str, object], constraints: Mapping[str, Constraint | None] = PARAMETER_CONSTRAINTS
 ) -> tuple[list[str], str | list[str]]:
     """Validate the estimator's parameters -> the observed groups and the coupling (parsed)."""
-    observe = parse_groups(params["observe"])
+    # a value of a wrong type fails inside parse_groups, as before
+    observe = parse_groups(cast("str | Iterable[str]", params["observe"]))
     raw = params["coupling"]
     coupling = raw if isinstance(raw, str) else list(raw)  # type: ignore[call-overload]
     robot = params["robot_group"]
@@ -145,7 +146,7 @@ def parse_params(
     return observe, coupling
 
 
-def param_names(cls: type) -> tuple[str, ...]:
+def param_names(cls: type[Any]) -> tuple[str, ...]:
     """The parameter names of ``cls.__init__`` (keyword parameters, in signature order)."""
     sig = inspect.signature(cls.__init__)
     names = []

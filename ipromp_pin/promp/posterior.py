@@ -70,6 +70,7 @@ class LazyGroups(Mapping):
 
     def _get(self) -> dict[str, np.ndarray]:
         if self._values is None:
+            assert self._compute is not None  # cleared only once the values are computed
             self._values = self._compute()
             self._compute = None
         return self._values
@@ -207,7 +208,9 @@ class Prediction(Recognition):
         if qd_rad_s is None:
             return out
         given, cols, vals, std = self._via_points(np.array([t]), qd_rad_s, std_rad_s, None, "t_s")
-        dphi = out.robot_weights.basis.derivative(np.full(vals.size, t / self.duration_s)) / self.duration_s
+        rw = out.robot_weights
+        assert rw is not None and rw.basis is not None  # condition_joints has checked them
+        dphi = rw.basis.derivative(np.full(vals.size, t / self.duration_s)) / self.duration_s
         return out._conditioned(dphi, cols.reshape(-1)[given], vals, std, np.ones(vals.size, dtype=bool))
 
     def _via_points(
@@ -244,6 +247,7 @@ class Prediction(Recognition):
     def _conditioned(
         self, rows: np.ndarray, joints: np.ndarray, values: np.ndarray, std: np.ndarray, deriv: np.ndarray
     ) -> Prediction:
+        assert self.robot_weights is not None  # checked by the callers (condition_joints)
         rw = self.robot_weights.condition(rows, joints, values, std, deriv)
         return replace(self, q_mean=rw.q_mean(), q_cov=rw.q_cov(), robot_weights=rw)
 

@@ -111,5 +111,6 @@ class Predictor:
             return pred
         k = fm.tasks.index(pred.task)
         fraction = t_last / (float(pred.alpha[k]) * fm.duration_nominal_s)
+        assert window is not None  # summarised above for the hand-over regression
         readout, values, cov = fm.handover.observation(k, window, fraction)
         return self.conditioner.observe_handover(pred, readout, values, cov)

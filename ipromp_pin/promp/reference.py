@@ -148,7 +148,8 @@ def direct_handover(
     ``y`` (M,) of the features (window mean and last value of its dims) of the regressions at the two
     fractions around ``fraction`` interpolated linearly, and its noise covariance ``s R`` (M, M)."""
     ho = fm.handover
-    window = direct_window(parts, fm.layout.n_obs_dims).reshape(3, -1)
+    assert ho is not None, "the model has no hand-over regression"
+    window: np.ndarray = direct_window(parts, fm.layout.n_obs_dims).reshape(3, -1)
     x = np.concatenate([window[1, ho.dims], window[2, ho.dims]])
     r = ho.ratios
     if fraction <= r[0]:
@@ -177,6 +178,7 @@ def direct_head(
     window = direct_window(parts, fm.layout.n_obs_dims)
     x = np.concatenate([window, np.maximum(generative, LOG_POSTERIOR_CLIP)])
     head = fm.head
+    assert head is not None, "the model has no recognition head"
     logits = [
         head.coef[i] @ ((x - head.feature_mean[i]) / head.feature_scale[i]) + head.intercept[i]
         for i in range(head.ratios.size)
@@ -234,8 +236,8 @@ def direct_predict(predictor: Predictor, observation: Demo) -> Prediction:
     scale = fm.scaler.scale[rs]
     wr = w_mean.reshape(n_dims, k)  # the human's estimates do not use the hand-over regression
     if fm.handover is not None:  # y = A q(T) + e, q(T) = scale * (phi(1) w_robot) + offset
-        task = fm.tasks.index(rec.task)
-        readout, values, noise = direct_handover(fm, parts, task, t_last / (a_best * tn))
+        task_index = fm.tasks.index(rec.task)
+        readout, values, noise = direct_handover(fm, parts, task_index, t_last / (a_best * tn))
         phi_end = fm.basis(np.array([1.0]))[0]
         h = np.zeros((readout.shape[0], n_dims * k))
         h[:, sel] = np.kron(readout * scale[None, :], phi_end[None, :])

@@ -260,13 +260,16 @@ def choose_noise(
         nu = float(noise_grid[j])
     rows: list[HeldOutRow] = []
     for n_demo, fold in enumerate(folds):
-        engine = None
+        fold_engine: InferenceEngine | None = None
         for n_obs, (ratio, parts, t_last, summary) in enumerate(fold.observations):
-            loglik = fold.logliks.get((n_obs, j)) if best is not None else None
-            if loglik is None:
-                if engine is None:
-                    engine = _fold_engine(training, fold.models, nu)
-                loglik = engine.log_likelihood([engine.part_stats(p) for p in parts], t_last, nu=nu)
+            cached = fold.logliks.get((n_obs, j)) if best is not None else None
+            if cached is None:
+                if fold_engine is None:
+                    fold_engine = _fold_engine(training, fold.models, nu)
+                stats = [fold_engine.part_stats(p) for p in parts]
+                loglik = fold_engine.log_likelihood(stats, t_last, nu=nu)
+            else:
+                loglik = cached
             rows.append(HeldOutRow(fold.task, n_demo, summary, ratio, loglik, fold.priors, t_last))
     if best is None:
         return NoiseChoice(nu, float(temperature_grid[0]), {}, rows)

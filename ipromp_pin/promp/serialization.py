@@ -173,6 +173,10 @@ def write_model(params: dict, fitted: FittedModel, path: str | Path) -> None:
     layout = fitted.layout
     ho = fitted.handover
     robot_lo = layout.slices[layout.robot_group][0]
+    neighbours = None
+    if ho is not None and ho.kind is not None:
+        assert ho.neighbour_x is not None  # present with kind (validate_fitted)
+        neighbours = int(ho.neighbour_x.shape[2])
     header = {
         "format": FORMAT_NAME,
         "format_version": FORMAT_VERSION,
@@ -197,7 +201,7 @@ def write_model(params: dict, fitted: FittedModel, path: str | Path) -> None:
             "outputs": int(ho.readout.shape[1]),
             "features": int(ho.dims.size),
             "trust": float(ho.trust),
-            "neighbours": None if ho.kind is None else int(ho.neighbour_x.shape[2]),
+            "neighbours": neighbours,
         },
         "handover_cv_scores": [
             ["off" if not np.isfinite(k) else float(k), float(v)]
@@ -214,11 +218,11 @@ def write_model(params: dict, fitted: FittedModel, path: str | Path) -> None:
         ],
         "trained_on": None if fitted.trained_on is None else [r.to_json() for r in fitted.trained_on],
     }
-    arrays = {
+    arrays: dict[str, Any] = {  # np.savez's keyword arguments (all arrays)
         "header": np.array(json.dumps(header)),
         "scaler_offset": fitted.scaler.offset,
         "scaler_scale": fitted.scaler.scale,
-        "scaler_log_shift": fitted.scaler.log_shift,
+        "scaler_log_shift": fitted.scaler.shift,
         "task_log_prior": fitted.task_log_prior,
         "residual_var": fitted.residual_var,
     }
@@ -582,7 +586,8 @@ def _head(
         or a["c"].shape != (n,)
     ):
         raise ValueError("recognition head arrays have inconsistent shapes")
-    extra = {name: arrays.get(f"head_{name}") for name in _HEAD_V3_ARRAYS}  # absent before version 3
+    # absent before version 3
+    extra: dict[str, Any] = {name: arrays.get(f"head_{name}") for name in _HEAD_V3_ARRAYS}
     return RecognitionHead(**a, **extra)
 
 
@@ -593,9 +598,10 @@ def _handover(meta: dict | None, arrays: dict[str, np.ndarray]) -> HandoverRegre
     dims = arrays["handover_dims"]
     if not np.all(np.isfinite(dims)) or np.any(dims != np.round(dims)) or np.any(dims < 0):
         raise ValueError("handover_dims must hold non-negative integers")
+    neighbour: dict[str, Any] = {name: arrays.get(f"handover_{name}") for name in NEIGHBOUR_ARRAYS}
     return HandoverRegression(
         **{name: arrays[f"handover_{name}"] for name in _HANDOVER_ARRAYS},
-        **{name: arrays.get(f"handover_{name}") for name in NEIGHBOUR_ARRAYS},  # absent before version 4
+        **neighbour,  # absent before version 4
         dims=dims.astype(np.int64),
         trust=float(meta["trust"]),
     )

@@ -15,6 +15,7 @@ from __future__ import annotations
 import contextlib
 import math
 from collections.abc import Callable, Mapping
+from types import TracebackType
 
 import numpy as np
 
@@ -96,10 +97,15 @@ class StreamingEstimator:
         self._held.__enter__()
         return self
 
-    def __exit__(self, *exc: object) -> None:
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
         held, self._held = self._held, None
         if held is not None:
-            held.__exit__(*exc)
+            held.__exit__(exc_type, exc, tb)
 
     @property
     def n_samples(self) -> int:

@@ -13,6 +13,8 @@ numbers): they are vectorised reductions over each array once.
 
 from __future__ import annotations
 
+from typing import SupportsFloat, cast
+
 import numpy as np
 
 from ..exceptions import ModelError
@@ -76,7 +78,7 @@ def _positive(where: str, a: np.ndarray, allow_zero: bool = False, bound: float 
 
 def _scalar(where: str, value: object, low: float, high: float, low_open: bool = True) -> None:
     try:
-        v = float(value)
+        v = float(cast("SupportsFloat | str", value))  # anything else raises TypeError, caught here
     except (TypeError, ValueError):
         raise _fail(where, f"must be a number, got {value!r}") from None
     ok = (v > low if low_open else v >= low) and v <= high
@@ -255,5 +257,6 @@ def _check_neighbours(ho: HandoverRegression, r: int, n_tasks: int, m: int, n_fe
         v = _array(f"handover {name}", value, (r, n_tasks))
         if not np.all(np.isfinite(v)) or (v != np.round(v)).any() or (v < low).any() or (v > high).any():
             raise _fail(f"handover {name}", f"must hold whole numbers in [{low}, {high:g}]")
+    assert ho.neighbour_count is not None  # checked in the loop above
     if (ho.neighbour_count[kind == 1] < 1).any():
         raise _fail("handover neighbour_count", "must be at least 1 at the k-nearest-neighbour fractions")

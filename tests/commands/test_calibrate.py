@@ -4,6 +4,7 @@ stores it."""
 from __future__ import annotations
 
 import shutil
+import sys
 
 import numpy as np
 import pytest
@@ -13,11 +14,13 @@ from ipromp_pin.robot import ROBOTS_DIR, load_robot_settings
 
 
 @pytest.mark.realdata
-def test_calibrate_command_reports_and_writes_the_fit(chen2017_dir, tmp_path, capsys):
+def test_calibrate_command_reports_and_writes_the_fit(chen2017_dir, tmp_path, capsys, monkeypatch):
     settings = tmp_path / "copy.toml"
     shutil.copy(ROBOTS_DIR / "baxter_left.toml", settings)
     before = load_robot_settings(settings)
-    assert main(["calibrate", str(chen2017_dir), "--robot", str(settings), "--write"]) == 0
+    args = ["calibrate", str(chen2017_dir), "--robot", str(settings), "--write"]
+    monkeypatch.setattr(sys, "argv", ["ipromp-pin", *args])  # the command line the file records
+    assert main(args) == 0
     out = capsys.readouterr().out
     assert "FK calibration (baxter_left, fit=mount)" in out and f"written to {settings}" in out
     assert "chen2017_handover: median residual" in out

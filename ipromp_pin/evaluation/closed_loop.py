@@ -34,7 +34,6 @@ from .scorers.closed_loop import (
     ClosedLoopOptions,
     ClosedLoopScorer,
     ClosedLoopTrial,
-    closed_loop_trials,
     profile_for,
     replay_trials,
 )
@@ -46,7 +45,6 @@ __all__ = [
     "ClosedLoopOptions",
     "ClosedLoopTrial",
     "closed_loop_markdown",
-    "closed_loop_trials",
     "evaluate_closed_loop",
     "profile_for",
     "replay_trials",

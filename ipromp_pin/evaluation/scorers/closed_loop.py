@@ -141,23 +141,6 @@ def replay_trials(
     return out
 
 
-def closed_loop_trials(
-    model: IProMP,
-    robot: Robot,
-    test: Sequence[Demo],
-    ratio: float,
-    profile: LimitProfile,
-    settings: ClosedLoopSettings,
-    certifier: ClearanceCertifier | None = None,
-    check_collisions: bool = True,
-) -> list[dict]:
-    """:func:`replay_trials` as records (:meth:`ClosedLoopTrial.to_row`): the one-shot prediction's
-    :class:`TrialResult` fields, then the closed loop's
-    :class:`~ipromp_pin.handover.score.ClosedLoopScore` fields prefixed ``closed_loop_``."""
-    trials = replay_trials(model, robot, test, ratio, profile, settings, certifier, check_collisions)
-    return [t.to_row() for t in trials]
-
-
 class ClosedLoopScorer(Scorer):
     """An :class:`~ipromp_pin.promp.IProMP` and a limit profile fitted per job, every test demo
     replayed in the closed loop.

@@ -1,5 +1,5 @@
-"""The code examples of the documentation run as they are: every ``python`` block of a page, in order,
-in one namespace per page, in a fresh working folder."""
+"""The code examples of the documentation and the README run as they are: every ``python`` block of a
+page, in order, in one namespace per page, in a fresh working folder."""
 
 from __future__ import annotations
 
@@ -8,7 +8,8 @@ from pathlib import Path
 
 import pytest
 
-DOCS = Path(__file__).resolve().parents[1] / "docs"
+ROOT = Path(__file__).resolve().parents[1]
+DOCS = ROOT / "docs"
 PAGES = ["api.md", "your_data.md"]
 
 
@@ -26,3 +27,20 @@ def test_docs_examples_run(page, tmp_path, monkeypatch, capsys):
     for i, block in enumerate(blocks):
         exec(compile(block, f"{page} block {i + 1}", "exec"), namespace)  # noqa: S102
     assert capsys.readouterr().out  # the examples print what they show
+
+
+def test_readme_python_example_runs_as_pasted(datasets_dir, tmp_path, monkeypatch):
+    """The README's example reads ``../shared/datasets`` as seen from a checkout: run it in a fresh
+    folder that has the datasets at that place, so it writes nothing into the project."""
+    blocks = code_blocks(ROOT / "README.md")
+    assert blocks
+    work = tmp_path / "checkout"
+    work.mkdir()
+    (tmp_path / "shared").mkdir()
+    (tmp_path / "shared" / "datasets").symlink_to(datasets_dir)
+    monkeypatch.chdir(work)
+    namespace: dict = {"__name__": "readme"}
+    for i, block in enumerate(blocks):
+        exec(compile(block, f"README.md block {i + 1}", "exec"), namespace)  # noqa: S102
+    assert (work / "model.npz").is_file()
+    assert namespace["via"].q_mean.shape == namespace["pred"].q_mean.shape

@@ -18,10 +18,11 @@ LAYERS = {
     "readers": 2,
     **dict.fromkeys(["promp", "robot", "preview", "schemas"], 3),
     "motion": 4,
-    "handover": 5,
-    **dict.fromkeys(["outputs", "evaluation"], 6),
-    "commands": 7,
-    "cli": 8,
+    "checks": 5,
+    "handover": 6,
+    **dict.fromkeys(["outputs", "evaluation"], 7),
+    "commands": 8,
+    "cli": 9,
 }
 """Top-level module or package -> layer (0: the shared ground); imports may only go down."""
 

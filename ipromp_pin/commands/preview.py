@@ -55,6 +55,8 @@ def run_preview(
         session.hand_position_m,
         log=log,
         check_joints=False,
+        checks=session.motion_checks,
+        context=session.check_context,
     )
     if html is not None:
         path = write_preview(result, session.robot, session.demo, html, session.mesh_prefetch)

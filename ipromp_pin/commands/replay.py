@@ -190,7 +190,16 @@ def run_replay(
         f"after {settings.start_ratio:.0%} ({checks.start_s:.2f} s), re-plans at "
         f"{settings.replan_rate_hz:g} Hz, control at {settings.control_rate_hz:g} Hz"
     )
-    result = replay_demo(model, robot, demo, profile, settings, certifier)
+    result = replay_demo(
+        model,
+        robot,
+        demo,
+        profile,
+        settings,
+        certifier,
+        checks=session.motion_checks,
+        context=session.check_context,
+    )
     score = score_closed_loop(result, demo, robot)
     with atomic.OutputSet(cfg.out_dir, managed=REPLAY_OUTPUTS) as out:
         _stage_files(out, session, result, score, allow_failing_checks, preview, log)

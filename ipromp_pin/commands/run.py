@@ -57,6 +57,8 @@ def run_pipeline(
         session.hand_position_m,
         log=log,
         check_joints=False,
+        checks=session.motion_checks,
+        context=session.check_context,
     )
     options = OutputOptions(cfg.ros, cfg.rosbag, cfg.ros1_bag, robot.base_frame, session.warnings)
     with atomic.OutputSet(cfg.out_dir, managed=RUN_OUTPUTS) as out:

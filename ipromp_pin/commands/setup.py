@@ -18,6 +18,7 @@ from functools import partial
 import numpy as np
 
 from .. import atomic
+from ..checks import CheckContext, MotionCheck, build_checks
 from ..data import Dataset, Demo, skeleton_frames
 from ..exceptions import PipelineError
 from ..handover.one_shot import LogFn, check_model_joints
@@ -48,6 +49,8 @@ class Session:
             (:func:`~ipromp_pin.commands.meshes.start_mesh_prefetch`), or None.
         observation: The observed first ``cfg.ratio`` of the demo's human motion (None when not cut).
         hand_position_m: (3,) the human hand's last known position in [m] (the hand-over point), or None.
+        motion_checks: The timed-motion checks of every plan (:func:`ipromp_pin.checks.build_checks`).
+        check_context: What they know about the world for ``demo`` (:func:`check_context`).
     """
 
     cfg: PipelineConfig
@@ -60,6 +63,8 @@ class Session:
     mesh_prefetch: mp.process.BaseProcess | None = None
     observation: Demo | None = None
     hand_position_m: np.ndarray | None = None
+    motion_checks: list[MotionCheck] = field(default_factory=list)
+    check_context: CheckContext = field(default_factory=CheckContext)
 
     def observed(self) -> Demo:
         """The observation of a session prepared with ``observe=True`` (PipelineError without one)."""
@@ -111,6 +116,8 @@ def prepare_session(
     for w in warnings:
         warn(w)
     session = Session(cfg, robot, ds, demo, train, model, warnings, prefetch)
+    session.motion_checks = build_checks(robot)
+    session.check_context = check_context(cfg, demo)
     if observe:
         session.observation = observation = demo.head(cfg.ratio, groups=cfg.observe)
         session.hand_position_m = hand_at_handover(demo)
@@ -119,6 +126,12 @@ def prepare_session(
             f"({observation.t[-1]:.2f} s, {observation.n_samples} samples) of {', '.join(cfg.observe)}"
         )
     return session
+
+
+def check_context(cfg: PipelineConfig, demo: Demo) -> CheckContext:
+    """What the timed-motion checks (:mod:`ipromp_pin.checks`) know about the world when the robot
+    plans for ``demo``'s human (``cfg``: the pipeline's settings of that world)."""
+    return CheckContext(task=None)
 
 
 def check_outputs(cfg: PipelineConfig) -> None:

@@ -12,7 +12,11 @@ and runs a simulated control loop at ``control_rate_hz`` (no waiting):
 * the remaining motion of every re-plan is checked before it is committed: velocity,
   acceleration and jerk at every control sample against the :class:`~ipromp_pin.motion.limits.LimitProfile`,
   joint limits with the settings' margin, the hand-over position inside the workspace, and
-  self-collision certified between samples (:class:`~ipromp_pin.robot.clearance.ClearanceCertifier`).
+  self-collision certified between samples (:class:`~ipromp_pin.robot.clearance.ClearanceCertifier`),
+  then the timed-motion checks (:mod:`ipromp_pin.checks`: the human, the arm's torques, ...) with the
+  planner's :class:`~ipromp_pin.checks.CheckContext`. When a failing check says a slower motion would
+  pass, the re-plan follows the prediction that much slower (at most
+  :data:`~ipromp_pin.checks.MAX_SLOWDOWN` times) and is checked again; the delay it costs is recorded.
   A re-plan that fails is not committed: the robot keeps the last safe plan and the
   :class:`Replan` record says why. A change of recognised task is handled the same way.
 
@@ -24,11 +28,12 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
+from ..checks import MAX_SLOWDOWN, CheckContext, MotionCheck, TimedMotion, needed_slowdown, run_checks
 from ..data import Demo
 from ..exceptions import IPrompPinError, ObservationError, PipelineError
 from ..motion.limits import LimitProfile
@@ -49,6 +54,12 @@ from ..robot.clearance import ClearanceCertifier
 
 LIMIT_TOLERANCE = 1e-6
 """Relative tolerance of the velocity, acceleration and jerk checks of a re-plan."""
+
+MAX_SLOWDOWN_ROUNDS = 3
+"""How many times a re-plan is re-targeted slower when a timed-motion check asks for it."""
+
+SLOWDOWN_STEP = 1.05
+"""Each slower re-target asks for 5 % more slow-down than the failing checks estimated."""
 
 CONDITION_NOISE = 0.3
 """Observation-noise ratio ``nu`` with which the closed loop conditions the robot trajectory (the
@@ -151,6 +162,10 @@ class Replan:
         reason: Why it was refused (empty when committed).
         limit_ratios: Largest |v|, |a|, |jerk| over their limits in the plan (3,).
         min_distance_m: Closest computed self-collision distance near the plan, in [m].
+        checks: Timed-motion check name -> its status, reason and values (:mod:`ipromp_pin.checks`),
+            for the last plan checked.
+        slowdown: Extra slow-down ``k >= 1`` that the timed-motion checks asked for (1: none).
+        slowdown_delay_s: How much later the slowed plan arrives than the plan without it, in [s].
         cycle_ms: Wall time of the cycle in [ms]: stream update of the latest sample, conditioning,
             re-target, checks.
         stage_ms: Wall time per stage in [ms].
@@ -171,6 +186,9 @@ class Replan:
     reason: str = ""
     limit_ratios: list[float] | None = None
     min_distance_m: float | None = None
+    checks: dict[str, dict] = field(default_factory=dict)
+    slowdown: float = 1.0
+    slowdown_delay_s: float = 0.0
     cycle_ms: float = 0.0
     stage_ms: dict[str, float] = field(default_factory=dict)
 
@@ -245,6 +263,9 @@ class ClosedLoopPlanner:
         conditioner: The predictor whose conditioner conditions the robot trajectory (default: the
             stream's predictor for ``settings.condition_noise``,
             :meth:`~ipromp_pin.promp.streaming.StreamingEstimator.predict`).
+        checks: Timed-motion checks run on every re-plan's remaining motion (default: none;
+            :func:`ipromp_pin.checks.build_checks` gives the registered ones).
+        context: What the checks know about the world (the human, the object, ...).
     """
 
     def __init__(
@@ -257,6 +278,8 @@ class ClosedLoopPlanner:
         settings: ClosedLoopSettings | None = None,
         certifier: ClearanceCertifier | None = None,
         conditioner: Predictor | None = None,
+        checks: Sequence[MotionCheck] = (),
+        context: CheckContext | None = None,
     ) -> None:
         self.settings = (settings or ClosedLoopSettings()).validate()
         self.model = model
@@ -268,6 +291,8 @@ class ClosedLoopPlanner:
         s = self.settings
         self.retargeter = Retargeter(profile.limits, self.dt_s, s.blend_s, s.headroom, s.settle_s)
         self._conditioner = conditioner
+        self.checks = list(checks)
+        self.context = context if context is not None else CheckContext()
         self._stream = model.stream()
         self._open = False
         self._plans: list[tuple[int, MotionPlan]] = [
@@ -355,47 +380,76 @@ class ClosedLoopPlanner:
         r.task = pred.task
         r.posterior = {k: float(v) for k, v in zip(pred.tasks, pred.posterior, strict=True)}
         r.predicted_handover_s = float(pred.duration_s)
-        try:
-            plan = self.retargeter.plan(state, reference)
-        except IPrompPinError as exc:
-            r.reason = f"re-target failed: {exc}"
-            ms["retarget"] = (time.perf_counter() - t1) * 1e3
-            r.stage_ms = ms
-            return r
-        t2 = time.perf_counter()
-        ms["retarget"] = (t2 - t1) * 1e3
-        r.planned_arrival_s = plan.arrival_s
-        r.lateness_s = plan.lateness_s
-        r.time_scale = plan.time_scale
-        r.reason = self._check(plan, r)
-        ms["checks"] = (time.perf_counter() - t2) * 1e3
+        self.context.task = pred.task
+        self.context.handover_s = float(pred.duration_s)
+        plan = self._plan_checked(state, reference, r, ms)
         r.stage_ms = ms
-        if not r.reason:
+        if plan is not None and not r.reason:
             r.committed = True
             self._plans.append((tick, plan))
         return r
 
-    def _check(self, plan: MotionPlan, r: Replan) -> str:
-        """Check a plan's remaining motion -> the reason to refuse it ("" if it passes)."""
+    def _plan_checked(
+        self, state: MotionState, reference: ReferenceMotion, r: Replan, ms: dict[str, float]
+    ) -> MotionPlan | None:
+        """Re-target, check, and re-target slower while a failing check asks for it -> the last plan
+        (``r.reason`` empty if it passed) or None when re-targeting failed."""
+        plan: MotionPlan | None = None
+        scale, first_arrival, k0 = 1.0, None, 1.0
+        t_start = time.perf_counter()
+        t_checks = 0.0
+        for _ in range(MAX_SLOWDOWN_ROUNDS + 1):
+            try:
+                plan = self.retargeter.plan(state, reference, min_scale=scale)
+            except IPrompPinError as exc:
+                r.reason = f"re-target failed: {exc}"
+                break
+            t0 = time.perf_counter()
+            if first_arrival is None:
+                first_arrival, k0 = plan.arrival_s, plan.time_scale
+            r.planned_arrival_s = plan.arrival_s
+            r.lateness_s = plan.lateness_s
+            r.time_scale = plan.time_scale
+            r.slowdown_delay_s = float(plan.arrival_s - first_arrival)
+            r.reason, k = self._check(plan, r)
+            t_checks += time.perf_counter() - t0
+            if not r.reason or k is None or k <= 1.0 or plan.time_scale >= k0 * MAX_SLOWDOWN:
+                break
+            scale = min(plan.time_scale * k * SLOWDOWN_STEP, k0 * MAX_SLOWDOWN)
+            r.slowdown = scale / k0
+        ms["checks"] = t_checks * 1e3
+        ms["retarget"] = (time.perf_counter() - t_start - t_checks) * 1e3
+        return plan if r.planned_arrival_s is not None else None
+
+    def _check(self, plan: MotionPlan, r: Replan) -> tuple[str, float | None]:
+        """Check a plan's remaining motion -> the reason to refuse it ("" if it passes) and the
+        slow-down the failing timed-motion checks ask for (None: slowing would not help)."""
         ratios = limit_ratios(plan.qd, plan.qdd, self.dt_s, self.profile.limits)
         r.limit_ratios = [float(x) for x in ratios]
         if np.any(ratios > 1.0 + LIMIT_TOLERANCE):
             names = ("velocity", "acceleration", "jerk")
             i = int(np.argmax(ratios))
-            return f"{names[i]} limit exceeded ({ratios[i]:.3f} of the limit)"
+            return f"{names[i]} limit exceeded ({ratios[i]:.3f} of the limit)", None
         end = ee_positions(self.robot, plan.q[-1])[0]
         r.predicted_handover_position_m = [float(x) for x in end]
         lim = check_joint_limits(self.robot, plan.q, t_s=plan.t_s)
         if not lim.passed:
-            return f"joint_limits: {lim.reason}"
+            return f"joint_limits: {lim.reason}", None
         ws = check_workspace(self.robot, end)
         if not ws.passed:
-            return f"workspace: {ws.reason}"
+            return f"workspace: {ws.reason}", None
         clearance = self.certifier.certify(plan.q)
         r.min_distance_m = clearance.min_distance_m
         if not clearance.certified:
-            return f"self_collision: {clearance.to_check().reason}"
-        return ""
+            return f"self_collision: {clearance.to_check().reason}", None
+        if not self.checks:
+            return "", None
+        results = run_checks(self.checks, TimedMotion.from_plan(plan), self.context)
+        r.checks = {c.name: {"status": c.status, "reason": c.reason, **c.values} for c in results}
+        failed = [c for c in results if c.required and not c.passed]
+        if not failed:
+            return "", None
+        return "; ".join(f"{c.name}: {c.reason}" for c in failed), needed_slowdown(results)
 
     def close(self) -> None:
         """Stop receiving samples (releases the streaming estimator's BLAS thread limit)."""
@@ -468,11 +522,14 @@ def replay_demo(
     settings: ClosedLoopSettings | None = None,
     certifier: ClearanceCertifier | None = None,
     conditioner: Predictor | None = None,
+    checks: Sequence[MotionCheck] = (),
+    context: CheckContext | None = None,
 ) -> ClosedLoopResult:
     """Run the closed loop on a recorded demo at its recorded timing (simulated clock, no waiting).
 
     The robot starts at rest at the demo's first recorded configuration; the human's observed groups
-    (``model.observe_``) arrive sample by sample.
+    (``model.observe_``) arrive sample by sample. ``checks`` and ``context``: the timed-motion checks
+    of every re-plan (:class:`ClosedLoopPlanner`).
 
     Raises:
         DataError: the demo lacks an observed group or the robot group.
@@ -484,7 +541,7 @@ def replay_demo(
     start = start_time(demo, settings.start_ratio)
     q_start = demo.groups[model.robot_group][0]
     with ClosedLoopPlanner(
-        model, robot, profile, q_start, start, settings, certifier, conditioner
+        model, robot, profile, q_start, start, settings, certifier, conditioner, checks, context
     ) as planner:
         for t, sample in zip(demo.t - demo.t[0], demo_samples(demo, groups), strict=True):
             planner.step(float(t), sample)

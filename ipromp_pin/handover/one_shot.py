@@ -9,11 +9,12 @@ stages ``benchmarks/pipeline.py`` times.
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
+from ..checks import CheckContext, MotionCheck, TimedMotion, needed_slowdown, run_checks
 from ..data import Demo
 from ..exceptions import InfeasibleError, ModelError
 from ..motion.timing import TimingReport, path_times, time_path
@@ -40,6 +41,11 @@ class PlanResult:
         stage_ms: Wall time of every stage in [ms].
         q_samples: (n, M, n_joints) joint trajectories in [rad] drawn from the conditioned
             prediction, used by the uncertainty check and shown by the preview.
+        start_s: When the robot starts (the end of the observation), in [s] on the human's clock;
+            the trajectory's t = 0.
+        slowdown: Uniform slow-down ``k >= 1`` the timed-motion checks asked for (1: none): the
+            trajectory was re-timed with velocity, acceleration and jerk limits / k, k^2, k^3.
+        slowdown_delay_s: How much longer the re-timed trajectory takes, in [s].
     """
 
     prediction: Prediction
@@ -48,6 +54,9 @@ class PlanResult:
     timing_report: TimingReport
     stage_ms: dict[str, float]
     q_samples: np.ndarray
+    start_s: float = 0.0
+    slowdown: float = 1.0
+    slowdown_delay_s: float = 0.0
 
     @property
     def passed(self) -> bool:
@@ -88,6 +97,8 @@ def plan(
     log: LogFn | None = None,
     *,
     check_joints: bool = True,
+    checks: Sequence[MotionCheck] = (),
+    context: CheckContext | None = None,
 ) -> PlanResult:
     """Online stages: recognise + predict, time-parameterise + smooth, check.
 
@@ -105,6 +116,10 @@ def plan(
         log: Progress messages (``None``: silent).
         check_joints: Refuse a model whose joints are not the robot's (:func:`check_model_joints`);
             False when the caller has checked them already.
+        checks: Timed-motion checks (:mod:`ipromp_pin.checks`) of the timed trajectory, started at the
+            end of the observation; their results join the report. When the failing ones ask for a
+            slower motion, the path is re-timed once with the limits slowed that much.
+        context: What the timed-motion checks know about the world (the human, the object, ...).
     """
     say = log or (lambda _msg: None)
     if check_joints:
@@ -141,6 +156,46 @@ def plan(
     t3 = time.perf_counter()
     ms["check"] = (t3 - t2) * 1e3
     ms["time_parameterise_smooth"] = (t2 - t1) * 1e3
+    start_s = float(observation.t[-1] - observation.t[0])
+    result = PlanResult(prediction, report, trajectory, timing_report, ms, samples, start_s)
+    if checks:
+        _check_motion(result, robot, list(checks), context, control_rate_hz)
     say(f"[check] {'pass' if report.passed else 'FAIL: ' + ', '.join(report.failures)}")
     say(f"[timing] {trajectory.t_s[-1]:.2f} s at {control_rate_hz:g} Hz, {len(trajectory.t_s)} samples")
-    return PlanResult(prediction, report, trajectory, timing_report, ms, samples)
+    if result.slowdown > 1.0:
+        say(f"[timing] slowed {result.slowdown:.2f}x for the checks: {result.slowdown_delay_s:+.2f} s")
+    return result
+
+
+def _check_motion(
+    result: PlanResult,
+    robot: Robot,
+    checks: list[MotionCheck],
+    context: CheckContext | None,
+    control_rate_hz: float,
+) -> None:
+    """Run the timed-motion checks on ``result``'s trajectory, re-time it once when the failing checks
+    ask for a slower motion (and that passes them), and add the results to its report (in place)."""
+    t0 = time.perf_counter()
+    ctx = context if context is not None else CheckContext()
+    ctx.task = result.prediction.task
+    ctx.handover_s = result.start_s + float(result.trajectory.t_s[-1])
+    results = run_checks(checks, TimedMotion.from_trajectory(result.trajectory, result.start_s), ctx)
+    k = needed_slowdown(results)
+    if k is not None and k > 1.0:
+        k *= 1.05  # a margin over the checks' estimate
+        q_path = result.prediction.q_mean
+        try:
+            limits = JointLimits.from_robot(robot).scaled(1.0 / k, 1.0 / k**2, 1.0 / k**3)
+            slow, slow_report = time_path(q_path, limits, rate_hz=control_rate_hz)
+        except InfeasibleError:
+            slow = None
+        if slow is not None:
+            ctx.handover_s = result.start_s + float(slow.t_s[-1])
+            slow_results = run_checks(checks, TimedMotion.from_trajectory(slow, result.start_s), ctx)
+            if needed_slowdown(slow_results) == 1.0:
+                result.slowdown_delay_s = float(slow.t_s[-1] - result.trajectory.t_s[-1])
+                result.slowdown = k
+                result.trajectory, result.timing_report, results = slow, slow_report, slow_results
+    result.report.checks.extend(results)
+    result.stage_ms["motion_checks"] = (time.perf_counter() - t0) * 1e3

@@ -325,8 +325,11 @@ class Retargeter:
             k *= 1.02
         return k
 
-    def plan(self, state: MotionState, reference: ReferenceMotion) -> MotionPlan:
+    def plan(self, state: MotionState, reference: ReferenceMotion, min_scale: float = 1.0) -> MotionPlan:
         """The remaining motion from ``state`` (at a control tick) onto ``reference``'s timeline.
+
+        ``min_scale``: the followed reference goes at least this many times slower (``k >= 1``; a check
+        that asks for a slower motion, :mod:`ipromp_pin.checks.slowdown`).
 
         Raises:
             InfeasibleError: ruckig finds no trajectory, or the sampled plan exceeds a limit.
@@ -343,13 +346,16 @@ class Retargeter:
         d_follow = d_end - self.settle_s
         if t_c + h >= d_follow:
             blend = self._ruckig(start, (q_end, zeros, zeros), d_end - t_c)
+            if min_scale > 1.0:  # the last blend, stretched: ruckig's time-optimal profile k times longer
+                blend = self._ruckig(start, (q_end, zeros, zeros), blend.duration * float(min_scale))
+                k = float(min_scale)
             pieces.append(("ruckig", t_c, t_c + blend.duration, blend))
             blend_s = blend.duration
         else:
             grid = np.append(np.arange(t_c + h, d_follow, dt), d_follow)
             _, v, a, j = reference.evaluate(grid)
             assert v is not None and a is not None and j is not None  # order 3: every derivative
-            k = self.time_scale(v, a, j)
+            k = max(self.time_scale(v, a, j), float(min_scale))
             target_t = t_c + h
             k_follow = k
             for _ in range(CATCH_UP_ITERATIONS):

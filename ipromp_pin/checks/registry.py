@@ -1,0 +1,40 @@
+"""The registered timed-motion checks, in report order, and running them.
+
+Register a check by adding its class to :data:`MOTION_CHECKS` (its module is one file in this
+package, a :class:`~.base.MotionCheck` subclass).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+
+from ..exceptions import PipelineError
+from ..robot import CheckResult, Robot
+from .base import CheckContext, MotionCheck, TimedMotion
+
+MOTION_CHECKS: tuple[type[MotionCheck], ...] = ()
+"""Every timed-motion check, in the order of the reports."""
+
+
+def build_checks(robot: Robot, names: Iterable[str] | None = None) -> list[MotionCheck]:
+    """The registered checks for ``robot`` (all, or those named, in registry order).
+
+    Raises:
+        PipelineError: an unknown check name.
+    """
+    known = {c.name: c for c in MOTION_CHECKS}
+    if names is None:
+        return [c(robot) for c in MOTION_CHECKS]
+    wanted = list(names)
+    unknown = [n for n in wanted if n not in known]
+    if unknown:
+        raise PipelineError(f"unknown motion check(s) {unknown}; known: {sorted(known)}")
+    return [c(robot) for c in MOTION_CHECKS if c.name in wanted]
+
+
+def run_checks(
+    checks: Sequence[MotionCheck], motion: TimedMotion, context: CheckContext | None = None
+) -> list[CheckResult]:
+    """Every check of ``checks`` on ``motion``, in order."""
+    ctx = context if context is not None else CheckContext()
+    return [c.check(motion, ctx) for c in checks]

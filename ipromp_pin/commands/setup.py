@@ -196,7 +196,7 @@ def get_model(
     fk = None if robot is None else partial(ee_positions, robot)
     what = f"{len(train)} demos ({', '.join(cfg.observe)} + robot)"
     if cfg.model_cache:
-        model, cached = fit_cached(IProMP(observe=cfg.observe), train, fk)
+        model, cached = fit_cached(IProMP(observe=cfg.observe), train, fk, log=log)
     else:
         model, cached = IProMP(observe=cfg.observe).fit(train, fk=fk), None
     if cached is not None:

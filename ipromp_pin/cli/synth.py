@@ -18,7 +18,12 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--demos", type=bounded(int, 2, 1000), default=20, help="demos per task, 2-1000 (default %(default)s)"
     )
-    p.add_argument("--seed", type=bounded(int, 0), default=0)
+    p.add_argument(
+        "--seed",
+        type=bounded(int, 0, 2**32 - 1),
+        default=0,
+        help="seed of the random generator: the same seed writes the same demos (default %(default)s)",
+    )
     p.add_argument("--csv", action="store_true", help="write .csv files (one row per sample) instead of .npz")
     p.set_defaults(func=cmd_synth)
 

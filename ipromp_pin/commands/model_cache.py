@@ -154,6 +154,7 @@ def verify_entry(path: Path, key: str, model: IProMP, cached: IProMP, demos: Seq
         return "its record names another key"
     if side.get("sha256") != _file_digest(path):
         return "the file is not the one stored under its key (its digest differs)"
+
     def canonical(params: dict) -> str:  # tuples and lists alike (a loaded model holds lists)
         return json.dumps(params, sort_keys=True, default=repr)
 

@@ -31,6 +31,7 @@ from scipy.signal import savgol_filter
 
 from ..data import ROBOT, Demo
 from ..exceptions import PipelineError
+from ..inputs import load_toml
 from ..robot import DemoLimitRecipe, Robot
 from ..robot.settings import PLAUSIBLE_RANGES
 from .trajectory import JointLimits
@@ -206,7 +207,7 @@ def read_limit_profile(path: str | Path, robot: Robot) -> LimitProfile:
     """
     path = Path(path)
     try:
-        doc = tomllib.loads(path.read_text(encoding="utf-8"))
+        doc = load_toml(path, "limit profile", lambda problem: PipelineError(f"{path}: {problem}"))
     except FileNotFoundError:
         raise PipelineError(
             f"{path}: limit profile not found (use {' or '.join(PROFILE_NAMES)}, or a profile file)"

@@ -28,7 +28,7 @@ from ..robot import Robot, ee_positions, load_robot
 from .config import PipelineConfig
 from .meshes import start_mesh_prefetch
 from .model_cache import fit_cached
-from .model_warnings import loaded_model_warnings, single_task_warning, warn_stderr
+from .model_warnings import loaded_model_warnings, range_warnings, single_task_warning, warn_stderr
 
 
 @dataclass
@@ -255,8 +255,9 @@ def hand_at_handover(demo: Demo) -> np.ndarray | None:
 
 def model_warnings(cfg: PipelineConfig, ds: Dataset, demo: Demo, model: IProMP) -> list[str]:
     """Warnings about the model: a loaded one that does not match the data or was trained on ``demo``,
-    or a single-task one."""
+    a single-task one, or a ``demo`` far outside the training data."""
+    observed = range_warnings(model, demo)
     if cfg.load_model is not None:
-        return loaded_model_warnings(model, ds, demo, str(cfg.load_model))
+        return loaded_model_warnings(model, ds, demo, str(cfg.load_model)) + observed
     single = single_task_warning(model)
-    return [] if single is None else [single]
+    return ([] if single is None else [single]) + observed

@@ -96,6 +96,7 @@ class StreamingEstimator:
         self._held: contextlib.AbstractContextManager | None = None
         self._support_until = -np.inf  # phases below this need at most incremental.ke basis functions
         b, enc = fm.basis, predictor.encoder
+        self._encoder = enc
         self._sample_basis = (self._inv_dur, b.centres, b.width, b.step_factor)  # kernels.stream_sample
         self._sample_scaling = (enc.log_idx, enc.log_shift, enc.offset, enc.scale)
 
@@ -178,6 +179,7 @@ class StreamingEstimator:
                 )
             y[lo:hi] = v
             present.append(g)
+        self._encoder.align_sample(y)  # q and -q alike: the training data's sign (ObservationEncoder)
         if self._held is None:
             with self._limit_threads():
                 return self._add(t_s, y, absent, present)

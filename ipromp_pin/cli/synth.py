@@ -11,7 +11,7 @@ from .arguments import bounded
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     """Add the ``synth`` command to ``subparsers``."""
     p = subparsers.add_parser("synth", help="write the built-in synthetic demos in the native format")
-    p.add_argument("out", type=Path)
+    p.add_argument("out", type=Path, help="folder to write the dataset into: one sub-folder per task")
     p.add_argument(
         "--tasks", type=bounded(int, 1, 20), default=3, help="number of tasks, 1-20 (default %(default)s)"
     )

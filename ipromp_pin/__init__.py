@@ -1,6 +1,10 @@
 """ipromp_pin: EMG-augmented Interaction ProMPs with Pinocchio feasibility checks."""
 
-from .data import ROBOT, Dataset, Demo
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING
+
 from .exceptions import (
     DataError,
     InfeasibleError,
@@ -12,8 +16,33 @@ from .exceptions import (
     PipelineError,
     RobotError,
 )
-from .promp import IProMP, Prediction, Recognition, StreamingEstimator
 from .version import __version__
+
+if TYPE_CHECKING:
+    from .data import ROBOT, Dataset, Demo
+    from .promp import IProMP, Prediction, Recognition, StreamingEstimator
+
+_LAZY = {
+    "ROBOT": "data",
+    "Dataset": "data",
+    "Demo": "data",
+    "IProMP": "promp",
+    "Prediction": "promp",
+    "Recognition": "promp",
+    "StreamingEstimator": "promp",
+}
+"""Names imported on first use: the model's modules take 2-3 s to import (numpy, scipy, numba), which
+``import ipromp_pin`` (and so ``ipromp-pin --help``, or a Ctrl-C during start-up) need not wait for."""
+
+
+def __getattr__(name: str) -> object:
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module 'ipromp_pin' has no attribute {name!r}")
+    value = getattr(importlib.import_module(f".{module}", __name__), name)
+    globals()[name] = value
+    return value
+
 
 __all__ = [
     "__version__",

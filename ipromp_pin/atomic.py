@@ -332,7 +332,7 @@ class OutputSet:
                 backup = final.with_name(f".{final.name}.{token}.previous")
                 os.replace(final, backup)
                 backups.append((final, backup))
-        except (OSError, OutputError) as exc:
+        except BaseException as exc:  # also an interruption (Ctrl-C, SIGTERM) in the middle of the renames
             for final in placed:
                 _remove(final)
             for final, backup in reversed(backups):
@@ -344,7 +344,7 @@ class OutputSet:
                         shutil.rmtree(final)
                     os.replace(backup, final)
             self.discard()
-            if isinstance(exc, OutputError):
+            if isinstance(exc, OutputError) or not isinstance(exc, OSError):
                 raise
             where = getattr(exc, "filename", None) or self.folder
             raise OutputError(f"{where}: cannot write the outputs: {_problem(exc)}") from None

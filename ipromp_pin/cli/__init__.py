@@ -21,6 +21,11 @@ at once.
 
 from __future__ import annotations
 
+from .interrupt import exit_quietly_while_starting
+
+exit_quietly_while_starting()  # first: a Ctrl-C while the modules below load is one line, too
+
+# ruff: noqa: E402 (the imports below come after the signal handlers above)
 import argparse
 import os
 import sys
@@ -28,6 +33,7 @@ import sys
 from ..exceptions import IPrompPinError
 from . import calibrate, evaluate, preview, replay, run, synth, train
 from .arguments import OneLineErrorParser
+from .interrupt import EXIT_INTERRUPTED, interruptible, report_interruption
 from .progress import EXIT_CHECKS_FAILED, EXIT_ERROR, ProgressLine, print_error
 
 __all__ = ["EXIT_CHECKS_FAILED", "EXIT_ERROR", "build_parser", "console_main", "main"]
@@ -49,9 +55,22 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Entry point of the ``ipromp-pin`` console script."""
+    """Entry point of the ``ipromp-pin`` console script. An interruption (SIGINT, SIGTERM) at any
+    stage ends it with one line and exit status 130 or 143 (:mod:`~ipromp_pin.cli.interrupt`)."""
+    seen: list[str] = []  # the command, once parsed (for the interruption line)
+    with interruptible():
+        try:
+            return _main(argv, seen)
+        except KeyboardInterrupt as exc:  # SIGINT, or SIGTERM (Terminated)
+            ProgressLine.end()
+            return report_interruption(seen[-1] if seen else "", exc)
+
+
+def _main(argv: list[str] | None, seen: list[str]) -> int:
+    """Parse ``argv`` and run its command (appended to ``seen``); the exit status."""
     parser = build_parser()
     args = parser.parse_args(argv)
+    seen.append(args.command)
     # The kernels: for the short commands, the compiled ones when cached, else their numpy version
     # while they compile in the background (a fresh install's first run does not wait); the long
     # ones compile them first (announced). $IPROMP_PIN_KERNELS overrides.
@@ -69,10 +88,6 @@ def main(argv: list[str] | None = None) -> int:
         where = f"{exc.filename}: " if getattr(exc, "filename", None) else ""
         print_error(args.command, f"{where}{exc.strerror or exc}")
         return EXIT_ERROR
-    except KeyboardInterrupt:
-        ProgressLine.end()
-        print("interrupted", file=sys.stderr)
-        return 130
     finally:
         set_kernel_backend(previous)
         set_announcer(None)
@@ -86,7 +101,10 @@ def console_main() -> None:
     finished command needs and takes about 0.5 s of a 3 s run (measured with ``os._exit``). Every
     file the command writes is closed when it returns.
     """
-    code = main()
+    try:
+        code = main()
+    except KeyboardInterrupt:  # in the instant before main's handlers are in place
+        code = EXIT_INTERRUPTED
     import atexit
 
     run_exit_handlers = getattr(atexit, "_run_exitfuncs", None)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from ..shipped import DEFAULT_ROBOT
+from ..shipped import DEFAULT_ROBOT, ROBOTS_DIR
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -13,9 +13,24 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser(
         "calibrate", help="calibrate FK (arm mount) against the robot's own end-point reports"
     )
-    p.add_argument("dataset", type=Path, nargs="+")
-    p.add_argument("--robot", default=DEFAULT_ROBOT)
-    p.add_argument("--write", action="store_true", help="store the offset in the robot settings file")
+    p.add_argument(
+        "dataset",
+        type=Path,
+        nargs="+",
+        help="dataset folders whose recordings hold the robot's own end-point reports",
+    )
+    p.add_argument(
+        "--robot",
+        default=DEFAULT_ROBOT,
+        help="robot settings: a shipped name (robots/<name>.toml of the package) or a settings file "
+        "(default %(default)s)",
+    )
+    p.add_argument(
+        "--write",
+        action="store_true",
+        help="store the fitted offsets in the [calibration] table of that settings file (the --robot "
+        f"file; default {ROBOTS_DIR / (DEFAULT_ROBOT + '.toml')}); the line printed after it names the file",
+    )
     p.set_defaults(func=cmd_calibrate)
 
 

@@ -12,6 +12,10 @@ from ..shipped import DEFAULT_ROBOT
 from .arguments import add_closed_loop_options, bounded, closed_loop_settings
 from .progress import progress
 
+MAX_SPLITS = 1000
+"""Most random splits ``--splits`` accepts (each split trains a model per cell: 1000 already take
+hours on the real recordings)."""
+
 
 def default_jobs() -> int:
     """Default ``evaluate --jobs``: every core but one (at least 1), so that the machine stays usable."""
@@ -46,7 +50,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     )
     p.add_argument(
         "--n-train",
-        type=bounded(int, 2),
+        type=bounded(int, 2, 100_000),
         nargs="+",
         default=[10, 15, 20],
         help="training demos per task (--grid full)",
@@ -59,15 +63,23 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         help="observed fractions (--grid full)",
     )
     p.add_argument(
-        "--n-test", type=bounded(int, 1), default=10, help="test demos per task (default %(default)s)"
+        "--n-test",
+        type=bounded(int, 1, 100_000),
+        default=10,
+        help="test demos per task (default %(default)s)",
     )
     p.add_argument(
         "--splits",
-        type=bounded(int, 1),
+        type=bounded(int, 1, MAX_SPLITS),
         default=20,
         help="random splits of the splits protocol (default %(default)s)",
     )
-    p.add_argument("--seed", type=bounded(int, 0), default=0)
+    p.add_argument(
+        "--seed",
+        type=bounded(int, 0, 2**32 - 1),
+        default=0,
+        help="seed of the random train/test splits (default %(default)s)",
+    )
     p.add_argument("--robot", default=DEFAULT_ROBOT, help="robot settings for the hand-over error")
     p.add_argument(
         "--jobs",

@@ -45,7 +45,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def cmd_replay(args: argparse.Namespace) -> int:
-    """Replay the demo; exit status 3 when the commanded motion collides or exceeds the limits."""
+    """Replay the demo; exit status 3 when no re-plan was committed or the commanded motion collides or
+    exceeds the limits."""
     from ..commands.replay import run_replay
 
     cfg = pipeline_config(args)
@@ -60,10 +61,12 @@ def cmd_replay(args: argparse.Namespace) -> int:
     )
     if outcome.passed:
         return 0
+    from ..outputs.replay_report import failure_reason
+
     written = "written marked as failing" if "trajectory_csv" in outcome.files else "not written"
     print_error(
         "replay",
-        f"the commanded motion failed its checks ({outcome.score.collisions} samples in collision, "
-        f"max limit ratio {outcome.score.max_limit_ratio:.3f}); trajectory {written}",
+        f"the commanded motion failed its checks: {failure_reason(outcome.result, outcome.score)}; "
+        f"trajectory {written}",
     )
     return EXIT_CHECKS_FAILED

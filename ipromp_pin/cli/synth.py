@@ -11,14 +11,19 @@ from .arguments import bounded
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     """Add the ``synth`` command to ``subparsers``."""
     p = subparsers.add_parser("synth", help="write the built-in synthetic demos in the native format")
-    p.add_argument("out", type=Path)
+    p.add_argument("out", type=Path, help="folder to write the dataset into: one sub-folder per task")
     p.add_argument(
         "--tasks", type=bounded(int, 1, 20), default=3, help="number of tasks, 1-20 (default %(default)s)"
     )
     p.add_argument(
         "--demos", type=bounded(int, 2, 1000), default=20, help="demos per task, 2-1000 (default %(default)s)"
     )
-    p.add_argument("--seed", type=bounded(int, 0), default=0)
+    p.add_argument(
+        "--seed",
+        type=bounded(int, 0, 2**32 - 1),
+        default=0,
+        help="seed of the random generator: the same seed writes the same demos (default %(default)s)",
+    )
     p.add_argument("--csv", action="store_true", help="write .csv files (one row per sample) instead of .npz")
     p.set_defaults(func=cmd_synth)
 

@@ -27,6 +27,7 @@ from typing import Any, ClassVar, Generic, TypeVar
 
 from ..data import ROBOT
 from ..exceptions import PipelineError
+from ..inputs import load_toml
 from ..shipped import DEFAULT_ROBOT, PIPELINES_DIR
 
 RATE_RANGE_HZ = (1.0, 1000.0)
@@ -333,7 +334,7 @@ def _read_toml(path: Path) -> dict[str, Any]:
     if path.is_dir():
         raise PipelineError(f"{path}: is a folder, not a pipeline file (e.g. pipelines/baxter_handover.toml)")
     try:
-        return tomllib.loads(path.read_text(encoding="utf-8"))
+        return load_toml(path, "pipeline", lambda problem: PipelineError(f"{path}: {problem}"))
     except FileNotFoundError:
         known = ", ".join(sorted(f.stem for f in PIPELINES_DIR.glob("*.toml"))) or "none"
         raise PipelineError(f"{path}: pipeline file not found (shipped pipelines: {known})") from None

@@ -29,6 +29,7 @@ from ..evaluation.splits import check_dataset_size
 from ..evaluation.tables import (
     closed_loop_markdown,
     overall,
+    paper_comparison,
     to_markdown,
     write_closed_loop_results,
     write_results,
@@ -216,8 +217,8 @@ def report(request: EvaluateRequest, cells: list[Cell], seconds: float) -> None:
                 title=f"Recognition accuracy: {request.dataset.name}",
             )
         for key, o in overall(cells).items():
-            paper = f" (paper {o['paper_mean_accuracy']:.3f})" if "paper_mean_accuracy" in o else ""
-            request.log(f"{key}: mean accuracy {o['mean_accuracy']:.3f}{paper}")
+            paper = f"; {paper_comparison(o)}" if "paper_mean_accuracy" in o else ""
+            request.log(f"{key}: mean accuracy {o['mean_accuracy']:.3f} over {o['cells']} cells{paper}")
     if request.json:
         request.log(f"wrote {request.json}" + (f" and {md}" if md else ""))
 

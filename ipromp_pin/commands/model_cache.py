@@ -14,8 +14,16 @@ SHA-256 over everything the fit reads:
 * the forward kinematics given to ``fit`` (a callable cannot be hashed: its outputs at the demos'
   final configurations and at fixed probe configurations are).
 
-A missing, unreadable, corrupt or stale entry is a miss (the model is trained and the entry
-rewritten); a read-only cache folder only means nothing is written. At most :data:`MAX_ENTRIES`
+Each entry ``<key>.npz`` has a sidecar ``<key>.json`` holding the key it was stored under and the
+SHA-256 of the model file. Before a cached model is used it is verified against what it claims
+(:func:`verify_entry`): the sidecar's key is the file's name, the file's digest is the sidecar's,
+its parameters are the estimator's (values, not only names) and its provenance (``trained_on``, one
+record per training demo) names exactly the training demos (task, name, source). A model file
+copied over an entry (trained on other demos, or by other settings) therefore fails, and is
+rebuilt with one line saying why.
+
+A missing, unreadable, corrupt, stale or unverified entry is a miss (the model is trained and the
+entry rewritten); a read-only cache folder only means nothing is written. At most :data:`MAX_ENTRIES`
 models are kept (the least recently used are removed).
 """
 
@@ -29,6 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import atomic
 from ..cache import cache_dir
 from ..data import Demo
 from ..exceptions import IPrompPinError
@@ -36,7 +45,7 @@ from ..promp import IProMP
 from ..promp.serialization import FORMAT_VERSION
 from ..version import __version__
 
-__all__ = ["CACHE_VERSION", "MAX_ENTRIES", "fit_cached", "training_key"]
+__all__ = ["CACHE_VERSION", "MAX_ENTRIES", "fit_cached", "training_key", "verify_entry"]
 
 CACHE_VERSION = 1
 """Version of the cache's key and layout (part of the key)."""
@@ -112,13 +121,54 @@ def training_key(
 
 
 def _prune(folder: Path, keep: int) -> None:
-    """Remove all but the ``keep`` most recently used model files of ``folder`` (errors ignored)."""
+    """Remove all but the ``keep`` most recently used model files of ``folder`` and their sidecars
+    (errors ignored)."""
     try:
         entries = sorted(folder.glob("*.npz"), key=lambda p: p.stat().st_mtime, reverse=True)
         for path in entries[keep:]:
             path.unlink()
+            path.with_suffix(".json").unlink(missing_ok=True)
     except OSError:
         pass
+
+
+def _file_digest(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def _write_sidecar(path: Path, key: str) -> None:
+    """Write ``<key>.json`` beside the entry: the key and the model file's SHA-256."""
+    doc = {"cache": CACHE_VERSION, "key": key, "sha256": _file_digest(path)}
+    atomic.write_text(path.with_suffix(".json"), json.dumps(doc))
+
+
+def verify_entry(path: Path, key: str, model: IProMP, cached: IProMP, demos: Sequence[Demo]) -> str:
+    """Why the cached model at ``path`` (stored under ``key``) must not be used for ``model.fit(demos)``,
+    or "" when it is what it claims: its sidecar names ``key`` and the file's digest, its parameters
+    are ``model``'s and its provenance is exactly ``demos`` (by task, name and source)."""
+    try:
+        side = json.loads(path.with_suffix(".json").read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return "it has no readable record of the key it was stored under"
+    if not isinstance(side, dict) or side.get("key") != key:
+        return "its record names another key"
+    if side.get("sha256") != _file_digest(path):
+        return "the file is not the one stored under its key (its digest differs)"
+
+    def canonical(params: dict) -> str:  # tuples and lists alike (a loaded model holds lists)
+        return json.dumps(params, sort_keys=True, default=repr)
+
+    if canonical(model.get_params()) != canonical(cached.get_params()):
+        return "it was trained with other settings"
+    records = cached.trained_on_
+    if records is None:
+        return "it does not record the demos it was trained on"
+    # by task, name and source: the content is bound by the key and the file digest above, and
+    # hashing every demo's content again would cost about 10 ms for 60 demos
+    want = sorted((d.task, d.name, str(d.source)) for d in demos)
+    if sorted((r.task, r.name, r.source) for r in records) != want:
+        return f"it was trained on other demos ({len(records)}, not these {len(want)})"
+    return ""
 
 
 def fit_cached(
@@ -126,6 +176,7 @@ def fit_cached(
     demos: Sequence[Demo],
     fk: Callable[[np.ndarray], np.ndarray] | None = None,
     folder: Path | None = None,
+    log: Callable[[str], None] | None = None,
 ) -> tuple[IProMP, Path | None]:
     """``model.fit(demos, fk=fk)``, or the identical model trained earlier and kept in the cache.
 
@@ -135,6 +186,7 @@ def fit_cached(
         fk: Forward kinematics given to ``fit`` (joint angles (n, J) in [rad] -> positions (n, 3) in
             [m]), or None.
         folder: The cache folder (default ``cache_dir("models")``).
+        log: Where the one line about an entry that failed its verification goes (None: nowhere).
 
     Returns:
         The fitted model and the cache file it was read from (None when it was trained here).
@@ -142,22 +194,26 @@ def fit_cached(
     folder = cache_dir("models") if folder is None else folder
     key = training_key(model, demos, fk)
     path = None if key is None else folder / f"{key}.npz"
-    if path is not None and path.is_file():
+    if path is not None and key is not None and path.is_file():
         try:
             cached = IProMP.load(path)
         except (IPrompPinError, OSError, ValueError, KeyError):
             cached = None
-        if cached is not None and cached.get_params().keys() == model.get_params().keys():
+        why = "it cannot be read" if cached is None else verify_entry(path, key, model, cached, demos)
+        if cached is not None and not why:
             try:
                 os.utime(path)  # last use, for pruning
             except OSError:
                 pass
             return cached, path
+        if log is not None:
+            log(f"[model] the cached model {path} is not used ({why}): training again and replacing it")
     model.fit(list(demos), fk=fk)
-    if path is not None:
+    if path is not None and key is not None:
         try:
             folder.mkdir(parents=True, exist_ok=True)
             model.save(path)  # atomic: readers never see a partial file
+            _write_sidecar(path, key)
         except (IPrompPinError, OSError):
             return model, None  # a cache that cannot be written is not used
         _prune(folder, MAX_ENTRIES)

@@ -4,7 +4,9 @@
   "recognise" one of its own tasks, often with a posterior near 1);
 * a demo to observe that was in the model's training set (the result is then no test of the
   model), or a model file that does not record its training set;
-* a model with a single task (every observation is recognised as it, at posterior 1).
+* a model with a single task (every observation is recognised as it, at posterior 1);
+* an observation far outside everything the model was trained on, in the model's own scaled units
+  (EMG in other units, another sensor): it is still "recognised", often at posterior 1.
 
 The checks are pure functions returning messages; :func:`warn_stderr` prints one the way the
 command line does (``warning: ...``, no traceback).
@@ -14,6 +16,8 @@ from __future__ import annotations
 
 import sys
 
+import numpy as np
+
 from ..data import Dataset, Demo
 from ..promp import IProMP
 from ..promp.provenance import find_in_training
@@ -22,6 +26,41 @@ from ..promp.provenance import find_in_training
 def warn_stderr(message: str) -> None:
     """Print ``warning: <message>`` as one line on standard error."""
     print(f"warning: {message}", file=sys.stderr, flush=True)
+
+
+RANGE_WARNING_SD = 4.0
+"""An observed group is far outside the training data when the median over its samples of the
+root-mean-square of its scaled channels (training data: mean 0, standard deviation 1 per channel)
+exceeds this. Basis: the synthetic demos' groups lie at 0.4-2.0; EMG scaled by 0.1 reaches 5.8, by
+0.001 9.6, a quaternion of the other sign 28."""
+
+
+def group_distance_sd(model: IProMP, group: str, values: np.ndarray) -> float:
+    """How far the raw values (n, D_g) of an observed group lie from the training data: the median
+    over the samples of the RMS of its scaled channels, in standard deviations (NaN samples ignored)."""
+    lo, hi = model.group_slices_[group]
+    with np.errstate(all="ignore"):
+        z = model.scaler_.transform(np.asarray(values, dtype=float), slice(lo, hi))
+        rms = np.sqrt(np.nanmean(z**2, axis=1))
+    rms = rms[np.isfinite(rms)]
+    return float(np.median(rms)) if rms.size else 0.0
+
+
+def range_warnings(model: IProMP, observation: Demo) -> list[str]:
+    """A warning per observed group of ``observation`` that lies far outside the training data
+    (:data:`RANGE_WARNING_SD`), naming the group and how far out it is."""
+    out = []
+    for g in model.observe_:
+        if g not in observation.groups:
+            continue
+        d = group_distance_sd(model, g, observation.groups[g])
+        if d > RANGE_WARNING_SD:
+            out.append(
+                f"the observed '{g}' lies {d:.1f} standard deviations from the model's training data "
+                f"(median over its samples; the training data lie within about 2): in other units, from "
+                "another sensor or of another sign? The recognition and prediction are then unreliable"
+            )
+    return out
 
 
 def single_task_warning(model: IProMP) -> str | None:

@@ -16,6 +16,7 @@ from ..outputs.figures import write_plots
 from ..outputs.files import RUN, command_outputs, keyed, trajectory_outputs
 from ..outputs.preview_content import preview_content
 from ..outputs.report import report_dict, report_text, summary_text
+from ..outputs.rosbag import check_bag_paths
 from ..outputs.staging import OutputOptions, stage_plan, stage_report
 from ..preview import render_html
 from .config import PipelineConfig
@@ -47,6 +48,7 @@ def run_pipeline(
     """
     t_start = time.perf_counter()
     check_outputs(cfg)
+    check_bag_paths(cfg.out_dir)  # never replace or remove a user's own file named rosbag / run.bag
     session = prepare_session(cfg, log, warn, prefetch_meshes=cfg.preview_html)
     robot, observation = session.robot, session.observed()
     result = plan(

@@ -19,8 +19,8 @@ import numpy as np
 
 from .. import atomic
 from ..checks import CheckContext, MotionCheck, build_checks
-from ..data import Dataset, Demo, skeleton_frames
-from ..exceptions import PipelineError
+from ..data import ROBOT, Dataset, Demo, skeleton_frames
+from ..exceptions import DataError, PipelineError
 from ..handover.one_shot import LogFn, check_model_joints
 from ..promp import IProMP
 from ..readers import load_dataset
@@ -29,7 +29,7 @@ from ..robot import Robot, ee_positions, load_robot
 from .config import PipelineConfig
 from .meshes import start_mesh_prefetch
 from .model_cache import fit_cached
-from .model_warnings import loaded_model_warnings, single_task_warning, warn_stderr
+from .model_warnings import loaded_model_warnings, range_warnings, single_task_warning, warn_stderr
 
 
 @dataclass
@@ -105,6 +105,10 @@ def prepare_session(
     checks = checks or SetupChecks()
     robot = robot if robot is not None else load_robot(cfg.robot)
     ds = load_data(cfg, log, robot)
+    if cfg.load_model is None:  # before training: a robot the demos were not recorded on cannot plan
+        check_recorded_joints(
+            ds, robot, "the built-in synthetic demos" if cfg.dataset is None else str(cfg.dataset)
+        )
     demo = choose_demo(ds, cfg)
     checks.check_demo(demo)
     prefetch = start_mesh_prefetch(robot) if prefetch_meshes else None
@@ -142,6 +146,26 @@ def check_outputs(cfg: PipelineConfig) -> None:
         atomic.check_output_file(cfg.save_model, "model file")
 
 
+def robot_data_hint(robot: Robot) -> str:
+    """What a robot whose joints the demos do not record needs (one clause)."""
+    return (
+        f"robot '{robot.settings.name}' needs demonstrations recorded with its own joints "
+        f"({', '.join(robot.settings.recorded_arm_joints)}); the built-in synthetic demos and the shipped "
+        "recordings are Baxter's left arm (use --robot baxter_left, or a dataset recorded on this robot)"
+    )
+
+
+def check_recorded_joints(ds: Dataset, robot: Robot, what: str) -> None:
+    """Refuse, before training, demos whose robot group does not record the robot's arm joints."""
+    want = tuple(robot.settings.recorded_arm_joints)
+    for d in ds.all_demos():
+        have = tuple(d.channel_names.get(ROBOT, ()))
+        if have != want:
+            raise PipelineError(
+                f"{what}: the demos record joints {', '.join(have) or '(none)'}: {robot_data_hint(robot)}"
+            )
+
+
 def load_data(cfg: PipelineConfig, log: LogFn = print, robot: Robot | None = None) -> Dataset:
     """The dataset of ``cfg``: real recordings, or the built-in synthetic demos.
 
@@ -154,7 +178,20 @@ def load_data(cfg: PipelineConfig, log: LogFn = print, robot: Robot | None = Non
     robot = robot if robot is not None else load_robot(cfg.robot)
     log(f"[data] reading {cfg.dataset} (format {cfg.format})")
     frames = skeleton_frames([*cfg.frames, *cfg.observe])
-    ds = load_dataset(
+    try:
+        ds = read_robot_dataset(cfg, robot, frames)
+    except DataError as exc:
+        if exc.field in robot.settings.recorded_arm_joints and exc.problem.startswith("unknown joint name"):
+            raise PipelineError(f"{exc}: {robot_data_hint(robot)}") from None
+        raise
+    log(f"[data] {len(ds.all_demos())} demos of tasks {', '.join(ds.tasks)}")
+    return ds
+
+
+def read_robot_dataset(cfg: PipelineConfig, robot: Robot, frames: list[str]) -> Dataset:
+    """The recordings of ``cfg.dataset`` with ``robot``'s joints, limits and kinematics."""
+    assert cfg.dataset is not None  # the synthetic demos are made, not read
+    return load_dataset(
         cfg.dataset,
         format=cfg.format,
         frames=frames or None,
@@ -163,8 +200,6 @@ def load_data(cfg: PipelineConfig, log: LogFn = print, robot: Robot | None = Non
         joint_limits=robot.recorded_joint_limits(),
         end_effector=lambda q: ee_positions(robot, q),
     )
-    log(f"[data] {len(ds.all_demos())} demos of tasks {', '.join(ds.tasks)}")
-    return ds
 
 
 def choose_demo(ds: Dataset, cfg: PipelineConfig) -> Demo:
@@ -209,7 +244,7 @@ def get_model(
     fk = None if robot is None else partial(ee_positions, robot)
     what = f"{len(train)} demos ({', '.join(cfg.observe)} + robot)"
     if cfg.model_cache:
-        model, cached = fit_cached(IProMP(observe=cfg.observe), train, fk)
+        model, cached = fit_cached(IProMP(observe=cfg.observe), train, fk, log=log)
     else:
         model, cached = IProMP(observe=cfg.observe).fit(train, fk=fk), None
     if cached is not None:
@@ -233,8 +268,9 @@ def hand_at_handover(demo: Demo) -> np.ndarray | None:
 
 def model_warnings(cfg: PipelineConfig, ds: Dataset, demo: Demo, model: IProMP) -> list[str]:
     """Warnings about the model: a loaded one that does not match the data or was trained on ``demo``,
-    or a single-task one."""
+    a single-task one, or a ``demo`` far outside the training data."""
+    observed = range_warnings(model, demo)
     if cfg.load_model is not None:
-        return loaded_model_warnings(model, ds, demo, str(cfg.load_model))
+        return loaded_model_warnings(model, ds, demo, str(cfg.load_model)) + observed
     single = single_task_warning(model)
-    return [] if single is None else [single]
+    return ([] if single is None else [single]) + observed

@@ -8,7 +8,8 @@ from the training demonstrations.
   |acceleration| and |jerk| (Savitzky-Golay derivatives of the recorded joint angles over a window of
   :attr:`~ipromp_pin.robot.DemoLimitRecipe.window_s`), never above the URDF's velocity limits and
   never below the conservative acceleration and jerk limits. It is derived from the demonstrations
-  the model is trained on (never from a test demo), so it differs between training sets; the
+  the model is trained on (never from a test demo), and at most :data:`PROFILE_CEILING_FACTOR` times
+  the conservative accelerations and jerks, so it differs between training sets; the
   settings file's
   ``[limits.demonstrated]`` table holds the recipe (percentile and window,
   :class:`~ipromp_pin.robot.DemoLimitRecipe`).
@@ -30,11 +31,20 @@ from scipy.signal import savgol_filter
 
 from ..data import ROBOT, Demo
 from ..exceptions import PipelineError
+from ..inputs import load_toml
 from ..robot import DemoLimitRecipe, Robot
+from ..robot.settings import PLAUSIBLE_RANGES
 from .trajectory import JointLimits
 
 PROFILE_NAMES = ("conservative", "demonstrated")
 """Built-in limit profiles (anything else is read as a profile file)."""
+
+PROFILE_CEILING_FACTOR = 20.0
+"""A profile's accelerations and jerks are at most this multiple of the settings' (conservative)
+ones: Baxter 20 rad/s^2 and 200 rad/s^3. Basis: the demonstrated profiles of the real recordings
+reach 5.4 rad/s^2 and 81 rad/s^3 (``chen2017_handover``, 90th percentile of 99 demos; 4.4 and 59 for
+``handover_20171128``), so the ceiling leaves them a factor 2.5 or more; a profile above it would
+command what the arm was never shown to do (and the report would call it within limits)."""
 
 
 @dataclass(frozen=True)
@@ -131,8 +141,10 @@ def demonstrated_profile(
         lower_rad=base.lower_rad,
         upper_rad=base.upper_rad,
         velocity_rad_s=np.minimum(p[0], robot.velocity_rad_s),
-        acceleration_rad_s2=np.maximum(p[1], base.acceleration_rad_s2),
-        jerk_rad_s3=np.maximum(p[2], base.jerk_rad_s3),
+        acceleration_rad_s2=np.clip(
+            p[1], base.acceleration_rad_s2, base.acceleration_rad_s2 * PROFILE_CEILING_FACTOR
+        ),
+        jerk_rad_s3=np.clip(p[2], base.jerk_rad_s3, base.jerk_rad_s3 * PROFILE_CEILING_FACTOR),
         joint_names=base.joint_names,
     )
     what = f"{peaks.shape[0]} training demos" + (f" of {label}" if label else "")
@@ -160,12 +172,33 @@ def _vector(doc: dict, key: str, n: int, path: Path) -> np.ndarray:
         raise PipelineError(
             f"{path}: field '{key}': value {arr[bad][0]} is not positive and finite (values: {arr.tolist()})"
         )
+    lo, hi = PLAUSIBLE_RANGES[f"limits.{key}"]
+    bad = (arr < lo) | (arr > hi)
+    if np.any(bad):
+        raise PipelineError(
+            f"{path}: field '{key}': implausible value {arr[bad][0]:g} (plausible range [{lo:g}, {hi:g}], "
+            f"as for the robot settings; values: {arr.tolist()})"
+        )
     return arr
+
+
+def check_ceiling(values: np.ndarray, settings: np.ndarray, robot: Robot, path: Path, key: str) -> None:
+    """Refuse a profile's ``values`` (J,) above :data:`PROFILE_CEILING_FACTOR` times the settings'."""
+    over = values > settings * PROFILE_CEILING_FACTOR * (1 + 1e-9)
+    if np.any(over):
+        j = int(np.argmax(over))
+        raise PipelineError(
+            f"{path}: field '{key}': {values[j]:g} for {robot.joint_names[j]} is above what the robot "
+            f"settings allow ({PROFILE_CEILING_FACTOR:g} x {settings[j]:g} from {robot.settings.path.name} "
+            "[limits])"
+        )
 
 
 def read_limit_profile(path: str | Path, robot: Robot) -> LimitProfile:
     """Read a profile file: ``velocity_rad_s``, ``acceleration_rad_s2``, ``jerk_rad_s3`` (a number or
-    one per arm joint, positive and finite; velocities at most the URDF's), optional ``name`` and
+    one per arm joint, positive and finite, within the settings' plausible ranges
+    (:data:`~ipromp_pin.robot.settings.PLAUSIBLE_RANGES`); velocities at most the URDF's, accelerations
+    and jerks at most :data:`PROFILE_CEILING_FACTOR` times the settings'), optional ``name`` and
     ``source``.
 
     Raises:
@@ -174,7 +207,7 @@ def read_limit_profile(path: str | Path, robot: Robot) -> LimitProfile:
     """
     path = Path(path)
     try:
-        doc = tomllib.loads(path.read_text(encoding="utf-8"))
+        doc = load_toml(path, "limit profile", lambda problem: PipelineError(f"{path}: {problem}"))
     except FileNotFoundError:
         raise PipelineError(
             f"{path}: limit profile not found (use {' or '.join(PROFILE_NAMES)}, or a profile file)"
@@ -197,6 +230,8 @@ def read_limit_profile(path: str | Path, robot: Robot) -> LimitProfile:
     acc = _vector(doc, "acceleration_rad_s2", n, path)
     jerk = _vector(doc, "jerk_rad_s3", n, path)
     base = JointLimits.from_robot(robot)
+    check_ceiling(acc, base.acceleration_rad_s2, robot, path, "acceleration_rad_s2")
+    check_ceiling(jerk, base.jerk_rad_s3, robot, path, "jerk_rad_s3")
     name = str(doc.get("name", path.stem))
     source = str(doc.get("source", f"profile file {path.name}"))
     limits = JointLimits(base.lower_rad, base.upper_rad, vel, acc, jerk, base.joint_names)

@@ -16,6 +16,7 @@ from ..handover.score import ClosedLoopScore
 from ..preview import PreviewContent
 from ..preview.timeline import TimelineEvent, render_timeline_html
 from ..robot import Robot, ee_positions
+from .report import arrival_line
 
 
 def preview_content(
@@ -64,6 +65,7 @@ def preview_content(
         collision_links=collision_links,
         near_limit_joints=near_limit,
         title=f"ipromp_pin: {p.task}" + ("" if demo is None else f" ({demo.task}/{demo.name})"),
+        notes=[arrival_line(result)],
     )
 
 
@@ -133,6 +135,9 @@ def replay_preview_html(
             ("collisions", score.collisions == 0, f"{score.collisions} commanded samples in contact"),
         ],
         title=f"ipromp_pin replay: {demo.task}/{demo.name}",
+        timebase=f"Times are on the human's motion ({score.handover_time_s:.2f} s recorded, t = 0 at its "
+        f"start); the robot starts at {result.start_s:.2f} s and comes to rest at {score.rest_s:.2f} s",
+        label_prefix="final task: ",
     )
     summary = [
         f"Hand-over error {score.handover_error_cm:.1f} cm at the recorded hand-over time "

@@ -84,6 +84,8 @@ def report_dict(
             "demo": {"task": demo.task, "name": demo.name, "source": demo.source},
             "warnings": list(warnings or []),
             "passed": replay_passed(score),
+            "failures": replay_failures(score) or [],
+            "failure_reason": failure_reason(result, score),
             "model": None
             if model is None
             else {"observe": list(model.observe_), "noise_ratio": float(model.noise_ratio_)},
@@ -141,6 +143,8 @@ def report_text(
         "Limits: max ratio velocity {:.3f}, acceleration {:.3f}, jerk {:.3f}; position excess {:.1e} rad; "
         "collisions {}".format(*score.limit_ratios, score.position_excess_rad, score.collisions),
     ]
+    if not replay_passed(score):
+        lines.append(f"FAILED: {failure_reason(result, score)}")
     if result.stopped:
         lines.append(f"Re-planning stopped: {result.stopped}")
     refused = [r for r in result.replans if not r.committed]
@@ -169,24 +173,48 @@ def summary_lines(demo: Demo, result: ClosedLoopResult, score: ClosedLoopScore, 
 
 
 def replay_passed(score: ClosedLoopScore) -> bool:
-    """Whether the commanded trajectory is safe to execute: no commanded sample in collision and every
-    velocity, acceleration and jerk within the limit profile at every control sample."""
-    return score.collisions == 0 and score.max_limit_ratio <= 1.0 + LIMIT_TOLERANCE
+    """Whether the commanded trajectory did what it is for and is safe to execute: at least one re-plan
+    was committed (else the robot never moved towards a hand-over), no commanded sample in collision
+    and every velocity, acceleration and jerk within the limit profile at every control sample."""
+    return replay_failures(score) is None
 
 
 def replay_failures(score: ClosedLoopScore) -> list[str] | None:
     """None when the commanded trajectory passed (:func:`replay_passed`), else what failed:
-    ``collisions`` and/or ``limits``."""
-    if replay_passed(score):
-        return None
-    return [
+    ``no_committed_replan``, ``collisions`` and/or ``limits``."""
+    failed = [
         name
         for name, bad in (
+            ("no_committed_replan", score.replans - score.refused_replans <= 0),
             ("collisions", score.collisions > 0),
             ("limits", score.max_limit_ratio > 1.0 + LIMIT_TOLERANCE),
         )
         if bad
     ]
+    return failed or None
+
+
+def failure_reason(result: ClosedLoopResult, score: ClosedLoopScore) -> str:
+    """Why the replay did not pass, in one line ("" when it passed): every failed check, and for a
+    replay without a committed re-plan, why its re-plans were refused (counts by reason)."""
+    parts = []
+    for name in replay_failures(score) or []:
+        if name == "no_committed_replan":
+            counts: dict[str, int] = {}
+            for r in result.replans:
+                counts[r.reason.split(":")[0]] = counts.get(r.reason.split(":")[0], 0) + 1
+            why = ", ".join(f"{k} {v}" for k, v in counts.items()) or "no re-plan was made"
+            first = next((r.reason for r in result.replans if r.reason), "")
+            parts.append(
+                f"no re-plan was committed ({score.refused_replans} refused: {why}"
+                + (f"; first: {first}" if first else "")
+                + "), the robot never moved towards the hand-over"
+            )
+        elif name == "collisions":
+            parts.append(f"{score.collisions} commanded samples in collision")
+        else:
+            parts.append(f"max limit ratio {score.max_limit_ratio:.3f} above 1")
+    return "; ".join(parts)
 
 
 def replans_text(result: ClosedLoopResult, demo: Demo) -> str:

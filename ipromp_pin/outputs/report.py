@@ -18,6 +18,34 @@ REPORT_VERSION = 1
 """Value of ``report.json``'s ``version`` field."""
 
 
+def arrival(result: PlanResult) -> dict[str, float]:
+    """When the human and the robot reach the hand-over, in [s] from the start of the human's motion:
+    ``human_s`` the predicted end of the human's motion (the model's hand-over time), ``robot_start_s``
+    when the robot starts (the end of the observation, when the plan is published: the bags' stamp),
+    ``robot_s`` when it comes to rest at the hand-over (start + trajectory duration) and ``delay_s``
+    = robot minus human (positive: the robot arrives after the human, who waits)."""
+    p = result.prediction
+    start = float(p.observed_until_s)
+    robot = start + float(result.trajectory.duration_s)
+    return {
+        "human_s": float(p.duration_s),
+        "robot_start_s": start,
+        "robot_s": robot,
+        "delay_s": robot - float(p.duration_s),
+    }
+
+
+def arrival_line(result: PlanResult) -> str:
+    """The arrival in one line (:func:`arrival`), for ``report.txt``, the summary and the preview."""
+    a = arrival(result)
+    when = "after" if a["delay_s"] >= 0 else "before"
+    return (
+        f"Arrival (from the start of the human's motion): human {a['human_s']:.2f} s (predicted), robot "
+        f"{a['robot_s']:.2f} s (starts at {a['robot_start_s']:.2f} s, at rest at the hand-over): "
+        f"{abs(a['delay_s']):.2f} s {when} the human"
+    )
+
+
 def report_dict(
     result: PlanResult, observation: Demo | None = None, warnings: list[str] | None = None
 ) -> dict:
@@ -32,6 +60,7 @@ def report_dict(
         "alpha": {t: float(v) for t, v in zip(p.tasks, p.alpha, strict=True)},
         "predicted_duration_s": float(p.duration_s),
         "observed_until_s": float(p.observed_until_s),
+        "arrival": arrival(result),
         "observation": None
         if observation is None
         else {"task": observation.task, "demo": observation.name, "source": observation.source},
@@ -59,6 +88,7 @@ def report_text(
         f"Predicted duration of the human's motion: {p.duration_s:.2f} s "
         f"(observed {p.observed_until_s:.2f} s)"
     )
+    lines.append(arrival_line(result))
     lines.append(
         f"Times in the checks are on the robot trajectory ({result.trajectory.duration_s:.2f} s, t = 0 at "
         "its start)"
@@ -82,6 +112,7 @@ def summary_text(result: PlanResult, files: dict[str, Path], elapsed_s: float) -
         f"Hand-over pose: position ({pose[0]:.3f}, {pose[1]:.3f}, {pose[2]:.3f}) m, "
         f"quaternion xyzw ({pose[3]:.3f}, {pose[4]:.3f}, {pose[5]:.3f}, {pose[6]:.3f})",
         f"Checks: {'PASS' if r.passed else 'FAIL'} ({checks})",
+        arrival_line(result),
         f"Trajectory: {tr.t_s[-1]:.2f} s, {len(tr.t_s)} samples; online stages "
         + ", ".join(f"{k} {v:.1f} ms" for k, v in result.stage_ms.items()),
         "Files: " + ", ".join(str(f) for f in files.values()),

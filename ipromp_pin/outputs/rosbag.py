@@ -8,6 +8,10 @@ Topics (names of human groups are made ROS-safe by :func:`human_topic`); the mes
 group or extra is the one of its channel-group specification
 (:func:`ipromp_pin.signals.groups.group_spec`):
 
+* ``/ipromp_pin/checks``, ``std_msgs/msg/String``: ``passed``, or ``checks FAILED (...)`` for a
+  trajectory written because of ``--allow-failing-checks``, whose three robot topics below are then
+  under ``/ipromp_pin/failed_checks/`` instead of ``/ipromp_pin/`` (a controller listening on the
+  normal topics never receives it; rosbag2 custom data ``ipromp_pin.checks`` says the same);
 * ``/ipromp_pin/planned_trajectory``, ``trajectory_msgs/msg/JointTrajectory``: the timed,
   jerk-limited trajectory (one message, at the plan time);
 * ``/ipromp_pin/joint_states``, ``sensor_msgs/msg/JointState``: the robot's planned joint states
@@ -62,10 +66,19 @@ TOPIC_TRAJECTORY = f"{TOPIC_PREFIX}/planned_trajectory"
 TOPIC_JOINT_STATES = f"{TOPIC_PREFIX}/joint_states"
 TOPIC_HANDOVER_POSE = f"{TOPIC_PREFIX}/handover_pose"
 TOPIC_HUMAN = f"{TOPIC_PREFIX}/human"
+TOPIC_CHECKS = f"{TOPIC_PREFIX}/checks"
+FAILED_PREFIX = f"{TOPIC_PREFIX}/failed_checks"
+"""Prefix of the robot's topics in a bag whose trajectory failed its checks (written only with
+``--allow-failing-checks``): ``/ipromp_pin/failed_checks/planned_trajectory`` and so on, so that a
+controller subscribed to the normal topics never receives it."""
+
+BAG_FILE_STEM = "rosbag"
+"""The committed rosbag2 folder's MCAP file is ``rosbag.mcap`` (a plain, visible name)."""
 
 JOINT_TRAJECTORY = "trajectory_msgs/msg/JointTrajectory"
 JOINT_STATE = "sensor_msgs/msg/JointState"
 POSE_STAMPED = "geometry_msgs/msg/PoseStamped"
+STRING = "std_msgs/msg/String"
 
 ROSBAG2_VERSION: Literal[8, 9] = 8
 """rosbag2 metadata version written (8: read by ROS 2 Humble and later)."""
@@ -84,6 +97,9 @@ class BagContent:
         base_frame: The robot's base frame (``frame_id`` of the pose and of positions).
         observation: The observed human channels (times in [s] from the start of the motion), or None.
         start_time_ns: Stamp of the start of the human's motion in [ns].
+        failures: None when the trajectory passed its checks, else the failed checks: the robot's
+            topics then go under :data:`FAILED_PREFIX` and a ``std_msgs/String`` on
+            :data:`TOPIC_CHECKS` (and the rosbag2 custom data ``ipromp_pin.checks``) says so.
     """
 
     trajectory: Trajectory
@@ -92,6 +108,22 @@ class BagContent:
     base_frame: str = "base"
     observation: Demo | None = None
     start_time_ns: int = 0
+    failures: tuple[str, ...] | None = None
+
+
+def robot_topic(topic: str, content: BagContent) -> str:
+    """The topic a robot message of ``content`` goes on: ``topic``, or under :data:`FAILED_PREFIX`
+    when the trajectory failed its checks."""
+    if content.failures is None:
+        return topic
+    return FAILED_PREFIX + topic[len(TOPIC_PREFIX) :]
+
+
+def checks_text(content: BagContent) -> str:
+    """The ``/ipromp_pin/checks`` message: whether the trajectory passed and what failed."""
+    if content.failures is None:
+        return "passed"
+    return f"checks FAILED ({', '.join(content.failures)}); written because of --allow-failing-checks"
 
 
 @dataclass(frozen=True)
@@ -239,18 +271,16 @@ def bag_messages(content: BagContent, ros1: bool = False) -> list[BagMessage]:
     out: list[BagMessage] = []
     if content.observation is not None:
         out.extend(_human_messages(b, content.observation, start, content.base_frame))
-    out.append(BagMessage(TOPIC_TRAJECTORY, JOINT_TRAJECTORY, plan_ns, b.joint_trajectory(traj, plan_ns)))
+    out.append(BagMessage(TOPIC_CHECKS, STRING, start, b.t[STRING](data=checks_text(content))))
+    topics = [robot_topic(t, content) for t in (TOPIC_TRAJECTORY, TOPIC_HANDOVER_POSE, TOPIC_JOINT_STATES)]
+    out.append(BagMessage(topics[0], JOINT_TRAJECTORY, plan_ns, b.joint_trajectory(traj, plan_ns)))
     out.append(
-        BagMessage(
-            TOPIC_HANDOVER_POSE, POSE_STAMPED, plan_ns, b.pose_stamped(plan_ns, content.base_frame, pose)
-        )
+        BagMessage(topics[1], POSE_STAMPED, plan_ns, b.pose_stamped(plan_ns, content.base_frame, pose))
     )
     names = list(traj.joint_names)
     for k in range(traj.n_samples):
         ns = plan_ns + _ns(traj.t_s[k])
-        out.append(
-            BagMessage(TOPIC_JOINT_STATES, JOINT_STATE, ns, b.joint_state(ns, names, traj.q[k], traj.qd[k]))
-        )
+        out.append(BagMessage(topics[2], JOINT_STATE, ns, b.joint_state(ns, names, traj.q[k], traj.qd[k])))
     out.sort(key=lambda m: m.stamp_ns)
     return out
 
@@ -261,6 +291,49 @@ def _channels(content: BagContent) -> dict[str, list[str]]:
     if obs is None:
         return {}
     return {human_topic(g): list(obs.channel_names[g]) for g in obs.groups}
+
+
+def is_our_bag_folder(folder: Path) -> bool:
+    """Whether ``folder`` is a rosbag2 folder as ipromp_pin writes it: ``metadata.yaml`` and the
+    ``.mcap`` files it lists, nothing else (an empty folder counts too)."""
+    if not folder.is_dir() or folder.is_symlink():
+        return False
+    entries = list(folder.iterdir())
+    if not entries:
+        return True
+    meta = folder / "metadata.yaml"
+    if not meta.is_file() or meta.stat().st_size > 1_000_000:
+        return False
+    listed = meta.read_text(encoding="utf-8", errors="replace")
+    return all(
+        p.name == "metadata.yaml" or (p.is_file() and p.suffix == ".mcap" and p.name in listed)
+        for p in entries
+    )
+
+
+def is_our_ros1_bag(path: Path) -> bool:
+    """Whether ``path`` is a ROS 1 bag file (it starts with ``#ROSBAG V2.0``)."""
+    if not path.is_file() or path.is_symlink():
+        return False
+    with open(path, "rb") as fh:
+        return fh.read(13) == b"#ROSBAG V2.0\n"
+
+
+def check_bag_paths(out_dir: Path, rosbag_name: str = "rosbag", ros1_name: str = "run.bag") -> None:
+    """Refuse, before any computation, an output folder whose ``rosbag`` or ``run.bag`` is not a bag
+    ipromp_pin wrote (a user's own file or folder there would be replaced or removed at the commit).
+
+    Raises:
+        DataError: naming the path and what to do.
+    """
+    for path, ours in ((out_dir / rosbag_name, is_our_bag_folder), (out_dir / ros1_name, is_our_ros1_bag)):
+        if (path.exists() or path.is_symlink()) and not ours(path):
+            raise DataError(
+                path,
+                None,
+                "exists and is not a bag written by ipromp_pin (it would be replaced); move it away or "
+                "choose another output folder",
+            )
 
 
 def _clear(path: Path, is_ours: bool) -> None:
@@ -276,11 +349,13 @@ def _clear(path: Path, is_ours: bool) -> None:
         path.unlink()
 
 
-def write_rosbag2(content: BagContent, folder: str | Path) -> Path:
-    """Write ``content`` as a rosbag2 folder with MCAP storage (``metadata.yaml`` beside the ``.mcap``).
+def write_rosbag2(content: BagContent, folder: str | Path, stem: str = BAG_FILE_STEM) -> Path:
+    """Write ``content`` as a rosbag2 folder with MCAP storage: ``metadata.yaml`` beside
+    ``<stem>.mcap`` (default ``rosbag.mcap``, whatever the folder is called: a staged folder's
+    temporary name never ends up in the bag).
 
-    A folder of that name that holds a bag (only ``metadata.yaml`` and ``.mcap`` files) is replaced;
-    any other existing path raises :class:`~ipromp_pin.exceptions.DataError`.
+    A folder of that name that holds a bag (:func:`is_our_bag_folder`) is replaced; any other
+    existing path raises :class:`~ipromp_pin.exceptions.DataError`.
 
     Returns:
         The bag folder.
@@ -288,17 +363,23 @@ def write_rosbag2(content: BagContent, folder: str | Path) -> Path:
     from rosbags.rosbag2 import StoragePlugin, Writer
 
     folder = Path(folder)
-    ours = folder.is_dir() and all(p.name == "metadata.yaml" or p.suffix == ".mcap" for p in folder.iterdir())
-    _clear(folder, ours)
+    _clear(folder, is_our_bag_folder(folder))
     messages = bag_messages(content)
     b = _builder(False)
-    with Writer(folder, version=ROSBAG2_VERSION, storage_plugin=StoragePlugin.MCAP) as writer:
+    folder.mkdir(parents=True)
+    inner = folder / stem  # the writer names the MCAP file after its folder
+    with Writer(inner, version=ROSBAG2_VERSION, storage_plugin=StoragePlugin.MCAP) as writer:
         writer.set_custom_data("ipromp_pin.channels", json.dumps(_channels(content)))
+        checks = {"passed": content.failures is None, "failures": list(content.failures or [])}
+        writer.set_custom_data("ipromp_pin.checks", json.dumps(checks))
         conns = {}
         for m in messages:
             if m.topic not in conns:
                 conns[m.topic] = writer.add_connection(m.topic, m.msgtype, typestore=b.store)
             writer.write(conns[m.topic], m.stamp_ns, b.store.serialize_cdr(m.msg, m.msgtype))
+    for p in inner.iterdir():
+        p.replace(folder / p.name)
+    inner.rmdir()
     return folder
 
 

@@ -3,7 +3,9 @@
 :func:`stage_trajectory` is the one place that decides whether the files a robot executes are
 written: when the checks passed; when they failed, only with ``--allow-failing-checks``, and then
 marked as failing (a ``#`` comment line first in ``trajectory.csv``, an ``ipromp_pin_checks``
-member in ``trajectory.json``, see :mod:`ipromp_pin.outputs.trajectory_files`). Both ``run`` and
+member in ``trajectory.json``, see :mod:`ipromp_pin.outputs.trajectory_files`; in the bags, the
+robot's topics under ``/ipromp_pin/failed_checks/`` and a ``/ipromp_pin/checks`` message, see
+:mod:`ipromp_pin.outputs.rosbag`). Both ``run`` and
 ``replay`` stage their trajectory through it, and their reports through :func:`stage_report`
 (whose ``files`` lists what the folder will hold after the commit, the report itself included).
 :func:`stage_plan` stages the files of a planned hand-over (``run``, ``benchmarks/pipeline.py``).
@@ -11,6 +13,7 @@ member in ``trajectory.json``, see :mod:`ipromp_pin.outputs.trajectory_files`). 
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -80,6 +83,8 @@ def stage_trajectory(
     if failures is not None:
         comment = f"ipromp_pin: checks FAILED ({', '.join(failures)}); {ALLOWED_FAILING}"
         extra = {"ipromp_pin_checks": {"passed": False, "failures": list(failures)}}
+    if bag is not None and failures is not None:  # the bags are marked as the CSV and JSON are
+        bag = dataclasses.replace(bag, failures=tuple(failures))
     out.write_text("trajectory.csv", trajectory_csv_text(trajectory, comment))
     out.write_text("trajectory.json", trajectory_json_text(trajectory, ros=ros, extra=extra))
     if bag is not None and rosbag:

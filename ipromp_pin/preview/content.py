@@ -130,6 +130,10 @@ class PreviewContent:
         collision_links: Links (frame or geometry names) found in collision: drawn red.
         near_limit_joints: Joints near a limit: the link they move is drawn orange.
         title: Title of the page / panel.
+        notes: Lines shown in the panel below the time base (e.g. when the human and the robot arrive).
+        timebase: What the panel's times are measured on ("": the robot trajectory, t = 0 at its start).
+        label_prefix: Text before the task in the 3-D label (e.g. ``"final task: "`` for a replay,
+            whose panel follows the re-plans while the label is fixed).
     """
 
     model: pin.Model
@@ -157,6 +161,9 @@ class PreviewContent:
     collision_links: Sequence[str] = ()
     near_limit_joints: Sequence[str] = ()
     title: str = "ipromp_pin preview"
+    notes: Sequence[str] = ()
+    timebase: str = ""
+    label_prefix: str = ""
     _q_index: np.ndarray = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:

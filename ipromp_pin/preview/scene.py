@@ -348,8 +348,8 @@ def _task_label(content: PreviewContent) -> str:
         return "task: (none)"
     if content.posterior is not None and content.task in content.tasks:
         p = float(content.posterior[content.tasks.index(content.task)])
-        return f"{content.task} ({p:.2f})"
-    return content.task
+        return f"{content.label_prefix}{content.task} ({p:.2f})"
+    return content.label_prefix + content.task
 
 
 def _draw_label(viewer: meshcat.Visualizer, content: PreviewContent, robot: RobotView) -> None:
@@ -417,6 +417,8 @@ def overlay_state(content: PreviewContent) -> dict[str, Any]:
         "posterior": posterior,
         "observed": observed,
         "robot_duration_s": content.duration_s,
+        "timebase": content.timebase,
+        "notes": [str(n) for n in content.notes],
         "feasibility": [
             {
                 "name": c.name,

@@ -8,12 +8,14 @@ with gaps gets its own part (groups with identical gaps share one).
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..data import Demo
 from ..exceptions import DataError, ObservationError
+from ..signals.groups import group_spec
 from .compiled import kernels
 from .distribution import ChannelScaler
 from .layout import ChannelLayout
@@ -33,6 +35,29 @@ class ObservationPart:
     t: np.ndarray
     dims: np.ndarray
     y: np.ndarray
+
+
+QUATERNION_REFERENCE_MIN_NORM = 0.3
+"""The training data's mean quaternion fixes the sign convention only when its norm is at least
+this (the demos' orientations then lie on one side; a mean near 0 would mean both signs were
+trained, and nothing is flipped)."""
+
+
+def quaternion_references(
+    layout: ChannelLayout, scaler: ChannelScaler
+) -> list[tuple[str, int, int, np.ndarray]]:
+    """The observed orientation groups (quaternion interpolation, not log-scaled) with their training
+    mean quaternion, in the layout's channel order: (group, start, stop, mean (4,)). An observed
+    quaternion ``q`` with ``q . mean < 0`` is compared as ``-q`` (the same rotation)."""
+    out = []
+    for g in layout.observe:
+        lo, hi = layout.slices[g]
+        if group_spec(g).interpolation_kind(hi - lo) != "quaternion" or np.any(scaler.log_mask[lo:hi]):
+            continue
+        ref = np.asarray(scaler.offset[lo:hi], dtype=float)
+        if np.linalg.norm(ref) >= QUATERNION_REFERENCE_MIN_NORM:
+            out.append((g, lo, hi, ref))
+    return out
 
 
 class ObservationEncoder:
@@ -60,6 +85,31 @@ class ObservationEncoder:
         self.log_shift = scaler.shift[self.log_idx]
         self.offset = scaler.offset[self.dims]
         self.scale = scaler.scale[self.dims]
+        self.quaternions = quaternion_references(layout, scaler)
+
+    def align_signs(self, obs: Demo) -> Demo:
+        """``obs`` with every quaternion sample of an observed orientation group in the hemisphere of
+        the training data (:func:`quaternion_references`): ``q`` and ``-q`` are one rotation, and
+        the model compares components, so the sign the model was trained with is used."""
+        groups = None
+        for g, lo, hi, ref in self.quaternions:
+            v = obs.groups.get(g)
+            if v is None or v.shape[1] != hi - lo:
+                continue
+            with np.errstate(invalid="ignore"):
+                flip = v @ ref < 0.0
+            if np.any(flip):
+                groups = dict(obs.groups) if groups is None else groups
+                groups[g] = np.where(flip[:, None], -v, v)
+        return obs if groups is None else dataclasses.replace(obs, groups=groups)
+
+    def align_sample(self, y: np.ndarray) -> None:
+        """Flip, in place, the quaternions of a full raw sample ``y`` (D_o,) that are not in the
+        training data's hemisphere (:meth:`align_signs` for one sample)."""
+        for _, lo, hi, ref in self.quaternions:
+            q = y[lo:hi]
+            if float(q @ ref) < 0.0:
+                y[lo:hi] = -q
 
     def scale_samples(self, raw: np.ndarray) -> tuple[np.ndarray, bool]:
         """Scaled values (n, D_o) of raw full samples ``raw`` (n, D_o) in original units (as
@@ -105,6 +155,7 @@ class ObservationEncoder:
             if tuple(obs.channel_names[g]) != layout.channel_names[g]:
                 obs = self._by_name(obs)
             gaps = gaps or (g in obs.missing and bool(obs.missing[g].any()))
+        obs = self.align_signs(obs)
         if not gaps:  # every group in every sample: one part with all observed dims
             raw = np.concatenate([obs.groups[g] for g in layout.observe], axis=1, dtype=float)
             y, finite = self.scale_samples(raw)

@@ -286,6 +286,8 @@ def read_model(path: str | Path) -> tuple[dict, FittedModel]:
             }
     except ModelFileError:
         raise
+    except RecursionError:
+        raise ModelFileError(f"{path}: not a usable model file (its header is nested too deeply)") from None
     except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile, json.JSONDecodeError) as exc:
         raise ModelFileError(f"{path}: not a readable model file ({type(exc).__name__}: {exc})") from exc
     try:

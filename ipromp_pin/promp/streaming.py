@@ -28,6 +28,12 @@ from .observation import ObservationPart
 from .posterior import Prediction, Recognition
 from .predictor import Predictor
 
+MAX_GAP_FRACTION = 0.25
+"""Largest time between two consecutive samples of one stream, as a fraction of the model's nominal
+duration (about 0.75 s for the 3 s hand-overs): a sample that comes later is refused (a stamp from
+another clock or a sample seconds late), and the stream goes on from the previous one. Missing
+groups are sent as None at their own time, so a lost tracker does not make a gap."""
+
 STREAM_EXTRA_BASIS = 4
 """Basis functions a stream keeps beyond the observed window's support, so that its incremental terms
 are rebuilt only when the window reaches past them."""
@@ -86,9 +92,11 @@ class StreamingEstimator:
         self.incremental: IncrementalTerms | None = IncrementalTerms(engine)
         self._kern = kernels()
         self._longest = fm.longest_s
+        self._max_gap = MAX_GAP_FRACTION * fm.duration_nominal_s
         self._held: contextlib.AbstractContextManager | None = None
         self._support_until = -np.inf  # phases below this need at most incremental.ke basis functions
         b, enc = fm.basis, predictor.encoder
+        self._encoder = enc
         self._sample_basis = (self._inv_dur, b.centres, b.width, b.step_factor)  # kernels.stream_sample
         self._sample_scaling = (enc.log_idx, enc.log_shift, enc.offset, enc.scale)
 
@@ -120,6 +128,8 @@ class StreamingEstimator:
             sample: Observed group -> values (D,) in original units; a group that is absent or
                 None is missing for this sample (e.g. a lost skeleton frame).
         """
+        if isinstance(t_s, bool | np.bool_ | str | bytes):  # float(True) is 1.0, float("1") is 1.0
+            raise ObservationError("stream", "t", f"sample time {t_s!r} is not a number")
         try:
             t_s = float(t_s)
         except (TypeError, ValueError):
@@ -130,6 +140,14 @@ class StreamingEstimator:
             )
         if not math.isfinite(t_s) or (self._t and t_s <= self._t[-1]) or t_s < -1e-9:
             raise ObservationError("stream", "t", f"sample time {t_s} is not after the previous sample")
+        if self._t and t_s - self._t[-1] > self._max_gap:
+            raise ObservationError(
+                "stream",
+                "t",
+                f"sample time {t_s:.3f} s is {t_s - self._t[-1]:.2f} s after the previous sample "
+                f"({self._t[-1]:.3f} s): more than {self._max_gap:.2f} s ({MAX_GAP_FRACTION:g} of the "
+                "model's nominal duration) cannot be one stream; the sample is refused",
+            )
         if t_s > self._longest:
             raise ObservationError(
                 "stream", "t", f"observation lasts {t_s:.2f} s, longer than any task's plausible motion"
@@ -149,15 +167,19 @@ class StreamingEstimator:
                 absent |= 1 << i
                 continue
             try:
-                v = np.asarray(v, dtype=float).reshape(-1)
+                raw = np.asarray(v)
+                v = raw.astype(float).reshape(-1)
             except (TypeError, ValueError):
                 raise ObservationError("stream", g, f"sample values are not numbers: {v!r:.80}") from None
+            if raw.dtype.kind == "b":
+                raise ObservationError("stream", g, "sample values are booleans, not numbers")
             if v.size != hi - lo:
                 raise ObservationError(
                     "stream", g, f"sample has {v.size} values, the model expects {hi - lo}"
                 )
             y[lo:hi] = v
             present.append(g)
+        self._encoder.align_sample(y)  # q and -q alike: the training data's sign (ObservationEncoder)
         if self._held is None:
             with self._limit_threads():
                 return self._add(t_s, y, absent, present)

@@ -26,6 +26,7 @@ from .distribution import (
     shrink_covariances,
 )
 from .layout import ChannelLayout
+from .provenance import demo_digest
 from .validation import MAX_ORIGINAL
 
 
@@ -80,7 +81,32 @@ def demos_by_task(data: Dataset | Iterable[Demo]) -> dict[str, list[Demo]]:
         if len(demos) < 2:
             src = demos[0].source if demos else None
             raise DataError(src, "task", f"task '{task}' has {len(demos)} demo(s); at least 2 are needed")
+    check_distinct(by_task)
     return by_task
+
+
+def check_distinct(by_task: Mapping[str, list[Demo]]) -> None:
+    """Refuse a degenerate training set: a task whose demos are all one recording (no variation to
+    learn), or two tasks that hold the same demos (they cannot be told apart). Demos are compared by
+    content (:func:`~ipromp_pin.promp.provenance.demo_digest`)."""
+    seen: dict[frozenset[str], str] = {}
+    for task, demos in by_task.items():
+        digests = [demo_digest(d) for d in demos]
+        if len(set(digests)) == 1:
+            raise DataError(
+                demos[0].source,
+                "task",
+                f"task '{task}': its {len(demos)} demos are all the same recording (identical content); "
+                "a task needs at least 2 different demos",
+            )
+        key = frozenset(digests)
+        if key in seen:
+            raise DataError(
+                demos[0].source,
+                "task",
+                f"tasks '{seen[key]}' and '{task}' hold the same demos: they cannot be told apart",
+            )
+        seen[key] = task
 
 
 def stack_channels(layout: ChannelLayout, demo: Demo) -> np.ndarray:

@@ -66,6 +66,7 @@ import numpy as np
 from .. import atomic
 from ..data import ROBOT, Dataset, Demo
 from ..exceptions import DataError
+from ..inputs import check_regular
 from ..signals.groups import group_spec
 from ..signals.preprocess import Stream, align_streams
 from .streams import full_duration_s
@@ -185,6 +186,9 @@ def _check_time(path: Path, t: np.ndarray) -> np.ndarray:
         raise DataError(path, "t", f"not uniformly spaced (median step {med:g} s; resample the demo first)")
     return t - t[0]
 
+
+MAX_DEMO_BYTES = 500_000_000
+"""Largest native demo file in [bytes] (an hour at 50 Hz of 40 channels is about 60 MB as CSV)."""
 
 MAX_EXPANSION = 50.0
 """Largest ratio of a ``.npz`` member's size to its compressed size (plus 1 MB): numeric demo data
@@ -321,11 +325,11 @@ def _read_csv(path: Path, task: str | None) -> Demo:
     t = _check_time(path, data[:, 0])
     groups: dict[str, list[tuple[str, int]]] = {}
     missing_col: dict[str, int] = {}
-    extras: dict[str, list[int]] = {}
+    extras: dict[str, list[tuple[str, int]]] = {}
     for j, h in enumerate(header[1:], start=1):
         if h.startswith("extras:"):
-            name = h[len("extras:") :].rsplit(".", 1)[0]
-            extras.setdefault(name, []).append(j)
+            name, _, part = h[len("extras:") :].rpartition(".")
+            extras.setdefault(name or part, []).append((part if name else "", j))
             continue
         if "." not in h:
             raise DataError(path, h, "column name is not '<group>.<channel>'")
@@ -348,10 +352,7 @@ def _read_csv(path: Path, task: str | None) -> Demo:
     for g in missing_col:
         if g not in groups:
             raise DataError(path, f"{g}.missing", "missing-sample column of a group without channels")
-    ex = {}
-    for name, cols in extras.items():
-        v = data[:, cols]
-        ex[name] = v
+    ex = {name: data[:, extra_columns(path, name, parts)] for name, parts in extras.items()}
     return Demo(
         task=task if task is not None else path.parent.name,
         name=path.stem,
@@ -362,6 +363,24 @@ def _read_csv(path: Path, task: str | None) -> Demo:
         missing=missing,
         extras=ex,
     )
+
+
+def extra_columns(path: Path, name: str, parts: list[tuple[str, int]]) -> list[int]:
+    """The columns of extra ``name`` in the order their names say (``extras:<name>.<part>``): parts
+    ``0, 1, 2, ...`` by number, ``x, y, z`` (and ``w``) as a vector, else as they come. Columns in
+    another order in the file (``.2, .0, .1``) are read by name, never by position."""
+    names = [p for p, _ in parts]
+    if all(p.isdigit() for p in names):
+        numbers = sorted(int(p) for p in names)
+        if numbers != list(range(len(names))):
+            raise DataError(
+                path, f"extras:{name}", f"columns are numbered {names}, not 0 to {len(names) - 1}"
+            )
+        return [j for _, j in sorted(parts, key=lambda pj: int(pj[0]))]
+    for axes in ("xyz", "xyzw"):
+        if sorted(names) == sorted(axes):
+            return [dict(parts)[a] for a in axes]
+    return [j for _, j in parts]
 
 
 def _select_joints(demo: Demo, joints: tuple[str, ...]) -> Demo:
@@ -446,8 +465,12 @@ def read_demo(
             (default: as stored). DataError naming a joint the file lacks.
     """
     path = Path(path)
-    if not path.is_file():
-        raise DataError(path, None, "file not found")
+    try:
+        check_regular(path, "demo", lambda problem: DataError(path, None, problem), MAX_DEMO_BYTES)
+    except FileNotFoundError:
+        raise DataError(path, None, "file not found") from None
+    except OSError as exc:
+        raise DataError(path, None, f"cannot read: {exc.strerror or exc}") from None
     if path.suffix == ".npz":
         demo = _read_npz(path, task)
     elif path.suffix == ".csv":

@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import importlib.metadata
 import math
-import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -23,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from ..exceptions import RobotError
+from ..inputs import MAX_DOCUMENT_BYTES, check_regular, load_toml
 from ..shipped import ROBOTS_DIR
 
 __all__ = [
@@ -227,6 +227,10 @@ def resolve_settings_path(path_or_name: str | Path) -> Path:
     p = Path(path_or_name)
     if p.is_file():
         return p.resolve()
+    if p.exists():  # a folder, a FIFO, a device: refused by name, never read
+        check_regular(
+            p, "robot settings", lambda problem: settings_error(p, None, problem), MAX_DOCUMENT_BYTES
+        )
     if p.suffix == "" and len(p.parts) == 1:
         candidate = ROBOTS_DIR / f"{p.name}.toml"
         if candidate.is_file():
@@ -327,13 +331,16 @@ def _demo_limit_recipe(limits: dict, path: Path) -> DemoLimitRecipe:
 def _read_document(path: Path) -> dict:
     """The parsed TOML document of ``path``, its ``schema_version`` checked."""
     try:
-        with open(path, "rb") as fh:
-            doc = tomllib.load(fh)
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise settings_error(path, None, f"not valid TOML: {exc}") from None
+        doc = load_toml(path, "robot settings", lambda problem: settings_error(path, None, problem))
     except OSError as exc:
         raise settings_error(path, None, f"cannot read: {exc.strerror or exc}") from None
     version = doc.get("schema_version", _SCHEMA_VERSION)
+    if not isinstance(version, int) or isinstance(version, bool):
+        raise settings_error(
+            path,
+            "schema_version",
+            f"must be the integer {_SCHEMA_VERSION}, got {version!r} ({type(version).__name__})",
+        )
     if version != _SCHEMA_VERSION:
         raise settings_error(
             path, "schema_version", f"unsupported version {version} (this code reads {_SCHEMA_VERSION})"

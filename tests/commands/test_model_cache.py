@@ -3,13 +3,15 @@
 from __future__ import annotations
 
 import dataclasses
+import hashlib
+import json
 from functools import partial
 
 import numpy as np
 import pytest
 
 from ipromp_pin.cli import main
-from ipromp_pin.commands.model_cache import fit_cached, training_key
+from ipromp_pin.commands.model_cache import fit_cached, training_key, verify_entry
 from ipromp_pin.promp import IProMP
 from ipromp_pin.readers.synthetic import make_synthetic_dataset
 from ipromp_pin.robot import ee_positions, load_robot
@@ -105,3 +107,65 @@ def test_run_reuses_the_model_and_retrain_trains(tmp_path, capsys, monkeypatch):
     assert "[model] trained on" in capsys.readouterr().out
     a, b, c = ((tmp_path / x / "trajectory.csv").read_text() for x in "abc")
     assert a == b == c
+
+
+def _swap_entry(tmp_path, demos, how: str) -> None:
+    """Tamper with the single cache entry of ``fit_cached(_small(), demos[1:])`` in ``tmp_path``."""
+    (entry,) = tmp_path.glob("*.npz")
+    other = tmp_path / "other"
+    if how in ("other demos", "other demos and sidecar"):
+        fit_cached(_small(), demos[2:], None, other)
+    elif how == "other settings":
+        fit_cached(_small().set_params(n_basis=8), demos[1:], None, other)
+    if how == "no sidecar":
+        entry.with_suffix(".json").unlink()
+        return
+    if how == "sidecar of another key":
+        side = entry.with_suffix(".json")
+        side.write_text(side.read_text().replace(entry.stem, "0" * 64))
+        return
+    (copied,) = other.glob("*.npz")
+    entry.write_bytes(copied.read_bytes())
+    if how in ("other demos and sidecar", "other settings"):  # a consistent-looking record beside it
+        entry.with_suffix(".json").write_text(
+            json.dumps(
+                {"cache": 1, "key": entry.stem, "sha256": hashlib.sha256(entry.read_bytes()).hexdigest()}
+            )
+        )
+
+
+@pytest.mark.parametrize(
+    ("how", "why"),
+    [
+        ("other demos", "not the one stored under its key"),
+        ("other demos and sidecar", "trained on other demos (10, not these 11)"),
+        ("other settings", "trained with other settings"),
+        ("no sidecar", "no readable record of the key"),
+        ("sidecar of another key", "names another key"),
+    ],
+)
+def test_a_cache_entry_that_is_not_what_it_claims_is_rebuilt_with_one_line(tmp_path, demos, how, why):
+    first, _ = fit_cached(_small(), demos[1:], None, tmp_path)
+    _swap_entry(tmp_path, demos, how)
+    lines: list[str] = []
+    model, source = fit_cached(_small(), demos[1:], None, tmp_path, log=lines.append)
+    assert source is None and len(lines) == 1 and why in lines[0] and "training again" in lines[0]
+    assert [r.sha256 for r in model.trained_on_] == [r.sha256 for r in first.trained_on_]
+    p1, p2 = first.predict(demos[0].head(0.4)), model.predict(demos[0].head(0.4))
+    assert np.array_equal(p1.q_mean, p2.q_mean)
+    lines.clear()  # the rebuilt entry is verified and used
+    _, source = fit_cached(_small(), demos[1:], None, tmp_path, log=lines.append)
+    assert source is not None and not lines
+
+
+def test_verifying_an_entry_costs_a_few_ms(tmp_path, demos):
+    import time
+
+    fit_cached(_small(), demos[1:], None, tmp_path)
+    (entry,) = tmp_path.glob("*.npz")
+    key = entry.stem
+    cached = IProMP.load(entry)
+    t0 = time.perf_counter()
+    for _ in range(5):
+        assert verify_entry(entry, key, _small(), cached, demos[1:]) == ""
+    assert (time.perf_counter() - t0) / 5 < 0.05  # measured about 2 ms; generous on a busy machine

@@ -16,6 +16,7 @@ from rosbags.typesys.store import Nodetype
 from ipromp_pin.exceptions import DataError
 from ipromp_pin.motion.timing import JointLimits, Trajectory, time_path
 from ipromp_pin.outputs.rosbag import (
+    TOPIC_CHECKS,
     TOPIC_HANDOVER_POSE,
     TOPIC_JOINT_STATES,
     TOPIC_TRAJECTORY,
@@ -145,6 +146,7 @@ def test_rosbag2_mcap_reads_back_with_types_stamps_and_values(content, tmp_path)
     assert "storage_identifier: mcap" in (folder / "metadata.yaml").read_text()
     types, msgs = _read_rosbag2(folder)
     assert types == {
+        TOPIC_CHECKS: "std_msgs/msg/String",
         TOPIC_TRAJECTORY: "trajectory_msgs/msg/JointTrajectory",
         TOPIC_JOINT_STATES: "sensor_msgs/msg/JointState",
         TOPIC_HANDOVER_POSE: "geometry_msgs/msg/PoseStamped",

@@ -96,7 +96,10 @@ def test_timeline_panel_follows_the_scrubbed_time(page, tmp_path_factory):
             )
 
         before = seek(0.3)
-        assert before["task"] == "(none)" and "waits at rest" in before["status"]
+        assert (
+            before["task"] == "(none yet: before the first re-plan at 0.60 s)"
+            and "waits at rest" in before["status"]
+        )
         first = seek(0.8)
         assert first["task"] == "handover_rod" and "committed" in first["status"]
         assert first["time"] == pytest.approx(0.8, abs=1e-6)  # meshcat's animation was moved too

@@ -9,7 +9,7 @@ function iprompRender(s) {
   root.replaceChildren();
   root.appendChild(iprompEl("h1", {id: "ipromp-title"}, s.title));
   const task = iprompEl("div", {id: "ipromp-task"}, "Recognised task: ");
-  task.appendChild(iprompEl("b", {id: "ipromp-task-name"}, s.task || "(none)"));
+  task.appendChild(iprompEl("b", {id: "ipromp-task-name"}, s.task || s.no_task_text || "(none)"));
   root.appendChild(task);
   if (s.tasks.length) {
     const table = iprompEl("table", {id: "ipromp-posterior"});
@@ -37,8 +37,9 @@ function iprompRender(s) {
     }
     root.appendChild(iprompEl("div", {id: "ipromp-observed"}, text));
   }
-  root.appendChild(iprompEl("div", {id: "ipromp-timebase"},
-    "Robot trajectory: " + s.robot_duration_s.toFixed(2) + " s; times below are on it (t = 0 at its start)"));
+  root.appendChild(iprompEl("div", {id: "ipromp-timebase"}, s.timebase ||
+    ("Robot trajectory: " + s.robot_duration_s.toFixed(2) + " s; times below are on it (t = 0 at its start)")));
+  for (const note of (s.notes || [])) root.appendChild(iprompEl("div", {"class": "ipromp-note"}, note));
   if (s.feasibility.length) {
     const list = iprompEl("ul", {id: "ipromp-feasibility"});
     for (const c of s.feasibility) {

@@ -37,6 +37,7 @@
           e.committed ? "committed" : "refused (the robot keeps the last safe plan): " + e.reason));
     } else {
       state.task = "";
+      state.no_task_text = "(none yet: before the first re-plan at " + fmt(events.length ? events[0].t_s : null, "s") + ")";
       state.posterior = state.tasks.map(() => 1.0 / Math.max(state.tasks.length, 1));
       state.observed = {until_s: Math.min(t, motion), duration_s: motion};
       status.replaceChildren(iprompEl("div", {}, "Before the first re-plan: the robot waits at rest."));

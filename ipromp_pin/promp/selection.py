@@ -233,16 +233,18 @@ def choose_noise(
         folds.append(fold)
         dens_shift = np.log(m.alpha_grid[1] - m.alpha_grid[0])
         alpha_true = training.alphas[task][i]
+        scored = []
         for ratio, parts, t_last in cv_observations(encoder, training.demos[task][i], HEAD_RATIOS):
             summary = WindowSummary.from_parts(parts, training.layout.n_obs_dims).vector()
             fold.observations.append((ratio, parts, t_last, summary))
-            if ratio not in CV_RATIOS:
-                continue
+            if ratio in CV_RATIOS:
+                scored.append((len(fold.observations) - 1, [engine.part_stats(p) for p in parts], t_last))
+        engine.reserve_z([st for _, stats, _ in scored for st in stats])
+        for n_obs, stats, t_last in scored:
             n_eval += 1
-            stats = [engine.part_stats(p) for p in parts]
             for j, nu in enumerate(noise_grid):
                 loglik = engine.log_likelihood(stats, t_last, nu=nu)
-                fold.logliks[(len(fold.observations) - 1, j)] = loglik
+                fold.logliks[(n_obs, j)] = loglik
                 for k, tau in enumerate(temperature_grid):
                     rec, logpost = recognise_from_loglik(priors, tau * loglik, t_last)
                     s = rec.log_posterior[ki]
@@ -260,17 +262,17 @@ def choose_noise(
         nu = float(noise_grid[j])
     rows: list[HeldOutRow] = []
     for n_demo, fold in enumerate(folds):
-        fold_engine: InferenceEngine | None = None
-        for n_obs, (ratio, parts, t_last, summary) in enumerate(fold.observations):
-            cached = fold.logliks.get((n_obs, j)) if best is not None else None
-            if cached is None:
-                if fold_engine is None:
-                    fold_engine = _fold_engine(training, fold.models, nu)
-                stats = [fold_engine.part_stats(p) for p in parts]
-                loglik = fold_engine.log_likelihood(stats, t_last, nu=nu)
-            else:
-                loglik = cached
+        todo = [n for n in range(len(fold.observations)) if best is None or (n, j) not in fold.logliks]
+        if todo:
+            fold_engine = _fold_engine(training, fold.models, nu)
+            stats = {n: [fold_engine.part_stats(p) for p in fold.observations[n][1]] for n in todo}
+            fold_engine.reserve_z([st for sts in stats.values() for st in sts])
+            for n in todo:
+                fold.logliks[(n, j)] = fold_engine.log_likelihood(stats[n], fold.observations[n][2], nu=nu)
+        for n_obs, (ratio, _, t_last, summary) in enumerate(fold.observations):
+            loglik = fold.logliks[(n_obs, j)]
             rows.append(HeldOutRow(fold.task, n_demo, summary, ratio, loglik, fold.priors, t_last))
+        fold.logliks.clear()
     if best is None:
         return NoiseChoice(nu, float(temperature_grid[0]), {}, rows)
     return NoiseChoice(

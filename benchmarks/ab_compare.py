@@ -39,30 +39,43 @@ SMOKE_MODEL = {"head": False, "handover": False, "coupling": "all"}
 """Model settings of ``--smoke`` (nothing selected by cross-validation inside ``fit``: seconds)."""
 
 
-def fitted(package: str, n_tasks: int, n_train: int = 20, **settings):
-    """Model of ``package`` fitted on ``n_train`` synthetic demos per task (``settings``: further
-    ``IProMP`` parameters), and its 2 held-out demos."""
+def training_data(package: str, n_tasks: int, n_train: int = 20):
+    """``package``'s estimator class, ``n_train`` synthetic demos per task and 2 held-out ones."""
     synthetic = first_module(package, "readers.synthetic", "synthetic")
     estimator = first_module(package, "promp", "recognition")
     ds = synthetic.make_synthetic_dataset(n_tasks=n_tasks, n_demos=n_train + 2, seed=1)
     train = type(ds)(ds.root, {t: d[:n_train] for t, d in ds.demos.items()})
     test = {t: d[n_train:] for t, d in ds.demos.items()}
-    return estimator.IProMP(OBSERVE, noise=10.0, blas_threads=None, **settings).fit(train), test
+    return estimator.IProMP, train, test
+
+
+def fitted(package: str, n_tasks: int, n_train: int = 20, **settings):
+    """Model of ``package`` fitted on ``n_train`` synthetic demos per task (``settings``: further
+    ``IProMP`` parameters), and its 2 held-out demos."""
+    estimator, train, test = training_data(package, n_tasks, n_train)
+    return estimator(OBSERVE, noise=10.0, blas_threads=None, **settings).fit(train), test
 
 
 def fit_times(packages: list[str], n_tasks: int, n_train: int, fits: int, **settings) -> list[tuple]:
-    """Per package, (median training time per task in [s], peak memory of one fit in [MB]): fits of
-    the packages alternate, ``fits`` each (the peak from one more fit of each under ``tracemalloc``)."""
+    """Per package, (median training time per task in [s], peak memory of a fit in [MB], as
+    ``benchmarks/inference.py`` measures them: ``fit`` alone): fits of the packages alternate,
+    ``fits`` each (the peak from one more fit of each under ``tracemalloc``)."""
+    data = {p: training_data(p, n_tasks, n_train) for p in packages}
     times: dict[str, list[float]] = {p: [] for p in packages}
+
+    def fit(p: str) -> None:
+        estimator, train, _ = data[p]
+        estimator(OBSERVE, noise=10.0, blas_threads=None, **settings).fit(train)
+
     for _ in range(fits):
         for p in packages:
             t0 = time.perf_counter()
-            fitted(p, n_tasks, n_train, **settings)
+            fit(p)
             times[p].append((time.perf_counter() - t0) / n_tasks)
     out = []
     for p in packages:
         tracemalloc.start()
-        fitted(p, n_tasks, n_train, **settings)
+        fit(p)
         peak = tracemalloc.get_traced_memory()[1] / 1e6
         tracemalloc.stop()
         out.append((float(np.median(times[p])), peak))

@@ -13,9 +13,9 @@ The worker (the dataset and the scorers) is sent to every Dask worker once (``sc
 every job is one task, retried (``retries``) when the worker running it dies, so a lost worker costs
 a re-run, not a cell. A job runs with its own copy of the scorers, so workers of several threads
 are safe for the fits (the closed loop's robot is shared by a process's threads: give closed-loop
-runs workers of one thread, e.g. ``dask-jobqueue``'s ``processes`` equal to its ``cores``). The results do not depend on where a job ran: the cells are those of a
-``--jobs`` run of the same splits and seeds. Dask is an optional dependency (``pip install
-'ipromp_pin[dask]'``).
+runs workers of one thread, e.g. ``dask-jobqueue``'s ``processes`` equal to its ``cores``). The
+results do not depend on where a job ran: the cells are those of a ``--jobs`` run of the same
+splits and seeds. Dask is an optional dependency (``pip install 'ipromp_pin[dask]'``).
 """
 
 from __future__ import annotations

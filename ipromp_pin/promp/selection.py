@@ -276,10 +276,11 @@ def choose_noise(
         todo = [n for n in range(len(fold.observations)) if (n, j) not in fold.logliks]
         if todo:
             fold_engine = _fold_engine(training, _fold_models(training, settings, *fold.held), nu)
-            stats = {n: [fold_engine.part_stats(p) for p in fold.observations[n][1]] for n in todo}
-            fold_engine.reserve_z([st for sts in stats.values() for st in sts])
+            todo_stats = {n: [fold_engine.part_stats(p) for p in fold.observations[n][1]] for n in todo}
+            fold_engine.reserve_z([st for sts in todo_stats.values() for st in sts])
             for n in todo:
-                fold.logliks[(n, j)] = fold_engine.log_likelihood(stats[n], fold.observations[n][2], nu=nu)
+                t_obs = fold.observations[n][2]
+                fold.logliks[(n, j)] = fold_engine.log_likelihood(todo_stats[n], t_obs, nu=nu)
         for n_obs, (ratio, _, t_last, summary) in enumerate(fold.observations):
             loglik = fold.logliks[(n_obs, j)]
             rows.append(HeldOutRow(fold.task, n_demo, summary, ratio, loglik, fold.priors, t_last))

@@ -123,6 +123,11 @@ def main(argv: list[str] | None = None) -> int:
             other, other_test = fitted(OTHER, args.tasks, n_train, **settings)  # compiles (cold)
             this, this_test = fitted("ipromp_pin", args.tasks, n_train, **settings)
             clock = time.perf_counter
+            this_root = Path(sys.modules["ipromp_pin"].__file__ or "").resolve().parents[1]
+            print(f"this checkout: {this_root}; other: {Path(args.other).resolve()}")
+            if this_root != ROOT:
+                print(f"  ipromp_pin was imported from {this_root}, not from {ROOT}")
+                return 1
             print(f"paper setting, {args.tasks} tasks; medians in us (other -> this checkout)")
             for ratio in (0.1, 0.2):
                 obs_o = other_test[other.tasks_[0]][0].head(ratio, OBSERVE)

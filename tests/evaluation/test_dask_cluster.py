@@ -49,3 +49,11 @@ def test_local_cluster_gives_the_cells_of_the_local_run() -> None:
     )
     assert json.dumps(to_json(remote)) == json.dumps(to_json(local))
     assert seen == [(1, 3), (2, 3), (3, 3)]
+
+
+def test_a_bad_cluster_is_a_one_line_error_before_any_demo_is_read(tmp_path, capsys) -> None:
+    from ipromp_pin.cli import main
+
+    assert main(["evaluate", str(tmp_path), "--cluster", "localhost:8786"]) == 2
+    err = capsys.readouterr().err
+    assert "--cluster: 'localhost:8786' is neither" in err and len(err.strip().splitlines()) == 1

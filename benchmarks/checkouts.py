@@ -13,6 +13,11 @@ from types import ModuleType
 ROOT = Path(__file__).resolve().parents[1]
 OTHER = "ipromp_other"
 
+# "this checkout" is the one this script belongs to, also where an installed ipromp_pin (an editable
+# install of another checkout) would come first: imported before any module that imports ipromp_pin
+if sys.path[:1] != [str(ROOT)]:
+    sys.path.insert(0, str(ROOT))
+
 
 def add_other(checkout: Path, tmp: Path) -> None:
     """Make a copy of ``checkout``'s ``ipromp_pin`` importable as :data:`OTHER` from the folder ``tmp``,

@@ -18,7 +18,11 @@ HELPERS = {"checkouts.py"}
 """Modules of ``benchmarks/`` that are imported by the scripts, not run."""
 
 EXPECTED = {
-    "ab_compare.py": [r"full update, 10% observed: [\d.]+ -> [\d.]+", r"streaming update: [\d.]+ -> [\d.]+"],
+    "ab_compare.py": [
+        r"full update, 10% observed: [\d.]+ -> [\d.]+",
+        r"streaming update: [\d.]+ -> [\d.]+",
+        r"training per task: [\d.]+ -> [\d.]+ ms",
+    ],
     "closed_loop.py": [r"(?m)^cycle\s+[\d.]+\s+[\d.]+", r"first re-plan of a replay: median [\d.]+ ms"],
     "closed_loop_cv.py": [r"\| err \[cm\] \|", r"(?m)^0\.2 \| 20 \| 0\.9 \| 90 \| 0\.2 \| [\d.]+ \|"],
     "first_minute.py": [r"(?m)^cold\s+median\s+[\d.]+ s wall"],

@@ -88,6 +88,13 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         help=f"worker processes (default: every core but one, here {default_jobs()}, so the machine stays "
         "usable)",
     )
+    p.add_argument(
+        "--cluster",
+        metavar="CLUSTER",
+        help="run the model fits on a Dask cluster instead of --jobs processes: dask-local:N (N local "
+        "workers started for the run) or a scheduler address such as tcp://HOST:8786 (needs "
+        "pip install 'ipromp_pin[dask]'; the cells are the same)",
+    )
     p.add_argument("--plots", type=Path, help="write PNG figures into this folder")
     p.add_argument(
         "--baselines",
@@ -125,6 +132,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         seed=args.seed,
         robot=args.robot,
         jobs=args.jobs,
+        cluster=args.cluster,
         baselines=args.baselines,
         closed_loop=args.closed_loop,
         limits=args.limits,

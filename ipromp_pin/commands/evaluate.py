@@ -24,6 +24,7 @@ from ..evaluation.baselines import require_sklearn
 from ..evaluation.cells import Cell
 from ..evaluation.closed_loop import ClosedLoopOptions, evaluate_closed_loop
 from ..evaluation.config import PAPER_GRID, EvaluationConfig, ProgressFn
+from ..evaluation.dask_cluster import DaskCluster, require_dask
 from ..evaluation.evaluate import evaluate
 from ..evaluation.splits import check_dataset_size
 from ..evaluation.tables import (
@@ -55,6 +56,8 @@ class EvaluateRequest:
         seed: Seed of the random splits.
         robot: Robot settings (name or file).
         jobs: Worker processes.
+        cluster: A Dask cluster to run the model fits on instead (``dask-local:N`` or a scheduler
+            address such as ``tcp://HOST:8786``; :mod:`~ipromp_pin.evaluation.dask_cluster`).
         baselines: Also run the reference baselines (needs scikit-learn).
         closed_loop: Replay every test demo in the closed loop (``--closed-loop``).
         limits: Limit profile of the closed loop (``demonstrated``, ``conservative`` or a file).
@@ -78,6 +81,7 @@ class EvaluateRequest:
     seed: int = 0
     robot: str = DEFAULT_ROBOT
     jobs: int = 1
+    cluster: str | None = None
     baselines: bool = False
     closed_loop: bool = False
     limits: str = "demonstrated"
@@ -145,6 +149,9 @@ def check_request(request: EvaluateRequest) -> Robot:
     the loaded robot."""
     if request.baselines:
         require_sklearn()
+    if request.cluster is not None:
+        DaskCluster.from_spec(request.cluster)
+        require_dask()
     if request.closed_loop:
         base = request.settings()
         for _, ratio in request.grid:  # every cell's obs_ratio is a start ratio
@@ -184,14 +191,15 @@ def run_evaluations(request: EvaluateRequest, ds: Dataset) -> list[Cell]:
     """Every protocol of the request on ``ds`` (one-shot or closed loop), each timed."""
     cells: list[Cell] = []
     options = ClosedLoopOptions(limits=request.limits, settings=request.settings())
+    where = request.jobs if request.cluster is None else DaskCluster.from_spec(request.cluster)
     for cfg in request.configs():
         progress = request.progress() if request.progress else None
         t1 = time.perf_counter()
         if request.closed_loop:
-            cells += evaluate_closed_loop(ds, cfg, options, request.robot, progress, request.jobs)
+            cells += evaluate_closed_loop(ds, cfg, options, request.robot, progress, where)
             request.log(f"protocol {cfg.protocol} (closed loop): {time.perf_counter() - t1:.1f} s")
         else:
-            cells += evaluate(ds, cfg, robot=request.robot, progress=progress, jobs=request.jobs)
+            cells += evaluate(ds, cfg, robot=request.robot, progress=progress, jobs=where)
             request.log(f"protocol {cfg.protocol}: {time.perf_counter() - t1:.1f} s")
     return cells
 

@@ -157,6 +157,48 @@ def primed_certifier(robot: Robot, train: list[Demo], log: LogFn) -> ClearanceCe
     return certifier
 
 
+@dataclass
+class ReplaySetup:
+    """What a replay runs with, set up as ``ipromp-pin replay`` does (:func:`prepare_replay`).
+
+    Attributes:
+        session: The pipeline's data, the held-out demo, the model and its training demos.
+        profile: The limit profile.
+        certifier: The collision certifier, primed on the training motions.
+    """
+
+    session: Session
+    profile: LimitProfile
+    certifier: ClearanceCertifier
+
+
+def prepare_replay(
+    cfg: PipelineConfig,
+    settings: ClosedLoopSettings,
+    limits: str,
+    log: LogFn = print,
+    warn: LogFn = warn_stderr,
+) -> ReplaySetup:
+    """Everything before the closed loop: outputs and limits checked, the session prepared (the demo
+    held out, the model trained or loaded), the limit profile chosen, the certifier primed
+    (``benchmarks/closed_loop.py`` times the replays of this set-up)."""
+    check_outputs(cfg)
+    robot = load_robot(cfg.robot)
+    from_file = check_limits_choice(limits, robot, cfg.source)
+    checks = ReplayChecks(cfg.observe, settings.start_ratio)
+    session = prepare_session(cfg, log, warn, robot=robot, checks=checks, observe=False)
+    demo, train = session.demo, session.train
+    profile = choose_profile(limits, robot, train, training_label(cfg), from_file)
+    log(f"[limits] {profile.name}: {profile.source}")
+    certifier = primed_certifier(robot, train, log)
+    log(
+        f"[replay] {demo.task}/{demo.name}: {demo.duration_s:.2f} s at its recorded timing; the robot starts "
+        f"after {settings.start_ratio:.0%} ({checks.start_s:.2f} s), re-plans at "
+        f"{settings.replan_rate_hz:g} Hz, control at {settings.control_rate_hz:g} Hz"
+    )
+    return ReplaySetup(session, profile, certifier)
+
+
 def run_replay(
     cfg: PipelineConfig,
     settings: ClosedLoopSettings,
@@ -176,27 +218,16 @@ def run_replay(
     marks its files).
     """
     t_start = time.perf_counter()
-    check_outputs(cfg)
-    robot = load_robot(cfg.robot)
-    from_file = check_limits_choice(limits, robot, cfg.source)
-    checks = ReplayChecks(cfg.observe, settings.start_ratio)
-    session = prepare_session(cfg, log, warn, robot=robot, checks=checks, observe=False)
-    demo, model, train = session.demo, session.model, session.train
-    profile = choose_profile(limits, robot, train, training_label(cfg), from_file)
-    log(f"[limits] {profile.name}: {profile.source}")
-    certifier = primed_certifier(robot, train, log)
-    log(
-        f"[replay] {demo.task}/{demo.name}: {demo.duration_s:.2f} s at its recorded timing; the robot starts "
-        f"after {settings.start_ratio:.0%} ({checks.start_s:.2f} s), re-plans at "
-        f"{settings.replan_rate_hz:g} Hz, control at {settings.control_rate_hz:g} Hz"
-    )
+    setup = prepare_replay(cfg, settings, limits, log, warn)
+    session = setup.session
+    demo, robot = session.demo, session.robot
     result = replay_demo(
-        model,
+        session.model,
         robot,
         demo,
-        profile,
+        setup.profile,
         settings,
-        certifier,
+        setup.certifier,
         checks=session.motion_checks,
         context=session.check_context,
     )

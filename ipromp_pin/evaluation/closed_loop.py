@@ -27,6 +27,7 @@ from ..robot import ee_positions, load_robot
 from ..shipped import DEFAULT_ROBOT
 from .cells import ClosedLoopCell
 from .config import EvaluationConfig, ProgressFn
+from .jobs import JobRunner
 from .protocol import run_protocol
 from .scorers import BaselineScorer
 from .scorers.closed_loop import (
@@ -58,7 +59,7 @@ def evaluate_closed_loop(
     options: ClosedLoopOptions | None = None,
     robot: str = DEFAULT_ROBOT,
     progress: ProgressFn | None = None,
-    jobs: int = 1,
+    jobs: int | JobRunner = 1,
 ) -> list[ClosedLoopCell]:
     """Run one protocol with the closed loop over every cell of ``config`` (see the module docstring).
 

@@ -36,7 +36,7 @@ from ..robot import ee_positions, load_robot
 from ..shipped import DEFAULT_ROBOT
 from .cells import PROBABILITY_FLOOR, Cell, cell_fields, summarise
 from .config import PAPER_ACCURACY, PAPER_GRID, EvaluationConfig, ProgressFn, observe_key
-from .jobs import run_jobs
+from .jobs import JobRunner, run_jobs
 from .protocol import run_protocol
 from .scorers import BaselineScorer, OneShotScorer, TrialResult, score_trial
 from .splits import Indices, check_dataset_size, split_paper, split_random
@@ -84,7 +84,7 @@ def evaluate(
     config: EvaluationConfig,
     robot: str | None = DEFAULT_ROBOT,
     progress: ProgressFn | None = None,
-    jobs: int = 1,
+    jobs: int | JobRunner = 1,
 ) -> list[Cell]:
     """Run one protocol over every cell of ``config`` and return the table.
 
@@ -94,7 +94,8 @@ def evaluate(
         robot: Robot settings (name or file) for the hand-over position error through forward
             kinematics; ``None`` skips it.
         progress: Called as ``progress(done, total, label)`` after every model fit.
-        jobs: Worker processes (model fits run in parallel; results do not depend on it).
+        jobs: Worker processes (model fits run in parallel), or a :class:`~.jobs.JobRunner` (a
+            Dask cluster); the results do not depend on it.
     """
     config.check_protocol()
     fk = robot_fk(robot)

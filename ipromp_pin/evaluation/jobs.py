@@ -89,6 +89,10 @@ class Worker(Protocol):
         """Fit and score one job."""
         ...
 
+    def for_one_job(self) -> Worker:
+        """A worker for one job that shares nothing mutable with this one (threads of a Dask worker)."""
+        ...
+
 
 _installed: list[Worker] = []
 """This worker process's worker, installed by the pool initializer (empty in the parent)."""
@@ -107,6 +111,31 @@ def installed_worker() -> Worker | None:
 def run_installed(job: Job) -> JobResult:
     """Run ``job`` with this process's installed worker."""
     return _installed[0].run_job(job)
+
+
+class JobRunner(Protocol):
+    """Where an evaluation's jobs run: :class:`LocalPool` (this machine's processes) or a cluster
+    (:class:`~.dask_cluster.DaskCluster`). The results never depend on it."""
+
+    def run(self, worker: Worker, work: Sequence[Job]) -> Iterator[JobResult]:
+        """``worker.run_job`` over the jobs (results in completion order)."""
+        ...
+
+
+@dataclass(frozen=True)
+class LocalPool:
+    """The jobs in ``jobs`` forked worker processes of this machine (in this process when 1)."""
+
+    jobs: int = 1
+
+    def run(self, worker: Worker, work: Sequence[Job]) -> Iterator[JobResult]:
+        """``worker.run_job`` over the jobs (:func:`run_worker_jobs`)."""
+        return run_worker_jobs(worker, work, self.jobs)
+
+
+def runner_of(jobs: int | JobRunner) -> JobRunner:
+    """The runner of a number of local worker processes (or the runner itself)."""
+    return LocalPool(jobs) if isinstance(jobs, int) else jobs
 
 
 def run_worker_jobs(worker: Worker, work: Sequence[Job], jobs: int) -> Iterator[JobResult]:

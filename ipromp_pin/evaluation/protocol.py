@@ -5,12 +5,13 @@ cells. A scorer (:class:`~.scorers.base.Scorer`) says what is fitted and measure
 
 from __future__ import annotations
 
+import copy
 from collections.abc import Sequence
 
 from ..data import ROBOT, Dataset
 from .cells import Cell, CellResults, build_cells
 from .config import EvaluationConfig, ProgressFn, observe_key
-from .jobs import Job, JobResult, build_jobs, run_worker_jobs
+from .jobs import Job, JobResult, JobRunner, build_jobs, runner_of
 from .scorers.base import Scorer
 from .splits import check_dataset_size, take
 
@@ -31,6 +32,11 @@ class ProtocolWorker:
         self.dataset = dataset
         self.scorer = scorer
         self.extras = list(extras)
+
+    def for_one_job(self) -> ProtocolWorker:
+        """A worker sharing the dataset, with its own copies of the scorers (which keep each job's
+        fit): what one thread of a multi-threaded Dask worker runs a job with."""
+        return ProtocolWorker(self.dataset, copy.deepcopy(self.scorer), copy.deepcopy(self.extras))
 
     def run_job(self, job: Job) -> JobResult:
         """Fit on the job's training demos and score its test demos at every ratio."""
@@ -66,7 +72,7 @@ def run_protocol(
     scorer: Scorer,
     extras: Sequence[Scorer] = (),
     progress: ProgressFn | None = None,
-    jobs: int = 1,
+    jobs: int | JobRunner = 1,
 ) -> list[Cell]:
     """Run one protocol of ``config`` with ``scorer`` (and ``extras``) over every cell.
 
@@ -76,13 +82,14 @@ def run_protocol(
         scorer: Fitted per job, its trials aggregate into cells of its ``cell_type``.
         extras: Scorers annotating the trials (e.g. :class:`~.scorers.baselines.BaselineScorer`).
         progress: Called as ``progress(done, total, label)`` after every model fit.
-        jobs: Worker processes (model fits run in parallel; results do not depend on it).
+        jobs: Worker processes (model fits run in parallel), or where the jobs run (a
+            :class:`~.jobs.JobRunner`, e.g. a Dask cluster); the results do not depend on it.
     """
     check_inputs(dataset, config, [scorer, *extras])
     work = build_jobs(dataset, config)
     worker = ProtocolWorker(dataset, scorer, extras)
     finished = []
-    for done, result in enumerate(run_worker_jobs(worker, work, jobs), start=1):
+    for done, result in enumerate(runner_of(jobs).run(worker, work), start=1):
         finished.append(result)
         if progress is not None:
             job = result.job

@@ -47,6 +47,7 @@ fitted to its demos' ``alpha_i``.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -167,6 +168,7 @@ def shrink_covariances(
     pooling: float = 0.0,
     blocks: list[np.ndarray] | None = None,
     tasks: list[int] | None = None,
+    cache: ShrinkageCache | None = None,
 ) -> list[ShrunkCovariance]:
     """Ledoit-Wolf shrinkage of every task's covariance toward one pooled per-dim diagonal target.
 
@@ -184,6 +186,8 @@ def shrink_covariances(
             (EMG amplitudes) then neither drives the intensity of the other dims nor couples to them.
         tasks: Indices of the tasks whose estimates are returned (default all); the pooled target
             and intensities always use every task's demos.
+        cache: Per-task statistics of weights arrays seen before (:class:`ShrinkageCache`): a
+            leave-one-out estimate then recomputes only the task that lost a demo (same numbers).
 
     Returns:
         Per task, the structured SPD estimate, block by block ``(1 - lambda) S_t + lambda T`` with
@@ -211,7 +215,8 @@ def shrink_covariances(
     for dims in blocks:
         if dims.size == 0:
             continue
-        lam, diag_b, facs = _shrink_block([w[:, dims] for w in weights], pooling, tasks)
+        stats = [_block_stats(w, dims, cache) for w in weights]
+        lam, diag_b, facs = _shrink_block(stats, pooling, tasks)
         diag[dims] = diag_b
         lam_dims[dims] = lam
         for i, f in enumerate(facs):
@@ -229,42 +234,90 @@ def shrink_covariances(
     ]
 
 
-def _shrink_block(
-    weights: list[np.ndarray], pooling: float, tasks: list[int]
-) -> tuple[float, np.ndarray, list[np.ndarray]]:
-    """Ledoit-Wolf intensity, diagonal (D_b,) and factors (D_b, K, r_t) of the tasks ``tasks``, one block."""
-    d, k = weights[0].shape[1:]
-    centred, grams, tau_num, tau_den = [], [], np.zeros(d), 0
-    for w in weights:
-        n = w.shape[0]
+class _BlockStats:
+    """One task's statistics of one block of dims that do not depend on the other tasks: centred
+    weights ``xc`` (N, D_b K), their Gram matrix (N, N), per-dim sums of squares / K (D_b,),
+    ``||S_t||_F^2``, ``tau_t`` (D_b,), the Ledoit-Wolf estimation error ``b_t^2``, and (computed when
+    first needed, without pooling) the unscaled factor ``V diag(s)`` of the thin SVD of ``xc / sqrt(N)``."""
+
+    def __init__(self, w: np.ndarray) -> None:
+        n, d, k = w.shape
+        self.shape = (n, d, k)
         xc = (w - w.mean(axis=0)).reshape(n, d * k)
-        centred.append(xc)
-        grams.append(xc @ xc.T)
-        tau_num += np.einsum("ndk,ndk->d", xc.reshape(n, d, k), xc.reshape(n, d, k)) / k
-        tau_den += n
+        gram = xc @ xc.T
+        self.xc, self.gram = xc, gram
+        self.tau_num = np.einsum("ndk,ndk->d", xc.reshape(n, d, k), xc.reshape(n, d, k)) / k
+        self.s_fro2 = float(np.sum(gram * gram)) / n**2  # ||S_t||_F^2
+        self.tau_t = np.einsum("ndk,ndk->d", xc.reshape(n, d, k), xc.reshape(n, d, k)) / (n * k)
+        xsx = np.sum(gram * gram, axis=1) / n  # x_i^T S_t x_i
+        self.b2 = float(np.sum(np.diag(gram) ** 2 - 2.0 * xsx + self.s_fro2)) / n**2
+        self._unscaled: np.ndarray | None = None
+
+    def unscaled_factor(self, pooled: np.ndarray | None, pooling: float) -> np.ndarray:
+        """``V diag(s)`` (D_b K, r) of the thin SVD of the rows ``xc / sqrt(N)`` (with ``pooling``,
+        stacked over the ``pooled`` rows; cached without)."""
+        if pooling <= 0.0 and self._unscaled is not None:
+            return self._unscaled
+        rows = self.xc / np.sqrt(self.xc.shape[0])
+        if pooling > 0.0:
+            rows = np.vstack([np.sqrt(1.0 - pooling) * rows, np.sqrt(pooling) * pooled])
+        _, sv, vt = np.linalg.svd(rows, full_matrices=False)
+        keep = sv > 1e-10 * max(float(sv[0]), 1e-300)
+        out = vt[keep].T * sv[keep]
+        if pooling <= 0.0:
+            self._unscaled = out
+        return out
+
+
+class ShrinkageCache:
+    """The per-task statistics (:class:`_BlockStats`) of registered weights arrays, so that the
+    leave-one-out estimates of the cross-validations (one task's weights without one demo, the others
+    the registered arrays themselves) recompute only the task that lost a demo. Arrays are
+    recognised by identity (the cache holds them, so an identity cannot be reused)."""
+
+    def __init__(self, weights: Sequence[np.ndarray] = ()) -> None:
+        self._arrays = {id(w): w for w in weights}
+        self._stats: dict[tuple[int, bytes], _BlockStats] = {}
+
+    def stats(self, w: np.ndarray, dims: np.ndarray) -> _BlockStats | None:
+        """The cached statistics of ``w[:, dims]`` (None when ``w`` is not registered)."""
+        if self._arrays.get(id(w)) is not w:
+            return None
+        key = (id(w), dims.tobytes())
+        out = self._stats.get(key)
+        if out is None:
+            out = self._stats[key] = _BlockStats(w[:, dims])
+        return out
+
+
+def _block_stats(w: np.ndarray, dims: np.ndarray, cache: ShrinkageCache | None) -> _BlockStats:
+    cached = None if cache is None else cache.stats(w, dims)
+    return _BlockStats(w[:, dims]) if cached is None else cached
+
+
+def _shrink_block(
+    stats: list[_BlockStats], pooling: float, tasks: list[int]
+) -> tuple[float, np.ndarray, list[np.ndarray]]:
+    """Ledoit-Wolf intensity, diagonal (D_b,) and factors (D_b, K, r_t) of the tasks ``tasks``, one
+    block, from every task's statistics."""
+    _, d, k = stats[0].shape
+    tau_num, tau_den = np.zeros(d), 0
+    for st in stats:
+        tau_num += st.tau_num
+        tau_den += st.shape[0]
     tau = tau_num / tau_den  # pooled per-dim mean weight variance
     b2_sum = d2_sum = 0.0
-    for xc, gram in zip(centred, grams, strict=True):
-        n = xc.shape[0]
-        s_fro2 = float(np.sum(gram * gram)) / n**2  # ||S_t||_F^2
-        tau_t = np.einsum("ndk,ndk->d", xc.reshape(n, d, k), xc.reshape(n, d, k)) / (n * k)
+    for st in stats:
         # ||S_t - T||_F^2 = ||S_t||^2 - 2 K sum_d tau_t,d tau_d + K sum_d tau_d^2
-        d2_sum += max(s_fro2 - 2.0 * k * float(tau_t @ tau) + k * float(tau @ tau), 0.0)
-        xsx = np.sum(gram * gram, axis=1) / n  # x_i^T S_t x_i
-        b2_sum += float(np.sum(np.diag(gram) ** 2 - 2.0 * xsx + s_fro2)) / n**2
+        d2_sum += max(st.s_fro2 - 2.0 * k * float(st.tau_t @ tau) + k * float(tau @ tau), 0.0)
+        b2_sum += st.b2
     lam = 1.0 if d2_sum <= 0.0 else float(min(1.0, max(0.0, b2_sum / d2_sum)))
     floor = VARIANCE_FLOOR * max(float(np.mean(tau)), 1e-12)
     diag = lam * tau + floor
-    pool = np.vstack(centred) / np.sqrt(sum(xc.shape[0] for xc in centred))
+    pool = np.vstack([st.xc for st in stats]) / np.sqrt(tau_den) if pooling > 0.0 else None
     factors = []
     for t in tasks:
-        xc = centred[t]
-        rows = xc / np.sqrt(xc.shape[0])
-        if pooling > 0.0:
-            rows = np.vstack([np.sqrt(1.0 - pooling) * rows, np.sqrt(pooling) * pool])
-        _, sv, vt = np.linalg.svd(rows, full_matrices=False)
-        keep = sv > 1e-10 * max(float(sv[0]), 1e-300)
-        factor = (vt[keep].T * sv[keep]) * np.sqrt(1.0 - lam)
+        factor = stats[t].unscaled_factor(pool, pooling) * np.sqrt(1.0 - lam)
         factors.append(factor.reshape(d, k, -1))
     return lam, diag, factors
 

@@ -157,17 +157,29 @@ def fit_knn(x: np.ndarray, y: np.ndarray, neighbours: Sequence[int] = KNN_NEIGHB
     d = np.sqrt(np.maximum(np.sum((xs[:, None] - xs[None]) ** 2, axis=2), 0.0))
     np.fill_diagonal(d, np.inf)
     best = (np.inf, 1, False, y)
+    order = np.argsort(d, axis=1, kind="stable")  # every row's neighbours, nearest first
     for k in neighbours:
         if k > n - 1:
             break
         for distance in (False, True):
-            pred = np.stack([knn_predict(d[i], y, k, distance) for i in range(n)])
-            resid = y - pred
+            resid = y - _knn_predict_rows(d, order[:, :k], y, distance)
             score = float(np.sum(resid * resid))
             if score < best[0]:
                 best = (score, k, distance, resid)
     _, k, distance, resid = best
     return KnnFit(xs, y, mean, scale, int(k), bool(distance), resid)
+
+
+def _knn_predict_rows(d: np.ndarray, idx: np.ndarray, y: np.ndarray, distance: bool) -> np.ndarray:
+    """(n, M) :func:`knn_predict` of every row at once: distances ``d`` (n, N), each row's ``k``
+    nearest rows ``idx`` (n, k), targets ``y`` (N, M)."""
+    near = y[idx]  # (n, k, M)
+    if not distance:
+        return near.mean(axis=1)
+    dk = np.take_along_axis(d, idx, axis=1)
+    with np.errstate(divide="ignore"):
+        w = np.where(np.any(dk <= 0.0, axis=1, keepdims=True), (dk <= 0.0).astype(float), 1.0 / dk)
+    return np.einsum("nk,nkm->nm", w, near) / w.sum(axis=1, keepdims=True)
 
 
 def fit_ridge(x: np.ndarray, y: np.ndarray, penalties: Sequence[float] = RIDGE_PENALTIES) -> RidgeFit:
@@ -184,15 +196,17 @@ def fit_ridge(x: np.ndarray, y: np.ndarray, penalties: Sequence[float] = RIDGE_P
     u, sv, vt = np.linalg.svd(xs, full_matrices=False)
     uy = u.T @ yc
     best = (np.inf, float(penalties[0]), yc)
-    for lam in penalties:
-        shrink = sv * sv / (sv * sv + lam)
-        lever = 1.0 - (u * u) @ shrink - 1.0 / n
-        if np.any(lever < 1e-9):
-            continue
-        resid = (yc - u @ (shrink[:, None] * uy)) / lever[:, None]
-        score = float(np.sum(resid * resid))
-        if score < best[0]:
-            best = (score, float(lam), resid)
+    # every penalty at once: shrink factors (P, r), leverages (P, n), LOO residuals (P, n, M)
+    lams = np.asarray(penalties, dtype=float)
+    shrink = sv * sv / (sv * sv + lams[:, None])
+    lever = 1.0 - shrink @ (u * u).T - 1.0 / n
+    ok = ~np.any(lever < 1e-9, axis=1)
+    if ok.any():
+        resid = (yc - np.matmul(u, shrink[ok][:, :, None] * uy)) / lever[ok][:, :, None]
+        score = np.sum(resid * resid, axis=(1, 2))
+        score[np.isnan(score)] = np.inf  # never chosen (as a NaN never compared smaller)
+        j = int(np.argmin(score))  # the first of equal scores, as the smallest penalty wins ties
+        best = (float(score[j]), float(lams[ok][j]), resid[j])
     if not np.isfinite(best[0]):  # too few rows for any penalty: the mean (its leave-one-out residuals)
         resid = yc * (n / (n - 1.0)) if n > 1 else yc
         return RidgeFit(np.zeros((y.shape[1], x.shape[1])), y_mean, resid, float(penalties[-1]))

@@ -294,7 +294,7 @@ def _held_out_predictions(
         if row.demo not in covs:
             keep = np.arange(len(training.demos[task])) != i
             weights = [training.weights[t][keep] if t == task else training.weights[t] for t in tasks]
-            covs[row.demo] = shrink_covariances(weights, settings.pooling, blocks, [k])[0]
+            covs[row.demo] = shrink_covariances(weights, settings.pooling, blocks, [k], training.cache)[0]
         cov = covs[row.demo]
         obs = cv_observations(encoder, training.demos[task][i], [row.ratio])
         if not obs:

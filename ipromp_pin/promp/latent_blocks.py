@@ -136,22 +136,25 @@ class LatentBlock:
         self._inputs[key] = out
         return out
 
-    def z_tensor(self, local: np.ndarray, cache: bool = True) -> np.ndarray:
+    def z_tensor(self, local: np.ndarray, cache: bool = True, n_basis: int | None = None) -> np.ndarray:
         """Packed ``Z`` (T, K(K+1)/2, r(r+1)/2) of the block-local dims ``local`` (cached unless
-        ``cache`` is False)."""
+        ``cache`` is False); with ``n_basis = k'`` only its first ``k'(k'+1)/2`` rows (the pairs of
+        the first ``k'`` basis functions, what a part with ``k'`` active ones reads; not cached)."""
         key = np.asarray(local, dtype=np.int64).tobytes()
-        z = self._z.get(key)
+        z = None if n_basis is not None else self._z.get(key)
         if z is None:
-            w = self.w[:, local]
+            w = self.w[:, local] if n_basis is None else self.w[:, local, :n_basis]
             n_task, dm, k, r = w.shape
             flat = w.reshape(n_task, dm, k * r)
-            # full[t, k r + a, l r + b] = sum_d W_dka W_dlb; Z gathers its (k, l, a, b) entries in one
-            # pass over flat indices (the same entries as indexing the 5-d view, 30x faster)
-            full = (np.swapaxes(flat, 1, 2) @ flat).reshape(n_task, -1)
-            direct, mirror, off = self._z_gather()
-            z = np.take(full, direct, axis=1)
-            z[:, off] += np.take(full, mirror[off], axis=1)
-            if cache:
+            direct, mirror, off = self._z_gather() if n_basis is None else z_gather(k, r)
+            z = np.empty((n_task, *direct.shape))
+            for t in range(n_task):  # one task at a time: W^T W is the largest temporary
+                # full[k r + a, l r + b] = sum_d W_dka W_dlb; Z gathers its (k, l, a, b) entries in
+                # one pass over flat indices (the same entries as indexing the 4-d view, 30x faster)
+                full = (flat[t].T @ flat[t]).reshape(-1)
+                z[t] = np.take(full, direct)
+                z[t, off] += np.take(full, mirror[off])
+            if cache and n_basis is None:
                 self._z[key] = z
         return z
 

@@ -298,7 +298,7 @@ class InferenceEngine:
             u0, u1 = self.fuse_rows
             n_c = self.alphas.shape[1]
             for st, (_, _, _, coef) in zip(stats, factors, strict=True):
-                zcat, cols = self.fused_z(st.dims)
+                zcat, cols = self.fused_z(st.dims, st.ke)
                 pz = np.dot(coef[u0:u1], zcat[: st.ke * (st.ke + 1) // 2])
                 for group, (_, _, pq) in zip(self.lane_groups, out, strict=True):
                     for lane0, b in zip(self.lane_starts(group), group, strict=True):
@@ -307,20 +307,39 @@ class InferenceEngine:
                             kern.add_fused_p(pz, self.starts, u0, n_c, cols[b], npk, lane0, pq)
         return out
 
-    def fused_z(self, dims: np.ndarray) -> tuple[np.ndarray, list[int]]:
+    def reserve_z(self, stats: list[PartStats]) -> None:
+        """Build at once the ``Z`` rows that the parts ``stats`` will read (:meth:`fused_z`), so that
+        observations of growing length (a held-out demo's prefixes) share one product."""
+        if self.fuse_rows is None or not self.use_z:
+            return
+        need: dict[bytes, tuple[np.ndarray, int]] = {}
+        for st in stats:
+            key = st.dims.tobytes()
+            need[key] = (st.dims, max(st.ke, need.get(key, (st.dims, 0))[1]))
+        for dims, ke in need.values():
+            self.fused_z(dims, ke)
+
+    def fused_z(self, dims: np.ndarray, ke: int | None = None) -> tuple[np.ndarray, list[int]]:
         """The ``Z`` tensors of every block and task side by side for a part observing ``dims``
-        (cached): (K(K+1)/2, sum_b T r_b(r_b+1)/2), block ``b``'s task ``t`` in the columns
-        ``cols[b] + t r_b(r_b+1)/2 ..``, and ``cols`` (-1 for a block the part does not observe)."""
+        (cached): (K'(K'+1)/2, sum_b T r_b(r_b+1)/2), block ``b``'s task ``t`` in the columns
+        ``cols[b] + t r_b(r_b+1)/2 ..``, and ``cols`` (-1 for a block the part does not observe).
+
+        ``K' >= ke`` rows of basis pairs: the first call with ``ke`` active basis functions builds
+        only their rows (a short observation, such as the cross-validations' held-out ones, reads
+        no more); a later call needing more builds all ``K``."""
         key = dims.tobytes()
         out = self._fused.get(key)
-        if out is None:
+        n_basis = self.basis.n_basis
+        need = n_basis if ke is None else min(int(ke), n_basis)
+        if out is None or out[0].shape[0] < need * (need + 1) // 2:
+            rows = n_basis if out is not None and need > n_basis // 2 else need
             cols, mats, col = [], [], 0
             for b in self.blocks:
                 pos, local = b.select(dims)
                 if pos.size == 0:
                     cols.append(-1)
                     continue
-                z = b.z_tensor(local, cache=False)  # (T, K(K+1)/2, npk)
+                z = b.z_tensor(local, cache=False, n_basis=None if rows == n_basis else rows)
                 mats.append(np.concatenate(list(z), axis=1))
                 cols.append(col)
                 col += z.shape[0] * z.shape[2]

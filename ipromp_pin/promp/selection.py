@@ -178,10 +178,24 @@ class _Fold:
     """One held-out demo of :func:`choose_noise`: its leave-one-out task models and observations."""
 
     task: int
-    models: list  # the leave-one-out TaskModel of every task, in task order
+    held: tuple[str, int]  # (task, demo index) of the held-out demo
     priors: PhasePriors
     observations: list  # (ratio, parts, t_last, window summary (3 D_o,))
     logliks: dict  # (observation index, nu) -> log likelihood (T, C)
+
+
+def _fold_models(training: TrainingSet, settings: PhaseSettings, task: str, i: int) -> list:
+    """The task models (in task order) without demo ``i`` of ``task``, all observed groups coupled
+    (only the task that lost a demo is re-estimated: ``training.cache``)."""
+    keep = np.arange(len(training.demos[task])) != i
+    models = task_models(
+        training,
+        _without(training.weights, task, keep),
+        _without(training.alphas, task, keep),
+        training.layout.observe,
+        settings,
+    )
+    return [models[t] for t in training.tasks]
 
 
 def _fold_engine(training: TrainingSet, models: list, nu: float) -> InferenceEngine:
@@ -202,24 +216,17 @@ def choose_noise(
 
     Two passes over the held-out demos: the first scores every candidate on the observations at
     :data:`CV_RATIOS` (few active basis functions: cheap); the second computes the log likelihood
-    of the recognition head's rows (:data:`HEAD_RATIOS`) at the chosen ``nu`` only."""
+    of the recognition head's rows (:data:`HEAD_RATIOS`) at the chosen ``nu`` only (in the first pass
+    already when ``nu`` is given). A fold's models are not kept between the passes (they would hold
+    every fold's factors at once): the second pass re-estimates them."""
     encoder = ObservationEncoder(training.layout, training.scaler, np.inf)
     scores = np.zeros((len(noise_grid), len(temperature_grid)))
     n_eval = 0
-    everything = training.layout.observe
     folds: list[_Fold] = []
     for task, i in held_out(training.demos):
         ki = training.tasks.index(task)
-        keep = np.arange(len(training.demos[task])) != i
-        models = task_models(
-            training,
-            _without(training.weights, task, keep),
-            _without(training.alphas, task, keep),
-            everything,
-            settings,
-        )
-        ordered = [models[t] for t in training.tasks]
-        m = models[task]
+        ordered = _fold_models(training, settings, task, i)
+        m = ordered[ki]
         engine = _fold_engine(training, ordered, noise_grid[0])
         priors = PhasePriors(
             tasks=training.tasks,
@@ -229,20 +236,26 @@ def choose_noise(
             task_log_prior=task_log_prior,
             duration_nominal_s=training.duration_nominal_s,
         )
-        fold = _Fold(ki, ordered, priors, [], {})
+        fold = _Fold(ki, (task, i), priors, [], {})
         folds.append(fold)
         dens_shift = np.log(m.alpha_grid[1] - m.alpha_grid[0])
         alpha_true = training.alphas[task][i]
+        scored = []
         for ratio, parts, t_last in cv_observations(encoder, training.demos[task][i], HEAD_RATIOS):
             summary = WindowSummary.from_parts(parts, training.layout.n_obs_dims).vector()
             fold.observations.append((ratio, parts, t_last, summary))
-            if ratio not in CV_RATIOS:
-                continue
-            n_eval += 1
-            stats = [engine.part_stats(p) for p in parts]
+            if ratio in CV_RATIOS or len(noise_grid) == 1:
+                scored.append((len(fold.observations) - 1, [engine.part_stats(p) for p in parts], t_last))
+        engine.reserve_z([st for _, stats, _ in scored for st in stats])
+        for n_obs, stats, t_last in scored:
             for j, nu in enumerate(noise_grid):
                 loglik = engine.log_likelihood(stats, t_last, nu=nu)
-                fold.logliks[(len(fold.observations) - 1, j)] = loglik
+                fold.logliks[(n_obs, j)] = loglik
+            if fold.observations[n_obs][0] not in CV_RATIOS:
+                continue
+            n_eval += 1
+            for j in range(len(noise_grid)):
+                loglik = fold.logliks[(n_obs, j)]
                 for k, tau in enumerate(temperature_grid):
                     rec, logpost = recognise_from_loglik(priors, tau * loglik, t_last)
                     s = rec.log_posterior[ki]
@@ -260,17 +273,18 @@ def choose_noise(
         nu = float(noise_grid[j])
     rows: list[HeldOutRow] = []
     for n_demo, fold in enumerate(folds):
-        fold_engine: InferenceEngine | None = None
-        for n_obs, (ratio, parts, t_last, summary) in enumerate(fold.observations):
-            cached = fold.logliks.get((n_obs, j)) if best is not None else None
-            if cached is None:
-                if fold_engine is None:
-                    fold_engine = _fold_engine(training, fold.models, nu)
-                stats = [fold_engine.part_stats(p) for p in parts]
-                loglik = fold_engine.log_likelihood(stats, t_last, nu=nu)
-            else:
-                loglik = cached
+        todo = [n for n in range(len(fold.observations)) if (n, j) not in fold.logliks]
+        if todo:
+            fold_engine = _fold_engine(training, _fold_models(training, settings, *fold.held), nu)
+            todo_stats = {n: [fold_engine.part_stats(p) for p in fold.observations[n][1]] for n in todo}
+            fold_engine.reserve_z([st for sts in todo_stats.values() for st in sts])
+            for n in todo:
+                t_obs = fold.observations[n][2]
+                fold.logliks[(n, j)] = fold_engine.log_likelihood(todo_stats[n], t_obs, nu=nu)
+        for n_obs, (ratio, _, t_last, summary) in enumerate(fold.observations):
+            loglik = fold.logliks[(n_obs, j)]
             rows.append(HeldOutRow(fold.task, n_demo, summary, ratio, loglik, fold.priors, t_last))
+        fold.logliks.clear()
     if best is None:
         return NoiseChoice(nu, float(temperature_grid[0]), {}, rows)
     return NoiseChoice(
@@ -344,7 +358,8 @@ def choose_coupling(
         weights = [training.weights[t][keep] if t == task else training.weights[t] for t in training.tasks]
         ki = [training.tasks.index(task)]
         covs = [
-            shrink_covariances(weights, settings.pooling, coupling_blocks(layout, c), ki)[0] for c in cands
+            shrink_covariances(weights, settings.pooling, coupling_blocks(layout, c), ki, training.cache)[0]
+            for c in cands
         ]
         alpha = float(training.alphas[task][i])
         w_true = training.weights[task][i][rs]

@@ -10,7 +10,7 @@ cross-validations (:mod:`ipromp_pin.promp.selection`) call again with demos left
 from __future__ import annotations
 
 from collections.abc import Iterable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -19,6 +19,7 @@ from ..exceptions import DataError, ModelError
 from .basis import GaussianBasis
 from .distribution import (
     ChannelScaler,
+    ShrinkageCache,
     TaskModel,
     alpha_candidates,
     alpha_prior,
@@ -59,6 +60,8 @@ class TrainingSet:
         alphas: Task -> (N,) phases ``T_i / T_norm`` of its demos.
         duration_nominal_s: ``T_norm`` in [s], the mean duration over all demos.
         residual_var: (D,) mean per-sample residual variance of the basis fits.
+        cache: The covariance statistics of ``weights`` (shared by the leave-one-out estimates of
+            the cross-validations, :class:`~ipromp_pin.promp.distribution.ShrinkageCache`).
     """
 
     demos: Mapping[str, list[Demo]]
@@ -70,6 +73,7 @@ class TrainingSet:
     alphas: Mapping[str, np.ndarray]
     duration_nominal_s: float
     residual_var: np.ndarray
+    cache: ShrinkageCache = field(default_factory=ShrinkageCache, compare=False, repr=False)
 
 
 def demos_by_task(data: Dataset | Iterable[Demo]) -> dict[str, list[Demo]]:
@@ -187,6 +191,7 @@ def prepare_training(
         alphas={task: durations[task] / t_norm for task in by_task},
         duration_nominal_s=t_norm,
         residual_var=rss / np.maximum(count, 1),
+        cache=ShrinkageCache(list(weights.values())),
     )
 
 
@@ -233,7 +238,7 @@ def task_models(
     priors = [alpha_prior(alphas[t]) for t in tasks]
     cands = alpha_candidates(priors, settings.n_alpha, settings.alpha_width)
     blocks = coupling_blocks(training.layout, coupled)
-    covs = shrink_covariances([weights[t] for t in tasks], settings.pooling, blocks)
+    covs = shrink_covariances([weights[t] for t in tasks], settings.pooling, blocks, cache=training.cache)
     models = {}
     for task, (mu, sigma), (grid, logw), cov in zip(tasks, priors, cands, covs, strict=True):
         models[task] = TaskModel(

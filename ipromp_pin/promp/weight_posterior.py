@@ -239,35 +239,49 @@ class RobotWeightPosterior:
         nj, k, r = self.factor.shape
         readout = np.atleast_2d(np.asarray(readout, dtype=float))
         m = readout.shape[0]
+        # the hot path of every prediction with the hand-over estimate: LAPACK through numpy and
+        # scipy without its input checks (the inputs are the model's own finite arrays), products
+        # as BLAS matrix products rather than einsum
         try:
-            cov_chol = cholesky(np.asarray(cov, dtype=float), lower=True)
+            cov_chol = np.linalg.cholesky(np.asarray(cov, dtype=float))
         except LinAlgError as exc:
             raise ModelError(f"read-out noise covariance is not positive definite ({exc})") from exc
         a_s = readout * self.scale[None, :]  # read-out of the scaled joints
-        g0 = self.loadings(np.repeat(np.asarray(row, dtype=float)[None], nj, axis=0), np.arange(nj))
-        v = solve_triangular(cov_chol, a_s @ g0, lower=True)  # whitened rows (m, n_u)
-        predicted = readout @ (self.mean @ row * self.scale + self.offset)
-        resid = solve_triangular(cov_chol, np.asarray(values, dtype=float) - predicted, lower=True)
+        row = np.asarray(row, dtype=float)
+        sd = np.sqrt(self.diag)
         jk = nj * k
+        # G^T H^T for the read-out of every joint at ``row``: (J, J K + r) (see :meth:`loadings`)
+        g0 = np.zeros((nj, jk + r))
+        joint = np.arange(nj)[:, None]
+        g0[joint, joint * k + np.arange(k)[None, :]] = sd[:, None] * row[None, :]
+        g0[:, jk:] = row @ self.factor
+        v = solve_triangular(cov_chol, a_s @ g0, lower=True, check_finite=False)  # whitened rows (m, n_u)
+        predicted = readout @ (self.mean @ row * self.scale + self.offset)
+        resid = solve_triangular(
+            cov_chol, np.asarray(values, dtype=float) - predicted, lower=True, check_finite=False
+        )
         if chol is None:  # Lambda = blockdiag(I, Q): Lambda^-1 V^T blockwise
             u = v.T.copy()
             if r:
-                u[jk:] = cho_solve((base, True), u[jk:])
+                u[jk:] = cho_solve((base, True), u[jk:], check_finite=False)
         else:
-            u = cho_solve((chol, True), v.T)
-        s_chol = cholesky(np.eye(m) + v @ u, lower=True)
-        du = u @ cho_solve((s_chol, True), resid)
-        sd = np.sqrt(self.diag)
+            u = cho_solve((chol, True), v.T, check_finite=False)
+        s_chol = np.linalg.cholesky(np.eye(m) + v @ u)
+        du = u @ cho_solve((s_chol, True), resid, check_finite=False)
         dw = du[:jk].reshape(nj, k) * sd[:, None] + self.factor @ du[jk:]
         # cross-covariance of the trajectory's joints with the whitened read-outs: (M, J, m)
-        cross = np.einsum("mk,jkc->mjc", self.phi, u[:jk].reshape(nj, k, m) * sd[:, None, None])
+        n_m = self.phi.shape[0]
+        u_w = (u[:jk].reshape(nj, k, m) * sd[:, None, None]).transpose(1, 0, 2).reshape(k, nj * m)
+        cross = (self.phi @ u_w).reshape(n_m, nj, m)
         if r:
             if phi_f is None:
                 phi_f = np.einsum("mk,jkr->rjm", self.phi, self.factor)
-            cross += np.einsum("rjm,rc->mjc", phi_f, u[jk:])
-        d = solve_triangular(s_chol, cross.reshape(-1, m).T, lower=True).T.reshape(cross.shape)
+            cross += (u[jk:].T @ phi_f.reshape(r, nj * n_m)).reshape(m, nj, n_m).transpose(2, 1, 0)
+        d = solve_triangular(s_chol, cross.reshape(-1, m).T, lower=True, check_finite=False).T.reshape(
+            cross.shape
+        )
         d_mean = (self.phi @ dw.T) * self.scale
-        d_cov = np.einsum("mic,mjc->mij", d, d) * self.scale[None, :, None] * self.scale[None, None, :]
+        d_cov = np.matmul(d, d.transpose(0, 2, 1)) * self.scale[None, :, None] * self.scale[None, None, :]
         rows = v if self.extra_rows is None else np.vstack([self.extra_rows, v])
         if chol is not None and self.extra_rows is None:  # on top of earlier via-points: factorise now
             new = replace(self, mean=self.mean + dw, info_chol=chol, extra_rows=rows)

@@ -71,6 +71,11 @@ class Robot:
     active_pair_ids: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
     static_min_distance_m: float = math.inf
 
+    def __reduce__(self) -> tuple:
+        """Pickled as its settings (Pinocchio's work data cannot be pickled): the receiving process
+        (a Dask worker of ``evaluate --cluster``) rebuilds the models from the settings' files."""
+        return (rebuilt_robot, (self.settings, self.collision_model is not None))
+
     @property
     def joint_names(self) -> tuple[str, ...]:
         """Arm joint names in kinematic order."""
@@ -169,6 +174,12 @@ def load_robot(settings: RobotSettings | str | Path, *, cache: bool = True) -> R
             del _ROBOT_CACHE[k]
         _ROBOT_CACHE[key] = robot
     return robot
+
+
+def rebuilt_robot(settings: RobotSettings, collision: bool = True) -> Robot:
+    """The robot of ``settings`` (with its collision model: :func:`load_robot`, cached), e.g. an
+    unpickled :class:`Robot`."""
+    return load_robot(settings) if collision else build_robot(settings, collision=False)
 
 
 def _parse_urdf(s: RobotSettings) -> pin.Model:

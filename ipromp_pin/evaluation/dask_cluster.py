@@ -1,0 +1,130 @@
+"""Evaluation jobs on a Dask cluster (``ipromp-pin evaluate --cluster``), behind the interface of the
+local pool (:class:`~.jobs.LocalPool`): ``run(worker, work)`` yields every job's result.
+
+Two kinds of cluster:
+
+* ``dask-local:N``: a :class:`distributed.LocalCluster` of ``N`` worker processes (one thread
+  each) started for the run and closed after it;
+* ``tcp://HOST:PORT`` (or ``tls://``, ``ws://`` ...): an existing scheduler, e.g. one that
+  ``dask-jobqueue`` starts on a SLURM cluster. Its workers need this package (the same version) and
+  the robot settings' files at the same paths (the robot travels as its settings and is rebuilt).
+
+The worker (the dataset and the scorers) is sent to every Dask worker once (``scatter``, broadcast);
+every job is one task, retried (``retries``) when the worker running it dies, so a lost worker costs
+a re-run, not a cell. A job runs with its own copy of the scorers, so workers of several threads
+are safe for the fits (the closed loop's robot is shared by a process's threads: give closed-loop
+runs workers of one thread, e.g. ``dask-jobqueue``'s ``processes`` equal to its ``cores``). The
+results do not depend on where a job ran: the cells are those of a ``--jobs`` run of the same
+splits and seeds. Dask is an optional dependency (``pip install 'ipromp_pin[dask]'``).
+"""
+
+from __future__ import annotations
+
+import importlib
+import uuid
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass
+from types import ModuleType
+
+from ..exceptions import IPrompPinError
+from .jobs import Job, JobResult, Worker
+
+LOCAL_PREFIX = "dask-local:"
+"""``--cluster`` prefix of a local cluster (followed by its number of workers)."""
+
+SCHEMES = ("tcp://", "tls://", "ws://", "wss://", "inproc://", "ucx://")
+"""Address schemes of an existing Dask scheduler."""
+
+RETRIES = 3
+"""Re-runs of a job whose worker died (or that failed) before its error is reported."""
+
+
+class ClusterError(IPrompPinError):
+    """A bad ``--cluster`` value, Dask missing, or a cluster that cannot be reached."""
+
+
+@dataclass(frozen=True)
+class DaskCluster:
+    """Where the jobs run: a local cluster of ``n_workers`` processes (``address`` None) or the
+    scheduler at ``address``; ``retries`` re-runs of a job whose worker dies; ``processes`` False
+    runs a local cluster's workers as threads of this process (the tests)."""
+
+    address: str | None = None
+    n_workers: int = 0
+    retries: int = RETRIES
+    processes: bool = True
+
+    @classmethod
+    def from_spec(cls, spec: str) -> DaskCluster:
+        """The cluster of a ``--cluster`` value (``dask-local:N`` or a scheduler address)."""
+        spec = spec.strip()
+        if spec.startswith(LOCAL_PREFIX):
+            count = spec[len(LOCAL_PREFIX) :]
+            if not count.isdigit() or not 1 <= int(count) <= 1024:
+                raise ClusterError(f"--cluster: '{spec}': the number of workers must be 1-1024")
+            return cls(n_workers=int(count))
+        if spec.startswith(SCHEMES) and len(spec.split("://", 1)[1]) > 0:
+            return cls(address=spec)
+        raise ClusterError(
+            f"--cluster: '{spec}' is neither {LOCAL_PREFIX}N nor a scheduler address such as tcp://HOST:8786"
+        )
+
+    @property
+    def label(self) -> str:
+        """How the run reports the cluster."""
+        return f"{LOCAL_PREFIX}{self.n_workers}" if self.address is None else self.address
+
+    def run(self, worker: Worker, work: Sequence[Job]) -> Iterator[JobResult]:
+        """``worker.run_job`` over the jobs on the cluster (results in completion order)."""
+        distributed = require_dask()
+        if not work:
+            return
+        cluster = None
+        try:
+            if self.address is None:
+                cluster = distributed.LocalCluster(
+                    n_workers=self.n_workers,
+                    threads_per_worker=1,
+                    processes=self.processes,
+                    dashboard_address=None,
+                )
+                client = distributed.Client(cluster)
+            else:
+                client = distributed.Client(self.address, timeout="30s")
+        except OSError as exc:
+            if cluster is not None:
+                cluster.close()
+            raise ClusterError(f"--cluster {self.label}: cannot reach the scheduler ({exc})") from None
+        try:
+            yield from self._run(distributed, client, worker, work)
+        finally:
+            client.close()
+            if cluster is not None:
+                cluster.close()
+
+    def _run(
+        self, distributed: ModuleType, client, worker: Worker, work: Sequence[Job]
+    ) -> Iterator[JobResult]:
+        remote = client.scatter(worker, broadcast=True, hash=False)
+        run_id = uuid.uuid4().hex[:8]
+        futures = [
+            client.submit(run_job, remote, job, key=f"ipromp-job-{run_id}-{job.index}", retries=self.retries)
+            for job in work
+        ]
+        for future in distributed.as_completed(futures):
+            yield future.result()
+
+
+def run_job(worker: Worker, job: Job) -> JobResult:
+    """One job on a Dask worker (with its own scorers: a worker's threads share the scattered one)."""
+    return worker.for_one_job().run_job(job)
+
+
+def require_dask() -> ModuleType:
+    """The ``distributed`` module, or ClusterError saying how to install it."""
+    try:
+        return importlib.import_module("distributed")
+    except ImportError:
+        raise ClusterError(
+            "--cluster needs Dask: pip install 'ipromp_pin[dask]' (or pip install 'dask[distributed]')"
+        ) from None

@@ -1,0 +1,59 @@
+"""``evaluate --cluster``: the model fits on a Dask cluster give the cells of a local run (same splits
+and seeds), progress counts the jobs, and bad cluster values are one-line errors."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from ipromp_pin.evaluation.config import EvaluationConfig
+from ipromp_pin.evaluation.dask_cluster import ClusterError, DaskCluster
+from ipromp_pin.evaluation.evaluate import evaluate
+from ipromp_pin.evaluation.tables import to_json
+from ipromp_pin.readers.synthetic import make_synthetic_dataset
+from ipromp_pin.robot import load_robot
+from ipromp_pin.shipped import DEFAULT_ROBOT
+
+TINY_MODEL = {"n_basis": 9, "n_alpha": 8, "head": False, "handover": False, "coupling": "all", "noise": 3.0}
+
+
+def test_cluster_values_are_parsed_or_refused() -> None:
+    assert DaskCluster.from_spec("dask-local:3") == DaskCluster(n_workers=3)
+    assert DaskCluster.from_spec("tcp://10.0.0.5:8786").address == "tcp://10.0.0.5:8786"
+    for bad in ("dask-local:0", "dask-local:x", "localhost:8786", "tcp://"):
+        with pytest.raises(ClusterError, match="--cluster"):
+            DaskCluster.from_spec(bad)
+
+
+def test_a_robot_travels_as_its_settings() -> None:
+    import pickle
+
+    robot = load_robot(DEFAULT_ROBOT)
+    again = pickle.loads(pickle.dumps(robot))
+    assert again.settings == robot.settings and again.collision_model is not None
+
+
+def test_local_cluster_gives_the_cells_of_the_local_run() -> None:
+    pytest.importorskip("distributed")
+    ds = make_synthetic_dataset(n_tasks=2, n_demos=6, seed=5)
+    cfg = EvaluationConfig(
+        protocol="splits", observe=[["orientation"]], grid=[(4, 0.3)], n_test=2, n_splits=3,
+        model_params=TINY_MODEL,
+    )  # fmt: skip
+    local = evaluate(ds, cfg, robot=None, jobs=1)
+    seen: list[tuple[int, int]] = []
+    cluster = DaskCluster(n_workers=2, processes=False)  # two workers in threads of this process: fast
+    remote = evaluate(
+        ds, cfg, robot=None, progress=lambda done, total, _: seen.append((done, total)), jobs=cluster
+    )
+    assert json.dumps(to_json(remote)) == json.dumps(to_json(local))
+    assert seen == [(1, 3), (2, 3), (3, 3)]
+
+
+def test_a_bad_cluster_is_a_one_line_error_before_any_demo_is_read(tmp_path, capsys) -> None:
+    from ipromp_pin.cli import main
+
+    assert main(["evaluate", str(tmp_path), "--cluster", "localhost:8786"]) == 2
+    err = capsys.readouterr().err
+    assert "--cluster: 'localhost:8786' is neither" in err and len(err.strip().splitlines()) == 1

@@ -23,16 +23,21 @@ GRAVITY_M_S2 = 9.81
 class ArmDynamics:
     """Joint torques of the arm of ``robot``, with or without an object in the gripper.
 
+    The torques are what the motors deliver: Pinocchio's RNEA minus the torque of the joints' springs
+    (``[springs]`` of the robot settings: Baxter's shoulder s1 counterbalance, which the URDF lacks).
+
     Args:
         robot: The loaded robot.
+        springs: Subtract the settings' spring torques (False: the plain RNEA torques).
 
     Attributes:
         model_: The arm-only Pinocchio model (n_joints degrees of freedom).
         effort_limit_nm: The URDF's effort limits of the arm joints (n_joints,) in [N m].
     """
 
-    def __init__(self, robot: Robot) -> None:
+    def __init__(self, robot: Robot, springs: bool = True) -> None:
         self.robot = robot
+        self.springs = springs
         full = robot.model
         arm = {int(j) for j in robot.arm_joint_ids}
         locked = [j for j in range(1, full.njoints) if j not in arm]
@@ -44,6 +49,8 @@ class ArmDynamics:
         frame = self.model_.frames[self.model_.getFrameId(robot.settings.ee_parent_frame)]
         self.gripper_joint_ = int(frame.parentJoint)
         self.gripper_placement_ = frame.placement
+        coef = robot.settings.spring_torque_nm if springs else {}
+        self.spring_ = np.array([coef.get(n, (0.0, 0.0)) for n in robot.joint_names]).reshape(-1, 2)
         self._models: dict[int, tuple[pin.Model, pin.Data, object]] = {}
 
     def payload_model(self, payload: TaskObject | None) -> pin.Model:
@@ -100,12 +107,23 @@ class ArmDynamics:
         [rad/s^2] -> [N m]), e.g. for toppra's ``JointTorqueConstraint``."""
         model, data, _ = self._entry(payload)
 
+        c0, c1 = self.spring_[:, 0], self.spring_[:, 1]
+
         def inv_dyn(q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> np.ndarray:
-            return np.array(pin.rnea(model, data, q, qd, qdd))
+            return np.array(pin.rnea(model, data, q, qd, qdd)) - (c0 + c1 * q)
 
         return inv_dyn
 
+    def spring_torques(self, q: np.ndarray) -> np.ndarray:
+        """The springs' torques (N, n_joints) in [N m] at positions ``q`` (N, n_joints) [rad]."""
+        return self.spring_[:, 0] + self.spring_[:, 1] * np.atleast_2d(q)
+
     def _rnea(self, payload: TaskObject | None, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> np.ndarray:
+        return self._plain_rnea(payload, q, qd, qdd) - self.spring_torques(q)
+
+    def _plain_rnea(
+        self, payload: TaskObject | None, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray
+    ) -> np.ndarray:
         model, data, pool = self._entry(payload)
         n = q.shape[0]
         if pool is not None and n > 1:

@@ -52,10 +52,12 @@ def main() -> None:
     slope, c0 = np.polyfit(q[:, 1], gap[:, 1], 1)
     res = gap[:, 1] - (c0 + slope * q[:, 1])
     print(
-        f"s1 spring torque = {c0:.2f} + {slope:.2f} * q_s1 [N m], for q_s1 in [{q[:, 1].min():.2f}, {q[:, 1].max():.2f}]"
+        f"s1 spring torque = {c0:.2f} + {slope:.2f} * q_s1 [N m], "
+        f"for q_s1 in [{q[:, 1].min():.2f}, {q[:, 1].max():.2f}]"
     )
     print(
-        f"residual |.| median {np.median(np.abs(res)):.2f} N m, 95th percentile {np.percentile(np.abs(res), 95):.2f} N m"
+        f"residual |.| median {np.median(np.abs(res)):.2f} N m, "
+        f"95th percentile {np.percentile(np.abs(res), 95):.2f} N m"
     )
     print(f"[springs]\nleft_s1 = [{c0:.2f}, {slope:.2f}]")
 

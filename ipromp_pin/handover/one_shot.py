@@ -144,9 +144,7 @@ def plan(
     # from its start), not the prediction's (the human's clock).
     torque = torque_limit(checks, context, prediction.task) if torque_timing else None
     try:
-        trajectory, timing_report = time_path(
-            prediction.q_mean, JointLimits.from_robot(robot), rate_hz=control_rate_hz, torque=torque
-        )
+        trajectory, timing_report, torque = _time_prediction(prediction, robot, control_rate_hz, torque, say)
     except InfeasibleError:
         report = check_path(robot, prediction.q_mean, q_samples=samples, hand_position_m=hand_position_m)
         say(f"[check] {'pass' if report.passed else 'FAIL: ' + ', '.join(report.failures)}")
@@ -171,6 +169,22 @@ def plan(
     if result.slowdown > 1.0:
         say(f"[timing] slowed {result.slowdown:.2f}x for the checks: {result.slowdown_delay_s:+.2f} s")
     return result
+
+
+def _time_prediction(
+    prediction: Prediction, robot: Robot, rate_hz: float, torque: TorqueLimit | None, say: LogFn
+) -> tuple[Trajectory, TimingReport, TorqueLimit | None]:
+    """The predicted path timed under the robot's limits and ``torque``; when toppra finds no profile
+    under the torque limits (gravity alone exceeds them somewhere on the path: slowing down cannot
+    help), timed without them (the joint-torque check then fails the plan). The torque limits used
+    are returned (None after that fallback)."""
+    limits = JointLimits.from_robot(robot)
+    if torque is not None:
+        try:
+            return (*time_path(prediction.q_mean, limits, rate_hz=rate_hz, torque=torque), torque)
+        except InfeasibleError as exc:
+            say(f"[timing] not timeable under the torque limits ({exc}): timed without them")
+    return (*time_path(prediction.q_mean, limits, rate_hz=rate_hz), None)
 
 
 def torque_limit(

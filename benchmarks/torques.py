@@ -62,6 +62,9 @@ def main() -> None:
     parser.add_argument("--ratio", type=float, default=0.2)
     parser.add_argument("--max-tests", type=int, default=1000)
     parser.add_argument("--closed-loop", action="store_true")
+    parser.add_argument(
+        "--no-springs", action="store_true", help="the URDF's RNEA without Baxter's s1 springs"
+    )
     args = parser.parse_args()
     robot = load_robot("baxter_left")
     if args.dataset is None:
@@ -77,7 +80,7 @@ def main() -> None:
     train = [d for demos in ds.demos.values() for d in demos[: args.n_train]]
     test = [d for demos in ds.demos.values() for d in demos[args.n_train :]][: args.max_tests]
     objects = load_objects()
-    check = JointTorques(robot)
+    check = JointTorques(robot, springs=not args.no_springs)
     allowed = 1.0 - robot.settings.effort_margin
     rows: dict[str, list[float]] = {"before": [], "check": [], "torque_timing": []}
     delays: dict[str, list[float]] = {"check": [], "torque_timing": []}

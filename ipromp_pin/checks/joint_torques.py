@@ -55,20 +55,22 @@ class JointTorques(MotionCheck):
         robot: The loaded robot (its URDF's effort limits, its settings' effort margin).
         max_samples: Most samples evaluated per motion (evenly spaced; the peaks of |qdd| and |qd| per
             joint and the last sample are always evaluated).
+        springs: Count the springs of the robot settings (``[springs]``; False: the URDF's RNEA alone).
     """
 
     name = "joint_torques"
     required = True
 
-    def __init__(self, robot: Robot, max_samples: int = 200) -> None:
+    def __init__(self, robot: Robot, max_samples: int = 200, springs: bool = True) -> None:
         super().__init__(robot)
         self.max_samples = max_samples
+        self.springs = springs
 
     @property
     def dynamics(self) -> ArmDynamics:
         """The arm's inverse dynamics (built on first use, then kept)."""
         if getattr(self, "dynamics_", None) is None:
-            self.dynamics_ = ArmDynamics(self.robot)
+            self.dynamics_ = ArmDynamics(self.robot, springs=self.springs)
         return self.dynamics_
 
     def sample_indices(self, motion: TimedMotion) -> np.ndarray:

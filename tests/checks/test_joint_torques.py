@@ -8,6 +8,7 @@ import json
 
 import numpy as np
 import pytest
+from helpers_cli import one_error_line, run_tiny
 from scipy.interpolate import CubicSpline
 
 from ipromp_pin import cli
@@ -18,8 +19,6 @@ from ipromp_pin.motion.trajectory import JointLimits
 from ipromp_pin.robot import load_robot
 from ipromp_pin.robot.dynamics import ArmDynamics
 from ipromp_pin.robot.objects import TaskObject
-
-from helpers_cli import one_error_line, run_tiny
 
 Q0 = np.array([-0.8, -0.9, 0.4, 1.3, -0.2, 1.2, 1.6])
 Q1 = np.array([-0.2, -0.4, 0.1, 0.8, 0.3, 0.9, 1.0])

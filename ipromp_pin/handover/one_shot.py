@@ -235,4 +235,8 @@ def _check_motion(
                 result.slowdown = k
                 result.trajectory, result.timing_report, results = slow, slow_report, slow_results
     result.report.checks.extend(results)
+    torques = next((c for c in checks if isinstance(c, JointTorques)), None)
+    if torques is not None:  # the torques of the committed timing, for the trajectory files
+        motion = TimedMotion.from_trajectory(result.trajectory, result.start_s)
+        result.trajectory.effort_nm = torques.motion_torques(motion, ctx)
     result.stage_ms["motion_checks"] = (time.perf_counter() - t0) * 1e3

@@ -161,3 +161,26 @@ def test_run_refuses_a_bad_object_file_with_exit_2(tmp_path, tiny, capsys):
     objects.write_text("[hammer]\nmass_kg = 2.0\nholder = 'robot_gives'\n")
     assert run_tiny(tiny, tmp_path / "out", "--objects", str(objects)) == 2
     assert "unknown task 'hammer'" in one_error_line(capsys.readouterr().err)
+
+
+def test_trajectory_files_and_bag_messages_carry_the_torques(tmp_path, tiny, robot):
+    from ipromp_pin.outputs.rosbag import JOINT_STATE, BagContent, bag_messages
+    from ipromp_pin.outputs.trajectory_files import read_trajectory_csv
+
+    out = tmp_path / "out"
+    assert run_tiny(tiny, out) == 0
+    doc = json.loads((out / "trajectory.json").read_text())
+    effort = np.array([p["effort"] for p in doc["message"]["points"]])
+    traj = read_trajectory_csv(out / "trajectory.csv")
+    assert effort.shape == traj.q.shape
+    # the torques of the written motion (the synthetic tasks' objects arrive/leave at the hand-over)
+    plain = ArmDynamics(robot).torques(traj.q, traj.qd, traj.qdd)
+    np.testing.assert_allclose(effort[1:-1], plain[1:-1], atol=1e-3)
+    traj.effort_nm = effort
+    states = [
+        m
+        for m in bag_messages(BagContent(traj, 0.5, np.r_[0.0, 0, 0, 0, 0, 0, 1]))
+        if m.msgtype == JOINT_STATE
+    ]
+    assert len(states) == traj.n_samples
+    np.testing.assert_allclose(states[3].msg.effort, effort[3])

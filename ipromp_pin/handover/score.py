@@ -23,8 +23,9 @@ import numpy as np
 
 from ..data import ROBOT, Demo
 from ..motion.retarget import limit_ratios
-from ..robot import Robot, ee_positions
+from ..robot import Robot, ee_positions, frame_placements
 from ..robot.collision import in_collision
+from ..robot.rotations import geodesic_deg
 from .closed_loop import ClosedLoopResult
 
 ARRIVAL_TOLERANCE_M = 0.01
@@ -57,6 +58,10 @@ class ClosedLoopScore:
         replans: Re-plans made.
         refused_replans: Re-plans not committed.
         final_task: Task of the last committed re-plan ("" if none).
+        handover_orientation_error_deg: Geodesic angle between the commanded and the recorded gripper
+            rotations at the recorded hand-over time, in [deg].
+        peak_torque_ratio: Largest |joint torque| / effort limit of the commanded motion (the task's
+            object included while held), when the caller computed it (NaN otherwise).
     """
 
     handover_error_cm: float
@@ -73,6 +78,8 @@ class ClosedLoopScore:
     replans: int
     refused_replans: int
     final_task: str
+    handover_orientation_error_deg: float = float("nan")
+    peak_torque_ratio: float = float("nan")
 
     def to_dict(self) -> dict:
         """JSON-serialisable form."""
@@ -95,6 +102,7 @@ def score_closed_loop(
     p_cmd = ee_positions(robot, traj.q)
     p_true = ee_positions(robot, truth)
     p_at, p_rest = ee_positions(robot, np.stack([q_at, traj.q[-1]]))
+    rot = frame_placements(robot, np.stack([q_at, truth[-1]]))[1]
     arrival = arrival_time(traj.t_s, p_cmd, tolerance_m)
     recorded = arrival_time(t_demo, p_true, tolerance_m)
     lim = result.profile.limits
@@ -117,4 +125,5 @@ def score_closed_loop(
         replans=len(result.replans),
         refused_replans=result.n_refused,
         final_task=committed[-1].task if committed else "",
+        handover_orientation_error_deg=float(geodesic_deg(rot[0], rot[1])),
     )

@@ -89,7 +89,7 @@ class ClosedLoopCell(Cell):
     refused_replans: int = 0
     replans: int = 0
     collisions: int = 0
-    one_shot_handover_orientation_error_deg: float | None = None
+    closed_loop_handover_orientation_error_deg: float | None = None
     closed_loop_trials: list[dict] = field(default_factory=list)
 
 

@@ -86,6 +86,13 @@ class ClosedLoopScore:
         return asdict(self)
 
 
+def handover_orientation_error_deg(robot: Robot, q_commanded: np.ndarray, q_recorded: np.ndarray) -> float:
+    """Geodesic angle in [deg] between the gripper rotations (forward kinematics) of a commanded and a
+    recorded arm configuration (n_joints,) in [rad], e.g. at the hand-over."""
+    rot = frame_placements(robot, np.stack([q_commanded, q_recorded]))[1]
+    return float(geodesic_deg(rot[0], rot[1]))
+
+
 def score_closed_loop(
     result: ClosedLoopResult,
     demo: Demo,
@@ -102,7 +109,6 @@ def score_closed_loop(
     p_cmd = ee_positions(robot, traj.q)
     p_true = ee_positions(robot, truth)
     p_at, p_rest = ee_positions(robot, np.stack([q_at, traj.q[-1]]))
-    rot = frame_placements(robot, np.stack([q_at, truth[-1]]))[1]
     arrival = arrival_time(traj.t_s, p_cmd, tolerance_m)
     recorded = arrival_time(t_demo, p_true, tolerance_m)
     lim = result.profile.limits
@@ -125,5 +131,5 @@ def score_closed_loop(
         replans=len(result.replans),
         refused_replans=result.n_refused,
         final_task=committed[-1].task if committed else "",
-        handover_orientation_error_deg=float(geodesic_deg(rot[0], rot[1])),
+        handover_orientation_error_deg=handover_orientation_error_deg(robot, q_at, truth[-1]),
     )

@@ -250,10 +250,8 @@ class ClosedLoopScorer(Scorer):
             "refused_replans": int(sum(s.refused_replans for s in scores)),
             "replans": int(sum(s.replans for s in scores)),
             "collisions": int(sum(s.collisions for s in scores)),
-            "handover_orientation_error_deg": median([s.handover_orientation_error_deg for s in scores]),
-            "handover_orientation_baseline_deg": median([t.handover_orientation_baseline_deg for t in flat]),
-            "one_shot_handover_orientation_error_deg": median(
-                [t.handover_orientation_error_deg for t in flat]
+            "closed_loop_handover_orientation_error_deg": median(
+                [s.handover_orientation_error_deg for s in scores]
             ),
             "peak_torque_ratio": max(
                 (s.peak_torque_ratio for s in scores if np.isfinite(s.peak_torque_ratio)), default=None

@@ -62,6 +62,7 @@ def main() -> None:
     parser.add_argument("--ratio", type=float, default=0.2)
     parser.add_argument("--max-tests", type=int, default=1000)
     parser.add_argument("--closed-loop", action="store_true")
+    parser.add_argument("--objects", type=Path, default=None, help="task file (default: the shipped one)")
     parser.add_argument(
         "--no-springs", action="store_true", help="the URDF's RNEA without Baxter's s1 springs"
     )
@@ -79,7 +80,7 @@ def main() -> None:
     observe = ["orientation", "emg"]
     train = [d for demos in ds.demos.values() for d in demos[: args.n_train]]
     test = [d for demos in ds.demos.values() for d in demos[args.n_train :]][: args.max_tests]
-    objects = load_objects()
+    objects = load_objects(args.objects)
     check = JointTorques(robot, springs=not args.no_springs)
     allowed = 1.0 - robot.settings.effort_margin
     rows: dict[str, list[float]] = {"before": [], "check": [], "torque_timing": []}

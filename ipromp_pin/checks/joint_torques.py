@@ -61,7 +61,7 @@ class JointTorques(MotionCheck):
     name = "joint_torques"
     required = True
 
-    def __init__(self, robot: Robot, max_samples: int = 200, springs: bool = True) -> None:
+    def __init__(self, robot: Robot, max_samples: int = 100, springs: bool = True) -> None:
         super().__init__(robot)
         self.max_samples = max_samples
         self.springs = springs

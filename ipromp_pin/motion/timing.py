@@ -211,7 +211,10 @@ def prepare_path(
 
 @dataclass(frozen=True)
 class TorqueLimit:
-    """Joint-torque limits for :func:`time_path` (toppra's ``JointTorqueConstraint``).
+    """Joint-torque limits for :func:`time_path` (toppra's ``JointTorqueConstraint``, given
+    ``toppra_headroom`` of the room gravity leaves). The jerk-limited tracking may exceed them slightly
+    where it catches up: the joint-torque check (:mod:`ipromp_pin.checks.joint_torques`) verifies the
+    samples.
 
     Attributes:
         inverse_dynamics: ``(q, qd, qdd) -> tau``: joint torques (n_joints,) in [N m] of one sample
@@ -567,10 +570,7 @@ def time_path(
         toppra_headroom: Fraction of the velocity and acceleration limits given to toppra; the rest
             is headroom for the jerk-limited tracking.
         lookahead_s: How far ahead of the current time the 1-D ruckig target is taken, in [s].
-        torque: Joint-torque limits toppra respects too (with ``toppra_headroom`` of the dynamic
-            room; ``None``: none). The jerk-limited tracking may exceed them slightly where it
-            catches up: the joint-torque check (:mod:`ipromp_pin.checks.joint_torques`) verifies the
-            samples.
+        torque: Joint-torque limits toppra respects too (:class:`TorqueLimit`; ``None``: none).
 
     Returns:
         The trajectory and its verification report.
@@ -581,10 +581,7 @@ def time_path(
     """
     timings: dict[str, float] = {}
     t0 = time.perf_counter()
-    if not (np.isfinite(rate_hz) and rate_hz > 0):
-        raise InfeasibleError(f"rate_hz must be positive, got {rate_hz}")
-    if not 0 < toppra_headroom <= 1:
-        raise InfeasibleError(f"toppra_headroom must be in (0, 1], got {toppra_headroom}")
+    _check_rate_headroom(rate_hz, toppra_headroom)
     dt = 1.0 / rate_hz
     n = limits.n_joints
     q_in = _check_path_input(q_path, limits)
@@ -641,6 +638,14 @@ def time_path(
     timings["total_ms"] = (time.perf_counter() - t0) * 1e3
     report.timings_ms = timings
     return traj, report
+
+
+def _check_rate_headroom(rate_hz: float, toppra_headroom: float) -> None:
+    """Refuse a non-positive control rate or a toppra headroom outside (0, 1]."""
+    if not (np.isfinite(rate_hz) and rate_hz > 0):
+        raise InfeasibleError(f"rate_hz must be positive, got {rate_hz}")
+    if not 0 < toppra_headroom <= 1:
+        raise InfeasibleError(f"toppra_headroom must be in (0, 1], got {toppra_headroom}")
 
 
 def _track_profile(

@@ -8,6 +8,9 @@ missing torque as ``c0 + c1 * q_s1`` on every 10th joint-state sample of the che
 recordings and prints the ``[springs]`` line of ``robots/baxter_left.toml`` with the residuals.
 
     PYTHONPATH=. python benchmarks/baxter_springs.py [../shared/datasets/chen2017_handover]
+
+``--smoke``: efforts made from the URDF's RNEA minus a known spring (plus 1 N m noise) at random
+poses, to check that the fit recovers it: no shared dataset, a second.
 """
 
 from __future__ import annotations
@@ -40,10 +43,24 @@ def read_states(root: Path, step: int = 10) -> tuple[np.ndarray, np.ndarray]:
     return np.array(q), np.array(effort)
 
 
+def smoke_states(dyn: ArmDynamics, n: int = 500) -> tuple[np.ndarray, np.ndarray]:
+    """Random arm poses and the efforts of a known s1 spring (-40 - 25 q_s1 N m) with 1 N m noise."""
+    rng = np.random.default_rng(0)
+    q = rng.uniform(-0.9, 0.9, (n, len(JOINTS)))
+    q[:, 1] = rng.uniform(-0.98, -0.37, n)
+    effort = dyn.torques(q)
+    effort[:, 1] -= -40.0 - 25.0 * q[:, 1]
+    return q, effort + rng.normal(0.0, 1.0, effort.shape)
+
+
 def main() -> None:
-    root = Path(sys.argv[1] if len(sys.argv) > 1 else "../shared/datasets/chen2017_handover")
-    q, effort = read_states(root)
-    rnea = ArmDynamics(load_robot("baxter_left"), springs=False).torques(q)  # the demos move slowly
+    dyn = ArmDynamics(load_robot("baxter_left"), springs=False)
+    if "--smoke" in sys.argv:
+        q, effort = smoke_states(dyn)
+    else:
+        root = Path(sys.argv[1] if len(sys.argv) > 1 else "../shared/datasets/chen2017_handover")
+        q, effort = read_states(root)
+    rnea = dyn.torques(q)  # the demos move slowly: gravity
     gap = rnea - effort
     print(
         f"{len(q)} samples; median |RNEA - recorded effort| per joint [N m]:",

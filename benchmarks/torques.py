@@ -67,12 +67,15 @@ def main() -> None:
     parser.add_argument(
         "--no-springs", action="store_true", help="the URDF's RNEA without Baxter's s1 springs"
     )
+    parser.add_argument("--smoke", action="store_true", help="2 synthetic tasks, 4 demos, 2 tests: seconds")
     args = parser.parse_args()
+    if args.smoke:
+        args.dataset, args.n_train, args.max_tests, args.closed_loop = None, 4, 2, True
     if hasattr(os, "sched_setaffinity"):  # one core, as benchmarks/closed_loop.py
         os.sched_setaffinity(0, {sorted(os.sched_getaffinity(0))[0]})
     robot = load_robot("baxter_left")
     if args.dataset is None:
-        ds = make_synthetic_dataset(n_demos=args.n_train + 10, seed=0)
+        ds = make_synthetic_dataset(n_tasks=2 if args.smoke else 3, n_demos=args.n_train + 10, seed=0)
     else:
         ds = load_dataset(
             args.dataset,
@@ -91,7 +94,8 @@ def main() -> None:
     ms: dict[str, list[float]] = {"check": [], "time_path_plain": [], "time_path_torque": []}
     failed = 0
     with threadpool_limits(limits=1):
-        model = IProMP(observe=observe).fit(train, fk=lambda q: ee_positions(robot, q))
+        smoke_model = {"head": False, "handover": False, "coupling": "all"} if args.smoke else {}
+        model = IProMP(observe=observe, **smoke_model).fit(train, fk=lambda q: ee_positions(robot, q))
         for d in test:
             obs = d.head(args.ratio, groups=observe)
             try:

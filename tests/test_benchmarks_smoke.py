@@ -18,6 +18,11 @@ HELPERS = {"checkouts.py"}
 """Modules of ``benchmarks/`` that are imported by the scripts, not run."""
 
 EXPECTED = {
+    "baxter_springs.py": [r"s1 spring torque = -(39|40)\.\d\d \+ -2[45]\.\d\d \* q_s1"],
+    "torques.py": [
+        r"before \(no torque check\)\s+\d+/\d+\s+over",
+        r"joint-torque check per committed re-plan",
+    ],
     "ab_compare.py": [r"full update, 10% observed: [\d.]+ -> [\d.]+", r"streaming update: [\d.]+ -> [\d.]+"],
     "closed_loop.py": [r"(?m)^cycle\s+[\d.]+\s+[\d.]+", r"first re-plan of a replay: median [\d.]+ ms"],
     "closed_loop_cv.py": [r"\| err \[cm\] \|", r"(?m)^0\.2 \| 20 \| 0\.9 \| 90 \| 0\.2 \| [\d.]+ \|"],

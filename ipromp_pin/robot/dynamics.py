@@ -20,6 +20,16 @@ GRAVITY_M_S2 = 9.81
 """The gravity of Pinocchio's models [m/s^2] (along -z of the base frame)."""
 
 
+def payload_key(payload: TaskObject) -> tuple:
+    """What identifies a payload's dynamics: mass, centre of mass and inertia (not the object's id,
+    which Python reuses once an object is freed)."""
+    return (
+        float(payload.mass_kg),
+        *np.asarray(payload.com_m, float).tolist(),
+        *payload.inertia_kg_m2.ravel().tolist(),
+    )
+
+
 class ArmDynamics:
     """Joint torques of the arm of ``robot``, with or without an object in the gripper.
 
@@ -51,14 +61,14 @@ class ArmDynamics:
         self.gripper_placement_ = frame.placement
         coef = robot.settings.spring_torque_nm if springs else {}
         self.spring_ = np.array([coef.get(n, (0.0, 0.0)) for n in robot.joint_names]).reshape(-1, 2)
-        self._models: dict[int, tuple[pin.Model, pin.Data, object]] = {}
+        self._models: dict[tuple, tuple[pin.Model, pin.Data, object]] = {}
 
     def payload_model(self, payload: TaskObject | None) -> pin.Model:
         """The arm model with ``payload`` attached to the gripper frame (``None``: the bare arm)."""
         return self._entry(payload)[0]
 
     def _entry(self, payload: TaskObject | None) -> tuple[pin.Model, pin.Data, object]:
-        key = 0 if payload is None else id(payload)
+        key: tuple = () if payload is None else payload_key(payload)
         if key not in self._models:
             model = pin.Model(self.model_)
             if payload is not None and payload.mass_kg > 0:

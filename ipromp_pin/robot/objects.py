@@ -14,7 +14,7 @@ A task file is TOML with one table per task (the task names of the recordings, e
 
 :func:`load_objects` reads and validates one (a :class:`~ipromp_pin.exceptions.RobotError` naming the
 file, the field and the problem, before anything is computed); :meth:`ObjectTable.check_tasks` refuses
-task names the data does not have. :func:`ipromp_pin.robot.dynamics` attaches an object to the
+task names the data does not have. :mod:`ipromp_pin.robot.dynamics` attaches an object to the
 gripper frame.
 """
 

@@ -135,3 +135,11 @@ def test_a_payload_raises_the_shoulder_torque_by_m_g_r(robot):
 def test_baxter_effort_limits_are_read_from_the_urdf(robot):
     np.testing.assert_array_equal(ArmDynamics(robot).effort_limit_nm, [50, 50, 50, 50, 15, 15, 15])
     assert robot.settings.effort_margin == pytest.approx(0.1)
+
+
+def test_payload_models_are_cached_by_content_not_by_object_id(robot):
+    dyn = ArmDynamics(robot)
+    q = np.zeros((1, robot.n_joints))
+    torques = [dyn.torques(q, payload=point(m))[0, 1] for m in (0.5, 1.0, 2.0)]  # each object freed after use
+    assert torques[0] != torques[1] != torques[2]
+    assert torques[2] - torques[1] == pytest.approx(2 * (torques[1] - torques[0]))

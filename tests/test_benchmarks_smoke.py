@@ -23,6 +23,11 @@ EXPECTED = {
         r"streaming update: [\d.]+ -> [\d.]+",
         r"training per task: [\d.]+ -> [\d.]+ ms",
     ],
+    "baxter_springs.py": [r"s1 spring torque = -(39|40)\.\d\d \+ -2[45]\.\d\d \* q_s1"],
+    "torques.py": [
+        r"before \(no torque check\)\s+\d+/\d+\s+over",
+        r"joint-torque check per committed re-plan",
+    ],
     "closed_loop.py": [r"(?m)^cycle\s+[\d.]+\s+[\d.]+", r"first re-plan of a replay: median [\d.]+ ms"],
     "closed_loop_cv.py": [r"\| err \[cm\] \|", r"(?m)^0\.2 \| 20 \| 0\.9 \| 90 \| 0\.2 \| [\d.]+ \|"],
     "first_minute.py": [r"(?m)^cold\s+median\s+[\d.]+ s wall"],

@@ -20,6 +20,7 @@ import numpy as np
 from ..motion.retarget import MotionPlan
 from ..motion.trajectory import Trajectory
 from ..robot import CheckResult, Robot
+from ..robot.objects import ObjectTable, TaskObject
 
 
 @dataclass(frozen=True)
@@ -70,10 +71,22 @@ class CheckContext:
     Attributes:
         handover_s: Predicted time of the hand-over in [s] on the human's clock, if known.
         task: The recognised task, if known.
+        objects: The objects of the tasks (:mod:`ipromp_pin.robot.objects`); the payload of a motion is
+            the object of :attr:`task` (its ``holder`` says whether before or after the hand-over).
+        payload: The object in the gripper, when given explicitly (it overrides ``objects``).
     """
 
     handover_s: float | None = None
     task: str | None = None
+    objects: ObjectTable | None = None
+    payload: TaskObject | None = None
+
+    def task_object(self) -> TaskObject | None:
+        """The object of this motion: :attr:`payload`, else the entry of :attr:`task` in :attr:`objects`
+        (``None``: no payload)."""
+        if self.payload is not None:
+            return self.payload
+        return None if self.objects is None else self.objects.for_task(self.task)
 
 
 class MotionCheck(ABC):

@@ -11,8 +11,9 @@ from collections.abc import Iterable, Sequence
 from ..exceptions import PipelineError
 from ..robot import CheckResult, Robot
 from .base import CheckContext, MotionCheck, TimedMotion
+from .joint_torques import JointTorques
 
-MOTION_CHECKS: tuple[type[MotionCheck], ...] = ()
+MOTION_CHECKS: tuple[type[MotionCheck], ...] = (JointTorques,)
 """Every timed-motion check, in the order of the reports."""
 
 

@@ -159,6 +159,12 @@ def add_pipeline_overrides(p: argparse.ArgumentParser, ratio: bool = True) -> No
         help="train even if an earlier run trained a model on the same demos and settings",
     )
     p.add_argument("--robot", help="robot settings file or shipped name (default: the pipeline's)")
+    p.add_argument(
+        "--objects",
+        type=Path,
+        help="task file of the objects the gripper holds (default: the pipeline's [robot] objects, else the "
+        "shipped robots/objects.toml; docs/objects.md)",
+    )
     show_default(
         p.add_argument(
             "--rate", type=float, help=f"output control rate in [Hz], in [1, 1000] (default {DEFAULT_MARK})"
@@ -186,6 +192,7 @@ def pipeline_config(args: argparse.Namespace) -> PipelineConfig:
         save_model=args.save_model,
         model_cache=False if getattr(args, "retrain", False) else None,
         robot=args.robot,
+        objects=getattr(args, "objects", None),
         control_rate_hz=args.rate,
         preview_html=False if getattr(args, "no_preview", False) else None,
         plots=True if getattr(args, "plots", False) else None,

@@ -82,6 +82,12 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--robot", default=DEFAULT_ROBOT, help="robot settings for the hand-over error")
     p.add_argument(
+        "--objects",
+        type=Path,
+        help="task file of the objects the gripper holds (default: the shipped robots/objects.toml; "
+        "with --closed-loop every re-plan is torque-checked; docs/objects.md)",
+    )
+    p.add_argument(
         "--jobs",
         type=bounded(int, 1, 1024),
         default=default_jobs(),
@@ -136,6 +142,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         baselines=args.baselines,
         closed_loop=args.closed_loop,
         limits=args.limits,
+        objects=args.objects,
         closed_loop_settings=settings,
         json=args.json,
         md=args.md,

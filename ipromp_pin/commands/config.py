@@ -109,10 +109,13 @@ class RobotConfig:
 
     Attributes:
         settings: Robot settings: a shipped name (``robots/*.toml``) or a settings file path.
+        objects: The task file of the objects the gripper holds (``None``: the shipped
+            ``robots/objects.toml``; see ``docs/objects.md``).
     """
 
     SECTION: ClassVar[str] = "robot"
     settings: str = DEFAULT_ROBOT
+    objects: Path | None = None
 
 
 @dataclass
@@ -245,6 +248,7 @@ class PipelineConfig:
     demo = Flat[int]("observation", "demo")
     ratio = Flat[float]("observation", "ratio")
     robot = Flat[str]("robot", "settings")
+    objects = Flat[Path | None]("robot", "objects")
     control_rate_hz = Flat[float]("timing", "control_rate_hz")
     out_dir = Flat[Path]("outputs", "dir")
     preview_html = Flat[bool]("outputs", "preview_html")

@@ -37,6 +37,7 @@ from ..evaluation.tables import (
 )
 from ..handover.closed_loop import ClosedLoopSettings
 from ..robot import Robot, load_robot
+from ..robot.objects import load_objects
 from ..shipped import DEFAULT_ROBOT
 from .replay import check_limits_choice
 
@@ -61,6 +62,8 @@ class EvaluateRequest:
         baselines: Also run the reference baselines (needs scikit-learn).
         closed_loop: Replay every test demo in the closed loop (``--closed-loop``).
         limits: Limit profile of the closed loop (``demonstrated``, ``conservative`` or a file).
+        objects: Task file of the objects (``--objects``; None: the shipped ``robots/objects.toml``):
+            the closed loop torque-checks every re-plan with them and scores ``peak_torque_ratio``.
         closed_loop_settings: The closed loop's settings (each cell's ratio replaces ``start_ratio``;
             None: the defaults).
         json: JSON results file (None: not written).
@@ -85,6 +88,7 @@ class EvaluateRequest:
     baselines: bool = False
     closed_loop: bool = False
     limits: str = "demonstrated"
+    objects: Path | None = None
     closed_loop_settings: ClosedLoopSettings | None = None
     json: Path | None = None
     md: Path | None = None
@@ -162,6 +166,7 @@ def check_request(request: EvaluateRequest) -> Robot:
     if request.plots and not request.closed_loop:
         atomic.check_output_dir(request.plots, "plots folder")
     robot = load_robot(request.robot)
+    load_objects(request.objects)  # a bad task file fails here, before any demo is read
     if request.closed_loop:
         check_limits_choice(request.limits, robot, "command line")
     counts = readers.count_demos(request.dataset, format=request.format)  # lists the demo files, reads none
@@ -192,11 +197,14 @@ def run_evaluations(request: EvaluateRequest, ds: Dataset) -> list[Cell]:
     cells: list[Cell] = []
     options = ClosedLoopOptions(limits=request.limits, settings=request.settings())
     where = request.jobs if request.cluster is None else DaskCluster.from_spec(request.cluster)
+    objects = load_objects(request.objects)
+    if request.objects is not None:
+        objects.check_tasks(ds.tasks)
     for cfg in request.configs():
         progress = request.progress() if request.progress else None
         t1 = time.perf_counter()
         if request.closed_loop:
-            cells += evaluate_closed_loop(ds, cfg, options, request.robot, progress, where)
+            cells += evaluate_closed_loop(ds, cfg, options, request.robot, progress, where, objects)
             request.log(f"protocol {cfg.protocol} (closed loop): {time.perf_counter() - t1:.1f} s")
         else:
             cells += evaluate(ds, cfg, robot=request.robot, progress=progress, jobs=where)

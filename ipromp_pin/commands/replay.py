@@ -28,7 +28,11 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
 from .. import atomic
+from ..checks import CheckContext, TimedMotion
+from ..checks.joint_torques import JointTorques
 from ..data import ROBOT, Demo
 from ..exceptions import PipelineError
 from ..handover.closed_loop import ClosedLoopResult, ClosedLoopSettings, replay_demo, start_time
@@ -232,11 +236,25 @@ def run_replay(
         context=session.check_context,
     )
     score = score_closed_loop(result, demo, robot)
+    score_torques(session, result, score)
     with atomic.OutputSet(cfg.out_dir, managed=REPLAY_OUTPUTS) as out:
         _stage_files(out, session, result, score, allow_failing_checks, preview, log)
         files = keyed(out.commit())
     log(summary_lines(demo, result, score, time.perf_counter() - t_start))
     return ReplayOutcome(demo, result, score, files, replay_passed(score))
+
+
+def score_torques(session: Session, result: ClosedLoopResult, score: ClosedLoopScore) -> None:
+    """With the joint-torque check among the session's checks: the commanded motion's torques (with the
+    true task's object, :mod:`ipromp_pin.robot.objects`) into its trajectory (the files' ``effort``)
+    and its peak torque ratio into ``score`` (in place)."""
+    torques = next((c for c in session.motion_checks if isinstance(c, JointTorques)), None)
+    if torques is None:
+        return
+    context = CheckContext(task=session.demo.task, objects=session.check_context.objects)
+    motion = TimedMotion.from_trajectory(result.trajectory)
+    score.peak_torque_ratio = float(torques.check(motion, context).values.get("peak_torque_ratio", np.nan))
+    result.trajectory.effort_nm = torques.motion_torques(motion, context)
 
 
 def _stage_files(

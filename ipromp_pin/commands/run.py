@@ -11,7 +11,9 @@ from __future__ import annotations
 import time
 
 from .. import atomic
+from ..data import ROBOT
 from ..handover.one_shot import LogFn, PlanResult, plan
+from ..handover.score import handover_orientation_error_deg
 from ..outputs.figures import write_plots
 from ..outputs.files import RUN, command_outputs, keyed, trajectory_outputs
 from ..outputs.preview_content import preview_content
@@ -71,7 +73,7 @@ def run_pipeline(
             write_plots(result, session.model, session.demo, out)
         report = stage_report(
             out,
-            report_dict(result, observation, session.warnings),
+            report_dict(result, observation, session.warnings, recorded_orientation_error(session, result)),
             report_text(result, observation, session.warnings),
         )
         files = keyed(out.commit())
@@ -87,6 +89,15 @@ def run_pipeline(
             )
         )
     return report
+
+
+def recorded_orientation_error(session: Session, result: PlanResult) -> float | None:
+    """The planned vs the recorded gripper orientation at the hand-over in [deg] (the observed demo's
+    last robot sample), or None when the demo has no robot group."""
+    q_true = session.demo.groups.get(ROBOT)
+    if q_true is None or not len(q_true):
+        return None
+    return handover_orientation_error_deg(session.robot, result.trajectory.q[-1], q_true[-1])
 
 
 def _stage_preview(result: PlanResult, session: Session, out: atomic.OutputSet, log: LogFn) -> None:

@@ -26,6 +26,7 @@ from ..promp import IProMP
 from ..readers import load_dataset
 from ..readers.synthetic import make_synthetic_dataset
 from ..robot import Robot, ee_positions, load_robot
+from ..robot.objects import ObjectTable, load_objects
 from .config import PipelineConfig
 from .meshes import start_mesh_prefetch
 from .model_cache import fit_cached
@@ -104,11 +105,14 @@ def prepare_session(
     """
     checks = checks or SetupChecks()
     robot = robot if robot is not None else load_robot(cfg.robot)
+    objects = load_objects(cfg.objects)
     ds = load_data(cfg, log, robot)
     if cfg.load_model is None:  # before training: a robot the demos were not recorded on cannot plan
         check_recorded_joints(
             ds, robot, "the built-in synthetic demos" if cfg.dataset is None else str(cfg.dataset)
         )
+    if cfg.objects is not None:
+        objects.check_tasks(ds.tasks)
     demo = choose_demo(ds, cfg)
     checks.check_demo(demo)
     prefetch = start_mesh_prefetch(robot) if prefetch_meshes else None
@@ -121,7 +125,7 @@ def prepare_session(
         warn(w)
     session = Session(cfg, robot, ds, demo, train, model, warnings, prefetch)
     session.motion_checks = build_checks(robot)
-    session.check_context = check_context(cfg, demo)
+    session.check_context = check_context(cfg, demo, objects)
     if observe:
         session.observation = observation = demo.head(cfg.ratio, groups=cfg.observe)
         session.hand_position_m = hand_at_handover(demo)
@@ -132,10 +136,11 @@ def prepare_session(
     return session
 
 
-def check_context(cfg: PipelineConfig, demo: Demo) -> CheckContext:
+def check_context(cfg: PipelineConfig, demo: Demo, objects: ObjectTable | None = None) -> CheckContext:
     """What the timed-motion checks (:mod:`ipromp_pin.checks`) know about the world when the robot
-    plans for ``demo``'s human (``cfg``: the pipeline's settings of that world)."""
-    return CheckContext(task=None)
+    plans for ``demo``'s human (``cfg``: the pipeline's settings of that world; ``objects``: the task
+    file already read, else ``cfg.objects`` is read: the payload is the recognised task's object)."""
+    return CheckContext(task=None, objects=objects if objects is not None else load_objects(cfg.objects))
 
 
 def check_outputs(cfg: PipelineConfig) -> None:

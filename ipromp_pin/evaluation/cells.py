@@ -26,6 +26,8 @@ ERROR_FIELDS = (
     "handover_error_cm",
     "handover_error_prior_cm",
     "duration_error_s",
+    "handover_orientation_error_deg",
+    "handover_orientation_baseline_deg",
 )
 """The prediction errors of a trial summarised (median) in a cell."""
 
@@ -64,6 +66,9 @@ class Cell:
     handover_error_cm: float | None = None
     handover_error_prior_cm: float | None = None
     duration_error_s: float | None = None
+    handover_orientation_error_deg: float | None = None
+    handover_orientation_baseline_deg: float | None = None
+    peak_torque_ratio: float | None = None
     coupled_groups: dict[str, int] = field(default_factory=dict)
     log_loss: float | None = None
     brier: float | None = None
@@ -84,6 +89,7 @@ class ClosedLoopCell(Cell):
     refused_replans: int = 0
     replans: int = 0
     collisions: int = 0
+    closed_loop_handover_orientation_error_deg: float | None = None
     closed_loop_trials: list[dict] = field(default_factory=list)
 
 

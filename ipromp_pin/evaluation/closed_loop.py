@@ -24,6 +24,7 @@ from pathlib import Path
 
 from ..data import Dataset
 from ..robot import ee_positions, load_robot
+from ..robot.objects import ObjectTable
 from ..shipped import DEFAULT_ROBOT
 from .cells import ClosedLoopCell
 from .config import EvaluationConfig, ProgressFn
@@ -60,17 +61,19 @@ def evaluate_closed_loop(
     robot: str = DEFAULT_ROBOT,
     progress: ProgressFn | None = None,
     jobs: int | JobRunner = 1,
+    objects: ObjectTable | None = None,
 ) -> list[ClosedLoopCell]:
     """Run one protocol with the closed loop over every cell of ``config`` (see the module docstring).
 
     The random splits are those :func:`~ipromp_pin.evaluation.evaluate.evaluate` draws for the same
-    seed. With ``config.baselines`` the cells also get the baselines' summaries.
+    seed. With ``config.baselines`` the cells also get the baselines' summaries. With ``objects``
+    (:mod:`ipromp_pin.robot.objects`) every re-plan is torque-checked and ``peak_torque_ratio`` scored.
     """
     options = options or ClosedLoopOptions()
     options.settings.validate("closed loop")
     config.check_protocol()
     loaded = load_robot(robot)
-    scorer = ClosedLoopScorer(loaded, options, config.model_params, Path(str(dataset.root)).name)
+    scorer = ClosedLoopScorer(loaded, options, config.model_params, Path(str(dataset.root)).name, objects)
     extras = [BaselineScorer(partial(ee_positions, loaded))] if config.baselines else []
     cells = run_protocol(dataset, config, scorer, extras, progress, jobs)
     return [c for c in cells if isinstance(c, ClosedLoopCell)]

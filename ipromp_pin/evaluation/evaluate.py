@@ -32,7 +32,7 @@ from collections.abc import Callable
 import numpy as np
 
 from ..data import Dataset
-from ..robot import ee_positions, load_robot
+from ..robot import ee_positions, frame_placements, load_robot
 from ..shipped import DEFAULT_ROBOT
 from .cells import PROBABILITY_FLOOR, Cell, cell_fields, summarise
 from .config import PAPER_ACCURACY, PAPER_GRID, EvaluationConfig, ProgressFn, observe_key
@@ -79,6 +79,15 @@ def robot_fk(robot: str | None) -> Callable[[np.ndarray], np.ndarray] | None:
     return lambda q: ee_positions(loaded, q)
 
 
+def robot_fk_rotations(robot: str | None) -> Callable[[np.ndarray], np.ndarray] | None:
+    """Gripper rotations of the robot settings ``robot``: joint configurations (n, 7) in [rad] ->
+    rotation matrices (n, 3, 3); ``None`` for no robot."""
+    if robot is None:
+        return None
+    loaded = load_robot(robot)
+    return lambda q: frame_placements(loaded, q)[1]
+
+
 def evaluate(
     dataset: Dataset,
     config: EvaluationConfig,
@@ -100,4 +109,11 @@ def evaluate(
     config.check_protocol()
     fk = robot_fk(robot)
     extras = [BaselineScorer(fk)] if config.baselines else []
-    return run_protocol(dataset, config, OneShotScorer(config.model_params, fk), extras, progress, jobs)
+    return run_protocol(
+        dataset,
+        config,
+        OneShotScorer(config.model_params, fk, robot_fk_rotations(robot)),
+        extras,
+        progress,
+        jobs,
+    )

@@ -118,6 +118,7 @@ def to_markdown(cells: Sequence[Cell]) -> str:
                 f"| {_fmt(c.duration_error_s, 2)} |"
             )
         lines.append("")
+        lines += orientation_markdown(pc)
         if any(c.baselines for c in pc):
             lines += baseline_markdown(pc)
         fits = {(c.n_train, observe_key(c.observe)): c.coupled_groups for c in pc if c.coupled_groups}
@@ -214,6 +215,33 @@ def write_results(cells: Sequence[Cell], json_path: Path | None, md_path: Path |
         atomic.write_text(md_path, to_markdown(cells))
 
 
+def orientation_markdown(cells: Sequence[Cell]) -> list[str]:
+    """The hand-over orientation table (prediction vs the mean training orientation of the true task),
+    as Markdown lines; none when no cell has the orientation (no robot kinematics)."""
+    rows = [c for c in cells if c.handover_orientation_error_deg is not None]
+    if not rows:
+        return []
+    lines = [
+        "| n_train | obs ratio | observed | task | hand-over orientation err [deg] "
+        "| mean-orientation baseline [deg] |",
+        "|---|---|---|---|---|---|",
+    ]
+    for c in rows:
+        lines.append(
+            f"| {c.n_train} | {c.obs_ratio:g} | {observe_key(c.observe)} | {c.task} "
+            f"| {_fmt(c.handover_orientation_error_deg, 1)} "
+            f"| {_fmt(c.handover_orientation_baseline_deg, 1)} |"
+        )
+    below = sum(
+        1
+        for c in rows
+        if c.handover_orientation_error_deg is not None
+        and c.handover_orientation_baseline_deg is not None
+        and c.handover_orientation_error_deg < c.handover_orientation_baseline_deg
+    )
+    return [*lines, "", f"- hand-over orientation below the baseline in {below} of {len(rows)} cells", ""]
+
+
 def closed_loop_markdown(cells: Sequence[ClosedLoopCell]) -> str:
     """The closed-loop table (one row per cell) and its medians over cells, as Markdown."""
     lines = []
@@ -252,7 +280,11 @@ def closed_loop_markdown(cells: Sequence[ClosedLoopCell]) -> str:
                 f"{_fmt(median([c.arrival_delay_s for c in kc]))} s; max limit ratio "
                 f"{_fmt(max((c.max_limit_ratio or 0.0) for c in kc), 3)}; collisions "
                 f"{sum(c.collisions for c in kc)}; refused re-plans {sum(c.refused_replans for c in kc)} "
-                f"of {sum(c.replans for c in kc)}"
+                f"of {sum(c.replans for c in kc)}; hand-over orientation error "
+                f"{_fmt(median([c.closed_loop_handover_orientation_error_deg for c in kc]), 1)} deg "
+                "closed loop "
+                f"vs {_fmt(median([c.handover_orientation_baseline_deg for c in kc]), 1)} deg baseline; peak "
+                f"torque ratio {_fmt(max((c.peak_torque_ratio or 0.0) for c in kc), 3)}"
             )
         lines.append("")
     return "\n".join(lines)

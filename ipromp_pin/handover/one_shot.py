@@ -15,9 +15,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..checks import CheckContext, MotionCheck, TimedMotion, needed_slowdown, run_checks
+from ..checks.joint_torques import JointTorques
 from ..data import Demo
 from ..exceptions import InfeasibleError, ModelError
-from ..motion.timing import TimingReport, path_times, time_path
+from ..motion.timing import TimingReport, TorqueLimit, path_times, time_path
 from ..motion.trajectory import JointLimits, Trajectory
 from ..promp import IProMP, Prediction
 from ..robot import FeasibilityReport, Robot, check_path
@@ -99,6 +100,7 @@ def plan(
     check_joints: bool = True,
     checks: Sequence[MotionCheck] = (),
     context: CheckContext | None = None,
+    torque_timing: bool = True,
 ) -> PlanResult:
     """Online stages: recognise + predict, time-parameterise + smooth, check.
 
@@ -120,6 +122,9 @@ def plan(
             end of the observation; their results join the report. When the failing ones ask for a
             slower motion, the path is re-timed once with the limits slowed that much.
         context: What the timed-motion checks know about the world (the human, the object, ...).
+        torque_timing: When ``checks`` include the joint-torque check, time the path under its torque
+            limits too (toppra's joint-torque constraint with the recognised task's object while the
+            robot holds it; :func:`torque_limit`); False: velocity and acceleration limits only.
     """
     say = log or (lambda _msg: None)
     if check_joints:
@@ -137,10 +142,9 @@ def plan(
     samples = prediction.sample_q(N_UNCERTAINTY_SAMPLES, np.random.default_rng(0))
     # Timed first, so that the checks name times on the trajectory's time base (the robot's clock,
     # from its start), not the prediction's (the human's clock).
+    torque = torque_limit(checks, context, prediction.task) if torque_timing else None
     try:
-        trajectory, timing_report = time_path(
-            prediction.q_mean, JointLimits.from_robot(robot), rate_hz=control_rate_hz
-        )
+        trajectory, timing_report, torque = _time_prediction(prediction, robot, control_rate_hz, torque, say)
     except InfeasibleError:
         report = check_path(robot, prediction.q_mean, q_samples=samples, hand_position_m=hand_position_m)
         say(f"[check] {'pass' if report.passed else 'FAIL: ' + ', '.join(report.failures)}")
@@ -159,12 +163,44 @@ def plan(
     start_s = float(observation.t[-1] - observation.t[0])
     result = PlanResult(prediction, report, trajectory, timing_report, ms, samples, start_s)
     if checks:
-        _check_motion(result, robot, list(checks), context, control_rate_hz)
+        _check_motion(result, robot, list(checks), context, control_rate_hz, torque)
     say(f"[check] {'pass' if report.passed else 'FAIL: ' + ', '.join(report.failures)}")
     say(f"[timing] {trajectory.t_s[-1]:.2f} s at {control_rate_hz:g} Hz, {len(trajectory.t_s)} samples")
     if result.slowdown > 1.0:
         say(f"[timing] slowed {result.slowdown:.2f}x for the checks: {result.slowdown_delay_s:+.2f} s")
     return result
+
+
+def _time_prediction(
+    prediction: Prediction, robot: Robot, rate_hz: float, torque: TorqueLimit | None, say: LogFn
+) -> tuple[Trajectory, TimingReport, TorqueLimit | None]:
+    """The predicted path timed under the robot's limits and ``torque``; when toppra finds no profile
+    under the torque limits (gravity alone exceeds them somewhere on the path: slowing down cannot
+    help), timed without them (the joint-torque check then fails the plan). The torque limits used
+    are returned (None after that fallback)."""
+    limits = JointLimits.from_robot(robot)
+    if torque is not None:
+        try:
+            return (*time_path(prediction.q_mean, limits, rate_hz=rate_hz, torque=torque), torque)
+        except InfeasibleError as exc:
+            say(f"[timing] not timeable under the torque limits ({exc}): timed without them")
+    return (*time_path(prediction.q_mean, limits, rate_hz=rate_hz), None)
+
+
+def torque_limit(
+    checks: Sequence[MotionCheck], context: CheckContext | None, task: str
+) -> TorqueLimit | None:
+    """The torque limits of the joint-torque check among ``checks`` for timing the path of ``task``
+    (its object included when the robot carries it to the hand-over, ``robot_gives``; a
+    ``robot_receives`` object only joins at the end, at rest, where the check verifies it), or None
+    without that check."""
+    check = next((c for c in checks if isinstance(c, JointTorques)), None)
+    if check is None:
+        return None
+    ctx = context if context is not None else CheckContext()
+    payload = CheckContext(task=task, objects=ctx.objects, payload=ctx.payload).task_object()
+    carried = payload if payload is not None and payload.holder == "robot_gives" else None
+    return TorqueLimit(check.dynamics.inverse_dynamics(carried), check.allowed_nm())
 
 
 def _check_motion(
@@ -173,6 +209,7 @@ def _check_motion(
     checks: list[MotionCheck],
     context: CheckContext | None,
     control_rate_hz: float,
+    torque: TorqueLimit | None = None,
 ) -> None:
     """Run the timed-motion checks on ``result``'s trajectory, re-time it once when the failing checks
     ask for a slower motion (and that passes them), and add the results to its report (in place)."""
@@ -187,7 +224,7 @@ def _check_motion(
         q_path = result.prediction.q_mean
         try:
             limits = JointLimits.from_robot(robot).scaled(1.0 / k, 1.0 / k**2, 1.0 / k**3)
-            slow, slow_report = time_path(q_path, limits, rate_hz=control_rate_hz)
+            slow, slow_report = time_path(q_path, limits, rate_hz=control_rate_hz, torque=torque)
         except InfeasibleError:
             slow = None
         if slow is not None:
@@ -198,4 +235,8 @@ def _check_motion(
                 result.slowdown = k
                 result.trajectory, result.timing_report, results = slow, slow_report, slow_results
     result.report.checks.extend(results)
+    torques = next((c for c in checks if isinstance(c, JointTorques)), None)
+    if torques is not None:  # the torques of the committed timing, for the trajectory files
+        motion = TimedMotion.from_trajectory(result.trajectory, result.start_s)
+        result.trajectory.effort_nm = torques.motion_torques(motion, ctx)
     result.stage_ms["motion_checks"] = (time.perf_counter() - t0) * 1e3

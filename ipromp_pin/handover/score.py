@@ -23,8 +23,9 @@ import numpy as np
 
 from ..data import ROBOT, Demo
 from ..motion.retarget import limit_ratios
-from ..robot import Robot, ee_positions
+from ..robot import Robot, ee_positions, frame_placements
 from ..robot.collision import in_collision
+from ..robot.rotations import geodesic_deg
 from .closed_loop import ClosedLoopResult
 
 ARRIVAL_TOLERANCE_M = 0.01
@@ -57,6 +58,10 @@ class ClosedLoopScore:
         replans: Re-plans made.
         refused_replans: Re-plans not committed.
         final_task: Task of the last committed re-plan ("" if none).
+        handover_orientation_error_deg: Geodesic angle between the commanded and the recorded gripper
+            rotations at the recorded hand-over time, in [deg].
+        peak_torque_ratio: Largest |joint torque| / effort limit of the commanded motion (the task's
+            object included while held), when the caller computed it (NaN otherwise).
     """
 
     handover_error_cm: float
@@ -73,10 +78,19 @@ class ClosedLoopScore:
     replans: int
     refused_replans: int
     final_task: str
+    handover_orientation_error_deg: float = float("nan")
+    peak_torque_ratio: float = float("nan")
 
     def to_dict(self) -> dict:
         """JSON-serialisable form."""
         return asdict(self)
+
+
+def handover_orientation_error_deg(robot: Robot, q_commanded: np.ndarray, q_recorded: np.ndarray) -> float:
+    """Geodesic angle in [deg] between the gripper rotations (forward kinematics) of a commanded and a
+    recorded arm configuration (n_joints,) in [rad], e.g. at the hand-over."""
+    rot = frame_placements(robot, np.stack([q_commanded, q_recorded]))[1]
+    return float(geodesic_deg(rot[0], rot[1]))
 
 
 def score_closed_loop(
@@ -117,4 +131,5 @@ def score_closed_loop(
         replans=len(result.replans),
         refused_replans=result.n_refused,
         final_task=committed[-1].task if committed else "",
+        handover_orientation_error_deg=handover_orientation_error_deg(robot, q_at, truth[-1]),
     )

@@ -37,6 +37,7 @@ from __future__ import annotations
 import logging
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -208,8 +209,44 @@ def prepare_path(
 # --------------------------------------------------------------------------------------------------
 
 
+@dataclass(frozen=True)
+class TorqueLimit:
+    """Joint-torque limits for :func:`time_path` (toppra's ``JointTorqueConstraint``, given
+    ``toppra_headroom`` of the room gravity leaves). The jerk-limited tracking may exceed them slightly
+    where it catches up: the joint-torque check (:mod:`ipromp_pin.checks.joint_torques`) verifies the
+    samples.
+
+    Attributes:
+        inverse_dynamics: ``(q, qd, qdd) -> tau``: joint torques (n_joints,) in [N m] of one sample
+            ((n_joints,) each in [rad], [rad/s], [rad/s^2]), e.g.
+            :meth:`ipromp_pin.robot.dynamics.ArmDynamics.inverse_dynamics` (payload included).
+        limit_nm: Largest |torque| per joint (n_joints,) in [N m] (the effort limits less a margin).
+    """
+
+    inverse_dynamics: Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]
+    limit_nm: np.ndarray
+
+    def headroom_constraint(self, headroom: float) -> constraint.JointTorqueConstraint:
+        """toppra's constraint with the velocity/acceleration-dependent torque ``tau - g`` given only
+        ``headroom`` of the room the gravity torque ``g`` leaves (as the velocity and acceleration
+        limits are scaled for the jerk-limited tracking)."""
+        zero = np.zeros(self.limit_nm.size)
+        inv = self.inverse_dynamics
+
+        def scaled(q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> np.ndarray:
+            g = inv(q, zero, zero)
+            return g + (inv(q, qd, qdd) - g) / headroom
+
+        lim = np.asarray(self.limit_nm, dtype=float)
+        return constraint.JointTorqueConstraint(scaled, np.column_stack([-lim, lim]), zero)
+
+
 def toppra_profile(
-    spline: CubicSpline, s_grid: np.ndarray, limits: JointLimits
+    spline: CubicSpline,
+    s_grid: np.ndarray,
+    limits: JointLimits,
+    torque: TorqueLimit | None = None,
+    headroom: float = 1.0,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Time-optimal path velocity at grid points under joint velocity/acceleration limits (toppra).
 
@@ -217,6 +254,8 @@ def toppra_profile(
         spline: Path ``c(s)`` (arc length ``s`` in [rad]) -> joint angles.
         s_grid: Grid points (G,) in [rad], from 0 to the path length.
         limits: Limits (use headroom-scaled ones).
+        torque: Joint-torque limits too (``None``: none).
+        headroom: The fraction of the torque limits' dynamic room given to toppra.
 
     Returns:
         ``t`` (G,) in [s], ``sdot`` (G,) and ``sddot`` (G-1,) (constant path acceleration per interval).
@@ -233,6 +272,8 @@ def toppra_profile(
         constraint.JointVelocityConstraint(np.column_stack([-v, v])),
         constraint.JointAccelerationConstraint(np.column_stack([-a, a])),
     ]
+    if torque is not None:
+        cons.append(torque.headroom_constraint(headroom))
     instance = algo.TOPPRA(cons, path, gridpoints=s_grid, solver_wrapper="seidel")
     instance.compute_parameterization(0.0, 0.0)
     data = instance.problem_data
@@ -510,6 +551,7 @@ def time_path(
     smooth_rad: float = 0.05,
     toppra_headroom: float = 0.5,
     lookahead_s: float = 0.0,
+    torque: TorqueLimit | None = None,
 ) -> tuple[Trajectory, TimingReport]:
     """Turn a predicted joint path into a jerk-limited trajectory sampled at ``rate_hz``.
 
@@ -528,6 +570,7 @@ def time_path(
         toppra_headroom: Fraction of the velocity and acceleration limits given to toppra; the rest
             is headroom for the jerk-limited tracking.
         lookahead_s: How far ahead of the current time the 1-D ruckig target is taken, in [s].
+        torque: Joint-torque limits toppra respects too (:class:`TorqueLimit`; ``None``: none).
 
     Returns:
         The trajectory and its verification report.
@@ -538,10 +581,7 @@ def time_path(
     """
     timings: dict[str, float] = {}
     t0 = time.perf_counter()
-    if not (np.isfinite(rate_hz) and rate_hz > 0):
-        raise InfeasibleError(f"rate_hz must be positive, got {rate_hz}")
-    if not 0 < toppra_headroom <= 1:
-        raise InfeasibleError(f"toppra_headroom must be in (0, 1], got {toppra_headroom}")
+    _check_rate_headroom(rate_hz, toppra_headroom)
     dt = 1.0 / rate_hz
     n = limits.n_joints
     q_in = _check_path_input(q_path, limits)
@@ -558,7 +598,7 @@ def time_path(
     timings["clean_ms"] = (t1 - t0) * 1e3
 
     head = limits.scaled(toppra_headroom, toppra_headroom)
-    t_grid, sd, sdd = toppra_profile(spline, s_grid, head)
+    t_grid, sd, sdd = toppra_profile(spline, s_grid, head, torque, toppra_headroom)
     t2 = time.perf_counter()
     timings["toppra_ms"] = (t2 - t1) * 1e3
 
@@ -598,6 +638,14 @@ def time_path(
     timings["total_ms"] = (time.perf_counter() - t0) * 1e3
     report.timings_ms = timings
     return traj, report
+
+
+def _check_rate_headroom(rate_hz: float, toppra_headroom: float) -> None:
+    """Refuse a non-positive control rate or a toppra headroom outside (0, 1]."""
+    if not (np.isfinite(rate_hz) and rate_hz > 0):
+        raise InfeasibleError(f"rate_hz must be positive, got {rate_hz}")
+    if not 0 < toppra_headroom <= 1:
+        raise InfeasibleError(f"toppra_headroom must be in (0, 1], got {toppra_headroom}")
 
 
 def _track_profile(

@@ -99,6 +99,8 @@ class Trajectory:
         qdd: Accelerations (N, n_joints) in [rad/s^2].
         joint_names: Joint names in column order.
         qddd: Jerks (N, n_joints) in [rad/s^3] when known (``None`` after reading from a file).
+        effort_nm: Joint torques (N, n_joints) in [N m] the motion needs, when computed (the joint-torque
+            check's inverse dynamics, payload included; written as the messages' ``effort``).
     """
 
     t_s: np.ndarray
@@ -107,6 +109,7 @@ class Trajectory:
     qdd: np.ndarray
     joint_names: tuple[str, ...]
     qddd: np.ndarray | None = None
+    effort_nm: np.ndarray | None = None
 
     @property
     def duration_s(self) -> float:

@@ -40,6 +40,11 @@ def _round_dict(x: dict) -> dict:
     return {k: _round(v) for k, v in x.items()}
 
 
+def finite_or_none(x: float) -> float | None:
+    """``x``, or None when it is NaN or infinite (JSON has no NaN)."""
+    return float(x) if np.isfinite(x) else None
+
+
 def replans_json(result: ClosedLoopResult, demo: Demo) -> dict:
     """``replans.json``: settings, limit profile and one record per re-plan."""
     duration = float(demo.t[-1] - demo.t[0])
@@ -93,6 +98,8 @@ def report_dict(
             "limit_profile": result.profile.to_dict(),
             "start_s": result.start_s,
             "handover_error_cm": score.handover_error_cm,
+            "handover_orientation_error_deg": finite_or_none(score.handover_orientation_error_deg),
+            "peak_torque_ratio": finite_or_none(score.peak_torque_ratio),
             "final_error_cm": score.final_error_cm,
             "arrival_delay_s": score.arrival_delay_s,
             "arrival_s": score.arrival_s,
@@ -137,7 +144,9 @@ def report_text(
         f"Re-plans: {score.replans} ({result.n_committed} committed, {score.refused_replans} refused); "
         f"final task {score.final_task or '(none)'}",
         f"Hand-over error at the recorded hand-over time: {score.handover_error_cm:.2f} cm; where the motion "
-        f"comes to rest: {score.final_error_cm:.2f} cm",
+        f"comes to rest: {score.final_error_cm:.2f} cm; gripper orientation error at the hand-over "
+        f"{score.handover_orientation_error_deg:.1f} deg; peak joint torque "
+        f"{score.peak_torque_ratio:.0%} of the effort limits",
         f"Arrival: {score.arrival_s:.2f} s (recorded robot {score.recorded_arrival_s:.2f} s): delay "
         f"{score.arrival_delay_s:+.2f} s; at rest at {score.rest_s:.2f} s",
         "Limits: max ratio velocity {:.3f}, acceleration {:.3f}, jerk {:.3f}; position excess {:.1e} rad; "

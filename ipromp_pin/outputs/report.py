@@ -47,11 +47,16 @@ def arrival_line(result: PlanResult) -> str:
 
 
 def report_dict(
-    result: PlanResult, observation: Demo | None = None, warnings: list[str] | None = None
+    result: PlanResult,
+    observation: Demo | None = None,
+    warnings: list[str] | None = None,
+    handover_orientation_error_deg: float | None = None,
 ) -> dict:
     """The machine-readable pipeline report (JSON-serialisable; schema:
-    ``ipromp_pin/schemas/report.schema.json``)."""
+    ``ipromp_pin/schemas/report.schema.json``); ``handover_orientation_error_deg``: the commanded vs
+    the recorded gripper orientation at the hand-over, in [deg], when the observed demo is recorded."""
     p = result.prediction
+    torques = next((c for c in result.report.checks if c.name == "joint_torques"), None)
     return {
         "format": REPORT_FORMAT,
         "version": REPORT_VERSION,
@@ -69,6 +74,8 @@ def report_dict(
         "passed": result.passed,
         "stage_ms": {k: round(v, 3) for k, v in result.stage_ms.items()},
         "warnings": list(warnings or []),
+        "handover_orientation_error_deg": handover_orientation_error_deg,
+        "peak_torque_ratio": None if torques is None else torques.values.get("peak_torque_ratio"),
     }
 
 

@@ -183,7 +183,7 @@ class _Builder:
                 positions=np.asarray(traj.q[k], dtype=np.float64),
                 velocities=np.asarray(traj.qd[k], dtype=np.float64),
                 accelerations=np.asarray(traj.qdd[k], dtype=np.float64),
-                effort=empty,
+                effort=empty if traj.effort_nm is None else np.asarray(traj.effort_nm[k], dtype=np.float64),
                 time_from_start=self.duration(_ns(traj.t_s[k])),
             )
             for k in range(traj.n_samples)
@@ -192,13 +192,15 @@ class _Builder:
             header=self.header(ns, ""), joint_names=list(traj.joint_names), points=points
         )
 
-    def joint_state(self, ns: int, names: list[str], q: np.ndarray, qd: np.ndarray) -> MsgType:
+    def joint_state(
+        self, ns: int, names: list[str], q: np.ndarray, qd: np.ndarray, effort: np.ndarray | None = None
+    ) -> MsgType:
         return self.t[JOINT_STATE](
             header=self.header(ns, ""),
             name=names,
             position=np.asarray(q, dtype=np.float64),
             velocity=np.asarray(qd, dtype=np.float64),
-            effort=np.zeros(0),
+            effort=np.zeros(0) if effort is None else np.asarray(effort, dtype=np.float64),
         )
 
     def point(self, xyz: np.ndarray) -> MsgType:
@@ -278,9 +280,12 @@ def bag_messages(content: BagContent, ros1: bool = False) -> list[BagMessage]:
         BagMessage(topics[1], POSE_STAMPED, plan_ns, b.pose_stamped(plan_ns, content.base_frame, pose))
     )
     names = list(traj.joint_names)
+    effort = traj.effort_nm
     for k in range(traj.n_samples):
         ns = plan_ns + _ns(traj.t_s[k])
-        out.append(BagMessage(topics[2], JOINT_STATE, ns, b.joint_state(ns, names, traj.q[k], traj.qd[k])))
+        tau = None if effort is None else effort[k]
+        msg = b.joint_state(ns, names, traj.q[k], traj.qd[k], tau)
+        out.append(BagMessage(topics[2], JOINT_STATE, ns, msg))
     out.sort(key=lambda m: m.stamp_ns)
     return out
 

@@ -173,7 +173,7 @@ def trajectory_to_ros(traj: Trajectory, frame_id: str = "", stamp_s: float = 0.0
                 "positions": traj.q[k].tolist(),
                 "velocities": traj.qd[k].tolist(),
                 "accelerations": traj.qdd[k].tolist(),
-                "effort": [],
+                "effort": [] if traj.effort_nm is None else traj.effort_nm[k].tolist(),
                 "time_from_start": _duration(float(traj.t_s[k]), ros),
             }
             for k in range(traj.t_s.size)
@@ -201,8 +201,10 @@ def trajectory_json_text(
     sec, nsec = _TIME_KEYS[ros]
     # one point per line, formatted directly (repr round-trips float64; faster than json.dump)
     lines = []
+    effort = traj.effort_nm
     for k in range(traj.t_s.size):
         t = _duration(float(traj.t_s[k]), ros)
+        tau = "" if effort is None else ", ".join(map(repr, effort[k].tolist()))
         lines.append(
             '{"positions": ['
             + ", ".join(map(repr, traj.q[k].tolist()))
@@ -210,7 +212,7 @@ def trajectory_json_text(
             + ", ".join(map(repr, traj.qd[k].tolist()))
             + '], "accelerations": ['
             + ", ".join(map(repr, traj.qdd[k].tolist()))
-            + f'], "effort": [], "time_from_start": {{"{sec}": {t[sec]}, "{nsec}": {t[nsec]}}}}}'
+            + f'], "effort": [{tau}], "time_from_start": {{"{sec}": {t[sec]}, "{nsec}": {t[nsec]}}}}}'
         )
     body = ",\n".join(lines)
     return f'{envelope},\n "message": {head}, "points": [\n{body}\n]}}}}\n'

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import importlib.metadata
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -169,6 +169,11 @@ class RobotSettings:
         min_clearance_m: Required minimum self-collision clearance in [m].
         collision_max_step_rad: Largest joint step between collision-checked path samples in [rad].
         max_hand_distance_m: Largest gripper-hand distance at the hand-over in [m].
+        effort_margin: Fraction of the URDF's effort limits kept free by the joint-torque check, in
+            [0, 1) (``[limits] effort_margin``; default 0.1: torques up to 90 % of the limits).
+        spring_torque_nm: Arm joint name -> ``(c0, c1)``: a spring (Baxter's shoulder counterbalance)
+            adds ``c0 + c1 * q`` [N m] (``q`` in [rad]) to that joint, so the motor delivers the rest
+            (``[springs]``; default none).
     """
 
     name: str
@@ -193,6 +198,8 @@ class RobotSettings:
     min_clearance_m: float
     collision_max_step_rad: float
     max_hand_distance_m: float
+    effort_margin: float = 0.1
+    spring_torque_nm: dict[str, tuple[float, float]] = field(default_factory=dict)
 
     @property
     def n_joints(self) -> int:
@@ -411,6 +418,31 @@ def _joint_limits(
     return margin, vel, acc, jerk
 
 
+def _effort_margin(limits: dict, path: Path) -> float:
+    """The optional ``[limits] effort_margin`` in [0, 1) (default 0.1)."""
+    margin = _get(limits, "effort_margin", path, "limits", float, 0.1)
+    if not (math.isfinite(margin) and 0.0 <= margin < 1.0):
+        raise settings_error(path, "limits.effort_margin", f"must be in [0, 1), got {margin}")
+    return float(margin)
+
+
+def _springs(table: dict, joints: list[str], path: Path) -> dict[str, tuple[float, float]]:
+    """The optional ``[springs]`` table: arm joint -> [c0 N m, c1 N m/rad], finite, |c| <= 1000."""
+    out: dict[str, tuple[float, float]] = {}
+    for name, value in table.items():
+        key = f"springs.{name}"
+        if name not in joints:
+            raise settings_error(path, key, f"not an arm joint ({', '.join(joints)})")
+        ok = isinstance(value, list) and len(value) == 2
+        if not ok or not all(isinstance(v, int | float) and not isinstance(v, bool) for v in value):
+            raise settings_error(path, key, "must be [c0, c1]: torque c0 + c1 * q in [N m]")
+        c0, c1 = float(value[0]), float(value[1])
+        if not (math.isfinite(c0) and math.isfinite(c1) and abs(c0) <= 1e3 and abs(c1) <= 1e3):
+            raise settings_error(path, key, f"must be finite and at most 1000 in size, got {value}")
+        out[name] = (c0, c1)
+    return out
+
+
 def _fixed_joints(fixed_raw: dict, joints: list[str], path: Path) -> dict[str, float]:
     """The optional ``[fixed_joints]`` table: non-arm joint name -> held value in [rad] or [m]."""
     fixed: dict[str, float] = {}
@@ -500,10 +532,12 @@ def load_robot_settings(path_or_name: str | Path) -> RobotSettings:
     limits = _table(doc, "limits", path)
     margin, vel, acc, jerk = _joint_limits(limits, len(joints), path)
     demo_limits = _demo_limit_recipe(limits, path)
+    effort_margin = _effort_margin(limits, path)
 
     fixed = _fixed_joints(_table(doc, "fixed_joints", path, required=False), joints, path)
     workspace = _workspace(_table(doc, "workspace", path), path)
     clearance, step, hand = _check_thresholds(_table(doc, "checks", path, required=False), path)
+    springs = _springs(_table(doc, "springs", path, required=False), joints, path)
 
     return RobotSettings(
         name=name,
@@ -528,4 +562,6 @@ def load_robot_settings(path_or_name: str | Path) -> RobotSettings:
         min_clearance_m=clearance,
         collision_max_step_rad=step,
         max_hand_distance_m=hand,
+        effort_margin=effort_margin,
+        spring_torque_nm=springs,
     )

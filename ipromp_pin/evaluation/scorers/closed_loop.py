@@ -21,17 +21,20 @@ from functools import partial
 
 import numpy as np
 
+from ...checks import CheckContext, TimedMotion
+from ...checks.joint_torques import JointTorques
 from ...data import Demo
 from ...handover.closed_loop import ClosedLoopSettings, conditioning_predictor, replay_demo
 from ...handover.score import ClosedLoopScore, score_closed_loop
 from ...motion.limits import LimitProfile, conservative_profile, demonstrated_profile, read_limit_profile
 from ...promp import IProMP
-from ...robot import DemoLimitRecipe, Robot, ee_positions
+from ...robot import DemoLimitRecipe, Robot, ee_positions, frame_placements
 from ...robot.clearance import ClearanceCertifier
+from ...robot.objects import ObjectTable
 from ..cells import CellResults, ClosedLoopCell, baseline_summary, median
 from ..config import EvaluationConfig
 from .base import Scorer
-from .one_shot import TrialResult, predict_window, score_trial
+from .one_shot import TrialResult, mean_handover_rotations, predict_window, score_trial
 
 
 @dataclass(frozen=True)
@@ -86,6 +89,9 @@ TRIAL_KEYS = (
     "closed_loop_refused_replans",
     "closed_loop_collisions",
     "closed_loop_final_task",
+    "handover_orientation_error_deg",
+    "closed_loop_handover_orientation_error_deg",
+    "closed_loop_peak_torque_ratio",
 )
 """The fields of a trial kept in a cell's ``closed_loop_trials`` (floats rounded to 4 decimals)."""
 
@@ -123,20 +129,39 @@ def replay_trials(
     certifier: ClearanceCertifier | None = None,
     check_collisions: bool = True,
     split: int = 0,
+    mean_rot: dict[str, np.ndarray] | None = None,
+    objects: ObjectTable | None = None,
 ) -> list[ClosedLoopTrial]:
-    """Replay every test demo with ``ratio`` as the start ratio; one :class:`ClosedLoopTrial` each."""
+    """Replay every test demo with ``ratio`` as the start ratio; one :class:`ClosedLoopTrial` each.
+
+    ``mean_rot``: the orientation baseline per task (:func:`~.one_shot.mean_handover_rotations` of the
+    training demos). ``objects``: the tasks' objects; when given, every re-plan runs the joint-torque
+    check (slowed where it asks) and the commanded motion's peak torque ratio is scored with the true
+    task's object."""
     observe = list(model.observe_)
 
     def fk(q: np.ndarray) -> np.ndarray:
         return ee_positions(robot, q)
 
+    def fk_rot(q: np.ndarray) -> np.ndarray:
+        return frame_placements(robot, q)[1]
+
+    torques = JointTorques(robot) if objects is not None else None
+    checks = [torques] if torques is not None else []
+
     run = ClosedLoopSettings(**{**settings.to_dict(), "start_ratio": float(ratio)}).validate()
     conditioner = conditioning_predictor(model, run.condition_noise)
     out = []
     for d in test:
-        one_shot = score_trial(predict_window(model, d, ratio, observe), d, ratio, fk)
-        result = replay_demo(model, robot, d, profile, run, certifier, conditioner)
+        prediction = predict_window(model, d, ratio, observe)
+        one_shot = score_trial(prediction, d, ratio, fk, fk_rot, (mean_rot or {}).get(d.task))
+        context = CheckContext(objects=objects)
+        result = replay_demo(model, robot, d, profile, run, certifier, conditioner, checks, context)
         score = score_closed_loop(result, d, robot, check_collisions=check_collisions)
+        if torques is not None:
+            truth = CheckContext(task=d.task, objects=objects)
+            check = torques.check(TimedMotion.from_trajectory(result.trajectory), truth)
+            score.peak_torque_ratio = float(check.values.get("peak_torque_ratio", np.nan))
         out.append(ClosedLoopTrial(**one_shot.__dict__, split=split, closed_loop=score))
     return out
 
@@ -150,18 +175,26 @@ class ClosedLoopScorer(Scorer):
         options: How the closed loop runs.
         model_params: Keyword arguments of the model's constructor.
         label: Name of the dataset, in the demonstrated profile's name.
+        objects: The tasks' objects (:mod:`ipromp_pin.robot.objects`): every re-plan is torque-checked
+            and each trial's ``peak_torque_ratio`` scored (``None``: neither).
     """
 
     label = "closed loop "
     cell_type = ClosedLoopCell
 
     def __init__(
-        self, robot: Robot, options: ClosedLoopOptions, model_params: dict | None = None, label_name: str = ""
+        self,
+        robot: Robot,
+        options: ClosedLoopOptions,
+        model_params: dict | None = None,
+        label_name: str = "",
+        objects: ObjectTable | None = None,
     ) -> None:
         self.robot = robot
         self.options = options
         self.model_params = dict(model_params or {})
         self.label_name = label_name
+        self.objects = objects
         self.certifier_: ClearanceCertifier | None = None
 
     def check(self) -> None:
@@ -177,6 +210,7 @@ class ClosedLoopScorer(Scorer):
         fk = partial(ee_positions, self.robot)  # settings chosen for the hand-over position
         self.model_ = IProMP(observe=list(observe), **self.model_params).fit(train, fk=fk)
         self.profile_ = profile_for(self.options, self.robot, train, self.label_name)
+        self.mean_rot_ = mean_handover_rotations(train, lambda q: frame_placements(self.robot, q)[1])
         return self
 
     def score(self, test: Sequence[Demo], obs_ratio: float, split: int = 0) -> list[ClosedLoopTrial]:
@@ -191,6 +225,8 @@ class ClosedLoopScorer(Scorer):
             self.certifier_,
             self.options.check_collisions,
             split,
+            self.mean_rot_,
+            self.objects,
         )
 
     def fit_facts(self) -> dict[str, str]:
@@ -214,5 +250,11 @@ class ClosedLoopScorer(Scorer):
             "refused_replans": int(sum(s.refused_replans for s in scores)),
             "replans": int(sum(s.replans for s in scores)),
             "collisions": int(sum(s.collisions for s in scores)),
+            "closed_loop_handover_orientation_error_deg": median(
+                [s.handover_orientation_error_deg for s in scores]
+            ),
+            "peak_torque_ratio": max(
+                (s.peak_torque_ratio for s in scores if np.isfinite(s.peak_torque_ratio)), default=None
+            ),
             "closed_loop_trials": [compact(t) for t in flat],
         }

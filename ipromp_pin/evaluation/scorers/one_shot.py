@@ -12,6 +12,7 @@ import numpy as np
 
 from ...data import ROBOT, Demo
 from ...promp import IProMP, Prediction
+from ...robot.rotations import chordal_mean, geodesic_deg
 from ..baselines import BaselineTrial
 from ..cells import CellResults, baseline_summary, calibration
 from ..config import EvaluationConfig
@@ -19,6 +20,9 @@ from .base import Scorer
 
 FK = Callable[[np.ndarray], np.ndarray]
 """Forward kinematics: joint configurations (n, 7) in [rad] -> gripper positions (n, 3) in [m]."""
+
+FKRot = Callable[[np.ndarray], np.ndarray]
+"""Forward kinematics: joint configurations (n, 7) in [rad] -> gripper rotation matrices (n, 3, 3)."""
 
 
 @dataclass
@@ -38,6 +42,10 @@ class TrialResult:
         handover_error_prior_cm: The same for the prior mean, in [cm].
         duration_error_s: Predicted minus true duration of the motion, in [s].
         brier: Multi-class Brier score of the task posterior (sum over tasks of squared errors).
+        handover_orientation_error_deg: Geodesic angle between the predicted and the recorded gripper
+            rotations at the hand-over (FK of the final configurations), in [deg] (NaN without FK).
+        handover_orientation_baseline_deg: The same for the baseline: the mean hand-over rotation
+            (chordal L2 mean) of the training demos of the true task, in [deg].
         baselines: Baseline name -> its outcome on the same window (``--baselines``,
             :mod:`ipromp_pin.evaluation.baselines`).
     """
@@ -54,6 +62,8 @@ class TrialResult:
     handover_error_prior_cm: float
     duration_error_s: float
     brier: float = float("nan")
+    handover_orientation_error_deg: float = float("nan")
+    handover_orientation_baseline_deg: float = float("nan")
     baselines: dict[str, BaselineTrial] = field(default_factory=dict)
 
     @property
@@ -75,7 +85,14 @@ def predict_window(model: IProMP, demo: Demo, obs_ratio: float, observe: Sequenc
     return prediction
 
 
-def score_trial(prediction: Prediction, demo: Demo, obs_ratio: float, fk: FK | None) -> TrialResult:
+def score_trial(
+    prediction: Prediction,
+    demo: Demo,
+    obs_ratio: float,
+    fk: FK | None,
+    fk_rot: FKRot | None = None,
+    baseline_rot: np.ndarray | None = None,
+) -> TrialResult:
     """Measure one prediction against the full test demo.
 
     Args:
@@ -84,6 +101,8 @@ def score_trial(prediction: Prediction, demo: Demo, obs_ratio: float, fk: FK | N
         obs_ratio: Observed fraction, in (0, 1].
         fk: Forward kinematics, joint configurations (n, 7) in [rad] -> gripper
             positions (n, 3) in [m]; ``None`` skips the Cartesian error.
+        fk_rot: Gripper rotations of joint configurations; ``None`` skips the orientation errors.
+        baseline_rot: (3, 3) the baseline's hand-over rotation (:func:`mean_handover_rotations`).
     """
     assert demo.duration_s is not None, "a Demo sets its duration when it is made"
     truth = demo.groups[ROBOT]
@@ -103,6 +122,12 @@ def score_trial(prediction: Prediction, demo: Demo, obs_ratio: float, fk: FK | N
         p = fk(np.stack([q_true_end, q_pred_end, q_prior_end]))
         ho = float(np.linalg.norm(p[1] - p[0]) * 100.0)
         ho_prior = float(np.linalg.norm(p[2] - p[0]) * 100.0)
+    rot_err = rot_base = float("nan")
+    if fk_rot is not None:
+        r_true, r_pred = fk_rot(np.stack([q_true_end, q_pred_end]))
+        rot_err = float(geodesic_deg(r_pred, r_true))
+        if baseline_rot is not None:
+            rot_base = float(geodesic_deg(baseline_rot, r_true))
     k_true = prediction.tasks.index(demo.task) if demo.task in prediction.tasks else None
     onehot = np.array([t == demo.task for t in prediction.tasks], dtype=float)
     return TrialResult(
@@ -118,7 +143,18 @@ def score_trial(prediction: Prediction, demo: Demo, obs_ratio: float, fk: FK | N
         handover_error_prior_cm=ho_prior,
         duration_error_s=float(prediction.duration_s - demo.duration_s),
         brier=float(np.sum((np.asarray(prediction.posterior) - onehot) ** 2)),
+        handover_orientation_error_deg=rot_err,
+        handover_orientation_baseline_deg=rot_base,
     )
+
+
+def mean_handover_rotations(train: Sequence[Demo], fk_rot: FKRot) -> dict[str, np.ndarray]:
+    """Task -> the chordal L2 mean (3, 3) of the gripper rotations at the hand-over (the last robot
+    sample) of that task's training demos: the orientation baseline."""
+    by_task: dict[str, list[np.ndarray]] = {}
+    for d in train:
+        by_task.setdefault(d.task, []).append(d.groups[ROBOT][-1])
+    return {task: chordal_mean(fk_rot(np.stack(qs))) for task, qs in by_task.items()}
 
 
 class OneShotScorer(Scorer):
@@ -127,22 +163,34 @@ class OneShotScorer(Scorer):
     Args:
         model_params: Keyword arguments of the model's constructor.
         fk: Forward kinematics for the model's settings and the hand-over error (None: skipped).
+        fk_rot: Gripper rotations, for the hand-over orientation errors (None: skipped).
     """
 
-    def __init__(self, model_params: dict | None = None, fk: FK | None = None) -> None:
+    def __init__(
+        self, model_params: dict | None = None, fk: FK | None = None, fk_rot: FKRot | None = None
+    ) -> None:
         self.model_params = dict(model_params or {})
         self.fk = fk
+        self.fk_rot = fk_rot
 
     def fit(self, train: Sequence[Demo], observe: Sequence[str]) -> OneShotScorer:
         """Fit the model on the training demos."""
         self.observe_ = list(observe)
         self.model_ = IProMP(observe=list(observe), **self.model_params).fit(train, fk=self.fk)
+        self.mean_rot_ = {} if self.fk_rot is None else mean_handover_rotations(train, self.fk_rot)
         return self
 
     def score(self, test: Sequence[Demo], obs_ratio: float, split: int = 0) -> list[TrialResult]:
         """One :class:`TrialResult` per test demo."""
         return [
-            score_trial(predict_window(self.model_, d, obs_ratio, self.observe_), d, obs_ratio, self.fk)
+            score_trial(
+                predict_window(self.model_, d, obs_ratio, self.observe_),
+                d,
+                obs_ratio,
+                self.fk,
+                self.fk_rot,
+                self.mean_rot_.get(d.task),
+            )
             for d in test
         ]
 

@@ -85,7 +85,7 @@ def _argv(case: str, tmp_path: Path, tiny, afile: Path) -> list[str]:
         ("velocity 1e-9", "velocity_rad_s.*implausible value 1e-09"),
         ("collision step 1e-12", "collision_max_step_rad.*implausible"),
         ("mount offset 1e300", "mount_offset_m.*implausible"),
-        ("binary settings", "not valid TOML"),
+        ("binary settings", "not a valid TOML"),
         ("--rate 1e9", "control_rate_hz.*\\[1, 1000\\] Hz"),
         ("--rate 1e-9", "control_rate_hz"),
         ("rate_hz 1e9 in the file", "data.rate_hz"),

@@ -72,7 +72,7 @@ def load_toml(path: str | Path, what: str, error: ErrorFn, max_bytes: int = MAX_
     try:
         return tomllib.loads(data.decode("utf-8-sig"))
     except UnicodeDecodeError as exc:
-        raise error(f"not a valid TOML {what} file: not UTF-8 text ({exc.reason})") from None
+        raise error(f"not a valid TOML {what} file (not valid TOML: not UTF-8 text, {exc.reason})") from None
     except tomllib.TOMLDecodeError as exc:
         raise error(f"not a valid TOML {what} file: {exc}") from None
     except RecursionError:

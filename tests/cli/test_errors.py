@@ -99,7 +99,7 @@ def _argv(case: str, tmp_path: Path, tiny, afile: Path) -> list[str]:
         ("train --coupling bogus", "coupling"),
         ("evaluate --json under a file", "is a file, not a folder"),
         ("evaluate --jobs 0", "outside \\[1, 1024\\]"),
-        ("evaluate --n-test 0", "outside \\[1, inf\\]"),
+        ("evaluate --n-test 0", "outside \\[1, 100000\\]"),
         ("preview --html is a folder", "it is a folder"),
         ("synth into a file", "it is a file"),
     ],

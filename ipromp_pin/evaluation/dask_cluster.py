@@ -11,9 +11,10 @@ Two kinds of cluster:
 
 The worker (the dataset and the scorers) is sent to every Dask worker once (``scatter``, broadcast);
 every job is one task, retried (``retries``) when the worker running it dies, so a lost worker costs
-a re-run, not a cell. A job runs with its own copy of the scorers, so workers of several threads
-are safe for the fits (the closed loop's robot is shared by a process's threads: give closed-loop
-runs workers of one thread, e.g. ``dask-jobqueue``'s ``processes`` equal to its ``cores``). The
+a re-run, not a cell. Each thread runs its jobs with its own copy of the scorers, so workers of
+several threads are safe for the fits (the closed loop's robot is shared by a process's threads:
+give closed-loop runs workers of one thread, e.g. ``dask-jobqueue``'s ``processes`` equal to its
+``cores``). The
 results do not depend on where a job ran: the cells are those of a ``--jobs`` run of the same
 splits and seeds. Dask is an optional dependency (``pip install 'ipromp_pin[dask]'``).
 """
@@ -21,6 +22,7 @@ splits and seeds. Dask is an optional dependency (``pip install 'ipromp_pin[dask
 from __future__ import annotations
 
 import importlib
+import threading
 import uuid
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
@@ -115,9 +117,19 @@ class DaskCluster:
             yield future.result()
 
 
+_thread = threading.local()
+"""Per thread of a Dask worker: the scattered worker it last ran a job of, and its own copy of it."""
+
+
 def run_job(worker: Worker, job: Job) -> JobResult:
-    """One job on a Dask worker (with its own scorers: a worker's threads share the scattered one)."""
-    return worker.for_one_job().run_job(job)
+    """One job on a Dask worker, with this thread's own copy of the scattered worker (its scorers
+    keep each job's fit; made once per thread and run, so that what a scorer keeps for the process,
+    e.g. the closed loop's collision certifier and its computed distances, serves every later job
+    as in the local pool)."""
+    held = getattr(_thread, "worker", None)
+    if held is None or held[0] is not worker:
+        held = _thread.worker = (worker, worker.for_one_job())
+    return held[1].run_job(job)
 
 
 def require_dask() -> ModuleType:

@@ -107,7 +107,7 @@ def _features(training: TrainingSet, dims: np.ndarray) -> dict[str, np.ndarray]:
     for task, demos in training.demos.items():
         x = np.full((len(RATIOS), len(demos), 2 * dims.size), np.nan)
         for i, demo in enumerate(demos):
-            for ratio, parts, _ in cv_observations(encoder, demo, RATIOS):
+            for ratio, parts, _ in cv_observations(encoder, demo, RATIOS, training.encoded):
                 window = WindowSummary.from_parts(parts, n_obs).values
                 x[RATIOS.index(ratio), i] = window_features(window, dims)
         out[task] = x
@@ -296,7 +296,7 @@ def _held_out_predictions(
             weights = [training.weights[t][keep] if t == task else training.weights[t] for t in tasks]
             covs[row.demo] = shrink_covariances(weights, settings.pooling, blocks, [k], training.cache)[0]
         cov = covs[row.demo]
-        obs = cv_observations(encoder, training.demos[task][i], [row.ratio])
+        obs = cv_observations(encoder, training.demos[task][i], [row.ratio], training.encoded)
         if not obs:
             continue
         _, parts, _ = obs[0]

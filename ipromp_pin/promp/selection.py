@@ -99,17 +99,32 @@ def held_out(by_task: Mapping[str, list[Demo]]) -> list[tuple[str, int]]:
 
 
 def cv_observations(
-    encoder: ObservationEncoder, demo: Demo, ratios: Sequence[float] = CV_RATIOS
+    encoder: ObservationEncoder,
+    demo: Demo,
+    ratios: Sequence[float] = CV_RATIOS,
+    cache: dict | None = None,
 ) -> list[tuple[float, list[ObservationPart], float]]:
     """(observed ratio, encoded parts, last sample time in [s]) of the first ``ratios`` of a
-    held-out training demo (ratios the demo is too short for are left out)."""
+    held-out training demo (ratios the demo is too short for are left out). With ``cache`` (the
+    training set's :attr:`~ipromp_pin.promp.training.TrainingSet.encoded`, for encoders of its
+    layout and scaling), each (demo, ratio) is encoded once for every cross-validation."""
     out = []
     for ratio in ratios:
+        key = (id(demo), float(ratio))
+        hit = None if cache is None else cache.get(key)
+        if hit is not None and hit[0] is demo:
+            if hit[1] is not None:
+                out.append((ratio, *hit[1]))
+            continue
         try:
             obs = demo.head(ratio, encoder.layout.observe)
         except ObservationError:
+            if cache is not None:
+                cache[key] = (demo, None)
             continue
         parts, t_last = encoder.encode(obs, check_length=False)
+        if cache is not None:
+            cache[key] = (demo, (parts, t_last))
         out.append((ratio, parts, t_last))
     return out
 
@@ -241,7 +256,9 @@ def choose_noise(
         dens_shift = np.log(m.alpha_grid[1] - m.alpha_grid[0])
         alpha_true = training.alphas[task][i]
         scored = []
-        for ratio, parts, t_last in cv_observations(encoder, training.demos[task][i], HEAD_RATIOS):
+        for ratio, parts, t_last in cv_observations(
+            encoder, training.demos[task][i], HEAD_RATIOS, training.encoded
+        ):
             summary = WindowSummary.from_parts(parts, training.layout.n_obs_dims).vector()
             fold.observations.append((ratio, parts, t_last, summary))
             if ratio in CV_RATIOS or len(noise_grid) == 1:
@@ -363,7 +380,9 @@ def choose_coupling(
         ]
         alpha = float(training.alphas[task][i])
         w_true = training.weights[task][i][rs]
-        for ratio, parts, _ in cv_observations(encoder, training.demos[task][i], CONDITION_CV_RATIOS):
+        for ratio, parts, _ in cv_observations(
+            encoder, training.demos[task][i], CONDITION_CV_RATIOS, training.encoded
+        ):
             phi = training.basis(np.linspace(ratio, 1.0, CV_PHASES))
             spectrum = part_spectrum(training.basis, parts, alpha * training.duration_nominal_s)
             # (candidates, nu_c, J, K) conditioned robot weights

@@ -62,6 +62,8 @@ class TrainingSet:
         residual_var: (D,) mean per-sample residual variance of the basis fits.
         cache: The covariance statistics of ``weights`` (shared by the leave-one-out estimates of
             the cross-validations, :class:`~ipromp_pin.promp.distribution.ShrinkageCache`).
+        encoded: The cross-validations' encoded demo heads (see
+            :func:`~ipromp_pin.promp.selection.cv_observations`).
     """
 
     demos: Mapping[str, list[Demo]]
@@ -74,6 +76,7 @@ class TrainingSet:
     duration_nominal_s: float
     residual_var: np.ndarray
     cache: ShrinkageCache = field(default_factory=ShrinkageCache, compare=False, repr=False)
+    encoded: dict = field(default_factory=dict, compare=False, repr=False)
 
 
 def demos_by_task(data: Dataset | Iterable[Demo]) -> dict[str, list[Demo]]:

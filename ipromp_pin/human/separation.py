@@ -144,11 +144,11 @@ class SeparationAnalyser:
         """The separation along a motion: times (N,) [s], angles and velocities (N, n_joints) [rad],
         [rad/s], against ``human``. The last result is kept: the same arrays and human again (two
         checks of one motion) return it without recomputing."""
-        key = (id(t_s), id(q), id(qd), id(human), human.horizon_s, t_s.size)
-        if self._last is not None and self._last[0] == key:
+        key = (t_s, q, qd, human)
+        if self._last is not None and all(a is b for a, b in zip(self._last[0], key, strict=True)):
             return self._last[1]
         result = self._compute(np.asarray(t_s, dtype=float), q, qd, human)
-        self._last = (key, result)
+        self._last = (key, result)  # the inputs are kept: their ids cannot be reused meanwhile
         return result
 
     def _compute(self, t: np.ndarray, q: np.ndarray, qd: np.ndarray, human: HumanMotion) -> Separation:

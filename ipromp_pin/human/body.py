@@ -21,7 +21,7 @@ in the robot base frame:
 
 from __future__ import annotations
 
-import dataclasses
+import copy
 import math
 from dataclasses import dataclass
 
@@ -245,7 +245,9 @@ class HumanMotion:
     def until(self, t_obs_s: float) -> HumanMotion:
         """The human as known at ``t_obs_s`` [s]: later samples unknown (held, growing at the human
         speed). Shares the arrays of ``self``."""
-        return dataclasses.replace(self, horizon_s=float(min(t_obs_s, self.horizon_s)))
+        seen = copy.copy(self)  # shallow: the arrays and their indices are shared
+        object.__setattr__(seen, "horizon_s", float(min(t_obs_s, self.horizon_s)))
+        return seen
 
     # ----------------------------------------------------------------- queries
     def __post_init__(self) -> None:

@@ -45,7 +45,11 @@ class Separation:
 
     Attributes:
         t_s: Sample times (N,) [s] on the human's clock.
-        distance_m: Capsule distances (N, L, P) [m] (negative: overlap).
+        distance_m: Distances (N, L, P) [m] to the body capsules with their uncertainty inflation
+            (occluded or not yet observed frames; negative: overlap): where contact cannot be
+            excluded, what S_p and the contact-speed limits are judged on.
+        inflation_m: The inflation (N, P) [m] of each part: the distance to the part at its nominal
+            (held or interpolated) position is ``distance_m + inflation_m``.
         approach_m_s: Approach speed (N, L, P) [m/s] of the robot's closest point toward the part
             (NaN where not computed: farther than any S_p the pair could have).
         protective_m: S_p (N, L, P) [m] at that approach speed (NaN where not computed).
@@ -62,6 +66,7 @@ class Separation:
 
     t_s: np.ndarray
     distance_m: np.ndarray
+    inflation_m: np.ndarray
     approach_m_s: np.ndarray
     protective_m: np.ndarray
     speed_ratio: np.ndarray
@@ -95,12 +100,16 @@ class Separation:
         """(N,) the smallest robot-body distance [m] (every part)."""
         return self.distance_m.min(axis=(1, 2))
 
+    def nominal_distance_m(self) -> np.ndarray:
+        """(N, L, P) distances [m] to the parts at their nominal positions (without inflation)."""
+        return self.distance_m + self.inflation_m[:, None, :]
+
     def clearance_m(self, exclude_region: str | None = HAND_REGION) -> np.ndarray:
-        """(N,) the smallest distance [m] to the parts outside ``exclude_region``."""
+        """(N,) the smallest distance [m] to the nominal parts outside ``exclude_region``."""
         keep = np.array([r != exclude_region for r in self.regions])
         if not keep.any():
             return np.full(self.t_s.size, np.inf)
-        return self.distance_m[:, :, keep].min(axis=(1, 2))
+        return self.nominal_distance_m()[:, :, keep].min(axis=(1, 2))
 
     def state(self) -> np.ndarray:
         """(N,) per sample: 0 free, 1 within S_p, 2 within S_p and speed-limited (ratio > 0.8),
@@ -110,9 +119,12 @@ class Separation:
         out = np.where(self.within_sp & (ratio > 0.8), 2, out)
         return np.where(ratio > 1.0, 3, out)
 
-    def where(self, n: int, exclude_region: str | None = None) -> tuple[str, str, float, float]:
-        """(link, body part, t [s], distance [m]) of the closest pair at sample ``n``."""
-        d = self.distance_m[n].copy()
+    def where(
+        self, n: int, exclude_region: str | None = None, nominal: bool = False
+    ) -> tuple[str, str, float, float]:
+        """(link, body part, t [s], distance [m]) of the closest pair at sample ``n`` (``nominal``:
+        to the parts without their inflation)."""
+        d = (self.nominal_distance_m() if nominal else self.distance_m)[n].copy()
         if exclude_region is not None:
             d[:, [r == exclude_region for r in self.regions]] = np.inf
         li, pi = np.unravel_index(int(np.argmin(d)), d.shape)
@@ -159,6 +171,7 @@ class SeparationAnalyser:
         qd = np.ascontiguousarray(qd, dtype=float)
         origins, axes, ra, rb = arm_kinematics(caps, q)
         ha, hb, hr = human.capsules(t)
+        caps_radius_p = human.radius_m[None, :]
         dist, cr, ch = capsule_distances(ra, rb, caps.radius_m, ha, hb, np.ascontiguousarray(hr))
         n, nl, npart = dist.shape
         t_r, t_stop = s.reaction_time_s, s.stopping_time_s
@@ -176,6 +189,7 @@ class SeparationAnalyser:
         return Separation(
             t_s=t,
             distance_m=dist,
+            inflation_m=hr - caps_radius_p,
             approach_m_s=approach,
             protective_m=protective,
             speed_ratio=ratio,

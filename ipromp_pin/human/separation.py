@@ -17,12 +17,14 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import pinocchio as pin
 
 from ..robot import Robot
 from ..robot.human_settings import HumanSettings
 from .body import HumanMotion
 from .iso15066 import (
     arm_mass_matrices,
+    arm_model,
     constant_distance_m,
     reduced_mass_kg,
     region_force_n,
@@ -143,6 +145,7 @@ class SeparationAnalyser:
         self.robot = robot
         self.settings = settings if settings is not None else robot.settings.human
         self._capsules: RobotCapsules | None = None
+        self._arm_model: pin.Model | None = None
         self._last: tuple[tuple, Separation] | None = None
 
     @property
@@ -238,7 +241,9 @@ class SeparationAnalyser:
             u[met] = v / np.maximum(np.linalg.norm(v, axis=1, keepdims=True), 1e-12)
         w = np.einsum("kij,ki->kj", jac, u)  # J^T u, (K, n_joints)
         samples, which = np.unique(n_i, return_inverse=True)
-        inertia = arm_mass_matrices(self.robot, q[samples])
+        if self._arm_model is None:
+            self._arm_model = arm_model(self.robot)
+        inertia = arm_mass_matrices(self.robot, q[samples], self._arm_model)
         inv = inverse_effective_masses(inertia, which.astype(np.int64), np.ascontiguousarray(w))
         m_r = 1.0 / np.maximum(inv, 1e-300)
         force = np.array([region_force_n(lim, s.contact) for lim in limits])[p_i]

@@ -79,3 +79,13 @@ def test_effective_mass_of_baxter_matches_the_inverse_formula():
     got = point_effective_mass_kg(robot, q, parent, point, u)
     assert got == pytest.approx(expected, rel=1e-9)
     assert 0.5 < got < 30.0  # a plausible arm
+
+
+def test_the_arm_models_inertia_is_the_full_models_arm_block():
+    from ipromp_pin.human.iso15066 import arm_mass_matrices
+
+    robot = load_robot("baxter_left")
+    q = np.array([[0.3, -0.5, 0.1, 1.2, -0.2, 0.8, 0.0], [0.0, 0.2, -0.4, 0.5, 0.3, -0.6, 1.0]])
+    fast = arm_mass_matrices(robot, q)
+    for i in range(2):
+        np.testing.assert_allclose(fast[i], arm_mass_matrix(robot, q[i]), atol=1e-10)

@@ -297,14 +297,16 @@ class HumanMotion:
         at times (N,) [s]; a sphere has ``a == b``."""
         pos, grow = self.frames_at(t_s)
         wa, wb, ma, mb, trim = self._parts  # type: ignore[attr-defined]
-        a = np.einsum("pf,nfc->npc", wa, pos)
-        b = np.einsum("pf,nfc->npc", wb, pos)
+        n, nf = pos.shape[0], pos.shape[1]
+        flat = pos.transpose(1, 0, 2).reshape(nf, 3 * n)  # (F, N*3): one matrix product per end
+        a = (wa @ flat).reshape(-1, n, 3).transpose(1, 0, 2)
+        b = (wb @ flat).reshape(-1, n, 3).transpose(1, 0, 2)
         if np.any(trim > 0):
             axis = b - a
             length = np.linalg.norm(axis, axis=2, keepdims=True)
             keep = np.maximum(length - trim[None, :, None], 0.0) / np.maximum(length, 1e-12)
             b = np.where(trim[None, :, None] > 0, a + axis * keep, b)
-        g = np.maximum(np.max(grow[:, None, :] * ma, axis=2), np.max(grow[:, None, :] * mb, axis=2))
+        g = np.max(grow[:, None, :] * np.maximum(ma, mb), axis=2)  # the part's most uncertain frame
         return a, b, self.radius_m[None, :] + g
 
     def capsules_at(self, t_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

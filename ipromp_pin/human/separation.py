@@ -15,6 +15,7 @@ which no effective mass can lower). :class:`Separation` holds the per-sample res
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 import pinocchio as pin
@@ -52,9 +53,8 @@ class Separation:
             excluded, what S_p and the contact-speed limits are judged on.
         inflation_m: The inflation (N, P) [m] of each part: the distance to the part at its nominal
             (held or interpolated) position is ``distance_m + inflation_m``.
-        approach_m_s: Approach speed (N, L, P) [m/s] of the robot's closest point toward the part
-            (NaN where not computed: farther than any S_p the pair could have).
-        protective_m: S_p (N, L, P) [m] at that approach speed (NaN where not computed).
+        approach_m_s: Approach speed (N, L, P) [m/s] of the robot's closest point toward the part.
+        protective_m: S_p (N, L, P) [m] at that approach speed.
         speed_ratio: approach speed / v_max (N, L, P) where the pair is within S_p (0 elsewhere).
         robot_mass_kg: The robot's effective mass (N, L, P) [kg] where computed (NaN elsewhere).
         closest_robot_m: The robot's closest surface point (N, 3) [m] to the body (hand included).
@@ -86,16 +86,20 @@ class Separation:
         """Sample period in [s] (0 for a single sample)."""
         return float(np.median(np.diff(self.t_s))) if self.t_s.size > 1 else 0.0
 
-    @property
+    @cached_property
     def within_sp(self) -> np.ndarray:
         """(N,) whether any robot capsule is closer than S_p to any body part."""
-        with np.errstate(invalid="ignore"):
-            return np.any(self.distance_m < np.nan_to_num(self.protective_m, nan=-np.inf), axis=(1, 2))
+        return np.any(self.distance_m < self.protective_m, axis=(1, 2))
+
+    @cached_property
+    def max_ratio(self) -> np.ndarray:
+        """(N,) the largest approach speed / v_max within S_p (0: none within S_p and fast)."""
+        return self.speed_ratio.max(axis=(1, 2))
 
     @property
     def violation(self) -> np.ndarray:
         """(N,) whether, within S_p, the robot approaches some body part faster than its limit."""
-        return np.any(self.speed_ratio > 1.0, axis=(1, 2))
+        return self.max_ratio > 1.0
 
     @property
     def min_distance_m(self) -> np.ndarray:
@@ -111,12 +115,13 @@ class Separation:
         keep = np.array([r != exclude_region for r in self.regions])
         if not keep.any():
             return np.full(self.t_s.size, np.inf)
-        return self.nominal_distance_m()[:, :, keep].min(axis=(1, 2))
+        d = self.distance_m[:, :, keep].min(axis=1) + self.inflation_m[:, keep]  # (N, P_kept)
+        return d.min(axis=1)
 
     def state(self) -> np.ndarray:
         """(N,) per sample: 0 free, 1 within S_p, 2 within S_p and speed-limited (ratio > 0.8),
         3 violation (faster than the limit within S_p)."""
-        ratio = self.speed_ratio.max(axis=(1, 2))
+        ratio = self.max_ratio
         out = np.where(self.within_sp, 1, 0)
         out = np.where(self.within_sp & (ratio > 0.8), 2, out)
         return np.where(ratio > 1.0, 3, out)
@@ -126,7 +131,7 @@ class Separation:
     ) -> tuple[str, str, float, float]:
         """(link, body part, t [s], distance [m]) of the closest pair at sample ``n`` (``nominal``:
         to the parts without their inflation)."""
-        d = (self.nominal_distance_m() if nominal else self.distance_m)[n].copy()
+        d = self.distance_m[n] + (self.inflation_m[n][None, :] if nominal else 0.0)
         if exclude_region is not None:
             d[:, [r == exclude_region for r in self.regions]] = np.inf
         li, pi = np.unravel_index(int(np.argmin(d)), d.shape)

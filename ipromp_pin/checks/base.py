@@ -17,6 +17,7 @@ from typing import ClassVar
 
 import numpy as np
 
+from ..human import HumanMotion
 from ..motion.retarget import MotionPlan
 from ..motion.trajectory import Trajectory
 from ..robot import CheckResult, Robot
@@ -74,10 +75,13 @@ class CheckContext:
         objects: The objects of the tasks (:mod:`ipromp_pin.robot.objects`); the payload of a motion is
             the object of :attr:`task` (its ``holder`` says whether before or after the hand-over).
         payload: The object in the gripper, when given explicitly (it overrides ``objects``).
+        human: The human's body over time (tracked, or the assumed human), as the planner knows it
+            (:meth:`~ipromp_pin.human.HumanMotion.until`), or as recorded when judging afterwards.
     """
 
     handover_s: float | None = None
     task: str | None = None
+    human: HumanMotion | None = None
     objects: ObjectTable | None = None
     payload: TaskObject | None = None
 

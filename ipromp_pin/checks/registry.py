@@ -11,9 +11,11 @@ from collections.abc import Iterable, Sequence
 from ..exceptions import PipelineError
 from ..robot import CheckResult, Robot
 from .base import CheckContext, MotionCheck, TimedMotion
+from .contact_speed import ContactSpeed
+from .human_clearance import HumanClearance
 from .joint_torques import JointTorques
 
-MOTION_CHECKS: tuple[type[MotionCheck], ...] = (JointTorques,)
+MOTION_CHECKS: tuple[type[MotionCheck], ...] = (HumanClearance, ContactSpeed, JointTorques)
 """Every timed-motion check, in the order of the reports."""
 
 

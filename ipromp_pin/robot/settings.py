@@ -24,6 +24,7 @@ import numpy as np
 from ..exceptions import RobotError
 from ..inputs import MAX_DOCUMENT_BYTES, check_regular, load_toml
 from ..shipped import ROBOTS_DIR
+from .human_settings import HumanSettings, read_human_settings
 
 __all__ = [
     "EE_FRAME",
@@ -174,6 +175,7 @@ class RobotSettings:
         spring_torque_nm: Arm joint name -> ``(c0, c1)``: a spring (Baxter's shoulder counterbalance)
             adds ``c0 + c1 * q`` [N m] (``q`` in [rad]) to that joint, so the motor delivers the rest
             (``[springs]``; default none).
+        human: The ``[human]`` / ``[iso15066]`` tables (:mod:`.human_settings`).
     """
 
     name: str
@@ -200,6 +202,7 @@ class RobotSettings:
     max_hand_distance_m: float
     effort_margin: float = 0.1
     spring_torque_nm: dict[str, tuple[float, float]] = field(default_factory=dict)
+    human: HumanSettings = field(default_factory=HumanSettings)
 
     @property
     def n_joints(self) -> int:
@@ -564,4 +567,5 @@ def load_robot_settings(path_or_name: str | Path) -> RobotSettings:
         max_hand_distance_m=hand,
         effort_margin=effort_margin,
         spring_torque_nm=springs,
+        human=read_human_settings(doc, path),
     )

@@ -31,6 +31,14 @@ import numpy as np
 import pinocchio as pin
 from pinocchio.visualize import MeshcatVisualizer
 
+from .body_scene import (
+    COLOR_BODY,
+    COLOR_BODY_ASSUMED,
+    SEPARATION_COLORS,
+    body_frame,
+    draw_body,
+    separation_panel,
+)
 from .content import PreviewContent
 from .meshes import simplify_visual_model, sphere_mesh, tube_mesh
 from .recorder import SceneRecorder
@@ -70,6 +78,7 @@ _ROBOT_NODE = "robot"
 _HUMAN_NODES = ("human/observed", "human/rest", "human/hand", "human/handover")
 _PREDICTION_NODES = ("prediction/mean", "prediction/band", "prediction/samples", "prediction/truth")
 _LABEL_NODE = "labels/task"
+_CLOSEST_LABEL_NODE = "labels/closest"
 
 
 def _highlight(content: PreviewContent, geometry_model: pin.GeometryModel) -> dict[str, tuple]:
@@ -251,6 +260,9 @@ def scene_points(content: PreviewContent, robot: RobotView, n_poses: int = 5) ->
     for extra in (content.hand_path, content.ee_mean, content.ee_truth, content.handover_point):
         if extra is not None:
             parts.append(np.atleast_2d(extra))
+    if content.body is not None:  # the body at the animation's start
+        a, b, _ = content.body.at(np.array([_hand_offset_s(content)]))
+        parts += [a[0], b[0]]
     return np.vstack(parts)
 
 
@@ -285,6 +297,7 @@ def _animate(viewer: meshcat.Visualizer, robot: RobotView, content: PreviewConte
     if content.hand_path is not None and content.hand_t_s is not None:
         t_human = times + offset
         hand = np.stack([np.interp(t_human, content.hand_t_s, content.hand_path[:, d]) for d in range(3)], -1)
+    shown: dict[str, Any] = {}
     for k in range(n_frames):
         with animation.at_frame(viewer, k) as frame:
             for i in moving:
@@ -293,6 +306,7 @@ def _animate(viewer: meshcat.Visualizer, robot: RobotView, content: PreviewConte
                 T = np.eye(4)
                 T[:3, 3] = hand[k]
                 frame["human/hand"].set_transform(T)
+            body_frame(frame, content.body, content.separation, float(times[k] + offset), shown, k == 0)
     viewer.set_animation(animation, play=True, repetitions=1)
 
 
@@ -317,6 +331,21 @@ def _draw_human(viewer: meshcat.Visualizer, content: PreviewContent) -> None:
             viewer["human/hand"].set_transform(T)
     if content.handover_point is not None:
         _set_mesh(viewer["human/handover"], sphere_mesh(content.handover_point, 0.035), COLOR_HANDOVER)
+    draw_body(viewer, content.body, content.separation, _hand_offset_s(content))
+    _draw_closest_label(viewer, content)
+
+
+def _draw_closest_label(viewer: meshcat.Visualizer, content: PreviewContent) -> None:
+    """The smallest robot-body distance as text beside the closest pair at that sample."""
+    node = viewer[_CLOSEST_LABEL_NODE]
+    node.delete()
+    sep = content.separation
+    if sep is None:
+        return
+    i = sep.closest
+    position = (sep.robot_point_m[i] + sep.body_point_m[i]) / 2.0 + np.array([0.0, 0.0, 0.08])
+    node.set_object(_text_plane(f"min {sep.distance_m[i]:.3f} m"))
+    node.set_transform(_plane_facing_x(position, 0.22))
 
 
 def _draw_prediction(viewer: meshcat.Visualizer, content: PreviewContent) -> None:
@@ -410,6 +439,7 @@ def overlay_state(content: PreviewContent) -> dict[str, Any]:
         legend.append({"label": "uncertainty (2 sigma)", "color": f"#{COLOR_EE_BAND:06x}"})
     if content.ee_truth is not None:
         legend.append({"label": "recorded robot path", "color": f"#{COLOR_EE_TRUTH:06x}"})
+    legend += _body_legend(content)
     return {
         "title": content.title,
         "task": content.task,
@@ -430,7 +460,27 @@ def overlay_state(content: PreviewContent) -> dict[str, Any]:
         "collision_links": list(content.collision_links),
         "near_limit_joints": list(content.near_limit_joints),
         "legend": legend,
+        "separation": None
+        if content.separation is None
+        else separation_panel(content.separation, _hand_offset_s(content), content.body),
     }
+
+
+def _body_legend(content: PreviewContent) -> list[dict[str, str]]:
+    """Legend lines of the body's capsules and of the closest-pair rod's states."""
+    out = []
+    if content.body is not None:
+        assumed = content.body.assumed
+        color = COLOR_BODY_ASSUMED if assumed else COLOR_BODY
+        label = "human body (assumed, no skeleton)" if assumed else "human body (tracked)"
+        out.append({"label": label, "color": f"#{color:06x}"})
+    if content.separation is not None:
+        names = {"within_sp": "within S_p", "speed_limited": "speed-limited"}
+        out += [
+            {"label": f"closest robot-body pair: {names.get(s, s)}", "color": f"#{c:06x}"}
+            for s, c in SEPARATION_COLORS.items()
+        ]
+    return out
 
 
 def _new_viewer(window: SceneRecorder) -> meshcat.Visualizer:
@@ -471,7 +521,7 @@ def update_scene(
         content: Content to show.
         robot: Robot view the scene was built with.
         fps: Frames per second of the animation.
-        human: Redraw the hand path, hand marker and hand-over point.
+        human: Redraw the hand path, hand marker, hand-over point, body and closest-pair rod.
         prediction: Redraw the predicted, sampled and recorded end-effector paths.
         label: Redraw the task label.
         animation: Recompute the animation (robot and hand marker).

@@ -16,7 +16,7 @@ LAYERS = {
     **dict.fromkeys(["data", "exceptions", "atomic", "cache", "shipped", "version"], 0),
     "signals": 1,
     "readers": 2,
-    **dict.fromkeys(["promp", "robot", "preview", "schemas"], 3),
+    **dict.fromkeys(["promp", "robot", "human", "preview", "schemas"], 3),
     "motion": 4,
     "checks": 5,
     "handover": 6,

@@ -37,6 +37,8 @@ Extras: ``"endpoint_pose"`` (T, 7) and ``"hand_position"`` (T, 3): the human han
 frame (``/left_hand_1`` or ``/right_hand_1``, whichever ends closer to the robot's
 end-point; in this session always ``/left_hand_1``), gaps linearly filled
 (extras are for previews).
+``"skeleton:<frame>"`` (T, 3) for every tracked skeleton frame of the file (NaN where missing, as
+for a group): the human body of the safety checks (:mod:`ipromp_pin.human.body`).
 
 Optional streams. The robot's end-point (``endpointStates``) is not modelled: it serves the
 calibration and the choice of the handing hand. In sessions where it was never recorded (every
@@ -84,6 +86,10 @@ JUMP_THRESHOLD_M = 0.25
 JUMP_WINDOW = 5
 """Number of valid samples (centred) whose median a tracked position is compared with."""
 HAND_FRAMES = ("/left_hand_1", "/right_hand_1")
+SKELETON_EXTRA = "skeleton:"
+"""Prefix of the extras holding every tracked skeleton frame (``"skeleton:/head_1"`` ...): positions
+(T, 3) [m], NaN where the frame is not listed, all-zero or a jump (the body model of
+:mod:`ipromp_pin.human.body` reads them; they are not modelled)."""
 GRIPPER_FRAMES = ("left_gripper", "/left_gripper")
 """Tracked frames at the robot's end-point (the tf of Baxter's left gripper), used to choose the
 handing hand when the end-point stream was not recorded."""
@@ -265,7 +271,8 @@ def _frame_streams(
     prefixes = _find_transforms(table)
     out = {}
     gripper = list(GRIPPER_FRAMES) if with_gripper else []
-    for f in dict.fromkeys(frames + list(HAND_FRAMES) + gripper):
+    skeleton = _skeleton_frames(table, prefixes)
+    for f in dict.fromkeys(frames + list(HAND_FRAMES) + gripper + skeleton):
         p = _frame_positions(table, prefixes, f)
         if p is not None:
             check_norms(path, f, p, 0.0, POSITION_BOUND_M, "m", what="row")
@@ -281,6 +288,12 @@ def _frame_streams(
             continue
         out["frame:" + f] = Stream(t, p, FRAME.channels, FRAME.raw_kind, str(path), allow_missing=True)
     return out
+
+
+def _skeleton_frames(table: CsvTable, prefixes: list[str]) -> list[str]:
+    """The tracked skeleton frames of the file (``child_frame_id`` starting with ``/``, not the gripper)."""
+    ids = {s.strip() for p in prefixes for s in table.text(p + "child_frame_id")}
+    return sorted(f for f in ids if f.startswith("/") and f not in GRIPPER_FRAMES)
 
 
 def _hand_position(
@@ -376,6 +389,9 @@ def read_demo(
     groups[ROBOT] = values[ROBOT]
     names[ROBOT] = tuple(robot_joints)
     extras = endpoint_extras(values)
+    for name, v in values.items():
+        if name.startswith("frame:/") and name[len("frame:") :] not in GRIPPER_FRAMES:
+            extras[SKELETON_EXTRA + name[len("frame:") :]] = v
     hand = _hand_position(t, values, _gripper_reference(t, values, extras, end_effector))
     if hand is not None:
         extras["hand_position"] = hand

@@ -28,9 +28,10 @@ __all__ = ["SEPARATION_STATES", "BodyTrack", "SeparationTrack"]
 
 SEPARATION_STATES = ("free", "within_sp", "speed_limited", "violation")
 """States of a control sample, from the safest: ``free`` (farther than the protective separation
-distance ``S_p``), ``within_sp`` (closer than ``S_p``, approach speed within the body region's
-contact-speed limit), ``speed_limited`` (closer than ``S_p`` where the robot was slowed down for the
-human), ``violation`` (closer than ``S_p`` and faster than the contact-speed limit)."""
+distance ``S_p``), ``within_sp`` (closer than ``S_p``, approaching well below the body region's
+contact-speed limit), ``speed_limited`` (closer than ``S_p``, approaching near the limit: the robot's
+speed is what the limit allows), ``violation`` (closer than ``S_p`` and faster than the limit). The
+human checks decide them (:meth:`ipromp_pin.human.separation.Separation.state`)."""
 
 
 def _array(value: Any, name: str, shape: tuple[int | None, ...]) -> np.ndarray:
@@ -47,6 +48,18 @@ def _array(value: Any, name: str, shape: tuple[int | None, ...]) -> np.ndarray:
     if not np.all(np.isfinite(arr)):
         raise DataError("preview", name, "contains NaN or infinite values")
     return arr
+
+
+def _optional_values(value: Any, name: str, n: int) -> np.ndarray:
+    """(n,) values >= 0, NaN where unknown (never infinite)."""
+    try:
+        raw = np.asarray(value, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise DataError("preview", name, f"not a numeric array ({exc})") from exc
+    arr = _array(np.where(np.isnan(raw), 0.0, raw), name, (n,))  # the shape, no infinite value
+    if np.any(arr < 0.0):
+        raise DataError("preview", name, "values must be >= 0")
+    return np.where(np.isnan(raw), np.nan, arr)
 
 
 def _times(value: Any, name: str) -> np.ndarray:
@@ -123,8 +136,10 @@ class SeparationTrack:
         state: (N,) one of :data:`SEPARATION_STATES` per sample.
         link: (N,) the robot link of the closest pair (or empty).
         body_part: (N,) the body part of the closest pair (or empty).
-        protective_distance_m: (N,) the protective separation distance ``S_p`` in [m], if known.
-        speed_ratio: (N,) approach speed over the body region's contact-speed limit, if known.
+        protective_distance_m: (N,) the protective separation distance ``S_p`` in [m] of the closest
+            pair, if known (NaN: not computed at that sample).
+        speed_ratio: (N,) approach speed over the body region's contact-speed limit, if known (NaN:
+            not computed).
         source: What the separation is judged against, e.g. ``"recorded human"``, ``"assumed human"``.
     """
 
@@ -158,11 +173,11 @@ class SeparationTrack:
                 raise DataError("preview", f"separation.{name}", f"has {len(names)} names for {n} samples")
             setattr(self, name, names or ("",) * n)
         if self.protective_distance_m is not None:
-            self.protective_distance_m = _array(
-                self.protective_distance_m, "separation.protective_distance_m", (n,)
+            self.protective_distance_m = _optional_values(
+                self.protective_distance_m, "separation.protective_distance_m", n
             )
         if self.speed_ratio is not None:
-            self.speed_ratio = _array(self.speed_ratio, "separation.speed_ratio", (n,))
+            self.speed_ratio = _optional_values(self.speed_ratio, "separation.speed_ratio", n)
         self.source = str(self.source)
 
     @property

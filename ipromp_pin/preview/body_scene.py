@@ -185,8 +185,8 @@ def separation_panel(separation: SeparationTrack, offset_s: float, body: BodyTra
     sp = separation.protective_distance_m
     ratio = separation.speed_ratio
 
-    def rounded(x: np.ndarray | None, digits: int = 4) -> list[float] | None:
-        return None if x is None else [round(float(v), digits) for v in x]
+    def rounded(x: np.ndarray | None, digits: int = 4) -> list[float | None] | None:
+        return None if x is None else [round(float(v), digits) if np.isfinite(v) else None for v in x]
 
     return {
         "t_s": rounded(separation.t_s - offset_s, 3),

@@ -97,7 +97,8 @@ def test_timeline_slider_has_the_separation_states(browser, content, tmp_path):
         session,
         "(() => { const c = document.getElementById('ipromp-separation-strip');"
         " const d = c.getContext('2d').getImageData(0, 6, c.width, 1).data; const out = [];"
-        " for (let x = 0; x < c.width; x += 8) out.push([d[4 * x], d[4 * x + 1], d[4 * x + 2]]); return out; })()",
+        " for (let x = 0; x < c.width; x += 8) out.push([d[4 * x], d[4 * x + 1], d[4 * x + 2]]);"
+        " return out; })()",
     )
     pixels = np.array(pixels)
     assert tuple(pixels[0]) == (224, 224, 224)

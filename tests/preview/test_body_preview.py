@@ -220,3 +220,19 @@ def test_content_without_body_draws_none(baxter, tmp_path):
     assert not any(
         p.startswith("/meshcat/human/body") or p.startswith("/meshcat/human/closest") for p in objects
     )
+
+
+def test_separation_keeps_unknown_values_as_null(human_content):
+    s = human_content.separation
+    sp = s.protective_distance_m.copy()
+    sp[:3] = np.nan
+    track = SeparationTrack(
+        s.t_s, s.distance_m, s.robot_point_m, s.body_point_m, s.state, protective_distance_m=sp
+    )
+    panel = separation_panel(track, 0.0)
+    assert panel["protective_distance_m"][:3] == [None] * 3 and panel["protective_distance_m"][3] == 0.3
+    sp[4] = np.inf
+    with pytest.raises(DataError, match="protective_distance_m"):
+        SeparationTrack(
+            s.t_s, s.distance_m, s.robot_point_m, s.body_point_m, s.state, protective_distance_m=sp
+        )

@@ -51,8 +51,10 @@
   function describe(sep, i) {
     const pair = sep.link[i] || sep.body_part[i] ? " (" + (sep.link[i] || "?") + " to " + (sep.body_part[i] || "?") + ")" : "";
     let s = "Separation " + sep.distance_m[i].toFixed(3) + " m" + pair + ": " + NAMES[sep.state[i]];
-    if (sep.protective_distance_m) s += ", S_p " + sep.protective_distance_m[i].toFixed(3) + " m";
-    if (sep.speed_ratio) s += ", approach " + sep.speed_ratio[i].toFixed(2) + " of the contact-speed limit";
+    const sp = sep.protective_distance_m ? sep.protective_distance_m[i] : null;
+    const ratio = sep.speed_ratio ? sep.speed_ratio[i] : null;
+    if (sp !== null) s += ", S_p " + sp.toFixed(3) + " m";
+    if (ratio !== null && sep.state[i] !== "free") s += ", approach " + ratio.toFixed(2) + " of the contact-speed limit";
     return s;
   }
   function keyText(sep) {

@@ -17,6 +17,7 @@ from typing import ClassVar
 
 import numpy as np
 
+from ..human import HumanMotion
 from ..motion.retarget import MotionPlan
 from ..motion.trajectory import Trajectory
 from ..robot import CheckResult, Robot
@@ -70,10 +71,13 @@ class CheckContext:
     Attributes:
         handover_s: Predicted time of the hand-over in [s] on the human's clock, if known.
         task: The recognised task, if known.
+        human: The human's body over time (tracked, or the assumed human), as the planner knows it
+            (:meth:`~ipromp_pin.human.HumanMotion.until`), or as recorded when judging afterwards.
     """
 
     handover_s: float | None = None
     task: str | None = None
+    human: HumanMotion | None = None
 
 
 class MotionCheck(ABC):

@@ -11,8 +11,10 @@ from collections.abc import Iterable, Sequence
 from ..exceptions import PipelineError
 from ..robot import CheckResult, Robot
 from .base import CheckContext, MotionCheck, TimedMotion
+from .contact_speed import ContactSpeed
+from .human_clearance import HumanClearance
 
-MOTION_CHECKS: tuple[type[MotionCheck], ...] = ()
+MOTION_CHECKS: tuple[type[MotionCheck], ...] = (HumanClearance, ContactSpeed)
 """Every timed-motion check, in the order of the reports."""
 
 

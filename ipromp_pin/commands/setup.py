@@ -22,6 +22,7 @@ from ..checks import CheckContext, MotionCheck, build_checks
 from ..data import Dataset, Demo, skeleton_frames
 from ..exceptions import PipelineError
 from ..handover.one_shot import LogFn, check_model_joints
+from ..human import HumanMotion
 from ..promp import IProMP
 from ..readers import load_dataset
 from ..readers.synthetic import make_synthetic_dataset
@@ -117,9 +118,12 @@ def prepare_session(
         warn(w)
     session = Session(cfg, robot, ds, demo, train, model, warnings, prefetch)
     session.motion_checks = build_checks(robot)
-    session.check_context = check_context(cfg, demo)
+    session.check_context = check_context(cfg, demo, robot)
     if observe:
         session.observation = observation = demo.head(cfg.ratio, groups=cfg.observe)
+        human = session.check_context.human
+        if human is not None:  # the planner knows the human up to the end of the observation
+            session.check_context.human = human.until(float(observation.t[-1]))
         session.hand_position_m = hand_at_handover(demo)
         log(
             f"[observe] {demo.task}/{demo.name}: first {cfg.ratio:.0%} "
@@ -128,10 +132,21 @@ def prepare_session(
     return session
 
 
-def check_context(cfg: PipelineConfig, demo: Demo) -> CheckContext:
+def check_context(cfg: PipelineConfig, demo: Demo, robot: Robot | None = None) -> CheckContext:
     """What the timed-motion checks (:mod:`ipromp_pin.checks`) know about the world when the robot
-    plans for ``demo``'s human (``cfg``: the pipeline's settings of that world)."""
-    return CheckContext(task=None)
+    plans for ``demo``'s human (``cfg``: the pipeline's settings of that world; ``robot``: whose
+    ``[human]`` settings shape the body, loaded from ``cfg`` when None).
+
+    The human is the demo's tracked skeleton (:meth:`~ipromp_pin.human.HumanMotion.from_demo`), as
+    recorded over the whole demo (callers cut it to what the planner knows with ``until``); a demo
+    without a skeleton gets the settings' assumed standing human (its handing hand following the
+    demo's ``hand_position`` when there is one), which the reports call "assumed human"."""
+    robot = robot if robot is not None else load_robot(cfg.robot)
+    settings = robot.settings.human
+    human = HumanMotion.from_demo(demo, settings)
+    if human is None:
+        human = HumanMotion.assumed_human(settings, demo.t, demo.extras.get("hand_position"))
+    return CheckContext(task=None, human=human)
 
 
 def check_outputs(cfg: PipelineConfig) -> None:

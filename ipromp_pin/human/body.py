@@ -40,13 +40,15 @@ the frame was not reliably tracked (see :mod:`ipromp_pin.readers.multimodal`).""
 class BodyPart:
     """One body part: a capsule from frame ``a`` to frame ``b`` (a sphere about ``a`` when ``b`` is
     None) of radius ``radius_m`` [m], in ISO/TS 15066 body region ``region``. A frame written
-    ``"/f1+/f2"`` is the midpoint of two frames."""
+    ``"/f1+/f2"`` is the midpoint of two frames. ``trim_b_m`` [m] shortens the axis at ``b`` (a
+    forearm ends where the hand's sphere begins: the hand-over contact is the hand's)."""
 
     name: str
     a: str
     b: str | None
     radius_m: float
     region: str
+    trim_b_m: float = 0.0
 
 
 BODY_PARTS: tuple[BodyPart, ...] = (
@@ -58,8 +60,8 @@ BODY_PARTS: tuple[BodyPart, ...] = (
     BodyPart("pelvis", "/left_hip_1", "/right_hip_1", 0.14, "pelvis"),
     BodyPart("left_upper_arm", "/left_shoulder_1", "/left_elbow_1", 0.065, "upper_arm"),
     BodyPart("right_upper_arm", "/right_shoulder_1", "/right_elbow_1", 0.065, "upper_arm"),
-    BodyPart("left_forearm", "/left_elbow_1", "/left_hand_1", 0.055, "lower_arm"),
-    BodyPart("right_forearm", "/right_elbow_1", "/right_hand_1", 0.055, "lower_arm"),
+    BodyPart("left_forearm", "/left_elbow_1", "/left_hand_1", 0.055, "lower_arm", 0.155),
+    BodyPart("right_forearm", "/right_elbow_1", "/right_hand_1", 0.055, "lower_arm", 0.155),
     BodyPart("left_hand", "/left_hand_1", None, 0.10, "hand"),
     BodyPart("right_hand", "/right_hand_1", None, 0.10, "hand"),
     BodyPart("left_thigh", "/left_hip_1", "/left_knee_1", 0.10, "thigh"),
@@ -222,6 +224,11 @@ class HumanMotion:
             j = frames.index("/left_hand_1")
             pos[:, j] = hand
             static[j] = False
+            if "/left_elbow_1" in frames and "/left_shoulder_1" in frames:
+                # the elbow half-way between the shoulder and the hand, 5 cm lower (a reaching arm)
+                e, sh = frames.index("/left_elbow_1"), frames.index("/left_shoulder_1")
+                pos[:, e] = (pos[:, sh] + hand) / 2.0 - 0.05 * up
+                static[e] = False
         return cls(
             t,
             tuple(frames),
@@ -241,42 +248,62 @@ class HumanMotion:
         return dataclasses.replace(self, horizon_s=float(min(t_obs_s, self.horizon_s)))
 
     # ----------------------------------------------------------------- queries
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "_index", _valid_index(self.t_s, self.positions_m))
+        object.__setattr__(self, "_parts", _part_matrices(self.parts, self.frames))
+
     def frames_at(self, t_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Frame positions (N, F, 3) [m] and their uncertainty radii (N, F) [m] at times (N,) [s]."""
         t = np.atleast_1d(np.asarray(t_s, dtype=float))
-        out = np.empty((t.size, len(self.frames), 3))
-        grow = np.zeros((t.size, len(self.frames)))
-        known = self.t_s <= self.horizon_s
-        if not np.any(known):
-            known = np.zeros_like(known)
-            known[0] = True
-        dt = float(np.median(np.diff(self.t_s))) if self.t_s.size > 1 else 0.0
-        for j in range(len(self.frames)):
-            p = self.positions_m[:, j]
-            ok = known & np.all(np.isfinite(p), axis=1)
-            if self.static is not None and self.static[j]:
-                out[:, j] = p[0]
-                continue
-            tv, pv = self.t_s[ok], p[ok]
-            out[:, j], grow[:, j] = _frame_at(t, tv, pv, self.speed_m_s, dt)
-        return out, np.minimum(grow, self.max_inflation_m)
+        prev_i, next_i = self._index  # type: ignore[attr-defined]
+        ts, pos = self.t_s, self.positions_m
+        n_t = ts.size
+        i = np.clip(np.searchsorted(ts, t, side="right") - 1, 0, n_t - 1)
+        i_h = max(int(np.searchsorted(ts, self.horizon_s, side="right")) - 1, 0)
+        late = t > self.horizon_s
+        a = prev_i[np.minimum(i, i_h)]  # (N, F): last reliable sample at or before t (and the horizon)
+        b = next_i[np.minimum(i + 1, n_t - 1)]  # first reliable sample after t
+        b = np.where(late[:, None] | (b > i_h), -1, b)
+        b = np.where(ts[np.maximum(b, 0)] < t[:, None], -1, b)
+        has_a, has_b = a >= 0, b >= 0
+        if not np.all(has_a | has_b):  # nothing known before the horizon: the first sample, grown fully
+            first = next_i[0]
+            a = np.where(has_a | has_b, a, first[None, :])
+            has_a = a >= 0
+        cols = np.arange(len(self.frames))[None, :]
+        ta = ts[np.maximum(a, 0)]
+        tb = ts[np.maximum(b, 0)]
+        pa = pos[np.maximum(a, 0), cols]
+        pb = pos[np.maximum(b, 0), cols]
+        both = has_a & has_b
+        span = np.where(both & (tb > ta), tb - ta, 1.0)
+        w = np.where(both, (t[:, None] - ta) / span, 0.0)
+        out = np.where(has_a[..., None], pa, pb) * (1.0 - w[..., None]) + pb * w[..., None]
+        v = self.speed_m_s
+        dt = float(ts[1] - ts[0]) if n_t > 1 else 0.0
+        gap = both & (tb - ta > 1.5 * dt)
+        grow = np.where(gap, 2.0 * v * np.minimum(t[:, None] - ta, tb - t[:, None]), 0.0)
+        grow = np.where(has_a & ~has_b, v * (t[:, None] - ta), grow)
+        grow = np.where(~has_a & has_b, v * (tb - t[:, None]), grow)
+        if self.static is not None:
+            out[:, self.static] = pos[0, self.static]
+            grow[:, self.static] = 0.0
+        return out, np.minimum(np.maximum(grow, 0.0), self.max_inflation_m)
 
     def capsules(self, t_s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Capsule end points ``a`` and ``b`` (N, P, 3) [m] and radii (N, P) [m] (inflation included)
         at times (N,) [s]; a sphere has ``a == b``."""
         pos, grow = self.frames_at(t_s)
-        idx = {f: j for j, f in enumerate(self.frames)}
-        n = pos.shape[0]
-        a = np.empty((n, self.n_parts, 3))
-        b = np.empty((n, self.n_parts, 3))
-        r = np.empty((n, self.n_parts))
-        for k, part in enumerate(self.parts):
-            ja = [idx[f] for f in part.a.split("+")]
-            jb = ja if part.b is None else [idx[f] for f in part.b.split("+")]
-            a[:, k] = pos[:, ja].mean(axis=1)
-            b[:, k] = pos[:, jb].mean(axis=1)
-            r[:, k] = self.radius_m[k] + np.maximum(grow[:, ja].max(axis=1), grow[:, jb].max(axis=1))
-        return a, b, r
+        wa, wb, ma, mb, trim = self._parts  # type: ignore[attr-defined]
+        a = np.einsum("pf,nfc->npc", wa, pos)
+        b = np.einsum("pf,nfc->npc", wb, pos)
+        if np.any(trim > 0):
+            axis = b - a
+            length = np.linalg.norm(axis, axis=2, keepdims=True)
+            keep = np.maximum(length - trim[None, :, None], 0.0) / np.maximum(length, 1e-12)
+            b = np.where(trim[None, :, None] > 0, a + axis * keep, b)
+        g = np.maximum(np.max(grow[:, None, :] * ma, axis=2), np.max(grow[:, None, :] * mb, axis=2))
+        return a, b, self.radius_m[None, :] + g
 
     def capsules_at(self, t_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Capsule end points ``a``, ``b`` (P, 3) [m] and radii (P,) [m] at time ``t_s`` [s]."""
@@ -299,24 +326,29 @@ def _radii(parts: tuple[BodyPart, ...], settings: HumanSettings) -> np.ndarray:
     return np.array([settings.radii_m.get(p.name, p.radius_m) for p in parts])
 
 
-def _frame_at(
-    t: np.ndarray, tv: np.ndarray, pv: np.ndarray, speed: float, dt: float
-) -> tuple[np.ndarray, np.ndarray]:
-    """Positions (N, 3) and uncertainty radii (N,) at times ``t`` of a frame reliably seen at times
-    ``tv`` (K,) at positions ``pv`` (K, 3) (see the module docstring)."""
-    k = np.searchsorted(tv, t, side="right")  # tv[k-1] <= t < tv[k]
-    before = k == 0
-    after = k == tv.size
-    lo = np.clip(k - 1, 0, tv.size - 1)
-    hi = np.clip(k, 0, tv.size - 1)
-    ta, tb = tv[lo], tv[hi]
-    span = np.where(hi > lo, tb - ta, 1.0)
-    w = np.where(hi > lo, (t - ta) / span, 0.0)[:, None]
-    pos = pv[lo] * (1.0 - w) + pv[hi] * w
-    gap = (hi > lo) & (tb - ta > 1.5 * dt)
-    grow = np.where(gap, 2.0 * speed * np.minimum(t - ta, tb - t), 0.0)
-    grow = np.where(after, speed * (t - tv[-1]), grow)
-    grow = np.where(before, speed * (tv[0] - t), grow)
-    pos[before] = pv[0]
-    pos[after] = pv[-1]
-    return pos, np.maximum(grow, 0.0)
+def _valid_index(t: np.ndarray, pos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per sample and frame (T, F): the index of the last reliable sample at or before it and of
+    the first at or after it (-1: none)."""
+    ok = np.all(np.isfinite(pos), axis=2)
+    idx = np.arange(t.size)[:, None]
+    prev = np.maximum.accumulate(np.where(ok, idx, -1), axis=0)
+    big = t.size
+    nxt = np.minimum.accumulate(np.where(ok, idx, big)[::-1], axis=0)[::-1]
+    return prev, np.where(nxt == big, -1, nxt)
+
+
+def _part_matrices(
+    parts: tuple[BodyPart, ...], frames: tuple[str, ...]
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Weights (P, F) averaging the frames of each part's ends ``a`` and ``b``, the same as masks,
+    and the trims (P,) [m]."""
+    idx = {f: j for j, f in enumerate(frames)}
+    wa = np.zeros((len(parts), len(frames)))
+    wb = np.zeros_like(wa)
+    for k, part in enumerate(parts):
+        ja = [idx[f] for f in part.a.split("+")]
+        jb = ja if part.b is None else [idx[f] for f in part.b.split("+")]
+        wa[k, ja] = 1.0 / len(ja)
+        wb[k, jb] = 1.0 / len(jb)
+    trim = np.array([p.trim_b_m for p in parts])
+    return wa, wb, (wa > 0).astype(float), (wb > 0).astype(float), trim

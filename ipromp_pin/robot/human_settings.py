@@ -83,6 +83,8 @@ class HumanSettings:
         radii_m: Body part name -> radius in [m] replacing the default (``ipromp_pin.human.body``).
         speed_m_s: Human speed v_h in [m/s]: S_h of S_p and the growth of unseen body parts.
         max_inflation_m: Cap in [m] of the growth of an unseen body part.
+        min_separation_m: Smallest allowed distance [m] between the robot and the body outside the
+            hand region (``human_clearance``).
         placement: The assumed human's placement.
         reaction_time_s: T_r, the robot system's reaction time in [s] (detection to stop command).
         stopping_time_s: T_s, the robot's stopping time in [s].
@@ -97,6 +99,7 @@ class HumanSettings:
     radii_m: dict[str, float] = field(default_factory=dict)
     speed_m_s: float = ISO13855_HUMAN_SPEED_M_S
     max_inflation_m: float = 0.15
+    min_separation_m: float = 0.0
     placement: HumanPlacement = field(default_factory=HumanPlacement)
     reaction_time_s: float = 0.1
     stopping_time_s: float = 0.3
@@ -125,10 +128,10 @@ def _number(table: dict, key: str, source: Path, prefix: str, default: float, ze
     return value
 
 
-def _sub_table(doc: dict, key: str, source: Path) -> dict:
+def _sub_table(doc: dict, key: str, source: Path, prefix: str = "") -> dict:
     value = doc.get(key, {})
     if not isinstance(value, dict):
-        raise _error(source, key, "must be a table")
+        raise _error(source, prefix + key, "must be a table")
     return value
 
 
@@ -191,7 +194,8 @@ def read_human_settings(doc: dict, source: Path) -> HumanSettings:
         radii_m=radii,
         speed_m_s=_number(human, "speed_m_s", source, "human", d.speed_m_s),
         max_inflation_m=_number(human, "max_inflation_m", source, "human", d.max_inflation_m, True),
-        placement=_placement(_sub_table(human, "assumed", source), source),
+        min_separation_m=_number(human, "min_separation_m", source, "human", d.min_separation_m, True),
+        placement=_placement(_sub_table(human, "assumed", source, "human."), source),
         reaction_time_s=_number(iso, "reaction_time_s", source, "iso15066", d.reaction_time_s, True),
         stopping_time_s=_number(iso, "stopping_time_s", source, "iso15066", d.stopping_time_s, True),
         intrusion_m=_number(iso, "intrusion_m", source, "iso15066", d.intrusion_m, True),
@@ -202,5 +206,5 @@ def read_human_settings(doc: dict, source: Path) -> HumanSettings:
             iso, "robot_uncertainty_m", source, "iso15066", d.robot_uncertainty_m, True
         ),
         contact=str(contact),
-        regions=_regions(_sub_table(iso, "regions", source), source),
+        regions=_regions(_sub_table(iso, "regions", source, "iso15066."), source),
     )

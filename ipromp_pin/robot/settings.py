@@ -16,7 +16,7 @@ from __future__ import annotations
 import importlib.metadata
 import math
 import tomllib
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -24,6 +24,7 @@ import numpy as np
 
 from ..exceptions import RobotError
 from ..shipped import ROBOTS_DIR
+from .human_settings import HumanSettings, read_human_settings
 
 __all__ = [
     "EE_FRAME",
@@ -169,6 +170,7 @@ class RobotSettings:
         min_clearance_m: Required minimum self-collision clearance in [m].
         collision_max_step_rad: Largest joint step between collision-checked path samples in [rad].
         max_hand_distance_m: Largest gripper-hand distance at the hand-over in [m].
+        human: The ``[human]`` / ``[iso15066]`` tables (:mod:`.human_settings`).
     """
 
     name: str
@@ -193,6 +195,7 @@ class RobotSettings:
     min_clearance_m: float
     collision_max_step_rad: float
     max_hand_distance_m: float
+    human: HumanSettings = field(default_factory=HumanSettings)
 
     @property
     def n_joints(self) -> int:
@@ -521,4 +524,5 @@ def load_robot_settings(path_or_name: str | Path) -> RobotSettings:
         min_clearance_m=clearance,
         collision_max_step_rad=step,
         max_hand_distance_m=hand,
+        human=read_human_settings(doc, path),
     )

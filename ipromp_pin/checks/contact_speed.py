@@ -1,0 +1,65 @@
+"""``contact_speed``: inside the protective separation distance, the robot approaches every body
+region no faster than its ISO/TS 15066 contact-speed limit.
+
+Where a robot geometry is closer to a body part than S_p (clause 5.5.4), its closest point's speed
+toward that part must be at most ``v_max = F_max / sqrt(mu k)`` of the part's body region (clause
+5.5.5, Annex A; :mod:`ipromp_pin.human.iso15066`), with the robot's effective mass at that point in
+that direction. The hand region, where the hand-over contact is intended, is judged by the hand's
+limits like every other region. A failing check asks for the uniform slow-down
+``k = max(approach speed / v_max)`` (``values["slowdown"]``): going ``k`` times slower divides every
+approach speed by ``k`` and shrinks S_p, so the plan is re-timed instead of refused.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..robot import CheckResult
+from .base import CheckContext, MotionCheck, TimedMotion
+from .human_clearance import separation_of, time_within_sp_s
+
+SLOWDOWN_MARGIN = 1.02
+"""Factor on the requested slow-down so that the re-timed motion passes with a little room."""
+
+
+class ContactSpeed(MotionCheck):
+    """Inside S_p, approach speeds within the body regions' limits (see the module docstring)."""
+
+    name = "contact_speed"
+
+    def check(self, motion: TimedMotion, context: CheckContext) -> CheckResult:
+        sep = separation_of(self, motion, context)
+        ratio = sep.speed_ratio
+        violations = int(np.count_nonzero(sep.violation))
+        n, li, pi = np.unravel_index(int(np.argmax(ratio)), ratio.shape)
+        worst = float(ratio[n, li, pi])
+        speed = float(sep.approach_m_s[n, li, pi])
+        values: dict = {
+            "n_speed_violations": violations,
+            "max_speed_ratio": worst,
+            "link": sep.links[li],
+            "body_part": sep.parts[pi],
+            "region": sep.regions[pi],
+            "t_s": float(sep.t_s[n]),
+            "approach_speed_m_s": speed if worst > 0 else 0.0,
+            "v_max_m_s": speed / worst if worst > 0 else None,
+            "robot_mass_kg": float(sep.robot_mass_kg[n, li, pi]) if worst > 0 else None,
+            "protective_distance_m": float(sep.protective_m[n, li, pi]) if worst > 0 else None,
+            "time_within_sp_s": time_within_sp_s(sep),
+            "human": sep.human,
+        }
+        who = "assumed human" if sep.human == "assumed" else "tracked human"
+        where = (
+            f"{sep.links[li]} toward the {who}'s {sep.parts[pi]} ({sep.regions[pi]}) at t={sep.t_s[n]:.2f} s"
+        )
+        if violations:
+            values["slowdown"] = worst * SLOWDOWN_MARGIN
+            reason = (
+                f"{violations} samples inside S_p faster than the contact-speed limit: "
+                f"{speed:.2f} m/s > {values['v_max_m_s']:.2f} m/s ({where})"
+            )
+            return CheckResult(self.name, "fail", reason, values)
+        if worst <= 0:
+            return CheckResult(self.name, "pass", f"no approach near a contact-speed limit ({who})", values)
+        reason = f"at most {worst:.0%} of the contact-speed limit ({where})"
+        return CheckResult(self.name, "pass", reason, values)

@@ -1,0 +1,76 @@
+"""``human_clearance``: the robot keeps clear of the human's body outside the hand.
+
+At every control sample the distance between every robot collision geometry (enclosed in capsules)
+and every body part (:class:`~ipromp_pin.human.HumanMotion`, tracked or assumed) is computed
+(:mod:`ipromp_pin.human.separation`). The check fails where the robot touches a body part outside
+the hand region (distance at most ``[human] min_separation_m``, 0 m by default): a contact there is
+never intended, and going slower does not remove it. The hand, where the hand-over happens, is
+judged by ``contact_speed`` instead. The time the robot spends closer than the protective
+separation distance S_p (ISO/TS 15066 clause 5.5.4) is reported.
+
+Without a human in the context the check uses the assumed standing human of the robot settings and
+says so (``values["human"] == "assumed"``): it never passes without a human.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..human import HumanMotion
+from ..human.separation import HAND_REGION, Separation, analyser_for
+from ..robot import CheckResult
+from .base import CheckContext, MotionCheck, TimedMotion
+
+
+def context_human(check: MotionCheck, context: CheckContext) -> HumanMotion:
+    """The context's human, or the robot settings' assumed human when the context has none."""
+    if context.human is not None:
+        return context.human
+    return HumanMotion.assumed_human(check.robot.settings.human)
+
+
+def separation_of(check: MotionCheck, motion: TimedMotion, context: CheckContext) -> Separation:
+    """The robot-body separation along ``motion`` (shared by the human checks of one motion)."""
+    human = context_human(check, context)
+    return analyser_for(check.robot).analyse(motion.t_s, motion.q, motion.qd, human)
+
+
+def time_within_sp_s(sep: Separation) -> float:
+    """Time in [s] during which the robot is closer than S_p to some body part."""
+    return float(np.count_nonzero(sep.within_sp) * sep.dt_s)
+
+
+class HumanClearance(MotionCheck):
+    """The robot stays clear of the body outside the hand region (see the module docstring)."""
+
+    name = "human_clearance"
+
+    def check(self, motion: TimedMotion, context: CheckContext) -> CheckResult:
+        sep = separation_of(self, motion, context)
+        clearance = sep.clearance_m(HAND_REGION)
+        n = int(np.argmin(clearance))
+        link, part, t, d = sep.where(n, exclude_region=HAND_REGION)
+        protective = sep.protective_m[n]
+        limit = self.robot.settings.human.min_separation_m
+        values = {
+            "min_separation_m": d,
+            "link": link,
+            "body_part": part,
+            "t_s": t,
+            "protective_distance_m": float(np.nanmin(protective))
+            if np.any(np.isfinite(protective))
+            else None,
+            "time_within_sp_s": time_within_sp_s(sep),
+            "min_required_m": limit,
+            "human": sep.human,
+        }
+        where = f"{link} - {part} at t={t:.2f} s"
+        who = "assumed human" if sep.human == "assumed" else "tracked human"
+        if d <= limit:
+            reason = f"robot touches the {who}'s body: {d * 1e3:.0f} mm <= {limit * 1e3:.0f} mm ({where})"
+            return CheckResult(self.name, "fail", reason, values)
+        reason = (
+            f"closest to the {who}'s body (hand excluded) {d * 1e3:.0f} mm ({where}); "
+            f"within S_p for {values['time_within_sp_s']:.2f} s"
+        )
+        return CheckResult(self.name, "pass", reason, values)

@@ -1,0 +1,146 @@
+"""ISO/TS 15066:2016 limits: the protective separation distance and the contact-speed limit.
+
+* Speed and separation monitoring (clause 5.5.4, formula (1)): the protective separation distance
+  ``S_p = S_h + S_r + S_s + C + Z_d + Z_r``, with ``S_h = v_h (T_r + T_s)`` the human's motion while
+  the robot reacts and stops (``v_h`` = 1.6 m/s, ISO 13855, unless measured), ``S_r = v_r T_r`` the
+  robot's motion during its reaction time, ``S_s = v_r T_s / 2`` its stopping distance at a constant
+  deceleration, ``C`` the intrusion distance and ``Z_d``, ``Z_r`` the position uncertainties of the
+  human and the robot (:func:`protective_distance_m`).
+* Power and force limiting (clause 5.5.5, Annex A.3): a transient contact transfers the kinetic
+  energy ``E = mu v^2 / 2`` of the relative motion into the body region's spring ``E = F^2 / (2 k)``,
+  so the contact force stays at most ``F_max`` when ``v <= v_max = F_max / sqrt(mu k)``, ``mu`` the
+  reduced mass ``1 / mu = 1 / m_H + 1 / m_R`` of the body region and of the robot
+  (:func:`max_contact_speed_m_s`). The robot's effective mass at a contact point in a direction ``u``
+  is ``m_R = 1 / (u^T J M^-1 J^T u)`` (``J``: the point's linear Jacobian, ``M``: the arm's
+  joint-space inertia matrix from Pinocchio's CRBA, solved by Cholesky; :func:`effective_mass_kg`).
+
+The values of the body regions (Table A.2 forces, Table A.3 spring constants and effective masses)
+are in :data:`ipromp_pin.robot.human_settings.REGION_LIMITS`; the sources are in ``docs/safety.md``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pinocchio as pin
+
+from ..robot import Robot
+from ..robot.human_settings import HumanSettings, RegionLimit
+
+
+def protective_distance_m(robot_speed_m_s: np.ndarray | float, settings: HumanSettings) -> np.ndarray:
+    """S_p in [m] for the robot's speed toward the human ``v_r`` [m/s] (negative: moving away, taken
+    as 0), clause 5.5.4 with the settings' ``v_h``, ``T_r``, ``T_s``, ``C``, ``Z_d``, ``Z_r``."""
+    v_r = np.maximum(np.asarray(robot_speed_m_s, dtype=float), 0.0)
+    t_r, t_s = settings.reaction_time_s, settings.stopping_time_s
+    s_h = settings.speed_m_s * (t_r + t_s)
+    return s_h + v_r * t_r + v_r * t_s / 2.0 + constant_distance_m(settings)
+
+
+def constant_distance_m(settings: HumanSettings) -> float:
+    """The part of S_p that does not depend on the robot's speed, ``C + Z_d + Z_r`` [m]."""
+    return settings.intrusion_m + settings.human_uncertainty_m + settings.robot_uncertainty_m
+
+
+def reduced_mass_kg(human_kg: np.ndarray | float, robot_kg: np.ndarray | float) -> np.ndarray:
+    """The two-body reduced mass ``mu = (1/m_H + 1/m_R)^-1`` in [kg]."""
+    m_h = np.asarray(human_kg, dtype=float)
+    m_r = np.asarray(robot_kg, dtype=float)
+    return 1.0 / (1.0 / m_h + 1.0 / m_r)
+
+
+def region_force_n(limit: RegionLimit, contact: str = "transient") -> float:
+    """The permissible force [N] of a body region for a ``"transient"`` or ``"quasi_static"`` contact."""
+    return limit.force_n * (limit.transient_factor if contact == "transient" else 1.0)
+
+
+def max_contact_speed_m_s(
+    limit: RegionLimit, robot_kg: np.ndarray | float, contact: str = "transient"
+) -> np.ndarray:
+    """``v_max = F_max / sqrt(mu k)`` in [m/s] for a body region and the robot's effective mass(es)
+    [kg] (Annex A.3.2, formula (A.6) with the energy of (A.3))."""
+    mu = reduced_mass_kg(limit.mass_kg, robot_kg)
+    return region_force_n(limit, contact) / np.sqrt(mu * limit.spring_n_m)
+
+
+def speed_bound_any_robot_m_s(limit: RegionLimit, contact: str = "transient") -> float:
+    """The contact-speed limit for an infinitely heavy robot (``mu = m_H``), in [m/s]: a lower bound
+    of :func:`max_contact_speed_m_s` for every robot mass."""
+    return region_force_n(limit, contact) / math.sqrt(limit.mass_kg * limit.spring_n_m)
+
+
+def arm_mass_matrix(robot: Robot, q_arm: np.ndarray, data: pin.Data | None = None) -> np.ndarray:
+    """The arm's joint-space inertia matrix (n_joints, n_joints) in [kg m^2] at arm angles ``q_arm``
+    [rad] (Pinocchio's CRBA on the full model, restricted to the arm: the other joints are held)."""
+    data = data if data is not None else robot.model.createData()
+    m = pin.crba(robot.model, data, robot.full_configuration(np.asarray(q_arm, dtype=float)))
+    m = np.triu(m) + np.triu(m, 1).T
+    v = robot.arm_v_index
+    return m[np.ix_(v, v)]
+
+
+def arm_mass_matrices(robot: Robot, q_arm: np.ndarray) -> np.ndarray:
+    """:func:`arm_mass_matrix` at every row of ``q_arm`` (S, n_joints) -> (S, n_joints, n_joints)."""
+    model, data = robot.model, robot.model.createData()
+    full = robot.full_configuration(np.atleast_2d(np.asarray(q_arm, dtype=float)))
+    v = robot.arm_v_index
+    out = np.empty((full.shape[0], v.size, v.size))
+    for i, row in enumerate(full):
+        m = pin.crba(model, data, row)[np.ix_(v, v)]
+        out[i] = np.triu(m) + np.triu(m, 1).T
+    return out
+
+
+def effective_mass_kg(
+    mass_matrix: np.ndarray, jacobian: np.ndarray, direction: np.ndarray, payload_mass_kg: float = 0.0
+) -> float:
+    """The robot's effective mass [kg] at a point in a direction: ``1 / (u^T J M^-1 J^T u)``.
+
+    Args:
+        mass_matrix: The arm's joint-space inertia (n, n) [kg m^2] (SPD).
+        jacobian: The point's linear Jacobian (3, n) [m/rad].
+        direction: The direction ``u`` (3,) (normalised here).
+        payload_mass_kg: Hook for a held object: a point mass at the contact point adds exactly its
+            mass to the effective mass there (Sherman-Morrison); a rigidly held object elsewhere
+            belongs in the model's inertia instead.
+    """
+    u = np.asarray(direction, dtype=float)
+    u = u / np.linalg.norm(u)
+    w = np.asarray(jacobian, dtype=float).T @ u
+    lower = np.linalg.cholesky(np.asarray(mass_matrix, dtype=float))
+    y = forward_substitution(lower, w[:, None])[:, 0]
+    inv = float(y @ y)
+    return (math.inf if inv <= 0.0 else 1.0 / inv) + float(payload_mass_kg)
+
+
+def point_effective_mass_kg(
+    robot: Robot,
+    q_arm: np.ndarray,
+    joint: int,
+    point_m: np.ndarray,
+    direction: np.ndarray,
+    payload_mass_kg: float = 0.0,
+) -> float:
+    """:func:`effective_mass_kg` at ``point_m`` (3,) [m, base frame] carried by the model joint id
+    ``joint``, from Pinocchio's joint Jacobian (``LOCAL_WORLD_ALIGNED``) and CRBA."""
+    model, data = robot.model, robot.model.createData()
+    q = robot.full_configuration(np.asarray(q_arm, dtype=float))
+    pin.computeJointJacobians(model, data, q)
+    pin.forwardKinematics(model, data, q)
+    jac = pin.getJointJacobian(model, data, int(joint), pin.LOCAL_WORLD_ALIGNED)
+    lever = np.asarray(point_m, dtype=float) - data.oMi[int(joint)].translation
+    lin = jac[:3] - np.cross(lever, jac[3:].T).T  # v_p = v_o + w x (p - o)
+    return effective_mass_kg(
+        arm_mass_matrix(robot, q_arm, data), lin[:, robot.arm_v_index], direction, payload_mass_kg
+    )
+
+
+def forward_substitution(lower: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """``y`` with ``L y = rhs`` for a lower-triangular ``L`` (n, n) and ``rhs`` (n, K): the half of a
+    Cholesky solve the effective mass needs (``u^T J M^-1 J^T u = |L^-1 J^T u|^2``), vectorised over
+    the K columns."""
+    y = np.empty_like(rhs, dtype=float)
+    for i in range(lower.shape[0]):
+        y[i] = (rhs[i] - lower[i, :i] @ y[:i]) / lower[i, i]
+    return y

@@ -1,0 +1,248 @@
+"""Separation between the robot and the human body along a timed joint motion, with ISO/TS 15066.
+
+:class:`SeparationAnalyser` (one per robot: the capsules of its collision geometry are fitted once)
+computes, at every sample of a motion (times ``t_s`` on the human's clock, angles ``q``, velocities
+``qd``), the distance between every robot capsule ``l`` and every body capsule ``p``
+(:mod:`.robot_capsules`, :mod:`.body`), the approach speed of the robot's closest point toward the
+body part (its velocity, from the point Jacobian, projected on the separation direction), the
+protective separation distance ``S_p`` at that speed, and, where the pair is closer than ``S_p``, the
+ratio of the approach speed to the body region's contact-speed limit ``v_max`` (:mod:`.iso15066`;
+the effective mass is computed only where the speed exceeds the limit of an infinitely heavy robot,
+which no effective mass can lower). :class:`Separation` holds the per-sample results that the checks
+``human_clearance`` and ``contact_speed`` judge and that previews draw.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..robot import Robot
+from ..robot.human_settings import HumanSettings
+from .body import HumanMotion
+from .iso15066 import (
+    arm_mass_matrices,
+    constant_distance_m,
+    reduced_mass_kg,
+    region_force_n,
+    speed_bound_any_robot_m_s,
+)
+from .robot_capsules import (
+    RobotCapsules,
+    arm_kinematics,
+    fit_robot_capsules,
+    point_jacobians,
+)
+
+HAND_REGION = "hand"
+"""The body region of the intended hand-over contact: judged by its contact-speed limit only."""
+
+
+@dataclass(frozen=True)
+class Separation:
+    """Robot-body separation along a motion (N samples; L robot capsules, P body parts).
+
+    Attributes:
+        t_s: Sample times (N,) [s] on the human's clock.
+        distance_m: Capsule distances (N, L, P) [m] (negative: overlap).
+        approach_m_s: Approach speed (N, L, P) [m/s] of the robot's closest point toward the part
+            (NaN where not computed: farther than any S_p the pair could have).
+        protective_m: S_p (N, L, P) [m] at that approach speed (NaN where not computed).
+        speed_ratio: approach speed / v_max (N, L, P) where the pair is within S_p (0 elsewhere).
+        robot_mass_kg: The robot's effective mass (N, L, P) [kg] where computed (NaN elsewhere).
+        closest_robot_m: The robot's closest surface point (N, 3) [m] to the body (hand included).
+        closest_body_m: The body's closest surface point (N, 3) [m].
+        links: Robot capsule links (L,).
+        geometries: Robot capsule geometry names (L,).
+        parts: Body part names (P,).
+        regions: Body regions (P,).
+        human: ``"tracked"`` or ``"assumed"``.
+    """
+
+    t_s: np.ndarray
+    distance_m: np.ndarray
+    approach_m_s: np.ndarray
+    protective_m: np.ndarray
+    speed_ratio: np.ndarray
+    robot_mass_kg: np.ndarray
+    closest_robot_m: np.ndarray
+    closest_body_m: np.ndarray
+    links: tuple[str, ...]
+    geometries: tuple[str, ...]
+    parts: tuple[str, ...]
+    regions: tuple[str, ...]
+    human: str
+
+    @property
+    def dt_s(self) -> float:
+        """Sample period in [s] (0 for a single sample)."""
+        return float(np.median(np.diff(self.t_s))) if self.t_s.size > 1 else 0.0
+
+    @property
+    def within_sp(self) -> np.ndarray:
+        """(N,) whether any robot capsule is closer than S_p to any body part."""
+        with np.errstate(invalid="ignore"):
+            return np.any(self.distance_m < np.nan_to_num(self.protective_m, nan=-np.inf), axis=(1, 2))
+
+    @property
+    def violation(self) -> np.ndarray:
+        """(N,) whether, within S_p, the robot approaches some body part faster than its limit."""
+        return np.any(self.speed_ratio > 1.0, axis=(1, 2))
+
+    @property
+    def min_distance_m(self) -> np.ndarray:
+        """(N,) the smallest robot-body distance [m] (every part)."""
+        return self.distance_m.min(axis=(1, 2))
+
+    def clearance_m(self, exclude_region: str | None = HAND_REGION) -> np.ndarray:
+        """(N,) the smallest distance [m] to the parts outside ``exclude_region``."""
+        keep = np.array([r != exclude_region for r in self.regions])
+        if not keep.any():
+            return np.full(self.t_s.size, np.inf)
+        return self.distance_m[:, :, keep].min(axis=(1, 2))
+
+    def state(self) -> np.ndarray:
+        """(N,) per sample: 0 free, 1 within S_p, 2 within S_p and speed-limited (ratio > 0.8),
+        3 violation (faster than the limit within S_p)."""
+        ratio = self.speed_ratio.max(axis=(1, 2))
+        out = np.where(self.within_sp, 1, 0)
+        out = np.where(self.within_sp & (ratio > 0.8), 2, out)
+        return np.where(ratio > 1.0, 3, out)
+
+    def where(self, n: int, exclude_region: str | None = None) -> tuple[str, str, float, float]:
+        """(link, body part, t [s], distance [m]) of the closest pair at sample ``n``."""
+        d = self.distance_m[n].copy()
+        if exclude_region is not None:
+            d[:, [r == exclude_region for r in self.regions]] = np.inf
+        li, pi = np.unravel_index(int(np.argmin(d)), d.shape)
+        return self.links[li], self.parts[pi], float(self.t_s[n]), float(d[li, pi])
+
+
+class SeparationAnalyser:
+    """Separation of a robot's motions from a human (see the module docstring).
+
+    Args:
+        robot: The loaded robot (its collision model is fitted by capsules on first use).
+        settings: The human / ISO/TS 15066 settings (default: the robot's own).
+    """
+
+    def __init__(self, robot: Robot, settings: HumanSettings | None = None) -> None:
+        self.robot = robot
+        self.settings = settings if settings is not None else robot.settings.human
+        self._capsules: RobotCapsules | None = None
+        self._last: tuple[tuple, Separation] | None = None
+
+    @property
+    def capsules(self) -> RobotCapsules:
+        """The robot's capsules (fitted once)."""
+        if self._capsules is None:
+            self._capsules = fit_robot_capsules(self.robot)
+        return self._capsules
+
+    def analyse(self, t_s: np.ndarray, q: np.ndarray, qd: np.ndarray, human: HumanMotion) -> Separation:
+        """The separation along a motion: times (N,) [s], angles and velocities (N, n_joints) [rad],
+        [rad/s], against ``human``. The last result is kept: the same arrays and human again (two
+        checks of one motion) return it without recomputing."""
+        key = (id(t_s), id(q), id(qd), id(human), human.horizon_s, t_s.size)
+        if self._last is not None and self._last[0] == key:
+            return self._last[1]
+        result = self._compute(np.asarray(t_s, dtype=float), q, qd, human)
+        self._last = (key, result)
+        return result
+
+    def _compute(self, t: np.ndarray, q: np.ndarray, qd: np.ndarray, human: HumanMotion) -> Separation:
+        from .separation_kernels import approach_speeds, capsule_distances
+
+        caps, s = self.capsules, self.settings
+        q = np.ascontiguousarray(q, dtype=float)
+        qd = np.ascontiguousarray(qd, dtype=float)
+        origins, axes, ra, rb = arm_kinematics(caps, q)
+        ha, hb, hr = human.capsules(t)
+        dist, cr, ch = capsule_distances(ra, rb, caps.radius_m, ha, hb, np.ascontiguousarray(hr))
+        n, nl, npart = dist.shape
+        t_r, t_stop = s.reaction_time_s, s.stopping_time_s
+        sp_const = s.speed_m_s * (t_r + t_stop) + constant_distance_m(s)
+        approach, protective, unit = approach_speeds(
+            dist, cr, ch, caps.radius_m, origins, axes, qd, caps.anchor, sp_const, t_r + t_stop / 2.0
+        )
+        ratio = np.zeros(dist.shape)
+        mass = np.full(dist.shape, np.nan)
+        self._contact_ratios(dist, approach, protective, unit, cr, origins, axes, q, qd, human, ratio, mass)
+        flat = dist.reshape(n, -1).argmin(axis=1)
+        li, pi = np.unravel_index(flat, (nl, npart))
+        rows = np.arange(n)
+        u = np.nan_to_num(unit[rows, li, pi])
+        return Separation(
+            t_s=t,
+            distance_m=dist,
+            approach_m_s=approach,
+            protective_m=protective,
+            speed_ratio=ratio,
+            robot_mass_kg=mass,
+            closest_robot_m=cr[rows, li, pi] + u * caps.radius_m[li][:, None],
+            closest_body_m=ch[rows, li, pi] - u * hr[rows, pi][:, None],
+            links=caps.links,
+            geometries=caps.names,
+            parts=tuple(human.part_names.tolist()),
+            regions=tuple(human.regions.tolist()),
+            human=human.label,
+        )
+
+    def _contact_ratios(
+        self,
+        dist: np.ndarray,
+        approach: np.ndarray,
+        protective: np.ndarray,
+        unit: np.ndarray,
+        cr: np.ndarray,
+        origins: np.ndarray,
+        axes: np.ndarray,
+        q: np.ndarray,
+        qd: np.ndarray,
+        human: HumanMotion,
+        ratio: np.ndarray,
+        mass: np.ndarray,
+    ) -> None:
+        """Effective mass and approach speed / v_max of the pairs within S_p that are faster than
+        the limit of an infinitely heavy robot (in place; no other pair can exceed its limit)."""
+        from .separation_kernels import inverse_effective_masses
+
+        caps, s = self.capsules, self.settings
+        limits = [s.regions[str(r)] for r in human.regions]
+        lower = np.array([speed_bound_any_robot_m_s(lim, s.contact) for lim in limits])
+        need = (dist < protective) & (approach > lower[None, None, :])
+        if not np.any(need):
+            return
+        n_i, l_i, p_i = np.nonzero(need)
+        u = unit[n_i, l_i, p_i]
+        met = np.isnan(u[:, 0])
+        point = cr[n_i, l_i, p_i] + np.nan_to_num(u) * caps.radius_m[l_i][:, None]
+        jac = point_jacobians(origins[n_i], axes[n_i], point, caps.anchor[l_i])  # (K, 3, n_joints)
+        if np.any(met):  # axes meet: the direction of the point's own velocity
+            v = np.einsum("kij,kj->ki", jac[met], qd[n_i[met]])
+            u[met] = v / np.maximum(np.linalg.norm(v, axis=1, keepdims=True), 1e-12)
+        w = np.einsum("kij,ki->kj", jac, u)  # J^T u, (K, n_joints)
+        samples, which = np.unique(n_i, return_inverse=True)
+        inertia = arm_mass_matrices(self.robot, q[samples])
+        inv = inverse_effective_masses(inertia, which.astype(np.int64), np.ascontiguousarray(w))
+        m_r = 1.0 / np.maximum(inv, 1e-300)
+        force = np.array([region_force_n(lim, s.contact) for lim in limits])[p_i]
+        m_h = np.array([lim.mass_kg for lim in limits])[p_i]
+        k = np.array([lim.spring_n_m for lim in limits])[p_i]
+        v_max = force / np.sqrt(reduced_mass_kg(m_h, m_r) * k)
+        mass[n_i, l_i, p_i] = m_r
+        ratio[n_i, l_i, p_i] = approach[n_i, l_i, p_i] / v_max
+
+
+_ANALYSERS: dict[int, SeparationAnalyser] = {}
+"""One analyser per loaded robot (keyed by ``id(robot)``, the robot kept to check it): the checks
+``human_clearance`` and ``contact_speed`` of one motion share its capsules and its last result."""
+
+
+def analyser_for(robot: Robot) -> SeparationAnalyser:
+    """The shared :class:`SeparationAnalyser` of ``robot`` (with the robot's own settings)."""
+    found = _ANALYSERS.get(id(robot))
+    if found is None or found.robot is not robot:
+        found = _ANALYSERS[id(robot)] = SeparationAnalyser(robot)
+    return found

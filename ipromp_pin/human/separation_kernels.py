@@ -1,0 +1,232 @@
+"""Compiled (numba) loops of the human checks: the arm's forward kinematics over many samples and
+the capsule-capsule distances between the robot and the body. Imported on first use (importing
+:mod:`ipromp_pin.human` does not import numba); compiled on the first call and cached on disk."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+_JIT = {"cache": True, "nogil": True, "fastmath": False, "error_model": "numpy"}
+
+
+@njit(**_JIT)
+def arm_frames(
+    q: np.ndarray,
+    x0: np.ndarray,
+    axis: np.ndarray,
+    anchor: np.ndarray,
+    a_local: np.ndarray,
+    b_local: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Joint origins, world joint axes (N, J, 3) and capsule end points (N, L, 3) along ``q`` (N, J)
+    (``x0`` (J, 4, 4): previous joint frame -> joint frame at zero angle; ``axis`` (J, 3) local)."""
+    n, nj = q.shape
+    nl = anchor.size
+    origins = np.empty((n, nj, 3))
+    axes = np.empty((n, nj, 3))
+    ca = np.empty((n, nl, 3))
+    cb = np.empty((n, nl, 3))
+    rots = np.empty((nj, 3, 3))
+    rot = np.empty((3, 3))
+    tmp = np.empty((3, 3))
+    kx = np.empty((3, 3))
+    for i in range(n):
+        pos = np.zeros(3)
+        rot[:] = 0.0
+        rot[0, 0] = rot[1, 1] = rot[2, 2] = 1.0
+        for k in range(nj):
+            for r in range(3):
+                pos[r] += rot[r, 0] * x0[k, 0, 3] + rot[r, 1] * x0[k, 1, 3] + rot[r, 2] * x0[k, 2, 3]
+            for r in range(3):
+                for c in range(3):
+                    tmp[r, c] = rot[r, 0] * x0[k, 0, c] + rot[r, 1] * x0[k, 1, c] + rot[r, 2] * x0[k, 2, c]
+            rot[:] = tmp
+            origins[i, k] = pos
+            for r in range(3):
+                axes[i, k, r] = rot[r, 0] * axis[k, 0] + rot[r, 1] * axis[k, 1] + rot[r, 2] * axis[k, 2]
+            # Rodrigues rotation about the local axis by q[i, k]
+            x, y, z = axis[k, 0], axis[k, 1], axis[k, 2]
+            c_, s_ = math.cos(q[i, k]), math.sin(q[i, k])
+            t_ = 1.0 - c_
+            kx[0, 0] = c_ + t_ * x * x
+            kx[0, 1] = t_ * x * y - s_ * z
+            kx[0, 2] = t_ * x * z + s_ * y
+            kx[1, 0] = t_ * x * y + s_ * z
+            kx[1, 1] = c_ + t_ * y * y
+            kx[1, 2] = t_ * y * z - s_ * x
+            kx[2, 0] = t_ * x * z - s_ * y
+            kx[2, 1] = t_ * y * z + s_ * x
+            kx[2, 2] = c_ + t_ * z * z
+            for r in range(3):
+                for c in range(3):
+                    tmp[r, c] = rot[r, 0] * kx[0, c] + rot[r, 1] * kx[1, c] + rot[r, 2] * kx[2, c]
+            rot[:] = tmp
+            rots[k] = rot
+        for m in range(nl):
+            k = anchor[m]
+            for r in range(3):
+                ca[i, m, r] = origins[i, k, r] + (
+                    rots[k, r, 0] * a_local[m, 0]
+                    + rots[k, r, 1] * a_local[m, 1]
+                    + rots[k, r, 2] * a_local[m, 2]
+                )
+                cb[i, m, r] = origins[i, k, r] + (
+                    rots[k, r, 0] * b_local[m, 0]
+                    + rots[k, r, 1] * b_local[m, 1]
+                    + rots[k, r, 2] * b_local[m, 2]
+                )
+    return origins, axes, ca, cb
+
+
+@njit(**_JIT)
+def _closest(
+    p1x: float,
+    p1y: float,
+    p1z: float,
+    d1x: float,
+    d1y: float,
+    d1z: float,
+    p2x: float,
+    p2y: float,
+    p2z: float,
+    d2x: float,
+    d2y: float,
+    d2z: float,
+) -> tuple[float, float]:
+    """Parameters (s, t) in [0, 1] of the closest points of segments ``p1 + s d1`` and ``p2 + t d2``."""
+    rx, ry, rz = p1x - p2x, p1y - p2y, p1z - p2z
+    a = d1x * d1x + d1y * d1y + d1z * d1z
+    e = d2x * d2x + d2y * d2y + d2z * d2z
+    f = d2x * rx + d2y * ry + d2z * rz
+    eps = 1e-12
+    if a <= eps and e <= eps:
+        return 0.0, 0.0
+    if a <= eps:
+        return 0.0, min(max(f / e, 0.0), 1.0)
+    c = d1x * rx + d1y * ry + d1z * rz
+    if e <= eps:
+        return min(max(-c / a, 0.0), 1.0), 0.0
+    b = d1x * d2x + d1y * d2y + d1z * d2z
+    denom = a * e - b * b
+    s = min(max((b * f - c * e) / denom, 0.0), 1.0) if denom > eps * a * e else 0.0
+    t = (b * s + f) / e
+    if t < 0.0:
+        t = 0.0
+        s = min(max(-c / a, 0.0), 1.0)
+    elif t > 1.0:
+        t = 1.0
+        s = min(max((b - c) / a, 0.0), 1.0)
+    return s, t
+
+
+@njit(**_JIT)
+def capsule_distances(
+    ra: np.ndarray, rb: np.ndarray, rr: np.ndarray, ha: np.ndarray, hb: np.ndarray, hr: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Distances (N, L, P) [m] between robot capsules (``ra``, ``rb`` (N, L, 3), radii ``rr`` (L,))
+    and body capsules (``ha``, ``hb`` (N, P, 3), radii ``hr`` (N, P)), negative when they overlap,
+    and the closest points of their axes (N, L, P, 3) on the robot and on the body."""
+    n, nl = ra.shape[0], ra.shape[1]
+    npart = ha.shape[1]
+    dist = np.empty((n, nl, npart))
+    cr = np.empty((n, nl, npart, 3))
+    ch = np.empty((n, nl, npart, 3))
+    for i in range(n):
+        for m in range(nl):
+            p1x, p1y, p1z = ra[i, m, 0], ra[i, m, 1], ra[i, m, 2]
+            d1x, d1y, d1z = rb[i, m, 0] - p1x, rb[i, m, 1] - p1y, rb[i, m, 2] - p1z
+            for p in range(npart):
+                p2x, p2y, p2z = ha[i, p, 0], ha[i, p, 1], ha[i, p, 2]
+                d2x, d2y, d2z = hb[i, p, 0] - p2x, hb[i, p, 1] - p2y, hb[i, p, 2] - p2z
+                s, t = _closest(p1x, p1y, p1z, d1x, d1y, d1z, p2x, p2y, p2z, d2x, d2y, d2z)
+                x0, x1, x2 = p1x + s * d1x, p1y + s * d1y, p1z + s * d1z
+                y0, y1, y2 = p2x + t * d2x, p2y + t * d2y, p2z + t * d2z
+                cr[i, m, p, 0], cr[i, m, p, 1], cr[i, m, p, 2] = x0, x1, x2
+                ch[i, m, p, 0], ch[i, m, p, 1], ch[i, m, p, 2] = y0, y1, y2
+                dist[i, m, p] = math.sqrt((x0 - y0) ** 2 + (x1 - y1) ** 2 + (x2 - y2) ** 2) - rr[m] - hr[i, p]
+    return dist, cr, ch
+
+
+@njit(**_JIT)
+def approach_speeds(
+    dist: np.ndarray,
+    cr: np.ndarray,
+    ch: np.ndarray,
+    rr: np.ndarray,
+    origins: np.ndarray,
+    axes: np.ndarray,
+    qd: np.ndarray,
+    anchor: np.ndarray,
+    sp_const: float,
+    sp_per_speed: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per pair (N, L, P): the approach speed [m/s] of the robot's closest surface point toward the
+    body (its velocity ``sum_{i<=k} qd_i z_i x (x - o_i)`` projected on the unit separation direction;
+    its speed where the axes meet), S_p = ``sp_const + max(v, 0) sp_per_speed`` [m], and the unit
+    direction (N, L, P, 3) (NaN where the axes meet)."""
+    n, nl, npart = dist.shape
+    nj = origins.shape[1]
+    app = np.empty((n, nl, npart))
+    sp = np.empty((n, nl, npart))
+    unit = np.empty((n, nl, npart, 3))
+    for i in range(n):
+        for m in range(nl):
+            k = anchor[m]
+            for p in range(npart):
+                ux = ch[i, m, p, 0] - cr[i, m, p, 0]
+                uy = ch[i, m, p, 1] - cr[i, m, p, 1]
+                uz = ch[i, m, p, 2] - cr[i, m, p, 2]
+                norm = math.sqrt(ux * ux + uy * uy + uz * uz)
+                met = norm <= 1e-9
+                if not met:
+                    ux, uy, uz = ux / norm, uy / norm, uz / norm
+                else:
+                    ux, uy, uz = 0.0, 0.0, 0.0
+                x0 = cr[i, m, p, 0] + rr[m] * ux
+                x1 = cr[i, m, p, 1] + rr[m] * uy
+                x2 = cr[i, m, p, 2] + rr[m] * uz
+                vx = vy = vz = 0.0
+                for j in range(min(k + 1, nj)):
+                    lx = x0 - origins[i, j, 0]
+                    ly = x1 - origins[i, j, 1]
+                    lz = x2 - origins[i, j, 2]
+                    ax, ay, az = axes[i, j, 0], axes[i, j, 1], axes[i, j, 2]
+                    w = qd[i, j]
+                    vx += w * (ay * lz - az * ly)
+                    vy += w * (az * lx - ax * lz)
+                    vz += w * (ax * ly - ay * lx)
+                v = math.sqrt(vx * vx + vy * vy + vz * vz) if met else vx * ux + vy * uy + vz * uz
+                app[i, m, p] = v
+                sp[i, m, p] = sp_const + max(v, 0.0) * sp_per_speed
+                if met:
+                    unit[i, m, p, 0] = unit[i, m, p, 1] = unit[i, m, p, 2] = np.nan
+                else:
+                    unit[i, m, p, 0], unit[i, m, p, 1], unit[i, m, p, 2] = ux, uy, uz
+    return app, sp, unit
+
+
+@njit(**_JIT)
+def inverse_effective_masses(mass: np.ndarray, sample: np.ndarray, jtu: np.ndarray) -> np.ndarray:
+    """``u^T J M^-1 J^T u`` [1/kg] per pair: ``mass`` (S, n, n) the arm's inertia at S samples,
+    ``sample`` (K,) which one each pair uses, ``jtu`` (K, n) its ``J^T u``; one Cholesky
+    factorisation per sample and a forward substitution per pair (``|L^-1 J^T u|^2``)."""
+    k_pairs, nj = jtu.shape
+    out = np.empty(k_pairs)
+    lowers = np.empty_like(mass)
+    for s in range(mass.shape[0]):
+        lowers[s] = np.linalg.cholesky(mass[s])
+    y = np.empty(nj)
+    for k in range(k_pairs):
+        low = lowers[sample[k]]
+        acc = 0.0
+        for i in range(nj):
+            v = jtu[k, i]
+            for j in range(i):
+                v -= low[i, j] * y[j]
+            y[i] = v / low[i, i]
+            acc += y[i] * y[i]
+        out[k] = acc
+    return out

@@ -57,12 +57,28 @@ def separation_track(sep: Separation, source: str) -> SeparationTrack:
     )
 
 
+def held_until(motion: TimedMotion, t_end_s: float, dt_s: float) -> TimedMotion:
+    """``motion`` followed by its last pose at rest until ``t_end_s`` [s] (every ``dt_s`` [s], its own
+    control period if it has one): the robot waits while the human still moves."""
+    dt = motion.dt_s if motion.dt_s > 0 else dt_s
+    n_extra = int(np.floor((t_end_s - motion.t_s[-1]) / dt + 1e-9))
+    if n_extra <= 0:
+        return motion
+    t = np.r_[motion.t_s, motion.t_s[-1] + dt * np.arange(1, n_extra + 1)]
+    q = np.vstack([motion.q, np.repeat(motion.q[-1:], n_extra, axis=0)])
+    zeros = np.zeros((n_extra, motion.q.shape[1]))
+    return TimedMotion(t, q, np.vstack([motion.qd, zeros]), np.vstack([motion.qdd, zeros]), dt)
+
+
 def human_tracks(
-    robot: Robot, motion: TimedMotion, human: HumanMotion | None
+    robot: Robot, motion: TimedMotion, human: HumanMotion | None, dt_s: float = 0.01
 ) -> tuple[BodyTrack | None, SeparationTrack | None]:
-    """The body and the separation of ``motion`` (on the human's clock) from ``human`` (None: none)."""
+    """The body and the separation of ``motion`` (on the human's clock) from ``human`` (None: none),
+    the robot held at rest after its motion until the human's last sample (``dt_s``: the control
+    period [s] of a motion of one sample)."""
     if human is None:
         return None, None
+    motion = held_until(motion, float(human.t_s[-1]), dt_s)
     sep = analyser_for(robot).analyse(motion.t_s, motion.q, motion.qd, human)
     source = "assumed human" if human.assumed else "recorded human"
     return body_track(human), separation_track(sep, source)

@@ -93,7 +93,12 @@ def replay_preview_html(
     """The time-scrubbing ``preview.html`` of a replay (one self-contained page); the body and the
     commanded motion's separation from it as in :func:`preview_content`."""
     traj = result.trajectory
-    body, separation = human_tracks(robot, TimedMotion.from_trajectory(traj), shown_human(robot, demo, human))
+    body, separation = human_tracks(
+        robot,
+        TimedMotion.from_trajectory(traj),
+        shown_human(robot, demo, human),
+        1.0 / result.settings.control_rate_hz,
+    )
     tasks = list(result.replans[0].posterior) if result.replans else []
     committed = [r for r in result.replans if r.committed]
     hand = hand_t = None

@@ -7,6 +7,8 @@ viewer whose window is a :class:`~ipromp_pin.preview.recorder.SceneRecorder`:
   near its limit orange), playing the arm trajectory in real time as a meshcat animation;
 - the human hand path (observed part green, the rest grey), an animated hand marker and the
   hand-over point (gold);
+- the human body's capsules and the closest robot-body pair (:mod:`~ipromp_pin.preview.body_scene`),
+  moving with the human's motion, and the smallest distance as a label;
 - the predicted end-effector path (blue tube), its uncertainty (translucent tube of radius 2 sigma,
   thin sampled paths) and the recorded robot path (purple);
 - the recognised task on a text plane above the robot, the background, grid and a camera fitted to
@@ -14,8 +16,8 @@ viewer whose window is a :class:`~ipromp_pin.preview.recorder.SceneRecorder`:
 - the state of the HTML panel (:func:`overlay_state`).
 
 Positions in [m] in the robot's base frame. The animation runs on the robot trajectory's time base
-(``t_s``: 0 when the observation ends and the robot starts); the hand marker follows the human's
-motion from the end of the observation.
+(``t_s``: 0 when the observation ends and the robot starts); the hand marker, the body and the
+closest pair follow the human's motion from the end of the observation.
 """
 
 from __future__ import annotations

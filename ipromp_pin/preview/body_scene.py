@@ -50,7 +50,7 @@ SEPARATION_COLORS = {
 BODY_NODE = "human/body"
 CLOSEST_NODE = "human/closest"
 _ROD_RADIUS_M = 0.008
-_BODY_OPACITY = 0.45
+_BODY_OPACITY = 0.35
 _MIN_LENGTH_M = 1e-6
 
 

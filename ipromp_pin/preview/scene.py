@@ -237,21 +237,27 @@ CAMERA_FOV_DEG = 75.0
 #: Direction from the scene's centre to the camera, in the robot's base frame: in front of the robot
 #: (+x), to its left (+y) and above (+z).
 CAMERA_DIRECTION = np.array([2.0, 1.2, 0.8]) / np.linalg.norm([2.0, 1.2, 0.8])
+#: The camera direction when the human body is drawn (it stands in front of the robot, +x): from the
+#: robot's left side (+y), a little in front and above, the human and the robot side by side.
+CAMERA_DIRECTION_BODY = np.array([0.8, -2.0, 0.9]) / np.linalg.norm([0.8, -2.0, 0.9])
 
 
-def camera_view(points: np.ndarray, fov_deg: float = CAMERA_FOV_DEG) -> tuple[np.ndarray, np.ndarray]:
+def camera_view(
+    points: np.ndarray, fov_deg: float = CAMERA_FOV_DEG, direction: np.ndarray = CAMERA_DIRECTION
+) -> tuple[np.ndarray, np.ndarray]:
     """Where to look from so that ``points`` (n, 3) [m] fill the view: the centre of their bounding box
     (3,) and the camera position (3,) relative to it, both in the robot's base frame [m].
 
-    The camera is along :data:`CAMERA_DIRECTION`, at the distance from which the bounding box's
-    circumscribed sphere (radius ``R``) spans the vertical field of view ``fov_deg`` seen from its
-    centre: ``R / tan(fov / 2)`` (the box's corners, which the sphere over-covers, stay in view).
+    The camera is along ``direction`` (a unit vector, :data:`CAMERA_DIRECTION`), at the distance from
+    which the bounding box's circumscribed sphere (radius ``R``) spans the vertical field of view
+    ``fov_deg`` seen from its centre: ``R / tan(fov / 2)`` (the box's corners, which the sphere
+    over-covers, stay in view).
     """
     pts = np.asarray(points, dtype=float).reshape(-1, 3)
     lo, hi = pts.min(axis=0), pts.max(axis=0)
     radius = max(0.5 * float(np.linalg.norm(hi - lo)), 0.05)
     distance = radius / np.tan(np.radians(fov_deg) / 2.0)
-    return (lo + hi) / 2.0, CAMERA_DIRECTION * distance
+    return (lo + hi) / 2.0, direction * distance
 
 
 def scene_points(content: PreviewContent, robot: RobotView, n_poses: int = 5) -> np.ndarray:
@@ -394,7 +400,9 @@ def _draw_label(viewer: meshcat.Visualizer, content: PreviewContent, robot: Robo
     node.set_transform(_plane_facing_x(position, size))
 
 
-def _setup_view(viewer: meshcat.Visualizer, floor_z: float, points: np.ndarray) -> None:
+def _setup_view(
+    viewer: meshcat.Visualizer, floor_z: float, points: np.ndarray, direction: np.ndarray = CAMERA_DIRECTION
+) -> None:
     """Background, floor grid and a camera fitted to the scene ``points`` (n, 3) [m].
 
     meshcat's orbit controls turn around the world origin, so the scene (everything under
@@ -403,7 +411,7 @@ def _setup_view(viewer: meshcat.Visualizer, floor_z: float, points: np.ndarray) 
     """
     viewer["/Background"].set_property("top_color", [0.97, 0.97, 0.98])
     viewer["/Background"].set_property("bottom_color", [0.78, 0.80, 0.84])
-    center, eye = camera_view(points)
+    center, eye = camera_view(points, direction=direction)
     shift = np.eye(4)
     shift[:3, 3] = -center
     viewer["/meshcat"].set_transform(shift)
@@ -495,7 +503,10 @@ def build_scene(window: SceneRecorder, content: PreviewContent, *, robot: RobotV
     viewer = _new_viewer(window)
     robot.load(viewer, content)
     _setup_view(
-        viewer, robot.floor_height(content.configurations(np.array([0.0]))[0]), scene_points(content, robot)
+        viewer,
+        robot.floor_height(content.configurations(np.array([0.0]))[0]),
+        scene_points(content, robot),
+        CAMERA_DIRECTION if content.body is None else CAMERA_DIRECTION_BODY,
     )
     _draw_human(viewer, content)
     _draw_prediction(viewer, content)

@@ -21,6 +21,7 @@ EXPECTED = {
     "ab_compare.py": [r"full update, 10% observed: [\d.]+ -> [\d.]+", r"streaming update: [\d.]+ -> [\d.]+"],
     "closed_loop.py": [r"(?m)^cycle\s+[\d.]+\s+[\d.]+", r"first re-plan of a replay: median [\d.]+ ms"],
     "closed_loop_cv.py": [r"\| err \[cm\] \|", r"(?m)^0\.2 \| 20 \| 0\.9 \| 90 \| 0\.2 \| [\d.]+ \|"],
+    "human_checks.py": [r"failing the human checks \(after re-timing\): \d+/\d+", r"cost of both checks"],
     "first_minute.py": [r"(?m)^cold\s+median\s+[\d.]+ s wall"],
     "inference.py": [r"(?m)^paper\s+\d+\s+12\s", r"speed-up \d+x", r"task accuracy [\d.]+"],
     "model_load.py": [r"this checkout:\s+[\d.]+ ms", r"paired difference \(this - other\): median"],

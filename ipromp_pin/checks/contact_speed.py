@@ -29,10 +29,10 @@ class ContactSpeed(MotionCheck):
 
     def check(self, motion: TimedMotion, context: CheckContext) -> CheckResult:
         sep = separation_of(self, motion, context)
-        ratio = sep.speed_ratio
         violations = int(np.count_nonzero(sep.violation))
-        n, li, pi = np.unravel_index(int(np.argmax(ratio)), ratio.shape)
-        worst = float(ratio[n, li, pi])
+        n = int(np.argmax(sep.max_ratio))
+        li, pi = np.unravel_index(int(np.argmax(sep.speed_ratio[n])), sep.speed_ratio.shape[1:])
+        worst = float(sep.speed_ratio[n, li, pi])
         speed = float(sep.approach_m_s[n, li, pi])
         values: dict = {
             "n_speed_violations": violations,

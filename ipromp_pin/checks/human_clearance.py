@@ -3,8 +3,11 @@
 At every control sample the distance between every robot collision geometry (enclosed in capsules)
 and every body part (:class:`~ipromp_pin.human.HumanMotion`, tracked or assumed) is computed
 (:mod:`ipromp_pin.human.separation`). The check fails where the robot touches a body part outside
-the hand region (distance at most ``[human] min_separation_m``, 0 m by default): a contact there is
-never intended, and going slower does not remove it. The hand, where the hand-over happens, is
+the hand region at its nominal position (tracked, interpolated across an occlusion, or held since
+the last observation; distance at most ``[human] min_separation_m``, 0 m by default): a contact
+there is never intended, and going slower does not remove it. The inflation of unseen parts (how far
+they could have moved since) is where contact cannot be excluded: it counts toward S_p and the
+contact-speed limits (``contact_speed``), not here. The hand, where the hand-over happens, is
 judged by ``contact_speed`` instead. The time the robot spends closer than the protective
 separation distance S_p (ISO/TS 15066 clause 5.5.4) is reported.
 
@@ -49,7 +52,7 @@ class HumanClearance(MotionCheck):
         sep = separation_of(self, motion, context)
         clearance = sep.clearance_m(HAND_REGION)
         n = int(np.argmin(clearance))
-        link, part, t, d = sep.where(n, exclude_region=HAND_REGION)
+        link, part, t, d = sep.where(n, exclude_region=HAND_REGION, nominal=True)
         protective = sep.protective_m[n]
         limit = self.robot.settings.human.min_separation_m
         values = {

@@ -29,7 +29,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Mapping, Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 
@@ -449,7 +449,10 @@ class ClosedLoopPlanner:
             return f"self_collision: {clearance.to_check().reason}", None
         if not self.checks:
             return "", None
-        results = run_checks(self.checks, TimedMotion.from_plan(plan), self.context)
+        context = self.context
+        if context.human is not None:  # the human as observed up to this re-plan
+            context = replace(context, human=context.human.until(r.observed_until_s))
+        results = run_checks(self.checks, TimedMotion.from_plan(plan), context)
         r.checks = {c.name: {"status": c.status, "reason": c.reason, **c.values} for c in results}
         failed = [c for c in results if c.required and not c.passed]
         if not failed:

@@ -21,7 +21,7 @@ in the robot base frame:
 
 from __future__ import annotations
 
-import dataclasses
+import copy
 import math
 from dataclasses import dataclass
 
@@ -245,7 +245,9 @@ class HumanMotion:
     def until(self, t_obs_s: float) -> HumanMotion:
         """The human as known at ``t_obs_s`` [s]: later samples unknown (held, growing at the human
         speed). Shares the arrays of ``self``."""
-        return dataclasses.replace(self, horizon_s=float(min(t_obs_s, self.horizon_s)))
+        seen = copy.copy(self)  # shallow: the arrays and their indices are shared
+        object.__setattr__(seen, "horizon_s", float(min(t_obs_s, self.horizon_s)))
+        return seen
 
     # ----------------------------------------------------------------- queries
     def __post_init__(self) -> None:
@@ -295,14 +297,16 @@ class HumanMotion:
         at times (N,) [s]; a sphere has ``a == b``."""
         pos, grow = self.frames_at(t_s)
         wa, wb, ma, mb, trim = self._parts  # type: ignore[attr-defined]
-        a = np.einsum("pf,nfc->npc", wa, pos)
-        b = np.einsum("pf,nfc->npc", wb, pos)
+        n, nf = pos.shape[0], pos.shape[1]
+        flat = pos.transpose(1, 0, 2).reshape(nf, 3 * n)  # (F, N*3): one matrix product per end
+        a = (wa @ flat).reshape(-1, n, 3).transpose(1, 0, 2)
+        b = (wb @ flat).reshape(-1, n, 3).transpose(1, 0, 2)
         if np.any(trim > 0):
             axis = b - a
             length = np.linalg.norm(axis, axis=2, keepdims=True)
             keep = np.maximum(length - trim[None, :, None], 0.0) / np.maximum(length, 1e-12)
             b = np.where(trim[None, :, None] > 0, a + axis * keep, b)
-        g = np.maximum(np.max(grow[:, None, :] * ma, axis=2), np.max(grow[:, None, :] * mb, axis=2))
+        g = np.max(grow[:, None, :] * np.maximum(ma, mb), axis=2)  # the part's most uncertain frame
         return a, b, self.radius_m[None, :] + g
 
     def capsules_at(self, t_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

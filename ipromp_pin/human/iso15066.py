@@ -80,14 +80,23 @@ def arm_mass_matrix(robot: Robot, q_arm: np.ndarray, data: pin.Data | None = Non
     return m[np.ix_(v, v)]
 
 
-def arm_mass_matrices(robot: Robot, q_arm: np.ndarray) -> np.ndarray:
-    """:func:`arm_mass_matrix` at every row of ``q_arm`` (S, n_joints) -> (S, n_joints, n_joints)."""
-    model, data = robot.model, robot.model.createData()
-    full = robot.full_configuration(np.atleast_2d(np.asarray(q_arm, dtype=float)))
-    v = robot.arm_v_index
-    out = np.empty((full.shape[0], v.size, v.size))
-    for i, row in enumerate(full):
-        m = pin.crba(model, data, row)[np.ix_(v, v)]
+def arm_model(robot: Robot) -> pin.Model:
+    """The arm alone: ``robot``'s model with every other joint locked at its held value (Pinocchio's
+    ``buildReducedModel``), so that its CRBA gives the arm's inertia (n_joints, n_joints) directly."""
+    arm = {int(j) for j in robot.arm_joint_ids}
+    lock = [j for j in range(1, robot.model.njoints) if j not in arm]
+    return pin.buildReducedModel(robot.model, lock, robot.q_neutral)
+
+
+def arm_mass_matrices(robot: Robot, q_arm: np.ndarray, model: pin.Model | None = None) -> np.ndarray:
+    """:func:`arm_mass_matrix` at every row of ``q_arm`` (S, n_joints) -> (S, n_joints, n_joints)
+    (``model``: the arm's reduced model, :func:`arm_model`, built here when None)."""
+    model = model if model is not None else arm_model(robot)
+    data = model.createData()
+    q = np.atleast_2d(np.asarray(q_arm, dtype=float))
+    out = np.empty((q.shape[0], model.nv, model.nv))
+    for i, row in enumerate(q):
+        m = pin.crba(model, data, row)
         out[i] = np.triu(m) + np.triu(m, 1).T
     return out
 

@@ -15,14 +15,17 @@ which no effective mass can lower). :class:`Separation` holds the per-sample res
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
+import pinocchio as pin
 
 from ..robot import Robot
 from ..robot.human_settings import HumanSettings
 from .body import HumanMotion
 from .iso15066 import (
     arm_mass_matrices,
+    arm_model,
     constant_distance_m,
     reduced_mass_kg,
     region_force_n,
@@ -45,10 +48,13 @@ class Separation:
 
     Attributes:
         t_s: Sample times (N,) [s] on the human's clock.
-        distance_m: Capsule distances (N, L, P) [m] (negative: overlap).
-        approach_m_s: Approach speed (N, L, P) [m/s] of the robot's closest point toward the part
-            (NaN where not computed: farther than any S_p the pair could have).
-        protective_m: S_p (N, L, P) [m] at that approach speed (NaN where not computed).
+        distance_m: Distances (N, L, P) [m] to the body capsules with their uncertainty inflation
+            (occluded or not yet observed frames; negative: overlap): where contact cannot be
+            excluded, what S_p and the contact-speed limits are judged on.
+        inflation_m: The inflation (N, P) [m] of each part: the distance to the part at its nominal
+            (held or interpolated) position is ``distance_m + inflation_m``.
+        approach_m_s: Approach speed (N, L, P) [m/s] of the robot's closest point toward the part.
+        protective_m: S_p (N, L, P) [m] at that approach speed.
         speed_ratio: approach speed / v_max (N, L, P) where the pair is within S_p (0 elsewhere).
         robot_mass_kg: The robot's effective mass (N, L, P) [kg] where computed (NaN elsewhere).
         closest_robot_m: The robot's closest surface point (N, 3) [m] to the body (hand included).
@@ -62,6 +68,7 @@ class Separation:
 
     t_s: np.ndarray
     distance_m: np.ndarray
+    inflation_m: np.ndarray
     approach_m_s: np.ndarray
     protective_m: np.ndarray
     speed_ratio: np.ndarray
@@ -79,40 +86,52 @@ class Separation:
         """Sample period in [s] (0 for a single sample)."""
         return float(np.median(np.diff(self.t_s))) if self.t_s.size > 1 else 0.0
 
-    @property
+    @cached_property
     def within_sp(self) -> np.ndarray:
         """(N,) whether any robot capsule is closer than S_p to any body part."""
-        with np.errstate(invalid="ignore"):
-            return np.any(self.distance_m < np.nan_to_num(self.protective_m, nan=-np.inf), axis=(1, 2))
+        return np.any(self.distance_m < self.protective_m, axis=(1, 2))
+
+    @cached_property
+    def max_ratio(self) -> np.ndarray:
+        """(N,) the largest approach speed / v_max within S_p (0: none within S_p and fast)."""
+        return self.speed_ratio.max(axis=(1, 2))
 
     @property
     def violation(self) -> np.ndarray:
         """(N,) whether, within S_p, the robot approaches some body part faster than its limit."""
-        return np.any(self.speed_ratio > 1.0, axis=(1, 2))
+        return self.max_ratio > 1.0
 
     @property
     def min_distance_m(self) -> np.ndarray:
         """(N,) the smallest robot-body distance [m] (every part)."""
         return self.distance_m.min(axis=(1, 2))
 
+    def nominal_distance_m(self) -> np.ndarray:
+        """(N, L, P) distances [m] to the parts at their nominal positions (without inflation)."""
+        return self.distance_m + self.inflation_m[:, None, :]
+
     def clearance_m(self, exclude_region: str | None = HAND_REGION) -> np.ndarray:
-        """(N,) the smallest distance [m] to the parts outside ``exclude_region``."""
+        """(N,) the smallest distance [m] to the nominal parts outside ``exclude_region``."""
         keep = np.array([r != exclude_region for r in self.regions])
         if not keep.any():
             return np.full(self.t_s.size, np.inf)
-        return self.distance_m[:, :, keep].min(axis=(1, 2))
+        d = self.distance_m[:, :, keep].min(axis=1) + self.inflation_m[:, keep]  # (N, P_kept)
+        return d.min(axis=1)
 
     def state(self) -> np.ndarray:
         """(N,) per sample: 0 free, 1 within S_p, 2 within S_p and speed-limited (ratio > 0.8),
         3 violation (faster than the limit within S_p)."""
-        ratio = self.speed_ratio.max(axis=(1, 2))
+        ratio = self.max_ratio
         out = np.where(self.within_sp, 1, 0)
         out = np.where(self.within_sp & (ratio > 0.8), 2, out)
         return np.where(ratio > 1.0, 3, out)
 
-    def where(self, n: int, exclude_region: str | None = None) -> tuple[str, str, float, float]:
-        """(link, body part, t [s], distance [m]) of the closest pair at sample ``n``."""
-        d = self.distance_m[n].copy()
+    def where(
+        self, n: int, exclude_region: str | None = None, nominal: bool = False
+    ) -> tuple[str, str, float, float]:
+        """(link, body part, t [s], distance [m]) of the closest pair at sample ``n`` (``nominal``:
+        to the parts without their inflation)."""
+        d = self.distance_m[n] + (self.inflation_m[n][None, :] if nominal else 0.0)
         if exclude_region is not None:
             d[:, [r == exclude_region for r in self.regions]] = np.inf
         li, pi = np.unravel_index(int(np.argmin(d)), d.shape)
@@ -131,6 +150,7 @@ class SeparationAnalyser:
         self.robot = robot
         self.settings = settings if settings is not None else robot.settings.human
         self._capsules: RobotCapsules | None = None
+        self._arm_model: pin.Model | None = None
         self._last: tuple[tuple, Separation] | None = None
 
     @property
@@ -144,11 +164,11 @@ class SeparationAnalyser:
         """The separation along a motion: times (N,) [s], angles and velocities (N, n_joints) [rad],
         [rad/s], against ``human``. The last result is kept: the same arrays and human again (two
         checks of one motion) return it without recomputing."""
-        key = (id(t_s), id(q), id(qd), id(human), human.horizon_s, t_s.size)
-        if self._last is not None and self._last[0] == key:
+        key = (t_s, q, qd, human)
+        if self._last is not None and all(a is b for a, b in zip(self._last[0], key, strict=True)):
             return self._last[1]
         result = self._compute(np.asarray(t_s, dtype=float), q, qd, human)
-        self._last = (key, result)
+        self._last = (key, result)  # the inputs are kept: their ids cannot be reused meanwhile
         return result
 
     def _compute(self, t: np.ndarray, q: np.ndarray, qd: np.ndarray, human: HumanMotion) -> Separation:
@@ -159,6 +179,7 @@ class SeparationAnalyser:
         qd = np.ascontiguousarray(qd, dtype=float)
         origins, axes, ra, rb = arm_kinematics(caps, q)
         ha, hb, hr = human.capsules(t)
+        caps_radius_p = human.radius_m[None, :]
         dist, cr, ch = capsule_distances(ra, rb, caps.radius_m, ha, hb, np.ascontiguousarray(hr))
         n, nl, npart = dist.shape
         t_r, t_stop = s.reaction_time_s, s.stopping_time_s
@@ -176,6 +197,7 @@ class SeparationAnalyser:
         return Separation(
             t_s=t,
             distance_m=dist,
+            inflation_m=hr - caps_radius_p,
             approach_m_s=approach,
             protective_m=protective,
             speed_ratio=ratio,
@@ -224,7 +246,9 @@ class SeparationAnalyser:
             u[met] = v / np.maximum(np.linalg.norm(v, axis=1, keepdims=True), 1e-12)
         w = np.einsum("kij,ki->kj", jac, u)  # J^T u, (K, n_joints)
         samples, which = np.unique(n_i, return_inverse=True)
-        inertia = arm_mass_matrices(self.robot, q[samples])
+        if self._arm_model is None:
+            self._arm_model = arm_model(self.robot)
+        inertia = arm_mass_matrices(self.robot, q[samples], self._arm_model)
         inv = inverse_effective_masses(inertia, which.astype(np.int64), np.ascontiguousarray(w))
         m_r = 1.0 / np.maximum(inv, 1e-300)
         force = np.array([region_force_n(lim, s.contact) for lim in limits])[p_i]

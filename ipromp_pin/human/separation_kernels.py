@@ -166,13 +166,32 @@ def approach_speeds(
     """Per pair (N, L, P): the approach speed [m/s] of the robot's closest surface point toward the
     body (its velocity ``sum_{i<=k} qd_i z_i x (x - o_i)`` projected on the unit separation direction;
     its speed where the axes meet), S_p = ``sp_const + max(v, 0) sp_per_speed`` [m], and the unit
-    direction (N, L, P, 3) (NaN where the axes meet)."""
+    direction (N, L, P, 3) (NaN where the axes meet). The point velocity is the rigid-body field of
+    its joint's body, ``v(o_k) + w_k x (x - o_k)``, both accumulated along the chain once per sample."""
     n, nl, npart = dist.shape
     nj = origins.shape[1]
     app = np.empty((n, nl, npart))
     sp = np.empty((n, nl, npart))
     unit = np.empty((n, nl, npart, 3))
+    omega = np.empty((nj, 3))  # angular velocity of joint k's body
+    v_o = np.empty((nj, 3))  # velocity of joint k's origin
     for i in range(n):
+        wx = wy = wz = 0.0
+        for k in range(nj):
+            # v(o_k) = sum_{j<k} qd_j z_j x (o_k - o_j) = v(o_{k-1}) + w_{k-1} x (o_k - o_{k-1})
+            if k == 0:
+                v_o[0, 0] = v_o[0, 1] = v_o[0, 2] = 0.0
+            else:
+                lx = origins[i, k, 0] - origins[i, k - 1, 0]
+                ly = origins[i, k, 1] - origins[i, k - 1, 1]
+                lz = origins[i, k, 2] - origins[i, k - 1, 2]
+                v_o[k, 0] = v_o[k - 1, 0] + wy * lz - wz * ly
+                v_o[k, 1] = v_o[k - 1, 1] + wz * lx - wx * lz
+                v_o[k, 2] = v_o[k - 1, 2] + wx * ly - wy * lx
+            wx += qd[i, k] * axes[i, k, 0]
+            wy += qd[i, k] * axes[i, k, 1]
+            wz += qd[i, k] * axes[i, k, 2]
+            omega[k, 0], omega[k, 1], omega[k, 2] = wx, wy, wz
         for m in range(nl):
             k = anchor[m]
             for p in range(npart):
@@ -185,19 +204,13 @@ def approach_speeds(
                     ux, uy, uz = ux / norm, uy / norm, uz / norm
                 else:
                     ux, uy, uz = 0.0, 0.0, 0.0
-                x0 = cr[i, m, p, 0] + rr[m] * ux
-                x1 = cr[i, m, p, 1] + rr[m] * uy
-                x2 = cr[i, m, p, 2] + rr[m] * uz
-                vx = vy = vz = 0.0
-                for j in range(min(k + 1, nj)):
-                    lx = x0 - origins[i, j, 0]
-                    ly = x1 - origins[i, j, 1]
-                    lz = x2 - origins[i, j, 2]
-                    ax, ay, az = axes[i, j, 0], axes[i, j, 1], axes[i, j, 2]
-                    w = qd[i, j]
-                    vx += w * (ay * lz - az * ly)
-                    vy += w * (az * lx - ax * lz)
-                    vz += w * (ax * ly - ay * lx)
+                lx = cr[i, m, p, 0] + rr[m] * ux - origins[i, k, 0]
+                ly = cr[i, m, p, 1] + rr[m] * uy - origins[i, k, 1]
+                lz = cr[i, m, p, 2] + rr[m] * uz - origins[i, k, 2]
+                ax, ay, az = omega[k, 0], omega[k, 1], omega[k, 2]
+                vx = v_o[k, 0] + ay * lz - az * ly
+                vy = v_o[k, 1] + az * lx - ax * lz
+                vz = v_o[k, 2] + ax * ly - ay * lx
                 v = math.sqrt(vx * vx + vy * vy + vz * vz) if met else vx * ux + vy * uy + vz * uz
                 app[i, m, p] = v
                 sp[i, m, p] = sp_const + max(v, 0.0) * sp_per_speed

@@ -1,0 +1,156 @@
+"""Benchmark: the human checks (human_clearance, contact_speed) on the one-shot plan of every demo.
+
+Every demo of the dataset is planned once by a model that did not see it (``--folds`` folds: the
+model of a fold is trained on the other folds' demos), observing ``--observe`` for the first
+``--ratio`` of the demo, like ``ipromp-pin run``. Per plan:
+
+* *before*: the plan timed without the human checks, checked against the human as the planner knows
+  it (the tracked skeleton until the end of the observation, then held and growing at the human
+  speed; the assumed human without a skeleton) and against the recorded human (what happened);
+* *after*: the plan of ``plan(..., checks=registered)``, re-timed when a failing check asks for a
+  slower motion; its delay (the longer duration).
+
+Prints the share of plans failing each human check before and after the re-timing, the delays and
+the cost of the two checks on a whole plan (median, ms; the machine may be shared).
+
+    python benchmarks/human_checks.py [--dataset ../shared/datasets/handover_20171128]
+        [--observe /left_hand_1,emg] [--folds 5] [--ratio 0.2] [--json FILE]
+
+``--smoke``: 2 synthetic tasks, 4 demos each, 2 folds: seconds, what the test suite runs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from functools import partial
+from pathlib import Path
+
+import numpy as np
+
+from ipromp_pin.checks import CheckContext, TimedMotion, build_checks, run_checks
+from ipromp_pin.data import parse_groups, skeleton_frames
+from ipromp_pin.handover.one_shot import plan
+from ipromp_pin.human import HumanMotion
+from ipromp_pin.promp import IProMP
+from ipromp_pin.readers import load_dataset
+from ipromp_pin.readers.synthetic import make_synthetic_dataset
+from ipromp_pin.robot import ee_positions, load_robot
+
+NAMES = ("human_clearance", "contact_speed")
+
+
+def _human(demo, settings) -> HumanMotion:
+    human = HumanMotion.from_demo(demo, settings)
+    if human is None:
+        human = HumanMotion.assumed_human(settings, demo.t, demo.extras.get("hand_position"))
+    return human
+
+
+def _hand(demo) -> np.ndarray | None:
+    hand = demo.extras.get("hand_position")
+    if hand is None:
+        return None
+    ok = np.flatnonzero(np.all(np.isfinite(hand), axis=1))
+    return hand[ok[-1]] if ok.size else None
+
+
+def _one(model, robot, checks, demo, observe, ratio) -> dict:
+    obs = demo.head(ratio, groups=observe)
+    t_end = float(obs.t[-1] - obs.t[0])
+    recorded = _human(demo, robot.settings.human)
+    known = recorded.until(float(obs.t[-1]))
+    base = plan(model, robot, obs, 100.0, _hand(demo), check_joints=False)
+    motion = TimedMotion.from_trajectory(base.trajectory, t_end)
+    t0 = time.perf_counter()
+    before = run_checks(checks, motion, CheckContext(human=known))
+    cost_ms = (time.perf_counter() - t0) * 1e3
+    truth = run_checks(checks, motion, CheckContext(human=recorded))
+    after = plan(model, robot, obs, 100.0, _hand(demo), check_joints=False, checks=checks,
+                 context=CheckContext(human=known))  # fmt: skip
+    out = {
+        "demo": f"{demo.task}/{demo.name}",
+        "human": known.label,
+        "n_samples": motion.n_samples,
+        "cost_ms": cost_ms,
+        "slowdown": float(after.slowdown),
+        "delay_s": float(after.slowdown_delay_s),
+    }
+    for r, r_true in zip(before, truth, strict=True):
+        out[f"{r.name}_before"] = r.passed
+        out[f"{r.name}_recorded"] = r_true.passed
+        out[f"{r.name}_after"] = after.report[r.name].passed
+        out[f"{r.name}_values"] = {k: v for k, v in r.values.items() if isinstance(v, float | int | str)}
+    return out
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument("--dataset", type=Path, default=Path("../shared/datasets/handover_20171128"))
+    parser.add_argument("--observe", default="/left_hand_1,emg")
+    parser.add_argument("--folds", type=int, default=5)
+    parser.add_argument("--ratio", type=float, default=0.2)
+    parser.add_argument("--json", type=Path, default=None)
+    parser.add_argument("--smoke", action="store_true", help="2 synthetic tasks, 4 demos, 2 folds: seconds")
+    args = parser.parse_args()
+    robot = load_robot("baxter_left")
+    if args.smoke:
+        observe, args.folds = ["orientation", "emg"], 2
+        ds = make_synthetic_dataset(n_tasks=2, n_demos=4, seed=0)
+    else:
+        observe = parse_groups(args.observe)
+        ds = load_dataset(
+            args.dataset,
+            frames=skeleton_frames(observe) or None,
+            robot_joints=robot.settings.recorded_arm_joints,
+            joint_limits=robot.recorded_joint_limits(),
+            end_effector=partial(ee_positions, robot),
+        )
+    demos = ds.all_demos()
+    checks = build_checks(robot, NAMES)
+    rows = []
+    smoke_model = {"head": False, "handover": False, "coupling": "all"} if args.smoke else {}
+    for f in range(args.folds):
+        test = demos[f :: args.folds]
+        train = [d for d in demos if all(d is not x for x in test)]
+        model = IProMP(observe=observe, **smoke_model).fit(train, fk=partial(ee_positions, robot))
+        for demo in test:
+            rows.append(_one(model, robot, checks, demo, observe, args.ratio))
+            r = rows[-1]
+            print(f"{r['demo']:40s} {r['human']:8s} clear {r['human_clearance_before']!s:5} "
+                  f"speed {r['contact_speed_before']!s:5} -> {r['contact_speed_after']!s:5} "
+                  f"k {r['slowdown']:.2f} +{r['delay_s']:.2f} s  {r['cost_ms']:.1f} ms")  # fmt: skip
+    _summary(rows)
+    if args.json is not None:
+        args.json.write_text(json.dumps(rows, indent=1))
+
+
+def _summary(rows: list[dict]) -> None:
+    n = len(rows)
+
+    def share(key: str, name: str | None = None) -> str:
+        names = NAMES if name is None else (name,)
+        k = sum(not all(r[f"{m}_{key}"] for m in names) for r in rows)
+        return f"{k}/{n} ({k / n:.0%})"
+
+    print(f"plans: {n} ({', '.join(sorted({r['human'] for r in rows}))} human)")
+    for key, what in (("before", "planner's human, before re-timing"), ("after", "after re-timing"),
+                      ("recorded", "recorded human, before re-timing")):  # fmt: skip
+        print(f"failing the human checks ({what}): {share(key)}; human_clearance {share(key, NAMES[0])}, "
+              f"contact_speed {share(key, NAMES[1])}")  # fmt: skip
+    slowed = [r for r in rows if r["slowdown"] > 1.0]
+    delays = np.array([r["delay_s"] for r in slowed]) if slowed else np.zeros(1)
+    print(
+        f"re-timed plans: {len(slowed)}/{n}; delay median {np.median(delays):.2f} s, max {delays.max():.2f} s"
+    )
+    cost = np.array([r["cost_ms"] for r in rows])
+    samples = np.array([r["n_samples"] for r in rows])
+    print(f"cost of both checks per plan: median {np.median(cost):.1f} ms (max {cost.max():.1f} ms), "
+          f"median {np.median(samples):.0f} samples")  # fmt: skip
+
+
+if __name__ == "__main__":
+    main()

@@ -265,9 +265,7 @@ class ClosedLoopPlanner:
             :meth:`~ipromp_pin.promp.streaming.StreamingEstimator.predict`).
         checks: Timed-motion checks run on every re-plan's remaining motion (default: none;
             :func:`ipromp_pin.checks.build_checks` gives the registered ones).
-        context: What the checks know about the world (the human, the object, ...). Its human is
-            what the planner may know until each re-plan (:meth:`~ipromp_pin.human.HumanMotion.until`
-            the re-plan's last human sample).
+        context: What the checks know about the world (the human, the object, ...).
     """
 
     def __init__(
@@ -295,7 +293,6 @@ class ClosedLoopPlanner:
         self._conditioner = conditioner
         self.checks = list(checks)
         self.context = context if context is not None else CheckContext()
-        self._human = self.context.human  # as recorded (or assumed); each re-plan knows it until then
         self._stream = model.stream()
         self._open = False
         self._plans: list[tuple[int, MotionPlan]] = [
@@ -385,8 +382,6 @@ class ClosedLoopPlanner:
         r.predicted_handover_s = float(pred.duration_s)
         self.context.task = pred.task
         self.context.handover_s = float(pred.duration_s)
-        if self._human is not None:  # the human as observed until this re-plan's last sample
-            self.context.human = self._human.until(float(t_s))
         plan = self._plan_checked(state, reference, r, ms)
         r.stage_ms = ms
         if plan is not None and not r.reason:

@@ -106,3 +106,14 @@ def test_timeline_slider_has_the_separation_states(browser, content, tmp_path):
     red = (pixels[:, 0] > 190) & (pixels[:, 1] < 80)
     assert green.any() and red.any()
     browser.call("Page.close", session=session)
+
+
+def test_live_page_draws_the_body_and_the_separation_panel(browser, content):
+    with preview.LivePreview(content, port=0, max_triangles=20_000) as live:
+        session = browser.open(live.url)
+        browser.wait_for(session, "window.iprompSynced")
+        browser.wait_for(session, "window.iprompSeparationShown !== undefined", timeout=30)
+        assert skin_pixels(browser.screenshot(session)) > 5000
+        text = browser.evaluate(session, "document.getElementById('ipromp-separation-now').textContent")
+        assert text.startswith("t = ") and "Separation" in text
+        browser.call("Page.close", session=session)

@@ -35,7 +35,6 @@ from .robot_capsules import (
     RobotCapsules,
     arm_kinematics,
     fit_robot_capsules,
-    point_jacobians,
 )
 
 HAND_REGION = "hand"
@@ -228,7 +227,7 @@ class SeparationAnalyser:
     ) -> None:
         """Effective mass and approach speed / v_max of the pairs within S_p that are faster than
         the limit of an infinitely heavy robot (in place; no other pair can exceed its limit)."""
-        from .separation_kernels import inverse_effective_masses
+        from .separation_kernels import inverse_effective_masses, pair_jtu
 
         caps, s = self.capsules, self.settings
         limits = [s.regions[str(r)] for r in human.regions]
@@ -237,14 +236,7 @@ class SeparationAnalyser:
         if not np.any(need):
             return
         n_i, l_i, p_i = np.nonzero(need)
-        u = unit[n_i, l_i, p_i]
-        met = np.isnan(u[:, 0])
-        point = cr[n_i, l_i, p_i] + np.nan_to_num(u) * caps.radius_m[l_i][:, None]
-        jac = point_jacobians(origins[n_i], axes[n_i], point, caps.anchor[l_i])  # (K, 3, n_joints)
-        if np.any(met):  # axes meet: the direction of the point's own velocity
-            v = np.einsum("kij,kj->ki", jac[met], qd[n_i[met]])
-            u[met] = v / np.maximum(np.linalg.norm(v, axis=1, keepdims=True), 1e-12)
-        w = np.einsum("kij,ki->kj", jac, u)  # J^T u, (K, n_joints)
+        w = pair_jtu(n_i, l_i, p_i, cr, unit, caps.radius_m, origins, axes, caps.anchor, qd)  # J^T u
         samples, which = np.unique(n_i, return_inverse=True)
         if self._arm_model is None:
             self._arm_model = arm_model(self.robot)

@@ -243,3 +243,54 @@ def inverse_effective_masses(mass: np.ndarray, sample: np.ndarray, jtu: np.ndarr
             acc += y[i] * y[i]
         out[k] = acc
     return out
+
+
+@njit(**_JIT)
+def pair_jtu(
+    n_i: np.ndarray,
+    l_i: np.ndarray,
+    p_i: np.ndarray,
+    cr: np.ndarray,
+    unit: np.ndarray,
+    rr: np.ndarray,
+    origins: np.ndarray,
+    axes: np.ndarray,
+    anchor: np.ndarray,
+    qd: np.ndarray,
+) -> np.ndarray:
+    """``J^T u`` (K, n_joints) of the robot's closest surface point of each pair ``(n_i, l_i, p_i)``
+    (K,): column j is ``z_j . ((x - o_j) x u)`` for the joints j that move the point. Where the axes
+    meet (``unit`` NaN) ``u`` is the direction of the point's own velocity."""
+    k_pairs = n_i.size
+    nj = origins.shape[1]
+    out = np.zeros((k_pairs, nj))
+    for k in range(k_pairs):
+        i, m, p = n_i[k], l_i[k], p_i[k]
+        ux, uy, uz = unit[i, m, p, 0], unit[i, m, p, 1], unit[i, m, p, 2]
+        met = np.isnan(ux)
+        if met:
+            ux = uy = uz = 0.0
+        x0 = cr[i, m, p, 0] + rr[m] * ux
+        x1 = cr[i, m, p, 1] + rr[m] * uy
+        x2 = cr[i, m, p, 2] + rr[m] * uz
+        top = anchor[m]
+        if met:  # the velocity's direction
+            vx = vy = vz = 0.0
+            for j in range(top + 1):
+                lx, ly, lz = x0 - origins[i, j, 0], x1 - origins[i, j, 1], x2 - origins[i, j, 2]
+                ax, ay, az = axes[i, j, 0], axes[i, j, 1], axes[i, j, 2]
+                vx += qd[i, j] * (ay * lz - az * ly)
+                vy += qd[i, j] * (az * lx - ax * lz)
+                vz += qd[i, j] * (ax * ly - ay * lx)
+            norm = math.sqrt(vx * vx + vy * vy + vz * vz)
+            if norm <= 1e-12:
+                continue
+            ux, uy, uz = vx / norm, vy / norm, vz / norm
+        for j in range(top + 1):
+            lx, ly, lz = x0 - origins[i, j, 0], x1 - origins[i, j, 1], x2 - origins[i, j, 2]
+            # (x - o_j) x u
+            cx = ly * uz - lz * uy
+            cy = lz * ux - lx * uz
+            cz = lx * uy - ly * ux
+            out[k, j] = axes[i, j, 0] * cx + axes[i, j, 1] * cy + axes[i, j, 2] * cz
+    return out

@@ -363,8 +363,11 @@ class Retargeter:
                 q0, v0, a0, _ = reference.evaluate(np.array([tau0]), order=2)
                 assert v0 is not None and a0 is not None
                 k = self.reachable_scale(v0[0], a0[0], k_follow)
-                blend = self._ruckig(start, (q0[0], v0[0] / k, a0[0] / k**2), tau0 - t_c)
-                if blend.duration <= tau0 - t_c + 1e-9 or tau0 >= d_follow:
+                # a slowed plan (min_scale > 1) catches up min_scale times slower too: the catch-up is
+                # part of the motion the checks asked to slow down
+                window = (tau0 - t_c) * float(min_scale)
+                blend = self._ruckig(start, (q0[0], v0[0] / k, a0[0] / k**2), window)
+                if blend.duration <= window + 1e-9 or tau0 >= d_follow:
                     break
                 target_t = min(t_c + blend.duration, d_follow)
             blend_s = blend.duration

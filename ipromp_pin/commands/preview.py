@@ -17,6 +17,7 @@ import numpy as np
 from ..data import Demo
 from ..exceptions import PipelineError
 from ..handover.one_shot import LogFn, PlanResult, plan
+from ..human import HumanMotion
 from ..outputs.preview_content import preview_content
 from ..preview import LivePreview, write_html
 from ..robot import Robot
@@ -59,11 +60,15 @@ def run_preview(
         context=session.check_context,
     )
     if html is not None:
-        path = write_preview(result, session.robot, session.demo, html, session.mesh_prefetch)
+        path = write_preview(
+            result, session.robot, session.demo, html, session.mesh_prefetch, session.check_context.human
+        )
         log(f"[preview] wrote {path} ({path.stat().st_size / 1e6:.1f} MB): open it in a browser (no server)")
         return path
     visual = preview_visual_model(session.robot, session.mesh_prefetch)
-    content = preview_content(result, session.robot, session.demo, visual_model=visual)
+    content = preview_content(
+        result, session.robot, session.demo, visual_model=visual, human=session.check_context.human
+    )
     tasks = list(result.prediction.tasks)
     start = content.replace(posterior=np.full(len(tasks), 1.0 / len(tasks)), task="", observed_until_s=0.0)
     live = LivePreview(start, port=port)
@@ -102,8 +107,10 @@ def write_preview(
     demo: Demo | None,
     path: Path,
     prefetch: mp.process.BaseProcess | None = None,
+    human: HumanMotion | None = None,
 ) -> Path:
-    """Write the self-contained offline preview page (after the mesh ``prefetch`` process, if any)."""
+    """Write the self-contained offline preview page (after the mesh ``prefetch`` process, if any);
+    ``human``: the body drawn when ``demo`` has no tracked skeleton (e.g. the assumed human)."""
     visual = preview_visual_model(robot, prefetch)
-    write_html(preview_content(result, robot, demo, visual_model=visual), path)
+    write_html(preview_content(result, robot, demo, visual_model=visual, human=human), path)
     return path

@@ -276,7 +276,8 @@ def _stage_files(
     out.write_text("limits.toml", result.profile.to_toml())
     if preview:
         t0 = time.perf_counter()
-        html = replay_preview_html(demo, result, score, session.robot, preview_visual_model(session.robot))
+        visual = preview_visual_model(session.robot)
+        html = replay_preview_html(demo, result, score, session.robot, visual, session.check_context.human)
         out.write_text("preview.html", html)
         log(f"[preview] {out.path('preview.html')} ({time.perf_counter() - t0:.1f} s)")
     report = report_dict(result, score, demo, session.model, session.warnings)

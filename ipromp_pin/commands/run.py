@@ -104,7 +104,9 @@ def _stage_preview(result: PlanResult, session: Session, out: atomic.OutputSet, 
     """Stage ``preview.html``: the self-contained preview page of the planned hand-over."""
     t0 = time.perf_counter()
     visual = preview_visual_model(session.robot, session.mesh_prefetch)
-    content = preview_content(result, session.robot, session.demo, visual_model=visual)
+    content = preview_content(
+        result, session.robot, session.demo, visual_model=visual, human=session.check_context.human
+    )
     html = render_html(content).encode("utf-8")
     out.write_bytes("preview.html", html)
     log(f"[preview] {out.path('preview.html')} ({len(html) / 1e6:.1f} MB, {time.perf_counter() - t0:.1f} s)")

@@ -78,7 +78,14 @@ class Cell:
 
 @dataclass
 class ClosedLoopCell(Cell):
-    """An evaluation cell with the closed-loop measures (medians over all its test trials)."""
+    """An evaluation cell with the closed-loop measures (medians over all its test trials).
+
+    The human measures (datasets with a tracked skeleton, against the recorded human; None without):
+    ``human_min_separation_m`` (minimum over the trials, outside the hand region),
+    ``protective_distance_time_s`` (median time closer than ``S_p``), ``contact_speed_violations``
+    (sum of the control samples inside ``S_p`` faster than the contact-speed limit) and
+    ``arrival_delay_without_human_s`` (median arrival delay of the replays without the human checks).
+    """
 
     limit_profile: str = ""
     closed_loop_handover_error_cm: float | None = None
@@ -90,6 +97,10 @@ class ClosedLoopCell(Cell):
     replans: int = 0
     collisions: int = 0
     closed_loop_handover_orientation_error_deg: float | None = None
+    human_min_separation_m: float | None = None
+    protective_distance_time_s: float | None = None
+    contact_speed_violations: int | None = None
+    arrival_delay_without_human_s: float | None = None
     closed_loop_trials: list[dict] = field(default_factory=list)
 
 

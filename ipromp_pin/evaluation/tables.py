@@ -287,7 +287,46 @@ def closed_loop_markdown(cells: Sequence[ClosedLoopCell]) -> str:
                 f"torque ratio {_fmt(max((c.peak_torque_ratio or 0.0) for c in kc), 3)}"
             )
         lines.append("")
+        lines += human_markdown(pc)
     return "\n".join(lines)
+
+
+def human_markdown(cells: Sequence[ClosedLoopCell]) -> list[str]:
+    """Markdown lines of the human measures (against the recorded human) of the cells that have
+    them, one row per cell, with the arrival delay with and without the human checks; none when no
+    cell has them (datasets without a skeleton)."""
+    hc = [c for c in cells if c.arrival_delay_without_human_s is not None]
+    if not hc:
+        return []
+    lines = [
+        f"### The human in the closed loop, protocol `{hc[0].protocol}` (judged against the recorded "
+        "human motion)\n",
+        "| n_train | obs ratio | observed | task | min separation [m] (outside the hand) "
+        "| time within S_p [s] | contact-speed violations | arrival delay [s] with / without the human |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for c in hc:
+        violations = "-" if c.contact_speed_violations is None else str(c.contact_speed_violations)
+        lines.append(
+            f"| {c.n_train} | {c.obs_ratio:g} | {observe_key(c.observe)} | {c.task} "
+            f"| {_fmt(c.human_min_separation_m, 3)} | {_fmt(c.protective_distance_time_s)} | {violations} "
+            f"| {_fmt(c.arrival_delay_s)} / {_fmt(c.arrival_delay_without_human_s)} |"
+        )
+    total = sum(c.contact_speed_violations or 0 for c in hc)
+    seps = [c.human_min_separation_m for c in hc if c.human_min_separation_m is not None]
+    extra = [
+        c.arrival_delay_s - c.arrival_delay_without_human_s
+        for c in hc
+        if c.arrival_delay_s is not None and c.arrival_delay_without_human_s is not None
+    ]
+    lines += [
+        "",
+        f"- over {len(hc)} cells: contact-speed violations {total}; smallest separation "
+        f"{_fmt(min(seps) if seps else None, 3)} m; median extra arrival delay of the human checks "
+        f"{_fmt(median(extra))} s",
+        "",
+    ]
+    return lines
 
 
 def write_closed_loop_results(

@@ -12,7 +12,11 @@
 * **limit ratio**: the largest |velocity|, |acceleration| or |jerk| (difference of consecutive
   accelerations over the control period) over its limit at any control sample;
 * **collisions**: commanded control samples in contact (Pinocchio/coal contact test of every
-  sample, independent of the certification the planner did before committing).
+  sample, independent of the certification the planner did before committing);
+* **the human** (recordings with a skeleton, filled in by the closed-loop evaluation): the
+  separation and contact-speed measures against the recorded human motion
+  (:mod:`~ipromp_pin.handover.human_score`) and the arrival delay of the same replay without the
+  human checks.
 """
 
 from __future__ import annotations
@@ -62,6 +66,12 @@ class ClosedLoopScore:
             rotations at the recorded hand-over time, in [deg].
         peak_torque_ratio: Largest |joint torque| / effort limit of the commanded motion (the task's
             object included while held), when the caller computed it (NaN otherwise).
+        human_min_separation_m: Smallest robot-body distance outside the hand region against the
+            recorded human, [m] (None: no skeleton, or not measured).
+        protective_distance_time_s: Time closer than the protective separation distance, [s].
+        contact_speed_violations: Control samples inside it faster than the contact-speed limit.
+        arrival_delay_without_human_s: ``arrival_delay_s`` of the same replay without the human
+            checks, [s].
     """
 
     handover_error_cm: float
@@ -80,6 +90,10 @@ class ClosedLoopScore:
     final_task: str
     handover_orientation_error_deg: float = float("nan")
     peak_torque_ratio: float = float("nan")
+    human_min_separation_m: float | None = None
+    protective_distance_time_s: float | None = None
+    contact_speed_violations: int | None = None
+    arrival_delay_without_human_s: float | None = None
 
     def to_dict(self) -> dict:
         """JSON-serialisable form."""

@@ -9,22 +9,35 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..checks import TimedMotion
 from ..data import ROBOT, Demo
 from ..handover.closed_loop import ClosedLoopResult
 from ..handover.one_shot import PlanResult
 from ..handover.score import ClosedLoopScore
+from ..human import HumanMotion
 from ..preview import PreviewContent
 from ..preview.timeline import TimelineEvent, render_timeline_html
 from ..robot import Robot, ee_positions
+from .human_preview import human_tracks, shown_human
 from .report import arrival_line
 
 
 def preview_content(
-    result: PlanResult, robot: Robot, demo: Demo | None, visual_model: object = None
+    result: PlanResult,
+    robot: Robot,
+    demo: Demo | None,
+    visual_model: object = None,
+    human: HumanMotion | None = None,
 ) -> PreviewContent:
-    """The :class:`~ipromp_pin.preview.PreviewContent` of a planned hand-over."""
+    """The :class:`~ipromp_pin.preview.PreviewContent` of a planned hand-over.
+
+    The body drawn, and the plan's separation from it, is the demo's recorded human (a tracked
+    skeleton), else ``human`` (the one the checks were given, e.g. the assumed human)."""
     p = result.prediction
     tr = result.trajectory
+    body, separation = human_tracks(
+        robot, TimedMotion.from_trajectory(tr, result.start_s), shown_human(robot, demo, human)
+    )
     ee_samples = np.stack([ee_positions(robot, s) for s in result.q_samples])
     truth = None
     hand = hand_t = None
@@ -58,6 +71,8 @@ def preview_content(
         human_duration_s=p.duration_s if demo is None else demo.duration_s,
         human_duration_source="predicted" if demo is None else "recorded",
         handover_point=r.handover_pose[:3],
+        body=body,
+        separation=separation,
         task=p.task,
         tasks=list(p.tasks),
         posterior=p.posterior,
@@ -70,10 +85,22 @@ def preview_content(
 
 
 def replay_preview_html(
-    demo: Demo, result: ClosedLoopResult, score: ClosedLoopScore, robot: Robot, visual_model: object
+    demo: Demo,
+    result: ClosedLoopResult,
+    score: ClosedLoopScore,
+    robot: Robot,
+    visual_model: object,
+    human: HumanMotion | None = None,
 ) -> str:
-    """The time-scrubbing ``preview.html`` of a replay (one self-contained page)."""
+    """The time-scrubbing ``preview.html`` of a replay (one self-contained page); the body and the
+    commanded motion's separation from it as in :func:`preview_content`."""
     traj = result.trajectory
+    body, separation = human_tracks(
+        robot,
+        TimedMotion.from_trajectory(traj),
+        shown_human(robot, demo, human),
+        1.0 / result.settings.control_rate_hz,
+    )
     tasks = list(result.replans[0].posterior) if result.replans else []
     committed = [r for r in result.replans if r.committed]
     hand = hand_t = None
@@ -118,6 +145,8 @@ def replay_preview_html(
         ee_truth=ee_positions(robot, demo.groups[ROBOT]),
         hand_path=hand,
         hand_t_s=hand_t,
+        body=body,
+        separation=separation,
         task=final.task if final else "",
         tasks=tasks,
         posterior=np.array([final.posterior[t] for t in tasks]) if final else None,

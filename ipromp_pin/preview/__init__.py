@@ -8,6 +8,10 @@ Pinocchio's :class:`pinocchio.visualize.MeshcatVisualizer`:
   viewer's "Open Controls > Animations" folder has play / pause / reset and a time scrubber);
 - the human hand path (observed part green, the rest grey), an animated hand marker when the hand
   times are known, and the hand-over point (gold sphere);
+- the human body as translucent capsules moving with the recording (tracked skin-coloured, an
+  assumed human grey-blue), the closest robot-body pair as a rod coloured by its separation state
+  (green free, yellow within S_p, orange speed-limited, red violation), its smallest value as a
+  label, and a panel with the separation at the current time and the states along the time axis;
 - the predicted end-effector path (blue tube) with its uncertainty (translucent tube of radius
   2 sigma, and thin sampled paths), and the recorded robot path (purple) when it is known;
 - the recognised task on a text plane above the robot, and an HTML panel with the posterior of
@@ -28,14 +32,18 @@ All positions are in [m] in the robot's base frame, times in [s] from the start 
 
 Modules, each depending only on those above it:
 
+- :mod:`~ipromp_pin.preview.body`: :class:`BodyTrack` (the human body's capsules over time) and
+  :class:`SeparationTrack` (the closest robot-body pair and its separation state per control sample);
 - :mod:`~ipromp_pin.preview.content`: :class:`PreviewContent`, :class:`FeasibilityCheck`, validation;
 - :mod:`~ipromp_pin.preview.meshes`: decimation of the robot's meshes, tube and sphere meshes;
 - :mod:`~ipromp_pin.preview.recorder`: :class:`SceneRecorder`, the meshcat window that records the scene;
+- :mod:`~ipromp_pin.preview.body_scene`: drawing the body's capsules and the closest-pair rod;
 - :mod:`~ipromp_pin.preview.scene`: drawing a content into a meshcat scene, the HTML panel's state;
 - :mod:`~ipromp_pin.preview.page`: the HTML page (scripts and CSS in ``static/``);
 - :mod:`~ipromp_pin.preview.server`: the live server on the loopback interface.
 """
 
+from .body import SEPARATION_STATES, BodyTrack, SeparationTrack
 from .content import FeasibilityCheck, PreviewContent
 from .meshes import DEFAULT_MAX_TRIANGLES, count_triangles, simplify_visual_model, sphere_mesh, tube_mesh
 from .page import render_html, write_html
@@ -56,6 +64,8 @@ from .scene import (
 from .server import LivePreview, serve_preview
 
 __all__ = [
+    "SEPARATION_STATES",
+    "BodyTrack",
     "CAMERA_FOV_DEG",
     "COLOR_COLLISION",
     "COLOR_EE_BAND",
@@ -70,6 +80,7 @@ __all__ = [
     "LivePreview",
     "PreviewContent",
     "SceneRecorder",
+    "SeparationTrack",
     "camera_view",
     "count_triangles",
     "overlay_state",

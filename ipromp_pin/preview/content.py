@@ -18,6 +18,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..exceptions import DataError
+from .body import BodyTrack, SeparationTrack
 
 __all__ = ["CHECK_STATUSES", "SOURCE", "FeasibilityCheck", "PreviewContent", "finite_array", "preview_error"]
 
@@ -123,6 +124,9 @@ class PreviewContent:
         human_duration_source: Where ``human_duration_s`` comes from, e.g. ``"recorded"`` or
             ``"predicted"`` (named on the page).
         handover_point: (3,) hand-over point in [m].
+        body: The human body's capsules over the recording (:class:`~.body.BodyTrack`, human's clock).
+        separation: The robot-body separation per control sample (:class:`~.body.SeparationTrack`,
+            human's clock).
         task: Recognised task name.
         tasks: (K,) names of all tasks.
         posterior: (K,) posterior probability of every task (sums to 1).
@@ -154,6 +158,8 @@ class PreviewContent:
     human_duration_s: float | None = None
     human_duration_source: str = ""
     handover_point: np.ndarray | None = None
+    body: BodyTrack | None = None
+    separation: SeparationTrack | None = None
     task: str = ""
     tasks: Sequence[str] = ()
     posterior: np.ndarray | None = None
@@ -266,6 +272,10 @@ class PreviewContent:
                 )
         self.human_duration_source = str(self.human_duration_source)
         self.handover_point = _optional_array(self.handover_point, "handover_point", 1, 3)
+        for name, kind in (("body", BodyTrack), ("separation", SeparationTrack)):
+            value = getattr(self, name)
+            if value is not None and not isinstance(value, kind):
+                raise preview_error(name, f"expected a {kind.__name__}, got {type(value).__name__}")
 
     def _check_recognition(self) -> None:
         """The recognised ``task`` among ``tasks`` and their ``posterior``."""

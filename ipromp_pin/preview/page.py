@@ -4,7 +4,8 @@ One page layout serves both outputs: the offline page (:func:`render_html`, :fun
 embeds the recorded scene commands and replays them on load (no network, no server); the live page
 (:func:`live_page`) connects to the preview server's websocket instead. The page's CSS and scripts
 are package data in ``static/`` (``page.css``; ``overlay.js``, the HTML panel, which also handles
-the ``ipromp_overlay`` and ``ipromp_synced`` messages; ``static_loader.js``; ``live_connect.js``),
+the ``ipromp_overlay`` and ``ipromp_synced`` messages; ``separation.js``, the robot-body
+separation at the current time; ``static_loader.js``; ``live_connect.js``),
 all inlined into the page after meshcat's own viewer script.
 """
 
@@ -50,7 +51,7 @@ def _page(title: str, body_js: str, data_script: str = "") -> str:
         f"{data_script}"
         f"<script>\n{_viewer_js()}\n</script>\n"
         '<script>\nvar viewer = new MeshCat.Viewer(document.getElementById("meshcat-pane"));\n\n'
-        f"{_static('overlay.js')}\n\n{body_js}\n</script>\n</body>\n</html>\n"
+        f"{_static('overlay.js')}\n\n{_static('separation.js')}\n\n{body_js}\n</script>\n</body>\n</html>\n"
     )
 
 

@@ -7,6 +7,8 @@ viewer whose window is a :class:`~ipromp_pin.preview.recorder.SceneRecorder`:
   near its limit orange), playing the arm trajectory in real time as a meshcat animation;
 - the human hand path (observed part green, the rest grey), an animated hand marker and the
   hand-over point (gold);
+- the human body's capsules and the closest robot-body pair (:mod:`~ipromp_pin.preview.body_scene`),
+  moving with the human's motion, and the smallest distance as a label;
 - the predicted end-effector path (blue tube), its uncertainty (translucent tube of radius 2 sigma,
   thin sampled paths) and the recorded robot path (purple);
 - the recognised task on a text plane above the robot, the background, grid and a camera fitted to
@@ -14,8 +16,8 @@ viewer whose window is a :class:`~ipromp_pin.preview.recorder.SceneRecorder`:
 - the state of the HTML panel (:func:`overlay_state`).
 
 Positions in [m] in the robot's base frame. The animation runs on the robot trajectory's time base
-(``t_s``: 0 when the observation ends and the robot starts); the hand marker follows the human's
-motion from the end of the observation.
+(``t_s``: 0 when the observation ends and the robot starts); the hand marker, the body and the
+closest pair follow the human's motion from the end of the observation.
 """
 
 from __future__ import annotations
@@ -31,6 +33,14 @@ import numpy as np
 import pinocchio as pin
 from pinocchio.visualize import MeshcatVisualizer
 
+from .body_scene import (
+    COLOR_BODY,
+    COLOR_BODY_ASSUMED,
+    SEPARATION_COLORS,
+    body_frame,
+    draw_body,
+    separation_panel,
+)
 from .content import PreviewContent
 from .meshes import simplify_visual_model, sphere_mesh, tube_mesh
 from .recorder import SceneRecorder
@@ -70,6 +80,7 @@ _ROBOT_NODE = "robot"
 _HUMAN_NODES = ("human/observed", "human/rest", "human/hand", "human/handover")
 _PREDICTION_NODES = ("prediction/mean", "prediction/band", "prediction/samples", "prediction/truth")
 _LABEL_NODE = "labels/task"
+_CLOSEST_LABEL_NODE = "labels/closest"
 
 
 def _highlight(content: PreviewContent, geometry_model: pin.GeometryModel) -> dict[str, tuple]:
@@ -226,21 +237,27 @@ CAMERA_FOV_DEG = 75.0
 #: Direction from the scene's centre to the camera, in the robot's base frame: in front of the robot
 #: (+x), to its left (+y) and above (+z).
 CAMERA_DIRECTION = np.array([2.0, 1.2, 0.8]) / np.linalg.norm([2.0, 1.2, 0.8])
+#: The camera direction when the human body is drawn (it stands in front of the robot, +x): from the
+#: robot's left side (+y), a little in front and above, the human and the robot side by side.
+CAMERA_DIRECTION_BODY = np.array([0.8, -2.0, 0.9]) / np.linalg.norm([0.8, -2.0, 0.9])
 
 
-def camera_view(points: np.ndarray, fov_deg: float = CAMERA_FOV_DEG) -> tuple[np.ndarray, np.ndarray]:
+def camera_view(
+    points: np.ndarray, fov_deg: float = CAMERA_FOV_DEG, direction: np.ndarray = CAMERA_DIRECTION
+) -> tuple[np.ndarray, np.ndarray]:
     """Where to look from so that ``points`` (n, 3) [m] fill the view: the centre of their bounding box
     (3,) and the camera position (3,) relative to it, both in the robot's base frame [m].
 
-    The camera is along :data:`CAMERA_DIRECTION`, at the distance from which the bounding box's
-    circumscribed sphere (radius ``R``) spans the vertical field of view ``fov_deg`` seen from its
-    centre: ``R / tan(fov / 2)`` (the box's corners, which the sphere over-covers, stay in view).
+    The camera is along ``direction`` (a unit vector, :data:`CAMERA_DIRECTION`), at the distance from
+    which the bounding box's circumscribed sphere (radius ``R``) spans the vertical field of view
+    ``fov_deg`` seen from its centre: ``R / tan(fov / 2)`` (the box's corners, which the sphere
+    over-covers, stay in view).
     """
     pts = np.asarray(points, dtype=float).reshape(-1, 3)
     lo, hi = pts.min(axis=0), pts.max(axis=0)
     radius = max(0.5 * float(np.linalg.norm(hi - lo)), 0.05)
     distance = radius / np.tan(np.radians(fov_deg) / 2.0)
-    return (lo + hi) / 2.0, CAMERA_DIRECTION * distance
+    return (lo + hi) / 2.0, direction * distance
 
 
 def scene_points(content: PreviewContent, robot: RobotView, n_poses: int = 5) -> np.ndarray:
@@ -251,6 +268,9 @@ def scene_points(content: PreviewContent, robot: RobotView, n_poses: int = 5) ->
     for extra in (content.hand_path, content.ee_mean, content.ee_truth, content.handover_point):
         if extra is not None:
             parts.append(np.atleast_2d(extra))
+    if content.body is not None:  # the body at the animation's start
+        a, b, _ = content.body.at(np.array([_hand_offset_s(content)]))
+        parts += [a[0], b[0]]
     return np.vstack(parts)
 
 
@@ -285,6 +305,7 @@ def _animate(viewer: meshcat.Visualizer, robot: RobotView, content: PreviewConte
     if content.hand_path is not None and content.hand_t_s is not None:
         t_human = times + offset
         hand = np.stack([np.interp(t_human, content.hand_t_s, content.hand_path[:, d]) for d in range(3)], -1)
+    shown: dict[str, Any] = {}
     for k in range(n_frames):
         with animation.at_frame(viewer, k) as frame:
             for i in moving:
@@ -293,6 +314,7 @@ def _animate(viewer: meshcat.Visualizer, robot: RobotView, content: PreviewConte
                 T = np.eye(4)
                 T[:3, 3] = hand[k]
                 frame["human/hand"].set_transform(T)
+            body_frame(frame, content.body, content.separation, float(times[k] + offset), shown, k == 0)
     viewer.set_animation(animation, play=True, repetitions=1)
 
 
@@ -317,6 +339,21 @@ def _draw_human(viewer: meshcat.Visualizer, content: PreviewContent) -> None:
             viewer["human/hand"].set_transform(T)
     if content.handover_point is not None:
         _set_mesh(viewer["human/handover"], sphere_mesh(content.handover_point, 0.035), COLOR_HANDOVER)
+    draw_body(viewer, content.body, content.separation, _hand_offset_s(content))
+    _draw_closest_label(viewer, content)
+
+
+def _draw_closest_label(viewer: meshcat.Visualizer, content: PreviewContent) -> None:
+    """The smallest robot-body distance as text beside the closest pair at that sample."""
+    node = viewer[_CLOSEST_LABEL_NODE]
+    node.delete()
+    sep = content.separation
+    if sep is None:
+        return
+    i = sep.closest
+    position = (sep.robot_point_m[i] + sep.body_point_m[i]) / 2.0 + np.array([0.0, 0.0, 0.08])
+    node.set_object(_text_plane(f"min {sep.distance_m[i]:.3f} m"))
+    node.set_transform(_plane_facing_x(position, 0.22))
 
 
 def _draw_prediction(viewer: meshcat.Visualizer, content: PreviewContent) -> None:
@@ -363,7 +400,9 @@ def _draw_label(viewer: meshcat.Visualizer, content: PreviewContent, robot: Robo
     node.set_transform(_plane_facing_x(position, size))
 
 
-def _setup_view(viewer: meshcat.Visualizer, floor_z: float, points: np.ndarray) -> None:
+def _setup_view(
+    viewer: meshcat.Visualizer, floor_z: float, points: np.ndarray, direction: np.ndarray = CAMERA_DIRECTION
+) -> None:
     """Background, floor grid and a camera fitted to the scene ``points`` (n, 3) [m].
 
     meshcat's orbit controls turn around the world origin, so the scene (everything under
@@ -372,7 +411,7 @@ def _setup_view(viewer: meshcat.Visualizer, floor_z: float, points: np.ndarray) 
     """
     viewer["/Background"].set_property("top_color", [0.97, 0.97, 0.98])
     viewer["/Background"].set_property("bottom_color", [0.78, 0.80, 0.84])
-    center, eye = camera_view(points)
+    center, eye = camera_view(points, direction=direction)
     shift = np.eye(4)
     shift[:3, 3] = -center
     viewer["/meshcat"].set_transform(shift)
@@ -410,6 +449,7 @@ def overlay_state(content: PreviewContent) -> dict[str, Any]:
         legend.append({"label": "uncertainty (2 sigma)", "color": f"#{COLOR_EE_BAND:06x}"})
     if content.ee_truth is not None:
         legend.append({"label": "recorded robot path", "color": f"#{COLOR_EE_TRUTH:06x}"})
+    legend += _body_legend(content)
     return {
         "title": content.title,
         "task": content.task,
@@ -432,7 +472,27 @@ def overlay_state(content: PreviewContent) -> dict[str, Any]:
         "collision_links": list(content.collision_links),
         "near_limit_joints": list(content.near_limit_joints),
         "legend": legend,
+        "separation": None
+        if content.separation is None
+        else separation_panel(content.separation, _hand_offset_s(content), content.body),
     }
+
+
+def _body_legend(content: PreviewContent) -> list[dict[str, str]]:
+    """Legend lines of the body's capsules and of the closest-pair rod's states."""
+    out = []
+    if content.body is not None:
+        assumed = content.body.assumed
+        color = COLOR_BODY_ASSUMED if assumed else COLOR_BODY
+        label = "human body (assumed, no skeleton)" if assumed else "human body (tracked)"
+        out.append({"label": label, "color": f"#{color:06x}"})
+    if content.separation is not None:
+        names = {"within_sp": "within S_p", "speed_limited": "speed-limited"}
+        out += [
+            {"label": f"closest robot-body pair: {names.get(s, s)}", "color": f"#{c:06x}"}
+            for s, c in SEPARATION_COLORS.items()
+        ]
+    return out
 
 
 def _new_viewer(window: SceneRecorder) -> meshcat.Visualizer:
@@ -445,7 +505,10 @@ def build_scene(window: SceneRecorder, content: PreviewContent, *, robot: RobotV
     viewer = _new_viewer(window)
     robot.load(viewer, content)
     _setup_view(
-        viewer, robot.floor_height(content.configurations(np.array([0.0]))[0]), scene_points(content, robot)
+        viewer,
+        robot.floor_height(content.configurations(np.array([0.0]))[0]),
+        scene_points(content, robot),
+        CAMERA_DIRECTION if content.body is None else CAMERA_DIRECTION_BODY,
     )
     _draw_human(viewer, content)
     _draw_prediction(viewer, content)
@@ -473,7 +536,7 @@ def update_scene(
         content: Content to show.
         robot: Robot view the scene was built with.
         fps: Frames per second of the animation.
-        human: Redraw the hand path, hand marker and hand-over point.
+        human: Redraw the hand path, hand marker, hand-over point, body and closest-pair rod.
         prediction: Redraw the predicted, sampled and recorded end-effector paths.
         label: Redraw the task label.
         animation: Recompute the animation (robot and hand marker).

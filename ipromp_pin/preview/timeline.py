@@ -8,6 +8,10 @@ the human's hand path (grey) when hand positions are known. On top of it, as fun
 - the hand-over point (gold) moves to each re-plan's predicted hand-over position;
 - the gripper path planned by the latest committed re-plan (cyan) replaces the previous one;
 - the human's hand path observed so far grows (green), the hand marker moves along it;
+- the human body's capsules move with the recording and the closest robot-body pair is a rod
+  coloured by its separation state (:mod:`~ipromp_pin.preview.body_scene`), when the content has a
+  body and a separation; ``static/separation.js`` shows the distance at the scrubbed time and the
+  states along the slider;
 - the HTML panel shows, at the scrubbed time, the task posterior of the latest re-plan, the observed
   part of the human's motion, and a second panel (``static/timeline.js``) the re-plan's predicted
   hand-over time, its planned arrival and whether it was committed or refused (and why), with a
@@ -33,6 +37,7 @@ import meshcat.geometry as mg
 import numpy as np
 import pinocchio as pin
 
+from .body_scene import body_frame
 from .content import PreviewContent, finite_array, preview_error
 from .meshes import DEFAULT_MAX_TRIANGLES, sphere_mesh, tube_mesh
 from .page import recorded_page
@@ -147,6 +152,8 @@ def _timeline_scene(
     duration = max(content.duration_s, events[-1].t_s if events else 0.0)
     if content.hand_t_s is not None:
         duration = max(duration, float(content.hand_t_s[-1]))
+    if content.body is not None:
+        duration = max(duration, float(content.body.t_s[-1]))
     n_frames = max(2, int(np.ceil(duration * fps)) + 1)
     times = np.arange(n_frames) / fps
     frames = [robot.placements(q) for q in content.configurations(times)]
@@ -165,10 +172,12 @@ def _timeline_scene(
     animation = meshcat.animation.Animation(default_framerate=fps)
     shown_plan, shown_point = -2, -2
     shown_trail = 0
+    shown_body: dict = {}
     for f, t in enumerate(times):
         with animation.at_frame(viewer, f) as frame:
             for i in moving:
                 frame[names[i]].set_transform(frames[f][i])
+            body_frame(frame, content.body, content.separation, float(t), shown_body, f == 0)
             if hand is not None:
                 T = np.eye(4)
                 T[:3, 3] = hand[f]

@@ -11,22 +11,34 @@
 Each cell gains, over all its test trials (recognised or not): ``closed_loop_handover_error_cm``,
 ``closed_loop_final_error_cm``, ``one_shot_handover_error_cm``, ``arrival_delay_s`` (medians),
 ``max_limit_ratio`` (maximum), ``refused_replans``, ``replans`` and ``collisions`` (sums).
+
+Demos with a tracked skeleton (:meth:`~ipromp_pin.human.HumanMotion.from_demo`) are replayed with the
+human checks (:data:`~ipromp_pin.handover.human_score.HUMAN_CHECKS`; the planner knows the human as
+observed until each re-plan), then judged against the recorded human motion
+(:func:`~ipromp_pin.handover.human_score.human_measures` of the final commanded trajectory), and
+replayed once more without the human checks. Their cells gain ``human_min_separation_m`` (the
+minimum over the trials), ``protective_distance_time_s``, ``arrival_delay_without_human_s``
+(medians) and ``contact_speed_violations`` (sum); without a skeleton these are None and the replay
+is the one without the human checks.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from functools import partial
 
 import numpy as np
 
-from ...checks import CheckContext, TimedMotion
+from ...checks import CheckContext, MotionCheck, TimedMotion, build_checks
 from ...checks.joint_torques import JointTorques
 from ...data import Demo
 from ...handover.closed_loop import ClosedLoopSettings, conditioning_predictor, replay_demo
+from ...handover.human_score import HUMAN_CHECKS, human_measures
 from ...handover.score import ClosedLoopScore, score_closed_loop
+from ...human import HumanMotion
 from ...motion.limits import LimitProfile, conservative_profile, demonstrated_profile, read_limit_profile
+from ...motion.trajectory import Trajectory
 from ...promp import IProMP
 from ...robot import DemoLimitRecipe, Robot, ee_positions, frame_placements
 from ...robot.clearance import ClearanceCertifier
@@ -46,12 +58,15 @@ class ClosedLoopOptions:
         settings: Closed-loop settings; each cell's ``obs_ratio`` replaces ``start_ratio``.
         recipe: How the demonstrated profile is derived (default: the robot settings').
         check_collisions: Contact-test every commanded control sample.
+        human: Replay demos with a tracked skeleton with the human checks and measure them
+            against the recorded human (see the module docstring).
     """
 
     limits: str = "demonstrated"
     settings: ClosedLoopSettings = field(default_factory=ClosedLoopSettings)
     recipe: DemoLimitRecipe | None = None
     check_collisions: bool = True
+    human: bool = True
 
 
 @dataclass
@@ -92,6 +107,10 @@ TRIAL_KEYS = (
     "handover_orientation_error_deg",
     "closed_loop_handover_orientation_error_deg",
     "closed_loop_peak_torque_ratio",
+    "closed_loop_human_min_separation_m",
+    "closed_loop_protective_distance_time_s",
+    "closed_loop_contact_speed_violations",
+    "closed_loop_arrival_delay_without_human_s",
 )
 """The fields of a trial kept in a cell's ``closed_loop_trials`` (floats rounded to 4 decimals)."""
 
@@ -131,13 +150,15 @@ def replay_trials(
     split: int = 0,
     mean_rot: dict[str, np.ndarray] | None = None,
     objects: ObjectTable | None = None,
+    human_checks: Sequence[MotionCheck] = (),
 ) -> list[ClosedLoopTrial]:
     """Replay every test demo with ``ratio`` as the start ratio; one :class:`ClosedLoopTrial` each.
 
     ``mean_rot``: the orientation baseline per task (:func:`~.one_shot.mean_handover_rotations` of the
     training demos). ``objects``: the tasks' objects; when given, every re-plan runs the joint-torque
     check (slowed where it asks) and the commanded motion's peak torque ratio is scored with the true
-    task's object."""
+    task's object. ``human_checks``: the human's timed-motion checks, for the demos with a tracked
+    skeleton (:func:`replay_scored`)."""
     observe = list(model.observe_)
 
     def fk(q: np.ndarray) -> np.ndarray:
@@ -155,15 +176,52 @@ def replay_trials(
     for d in test:
         prediction = predict_window(model, d, ratio, observe)
         one_shot = score_trial(prediction, d, ratio, fk, fk_rot, (mean_rot or {}).get(d.task))
-        context = CheckContext(objects=objects)
-        result = replay_demo(model, robot, d, profile, run, certifier, conditioner, checks, context)
-        score = score_closed_loop(result, d, robot, check_collisions=check_collisions)
+        replay = partial(replay_demo, model, robot, d, profile, run, certifier, conditioner)
+        score, commanded = replay_scored(replay, d, robot, check_collisions, human_checks, checks, objects)
         if torques is not None:
             truth = CheckContext(task=d.task, objects=objects)
-            check = torques.check(TimedMotion.from_trajectory(result.trajectory), truth)
+            check = torques.check(TimedMotion.from_trajectory(commanded), truth)
             score.peak_torque_ratio = float(check.values.get("peak_torque_ratio", np.nan))
         out.append(ClosedLoopTrial(**one_shot.__dict__, split=split, closed_loop=score))
     return out
+
+
+def replay_scored(
+    replay,
+    demo: Demo,
+    robot: Robot,
+    check_collisions: bool,
+    human_checks: Sequence[MotionCheck],
+    other_checks: Sequence[MotionCheck] = (),
+    objects: ObjectTable | None = None,
+) -> tuple[ClosedLoopScore, Trajectory]:
+    """Replay ``demo`` (``replay(checks=..., context=...)`` runs the closed loop) and score it.
+
+    Every re-plan runs ``other_checks`` (e.g. the joint torques with ``objects``). With
+    ``human_checks`` and a tracked skeleton: the replay with the human checks as well (the planner's
+    context is the recorded human, which the planner knows until each re-plan's time), its measures
+    against the recorded human motion, and the arrival delay of a replay without the human checks.
+    Returns the score and the commanded trajectory.
+    """
+    human = HumanMotion.from_demo(demo, robot.settings.human) if human_checks else None
+    others = list(other_checks)
+    if human is None:
+        result = replay(checks=others, context=CheckContext(objects=objects))
+        return score_closed_loop(result, demo, robot, check_collisions=check_collisions), result.trajectory
+    context = CheckContext(human=human, objects=objects)
+    result = replay(checks=[*human_checks, *others], context=context)
+    score = score_closed_loop(result, demo, robot, check_collisions=check_collisions)
+    measures = human_measures(result.trajectory, human, human_checks)
+    free_result = replay(checks=others, context=CheckContext(objects=objects))
+    free = score_closed_loop(free_result, demo, robot, check_collisions=False)
+    scored = replace(
+        score,
+        human_min_separation_m=measures.min_separation_m,
+        protective_distance_time_s=measures.protective_distance_time_s,
+        contact_speed_violations=measures.contact_speed_violations,
+        arrival_delay_without_human_s=free.arrival_delay_s,
+    )
+    return scored, result.trajectory
 
 
 class ClosedLoopScorer(Scorer):
@@ -196,6 +254,7 @@ class ClosedLoopScorer(Scorer):
         self.label_name = label_name
         self.objects = objects
         self.certifier_: ClearanceCertifier | None = None
+        self.human_checks_: list[MotionCheck] | None = None
 
     def check(self) -> None:
         """Validate the settings and read a profile file, before any fit."""
@@ -207,6 +266,8 @@ class ClosedLoopScorer(Scorer):
         """Fit the model (with the robot's kinematics) and derive the fit's limit profile."""
         if self.certifier_ is None:  # once per process
             self.certifier_ = ClearanceCertifier(self.robot)
+        if self.human_checks_ is None:
+            self.human_checks_ = build_checks(self.robot, HUMAN_CHECKS) if self.options.human else []
         fk = partial(ee_positions, self.robot)  # settings chosen for the hand-over position
         self.model_ = IProMP(observe=list(observe), **self.model_params).fit(train, fk=fk)
         self.profile_ = profile_for(self.options, self.robot, train, self.label_name)
@@ -227,6 +288,7 @@ class ClosedLoopScorer(Scorer):
             split,
             self.mean_rot_,
             self.objects,
+            self.human_checks_ or (),
         )
 
     def fit_facts(self) -> dict[str, str]:
@@ -256,5 +318,21 @@ class ClosedLoopScorer(Scorer):
             "peak_torque_ratio": max(
                 (s.peak_torque_ratio for s in scores if np.isfinite(s.peak_torque_ratio)), default=None
             ),
+            **human_cell_fields(scores),
             "closed_loop_trials": [compact(t) for t in flat],
         }
+
+
+def human_cell_fields(scores: Sequence[ClosedLoopScore]) -> dict:
+    """A cell's human measures over the trials measured against a recorded human: the minimum
+    separation, the median time inside ``S_p`` and arrival delay without the human checks, the
+    sum of the contact-speed violations (all None when no trial was)."""
+    measured = [s for s in scores if s.arrival_delay_without_human_s is not None]
+    seps = [s.human_min_separation_m for s in measured if s.human_min_separation_m is not None]
+    violations = [s.contact_speed_violations for s in measured if s.contact_speed_violations is not None]
+    return {
+        "human_min_separation_m": min(seps) if seps else None,
+        "protective_distance_time_s": median([s.protective_distance_time_s for s in measured]),
+        "contact_speed_violations": int(sum(violations)) if violations else None,
+        "arrival_delay_without_human_s": median([s.arrival_delay_without_human_s for s in measured]),
+    }

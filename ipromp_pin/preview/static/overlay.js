@@ -5,6 +5,7 @@ function iprompEl(tag, attrs, text) {
   return e;
 }
 function iprompRender(s) {
+  window.iprompOverlayState = s;
   const root = document.getElementById("ipromp-overlay");
   root.replaceChildren();
   root.appendChild(iprompEl("h1", {id: "ipromp-title"}, s.title));

@@ -1,0 +1,208 @@
+"""Drawing the human body and its separation from the robot into a meshcat scene.
+
+- every body part of a :class:`~ipromp_pin.preview.body.BodyTrack` is a capsule: a unit cylinder
+  and two unit spheres scaled and placed per frame (meshcat's cylinder axis is its local y), moving
+  with the recording;
+- the closest robot-body pair of a :class:`~ipromp_pin.preview.body.SeparationTrack` is a thin rod
+  from the robot's closest point to the body's, one node per separation state (the node of the
+  sample's state is the one shown), so that its colour says the state;
+- :func:`separation_panel` is the HTML panel's data: the per-sample distance, state and pair on the
+  animation's time base, read by ``static/separation.js`` (the value at the current time and the
+  states along the time slider).
+
+The scene's animation calls :func:`body_frame` at every frame with the human's time.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import meshcat
+import meshcat.geometry as mg
+import numpy as np
+
+from .body import SEPARATION_STATES, BodyTrack, SeparationTrack
+
+__all__ = [
+    "BODY_NODE",
+    "CLOSEST_NODE",
+    "COLOR_BODY",
+    "COLOR_BODY_ASSUMED",
+    "SEPARATION_COLORS",
+    "body_frame",
+    "capsule_transforms",
+    "draw_body",
+    "separation_panel",
+]
+
+COLOR_BODY = 0xD9A27E
+"""Colour of the tracked body's capsules."""
+COLOR_BODY_ASSUMED = 0x9FB0C4
+"""Colour of an assumed (not recorded) body's capsules."""
+SEPARATION_COLORS = {
+    "free": 0x2CA02C,
+    "within_sp": 0xE6C200,
+    "speed_limited": 0xFF7F0E,
+    "violation": 0xD62728,
+}
+"""Colour of the closest-pair rod and of the time strip per separation state."""
+
+BODY_NODE = "human/body"
+CLOSEST_NODE = "human/closest"
+_ROD_RADIUS_M = 0.008
+_BODY_OPACITY = 0.35
+_MIN_LENGTH_M = 1e-6
+
+
+def _frame_y_to(d: np.ndarray) -> np.ndarray:
+    """Rotation (3, 3) whose y column is the unit vector ``d`` (3,)."""
+    y = d / np.linalg.norm(d)
+    helper = np.array([1.0, 0.0, 0.0]) if abs(y[0]) < 0.9 else np.array([0.0, 0.0, 1.0])
+    x = np.cross(y, helper)
+    x /= np.linalg.norm(x)
+    return np.column_stack([x, y, np.cross(x, y)])
+
+
+def _segment(a: np.ndarray, b: np.ndarray, radius: float) -> tuple[np.ndarray, list[float]]:
+    """Placement (4, 4) without scale and scale (x, y, z) of a unit cylinder (axis y, height 1,
+    radius 1) spanning ``a`` to ``b`` (3,) [m] with ``radius`` [m]."""
+    d = b - a
+    length = float(np.linalg.norm(d))
+    T = np.eye(4)
+    T[:3, :3] = _frame_y_to(d) if length > _MIN_LENGTH_M else np.eye(3)
+    T[:3, 3] = (a + b) / 2.0
+    return T, [radius, max(length, _MIN_LENGTH_M), radius]
+
+
+def capsule_transforms(
+    a: np.ndarray, b: np.ndarray, radius: float
+) -> dict[str, tuple[np.ndarray, list[float]]]:
+    """The placements and scales of one capsule's nodes ``cyl``, ``a`` and ``b`` (unit geometries)."""
+    out = {"cyl": _segment(a, b, radius)}
+    for end, p in (("a", a), ("b", b)):
+        T = np.eye(4)
+        T[:3, 3] = p
+        out[end] = (T, [radius, radius, radius])
+    return out
+
+
+def _scaled(T: np.ndarray, scale: list[float]) -> np.ndarray:
+    S = T.copy()
+    S[:3, :3] = T[:3, :3] * np.asarray(scale)[None, :]
+    return S
+
+
+def _material(color: int, opacity: float) -> mg.MeshLambertMaterial:
+    return mg.MeshLambertMaterial(color=color, opacity=opacity, transparent=opacity < 1.0)
+
+
+def _closest_at(separation: SeparationTrack, t_s: float) -> int:
+    """Index of the control sample in force at ``t_s`` [s] (the last one at or before it)."""
+    return int(np.clip(np.searchsorted(separation.t_s, t_s + 1e-9) - 1, 0, separation.t_s.size - 1))
+
+
+def draw_body(
+    viewer: meshcat.Visualizer, body: BodyTrack | None, separation: SeparationTrack | None, t_s: float
+) -> None:
+    """(Re)draw the body's capsules and the closest-pair rods, posed at the human's time ``t_s`` [s]."""
+    viewer[BODY_NODE].delete()
+    viewer[CLOSEST_NODE].delete()
+    if body is not None:
+        material = _material(COLOR_BODY_ASSUMED if body.assumed else COLOR_BODY, _BODY_OPACITY)
+        for k in range(body.n_parts):
+            node = viewer[f"{BODY_NODE}/{k}"]
+            node["cyl"].set_object(mg.Cylinder(1.0, 1.0), material)
+            node["a"].set_object(mg.Sphere(1.0), material)
+            node["b"].set_object(mg.Sphere(1.0), material)
+    if separation is not None:
+        for state in SEPARATION_STATES:
+            viewer[f"{CLOSEST_NODE}/{state}"].set_object(
+                mg.Cylinder(1.0, 1.0), _material(SEPARATION_COLORS[state], 1.0)
+            )
+    _pose_static(viewer, body, separation, t_s)
+
+
+def _pose_static(
+    viewer: meshcat.Visualizer, body: BodyTrack | None, separation: SeparationTrack | None, t_s: float
+) -> None:
+    if body is not None:
+        a, b, r = (x[0] for x in body.at(np.array([t_s])))
+        for k in range(body.n_parts):
+            for end, (T, scale) in capsule_transforms(a[k], b[k], float(r[k])).items():
+                viewer[f"{BODY_NODE}/{k}/{end}"].set_transform(_scaled(T, scale))
+    if separation is not None:
+        i = _closest_at(separation, t_s)
+        T, scale = _segment(separation.robot_point_m[i], separation.body_point_m[i], _ROD_RADIUS_M)
+        for state in SEPARATION_STATES:
+            node = viewer[f"{CLOSEST_NODE}/{state}"]
+            node.set_transform(_scaled(T, scale))
+            node.set_property("visible", state == separation.state[i])
+
+
+def body_frame(
+    frame: Any,
+    body: BodyTrack | None,
+    separation: SeparationTrack | None,
+    t_s: float,
+    shown: dict[str, Any],
+    first: bool,
+) -> None:
+    """Pose the body and the closest-pair rod in one animation ``frame`` at the human's time ``t_s``.
+
+    Args:
+        frame: A meshcat animation frame (``animation.at_frame(viewer, k)``).
+        shown: State kept across the frames of one animation (which rod was shown): pass the same
+            empty dict to every frame.
+        first: Whether this is the animation's first frame (every property is set).
+    """
+    if body is not None:
+        a, b, r = (x[0] for x in body.at(np.array([t_s])))
+        for k in range(body.n_parts):
+            for end, (T, scale) in capsule_transforms(a[k], b[k], float(r[k])).items():
+                node = frame[f"{BODY_NODE}/{k}/{end}"]
+                node.set_transform(T)
+                node.set_property("scale", "vector3", scale)
+    if separation is None:
+        return
+    i = _closest_at(separation, t_s)
+    T, scale = _segment(separation.robot_point_m[i], separation.body_point_m[i], _ROD_RADIUS_M)
+    state = separation.state[i]
+    node = frame[f"{CLOSEST_NODE}/{state}"]
+    node.set_transform(T)
+    node.set_property("scale", "vector3", scale)
+    if first or shown.get("state") != state:
+        for s in SEPARATION_STATES:
+            if first or s in (state, shown.get("state")):
+                frame[f"{CLOSEST_NODE}/{s}"].set_property("visible", "boolean", s == state)
+        shown["state"] = state
+
+
+def separation_panel(separation: SeparationTrack, offset_s: float, body: BodyTrack | None = None) -> dict:
+    """The HTML panel's separation data on the animation's time base (human time - ``offset_s``):
+    per sample time, distance [m], state, pair, ``S_p`` [m] and speed ratio (rounded), the minimum
+    and the samples per state; read by ``static/separation.js``."""
+    i = separation.closest
+    sp = separation.protective_distance_m
+    ratio = separation.speed_ratio
+
+    def rounded(x: np.ndarray | None, digits: int = 4) -> list[float | None] | None:
+        return None if x is None else [round(float(v), digits) if np.isfinite(v) else None for v in x]
+
+    return {
+        "t_s": rounded(separation.t_s - offset_s, 3),
+        "distance_m": rounded(separation.distance_m),
+        "state": list(separation.state),
+        "link": list(separation.link),
+        "body_part": list(separation.body_part),
+        "protective_distance_m": rounded(sp),
+        "speed_ratio": rounded(ratio, 3),
+        "min": {
+            "t_s": round(float(separation.t_s[i] - offset_s), 3),
+            "distance_m": round(float(separation.distance_m[i]), 4),
+            "link": separation.link[i],
+            "body_part": separation.body_part[i],
+        },
+        "counts": separation.state_counts(),
+        "source": separation.source or ("assumed human" if body is not None and body.assumed else ""),
+        "colors": {s: f"#{c:06x}" for s, c in SEPARATION_COLORS.items()},
+    }

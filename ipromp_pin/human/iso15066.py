@@ -96,8 +96,9 @@ def arm_mass_matrices(robot: Robot, q_arm: np.ndarray, model: pin.Model | None =
     q = np.atleast_2d(np.asarray(q_arm, dtype=float))
     out = np.empty((q.shape[0], model.nv, model.nv))
     for i, row in enumerate(q):
-        m = pin.crba(model, data, row)
-        out[i] = np.triu(m) + np.triu(m, 1).T
+        out[i] = pin.crba(model, data, row)  # the upper triangle is filled
+    lower = np.tril_indices(model.nv, -1)
+    out[:, lower[0], lower[1]] = out[:, lower[1], lower[0]]
     return out
 
 

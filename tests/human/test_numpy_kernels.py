@@ -111,3 +111,13 @@ def test_auto_follows_the_inference_kernels(monkeypatch, inference):
     monkeypatch.setattr(hk, "human_kernels_cached", lambda: False)
     with use_kernels("auto"):
         assert human_kernels() is nk  # not compiled yet: numpy while the background compile runs
+
+
+def test_the_background_compile_also_compiles_the_human_kernels(monkeypatch, tmp_path):
+    from ipromp_pin.promp import compiled
+
+    monkeypatch.setenv("IPROMP_PIN_CACHE_DIR", str(tmp_path))
+    launched = []
+    monkeypatch.setattr(compiled.subprocess, "Popen", lambda args, **kwargs: launched.append(args))
+    assert compiled.start_background_compile()
+    assert "--also=ipromp_pin.human.kernels" in launched[0]  # registered when ipromp_pin.human.kernels loads

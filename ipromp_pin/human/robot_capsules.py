@@ -22,6 +22,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..robot import Robot
+from .kernels import human_kernels
 
 
 @dataclass(frozen=True)
@@ -129,10 +130,8 @@ def arm_kinematics(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Joint origins and world axes (N, n_joints, 3) and capsule end points (N, L, 3) [m] along
     arm joint angles ``q`` (N, n_joints) [rad] (the robot's held joints at their settings values)."""
-    from .separation_kernels import arm_frames
-
     q = np.ascontiguousarray(np.atleast_2d(np.asarray(q, dtype=float)))
-    return arm_frames(q, caps.x0, caps.axis_local, caps.anchor, caps.a_local, caps.b_local)
+    return human_kernels().arm_frames(q, caps.x0, caps.axis_local, caps.anchor, caps.a_local, caps.b_local)
 
 
 def point_velocities(

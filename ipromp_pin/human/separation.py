@@ -31,6 +31,7 @@ from .iso15066 import (
     region_force_n,
     speed_bound_any_robot_m_s,
 )
+from .kernels import human_kernels
 from .robot_capsules import (
     RobotCapsules,
     arm_kinematics,
@@ -171,19 +172,18 @@ class SeparationAnalyser:
         return result
 
     def _compute(self, t: np.ndarray, q: np.ndarray, qd: np.ndarray, human: HumanMotion) -> Separation:
-        from .separation_kernels import approach_speeds, capsule_distances
-
+        kernels = human_kernels()
         caps, s = self.capsules, self.settings
         q = np.ascontiguousarray(q, dtype=float)
         qd = np.ascontiguousarray(qd, dtype=float)
         origins, axes, ra, rb = arm_kinematics(caps, q)
         ha, hb, hr = human.capsules(t)
         caps_radius_p = human.radius_m[None, :]
-        dist, cr, ch = capsule_distances(ra, rb, caps.radius_m, ha, hb, np.ascontiguousarray(hr))
+        dist, cr, ch = kernels.capsule_distances(ra, rb, caps.radius_m, ha, hb, np.ascontiguousarray(hr))
         n, nl, npart = dist.shape
         t_r, t_stop = s.reaction_time_s, s.stopping_time_s
         sp_const = s.speed_m_s * (t_r + t_stop) + constant_distance_m(s)
-        approach, protective, unit = approach_speeds(
+        approach, protective, unit = kernels.approach_speeds(
             dist, cr, ch, caps.radius_m, origins, axes, qd, caps.anchor, sp_const, t_r + t_stop / 2.0
         )
         ratio = np.zeros(dist.shape)
@@ -227,8 +227,7 @@ class SeparationAnalyser:
     ) -> None:
         """Effective mass and approach speed / v_max of the pairs within S_p that are faster than
         the limit of an infinitely heavy robot (in place; no other pair can exceed its limit)."""
-        from .separation_kernels import inverse_effective_masses, pair_jtu
-
+        kernels = human_kernels()
         caps, s = self.capsules, self.settings
         limits = [s.regions[str(r)] for r in human.regions]
         lower = np.array([speed_bound_any_robot_m_s(lim, s.contact) for lim in limits])
@@ -236,12 +235,12 @@ class SeparationAnalyser:
         if not np.any(need):
             return
         n_i, l_i, p_i = np.nonzero(need)
-        w = pair_jtu(n_i, l_i, p_i, cr, unit, caps.radius_m, origins, axes, caps.anchor, qd)  # J^T u
+        w = kernels.pair_jtu(n_i, l_i, p_i, cr, unit, caps.radius_m, origins, axes, caps.anchor, qd)  # J^T u
         samples, which = np.unique(n_i, return_inverse=True)
         if self._arm_model is None:
             self._arm_model = arm_model(self.robot)
         inertia = arm_mass_matrices(self.robot, q[samples], self._arm_model)
-        inv = inverse_effective_masses(inertia, which.astype(np.int64), np.ascontiguousarray(w))
+        inv = kernels.inverse_effective_masses(inertia, which.astype(np.int64), np.ascontiguousarray(w))
         m_r = 1.0 / np.maximum(inv, 1e-300)
         force = np.array([region_force_n(lim, s.contact) for lim in limits])[p_i]
         m_h = np.array([lim.mass_kg for lim in limits])[p_i]

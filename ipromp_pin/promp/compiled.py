@@ -34,9 +34,11 @@ __all__ = [
     "COMPILE_SECONDS",
     "FIT_PREDICT_KERNELS",
     "compiled_kernels_cached",
+    "active_backend",
     "kernel_backend",
     "kernels",
     "numba_kernels",
+    "register_warmup",
     "set_announcer",
     "set_kernel_backend",
     "start_background_compile",
@@ -76,6 +78,7 @@ _state: dict = {
     "auto_numpy": False,  # auto mode decided on the numpy kernels for this process
     "announce": None,
     "announced_compile": False,
+    "warmups": [],  # modules whose compile_kernels() the background compile also runs
 }
 
 
@@ -112,6 +115,19 @@ def use_kernels(backend: str) -> Iterator[None]:
         yield
     finally:
         set_kernel_backend(previous)
+
+
+def active_backend() -> str:
+    """``"numba"`` or ``"numpy"``: what :func:`kernels` uses in this process (deciding ``"auto"`` now if
+    no inference has yet). Other packages' kernels follow it, so that a process never mixes them."""
+    return "numpy" if kernels() is _state["numpy"] else "numba"
+
+
+def register_warmup(module: str) -> None:
+    """Have the background compile also run ``module``'s ``compile_kernels()`` (another package's
+    numba kernels, e.g. ``"ipromp_pin.human.warmup"``), after the inference kernels."""
+    if module not in _state["warmups"]:
+        _state["warmups"].append(module)
 
 
 def _numpy_module() -> ModuleType:
@@ -222,7 +238,8 @@ def start_background_compile() -> bool:
                 subprocess, "CREATE_NEW_PROCESS_GROUP", 0
             )
         subprocess.Popen(
-            [sys.executable, "-m", "ipromp_pin.promp.warmup", "--lock", str(lock)],
+            [sys.executable, "-m", "ipromp_pin.promp.warmup", "--lock", str(lock)]
+            + [f"--also={m}" for m in _state["warmups"]],
             stdin=subprocess.DEVNULL,
             stdout=log,
             stderr=subprocess.STDOUT,

@@ -10,6 +10,7 @@ when the compile fails, so that it is not retried on every run). Takes about 20 
 from __future__ import annotations
 
 import argparse
+import importlib
 import os
 import sys
 import time
@@ -43,12 +44,18 @@ def compile_kernels() -> float:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--lock", type=Path, help="lock file to remove when done")
+    parser.add_argument(
+        "--also", action="append", default=[], help="module whose compile_kernels() to run too (repeatable)"
+    )
     args = parser.parse_args(argv)
     if hasattr(os, "nice"):
         os.nice(10)  # a background job: the user's own work goes first
     code = 0
     try:
         print(f"compiled the inference kernels in {compile_kernels():.1f} s", flush=True)
+        for module in args.also:
+            seconds = importlib.import_module(module).compile_kernels()
+            print(f"compiled the kernels of {module} in {seconds:.1f} s", flush=True)
     except Exception:  # recorded for the parent, which then stops retrying for a day
         traceback.print_exc()
         code = 1

@@ -38,7 +38,6 @@ import numpy as np
 from ipromp_pin.cli import build_parser
 from ipromp_pin.cli.arguments import closed_loop_settings, pipeline_config
 from ipromp_pin.commands.replay import prepare_replay
-from ipromp_pin.handover.closed_loop import replay_demo
 from ipromp_pin.promp import IProMP
 from ipromp_pin.readers.synthetic import make_synthetic_dataset
 
@@ -108,9 +107,7 @@ def main() -> None:
         stages: dict[str, list[float]] = {}
         first: list[float] = []
         for i in range(args.replays + 1):
-            result = replay_demo(
-                session.model, session.robot, session.demo, setup.profile, settings, setup.certifier
-            )
+            result = setup.replay(settings)
             replans = [r.cycle_ms for r in result.replans]
             if i == 0:  # the replay of a fresh process: what `ipromp-pin replay` reports
                 first = replans

@@ -175,6 +175,22 @@ class ReplaySetup:
     profile: LimitProfile
     certifier: ClearanceCertifier
 
+    def replay(self, settings: ClosedLoopSettings) -> ClosedLoopResult:
+        """The closed loop of the held-out demo at its recorded timing, with the session's timed-motion
+        checks and their context (what ``ipromp-pin replay`` runs and ``benchmarks/closed_loop.py``
+        times)."""
+        s = self.session
+        return replay_demo(
+            s.model,
+            s.robot,
+            s.demo,
+            self.profile,
+            settings,
+            self.certifier,
+            checks=s.motion_checks,
+            context=s.check_context,
+        )
+
 
 def prepare_replay(
     cfg: PipelineConfig,
@@ -225,16 +241,7 @@ def run_replay(
     setup = prepare_replay(cfg, settings, limits, log, warn)
     session = setup.session
     demo, robot = session.demo, session.robot
-    result = replay_demo(
-        session.model,
-        robot,
-        demo,
-        setup.profile,
-        settings,
-        setup.certifier,
-        checks=session.motion_checks,
-        context=session.check_context,
-    )
+    result = setup.replay(settings)
     score = score_closed_loop(result, demo, robot)
     score_torques(session, result, score)
     with atomic.OutputSet(cfg.out_dir, managed=REPLAY_OUTPUTS) as out:

@@ -33,7 +33,7 @@ import sys
 from ..exceptions import IPrompPinError
 from . import calibrate, evaluate, preview, replay, run, synth, train
 from .arguments import OneLineErrorParser
-from .interrupt import EXIT_INTERRUPTED, interruptible, report_interruption
+from .interrupt import EXIT_INTERRUPTED, interruptible, interruption_behind, report_interruption
 from .progress import EXIT_CHECKS_FAILED, EXIT_ERROR, ProgressLine, print_error
 
 __all__ = ["EXIT_CHECKS_FAILED", "EXIT_ERROR", "build_parser", "console_main", "main"]
@@ -64,6 +64,12 @@ def main(argv: list[str] | None = None) -> int:
         except KeyboardInterrupt as exc:  # SIGINT, or SIGTERM (Terminated)
             ProgressLine.end()
             return report_interruption(seen[-1] if seen else "", exc)
+        except Exception as exc:  # raised *because* of an interruption (a library's handler, a kernel)
+            cause = interruption_behind(exc)
+            if cause is None:
+                raise
+            ProgressLine.end()
+            return report_interruption(seen[-1] if seen else "", cause)
 
 
 def _main(argv: list[str] | None, seen: list[str]) -> int:

@@ -52,6 +52,19 @@ def interruptible() -> Iterator[None]:
             signal.signal(s, handler if handler is not None else signal.SIG_DFL)
 
 
+def interruption_behind(exc: BaseException) -> KeyboardInterrupt | None:
+    """The interruption (SIGINT, SIGTERM) that ``exc`` was raised while handling, if any: a library
+    that catches the signal's exception and raises its own (its ``__context__`` or ``__cause__``)."""
+    seen: set[int] = set()
+    node: BaseException | None = exc
+    while node is not None and id(node) not in seen:
+        if isinstance(node, KeyboardInterrupt):
+            return node
+        seen.add(id(node))
+        node = node.__cause__ or node.__context__
+    return None
+
+
 def report_interruption(command: str, exc: KeyboardInterrupt) -> int:
     """Print the one line of an interrupted command; returns its exit status (130 or 143)."""
     name, status = (

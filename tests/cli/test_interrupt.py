@@ -124,3 +124,28 @@ def test_console_script_interrupted_at_start_up_or_in_training(tiny, tmp_path, s
     _one_line(err, name)
     assert target.read_bytes() == model.read_bytes()
     _no_temporary(tmp_path)
+
+
+@pytest.mark.parametrize("chain", ["context", "cause"])
+def test_an_error_raised_because_of_an_interruption_is_the_interruption(monkeypatch, capsys, chain):
+    import ipromp_pin.cli as cli
+
+    def interrupted_inside_a_library(argv, seen):
+        seen.append("train")
+        try:
+            raise KeyboardInterrupt
+        except KeyboardInterrupt as exc:
+            if chain == "cause":
+                raise RuntimeError("worker failed") from exc
+            raise RuntimeError("worker failed")  # noqa: B904 (the context is the point)
+
+    monkeypatch.setattr(cli, "_main", interrupted_inside_a_library)
+    assert cli.main([]) == 130
+    assert "ipromp-pin train: interrupted (SIGINT)" in capsys.readouterr().err
+
+    def plain_error(argv, seen):
+        raise RuntimeError("a bug, not an interruption")
+
+    monkeypatch.setattr(cli, "_main", plain_error)
+    with pytest.raises(RuntimeError, match="a bug"):
+        cli.main([])

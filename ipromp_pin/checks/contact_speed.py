@@ -5,9 +5,15 @@ Where a robot geometry is closer to a body part than S_p (clause 5.5.4), its clo
 toward that part must be at most ``v_max = F_max / sqrt(mu k)`` of the part's body region (clause
 5.5.5, Annex A; :mod:`ipromp_pin.human.iso15066`), with the robot's effective mass at that point in
 that direction. The hand region, where the hand-over contact is intended, is judged by the hand's
-limits like every other region. A failing check asks for the uniform slow-down
-``k = max(approach speed / v_max)`` (``values["slowdown"]``): going ``k`` times slower divides every
-approach speed by ``k`` and shrinks S_p, so the plan is re-timed instead of refused.
+limits like every other region.
+
+A plan passes when every such approach stays within ``(1 - speed_margin) v_max`` (the settings'
+``[iso15066] speed_margin``: room for the human's motion after the observation the plan was checked
+against). ``n_speed_violations`` counts the samples faster than ``v_max`` itself (what the
+evaluation reports against the recorded human), ``n_over_planning_limit`` those beyond the margin.
+A failing check asks for the uniform slow-down ``k = max(approach speed / v_max) / (1 -
+speed_margin)`` (``values["slowdown"]``): going ``k`` times slower divides every approach speed by
+``k`` and shrinks S_p, so the plan is re-timed instead of refused.
 """
 
 from __future__ import annotations
@@ -29,13 +35,17 @@ class ContactSpeed(MotionCheck):
 
     def check(self, motion: TimedMotion, context: CheckContext) -> CheckResult:
         sep = separation_of(self, motion, context)
+        allowed = 1.0 - self.robot.settings.human.speed_margin
         violations = int(np.count_nonzero(sep.violation))
+        over = int(np.count_nonzero(sep.over(allowed)))
         n = int(np.argmax(sep.max_ratio))
         li, pi = np.unravel_index(int(np.argmax(sep.speed_ratio[n])), sep.speed_ratio.shape[1:])
         worst = float(sep.speed_ratio[n, li, pi])
         speed = float(sep.approach_m_s[n, li, pi])
         values: dict = {
             "n_speed_violations": violations,
+            "n_over_planning_limit": over,
+            "planning_limit_ratio": allowed,
             "max_speed_ratio": worst,
             "link": sep.links[li],
             "body_part": sep.parts[pi],
@@ -52,11 +62,12 @@ class ContactSpeed(MotionCheck):
         where = (
             f"{sep.links[li]} toward the {who}'s {sep.parts[pi]} ({sep.regions[pi]}) at t={sep.t_s[n]:.2f} s"
         )
-        if violations:
-            values["slowdown"] = worst * SLOWDOWN_MARGIN
+        if over:
+            values["slowdown"] = worst / allowed * SLOWDOWN_MARGIN
             reason = (
-                f"{violations} samples inside S_p faster than the contact-speed limit: "
-                f"{speed:.2f} m/s > {values['v_max_m_s']:.2f} m/s ({where})"
+                f"{over} samples inside S_p faster than {allowed:.0%} of the contact-speed limit "
+                f"({violations} beyond the limit): {speed:.2f} m/s, limit {values['v_max_m_s']:.2f} m/s "
+                f"({where})"
             )
             return CheckResult(self.name, "fail", reason, values)
         if worst <= 0:

@@ -280,7 +280,9 @@ class HumanMotion:
         both = has_a & has_b
         span = np.where(both & (tb > ta), tb - ta, 1.0)
         w = np.where(both, (t[:, None] - ta) / span, 0.0)
-        out = np.where(has_a[..., None], pa, pb) * (1.0 - w[..., None]) + pb * w[..., None]
+        # blend only where both ends are known: an unknown end indexes sample 0, which may be NaN
+        blend = pa + (pb - pa) * w[..., None]
+        out = np.where(both[..., None], blend, np.where(has_a[..., None], pa, pb))
         v = self.speed_m_s
         dt = float(ts[1] - ts[0]) if n_t > 1 else 0.0
         gap = both & (tb - ta > 1.5 * dt)

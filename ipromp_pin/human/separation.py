@@ -20,6 +20,7 @@ from functools import cached_property
 import numpy as np
 import pinocchio as pin
 
+from ..exceptions import DataError
 from ..robot import Robot
 from ..robot.human_settings import HumanSettings
 from .body import HumanMotion
@@ -101,6 +102,10 @@ class Separation:
         """(N,) whether, within S_p, the robot approaches some body part faster than its limit."""
         return self.max_ratio > 1.0
 
+    def over(self, fraction: float) -> np.ndarray:
+        """(N,) whether, within S_p, some approach exceeds ``fraction`` of its limit."""
+        return self.max_ratio > fraction
+
     @property
     def min_distance_m(self) -> np.ndarray:
         """(N,) the smallest robot-body distance [m] (every part)."""
@@ -179,6 +184,8 @@ class SeparationAnalyser:
         origins, axes, ra, rb = arm_kinematics(caps, q)
         ha, hb, hr = human.capsules(t)
         caps_radius_p = human.radius_m[None, :]
+        if not (np.all(np.isfinite(ha)) and np.all(np.isfinite(hb)) and np.all(np.isfinite(hr))):
+            raise DataError(human.source or "human", "body capsules", "non-finite position or radius")
         dist, cr, ch = kernels.capsule_distances(ra, rb, caps.radius_m, ha, hb, np.ascontiguousarray(hr))
         n, nl, npart = dist.shape
         t_r, t_stop = s.reaction_time_s, s.stopping_time_s
@@ -226,12 +233,14 @@ class SeparationAnalyser:
         mass: np.ndarray,
     ) -> None:
         """Effective mass and approach speed / v_max of the pairs within S_p that are faster than
-        the limit of an infinitely heavy robot (in place; no other pair can exceed its limit)."""
+        ``1 - speed_margin`` of the limit of an infinitely heavy robot (in place; no other pair can
+        reach the planning limit ``(1 - speed_margin) v_max``)."""
         kernels = human_kernels()
         caps, s = self.capsules, self.settings
         limits = [s.regions[str(r)] for r in human.regions]
         lower = np.array([speed_bound_any_robot_m_s(lim, s.contact) for lim in limits])
-        need = (dist < protective) & (approach > lower[None, None, :])
+        floor = (1.0 - s.speed_margin) * lower  # below it, no pair reaches the planning limit
+        need = (dist < protective) & (approach > floor[None, None, :])
         if not np.any(need):
             return
         n_i, l_i, p_i = np.nonzero(need)

@@ -93,6 +93,11 @@ class HumanSettings:
         robot_uncertainty_m: Z_r, the position uncertainty of the robot in [m].
         contact: ``"transient"`` or ``"quasi_static"``: which Annex A force limits the contact
             speed is held to.
+        speed_margin: Fraction in [0, 1) of the contact-speed limit that a plan keeps free: a plan
+            passes ``contact_speed`` when, inside S_p, every approach is at most ``(1 - speed_margin)
+            v_max``. The human keeps moving after each observation; the margin absorbs what that
+            changes of distance, direction and effective mass before the next re-plan. Violations
+            of what happened are still counted against ``v_max`` itself.
         regions: Body region -> its Annex A values (defaults :data:`REGION_LIMITS`, overridable).
     """
 
@@ -107,6 +112,7 @@ class HumanSettings:
     human_uncertainty_m: float = 0.05
     robot_uncertainty_m: float = 0.01
     contact: str = "transient"
+    speed_margin: float = 0.1
     regions: dict[str, RegionLimit] = field(default_factory=lambda: dict(REGION_LIMITS))
 
 
@@ -170,6 +176,13 @@ def _regions(table: dict, source: Path) -> dict[str, RegionLimit]:
     return out
 
 
+def _margin(iso: dict, source: Path, default: float) -> float:
+    value = iso.get("speed_margin", default)
+    if isinstance(value, bool) or not isinstance(value, int | float) or not 0.0 <= float(value) < 1.0:
+        raise _error(source, "iso15066.speed_margin", f"must be a number in [0, 1), got {value!r}")
+    return float(value)
+
+
 def read_human_settings(doc: dict, source: Path) -> HumanSettings:
     """The validated ``[human]`` / ``[iso15066]`` tables of a settings document (defaults when absent).
 
@@ -206,5 +219,6 @@ def read_human_settings(doc: dict, source: Path) -> HumanSettings:
             iso, "robot_uncertainty_m", source, "iso15066", d.robot_uncertainty_m, True
         ),
         contact=str(contact),
+        speed_margin=_margin(iso, source, d.speed_margin),
         regions=_regions(_sub_table(iso, "regions", source, "iso15066."), source),
     )

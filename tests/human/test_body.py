@@ -83,6 +83,20 @@ def test_inflation_is_capped_and_never_drops_a_frame():
     assert np.all(np.isfinite(h.capsules(np.linspace(0, 3, 31))[0]))
 
 
+def test_a_frame_missing_at_the_first_sample_is_held_finite_after_the_planners_horizon():
+    # The head is occluded for the first 10 samples, then tracked. Past the planner's horizon its
+    # position is held: a NaN at sample 0 must not leak into the held position (it once did, and
+    # the planner then saw no head at all after its last observation).
+    h = HumanMotion.from_demo(_skeleton_demo(gap=(0, 10)), HumanSettings(speed_m_s=1.0, max_inflation_m=1.0))
+    head = list(h.part_names).index("head")
+    seen = h.until(1.0)
+    a, b, r = seen.capsules(np.array([0.5, 1.0, 1.05, 1.5]))
+    assert np.all(np.isfinite(a)) and np.all(np.isfinite(b)) and np.all(np.isfinite(r))
+    x_obs = -ASSUMED_POSE_M["/head_1"][0] + 0.5 * 1.0
+    np.testing.assert_allclose(a[1:, head, 0], x_obs, atol=1e-9)  # held at the last observation
+    np.testing.assert_allclose(r[1:, head], 0.11 + np.array([0.0, 0.05, 0.5]), atol=1e-9)
+
+
 def test_a_demo_without_a_skeleton_has_no_tracked_human_and_the_assumed_one_stands_in():
     demo = _skeleton_demo()
     bare = Demo("task", "d1", "bare.csv", demo.t, demo.groups, demo.channel_names)

@@ -76,7 +76,9 @@ def _fold(args: tuple) -> list[dict]:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     parser.add_argument("dataset", type=Path)
     parser.add_argument("--observe", default="/left_hand_1,emg")
     parser.add_argument("--n-train", type=int, default=10)
@@ -128,7 +130,9 @@ def main() -> None:
     print(f"chosen: speed_margin = {chosen['margin']:g}")
     if args.json:
         args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(json.dumps({"summary": summary, "chosen": chosen["margin"], "rows": rows}, indent=1))
+        args.json.write_text(
+            json.dumps({"summary": summary, "chosen": chosen["margin"], "rows": rows}, indent=1)
+        )
 
 
 if __name__ == "__main__":

@@ -3,15 +3,18 @@
 :func:`build_robot` builds the kinematic model (~3 ms) and, unless asked not to, the collision
 model (~50 ms) with the SRDF's disabled pairs removed, checking the settings against the model.
 :func:`load_robot` builds a robot once per settings file and caches it in this module's
-dictionary ``_ROBOT_CACHE`` (module-level state, keyed by the resolved settings path and the
-file's modification time and size, so a re-calibrated file is reloaded; :func:`clear_robot_cache`
+dictionary ``_ROBOT_CACHE`` (module-level state, keyed by the resolved settings path, the
+file's modification time and size, so a re-calibrated file is reloaded, and a digest of the settings'
+values, so a changed copy of a file's settings is its own robot; :func:`clear_robot_cache`
 empties it; ``cache=False`` bypasses it). Visual meshes (~2 s) are never loaded by the checks;
 previews call :func:`load_visual_model`.
 """
 
 from __future__ import annotations
 
+import hashlib
 import math
+import pickle
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -19,7 +22,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..exceptions import RobotError
-from .settings import RobotSettings, load_robot_settings, resolve_settings_path, settings_error
+from .settings import RobotSettings, load_robot_settings, settings_error
 
 
 @dataclass
@@ -138,7 +141,11 @@ class Robot:
 
 
 _ROBOT_CACHE: dict[tuple, Robot] = {}
-"""Loaded robots keyed by (resolved settings path, mtime_ns, size); see :func:`load_robot`."""
+"""Loaded robots keyed by (resolved settings path, mtime_ns, size, settings digest); see
+:func:`load_robot`."""
+
+ROBOT_CACHE_SIZE = 8
+"""Most robots kept in the cache (the oldest is dropped)."""
 
 
 def clear_robot_cache() -> None:
@@ -158,20 +165,21 @@ def load_robot(settings: RobotSettings | str | Path, *, cache: bool = True) -> R
         RobotError: unknown joint or frame names, non-revolute or out-of-order arm joints, invalid
             URDF limits, fixed joint values outside their limits, a held configuration in collision.
     """
+    if not isinstance(settings, RobotSettings):
+        settings = load_robot_settings(settings)
     key = None
-    if cache:
-        path = settings.path if isinstance(settings, RobotSettings) else resolve_settings_path(settings)
-        st = path.stat()
-        key = (str(path), st.st_mtime_ns, st.st_size)
+    if cache:  # by the file and the settings' values (a changed copy of a file's settings is another robot)
+        st = settings.path.stat()
+        digest = hashlib.sha1(pickle.dumps(settings)).hexdigest()
+        key = (str(settings.path), st.st_mtime_ns, st.st_size, digest)
         robot = _ROBOT_CACHE.get(key)
         if robot is not None:
             return robot
-    if not isinstance(settings, RobotSettings):
-        settings = load_robot_settings(settings)
     robot = build_robot(settings)
     if key is not None:
-        for k in [k for k in _ROBOT_CACHE if k[0] == key[0]]:
-            del _ROBOT_CACHE[k]
+        stale = [k for k in _ROBOT_CACHE if k[0] == key[0] and k[1:3] != key[1:3]]
+        for k in stale[:] + list(_ROBOT_CACHE)[: max(len(_ROBOT_CACHE) - ROBOT_CACHE_SIZE + 1, 0)]:
+            _ROBOT_CACHE.pop(k, None)
         _ROBOT_CACHE[key] = robot
     return robot
 

@@ -100,13 +100,36 @@ def test_a_too_fast_approach_asks_for_the_slowdown_that_passes(robot):
     fast = check.check(motion, context)
     assert fast.status == "fail" and fast.values["n_speed_violations"] > 0
     k = fast.values["slowdown"]
-    assert k == pytest.approx(fast.values["max_speed_ratio"] * SLOWDOWN_MARGIN) and k > 1
+    allowed = 1.0 - robot.settings.human.speed_margin
+    assert fast.values["planning_limit_ratio"] == pytest.approx(allowed)
+    assert k == pytest.approx(fast.values["max_speed_ratio"] / allowed * SLOWDOWN_MARGIN) and k > 1
     t0 = motion.t_s[0]
     slow = TimedMotion(
         t0 + (motion.t_s - t0) * k, motion.q, motion.qd / k, motion.qdd / k**2, motion.dt_s * k
     )
     again = check.check(slow, context)
-    assert again.status == "pass" and again.values["max_speed_ratio"] <= 1.0
+    assert again.status == "pass" and again.values["max_speed_ratio"] <= allowed
+
+
+def test_the_speed_margin_keeps_room_below_the_limit_and_violations_count_the_limit_itself(robot):
+    from dataclasses import replace
+
+    motion = _motion(0.5)
+    end = ee_positions(robot, motion.q[-1:])[0]
+    context = CheckContext(human=_sphere_human(end + np.array([0.3, 0.0, 0.0]), "face"))
+    ratio = ContactSpeed(robot).check(motion, context).values["max_speed_ratio"]
+    # slowed to 95 % of the limit: beyond a 10 % margin, within the limit itself
+    k = ratio / 0.95
+    t0 = motion.t_s[0]
+    slow = TimedMotion(t0 + (motion.t_s - t0) * k, motion.q, motion.qd / k, motion.qdd / k**2, 0.01 * k)
+    strict = load_robot(replace(robot.settings, human=replace(robot.settings.human, speed_margin=0.1)))
+    loose = load_robot(replace(robot.settings, human=replace(robot.settings.human, speed_margin=0.0)))
+    held = ContactSpeed(strict).check(slow, context)
+    assert held.status == "fail" and held.values["n_over_planning_limit"] > 0
+    assert held.values["n_speed_violations"] == 0 and "90% of the contact-speed limit" in held.reason
+    assert held.values["max_speed_ratio"] == pytest.approx(0.95, rel=1e-3)
+    free = ContactSpeed(loose).check(slow, context)
+    assert free.status == "pass", free.reason
 
 
 def test_without_a_human_the_assumed_human_is_checked(robot):
@@ -123,6 +146,9 @@ def test_bad_human_parameters_are_one_line_errors(tmp_path, tiny, capsys):
         load_robot_settings(bad)
     bad.write_text(ROBOT_FILE.read_text().replace("reaction_time_s = 0.1", "reaction_time_s = nan"))
     with pytest.raises(RobotError, match=r"iso15066\.reaction_time_s.*finite"):
+        load_robot_settings(bad)
+    bad.write_text(ROBOT_FILE.read_text().replace("speed_margin = 0.1", "speed_margin = 1.0"))
+    with pytest.raises(RobotError, match=r"field 'iso15066\.speed_margin': must be a number in \[0, 1\)"):
         load_robot_settings(bad)
     bad.write_text(ROBOT_FILE.read_text() + "\n[iso15066.regions.hand]\nspring_n_mm = 0\n")
     with pytest.raises(RobotError, match=r"iso15066\.regions\.hand\.spring_n_mm"):

@@ -44,6 +44,14 @@ def test_left_settings_load_and_describe_the_arm():
 def test_load_robot_is_cached_and_reads_urdf_limits():
     robot = load_robot("baxter_left")
     assert load_robot(LEFT) is robot
+    assert load_robot(robot.settings) is robot
+    # a changed copy of the file's settings is its own robot, not the cached one
+    from dataclasses import replace
+
+    changed = replace(robot.settings, human=replace(robot.settings.human, speed_margin=0.0))
+    other = load_robot(changed)
+    assert other is not robot and other.settings.human.speed_margin == 0.0
+    assert load_robot("baxter_left") is robot and load_robot(changed) is other
     assert robot.arm_q_index.shape == (7,)
     np.testing.assert_allclose(robot.velocity_rad_s, [1.5, 1.5, 1.5, 1.5, 4.0, 4.0, 4.0])
     assert robot.lower_rad[3] == pytest.approx(-0.05) and robot.upper_rad[3] == pytest.approx(2.618)

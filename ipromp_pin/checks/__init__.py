@@ -10,7 +10,9 @@ of separation, contact-speed and torque limits.
   :class:`~.base.MotionCheck` base class;
 - :mod:`.registry`: the registered checks (one file each in this package, one line in the registry)
   and :func:`~.registry.run_checks`;
-- :mod:`.slowdown`: how much slower a motion must go for its failing checks to pass.
+- :mod:`.slowdown`: how much slower a motion must go for its failing checks to pass;
+- :mod:`.separation_base`: the base of the checks judged on the robot-body separation (they share
+  one analyser when built together).
 
 A new check is one file here (a :class:`~.base.MotionCheck` subclass) plus one line in
 :data:`~.registry.MOTION_CHECKS`; ``run``, ``replay``, ``evaluate`` and the reports pick it up.

@@ -21,20 +21,20 @@ from __future__ import annotations
 import numpy as np
 
 from ..robot import CheckResult
-from .base import CheckContext, MotionCheck, TimedMotion
-from .human_clearance import separation_of, time_within_sp_s
+from .base import CheckContext, TimedMotion
+from .separation_base import SeparationCheck, time_within_sp_s
 
 SLOWDOWN_MARGIN = 1.02
 """Factor on the requested slow-down so that the re-timed motion passes with a little room."""
 
 
-class ContactSpeed(MotionCheck):
+class ContactSpeed(SeparationCheck):
     """Inside S_p, approach speeds within the body regions' limits (see the module docstring)."""
 
     name = "contact_speed"
 
     def check(self, motion: TimedMotion, context: CheckContext) -> CheckResult:
-        sep = separation_of(self, motion, context)
+        sep = self.separation(motion, context)
         allowed = 1.0 - self.robot.settings.human.speed_margin
         violations = int(np.count_nonzero(sep.violation))
         over = int(np.count_nonzero(sep.over(allowed)))

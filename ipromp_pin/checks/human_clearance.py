@@ -19,37 +19,19 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..human import HumanMotion
-from ..human.separation import HAND_REGION, Separation, analyser_for
+from ..human.separation import HAND_REGION
 from ..robot import CheckResult
-from .base import CheckContext, MotionCheck, TimedMotion
+from .base import CheckContext, TimedMotion
+from .separation_base import SeparationCheck, time_within_sp_s
 
 
-def context_human(check: MotionCheck, context: CheckContext) -> HumanMotion:
-    """The context's human, or the robot settings' assumed human when the context has none."""
-    if context.human is not None:
-        return context.human
-    return HumanMotion.assumed_human(check.robot.settings.human)
-
-
-def separation_of(check: MotionCheck, motion: TimedMotion, context: CheckContext) -> Separation:
-    """The robot-body separation along ``motion`` (shared by the human checks of one motion)."""
-    human = context_human(check, context)
-    return analyser_for(check.robot).analyse(motion.t_s, motion.q, motion.qd, human)
-
-
-def time_within_sp_s(sep: Separation) -> float:
-    """Time in [s] during which the robot is closer than S_p to some body part."""
-    return float(np.count_nonzero(sep.within_sp) * sep.dt_s)
-
-
-class HumanClearance(MotionCheck):
+class HumanClearance(SeparationCheck):
     """The robot stays clear of the body outside the hand region (see the module docstring)."""
 
     name = "human_clearance"
 
     def check(self, motion: TimedMotion, context: CheckContext) -> CheckResult:
-        sep = separation_of(self, motion, context)
+        sep = self.separation(motion, context)
         clearance = sep.clearance_m(HAND_REGION)
         n = int(np.argmin(clearance))
         link, part, t, d = sep.where(n, exclude_region=HAND_REGION, nominal=True)

@@ -9,30 +9,36 @@ from __future__ import annotations
 from collections.abc import Iterable, Sequence
 
 from ..exceptions import PipelineError
+from ..human.separation import SeparationAnalyser
 from ..robot import CheckResult, Robot
 from .base import CheckContext, MotionCheck, TimedMotion
 from .contact_speed import ContactSpeed
 from .human_clearance import HumanClearance
 from .joint_torques import JointTorques
+from .separation_base import SeparationCheck
 
 MOTION_CHECKS: tuple[type[MotionCheck], ...] = (HumanClearance, ContactSpeed, JointTorques)
 """Every timed-motion check, in the order of the reports."""
 
 
 def build_checks(robot: Robot, names: Iterable[str] | None = None) -> list[MotionCheck]:
-    """The registered checks for ``robot`` (all, or those named, in registry order).
+    """The registered checks for ``robot`` (all, or those named, in registry order); the separation
+    checks share one :class:`~ipromp_pin.human.separation.SeparationAnalyser`.
 
     Raises:
         PipelineError: an unknown check name.
     """
     known = {c.name: c for c in MOTION_CHECKS}
-    if names is None:
-        return [c(robot) for c in MOTION_CHECKS]
-    wanted = list(names)
+    wanted = list(known if names is None else names)
     unknown = [n for n in wanted if n not in known]
     if unknown:
         raise PipelineError(f"unknown motion check(s) {unknown}; known: {sorted(known)}")
-    return [c(robot) for c in MOTION_CHECKS if c.name in wanted]
+    shared = SeparationAnalyser(robot)  # one separation per motion for every separation check
+    return [
+        c(robot, shared) if issubclass(c, SeparationCheck) else c(robot)
+        for c in MOTION_CHECKS
+        if c.name in wanted
+    ]
 
 
 def run_checks(

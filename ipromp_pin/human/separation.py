@@ -257,16 +257,3 @@ class SeparationAnalyser:
         v_max = force / np.sqrt(reduced_mass_kg(m_h, m_r) * k)
         mass[n_i, l_i, p_i] = m_r
         ratio[n_i, l_i, p_i] = approach[n_i, l_i, p_i] / v_max
-
-
-_ANALYSERS: dict[int, SeparationAnalyser] = {}
-"""One analyser per loaded robot (keyed by ``id(robot)``, the robot kept to check it): the checks
-``human_clearance`` and ``contact_speed`` of one motion share its capsules and its last result."""
-
-
-def analyser_for(robot: Robot) -> SeparationAnalyser:
-    """The shared :class:`SeparationAnalyser` of ``robot`` (with the robot's own settings)."""
-    found = _ANALYSERS.get(id(robot))
-    if found is None or found.robot is not robot:
-        found = _ANALYSERS[id(robot)] = SeparationAnalyser(robot)
-    return found

@@ -18,7 +18,7 @@ import numpy as np
 from ..checks import TimedMotion
 from ..data import Demo
 from ..human import HumanMotion
-from ..human.separation import Separation, analyser_for
+from ..human.separation import Separation, SeparationAnalyser
 from ..preview.body import SEPARATION_STATES, BodyTrack, SeparationTrack
 from ..robot import Robot
 
@@ -79,6 +79,6 @@ def human_tracks(
     if human is None:
         return None, None
     motion = held_until(motion, float(human.t_s[-1]), dt_s)
-    sep = analyser_for(robot).analyse(motion.t_s, motion.q, motion.qd, human)
+    sep = SeparationAnalyser(robot).analyse(motion.t_s, motion.q, motion.qd, human)
     source = "assumed human" if human.assumed else "recorded human"
     return body_track(human), separation_track(sep, source)

@@ -22,7 +22,7 @@ from ipromp_pin.human import BodyPart, HumanMotion
 from ipromp_pin.human.geometry import segment_closest_points
 from ipromp_pin.human.iso15066 import point_effective_mass_kg
 from ipromp_pin.human.robot_capsules import arm_kinematics
-from ipromp_pin.human.separation import analyser_for
+from ipromp_pin.human.separation import SeparationAnalyser
 from ipromp_pin.robot import ee_positions, load_robot, load_robot_settings
 from ipromp_pin.robot.human_settings import REGION_LIMITS
 
@@ -80,9 +80,9 @@ def test_contact_speed_bound_toward_a_hand_matches_the_formula(robot):
     mu = 1.0 / (1.0 / hand.mass_kg + 1.0 / v["robot_mass_kg"])
     assert v["v_max_m_s"] == pytest.approx(2.0 * hand.force_n / math.sqrt(mu * hand.spring_n_m))
     # the effective mass is Pinocchio's at the robot's closest point, in the separation direction
-    sep = analyser_for(robot).analyse(motion.t_s, motion.q, motion.qd, human)
+    sep = SeparationAnalyser(robot).analyse(motion.t_s, motion.q, motion.qd, human)
     n, li, pi = np.unravel_index(int(np.argmax(sep.speed_ratio)), sep.speed_ratio.shape)
-    caps = analyser_for(robot).capsules
+    caps = SeparationAnalyser(robot).capsules
     _, _, a, b = arm_kinematics(caps, motion.q[n : n + 1])
     axis_point, _, _ = segment_closest_points(a[0, li], b[0, li], centre, centre)
     u = (centre - axis_point) / np.linalg.norm(centre - axis_point)

@@ -11,7 +11,7 @@ import pytest
 
 from ipromp_pin.checks import TimedMotion
 from ipromp_pin.human import SKELETON_PREFIX, HumanMotion
-from ipromp_pin.human.separation import analyser_for
+from ipromp_pin.human.separation import SeparationAnalyser
 from ipromp_pin.outputs.human_preview import held_until, human_tracks, shown_human
 from ipromp_pin.preview.body import SEPARATION_STATES
 from ipromp_pin.readers.synthetic import make_synthetic_dataset
@@ -61,7 +61,7 @@ def test_tracks_follow_the_checks_analysis(case):
     assert body.n_parts == human.n_parts and body.t_s.size == human.t_s.size and not body.assumed
     assert sep.t_s[-1] == pytest.approx(human.t_s[-1], abs=0.02) and sep.source == "recorded human"
     full = held_until(motion, float(human.t_s[-1]), 0.01)
-    ref = analyser_for(robot).analyse(full.t_s, full.q, full.qd, human)
+    ref = SeparationAnalyser(robot).analyse(full.t_s, full.q, full.qd, human)
     np.testing.assert_allclose(sep.distance_m, np.maximum(ref.min_distance_m, 0.0))
     assert [SEPARATION_STATES.index(s) for s in sep.state] == ref.state().tolist()
     i = int(np.argmin(ref.min_distance_m))

@@ -1,0 +1,44 @@
+"""The base of the checks judged on the robot-body separation (``human_clearance``, ``contact_speed``).
+
+A :class:`SeparationCheck` holds a :class:`~ipromp_pin.human.separation.SeparationAnalyser`: the
+checks that :func:`~.registry.build_checks` builds together share one, so the separation of a motion
+is computed once for all of them (the analyser keeps its last result).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..human import HumanMotion
+from ..human.separation import Separation, SeparationAnalyser
+from ..robot import Robot
+from .base import CheckContext, MotionCheck, TimedMotion
+
+
+class SeparationCheck(MotionCheck):
+    """A check of the robot-body separation.
+
+    Args:
+        robot: The loaded robot.
+        analyser: The separation analyser to use (shared by the checks built together; default: one
+            of this check's own, with the robot's human settings).
+    """
+
+    def __init__(self, robot: Robot, analyser: SeparationAnalyser | None = None) -> None:
+        super().__init__(robot)
+        self.analyser = analyser if analyser is not None else SeparationAnalyser(robot)
+
+    def human(self, context: CheckContext) -> HumanMotion:
+        """The context's human, or the robot settings' assumed human when the context has none."""
+        if context.human is not None:
+            return context.human
+        return HumanMotion.assumed_human(self.robot.settings.human)
+
+    def separation(self, motion: TimedMotion, context: CheckContext) -> Separation:
+        """The robot-body separation along ``motion``."""
+        return self.analyser.analyse(motion.t_s, motion.q, motion.qd, self.human(context))
+
+
+def time_within_sp_s(sep: Separation) -> float:
+    """Time in [s] during which the robot is closer than S_p to some body part."""
+    return float(np.count_nonzero(sep.within_sp) * sep.dt_s)

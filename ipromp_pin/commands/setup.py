@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import multiprocessing as mp
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import partial
 
 import numpy as np
@@ -131,7 +131,9 @@ def prepare_session(
         session.observation = observation = demo.head(cfg.ratio, groups=cfg.observe)
         human = session.check_context.human
         if human is not None:  # the planner knows the human up to the end of the observation
-            session.check_context.human = human.until(float(observation.t[-1]))
+            session.check_context = replace(
+                session.check_context, human=human.until(float(observation.t[-1]))
+            )
         session.hand_position_m = hand_at_handover(demo)
         log(
             f"[observe] {demo.task}/{demo.name}: first {cfg.ratio:.0%} "

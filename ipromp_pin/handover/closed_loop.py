@@ -380,9 +380,8 @@ class ClosedLoopPlanner:
         r.task = pred.task
         r.posterior = {k: float(v) for k, v in zip(pred.tasks, pred.posterior, strict=True)}
         r.predicted_handover_s = float(pred.duration_s)
-        self.context.task = pred.task
-        self.context.handover_s = float(pred.duration_s)
-        plan = self._plan_checked(state, reference, r, ms)
+        context = replace(self.context, task=pred.task, handover_s=float(pred.duration_s))
+        plan = self._plan_checked(state, reference, r, ms, context)
         r.stage_ms = ms
         if plan is not None and not r.reason:
             r.committed = True
@@ -390,7 +389,12 @@ class ClosedLoopPlanner:
         return r
 
     def _plan_checked(
-        self, state: MotionState, reference: ReferenceMotion, r: Replan, ms: dict[str, float]
+        self,
+        state: MotionState,
+        reference: ReferenceMotion,
+        r: Replan,
+        ms: dict[str, float],
+        context: CheckContext,
     ) -> MotionPlan | None:
         """Re-target, check, and re-target slower while a failing check asks for it -> the last plan
         (``r.reason`` empty if it passed) or None when re-targeting failed."""
@@ -411,7 +415,7 @@ class ClosedLoopPlanner:
             r.lateness_s = plan.lateness_s
             r.time_scale = plan.time_scale
             r.slowdown_delay_s = float(plan.arrival_s - first_arrival)
-            r.reason, k = self._check(plan, r)
+            r.reason, k = self._check(plan, r, context)
             t_checks += time.perf_counter() - t0
             if not r.reason or k is None or k <= 1.0 or plan.time_scale >= k0 * MAX_SLOWDOWN:
                 break
@@ -421,7 +425,7 @@ class ClosedLoopPlanner:
         ms["retarget"] = (time.perf_counter() - t_start - t_checks) * 1e3
         return plan if r.planned_arrival_s is not None else None
 
-    def _check(self, plan: MotionPlan, r: Replan) -> tuple[str, float | None]:
+    def _check(self, plan: MotionPlan, r: Replan, context: CheckContext) -> tuple[str, float | None]:
         """Check a plan's remaining motion -> the reason to refuse it ("" if it passes) and the
         slow-down the failing timed-motion checks ask for (None: slowing would not help)."""
         ratios = limit_ratios(plan.qd, plan.qdd, self.dt_s, self.profile.limits)
@@ -444,7 +448,6 @@ class ClosedLoopPlanner:
             return f"self_collision: {clearance.to_check().reason}", None
         if not self.checks:
             return "", None
-        context = self.context
         if context.human is not None:  # the human as observed up to this re-plan
             context = replace(context, human=context.human.until(r.observed_until_s))
         results = run_checks(self.checks, TimedMotion.from_plan(plan), context)

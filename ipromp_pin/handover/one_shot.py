@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -214,9 +214,10 @@ def _check_motion(
     """Run the timed-motion checks on ``result``'s trajectory, re-time it once when the failing checks
     ask for a slower motion (and that passes them), and add the results to its report (in place)."""
     t0 = time.perf_counter()
-    ctx = context if context is not None else CheckContext()
-    ctx.task = result.prediction.task
-    ctx.handover_s = result.start_s + float(result.trajectory.t_s[-1])
+    base = context if context is not None else CheckContext()  # the caller's context is not changed
+    ctx = replace(
+        base, task=result.prediction.task, handover_s=result.start_s + float(result.trajectory.t_s[-1])
+    )
     results = run_checks(checks, TimedMotion.from_trajectory(result.trajectory, result.start_s), ctx)
     k = needed_slowdown(results)
     if k is not None and k > 1.0:
@@ -228,7 +229,7 @@ def _check_motion(
         except InfeasibleError:
             slow = None
         if slow is not None:
-            ctx.handover_s = result.start_s + float(slow.t_s[-1])
+            ctx = replace(ctx, handover_s=result.start_s + float(slow.t_s[-1]))
             slow_results = run_checks(checks, TimedMotion.from_trajectory(slow, result.start_s), ctx)
             if needed_slowdown(slow_results) == 1.0:
                 result.slowdown_delay_s = float(slow.t_s[-1] - result.trajectory.t_s[-1])

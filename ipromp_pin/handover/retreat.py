@@ -277,9 +277,9 @@ def plan_retreat(
     limits = JointLimits.from_robot(robot)
     moves = float(np.max(np.abs(q_to - q_from))) > 1e-6
     path = straight_path(q_from, q_to) if moves else None
-    motion, timing, torque = (None, None, None)
+    motion, timing, used = None, None, None
     if path is not None:
-        motion, timing, torque = _timed_motion(path, limits, control_rate_hz, torque, say)
+        motion, timing, used = _timed_motion(path, limits, control_rate_hz, torque, say)
     segment = with_dwell(motion, q_from, target.dwell_s, control_rate_hz, robot.joint_names)
     t2 = time.perf_counter()
     ms["time_parameterise_smooth"] = (t2 - t1) * 1e3
@@ -297,7 +297,7 @@ def plan_retreat(
     t3 = time.perf_counter()
     ms["check"] = (t3 - t2) * 1e3
     if checks:
-        _check_retreat(out, robot, list(checks), ctx, control_rate_hz, torque, path)
+        _check_retreat(out, robot, list(checks), ctx, control_rate_hz, used, path)
     ms["motion_checks"] = (time.perf_counter() - t3) * 1e3
     ms["total"] = (time.perf_counter() - t0) * 1e3
     out.stage_ms = ms

@@ -102,6 +102,32 @@ def test_the_payload_is_carried_only_after_a_robot_receives_hand_over(robot, app
     assert ratio["received"] > ratio["given"]  # (the given object still counts at the hand-over sample)
 
 
+def test_the_retreat_is_timed_under_the_torques_of_its_payload(robot, approach, monkeypatch):
+    import ipromp_pin.handover.retreat as module
+
+    seen = []
+    real = module.time_path
+
+    def spy(path, limits, **kw):
+        seen.append(kw.get("torque"))
+        return real(path, limits, **kw)
+
+    monkeypatch.setattr(module, "time_path", spy)
+    q = np.array([0.1, -0.3, 0.2, 0.9, 0.1, 0.8, 0.3])
+    zero = np.zeros(7)
+    dyn = ArmDynamics(robot)
+    for holder, mass in (("robot_receives", 2.0), ("robot_gives", 0.0)):
+        ctx = CheckContext(objects=table(obj(2.0, holder)))
+        plan_retreat(robot, approach, RetreatTarget("start"), checks=torque_checks(robot), context=ctx)
+        torque = seen.pop()
+        assert torque is not None  # toppra's joint-torque constraint, with the phase's payload:
+        carried = obj(mass, "robot_receives") if mass else None
+        expected = dyn.torques(q[None], None, None, carried)[0]
+        np.testing.assert_allclose(torque.inverse_dynamics(q, zero, zero), expected, atol=1e-9)
+    plan_retreat(robot, approach, RetreatTarget("start"), checks=torque_checks(robot), torque_timing=False)
+    assert seen.pop() is None
+
+
 def test_a_too_heavy_received_object_fails_the_retreats_torque_check(robot, approach):
     ctx = CheckContext(objects=table(obj(12.0, "robot_receives")))
     r = plan_retreat(

@@ -154,7 +154,7 @@ def test_a_position_target_is_reached_within_1_mm_with_the_hand_over_orientation
 
 def test_an_unreachable_position_target_is_a_one_line_error(robot, approach):
     target = RetreatTarget(
-        "position", position_m=np.array([1.6, 0.9, 0.8]), field="rod.retreat", path=Path("o.toml")
+        "position", position_m=np.array([1.5, 0.9, 0.8]), field="rod.retreat", path=Path("o.toml")
     )
     with pytest.raises(RobotError, match=r"o.toml: field 'rod.retreat.position_m': not reachable") as exc:
         plan_retreat(robot, approach, target)

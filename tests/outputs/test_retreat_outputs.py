@@ -135,3 +135,19 @@ def test_the_preview_animates_the_retreat_after_the_hand_over(tmp_path, tiny):
     names = [c.name for c in both.checks]
     assert "retreat joint_torques" in names and "retreat self_collision" in names
     assert any(note.startswith("Retreat to") for note in both.notes)
+
+
+def test_an_unreachable_retreat_position_exits_2_and_leaves_the_folder_as_it_was(tmp_path, tiny, capsys):
+    objects = tmp_path / "objects.toml"
+    entry = "mass_kg = 0.4\nholder = 'robot_receives'\nretreat = { position_m = [1.5, 0.9, 0.8] }\n"
+    objects.write_text(f"[rod]\n{entry}[wrench]\n{entry}")
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "trajectory.csv").write_text("an earlier run's file")
+    assert run_tiny(tiny, out, "--objects", str(objects), "--no-rosbag") == 2
+    line = one_error_line(capsys.readouterr().err)
+    assert (
+        "retreat.position_m': not reachable with the hand-over orientation" in line and str(objects) in line
+    )
+    assert sorted(p.name for p in out.iterdir()) == ["trajectory.csv"]
+    assert (out / "trajectory.csv").read_text() == "an earlier run's file"

@@ -229,6 +229,7 @@ def test_run_writes_the_bags_and_the_requested_ros_form(tmp_path):
     assert main(["run", pipeline, "--out", str(out), "--no-preview", "--ros", "1", "--ros1-bag"]) == 0
     doc = json.loads((out / "trajectory.json").read_text())
     assert doc["ros"] == 1 and "secs" in doc["message"]["points"][0]["time_from_start"]
+    assert "secs" in doc["retreat"]["message"]["points"][0]["time_from_start"]  # the retreat in the same form
     traj = read_trajectory_csv(out / "trajectory.csv")
     types, msgs = _read_rosbag2(out / "rosbag")
     # the approach's joint states, then the retreat's (the shipped tasks retreat; its first sample is the

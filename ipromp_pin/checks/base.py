@@ -77,6 +77,9 @@ class CheckContext:
         payload: The object in the gripper, when given explicitly (it overrides ``objects``).
         human: The human's body over time (tracked, or the assumed human), as the planner knows it
             (:meth:`~ipromp_pin.human.HumanMotion.until`), or as recorded when judging afterwards.
+        after_handover: The motion starts at the hand-over (the retreat,
+            :mod:`ipromp_pin.handover.retreat`): the object changes hands at :attr:`handover_s`, its
+            first sample, not at its end (False: the motion ends at the hand-over, the approach).
     """
 
     handover_s: float | None = None
@@ -84,6 +87,7 @@ class CheckContext:
     human: HumanMotion | None = None
     objects: ObjectTable | None = None
     payload: TaskObject | None = None
+    after_handover: bool = False
 
     def task_object(self) -> TaskObject | None:
         """The object of this motion: :attr:`payload`, else the entry of :attr:`task` in :attr:`objects`

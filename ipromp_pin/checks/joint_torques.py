@@ -43,7 +43,11 @@ def payload_text(payload: TaskObject | None, context: CheckContext) -> str:
 def handover_time(motion: TimedMotion, context: CheckContext) -> float:
     """When the object changes hands in ``motion``, in [s] on the human's clock: the motions checked
     here end at the hand-over (the one-shot plan, a re-plan's remaining motion), which cannot happen
-    before the robot arrives, so the later of ``context.handover_s`` and the motion's last sample."""
+    before the robot arrives, so the later of ``context.handover_s`` and the motion's last sample.
+    A motion after the hand-over (``context.after_handover``, the retreat) starts at it: then
+    ``context.handover_s``, else its first sample."""
+    if context.after_handover:
+        return float(motion.t_s[0]) if context.handover_s is None else float(context.handover_s)
     end = float(motion.t_s[-1])
     return end if context.handover_s is None else max(float(context.handover_s), end)
 

@@ -193,6 +193,7 @@ def pipeline_config(args: argparse.Namespace) -> PipelineConfig:
         model_cache=False if getattr(args, "retrain", False) else None,
         robot=args.robot,
         objects=getattr(args, "objects", None),
+        retreat=False if getattr(args, "no_retreat", False) else None,
         control_rate_hz=args.rate,
         preview_html=False if getattr(args, "no_preview", False) else None,
         plots=True if getattr(args, "plots", False) else None,

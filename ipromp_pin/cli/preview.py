@@ -25,6 +25,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         help="live streaming speed factor, > 0 (default %(default)g: real time)",
     )
     p.add_argument("--no-wait", action="store_true", help="live: exit when streaming is done")
+    p.add_argument(
+        "--no-retreat", action="store_true", help="do not plan and show the retreat after the hand-over"
+    )
     p.set_defaults(func=cmd_preview)
 
 

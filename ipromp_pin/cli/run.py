@@ -27,6 +27,11 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "--ros1-bag", action="store_true", help="also write run.bag (ROS 1) with the same messages"
     )
     p.add_argument(
+        "--no-retreat",
+        action="store_true",
+        help="do not plan the retreat after the hand-over (the task file's retreat entries; docs/objects.md)",
+    )
+    p.add_argument(
         "--allow-failing-checks",
         action="store_true",
         help="write the trajectory files even when the checks fail, marked as failing (exit status 3 still)",
@@ -45,6 +50,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     failures = list(report["feasibility"]["failures"])
     if not report["trajectory"]["passed"]:
         failures.append("timing")
+    if report.get("retreat"):
+        failures += [f"retreat.{f}" for f in report["retreat"]["failures"]]
     written = "written marked as failing" if "trajectory_csv" in report["files"] else "not written"
     print_error("run", f"the planned motion failed its checks ({', '.join(failures)}); trajectory {written}")
     return EXIT_CHECKS_FAILED

@@ -111,11 +111,14 @@ class RobotConfig:
         settings: Robot settings: a shipped name (``robots/*.toml``) or a settings file path.
         objects: The task file of the objects the gripper holds (``None``: the shipped
             ``robots/objects.toml``; see ``docs/objects.md``).
+        retreat: Plan, check and write the retreat after the hand-over of a task whose entry in the
+            task file has one (``run``; ``--no-retreat``: False).
     """
 
     SECTION: ClassVar[str] = "robot"
     settings: str = DEFAULT_ROBOT
     objects: Path | None = None
+    retreat: bool = True
 
 
 @dataclass
@@ -249,6 +252,7 @@ class PipelineConfig:
     ratio = Flat[float]("observation", "ratio")
     robot = Flat[str]("robot", "settings")
     objects = Flat[Path | None]("robot", "objects")
+    retreat = Flat[bool]("robot", "retreat")
     control_rate_hz = Flat[float]("timing", "control_rate_hz")
     out_dir = Flat[Path]("outputs", "dir")
     preview_html = Flat[bool]("outputs", "preview_html")
@@ -382,7 +386,7 @@ def _section_from_table(cls: type[Any], table: dict[str, Any], base: Path) -> An
                 continue
             if hint != str | None:
                 value = _relative(value, base)
-        elif cls is RobotConfig and ("/" in value or value.endswith(".toml")):
+        elif cls is RobotConfig and key == "settings" and ("/" in value or value.endswith(".toml")):
             value = str(_relative(value, base))  # a settings file, not a shipped name
         values[key] = value
     return cls(**values)

@@ -17,12 +17,14 @@ import numpy as np
 from ..data import Demo
 from ..exceptions import PipelineError
 from ..handover.one_shot import LogFn, PlanResult, plan
+from ..handover.retreat import RetreatResult
 from ..human import HumanMotion
 from ..outputs.preview_content import preview_content
 from ..preview import LivePreview, write_html
 from ..robot import Robot
 from .config import PipelineConfig
 from .meshes import preview_visual_model
+from .run import session_retreat
 from .setup import prepare_session
 
 
@@ -59,15 +61,27 @@ def run_preview(
         checks=session.motion_checks,
         context=session.check_context,
     )
+    retreat = session_retreat(session, result, log) if cfg.retreat else None
     if html is not None:
         path = write_preview(
-            result, session.robot, session.demo, html, session.mesh_prefetch, session.check_context.human
+            result,
+            session.robot,
+            session.demo,
+            html,
+            session.mesh_prefetch,
+            session.check_context.human,
+            retreat,
         )
         log(f"[preview] wrote {path} ({path.stat().st_size / 1e6:.1f} MB): open it in a browser (no server)")
         return path
     visual = preview_visual_model(session.robot, session.mesh_prefetch)
     content = preview_content(
-        result, session.robot, session.demo, visual_model=visual, human=session.check_context.human
+        result,
+        session.robot,
+        session.demo,
+        visual_model=visual,
+        human=session.check_context.human,
+        retreat=retreat,
     )
     tasks = list(result.prediction.tasks)
     start = content.replace(posterior=np.full(len(tasks), 1.0 / len(tasks)), task="", observed_until_s=0.0)
@@ -108,9 +122,11 @@ def write_preview(
     path: Path,
     prefetch: mp.process.BaseProcess | None = None,
     human: HumanMotion | None = None,
+    retreat: RetreatResult | None = None,
 ) -> Path:
     """Write the self-contained offline preview page (after the mesh ``prefetch`` process, if any);
-    ``human``: the body drawn when ``demo`` has no tracked skeleton (e.g. the assumed human)."""
+    ``human``: the body drawn when ``demo`` has no tracked skeleton (e.g. the assumed human);
+    ``retreat``: animated after the hand-over."""
     visual = preview_visual_model(robot, prefetch)
-    write_html(preview_content(result, robot, demo, visual_model=visual, human=human), path)
+    write_html(preview_content(result, robot, demo, visual_model=visual, human=human, retreat=retreat), path)
     return path

@@ -1,7 +1,9 @@
 """``ipromp-pin run``: data -> model -> observe -> recognise -> predict -> check -> time -> files.
 
 :func:`run_pipeline` sets up the command (:func:`~ipromp_pin.commands.setup.prepare_session`), runs
-the online stages (:func:`~ipromp_pin.handover.one_shot.plan`) and writes the trajectory, the bags,
+the online stages (:func:`~ipromp_pin.handover.one_shot.plan`), plans the retreat after the hand-over
+(:func:`~ipromp_pin.handover.retreat.plan_retreat`, when the recognised task has one and
+``[robot] retreat`` is on) and writes the trajectory, the bags,
 the report, the preview page and the figures together (:data:`RUN_OUTPUTS`). Every stage reports
 through a ``log`` callable.
 """
@@ -13,6 +15,7 @@ import time
 from .. import atomic
 from ..data import ROBOT
 from ..handover.one_shot import LogFn, PlanResult, plan
+from ..handover.retreat import RetreatResult, plan_retreat
 from ..handover.score import handover_orientation_error_deg
 from ..outputs.figures import write_plots
 from ..outputs.files import RUN, command_outputs, keyed, trajectory_outputs
@@ -64,21 +67,25 @@ def run_pipeline(
         checks=session.motion_checks,
         context=session.check_context,
     )
+    retreat = session_retreat(session, result, log) if cfg.retreat else None
     options = OutputOptions(cfg.ros, cfg.rosbag, cfg.ros1_bag, robot.base_frame, session.warnings)
     with atomic.OutputSet(cfg.out_dir, managed=RUN_OUTPUTS) as out:
-        stage_plan(result, out, observation, options, allow_failing_checks=allow_failing_checks)
+        stage_plan(
+            result, out, observation, options, allow_failing_checks=allow_failing_checks, retreat=retreat
+        )
         if cfg.preview_html:
-            _stage_preview(result, session, out, log)
+            _stage_preview(result, session, out, log, retreat)
         if cfg.plots:
             write_plots(result, session.model, session.demo, out)
+        orientation = recorded_orientation_error(session, result)
         report = stage_report(
             out,
-            report_dict(result, observation, session.warnings, recorded_orientation_error(session, result)),
-            report_text(result, observation, session.warnings),
+            report_dict(result, observation, session.warnings, orientation, retreat),
+            report_text(result, observation, session.warnings, retreat),
         )
         files = keyed(out.commit())
-    log(summary_text(result, files, time.perf_counter() - t_start))
-    if not result.passed:
+    log(summary_text(result, files, time.perf_counter() - t_start, retreat))
+    if not report["passed"]:
         written = [n for n in TRAJECTORY_OUTPUTS if n in out.files]
         log(
             "Checks FAILED: "
@@ -91,6 +98,24 @@ def run_pipeline(
     return report
 
 
+def session_retreat(session: Session, result: PlanResult, log: LogFn) -> RetreatResult | None:
+    """The retreat after ``result``'s hand-over, planned as the recognised task's entry of the task
+    file says (None: the task has no ``retreat`` entry)."""
+    ctx = session.check_context
+    obj = None if ctx.objects is None else ctx.objects.for_task(result.prediction.task)
+    if obj is None or obj.retreat is None:
+        return None
+    return plan_retreat(
+        session.robot,
+        result,
+        obj.retreat,
+        checks=session.motion_checks,
+        context=ctx,
+        control_rate_hz=session.cfg.control_rate_hz,
+        log=log,
+    )
+
+
 def recorded_orientation_error(session: Session, result: PlanResult) -> float | None:
     """The planned vs the recorded gripper orientation at the hand-over in [deg] (the observed demo's
     last robot sample), or None when the demo has no robot group."""
@@ -100,12 +125,19 @@ def recorded_orientation_error(session: Session, result: PlanResult) -> float | 
     return handover_orientation_error_deg(session.robot, result.trajectory.q[-1], q_true[-1])
 
 
-def _stage_preview(result: PlanResult, session: Session, out: atomic.OutputSet, log: LogFn) -> None:
-    """Stage ``preview.html``: the self-contained preview page of the planned hand-over."""
+def _stage_preview(
+    result: PlanResult, session: Session, out: atomic.OutputSet, log: LogFn, retreat: RetreatResult | None
+) -> None:
+    """Stage ``preview.html``: the self-contained preview page of the planned hand-over (and retreat)."""
     t0 = time.perf_counter()
     visual = preview_visual_model(session.robot, session.mesh_prefetch)
     content = preview_content(
-        result, session.robot, session.demo, visual_model=visual, human=session.check_context.human
+        result,
+        session.robot,
+        session.demo,
+        visual_model=visual,
+        human=session.check_context.human,
+        retreat=retreat,
     )
     html = render_html(content).encode("utf-8")
     out.write_bytes("preview.html", html)

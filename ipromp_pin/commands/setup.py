@@ -107,6 +107,7 @@ def prepare_session(
     checks = checks or SetupChecks()
     robot = robot if robot is not None else load_robot(cfg.robot)
     objects = load_objects(cfg.objects)
+    objects.check_robot(robot)  # retreat targets the robot cannot take, before any computation
     ds = load_data(cfg, log, robot)
     if cfg.load_model is None:  # before training: a robot the demos were not recorded on cannot plan
         check_recorded_joints(

@@ -2,6 +2,8 @@
 
 - :mod:`.one_shot`: the online stages of one observation: recognise and predict, time, check
   (``plan`` -> ``PlanResult``).
+- :mod:`.retreat`: the segment after the hand-over, from it to the task's retreat target, timed and
+  checked like the approach (``plan_retreat`` -> ``RetreatResult``).
 - :mod:`.closed_loop`: the closed-loop planner: streaming re-plans re-targeted from the commanded
   state and checked before they are committed (``ClosedLoopPlanner``, ``replay_demo``).
 - :mod:`.score`: what a closed-loop replay reached (hand-over error, arrival delay, limit ratios,

@@ -47,6 +47,7 @@ def _row(name: str, key: str, trajectory: bool, *commands: str) -> OutputFile:
 OUTPUT_FILES: tuple[OutputFile, ...] = (
     _row("trajectory.csv", "trajectory_csv", True, RUN, REPLAY),
     _row("trajectory.json", "trajectory_json", True, RUN, REPLAY),
+    _row("retreat.csv", "retreat_csv", True, RUN),
     _row("rosbag", "rosbag", True, RUN),
     _row("run.bag", "ros1_bag", True, RUN),
     _row("replans.json", "replans", False, REPLAY),

@@ -13,11 +13,13 @@ from ..checks import TimedMotion
 from ..data import ROBOT, Demo
 from ..handover.closed_loop import ClosedLoopResult
 from ..handover.one_shot import PlanResult
+from ..handover.retreat import RetreatResult
 from ..handover.score import ClosedLoopScore
 from ..human import HumanMotion
+from ..motion.trajectory import Trajectory
 from ..preview import PreviewContent
 from ..preview.timeline import TimelineEvent, render_timeline_html
-from ..robot import Robot, ee_positions
+from ..robot import CheckResult, Robot, ee_positions
 from .human_preview import human_tracks, shown_human
 from .report import arrival_line
 
@@ -28,13 +30,15 @@ def preview_content(
     demo: Demo | None,
     visual_model: object = None,
     human: HumanMotion | None = None,
+    retreat: RetreatResult | None = None,
 ) -> PreviewContent:
     """The :class:`~ipromp_pin.preview.PreviewContent` of a planned hand-over.
 
     The body drawn, and the plan's separation from it, is the demo's recorded human (a tracked
-    skeleton), else ``human`` (the one the checks were given, e.g. the assumed human)."""
+    skeleton), else ``human`` (the one the checks were given, e.g. the assumed human). A ``retreat``
+    is animated after the hand-over (its frames appended, its checks listed as ``retreat <check>``)."""
     p = result.prediction
-    tr = result.trajectory
+    tr = with_retreat(result.trajectory, retreat)
     body, separation = human_tracks(
         robot, TimedMotion.from_trajectory(tr, result.start_s), shown_human(robot, demo, human)
     )
@@ -76,12 +80,33 @@ def preview_content(
         task=p.task,
         tasks=list(p.tasks),
         posterior=p.posterior,
-        feasibility=[(c.name, c.passed, c.reason, c.status, c.required) for c in r.checks],
+        feasibility=[(c.name, c.passed, c.reason, c.status, c.required) for c in r.checks]
+        + ([] if retreat is None else [retreat_row(c) for c in retreat.report.checks]),
         collision_links=collision_links,
         near_limit_joints=near_limit,
         title=f"ipromp_pin: {p.task}" + ("" if demo is None else f" ({demo.task}/{demo.name})"),
-        notes=[arrival_line(result)],
+        notes=[arrival_line(result)] + ([] if retreat is None else [retreat.to_text().splitlines()[0]]),
     )
+
+
+def with_retreat(trajectory: Trajectory, retreat: RetreatResult | None) -> Trajectory:
+    """``trajectory`` followed by the retreat's samples after its first (the hand-over itself), their
+    times continued; ``trajectory`` itself without a retreat."""
+    if retreat is None or retreat.trajectory.n_samples < 2:
+        return trajectory
+    rt = retreat.trajectory
+    return Trajectory(
+        np.concatenate([trajectory.t_s, trajectory.t_s[-1] + rt.t_s[1:]]),
+        np.vstack([trajectory.q, rt.q[1:]]),
+        np.vstack([trajectory.qd, rt.qd[1:]]),
+        np.vstack([trajectory.qdd, rt.qdd[1:]]),
+        trajectory.joint_names,
+    )
+
+
+def retreat_row(c: CheckResult) -> tuple[str, bool, str, str, bool]:
+    """A feasibility row of a retreat check (times in its reason on the human's clock)."""
+    return (f"retreat {c.name}", c.passed, c.reason + " (t on the human's clock)", c.status, c.required)
 
 
 def replay_preview_html(

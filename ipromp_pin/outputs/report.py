@@ -10,6 +10,7 @@ from pathlib import Path
 
 from ..data import Demo
 from ..handover.one_shot import PlanResult
+from ..handover.retreat import RetreatResult
 
 REPORT_FORMAT = "ipromp_pin.report"
 """Value of ``report.json``'s ``format`` field."""
@@ -51,10 +52,12 @@ def report_dict(
     observation: Demo | None = None,
     warnings: list[str] | None = None,
     handover_orientation_error_deg: float | None = None,
+    retreat: RetreatResult | None = None,
 ) -> dict:
     """The machine-readable pipeline report (JSON-serialisable; schema:
     ``ipromp_pin/schemas/report.schema.json``); ``handover_orientation_error_deg``: the commanded vs
-    the recorded gripper orientation at the hand-over, in [deg], when the observed demo is recorded."""
+    the recorded gripper orientation at the hand-over, in [deg], when the observed demo is recorded;
+    ``retreat``: the segment after the hand-over (its section; its failures fail ``passed``)."""
     p = result.prediction
     torques = next((c for c in result.report.checks if c.name == "joint_torques"), None)
     return {
@@ -71,7 +74,8 @@ def report_dict(
         else {"task": observation.task, "demo": observation.name, "source": observation.source},
         "feasibility": result.report.to_dict(),
         "trajectory": result.timing_report.to_dict(),
-        "passed": result.passed,
+        "passed": result.passed and (retreat is None or retreat.passed),
+        "retreat": None if retreat is None else retreat.to_dict(),
         "stage_ms": {k: round(v, 3) for k, v in result.stage_ms.items()},
         "warnings": list(warnings or []),
         "handover_orientation_error_deg": handover_orientation_error_deg,
@@ -80,7 +84,10 @@ def report_dict(
 
 
 def report_text(
-    result: PlanResult, observation: Demo | None = None, warnings: list[str] | None = None
+    result: PlanResult,
+    observation: Demo | None = None,
+    warnings: list[str] | None = None,
+    retreat: RetreatResult | None = None,
 ) -> str:
     """The human-readable report: warnings, recognition, feasibility checks and trajectory verification."""
     p = result.prediction
@@ -102,10 +109,14 @@ def report_text(
     )
     lines.append(result.report.to_text())
     lines.append(result.timing_report.to_text())
+    if retreat is not None:
+        lines.append(retreat.to_text())
     return "\n".join(lines)
 
 
-def summary_text(result: PlanResult, files: dict[str, Path], elapsed_s: float) -> str:
+def summary_text(
+    result: PlanResult, files: dict[str, Path], elapsed_s: float, retreat: RetreatResult | None = None
+) -> str:
     """Short end-of-run summary: task, hand-over pose, checks, trajectory, files, total time in [s]."""
     p = result.prediction
     r = result.report
@@ -122,6 +133,7 @@ def summary_text(result: PlanResult, files: dict[str, Path], elapsed_s: float) -
         arrival_line(result),
         f"Trajectory: {tr.t_s[-1]:.2f} s, {len(tr.t_s)} samples; online stages "
         + ", ".join(f"{k} {v:.1f} ms" for k, v in result.stage_ms.items()),
+        *([] if retreat is None else [retreat.to_text().splitlines()[0]]),
         "Files: " + ", ".join(str(f) for f in files.values()),
         f"Total {elapsed_s:.1f} s",
     ]

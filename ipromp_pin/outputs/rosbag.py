@@ -15,7 +15,9 @@ group or extra is the one of its channel-group specification
 * ``/ipromp_pin/planned_trajectory``, ``trajectory_msgs/msg/JointTrajectory``: the timed,
   jerk-limited trajectory (one message, at the plan time);
 * ``/ipromp_pin/joint_states``, ``sensor_msgs/msg/JointState``: the robot's planned joint states
-  along it, one per control period;
+  along it, one per control period (then along the retreat, when there is one);
+* ``/ipromp_pin/retreat_trajectory``, ``trajectory_msgs/msg/JointTrajectory``: the retreat after the
+  hand-over (:mod:`ipromp_pin.handover.retreat`; one message, stamped at the hand-over), when planned;
 * ``/ipromp_pin/handover_pose``, ``geometry_msgs/msg/PoseStamped``: the predicted hand-over pose of
   the end-effector, in the base frame;
 * ``/ipromp_pin/human/orientation``, ``geometry_msgs/msg/QuaternionStamped``: the observed forearm
@@ -31,7 +33,9 @@ group or extra is the one of its channel-group specification
 Time: the human's motion starts at ``start_time_ns`` (default 0); a human sample at ``t`` [s] of the
 observation is stamped ``start + t``; the plan is published at the end of the observation
 (``start + observed_until_s``: the trajectory's ``header.stamp``, the hand-over pose's stamp), and
-the joint state of trajectory sample ``k`` is stamped ``plan time + t_s[k]``. The bag's record
+the joint state of trajectory sample ``k`` is stamped ``plan time + t_s[k]``; the retreat's message
+is stamped at the hand-over (plan time + the trajectory's duration) and its joint states from there
+(its first sample, the hand-over itself, is not repeated). The bag's record
 time of every message is its stamp (``Float64MultiArray`` has no header: its record time is its
 stamp). Missing samples (a tracker that lost the hand) are not written. The metadata's custom data
 ``ipromp_pin.channels`` (rosbag2) lists the channel names of every array topic as JSON.
@@ -65,6 +69,7 @@ TOPIC_PREFIX = "/ipromp_pin"
 TOPIC_TRAJECTORY = f"{TOPIC_PREFIX}/planned_trajectory"
 TOPIC_JOINT_STATES = f"{TOPIC_PREFIX}/joint_states"
 TOPIC_HANDOVER_POSE = f"{TOPIC_PREFIX}/handover_pose"
+TOPIC_RETREAT = f"{TOPIC_PREFIX}/retreat_trajectory"
 TOPIC_HUMAN = f"{TOPIC_PREFIX}/human"
 TOPIC_CHECKS = f"{TOPIC_PREFIX}/checks"
 FAILED_PREFIX = f"{TOPIC_PREFIX}/failed_checks"
@@ -100,6 +105,7 @@ class BagContent:
         failures: None when the trajectory passed its checks, else the failed checks: the robot's
             topics then go under :data:`FAILED_PREFIX` and a ``std_msgs/String`` on
             :data:`TOPIC_CHECKS` (and the rosbag2 custom data ``ipromp_pin.checks``) says so.
+        retreat: The segment after the hand-over (times from 0 at the hand-over), or None.
     """
 
     trajectory: Trajectory
@@ -109,6 +115,7 @@ class BagContent:
     observation: Demo | None = None
     start_time_ns: int = 0
     failures: tuple[str, ...] | None = None
+    retreat: Trajectory | None = None
 
 
 def robot_topic(topic: str, content: BagContent) -> str:
@@ -279,14 +286,27 @@ def bag_messages(content: BagContent, ros1: bool = False) -> list[BagMessage]:
     out.append(
         BagMessage(topics[1], POSE_STAMPED, plan_ns, b.pose_stamped(plan_ns, content.base_frame, pose))
     )
+    out.extend(_joint_states(b, topics[2], traj, plan_ns))
+    if content.retreat is not None:
+        ho_ns = plan_ns + _ns(traj.t_s[-1])
+        topic = robot_topic(TOPIC_RETREAT, content)
+        out.append(BagMessage(topic, JOINT_TRAJECTORY, ho_ns, b.joint_trajectory(content.retreat, ho_ns)))
+        out.extend(_joint_states(b, topics[2], content.retreat, ho_ns, first=1))
+    out.sort(key=lambda m: m.stamp_ns)
+    return out
+
+
+def _joint_states(
+    b: _Builder, topic: str, traj: Trajectory, start_ns: int, first: int = 0
+) -> list[BagMessage]:
+    """The joint states of ``traj``'s samples from ``first`` on, sample ``k`` stamped ``start + t_s[k]``."""
     names = list(traj.joint_names)
     effort = traj.effort_nm
-    for k in range(traj.n_samples):
-        ns = plan_ns + _ns(traj.t_s[k])
+    out = []
+    for k in range(first, traj.n_samples):
+        ns = start_ns + _ns(traj.t_s[k])
         tau = None if effort is None else effort[k]
-        msg = b.joint_state(ns, names, traj.q[k], traj.qd[k], tau)
-        out.append(BagMessage(topics[2], JOINT_STATE, ns, msg))
-    out.sort(key=lambda m: m.stamp_ns)
+        out.append(BagMessage(topic, JOINT_STATE, ns, b.joint_state(ns, names, traj.q[k], traj.qd[k], tau)))
     return out
 
 

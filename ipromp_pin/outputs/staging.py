@@ -21,8 +21,10 @@ from dataclasses import dataclass
 from .. import atomic
 from ..data import Demo
 from ..handover.one_shot import PlanResult
+from ..handover.retreat import RetreatResult
 from ..motion.trajectory import Trajectory
 from .files import report_listing
+from .retreat_files import RETREAT_CSV, RETREAT_KEY, RetreatSegment
 from .rosbag import BagContent, write_ros1_bag, write_rosbag2
 from .trajectory_files import trajectory_csv_text, trajectory_json_text
 
@@ -59,9 +61,11 @@ def stage_trajectory(
     bag: BagContent | None = None,
     rosbag: bool = False,
     ros1_bag: bool = False,
+    retreat: RetreatSegment | None = None,
 ) -> bool:
     """Stage ``trajectory.csv``, ``trajectory.json`` and, with ``bag``, the bags ``rosbag/`` (rosbag2,
-    when ``rosbag``) and ``run.bag`` (ROS 1, when ``ros1_bag``).
+    when ``rosbag``) and ``run.bag`` (ROS 1, when ``ros1_bag``); with ``retreat``, ``retreat.csv`` and
+    ``trajectory.json``'s ``retreat`` member (:mod:`ipromp_pin.outputs.retreat_files`).
 
     Args:
         out: The command's output set.
@@ -73,6 +77,7 @@ def stage_trajectory(
         bag: What goes into the bags (None: no bag).
         rosbag: Stage the rosbag2 folder (with ``bag``).
         ros1_bag: Stage the ROS 1 bag (with ``bag``).
+        retreat: The segment after the hand-over (None: none).
 
     Returns:
         Whether the trajectory was staged.
@@ -86,6 +91,9 @@ def stage_trajectory(
     if bag is not None and failures is not None:  # the bags are marked as the CSV and JSON are
         bag = dataclasses.replace(bag, failures=tuple(failures))
     out.write_text("trajectory.csv", trajectory_csv_text(trajectory, comment))
+    if retreat is not None:
+        extra = {**(extra or {}), RETREAT_KEY: retreat.member(ros=ros)}
+        out.write_text(RETREAT_CSV, trajectory_csv_text(retreat.trajectory, comment))
     out.write_text("trajectory.json", trajectory_json_text(trajectory, ros=ros, extra=extra))
     if bag is not None and rosbag:
         write_rosbag2(bag, out.stage_dir("rosbag"))
@@ -105,11 +113,22 @@ def stage_report(out: atomic.OutputSet, report: dict, text: str) -> dict:
     return report
 
 
-def plan_failures(result: PlanResult) -> list[str] | None:
-    """None when a planned hand-over passed, else its failed feasibility checks (and ``timing``)."""
-    if result.passed:
+def plan_failures(result: PlanResult, retreat: RetreatResult | None = None) -> list[str] | None:
+    """None when a planned hand-over (and its retreat) passed, else its failed feasibility checks (and
+    ``timing``), then the retreat's as ``retreat.<check>``."""
+    later = [] if retreat is None else [f"retreat.{f}" for f in retreat.failures]
+    if result.passed and not later:
         return None
-    return list(result.report.failures) + ([] if result.timing_report.passed else ["timing"])
+    return list(result.report.failures) + ([] if result.timing_report.passed else ["timing"]) + later
+
+
+def retreat_segment(result: PlanResult, retreat: RetreatResult | None) -> RetreatSegment | None:
+    """The retreat of ``result`` as the files hold it (None without one)."""
+    if retreat is None:
+        return None
+    return RetreatSegment(
+        retreat.trajectory, float(result.trajectory.t_s[-1]), retreat.target.dwell_s, retreat.target.kind
+    )
 
 
 def stage_plan(
@@ -119,9 +138,11 @@ def stage_plan(
     options: OutputOptions = OutputOptions(),
     *,
     allow_failing_checks: bool = False,
+    retreat: RetreatResult | None = None,
 ) -> bool:
     """Stage the trajectory files and the bags of a planned hand-over (:func:`stage_trajectory`; the
-    bags as ``options`` say); returns whether they were staged."""
+    bags as ``options`` say), with its ``retreat`` as their second segment; returns whether they were
+    staged (the retreat's failed checks fail the files as the approach's do)."""
     bag = None
     if options.rosbag or options.ros1_bag:
         bag = BagContent(
@@ -130,14 +151,16 @@ def stage_plan(
             handover_pose=result.report.handover_pose,
             base_frame=options.base_frame,
             observation=observation,
+            retreat=None if retreat is None else retreat.trajectory,
         )
     return stage_trajectory(
         out,
         result.trajectory,
-        plan_failures(result),
+        plan_failures(result, retreat),
         allow_failing_checks=allow_failing_checks,
         ros=options.ros,
         bag=bag,
         rosbag=options.rosbag,
         ros1_bag=options.ros1_bag,
+        retreat=retreat_segment(result, retreat),
     )

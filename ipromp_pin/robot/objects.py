@@ -11,11 +11,13 @@ A task file is TOML with one table per task (the task names of the recordings, e
     shape = { kind = "box", size_m = [0.02, 0.04, 0.2] }   # or kind = "cylinder", radius_m, length_m, axis
     # or: inertia_kg_m2 = [[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]] about the centre of mass
     source = "why these numbers"   # optional, shown in reports
+    retreat = { to = "start" }     # optional: where the arm goes after the hand-over (retreat_target)
 
 :func:`load_objects` reads and validates one (a :class:`~ipromp_pin.exceptions.RobotError` naming the
 file, the field and the problem, before anything is computed); :meth:`ObjectTable.check_tasks` refuses
-task names the data does not have. :mod:`ipromp_pin.robot.dynamics` attaches an object to the
-gripper frame.
+task names the data does not have, :meth:`ObjectTable.check_robot` retreat targets the robot cannot
+take (:mod:`ipromp_pin.robot.retreat_target`). :mod:`ipromp_pin.robot.dynamics` attaches an object to
+the gripper frame.
 """
 
 from __future__ import annotations
@@ -29,6 +31,8 @@ from typing import Any
 import numpy as np
 
 from ..shipped import ROBOTS_DIR
+from .model import Robot
+from .retreat_target import RetreatTarget, check_retreat_robot, parse_retreat
 from .settings import settings_error
 
 DEFAULT_OBJECTS = ROBOTS_DIR / "objects.toml"
@@ -40,7 +44,7 @@ HOLDERS = ("robot_gives", "robot_receives")
 MAX_COM_DISTANCE_M = 1.0
 """Largest distance of an object's centre of mass from the gripper frame's origin [m]."""
 
-_KEYS = {"mass_kg", "com_m", "holder", "shape", "inertia_kg_m2", "source"}
+_KEYS = {"mass_kg", "com_m", "holder", "shape", "inertia_kg_m2", "source", "retreat"}
 
 
 @dataclass(frozen=True)
@@ -54,6 +58,7 @@ class TaskObject:
         inertia_kg_m2: Rotational inertia (3, 3) in [kg m^2] about the centre of mass, gripper axes (PSD).
         holder: ``"robot_gives"`` or ``"robot_receives"`` (:data:`HOLDERS`).
         source: Where the numbers come from (free text).
+        retreat: Where the arm goes after the hand-over (``None``: it stays there).
     """
 
     task: str
@@ -62,6 +67,7 @@ class TaskObject:
     inertia_kg_m2: np.ndarray
     holder: str
     source: str = ""
+    retreat: RetreatTarget | None = None
 
     def held_at(self, t_s: np.ndarray, handover_s: float | None) -> np.ndarray:
         """Whether the robot holds the object at times ``t_s`` (N,) [s] on the human's clock, given the
@@ -111,6 +117,16 @@ class ObjectTable:
                 raise settings_error(
                     self.path, task, f"unknown task '{task}' (the data's tasks: {', '.join(known)})"
                 )
+
+    def check_robot(self, robot: Robot) -> None:
+        """Refuse a retreat target that does not fit ``robot`` (:func:`check_retreat_robot`).
+
+        Raises:
+            RobotError: naming the file, the field and the problem.
+        """
+        for obj in self.objects.values():
+            if obj.retreat is not None:
+                check_retreat_robot(obj.retreat, robot)
 
 
 def box_inertia(mass_kg: float, size_m: np.ndarray) -> np.ndarray:
@@ -215,7 +231,8 @@ def _task_object(task: str, table: object, path: Path) -> TaskObject:
     source = table.get("source", "")
     if not isinstance(source, str):
         raise settings_error(path, f"{task}.source", "must be a string")
-    return TaskObject(task, mass, com, inertia, str(holder), source)
+    retreat = None if "retreat" not in table else parse_retreat(table["retreat"], path, f"{task}.retreat")
+    return TaskObject(task, mass, com, inertia, str(holder), source, retreat)
 
 
 def load_objects(path: str | Path | None = None) -> ObjectTable:

@@ -42,6 +42,7 @@ OTHER_VALUES = {
     "observation.ratio": (0.5, lambda base: 0.5),
     "robot.settings": ("robots/arm.toml", lambda base: str(base / "robots" / "arm.toml")),
     "robot.objects": ("my_objects.toml", lambda base: base / "my_objects.toml"),
+    "robot.retreat": (False, lambda base: False),
     "timing.control_rate_hz": (250.5, lambda base: 250.5),
     "outputs.dir": ("results", lambda base: base / "results"),
     "outputs.preview_html": (False, lambda base: False),

@@ -77,6 +77,7 @@ def test_written_report_equals_the_returned_report(tmp_path):
     assert report["files"] == {
         "trajectory_csv": str(out / "trajectory.csv"),
         "trajectory_json": str(out / "trajectory.json"),
+        "retreat_csv": str(out / "retreat.csv"),  # the shipped tasks retreat after the hand-over
         "rosbag": str(out / "rosbag"),
         "ros1_bag": str(out / "run.bag"),
         "report": str(out / "report.json"),
@@ -334,5 +335,6 @@ def test_run_without_preview_removes_the_stale_preview(tmp_path, tiny):
     (out / "notes.txt").write_text("mine")
     assert main([*args, "--no-preview", "--task", "wrench"]) == 0
     assert sorted(p.name for p in out.iterdir()) == [
-        "notes.txt", "report.json", "report.txt", "rosbag", "trajectory.csv", "trajectory.json",
+        "notes.txt", "report.json", "report.txt", "retreat.csv", "rosbag", "trajectory.csv",
+        "trajectory.json",
     ]  # fmt: skip

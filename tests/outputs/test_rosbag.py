@@ -229,10 +229,16 @@ def test_run_writes_the_bags_and_the_requested_ros_form(tmp_path):
     assert main(["run", pipeline, "--out", str(out), "--no-preview", "--ros", "1", "--ros1-bag"]) == 0
     doc = json.loads((out / "trajectory.json").read_text())
     assert doc["ros"] == 1 and "secs" in doc["message"]["points"][0]["time_from_start"]
+    assert "secs" in doc["retreat"]["message"]["points"][0]["time_from_start"]  # the retreat in the same form
     traj = read_trajectory_csv(out / "trajectory.csv")
     types, msgs = _read_rosbag2(out / "rosbag")
-    assert len(msgs[TOPIC_JOINT_STATES]) == traj.n_samples and len(types) >= 5
-    np.testing.assert_array_equal(np.array([m.position for _, m in msgs[TOPIC_JOINT_STATES]]), traj.q)
+    # the approach's joint states, then the retreat's (the shipped tasks retreat; its first sample is the
+    # approach's last, not repeated)
+    retreat = read_trajectory_csv(out / "retreat.csv")
+    assert len(msgs[TOPIC_JOINT_STATES]) == traj.n_samples + retreat.n_samples - 1 and len(types) >= 6
+    positions = np.array([m.position for _, m in msgs[TOPIC_JOINT_STATES]])
+    np.testing.assert_array_equal(positions[: traj.n_samples], traj.q)
+    np.testing.assert_array_equal(positions[traj.n_samples :], retreat.q[1:])
     report = json.loads((out / "report.json").read_text())
     [(_, pose)] = msgs[TOPIC_HANDOVER_POSE]
     p = pose.pose.position

@@ -21,6 +21,7 @@ from ..human import HumanMotion
 from ..outputs.preview_content import preview_content
 from ..preview import LivePreview, write_html
 from ..robot import Robot
+from ..robot.objects import ObjectTable
 from .config import PipelineConfig
 from .meshes import preview_visual_model
 from .setup import prepare_session
@@ -60,14 +61,16 @@ def run_preview(
         context=session.check_context,
     )
     if html is not None:
+        ctx = session.check_context
         path = write_preview(
-            result, session.robot, session.demo, html, session.mesh_prefetch, session.check_context.human
+            result, session.robot, session.demo, html, session.mesh_prefetch, ctx.human, ctx.objects
         )
         log(f"[preview] wrote {path} ({path.stat().st_size / 1e6:.1f} MB): open it in a browser (no server)")
         return path
     visual = preview_visual_model(session.robot, session.mesh_prefetch)
+    ctx = session.check_context
     content = preview_content(
-        result, session.robot, session.demo, visual_model=visual, human=session.check_context.human
+        result, session.robot, session.demo, visual_model=visual, human=ctx.human, objects=ctx.objects
     )
     tasks = list(result.prediction.tasks)
     start = content.replace(posterior=np.full(len(tasks), 1.0 / len(tasks)), task="", observed_until_s=0.0)
@@ -108,9 +111,12 @@ def write_preview(
     path: Path,
     prefetch: mp.process.BaseProcess | None = None,
     human: HumanMotion | None = None,
+    objects: ObjectTable | None = None,
 ) -> Path:
     """Write the self-contained offline preview page (after the mesh ``prefetch`` process, if any);
-    ``human``: the body drawn when ``demo`` has no tracked skeleton (e.g. the assumed human)."""
+    ``human``: the body drawn when ``demo`` has no tracked skeleton (e.g. the assumed human);
+    ``objects``: the tasks' objects (the recognised task's is drawn and in the torques)."""
     visual = preview_visual_model(robot, prefetch)
-    write_html(preview_content(result, robot, demo, visual_model=visual, human=human), path)
+    content = preview_content(result, robot, demo, visual_model=visual, human=human, objects=objects)
+    write_html(content, path)
     return path

@@ -71,10 +71,11 @@ def run_pipeline(
             _stage_preview(result, session, out, log)
         if cfg.plots:
             write_plots(result, session.model, session.demo, out)
+        rot_err = recorded_orientation_error(session, result)
         report = stage_report(
             out,
-            report_dict(result, observation, session.warnings, recorded_orientation_error(session, result)),
-            report_text(result, observation, session.warnings),
+            report_dict(result, observation, session.warnings, rot_err),
+            report_text(result, observation, session.warnings, rot_err),
         )
         files = keyed(out.commit())
     log(summary_text(result, files, time.perf_counter() - t_start))
@@ -104,8 +105,9 @@ def _stage_preview(result: PlanResult, session: Session, out: atomic.OutputSet, 
     """Stage ``preview.html``: the self-contained preview page of the planned hand-over."""
     t0 = time.perf_counter()
     visual = preview_visual_model(session.robot, session.mesh_prefetch)
+    ctx = session.check_context
     content = preview_content(
-        result, session.robot, session.demo, visual_model=visual, human=session.check_context.human
+        result, session.robot, session.demo, visual_model=visual, human=ctx.human, objects=ctx.objects
     )
     html = render_html(content).encode("utf-8")
     out.write_bytes("preview.html", html)

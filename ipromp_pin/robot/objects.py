@@ -54,6 +54,9 @@ class TaskObject:
         inertia_kg_m2: Rotational inertia (3, 3) in [kg m^2] about the centre of mass, gripper axes (PSD).
         holder: ``"robot_gives"`` or ``"robot_receives"`` (:data:`HOLDERS`).
         source: Where the numbers come from (free text).
+        shape: The task file's ``shape`` table (``kind`` "box" with ``size_m``, or "cylinder" with
+            ``radius_m``, ``length_m``, ``axis``), centred at ``com_m`` in the gripper axes; ``None``
+            when the file gives none (the previews then draw a small sphere at ``com_m``).
     """
 
     task: str
@@ -62,6 +65,7 @@ class TaskObject:
     inertia_kg_m2: np.ndarray
     holder: str
     source: str = ""
+    shape: dict[str, Any] | None = None
 
     def held_at(self, t_s: np.ndarray, handover_s: float | None) -> np.ndarray:
         """Whether the robot holds the object at times ``t_s`` (N,) [s] on the human's clock, given the
@@ -215,7 +219,8 @@ def _task_object(task: str, table: object, path: Path) -> TaskObject:
     source = table.get("source", "")
     if not isinstance(source, str):
         raise settings_error(path, f"{task}.source", "must be a string")
-    return TaskObject(task, mass, com, inertia, str(holder), source)
+    shape = dict(table["shape"]) if "shape" in table else None
+    return TaskObject(task, mass, com, inertia, str(holder), source, shape)
 
 
 def load_objects(path: str | Path | None = None) -> ObjectTable:

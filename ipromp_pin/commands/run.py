@@ -70,7 +70,9 @@ def run_pipeline(
         if cfg.preview_html:
             _stage_preview(result, session, out, log)
         if cfg.plots:
-            write_plots(result, session.model, session.demo, out, session.robot)
+            write_plots(
+                result, session.model, session.demo, out, session.robot, session.check_context.objects
+            )
         rot_err = recorded_orientation_error(session, result)
         report = stage_report(
             out,

@@ -21,7 +21,7 @@ from ..robot import Robot, ee_positions
 from ..robot.objects import ObjectTable
 from .human_preview import human_tracks, shown_human
 from .report import arrival_line, orientation_line
-from .torque_preview import torque_preview
+from .torque_preview import plan_torques, torque_preview
 
 
 def preview_content(
@@ -42,8 +42,7 @@ def preview_content(
     tr = result.trajectory
     motion = TimedMotion.from_trajectory(tr, result.start_s)
     body, separation = human_tracks(robot, motion, shown_human(robot, demo, human))
-    context = CheckContext(task=p.task, objects=objects, handover_s=result.start_s + float(tr.t_s[-1]))
-    torques, held = torque_preview(robot, motion, context, tr.effort_nm)
+    torques, held = plan_torques(result, robot, objects)
     ee_samples = np.stack([ee_positions(robot, s) for s in result.q_samples])
     truth = None
     hand = hand_t = None

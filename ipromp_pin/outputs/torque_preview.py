@@ -16,11 +16,19 @@ import numpy as np
 
 from ..checks import CheckContext, TimedMotion
 from ..checks.joint_torques import JointTorques, handover_time
+from ..handover.one_shot import PlanResult
 from ..preview.torques import HeldObject, TorqueTrack
 from ..robot import Robot
-from ..robot.objects import TaskObject
+from ..robot.objects import ObjectTable, TaskObject
 
-__all__ = ["SPHERE_RADIUS_M", "held_object", "payload_label", "torque_preview", "torque_track"]
+__all__ = [
+    "SPHERE_RADIUS_M",
+    "held_object",
+    "payload_label",
+    "plan_torques",
+    "torque_preview",
+    "torque_track",
+]
 
 SPHERE_RADIUS_M = 0.02
 """Radius [m] of the sphere drawn for an object whose task file gives no shape."""
@@ -100,3 +108,16 @@ def torque_preview(
     torques = check if check is not None else JointTorques(robot)
     track = torque_track(torques, motion, context, tau_nm)
     return track, held_object(robot, context.task_object(), handover_time(motion, context))
+
+
+def plan_torques(
+    result: PlanResult, robot: Robot, objects: ObjectTable | None = None
+) -> tuple[TorqueTrack | None, HeldObject | None]:
+    """:func:`torque_preview` of a planned hand-over as its joint-torque check saw it: the trajectory
+    from the robot's start (``result.start_s`` on the human's clock), the recognised task's object
+    in ``objects``, the hand-over at the trajectory's end, the trajectory's ``effort_nm`` if any."""
+    tr = result.trajectory
+    motion = TimedMotion.from_trajectory(tr, result.start_s)
+    handover = result.start_s + float(tr.t_s[-1])
+    context = CheckContext(task=result.prediction.task, objects=objects, handover_s=handover)
+    return torque_preview(robot, motion, context, tr.effort_nm)

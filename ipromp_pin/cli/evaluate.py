@@ -85,7 +85,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "--objects",
         type=Path,
         help="task file of the objects the gripper holds (default: the shipped robots/objects.toml; "
-        "with --closed-loop every re-plan is torque-checked; docs/objects.md)",
+        "each cell gets the peak joint torque ratio; with --closed-loop every re-plan is torque-checked; "
+        "docs/objects.md)",
     )
     p.add_argument(
         "--jobs",

@@ -63,7 +63,8 @@ class EvaluateRequest:
         closed_loop: Replay every test demo in the closed loop (``--closed-loop``).
         limits: Limit profile of the closed loop (``demonstrated``, ``conservative`` or a file).
         objects: Task file of the objects (``--objects``; None: the shipped ``robots/objects.toml``):
-            the closed loop torque-checks every re-plan with them and scores ``peak_torque_ratio``.
+            the closed loop torque-checks every re-plan with them; both protocols score each cell's
+            ``peak_torque_ratio`` (the one-shot plans' or the commanded motions', true task's object).
         closed_loop_settings: The closed loop's settings (each cell's ratio replaces ``start_ratio``;
             None: the defaults).
         json: JSON results file (None: not written).
@@ -207,7 +208,7 @@ def run_evaluations(request: EvaluateRequest, ds: Dataset) -> list[Cell]:
             cells += evaluate_closed_loop(ds, cfg, options, request.robot, progress, where, objects)
             request.log(f"protocol {cfg.protocol} (closed loop): {time.perf_counter() - t1:.1f} s")
         else:
-            cells += evaluate(ds, cfg, robot=request.robot, progress=progress, jobs=where)
+            cells += evaluate(ds, cfg, robot=request.robot, progress=progress, jobs=where, objects=objects)
             request.log(f"protocol {cfg.protocol}: {time.perf_counter() - t1:.1f} s")
     return cells
 

@@ -22,6 +22,7 @@ from ..human import HumanMotion
 from ..outputs.preview_content import preview_content
 from ..preview import LivePreview, write_html
 from ..robot import Robot
+from ..robot.objects import ObjectTable
 from .config import PipelineConfig
 from .meshes import preview_visual_model
 from .run import session_retreat
@@ -63,24 +64,28 @@ def run_preview(
     )
     retreat = session_retreat(session, result, log) if cfg.retreat else None
     if html is not None:
+        ctx = session.check_context
         path = write_preview(
             result,
             session.robot,
             session.demo,
             html,
             session.mesh_prefetch,
-            session.check_context.human,
+            ctx.human,
+            ctx.objects,
             retreat,
         )
         log(f"[preview] wrote {path} ({path.stat().st_size / 1e6:.1f} MB): open it in a browser (no server)")
         return path
     visual = preview_visual_model(session.robot, session.mesh_prefetch)
+    ctx = session.check_context
     content = preview_content(
         result,
         session.robot,
         session.demo,
         visual_model=visual,
-        human=session.check_context.human,
+        human=ctx.human,
+        objects=ctx.objects,
         retreat=retreat,
     )
     tasks = list(result.prediction.tasks)
@@ -122,11 +127,16 @@ def write_preview(
     path: Path,
     prefetch: mp.process.BaseProcess | None = None,
     human: HumanMotion | None = None,
+    objects: ObjectTable | None = None,
     retreat: RetreatResult | None = None,
 ) -> Path:
     """Write the self-contained offline preview page (after the mesh ``prefetch`` process, if any);
     ``human``: the body drawn when ``demo`` has no tracked skeleton (e.g. the assumed human);
+    ``objects``: the tasks' objects (the recognised task's is drawn and in the torques);
     ``retreat``: animated after the hand-over."""
     visual = preview_visual_model(robot, prefetch)
-    write_html(preview_content(result, robot, demo, visual_model=visual, human=human, retreat=retreat), path)
+    content = preview_content(
+        result, robot, demo, visual_model=visual, human=human, objects=objects, retreat=retreat
+    )
+    write_html(content, path)
     return path

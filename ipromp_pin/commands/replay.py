@@ -284,7 +284,8 @@ def _stage_files(
     if preview:
         t0 = time.perf_counter()
         visual = preview_visual_model(session.robot)
-        html = replay_preview_html(demo, result, score, session.robot, visual, session.check_context.human)
+        ctx = session.check_context
+        html = replay_preview_html(demo, result, score, session.robot, visual, ctx.human, ctx.objects)
         out.write_text("preview.html", html)
         log(f"[preview] {out.path('preview.html')} ({time.perf_counter() - t0:.1f} s)")
     report = report_dict(result, score, demo, session.model, session.warnings)

@@ -76,12 +76,14 @@ def run_pipeline(
         if cfg.preview_html:
             _stage_preview(result, session, out, log, retreat)
         if cfg.plots:
-            write_plots(result, session.model, session.demo, out)
+            write_plots(
+                result, session.model, session.demo, out, session.robot, session.check_context.objects
+            )
         orientation = recorded_orientation_error(session, result)
         report = stage_report(
             out,
             report_dict(result, observation, session.warnings, orientation, retreat),
-            report_text(result, observation, session.warnings, retreat),
+            report_text(result, observation, session.warnings, retreat, orientation),
         )
         files = keyed(out.commit())
     log(summary_text(result, files, time.perf_counter() - t_start, retreat))
@@ -131,12 +133,14 @@ def _stage_preview(
     """Stage ``preview.html``: the self-contained preview page of the planned hand-over (and retreat)."""
     t0 = time.perf_counter()
     visual = preview_visual_model(session.robot, session.mesh_prefetch)
+    ctx = session.check_context
     content = preview_content(
         result,
         session.robot,
         session.demo,
         visual_model=visual,
-        human=session.check_context.human,
+        human=ctx.human,
+        objects=ctx.objects,
         retreat=retreat,
     )
     html = render_html(content).encode("utf-8")

@@ -33,6 +33,7 @@ import numpy as np
 
 from ..data import Dataset
 from ..robot import ee_positions, frame_placements, load_robot
+from ..robot.objects import ObjectTable
 from ..shipped import DEFAULT_ROBOT
 from .cells import PROBABILITY_FLOOR, Cell, cell_fields, summarise
 from .config import PAPER_ACCURACY, PAPER_GRID, EvaluationConfig, ProgressFn, observe_key
@@ -94,6 +95,7 @@ def evaluate(
     robot: str | None = DEFAULT_ROBOT,
     progress: ProgressFn | None = None,
     jobs: int | JobRunner = 1,
+    objects: ObjectTable | None = None,
 ) -> list[Cell]:
     """Run one protocol over every cell of ``config`` and return the table.
 
@@ -105,14 +107,17 @@ def evaluate(
         progress: Called as ``progress(done, total, label)`` after every model fit.
         jobs: Worker processes (model fits run in parallel), or a :class:`~.jobs.JobRunner` (a
             Dask cluster); the results do not depend on it.
+        objects: The tasks' objects (:mod:`ipromp_pin.robot.objects`): with a robot, every trial's
+            one-shot plan is torque-scored and the cells get ``peak_torque_ratio`` (None: not).
     """
     config.check_protocol()
     fk = robot_fk(robot)
     extras = [BaselineScorer(fk)] if config.baselines else []
+    loaded = load_robot(robot) if robot is not None and objects is not None else None
     return run_protocol(
         dataset,
         config,
-        OneShotScorer(config.model_params, fk, robot_fk_rotations(robot)),
+        OneShotScorer(config.model_params, fk, robot_fk_rotations(robot), loaded, objects),
         extras,
         progress,
         jobs,

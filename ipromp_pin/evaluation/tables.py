@@ -239,7 +239,11 @@ def orientation_markdown(cells: Sequence[Cell]) -> list[str]:
         and c.handover_orientation_baseline_deg is not None
         and c.handover_orientation_error_deg < c.handover_orientation_baseline_deg
     )
-    return [*lines, "", f"- hand-over orientation below the baseline in {below} of {len(rows)} cells", ""]
+    out = [*lines, "", f"- hand-over orientation below the baseline in {below} of {len(rows)} cells"]
+    peaks = [c.peak_torque_ratio for c in cells if c.peak_torque_ratio is not None]
+    if peaks:  # objects in use: the plans' peak |joint torque| / effort limit, true task's object
+        out.append(f"- peak joint torque ratio at most {_fmt(max(peaks), 3)} (over the cells' trials)")
+    return [*out, ""]
 
 
 def closed_loop_markdown(cells: Sequence[ClosedLoopCell]) -> str:

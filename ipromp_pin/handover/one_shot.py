@@ -144,7 +144,7 @@ def plan(
     # from its start), not the prediction's (the human's clock).
     torque = torque_limit(checks, context, prediction.task) if torque_timing else None
     try:
-        trajectory, timing_report, torque = _time_prediction(prediction, robot, control_rate_hz, torque, say)
+        trajectory, timing_report, torque = time_prediction(prediction, robot, control_rate_hz, torque, say)
     except InfeasibleError:
         report = check_path(robot, prediction.q_mean, q_samples=samples, hand_position_m=hand_position_m)
         say(f"[check] {'pass' if report.passed else 'FAIL: ' + ', '.join(report.failures)}")
@@ -171,8 +171,12 @@ def plan(
     return result
 
 
-def _time_prediction(
-    prediction: Prediction, robot: Robot, rate_hz: float, torque: TorqueLimit | None, say: LogFn
+def time_prediction(
+    prediction: Prediction,
+    robot: Robot,
+    rate_hz: float,
+    torque: TorqueLimit | None = None,
+    say: LogFn | None = None,
 ) -> tuple[Trajectory, TimingReport, TorqueLimit | None]:
     """The predicted path timed under the robot's limits and ``torque``; when toppra finds no profile
     under the torque limits (gravity alone exceeds them somewhere on the path: slowing down cannot
@@ -183,7 +187,8 @@ def _time_prediction(
         try:
             return (*time_path(prediction.q_mean, limits, rate_hz=rate_hz, torque=torque), torque)
         except InfeasibleError as exc:
-            say(f"[timing] not timeable under the torque limits ({exc}): timed without them")
+            if say is not None:
+                say(f"[timing] not timeable under the torque limits ({exc}): timed without them")
     return (*time_path(prediction.q_mean, limits, rate_hz=rate_hz), None)
 
 

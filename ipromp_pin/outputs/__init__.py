@@ -11,5 +11,6 @@
   ``replans.json``, ``report.json`` and ``report.txt``.
 - :mod:`.plots`: matplotlib figures (PNG, Agg canvas: the user's backend is left alone);
   :mod:`.figures`: the run's figures from its plan.
-- :mod:`.preview_content`: what the preview pages show of a plan or a replay.
+- :mod:`.preview_content`: what the preview pages show of a plan or a replay (:mod:`.human_preview`:
+  the body and the separation; :mod:`.torque_preview`: the joints' torque usage and the held object).
 """

@@ -1,4 +1,5 @@
-"""The run's figures: the conditioned prediction, the phase posterior and the learned distributions.
+"""The run's figures: the conditioned prediction, the phase posterior, the learned distributions and
+the joint torques of the timed trajectory (with the robot).
 
 :func:`write_plots` draws them with :mod:`ipromp_pin.outputs.plots` (imported when it draws:
 matplotlib is only needed with ``--plots``) into a folder or an output set.
@@ -14,15 +15,25 @@ from .. import atomic
 from ..data import ROBOT, Demo
 from ..handover.one_shot import PlanResult
 from ..promp import IProMP
+from ..robot import Robot
+from ..robot.objects import ObjectTable
 from ..signals.groups import group_unit
 from .files import FILE_KEYS
+from .torque_preview import plan_torques
 
 
 def write_plots(
-    result: PlanResult, model: IProMP, demo: Demo, out_dir: Path | atomic.OutputSet
+    result: PlanResult,
+    model: IProMP,
+    demo: Demo,
+    out_dir: Path | atomic.OutputSet,
+    robot: Robot | None = None,
+    objects: ObjectTable | None = None,
 ) -> dict[str, Path]:
-    """PNG figures of the prediction, the phase posterior and the learned distributions, written into
-    a folder or staged in an :class:`~ipromp_pin.atomic.OutputSet` (then they appear at its commit)."""
+    """PNG figures of the prediction, the phase posterior and the learned distributions (and, with
+    ``robot``, the timed trajectory's joint torques, the recognised task's object in ``objects``
+    included while held, as the joint-torque check computes them), written into a folder or staged
+    in an :class:`~ipromp_pin.atomic.OutputSet` (then they appear at its commit)."""
     from . import plots  # deferred: matplotlib is only needed with --plots (about 0.4 s to import)
 
     if isinstance(out_dir, atomic.OutputSet):
@@ -73,6 +84,19 @@ def write_plots(
         units=[group_unit(label.split("/", 1)[0]) for label in labels],
         title=f"learned distribution of task {p.task} (mean or median, 2-sigma band, training demos)",
     )
+    track = None if robot is None else plan_torques(result, robot, objects)[0]
+    if track is not None:
+        files["plot_torques"] = plots.plot_torques(
+            result.trajectory.t_s,
+            track.ratio * track.limit_nm,
+            track.limit_nm,
+            target("torques.png"),
+            effort_margin=1.0 - track.allowed_ratio,
+            held=track.held,
+            joint_names=list(track.joint_names),
+            title=f"|joint torque| of the timed trajectory (t = 0 at the robot's start, {result.start_s:.2f} "
+            "s on the human's clock)" + (f"; shaded: holding {track.payload}" if track.held.any() else ""),
+        )
     if isinstance(out_dir, atomic.OutputSet):  # where the staged figures will be after the commit
         names = {key: name for name, key in FILE_KEYS.items()}
         return {key: out_dir.path(names[key]) for key in files}

@@ -58,6 +58,7 @@ OUTPUT_FILES: tuple[OutputFile, ...] = (
     _row("prediction.png", "plot_prediction", False, RUN),
     _row("phase_posterior.png", "plot_phase", False, RUN),
     _row("distributions.png", "plot_distributions", False, RUN),
+    _row("torques.png", "plot_torques", False, RUN),
 )
 """Every output file of the commands, in the order the reports list them."""
 

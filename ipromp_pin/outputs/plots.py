@@ -28,6 +28,7 @@ __all__ = [
     "plot_distributions",
     "plot_phase_posterior",
     "plot_prediction",
+    "plot_torques",
 ]
 
 _SOURCE = "plots"
@@ -385,4 +386,66 @@ def plot_accuracy(
     ax.grid(axis="y", alpha=0.3)
     ax.legend(fontsize=8, loc="lower left")
     fig.suptitle(title)
+    return _save(fig, path, dpi)
+
+
+def plot_torques(
+    t_s: np.ndarray,
+    tau_nm: np.ndarray,
+    limit_nm: np.ndarray,
+    path: str | Path,
+    *,
+    effort_margin: float = 0.0,
+    held: np.ndarray | None = None,
+    joint_names: Sequence[str] | None = None,
+    title: str = "",
+    figsize: tuple[float, float] = (12.0, 7.0),
+    dpi: int = 100,
+) -> Path:
+    """Every joint's |torque| over time against its effort limit and the allowed torque.
+
+    Args:
+        t_s: (N,) sample times in [s].
+        tau_nm: (N, J) joint torques in [N m] (their magnitude is drawn).
+        limit_nm: (J,) effort limits in [N m] (> 0; a solid red line).
+        path: PNG file to write.
+        effort_margin: Fraction of the limit kept free, in [0, 1): the allowed torque
+            ``(1 - effort_margin) x limit`` is a dashed line.
+        held: (N,) whether the gripper holds the object (shaded).
+        joint_names: (J,) joint names.
+    """
+    t_s = _array(t_s, "t_s", 1)
+    tau = _array(tau_nm, "tau_nm", 2)
+    limit = _array(limit_nm, "limit_nm", 1)
+    if tau.shape[0] != t_s.size:
+        raise _err("tau_nm", f"has {tau.shape[0]} rows for {t_s.size} times")
+    if limit.shape != (tau.shape[1],) or np.any(limit <= 0):
+        raise _err("limit_nm", f"expected {tau.shape[1]} limits > 0, got {limit.tolist()}")
+    if not 0.0 <= effort_margin < 1.0:
+        raise _err("effort_margin", f"must be in [0, 1), got {effort_margin}")
+    mask = None if held is None else np.asarray(held, dtype=bool).reshape(-1)
+    if mask is not None and mask.size != t_s.size:
+        raise _err("held", f"has {mask.size} values for {t_s.size} times")
+    n_joints = tau.shape[1]
+    names = _names(joint_names, n_joints, "joint_names", "joint ")
+    fig, axes, cols = _panels(n_joints, figsize)
+    for j, ax in enumerate(axes):
+        if mask is not None and mask.any():
+            ax.fill_between(
+                t_s, 0, 1, where=mask, transform=ax.get_xaxis_transform(), color="C5", alpha=0.12,
+                label="object held",
+            )  # fmt: skip
+        ax.plot(t_s, np.abs(tau[:, j]), color="C0", lw=1.5, label="|torque|")
+        ax.axhline(limit[j], color="C3", lw=1.2, label="effort limit")
+        ax.axhline((1.0 - effort_margin) * limit[j], color="C3", lw=1.0, ls="--", label="allowed")
+        peak = float(np.abs(tau[:, j]).max())
+        ax.set_title(f"{names[j]}: peak {peak / limit[j]:.0%}", fontsize=9)
+        ax.set_ylabel("N m", fontsize=8)
+        ax.set_ylim(0.0, 1.08 * max(limit[j], peak))
+        ax.tick_params(labelsize=7)
+        if j + cols >= n_joints:
+            ax.set_xlabel("time [s]", fontsize=8)
+    axes[0].legend(fontsize=7, loc="best")
+    if title:
+        fig.suptitle(title)
     return _save(fig, path, dpi)

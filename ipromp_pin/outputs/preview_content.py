@@ -9,19 +9,21 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..checks import TimedMotion
+from ..checks import CheckContext, TimedMotion
 from ..data import ROBOT, Demo
 from ..handover.closed_loop import ClosedLoopResult
 from ..handover.one_shot import PlanResult
 from ..handover.retreat import RetreatResult
-from ..handover.score import ClosedLoopScore
+from ..handover.score import ClosedLoopScore, handover_orientation_error_deg
 from ..human import HumanMotion
 from ..motion.trajectory import Trajectory
 from ..preview import PreviewContent
 from ..preview.timeline import TimelineEvent, render_timeline_html
 from ..robot import CheckResult, Robot, ee_positions
+from ..robot.objects import ObjectTable
 from .human_preview import human_tracks, shown_human
-from .report import arrival_line
+from .report import arrival_line, orientation_line
+from .torque_preview import plan_torques, torque_preview
 
 
 def preview_content(
@@ -30,23 +32,33 @@ def preview_content(
     demo: Demo | None,
     visual_model: object = None,
     human: HumanMotion | None = None,
+    objects: ObjectTable | None = None,
     retreat: RetreatResult | None = None,
 ) -> PreviewContent:
     """The :class:`~ipromp_pin.preview.PreviewContent` of a planned hand-over.
 
     The body drawn, and the plan's separation from it, is the demo's recorded human (a tracked
-    skeleton), else ``human`` (the one the checks were given, e.g. the assumed human). A ``retreat``
-    is animated after the hand-over (its frames appended, its checks listed as ``retreat <check>``)."""
+    skeleton), else ``human`` (the one the checks were given, e.g. the assumed human). The joints'
+    torque usage and the object in the gripper are those of the joint-torque check (the recognised
+    task's object in ``objects``, the hand-over at the trajectory's end). A ``retreat`` is animated
+    after the hand-over (its frames appended, its torques after the approach's, its checks listed as
+    ``retreat <check>``)."""
     p = result.prediction
     tr = with_retreat(result.trajectory, retreat)
-    body, separation = human_tracks(
-        robot, TimedMotion.from_trajectory(tr, result.start_s), shown_human(robot, demo, human)
-    )
+    motion = TimedMotion.from_trajectory(tr, result.start_s)
+    body, separation = human_tracks(robot, motion, shown_human(robot, demo, human))
+    torques, held = plan_torques(result, robot, objects, retreat)
     ee_samples = np.stack([ee_positions(robot, s) for s in result.q_samples])
     truth = None
     hand = hand_t = None
+    notes = [arrival_line(result)]
     if demo is not None and ROBOT in demo.groups:
         truth = ee_positions(robot, demo.groups[ROBOT])
+        notes.append(
+            orientation_line(
+                handover_orientation_error_deg(robot, result.trajectory.q[-1], demo.groups[ROBOT][-1])
+            )
+        )
         if "hand_position" in demo.extras:
             hand, hand_t = demo.extras["hand_position"], demo.t
     r = result.report
@@ -85,7 +97,9 @@ def preview_content(
         collision_links=collision_links,
         near_limit_joints=near_limit,
         title=f"ipromp_pin: {p.task}" + ("" if demo is None else f" ({demo.task}/{demo.name})"),
-        notes=[arrival_line(result)] + ([] if retreat is None else [retreat.to_text().splitlines()[0]]),
+        notes=notes + ([] if retreat is None else [retreat.to_text().splitlines()[0]]),
+        torques=torques,
+        held_object=held,
     )
 
 
@@ -116,15 +130,18 @@ def replay_preview_html(
     robot: Robot,
     visual_model: object,
     human: HumanMotion | None = None,
+    objects: ObjectTable | None = None,
 ) -> str:
     """The time-scrubbing ``preview.html`` of a replay (one self-contained page); the body and the
-    commanded motion's separation from it as in :func:`preview_content`."""
+    commanded motion's separation from it as in :func:`preview_content`; the torques and the object
+    those of the replay's joint-torque score (the true task's object in ``objects``)."""
     traj = result.trajectory
+    motion = TimedMotion.from_trajectory(traj)
     body, separation = human_tracks(
-        robot,
-        TimedMotion.from_trajectory(traj),
-        shown_human(robot, demo, human),
-        1.0 / result.settings.control_rate_hz,
+        robot, motion, shown_human(robot, demo, human), 1.0 / result.settings.control_rate_hz
+    )
+    torques, held = torque_preview(
+        robot, motion, CheckContext(task=demo.task, objects=objects), traj.effort_nm
     )
     tasks = list(result.replans[0].posterior) if result.replans else []
     committed = [r for r in result.replans if r.committed]
@@ -192,10 +209,13 @@ def replay_preview_html(
         timebase=f"Times are on the human's motion ({score.handover_time_s:.2f} s recorded, t = 0 at its "
         f"start); the robot starts at {result.start_s:.2f} s and comes to rest at {score.rest_s:.2f} s",
         label_prefix="final task: ",
+        torques=torques,
+        held_object=held,
     )
     summary = [
         f"Hand-over error {score.handover_error_cm:.1f} cm at the recorded hand-over time "
-        f"({score.handover_time_s:.2f} s); {score.final_error_cm:.1f} cm at rest",
+        f"({score.handover_time_s:.2f} s); {score.final_error_cm:.1f} cm at rest; gripper orientation "
+        f"error {score.handover_orientation_error_deg:.1f} deg",
         f"Arrival {score.arrival_s:.2f} s vs recorded {score.recorded_arrival_s:.2f} s "
         f"(delay {score.arrival_delay_s:+.2f} s); {result.profile.name} limits",
         "Blue: commanded gripper path; cyan: the latest plan; purple: recorded robot; green: hand observed.",

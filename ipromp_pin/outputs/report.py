@@ -47,6 +47,11 @@ def arrival_line(result: PlanResult) -> str:
     )
 
 
+def orientation_line(error_deg: float) -> str:
+    """The hand-over orientation error line of the reports and the preview panel ([deg])."""
+    return f"Gripper orientation at the hand-over: {error_deg:.1f} deg from the recorded one"
+
+
 def report_dict(
     result: PlanResult,
     observation: Demo | None = None,
@@ -88,8 +93,10 @@ def report_text(
     observation: Demo | None = None,
     warnings: list[str] | None = None,
     retreat: RetreatResult | None = None,
+    handover_orientation_error_deg: float | None = None,
 ) -> str:
-    """The human-readable report: warnings, recognition, feasibility checks and trajectory verification."""
+    """The human-readable report: warnings, recognition, feasibility checks and trajectory verification
+    (and the hand-over orientation error in [deg], when the observed demo is recorded)."""
     p = result.prediction
     lines = [f"Warning: {w}" for w in warnings or []]
     if observation is not None:
@@ -103,6 +110,8 @@ def report_text(
         f"(observed {p.observed_until_s:.2f} s)"
     )
     lines.append(arrival_line(result))
+    if handover_orientation_error_deg is not None:
+        lines.append(orientation_line(handover_orientation_error_deg))
     lines.append(
         f"Times in the checks are on the robot trajectory ({result.trajectory.duration_s:.2f} s, t = 0 at "
         "its start)"

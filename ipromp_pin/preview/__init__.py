@@ -14,6 +14,8 @@ Pinocchio's :class:`pinocchio.visualize.MeshcatVisualizer`:
   label, and a panel with the separation at the current time and the states along the time axis;
 - the predicted end-effector path (blue tube) with its uncertainty (translucent tube of radius
   2 sigma, and thin sampled paths), and the recorded robot path (purple) when it is known;
+- the task's object in the gripper while the robot holds it, and a panel with every joint's torque
+  usage at the current time (bars coloured by usage, each joint's peak marked, the payload held);
 - the recognised task on a text plane above the robot, and an HTML panel with the posterior of
   every task, the observation window and the feasibility checks; failing parts are coloured on
   the robot (a link in collision red, a joint near its limit orange).
@@ -34,10 +36,13 @@ Modules, each depending only on those above it:
 
 - :mod:`~ipromp_pin.preview.body`: :class:`BodyTrack` (the human body's capsules over time) and
   :class:`SeparationTrack` (the closest robot-body pair and its separation state per control sample);
+- :mod:`~ipromp_pin.preview.torques`: :class:`~.torques.TorqueTrack` (every joint's torque usage per
+  control sample) and :class:`~.torques.HeldObject` (the task's object in the gripper, and when held);
 - :mod:`~ipromp_pin.preview.content`: :class:`PreviewContent`, :class:`FeasibilityCheck`, validation;
 - :mod:`~ipromp_pin.preview.meshes`: decimation of the robot's meshes, tube and sphere meshes;
 - :mod:`~ipromp_pin.preview.recorder`: :class:`SceneRecorder`, the meshcat window that records the scene;
 - :mod:`~ipromp_pin.preview.body_scene`: drawing the body's capsules and the closest-pair rod;
+- :mod:`~ipromp_pin.preview.object_scene`: drawing the held object in the gripper while held;
 - :mod:`~ipromp_pin.preview.scene`: drawing a content into a meshcat scene, the HTML panel's state;
 - :mod:`~ipromp_pin.preview.page`: the HTML page (scripts and CSS in ``static/``);
 - :mod:`~ipromp_pin.preview.server`: the live server on the loopback interface.

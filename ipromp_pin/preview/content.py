@@ -19,6 +19,7 @@ import pinocchio as pin
 
 from ..exceptions import DataError
 from .body import BodyTrack, SeparationTrack
+from .torques import HeldObject, TorqueTrack
 
 __all__ = ["CHECK_STATUSES", "SOURCE", "FeasibilityCheck", "PreviewContent", "finite_array", "preview_error"]
 
@@ -138,6 +139,9 @@ class PreviewContent:
         timebase: What the panel's times are measured on ("": the robot trajectory, t = 0 at its start).
         label_prefix: Text before the task in the 3-D label (e.g. ``"final task: "`` for a replay,
             whose panel follows the re-plans while the label is fixed).
+        torques: The joints' torque usage per control sample (:class:`~.torques.TorqueTrack`, human's
+            clock): bars in the panel.
+        held_object: The task's object (:class:`~.torques.HeldObject`): drawn in the gripper while held.
     """
 
     model: pin.Model
@@ -170,6 +174,8 @@ class PreviewContent:
     notes: Sequence[str] = ()
     timebase: str = ""
     label_prefix: str = ""
+    torques: TorqueTrack | None = None
+    held_object: HeldObject | None = None
     _q_index: np.ndarray = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
@@ -272,10 +278,13 @@ class PreviewContent:
                 )
         self.human_duration_source = str(self.human_duration_source)
         self.handover_point = _optional_array(self.handover_point, "handover_point", 1, 3)
-        for name, kind in (("body", BodyTrack), ("separation", SeparationTrack)):
+        kinds = (("body", BodyTrack), ("separation", SeparationTrack), ("torques", TorqueTrack))
+        for name, kind in (*kinds, ("held_object", HeldObject)):
             value = getattr(self, name)
             if value is not None and not isinstance(value, kind):
                 raise preview_error(name, f"expected a {kind.__name__}, got {type(value).__name__}")
+        if self.held_object is not None and not self.model.existFrame(self.held_object.frame):
+            raise preview_error("held_object", f"frame '{self.held_object.frame}' is not in the robot model")
 
     def _check_recognition(self) -> None:
         """The recognised ``task`` among ``tasks`` and their ``posterior``."""

@@ -5,7 +5,8 @@ embeds the recorded scene commands and replays them on load (no network, no serv
 (:func:`live_page`) connects to the preview server's websocket instead. The page's CSS and scripts
 are package data in ``static/`` (``page.css``; ``overlay.js``, the HTML panel, which also handles
 the ``ipromp_overlay`` and ``ipromp_synced`` messages; ``separation.js``, the robot-body
-separation at the current time; ``static_loader.js``; ``live_connect.js``),
+separation at the current time; ``torques.js``, the joints' torque usage at the current time;
+``static_loader.js``; ``live_connect.js``),
 all inlined into the page after meshcat's own viewer script.
 """
 
@@ -51,7 +52,8 @@ def _page(title: str, body_js: str, data_script: str = "") -> str:
         f"{data_script}"
         f"<script>\n{_viewer_js()}\n</script>\n"
         '<script>\nvar viewer = new MeshCat.Viewer(document.getElementById("meshcat-pane"));\n\n'
-        f"{_static('overlay.js')}\n\n{_static('separation.js')}\n\n{body_js}\n</script>\n</body>\n</html>\n"
+        + "\n\n".join(_static(n) for n in ("overlay.js", "separation.js", "torques.js"))
+        + f"\n\n{body_js}\n</script>\n</body>\n</html>\n"
     )
 
 

@@ -43,7 +43,9 @@ from .body_scene import (
 )
 from .content import PreviewContent
 from .meshes import simplify_visual_model, sphere_mesh, tube_mesh
+from .object_scene import COLOR_OBJECT, draw_object, object_frame, object_placements
 from .recorder import SceneRecorder
+from .torques import torque_panel
 
 __all__ = [
     "CAMERA_DIRECTION",
@@ -306,6 +308,10 @@ def _animate(viewer: meshcat.Visualizer, robot: RobotView, content: PreviewConte
         t_human = times + offset
         hand = np.stack([np.interp(t_human, content.hand_t_s, content.hand_path[:, d]) for d in range(3)], -1)
     shown: dict[str, Any] = {}
+    shown_object: dict[str, Any] = {}
+    obj = content.held_object
+    obj_poses = None if obj is None else object_placements(content, obj, times)
+    obj_held = None if obj is None else obj.held(times + offset)
     for k in range(n_frames):
         with animation.at_frame(viewer, k) as frame:
             for i in moving:
@@ -315,6 +321,8 @@ def _animate(viewer: meshcat.Visualizer, robot: RobotView, content: PreviewConte
                 T[:3, 3] = hand[k]
                 frame["human/hand"].set_transform(T)
             body_frame(frame, content.body, content.separation, float(times[k] + offset), shown, k == 0)
+            if obj_poses is not None and obj_held is not None:
+                object_frame(frame, obj_poses[k], bool(obj_held[k]), shown_object, k == 0)
     viewer.set_animation(animation, play=True, repetitions=1)
 
 
@@ -450,6 +458,11 @@ def overlay_state(content: PreviewContent) -> dict[str, Any]:
     if content.ee_truth is not None:
         legend.append({"label": "recorded robot path", "color": f"#{COLOR_EE_TRUTH:06x}"})
     legend += _body_legend(content)
+    if content.held_object is not None:
+        o = content.held_object
+        legend.append(
+            {"label": f"{o.name} ({o.mass_kg:g} kg), drawn while held", "color": f"#{COLOR_OBJECT:06x}"}
+        )
     return {
         "title": content.title,
         "task": content.task,
@@ -475,6 +488,9 @@ def overlay_state(content: PreviewContent) -> dict[str, Any]:
         "separation": None
         if content.separation is None
         else separation_panel(content.separation, _hand_offset_s(content), content.body),
+        "torques": None
+        if content.torques is None
+        else torque_panel(content.torques, _hand_offset_s(content)),
     }
 
 
@@ -513,8 +529,17 @@ def build_scene(window: SceneRecorder, content: PreviewContent, *, robot: RobotV
     _draw_human(viewer, content)
     _draw_prediction(viewer, content)
     _draw_label(viewer, content, robot)
+    _draw_object(viewer, content)
     _animate(viewer, robot, content, fps)
     window.set_overlay(overlay_state(content))
+
+
+def _draw_object(viewer: meshcat.Visualizer, content: PreviewContent) -> None:
+    """The held object at the animation's start (its pose and visibility then follow the animation)."""
+    obj = content.held_object
+    pose = None if obj is None else object_placements(content, obj, np.array([0.0]))[0]
+    held = obj is not None and bool(obj.held(np.array([_hand_offset_s(content)]))[0])
+    draw_object(viewer, obj, pose, held)
 
 
 def update_scene(
@@ -552,5 +577,6 @@ def update_scene(
     if label:
         _draw_label(viewer, content, robot)
     if animation:
+        _draw_object(viewer, content)
         _animate(viewer, robot, content, fps)
     window.set_overlay(overlay_state(content))

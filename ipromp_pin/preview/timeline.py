@@ -8,6 +8,8 @@ the human's hand path (grey) when hand positions are known. On top of it, as fun
 - the hand-over point (gold) moves to each re-plan's predicted hand-over position;
 - the gripper path planned by the latest committed re-plan (cyan) replaces the previous one;
 - the human's hand path observed so far grows (green), the hand marker moves along it;
+- the task's object is drawn in the gripper while the robot holds it, and the joints' torque usage
+  at the scrubbed time is a panel of bars (``static/torques.js``), when the content has them;
 - the human body's capsules move with the recording and the closest robot-body pair is a rod
   coloured by its separation state (:mod:`~ipromp_pin.preview.body_scene`), when the content has a
   body and a separation; ``static/separation.js`` shows the distance at the scrubbed time and the
@@ -40,6 +42,7 @@ import pinocchio as pin
 from .body_scene import body_frame
 from .content import PreviewContent, finite_array, preview_error
 from .meshes import DEFAULT_MAX_TRIANGLES, sphere_mesh, tube_mesh
+from .object_scene import object_frame, object_placements
 from .page import recorded_page
 from .recorder import SceneRecorder
 from .scene import COLOR_HAND_OBSERVED, COLOR_HANDOVER, RobotView, build_scene, overlay_state
@@ -173,11 +176,17 @@ def _timeline_scene(
     shown_plan, shown_point = -2, -2
     shown_trail = 0
     shown_body: dict = {}
+    shown_object: dict = {}
+    obj = content.held_object
+    obj_poses = None if obj is None else object_placements(content, obj, times)
+    obj_held = None if obj is None else obj.held(times)
     for f, t in enumerate(times):
         with animation.at_frame(viewer, f) as frame:
             for i in moving:
                 frame[names[i]].set_transform(frames[f][i])
             body_frame(frame, content.body, content.separation, float(t), shown_body, f == 0)
+            if obj_poses is not None and obj_held is not None:
+                object_frame(frame, obj_poses[f], bool(obj_held[f]), shown_object, f == 0)
             if hand is not None:
                 T = np.eye(4)
                 T[:3, 3] = hand[f]

@@ -59,6 +59,9 @@ class TaskObject:
         holder: ``"robot_gives"`` or ``"robot_receives"`` (:data:`HOLDERS`).
         source: Where the numbers come from (free text).
         retreat: Where the arm goes after the hand-over (``None``: it stays there).
+        shape: The task file's ``shape`` table (``kind`` "box" with ``size_m``, or "cylinder" with
+            ``radius_m``, ``length_m``, ``axis``), centred at ``com_m`` in the gripper axes; ``None``
+            when the file gives none (the previews then draw a small sphere at ``com_m``).
     """
 
     task: str
@@ -68,6 +71,7 @@ class TaskObject:
     holder: str
     source: str = ""
     retreat: RetreatTarget | None = None
+    shape: dict[str, Any] | None = None
 
     def held_at(self, t_s: np.ndarray, handover_s: float | None) -> np.ndarray:
         """Whether the robot holds the object at times ``t_s`` (N,) [s] on the human's clock, given the
@@ -232,7 +236,8 @@ def _task_object(task: str, table: object, path: Path) -> TaskObject:
     if not isinstance(source, str):
         raise settings_error(path, f"{task}.source", "must be a string")
     retreat = None if "retreat" not in table else parse_retreat(table["retreat"], path, f"{task}.retreat")
-    return TaskObject(task, mass, com, inertia, str(holder), source, retreat)
+    shape = dict(table["shape"]) if "shape" in table else None
+    return TaskObject(task, mass, com, inertia, str(holder), source, retreat, shape)
 
 
 def load_objects(path: str | Path | None = None) -> ObjectTable:

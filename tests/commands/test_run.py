@@ -61,6 +61,8 @@ def test_pipeline_runs_on_synthetic_default(tmp_path, capsys):
     assert not (out / "preview.html").exists()
     text = (out / "report.txt").read_text()
     assert "Recognised task: wrench" in text and "joint_limits" in text
+    deg = report["handover_orientation_error_deg"]
+    assert f"Gripper orientation at the hand-over: {deg:.1f} deg from the recorded one" in text
 
 
 def test_written_report_equals_the_returned_report(tmp_path):
@@ -223,7 +225,7 @@ def test_phase_plot_gets_the_joint_posterior_of_task_and_phase(tmp_path, monkeyp
     assert logsumexp(np.concatenate(list(joint.values()))) == pytest.approx(0.0, abs=1e-9)
     for task, values in joint.items():
         assert np.exp(logsumexp(values)) == pytest.approx(report["posterior"][task], abs=1e-9)
-    for name in ("prediction.png", "phase_posterior.png", "distributions.png"):
+    for name in ("prediction.png", "phase_posterior.png", "distributions.png", "torques.png"):
         assert (out / name).stat().st_size > 5000
 
 

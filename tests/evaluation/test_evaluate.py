@@ -74,7 +74,12 @@ def test_evaluate_command_writes_json_and_markdown(tmp_path, capsys):
         assert cell["protocol"] == "splits" and cell["observe"] == ["orientation", "emg"]
         assert 0.0 <= cell["accuracy"] <= 1.0
         assert "handover_error_cm" in cell and "handover_error_prior_cm" in cell
-    assert out.with_suffix(".md").read_text().startswith("### Recognition accuracy")
+        # the one-shot plans' peak joint torque with the true task's (shipped) object
+        assert 0.05 < cell["peak_torque_ratio"] < 2.0
+    md = out.with_suffix(".md").read_text()
+    assert md.startswith("### Recognition accuracy")
+    peak = max(cell["peak_torque_ratio"] for cell in doc["cells"])
+    assert f"- peak joint torque ratio at most {peak:.3f}" in md
     assert "[2/2]" not in capsys.readouterr().err  # progress lines only on a terminal
 
 

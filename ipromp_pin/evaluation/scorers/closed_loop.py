@@ -30,7 +30,7 @@ from functools import partial
 
 import numpy as np
 
-from ...checks import CheckContext, MotionCheck, TimedMotion, build_checks
+from ...checks import CheckContext, MotionCheck, build_checks
 from ...checks.joint_torques import JointTorques
 from ...data import Demo
 from ...handover.closed_loop import ClosedLoopSettings, conditioning_predictor, replay_demo
@@ -47,6 +47,7 @@ from ..cells import CellResults, ClosedLoopCell, baseline_summary, median
 from ..config import EvaluationConfig
 from .base import Scorer
 from .one_shot import TrialResult, mean_handover_rotations, predict_window, score_trial
+from .torques import peak_torque_ratio
 
 
 @dataclass(frozen=True)
@@ -178,10 +179,8 @@ def replay_trials(
         one_shot = score_trial(prediction, d, ratio, fk, fk_rot, (mean_rot or {}).get(d.task))
         replay = partial(replay_demo, model, robot, d, profile, run, certifier, conditioner)
         score, commanded = replay_scored(replay, d, robot, check_collisions, human_checks, checks, objects)
-        if torques is not None:
-            truth = CheckContext(task=d.task, objects=objects)
-            check = torques.check(TimedMotion.from_trajectory(commanded), truth)
-            score.peak_torque_ratio = float(check.values.get("peak_torque_ratio", np.nan))
+        if torques is not None and objects is not None:
+            score.peak_torque_ratio = peak_torque_ratio(torques, commanded, d.task, objects)
         out.append(ClosedLoopTrial(**one_shot.__dict__, split=split, closed_loop=score))
     return out
 

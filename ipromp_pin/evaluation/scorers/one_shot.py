@@ -1,6 +1,9 @@
 """The one-shot scorer: the model predicts each test demo once from its first ``obs_ratio`` and the
 prediction is measured against the whole demo (recognition, joint errors in [rad], the hand-over
-gripper position error in [cm], each also for the unconditioned prior)."""
+gripper position error in [cm], each also for the unconditioned prior). With a robot and the tasks'
+objects, each trial's one-shot plan (the prediction timed as ``run`` times it) also gets its peak
+joint torque ratio with the true task's object (:mod:`.torques`), and each cell the maximum over its
+trials, ``peak_torque_ratio``."""
 
 from __future__ import annotations
 
@@ -10,13 +13,17 @@ from typing import Any
 
 import numpy as np
 
+from ...checks.joint_torques import JointTorques
 from ...data import ROBOT, Demo
 from ...promp import IProMP, Prediction
+from ...robot import Robot
+from ...robot.objects import ObjectTable
 from ...robot.rotations import chordal_mean, geodesic_deg
 from ..baselines import BaselineTrial
 from ..cells import CellResults, baseline_summary, calibration
 from ..config import EvaluationConfig
 from .base import Scorer
+from .torques import one_shot_peak_torque_ratio
 
 FK = Callable[[np.ndarray], np.ndarray]
 """Forward kinematics: joint configurations (n, 7) in [rad] -> gripper positions (n, 3) in [m]."""
@@ -48,6 +55,8 @@ class TrialResult:
             (chordal L2 mean) of the training demos of the true task, in [deg].
         baselines: Baseline name -> its outcome on the same window (``--baselines``,
             :mod:`ipromp_pin.evaluation.baselines`).
+        peak_torque_ratio: Peak |joint torque| / effort limit of the one-shot plan with the true task's
+            object (NaN: not scored, no robot or no objects).
     """
 
     task: str
@@ -65,6 +74,7 @@ class TrialResult:
     handover_orientation_error_deg: float = float("nan")
     handover_orientation_baseline_deg: float = float("nan")
     baselines: dict[str, BaselineTrial] = field(default_factory=dict)
+    peak_torque_ratio: float = float("nan")
 
     @property
     def correct(self) -> bool:
@@ -164,14 +174,31 @@ class OneShotScorer(Scorer):
         model_params: Keyword arguments of the model's constructor.
         fk: Forward kinematics for the model's settings and the hand-over error (None: skipped).
         fk_rot: Gripper rotations, for the hand-over orientation errors (None: skipped).
+        robot: The robot whose joint torques the one-shot plans are scored for (with ``objects``).
+        objects: The tasks' objects (:mod:`ipromp_pin.robot.objects`); with ``robot``, every trial's
+            ``peak_torque_ratio`` is scored and the cells get theirs (``None``: neither, the cells
+            are as without torques).
     """
 
     def __init__(
-        self, model_params: dict | None = None, fk: FK | None = None, fk_rot: FKRot | None = None
+        self,
+        model_params: dict | None = None,
+        fk: FK | None = None,
+        fk_rot: FKRot | None = None,
+        robot: Robot | None = None,
+        objects: ObjectTable | None = None,
     ) -> None:
         self.model_params = dict(model_params or {})
         self.fk = fk
         self.fk_rot = fk_rot
+        self.robot = robot
+        self.objects = objects
+        self.torques_: JointTorques | None = None
+
+    @property
+    def scores_torques(self) -> bool:
+        """Whether the trials' one-shot plans are torque-scored (a robot and objects are given)."""
+        return self.robot is not None and self.objects is not None
 
     def fit(self, train: Sequence[Demo], observe: Sequence[str]) -> OneShotScorer:
         """Fit the model on the training demos."""
@@ -181,18 +208,19 @@ class OneShotScorer(Scorer):
         return self
 
     def score(self, test: Sequence[Demo], obs_ratio: float, split: int = 0) -> list[TrialResult]:
-        """One :class:`TrialResult` per test demo."""
-        return [
-            score_trial(
-                predict_window(self.model_, d, obs_ratio, self.observe_),
-                d,
-                obs_ratio,
-                self.fk,
-                self.fk_rot,
-                self.mean_rot_.get(d.task),
-            )
-            for d in test
-        ]
+        """One :class:`TrialResult` per test demo (its one-shot plan torque-scored, with objects)."""
+        out = []
+        for d in test:
+            prediction = predict_window(self.model_, d, obs_ratio, self.observe_)
+            trial = score_trial(prediction, d, obs_ratio, self.fk, self.fk_rot, self.mean_rot_.get(d.task))
+            if self.robot is not None and self.objects is not None:
+                if self.torques_ is None:  # once per process (the arm's dynamics are built on first use)
+                    self.torques_ = JointTorques(self.robot)
+                trial.peak_torque_ratio = one_shot_peak_torque_ratio(
+                    self.torques_, prediction, d.task, self.objects
+                )
+            out.append(trial)
+        return out
 
     def fit_facts(self) -> dict[str, str]:
         """``coupled``: the observed groups the fitted model couples to the robot."""
@@ -207,6 +235,16 @@ class OneShotScorer(Scorer):
             "brier": brier,
             "baselines": baseline_summary(reps, config.protocol == "splits"),
         }
+        if self.scores_torques:
+            peaks = [r.peak_torque_ratio for r in flat if np.isfinite(r.peak_torque_ratio)]
+            out["peak_torque_ratio"] = max(peaks, default=None)
         if config.protocol != "splits":
-            out["trials"] = [asdict(r) | {"correct": r.correct} for r in flat]
+            out["trials"] = [self._trial_row(r) for r in flat]
         return out
+
+    def _trial_row(self, trial: TrialResult) -> dict:
+        """A trial's record in a cell (``peak_torque_ratio`` only when torques are scored)."""
+        row = asdict(trial) | {"correct": trial.correct}
+        if not self.scores_torques:
+            row.pop("peak_torque_ratio")
+        return row

@@ -58,7 +58,7 @@ def cmd_train(args: argparse.Namespace) -> int:
     from ..commands.model_warnings import single_task_warning, warn_stderr
     from ..data import parse_groups, skeleton_frames
     from ..promp import IProMP
-    from ..robot import ee_positions, load_robot
+    from ..robot import ee_positions, gripper_rotations, load_robot
 
     atomic.check_output_file(args.out, "model file")
     observe = parse_groups(args.observe)
@@ -73,7 +73,9 @@ def cmd_train(args: argparse.Namespace) -> int:
     train = [d for d in ds.all_demos() if not any(d is h for h in held)]
     for h in held:
         print(f"held out {h.task}/{h.name} ({h.source})")
-    model = IProMP(observe=observe, coupling=coupling).fit(train, fk=fk)
+    model = IProMP(observe=observe, coupling=coupling).fit(
+        train, fk=fk, fk_rot=partial(gripper_rotations, robot)
+    )
     single = single_task_warning(model)
     if single is not None:
         warn_stderr(single)

@@ -91,9 +91,13 @@ def _fk_fingerprint(
 
 
 def training_key(
-    model: IProMP, demos: Sequence[Demo], fk: Callable[[np.ndarray], np.ndarray] | None = None
+    model: IProMP,
+    demos: Sequence[Demo],
+    fk: Callable[[np.ndarray], np.ndarray] | None = None,
+    fk_rot: Callable[[np.ndarray], np.ndarray] | None = None,
 ) -> str | None:
-    """The cache key (hex SHA-256) of ``model.fit(demos, fk=fk)``, or None when it cannot be cached."""
+    """The cache key (hex SHA-256) of ``model.fit(demos, fk=fk, fk_rot=fk_rot)``, or None when it
+    cannot be cached."""
     params = model.get_params()
     h = hashlib.sha256()
     header = {
@@ -112,10 +116,13 @@ def training_key(
             _update_array(h, d.groups[g])
             if g in d.missing:
                 _update_array(h, d.missing[g])
-    if fk is not None:
-        fingerprint = _fk_fingerprint(fk, demos, str(params["robot_group"]))
+    for name, kinematics in (("fk", fk), ("fk_rot", fk_rot)):
+        if kinematics is None:
+            continue
+        fingerprint = _fk_fingerprint(kinematics, demos, str(params["robot_group"]))
         if fingerprint is None:
             return None
+        h.update(name.encode())
         _update_array(h, np.round(fingerprint, 12))
     return h.hexdigest()
 
@@ -177,8 +184,10 @@ def fit_cached(
     fk: Callable[[np.ndarray], np.ndarray] | None = None,
     folder: Path | None = None,
     log: Callable[[str], None] | None = None,
+    fk_rot: Callable[[np.ndarray], np.ndarray] | None = None,
 ) -> tuple[IProMP, Path | None]:
-    """``model.fit(demos, fk=fk)``, or the identical model trained earlier and kept in the cache.
+    """``model.fit(demos, fk=fk, fk_rot=fk_rot)``, or the identical model trained earlier and kept
+    in the cache.
 
     Args:
         model: An unfitted estimator (its parameters are part of the key).
@@ -187,12 +196,14 @@ def fit_cached(
             [m]), or None.
         folder: The cache folder (default ``cache_dir("models")``).
         log: Where the one line about an entry that failed its verification goes (None: nowhere).
+        fk_rot: Gripper rotations given to ``fit`` (joint angles -> rotation matrices (n, 3, 3)), or
+            None.
 
     Returns:
         The fitted model and the cache file it was read from (None when it was trained here).
     """
     folder = cache_dir("models") if folder is None else folder
-    key = training_key(model, demos, fk)
+    key = training_key(model, demos, fk, fk_rot)
     path = None if key is None else folder / f"{key}.npz"
     if path is not None and key is not None and path.is_file():
         try:
@@ -208,7 +219,7 @@ def fit_cached(
             return cached, path
         if log is not None:
             log(f"[model] the cached model {path} is not used ({why}): training again and replacing it")
-    model.fit(list(demos), fk=fk)
+    model.fit(list(demos), fk=fk, fk_rot=fk_rot)
     if path is not None and key is not None:
         try:
             folder.mkdir(parents=True, exist_ok=True)

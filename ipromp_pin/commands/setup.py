@@ -26,7 +26,7 @@ from ..human import HumanMotion
 from ..promp import IProMP
 from ..readers import load_dataset
 from ..readers.synthetic import make_synthetic_dataset
-from ..robot import Robot, ee_positions, load_robot
+from ..robot import Robot, ee_positions, gripper_rotations, load_robot
 from ..robot.objects import ObjectTable, load_objects
 from .config import PipelineConfig
 from .meshes import start_mesh_prefetch
@@ -268,11 +268,12 @@ def get_model(
         train = [d for d in ds.all_demos() if d is not held_out]
     t0 = time.perf_counter()
     fk = None if robot is None else partial(ee_positions, robot)
+    fk_rot = None if robot is None else partial(gripper_rotations, robot)
     what = f"{len(train)} demos ({', '.join(cfg.observe)} + robot)"
     if cfg.model_cache:
-        model, cached = fit_cached(IProMP(observe=cfg.observe), train, fk, log=log)
+        model, cached = fit_cached(IProMP(observe=cfg.observe), train, fk, log=log, fk_rot=fk_rot)
     else:
-        model, cached = IProMP(observe=cfg.observe).fit(train, fk=fk), None
+        model, cached = IProMP(observe=cfg.observe).fit(train, fk=fk, fk_rot=fk_rot), None
     if cached is not None:
         log(f"[model] reused the model an earlier run trained on {what}: {cached} (--retrain: train again)")
     else:

@@ -120,7 +120,8 @@ class IProMP(ParameterMixin):
     :class:`~ipromp_pin.promp.predictor.Predictor`), ``observe_``, ``tasks_``, ``models_``,
     ``basis_``, ``scaler_``, ``groups_``, ``group_slices_``, ``channel_names_``, ``joint_names_``,
     ``n_dims_``, ``n_obs_dims_``, ``duration_nominal_s_``, ``noise_ratio_``, ``noise_var_``,
-    ``temperature_``, ``head_``, ``handover_``, ``handover_cv_scores_``, ``condition_noise_ratio_``,
+    ``temperature_``, ``head_``, ``handover_``, ``handover_cv_scores_``, ``orientation_``,
+    ``orientation_cv_scores_``, ``condition_noise_ratio_``,
     ``condition_cv_scores_``, ``cv_scores_``, ``coupled_groups_``, ``coupling_cv_scores_``,
     ``task_log_prior_``, ``residual_var_``, ``trained_on_``.
     """
@@ -195,6 +196,7 @@ class IProMP(ParameterMixin):
         y: Sequence[str] | None = None,
         *,
         fk: Callable[[np.ndarray], np.ndarray] | None = None,
+        fk_rot: Callable[[np.ndarray], np.ndarray] | None = None,
     ) -> IProMP:
         """Learn the scaling, per-task weight distributions, phase priors, noise ratio and coupling
         (:func:`~ipromp_pin.promp.fit.fit_model`).
@@ -207,12 +209,16 @@ class IProMP(ParameterMixin):
                 (n, 3) in [m] (e.g. :func:`ipromp_pin.robot.ee_positions` of a loaded robot). When
                 given, the coupling and the conditioning noise ratio are chosen for the hand-over
                 position error instead of the joint RMSE (see ``choose_coupling``).
+            fk_rot: The gripper's rotations, joint angles (n, J) in [rad] -> rotation matrices
+                (n, 3, 3) (e.g. :func:`ipromp_pin.robot.frame_placements`' second result); with
+                ``fk``, the hand-over estimate covers the gripper's orientation as well as its
+                position (:mod:`~ipromp_pin.promp.handover`).
         """
         observe, coupling = self.check_params()
         if y is not None:
             _check_labels(data, y)
         return self._set_fitted(
-            fit_model(data, self.get_params(), observe, coupling, fk, self._limit_threads)
+            fit_model(data, self.get_params(), observe, coupling, fk, self._limit_threads, fk_rot)
         )
 
     def _set_fitted(self, fitted: FittedModel) -> IProMP:
@@ -242,6 +248,10 @@ class IProMP(ParameterMixin):
     head_ = FittedAttribute(lambda f: f.head, "The RecognitionHead (None with head=False).")
     handover_ = FittedAttribute(lambda f: f.handover, "The HandoverRegression (None: not used).")
     handover_cv_scores_ = FittedAttribute(lambda f: dict(f.handover_cv_scores), "Trust factor -> CV error.")
+    orientation_ = FittedAttribute(lambda f: f.orientation, "The OrientationEstimate (None: not used).")
+    orientation_cv_scores_ = FittedAttribute(
+        lambda f: dict(f.orientation_cv_scores), "Orientation trust factor -> CV error in [deg]."
+    )
     condition_noise_ratio_ = FittedAttribute(lambda f: f.nu_condition, "The chosen nu_c.")
     condition_cv_scores_ = FittedAttribute(lambda f: dict(f.condition_cv_scores), "nu_c -> CV RMSE [rad].")
     cv_scores_ = FittedAttribute(lambda f: dict(f.noise_cv_scores), "nu -> CV score (noise='auto').")

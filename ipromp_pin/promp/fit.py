@@ -26,7 +26,8 @@ from ..exceptions import ModelError
 from .basis import GaussianBasis
 from .fitted import FittedModel
 from .handover import HandoverRegression
-from .handover_selection import choose_handover
+from .handover_orientation import OrientationEstimate
+from .handover_selection import HandoverChoice, choose_handover
 from .head import RecognitionHead
 from .provenance import demo_record
 from .selection import NOISE_GRID, TEMPERATURE_GRID, choose_coupling, choose_noise, fit_recognition_head
@@ -48,6 +49,8 @@ class Hyperparameters:
         coupled_groups: Observed groups coupled to the robot; ``coupling_cv_scores`` the candidates'.
         condition_noise_ratio: ``nu_c``; ``condition_cv_scores`` the candidates'.
         handover: The hand-over regression (None: none); ``handover_cv_scores`` the trust factors'.
+        orientation: The hand-over orientation estimate (None: none); ``orientation_cv_scores`` the
+            trust factors'.
     """
 
     noise_ratio: float
@@ -60,6 +63,8 @@ class Hyperparameters:
     coupling_cv_scores: Mapping[str, float] = field(default_factory=dict)
     condition_cv_scores: Mapping[float, float] = field(default_factory=dict)
     handover_cv_scores: Mapping[float, float] = field(default_factory=dict)
+    orientation: OrientationEstimate | None = None
+    orientation_cv_scores: Mapping[float, float] = field(default_factory=dict)
 
 
 def phase_settings(params: Mapping[str, Any]) -> PhaseSettings:
@@ -74,6 +79,7 @@ def select_hyperparameters(
     coupling: str | list[str],
     task_log_prior: np.ndarray,
     fk: ForwardKinematics | None = None,
+    fk_rot: ForwardKinematics | None = None,
 ) -> Hyperparameters:
     """Choose the noise ratio, temperature, head, coupling, conditioning noise and hand-over
     regression of ``params`` (given values kept, ``"auto"`` ones cross-validated)."""
@@ -94,21 +100,22 @@ def select_hyperparameters(
     nu_c = None if nu_c is None else float(nu_c)
     cands = None if coupling == "auto" else [list(observe) if coupling == "all" else list(coupling)]
     choice = choose_coupling(training, settings, nu_c, cands, fk)
-    handover, handover_scores = None, {}
+    ho = HandoverChoice(None, {})
     if params["handover"] and rows:
-        ho = choose_handover(training, settings, choice.groups, choice.nu_condition, rows, tau, fk)
-        handover, handover_scores = ho.regression, ho.scores
+        ho = choose_handover(training, settings, choice.groups, choice.nu_condition, rows, tau, fk, fk_rot)
     return Hyperparameters(
         noise_ratio=nu,
         temperature=tau,
         coupled_groups=choice.groups,
         condition_noise_ratio=choice.nu_condition,
         head=head,
-        handover=handover,
+        handover=ho.regression,
+        orientation=ho.orientation,
         noise_cv_scores=nu_scores,
         coupling_cv_scores=choice.scores,
         condition_cv_scores=choice.nu_scores,
-        handover_cv_scores=handover_scores,
+        handover_cv_scores=ho.scores,
+        orientation_cv_scores=ho.orientation_scores,
     )
 
 
@@ -119,6 +126,7 @@ def fit_model(
     coupling: str | list[str],
     fk: ForwardKinematics | None = None,
     limit_threads: Callable[[], contextlib.AbstractContextManager] = contextlib.nullcontext,
+    fk_rot: ForwardKinematics | None = None,
 ) -> FittedModel:
     """The fitted model of demonstrations with the estimator's parameters ``params``.
 
@@ -128,6 +136,9 @@ def fit_model(
         observe, coupling: The parsed observed groups and coupling (``parse_params``).
         fk: The robot's forward kinematics (the cross-validations then score the hand-over position).
         limit_threads: A context limiting the BLAS threads during the cross-validations.
+        fk_rot: The gripper's rotations (joint angles (n, J) in [rad] -> rotation matrices (n, 3, 3));
+            with ``fk``, the model gets a hand-over orientation estimate
+            (:mod:`~ipromp_pin.promp.handover_orientation`) when its cross-validation keeps one.
 
     Raises:
         ModelError: the training produced an unusable model.
@@ -137,7 +148,7 @@ def fit_model(
     training = prepare_training(by_task, observe, params["robot_group"], basis, params["log_groups"])
     prior = log_task_prior(training.tasks, params["task_prior"])
     with limit_threads():
-        hp = select_hyperparameters(training, params, observe, coupling, prior, fk)
+        hp = select_hyperparameters(training, params, observe, coupling, prior, fk, fk_rot)
     models = task_models(
         training, training.weights, training.alphas, hp.coupled_groups, phase_settings(params)
     )
@@ -160,6 +171,8 @@ def fit_model(
         condition_cv_scores=hp.condition_cv_scores,
         handover=hp.handover,
         handover_cv_scores=hp.handover_cv_scores,
+        orientation=hp.orientation,
+        orientation_cv_scores=hp.orientation_cv_scores,
         trained_on=tuple(demo_record(d) for demos in by_task.values() for d in demos),
     )
     return checked(fitted)

@@ -19,6 +19,7 @@ from ..exceptions import ModelError
 from .basis import GaussianBasis
 from .distribution import ChannelScaler, TaskModel
 from .handover import HandoverRegression
+from .handover_orientation import OrientationEstimate
 from .head import RecognitionHead
 from .layout import ChannelLayout
 from .provenance import DemoRecord
@@ -55,6 +56,11 @@ class FittedModel:
             (:mod:`~ipromp_pin.promp.handover`; None: none).
         handover_cv_scores: Candidate trust factor (``inf``: off) -> its CV error (empty when not
             cross-validated).
+        orientation: The hand-over orientation estimate conditioned on after the regression
+            (:mod:`~ipromp_pin.promp.handover_orientation`; None: none, e.g. fitted without the
+            gripper's rotations or a model file of format version 4 or older).
+        orientation_cv_scores: Its candidate trust factors (``inf``: off) -> mean hand-over
+            orientation error in [deg] on the held-out training demos.
     """
 
     layout: ChannelLayout
@@ -76,6 +82,8 @@ class FittedModel:
     condition_cv_scores: Mapping[float, float] = field(default_factory=dict)
     handover: HandoverRegression | None = None
     handover_cv_scores: Mapping[float, float] = field(default_factory=dict)
+    orientation: OrientationEstimate | None = None
+    orientation_cv_scores: Mapping[float, float] = field(default_factory=dict)
 
     @property
     def nu_condition(self) -> float:

@@ -19,7 +19,7 @@ computed once for all candidates.
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -36,9 +36,11 @@ from .handover import (
     readouts,
     window_features,
 )
+from .handover_orientation import FKRot, OrientationEstimate, conditioned
 from .head import WindowSummary, interpolation
 from .noise_path import part_spectrum, robot_path
 from .observation import ObservationEncoder
+from .orientation_selection import FinalRow, choose_orientation
 from .posterior import recognise_from_loglik
 from .selection import HeldOutRow, cv_observations, held_out
 from .training import PhaseSettings, TrainingSet, coupling_blocks
@@ -52,10 +54,15 @@ class HandoverChoice:
         regression: The hand-over regression (None: "off", or nothing to regress on).
         scores: Candidate trust factor -> CV error (mean hand-over position error in [m], or final
             joint RMS error in [rad] without forward kinematics); ``inf`` is "off".
+        orientation: The hand-over orientation estimate (None: none;
+            :mod:`~ipromp_pin.promp.orientation_selection`); ``orientation_scores`` its trust
+            factors' CV errors in [deg].
     """
 
     regression: HandoverRegression | None
     scores: dict[float, float]
+    orientation: OrientationEstimate | None = None
+    orientation_scores: dict[float, float] = field(default_factory=dict)
 
 
 def final_configurations(training: TrainingSet) -> dict[str, np.ndarray]:
@@ -159,6 +166,7 @@ def choose_handover(
     rows: list[HeldOutRow],
     temperature: float,
     fk: Callable[[np.ndarray], np.ndarray] | None = None,
+    fk_rot: FKRot | None = None,
 ) -> HandoverChoice:
     """Fit the hand-over regressions and choose their features (the coupled groups' window or every
     observed group's) and trust factor by cross-validation (see the module docstring).
@@ -172,10 +180,14 @@ def choose_handover(
             log likelihood at the chosen noise ratio).
         temperature: The chosen likelihood temperature.
         fk: The robot's forward kinematics (joint angles (n, J) in [rad] -> positions (n, 3) in [m]).
+        fk_rot: The gripper's rotations (joint angles -> rotation matrices (n, 3, 3)); with ``fk``,
+            the orientation estimate is fitted and its trust chosen on the same held-out rows, with
+            the chosen regression applied (:func:`~ipromp_pin.promp.orientation_selection.
+            choose_orientation`).
 
     Returns:
         The chosen regression (None: "off") and the CV errors of the trust factors with the chosen
-        features.
+        features; the orientation estimate and its CV errors.
     """
     layout = training.layout
     if not layout.dims(list(coupled)).size:  # the robot is independent of the human: nothing to fuse
@@ -201,14 +213,19 @@ def choose_handover(
     best = None
     for dims, feats, fits, kinds in candidates:
         scores = _cross_validate(training, held, readout, fk, dims, feats, fits, kinds, q_end, targets)
-        if scores and (best is None or min(scores.values()) < min(best[3].values())):
-            best = (dims, fits, kinds, scores)
+        if scores and (best is None or min(scores.values()) < min(best[4].values())):
+            best = (dims, feats, fits, kinds, scores)
     if best is None:
         return HandoverChoice(None, {})
-    dims, fits, kinds, scores = best
+    dims, feats, fits, kinds, scores = best
     trust = min(scores, key=lambda v: scores[v])
+    orientation, orientation_scores = None, {}
+    if fk is not None and fk_rot is not None:
+        final = _final_rows(training, held, readout, dims, feats, fits, kinds, targets, trust)
+        picked = choose_orientation(final, q_end, tasks, fk, fk_rot)
+        orientation, orientation_scores = picked.estimate, picked.scores
     if not np.isfinite(trust):
-        return HandoverChoice(None, scores)
+        return HandoverChoice(None, scores, orientation, orientation_scores)
     n_ratio, n_task = len(RATIOS), len(tasks)
     m = readout.shape[1]
     n_feat = 2 * dims.size
@@ -237,7 +254,7 @@ def choose_handover(
         trust=float(trust),
         **extra,
     )
-    return HandoverChoice(regression, scores)
+    return HandoverChoice(regression, scores, orientation, orientation_scores)
 
 
 def _pooled(residuals: list[np.ndarray]) -> np.ndarray:
@@ -308,6 +325,69 @@ def _held_out_predictions(
     return out
 
 
+def _loo_observation(
+    h: _HeldOutPrediction,
+    tasks: Sequence[str],
+    dims: np.ndarray,
+    feats: dict[str, np.ndarray],
+    fits: dict[tuple[int, str], RidgeFit | KnnFit],
+    kinds: list[bool],
+    targets: dict[str, np.ndarray],
+    nested: dict[tuple[int, str, int], RidgeFit | KnnFit | None],
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """The regression's prediction (M,) and noise covariance (M, M) for held-out row ``h``: refitted
+    without its demo (``nested`` caches the refits), interpolated at its estimated fraction; None when
+    a refit has too few demos."""
+    j, w = interpolation(list(RATIOS), h.fraction)
+    x = window_features(h.window, dims)
+    m = next(iter(targets.values())).shape[1]
+    pred, noise = np.zeros(m), np.zeros((m, m))
+    for level, weight in ((j, 1.0 - w), (j + 1, w)):
+        if weight <= 0.0:
+            continue
+        key = (level, h.task, h.index)
+        if key not in nested:
+            nested[key] = _fit(feats[h.task][level], targets[h.task], drop=h.index, knn=kinds[level])
+        fit = nested[key]
+        if fit is None:
+            return None
+        pred += weight * fit.predict(x)
+        others = [fits[(level, t)].residuals for t in tasks if t != h.task]
+        noise += weight * _pooled([*others, fit.residuals])
+    return pred, noise
+
+
+def _final_rows(
+    training: TrainingSet,
+    held: list[_HeldOutPrediction],
+    readout: np.ndarray,
+    dims: np.ndarray,
+    feats: dict[str, np.ndarray],
+    fits: dict[tuple[int, str], RidgeFit | KnnFit],
+    kinds: list[bool],
+    targets: dict[str, np.ndarray],
+    trust: float,
+) -> list[FinalRow]:
+    """The held-out final configurations as online with the chosen regression (trust ``trust``;
+    ``inf``: off) applied by exact conditioning; rows whose regression cannot be refitted are left
+    out."""
+    tasks = training.tasks
+    nested: dict[tuple[int, str, int], RidgeFit | KnnFit | None] = {}
+    out = []
+    for h in held:
+        if not np.isfinite(trust):
+            out.append(FinalRow(h.task, h.index, h.mean, h.cov))
+            continue
+        obs = _loo_observation(h, tasks, dims, feats, fits, kinds, targets, nested)
+        if obs is None:
+            continue
+        pred, noise = obs
+        a = readout[tasks.index(h.task)]
+        mean, cov = conditioned(a, pred, trust * noise, h.mean, h.cov)
+        out.append(FinalRow(h.task, h.index, mean, cov))
+    return out
+
+
 def _cross_validate(
     training: TrainingSet,
     held: list[_HeldOutPrediction],
@@ -328,26 +408,10 @@ def _cross_validate(
     configs, truths = [], []
     for h in held:
         k = tasks.index(h.task)
-        # the regression without the held-out demo, interpolated at the estimated fraction
-        j, w = interpolation(list(RATIOS), h.fraction)
-        x = window_features(h.window, dims)
-        pred, noise = np.zeros(readout.shape[1]), np.zeros((readout.shape[1],) * 2)
-        ok = True
-        for level, weight in ((j, 1.0 - w), (j + 1, w)):
-            if weight <= 0.0:
-                continue
-            key = (level, h.task, h.index)
-            if key not in nested:
-                nested[key] = _fit(feats[h.task][level], targets[h.task], drop=h.index, knn=kinds[level])
-            fit = nested[key]
-            if fit is None:
-                ok = False
-                break
-            pred += weight * fit.predict(x)
-            others = [fits[(level, t)].residuals for t in tasks if t != h.task]
-            noise += weight * _pooled([*others, fit.residuals])
-        if not ok:
+        obs = _loo_observation(h, tasks, dims, feats, fits, kinds, targets, nested)
+        if obs is None:
             continue
+        pred, noise = obs
         a = readout[k]
         gain_base = h.cov @ a.T  # (J, M)
         innov = pred - a @ h.mean

@@ -101,16 +101,22 @@ class Predictor:
 
     def predict(self, parts: list[ObservationPart], t_last: float) -> Prediction:
         """Recognition and the conditioned prediction of the most probable task (with a hand-over
-        regression, conditioned on it as well: :meth:`Conditioner.observe_handover`)."""
+        regression, conditioned on it as well, then on the orientation estimate:
+        :meth:`Conditioner.observe_handover`)."""
         fm = self.fitted
         window = None
         if fm.head is not None or fm.handover is not None:
             window = WindowSummary.from_parts(parts, fm.layout.n_obs_dims)
         pred = self.conditioner.condition(self.recognise(parts, t_last, window), parts)
-        if fm.handover is None:
+        if fm.handover is None and fm.orientation is None:
             return pred
         k = fm.tasks.index(pred.task)
-        fraction = t_last / (float(pred.alpha[k]) * fm.duration_nominal_s)
-        assert window is not None  # summarised above for the hand-over regression
-        readout, values, cov = fm.handover.observation(k, window, fraction)
-        return self.conditioner.observe_handover(pred, readout, values, cov)
+        if fm.handover is not None:
+            fraction = t_last / (float(pred.alpha[k]) * fm.duration_nominal_s)
+            assert window is not None  # summarised above for the hand-over regression
+            readout, values, cov = fm.handover.observation(k, window, fraction)
+            pred = self.conditioner.observe_handover(pred, readout, values, cov)
+        if fm.orientation is not None:
+            readout, values, cov = fm.orientation.observation(k, pred.q_mean[-1], pred.q_cov[-1])
+            pred = self.conditioner.observe_handover(pred, readout, values, cov)
+        return pred

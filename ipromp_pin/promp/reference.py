@@ -247,6 +247,23 @@ def direct_predict(predictor: Predictor, observation: Demo) -> Prediction:
         gain_t = cho_solve(c, h @ w_cov)  # (M, p)
         w_mean = w_mean + gain_t.T @ (values - readout @ q_end)
         w_cov = w_cov - (h @ w_cov).T @ gain_t
+    if fm.orientation is not None:  # the orientation observed where it is uncorrelated with the position
+        o = fm.orientation
+        task_index = fm.tasks.index(rec.task)
+        phi_end = fm.basis(np.array([1.0]))[0]
+        e = np.zeros((nj, n_dims * k))
+        e[:, sel] = np.kron(np.diag(scale), phi_end[None, :])  # q(T) = e w + offset
+        q_end = e @ w_mean + fm.scaler.offset[rs]
+        s_end = e @ w_cov @ e.T
+        pos, rot = o.position_readout[task_index], o.rotation_readout[task_index]
+        b = rot @ s_end @ pos.T @ np.linalg.inv(pos @ s_end @ pos.T)
+        h = (rot - b @ pos) @ e
+        values = o.target[task_index] - b @ pos @ q_end
+        s_cov = h @ w_cov @ h.T + o.trust * o.noise_cov[task_index]
+        c = cho_factor(s_cov, lower=True)
+        gain_t = cho_solve(c, h @ w_cov)
+        w_mean = w_mean + gain_t.T @ (values - (rot - b @ pos) @ q_end)
+        w_cov = w_cov - (h @ w_cov).T @ gain_t
     z = np.linspace(0.0, 1.0, predictor.conditioner.n_points)
     b = fm.basis(z)
     big = np.zeros((z.size * nj, nj * k))

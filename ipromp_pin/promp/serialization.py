@@ -33,11 +33,17 @@ A model file is a single ``.npz`` archive (``numpy.savez``) read back with
   the arrays ``handover_kind`` (R,) (0 ridge, 1 k-nearest neighbours), ``handover_neighbour_x``
   (R, T, N, 2 F), ``handover_neighbour_y`` (R, T, N, M), ``handover_neighbour_count``,
   ``handover_neighbour_k``, ``handover_neighbour_distance`` (R, T), ``handover_neighbour_mean`` and
-  ``handover_neighbour_scale`` (R, T, 2 F).
+  ``handover_neighbour_scale`` (R, T, 2 F);
+* (version 5) the header's ``orientation`` (null, or ``{"trust": s}``) and ``orientation_cv_scores``
+  (trust factor or ``"off"`` -> CV error in [deg]), and with an orientation estimate its arrays
+  ``orientation_position_readout`` and ``orientation_rotation_readout`` (T, 3, J),
+  ``orientation_target`` (T, 3) and ``orientation_noise_cov`` (T, 3, 3)
+  (:mod:`~ipromp_pin.promp.handover_orientation`).
 
 Files of format version 1 (no ``trained_on``) load with ``trained_on`` None
 (unknown); files of format version 2 load with an all-logistic head and no hand-over regression;
-files of format version 3 with an all-ridge hand-over regression.
+files of format version 3 with an all-ridge hand-over regression; files of format version 4 and
+older without an orientation estimate (as they predicted).
 Files written before the coupling was introduced (no ``coupling`` parameter, no
 ``task{i}_shrinkage``) load as fully coupled models with one shrinkage intensity;
 the covariance is entirely in ``diag`` and ``factor``, so older readers also load
@@ -74,6 +80,7 @@ from .basis import GaussianBasis
 from .distribution import ChannelScaler, TaskModel
 from .fitted import FittedModel
 from .handover import NEIGHBOUR_ARRAYS, HandoverRegression
+from .handover_orientation import OrientationEstimate
 from .head import RecognitionHead
 from .layout import ChannelLayout
 from .provenance import DemoRecord
@@ -82,12 +89,13 @@ from .validation import check_fitted
 FORMAT_NAME = "ipromp_pin.IProMP"
 """Value of the header's ``format`` field."""
 
-FORMAT_VERSION = 4
+FORMAT_VERSION = 5
 """Current (and highest readable) format version. Version 2 added ``trained_on`` (the training demos),
 the likelihood temperature, the conditioning noise ratio and the recognition head (``head_*``
 arrays); version 3 the head's model families and features and the hand-over regression
 (``handover_*`` arrays); version 4 the hand-over's k-nearest-neighbour estimates
-(``handover_kind``, ``handover_neighbour_*``). Version-1 files load with no record of their training
+(``handover_kind``, ``handover_neighbour_*``); version 5 the hand-over orientation estimate
+(``orientation_*``). Version-1 files load with no record of their training
 demos, temperature 1, the conditioning noise ratio equal to the noise ratio and no head; version-2
 files with an all-logistic head and no hand-over regression (as they predicted); version-3 files with
 an all-ridge hand-over regression (as they predicted)."""
@@ -95,6 +103,7 @@ an all-ridge hand-over regression (as they predicted)."""
 _HEAD_ARRAYS = ("ratios", "coef", "intercept", "feature_mean", "feature_scale", "c", "cv_log_loss")
 _HEAD_V3_ARRAYS = ("kind", "generative")
 _HANDOVER_ARRAYS = ("ratios", "readout", "coef", "intercept", "residual_cov")
+_ORIENTATION_ARRAYS = ("position_readout", "rotation_readout", "target", "noise_cov")
 
 _TASK_ARRAYS = ("mean", "diag", "factor", "alpha_grid", "alpha_log_prior", "train_weights", "train_alpha")
 _GLOBAL_ARRAYS = ("scaler_offset", "scaler_scale", "scaler_log_shift", "task_log_prior", "residual_var")
@@ -102,7 +111,7 @@ _HEADER_KEYS = {
     "format", "format_version", "package_version", "params", "tasks", "groups", "channel_names",
     "duration_nominal_s", "noise_ratio", "cv_scores", "coupled_groups", "coupling_cv_scores", "task_scalars",
     "trained_on", "temperature", "condition_noise_ratio", "condition_cv_scores", "head", "handover",
-    "handover_cv_scores",
+    "handover_cv_scores", "orientation", "orientation_cv_scores",
 }  # fmt: skip
 _PARAM_KEYS = {
     "observe", "n_basis", "width", "ridge", "margin", "blas_threads", "n_alpha", "alpha_width", "noise",
@@ -207,6 +216,11 @@ def write_model(params: dict, fitted: FittedModel, path: str | Path) -> None:
             ["off" if not np.isfinite(k) else float(k), float(v)]
             for k, v in fitted.handover_cv_scores.items()
         ],
+        "orientation": None if fitted.orientation is None else {"trust": float(fitted.orientation.trust)},
+        "orientation_cv_scores": [
+            ["off" if not np.isfinite(k) else float(k), float(v)]
+            for k, v in fitted.orientation_cv_scores.items()
+        ],
         "task_scalars": [
             {
                 # the robot's intensity, as a scalar for readers of files without task{i}_shrinkage
@@ -242,6 +256,9 @@ def write_model(params: dict, fitted: FittedModel, path: str | Path) -> None:
         if ho.kind is not None:
             for name in NEIGHBOUR_ARRAYS:
                 arrays[f"handover_{name}"] = np.asarray(getattr(ho, name), dtype=float)
+    if fitted.orientation is not None:
+        for name in _ORIENTATION_ARRAYS:
+            arrays[f"orientation_{name}"] = np.asarray(getattr(fitted.orientation, name), dtype=float)
     for i, m in enumerate(fitted.task_models()):
         for name in _TASK_ARRAYS:
             arrays[f"task{i}_{name}"] = np.asarray(getattr(m, name), dtype=float)
@@ -391,6 +408,19 @@ def _expected_shapes(path: Path, header: dict) -> dict[str, tuple[int | None, ..
     ho = header.get("handover")
     if ho is not None:
         shapes.update(_handover_shapes(path, ho, len(tasks), names, groups))
+    orientation = header.get("orientation")
+    if orientation is not None:
+        if not isinstance(orientation, dict) or set(orientation) != {"trust"}:
+            raise ModelFileError(f"{path}: header field 'orientation' must be null or {{\"trust\": s}}")
+        nj, t = len(names[groups[-1]]), len(tasks)
+        shapes.update(
+            {
+                "orientation_position_readout": (t, 3, nj),
+                "orientation_rotation_readout": (t, 3, nj),
+                "orientation_target": (t, 3),
+                "orientation_noise_cov": (t, 3, 3),
+            }
+        )
     return shapes
 
 
@@ -564,6 +594,10 @@ def _fitted(header: dict, arrays: dict[str, np.ndarray]) -> FittedModel:
         trained_on=_trained_on(header),
         head=_head(header.get("head"), arrays, layout.n_obs_dims, len(tasks)),
         handover=_handover(header.get("handover"), arrays),
+        orientation=_orientation(header.get("orientation"), arrays),
+        orientation_cv_scores={
+            (np.inf if k == "off" else float(k)): float(v) for k, v in header.get("orientation_cv_scores", [])
+        },
         handover_cv_scores={
             (np.inf if k == "off" else float(k)): float(v) for k, v in header.get("handover_cv_scores", [])
         },
@@ -606,6 +640,16 @@ def _handover(meta: dict | None, arrays: dict[str, np.ndarray]) -> HandoverRegre
         **neighbour,  # absent before version 4
         dims=dims.astype(np.int64),
         trust=float(meta["trust"]),
+    )
+
+
+def _orientation(meta: dict | None, arrays: dict[str, np.ndarray]) -> OrientationEstimate | None:
+    """The hand-over orientation estimate of a file (None when it has none: format version 4 and
+    older, or a model fitted without the gripper's rotations)."""
+    if meta is None:
+        return None
+    return OrientationEstimate(
+        **{name: arrays[f"orientation_{name}"] for name in _ORIENTATION_ARRAYS}, trust=float(meta["trust"])
     )
 
 

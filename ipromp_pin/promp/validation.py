@@ -20,6 +20,7 @@ import numpy as np
 from ..exceptions import ModelError
 from .fitted import FittedModel
 from .handover import HandoverRegression
+from .handover_orientation import OrientationEstimate
 from .head import RecognitionHead
 
 MAX_DURATION_S = 86400.0
@@ -165,6 +166,8 @@ def check_fitted(fitted: FittedModel) -> FittedModel:
         _check_head(fitted.head, len(tasks), layout.n_obs_dims)
     if fitted.handover is not None:
         _check_handover(fitted.handover, len(tasks), layout.n_obs_dims, d - layout.n_obs_dims)
+    if fitted.orientation is not None:
+        _check_orientation(fitted.orientation, len(tasks), d - layout.n_obs_dims)
     return fitted
 
 
@@ -216,6 +219,25 @@ def _check_handover(ho: HandoverRegression, n_tasks: int, n_obs: int, n_joints: 
     _scalar("handover trust", ho.trust, 0.0, MAX_ORIGINAL)
     if ho.kind is not None:
         _check_neighbours(ho, r, n_tasks, m, 2 * f)
+
+
+def _check_orientation(est: OrientationEstimate, n_tasks: int, n_joints: int) -> None:
+    """The orientation estimate's arrays: shapes, finite numbers, symmetric positive definite noise
+    covariances, a positive trust factor."""
+    for name in ("position_readout", "rotation_readout"):
+        _bounded(
+            f"orientation {name}",
+            _array(f"orientation {name}", getattr(est, name), (n_tasks, 3, n_joints)),
+            MAX_ORIGINAL,
+        )
+    _bounded("orientation target", _array("orientation target", est.target, (n_tasks, 3)), MAX_ORIGINAL)
+    cov = _array("orientation noise_cov", est.noise_cov, (n_tasks, 3, 3))
+    _bounded("orientation noise_cov", cov, MAX_ORIGINAL)
+    if not np.allclose(cov, np.swapaxes(cov, 1, 2), rtol=1e-9, atol=0.0):
+        raise _fail("orientation noise_cov", "must be symmetric")
+    if (np.linalg.eigvalsh(cov) <= 0).any():
+        raise _fail("orientation noise_cov", "must be positive definite")
+    _scalar("orientation trust", est.trust, 0.0, MAX_ORIGINAL)
 
 
 def _check_neighbours(ho: HandoverRegression, r: int, n_tasks: int, m: int, n_feat: int) -> None:

@@ -32,7 +32,7 @@ from .checks import (
 )
 from .collision import check_self_collision
 from .inverse_kinematics import IKResult, solve_ik
-from .kinematics import ee_positions, forward_kinematics, frame_placements
+from .kinematics import ee_positions, forward_kinematics, frame_placements, gripper_rotations
 from .model import Robot, build_robot, clear_robot_cache, load_robot, load_visual_model, map_recorded_joints
 from .report import CheckResult, FeasibilityReport
 from .settings import (
@@ -71,6 +71,7 @@ __all__ = [
     "find_robot_data_dir",
     "forward_kinematics",
     "frame_placements",
+    "gripper_rotations",
     "load_robot",
     "load_robot_settings",
     "load_visual_model",

@@ -80,3 +80,9 @@ def forward_kinematics(robot: Robot, q: np.ndarray, frame_id: int | None = None)
 def ee_positions(robot: Robot, q: np.ndarray) -> np.ndarray:
     """End-effector positions (M, 3) in [m] along a joint path (M, n_joints) in [rad]."""
     return frame_placements(robot, q)[0]
+
+
+def gripper_rotations(robot: Robot, q: np.ndarray) -> np.ndarray:
+    """End-effector rotation matrices (M, 3, 3) in the base frame along a joint path (M, n_joints) in
+    [rad]."""
+    return frame_placements(robot, q)[1]

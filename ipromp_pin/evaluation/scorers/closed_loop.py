@@ -40,7 +40,7 @@ from ...human import HumanMotion
 from ...motion.limits import LimitProfile, conservative_profile, demonstrated_profile, read_limit_profile
 from ...motion.trajectory import Trajectory
 from ...promp import IProMP
-from ...robot import DemoLimitRecipe, Robot, ee_positions, frame_placements
+from ...robot import DemoLimitRecipe, Robot, ee_positions, frame_placements, gripper_rotations
 from ...robot.clearance import ClearanceCertifier
 from ...robot.objects import ObjectTable
 from ..cells import CellResults, ClosedLoopCell, baseline_summary, median
@@ -268,9 +268,11 @@ class ClosedLoopScorer(Scorer):
         if self.human_checks_ is None:
             self.human_checks_ = build_checks(self.robot, HUMAN_CHECKS) if self.options.human else []
         fk = partial(ee_positions, self.robot)  # settings chosen for the hand-over position
-        self.model_ = IProMP(observe=list(observe), **self.model_params).fit(train, fk=fk)
+        fk_rot = partial(gripper_rotations, self.robot)
+        model = IProMP(observe=list(observe), **self.model_params)
+        self.model_ = model.fit(train, fk=fk, fk_rot=fk_rot)
         self.profile_ = profile_for(self.options, self.robot, train, self.label_name)
-        self.mean_rot_ = mean_handover_rotations(train, lambda q: frame_placements(self.robot, q)[1])
+        self.mean_rot_ = mean_handover_rotations(train, fk_rot)
         return self
 
     def score(self, test: Sequence[Demo], obs_ratio: float, split: int = 0) -> list[ClosedLoopTrial]:

@@ -203,7 +203,8 @@ class OneShotScorer(Scorer):
     def fit(self, train: Sequence[Demo], observe: Sequence[str]) -> OneShotScorer:
         """Fit the model on the training demos."""
         self.observe_ = list(observe)
-        self.model_ = IProMP(observe=list(observe), **self.model_params).fit(train, fk=self.fk)
+        model = IProMP(observe=list(observe), **self.model_params)
+        self.model_ = model.fit(train, fk=self.fk, fk_rot=self.fk_rot)
         self.mean_rot_ = {} if self.fk_rot is None else mean_handover_rotations(train, self.fk_rot)
         return self
 

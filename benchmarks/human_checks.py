@@ -37,7 +37,7 @@ from ipromp_pin.human import HumanMotion
 from ipromp_pin.promp import IProMP
 from ipromp_pin.readers import load_dataset
 from ipromp_pin.readers.synthetic import make_synthetic_dataset
-from ipromp_pin.robot import ee_positions, load_robot
+from ipromp_pin.robot import ee_positions, gripper_rotations, load_robot
 
 NAMES = ("human_clearance", "contact_speed")
 REPEATS = 5
@@ -124,7 +124,9 @@ def main() -> None:
     for f in range(args.folds):
         test = demos[f :: args.folds]
         train = [d for d in demos if all(d is not x for x in test)]
-        model = IProMP(observe=observe, **smoke_model).fit(train, fk=partial(ee_positions, robot))
+        model = IProMP(observe=observe, **smoke_model).fit(
+            train, fk=partial(ee_positions, robot), fk_rot=partial(gripper_rotations, robot)
+        )
         for demo in test:
             rows.append(_one(model, robot, checks, demo, observe, args.ratio))
             r = rows[-1]

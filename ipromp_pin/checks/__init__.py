@@ -20,10 +20,11 @@ A new check is one file here (a :class:`~.base.MotionCheck` subclass) plus one l
 
 from .base import CheckContext, MotionCheck, TimedMotion
 from .registry import MOTION_CHECKS, build_checks, run_checks
-from .slowdown import MAX_SLOWDOWN, needed_slowdown
+from .slowdown import MAX_SLOWDOWN, MAX_SLOWDOWN_ROUNDS, needed_slowdown
 
 __all__ = [
     "MAX_SLOWDOWN",
+    "MAX_SLOWDOWN_ROUNDS",
     "MOTION_CHECKS",
     "CheckContext",
     "MotionCheck",

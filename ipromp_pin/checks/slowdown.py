@@ -16,6 +16,11 @@ from ..robot import CheckResult
 MAX_SLOWDOWN = 4.0
 """The largest slow-down a plan is given before it is refused (4x the duration)."""
 
+MAX_SLOWDOWN_ROUNDS = 3
+"""How many times a plan is slowed again when its slowed version still fails a check that asks for
+a slower motion (the factor a check asks for is a first-order estimate: a slower motion meets the
+moving human at other times and places)."""
+
 
 def needed_slowdown(results: Sequence[CheckResult]) -> float | None:
     """The slow-down factor ``k >= 1`` that the failing required checks ask for together.

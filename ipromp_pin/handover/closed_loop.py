@@ -33,7 +33,15 @@ from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 
-from ..checks import MAX_SLOWDOWN, CheckContext, MotionCheck, TimedMotion, needed_slowdown, run_checks
+from ..checks import (
+    MAX_SLOWDOWN,
+    MAX_SLOWDOWN_ROUNDS,
+    CheckContext,
+    MotionCheck,
+    TimedMotion,
+    needed_slowdown,
+    run_checks,
+)
 from ..data import Demo
 from ..exceptions import IPrompPinError, ObservationError, PipelineError
 from ..motion.limits import LimitProfile
@@ -55,8 +63,6 @@ from ..robot.clearance import ClearanceCertifier
 LIMIT_TOLERANCE = 1e-6
 """Relative tolerance of the velocity, acceleration and jerk checks of a re-plan."""
 
-MAX_SLOWDOWN_ROUNDS = 3
-"""How many times a re-plan is re-targeted slower when a timed-motion check asks for it."""
 
 SLOWDOWN_STEP = 1.05
 """Each slower re-target asks for 5 % more slow-down than the failing checks estimated."""

@@ -14,7 +14,15 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..checks import CheckContext, MotionCheck, TimedMotion, needed_slowdown, run_checks
+from ..checks import (
+    MAX_SLOWDOWN,
+    MAX_SLOWDOWN_ROUNDS,
+    CheckContext,
+    MotionCheck,
+    TimedMotion,
+    needed_slowdown,
+    run_checks,
+)
 from ..checks.joint_torques import JointTorques
 from ..data import Demo
 from ..exceptions import InfeasibleError, ModelError
@@ -216,30 +224,36 @@ def _check_motion(
     control_rate_hz: float,
     torque: TorqueLimit | None = None,
 ) -> None:
-    """Run the timed-motion checks on ``result``'s trajectory, re-time it once when the failing checks
-    ask for a slower motion (and that passes them), and add the results to its report (in place)."""
+    """Run the timed-motion checks on ``result``'s trajectory, re-time it slower when the failing checks
+    ask for a slower motion (again, up to :data:`~ipromp_pin.checks.MAX_SLOWDOWN_ROUNDS` times and
+    :data:`~ipromp_pin.checks.MAX_SLOWDOWN` in all, while the slower one still fails; committed only
+    when it passes them), and add the results to its report (in place)."""
     t0 = time.perf_counter()
     base = context if context is not None else CheckContext()  # the caller's context is not changed
     ctx = replace(
         base, task=result.prediction.task, handover_s=result.start_s + float(result.trajectory.t_s[-1])
     )
     results = run_checks(checks, TimedMotion.from_trajectory(result.trajectory, result.start_s), ctx)
-    k = needed_slowdown(results)
-    if k is not None and k > 1.0:
-        k *= 1.05  # a margin over the checks' estimate
-        q_path = result.prediction.q_mean
+    asked, total = results, 1.0
+    for _ in range(MAX_SLOWDOWN_ROUNDS + 1):  # slowed again while a slower motion still does not pass
+        k = needed_slowdown(asked)
+        if k is None or k <= 1.0 or total * k > MAX_SLOWDOWN:
+            break
+        total *= k * 1.05  # a margin over the checks' first-order estimate
         try:
-            limits = JointLimits.from_robot(robot).scaled(1.0 / k, 1.0 / k**2, 1.0 / k**3)
-            slow, slow_report = time_path(q_path, limits, rate_hz=control_rate_hz, torque=torque)
+            limits = JointLimits.from_robot(robot).scaled(1.0 / total, 1.0 / total**2, 1.0 / total**3)
+            slow, slow_report = time_path(
+                result.prediction.q_mean, limits, rate_hz=control_rate_hz, torque=torque
+            )
         except InfeasibleError:
-            slow = None
-        if slow is not None:
-            ctx = replace(ctx, handover_s=result.start_s + float(slow.t_s[-1]))
-            slow_results = run_checks(checks, TimedMotion.from_trajectory(slow, result.start_s), ctx)
-            if needed_slowdown(slow_results) == 1.0:
-                result.slowdown_delay_s = float(slow.t_s[-1] - result.trajectory.t_s[-1])
-                result.slowdown = k
-                result.trajectory, result.timing_report, results = slow, slow_report, slow_results
+            break
+        slow_ctx = replace(ctx, handover_s=result.start_s + float(slow.t_s[-1]))
+        asked = run_checks(checks, TimedMotion.from_trajectory(slow, result.start_s), slow_ctx)
+        if needed_slowdown(asked) == 1.0:
+            result.slowdown_delay_s = float(slow.t_s[-1] - result.trajectory.t_s[-1])
+            result.slowdown = total
+            result.trajectory, result.timing_report, results, ctx = slow, slow_report, asked, slow_ctx
+            break
     result.report.checks.extend(results)
     torques = next((c for c in checks if isinstance(c, JointTorques)), None)
     if torques is not None:  # the torques of the committed timing, for the trajectory files

@@ -9,6 +9,7 @@ import pytest
 
 from ipromp_pin.checks import (
     MAX_SLOWDOWN,
+    MAX_SLOWDOWN_ROUNDS,
     MOTION_CHECKS,
     CheckContext,
     MotionCheck,
@@ -32,10 +33,11 @@ class SpeedBound(MotionCheck):
 
     name = "speed_bound"
 
-    def __init__(self, robot, bound: float = np.inf, fixable: bool = True) -> None:
+    def __init__(self, robot, bound: float = np.inf, fixable: bool = True, power: float = 1.0) -> None:
         super().__init__(robot)
         self.bound = bound
         self.fixable = fixable
+        self.power = power  # < 1: asks for less slow-down than it needs (a first-order estimate)
         self.seen: list[TimedMotion] = []
         self.contexts: list[CheckContext] = []
 
@@ -47,7 +49,7 @@ class SpeedBound(MotionCheck):
         if peak <= self.bound:
             return CheckResult(self.name, "pass", f"peak {peak:.3f} rad/s", values)
         if self.fixable:
-            values["slowdown"] = peak / self.bound
+            values["slowdown"] = (peak / self.bound) ** self.power
         return CheckResult(self.name, "fail", f"peak {peak:.3f} rad/s > {self.bound}", values)
 
 
@@ -111,6 +113,21 @@ def test_one_shot_plan_is_re_timed_when_a_check_asks_for_a_slower_motion(setup):
     stuck = plan(model, robot, obs, checks=[SpeedBound(robot, 0.6 * peak, fixable=False)])
     assert not stuck.passed and stuck.report.failures == ["speed_bound"]
     assert stuck.slowdown == 1.0 and stuck.trajectory.t_s[-1] == base.trajectory.t_s[-1]
+
+
+def test_a_slowed_plan_that_still_fails_is_slowed_again_until_it_passes(setup):
+    model, robot, _, test = setup
+    obs = test[0].head(0.3, groups=OBSERVE)
+    peak = float(np.max(np.abs(plan(model, robot, obs).trajectory.qd)))
+    check = SpeedBound(robot, 0.6 * peak, power=0.5)  # asks for the square root of what it needs
+    result = plan(model, robot, obs, checks=[check])
+    assert result.passed and np.max(np.abs(result.trajectory.qd)) <= 0.6 * peak
+    assert result.slowdown > 1.0 / 0.6
+    assert 3 <= len(check.seen) <= 2 + MAX_SLOWDOWN_ROUNDS  # the plan, then one timing per round
+    # rounds are bounded: a check that asks for too little every time leaves the plan failing
+    stingy = SpeedBound(robot, 0.2 * peak, power=0.05)
+    failed = plan(model, robot, obs, checks=[stingy])
+    assert not failed.passed and failed.slowdown == 1.0 and len(stingy.seen) == 2 + MAX_SLOWDOWN_ROUNDS
 
 
 def test_closed_loop_re_targets_slower_when_a_check_asks_and_records_the_delay(setup):

@@ -17,6 +17,11 @@ replay in a fresh process: the figure to compare is this script's "first replay"
 replays show the warm cycle). Unknown options are passed to ``replay`` (e.g. ``--limits``,
 ``--replan-rate``). The process is pinned to one CPU.
 
+``--without CHECK[,CHECK...]`` (e.g. ``human_clearance,contact_speed``): every timed replay is
+followed by the same replay with those timed-motion checks left out, and the medians of the two
+cycles, their difference and ratio are printed: what the checks add to the re-plan cycle, measured
+back to back.
+
 ``--smoke``: the pipeline's built-in synthetic demos with a small model (loaded as ``--model``, as
 ``replay --model`` does), one replay after the warm-up: seconds, what the test suite runs.
 
@@ -31,6 +36,7 @@ import json
 import os
 import platform
 import tempfile
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -91,7 +97,11 @@ def main() -> None:
     parser.add_argument("--replays", type=int, default=10, help="timed replays after the warm-up")
     parser.add_argument("--json", type=Path, default=None)
     parser.add_argument("--smoke", action="store_true", help="synthetic demos, a small model, 1 replay")
+    parser.add_argument(
+        "--without", default="", help="comma-separated checks to leave out in an interleaved second set"
+    )
     args, rest = parser.parse_known_args()
+    left_out = [c for c in args.without.split(",") if c]
     if args.smoke:
         args.dataset, args.observe, args.replays = None, None, 1
     if hasattr(os, "sched_setaffinity"):
@@ -103,7 +113,15 @@ def main() -> None:
         settings = closed_loop_settings(ns, control_rate_hz=cfg.control_rate_hz, start_ratio=ns.start_ratio)
         setup = prepare_replay(cfg, settings, ns.limits)
         session = setup.session
+        known = {c.name for c in session.motion_checks}
+        unknown = sorted(set(left_out) - known)
+        if unknown:
+            raise SystemExit(f"--without: unknown checks {unknown} (the replay runs {sorted(known)})")
+        fewer = replace(setup, session=replace(session, motion_checks=[
+            c for c in session.motion_checks if c.name not in left_out
+        ]))  # fmt: skip
         cycles: list[list[float]] = []
+        cycles_without: list[list[float]] = []
         stages: dict[str, list[float]] = {}
         first: list[float] = []
         for i in range(args.replays + 1):
@@ -111,12 +129,19 @@ def main() -> None:
             replans = [r.cycle_ms for r in result.replans]
             if i == 0:  # the replay of a fresh process: what `ipromp-pin replay` reports
                 first = replans
+                if left_out:
+                    fewer.replay(settings)  # its warm-up
                 continue
             cycles.append(replans)
             for r in result.replans:
                 for k, v in r.stage_ms.items():
                     stages.setdefault(k, []).append(v)
+            if left_out:
+                cycles_without.append([r.cycle_ms for r in fewer.replay(settings).replans])
     out = summary(cycles, stages)
+    if left_out:
+        with_ms, without_ms = out["cycle_ms"]["median"], float(np.median(np.concatenate(cycles_without)))
+        out["without"] = {"checks": left_out, "cycle_median_ms": without_ms, "added_ms": with_ms - without_ms}
     print(
         f"machine: {platform.processor() or platform.machine()}, Python {platform.python_version()}, one CPU"
     )
@@ -134,6 +159,13 @@ def main() -> None:
         f"median {np.median(first):.2f} ms"
     )
     print(f"first re-plan of a replay: median {np.median([c[0] for c in cycles]):.2f} ms")
+    if left_out:
+        w = out["without"]
+        ratio = out["cycle_ms"]["median"] / w["cycle_median_ms"]
+        print(
+            f"without {', '.join(left_out)} (interleaved replays): cycle median "
+            f"{w['cycle_median_ms']:.2f} ms; the checks add {w['added_ms']:.2f} ms ({ratio:.2f}x)"
+        )
     if args.json:
         args.json.parent.mkdir(parents=True, exist_ok=True)
         out["first_replay_median_ms"] = float(np.median(first))

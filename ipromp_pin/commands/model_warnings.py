@@ -41,7 +41,10 @@ def group_distance_sd(model: IProMP, group: str, values: np.ndarray) -> float:
     lo, hi = model.group_slices_[group]
     with np.errstate(all="ignore"):
         z = model.scaler_.transform(np.asarray(values, dtype=float), slice(lo, hi))
-        rms = np.sqrt(np.nanmean(z**2, axis=1))
+    seen = np.isfinite(z).any(axis=1)  # samples with at least one channel (occluded ones have none)
+    if not seen.any():
+        return 0.0
+    rms = np.sqrt(np.nanmean(z[seen] ** 2, axis=1))
     rms = rms[np.isfinite(rms)]
     return float(np.median(rms)) if rms.size else 0.0
 

@@ -76,3 +76,13 @@ def test_run_on_emg_in_other_units_warns_and_reports_it(tiny, tmp_path, capsys):
     report = json.loads((out / "report.json").read_text())
     assert any("the observed 'emg' lies" in w for w in report["warnings"])
     assert np.isfinite(report["predicted_duration_s"])
+
+
+def test_occluded_samples_are_ignored_without_a_runtime_warning(model, recwarn):
+    demo = make_synthetic_dataset(n_tasks=1, n_demos=2, seed=21).all_demos()[0]
+    values = demo.groups["orientation"].copy()
+    clean = group_distance_sd(model, "orientation", values)
+    values[::2] = np.nan  # every other sample occluded (a tracked frame that was not seen)
+    assert group_distance_sd(model, "orientation", values) == pytest.approx(clean, rel=0.3)
+    assert group_distance_sd(model, "orientation", np.full_like(values, np.nan)) == 0.0
+    assert not [w for w in recwarn if issubclass(w.category, RuntimeWarning)]

@@ -28,7 +28,11 @@ EXPECTED = {
         r"before \(no torque check\)\s+\d+/\d+\s+over",
         r"joint-torque check per committed re-plan",
     ],
-    "closed_loop.py": [r"(?m)^cycle\s+[\d.]+\s+[\d.]+", r"first re-plan of a replay: median [\d.]+ ms"],
+    "closed_loop.py": [
+        r"(?m)^cycle\s+[\d.]+\s+[\d.]+",
+        r"first re-plan of a replay: median [\d.]+ ms",
+        r"without human_clearance, contact_speed \(interleaved replays\): cycle median [\d.]+ ms",
+    ],
     "closed_loop_cv.py": [r"\| err \[cm\] \|", r"(?m)^0\.2 \| 20 \| 0\.9 \| 90 \| 0\.2 \| [\d.]+ \|"],
     "human_checks.py": [r"failing the human checks \(after re-timing\): \d+/\d+", r"cost of both checks"],
     "first_minute.py": [r"(?m)^cold\s+median\s+[\d.]+ s wall"],

@@ -142,13 +142,14 @@ def test_evaluate_closed_loop_adds_the_closed_loop_fields(tmp_path, capsys):
 
 def test_closed_loop_evaluation_chooses_the_model_settings_for_the_hand_over(tmp_path, monkeypatch):
     """The closed loop's models are fitted with the robot's kinematics (coupling and conditioning
-    chosen for the hand-over position, as run, replay and evaluate choose them)."""
+    chosen for the hand-over position, as run, replay and evaluate choose them) and the gripper's
+    rotations (the hand-over orientation estimate)."""
     seen = []
     fit = IProMP.fit
 
-    def spy(self, data, y=None, *, fk=None):
-        seen.append(fk)
-        return fit(self, data, y, fk=fk)
+    def spy(self, data, y=None, *, fk=None, fk_rot=None):
+        seen.append((fk, fk_rot))
+        return fit(self, data, y, fk=fk, fk_rot=fk_rot)
 
     monkeypatch.setattr(IProMP, "fit", spy)
     data = _write_dataset(tmp_path / "data")
@@ -156,5 +157,5 @@ def test_closed_loop_evaluation_chooses_the_model_settings_for_the_hand_over(tmp
     args += ["--grid", "full", "--n-train", "4", "--ratios", "0.2", "--splits", "1", "--n-test", "2"]
     args += ["--json", str(tmp_path / "eval.json"), "--jobs", "1"]
     assert main(args) == 0
-    assert seen and all(fk is not None for fk in seen)
-    assert seen[0](np.zeros((2, 7))).shape == (2, 3)
+    assert seen and all(fk is not None and fk_rot is not None for fk, fk_rot in seen)
+    assert seen[0][0](np.zeros((2, 7))).shape == (2, 3) and seen[0][1](np.zeros((2, 7))).shape == (2, 3, 3)

@@ -210,15 +210,19 @@ def _check_handover(ho: HandoverRegression, n_tasks: int, n_obs: int, n_joints: 
     _bounded("handover readout", readout, MAX_ORIGINAL)
     _bounded("handover coef", _array("handover coef", ho.coef, (r, n_tasks, m, 2 * f)), MAX_ORIGINAL)
     _bounded("handover intercept", _array("handover intercept", ho.intercept, (r, n_tasks, m)), MAX_ORIGINAL)
-    cov = _array("handover residual_cov", ho.residual_cov, (r, m, m))
-    _bounded("handover residual_cov", cov, MAX_ORIGINAL)
-    if not np.allclose(cov, np.swapaxes(cov, 1, 2), rtol=1e-9, atol=0.0):
-        raise _fail("handover residual_cov", "must be symmetric")
-    if (np.linalg.eigvalsh(cov) <= 0).any():
-        raise _fail("handover residual_cov", "must be positive definite")
+    _covariances("handover residual_cov", _array("handover residual_cov", ho.residual_cov, (r, m, m)))
     _scalar("handover trust", ho.trust, 0.0, MAX_ORIGINAL)
     if ho.kind is not None:
         _check_neighbours(ho, r, n_tasks, m, 2 * f)
+
+
+def _covariances(where: str, cov: np.ndarray) -> None:
+    """A stack of covariance matrices (..., M, M): bounded, symmetric and positive definite."""
+    _bounded(where, cov, MAX_ORIGINAL)
+    if not np.allclose(cov, np.swapaxes(cov, -1, -2), rtol=1e-9, atol=0.0):
+        raise _fail(where, "must be symmetric")
+    if (np.linalg.eigvalsh(cov) <= 0).any():
+        raise _fail(where, "must be positive definite")
 
 
 def _check_orientation(est: OrientationEstimate, n_tasks: int, n_joints: int) -> None:
@@ -231,12 +235,7 @@ def _check_orientation(est: OrientationEstimate, n_tasks: int, n_joints: int) ->
             MAX_ORIGINAL,
         )
     _bounded("orientation target", _array("orientation target", est.target, (n_tasks, 3)), MAX_ORIGINAL)
-    cov = _array("orientation noise_cov", est.noise_cov, (n_tasks, 3, 3))
-    _bounded("orientation noise_cov", cov, MAX_ORIGINAL)
-    if not np.allclose(cov, np.swapaxes(cov, 1, 2), rtol=1e-9, atol=0.0):
-        raise _fail("orientation noise_cov", "must be symmetric")
-    if (np.linalg.eigvalsh(cov) <= 0).any():
-        raise _fail("orientation noise_cov", "must be positive definite")
+    _covariances("orientation noise_cov", _array("orientation noise_cov", est.noise_cov, (n_tasks, 3, 3)))
     _scalar("orientation trust", est.trust, 0.0, MAX_ORIGINAL)
 
 

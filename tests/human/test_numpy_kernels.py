@@ -120,4 +120,4 @@ def test_the_background_compile_also_compiles_the_human_kernels(monkeypatch, tmp
     launched = []
     monkeypatch.setattr(compiled.subprocess, "Popen", lambda args, **kwargs: launched.append(args))
     assert compiled.start_background_compile()
-    assert "--also=ipromp_pin.human.kernels" in launched[0]  # registered when ipromp_pin.human.kernels loads
+    assert "--also=ipromp_pin.human.warmup" in launched[0]  # registered when ipromp_pin.human.kernels loads

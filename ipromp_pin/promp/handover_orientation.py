@@ -78,6 +78,15 @@ def mean_and_noise(dev: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return mean, cov + 1e-9 * max(float(np.trace(cov)) / 3.0, 1e-12) * np.eye(3)
 
 
+def spd_factor(m: np.ndarray) -> tuple[np.ndarray, bool]:
+    """The lower Cholesky factor (``scipy.linalg.cho_factor``) of a symmetric positive semi-definite
+    matrix (n, n), symmetrised and with a jitter of 1e-12 times its mean diagonal, so that a covariance
+    made (numerically) singular by earlier conditioning still factorises."""
+    sym = 0.5 * (m + m.T)
+    jitter = 1e-12 * max(float(np.trace(sym)) / sym.shape[0], 1e-300)
+    return cho_factor(sym + jitter * np.eye(sym.shape[0]), lower=True)
+
+
 def position_preserving(
     rotation_readout: np.ndarray,
     position_readout: np.ndarray,
@@ -88,7 +97,7 @@ def position_preserving(
     """The read-out ``O' = O - B P`` (3, J) and its value ``y - B P m`` (3,) (module docstring) for
     the final configuration's mean ``m`` (J,) [rad] and covariance ``S`` (J, J) [rad^2]."""
     sp = cov @ position_readout.T  # (J, 3)
-    c = cho_factor(position_readout @ sp, lower=True)
+    c = spd_factor(position_readout @ sp)
     b = cho_solve(c, sp.T @ rotation_readout.T).T  # O S P^T (P S P^T)^-1, (3, 3)
     return rotation_readout - b @ position_readout, target - b @ (position_readout @ mean)
 
@@ -99,7 +108,7 @@ def conditioned(
     """Mean (J,) and covariance (J, J) of ``q(T) ~ N(mean, cov)`` conditioned on ``value = readout
     q(T) + e``, ``e ~ N(0, noise)`` (Cholesky solves)."""
     g = cov @ readout.T
-    c = cho_factor(readout @ g + noise, lower=True)
+    c = spd_factor(readout @ g + noise)
     out_mean = mean + g @ cho_solve(c, value - readout @ mean)
     out_cov = cov - g @ cho_solve(c, g.T)
     return out_mean, 0.5 * (out_cov + out_cov.T)

@@ -223,3 +223,15 @@ def test_the_fast_path_equals_the_written_out_algebra(fitted) -> None:
         for name in ("q_mean", "q_cov"):
             a, b = getattr(fast, name), getattr(ref, name)
             assert np.max(np.abs(a - b)) <= 1e-8 * max(np.max(np.abs(b)), 1.0), name
+
+
+def test_a_covariance_singular_in_the_position_still_gives_an_update() -> None:
+    rng = np.random.default_rng(5)
+    p, o = rng.normal(size=(3, 5)), rng.normal(size=(3, 5))
+    basis = rng.normal(size=(5, 2))
+    cov = basis @ basis.T  # rank 2: P S P^T is singular
+    mean, target = rng.normal(size=5), rng.normal(size=3)
+    readout, value = position_preserving(o, p, target, mean, cov)
+    m2, c2 = conditioned(readout, value, 0.1 * np.eye(3), mean, cov)
+    assert np.all(np.isfinite(readout)) and np.all(np.isfinite(m2)) and np.all(np.isfinite(c2))
+    assert np.linalg.eigvalsh(c2).min() > -1e-9

@@ -12,9 +12,10 @@ previews call :func:`load_visual_model`.
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
+import json
 import math
-import pickle
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -148,6 +149,21 @@ ROBOT_CACHE_SIZE = 8
 """Most robots kept in the cache (the oldest is dropped)."""
 
 
+def settings_digest(settings: RobotSettings) -> str:
+    """A SHA-1 hex digest of every value of ``settings`` (arrays at full precision), for the robot
+    cache's key: equal settings give equal digests, a changed value another one."""
+
+    def encode(value: object) -> object:
+        if isinstance(value, np.ndarray):
+            return [value.dtype.str, list(value.shape), value.ravel().tolist()]
+        if isinstance(value, np.generic):
+            return value.item()
+        return repr(value)
+
+    text = json.dumps(dataclasses.asdict(settings), sort_keys=True, default=encode)
+    return hashlib.sha1(text.encode()).hexdigest()
+
+
 def clear_robot_cache() -> None:
     """Forget every cached robot (the next :func:`load_robot` rebuilds the models)."""
     _ROBOT_CACHE.clear()
@@ -170,7 +186,7 @@ def load_robot(settings: RobotSettings | str | Path, *, cache: bool = True) -> R
     key = None
     if cache:  # by the file and the settings' values (a changed copy of a file's settings is another robot)
         st = settings.path.stat()
-        digest = hashlib.sha1(pickle.dumps(settings)).hexdigest()
+        digest = settings_digest(settings)
         key = (str(settings.path), st.st_mtime_ns, st.st_size, digest)
         robot = _ROBOT_CACHE.get(key)
         if robot is not None:

@@ -28,11 +28,12 @@ one-shot evaluation's entry point (:func:`evaluate`) and keeps the names it has 
 from __future__ import annotations
 
 from collections.abc import Callable
+from functools import partial
 
 import numpy as np
 
 from ..data import Dataset
-from ..robot import ee_positions, frame_placements, load_robot
+from ..robot import ee_positions, gripper_rotations, load_robot
 from ..robot.objects import ObjectTable
 from ..shipped import DEFAULT_ROBOT
 from .cells import PROBABILITY_FLOOR, Cell, cell_fields, summarise
@@ -86,7 +87,7 @@ def robot_fk_rotations(robot: str | None) -> Callable[[np.ndarray], np.ndarray] 
     if robot is None:
         return None
     loaded = load_robot(robot)
-    return lambda q: frame_placements(loaded, q)[1]
+    return partial(gripper_rotations, loaded)
 
 
 def evaluate(

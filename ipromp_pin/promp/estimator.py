@@ -211,8 +211,8 @@ class IProMP(ParameterMixin):
                 position error instead of the joint RMSE (see ``choose_coupling``).
             fk_rot: The gripper's rotations, joint angles (n, J) in [rad] -> rotation matrices
                 (n, 3, 3) (e.g. :func:`ipromp_pin.robot.frame_placements`' second result); with
-                ``fk``, the hand-over estimate covers the gripper's orientation as well as its
-                position (:mod:`~ipromp_pin.promp.handover`).
+                ``fk``, the model gets a hand-over orientation estimate where its cross-validation
+                keeps one (:mod:`~ipromp_pin.promp.handover_orientation`).
         """
         observe, coupling = self.check_params()
         if y is not None:

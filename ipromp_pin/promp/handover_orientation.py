@@ -32,11 +32,10 @@ import numpy as np
 from scipy.linalg import cho_factor, cho_solve
 from scipy.spatial.transform import Rotation
 
+from .handover import JACOBIAN_STEP_RAD
+
 ORIENTATION_TRUST_GRID = (0.03, 0.1, 0.3, 1.0, 3.0)
 """Candidate trust factors ``s`` (the observation's noise is ``s N``); "off" is also a candidate."""
-
-JACOBIAN_STEP_RAD = 1e-6
-"""Step of the central finite differences of the gripper's kinematics, in [rad]."""
 
 FKRot = Callable[[np.ndarray], np.ndarray]
 """Gripper rotations: joint angles (n, J) in [rad] -> rotation matrices (n, 3, 3) in the base frame."""

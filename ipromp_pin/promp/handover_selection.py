@@ -212,16 +212,19 @@ def choose_handover(
     held = _held_out_predictions(training, settings, coupled, nu_condition, rows, temperature)
     best = None
     for dims, feats, fits, kinds in candidates:
-        scores = _cross_validate(training, held, readout, fk, dims, feats, fits, kinds, q_end, targets)
+        nested: dict[tuple[int, str, int], RidgeFit | KnnFit | None] = {}
+        scores = _cross_validate(
+            training, held, readout, fk, dims, feats, fits, kinds, q_end, targets, nested
+        )
         if scores and (best is None or min(scores.values()) < min(best[4].values())):
-            best = (dims, feats, fits, kinds, scores)
+            best = (dims, feats, fits, kinds, scores, nested)
     if best is None:
         return HandoverChoice(None, {})
-    dims, feats, fits, kinds, scores = best
+    dims, feats, fits, kinds, scores, nested = best
     trust = min(scores, key=lambda v: scores[v])
     orientation, orientation_scores = None, {}
     if fk is not None and fk_rot is not None:
-        final = _final_rows(training, held, readout, dims, feats, fits, kinds, targets, trust)
+        final = _final_rows(training, held, readout, dims, feats, fits, kinds, targets, trust, nested)
         picked = choose_orientation(final, q_end, tasks, fk, fk_rot)
         orientation, orientation_scores = picked.estimate, picked.scores
     if not np.isfinite(trust):
@@ -367,12 +370,12 @@ def _final_rows(
     kinds: list[bool],
     targets: dict[str, np.ndarray],
     trust: float,
+    nested: dict[tuple[int, str, int], RidgeFit | KnnFit | None],
 ) -> list[FinalRow]:
     """The held-out final configurations as online with the chosen regression (trust ``trust``;
-    ``inf``: off) applied by exact conditioning; rows whose regression cannot be refitted are left
-    out."""
+    ``inf``: off) applied by exact conditioning, its leave-one-out refits taken from ``nested`` (the
+    cross-validation's); rows whose regression cannot be refitted are left out."""
     tasks = training.tasks
-    nested: dict[tuple[int, str, int], RidgeFit | KnnFit | None] = {}
     out = []
     for h in held:
         if not np.isfinite(trust):
@@ -399,12 +402,12 @@ def _cross_validate(
     kinds: list[bool],
     q_end: dict[str, np.ndarray],
     targets: dict[str, np.ndarray],
+    nested: dict[tuple[int, str, int], RidgeFit | KnnFit | None],
 ) -> dict[float, float]:
     """Candidate trust factor -> CV error (``inf``: off) of the regression on the features of
-    ``dims`` (final configurations ``q_end``, regression targets ``targets``); empty when no row
-    could be scored."""
+    ``dims`` (final configurations ``q_end``, regression targets ``targets``; ``nested`` caches the
+    leave-one-out refits, for :func:`_final_rows` to reuse); empty when no row could be scored."""
     tasks = training.tasks
-    nested: dict[tuple[int, str, int], RidgeFit | KnnFit | None] = {}
     configs, truths = [], []
     for h in held:
         k = tasks.index(h.task)

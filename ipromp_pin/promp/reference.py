@@ -256,7 +256,7 @@ def direct_predict(predictor: Predictor, observation: Demo) -> Prediction:
         q_end = e @ w_mean + fm.scaler.offset[rs]
         s_end = e @ w_cov @ e.T
         pos, rot = o.position_readout[task_index], o.rotation_readout[task_index]
-        b = rot @ s_end @ pos.T @ np.linalg.inv(pos @ s_end @ pos.T)
+        b = cho_solve(cho_factor(pos @ s_end @ pos.T, lower=True), pos @ s_end @ rot.T).T
         h = (rot - b @ pos) @ e
         values = o.target[task_index] - b @ pos @ q_end
         s_cov = h @ w_cov @ h.T + o.trust * o.noise_cov[task_index]

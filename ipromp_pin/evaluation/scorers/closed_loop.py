@@ -40,7 +40,7 @@ from ...human import HumanMotion
 from ...motion.limits import LimitProfile, conservative_profile, demonstrated_profile, read_limit_profile
 from ...motion.trajectory import Trajectory
 from ...promp import IProMP
-from ...robot import DemoLimitRecipe, Robot, ee_positions, frame_placements, gripper_rotations
+from ...robot import DemoLimitRecipe, Robot, ee_positions, gripper_rotations
 from ...robot.clearance import ClearanceCertifier
 from ...robot.objects import ObjectTable
 from ..cells import CellResults, ClosedLoopCell, baseline_summary, median
@@ -165,8 +165,7 @@ def replay_trials(
     def fk(q: np.ndarray) -> np.ndarray:
         return ee_positions(robot, q)
 
-    def fk_rot(q: np.ndarray) -> np.ndarray:
-        return frame_placements(robot, q)[1]
+    fk_rot = partial(gripper_rotations, robot)
 
     torques = JointTorques(robot) if objects is not None else None
     checks = [torques] if torques is not None else []

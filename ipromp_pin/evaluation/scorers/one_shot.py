@@ -15,7 +15,7 @@ import numpy as np
 
 from ...checks.joint_torques import JointTorques
 from ...data import ROBOT, Demo
-from ...promp import IProMP, Prediction
+from ...promp import IProMP, Prediction, handover_orientation
 from ...robot import Robot
 from ...robot.objects import ObjectTable
 from ...robot.rotations import chordal_mean, geodesic_deg
@@ -28,7 +28,7 @@ from .torques import one_shot_peak_torque_ratio
 FK = Callable[[np.ndarray], np.ndarray]
 """Forward kinematics: joint configurations (n, 7) in [rad] -> gripper positions (n, 3) in [m]."""
 
-FKRot = Callable[[np.ndarray], np.ndarray]
+FKRot = handover_orientation.FKRot
 """Forward kinematics: joint configurations (n, 7) in [rad] -> gripper rotation matrices (n, 3, 3)."""
 
 

@@ -1072,11 +1072,13 @@ def stream_group(
     t_last: float,
     loglik: np.ndarray,
     add: bool,
+    finish: bool,
 ) -> bool:
-    """Add one sample (all observed dims, same active basis functions) to the terms of one lane
-    group's blocks (:func:`part_terms`, block ``b`` in the lanes from ``b P'``), after
-    :func:`sherman_morrison`, and return their log likelihood as :func:`finish_soa` (into ``loglik``,
-    added to it with ``add``; False when a ``Q`` is not numerically positive definite).
+    """Add one sample (the dims ``dims`` of one observation part, same active basis functions) to the
+    terms of one lane group's blocks (:func:`part_terms`, block ``b`` in the lanes from ``b P'``),
+    after :func:`sherman_morrison` of the part's ``X``, and with ``finish`` return their log
+    likelihood as :func:`finish_soa` (into ``loglik``, added to it with ``add``; False when a ``Q`` is
+    not numerically positive definite; without ``finish`` the terms are only updated, True).
 
     Per pair, with ``h_d = B^T y_d + nu mu_d`` (after the sample, ``proj`` already updated) and
     ``c_d = y_d - g^T h_d / s``: ``X^-1 h_d += c_d g``,
@@ -1102,6 +1104,8 @@ def stream_group(
         total, a, pq: (B P',), (r, B P') and packed ``P`` (r(r+1)/2, B P'), pairs ordered (task,
             candidate), innermost; updated in place.
         unpack, alphas, t_norm, t_last, loglik, add: As :func:`finish_soa`.
+        finish: Whether to factorise ``Q`` and write the log likelihood (the last part to receive
+            the sample; the parts before it only add their terms).
     """
     ke = g.shape[0]
     n_u = g.shape[1]
@@ -1197,6 +1201,8 @@ def stream_group(
                 vjd = vj[dd]
                 for p in range(n_p):
                     row[p] += fid[p] * vjd[p]
+    if not finish:
+        return True
     return finish_soa(pq, a, total, unpack, alphas, t_norm, t_last, loglik, add, n_b)
 
 

@@ -407,16 +407,30 @@ class InferenceEngine:
             )  # fmt: skip
 
 
+@dataclass
+class PartState:
+    """What :class:`IncrementalTerms` keeps of one observation part: its observed dims (D_m,) and,
+    per unique candidate, ``X^-1`` (ke, ke, U) and ``log|X|`` (U,) of ``X = nu I + B^T B`` over the
+    part's samples."""
+
+    dims: np.ndarray
+    xinv: np.ndarray
+    logdet: np.ndarray
+
+
 class IncrementalTerms:
     """Log likelihood of a growing observation, updated sample by sample (streaming).
 
-    Holds per unique candidate ``X^-1`` and ``log|X|`` (shared by the blocks) and, per block of
-    observed dims and (task, candidate), the terms of :meth:`InferenceEngine.log_likelihood` (``P``, ``a``
-    and the scalar terms) for ONE observation part with every observed dim; :meth:`reset` computes
-    them from part statistics, :meth:`add` adds one sample with the same active basis functions
-    exactly (Sherman-Morrison update of ``X^-1``, rank-D update of ``P``, one compiled call per lane
-    group: ``kernels.stream_group``); ``log|Q|`` and ``a^T Q^-1 a`` are recomputed
-    from ``Q`` on every call.
+    Holds per observation part (:class:`PartState`: channels sharing their presence history; one
+    part with every observed dim while no sample missed a group) ``X^-1`` and ``log|X|`` per unique
+    candidate (shared by the blocks) and, per lane group of blocks and (task, candidate), the terms
+    of :meth:`InferenceEngine.log_likelihood` (``P``, ``a`` and the scalar terms), which add up
+    over the parts. :meth:`reset` computes them from part statistics; :meth:`add` adds one sample
+    to the parts that received it with the same active basis functions exactly (per part a
+    Sherman-Morrison update of its ``X^-1``, then one compiled call per lane group adding the rank-D
+    update of ``P`` of the part's dims: ``kernels.stream_group``); ``log|Q|`` and ``a^T Q^-1 a``
+    are recomputed from ``Q`` once per sample; :meth:`regroup` follows a part that splits when a
+    sample misses some of its groups (the part that missed it keeps its ``X``).
 
     Args:
         engine: The model's inference engine.
@@ -426,25 +440,37 @@ class IncrementalTerms:
         self.engine = engine
         self._kern = kernels()
         self.ke = -1
-        e = engine
-        # per lane group: the W_d and nu mu_d of its blocks (K, M) and the model arguments of
-        # kernels.stream_group that follow w_t (fixed for the stream)
-        self._wcat: list[np.ndarray] = []
-        self._group_args: list[tuple] = []
-        for group in e.lane_groups:
-            blocks = [e.blocks[b] for b in group]
-            arrays = [b.arrays(b.select(np.arange(e.n_obs))[1]) for b in blocks]
-            n_basis = arrays[0]["mu_k"].shape[1]
-            # nu mu_d as (basis, dim, task) columns after every block's W_d
-            mu_cols = np.concatenate([c["mu_k"].transpose(1, 2, 0) for c in arrays], axis=1) * e.nu
-            w_cols = [c["w_s"] for c in arrays]
-            self._wcat.append(
-                np.ascontiguousarray(np.concatenate([*w_cols, mu_cols.reshape(n_basis, -1)], axis=1))
-            )
-            self._group_args.append(
-                (
-                    np.concatenate([b.dims for b in blocks]),
-                    np.cumsum([0] + [b.dims.size for b in blocks]).astype(np.int64),
+        self.parts: list[PartState] = []
+        self.terms: list[tuple] = []
+        self._unpack = [engine.blocks[group[0]].unpack for group in engine.lane_groups]
+        # per part dims: per lane group the W_d and nu mu_d of its blocks' dims (K, M) and the model
+        # arguments of kernels.stream_group that follow w_t, or None (the part has none of its dims)
+        self._model: dict[bytes, list[tuple[np.ndarray, tuple] | None]] = {}
+        self._w_t: dict[bytes, list[np.ndarray | None]] = {}  # wcat[:ke].T (C-contiguous: faster)
+
+    def _group_inputs(self, dims: np.ndarray) -> list[tuple[np.ndarray, tuple] | None]:
+        """Per lane group, the model arrays of ``kernels.stream_group`` for a part observing ``dims``
+        (cached)."""
+        key = dims.tobytes()
+        out = self._model.get(key)
+        if out is None:
+            e = self.engine
+            out = []
+            for group in e.lane_groups:
+                blocks = [e.blocks[b] for b in group]
+                local = [b.select(dims)[1] for b in blocks]
+                if not any(loc.size for loc in local):
+                    out.append(None)
+                    continue
+                arrays = [b.arrays(loc) for b, loc in zip(blocks, local, strict=True)]
+                n_basis = arrays[0]["mu_k"].shape[1]
+                # nu mu_d as (basis, dim, task) columns after every block's W_d
+                mu_cols = np.concatenate([c["mu_k"].transpose(1, 2, 0) for c in arrays], axis=1) * e.nu
+                w_cols = [c["w_s"] for c in arrays]
+                wcat = np.ascontiguousarray(np.concatenate([*w_cols, mu_cols.reshape(n_basis, -1)], axis=1))
+                fixed = (
+                    np.concatenate([b.dims[loc] for b, loc in zip(blocks, local, strict=True)]).astype(np.int64),
+                    np.cumsum([0] + [loc.size for loc in local]).astype(np.int64),
                     np.cumsum([0] + [w.shape[1] for w in w_cols]).astype(np.int64),
                     e.nu,
                     e.starts,
@@ -454,35 +480,109 @@ class IncrementalTerms:
                     blocks[0].ia,
                     blocks[0].ib,
                 )
-            )
-        self._unpack = [e.blocks[group[0]].unpack for group in e.lane_groups]
-        self._w_t: list[np.ndarray] = []  # per group, wcat[:ke].T (C-contiguous: the faster product)
+                out.append((wcat, fixed))
+            self._model[key] = out
+        return out
 
-    def reset(self, stats: PartStats, t_last: float) -> np.ndarray:
-        """Terms from part statistics ``stats`` (all observed dims) -> log likelihood (T, C)."""
+    def _inputs(self, dims: np.ndarray) -> list[tuple[np.ndarray, tuple] | None]:
+        """Per lane group, ``w_t`` (the first ``ke`` basis rows, transposed) and the fixed arguments
+        of ``kernels.stream_group`` for a part observing ``dims``, or None."""
+        key = dims.tobytes()
+        model = self._group_inputs(dims)
+        w_t = self._w_t.get(key)
+        if w_t is None:
+            w_t = [None if m is None else np.ascontiguousarray(m[0][: self.ke].T) for m in model]
+            self._w_t[key] = w_t
+        return [None if m is None else (w, m[1]) for m, w in zip(model, w_t, strict=True)]
+
+    def reset(self, stats: PartStats | list[PartStats], t_last: float) -> np.ndarray:
+        """Terms from part statistics ``stats`` (one per part, all with the same ``ke``; a part
+        without samples yet, ``n = 0``, starts from ``X = nu I`` and adds no term) -> log
+        likelihood (T, C)."""
         e = self.engine
-        factors = e.x_factors(stats.gram, e.nu, stats.ke)
-        self.xinv, _, self.logdet, _ = factors
-        self.terms = e.group_terms([stats], [factors], e.nu)
-        self.ke = stats.ke
-        self._w_t = [np.ascontiguousarray(w[: stats.ke].T) for w in self._wcat]
+        stats = [stats] if isinstance(stats, PartStats) else list(stats)
+        ke = stats[0].ke
+        if any(st.ke != ke for st in stats):
+            raise ValueError("the parts of the incremental terms need the same number of basis functions")
+        used = [st for st in stats if st.n > 0]
+        factors = [e.x_factors(st.gram, e.nu, ke) for st in used]
+        by_id = {id(st): f for st, f in zip(used, factors, strict=True)}
+        n_u = e.alpha_unique.size
+        self.parts = []
+        for st in stats:
+            f = by_id.get(id(st))
+            if f is None:  # no sample yet: X = nu I
+                xinv = np.zeros((ke, ke, n_u))
+                xinv[np.arange(ke), np.arange(ke)] = 1.0 / e.nu
+                self.parts.append(PartState(st.dims, xinv, np.full(n_u, ke * math.log(e.nu))))
+            else:
+                self.parts.append(PartState(st.dims, f[0], f[2]))
+        self.terms = e.group_terms(used, factors, e.nu)
+        self.ke = ke
+        self._w_t = {}
         return e.finish_groups(self.terms, t_last)
 
-    def add(self, phi: np.ndarray, y: np.ndarray, proj: np.ndarray, t_last: float) -> np.ndarray:
-        """Add one sample: basis values ``phi`` (K, U), scaled values ``y`` (D,), ``proj`` (K, U, D)
-        already including it -> log likelihood (T, C)."""
+    def regroup(self, parts: list[tuple[int, np.ndarray]]) -> None:
+        """The parts after a sample that some part's groups missed: per new part, the index of the
+        part it comes from (its ``X`` so far; copied when two new parts come from one) and its dims."""
+        used: set[int] = set()
+        new = []
+        for i, dims in parts:
+            old = self.parts[i]
+            if i in used:
+                new.append(PartState(dims, old.xinv.copy(), old.logdet.copy()))
+            else:
+                new.append(PartState(dims, old.xinv, old.logdet))
+                used.add(i)
+        self.parts = new
+
+    def add(
+        self,
+        phi: np.ndarray,
+        y: np.ndarray,
+        proj: np.ndarray,
+        t_last: float,
+        receivers: list[int] | None = None,
+    ) -> np.ndarray:
+        """Add one sample: basis values ``phi`` (K, U), scaled values ``y`` (D,) (0 where missing),
+        ``proj`` (K, U, D) already including it, to the parts ``receivers`` (indices in
+        :attr:`parts`; default all) -> log likelihood (T, C)."""
         kern = self._kern
         e = self.engine
-        g, s, ok = kern.sherman_morrison(self.xinv, self.logdet, phi)
-        if not ok:
-            self.ke = -1  # partly updated: rebuilt by the next reset
-            raise ModelError("X = nu I + B^T B is not numerically positive definite")
         loglik = np.empty(e.alphas.shape)
         t_last = float(t_last)
-        groups = zip(self._w_t, self._group_args, self.terms, self._unpack, strict=True)
-        for i, (w_t, fixed, terms, unpack) in enumerate(groups):
-            tail = (unpack, e.alphas, e.t_norm, t_last, loglik, i > 0)
-            if not kern.stream_group(g, s, y, proj, w_t, *fixed, *terms, *tail):
-                self.ke = -1
-                raise ModelError("Q = I + P is not numerically positive definite")
+        order = list(range(len(self.parts))) if receivers is None else receivers
+        if not order:  # no part received it: the terms are as they were
+            return self.finish(t_last)
+        last = len(order) - 1
+        for n, i in enumerate(order):
+            part = self.parts[i]
+            g, s, ok = kern.sherman_morrison(part.xinv, part.logdet, phi)
+            if not ok:
+                self.ke = -1  # partly updated: rebuilt by the next reset
+                raise ModelError("X = nu I + B^T B is not numerically positive definite")
+            finish = n == last
+            groups = zip(self._inputs(part.dims), self.terms, self._unpack, e.lane_groups, strict=True)
+            for j, (inputs, terms, unpack, group) in enumerate(groups):
+                if inputs is None:
+                    if finish:  # no dim of this part here: the terms are as they were
+                        total, a, pq = terms
+                        args = (pq, a, total, unpack, e.alphas, e.t_norm, t_last, loglik, j > 0, len(group))
+                        if not kern.finish_soa(*args):
+                            self.ke = -1
+                            raise ModelError("Q = I + P is not numerically positive definite")
+                    continue
+                w_t, fixed = inputs
+                tail = (unpack, e.alphas, e.t_norm, t_last, loglik, j > 0, finish)
+                if not kern.stream_group(g, s, y, proj, w_t, *fixed, *terms, *tail):
+                    self.ke = -1
+                    raise ModelError("Q = I + P is not numerically positive definite")
         return loglik
+
+    def finish(self, t_last: float) -> np.ndarray:
+        """Log likelihood (T, C) of the terms as they are (:meth:`InferenceEngine.finish_groups`)."""
+        try:
+            return self.engine.finish_groups(self.terms, t_last)
+        except ModelError:
+            self.ke = -1
+            raise

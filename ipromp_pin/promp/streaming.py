@@ -2,12 +2,14 @@
 
 Each :meth:`StreamingEstimator.update` adds the new sample's contribution to running sufficient
 statistics (``B^T B``, ``B^T y`` and ``y^T y`` for every phase candidate; one basis row per candidate
-instead of the whole basis matrix). While every sample has every observed group and the number of
-active basis functions stays the same, the likelihood terms are updated incrementally
-(:class:`~ipromp_pin.promp.likelihood.IncrementalTerms`: Sherman-Morrison update of ``X^-1``, rank-D
-update of ``P``, one Cholesky factorisation of ``Q`` per (task, candidate)); otherwise they are
-recomputed from the statistics. The result equals the one-shot recognition and prediction of a
-:class:`~ipromp_pin.data.Demo` holding the same samples (to rounding).
+instead of the whole basis matrix). Channel groups with identical presence histories form one
+observation part (one part while no sample missed a group). While the number of active basis
+functions stays the same, the likelihood terms are updated incrementally
+(:class:`~ipromp_pin.promp.likelihood.IncrementalTerms`: per part that received the sample a
+Sherman-Morrison update of its ``X^-1`` and a rank-D update of ``P``, then one Cholesky factorisation
+of ``Q`` per (task, candidate)); otherwise they are rebuilt from the statistics. The result equals
+the one-shot recognition and prediction of a :class:`~ipromp_pin.data.Demo` holding the same
+samples (to rounding).
 """
 
 from __future__ import annotations
@@ -53,8 +55,7 @@ class StreamingEstimator:
         limit_threads: Returns a context that limits the BLAS threads during an update.
 
     Attributes:
-        incremental: The incremental likelihood terms while every sample had every observed group
-            (None once a group went missing).
+        incremental: The incremental likelihood terms (one part per presence history).
     """
 
     def __init__(
@@ -99,6 +100,11 @@ class StreamingEstimator:
         self._encoder = enc
         self._sample_basis = (self._inv_dur, b.centres, b.width, b.step_factor)  # kernels.stream_sample
         self._sample_scaling = (enc.log_idx, enc.log_shift, enc.offset, enc.scale)
+        self._receivers: list[int] = []  # the presence patterns that received the latest sample
+        # raw values that scale to the training mean: placeholders of missing groups in the one-call
+        # scaling and check of a sample (None: they would not scale to plausible values)
+        fill = fm.scaler.inverse(np.zeros(n_obs), enc.dims)
+        self._fill: np.ndarray | None = fill if enc.scale_samples(fill.reshape(1, -1))[1] else None
 
     def __enter__(self) -> StreamingEstimator:
         self._held = self._limit_threads()
@@ -197,7 +203,6 @@ class StreamingEstimator:
     def _add(self, t_s: float, y: np.ndarray, absent: int, present: list[str]) -> Recognition | None:
         """Check and add the sample ``y`` (D,) (raw values, NaN in the groups flagged in ``absent``)
         to the statistics and refresh the recognition."""
-        encoder = self.predictor.encoder
         if not absent and len(self._patterns) == 1:
             # every group present and one presence history: finiteness check, scaling, basis row and
             # running sums in one call
@@ -212,16 +217,9 @@ class StreamingEstimator:
                 )
             pattern[2] += 1
             pattern[3] = t_s
+            self._receivers = [0]
         else:
-            self._check_finite(t_s, y, present)
-            if not absent:
-                ys = encoder.scale_samples(y.reshape(1, -1))[0].reshape(-1)
-            else:
-                ys = np.zeros(self._sq.size)
-                self.incremental = None  # the incremental terms hold one part with every observed dim
-                for g, lo, hi in self._slices:
-                    if g in present:
-                        ys[lo:hi] = encoder.scale_group(g, y[lo:hi])
+            ys = self._scaled(t_s, y, absent, present)
             phi = self._accumulate(t_s, set(present), ys)
         if self.predictor.fitted.head is not None:
             self._add_to_window(ys, absent)
@@ -233,6 +231,29 @@ class StreamingEstimator:
             return None
         self._last = self._recognise(phi, ys)
         return self._last
+
+    def _scaled(self, t_s: float, y: np.ndarray, absent: int, present: list[str]) -> np.ndarray:
+        """The scaled values (D,) of the raw sample ``y`` (0 in the groups flagged in ``absent``),
+        checked (ObservationError naming the group otherwise, the stream unchanged)."""
+        missing = None
+        if absent:
+            missing = ((absent >> self._dim_group) & 1) == 1
+            if self._fill is None:  # the per-group path
+                self._check_finite(t_s, y, present)
+                ys = np.zeros(self._sq.size)
+                for g, lo, hi in self._slices:
+                    if g in present:
+                        ys[lo:hi] = self._encoder.scale_group(g, y[lo:hi])
+                return ys
+            y = np.where(missing, self._fill, y)  # placeholders that scale to plausible values
+        out, finite = self._encoder.scale_samples(y.reshape(1, -1))
+        if not finite:
+            self._check_finite(t_s, y, present)  # raises, naming the group
+            raise ObservationError("stream", "sample", f"implausible value in the sample at t={t_s:.3f} s")
+        ys = out.reshape(-1)
+        if missing is not None:
+            ys[missing] = 0.0
+        return ys
 
     def _add_to_window(self, ys: np.ndarray, absent: int) -> None:
         """Add the scaled sample ``ys`` (D,) to the window summary (groups flagged in ``absent`` skipped)."""
@@ -257,41 +278,64 @@ class StreamingEstimator:
         return WindowSummary(np.stack([self._w_first, mean, self._w_last]))
 
     def _accumulate(self, t_s: float, present: set[str], y: np.ndarray) -> np.ndarray:
-        """Add the sample (scaled values ``y`` (D,), 0 in missing groups) -> basis values (K, U)."""
+        """Add the sample (scaled values ``y`` (D,), 0 in missing groups) -> basis values (K, U).
+
+        A presence pattern some of whose groups missed the sample splits in two (the groups that
+        missed it keep the statistics so far); the incremental terms follow its parts
+        (:meth:`IncrementalTerms.regroup`) and :attr:`_receivers` says which parts got the sample."""
         kern = self._kern
         b = self.predictor.fitted.basis
         phi = kern.basis_rows(t_s * self._inv_dur, b.centres, b.width, b.step_factor)
-        patterns = []
-        for groups, gram, n, t_last in self._patterns:
+        patterns: list[list] = []
+        origin: list[int] = []
+        receivers: list[int] = []
+        for i, (groups, gram, n, t_last) in enumerate(self._patterns):
             have = [g for g in groups if g in present]
             absent = [g for g in groups if g not in present]
             if absent:
                 patterns.append([absent, gram.copy() if have else gram, n, t_last])
+                origin.append(i)
             if have:
                 kern.add_sample(gram, self._no_proj, phi, self._no_y)
+                receivers.append(len(patterns))
                 patterns.append([have, gram, n + 1, t_s])
+                origin.append(i)
+        inc = self.incremental
+        if len(patterns) != len(self._patterns) and inc is not None and inc.ke >= 0:
+            inc.regroup([(i, self._pattern_dims(p[0])) for i, p in zip(origin, patterns, strict=True)])
         self._patterns = patterns
+        self._receivers = receivers
         kern.add_sample(self._no_gram, self._proj, phi, y)
         self._sq += y * y
         return phi
 
-    def _stats(self) -> list[PartStats]:
+    def _pattern_dims(self, groups: list[str]) -> np.ndarray:
+        """The observed dims (model order) of a presence pattern's groups."""
         layout = self.predictor.fitted.layout
+        return layout.dims([g for g in layout.observe if g in groups])
+
+    def _stats(self) -> list[PartStats]:
+        """Part statistics of the presence patterns with samples (each with its own active basis
+        functions)."""
         basis = self.predictor.fitted.basis
-        stats = []
-        for groups, gram, n, t_last in self._patterns:
-            if n == 0:
-                continue
-            ke = basis.support_count(t_last * self._inv_dur_max)
-            dims = layout.dims([g for g in layout.observe if g in groups])
-            if dims.size == self._sq.size:
-                proj, sq = self._proj, self._sq
-            else:
-                proj, sq = np.ascontiguousarray(self._proj[:, :, dims]), self._sq[dims]
-            stats.append(PartStats(dims, n, ke, gram, proj, sq))
+        stats = [
+            self._pattern_stats(i, basis.support_count(p[3] * self._inv_dur_max))
+            for i, p in enumerate(self._patterns)
+            if p[2] > 0
+        ]
         if sum(s.n for s in stats) < 2:
             raise ObservationError("stream", "t", "need at least 2 observed samples")
         return stats
+
+    def _pattern_stats(self, i: int, ke: int) -> PartStats:
+        """Part statistics of presence pattern ``i`` with ``ke`` active basis functions."""
+        groups, gram, n, _ = self._patterns[i]
+        dims = self._pattern_dims(groups)
+        if dims.size == self._sq.size:
+            proj, sq = self._proj, self._sq
+        else:
+            proj, sq = np.ascontiguousarray(self._proj[:, :, dims]), self._sq[dims]
+        return PartStats(dims, n, ke, gram, proj, sq)
 
     def _recognise(self, phi: np.ndarray, y: np.ndarray) -> Recognition:
         t_last = self._t[-1]
@@ -303,14 +347,14 @@ class StreamingEstimator:
             z_last = t_last * self._inv_dur_max
             need = inc.ke if 0 <= inc.ke and z_last < self._support_until else basis.support_count(z_last)
             if inc.ke >= need:
-                loglik = inc.add(phi, y, self._proj, t_last)
+                loglik = inc.add(phi, y, self._proj, t_last, self._receivers)
             else:
                 # a few more basis functions than needed (each below the support threshold on the
-                # observed window, as the one-shot truncation) so that resets stay rare
-                stats = self._stats()[0]
-                stats.ke = min(basis.n_basis, need + STREAM_EXTRA_BASIS)
-                loglik = inc.reset(stats, t_last)
-                self._support_until = basis.support_limit(stats.ke)
+                # observed window, as the one-shot truncation) so that resets stay rare; every
+                # presence pattern's part with the same ones
+                ke = min(basis.n_basis, need + STREAM_EXTRA_BASIS)
+                loglik = inc.reset([self._pattern_stats(i, ke) for i in range(len(self._patterns))], t_last)
+                self._support_until = basis.support_limit(ke)
         window = self.window() if self.predictor.fitted.head is not None else None
         return self.predictor.recognition_from_loglik(loglik, t_last, window)
 

@@ -198,7 +198,7 @@ def test_stream_group_when_every_task_has_every_candidate() -> None:
         loglik = np.empty((n_t, n_c))
         ok = kernels().stream_group(
             gu, su, y, pu, w_t, dims, dim_off, col_off, 0.7, starts, n_c, inv_delta, log_delta, ia, ib,
-            total, a, pq, unpack, alphas, 1.0, 0.5, loglik, False,
+            total, a, pq, unpack, alphas, 1.0, 0.5, loglik, False, True,
         )  # fmt: skip
         assert ok
         outs.append((total, a, pq, loglik))

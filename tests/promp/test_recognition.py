@@ -246,6 +246,38 @@ def test_stream_errors(fitted) -> None:
         stream.update(0.04, {"a": demo.groups["a"][1], "c": np.zeros(1)})
 
 
+@pytest.mark.parametrize("first_missing", [False, True])
+def test_incremental_stream_with_gaps_equals_one_shot_at_every_sample(first_missing: bool) -> None:
+    # a group missing in some samples (the first one too) splits the stream's presence pattern in
+    # two parts with their own X: the terms stay incremental (per part Sherman-Morrison and rank-D
+    # updates) and equal the one-shot recognition of the same samples, gaps included
+    train, test = split(random_dataset(14, n_demos=8), 6)
+    model = IProMP(["a", "b"], n_basis=16, n_alpha=50, noise=1.0).fit(train)
+    demo = test["task0"][0].head(0.6, model.observe)
+    gaps = {0, 5, 9, 10} if first_missing else {4, 9, 10}
+    stream = model.stream()
+    kes = set()
+    for j in range(demo.n_samples):
+        sample = {g: demo.groups[g][j] for g in model.observe}
+        if j in gaps:
+            sample["a"] = None
+        if j == 12:
+            sample = {}  # every group missing at once
+        rec = stream.update(demo.t[j], sample)
+        if j == 0:
+            continue
+        assert stream.incremental is not None and stream.incremental.ke >= 0
+        kes.add(stream.incremental.ke)
+        one = model.recognise(stream.observation())
+        finite = np.isfinite(one.phase_log_post)
+        assert np.array_equal(finite, np.isfinite(rec.phase_log_post))
+        assert np.allclose(rec.phase_log_post[finite], one.phase_log_post[finite], rtol=1e-9, atol=1e-8)
+        assert np.allclose(rec.log_posterior, one.log_posterior, rtol=1e-9, atol=1e-9)
+        assert np.allclose(rec.alpha, one.alpha, rtol=1e-9)
+    assert len(stream.incremental.parts) == 2
+    assert len(kes) >= 2  # rebuilt from the statistics of both parts as the window grew
+
+
 @pytest.mark.parametrize("with_gap", [False, True])
 def test_stream_rejected_sample_leaves_the_estimate_unchanged(with_gap: bool) -> None:
     # a sample with an inf is refused (naming its group) before it touches the running statistics,

@@ -30,10 +30,35 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 import numpy as np
-from scipy.linalg import LinAlgError, cho_solve, cholesky, solve_triangular
+from scipy.linalg import LinAlgError, cho_solve, cholesky, lapack, solve_triangular
 
 from ..exceptions import ModelError
 from .basis import GaussianBasis
+
+# LAPACK without scipy's checked wrappers, for the read-out update of every prediction (the inputs
+# are the model's own finite arrays; the calls are a few microseconds of arithmetic each)
+_POTRF, _POTRS, _TRTRS = lapack.dpotrf, lapack.dpotrs, lapack.dtrtrs
+
+
+def chol_lower(a: np.ndarray, what: str) -> np.ndarray:
+    """Lower Cholesky factor (n, n) of a symmetric positive definite ``a`` (LAPACK ``dpotrf``; only
+    its lower triangle is read); ModelError naming ``what`` when it is not numerically SPD."""
+    low, info = _POTRF(a, lower=1, clean=1)
+    if info != 0:
+        raise ModelError(f"{what} is not numerically positive definite (LAPACK info {info})")
+    return low
+
+
+def tri_solve(low: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``L^-1 b`` (n, c) for a lower triangular ``L`` (n, n) and ``b`` (n, c) (LAPACK ``dtrtrs``)."""
+    x, _ = _TRTRS(low, b, lower=1)
+    return x
+
+
+def chol_solve(low: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``(L L^T)^-1 b`` (n, c) for the lower Cholesky factor ``L`` (n, n) and ``b`` (n, c) (``dpotrs``)."""
+    x, _ = _POTRS(low, b, lower=1)
+    return x
 
 
 @dataclass(frozen=True)
@@ -205,6 +230,27 @@ class RobotWeightPosterior:
         dw = u_mean[:jk].reshape(nj, k) * np.sqrt(self.diag)[:, None] + self.factor @ u_mean[jk:]
         return replace(self, mean=self.mean + dw, info_chol=new_chol, extra_rows=None)
 
+    def _solve_base(self, x: np.ndarray) -> np.ndarray:
+        """``Lambda^-1 x`` (J K + r, c) without via-points (:attr:`info_chol` None): ``Lambda =
+        blockdiag(I, Q)`` solved blockwise, and pending rows ``E`` (:attr:`extra_rows`) by the
+        Woodbury identity ``(Lambda + E^T E)^-1 = Lambda^-1 - U (I + E U)^-1 U^T``, ``U = Lambda^-1 E^T``
+        (its factors cached)."""
+        j, k, r = self.factor.shape
+        jk = j * k
+        y = np.array(x, dtype=float, order="C")
+        if r:
+            y[jk:] = chol_solve(self.q_chol, y[jk:])
+        if self.extra_rows is not None:
+            cached = self.__dict__.get("_pending")
+            if cached is None:
+                e = self.extra_rows
+                ue = replace(self, extra_rows=None)._solve_base(e.T)
+                cached = (ue, chol_lower(np.eye(e.shape[0]) + e @ ue, "read-out update"))
+                object.__setattr__(self, "_pending", cached)
+            ue, se = cached
+            y -= ue @ chol_solve(se, self.extra_rows @ y)
+        return y
+
     def readout_update(
         self,
         row: np.ndarray,
@@ -231,43 +277,28 @@ class RobotWeightPosterior:
             The new posterior, the change (M, J) of the mean joint angles in [rad] and the decrease
             (M, J, J) of their covariance in [rad^2] at the phases :attr:`phi`.
         """
-        if self.info_chol is not None or self.extra_rows is not None:
-            chol = self.precision_chol()
-            base = None
-        else:
-            chol, base = None, self.q_chol
         nj, k, r = self.factor.shape
+        jk = nj * k
         readout = np.atleast_2d(np.asarray(readout, dtype=float))
         m = readout.shape[0]
-        # the hot path of every prediction with the hand-over estimate: LAPACK through numpy and
-        # scipy without its input checks (the inputs are the model's own finite arrays), products
-        # as BLAS matrix products rather than einsum
-        try:
-            cov_chol = np.linalg.cholesky(np.asarray(cov, dtype=float))
-        except LinAlgError as exc:
-            raise ModelError(f"read-out noise covariance is not positive definite ({exc})") from exc
-        a_s = readout * self.scale[None, :]  # read-out of the scaled joints
+        cov_chol = chol_lower(np.asarray(cov, dtype=float), "read-out noise covariance")
         row = np.asarray(row, dtype=float)
         sd = np.sqrt(self.diag)
-        jk = nj * k
-        # G^T H^T for the read-out of every joint at ``row``: (J, J K + r) (see :meth:`loadings`)
-        g0 = np.zeros((nj, jk + r))
-        joint = np.arange(nj)[:, None]
-        g0[joint, joint * k + np.arange(k)[None, :]] = sd[:, None] * row[None, :]
-        g0[:, jk:] = row @ self.factor
-        v = solve_triangular(cov_chol, a_s @ g0, lower=True, check_finite=False)  # whitened rows (m, n_u)
+        # whitened rows V = C^-1 A S G^T H^T (m, J K + r) of the read-out of every joint at ``row``
+        # (see :meth:`loadings`): the whitened read-out of the scaled joints times sd_j row, and
+        # times the factor's rows at ``row``
+        a_w = tri_solve(cov_chol, readout * self.scale[None, :])  # (m, J)
+        v = np.empty((m, jk + r))
+        v[:, :jk] = ((a_w * sd[None, :])[:, :, None] * row[None, None, :]).reshape(m, jk)
+        v[:, jk:] = a_w @ (row @ self.factor)
         predicted = readout @ (self.mean @ row * self.scale + self.offset)
-        resid = solve_triangular(
-            cov_chol, np.asarray(values, dtype=float) - predicted, lower=True, check_finite=False
-        )
-        if chol is None:  # Lambda = blockdiag(I, Q): Lambda^-1 V^T blockwise
-            u = v.T.copy()
-            if r:
-                u[jk:] = cho_solve((base, True), u[jk:], check_finite=False)
+        resid = tri_solve(cov_chol, (np.asarray(values, dtype=float) - predicted)[:, None])[:, 0]
+        if self.info_chol is None:  # Lambda = blockdiag(I, Q) (+ pending rows): solved blockwise
+            u = self._solve_base(v.T)
         else:
-            u = cho_solve((chol, True), v.T, check_finite=False)
-        s_chol = np.linalg.cholesky(np.eye(m) + v @ u)
-        du = u @ cho_solve((s_chol, True), resid, check_finite=False)
+            u = chol_solve(self.precision_chol(), v.T)
+        s_chol = chol_lower(np.eye(m) + v @ u, "read-out update")
+        du = u @ chol_solve(s_chol, resid[:, None])[:, 0]
         dw = du[:jk].reshape(nj, k) * sd[:, None] + self.factor @ du[jk:]
         # cross-covariance of the trajectory's joints with the whitened read-outs: (M, J, m)
         n_m = self.phi.shape[0]
@@ -277,14 +308,10 @@ class RobotWeightPosterior:
             if phi_f is None:
                 phi_f = np.einsum("mk,jkr->rjm", self.phi, self.factor)
             cross += (u[jk:].T @ phi_f.reshape(r, nj * n_m)).reshape(m, nj, n_m).transpose(2, 1, 0)
-        d = solve_triangular(s_chol, cross.reshape(-1, m).T, lower=True, check_finite=False).T.reshape(
-            cross.shape
-        )
+        cross *= self.scale[None, :, None]
+        d = tri_solve(s_chol, cross.reshape(-1, m).T).T.reshape(cross.shape)
         d_mean = (self.phi @ dw.T) * self.scale
-        d_cov = np.matmul(d, d.transpose(0, 2, 1)) * self.scale[None, :, None] * self.scale[None, None, :]
+        d_cov = np.matmul(d, d.transpose(0, 2, 1))
         rows = v if self.extra_rows is None else np.vstack([self.extra_rows, v])
-        if chol is not None and self.extra_rows is None:  # on top of earlier via-points: factorise now
-            new = replace(self, mean=self.mean + dw, info_chol=chol, extra_rows=rows)
-        else:
-            new = replace(self, mean=self.mean + dw, extra_rows=rows)
+        new = replace(self, mean=self.mean + dw, extra_rows=rows)
         return new, d_mean, d_cov

@@ -70,6 +70,10 @@ class StreamingEstimator:
         self._engine = engine = predictor.engine
         self._t: list[float] = []
         self._rows: list[np.ndarray] = []  # raw samples (D_o,), NaN in missing groups
+        # the samples' times and scaled values (0 in missing groups) as they arrived, rows 0 .. n - 1
+        # of buffers that double when full: what parts() hands the conditioning (views, no copy)
+        self._t_buf = np.empty(64)
+        self._y_buf = np.empty((64, layout.n_obs_dims))
         self._absent: list[int] = []  # per sample, bit i set when observed group i is missing
         self._gaps = False  # whether some sample missed a group
         self._last: Recognition | None = None
@@ -223,6 +227,12 @@ class StreamingEstimator:
             phi = self._accumulate(t_s, set(present), ys)
         if self.predictor.fitted.head is not None:
             self._add_to_window(ys, absent)
+        n = len(self._t)
+        if n == self._t_buf.size:
+            self._t_buf = np.concatenate([self._t_buf, np.empty(n)])
+            self._y_buf = np.concatenate([self._y_buf, np.empty(self._y_buf.shape)])
+        self._t_buf[n] = t_s
+        self._y_buf[n] = ys
         self._t.append(t_s)
         self._rows.append(y)
         self._absent.append(absent)
@@ -377,14 +387,28 @@ class StreamingEstimator:
     def parts(self) -> tuple[list[ObservationPart], float]:
         """The samples received so far, scaled into observation parts (as
         :meth:`Predictor.encode <ipromp_pin.promp.predictor.Predictor.encode>` of :meth:`observation`
-        gives them; the samples were checked on arrival), and the time of the last one in [s]."""
-        if len(self._t) < 2:
-            raise ObservationError("stream", "t", f"need at least 2 samples, got {len(self._t)}")
-        if self._gaps:
-            return self.predictor.encode(self.observation())
-        encoder = self.predictor.encoder
-        y, _ = encoder.scale_samples(np.array(self._rows).reshape(len(self._rows), self._sq.size))
-        return [ObservationPart(t=np.array(self._t), dims=encoder.dims, y=y)], self._t[-1]
+        gives them, to rounding: the values scaled on arrival, read-only views of the stream's
+        buffers, no copy without missing samples; groups with identical presence share a part), and
+        the time of the last one in [s]."""
+        n = len(self._t)
+        if n < 2:
+            raise ObservationError("stream", "t", f"need at least 2 samples, got {n}")
+        t, y = self._t_buf[:n], self._y_buf[:n]
+        t.flags.writeable = False
+        y.flags.writeable = False
+        if not self._gaps:
+            return [ObservationPart(t=t, dims=self._encoder.dims, y=y)], self._t[-1]
+        bits = np.array(self._absent, dtype=np.int64)
+        by_mask: dict[bytes, tuple[np.ndarray, list[int]]] = {}
+        for i, (_, lo, hi) in enumerate(self._slices):
+            valid = ((bits >> i) & 1) == 0
+            if valid.any():
+                by_mask.setdefault(valid.tobytes(), (valid, []))[1].extend(range(lo, hi))
+        parts = []
+        for valid, cols in by_mask.values():
+            dims = np.array(cols, dtype=np.int64)
+            parts.append(ObservationPart(t=t[valid], dims=self._encoder.dims[dims], y=y[np.ix_(valid, dims)]))
+        return parts, self._t[-1]
 
     def recognition(self) -> Recognition:
         """Latest recognition (raises ObservationError before 2 samples)."""
@@ -418,9 +442,9 @@ class StreamingEstimator:
     def prediction(self) -> Prediction:
         """Conditioned prediction on all samples received so far (recognised again from the samples,
         as :meth:`IProMP.predict <ipromp_pin.promp.estimator.IProMP.predict>` of :meth:`observation`
-        does, with the hand-over regression fused)."""
+        does, with the hand-over regression fused; from the stream's scaled samples, :meth:`parts`)."""
         if len(self._t) < 2:
             raise ObservationError("stream", "t", f"need at least 2 samples, got {len(self._t)}")
         with self._limit_threads():
-            parts, t_last = self.predictor.encode(self.observation())
+            parts, t_last = self.parts()
             return self.predictor.predict(parts, t_last)

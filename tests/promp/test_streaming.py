@@ -80,3 +80,28 @@ def test_malformed_stream_calls_are_refused(streaming_model, bad):
     with pytest.raises(ObservationError):
         stream.update(t, sample)
     assert stream.n_samples == 0
+
+
+@pytest.mark.parametrize("gaps", [(), (1, 4, 5)])
+def test_stream_parts_are_the_encoded_observation(streaming_model, gaps):
+    # the closed loop conditions on the stream's own scaled samples (parts()): the same parts as
+    # encoding the stream's observation again, and the same predictions
+    model, obs = streaming_model
+    stream = model.stream()
+    for i in range(obs.n_samples):
+        sample = {g: obs.groups[g][i] for g in ("a", "emg")}
+        if i in gaps:
+            sample["emg"] = None
+        stream.update(float(obs.t[i]), sample)
+    parts, t_last = stream.parts()
+    encoded, t_enc = model.predictor_.encode(stream.observation())
+    assert t_last == t_enc and len(parts) == len(encoded) == (2 if gaps else 1)
+    for p, e in zip(parts, encoded, strict=True):
+        assert np.array_equal(p.dims, e.dims) and np.array_equal(p.t, e.t)
+        assert np.allclose(p.y, e.y, rtol=1e-13, atol=1e-13)
+        assert gaps or not p.y.flags.writeable  # without gaps: views of the stream's buffers
+    one = model.predict(stream.observation())
+    assert np.allclose(stream.prediction().q_mean, one.q_mean, rtol=1e-10, atol=1e-10)
+    rec = stream.recognition()
+    direct = model.predictor_.conditioner.condition(rec, encoded)
+    assert np.allclose(stream.predict().q_cov, direct.q_cov, rtol=1e-10, atol=1e-12)

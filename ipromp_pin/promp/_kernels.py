@@ -1228,3 +1228,136 @@ def basis_rows(z: np.ndarray, centres: np.ndarray, width: float, step: np.ndarra
             for k in range(1, n_k):
                 out[k, u] = out[k - 1, u] * (q * step[k - 1])
     return out
+
+
+@njit(**_JIT)
+def readout_update(
+    mean: np.ndarray,
+    sd: np.ndarray,
+    factor: np.ndarray,
+    base: np.ndarray,
+    extra: np.ndarray,
+    extra_u: np.ndarray,
+    extra_s: np.ndarray,
+    phi: np.ndarray,
+    phi_f: np.ndarray,
+    scale: np.ndarray,
+    offset: np.ndarray,
+    row: np.ndarray,
+    readout: np.ndarray,
+    values: np.ndarray,
+    cov: np.ndarray,
+) -> tuple[bool, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Condition the robot weights ``w = mean + sd xi + factor eta`` (latent precision ``Lambda``) on
+    ``values = readout q(z) + e``, ``e ~ N(0, cov)`` (see
+    :meth:`ipromp_pin.promp.weight_posterior.RobotWeightPosterior.readout_update`).
+
+    ``Lambda = blockdiag(I, L L^T) + E^T E``: ``base`` (n_b, n_b) the lower factor ``L`` of its last
+    ``n_b`` latent coordinates (``Q``'s, or the whole precision after via-points), pending rows ``E``
+    ``extra`` (m_e, n_u) with ``U = blockdiag(I, L L^T)^-1 E^T`` ``extra_u`` (n_u, m_e) and the lower
+    factor ``extra_s`` of ``I + E U`` (Woodbury identity). ``mean`` (J, K), ``sd`` (J,), ``factor``
+    (J, K, r), ``phi`` (M, K) and ``phi_f`` (r, J, M) the basis at the prediction's phases and times
+    the factor, ``scale``, ``offset`` (J,), ``row`` (K,), ``readout`` (m, J), ``values`` (m,), ``cov``
+    (m, m).
+
+    Returns whether ``cov`` and the update were numerically positive definite, the whitened rows
+    ``V`` (m, n_u), the change of the weights' mean (J, K), of the mean joint angles (M, J) and the
+    decrease of their covariance (M, J, J)."""
+    nj, k, r = factor.shape
+    jk = nj * k
+    n_u = jk + r
+    b0 = n_u - base.shape[0]
+    m = readout.shape[0]
+    n_m = phi.shape[0]
+    v = np.zeros((m, n_u))
+    dw = np.zeros((nj, k))
+    d_mean = np.zeros((n_m, nj))
+    d_cov = np.zeros((n_m, nj, nj))
+    lc = cholesky(cov)
+    if not np.isfinite(lc[0, 0]):
+        return False, v, dw, d_mean, d_cov
+    a_s = np.empty((m, nj))
+    for i in range(m):
+        for j in range(nj):
+            a_s[i, j] = readout[i, j] * scale[j]
+    a_w = tri_solve(lc, a_s, False)  # whitened read-out of the scaled joints (m, J)
+    fr = np.zeros((nj, r))  # the factor's rows at ``row``
+    for j in range(nj):
+        for kk in range(k):
+            rk = row[kk]
+            for q in range(r):
+                fr[j, q] += rk * factor[j, kk, q]
+    for i in range(m):
+        for j in range(nj):
+            c = a_w[i, j] * sd[j]
+            for kk in range(k):
+                v[i, j * k + kk] = c * row[kk]
+        for q in range(r):
+            acc = 0.0
+            for j in range(nj):
+                acc += a_w[i, j] * fr[j, q]
+            v[i, jk + q] = acc
+    res = np.empty((m, 1))
+    q_end = np.empty(nj)
+    for j in range(nj):
+        acc = 0.0
+        for kk in range(k):
+            acc += mean[j, kk] * row[kk]
+        q_end[j] = acc * scale[j] + offset[j]
+    for i in range(m):
+        acc = 0.0
+        for j in range(nj):
+            acc += readout[i, j] * q_end[j]
+        res[i, 0] = values[i] - acc
+    resid = tri_solve(lc, res, False)
+    u = np.ascontiguousarray(v.T)  # Lambda^-1 V^T (n_u, m)
+    if base.shape[0]:
+        u[b0:] = cho_solve(base, u[b0:])
+    if extra.shape[0]:
+        u -= np.dot(extra_u, cho_solve(extra_s, np.dot(extra, u)))
+    s = np.dot(v, u)
+    for i in range(m):
+        s[i, i] += 1.0
+    ls = cholesky(s)
+    if not np.isfinite(ls[0, 0]):
+        return False, v, dw, d_mean, d_cov
+    du = np.dot(u, cho_solve(ls, resid))  # (n_u, 1)
+    for j in range(nj):
+        for kk in range(k):
+            acc = du[j * k + kk, 0] * sd[j]
+            for q in range(r):
+                acc += factor[j, kk, q] * du[jk + q, 0]
+            dw[j, kk] = acc
+    for p in range(n_m):
+        for j in range(nj):
+            acc = 0.0
+            for kk in range(k):
+                acc += phi[p, kk] * dw[j, kk]
+            d_mean[p, j] = acc * scale[j]
+    # cross-covariance of the trajectory's joints with the whitened read-outs, (M, J m) and (J M, m)
+    u_w = np.empty((k, nj * m))
+    for j in range(nj):
+        for kk in range(k):
+            for i in range(m):
+                u_w[kk, j * m + i] = sd[j] * u[j * k + kk, i]
+    cross = np.dot(phi, u_w)
+    if r:
+        cross_f = np.dot(np.ascontiguousarray(phi_f.reshape(r, nj * n_m).T), np.ascontiguousarray(u[jk:]))
+    else:
+        cross_f = np.zeros((nj * n_m, m))
+    dp = np.empty((nj, m))
+    for p in range(n_m):
+        for j in range(nj):
+            for i in range(m):  # forward substitution with the factor of S
+                acc = (cross[p, j * m + i] + cross_f[j * n_m + p, i]) * scale[j]
+                for ll in range(i):
+                    acc -= ls[i, ll] * dp[j, ll]
+                dp[j, i] = acc / ls[i, i]
+        for a in range(nj):
+            for b in range(a + 1):
+                acc = 0.0
+                for i in range(m):
+                    acc += dp[a, i] * dp[b, i]
+                d_cov[p, a, b] = acc
+                d_cov[p, b, a] = acc
+    return True, v, dw, d_mean, d_cov

@@ -67,6 +67,7 @@ FIT_PREDICT_KERNELS = (
     "condition_block",
     "channel_values",
     "prediction_cov",
+    "readout_update",
 )
 """The kernels that fitting and prediction call (streaming adds ``stream_sample``, ``sherman_morrison``,
 ``stream_group``, ``add_sample``, ``basis_rows``)."""

@@ -467,9 +467,10 @@ class IncrementalTerms:
                 # nu mu_d as (basis, dim, task) columns after every block's W_d
                 mu_cols = np.concatenate([c["mu_k"].transpose(1, 2, 0) for c in arrays], axis=1) * e.nu
                 w_cols = [c["w_s"] for c in arrays]
-                wcat = np.ascontiguousarray(np.concatenate([*w_cols, mu_cols.reshape(n_basis, -1)], axis=1))
+                wcat = np.concatenate([*w_cols, mu_cols.reshape(n_basis, -1)], axis=1)
+                dims_g = [b.dims[loc] for b, loc in zip(blocks, local, strict=True)]
                 fixed = (
-                    np.concatenate([b.dims[loc] for b, loc in zip(blocks, local, strict=True)]).astype(np.int64),
+                    np.concatenate(dims_g).astype(np.int64),
                     np.cumsum([0] + [loc.size for loc in local]).astype(np.int64),
                     np.cumsum([0] + [w.shape[1] for w in w_cols]).astype(np.int64),
                     e.nu,
@@ -480,7 +481,7 @@ class IncrementalTerms:
                     blocks[0].ia,
                     blocks[0].ib,
                 )
-                out.append((wcat, fixed))
+                out.append((np.ascontiguousarray(wcat), fixed))
             self._model[key] = out
         return out
 

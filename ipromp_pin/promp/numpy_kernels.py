@@ -373,3 +373,42 @@ def condition_block(
         rhs = b - gram @ f_eta[dims, :ke].T
         w_post[dims, :ke] += cho_solve(factor_x, rhs).T
     return True
+
+
+def readout_update(
+    mean, sd, factor, base, extra, extra_u, extra_s, phi, phi_f, scale, offset, row, readout, values, cov
+):
+    """``_kernels.readout_update`` (the read-out update of the robot weights) with numpy / LAPACK."""
+    nj, k, r = factor.shape
+    jk = nj * k
+    n_u = jk + r
+    b0 = n_u - base.shape[0]
+    m = readout.shape[0]
+    n_m = phi.shape[0]
+    fail = (False, np.zeros((m, n_u)), np.zeros((nj, k)), np.zeros((n_m, nj)), np.zeros((n_m, nj, nj)))
+    lc = _chol(cov)
+    if lc is None:
+        return fail
+    a_w = solve_triangular(lc, readout * scale[None, :], lower=True, check_finite=False)
+    v = np.empty((m, n_u))
+    v[:, :jk] = ((a_w * sd[None, :])[:, :, None] * row[None, None, :]).reshape(m, jk)
+    v[:, jk:] = a_w @ (row @ factor)
+    predicted = readout @ (mean @ row * scale + offset)
+    resid = solve_triangular(lc, values - predicted, lower=True, check_finite=False)
+    u = v.T.copy()
+    if base.shape[0]:
+        u[b0:] = cho_solve((base, True), u[b0:], check_finite=False)
+    if extra.shape[0]:
+        u -= extra_u @ cho_solve((extra_s, True), extra @ u, check_finite=False)
+    ls = _chol(np.eye(m) + v @ u)
+    if ls is None:
+        return fail
+    du = u @ cho_solve((ls, True), resid, check_finite=False)
+    dw = du[:jk].reshape(nj, k) * sd[:, None] + factor @ du[jk:]
+    u_w = (u[:jk].reshape(nj, k, m) * sd[:, None, None]).transpose(1, 0, 2).reshape(k, nj * m)
+    cross = (phi @ u_w).reshape(n_m, nj, m)
+    if r:
+        cross += (u[jk:].T @ phi_f.reshape(r, nj * n_m)).reshape(m, nj, n_m).transpose(2, 1, 0)
+    cross *= scale[None, :, None]
+    d = solve_triangular(ls, cross.reshape(-1, m).T, lower=True, check_finite=False).T.reshape(cross.shape)
+    return True, v, dw, (phi @ dw.T) * scale, np.matmul(d, d.transpose(0, 2, 1))

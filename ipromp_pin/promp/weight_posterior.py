@@ -34,6 +34,7 @@ from scipy.linalg import LinAlgError, cho_solve, cholesky, lapack, solve_triangu
 
 from ..exceptions import ModelError
 from .basis import GaussianBasis
+from .compiled import kernels
 
 # LAPACK without scipy's checked wrappers, for the read-out update of every prediction (the inputs
 # are the model's own finite arrays; the calls are a few microseconds of arithmetic each)
@@ -230,26 +231,30 @@ class RobotWeightPosterior:
         dw = u_mean[:jk].reshape(nj, k) * np.sqrt(self.diag)[:, None] + self.factor @ u_mean[jk:]
         return replace(self, mean=self.mean + dw, info_chol=new_chol, extra_rows=None)
 
-    def _solve_base(self, x: np.ndarray) -> np.ndarray:
-        """``Lambda^-1 x`` (J K + r, c) without via-points (:attr:`info_chol` None): ``Lambda =
-        blockdiag(I, Q)`` solved blockwise, and pending rows ``E`` (:attr:`extra_rows`) by the
-        Woodbury identity ``(Lambda + E^T E)^-1 = Lambda^-1 - U (I + E U)^-1 U^T``, ``U = Lambda^-1 E^T``
-        (its factors cached)."""
-        j, k, r = self.factor.shape
-        jk = j * k
-        y = np.array(x, dtype=float, order="C")
-        if r:
-            y[jk:] = chol_solve(self.q_chol, y[jk:])
-        if self.extra_rows is not None:
-            cached = self.__dict__.get("_pending")
-            if cached is None:
-                e = self.extra_rows
-                ue = replace(self, extra_rows=None)._solve_base(e.T)
-                cached = (ue, chol_lower(np.eye(e.shape[0]) + e @ ue, "read-out update"))
-                object.__setattr__(self, "_pending", cached)
-            ue, se = cached
-            y -= ue @ chol_solve(se, self.extra_rows @ y)
-        return y
+    def _base_factor(self) -> np.ndarray:
+        """The lower factor of the precision's last latent coordinates that are not the identity:
+        ``L`` of ``Q`` (r, r) without via-points, :attr:`info_chol` after them (pending rows aside)."""
+        return self.q_chol if self.info_chol is None else self.info_chol
+
+    def _pending(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The pending rows ``E`` (:attr:`extra_rows`; (0, J K + r) when none), ``U = Lambda_0^-1 E^T``
+        (J K + r, m_e) for the precision ``Lambda_0`` without them and the lower factor of
+        ``I + E U`` (m_e, m_e): the Woodbury form of ``(Lambda_0 + E^T E)^-1`` (cached)."""
+        cached = self.__dict__.get("_pending_factors")
+        if cached is None:
+            n_u = self.n_latent
+            if self.extra_rows is None:
+                cached = (np.zeros((0, n_u)), np.zeros((n_u, 0)), np.zeros((0, 0)))
+            else:
+                e = np.ascontiguousarray(self.extra_rows, dtype=float)
+                base = self._base_factor()
+                ue = np.array(e.T, order="C")
+                b0 = n_u - base.shape[0]
+                if base.shape[0]:
+                    ue[b0:] = chol_solve(base, ue[b0:])
+                cached = (e, ue, chol_lower(np.eye(e.shape[0]) + e @ ue, "read-out update"))
+            object.__setattr__(self, "_pending_factors", cached)
+        return cached
 
     def readout_update(
         self,
@@ -277,41 +282,20 @@ class RobotWeightPosterior:
             The new posterior, the change (M, J) of the mean joint angles in [rad] and the decrease
             (M, J, J) of their covariance in [rad^2] at the phases :attr:`phi`.
         """
-        nj, k, r = self.factor.shape
-        jk = nj * k
-        readout = np.atleast_2d(np.asarray(readout, dtype=float))
-        m = readout.shape[0]
-        cov_chol = chol_lower(np.asarray(cov, dtype=float), "read-out noise covariance")
-        row = np.asarray(row, dtype=float)
-        sd = np.sqrt(self.diag)
-        # whitened rows V = C^-1 A S G^T H^T (m, J K + r) of the read-out of every joint at ``row``
-        # (see :meth:`loadings`): the whitened read-out of the scaled joints times sd_j row, and
-        # times the factor's rows at ``row``
-        a_w = tri_solve(cov_chol, readout * self.scale[None, :])  # (m, J)
-        v = np.empty((m, jk + r))
-        v[:, :jk] = ((a_w * sd[None, :])[:, :, None] * row[None, None, :]).reshape(m, jk)
-        v[:, jk:] = a_w @ (row @ self.factor)
-        predicted = readout @ (self.mean @ row * self.scale + self.offset)
-        resid = tri_solve(cov_chol, (np.asarray(values, dtype=float) - predicted)[:, None])[:, 0]
-        if self.info_chol is None:  # Lambda = blockdiag(I, Q) (+ pending rows): solved blockwise
-            u = self._solve_base(v.T)
-        else:
-            u = chol_solve(self.precision_chol(), v.T)
-        s_chol = chol_lower(np.eye(m) + v @ u, "read-out update")
-        du = u @ chol_solve(s_chol, resid[:, None])[:, 0]
-        dw = du[:jk].reshape(nj, k) * sd[:, None] + self.factor @ du[jk:]
-        # cross-covariance of the trajectory's joints with the whitened read-outs: (M, J, m)
-        n_m = self.phi.shape[0]
-        u_w = (u[:jk].reshape(nj, k, m) * sd[:, None, None]).transpose(1, 0, 2).reshape(k, nj * m)
-        cross = (self.phi @ u_w).reshape(n_m, nj, m)
-        if r:
-            if phi_f is None:
-                phi_f = np.einsum("mk,jkr->rjm", self.phi, self.factor)
-            cross += (u[jk:].T @ phi_f.reshape(r, nj * n_m)).reshape(m, nj, n_m).transpose(2, 1, 0)
-        cross *= self.scale[None, :, None]
-        d = tri_solve(s_chol, cross.reshape(-1, m).T).T.reshape(cross.shape)
-        d_mean = (self.phi @ dw.T) * self.scale
-        d_cov = np.matmul(d, d.transpose(0, 2, 1))
+        readout = np.ascontiguousarray(np.atleast_2d(np.asarray(readout, dtype=float)))
+        base, (extra, extra_u, extra_s) = self._base_factor(), self._pending()
+        if phi_f is None:
+            phi_f = np.einsum("mk,jkr->rjm", self.phi, self.factor)
+        c = np.ascontiguousarray
+        ok, v, dw, d_mean, d_cov = kernels().readout_update(
+            c(self.mean), np.sqrt(self.diag), c(self.factor), c(base), extra, extra_u, extra_s, c(self.phi),
+            c(phi_f), c(self.scale), c(self.offset), c(row, dtype=float), readout, c(values, dtype=float),
+            c(cov, dtype=float),
+        )  # fmt: skip
+        if not ok:
+            raise ModelError(
+                "read-out noise covariance or read-out update is not numerically positive definite"
+            )
         rows = v if self.extra_rows is None else np.vstack([self.extra_rows, v])
         new = replace(self, mean=self.mean + dw, extra_rows=rows)
         return new, d_mean, d_cov

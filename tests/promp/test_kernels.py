@@ -163,3 +163,43 @@ def test_numba_backend_announces_a_cold_compile(monkeypatch):
 def test_unknown_backend_is_an_error():
     with pytest.raises(ValueError, match="unknown kernel backend 'gpu'"):
         compiled.set_kernel_backend("gpu")
+
+
+@pytest.mark.parametrize("case", ["q", "pending", "via_points", "rank0"])
+def test_readout_update_kernels_agree_with_dense_conditioning(case):
+    # both backends' read-out update against dense Gaussian conditioning of the joints at the
+    # prediction's phases, with the precision blockdiag(I, Q), plus pending rows (Woodbury), or a
+    # full factor after via-points
+    from ipromp_pin.promp.weight_posterior import RobotWeightPosterior
+
+    rng = np.random.default_rng(7)
+    nj, k, r, n_m = 3, 5, 0 if case == "rank0" else 4, 6
+    phi = rng.uniform(0.0, 1.0, (n_m, k))
+    q = rng.normal(size=(r, r))
+    q_chol = np.linalg.cholesky(np.eye(r) + q @ q.T)
+    rw = RobotWeightPosterior(
+        mean=rng.normal(size=(nj, k)), diag=rng.uniform(0.5, 1.5, nj), factor=rng.normal(size=(nj, k, r)),
+        q_chol=q_chol, phi=phi, offset=rng.normal(size=nj), scale=rng.uniform(0.5, 2.0, nj),
+    )  # fmt: skip
+    if case == "via_points":
+        rw = rw.condition(phi[:2], np.array([0, 2]), np.array([0.3, -0.2]), np.array([0.1, 0.2]))
+    if case == "pending":
+        rw, _, _ = rw.readout_update(phi[-1], rng.normal(size=(2, nj)), rng.normal(size=2), np.eye(2) * 0.3)
+    readout, values, cov = rng.normal(size=(2, nj)), rng.normal(size=2), np.array([[0.5, 0.1], [0.1, 0.4]])
+    # dense reference: latent precision, loadings of the trajectory and of the read-out
+    lam_chol = rw.precision_chol()
+    lam_inv = np.linalg.inv(lam_chol @ lam_chol.T)
+    traj = rw.trajectory_loadings(phi).reshape(rw.n_latent, -1) * np.tile(rw.scale, n_m)[None, :]
+    h = (rw.trajectory_loadings(phi[-1:])[:, 0, :] * rw.scale[None, :]) @ readout.T  # (n_u, m)
+    s = h.T @ lam_inv @ h + cov
+    gain = traj.T @ lam_inv @ h @ np.linalg.inv(s)
+    q_end = rw.q_mean(phi[-1:])[0]
+    want_mean = gain @ (values - readout @ q_end)
+    want_cov = gain @ (h.T @ lam_inv @ traj)
+    for backend in ("numba", "numpy"):
+        with use_kernels(backend):
+            new, d_mean, d_cov = rw.readout_update(phi[-1], readout, values, cov)
+        assert np.allclose(d_mean.reshape(-1), want_mean, rtol=1e-10, atol=1e-12)
+        dense = want_cov.reshape(n_m, nj, n_m, nj)[np.arange(n_m), :, np.arange(n_m), :]
+        assert np.allclose(d_cov, dense, rtol=1e-10, atol=1e-12)
+        assert np.allclose(new.q_cov(), rw.q_cov() - d_cov, rtol=1e-9, atol=1e-12)

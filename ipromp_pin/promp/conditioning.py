@@ -16,8 +16,9 @@ caches (:class:`TaskBlocks`, :class:`BlockLayout`, :class:`PhaseGridTerms`).
 
 from __future__ import annotations
 
+import copy
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -238,7 +239,9 @@ class Conditioner:
         if pred.robot_weights is None:
             raise ValueError("this prediction holds no weight posterior to condition")
         rw, d_mean, d_cov = pred.robot_weights.readout_update(c.phi[-1], readout, values, cov, c.phi_f)
-        return replace(pred, q_mean=pred.q_mean + d_mean, q_cov=pred.q_cov - d_cov, robot_weights=rw)
+        out = copy.copy(pred)  # a shallow copy (dataclasses.replace runs the whole __init__)
+        out.q_mean, out.q_cov, out.robot_weights = pred.q_mean + d_mean, pred.q_cov - d_cov, rw
+        return out
 
     def block_layouts(self, task: str, parts: list[ObservationPart]) -> list[BlockLayout | None]:
         """Per latent block of a task, where its observed dims are in the parts (None when no part

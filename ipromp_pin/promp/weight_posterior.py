@@ -27,7 +27,7 @@ something asks for it (another via-point, samples).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, fields, replace
 
 import numpy as np
 from scipy.linalg import LinAlgError, cho_solve, cholesky, lapack, solve_triangular
@@ -92,6 +92,15 @@ class RobotWeightPosterior:
     basis: GaussianBasis | None = None
     info_chol: np.ndarray | None = None
     extra_rows: np.ndarray | None = None
+
+    def evolve(self, **changes: object) -> RobotWeightPosterior:
+        """A copy with the fields ``changes`` replaced (as :func:`dataclasses.replace`, without its
+        per-field ``__init__``; the cached factorisations are not carried over)."""
+        new = object.__new__(RobotWeightPosterior)
+        state = {f: self.__dict__[f] for f in _FIELDS}
+        state.update(changes)
+        new.__dict__.update(state)
+        return new
 
     @property
     def n_latent(self) -> int:
@@ -297,5 +306,8 @@ class RobotWeightPosterior:
                 "read-out noise covariance or read-out update is not numerically positive definite"
             )
         rows = v if self.extra_rows is None else np.vstack([self.extra_rows, v])
-        new = replace(self, mean=self.mean + dw, extra_rows=rows)
+        new = self.evolve(mean=self.mean + dw, extra_rows=rows)
         return new, d_mean, d_cov
+
+
+_FIELDS = tuple(f.name for f in fields(RobotWeightPosterior))

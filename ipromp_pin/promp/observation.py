@@ -103,6 +103,16 @@ class ObservationEncoder:
                 groups[g] = np.where(flip[:, None], -v, v)
         return obs if groups is None else dataclasses.replace(obs, groups=groups)
 
+    def align_rows(self, raw: np.ndarray) -> None:
+        """Flip, in place, the quaternions of full raw samples ``raw`` (n, D_o) that are not in the
+        training data's hemisphere (:meth:`align_signs` for the concatenated samples)."""
+        for _, lo, hi, ref in self.quaternions:
+            q = raw[:, lo:hi]
+            with np.errstate(invalid="ignore"):
+                flip = q @ ref < 0.0
+            if np.any(flip):
+                q[flip] = -q[flip]
+
     def align_sample(self, y: np.ndarray) -> None:
         """Flip, in place, the quaternions of a full raw sample ``y`` (D_o,) that are not in the
         training data's hemisphere (:meth:`align_signs` for one sample)."""
@@ -155,16 +165,16 @@ class ObservationEncoder:
             if tuple(obs.channel_names[g]) != layout.channel_names[g]:
                 obs = self._by_name(obs)
             gaps = gaps or (g in obs.missing and bool(obs.missing[g].any()))
-        obs = self.align_signs(obs)
         if not gaps:  # every group in every sample: one part with all observed dims
             raw = np.concatenate([obs.groups[g] for g in layout.observe], axis=1, dtype=float)
+            self.align_rows(raw)
             y, finite = self.scale_samples(raw)
             if not finite:
                 for g in layout.observe:
-                    self.check_values(src, g, obs.groups[g])
+                    self.check_values(src, g, raw[:, slice(*layout.slices[g])])
             parts = [ObservationPart(t=t, dims=self.dims, y=y)]
         else:
-            parts = self._parts_with_gaps(obs)
+            parts = self._parts_with_gaps(self.align_signs(obs))
         n_used = sum(p.t.size for p in parts)
         if t.size < 2 or n_used < 2:
             raise ObservationError(src, "t", f"an observation needs at least 2 samples, got {t.size}")

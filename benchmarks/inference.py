@@ -20,7 +20,8 @@ cache) are reported separately.
 
 Medians: the paper settings time 300 full updates per ratio and about 1000 streaming updates (30
 passes over the 37 samples of 20 % of a demo) in 6 rounds spread over their run (each round visits
-every quantity), the scaled settings 10 calls in one round.
+every quantity), the scaled settings 10 calls in one round (``--quick``: the paper settings 100 full
+updates per ratio, about a second, in one round; 5 had made its medians those of a cold burst).
 
 "full update" = :meth:`IProMP.predict` (phase posterior over every candidate of every task,
 task posterior, conditioned prediction of the winner); "streaming update" = one
@@ -367,7 +368,7 @@ def measure(mode: str) -> dict:
     reps = 5 if quick else 30
     # the paper settings' full updates take about a millisecond: many repeats make their medians
     # robust to this VM's bursts of interference
-    paper_reps = 2 if smoke else 5 if quick else 300
+    paper_reps = 2 if smoke else 100 if quick else 300
     paper_rounds = 6 if mode == "full" else 1
     tiny = {"n_tasks": 2, "n_demos": 4, **SMOKE_MODEL} if smoke else {}
     out: dict = {"mode": mode}

@@ -446,7 +446,8 @@ class IncrementalTerms:
         # per part dims: per lane group the W_d and nu mu_d of its blocks' dims (K, M) and the model
         # arguments of kernels.stream_group that follow w_t, or None (the part has none of its dims)
         self._model: dict[bytes, list[tuple[np.ndarray, tuple] | None]] = {}
-        self._w_t: dict[bytes, list[np.ndarray | None]] = {}  # wcat[:ke].T (C-contiguous: faster)
+        # per part dims and the current ke: wcat[:ke].T (C-contiguous: the faster product) and fixed
+        self._w_t: dict[bytes, list[tuple[np.ndarray, tuple] | None]] = {}
 
     def _group_inputs(self, dims: np.ndarray) -> list[tuple[np.ndarray, tuple] | None]:
         """Per lane group, the model arrays of ``kernels.stream_group`` for a part observing ``dims``
@@ -489,12 +490,14 @@ class IncrementalTerms:
         """Per lane group, ``w_t`` (the first ``ke`` basis rows, transposed) and the fixed arguments
         of ``kernels.stream_group`` for a part observing ``dims``, or None."""
         key = dims.tobytes()
-        model = self._group_inputs(dims)
-        w_t = self._w_t.get(key)
-        if w_t is None:
-            w_t = [None if m is None else np.ascontiguousarray(m[0][: self.ke].T) for m in model]
-            self._w_t[key] = w_t
-        return [None if m is None else (w, m[1]) for m, w in zip(model, w_t, strict=True)]
+        out = self._w_t.get(key)
+        if out is None:
+            out = [
+                None if m is None else (np.ascontiguousarray(m[0][: self.ke].T), m[1])
+                for m in self._group_inputs(dims)
+            ]
+            self._w_t[key] = out
+        return out
 
     def reset(self, stats: PartStats | list[PartStats], t_last: float) -> np.ndarray:
         """Terms from part statistics ``stats`` (one per part, all with the same ``ke``; a part

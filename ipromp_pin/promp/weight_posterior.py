@@ -22,7 +22,9 @@ A few linear read-outs of the final configuration (the hand-over regression of
 factorising ``Lambda'``: by the Woodbury identity the update of the mean and of the trajectory's
 covariance needs only ``Lambda^-1 V^T`` (``V`` has a handful of rows), and ``Lambda' = Lambda + V^T V``
 is kept as the pending rows ``V`` (:attr:`RobotWeightPosterior.extra_rows`), factorised only when
-something asks for it (another via-point, samples).
+something asks for it (another via-point, samples); a further read-out (the orientation estimate
+after the hand-over regression) solves with ``Lambda + V^T V`` by the Woodbury identity again. The
+update is one compiled kernel (``kernels.readout_update``).
 """
 
 from __future__ import annotations

@@ -294,3 +294,241 @@ def pair_jtu(
             cz = lx * uy - ly * ux
             out[k, j] = axes[i, j, 0] * cx + axes[i, j, 1] * cy + axes[i, j, 2] * cz
     return out
+
+
+@njit(**_JIT)
+def _grow_pairs(
+    n_i: np.ndarray, l_i: np.ndarray, p_i: np.ndarray, app: np.ndarray, sp: np.ndarray, jtu: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The pair buffers of :func:`separation_summary`, twice as long (the first rows copied)."""
+    k = n_i.size
+    out = (
+        np.empty(2 * k, np.int64),
+        np.empty(2 * k, np.int64),
+        np.empty(2 * k, np.int64),
+        np.empty(2 * k),
+        np.empty(2 * k),
+        np.empty((2 * k, jtu.shape[1])),
+    )
+    out[0][:k] = n_i
+    out[1][:k] = l_i
+    out[2][:k] = p_i
+    out[3][:k] = app
+    out[4][:k] = sp
+    out[5][:k] = jtu
+    return out
+
+
+@njit(**_JIT)
+def separation_summary(
+    ra: np.ndarray,
+    rb: np.ndarray,
+    rr: np.ndarray,
+    ha: np.ndarray,
+    hb: np.ndarray,
+    hr: np.ndarray,
+    body_r: np.ndarray,
+    nominal: np.ndarray,
+    floor: np.ndarray,
+    origins: np.ndarray,
+    axes: np.ndarray,
+    qd: np.ndarray,
+    anchor: np.ndarray,
+    sp_const: float,
+    sp_per_speed: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """What the human checks judge of the robot-body separation, without every pair's numbers.
+
+    Inputs as :func:`capsule_distances` and :func:`approach_speeds`, plus the body parts' radii
+    before inflation ``body_r`` (P,), which parts count toward the clearance ``nominal`` (P,) (the
+    hand's do not) and the approach speed ``floor`` (P,) [m/s] below which a pair never reaches its
+    planning limit. Returns, per sample (N,), the smallest distance [m] to a counted part at its
+    nominal position (``distance + inflation``; exact at the samples where it is the smallest of the
+    motion, at least the true value elsewhere, ``inf`` where no pair was computed) and whether some
+    pair is closer than S_p; and the pairs within S_p approaching faster than their ``floor``
+    (sample, capsule, part (K,), in the order of ``np.nonzero``, their approach speed [m/s], S_p [m]
+    and ``J^T u`` (K, n_joints), as :func:`pair_jtu`).
+
+    Every number is computed as :func:`capsule_distances`, :func:`approach_speeds` and
+    :func:`pair_jtu` compute it; a pair is skipped only when bounds prove that it cannot matter:
+    the distance is at least the bounding spheres' (``|c_l - c_p| - R_l - R_p``), and the speed of
+    any surface point of a robot capsule is at most ``max(|v(a)|, |v(b)|) + r |w|`` (the velocity
+    field of a rigid body is affine in the point), so a pair farther than the S_p of that speed is
+    outside S_p, and a pair of a capsule slower than the part's ``floor`` never needs its ratio.
+    """
+    n, nl = ra.shape[0], ra.shape[1]
+    npart = ha.shape[1]
+    nj = origins.shape[1]
+    clear = np.full(n, np.inf)
+    within = np.zeros(n, np.bool_)
+    cap = 256
+    n_i = np.empty(cap, np.int64)
+    l_i = np.empty(cap, np.int64)
+    p_i = np.empty(cap, np.int64)
+    app = np.empty(cap)
+    sp = np.empty(cap)
+    jtu = np.empty((cap, nj))
+    k_pairs = 0
+    omega = np.empty((nj, 3))
+    v_o = np.empty((nj, 3))
+    v_bound = np.empty(nl)
+    sp_bound = np.empty(nl)
+    centre = np.empty((npart, 3))
+    reach = np.empty(npart)
+    slack = 1e-9  # [m], [m/s]: far above the rounding of these sums (1e-15 at metre scale)
+    best = np.inf  # the smallest nominal clearance computed so far (at least the motion's)
+    for step in range(n):
+        i = n - 1 if step == 0 else step - 1  # the last sample first: the hand-over, usually closest
+        wx = wy = wz = 0.0
+        for k in range(nj):
+            if k == 0:
+                v_o[0, 0] = v_o[0, 1] = v_o[0, 2] = 0.0
+            else:
+                lx = origins[i, k, 0] - origins[i, k - 1, 0]
+                ly = origins[i, k, 1] - origins[i, k - 1, 1]
+                lz = origins[i, k, 2] - origins[i, k - 1, 2]
+                v_o[k, 0] = v_o[k - 1, 0] + wy * lz - wz * ly
+                v_o[k, 1] = v_o[k - 1, 1] + wz * lx - wx * lz
+                v_o[k, 2] = v_o[k - 1, 2] + wx * ly - wy * lx
+            wx += qd[i, k] * axes[i, k, 0]
+            wy += qd[i, k] * axes[i, k, 1]
+            wz += qd[i, k] * axes[i, k, 2]
+            omega[k, 0], omega[k, 1], omega[k, 2] = wx, wy, wz
+        for m in range(nl):  # the fastest any surface point of capsule m moves, and its S_p
+            k = anchor[m]
+            ax, ay, az = omega[k, 0], omega[k, 1], omega[k, 2]
+            top = 0.0
+            for end in range(2):
+                e = ra if end == 0 else rb
+                lx = e[i, m, 0] - origins[i, k, 0]
+                ly = e[i, m, 1] - origins[i, k, 1]
+                lz = e[i, m, 2] - origins[i, k, 2]
+                vx = v_o[k, 0] + ay * lz - az * ly
+                vy = v_o[k, 1] + az * lx - ax * lz
+                vz = v_o[k, 2] + ax * ly - ay * lx
+                top = max(top, math.sqrt(vx * vx + vy * vy + vz * vz))
+            v = top + rr[m] * math.sqrt(ax * ax + ay * ay + az * az) + slack
+            v_bound[m] = v
+            sp_bound[m] = sp_const + v * sp_per_speed + slack
+        for p in range(npart):  # the body parts' bounding spheres: centre and radius
+            d2x, d2y, d2z = hb[i, p, 0] - ha[i, p, 0], hb[i, p, 1] - ha[i, p, 1], hb[i, p, 2] - ha[i, p, 2]
+            centre[p, 0] = ha[i, p, 0] + 0.5 * d2x
+            centre[p, 1] = ha[i, p, 1] + 0.5 * d2y
+            centre[p, 2] = ha[i, p, 2] + 0.5 * d2z
+            reach[p] = 0.5 * math.sqrt(d2x * d2x + d2y * d2y + d2z * d2z) + hr[i, p] + slack
+        inside = False
+        for m in range(nl):
+            p1x, p1y, p1z = ra[i, m, 0], ra[i, m, 1], ra[i, m, 2]
+            d1x, d1y, d1z = rb[i, m, 0] - p1x, rb[i, m, 1] - p1y, rb[i, m, 2] - p1z
+            cx, cy, cz = p1x + 0.5 * d1x, p1y + 0.5 * d1y, p1z + 0.5 * d1z
+            big_r = 0.5 * math.sqrt(d1x * d1x + d1y * d1y + d1z * d1z) + rr[m]
+            k = anchor[m]
+            for p in range(npart):
+                # the distance is at least |c_l - c_p| - R_l - R_p: compare the squared centre distance
+                gx, gy, gz = cx - centre[p, 0], cy - centre[p, 1], cz - centre[p, 2]
+                g2 = gx * gx + gy * gy + gz * gz
+                r_both = big_r + reach[p]
+                fast = v_bound[m] > floor[p]
+                want_ratio = want_within = False
+                if fast or not inside:
+                    far = sp_bound[m] + r_both
+                    near = g2 < far * far
+                    want_ratio = near and fast
+                    want_within = near and not inside
+                infl = hr[i, p] - body_r[p]
+                want_clear = False
+                if nominal[p]:
+                    reach_clear = best - infl + r_both + slack
+                    want_clear = reach_clear > 0.0 and g2 <= reach_clear * reach_clear
+                if not (want_ratio or want_within or want_clear):
+                    continue
+                p2x, p2y, p2z = ha[i, p, 0], ha[i, p, 1], ha[i, p, 2]
+                d2x, d2y, d2z = hb[i, p, 0] - p2x, hb[i, p, 1] - p2y, hb[i, p, 2] - p2z
+                s, t = _closest(p1x, p1y, p1z, d1x, d1y, d1z, p2x, p2y, p2z, d2x, d2y, d2z)
+                x0, x1, x2 = p1x + s * d1x, p1y + s * d1y, p1z + s * d1z
+                y0, y1, y2 = p2x + t * d2x, p2y + t * d2y, p2z + t * d2z
+                dist = math.sqrt((x0 - y0) ** 2 + (x1 - y1) ** 2 + (x2 - y2) ** 2) - rr[m] - hr[i, p]
+                if nominal[p]:
+                    d_nom = dist + infl
+                    if d_nom < clear[i]:
+                        clear[i] = d_nom
+                    if d_nom < best:
+                        best = d_nom
+                if not (want_ratio or want_within):
+                    continue
+                # the approach speed as approach_speeds computes it
+                ux, uy, uz = y0 - x0, y1 - x1, y2 - x2
+                norm = math.sqrt(ux * ux + uy * uy + uz * uz)
+                met = norm <= 1e-9
+                if not met:
+                    ux, uy, uz = ux / norm, uy / norm, uz / norm
+                else:
+                    ux, uy, uz = 0.0, 0.0, 0.0
+                lx = x0 + rr[m] * ux - origins[i, k, 0]
+                ly = x1 + rr[m] * uy - origins[i, k, 1]
+                lz = x2 + rr[m] * uz - origins[i, k, 2]
+                ax, ay, az = omega[k, 0], omega[k, 1], omega[k, 2]
+                vx = v_o[k, 0] + ay * lz - az * ly
+                vy = v_o[k, 1] + az * lx - ax * lz
+                vz = v_o[k, 2] + ax * ly - ay * lx
+                v = math.sqrt(vx * vx + vy * vy + vz * vz) if met else vx * ux + vy * uy + vz * uz
+                protective = sp_const + max(v, 0.0) * sp_per_speed
+                if not dist < protective:
+                    continue
+                inside = True
+                if not v > floor[p]:
+                    continue
+                if k_pairs == n_i.size:
+                    n_i, l_i, p_i, app, sp, jtu = _grow_pairs(n_i, l_i, p_i, app, sp, jtu)
+                n_i[k_pairs], l_i[k_pairs], p_i[k_pairs] = i, m, p
+                app[k_pairs], sp[k_pairs] = v, protective
+                # J^T u of the closest surface point, as pair_jtu computes it
+                xs0, xs1, xs2 = x0 + rr[m] * ux, x1 + rr[m] * uy, x2 + rr[m] * uz
+                if met:
+                    wvx = wvy = wvz = 0.0
+                    for j in range(k + 1):
+                        qx = xs0 - origins[i, j, 0]
+                        qy = xs1 - origins[i, j, 1]
+                        qz = xs2 - origins[i, j, 2]
+                        zx, zy, zz = axes[i, j, 0], axes[i, j, 1], axes[i, j, 2]
+                        wvx += qd[i, j] * (zy * qz - zz * qy)
+                        wvy += qd[i, j] * (zz * qx - zx * qz)
+                        wvz += qd[i, j] * (zx * qy - zy * qx)
+                    wn = math.sqrt(wvx * wvx + wvy * wvy + wvz * wvz)
+                    jtu[k_pairs, :] = 0.0
+                    if wn <= 1e-12:
+                        k_pairs += 1
+                        continue
+                    ux, uy, uz = wvx / wn, wvy / wn, wvz / wn
+                for j in range(nj):
+                    if j > k:
+                        jtu[k_pairs, j] = 0.0
+                        continue
+                    qx = xs0 - origins[i, j, 0]
+                    qy = xs1 - origins[i, j, 1]
+                    qz = xs2 - origins[i, j, 2]
+                    ex = qy * uz - qz * uy
+                    ey = qz * ux - qx * uz
+                    ez = qx * uy - qy * ux
+                    jtu[k_pairs, j] = axes[i, j, 0] * ex + axes[i, j, 1] * ey + axes[i, j, 2] * ez
+                k_pairs += 1
+        within[i] = inside
+    # the last sample was done first: put its pairs last (the order of np.nonzero)
+    order = np.empty(k_pairs, np.int64)
+    first = 0
+    while first < k_pairs and n_i[first] == n - 1:
+        first += 1
+    for j in range(k_pairs - first):
+        order[j] = first + j
+    for j in range(first):
+        order[k_pairs - first + j] = j
+    return (
+        clear,
+        within,
+        n_i[order],
+        l_i[order],
+        p_i[order],
+        app[order],
+        sp[order],
+        jtu[order],
+    )

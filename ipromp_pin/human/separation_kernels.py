@@ -532,3 +532,99 @@ def separation_summary(
         sp[order],
         jtu[order],
     )
+
+
+@njit(**_JIT)
+def chain_mass_matrices(
+    q: np.ndarray,
+    placement: np.ndarray,
+    axis: np.ndarray,
+    mass: np.ndarray,
+    com: np.ndarray,
+    inertia: np.ndarray,
+) -> np.ndarray:
+    """Joint-space inertia matrices (S, n, n) [kg m^2] of a serial chain of n revolute joints at
+    angles ``q`` (S, n) [rad]: ``placement`` (n, 4, 4) each joint's frame in its parent's at zero
+    angle, ``axis`` (n, 3) its unit axis in its own frame, and each body's ``mass`` (n,) [kg],
+    centre of mass ``com`` (n, 3) [m] and rotational inertia about it ``inertia`` (n, 3, 3)
+    [kg m^2], in its joint's frame (what CRBA computes, as
+    ``M_ij = sum_{b >= max(i, j)} m_b (z_i x (c_b - o_i)) . (z_j x (c_b - o_j)) + z_i . I_b z_j``)."""
+    s_n, n = q.shape
+    out = np.empty((s_n, n, n))
+    rot = np.empty((3, 3))
+    tmp = np.empty((3, 3))
+    kx = np.empty((3, 3))
+    o = np.empty((n, 3))
+    z = np.empty((n, 3))
+    c = np.empty((n, 3))
+    ib = np.empty((n, 3, 3))
+    for si in range(s_n):
+        pos = np.zeros(3)
+        rot[:] = 0.0
+        rot[0, 0] = rot[1, 1] = rot[2, 2] = 1.0
+        for k in range(n):
+            for r in range(3):
+                pos[r] += (
+                    rot[r, 0] * placement[k, 0, 3]
+                    + rot[r, 1] * placement[k, 1, 3]
+                    + rot[r, 2] * placement[k, 2, 3]
+                )
+            for r in range(3):
+                for cc in range(3):
+                    tmp[r, cc] = (
+                        rot[r, 0] * placement[k, 0, cc]
+                        + rot[r, 1] * placement[k, 1, cc]
+                        + rot[r, 2] * placement[k, 2, cc]
+                    )
+            rot[:] = tmp
+            x, y, w = axis[k, 0], axis[k, 1], axis[k, 2]
+            ca, sa = math.cos(q[si, k]), math.sin(q[si, k])
+            t_ = 1.0 - ca
+            kx[0, 0] = ca + t_ * x * x
+            kx[0, 1] = t_ * x * y - sa * w
+            kx[0, 2] = t_ * x * w + sa * y
+            kx[1, 0] = t_ * x * y + sa * w
+            kx[1, 1] = ca + t_ * y * y
+            kx[1, 2] = t_ * y * w - sa * x
+            kx[2, 0] = t_ * x * w - sa * y
+            kx[2, 1] = t_ * y * w + sa * x
+            kx[2, 2] = ca + t_ * w * w
+            for r in range(3):
+                for cc in range(3):
+                    tmp[r, cc] = rot[r, 0] * kx[0, cc] + rot[r, 1] * kx[1, cc] + rot[r, 2] * kx[2, cc]
+            rot[:] = tmp
+            for r in range(3):
+                o[k, r] = pos[r]
+                z[k, r] = rot[r, 0] * axis[k, 0] + rot[r, 1] * axis[k, 1] + rot[r, 2] * axis[k, 2]
+                c[k, r] = pos[r] + rot[r, 0] * com[k, 0] + rot[r, 1] * com[k, 1] + rot[r, 2] * com[k, 2]
+            for r in range(3):  # R I R^T
+                for cc in range(3):
+                    tmp[r, cc] = (
+                        rot[r, 0] * inertia[k, 0, cc]
+                        + rot[r, 1] * inertia[k, 1, cc]
+                        + rot[r, 2] * inertia[k, 2, cc]
+                    )
+            for r in range(3):
+                for cc in range(3):
+                    ib[k, r, cc] = tmp[r, 0] * rot[cc, 0] + tmp[r, 1] * rot[cc, 1] + tmp[r, 2] * rot[cc, 2]
+        for i in range(n):
+            for j in range(i, n):
+                acc = 0.0
+                for b in range(j, n):
+                    lix, liy, liz = c[b, 0] - o[i, 0], c[b, 1] - o[i, 1], c[b, 2] - o[i, 2]
+                    ljx, ljy, ljz = c[b, 0] - o[j, 0], c[b, 1] - o[j, 1], c[b, 2] - o[j, 2]
+                    aix = z[i, 1] * liz - z[i, 2] * liy
+                    aiy = z[i, 2] * lix - z[i, 0] * liz
+                    aiz = z[i, 0] * liy - z[i, 1] * lix
+                    ajx = z[j, 1] * ljz - z[j, 2] * ljy
+                    ajy = z[j, 2] * ljx - z[j, 0] * ljz
+                    ajz = z[j, 0] * ljy - z[j, 1] * ljx
+                    rot_term = 0.0
+                    for r in range(3):
+                        rot_term += z[i, r] * (
+                            ib[b, r, 0] * z[j, 0] + ib[b, r, 1] * z[j, 1] + ib[b, r, 2] * z[j, 2]
+                        )
+                    acc += mass[b] * (aix * ajx + aiy * ajy + aiz * ajz) + rot_term
+                out[si, i, j] = acc
+                out[si, j, i] = acc
+    return out

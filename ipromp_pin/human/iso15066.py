@@ -89,14 +89,17 @@ def arm_model(robot: Robot) -> pin.Model:
     return pin.buildReducedModel(robot.model, lock, robot.q_neutral)
 
 
-def arm_mass_matrices(robot: Robot, q_arm: np.ndarray, model: pin.Model | None = None) -> np.ndarray:
+def arm_mass_matrices(
+    robot: Robot, q_arm: np.ndarray, model: pin.Model | None = None, compiled: bool = False
+) -> np.ndarray:
     """:func:`arm_mass_matrix` at every row of ``q_arm`` (S, n_joints) -> (S, n_joints, n_joints)
-    (``model``: the arm's reduced model, :func:`arm_model`, built here when None). With the compiled
-    human kernels and a chain of revolute joints, a compiled CRBA of the chain
-    (:func:`chain_parameters`; equal to Pinocchio's to rounding, 1e-14), else Pinocchio's."""
+    (``model``: the arm's reduced model, :func:`arm_model`, built here when None): Pinocchio's CRBA.
+    ``compiled``: with the compiled human kernels and a chain of revolute joints, a compiled CRBA of
+    the chain instead (:func:`chain_parameters`; equal to Pinocchio's to rounding, 1e-14, not to
+    the bit: for bounds, see :mod:`.separation_summary`)."""
     model = model if model is not None else arm_model(robot)
     q = np.atleast_2d(np.asarray(q_arm, dtype=float))
-    chain = chain_parameters(model)
+    chain = chain_parameters(model) if compiled else None
     kernels = human_kernels()
     if chain is not None and hasattr(kernels, "chain_mass_matrices"):  # the compiled kernels
         return kernels.chain_mass_matrices(np.ascontiguousarray(q), *chain)

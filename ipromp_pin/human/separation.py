@@ -284,10 +284,12 @@ class SeparationAnalyser:
         approach: np.ndarray,
         q: np.ndarray,
         human: HumanMotion,
+        compiled: bool = False,
     ) -> tuple[np.ndarray, np.ndarray]:
         """Approach speed / v_max (K,) and the robot's effective mass (K,) [kg] of pairs at samples
         ``n_i`` toward parts ``p_i`` (K,), with their ``J^T u`` (K, n_joints) and approach speeds
-        (K,) [m/s], along angles ``q`` (N, n_joints) [rad] (the arm's CRBA once per sample)."""
+        (K,) [m/s], along angles ``q`` (N, n_joints) [rad] (the arm's CRBA once per sample: Pinocchio's,
+        or ``compiled``, :func:`~.iso15066.arm_mass_matrices`)."""
         if n_i.size == 0:
             return np.empty(0), np.empty(0)
         kernels = human_kernels()
@@ -296,7 +298,7 @@ class SeparationAnalyser:
         samples, which = np.unique(n_i, return_inverse=True)
         if self._arm_model is None:
             self._arm_model = arm_model(self.robot)
-        inertia = arm_mass_matrices(self.robot, q[samples], self._arm_model)
+        inertia = arm_mass_matrices(self.robot, q[samples], self._arm_model, compiled)
         inv = kernels.inverse_effective_masses(inertia, which.astype(np.int64), np.ascontiguousarray(jtu))
         m_r = 1.0 / np.maximum(inv, 1e-300)
         force = np.array([region_force_n(lim, s.contact) for lim in limits])[p_i]

@@ -320,6 +320,37 @@ def _grow_pairs(
 
 
 @njit(**_JIT)
+def _approach_bound(
+    end_v: np.ndarray, m: int, gx: float, gy: float, gz: float, g2: float, halves: float
+) -> float:
+    """An upper bound [m/s] of the approach speed of capsule ``m`` toward a body part whose centre
+    is ``-g`` from the capsule's (``g2 = |g|^2``), their axes' half-lengths summing to ``halves``:
+    the approach is ``v(x) . u`` with ``x`` on the capsule's axis (the surface offset adds nothing
+    along ``u``), ``v`` affine along the axis (largest at an end), and ``u`` the direction between
+    points of the two axes, within ``asin(halves / |g|)`` of ``-g``. Infinite where the cone is not
+    narrower than a half-space (the axes may meet)."""
+    dist = math.sqrt(g2)
+    if not dist > halves * (1.0 + 1e-9) + 1e-9:
+        return np.inf
+    sin_t = halves / dist
+    cos_t = math.sqrt(1.0 - sin_t * sin_t)
+    ux, uy, uz = -gx / dist, -gy / dist, -gz / dist
+    top = 0.0
+    for end in range(2):
+        vx, vy, vz = end_v[m, end, 0], end_v[m, end, 1], end_v[m, end, 2]
+        speed = math.sqrt(vx * vx + vy * vy + vz * vz)
+        if speed <= 0.0:
+            continue
+        cos_p = min(max((vx * ux + vy * uy + vz * uz) / speed, -1.0), 1.0)
+        if cos_p >= cos_t:
+            along = speed
+        else:
+            along = speed * (cos_p * cos_t + math.sqrt(1.0 - cos_p * cos_p) * sin_t)
+        top = max(top, along)
+    return top * (1.0 + 1e-9) + 1e-9
+
+
+@njit(**_JIT)
 def separation_summary(
     ra: np.ndarray,
     rb: np.ndarray,
@@ -373,8 +404,12 @@ def separation_summary(
     v_o = np.empty((nj, 3))
     v_bound = np.empty(nl)
     sp_bound = np.empty(nl)
-    centre = np.empty((npart, 3))
+    centre_x, centre_y, centre_z = np.empty(npart), np.empty(npart), np.empty(npart)
     reach = np.empty(npart)
+    half = np.empty(npart)
+    infl = np.empty(npart)
+    reach_clear = np.empty(npart)
+    end_v = np.empty((nl, 2, 3))  # the velocities of the capsules' end points
     slack = 1e-9  # [m], [m/s]: far above the rounding of these sums (1e-15 at metre scale)
     best = np.inf  # the smallest nominal clearance computed so far (at least the motion's)
     for step in range(n):
@@ -407,41 +442,48 @@ def separation_summary(
                 vy = v_o[k, 1] + az * lx - ax * lz
                 vz = v_o[k, 2] + ax * ly - ay * lx
                 top = max(top, math.sqrt(vx * vx + vy * vy + vz * vz))
+                end_v[m, end, 0], end_v[m, end, 1], end_v[m, end, 2] = vx, vy, vz
             v = top + rr[m] * math.sqrt(ax * ax + ay * ay + az * az) + slack
             v_bound[m] = v
             sp_bound[m] = sp_const + v * sp_per_speed + slack
         for p in range(npart):  # the body parts' bounding spheres: centre and radius
             d2x, d2y, d2z = hb[i, p, 0] - ha[i, p, 0], hb[i, p, 1] - ha[i, p, 1], hb[i, p, 2] - ha[i, p, 2]
-            centre[p, 0] = ha[i, p, 0] + 0.5 * d2x
-            centre[p, 1] = ha[i, p, 1] + 0.5 * d2y
-            centre[p, 2] = ha[i, p, 2] + 0.5 * d2z
-            reach[p] = 0.5 * math.sqrt(d2x * d2x + d2y * d2y + d2z * d2z) + hr[i, p] + slack
+            centre_x[p] = ha[i, p, 0] + 0.5 * d2x
+            centre_y[p] = ha[i, p, 1] + 0.5 * d2y
+            centre_z[p] = ha[i, p, 2] + 0.5 * d2z
+            half[p] = 0.5 * math.sqrt(d2x * d2x + d2y * d2y + d2z * d2z)
+            reach[p] = half[p] + hr[i, p] + slack
+            infl[p] = hr[i, p] - body_r[p]
+            # the nominal clearance is at least |g| - R_l - reach + infl: how far past R_l it can be
+            reach_clear[p] = reach[p] - infl[p] + slack if nominal[p] else -np.inf
         inside = False
         for m in range(nl):
             p1x, p1y, p1z = ra[i, m, 0], ra[i, m, 1], ra[i, m, 2]
             d1x, d1y, d1z = rb[i, m, 0] - p1x, rb[i, m, 1] - p1y, rb[i, m, 2] - p1z
             cx, cy, cz = p1x + 0.5 * d1x, p1y + 0.5 * d1y, p1z + 0.5 * d1z
-            big_r = 0.5 * math.sqrt(d1x * d1x + d1y * d1y + d1z * d1z) + rr[m]
+            half_m = 0.5 * math.sqrt(d1x * d1x + d1y * d1y + d1z * d1z)
+            big_r = half_m + rr[m]
             k = anchor[m]
+            v_m, sp_m = v_bound[m], sp_bound[m]
             for p in range(npart):
                 # the distance is at least |c_l - c_p| - R_l - R_p: compare the squared centre distance
-                gx, gy, gz = cx - centre[p, 0], cy - centre[p, 1], cz - centre[p, 2]
+                gx, gy, gz = cx - centre_x[p], cy - centre_y[p], cz - centre_z[p]
                 g2 = gx * gx + gy * gy + gz * gz
-                r_both = big_r + reach[p]
-                fast = v_bound[m] > floor[p]
+                x_clear = best + big_r + reach_clear[p]
+                want_clear = x_clear > 0.0 and g2 <= x_clear * x_clear
                 want_ratio = want_within = False
+                fast = v_m > floor[p]
                 if fast or not inside:
-                    far = sp_bound[m] + r_both
-                    near = g2 < far * far
-                    want_ratio = near and fast
-                    want_within = near and not inside
-                infl = hr[i, p] - body_r[p]
-                want_clear = False
-                if nominal[p]:
-                    reach_clear = best - infl + r_both + slack
-                    want_clear = reach_clear > 0.0 and g2 <= reach_clear * reach_clear
+                    far = sp_m + big_r + reach[p]
+                    if g2 < far * far:  # near enough to be within S_p
+                        want_within = not inside
+                        if fast:  # and moving toward the part fast enough to need its ratio?
+                            want_ratio = (
+                                _approach_bound(end_v, m, gx, gy, gz, g2, half_m + half[p]) > floor[p]
+                            )
                 if not (want_ratio or want_within or want_clear):
                     continue
+                infl_p = infl[p]
                 p2x, p2y, p2z = ha[i, p, 0], ha[i, p, 1], ha[i, p, 2]
                 d2x, d2y, d2z = hb[i, p, 0] - p2x, hb[i, p, 1] - p2y, hb[i, p, 2] - p2z
                 s, t = _closest(p1x, p1y, p1z, d1x, d1y, d1z, p2x, p2y, p2z, d2x, d2y, d2z)
@@ -449,7 +491,7 @@ def separation_summary(
                 y0, y1, y2 = p2x + t * d2x, p2y + t * d2y, p2z + t * d2z
                 dist = math.sqrt((x0 - y0) ** 2 + (x1 - y1) ** 2 + (x2 - y2) ** 2) - rr[m] - hr[i, p]
                 if nominal[p]:
-                    d_nom = dist + infl
+                    d_nom = dist + infl_p
                     if d_nom < clear[i]:
                         clear[i] = d_nom
                     if d_nom < best:

@@ -93,6 +93,11 @@ class SeparationSummary:
         return float(np.count_nonzero(self.within_sp) * self.dt_s)
 
 
+RATIO_RECHECK = 1e-9
+"""Relative band around a deciding value in which a contact-speed ratio from the compiled CRBA is
+computed again with Pinocchio's (their difference is at the rounding level, 1e-14)."""
+
+
 def summarise(
     analyser: SeparationAnalyser, t: np.ndarray, q: np.ndarray, qd: np.ndarray, human: HumanMotion
 ) -> SeparationSummary:
@@ -122,10 +127,26 @@ def summarise(
         ra, rb, caps.radius_m, ha, hb, hr, body_r, nominal, floor, origins, axes, qd, caps.anchor,
         sp_const, sp_per_speed,
     )  # fmt: skip
-    ratio, mass = analyser.pair_ratios(n_i, p_i, jtu, app, q, human)
+    ratio, mass = analyser.pair_ratios(n_i, p_i, jtu, app, q, human, compiled=True)
     n = t.size
     max_ratio = np.zeros(n)
     np.maximum.at(max_ratio, n_i, ratio)
+    if n_i.size:
+        # the compiled CRBA agrees with Pinocchio's to rounding (1e-14), not to the bit: where a
+        # ratio decides something (the largest of the motion, a sample's against the planning limit
+        # or the limit itself), its sample's pairs are computed again with Pinocchio's, so that every
+        # reported number and every tie is the full separation's
+        top = float(max_ratio.max())
+        near = max_ratio >= top * (1.0 - RATIO_RECHECK)
+        for limit in (1.0 - s.speed_margin, 1.0):
+            near |= np.abs(max_ratio - limit) <= RATIO_RECHECK * limit
+        redo = near[n_i]
+        if np.any(redo):
+            exact, exact_mass = analyser.pair_ratios(n_i[redo], p_i[redo], jtu[redo], app[redo], q, human)
+            ratio[redo], mass[redo] = exact, exact_mass
+            again = np.flatnonzero(near)
+            max_ratio[again] = 0.0
+            np.maximum.at(max_ratio, n_i[redo], exact)
 
     # the closest sample, in full: its pair and every pair's S_p
     nc = int(np.argmin(clear))

@@ -32,7 +32,7 @@ def compile_kernels() -> float:
         human = HumanMotion.assumed_human(t_s=t)
         analyser.analyse(t, q, qd, human)
         analyser.summary(t, q, qd, human)
-        arm_mass_matrices(robot, q)  # the compiled CRBA (a summary calls it only near the human)
+        arm_mass_matrices(robot, q, compiled=True)  # a summary calls it only near the human
         # the effective-mass kernels run only for close, fast pairs: call them once directly
         caps = analyser.capsules
         origins, axes, ra, rb = sk.arm_frames(

@@ -211,4 +211,5 @@ def separation_summary(
     need = inside & (app > floor[None, None, :])
     n_i, l_i, p_i = np.nonzero(need)
     jtu = pair_jtu(n_i, l_i, p_i, cr, unit, rr, origins, axes, anchor, qd)
-    return clear, inside.any(axis=(1, 2)), n_i, l_i, p_i, app[need], sp[need], jtu
+    within = np.asarray(inside.any(axis=(1, 2)), dtype=bool)
+    return clear, within, n_i, l_i, p_i, app[need], sp[need], jtu

@@ -162,6 +162,7 @@ class SeparationAnalyser:
         self._arm_model: pin.Model | None = None
         self._last: tuple[tuple, Separation] | None = None
         self._last_summary: tuple[tuple, SeparationSummary] | None = None
+        self._limits: tuple[tuple, tuple[np.ndarray, ...]] | None = None
 
     @property
     def capsules(self) -> RobotCapsules:
@@ -242,9 +243,24 @@ class SeparationAnalyser:
     def contact_floor(self, human: HumanMotion) -> np.ndarray:
         """Per body part (P,) the approach speed [m/s] at or below which no pair reaches the planning
         limit ``(1 - speed_margin) v_max``: that fraction of the limit of an infinitely heavy robot."""
+        return self._region_limits(human)[0]
+
+    def _region_limits(self, human: HumanMotion) -> tuple[np.ndarray, ...]:
+        """Per body part (P,) of ``human``: :meth:`contact_floor`, and its region's permissible force
+        [N], effective mass [kg] and spring constant [N/m] (kept for the same parts)."""
+        if self._limits is not None and self._limits[0] == human.parts:
+            return self._limits[1]
         s = self.settings
-        lower = np.array([speed_bound_any_robot_m_s(s.regions[str(r)], s.contact) for r in human.regions])
-        return (1.0 - s.speed_margin) * lower
+        limits = [s.regions[str(r)] for r in human.regions]
+        lower = np.array([speed_bound_any_robot_m_s(lim, s.contact) for lim in limits])
+        values = (
+            (1.0 - s.speed_margin) * lower,
+            np.array([region_force_n(lim, s.contact) for lim in limits]),
+            np.array([lim.mass_kg for lim in limits]),
+            np.array([lim.spring_n_m for lim in limits]),
+        )
+        self._limits = (human.parts, values)
+        return values
 
     def _contact_ratios(
         self,
@@ -293,16 +309,13 @@ class SeparationAnalyser:
         if n_i.size == 0:
             return np.empty(0), np.empty(0)
         kernels = human_kernels()
-        s = self.settings
-        limits = [s.regions[str(r)] for r in human.regions]
+        _, force_p, m_h_p, k_p = self._region_limits(human)
         samples, which = np.unique(n_i, return_inverse=True)
         if self._arm_model is None:
             self._arm_model = arm_model(self.robot)
         inertia = arm_mass_matrices(self.robot, q[samples], self._arm_model, compiled)
         inv = kernels.inverse_effective_masses(inertia, which.astype(np.int64), np.ascontiguousarray(jtu))
         m_r = 1.0 / np.maximum(inv, 1e-300)
-        force = np.array([region_force_n(lim, s.contact) for lim in limits])[p_i]
-        m_h = np.array([lim.mass_kg for lim in limits])[p_i]
-        k = np.array([lim.spring_n_m for lim in limits])[p_i]
+        force, m_h, k = force_p[p_i], m_h_p[p_i], k_p[p_i]
         v_max = force / np.sqrt(reduced_mass_kg(m_h, m_r) * k)
         return approach / v_max, m_r

@@ -103,16 +103,26 @@ def arm_mass_matrices(
     kernels = human_kernels()
     if chain is not None and hasattr(kernels, "chain_mass_matrices"):  # the compiled kernels
         return kernels.chain_mass_matrices(np.ascontiguousarray(q), *chain)
-    data = model.createData()
+    data, lower = _crba_workspace(model)
     out = np.empty((q.shape[0], model.nv, model.nv))
     for i, row in enumerate(q):
         out[i] = pin.crba(model, data, row)  # the upper triangle is filled
-    lower = np.tril_indices(model.nv, -1)
     out[:, lower[0], lower[1]] = out[:, lower[1], lower[0]]
     return out
 
 
 _CHAINS: dict[int, tuple[pin.Model, tuple[np.ndarray, ...] | None]] = {}
+_WORKSPACES: dict[int, tuple[pin.Model, pin.Data, tuple[np.ndarray, np.ndarray]]] = {}
+
+
+def _crba_workspace(model: pin.Model) -> tuple[pin.Data, tuple[np.ndarray, np.ndarray]]:
+    """A Pinocchio ``Data`` of ``model`` for its CRBA and the indices of the strict lower triangle
+    (n_v, n_v) that it leaves to the caller (kept per model; CRBA overwrites what it fills)."""
+    hit = _WORKSPACES.get(id(model))
+    if hit is None or hit[0] is not model:
+        hit = (model, model.createData(), np.tril_indices(model.nv, -1))
+        _WORKSPACES[id(model)] = hit
+    return hit[1], hit[2]
 
 
 def chain_parameters(model: pin.Model) -> tuple[np.ndarray, ...] | None:

@@ -34,14 +34,14 @@ class ContactSpeed(SeparationCheck):
     name = "contact_speed"
 
     def check(self, motion: TimedMotion, context: CheckContext) -> CheckResult:
-        sep = self.separation(motion, context)
+        sep = self.summary(motion, context)
         allowed = 1.0 - self.robot.settings.human.speed_margin
         violations = int(np.count_nonzero(sep.violation))
         over = int(np.count_nonzero(sep.over(allowed)))
-        n = int(np.argmax(sep.max_ratio))
-        li, pi = np.unravel_index(int(np.argmax(sep.speed_ratio[n])), sep.speed_ratio.shape[1:])
-        worst = float(sep.speed_ratio[n, li, pi])
-        speed = float(sep.approach_m_s[n, li, pi])
+        n = sep.ratio_sample
+        li, pi = sep.ratio_pair
+        worst = sep.worst_ratio
+        speed = sep.approach_m_s
         values: dict = {
             "n_speed_violations": violations,
             "n_over_planning_limit": over,
@@ -53,8 +53,8 @@ class ContactSpeed(SeparationCheck):
             "t_s": float(sep.t_s[n]),
             "approach_speed_m_s": speed if worst > 0 else 0.0,
             "v_max_m_s": speed / worst if worst > 0 else None,
-            "robot_mass_kg": float(sep.robot_mass_kg[n, li, pi]) if worst > 0 else None,
-            "protective_distance_m": float(sep.protective_m[n, li, pi]) if worst > 0 else None,
+            "robot_mass_kg": sep.robot_mass_kg if worst > 0 else None,
+            "protective_distance_m": sep.protective_m if worst > 0 else None,
             "time_within_sp_s": time_within_sp_s(sep),
             "human": sep.human,
         }

@@ -17,9 +17,6 @@ says so (``values["human"] == "assumed"``): it never passes without a human.
 
 from __future__ import annotations
 
-import numpy as np
-
-from ..human.separation import HAND_REGION
 from ..robot import CheckResult
 from .base import CheckContext, TimedMotion
 from .separation_base import SeparationCheck, time_within_sp_s
@@ -31,20 +28,17 @@ class HumanClearance(SeparationCheck):
     name = "human_clearance"
 
     def check(self, motion: TimedMotion, context: CheckContext) -> CheckResult:
-        sep = self.separation(motion, context)
-        clearance = sep.clearance_m(HAND_REGION)
-        n = int(np.argmin(clearance))
-        link, part, t, d = sep.where(n, exclude_region=HAND_REGION, nominal=True)
-        protective = sep.protective_m[n]
+        sep = self.summary(motion, context)
+        n = sep.clearance_sample
+        li, pi = sep.clearance_pair
+        link, part, t, d = sep.links[li], sep.parts[pi], float(sep.t_s[n]), sep.clearance_m
         limit = self.robot.settings.human.min_separation_m
         values = {
             "min_separation_m": d,
             "link": link,
             "body_part": part,
             "t_s": t,
-            "protective_distance_m": float(np.nanmin(protective))
-            if np.any(np.isfinite(protective))
-            else None,
+            "protective_distance_m": sep.clearance_protective_m,
             "time_within_sp_s": time_within_sp_s(sep),
             "min_required_m": limit,
             "human": sep.human,

@@ -2,7 +2,9 @@
 
 A :class:`SeparationCheck` holds a :class:`~ipromp_pin.human.separation.SeparationAnalyser`: the
 checks that :func:`~.registry.build_checks` builds together share one, so the separation of a motion
-is computed once for all of them (the analyser keeps its last result).
+is computed once for all of them (the analyser keeps its last result). The checks judge its
+:class:`~ipromp_pin.human.separation_summary.SeparationSummary` (:meth:`SeparationCheck.summary`):
+the numbers they report, without every pair's (:meth:`SeparationCheck.separation` gives those).
 """
 
 from __future__ import annotations
@@ -11,6 +13,7 @@ import numpy as np
 
 from ..human import HumanMotion
 from ..human.separation import Separation, SeparationAnalyser
+from ..human.separation_summary import SeparationSummary
 from ..robot import Robot
 from .base import CheckContext, MotionCheck, TimedMotion
 
@@ -38,7 +41,11 @@ class SeparationCheck(MotionCheck):
         """The robot-body separation along ``motion``."""
         return self.analyser.analyse(motion.t_s, motion.q, motion.qd, self.human(context))
 
+    def summary(self, motion: TimedMotion, context: CheckContext) -> SeparationSummary:
+        """What the separation checks judge of the robot-body separation along ``motion``."""
+        return self.analyser.summary(motion.t_s, motion.q, motion.qd, self.human(context))
 
-def time_within_sp_s(sep: Separation) -> float:
+
+def time_within_sp_s(sep: Separation | SeparationSummary) -> float:
     """Time in [s] during which the robot is closer than S_p to some body part."""
     return float(np.count_nonzero(sep.within_sp) * sep.dt_s)

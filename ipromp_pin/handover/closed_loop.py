@@ -57,7 +57,7 @@ from ..motion.retarget import (
 )
 from ..motion.trajectory import Trajectory
 from ..promp import IProMP, Predictor
-from ..robot import Robot, check_joint_limits, check_workspace, ee_positions
+from ..robot import CheckResult, Robot, check_joint_limits, check_workspace, ee_positions
 from ..robot.clearance import ClearanceCertifier
 
 LIMIT_TOLERANCE = 1e-6
@@ -308,6 +308,7 @@ class ClosedLoopPlanner:
         self._next_replan = self.start_s
         self._stopped = ""
         self._finished = False
+        self._pose_cache: tuple[bytes, np.ndarray, CheckResult] | None = None
 
     def __enter__(self) -> ClosedLoopPlanner:
         self._open_stream()
@@ -431,6 +432,16 @@ class ClosedLoopPlanner:
         ms["retarget"] = (time.perf_counter() - t_start - t_checks) * 1e3
         return plan if r.planned_arrival_s is not None else None
 
+    def _handover_pose(self, q_end: np.ndarray) -> tuple[np.ndarray, CheckResult]:
+        """The gripper position (3,) [m] at a plan's end configuration (n_joints,) [rad] and its
+        workspace check; kept for the next call with the same configuration (the slower re-targets
+        of a re-plan end where it does)."""
+        key = np.asarray(q_end, dtype=float).tobytes()
+        if self._pose_cache is None or self._pose_cache[0] != key:
+            end = ee_positions(self.robot, q_end)[0]
+            self._pose_cache = (key, end, check_workspace(self.robot, end))
+        return self._pose_cache[1], self._pose_cache[2]
+
     def _check(self, plan: MotionPlan, r: Replan, context: CheckContext) -> tuple[str, float | None]:
         """Check a plan's remaining motion -> the reason to refuse it ("" if it passes) and the
         slow-down the failing timed-motion checks ask for (None: slowing would not help)."""
@@ -440,12 +451,11 @@ class ClosedLoopPlanner:
             names = ("velocity", "acceleration", "jerk")
             i = int(np.argmax(ratios))
             return f"{names[i]} limit exceeded ({ratios[i]:.3f} of the limit)", None
-        end = ee_positions(self.robot, plan.q[-1])[0]
+        end, ws = self._handover_pose(plan.q[-1])
         r.predicted_handover_position_m = [float(x) for x in end]
         lim = check_joint_limits(self.robot, plan.q, t_s=plan.t_s)
         if not lim.passed:
             return f"joint_limits: {lim.reason}", None
-        ws = check_workspace(self.robot, end)
         if not ws.passed:
             return f"workspace: {ws.reason}", None
         clearance = self.certifier.certify(plan.q)

@@ -294,10 +294,65 @@ class HumanMotion:
             grow[:, self.static] = 0.0
         return out, np.minimum(np.maximum(grow, 0.0), self.max_inflation_m)
 
+    def held_frames(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """At every time at or after :attr:`horizon_s` each frame is held where it was last seen:
+        its position (F, 3) [m] and the time (F,) [s] it was seen (``inf`` for a static frame,
+        which never grows); None without a finite horizon. :meth:`frames_at` of such times is
+        this position with the growth ``min(max(v (t - t_f), 0), max_inflation_m)``."""
+        if not math.isfinite(self.horizon_s):
+            return None
+        prev_i, next_i = self._index  # type: ignore[attr-defined]
+        ts, pos = self.t_s, self.positions_m
+        i_h = max(int(np.searchsorted(ts, self.horizon_s, side="right")) - 1, 0)
+        a = prev_i[i_h]
+        a = np.where(a >= 0, a, next_i[0])  # nothing known before the horizon: the first sample
+        cols = np.arange(len(self.frames))
+        held = pos[np.maximum(a, 0), cols]
+        seen = ts[np.maximum(a, 0)].astype(float)
+        if self.static is not None:
+            held[self.static] = pos[0, self.static]
+            seen[self.static] = math.inf
+        return held, seen
+
+    def _held_capsules(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """:meth:`capsules` at times (N,) that are all at or after the horizon: the same numbers
+        from the held frames (the ends computed once), or None when that does not apply."""
+        held = self.held_frames()
+        if held is None or t.size == 0 or not np.all(t >= self.horizon_s):
+            return None
+        pos, seen = held
+        if not np.all(np.isfinite(pos)):
+            return None  # the general path places (and reports) it
+        wa, wb, ma, mb, trim = self._parts  # type: ignore[attr-defined]
+        a, b = wa @ pos, wb @ pos  # (P, 3): each end is one frame or the midpoint of two (exact)
+        if np.any(trim > 0):
+            axis = b - a
+            length = np.linalg.norm(axis, axis=1, keepdims=True)
+            keep = np.maximum(length - trim[:, None], 0.0) / np.maximum(length, 1e-12)
+            b = np.where(trim[:, None] > 0, a + axis * keep, b)
+        # a part grows as its frame seen first (rounding is monotone: the same number as the largest
+        # growth of its frames); a part of static frames only does not grow
+        member = np.maximum(ma, mb) > 0  # (P, F)
+        first = np.min(np.where(member, seen[None, :], np.inf), axis=1)  # (P,); inf: static frames only
+        moving = np.isfinite(first)
+        grow = self.speed_m_s * (t[:, None] - np.where(moving, first, 0.0)[None, :])
+        g = np.where(moving[None, :], np.minimum(np.maximum(grow, 0.0), self.max_inflation_m), 0.0)
+        n = t.size
+        return (
+            np.ascontiguousarray(np.broadcast_to(a, (n, *a.shape))),
+            np.ascontiguousarray(np.broadcast_to(b, (n, *b.shape))),
+            self.radius_m[None, :] + g,
+        )
+
     def capsules(self, t_s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Capsule end points ``a`` and ``b`` (N, P, 3) [m] and radii (N, P) [m] (inflation included)
-        at times (N,) [s]; a sphere has ``a == b``."""
-        pos, grow = self.frames_at(t_s)
+        at times (N,) [s]; a sphere has ``a == b``. Times at or after the horizon (a planner's
+        remaining motion) take the held frames (:meth:`held_frames`): the same numbers, faster."""
+        t = np.atleast_1d(np.asarray(t_s, dtype=float))
+        fast = self._held_capsules(t)
+        if fast is not None:
+            return fast
+        pos, grow = self.frames_at(t)
         wa, wb, ma, mb, trim = self._parts  # type: ignore[attr-defined]
         n, nf = pos.shape[0], pos.shape[1]
         flat = pos.transpose(1, 0, 2).reshape(nf, 3 * n)  # (F, N*3): one matrix product per end

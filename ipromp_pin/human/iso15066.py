@@ -27,6 +27,7 @@ import pinocchio as pin
 
 from ..robot import Robot
 from ..robot.human_settings import HumanSettings, RegionLimit
+from .kernels import human_kernels
 
 
 def protective_distance_m(robot_speed_m_s: np.ndarray | float, settings: HumanSettings) -> np.ndarray:
@@ -88,18 +89,70 @@ def arm_model(robot: Robot) -> pin.Model:
     return pin.buildReducedModel(robot.model, lock, robot.q_neutral)
 
 
-def arm_mass_matrices(robot: Robot, q_arm: np.ndarray, model: pin.Model | None = None) -> np.ndarray:
+def arm_mass_matrices(
+    robot: Robot, q_arm: np.ndarray, model: pin.Model | None = None, compiled: bool = False
+) -> np.ndarray:
     """:func:`arm_mass_matrix` at every row of ``q_arm`` (S, n_joints) -> (S, n_joints, n_joints)
-    (``model``: the arm's reduced model, :func:`arm_model`, built here when None)."""
+    (``model``: the arm's reduced model, :func:`arm_model`, built here when None): Pinocchio's CRBA.
+    ``compiled``: with the compiled human kernels and a chain of revolute joints, a compiled CRBA of
+    the chain instead (:func:`chain_parameters`; equal to Pinocchio's to rounding, 1e-14, not to
+    the bit: for bounds, see :mod:`.separation_summary`)."""
     model = model if model is not None else arm_model(robot)
-    data = model.createData()
     q = np.atleast_2d(np.asarray(q_arm, dtype=float))
+    chain = chain_parameters(model) if compiled else None
+    kernels = human_kernels()
+    if chain is not None and hasattr(kernels, "chain_mass_matrices"):  # the compiled kernels
+        return kernels.chain_mass_matrices(np.ascontiguousarray(q), *chain)
+    data, lower = _crba_workspace(model)
     out = np.empty((q.shape[0], model.nv, model.nv))
     for i, row in enumerate(q):
         out[i] = pin.crba(model, data, row)  # the upper triangle is filled
-    lower = np.tril_indices(model.nv, -1)
     out[:, lower[0], lower[1]] = out[:, lower[1], lower[0]]
     return out
+
+
+_CHAINS: dict[int, tuple[pin.Model, tuple[np.ndarray, ...] | None]] = {}
+_WORKSPACES: dict[int, tuple[pin.Model, pin.Data, tuple[np.ndarray, np.ndarray]]] = {}
+
+
+def _crba_workspace(model: pin.Model) -> tuple[pin.Data, tuple[np.ndarray, np.ndarray]]:
+    """A Pinocchio ``Data`` of ``model`` for its CRBA and the indices of the strict lower triangle
+    (n_v, n_v) that it leaves to the caller (kept per model; CRBA overwrites what it fills)."""
+    hit = _WORKSPACES.get(id(model))
+    if hit is None or hit[0] is not model:
+        hit = (model, model.createData(), np.tril_indices(model.nv, -1))
+        _WORKSPACES[id(model)] = hit
+    return hit[1], hit[2]
+
+
+def chain_parameters(model: pin.Model) -> tuple[np.ndarray, ...] | None:
+    """A reduced arm model as a serial chain of revolute joints for the compiled CRBA
+    (:func:`~ipromp_pin.human.separation_kernels.chain_mass_matrices`): each joint's placement
+    (n, 4, 4) in its parent's frame, its axis (n, 3) in its own frame, its body's mass (n,) [kg],
+    centre of mass (n, 3) [m] and inertia about it (n, 3, 3) [kg m^2]; None when the model is not
+    such a chain (then Pinocchio's CRBA runs). Kept per model."""
+    hit = _CHAINS.get(id(model))
+    if hit is not None and hit[0] is model:
+        return hit[1]
+    n = model.njoints - 1
+    axes = {"JointModelRX": (1.0, 0.0, 0.0), "JointModelRY": (0.0, 1.0, 0.0), "JointModelRZ": (0.0, 0.0, 1.0)}
+    kinds = [model.joints[j].shortname() for j in range(1, model.njoints)]
+    chain: tuple[np.ndarray, ...] | None = None
+    if (
+        model.nq == n
+        and model.nv == n
+        and all(k in axes for k in kinds)
+        and all(int(model.parents[j]) == j - 1 for j in range(1, model.njoints))
+    ):
+        chain = (
+            np.array([model.jointPlacements[j].homogeneous for j in range(1, n + 1)]),
+            np.array([axes[k] for k in kinds]),
+            np.array([model.inertias[j].mass for j in range(1, n + 1)]),
+            np.array([np.asarray(model.inertias[j].lever) for j in range(1, n + 1)]),
+            np.array([np.asarray(model.inertias[j].inertia) for j in range(1, n + 1)]),
+        )
+    _CHAINS[id(model)] = (model, chain)
+    return chain
 
 
 def effective_mass_kg(

@@ -18,7 +18,15 @@ from ..promp import compiled
 
 __all__ = ["KERNELS", "human_kernels", "human_kernels_cached"]
 
-KERNELS = ("arm_frames", "capsule_distances", "approach_speeds", "inverse_effective_masses", "pair_jtu")
+KERNELS = (
+    "arm_frames",
+    "capsule_distances",
+    "approach_speeds",
+    "inverse_effective_masses",
+    "pair_jtu",
+    "separation_summary",
+    "chain_mass_matrices",
+)
 """The kernels the human checks call."""
 
 compiled.register_warmup("ipromp_pin.human.warmup")  # its compile_kernels(), by name: no import

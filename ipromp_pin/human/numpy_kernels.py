@@ -179,3 +179,37 @@ def pair_jtu(
     out = _dot(z, np.cross(lever, u[:, None, :])) * moves
     out[rests] = 0.0
     return out
+
+
+def separation_summary(
+    ra: np.ndarray,
+    rb: np.ndarray,
+    rr: np.ndarray,
+    ha: np.ndarray,
+    hb: np.ndarray,
+    hr: np.ndarray,
+    body_r: np.ndarray,
+    nominal: np.ndarray,
+    floor: np.ndarray,
+    origins: np.ndarray,
+    axes: np.ndarray,
+    qd: np.ndarray,
+    anchor: np.ndarray,
+    sp_const: float,
+    sp_per_speed: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """What the human checks judge of the separation (see
+    :func:`ipromp_pin.human.separation_kernels.separation_summary`), from every pair's numbers."""
+    dist, cr, ch = capsule_distances(ra, rb, rr, ha, hb, hr)
+    app, sp, unit = approach_speeds(dist, cr, ch, rr, origins, axes, qd, anchor, sp_const, sp_per_speed)
+    keep = np.asarray(nominal, dtype=bool)
+    if keep.any():
+        clear = (dist[:, :, keep].min(axis=1) + (hr - body_r[None, :])[:, keep]).min(axis=1)
+    else:
+        clear = np.full(dist.shape[0], np.inf)
+    inside = dist < sp
+    need = inside & (app > floor[None, None, :])
+    n_i, l_i, p_i = np.nonzero(need)
+    jtu = pair_jtu(n_i, l_i, p_i, cr, unit, rr, origins, axes, anchor, qd)
+    within = np.asarray(inside.any(axis=(1, 2)), dtype=bool)
+    return clear, within, n_i, l_i, p_i, app[need], sp[need], jtu

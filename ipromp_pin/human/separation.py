@@ -16,6 +16,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import cached_property
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pinocchio as pin
@@ -38,6 +39,9 @@ from .robot_capsules import (
     arm_kinematics,
     fit_robot_capsules,
 )
+
+if TYPE_CHECKING:
+    from .separation_summary import SeparationSummary
 
 HAND_REGION = "hand"
 """The body region of the intended hand-over contact: judged by its contact-speed limit only."""
@@ -157,6 +161,8 @@ class SeparationAnalyser:
         self._capsules: RobotCapsules | None = None
         self._arm_model: pin.Model | None = None
         self._last: tuple[tuple, Separation] | None = None
+        self._last_summary: tuple[tuple, SeparationSummary] | None = None
+        self._limits: tuple[tuple, tuple[np.ndarray, ...]] | None = None
 
     @property
     def capsules(self) -> RobotCapsules:
@@ -217,6 +223,45 @@ class SeparationAnalyser:
             human=human.label,
         )
 
+    def summary(
+        self, t_s: np.ndarray, q: np.ndarray, qd: np.ndarray, human: HumanMotion
+    ) -> SeparationSummary:
+        """What the human checks judge of the separation along a motion (same inputs as
+        :meth:`analyse`; :mod:`.separation_summary`): the same numbers without every pair's. The last
+        result is kept, as :meth:`analyse` keeps its own."""
+        from .separation_summary import summarise
+
+        key = (t_s, q, qd, human)
+        if self._last_summary is not None and all(
+            a is b for a, b in zip(self._last_summary[0], key, strict=True)
+        ):
+            return self._last_summary[1]
+        result = summarise(self, np.asarray(t_s, dtype=float), q, qd, human)
+        self._last_summary = (key, result)
+        return result
+
+    def contact_floor(self, human: HumanMotion) -> np.ndarray:
+        """Per body part (P,) the approach speed [m/s] at or below which no pair reaches the planning
+        limit ``(1 - speed_margin) v_max``: that fraction of the limit of an infinitely heavy robot."""
+        return self._region_limits(human)[0]
+
+    def _region_limits(self, human: HumanMotion) -> tuple[np.ndarray, ...]:
+        """Per body part (P,) of ``human``: :meth:`contact_floor`, and its region's permissible force
+        [N], effective mass [kg] and spring constant [N/m] (kept for the same parts)."""
+        if self._limits is not None and self._limits[0] == human.parts:
+            return self._limits[1]
+        s = self.settings
+        limits = [s.regions[str(r)] for r in human.regions]
+        lower = np.array([speed_bound_any_robot_m_s(lim, s.contact) for lim in limits])
+        values = (
+            (1.0 - s.speed_margin) * lower,
+            np.array([region_force_n(lim, s.contact) for lim in limits]),
+            np.array([lim.mass_kg for lim in limits]),
+            np.array([lim.spring_n_m for lim in limits]),
+        )
+        self._limits = (human.parts, values)
+        return values
+
     def _contact_ratios(
         self,
         dist: np.ndarray,
@@ -236,24 +281,41 @@ class SeparationAnalyser:
         ``1 - speed_margin`` of the limit of an infinitely heavy robot (in place; no other pair can
         reach the planning limit ``(1 - speed_margin) v_max``)."""
         kernels = human_kernels()
-        caps, s = self.capsules, self.settings
-        limits = [s.regions[str(r)] for r in human.regions]
-        lower = np.array([speed_bound_any_robot_m_s(lim, s.contact) for lim in limits])
-        floor = (1.0 - s.speed_margin) * lower  # below it, no pair reaches the planning limit
+        caps = self.capsules
+        floor = self.contact_floor(human)  # below it, no pair reaches the planning limit
         need = (dist < protective) & (approach > floor[None, None, :])
         if not np.any(need):
             return
         n_i, l_i, p_i = np.nonzero(need)
         w = kernels.pair_jtu(n_i, l_i, p_i, cr, unit, caps.radius_m, origins, axes, caps.anchor, qd)  # J^T u
+        r, m_r = self.pair_ratios(n_i, p_i, w, approach[n_i, l_i, p_i], q, human)
+        mass[n_i, l_i, p_i] = m_r
+        ratio[n_i, l_i, p_i] = r
+
+    def pair_ratios(
+        self,
+        n_i: np.ndarray,
+        p_i: np.ndarray,
+        jtu: np.ndarray,
+        approach: np.ndarray,
+        q: np.ndarray,
+        human: HumanMotion,
+        compiled: bool = False,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Approach speed / v_max (K,) and the robot's effective mass (K,) [kg] of pairs at samples
+        ``n_i`` toward parts ``p_i`` (K,), with their ``J^T u`` (K, n_joints) and approach speeds
+        (K,) [m/s], along angles ``q`` (N, n_joints) [rad] (the arm's CRBA once per sample: Pinocchio's,
+        or ``compiled``, :func:`~.iso15066.arm_mass_matrices`)."""
+        if n_i.size == 0:
+            return np.empty(0), np.empty(0)
+        kernels = human_kernels()
+        _, force_p, m_h_p, k_p = self._region_limits(human)
         samples, which = np.unique(n_i, return_inverse=True)
         if self._arm_model is None:
             self._arm_model = arm_model(self.robot)
-        inertia = arm_mass_matrices(self.robot, q[samples], self._arm_model)
-        inv = kernels.inverse_effective_masses(inertia, which.astype(np.int64), np.ascontiguousarray(w))
+        inertia = arm_mass_matrices(self.robot, q[samples], self._arm_model, compiled)
+        inv = kernels.inverse_effective_masses(inertia, which.astype(np.int64), np.ascontiguousarray(jtu))
         m_r = 1.0 / np.maximum(inv, 1e-300)
-        force = np.array([region_force_n(lim, s.contact) for lim in limits])[p_i]
-        m_h = np.array([lim.mass_kg for lim in limits])[p_i]
-        k = np.array([lim.spring_n_m for lim in limits])[p_i]
+        force, m_h, k = force_p[p_i], m_h_p[p_i], k_p[p_i]
         v_max = force / np.sqrt(reduced_mass_kg(m_h, m_r) * k)
-        mass[n_i, l_i, p_i] = m_r
-        ratio[n_i, l_i, p_i] = approach[n_i, l_i, p_i] / v_max
+        return approach / v_max, m_r

@@ -294,3 +294,379 @@ def pair_jtu(
             cz = lx * uy - ly * ux
             out[k, j] = axes[i, j, 0] * cx + axes[i, j, 1] * cy + axes[i, j, 2] * cz
     return out
+
+
+@njit(**_JIT)
+def _grow_pairs(
+    n_i: np.ndarray, l_i: np.ndarray, p_i: np.ndarray, app: np.ndarray, sp: np.ndarray, jtu: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The pair buffers of :func:`separation_summary`, twice as long (the first rows copied)."""
+    k = n_i.size
+    out = (
+        np.empty(2 * k, np.int64),
+        np.empty(2 * k, np.int64),
+        np.empty(2 * k, np.int64),
+        np.empty(2 * k),
+        np.empty(2 * k),
+        np.empty((2 * k, jtu.shape[1])),
+    )
+    out[0][:k] = n_i
+    out[1][:k] = l_i
+    out[2][:k] = p_i
+    out[3][:k] = app
+    out[4][:k] = sp
+    out[5][:k] = jtu
+    return out
+
+
+@njit(**_JIT)
+def _approach_bound(
+    end_v: np.ndarray, m: int, gx: float, gy: float, gz: float, g2: float, halves: float
+) -> float:
+    """An upper bound [m/s] of the approach speed of capsule ``m`` toward a body part whose centre
+    is ``-g`` from the capsule's (``g2 = |g|^2``), their axes' half-lengths summing to ``halves``:
+    the approach is ``v(x) . u`` with ``x`` on the capsule's axis (the surface offset adds nothing
+    along ``u``), ``v`` affine along the axis (largest at an end), and ``u`` the direction between
+    points of the two axes, within ``asin(halves / |g|)`` of ``-g``. Infinite where the cone is not
+    narrower than a half-space (the axes may meet)."""
+    dist = math.sqrt(g2)
+    if not dist > halves * (1.0 + 1e-9) + 1e-9:
+        return np.inf
+    sin_t = halves / dist
+    cos_t = math.sqrt(1.0 - sin_t * sin_t)
+    ux, uy, uz = -gx / dist, -gy / dist, -gz / dist
+    top = 0.0
+    for end in range(2):
+        vx, vy, vz = end_v[m, end, 0], end_v[m, end, 1], end_v[m, end, 2]
+        speed = math.sqrt(vx * vx + vy * vy + vz * vz)
+        if speed <= 0.0:
+            continue
+        cos_p = min(max((vx * ux + vy * uy + vz * uz) / speed, -1.0), 1.0)
+        if cos_p >= cos_t:
+            along = speed
+        else:
+            along = speed * (cos_p * cos_t + math.sqrt(1.0 - cos_p * cos_p) * sin_t)
+        top = max(top, along)
+    return top * (1.0 + 1e-9) + 1e-9
+
+
+@njit(**_JIT)
+def separation_summary(
+    ra: np.ndarray,
+    rb: np.ndarray,
+    rr: np.ndarray,
+    ha: np.ndarray,
+    hb: np.ndarray,
+    hr: np.ndarray,
+    body_r: np.ndarray,
+    nominal: np.ndarray,
+    floor: np.ndarray,
+    origins: np.ndarray,
+    axes: np.ndarray,
+    qd: np.ndarray,
+    anchor: np.ndarray,
+    sp_const: float,
+    sp_per_speed: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """What the human checks judge of the robot-body separation, without every pair's numbers.
+
+    Inputs as :func:`capsule_distances` and :func:`approach_speeds`, plus the body parts' radii
+    before inflation ``body_r`` (P,), which parts count toward the clearance ``nominal`` (P,) (the
+    hand's do not) and the approach speed ``floor`` (P,) [m/s] below which a pair never reaches its
+    planning limit. Returns, per sample (N,), the smallest distance [m] to a counted part at its
+    nominal position (``distance + inflation``; exact at the samples where it is the smallest of the
+    motion, at least the true value elsewhere, ``inf`` where no pair was computed) and whether some
+    pair is closer than S_p; and the pairs within S_p approaching faster than their ``floor``
+    (sample, capsule, part (K,), in the order of ``np.nonzero``, their approach speed [m/s], S_p [m]
+    and ``J^T u`` (K, n_joints), as :func:`pair_jtu`).
+
+    Every number is computed as :func:`capsule_distances`, :func:`approach_speeds` and
+    :func:`pair_jtu` compute it; a pair is skipped only when bounds prove that it cannot matter:
+    the distance is at least the bounding spheres' (``|c_l - c_p| - R_l - R_p``), and the speed of
+    any surface point of a robot capsule is at most ``max(|v(a)|, |v(b)|) + r |w|`` (the velocity
+    field of a rigid body is affine in the point), so a pair farther than the S_p of that speed is
+    outside S_p, and a pair of a capsule slower than the part's ``floor`` never needs its ratio.
+    """
+    n, nl = ra.shape[0], ra.shape[1]
+    npart = ha.shape[1]
+    nj = origins.shape[1]
+    clear = np.full(n, np.inf)
+    within = np.zeros(n, np.bool_)
+    cap = 256
+    n_i = np.empty(cap, np.int64)
+    l_i = np.empty(cap, np.int64)
+    p_i = np.empty(cap, np.int64)
+    app = np.empty(cap)
+    sp = np.empty(cap)
+    jtu = np.empty((cap, nj))
+    k_pairs = 0
+    omega = np.empty((nj, 3))
+    v_o = np.empty((nj, 3))
+    v_bound = np.empty(nl)
+    sp_bound = np.empty(nl)
+    centre_x, centre_y, centre_z = np.empty(npart), np.empty(npart), np.empty(npart)
+    reach = np.empty(npart)
+    half = np.empty(npart)
+    infl = np.empty(npart)
+    reach_clear = np.empty(npart)
+    end_v = np.empty((nl, 2, 3))  # the velocities of the capsules' end points
+    slack = 1e-9  # [m], [m/s]: far above the rounding of these sums (1e-15 at metre scale)
+    best = np.inf  # the smallest nominal clearance computed so far (at least the motion's)
+    for step in range(n):
+        i = n - 1 if step == 0 else step - 1  # the last sample first: the hand-over, usually closest
+        wx = wy = wz = 0.0
+        for k in range(nj):
+            if k == 0:
+                v_o[0, 0] = v_o[0, 1] = v_o[0, 2] = 0.0
+            else:
+                lx = origins[i, k, 0] - origins[i, k - 1, 0]
+                ly = origins[i, k, 1] - origins[i, k - 1, 1]
+                lz = origins[i, k, 2] - origins[i, k - 1, 2]
+                v_o[k, 0] = v_o[k - 1, 0] + wy * lz - wz * ly
+                v_o[k, 1] = v_o[k - 1, 1] + wz * lx - wx * lz
+                v_o[k, 2] = v_o[k - 1, 2] + wx * ly - wy * lx
+            wx += qd[i, k] * axes[i, k, 0]
+            wy += qd[i, k] * axes[i, k, 1]
+            wz += qd[i, k] * axes[i, k, 2]
+            omega[k, 0], omega[k, 1], omega[k, 2] = wx, wy, wz
+        for m in range(nl):  # the fastest any surface point of capsule m moves, and its S_p
+            k = anchor[m]
+            ax, ay, az = omega[k, 0], omega[k, 1], omega[k, 2]
+            top = 0.0
+            for end in range(2):
+                e = ra if end == 0 else rb
+                lx = e[i, m, 0] - origins[i, k, 0]
+                ly = e[i, m, 1] - origins[i, k, 1]
+                lz = e[i, m, 2] - origins[i, k, 2]
+                vx = v_o[k, 0] + ay * lz - az * ly
+                vy = v_o[k, 1] + az * lx - ax * lz
+                vz = v_o[k, 2] + ax * ly - ay * lx
+                top = max(top, math.sqrt(vx * vx + vy * vy + vz * vz))
+                end_v[m, end, 0], end_v[m, end, 1], end_v[m, end, 2] = vx, vy, vz
+            v = top + rr[m] * math.sqrt(ax * ax + ay * ay + az * az) + slack
+            v_bound[m] = v
+            sp_bound[m] = sp_const + v * sp_per_speed + slack
+        for p in range(npart):  # the body parts' bounding spheres: centre and radius
+            d2x, d2y, d2z = hb[i, p, 0] - ha[i, p, 0], hb[i, p, 1] - ha[i, p, 1], hb[i, p, 2] - ha[i, p, 2]
+            centre_x[p] = ha[i, p, 0] + 0.5 * d2x
+            centre_y[p] = ha[i, p, 1] + 0.5 * d2y
+            centre_z[p] = ha[i, p, 2] + 0.5 * d2z
+            half[p] = 0.5 * math.sqrt(d2x * d2x + d2y * d2y + d2z * d2z)
+            reach[p] = half[p] + hr[i, p] + slack
+            infl[p] = hr[i, p] - body_r[p]
+            # the nominal clearance is at least |g| - R_l - reach + infl: how far past R_l it can be
+            reach_clear[p] = reach[p] - infl[p] + slack if nominal[p] else -np.inf
+        inside = False
+        for m in range(nl):
+            p1x, p1y, p1z = ra[i, m, 0], ra[i, m, 1], ra[i, m, 2]
+            d1x, d1y, d1z = rb[i, m, 0] - p1x, rb[i, m, 1] - p1y, rb[i, m, 2] - p1z
+            cx, cy, cz = p1x + 0.5 * d1x, p1y + 0.5 * d1y, p1z + 0.5 * d1z
+            half_m = 0.5 * math.sqrt(d1x * d1x + d1y * d1y + d1z * d1z)
+            big_r = half_m + rr[m]
+            k = anchor[m]
+            v_m, sp_m = v_bound[m], sp_bound[m]
+            for p in range(npart):
+                # the distance is at least |c_l - c_p| - R_l - R_p: compare the squared centre distance
+                gx, gy, gz = cx - centre_x[p], cy - centre_y[p], cz - centre_z[p]
+                g2 = gx * gx + gy * gy + gz * gz
+                x_clear = best + big_r + reach_clear[p]
+                want_clear = x_clear > 0.0 and g2 <= x_clear * x_clear
+                want_ratio = want_within = False
+                fast = v_m > floor[p]
+                if fast or not inside:
+                    far = sp_m + big_r + reach[p]
+                    if g2 < far * far:  # near enough to be within S_p
+                        want_within = not inside
+                        if fast:  # and moving toward the part fast enough to need its ratio?
+                            want_ratio = (
+                                _approach_bound(end_v, m, gx, gy, gz, g2, half_m + half[p]) > floor[p]
+                            )
+                if not (want_ratio or want_within or want_clear):
+                    continue
+                infl_p = infl[p]
+                p2x, p2y, p2z = ha[i, p, 0], ha[i, p, 1], ha[i, p, 2]
+                d2x, d2y, d2z = hb[i, p, 0] - p2x, hb[i, p, 1] - p2y, hb[i, p, 2] - p2z
+                s, t = _closest(p1x, p1y, p1z, d1x, d1y, d1z, p2x, p2y, p2z, d2x, d2y, d2z)
+                x0, x1, x2 = p1x + s * d1x, p1y + s * d1y, p1z + s * d1z
+                y0, y1, y2 = p2x + t * d2x, p2y + t * d2y, p2z + t * d2z
+                dist = math.sqrt((x0 - y0) ** 2 + (x1 - y1) ** 2 + (x2 - y2) ** 2) - rr[m] - hr[i, p]
+                if nominal[p]:
+                    d_nom = dist + infl_p
+                    if d_nom < clear[i]:
+                        clear[i] = d_nom
+                    if d_nom < best:
+                        best = d_nom
+                if not (want_ratio or want_within):
+                    continue
+                # the approach speed as approach_speeds computes it
+                ux, uy, uz = y0 - x0, y1 - x1, y2 - x2
+                norm = math.sqrt(ux * ux + uy * uy + uz * uz)
+                met = norm <= 1e-9
+                if not met:
+                    ux, uy, uz = ux / norm, uy / norm, uz / norm
+                else:
+                    ux, uy, uz = 0.0, 0.0, 0.0
+                lx = x0 + rr[m] * ux - origins[i, k, 0]
+                ly = x1 + rr[m] * uy - origins[i, k, 1]
+                lz = x2 + rr[m] * uz - origins[i, k, 2]
+                ax, ay, az = omega[k, 0], omega[k, 1], omega[k, 2]
+                vx = v_o[k, 0] + ay * lz - az * ly
+                vy = v_o[k, 1] + az * lx - ax * lz
+                vz = v_o[k, 2] + ax * ly - ay * lx
+                v = math.sqrt(vx * vx + vy * vy + vz * vz) if met else vx * ux + vy * uy + vz * uz
+                protective = sp_const + max(v, 0.0) * sp_per_speed
+                if not dist < protective:
+                    continue
+                inside = True
+                if not v > floor[p]:
+                    continue
+                if k_pairs == n_i.size:
+                    n_i, l_i, p_i, app, sp, jtu = _grow_pairs(n_i, l_i, p_i, app, sp, jtu)
+                n_i[k_pairs], l_i[k_pairs], p_i[k_pairs] = i, m, p
+                app[k_pairs], sp[k_pairs] = v, protective
+                # J^T u of the closest surface point, as pair_jtu computes it
+                xs0, xs1, xs2 = x0 + rr[m] * ux, x1 + rr[m] * uy, x2 + rr[m] * uz
+                if met:
+                    wvx = wvy = wvz = 0.0
+                    for j in range(k + 1):
+                        qx = xs0 - origins[i, j, 0]
+                        qy = xs1 - origins[i, j, 1]
+                        qz = xs2 - origins[i, j, 2]
+                        zx, zy, zz = axes[i, j, 0], axes[i, j, 1], axes[i, j, 2]
+                        wvx += qd[i, j] * (zy * qz - zz * qy)
+                        wvy += qd[i, j] * (zz * qx - zx * qz)
+                        wvz += qd[i, j] * (zx * qy - zy * qx)
+                    wn = math.sqrt(wvx * wvx + wvy * wvy + wvz * wvz)
+                    jtu[k_pairs, :] = 0.0
+                    if wn <= 1e-12:
+                        k_pairs += 1
+                        continue
+                    ux, uy, uz = wvx / wn, wvy / wn, wvz / wn
+                for j in range(nj):
+                    if j > k:
+                        jtu[k_pairs, j] = 0.0
+                        continue
+                    qx = xs0 - origins[i, j, 0]
+                    qy = xs1 - origins[i, j, 1]
+                    qz = xs2 - origins[i, j, 2]
+                    ex = qy * uz - qz * uy
+                    ey = qz * ux - qx * uz
+                    ez = qx * uy - qy * ux
+                    jtu[k_pairs, j] = axes[i, j, 0] * ex + axes[i, j, 1] * ey + axes[i, j, 2] * ez
+                k_pairs += 1
+        within[i] = inside
+    # the last sample was done first: put its pairs last (the order of np.nonzero)
+    order = np.empty(k_pairs, np.int64)
+    first = 0
+    while first < k_pairs and n_i[first] == n - 1:
+        first += 1
+    for j in range(k_pairs - first):
+        order[j] = first + j
+    for j in range(first):
+        order[k_pairs - first + j] = j
+    return (
+        clear,
+        within,
+        n_i[order],
+        l_i[order],
+        p_i[order],
+        app[order],
+        sp[order],
+        jtu[order],
+    )
+
+
+@njit(**_JIT)
+def chain_mass_matrices(
+    q: np.ndarray,
+    placement: np.ndarray,
+    axis: np.ndarray,
+    mass: np.ndarray,
+    com: np.ndarray,
+    inertia: np.ndarray,
+) -> np.ndarray:
+    """Joint-space inertia matrices (S, n, n) [kg m^2] of a serial chain of n revolute joints at
+    angles ``q`` (S, n) [rad]: ``placement`` (n, 4, 4) each joint's frame in its parent's at zero
+    angle, ``axis`` (n, 3) its unit axis in its own frame, and each body's ``mass`` (n,) [kg],
+    centre of mass ``com`` (n, 3) [m] and rotational inertia about it ``inertia`` (n, 3, 3)
+    [kg m^2], in its joint's frame (what CRBA computes, as
+    ``M_ij = sum_{b >= max(i, j)} m_b (z_i x (c_b - o_i)) . (z_j x (c_b - o_j)) + z_i . I_b z_j``)."""
+    s_n, n = q.shape
+    out = np.empty((s_n, n, n))
+    rot = np.empty((3, 3))
+    tmp = np.empty((3, 3))
+    kx = np.empty((3, 3))
+    o = np.empty((n, 3))
+    z = np.empty((n, 3))
+    c = np.empty((n, 3))
+    ib = np.empty((n, 3, 3))
+    for si in range(s_n):
+        pos = np.zeros(3)
+        rot[:] = 0.0
+        rot[0, 0] = rot[1, 1] = rot[2, 2] = 1.0
+        for k in range(n):
+            for r in range(3):
+                pos[r] += (
+                    rot[r, 0] * placement[k, 0, 3]
+                    + rot[r, 1] * placement[k, 1, 3]
+                    + rot[r, 2] * placement[k, 2, 3]
+                )
+            for r in range(3):
+                for cc in range(3):
+                    tmp[r, cc] = (
+                        rot[r, 0] * placement[k, 0, cc]
+                        + rot[r, 1] * placement[k, 1, cc]
+                        + rot[r, 2] * placement[k, 2, cc]
+                    )
+            rot[:] = tmp
+            x, y, w = axis[k, 0], axis[k, 1], axis[k, 2]
+            ca, sa = math.cos(q[si, k]), math.sin(q[si, k])
+            t_ = 1.0 - ca
+            kx[0, 0] = ca + t_ * x * x
+            kx[0, 1] = t_ * x * y - sa * w
+            kx[0, 2] = t_ * x * w + sa * y
+            kx[1, 0] = t_ * x * y + sa * w
+            kx[1, 1] = ca + t_ * y * y
+            kx[1, 2] = t_ * y * w - sa * x
+            kx[2, 0] = t_ * x * w - sa * y
+            kx[2, 1] = t_ * y * w + sa * x
+            kx[2, 2] = ca + t_ * w * w
+            for r in range(3):
+                for cc in range(3):
+                    tmp[r, cc] = rot[r, 0] * kx[0, cc] + rot[r, 1] * kx[1, cc] + rot[r, 2] * kx[2, cc]
+            rot[:] = tmp
+            for r in range(3):
+                o[k, r] = pos[r]
+                z[k, r] = rot[r, 0] * axis[k, 0] + rot[r, 1] * axis[k, 1] + rot[r, 2] * axis[k, 2]
+                c[k, r] = pos[r] + rot[r, 0] * com[k, 0] + rot[r, 1] * com[k, 1] + rot[r, 2] * com[k, 2]
+            for r in range(3):  # R I R^T
+                for cc in range(3):
+                    tmp[r, cc] = (
+                        rot[r, 0] * inertia[k, 0, cc]
+                        + rot[r, 1] * inertia[k, 1, cc]
+                        + rot[r, 2] * inertia[k, 2, cc]
+                    )
+            for r in range(3):
+                for cc in range(3):
+                    ib[k, r, cc] = tmp[r, 0] * rot[cc, 0] + tmp[r, 1] * rot[cc, 1] + tmp[r, 2] * rot[cc, 2]
+        for i in range(n):
+            for j in range(i, n):
+                acc = 0.0
+                for b in range(j, n):
+                    lix, liy, liz = c[b, 0] - o[i, 0], c[b, 1] - o[i, 1], c[b, 2] - o[i, 2]
+                    ljx, ljy, ljz = c[b, 0] - o[j, 0], c[b, 1] - o[j, 1], c[b, 2] - o[j, 2]
+                    aix = z[i, 1] * liz - z[i, 2] * liy
+                    aiy = z[i, 2] * lix - z[i, 0] * liz
+                    aiz = z[i, 0] * liy - z[i, 1] * lix
+                    ajx = z[j, 1] * ljz - z[j, 2] * ljy
+                    ajy = z[j, 2] * ljx - z[j, 0] * ljz
+                    ajz = z[j, 0] * ljy - z[j, 1] * ljx
+                    rot_term = 0.0
+                    for r in range(3):
+                        rot_term += z[i, r] * (
+                            ib[b, r, 0] * z[j, 0] + ib[b, r, 1] * z[j, 1] + ib[b, r, 2] * z[j, 2]
+                        )
+                    acc += mass[b] * (aix * ajx + aiy * ajy + aiz * ajz) + rot_term
+                out[si, i, j] = acc
+                out[si, j, i] = acc
+    return out

@@ -12,6 +12,7 @@ from ..promp import compiled
 from ..robot import load_robot
 from . import separation_kernels as sk
 from .body import HumanMotion
+from .iso15066 import arm_mass_matrices
 from .kernels import human_kernels_cached
 from .separation import SeparationAnalyser
 
@@ -28,7 +29,10 @@ def compile_kernels() -> float:
         q = np.tile(0.5 * (robot.lower_rad + robot.upper_rad), (t.size, 1))
         qd = np.full(q.shape, 0.1)
         analyser = SeparationAnalyser(robot)
-        analyser.analyse(t, q, qd, HumanMotion.assumed_human(t_s=t))
+        human = HumanMotion.assumed_human(t_s=t)
+        analyser.analyse(t, q, qd, human)
+        analyser.summary(t, q, qd, human)
+        arm_mass_matrices(robot, q, compiled=True)  # a summary calls it only near the human
         # the effective-mass kernels run only for close, fast pairs: call them once directly
         caps = analyser.capsules
         origins, axes, ra, rb = sk.arm_frames(

@@ -303,6 +303,7 @@ class Retargeter:
             raise InfeasibleError(f"settle window must be >= 0, got {settle_s}")
         self.settle_s = float(settle_s)
         self._ruckig = _Ruckig(limits)
+        self._scale_cache: tuple[ReferenceMotion, tuple[float, ...], float] | None = None
 
     def time_scale(self, qd: np.ndarray, qdd: np.ndarray, qddd: np.ndarray) -> float:
         """Smallest uniform slow-down ``k >= 1`` keeping derivatives (n, J) within headroom of the limits."""
@@ -323,6 +324,21 @@ class Retargeter:
             if np.all(np.abs(v) / k + (a / k**2) ** 2 / (2.0 * lim.jerk_rad_s3) <= cap):
                 return k
             k *= 1.02
+        return k
+
+    def _reference_scale(self, reference: ReferenceMotion, t_c: float, d_follow: float) -> float:
+        """:meth:`time_scale` of the followed reference on the control grid from ``t_c + h`` to
+        ``d_follow`` [s]; kept for the next call with the same reference and start (the slower
+        re-targets of one re-plan follow the same reference from the same tick)."""
+        key = (t_c, d_follow, self.blend_s, self.dt_s)
+        hit = self._scale_cache
+        if hit is not None and hit[0] is reference and hit[1] == key:
+            return hit[2]
+        grid = np.append(np.arange(t_c + self.blend_s, d_follow, self.dt_s), d_follow)
+        _, v, a, j = reference.evaluate(grid)
+        assert v is not None and a is not None and j is not None  # order 3: every derivative
+        k = self.time_scale(v, a, j)
+        self._scale_cache = (reference, key, k)
         return k
 
     def plan(self, state: MotionState, reference: ReferenceMotion, min_scale: float = 1.0) -> MotionPlan:
@@ -352,10 +368,7 @@ class Retargeter:
             pieces.append(("ruckig", t_c, t_c + blend.duration, blend))
             blend_s = blend.duration
         else:
-            grid = np.append(np.arange(t_c + h, d_follow, dt), d_follow)
-            _, v, a, j = reference.evaluate(grid)
-            assert v is not None and a is not None and j is not None  # order 3: every derivative
-            k = max(self.time_scale(v, a, j), float(min_scale))
+            k = max(self._reference_scale(reference, t_c, d_follow), float(min_scale))
             target_t = t_c + h
             k_follow = k
             for _ in range(CATCH_UP_ITERATIONS):

@@ -301,7 +301,8 @@ def _held_out_predictions(
     encoder = ObservationEncoder(layout, training.scaler, np.inf)
     folds = held_out(training.demos)
     blocks = coupling_blocks(layout, coupled)
-    covs: dict[int, ShrunkCovariance] = {}
+    cov: ShrunkCovariance | None = None  # the leave-one-out covariance of the current demo
+    cov_demo = -1
     out = []
     for row in rows:
         task, i = folds[row.demo]
@@ -311,11 +312,11 @@ def _held_out_predictions(
         if not np.isfinite(alpha) or alpha <= 0.0:
             continue
         fraction = row.t_last / (alpha * training.duration_nominal_s)
-        if row.demo not in covs:
+        if cov is None or row.demo != cov_demo:  # the rows of a demo are consecutive
             keep = np.arange(len(training.demos[task])) != i
             weights = [training.weights[t][keep] if t == task else training.weights[t] for t in tasks]
-            covs[row.demo] = shrink_covariances(weights, settings.pooling, blocks, [k], training.cache)[0]
-        cov = covs[row.demo]
+            cov = shrink_covariances(weights, settings.pooling, blocks, [k], training.cache)[0]
+            cov_demo = row.demo
         obs = cv_observations(encoder, training.demos[task][i], [row.ratio], training.encoded)
         if not obs:
             continue

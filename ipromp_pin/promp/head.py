@@ -38,6 +38,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
+
 from .lbfgs import minimize_lbfgs
 from .observation import ObservationPart
 

@@ -69,7 +69,25 @@ def minimize_lbfgs(
     f, g = np.array(0.0), np.zeros(n)
     while True:
         g = g.astype(np.float64)
-        _SETULB(MAXCOR, x, low, high, bounded, f, g, factr, GTOL, wa, iwa, task, lsave, isave, dsave, MAXLS, ln_task)
+        _SETULB(
+            MAXCOR,
+            x,
+            low,
+            high,
+            bounded,
+            f,
+            g,
+            factr,
+            GTOL,
+            wa,
+            iwa,
+            task,
+            lsave,
+            isave,
+            dsave,
+            MAXLS,
+            ln_task,
+        )
         if task[0] == 3:  # the routine asks for f and g at x
             if not np.array_equal(x, x_eval):
                 x_eval = x.copy()

@@ -280,6 +280,7 @@ def choose_noise(
                     dens = logpost[ki] - dens_shift
                     s += float(np.interp(alpha_true, m.alpha_grid, dens, left=-50.0, right=-50.0))
                     scores[j, k] += max(float(s), -100.0)
+        del engine, ordered, m, scored  # not alive while the next fold's are built (memory)
     if n_eval == 0:
         j, k, best = 0, 0, None
         nu = float(noise_grid[0]) if len(noise_grid) == 1 else 1.0
@@ -298,6 +299,7 @@ def choose_noise(
             for n in todo:
                 t_obs = fold.observations[n][2]
                 fold.logliks[(n, j)] = fold_engine.log_likelihood(todo_stats[n], t_obs, nu=nu)
+            del fold_engine, todo_stats  # not alive while the next fold's are built (memory)
         for n_obs, (ratio, _, t_last, summary) in enumerate(fold.observations):
             loglik = fold.logliks[(n_obs, j)]
             rows.append(HeldOutRow(fold.task, n_demo, summary, ratio, loglik, fold.priors, t_last))

@@ -409,6 +409,7 @@ def _cross_validate(
     ``dims`` (final configurations ``q_end``, regression targets ``targets``; ``nested`` caches the
     leave-one-out refits, for :func:`_final_rows` to reuse); empty when no row could be scored."""
     tasks = training.tasks
+    trusts = np.asarray(TRUST_GRID, dtype=float)
     configs, truths = [], []
     for h in held:
         k = tasks.index(h.task)
@@ -419,10 +420,9 @@ def _cross_validate(
         a = readout[k]
         gain_base = h.cov @ a.T  # (J, M)
         innov = pred - a @ h.mean
-        outs = [h.mean]
-        for trust in TRUST_GRID:
-            outs.append(h.mean + gain_base @ np.linalg.solve(a @ gain_base + trust * noise, innov))
-        configs.append(np.stack(outs))
+        # every trust factor's innovation covariance (n_trust, M, M) solved in one call
+        gains = np.linalg.solve(a @ gain_base + trusts[:, None, None] * noise, innov[None, :, None])
+        configs.append(np.concatenate([h.mean[None], h.mean + (gain_base @ gains)[:, :, 0]]))
         truths.append(q_end[h.task][h.index])
     if not configs:
         return {}

@@ -390,7 +390,7 @@ def choose_coupling(
             # (candidates, nu_c, J, K) conditioned robot weights
             ws = np.stack([robot_path(spectrum, parts, rs, nus, c.mean, c.diag, c.factor).mean for c in covs])
             if fk is None:  # mean squared joint error over the unobserved phases [rad^2]
-                errs = np.einsum("mk,cnjk->cnmj", phi, ws - w_true) * scale
+                errs = ((ws - w_true) @ phi.T) * scale[:, None]  # (candidates, nu_c, J, phases)
                 rows.append(np.mean(errs * errs, axis=(2, 3)).ravel())
             else:  # final configurations, the true one first
                 ends.append(

@@ -66,7 +66,8 @@ def minimize_lbfgs(
     x_eval = x.copy()
     f_eval, g_eval = fun(x_eval.copy())
     n_fev, n_iter = 1, 0
-    f, g = np.array(0.0), np.zeros(n)
+    f: float | np.ndarray = np.array(0.0)  # the routine's first call reads a zero
+    g = np.zeros(n)
     while True:
         g = g.astype(np.float64)
         _SETULB(

@@ -206,7 +206,8 @@ def fit_ridge(x: np.ndarray, y: np.ndarray, penalties: Sequence[float] = RIDGE_P
         score = np.sum(resid * resid, axis=(1, 2))
         score[np.isnan(score)] = np.inf  # never chosen (as a NaN never compared smaller)
         j = int(np.argmin(score))  # the first of equal scores, as the smallest penalty wins ties
-        best = (float(score[j]), float(lams[ok][j]), resid[j])
+        # a copy: a view would keep every penalty's residuals alive with the fit
+        best = (float(score[j]), float(lams[ok][j]), resid[j].copy())
     if not np.isfinite(best[0]):  # too few rows for any penalty: the mean (its leave-one-out residuals)
         resid = yc * (n / (n - 1.0)) if n > 1 else yc
         return RidgeFit(np.zeros((y.shape[1], x.shape[1])), y_mean, resid, float(penalties[-1]))

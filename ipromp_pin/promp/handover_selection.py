@@ -301,7 +301,8 @@ def _held_out_predictions(
     encoder = ObservationEncoder(layout, training.scaler, np.inf)
     folds = held_out(training.demos)
     blocks = coupling_blocks(layout, coupled)
-    covs: dict[int, ShrunkCovariance] = {}
+    cov: ShrunkCovariance | None = None  # the leave-one-out covariance of the current demo
+    cov_demo = -1
     out = []
     for row in rows:
         task, i = folds[row.demo]
@@ -311,11 +312,11 @@ def _held_out_predictions(
         if not np.isfinite(alpha) or alpha <= 0.0:
             continue
         fraction = row.t_last / (alpha * training.duration_nominal_s)
-        if row.demo not in covs:
+        if cov is None or row.demo != cov_demo:  # the rows of a demo are consecutive
             keep = np.arange(len(training.demos[task])) != i
             weights = [training.weights[t][keep] if t == task else training.weights[t] for t in tasks]
-            covs[row.demo] = shrink_covariances(weights, settings.pooling, blocks, [k], training.cache)[0]
-        cov = covs[row.demo]
+            cov = shrink_covariances(weights, settings.pooling, blocks, [k], training.cache)[0]
+            cov_demo = row.demo
         obs = cv_observations(encoder, training.demos[task][i], [row.ratio], training.encoded)
         if not obs:
             continue
@@ -408,6 +409,7 @@ def _cross_validate(
     ``dims`` (final configurations ``q_end``, regression targets ``targets``; ``nested`` caches the
     leave-one-out refits, for :func:`_final_rows` to reuse); empty when no row could be scored."""
     tasks = training.tasks
+    trusts = np.asarray(TRUST_GRID, dtype=float)
     configs, truths = [], []
     for h in held:
         k = tasks.index(h.task)
@@ -418,10 +420,9 @@ def _cross_validate(
         a = readout[k]
         gain_base = h.cov @ a.T  # (J, M)
         innov = pred - a @ h.mean
-        outs = [h.mean]
-        for trust in TRUST_GRID:
-            outs.append(h.mean + gain_base @ np.linalg.solve(a @ gain_base + trust * noise, innov))
-        configs.append(np.stack(outs))
+        # every trust factor's innovation covariance (n_trust, M, M) solved in one call
+        gains = np.linalg.solve(a @ gain_base + trusts[:, None, None] * noise, innov[None, :, None])
+        configs.append(np.concatenate([h.mean[None], h.mean + (gain_base @ gains)[:, :, 0]]))
         truths.append(q_end[h.task][h.index])
     if not configs:
         return {}

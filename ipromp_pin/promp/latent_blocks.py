@@ -103,7 +103,6 @@ class LatentBlock:
         self.unpack = unpack
         self.use_z = n_task * self.pk.size * ia.size * 8 <= z_budget_bytes
         self.no_z = np.zeros((1, 1, 1))
-        self._gather: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         self._z: dict[bytes, np.ndarray] = {}
         self._arrays: dict[bytes, dict[str, np.ndarray]] = {}
         self._local = {int(d): i for i, d in enumerate(self.dims)}
@@ -136,34 +135,35 @@ class LatentBlock:
         self._inputs[key] = out
         return out
 
-    def z_tensor(self, local: np.ndarray, cache: bool = True, n_basis: int | None = None) -> np.ndarray:
+    def z_tensor(
+        self, local: np.ndarray, cache: bool = True, n_basis: int | None = None, out: np.ndarray | None = None
+    ) -> np.ndarray:
         """Packed ``Z`` (T, K(K+1)/2, r(r+1)/2) of the block-local dims ``local`` (cached unless
         ``cache`` is False); with ``n_basis = k'`` only its first ``k'(k'+1)/2`` rows (the pairs of
-        the first ``k'`` basis functions, what a part with ``k'`` active ones reads; not cached)."""
+        the first ``k'`` basis functions, what a part with ``k'`` active ones reads; not cached).
+        ``out``: an array (or view) of that shape to write it into (then not cached)."""
         key = np.asarray(local, dtype=np.int64).tobytes()
-        z = None if n_basis is not None else self._z.get(key)
+        z = None if n_basis is not None or out is not None else self._z.get(key)
         if z is None:
             w = self.w[:, local] if n_basis is None else self.w[:, local, :n_basis]
             n_task, dm, k, r = w.shape
             flat = w.reshape(n_task, dm, k * r)
-            direct, mirror, off = self._z_gather() if n_basis is None else z_gather(k, r)
-            z = np.empty((n_task, *direct.shape))
-            for t in range(n_task):  # one task at a time: W^T W is the largest temporary
-                # full[k r + a, l r + b] = sum_d W_dka W_dlb; Z gathers its (k, l, a, b) entries in
-                # one pass over flat indices (the same entries as indexing the 4-d view, 30x faster)
-                full = (flat[t].T @ flat[t]).reshape(-1)
-                z[t] = np.take(full, direct)
-                z[t, off] += np.take(full, mirror[off])
-            if cache and n_basis is None:
+            direct, mirror = z_panel_gather(k, r)
+            z = np.empty((n_task, k * (k + 1) // 2, r * (r + 1) // 2)) if out is None else out
+            for t in range(n_task):
+                # one column panel of W^T W per basis function l: panel[k r + a, b] = sum_d W_dka W_dlb
+                # (K r, r), so W^T W (K r, K r) is never held whole. Z's rows (k, l) for k <= l are
+                # consecutive; their (k, l, a, b) entries and the mirror (l, k, a, b) = (k, l, b, a)
+                # of the rows with k != l both lie in panel l (W^T W is symmetric)
+                for ll in range(k):
+                    panel = (flat[t].T @ flat[t][:, ll * r : (ll + 1) * r]).reshape(-1)
+                    row0 = ll * (ll + 1) // 2
+                    z[t, row0 : row0 + ll + 1] = np.take(panel, direct[: ll + 1])
+                    if ll:
+                        z[t, row0 : row0 + ll] += np.take(panel, mirror[:ll])
+            if cache and n_basis is None and out is None:
                 self._z[key] = z
         return z
-
-    def _z_gather(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Flat indices into ``W^T W`` (K r, K r) of ``Z``'s entries ``(k, l, a, b)`` and of their
-        mirror ``(l, k, a, b)``, (K(K+1)/2, r(r+1)/2) each, and the rows with ``k != l`` (cached)."""
-        if self._gather is None:
-            self._gather = z_gather(self.w.shape[2], self.rank)
-        return self._gather
 
     def arrays(self, local: np.ndarray) -> dict[str, np.ndarray]:
         """Model arrays of the block-local dims ``local`` in basis-major layouts (cached).
@@ -206,19 +206,15 @@ class LatentBlock:
 
 
 @functools.lru_cache(maxsize=16)
-def z_gather(k: int, r: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Flat indices into ``W^T W`` (K r, K r) of the packed ``Z`` entries ``(k, l, a, b)`` (``k <= l``,
-    ``a <= b``) and of their mirror ``(l, k, a, b)``, (K(K+1)/2, r(r+1)/2) each, and the rows with
-    ``k != l``, for ``K = k`` basis functions and rank ``r`` (cached: the cross-validations build many
-    blocks of the same shape)."""
-    pk = np.concatenate([np.arange(ll + 1) for ll in range(k)]).astype(np.int64)
-    pl = np.concatenate([np.full(ll + 1, ll) for ll in range(k)]).astype(np.int64)
+def z_panel_gather(k: int, r: int) -> tuple[np.ndarray, np.ndarray]:
+    """Flat indices into a column panel ``(K r, r)`` of ``W^T W`` (the columns of basis function
+    ``l``) of the packed ``Z`` entries ``(k, l, a, b)`` (``a <= b``): ``(k r + a) r + b``, and of
+    their mirror ``(l, k, a, b)`` read at ``(k r + b) r + a``, (K, r(r+1)/2) each (row ``k``), for
+    ``K = k`` basis functions and rank ``r`` (cached: the cross-validations build many blocks of the
+    same shape)."""
     ia, ib = np.triu_indices(r)
-    rows_kl = pk[:, None] * r + ia[None, :]
-    cols_kl = pl[:, None] * r + ib[None, :]
-    rows_lk = pl[:, None] * r + ia[None, :]
-    cols_lk = pk[:, None] * r + ib[None, :]
-    out = (rows_kl * (k * r) + cols_kl, rows_lk * (k * r) + cols_lk, pk != pl)
+    kk = np.arange(k, dtype=np.int64)[:, None] * r
+    out = ((kk + ia[None, :]) * r + ib[None, :], (kk + ib[None, :]) * r + ia[None, :])
     for a in out:
         a.setflags(write=False)
     return out

@@ -333,18 +333,24 @@ class InferenceEngine:
         need = n_basis if ke is None else min(int(ke), n_basis)
         if out is None or out[0].shape[0] < need * (need + 1) // 2:
             rows = n_basis if out is not None and need > n_basis // 2 else need
-            cols, mats, col = [], [], 0
+            self._fused.pop(key, None)  # a smaller earlier product is released first
+            out = None
+            n_task = self.alphas.shape[0]
+            cols, col = [], 0
             for b in self.blocks:
-                pos, local = b.select(dims)
-                if pos.size == 0:
-                    cols.append(-1)
-                    continue
-                z = b.z_tensor(local, cache=False, n_basis=None if rows == n_basis else rows)
-                mats.append(np.concatenate(list(z), axis=1))
-                cols.append(col)
-                col += z.shape[0] * z.shape[2]
-            out = (np.ascontiguousarray(np.concatenate(mats, axis=1)), cols)
-            self._fused[key] = out
+                cols.append(col if b.select(dims)[0].size else -1)
+                col += b.ia.size * n_task if cols[-1] >= 0 else 0
+            # every block's Z written straight into its columns (task t's at cols[b] + t r(r+1)/2)
+            zcat = np.empty((rows * (rows + 1) // 2, col))
+            for b, c0 in zip(self.blocks, cols, strict=True):
+                if c0 >= 0:
+                    view = zcat[:, c0 : c0 + b.ia.size * n_task].reshape(zcat.shape[0], n_task, b.ia.size)
+                    b.z_tensor(
+                        b.select(dims)[1],
+                        n_basis=None if rows == n_basis else rows,
+                        out=view.transpose(1, 0, 2),
+                    )
+            out = self._fused[key] = (zcat, cols)
         return out
 
     def finish_groups(self, terms: list[tuple], t_last: float) -> np.ndarray:

@@ -36,6 +36,7 @@ best coupling's; it can be chosen explicitly (``coupling=[]``).
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from itertools import combinations
@@ -44,12 +45,13 @@ import numpy as np
 
 from ..data import Demo
 from ..exceptions import ModelError, ObservationError
+from .compiled import kernels
 from .distribution import shrink_covariances
 from .head import RecognitionHead, WindowSummary, fit_head, head_features, observed_fraction
 from .likelihood import InferenceEngine
 from .noise_path import part_spectrum, robot_path
 from .observation import ObservationEncoder, ObservationPart
-from .posterior import PhasePriors, recognise_from_loglik
+from .posterior import REFINE_NODES, REFINE_WEIGHTS, PhasePriors, recognise_from_loglik
 from .training import PhaseSettings, TrainingSet, coupling_blocks, task_models
 
 NOISE_GRID = (0.03, 0.1, 0.3, 1.0, 3.0, 10.0, 30.0, 100.0, 300.0, 1000.0)
@@ -219,6 +221,21 @@ def _fold_engine(training: TrainingSet, models: list, nu: float) -> InferenceEng
     )
 
 
+def _true_task_posterior(
+    priors: PhasePriors, loglik: np.ndarray, t_last: float, task: int
+) -> tuple[float, np.ndarray]:
+    """The log posterior of task ``task`` and its log phase posterior (C,) from the log likelihood
+    (T, C): the numbers of :func:`~ipromp_pin.promp.posterior.recognise_from_loglik` (the same compiled
+    kernel) without building the recognition (the noise CV scores thousands of them); an observation
+    impossible under every task raises its error."""
+    _, logpost, _, _, log_post, _, best = kernels().recognition(
+        loglik, priors.log_prior, priors.alphas, REFINE_WEIGHTS, REFINE_NODES, priors.task_log_prior
+    )
+    if not math.isfinite(float(log_post[best])):
+        recognise_from_loglik(priors, loglik, t_last)  # raises ObservationError
+    return float(log_post[task]), logpost[task]
+
+
 def choose_noise(
     training: TrainingSet,
     settings: PhaseSettings,
@@ -274,12 +291,12 @@ def choose_noise(
             for j in range(len(noise_grid)):
                 loglik = fold.logliks[(n_obs, j)]
                 for k, tau in enumerate(temperature_grid):
-                    rec, logpost = recognise_from_loglik(priors, tau * loglik, t_last)
-                    s = rec.log_posterior[ki]
+                    s, logpost_true = _true_task_posterior(priors, tau * loglik, t_last, ki)
                     # log posterior density of the true phase (interpolated between candidates)
-                    dens = logpost[ki] - dens_shift
+                    dens = logpost_true - dens_shift
                     s += float(np.interp(alpha_true, m.alpha_grid, dens, left=-50.0, right=-50.0))
                     scores[j, k] += max(float(s), -100.0)
+        del engine, ordered, m, scored  # not alive while the next fold's are built (memory)
     if n_eval == 0:
         j, k, best = 0, 0, None
         nu = float(noise_grid[0]) if len(noise_grid) == 1 else 1.0
@@ -298,6 +315,7 @@ def choose_noise(
             for n in todo:
                 t_obs = fold.observations[n][2]
                 fold.logliks[(n, j)] = fold_engine.log_likelihood(todo_stats[n], t_obs, nu=nu)
+            del fold_engine, todo_stats  # not alive while the next fold's are built (memory)
         for n_obs, (ratio, _, t_last, summary) in enumerate(fold.observations):
             loglik = fold.logliks[(n_obs, j)]
             rows.append(HeldOutRow(fold.task, n_demo, summary, ratio, loglik, fold.priors, t_last))
@@ -388,7 +406,7 @@ def choose_coupling(
             # (candidates, nu_c, J, K) conditioned robot weights
             ws = np.stack([robot_path(spectrum, parts, rs, nus, c.mean, c.diag, c.factor).mean for c in covs])
             if fk is None:  # mean squared joint error over the unobserved phases [rad^2]
-                errs = np.einsum("mk,cnjk->cnmj", phi, ws - w_true) * scale
+                errs = ((ws - w_true) @ phi.T) * scale[:, None]  # (candidates, nu_c, J, phases)
                 rows.append(np.mean(errs * errs, axis=(2, 3)).ravel())
             else:  # final configurations, the true one first
                 ends.append(

@@ -83,8 +83,12 @@ class JointTorques(MotionCheck):
         if n <= self.max_samples:
             return np.arange(n)
         even = np.linspace(0, n - 1, self.max_samples).round().astype(int)
-        peaks = np.concatenate([np.argmax(np.abs(motion.qdd), axis=0), np.argmax(np.abs(motion.qd), axis=0)])
-        return np.unique(np.concatenate([even, peaks, [n - 1]]))
+        keep = np.zeros(n, dtype=bool)  # a mask, not np.unique's sort: the same sorted indices
+        keep[even] = True
+        keep[np.argmax(np.abs(motion.qdd), axis=0)] = True
+        keep[np.argmax(np.abs(motion.qd), axis=0)] = True
+        keep[n - 1] = True
+        return np.flatnonzero(keep)
 
     def allowed_nm(self) -> np.ndarray:
         """The torque each joint may use (n_joints,) in [N m]: ``(1 - effort_margin)`` x the limit."""

@@ -409,6 +409,8 @@ class ClosedLoopPlanner:
         scale, first_arrival, k0 = 1.0, None, 1.0
         t_start = time.perf_counter()
         t_checks = 0.0
+        if context.human is not None:  # the human as observed up to this re-plan, for every round
+            context = replace(context, human=context.human.until(r.observed_until_s))
         for _ in range(MAX_SLOWDOWN_ROUNDS + 1):
             try:
                 plan = self.retargeter.plan(state, reference, min_scale=scale)
@@ -443,8 +445,9 @@ class ClosedLoopPlanner:
         return self._pose_cache[1], self._pose_cache[2]
 
     def _check(self, plan: MotionPlan, r: Replan, context: CheckContext) -> tuple[str, float | None]:
-        """Check a plan's remaining motion -> the reason to refuse it ("" if it passes) and the
-        slow-down the failing timed-motion checks ask for (None: slowing would not help)."""
+        """Check a plan's remaining motion against ``context`` (its human as observed up to the
+        re-plan) -> the reason to refuse it ("" if it passes) and the slow-down the failing
+        timed-motion checks ask for (None: slowing would not help)."""
         ratios = limit_ratios(plan.qd, plan.qdd, self.dt_s, self.profile.limits)
         r.limit_ratios = [float(x) for x in ratios]
         if np.any(ratios > 1.0 + LIMIT_TOLERANCE):
@@ -464,8 +467,6 @@ class ClosedLoopPlanner:
             return f"self_collision: {clearance.to_check().reason}", None
         if not self.checks:
             return "", None
-        if context.human is not None:  # the human as observed up to this re-plan
-            context = replace(context, human=context.human.until(r.observed_until_s))
         results = run_checks(self.checks, TimedMotion.from_plan(plan), context)
         r.checks = {c.name: {"status": c.status, "reason": c.reason, **c.values} for c in results}
         failed = [c for c in results if c.required and not c.passed]

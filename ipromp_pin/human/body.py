@@ -314,11 +314,22 @@ class HumanMotion:
             seen[self.static] = math.inf
         return held, seen
 
-    def _held_capsules(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
-        """:meth:`capsules` at times (N,) that are all at or after the horizon: the same numbers
-        from the held frames (the ends computed once), or None when that does not apply."""
+    def _held_parts(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
+        """The time-independent part of :meth:`_held_capsules`: the held ends ``a``, ``b`` (P, 3) [m],
+        whether each part grows (P,) and the time (P,) [s] it was first seen; None when the held
+        frames do not apply (no finite horizon, a non-finite held position). Kept per object for
+        its horizon (the checks of one re-plan place the same human at several motions)."""
+        cached = self.__dict__.get("_held_cache")
+        if cached is not None and cached[0] == self.horizon_s:
+            return cached[1]
+        parts = self._held_parts_now()
+        object.__setattr__(self, "_held_cache", (self.horizon_s, parts))
+        return parts
+
+    def _held_parts_now(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
+        """:meth:`_held_parts`, computed."""
         held = self.held_frames()
-        if held is None or t.size == 0 or not np.all(t >= self.horizon_s):
+        if held is None:
             return None
         pos, seen = held
         if not np.all(np.isfinite(pos)):
@@ -335,6 +346,20 @@ class HumanMotion:
         member = np.maximum(ma, mb) > 0  # (P, F)
         first = np.min(np.where(member, seen[None, :], np.inf), axis=1)  # (P,); inf: static frames only
         moving = np.isfinite(first)
+        for arr in (a, b, moving, first):
+            arr.flags.writeable = False
+        return a, b, moving, first
+
+    def _held_capsules(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """:meth:`capsules` at times (N,) that are all at or after the horizon: the same numbers
+        from the held frames (the ends computed once per object, :meth:`_held_parts`), or None when
+        that does not apply."""
+        if t.size == 0 or not math.isfinite(self.horizon_s) or not np.all(t >= self.horizon_s):
+            return None
+        parts = self._held_parts()
+        if parts is None:
+            return None
+        a, b, moving, first = parts
         grow = self.speed_m_s * (t[:, None] - np.where(moving, first, 0.0)[None, :])
         g = np.where(moving[None, :], np.minimum(np.maximum(grow, 0.0), self.max_inflation_m), 0.0)
         n = t.size

@@ -88,6 +88,10 @@ def test_subsampling_keeps_the_peaks(robot):
     m = motion(0.4, n=401)
     idx = check.sample_indices(m)
     assert idx.size < 60 and idx[-1] == 400
+    # the even grid, each joint's velocity and acceleration peaks and the last sample, sorted once
+    even = np.linspace(0, 400, 20).round().astype(int)
+    peaks = [np.argmax(np.abs(m.qdd), axis=0), np.argmax(np.abs(m.qd), axis=0)]
+    np.testing.assert_array_equal(idx, np.unique(np.concatenate([even, *peaks, [400]])))
     full = JointTorques(robot, max_samples=10_000).check(m, CheckContext())
     sub = check.check(m, CheckContext())
     assert sub.values["peak_torque_ratio"] == pytest.approx(full.values["peak_torque_ratio"], rel=0.02)

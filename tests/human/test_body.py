@@ -123,3 +123,25 @@ def test_a_body_frame_never_tracked_is_an_error_naming_the_demo_and_frame():
         HumanMotion.from_demo(demo)
     with pytest.raises(DataError, match="unknown body part"):
         HumanMotion.from_demo(_skeleton_demo(), HumanSettings(radii_m={"tail": 0.1}))
+
+
+def test_the_held_ends_kept_per_object_equal_the_recomputed_ones_and_follow_the_horizon():
+    # the checks of one re-plan place the same (until) human at several motions: the held ends are
+    # computed once per object and horizon; a copy with another horizon computes its own
+    h = HumanMotion.from_demo(_skeleton_demo(gap=(40, 60)), HumanSettings(speed_m_s=1.0, max_inflation_m=1.0))
+    seen = h.until(0.9)
+    t_short, t_long = 0.9 + 0.01 * np.arange(30), 0.9 + 0.01 * np.arange(80)
+    first = seen.capsules(t_short)
+    assert "_held_cache" in seen.__dict__
+    again = seen.capsules(t_long)  # from the kept ends
+    fresh = h.until(0.9).capsules(t_long)  # a new object: computed
+    for x, y, z in zip(first, again, fresh, strict=True):
+        np.testing.assert_array_equal(y, z)
+        np.testing.assert_array_equal(x, y[:30])
+    later = seen.until(0.5)  # a shallow copy carrying the kept ends of horizon 0.9
+    t_late = 0.5 + 0.01 * np.arange(50)
+    for x, y in zip(later.capsules(t_late), h.until(0.5).capsules(t_late), strict=True):
+        np.testing.assert_array_equal(x, y)
+    a_late = later.capsules(np.array([1.0]))[0][0, list(h.part_names).index("head")]
+    a_held = seen.capsules(np.array([1.0]))[0][0, list(h.part_names).index("head")]
+    assert a_late[0] != a_held[0]  # the head is held where it was at 0.5 s, not at 0.78 s

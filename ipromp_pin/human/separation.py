@@ -147,6 +147,19 @@ class Separation:
         return self.links[li], self.parts[pi], float(self.t_s[n]), float(d[li, pi])
 
 
+def sample_groups(n_i: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The distinct samples of pair samples ``n_i`` (K,) and each pair's index among them (K,):
+    ``np.unique(n_i, return_inverse=True)``, without its sort when ``n_i`` is already sorted (the
+    pairs of the kernels and of ``np.nonzero`` are in sample order)."""
+    n_i = np.asarray(n_i)
+    if n_i.size and np.all(n_i[1:] >= n_i[:-1]):
+        first = np.empty(n_i.size, dtype=bool)
+        first[0] = True
+        np.not_equal(n_i[1:], n_i[:-1], out=first[1:])
+        return n_i[first], np.cumsum(first) - 1
+    return np.unique(n_i, return_inverse=True)
+
+
 class SeparationAnalyser:
     """Separation of a robot's motions from a human (see the module docstring).
 
@@ -310,7 +323,7 @@ class SeparationAnalyser:
             return np.empty(0), np.empty(0)
         kernels = human_kernels()
         _, force_p, m_h_p, k_p = self._region_limits(human)
-        samples, which = np.unique(n_i, return_inverse=True)
+        samples, which = sample_groups(n_i)
         if self._arm_model is None:
             self._arm_model = arm_model(self.robot)
         inertia = arm_mass_matrices(self.robot, q[samples], self._arm_model, compiled)

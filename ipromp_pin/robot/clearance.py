@@ -166,6 +166,7 @@ class ClearanceCertifier:
         self._margin = np.full((n_pairs, cap), -np.inf)  # d - clearance; -inf: empty slot
         self._next = np.zeros(n_pairs, dtype=int)
         self._ids = robot.active_pair_ids.astype(int)
+        self._pair_labels: dict[int, tuple[tuple[str, str], tuple[str, str]]] = {}
         self.n_distances_total = 0
         self._count = 0
         from . import clearance_kernels  # deferred: numba is imported (and the walk compiled) on first use
@@ -221,6 +222,15 @@ class ClearanceCertifier:
         left = self._split_segment(p, a, mid, depth + 1)
         right = None if left is None else self._split_segment(p, mid, b, depth + 1)
         return None if left is None or right is None else min(left, right)
+
+    def pair_labels(self, pair_id: int) -> tuple[tuple[str, str], tuple[str, str]]:
+        """The geometry and link names of collision pair ``pair_id`` (:meth:`.Robot.pair_names`,
+        :meth:`.Robot.pair_links`), kept per pair: every certified path names its deciding pair."""
+        labels = self._pair_labels.get(pair_id)
+        if labels is None:
+            labels = (self.robot.pair_names(pair_id), self.robot.pair_links(pair_id))
+            self._pair_labels[pair_id] = labels
+        return labels
 
     def certify(self, q: np.ndarray) -> ClearanceResult:
         """Certify the piecewise-linear joint path through ``q`` (N, n_joints) in [rad].
@@ -295,12 +305,13 @@ class ClearanceCertifier:
             p = int(np.argmin(used))
             bound = float(used[p])
         pid = int(self._ids[p])
+        pair, links = self.pair_labels(pid)
         return ClearanceResult(
             certified=failure is None,
             min_distance_m=float(bound + self.clearance_m),
             collision=bool(collision),
-            pair=self.robot.pair_names(pid),
-            links=self.robot.pair_links(pid),
+            pair=pair,
+            links=links,
             sample=int(sample),
             n_distances=self._count,
             n_balls=self.n_balls,

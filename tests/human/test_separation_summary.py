@@ -11,7 +11,7 @@ import pytest
 
 from ipromp_pin.human.body import BODY_PARTS, HumanMotion, _frame_list
 from ipromp_pin.human.iso15066 import arm_mass_matrices, arm_model
-from ipromp_pin.human.separation import HAND_REGION, Separation, SeparationAnalyser
+from ipromp_pin.human.separation import HAND_REGION, Separation, SeparationAnalyser, sample_groups
 from ipromp_pin.human.separation_summary import SeparationSummary
 from ipromp_pin.promp.compiled import use_kernels
 from ipromp_pin.robot import ee_positions, load_robot
@@ -172,3 +172,19 @@ def test_the_compiled_crba_equals_pinocchios(robot):
         reference = arm_mass_matrices(robot, q, model)  # Pinocchio's by default
     np.testing.assert_allclose(compiled, reference, rtol=1e-12, atol=1e-12)
     np.testing.assert_allclose(compiled, np.transpose(compiled, (0, 2, 1)))
+
+
+def test_the_sample_groups_of_sorted_pairs_are_np_uniques():
+    rng = np.random.default_rng(3)
+    for n_i in (
+        np.sort(rng.integers(0, 40, 200)),  # the kernels' pair order: the sort skipped
+        rng.integers(0, 40, 200),  # unsorted: np.unique
+        np.array([7]),
+        np.array([2, 2, 2]),
+        np.array([], dtype=np.int64),
+    ):
+        samples, which = sample_groups(n_i)
+        ref_s, ref_w = np.unique(n_i, return_inverse=True)
+        np.testing.assert_array_equal(samples, ref_s)
+        np.testing.assert_array_equal(which, ref_w)
+        assert samples.dtype == ref_s.dtype

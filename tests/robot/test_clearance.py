@@ -68,3 +68,13 @@ def test_a_motion_through_a_collision_is_refused(robot):
     assert not result.certified
     assert not result.to_check().passed
     assert "self-collision" in result.to_check().reason or "not certified" in result.to_check().reason
+
+
+def test_the_kept_pair_labels_are_the_robots(robot):
+    cert = ClearanceCertifier(robot)
+    for pid in [int(k) for k in robot.active_pair_ids[:5]] * 2:  # the second time from the kept ones
+        assert cert.pair_labels(pid) == (robot.pair_names(pid), robot.pair_links(pid))
+    demo = make_synthetic_dataset(n_tasks=1, n_demos=2, seed=1).all_demos()[0]
+    result = cert.certify(demo.groups["robot"])
+    pid = next(int(k) for k in robot.active_pair_ids if robot.pair_names(int(k)) == result.pair)
+    assert result.links == robot.pair_links(pid)

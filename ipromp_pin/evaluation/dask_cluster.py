@@ -21,7 +21,10 @@ splits and seeds. Dask is an optional dependency (``pip install 'ipromp_pin[dask
 
 from __future__ import annotations
 
+import ctypes
 import importlib
+import os
+import sys
 import threading
 import uuid
 from collections.abc import Iterator, Sequence
@@ -39,6 +42,22 @@ SCHEMES = ("tcp://", "tls://", "ws://", "wss://", "inproc://", "ucx://")
 
 RETRIES = 3
 """Re-runs of a job whose worker died (or that failed) before its error is reported."""
+
+LOCAL_WORKER_CONFIG = {
+    "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None,
+    "distributed.worker.profile.enabled": False,
+}
+"""Dask settings of a local cluster's workers: glibc's own malloc thresholds (Dask's
+``MALLOC_TRIM_THRESHOLD_`` fixes the mmap threshold at 128 KiB, so that every medium-sized NumPy
+array of the replays is a fresh ``mmap``: +20 % on a job, mostly system time) and no statistical
+profiler (a thread sampling the job's stack every 10 ms)."""
+
+M_TRIM_THRESHOLD, M_MMAP_THRESHOLD = -1, -3
+"""glibc's ``mallopt`` parameters."""
+
+MMAP_THRESHOLD_BYTES = 32 << 20
+"""The mmap threshold a worker of a cluster started with Dask's ``MALLOC_TRIM_THRESHOLD_`` gets
+(glibc's own grows up to this value, 32 MiB on 64-bit systems, as arrays are freed); trim at twice it."""
 
 
 class ClusterError(IPrompPinError):
@@ -84,12 +103,13 @@ class DaskCluster:
         cluster = None
         try:
             if self.address is None:
-                cluster = distributed.LocalCluster(
-                    n_workers=self.n_workers,
-                    threads_per_worker=1,
-                    processes=self.processes,
-                    dashboard_address=None,
-                )
+                with dask_config().set(LOCAL_WORKER_CONFIG):
+                    cluster = distributed.LocalCluster(
+                        n_workers=self.n_workers,
+                        threads_per_worker=1,
+                        processes=self.processes,
+                        dashboard_address=None,
+                    )
                 client = distributed.Client(cluster)
             else:
                 client = distributed.Client(self.address, timeout="30s")
@@ -117,6 +137,25 @@ class DaskCluster:
             yield future.result()
 
 
+def restore_malloc_thresholds() -> bool:
+    """Undo, in this worker process, the fixed malloc thresholds that Dask's default
+    ``MALLOC_TRIM_THRESHOLD_`` sets (on the workers of a cluster this package did not start): with it
+    every array of 128 KiB or more is a fresh ``mmap``. Only on glibc and when that variable is set;
+    returns whether the thresholds were changed."""
+    if "MALLOC_TRIM_THRESHOLD_" not in os.environ or not sys.platform.startswith("linux"):
+        return False
+    try:
+        libc = ctypes.CDLL("libc.so.6")
+        return bool(libc.mallopt(M_MMAP_THRESHOLD, MMAP_THRESHOLD_BYTES)) and bool(
+            libc.mallopt(M_TRIM_THRESHOLD, 2 * MMAP_THRESHOLD_BYTES)
+        )
+    except (OSError, AttributeError):  # not glibc
+        return False
+
+
+_process: list[bool] = []
+"""Non-empty once this worker process is tuned (:func:`restore_malloc_thresholds`)."""
+
 _thread = threading.local()
 """Per thread of a Dask worker: the scattered worker it last ran a job of, and its own copy of it."""
 
@@ -126,10 +165,17 @@ def run_job(worker: Worker, job: Job) -> JobResult:
     keep each job's fit; made once per thread and run, so that what a scorer keeps for the process,
     e.g. the closed loop's collision certifier and its computed distances, serves every later job
     as in the local pool)."""
+    if not _process:
+        _process.append(restore_malloc_thresholds())
     held = getattr(_thread, "worker", None)
     if held is None or held[0] is not worker:
         held = _thread.worker = (worker, worker.for_one_job())
     return held[1].run_job(job)
+
+
+def dask_config() -> ModuleType:
+    """The ``dask.config`` module (Dask installed: :func:`require_dask` has succeeded)."""
+    return importlib.import_module("dask.config")
 
 
 def require_dask() -> ModuleType:

@@ -10,13 +10,20 @@ Two kinds of cluster:
   the robot settings' files at the same paths (the robot travels as its settings and is rebuilt).
 
 The worker (the dataset and the scorers) is sent to every Dask worker once (``scatter``, broadcast);
-every job is one task, retried (``retries``) when the worker running it dies, so a lost worker costs
-a re-run, not a cell. Each thread runs its jobs with its own copy of the scorers, so workers of
+every job is one task, submitted longest first (:func:`~.jobs.longest_first`). A task whose worker
+dies is run again on another one (Dask's ``distributed.scheduler.allowed-failures`` times, 3 by
+default) and a job that raises is re-run ``retries`` times, so a lost worker costs a re-run, not a
+cell. Each thread runs its jobs with its own copy of the scorers, so workers of
 several threads are safe for the fits (the closed loop's robot is shared by a process's threads:
 give closed-loop runs workers of one thread, e.g. ``dask-jobqueue``'s ``processes`` equal to its
-``cores``). The
-results do not depend on where a job ran: the cells are those of a ``--jobs`` run of the same
+``cores``). The results do not depend on where a job ran: the cells are those of a ``--jobs`` run of the same
 splits and seeds. Dask is an optional dependency (``pip install 'ipromp_pin[dask]'``).
+
+Dask's defaults cost a closed-loop job about 20 %: its ``MALLOC_TRIM_THRESHOLD_`` fixes glibc's
+mmap threshold at 128 KiB (every medium-sized array a fresh ``mmap``: system time) and its profiler
+samples the job's stack every 10 ms. A local cluster's workers start without either
+(:data:`LOCAL_WORKER_CONFIG`); a remote worker started with the variable gets glibc's thresholds
+back on its first job (:func:`restore_malloc_thresholds`).
 """
 
 from __future__ import annotations
@@ -32,7 +39,7 @@ from dataclasses import dataclass
 from types import ModuleType
 
 from ..exceptions import IPrompPinError
-from .jobs import Job, JobResult, Worker
+from .jobs import Job, JobResult, Worker, single_threaded_blas
 
 LOCAL_PREFIX = "dask-local:"
 """``--cluster`` prefix of a local cluster (followed by its number of workers)."""
@@ -41,7 +48,8 @@ SCHEMES = ("tcp://", "tls://", "ws://", "wss://", "inproc://", "ucx://")
 """Address schemes of an existing Dask scheduler."""
 
 RETRIES = 3
-"""Re-runs of a job whose worker died (or that failed) before its error is reported."""
+"""Re-runs of a job that raised before its error is reported (a job whose worker died is run again by
+Dask's scheduler, up to its ``allowed-failures``)."""
 
 LOCAL_WORKER_CONFIG = {
     "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None,
@@ -154,7 +162,8 @@ def restore_malloc_thresholds() -> bool:
 
 
 _process: list[bool] = []
-"""Non-empty once this worker process is tuned (:func:`restore_malloc_thresholds`)."""
+"""Non-empty once this worker process is tuned (:func:`~.jobs.single_threaded_blas`,
+:func:`restore_malloc_thresholds`)."""
 
 _thread = threading.local()
 """Per thread of a Dask worker: the scattered worker it last ran a job of, and its own copy of it."""
@@ -166,6 +175,7 @@ def run_job(worker: Worker, job: Job) -> JobResult:
     e.g. the closed loop's collision certifier and its computed distances, serves every later job
     as in the local pool)."""
     if not _process:
+        single_threaded_blas()  # Dask's workers usually start with OPENBLAS_NUM_THREADS=1 already
         _process.append(restore_malloc_thresholds())
     held = getattr(_thread, "worker", None)
     if held is None or held[0] is not worker:

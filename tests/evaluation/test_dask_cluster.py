@@ -4,6 +4,7 @@ and seeds), progress counts the jobs, and bad cluster values are one-line errors
 from __future__ import annotations
 
 import json
+import os
 
 import pytest
 
@@ -48,6 +49,27 @@ def test_local_cluster_gives_the_cells_of_the_local_run() -> None:
         ds, cfg, robot=None, progress=lambda done, total, _: seen.append((done, total)), jobs=cluster
     )
     assert json.dumps(to_json(remote)) == json.dumps(to_json(local))
+    assert seen == [(1, 3), (2, 3), (3, 3)]
+
+
+def test_a_worker_that_dies_costs_a_rerun_not_a_cell(tmp_path) -> None:
+    pytest.importorskip("distributed")
+    from helpers_dask import DyingRunner
+
+    ds = make_synthetic_dataset(n_tasks=2, n_demos=6, seed=5)
+    cfg = EvaluationConfig(
+        protocol="splits", observe=[["orientation"]], grid=[(4, 0.3)], n_test=2, n_splits=3,
+        model_params=TINY_MODEL,
+    )  # fmt: skip
+    local = evaluate(ds, cfg, robot=None, jobs=1)
+    marker = tmp_path / "killed"
+    seen: list[tuple[int, int]] = []
+    runner = DyingRunner(DaskCluster(n_workers=2), marker, index=1)  # worker processes: one is killed
+    remote = evaluate(
+        ds, cfg, robot=None, progress=lambda done, total, _: seen.append((done, total)), jobs=runner
+    )
+    assert marker.exists() and int(marker.read_text()) != os.getpid()  # a worker process died ...
+    assert json.dumps(to_json(remote)) == json.dumps(to_json(local))  # ... and its job was run again
     assert seen == [(1, 3), (2, 3), (3, 3)]
 
 

@@ -33,8 +33,9 @@ import importlib
 import os
 import sys
 import threading
+import time
 import uuid
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from types import ModuleType
 
@@ -104,10 +105,21 @@ class DaskCluster:
         return f"{LOCAL_PREFIX}{self.n_workers}" if self.address is None else self.address
 
     def run(self, worker: Worker, work: Sequence[Job]) -> Iterator[JobResult]:
-        """``worker.run_job`` over the jobs on the cluster (results in completion order)."""
-        distributed = require_dask()
+        """``worker.run_job`` over the jobs on the cluster, started (or connected to) for this call
+        and closed after it (results in completion order)."""
         if not work:
             return
+        session = self.open()
+        try:
+            yield from session.run(worker, work)
+        finally:
+            session.close()
+
+    def open(self, prepare: Callable[[], object] | None = None) -> DaskSession:
+        """Start the local cluster (or connect to the scheduler) and return the session that runs
+        jobs on it until it is closed. ``prepare`` (e.g. :func:`prepare_worker`) is run once on every
+        worker present, as a task, while the caller goes on (e.g. reads the dataset)."""
+        distributed = require_dask()
         cluster = None
         try:
             if self.address is None:
@@ -125,24 +137,89 @@ class DaskCluster:
             if cluster is not None:
                 cluster.close()
             raise ClusterError(f"--cluster {self.label}: cannot reach the scheduler ({exc})") from None
-        try:
-            yield from self._run(distributed, client, worker, work)
-        finally:
-            client.close()
-            if cluster is not None:
-                cluster.close()
+        session = DaskSession(self, distributed, client, cluster)
+        if prepare is not None:
+            session.prepare(prepare)
+        return session
 
-    def _run(
-        self, distributed: ModuleType, client, worker: Worker, work: Sequence[Job]
-    ) -> Iterator[JobResult]:
-        remote = client.scatter(worker, broadcast=True, hash=False)
+
+class DaskSession:
+    """A started local cluster (or a connected scheduler) and its client: a
+    :class:`~.jobs.JobRunner` for every protocol of a run (the workers start, import the package and
+    load the robot once, not once per protocol). :meth:`close` ends it (a local cluster is shut down).
+    """
+
+    def __init__(self, spec: DaskCluster, distributed: ModuleType, client, cluster=None) -> None:
+        self.spec = spec
+        self.distributed = distributed
+        self.client = client
+        self.cluster = cluster
+        self.prepared: list = []
+
+    @property
+    def label(self) -> str:
+        """How the run reports the cluster."""
+        return self.spec.label
+
+    def prepare(self, prepare: Callable[[], object]) -> None:
+        """Run ``prepare`` once on every worker present, as a task (not waited for: the jobs queue
+        behind it)."""
+        workers = list(self.client.scheduler_info().get("workers", {}))
+        self.prepared = [
+            self.client.submit(prepare, key=f"ipromp-prepare-{uuid.uuid4().hex[:8]}", workers=[w], pure=False)
+            for w in workers
+        ]
+
+    def run(self, worker: Worker, work: Sequence[Job]) -> Iterator[JobResult]:
+        """``worker.run_job`` over the jobs, in the order given (results in completion order)."""
+        if not work:
+            return
+        remote = self.client.scatter(worker, broadcast=True, hash=False)
         run_id = uuid.uuid4().hex[:8]
         futures = [
-            client.submit(run_job, remote, job, key=f"ipromp-job-{run_id}-{job.index}", retries=self.retries)
+            self.client.submit(
+                run_job, remote, job, key=f"ipromp-job-{run_id}-{job.index}", retries=self.spec.retries
+            )
             for job in work
         ]
-        for future in distributed.as_completed(futures):
+        for future in self.distributed.as_completed(futures):
             yield future.result()
+
+    def close(self) -> None:
+        """Close the client, and the local cluster if the session started one."""
+        self.prepared = []
+        self.client.close()
+        if self.cluster is not None:
+            self.cluster.close()
+
+    def __enter__(self) -> DaskSession:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def prepare_worker(robot: str | None = None) -> float:
+    """What a worker does before its first job, while the parent reads the dataset: import the
+    evaluation (with the models, the closed loop and its checks), load ``robot`` (cached: the scattered
+    scorers' robot is then this one) and load the model's compiled kernels when they are cached.
+    Returns the time taken in [s]; a failure is left to the first job to report."""
+    t0 = time.perf_counter()
+    try:
+        importlib.import_module("ipromp_pin.evaluation.protocol")
+        importlib.import_module("ipromp_pin.evaluation.scorers.closed_loop")
+        if robot is not None:
+            from ..robot import load_robot
+
+            load_robot(robot)
+        from ..promp.compiled import compiled_kernels_cached, kernel_backend
+        from ..promp.warmup import compile_kernels
+
+        if kernel_backend() == "numba" and compiled_kernels_cached():
+            compile_kernels()
+    except Exception:  # noqa: BLE001 (an optimisation: the jobs report what is wrong)
+        pass
+    return time.perf_counter() - t0
 
 
 def restore_malloc_thresholds() -> bool:

@@ -111,7 +111,7 @@ def single_threaded_blas() -> None:
     """Limit this worker process's BLAS to one thread, for good (the model's fits and predictions
     already run on one, ``IProMP(blas_threads=1)``; the replays' planning, checks and scoring did not).
     With a worker per core, a second BLAS thread per worker only competes for the other workers'
-    cores: on 2 cores, two closed-loop workers spent about 25 % more CPU time with it."""
+    cores (Dask's workers start with ``OPENBLAS_NUM_THREADS=1`` for the same reason)."""
     threadpool_limits(limits=1, user_api="blas")
 
 

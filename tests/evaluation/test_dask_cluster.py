@@ -79,3 +79,34 @@ def test_a_bad_cluster_is_a_one_line_error_before_any_demo_is_read(tmp_path, cap
     assert main(["evaluate", str(tmp_path), "--cluster", "localhost:8786"]) == 2
     err = capsys.readouterr().err
     assert "--cluster: 'localhost:8786' is neither" in err and len(err.strip().splitlines()) == 1
+
+
+def test_a_scheduler_address_runs_both_protocols_of_the_closed_loop_with_the_baselines(tmp_path) -> None:
+    distributed = pytest.importorskip("distributed")
+    pytest.importorskip("sklearn")
+    from test_protocol import _write_dataset
+
+    from ipromp_pin.commands.evaluate import EvaluateRequest, grid_from, run_evaluate
+
+    data = _write_dataset(tmp_path / "data")
+    seen: list[tuple[int, int]] = []
+
+    def request(out, cluster=None):
+        return EvaluateRequest(
+            dataset=data, observe=[["orientation", "emg"]], grid=grid_from("full", [4], [0.2]),
+            protocols=["paper", "splits"], n_test=1, n_splits=2, baselines=True, closed_loop=True,
+            cluster=cluster, json=out, log=lambda line: None,
+            progress=lambda: lambda done, total, _: seen.append((done, total)),
+        )  # fmt: skip
+
+    run_evaluate(request(tmp_path / "local.json"))
+    local = json.loads((tmp_path / "local.json").read_text())["cells"]
+    seen.clear()
+    with distributed.LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=False, dashboard_address=None
+    ) as scheduler:  # an existing scheduler, its workers in threads of this process
+        run_evaluate(request(tmp_path / "remote.json", cluster=scheduler.scheduler_address))
+    remote = json.loads((tmp_path / "remote.json").read_text())["cells"]
+    assert len(local) == 4 and json.dumps(remote) == json.dumps(local)
+    assert {c["protocol"] for c in remote} == {"paper", "splits"}
+    assert seen[-3:] == [(1, 1), (1, 2), (2, 2)]  # jobs done / total, per protocol (after the reading)

@@ -215,9 +215,10 @@ class DaskSession:
 
 def prepare_worker(robot: str | None = None) -> float:
     """What a worker does before its first job, while the parent reads the dataset: import the
-    evaluation (with the models, the closed loop and its checks), load ``robot`` (cached: the scattered
-    scorers' robot is then this one) and load the model's compiled kernels when they are cached.
-    Returns the time taken in [s]; a failure is left to the first job to report."""
+    evaluation (with the models, the closed loop and its checks) and load ``robot`` (cached: the
+    scattered scorers' robot is then this one); a forked worker has both already. The compiled kernels
+    are left to load on first use, as in the local pool. Returns the time taken in [s]; a failure is
+    left to the first job to report."""
     t0 = time.perf_counter()
     try:
         importlib.import_module("ipromp_pin.evaluation.protocol")
@@ -226,11 +227,6 @@ def prepare_worker(robot: str | None = None) -> float:
             from ..robot import load_robot
 
             load_robot(robot)
-        from ..promp.compiled import compiled_kernels_cached, kernel_backend
-        from ..promp.warmup import compile_kernels
-
-        if kernel_backend() == "numba" and compiled_kernels_cached():
-            compile_kernels()
     except Exception:  # noqa: BLE001 (an optimisation: the jobs report what is wrong)
         pass
     return time.perf_counter() - t0

@@ -12,10 +12,12 @@ calls :func:`run_evaluate`.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 
 from .. import atomic, readers
@@ -24,8 +26,9 @@ from ..evaluation.baselines import require_sklearn
 from ..evaluation.cells import Cell
 from ..evaluation.closed_loop import ClosedLoopOptions, evaluate_closed_loop
 from ..evaluation.config import PAPER_GRID, EvaluationConfig, ProgressFn
-from ..evaluation.dask_cluster import DaskCluster, require_dask
+from ..evaluation.dask_cluster import DaskCluster, prepare_worker, require_dask
 from ..evaluation.evaluate import evaluate
+from ..evaluation.jobs import JobRunner
 from ..evaluation.splits import check_dataset_size
 from ..evaluation.tables import (
     closed_loop_markdown,
@@ -193,11 +196,24 @@ def read_dataset(request: EvaluateRequest, robot: Robot) -> Dataset:
     return ds
 
 
-def run_evaluations(request: EvaluateRequest, ds: Dataset) -> list[Cell]:
-    """Every protocol of the request on ``ds`` (one-shot or closed loop), each timed."""
+def open_runner(request: EvaluateRequest) -> contextlib.AbstractContextManager[int | JobRunner]:
+    """Where the request's jobs run, as a context: ``request.jobs`` local processes, or a Dask session
+    (:meth:`~ipromp_pin.evaluation.dask_cluster.DaskCluster.open`) started now, so that its workers
+    start, import the package and load the robot while the dataset is read, and serve every protocol."""
+    if request.cluster is None:
+        return contextlib.nullcontext(request.jobs)
+    return DaskCluster.from_spec(request.cluster).open(partial(prepare_worker, request.robot))
+
+
+def run_evaluations(
+    request: EvaluateRequest, ds: Dataset, where: int | JobRunner | None = None
+) -> list[Cell]:
+    """Every protocol of the request on ``ds`` (one-shot or closed loop), each timed, run ``where``
+    (None: ``request.jobs`` processes or a cluster started for each protocol)."""
     cells: list[Cell] = []
     options = ClosedLoopOptions(limits=request.limits, settings=request.settings())
-    where = request.jobs if request.cluster is None else DaskCluster.from_spec(request.cluster)
+    if where is None:
+        where = request.jobs if request.cluster is None else DaskCluster.from_spec(request.cluster)
     objects = load_objects(request.objects)
     if request.objects is not None:
         objects.check_tasks(ds.tasks)
@@ -249,8 +265,9 @@ def run_evaluate(request: EvaluateRequest) -> list[Cell]:
     """
     robot = check_request(request)
     t0 = time.perf_counter()
-    ds = read_dataset(request, robot)
-    compile_kernels_once()
-    cells = run_evaluations(request, ds)
+    with open_runner(request) as where:
+        ds = read_dataset(request, robot)
+        compile_kernels_once()
+        cells = run_evaluations(request, ds, where)
     report(request, cells, time.perf_counter() - t0)
     return cells

@@ -11,7 +11,7 @@ from collections.abc import Sequence
 from ..data import ROBOT, Dataset
 from .cells import Cell, CellResults, build_cells
 from .config import EvaluationConfig, ProgressFn, observe_key
-from .jobs import Job, JobResult, JobRunner, build_jobs, runner_of
+from .jobs import Job, JobResult, JobRunner, build_jobs, longest_first, runner_of
 from .scorers.base import Scorer
 from .splits import check_dataset_size, take
 
@@ -86,7 +86,7 @@ def run_protocol(
             :class:`~.jobs.JobRunner`, e.g. a Dask cluster); the results do not depend on it.
     """
     check_inputs(dataset, config, [scorer, *extras])
-    work = build_jobs(dataset, config)
+    work = longest_first(build_jobs(dataset, config))
     worker = ProtocolWorker(dataset, scorer, extras)
     finished = []
     for done, result in enumerate(runner_of(jobs).run(worker, work), start=1):

@@ -4,6 +4,7 @@ and seeds), progress counts the jobs, and bad cluster values are one-line errors
 from __future__ import annotations
 
 import json
+import os
 
 import pytest
 
@@ -51,9 +52,61 @@ def test_local_cluster_gives_the_cells_of_the_local_run() -> None:
     assert seen == [(1, 3), (2, 3), (3, 3)]
 
 
+def test_a_worker_that_dies_costs_a_rerun_not_a_cell(tmp_path) -> None:
+    pytest.importorskip("distributed")
+    from helpers_dask import DyingRunner
+
+    ds = make_synthetic_dataset(n_tasks=2, n_demos=6, seed=5)
+    cfg = EvaluationConfig(
+        protocol="splits", observe=[["orientation"]], grid=[(4, 0.3)], n_test=2, n_splits=3,
+        model_params=TINY_MODEL,
+    )  # fmt: skip
+    local = evaluate(ds, cfg, robot=None, jobs=1)
+    marker = tmp_path / "killed"
+    seen: list[tuple[int, int]] = []
+    runner = DyingRunner(DaskCluster(n_workers=2), marker, index=1)  # worker processes: one is killed
+    remote = evaluate(
+        ds, cfg, robot=None, progress=lambda done, total, _: seen.append((done, total)), jobs=runner
+    )
+    assert marker.exists() and int(marker.read_text()) != os.getpid()  # a worker process died ...
+    assert json.dumps(to_json(remote)) == json.dumps(to_json(local))  # ... and its job was run again
+    assert seen == [(1, 3), (2, 3), (3, 3)]
+
+
 def test_a_bad_cluster_is_a_one_line_error_before_any_demo_is_read(tmp_path, capsys) -> None:
     from ipromp_pin.cli import main
 
     assert main(["evaluate", str(tmp_path), "--cluster", "localhost:8786"]) == 2
     err = capsys.readouterr().err
     assert "--cluster: 'localhost:8786' is neither" in err and len(err.strip().splitlines()) == 1
+
+
+def test_a_scheduler_address_runs_both_protocols_of_the_closed_loop_with_the_baselines(tmp_path) -> None:
+    distributed = pytest.importorskip("distributed")
+    pytest.importorskip("sklearn")
+    from test_protocol import _write_dataset
+
+    from ipromp_pin.commands.evaluate import EvaluateRequest, grid_from, run_evaluate
+
+    data = _write_dataset(tmp_path / "data")
+    seen: list[tuple[int, int]] = []
+
+    def request(out, cluster=None):
+        return EvaluateRequest(
+            dataset=data, observe=[["orientation", "emg"]], grid=grid_from("full", [4], [0.2]),
+            protocols=["paper", "splits"], n_test=1, n_splits=1, baselines=True, closed_loop=True,
+            cluster=cluster, json=out, log=lambda line: None,
+            progress=lambda: lambda done, total, _: seen.append((done, total)),
+        )  # fmt: skip
+
+    run_evaluate(request(tmp_path / "local.json"))
+    local = json.loads((tmp_path / "local.json").read_text())["cells"]
+    seen.clear()
+    with distributed.LocalCluster(
+        n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None
+    ) as scheduler:  # an existing scheduler, its worker a thread of this process (one: the robot is shared)
+        run_evaluate(request(tmp_path / "remote.json", cluster=scheduler.scheduler_address))
+    remote = json.loads((tmp_path / "remote.json").read_text())["cells"]
+    assert len(local) == 4 and json.dumps(remote) == json.dumps(local)
+    assert {c["protocol"] for c in remote} == {"paper", "splits"}
+    assert seen[-2:] == [(1, 1), (1, 1)]  # jobs done / total, per protocol (after the reading)

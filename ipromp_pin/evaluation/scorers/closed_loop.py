@@ -264,6 +264,7 @@ class ClosedLoopScorer(Scorer):
         """Fit the model (with the robot's kinematics) and derive the fit's limit profile."""
         if self.certifier_ is None:  # once per process
             self.certifier_ = ClearanceCertifier(self.robot)
+        self.certifier_.clear()  # each job's replays start from no ball, whichever jobs ran before
         if self.human_checks_ is None:
             self.human_checks_ = build_checks(self.robot, HUMAN_CHECKS) if self.options.human else []
         fk = partial(ee_positions, self.robot)  # settings chosen for the hand-over position

@@ -1,6 +1,14 @@
 """Compiled (numba) loops of the human checks: the arm's forward kinematics over many samples and
 the capsule-capsule distances between the robot and the body. Imported on first use (importing
-:mod:`ipromp_pin.human` does not import numba); compiled on the first call and cached on disk."""
+:mod:`ipromp_pin.human` does not import numba); compiled on the first call and cached on disk.
+
+:func:`separation_summary` computes every number as :func:`capsule_distances`,
+:func:`approach_speeds` and :func:`pair_jtu` do, and skips a pair only where bounds prove that it
+cannot matter: the distance is at least the bounding spheres' (``|c_l - c_p| - R_l - R_p``), and the
+speed of any surface point of a robot capsule is at most ``max(|v(a)|, |v(b)|) + r |w|`` (the
+velocity field of a rigid body is affine in the point), so a pair farther than the S_p of that speed
+is outside S_p, and a pair of a capsule slower than the part's ``floor`` never needs its ratio.
+"""
 
 from __future__ import annotations
 
@@ -10,6 +18,9 @@ import numpy as np
 from numba import njit
 
 _JIT = {"cache": True, "nogil": True, "fastmath": False, "error_model": "numpy"}
+_SLACK = 1e-9
+"""Margin [m], [m/s] of the separation summary's bounds: far above the rounding of their sums (1e-15
+at metre scale)."""
 
 
 @njit(**_JIT)
@@ -351,6 +362,222 @@ def _approach_bound(
 
 
 @njit(**_JIT)
+def _chain_velocities(
+    i: int, origins: np.ndarray, axes: np.ndarray, qd: np.ndarray, omega: np.ndarray, v_o: np.ndarray
+) -> None:
+    """Fill ``omega`` (n_joints, 3) [rad/s] with each joint's body angular velocity and ``v_o``
+    (n_joints, 3) [m/s] with the velocity of each joint's origin at sample ``i``."""
+    wx = wy = wz = 0.0
+    for k in range(origins.shape[1]):
+        if k == 0:
+            v_o[0, 0] = v_o[0, 1] = v_o[0, 2] = 0.0
+        else:
+            lx = origins[i, k, 0] - origins[i, k - 1, 0]
+            ly = origins[i, k, 1] - origins[i, k - 1, 1]
+            lz = origins[i, k, 2] - origins[i, k - 1, 2]
+            v_o[k, 0] = v_o[k - 1, 0] + wy * lz - wz * ly
+            v_o[k, 1] = v_o[k - 1, 1] + wz * lx - wx * lz
+            v_o[k, 2] = v_o[k - 1, 2] + wx * ly - wy * lx
+        wx += qd[i, k] * axes[i, k, 0]
+        wy += qd[i, k] * axes[i, k, 1]
+        wz += qd[i, k] * axes[i, k, 2]
+        omega[k, 0], omega[k, 1], omega[k, 2] = wx, wy, wz
+
+
+@njit(**_JIT)
+def _capsule_speed_bounds(
+    i: int,
+    ra: np.ndarray,
+    rb: np.ndarray,
+    rr: np.ndarray,
+    anchor: np.ndarray,
+    origins: np.ndarray,
+    omega: np.ndarray,
+    v_o: np.ndarray,
+    sp_const: float,
+    sp_per_speed: float,
+    end_v: np.ndarray,
+    v_bound: np.ndarray,
+    sp_bound: np.ndarray,
+) -> None:
+    """Per robot capsule at sample ``i``: its end points' velocities ``end_v`` (L, 2, 3) [m/s], the
+    largest speed of any of its surface points ``v_bound`` (L,) [m/s] and that speed's S_p
+    ``sp_bound`` (L,) [m]."""
+    slack = _SLACK
+    for m in range(ra.shape[1]):
+        k = anchor[m]
+        ax, ay, az = omega[k, 0], omega[k, 1], omega[k, 2]
+        top = 0.0
+        for end in range(2):
+            e = ra if end == 0 else rb
+            lx = e[i, m, 0] - origins[i, k, 0]
+            ly = e[i, m, 1] - origins[i, k, 1]
+            lz = e[i, m, 2] - origins[i, k, 2]
+            vx = v_o[k, 0] + ay * lz - az * ly
+            vy = v_o[k, 1] + az * lx - ax * lz
+            vz = v_o[k, 2] + ax * ly - ay * lx
+            top = max(top, math.sqrt(vx * vx + vy * vy + vz * vz))
+            end_v[m, end, 0], end_v[m, end, 1], end_v[m, end, 2] = vx, vy, vz
+        v = top + rr[m] * math.sqrt(ax * ax + ay * ay + az * az) + slack
+        v_bound[m] = v
+        sp_bound[m] = sp_const + v * sp_per_speed + slack
+
+
+@njit(**_JIT)
+def _part_spheres(
+    i: int,
+    ha: np.ndarray,
+    hb: np.ndarray,
+    hr: np.ndarray,
+    body_r: np.ndarray,
+    nominal: np.ndarray,
+    out: np.ndarray,
+) -> None:
+    """Per body part at sample ``i``, into the rows of ``out`` (7, P): its bounding sphere's centre
+    (rows 0-2) [m], the half length of its axis (3) and its reach, half length + radius (4) [m], its
+    inflation (5) [m], and how far past a robot capsule's bounding sphere its nominal clearance can
+    reach (6) [m] (``-inf`` for parts that do not count toward the clearance)."""
+    slack = _SLACK
+    for p in range(ha.shape[1]):
+        d2x, d2y, d2z = hb[i, p, 0] - ha[i, p, 0], hb[i, p, 1] - ha[i, p, 1], hb[i, p, 2] - ha[i, p, 2]
+        out[0, p] = ha[i, p, 0] + 0.5 * d2x
+        out[1, p] = ha[i, p, 1] + 0.5 * d2y
+        out[2, p] = ha[i, p, 2] + 0.5 * d2z
+        out[3, p] = 0.5 * math.sqrt(d2x * d2x + d2y * d2y + d2z * d2z)
+        out[4, p] = out[3, p] + hr[i, p] + slack
+        out[5, p] = hr[i, p] - body_r[p]
+        # the nominal clearance is at least |g| - R_l - reach + infl: how far past R_l it can be
+        out[6, p] = out[4, p] - out[5, p] + slack if nominal[p] else -np.inf
+
+
+@njit(**_JIT)
+def _surface_approach(
+    i: int,
+    k: int,
+    x: tuple[float, float, float],
+    y: tuple[float, float, float],
+    r: float,
+    origins: np.ndarray,
+    omega: np.ndarray,
+    v_o: np.ndarray,
+) -> tuple[float, float, float, float, bool]:
+    """The approach speed [m/s] of the robot capsule of radius ``r`` [m] on joint ``k`` toward a body
+    part at sample ``i``, from the closest points of their axes ``x`` and ``y`` [m], as
+    :func:`approach_speeds` computes it, and the unit direction ``u`` toward the part with whether
+    the two touch (then ``u`` is 0 and the speed is the surface point's whole speed)."""
+    ux, uy, uz = y[0] - x[0], y[1] - x[1], y[2] - x[2]
+    norm = math.sqrt(ux * ux + uy * uy + uz * uz)
+    met = norm <= 1e-9
+    if not met:
+        ux, uy, uz = ux / norm, uy / norm, uz / norm
+    else:
+        ux, uy, uz = 0.0, 0.0, 0.0
+    lx = x[0] + r * ux - origins[i, k, 0]
+    ly = x[1] + r * uy - origins[i, k, 1]
+    lz = x[2] + r * uz - origins[i, k, 2]
+    ax, ay, az = omega[k, 0], omega[k, 1], omega[k, 2]
+    vx = v_o[k, 0] + ay * lz - az * ly
+    vy = v_o[k, 1] + az * lx - ax * lz
+    vz = v_o[k, 2] + ax * ly - ay * lx
+    v = math.sqrt(vx * vx + vy * vy + vz * vz) if met else vx * ux + vy * uy + vz * uz
+    return v, ux, uy, uz, met
+
+
+@njit(**_JIT)
+def _surface_jtu(
+    i: int,
+    k: int,
+    xs: tuple[float, float, float],
+    ux: float,
+    uy: float,
+    uz: float,
+    met: bool,
+    origins: np.ndarray,
+    axes: np.ndarray,
+    qd: np.ndarray,
+    out: np.ndarray,
+) -> None:
+    """``J^T u`` (n_joints,) of the surface point ``xs`` [m] of a capsule on joint ``k`` at sample
+    ``i`` into ``out``, as :func:`pair_jtu` computes it (``met``: the pair touches, so ``u`` is the
+    point's direction of motion; zero when it does not move)."""
+    if met:
+        wvx = wvy = wvz = 0.0
+        for j in range(k + 1):
+            qx = xs[0] - origins[i, j, 0]
+            qy = xs[1] - origins[i, j, 1]
+            qz = xs[2] - origins[i, j, 2]
+            zx, zy, zz = axes[i, j, 0], axes[i, j, 1], axes[i, j, 2]
+            wvx += qd[i, j] * (zy * qz - zz * qy)
+            wvy += qd[i, j] * (zz * qx - zx * qz)
+            wvz += qd[i, j] * (zx * qy - zy * qx)
+        wn = math.sqrt(wvx * wvx + wvy * wvy + wvz * wvz)
+        out[:] = 0.0
+        if wn <= 1e-12:
+            return
+        ux, uy, uz = wvx / wn, wvy / wn, wvz / wn
+    for j in range(out.shape[0]):
+        if j > k:
+            out[j] = 0.0
+            continue
+        qx = xs[0] - origins[i, j, 0]
+        qy = xs[1] - origins[i, j, 1]
+        qz = xs[2] - origins[i, j, 2]
+        ex = qy * uz - qz * uy
+        ey = qz * ux - qx * uz
+        ez = qx * uy - qy * ux
+        out[j] = axes[i, j, 0] * ex + axes[i, j, 1] * ey + axes[i, j, 2] * ez
+
+
+@njit(**_JIT)
+def _last_sample_last(n_i: np.ndarray, last: int) -> np.ndarray:
+    """The order (K,) that moves the leading pairs of sample ``last`` (computed first) behind the
+    others: the order of ``np.nonzero``."""
+    k_pairs = n_i.shape[0]
+    order = np.empty(k_pairs, np.int64)
+    first = 0
+    while first < k_pairs and n_i[first] == last:
+        first += 1
+    for j in range(k_pairs - first):
+        order[j] = first + j
+    for j in range(first):
+        order[k_pairs - first + j] = j
+    return order
+
+
+@njit(**_JIT)
+def _pair_needs(
+    c_m: tuple[float, float, float, float, float, float, float],
+    parts: np.ndarray,
+    p: int,
+    best: float,
+    floor_p: float,
+    inside: bool,
+    end_v: np.ndarray,
+    m: int,
+) -> tuple[bool, bool, bool]:
+    """Whether the pair of robot capsule ``m`` and body part ``p`` needs its distance (it may be
+    closer than ``best`` [m]), its S_p test (it may be within S_p and no pair of the sample is yet:
+    ``inside``) and its contact-speed ratio (it may be within S_p approaching faster than
+    ``floor_p`` [m/s]). ``c_m``: the capsule's bounding sphere centre [m], half length [m], radius
+    [m], speed bound [m/s] and S_p bound [m]; ``parts`` as :func:`_part_spheres` writes it."""
+    cx, cy, cz, half_m, big_r, v_m, sp_m = c_m
+    # the distance is at least |c_l - c_p| - R_l - R_p: compare the squared centre distance
+    gx, gy, gz = cx - parts[0, p], cy - parts[1, p], cz - parts[2, p]
+    g2 = gx * gx + gy * gy + gz * gz
+    x_clear = best + big_r + parts[6, p]
+    want_clear = x_clear > 0.0 and g2 <= x_clear * x_clear
+    want_ratio = want_within = False
+    fast = v_m > floor_p
+    if fast or not inside:
+        far = sp_m + big_r + parts[4, p]
+        if g2 < far * far:  # near enough to be within S_p
+            want_within = not inside
+            if fast:  # and moving toward the part fast enough to need its ratio?
+                want_ratio = _approach_bound(end_v, m, gx, gy, gz, g2, half_m + parts[3, p]) > floor_p
+    return want_clear, want_within, want_ratio
+
+
+@njit(**_JIT)
 def separation_summary(
     ra: np.ndarray,
     rb: np.ndarray,
@@ -368,152 +595,68 @@ def separation_summary(
     sp_const: float,
     sp_per_speed: float,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """What the human checks judge of the robot-body separation, without every pair's numbers.
+    """What the human checks judge of the robot-body separation, without every pair's numbers
+    (bounds skip the pairs that cannot matter: see the module docstring).
 
-    Inputs as :func:`capsule_distances` and :func:`approach_speeds`, plus the body parts' radii
-    before inflation ``body_r`` (P,), which parts count toward the clearance ``nominal`` (P,) (the
-    hand's do not) and the approach speed ``floor`` (P,) [m/s] below which a pair never reaches its
-    planning limit. Returns, per sample (N,), the smallest distance [m] to a counted part at its
-    nominal position (``distance + inflation``; exact at the samples where it is the smallest of the
-    motion, at least the true value elsewhere, ``inf`` where no pair was computed) and whether some
-    pair is closer than S_p; and the pairs within S_p approaching faster than their ``floor``
-    (sample, capsule, part (K,), in the order of ``np.nonzero``, their approach speed [m/s], S_p [m]
-    and ``J^T u`` (K, n_joints), as :func:`pair_jtu`).
-
-    Every number is computed as :func:`capsule_distances`, :func:`approach_speeds` and
-    :func:`pair_jtu` compute it; a pair is skipped only when bounds prove that it cannot matter:
-    the distance is at least the bounding spheres' (``|c_l - c_p| - R_l - R_p``), and the speed of
-    any surface point of a robot capsule is at most ``max(|v(a)|, |v(b)|) + r |w|`` (the velocity
-    field of a rigid body is affine in the point), so a pair farther than the S_p of that speed is
-    outside S_p, and a pair of a capsule slower than the part's ``floor`` never needs its ratio.
+    Inputs as :func:`capsule_distances` and :func:`approach_speeds`, plus the body parts' radii before
+    inflation ``body_r`` (P,), whether each counts toward the clearance ``nominal`` (P,) (the hand's
+    do not) and the approach speed ``floor`` (P,) [m/s] below which a pair never reaches its planning
+    limit. Returns per sample (N,) the smallest distance [m] to a counted part at its nominal position
+    (``distance + inflation``: exact where it is the motion's smallest, at least the true value
+    elsewhere, ``inf`` where no pair was computed) and whether some pair is within S_p; and the pairs
+    within S_p approaching faster than their ``floor``: sample, capsule, part (K,) in the order of
+    ``np.nonzero``, approach speed [m/s], S_p [m] and ``J^T u`` (K, n_joints) as :func:`pair_jtu`.
     """
     n, nl = ra.shape[0], ra.shape[1]
-    npart = ha.shape[1]
-    nj = origins.shape[1]
-    clear = np.full(n, np.inf)
-    within = np.zeros(n, np.bool_)
-    cap = 256
-    n_i = np.empty(cap, np.int64)
-    l_i = np.empty(cap, np.int64)
-    p_i = np.empty(cap, np.int64)
-    app = np.empty(cap)
-    sp = np.empty(cap)
-    jtu = np.empty((cap, nj))
+    npart, nj = ha.shape[1], origins.shape[1]
+    clear, within = np.full(n, np.inf), np.zeros(n, np.bool_)
+    cap = 256  # rows of the pair buffers (grown when full)
+    n_i, l_i, p_i = np.empty(cap, np.int64), np.empty(cap, np.int64), np.empty(cap, np.int64)
+    app, sp, jtu = np.empty(cap), np.empty(cap), np.empty((cap, nj))
     k_pairs = 0
-    omega = np.empty((nj, 3))
-    v_o = np.empty((nj, 3))
-    v_bound = np.empty(nl)
-    sp_bound = np.empty(nl)
-    centre_x, centre_y, centre_z = np.empty(npart), np.empty(npart), np.empty(npart)
-    reach = np.empty(npart)
-    half = np.empty(npart)
-    infl = np.empty(npart)
-    reach_clear = np.empty(npart)
+    omega, v_o = np.empty((nj, 3)), np.empty((nj, 3))
+    v_bound, sp_bound = np.empty(nl), np.empty(nl)
+    parts = np.empty((7, npart))  # per body part: bounding sphere centre (3), half, reach, infl, reach_clear
     end_v = np.empty((nl, 2, 3))  # the velocities of the capsules' end points
-    slack = 1e-9  # [m], [m/s]: far above the rounding of these sums (1e-15 at metre scale)
     best = np.inf  # the smallest nominal clearance computed so far (at least the motion's)
     for step in range(n):
         i = n - 1 if step == 0 else step - 1  # the last sample first: the hand-over, usually closest
-        wx = wy = wz = 0.0
-        for k in range(nj):
-            if k == 0:
-                v_o[0, 0] = v_o[0, 1] = v_o[0, 2] = 0.0
-            else:
-                lx = origins[i, k, 0] - origins[i, k - 1, 0]
-                ly = origins[i, k, 1] - origins[i, k - 1, 1]
-                lz = origins[i, k, 2] - origins[i, k - 1, 2]
-                v_o[k, 0] = v_o[k - 1, 0] + wy * lz - wz * ly
-                v_o[k, 1] = v_o[k - 1, 1] + wz * lx - wx * lz
-                v_o[k, 2] = v_o[k - 1, 2] + wx * ly - wy * lx
-            wx += qd[i, k] * axes[i, k, 0]
-            wy += qd[i, k] * axes[i, k, 1]
-            wz += qd[i, k] * axes[i, k, 2]
-            omega[k, 0], omega[k, 1], omega[k, 2] = wx, wy, wz
-        for m in range(nl):  # the fastest any surface point of capsule m moves, and its S_p
-            k = anchor[m]
-            ax, ay, az = omega[k, 0], omega[k, 1], omega[k, 2]
-            top = 0.0
-            for end in range(2):
-                e = ra if end == 0 else rb
-                lx = e[i, m, 0] - origins[i, k, 0]
-                ly = e[i, m, 1] - origins[i, k, 1]
-                lz = e[i, m, 2] - origins[i, k, 2]
-                vx = v_o[k, 0] + ay * lz - az * ly
-                vy = v_o[k, 1] + az * lx - ax * lz
-                vz = v_o[k, 2] + ax * ly - ay * lx
-                top = max(top, math.sqrt(vx * vx + vy * vy + vz * vz))
-                end_v[m, end, 0], end_v[m, end, 1], end_v[m, end, 2] = vx, vy, vz
-            v = top + rr[m] * math.sqrt(ax * ax + ay * ay + az * az) + slack
-            v_bound[m] = v
-            sp_bound[m] = sp_const + v * sp_per_speed + slack
-        for p in range(npart):  # the body parts' bounding spheres: centre and radius
-            d2x, d2y, d2z = hb[i, p, 0] - ha[i, p, 0], hb[i, p, 1] - ha[i, p, 1], hb[i, p, 2] - ha[i, p, 2]
-            centre_x[p] = ha[i, p, 0] + 0.5 * d2x
-            centre_y[p] = ha[i, p, 1] + 0.5 * d2y
-            centre_z[p] = ha[i, p, 2] + 0.5 * d2z
-            half[p] = 0.5 * math.sqrt(d2x * d2x + d2y * d2y + d2z * d2z)
-            reach[p] = half[p] + hr[i, p] + slack
-            infl[p] = hr[i, p] - body_r[p]
-            # the nominal clearance is at least |g| - R_l - reach + infl: how far past R_l it can be
-            reach_clear[p] = reach[p] - infl[p] + slack if nominal[p] else -np.inf
+        _chain_velocities(i, origins, axes, qd, omega, v_o)
+        _capsule_speed_bounds(
+            i, ra, rb, rr, anchor, origins, omega, v_o, sp_const, sp_per_speed, end_v, v_bound, sp_bound
+        )
+        _part_spheres(i, ha, hb, hr, body_r, nominal, parts)
         inside = False
         for m in range(nl):
             p1x, p1y, p1z = ra[i, m, 0], ra[i, m, 1], ra[i, m, 2]
             d1x, d1y, d1z = rb[i, m, 0] - p1x, rb[i, m, 1] - p1y, rb[i, m, 2] - p1z
-            cx, cy, cz = p1x + 0.5 * d1x, p1y + 0.5 * d1y, p1z + 0.5 * d1z
+            cx, cy, cz = p1x + 0.5 * d1x, p1y + 0.5 * d1y, p1z + 0.5 * d1z  # bounding sphere
             half_m = 0.5 * math.sqrt(d1x * d1x + d1y * d1y + d1z * d1z)
-            big_r = half_m + rr[m]
-            k = anchor[m]
-            v_m, sp_m = v_bound[m], sp_bound[m]
+            big_r, k = half_m + rr[m], anchor[m]
             for p in range(npart):
-                # the distance is at least |c_l - c_p| - R_l - R_p: compare the squared centre distance
-                gx, gy, gz = cx - centre_x[p], cy - centre_y[p], cz - centre_z[p]
-                g2 = gx * gx + gy * gy + gz * gz
-                x_clear = best + big_r + reach_clear[p]
-                want_clear = x_clear > 0.0 and g2 <= x_clear * x_clear
-                want_ratio = want_within = False
-                fast = v_m > floor[p]
-                if fast or not inside:
-                    far = sp_m + big_r + reach[p]
-                    if g2 < far * far:  # near enough to be within S_p
-                        want_within = not inside
-                        if fast:  # and moving toward the part fast enough to need its ratio?
-                            want_ratio = (
-                                _approach_bound(end_v, m, gx, gy, gz, g2, half_m + half[p]) > floor[p]
-                            )
+                c_m = (cx, cy, cz, half_m, big_r, v_bound[m], sp_bound[m])
+                want_clear, want_within, want_ratio = _pair_needs(
+                    c_m, parts, p, best, floor[p], inside, end_v, m
+                )
                 if not (want_ratio or want_within or want_clear):
                     continue
-                infl_p = infl[p]
                 p2x, p2y, p2z = ha[i, p, 0], ha[i, p, 1], ha[i, p, 2]
                 d2x, d2y, d2z = hb[i, p, 0] - p2x, hb[i, p, 1] - p2y, hb[i, p, 2] - p2z
                 s, t = _closest(p1x, p1y, p1z, d1x, d1y, d1z, p2x, p2y, p2z, d2x, d2y, d2z)
-                x0, x1, x2 = p1x + s * d1x, p1y + s * d1y, p1z + s * d1z
-                y0, y1, y2 = p2x + t * d2x, p2y + t * d2y, p2z + t * d2z
-                dist = math.sqrt((x0 - y0) ** 2 + (x1 - y1) ** 2 + (x2 - y2) ** 2) - rr[m] - hr[i, p]
+                x = (p1x + s * d1x, p1y + s * d1y, p1z + s * d1z)
+                y = (p2x + t * d2x, p2y + t * d2y, p2z + t * d2z)
+                dist = (
+                    math.sqrt((x[0] - y[0]) ** 2 + (x[1] - y[1]) ** 2 + (x[2] - y[2]) ** 2) - rr[m] - hr[i, p]
+                )
                 if nominal[p]:
-                    d_nom = dist + infl_p
+                    d_nom = dist + parts[5, p]
                     if d_nom < clear[i]:
                         clear[i] = d_nom
                     if d_nom < best:
                         best = d_nom
                 if not (want_ratio or want_within):
                     continue
-                # the approach speed as approach_speeds computes it
-                ux, uy, uz = y0 - x0, y1 - x1, y2 - x2
-                norm = math.sqrt(ux * ux + uy * uy + uz * uz)
-                met = norm <= 1e-9
-                if not met:
-                    ux, uy, uz = ux / norm, uy / norm, uz / norm
-                else:
-                    ux, uy, uz = 0.0, 0.0, 0.0
-                lx = x0 + rr[m] * ux - origins[i, k, 0]
-                ly = x1 + rr[m] * uy - origins[i, k, 1]
-                lz = x2 + rr[m] * uz - origins[i, k, 2]
-                ax, ay, az = omega[k, 0], omega[k, 1], omega[k, 2]
-                vx = v_o[k, 0] + ay * lz - az * ly
-                vy = v_o[k, 1] + az * lx - ax * lz
-                vz = v_o[k, 2] + ax * ly - ay * lx
-                v = math.sqrt(vx * vx + vy * vy + vz * vz) if met else vx * ux + vy * uy + vz * uz
+                v, ux, uy, uz, met = _surface_approach(i, k, x, y, rr[m], origins, omega, v_o)
                 protective = sp_const + max(v, 0.0) * sp_per_speed
                 if not dist < protective:
                     continue
@@ -524,56 +667,12 @@ def separation_summary(
                     n_i, l_i, p_i, app, sp, jtu = _grow_pairs(n_i, l_i, p_i, app, sp, jtu)
                 n_i[k_pairs], l_i[k_pairs], p_i[k_pairs] = i, m, p
                 app[k_pairs], sp[k_pairs] = v, protective
-                # J^T u of the closest surface point, as pair_jtu computes it
-                xs0, xs1, xs2 = x0 + rr[m] * ux, x1 + rr[m] * uy, x2 + rr[m] * uz
-                if met:
-                    wvx = wvy = wvz = 0.0
-                    for j in range(k + 1):
-                        qx = xs0 - origins[i, j, 0]
-                        qy = xs1 - origins[i, j, 1]
-                        qz = xs2 - origins[i, j, 2]
-                        zx, zy, zz = axes[i, j, 0], axes[i, j, 1], axes[i, j, 2]
-                        wvx += qd[i, j] * (zy * qz - zz * qy)
-                        wvy += qd[i, j] * (zz * qx - zx * qz)
-                        wvz += qd[i, j] * (zx * qy - zy * qx)
-                    wn = math.sqrt(wvx * wvx + wvy * wvy + wvz * wvz)
-                    jtu[k_pairs, :] = 0.0
-                    if wn <= 1e-12:
-                        k_pairs += 1
-                        continue
-                    ux, uy, uz = wvx / wn, wvy / wn, wvz / wn
-                for j in range(nj):
-                    if j > k:
-                        jtu[k_pairs, j] = 0.0
-                        continue
-                    qx = xs0 - origins[i, j, 0]
-                    qy = xs1 - origins[i, j, 1]
-                    qz = xs2 - origins[i, j, 2]
-                    ex = qy * uz - qz * uy
-                    ey = qz * ux - qx * uz
-                    ez = qx * uy - qy * ux
-                    jtu[k_pairs, j] = axes[i, j, 0] * ex + axes[i, j, 1] * ey + axes[i, j, 2] * ez
+                xs = (x[0] + rr[m] * ux, x[1] + rr[m] * uy, x[2] + rr[m] * uz)  # the closest surface point
+                _surface_jtu(i, k, xs, ux, uy, uz, met, origins, axes, qd, jtu[k_pairs])
                 k_pairs += 1
         within[i] = inside
-    # the last sample was done first: put its pairs last (the order of np.nonzero)
-    order = np.empty(k_pairs, np.int64)
-    first = 0
-    while first < k_pairs and n_i[first] == n - 1:
-        first += 1
-    for j in range(k_pairs - first):
-        order[j] = first + j
-    for j in range(first):
-        order[k_pairs - first + j] = j
-    return (
-        clear,
-        within,
-        n_i[order],
-        l_i[order],
-        p_i[order],
-        app[order],
-        sp[order],
-        jtu[order],
-    )
+    order = _last_sample_last(n_i[:k_pairs], n - 1)
+    return clear, within, n_i[order], l_i[order], p_i[order], app[order], sp[order], jtu[order]
 
 
 @njit(**_JIT)

@@ -24,6 +24,32 @@ at metre scale)."""
 
 
 @njit(**_JIT)
+def _axis_rotation(x: float, y: float, z: float, angle: float, out: np.ndarray) -> None:
+    """The rotation (3, 3) by ``angle`` [rad] about the unit axis ``(x, y, z)`` into ``out``
+    (Rodrigues' formula)."""
+    c_, s_ = math.cos(angle), math.sin(angle)
+    t_ = 1.0 - c_
+    out[0, 0] = c_ + t_ * x * x
+    out[0, 1] = t_ * x * y - s_ * z
+    out[0, 2] = t_ * x * z + s_ * y
+    out[1, 0] = t_ * x * y + s_ * z
+    out[1, 1] = c_ + t_ * y * y
+    out[1, 2] = t_ * y * z - s_ * x
+    out[2, 0] = t_ * x * z - s_ * y
+    out[2, 1] = t_ * y * z + s_ * x
+    out[2, 2] = c_ + t_ * z * z
+
+
+@njit(**_JIT)
+def _rotate(rot: np.ndarray, by: np.ndarray, tmp: np.ndarray) -> None:
+    """``rot <- rot @ by`` for (3, 3) matrices, through the scratch matrix ``tmp``."""
+    for r in range(3):
+        for c in range(3):
+            tmp[r, c] = rot[r, 0] * by[0, c] + rot[r, 1] * by[1, c] + rot[r, 2] * by[2, c]
+    rot[:] = tmp
+
+
+@njit(**_JIT)
 def arm_frames(
     q: np.ndarray,
     x0: np.ndarray,
@@ -59,22 +85,8 @@ def arm_frames(
             for r in range(3):
                 axes[i, k, r] = rot[r, 0] * axis[k, 0] + rot[r, 1] * axis[k, 1] + rot[r, 2] * axis[k, 2]
             # Rodrigues rotation about the local axis by q[i, k]
-            x, y, z = axis[k, 0], axis[k, 1], axis[k, 2]
-            c_, s_ = math.cos(q[i, k]), math.sin(q[i, k])
-            t_ = 1.0 - c_
-            kx[0, 0] = c_ + t_ * x * x
-            kx[0, 1] = t_ * x * y - s_ * z
-            kx[0, 2] = t_ * x * z + s_ * y
-            kx[1, 0] = t_ * x * y + s_ * z
-            kx[1, 1] = c_ + t_ * y * y
-            kx[1, 2] = t_ * y * z - s_ * x
-            kx[2, 0] = t_ * x * z - s_ * y
-            kx[2, 1] = t_ * y * z + s_ * x
-            kx[2, 2] = c_ + t_ * z * z
-            for r in range(3):
-                for c in range(3):
-                    tmp[r, c] = rot[r, 0] * kx[0, c] + rot[r, 1] * kx[1, c] + rot[r, 2] * kx[2, c]
-            rot[:] = tmp
+            _axis_rotation(axis[k, 0], axis[k, 1], axis[k, 2], q[i, k], kx)
+            _rotate(rot, kx, tmp)
             rots[k] = rot
         for m in range(nl):
             k = anchor[m]
@@ -718,22 +730,8 @@ def chain_mass_matrices(
                         + rot[r, 2] * placement[k, 2, cc]
                     )
             rot[:] = tmp
-            x, y, w = axis[k, 0], axis[k, 1], axis[k, 2]
-            ca, sa = math.cos(q[si, k]), math.sin(q[si, k])
-            t_ = 1.0 - ca
-            kx[0, 0] = ca + t_ * x * x
-            kx[0, 1] = t_ * x * y - sa * w
-            kx[0, 2] = t_ * x * w + sa * y
-            kx[1, 0] = t_ * x * y + sa * w
-            kx[1, 1] = ca + t_ * y * y
-            kx[1, 2] = t_ * y * w - sa * x
-            kx[2, 0] = t_ * x * w - sa * y
-            kx[2, 1] = t_ * y * w + sa * x
-            kx[2, 2] = ca + t_ * w * w
-            for r in range(3):
-                for cc in range(3):
-                    tmp[r, cc] = rot[r, 0] * kx[0, cc] + rot[r, 1] * kx[1, cc] + rot[r, 2] * kx[2, cc]
-            rot[:] = tmp
+            _axis_rotation(axis[k, 0], axis[k, 1], axis[k, 2], q[si, k], kx)
+            _rotate(rot, kx, tmp)
             for r in range(3):
                 o[k, r] = pos[r]
                 z[k, r] = rot[r, 0] * axis[k, 0] + rot[r, 1] * axis[k, 1] + rot[r, 2] * axis[k, 2]

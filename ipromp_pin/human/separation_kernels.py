@@ -199,22 +199,7 @@ def approach_speeds(
     omega = np.empty((nj, 3))  # angular velocity of joint k's body
     v_o = np.empty((nj, 3))  # velocity of joint k's origin
     for i in range(n):
-        wx = wy = wz = 0.0
-        for k in range(nj):
-            # v(o_k) = sum_{j<k} qd_j z_j x (o_k - o_j) = v(o_{k-1}) + w_{k-1} x (o_k - o_{k-1})
-            if k == 0:
-                v_o[0, 0] = v_o[0, 1] = v_o[0, 2] = 0.0
-            else:
-                lx = origins[i, k, 0] - origins[i, k - 1, 0]
-                ly = origins[i, k, 1] - origins[i, k - 1, 1]
-                lz = origins[i, k, 2] - origins[i, k - 1, 2]
-                v_o[k, 0] = v_o[k - 1, 0] + wy * lz - wz * ly
-                v_o[k, 1] = v_o[k - 1, 1] + wz * lx - wx * lz
-                v_o[k, 2] = v_o[k - 1, 2] + wx * ly - wy * lx
-            wx += qd[i, k] * axes[i, k, 0]
-            wy += qd[i, k] * axes[i, k, 1]
-            wz += qd[i, k] * axes[i, k, 2]
-            omega[k, 0], omega[k, 1], omega[k, 2] = wx, wy, wz
+        _chain_velocities(i, origins, axes, qd, omega, v_o)
         for m in range(nl):
             k = anchor[m]
             for p in range(npart):
@@ -381,6 +366,7 @@ def _chain_velocities(
     (n_joints, 3) [m/s] with the velocity of each joint's origin at sample ``i``."""
     wx = wy = wz = 0.0
     for k in range(origins.shape[1]):
+        # v(o_k) = sum_{j<k} qd_j z_j x (o_k - o_j) = v(o_{k-1}) + w_{k-1} x (o_k - o_{k-1})
         if k == 0:
             v_o[0, 0] = v_o[0, 1] = v_o[0, 2] = 0.0
         else:

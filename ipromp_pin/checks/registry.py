@@ -10,6 +10,7 @@ from collections.abc import Iterable, Sequence
 
 from ..exceptions import PipelineError
 from ..human.separation import SeparationAnalyser
+from ..human.separation_summary import SeparationSummariser
 from ..robot import CheckResult, Robot
 from .base import CheckContext, MotionCheck, TimedMotion
 from .contact_speed import ContactSpeed
@@ -23,7 +24,7 @@ MOTION_CHECKS: tuple[type[MotionCheck], ...] = (HumanClearance, ContactSpeed, Jo
 
 def build_checks(robot: Robot, names: Iterable[str] | None = None) -> list[MotionCheck]:
     """The registered checks for ``robot`` (all, or those named, in registry order); the separation
-    checks share one :class:`~ipromp_pin.human.separation.SeparationAnalyser`.
+    checks share one :class:`~ipromp_pin.human.separation_summary.SeparationSummariser`.
 
     Raises:
         PipelineError: an unknown check name.
@@ -33,7 +34,7 @@ def build_checks(robot: Robot, names: Iterable[str] | None = None) -> list[Motio
     unknown = [n for n in wanted if n not in known]
     if unknown:
         raise PipelineError(f"unknown motion check(s) {unknown}; known: {sorted(known)}")
-    shared = SeparationAnalyser(robot)  # one separation per motion for every separation check
+    shared = SeparationSummariser(SeparationAnalyser(robot))  # one separation per motion for them all
     return [
         c(robot, shared) if issubclass(c, SeparationCheck) else c(robot)
         for c in MOTION_CHECKS

@@ -1,8 +1,9 @@
 """The base of the checks judged on the robot-body separation (``human_clearance``, ``contact_speed``).
 
-A :class:`SeparationCheck` holds a :class:`~ipromp_pin.human.separation.SeparationAnalyser`: the
-checks that :func:`~.registry.build_checks` builds together share one, so the separation of a motion
-is computed once for all of them (the analyser keeps its last result). The checks judge its
+A :class:`SeparationCheck` holds a :class:`~ipromp_pin.human.separation_summary.SeparationSummariser`
+over a :class:`~ipromp_pin.human.separation.SeparationAnalyser`: the checks that
+:func:`~.registry.build_checks` builds together share one, so the separation of a motion is computed
+once for all of them (each keeps its last result). The checks judge its
 :class:`~ipromp_pin.human.separation_summary.SeparationSummary` (:meth:`SeparationCheck.summary`):
 the numbers they report, without every pair's (:meth:`SeparationCheck.separation` gives those).
 """
@@ -13,7 +14,7 @@ import numpy as np
 
 from ..human import HumanMotion
 from ..human.separation import Separation, SeparationAnalyser
-from ..human.separation_summary import SeparationSummary
+from ..human.separation_summary import SeparationSummariser, SeparationSummary
 from ..robot import Robot
 from .base import CheckContext, MotionCheck, TimedMotion
 
@@ -23,13 +24,20 @@ class SeparationCheck(MotionCheck):
 
     Args:
         robot: The loaded robot.
-        analyser: The separation analyser to use (shared by the checks built together; default: one
-            of this check's own, with the robot's human settings).
+        summariser: The summariser (and its separation analyser) to use (shared by the checks built
+            together; default: one of this check's own, with the robot's human settings).
+
+    Attributes:
+        summariser: The summariser.
+        analyser: Its separation analyser.
     """
 
-    def __init__(self, robot: Robot, analyser: SeparationAnalyser | None = None) -> None:
+    def __init__(self, robot: Robot, summariser: SeparationSummariser | None = None) -> None:
         super().__init__(robot)
-        self.analyser = analyser if analyser is not None else SeparationAnalyser(robot)
+        self.summariser = (
+            summariser if summariser is not None else SeparationSummariser(SeparationAnalyser(robot))
+        )
+        self.analyser = self.summariser.analyser
 
     def human(self, context: CheckContext) -> HumanMotion:
         """The context's human, or the robot settings' assumed human when the context has none."""
@@ -43,7 +51,7 @@ class SeparationCheck(MotionCheck):
 
     def summary(self, motion: TimedMotion, context: CheckContext) -> SeparationSummary:
         """What the separation checks judge of the robot-body separation along ``motion``."""
-        return self.analyser.summary(motion.t_s, motion.q, motion.qd, self.human(context))
+        return self.summariser.summary(motion.t_s, motion.q, motion.qd, self.human(context))
 
 
 def time_within_sp_s(sep: Separation | SeparationSummary) -> float:

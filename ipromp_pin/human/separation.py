@@ -16,7 +16,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import cached_property
-from typing import TYPE_CHECKING
 
 import numpy as np
 import pinocchio as pin
@@ -39,9 +38,6 @@ from .robot_capsules import (
     arm_kinematics,
     fit_robot_capsules,
 )
-
-if TYPE_CHECKING:
-    from .separation_summary import SeparationSummary
 
 HAND_REGION = "hand"
 """The body region of the intended hand-over contact: judged by its contact-speed limit only."""
@@ -174,7 +170,6 @@ class SeparationAnalyser:
         self._capsules: RobotCapsules | None = None
         self._arm_model: pin.Model | None = None
         self._last: tuple[tuple, Separation] | None = None
-        self._last_summary: tuple[tuple, SeparationSummary] | None = None
         self._limits: tuple[tuple, tuple[np.ndarray, ...]] | None = None
 
     @property
@@ -235,23 +230,6 @@ class SeparationAnalyser:
             regions=tuple(human.regions.tolist()),
             human=human.label,
         )
-
-    def summary(
-        self, t_s: np.ndarray, q: np.ndarray, qd: np.ndarray, human: HumanMotion
-    ) -> SeparationSummary:
-        """What the human checks judge of the separation along a motion (same inputs as
-        :meth:`analyse`; :mod:`.separation_summary`): the same numbers without every pair's. The last
-        result is kept, as :meth:`analyse` keeps its own."""
-        from .separation_summary import summarise
-
-        key = (t_s, q, qd, human)
-        if self._last_summary is not None and all(
-            a is b for a, b in zip(self._last_summary[0], key, strict=True)
-        ):
-            return self._last_summary[1]
-        result = summarise(self, np.asarray(t_s, dtype=float), q, qd, human)
-        self._last_summary = (key, result)
-        return result
 
     def contact_floor(self, human: HumanMotion) -> np.ndarray:
         """Per body part (P,) the approach speed [m/s] at or below which no pair reaches the planning

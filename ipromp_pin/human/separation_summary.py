@@ -189,3 +189,34 @@ def summarise(
         regions=regions,
         human=human.label,
     )
+
+
+class SeparationSummariser:
+    """The summaries of one :class:`~.separation.SeparationAnalyser`'s motions, the last one kept
+    (the separation checks built together share one, so that a motion is summarised once for all
+    of them).
+
+    Args:
+        analyser: The separation analyser.
+
+    Attributes:
+        analyser: The separation analyser.
+    """
+
+    def __init__(self, analyser: SeparationAnalyser) -> None:
+        self.analyser = analyser
+        self._last: tuple[tuple, SeparationSummary] | None = None
+
+    def summary(
+        self, t_s: np.ndarray, q: np.ndarray, qd: np.ndarray, human: HumanMotion
+    ) -> SeparationSummary:
+        """What the human checks judge of the separation along a motion (the inputs of
+        :meth:`~.separation.SeparationAnalyser.analyse`: times (N,) [s], joint angles and velocities
+        (N, n_joints) [rad], [rad/s], the human): the same numbers without every pair's. The result
+        for the same input objects is the last one."""
+        key = (t_s, q, qd, human)
+        if self._last is not None and all(a is b for a, b in zip(self._last[0], key, strict=True)):
+            return self._last[1]
+        result = summarise(self.analyser, np.asarray(t_s, dtype=float), q, qd, human)
+        self._last = (key, result)
+        return result

@@ -15,6 +15,7 @@ from .body import HumanMotion
 from .iso15066 import arm_mass_matrices
 from .kernels import human_kernels_cached
 from .separation import SeparationAnalyser
+from .separation_summary import SeparationSummariser
 
 __all__ = ["compile_kernels"]
 
@@ -31,7 +32,7 @@ def compile_kernels() -> float:
         analyser = SeparationAnalyser(robot)
         human = HumanMotion.assumed_human(t_s=t)
         analyser.analyse(t, q, qd, human)
-        analyser.summary(t, q, qd, human)
+        SeparationSummariser(analyser).summary(t, q, qd, human)
         arm_mass_matrices(robot, q, compiled=True)  # a summary calls it only near the human
         # the effective-mass kernels run only for close, fast pairs: call them once directly
         caps = analyser.capsules

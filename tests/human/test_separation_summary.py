@@ -12,7 +12,7 @@ import pytest
 from ipromp_pin.human.body import BODY_PARTS, HumanMotion, _frame_list
 from ipromp_pin.human.iso15066 import arm_mass_matrices, arm_model
 from ipromp_pin.human.separation import HAND_REGION, Separation, SeparationAnalyser, sample_groups
-from ipromp_pin.human.separation_summary import SeparationSummary
+from ipromp_pin.human.separation_summary import SeparationSummariser, SeparationSummary
 from ipromp_pin.promp.compiled import use_kernels
 from ipromp_pin.robot import ee_positions, load_robot
 
@@ -131,18 +131,19 @@ def test_the_summary_gives_the_full_separations_numbers_for_every_slowed_round(r
     human = _tracked(robot, rng) if who == "tracked" else _assumed(robot)
     seen = human.until(0.6)  # as known at a re-plan: every sample of the motion after it
     analyser = SeparationAnalyser(robot)
+    summariser = SeparationSummariser(analyser)
     fast_pairs = 0
     with use_kernels(backend):
         for k in (1.0, 1.7, 3.0):  # the first round and slowed re-timings of the same path
             t, q, qd = _motion(0.6, 0.6, k)
             full = analyser.analyse(t, q, qd, seen)
-            summary = analyser.summary(t, q, qd, seen)
+            summary = summariser.summary(t, q, qd, seen)
             _assert_same(_full(full), _summary(summary))
-            assert analyser.summary(t, q, qd, seen) is summary  # kept for the next check
+            assert summariser.summary(t, q, qd, seen) is summary  # kept for the next check
             fast_pairs += int(np.count_nonzero(full.speed_ratio))
         # and against the whole recorded human (no horizon: the general placement)
         t, q, qd = _motion(0.3, 0.8)
-        _assert_same(_full(analyser.analyse(t, q, qd, human)), _summary(analyser.summary(t, q, qd, human)))
+        _assert_same(_full(analyser.analyse(t, q, qd, human)), _summary(summariser.summary(t, q, qd, human)))
     assert fast_pairs > 0  # the cases exercise the contact-speed ratios
 
 

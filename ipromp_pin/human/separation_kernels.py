@@ -203,23 +203,9 @@ def approach_speeds(
         for m in range(nl):
             k = anchor[m]
             for p in range(npart):
-                ux = ch[i, m, p, 0] - cr[i, m, p, 0]
-                uy = ch[i, m, p, 1] - cr[i, m, p, 1]
-                uz = ch[i, m, p, 2] - cr[i, m, p, 2]
-                norm = math.sqrt(ux * ux + uy * uy + uz * uz)
-                met = norm <= 1e-9
-                if not met:
-                    ux, uy, uz = ux / norm, uy / norm, uz / norm
-                else:
-                    ux, uy, uz = 0.0, 0.0, 0.0
-                lx = cr[i, m, p, 0] + rr[m] * ux - origins[i, k, 0]
-                ly = cr[i, m, p, 1] + rr[m] * uy - origins[i, k, 1]
-                lz = cr[i, m, p, 2] + rr[m] * uz - origins[i, k, 2]
-                ax, ay, az = omega[k, 0], omega[k, 1], omega[k, 2]
-                vx = v_o[k, 0] + ay * lz - az * ly
-                vy = v_o[k, 1] + az * lx - ax * lz
-                vz = v_o[k, 2] + ax * ly - ay * lx
-                v = math.sqrt(vx * vx + vy * vy + vz * vz) if met else vx * ux + vy * uy + vz * uz
+                x = (cr[i, m, p, 0], cr[i, m, p, 1], cr[i, m, p, 2])
+                y = (ch[i, m, p, 0], ch[i, m, p, 1], ch[i, m, p, 2])
+                v, ux, uy, uz, met = _surface_approach(i, k, x, y, rr[m], origins, omega, v_o)
                 app[i, m, p] = v
                 sp[i, m, p] = sp_const + max(v, 0.0) * sp_per_speed
                 if met:

@@ -22,7 +22,7 @@ import numpy as np
 
 from ..robot import CheckResult
 from .base import CheckContext, TimedMotion
-from .separation_base import SeparationCheck, time_within_sp_s
+from .separation_base import SeparationCheck
 
 SLOWDOWN_MARGIN = 1.02
 """Factor on the requested slow-down so that the re-timed motion passes with a little room."""
@@ -55,7 +55,7 @@ class ContactSpeed(SeparationCheck):
             "v_max_m_s": speed / worst if worst > 0 else None,
             "robot_mass_kg": sep.robot_mass_kg if worst > 0 else None,
             "protective_distance_m": sep.protective_m if worst > 0 else None,
-            "time_within_sp_s": time_within_sp_s(sep),
+            "time_within_sp_s": sep.time_within_sp_s,
             "human": sep.human,
         }
         who = "assumed human" if sep.human == "assumed" else "tracked human"

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 from ..robot import CheckResult
 from .base import CheckContext, TimedMotion
-from .separation_base import SeparationCheck, time_within_sp_s
+from .separation_base import SeparationCheck
 
 
 class HumanClearance(SeparationCheck):
@@ -39,7 +39,7 @@ class HumanClearance(SeparationCheck):
             "body_part": part,
             "t_s": t,
             "protective_distance_m": sep.clearance_protective_m,
-            "time_within_sp_s": time_within_sp_s(sep),
+            "time_within_sp_s": sep.time_within_sp_s,
             "min_required_m": limit,
             "human": sep.human,
         }

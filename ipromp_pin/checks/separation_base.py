@@ -10,8 +10,6 @@ the numbers they report, without every pair's (:meth:`SeparationCheck.separation
 
 from __future__ import annotations
 
-import numpy as np
-
 from ..human import HumanMotion
 from ..human.separation import Separation, SeparationAnalyser
 from ..human.separation_summary import SeparationSummariser, SeparationSummary
@@ -52,8 +50,3 @@ class SeparationCheck(MotionCheck):
     def summary(self, motion: TimedMotion, context: CheckContext) -> SeparationSummary:
         """What the separation checks judge of the robot-body separation along ``motion``."""
         return self.summariser.summary(motion.t_s, motion.q, motion.qd, self.human(context))
-
-
-def time_within_sp_s(sep: Separation | SeparationSummary) -> float:
-    """Time in [s] during which the robot is closer than S_p to some body part."""
-    return float(np.count_nonzero(sep.within_sp) * sep.dt_s)

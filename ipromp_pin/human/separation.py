@@ -16,6 +16,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import cached_property
+from typing import Protocol
 
 import numpy as np
 import pinocchio as pin
@@ -43,8 +44,51 @@ HAND_REGION = "hand"
 """The body region of the intended hand-over contact: judged by its contact-speed limit only."""
 
 
+def _sample_period_s(t_s: np.ndarray) -> float:
+    """The median period [s] of the sample times ``t_s`` (N,) [s] (0 for a single sample)."""
+    return float(np.median(np.diff(t_s))) if t_s.size > 1 else 0.0
+
+
+class _SampledRatios(Protocol):
+    """What :class:`SeparationReductions` reads: sample times, S_p states and contact-speed ratios."""
+
+    @property
+    def t_s(self) -> np.ndarray: ...
+
+    @property
+    def within_sp(self) -> np.ndarray: ...
+
+    @property
+    def max_ratio(self) -> np.ndarray: ...
+
+
+class SeparationReductions:
+    """The per-sample reductions that :class:`Separation` and its summary
+    (:class:`~.separation_summary.SeparationSummary`) share, from their sample times ``t_s`` (N,)
+    [s], ``within_sp`` (N,) and ``max_ratio`` (N,)."""
+
+    @property
+    def dt_s(self: _SampledRatios) -> float:
+        """Sample period in [s] (0 for a single sample)."""
+        return _sample_period_s(self.t_s)
+
+    @property
+    def violation(self: _SampledRatios) -> np.ndarray:
+        """(N,) whether, within S_p, the robot approaches some body part faster than its limit."""
+        return self.max_ratio > 1.0
+
+    def over(self: _SampledRatios, fraction: float) -> np.ndarray:
+        """(N,) whether, within S_p, some approach exceeds ``fraction`` of its limit."""
+        return self.max_ratio > fraction
+
+    @property
+    def time_within_sp_s(self: _SampledRatios) -> float:
+        """Time in [s] during which the robot is closer than S_p to some body part."""
+        return float(np.count_nonzero(self.within_sp) * _sample_period_s(self.t_s))
+
+
 @dataclass(frozen=True)
-class Separation:
+class Separation(SeparationReductions):
     """Robot-body separation along a motion (N samples; L robot capsules, P body parts).
 
     Attributes:
@@ -82,11 +126,6 @@ class Separation:
     regions: tuple[str, ...]
     human: str
 
-    @property
-    def dt_s(self) -> float:
-        """Sample period in [s] (0 for a single sample)."""
-        return float(np.median(np.diff(self.t_s))) if self.t_s.size > 1 else 0.0
-
     @cached_property
     def within_sp(self) -> np.ndarray:
         """(N,) whether any robot capsule is closer than S_p to any body part."""
@@ -96,15 +135,6 @@ class Separation:
     def max_ratio(self) -> np.ndarray:
         """(N,) the largest approach speed / v_max within S_p (0: none within S_p and fast)."""
         return self.speed_ratio.max(axis=(1, 2))
-
-    @property
-    def violation(self) -> np.ndarray:
-        """(N,) whether, within S_p, the robot approaches some body part faster than its limit."""
-        return self.max_ratio > 1.0
-
-    def over(self, fraction: float) -> np.ndarray:
-        """(N,) whether, within S_p, some approach exceeds ``fraction`` of its limit."""
-        return self.max_ratio > fraction
 
     @property
     def min_distance_m(self) -> np.ndarray:

@@ -27,11 +27,11 @@ from .body import HumanMotion
 from .iso15066 import constant_distance_m
 from .kernels import human_kernels
 from .robot_capsules import arm_kinematics
-from .separation import HAND_REGION, SeparationAnalyser
+from .separation import HAND_REGION, SeparationAnalyser, SeparationReductions
 
 
 @dataclass(frozen=True)
-class SeparationSummary:
+class SeparationSummary(SeparationReductions):
     """The reductions of a :class:`~.separation.Separation` that the human checks judge.
 
     Attributes:
@@ -72,25 +72,6 @@ class SeparationSummary:
     parts: tuple[str, ...]
     regions: tuple[str, ...]
     human: str
-
-    @property
-    def dt_s(self) -> float:
-        """Sample period in [s] (0 for a single sample), as :attr:`.Separation.dt_s`."""
-        return float(np.median(np.diff(self.t_s))) if self.t_s.size > 1 else 0.0
-
-    @property
-    def violation(self) -> np.ndarray:
-        """(N,) whether, within S_p, the robot approaches some body part faster than its limit."""
-        return self.max_ratio > 1.0
-
-    def over(self, fraction: float) -> np.ndarray:
-        """(N,) whether, within S_p, some approach exceeds ``fraction`` of its limit."""
-        return self.max_ratio > fraction
-
-    @property
-    def time_within_sp_s(self) -> float:
-        """Time in [s] during which the robot is closer than S_p to some body part."""
-        return float(np.count_nonzero(self.within_sp) * self.dt_s)
 
 
 RATIO_RECHECK = 1e-9

@@ -79,6 +79,7 @@ lands closer to the exact continuous MAP (a 1000-candidate grid) at 10 % and 20 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -358,12 +359,21 @@ class InferenceEngine:
         blocks' (``kernels.finish_soa``)."""
         finish = kernels().finish_soa
         loglik = np.empty(self.alphas.shape)
-        t_last = float(t_last)
-        for i, (group, (total, a, pq)) in enumerate(zip(self.lane_groups, terms, strict=True)):
-            unpack = self.blocks[group[0]].unpack
-            if not finish(pq, a, total, unpack, self.alphas, self.t_norm, t_last, loglik, i > 0, len(group)):
-                raise ModelError("Q = I + P is not numerically positive definite")
+        for j, group_terms in enumerate(terms):
+            self.finish_group(j, group_terms, float(t_last), loglik, finish)
         return loglik
+
+    def finish_group(
+        self, j: int, terms: tuple, t_last: float, loglik: np.ndarray, finish: Callable | None = None
+    ) -> None:
+        """Lane group ``j``'s log likelihood from its terms (:meth:`group_terms`), written into
+        ``loglik`` (T, C) for ``j = 0`` and added to it after (``kernels.finish_soa``, or ``finish``)."""
+        total, a, pq = terms
+        group = self.lane_groups[j]
+        fn = kernels().finish_soa if finish is None else finish
+        unpack = self.blocks[group[0]].unpack
+        if not fn(pq, a, total, unpack, self.alphas, self.t_norm, t_last, loglik, j > 0, len(group)):
+            raise ModelError("Q = I + P is not numerically positive definite")
 
     @property
     def n_pair(self) -> int:
@@ -572,15 +582,15 @@ class IncrementalTerms:
                 self.ke = -1  # partly updated: rebuilt by the next reset
                 raise ModelError("X = nu I + B^T B is not numerically positive definite")
             finish = n == last
-            groups = zip(self._inputs(part.dims), self.terms, self._unpack, e.lane_groups, strict=True)
-            for j, (inputs, terms, unpack, group) in enumerate(groups):
+            groups = zip(self._inputs(part.dims), self.terms, self._unpack, strict=True)
+            for j, (inputs, terms, unpack) in enumerate(groups):
                 if inputs is None:
                     if finish:  # no dim of this part here: the terms are as they were
-                        total, a, pq = terms
-                        args = (pq, a, total, unpack, e.alphas, e.t_norm, t_last, loglik, j > 0, len(group))
-                        if not kern.finish_soa(*args):
+                        try:
+                            e.finish_group(j, terms, t_last, loglik, kern.finish_soa)
+                        except ModelError:
                             self.ke = -1
-                            raise ModelError("Q = I + P is not numerically positive definite")
+                            raise
                     continue
                 w_t, fixed = inputs
                 tail = (unpack, e.alphas, e.t_norm, t_last, loglik, j > 0, finish)

@@ -89,40 +89,51 @@ def arm_model(robot: Robot) -> pin.Model:
     return pin.buildReducedModel(robot.model, lock, robot.q_neutral)
 
 
+class ArmInertia:
+    """The arm's joint-space inertia at many configurations: its reduced model (:func:`arm_model`),
+    a Pinocchio ``Data`` for its CRBA and, when the model is a serial chain of revolute joints, the
+    parameters of the compiled CRBA (:func:`chain_parameters`), built once.
+
+    Args:
+        robot: The loaded robot.
+        model: The arm's reduced model (built here when None).
+
+    Attributes:
+        model: The arm's reduced model.
+        data: Its ``Data`` (CRBA overwrites what it fills).
+        chain: Its chain parameters, or None (then only Pinocchio's CRBA runs).
+    """
+
+    def __init__(self, robot: Robot, model: pin.Model | None = None) -> None:
+        self.model = model if model is not None else arm_model(robot)
+        self.data = self.model.createData()
+        self.chain = chain_parameters(self.model)
+        self._lower = np.tril_indices(self.model.nv, -1)  # the strict lower triangle CRBA leaves
+
+    def mass_matrices(self, q_arm: np.ndarray, compiled: bool = False) -> np.ndarray:
+        """The inertia (S, n_joints, n_joints) [kg m^2] at every row of ``q_arm`` (S, n_joints)
+        [rad]: Pinocchio's CRBA; ``compiled``: with the compiled human kernels and a chain, the
+        compiled CRBA of the chain instead (equal to Pinocchio's to rounding, 1e-14, not to the bit:
+        for bounds, see :mod:`.separation_summary`)."""
+        q = np.atleast_2d(np.asarray(q_arm, dtype=float))
+        kernels = human_kernels()
+        if compiled and self.chain is not None and hasattr(kernels, "chain_mass_matrices"):
+            return kernels.chain_mass_matrices(np.ascontiguousarray(q), *self.chain)
+        model, data, lower = self.model, self.data, self._lower
+        out = np.empty((q.shape[0], model.nv, model.nv))
+        for i, row in enumerate(q):
+            out[i] = pin.crba(model, data, row)  # the upper triangle is filled
+        out[:, lower[0], lower[1]] = out[:, lower[1], lower[0]]
+        return out
+
+
 def arm_mass_matrices(
     robot: Robot, q_arm: np.ndarray, model: pin.Model | None = None, compiled: bool = False
 ) -> np.ndarray:
     """:func:`arm_mass_matrix` at every row of ``q_arm`` (S, n_joints) -> (S, n_joints, n_joints)
-    (``model``: the arm's reduced model, :func:`arm_model`, built here when None): Pinocchio's CRBA.
-    ``compiled``: with the compiled human kernels and a chain of revolute joints, a compiled CRBA of
-    the chain instead (:func:`chain_parameters`; equal to Pinocchio's to rounding, 1e-14, not to
-    the bit: for bounds, see :mod:`.separation_summary`)."""
-    model = model if model is not None else arm_model(robot)
-    q = np.atleast_2d(np.asarray(q_arm, dtype=float))
-    chain = chain_parameters(model) if compiled else None
-    kernels = human_kernels()
-    if chain is not None and hasattr(kernels, "chain_mass_matrices"):  # the compiled kernels
-        return kernels.chain_mass_matrices(np.ascontiguousarray(q), *chain)
-    data, lower = _crba_workspace(model)
-    out = np.empty((q.shape[0], model.nv, model.nv))
-    for i, row in enumerate(q):
-        out[i] = pin.crba(model, data, row)  # the upper triangle is filled
-    out[:, lower[0], lower[1]] = out[:, lower[1], lower[0]]
-    return out
-
-
-_CHAINS: dict[int, tuple[pin.Model, tuple[np.ndarray, ...] | None]] = {}
-_WORKSPACES: dict[int, tuple[pin.Model, pin.Data, tuple[np.ndarray, np.ndarray]]] = {}
-
-
-def _crba_workspace(model: pin.Model) -> tuple[pin.Data, tuple[np.ndarray, np.ndarray]]:
-    """A Pinocchio ``Data`` of ``model`` for its CRBA and the indices of the strict lower triangle
-    (n_v, n_v) that it leaves to the caller (kept per model; CRBA overwrites what it fills)."""
-    hit = _WORKSPACES.get(id(model))
-    if hit is None or hit[0] is not model:
-        hit = (model, model.createData(), np.tril_indices(model.nv, -1))
-        _WORKSPACES[id(model)] = hit
-    return hit[1], hit[2]
+    (``model``: the arm's reduced model, :func:`arm_model`, built here when None; ``compiled``: see
+    :meth:`ArmInertia.mass_matrices`, which a caller of many calls should hold instead)."""
+    return ArmInertia(robot, model).mass_matrices(q_arm, compiled)
 
 
 def chain_parameters(model: pin.Model) -> tuple[np.ndarray, ...] | None:
@@ -130,10 +141,7 @@ def chain_parameters(model: pin.Model) -> tuple[np.ndarray, ...] | None:
     (:func:`~ipromp_pin.human.separation_kernels.chain_mass_matrices`): each joint's placement
     (n, 4, 4) in its parent's frame, its axis (n, 3) in its own frame, its body's mass (n,) [kg],
     centre of mass (n, 3) [m] and inertia about it (n, 3, 3) [kg m^2]; None when the model is not
-    such a chain (then Pinocchio's CRBA runs). Kept per model."""
-    hit = _CHAINS.get(id(model))
-    if hit is not None and hit[0] is model:
-        return hit[1]
+    such a chain (then Pinocchio's CRBA runs)."""
     n = model.njoints - 1
     axes = {"JointModelRX": (1.0, 0.0, 0.0), "JointModelRY": (0.0, 1.0, 0.0), "JointModelRZ": (0.0, 0.0, 1.0)}
     kinds = [model.joints[j].shortname() for j in range(1, model.njoints)]
@@ -151,7 +159,6 @@ def chain_parameters(model: pin.Model) -> tuple[np.ndarray, ...] | None:
             np.array([np.asarray(model.inertias[j].lever) for j in range(1, n + 1)]),
             np.array([np.asarray(model.inertias[j].inertia) for j in range(1, n + 1)]),
         )
-    _CHAINS[id(model)] = (model, chain)
     return chain
 
 

@@ -19,15 +19,13 @@ from functools import cached_property
 from typing import Protocol
 
 import numpy as np
-import pinocchio as pin
 
 from ..exceptions import DataError
 from ..robot import Robot
 from ..robot.human_settings import HumanSettings
 from .body import HumanMotion
 from .iso15066 import (
-    arm_mass_matrices,
-    arm_model,
+    ArmInertia,
     constant_distance_m,
     reduced_mass_kg,
     region_force_n,
@@ -198,7 +196,7 @@ class SeparationAnalyser:
         self.robot = robot
         self.settings = settings if settings is not None else robot.settings.human
         self._capsules: RobotCapsules | None = None
-        self._arm_model: pin.Model | None = None
+        self._arm_inertia: ArmInertia | None = None
         self._last: tuple[tuple, Separation] | None = None
         self._limits: tuple[tuple, tuple[np.ndarray, ...]] | None = None
 
@@ -326,15 +324,15 @@ class SeparationAnalyser:
         """Approach speed / v_max (K,) and the robot's effective mass (K,) [kg] of pairs at samples
         ``n_i`` toward parts ``p_i`` (K,), with their ``J^T u`` (K, n_joints) and approach speeds
         (K,) [m/s], along angles ``q`` (N, n_joints) [rad] (the arm's CRBA once per sample: Pinocchio's,
-        or ``compiled``, :func:`~.iso15066.arm_mass_matrices`)."""
+        or ``compiled``, :meth:`~.iso15066.ArmInertia.mass_matrices`)."""
         if n_i.size == 0:
             return np.empty(0), np.empty(0)
         kernels = human_kernels()
         _, force_p, m_h_p, k_p = self._region_limits(human)
         samples, which = sample_groups(n_i)
-        if self._arm_model is None:
-            self._arm_model = arm_model(self.robot)
-        inertia = arm_mass_matrices(self.robot, q[samples], self._arm_model, compiled)
+        if self._arm_inertia is None:
+            self._arm_inertia = ArmInertia(self.robot)
+        inertia = self._arm_inertia.mass_matrices(q[samples], compiled)
         inv = kernels.inverse_effective_masses(inertia, which.astype(np.int64), np.ascontiguousarray(jtu))
         m_r = 1.0 / np.maximum(inv, 1e-300)
         force, m_h, k = force_p[p_i], m_h_p[p_i], k_p[p_i]

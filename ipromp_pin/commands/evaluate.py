@@ -205,15 +205,11 @@ def open_runner(request: EvaluateRequest) -> contextlib.AbstractContextManager[i
     return DaskCluster.from_spec(request.cluster).open(partial(prepare_worker, request.robot))
 
 
-def run_evaluations(
-    request: EvaluateRequest, ds: Dataset, where: int | JobRunner | None = None
-) -> list[Cell]:
+def run_evaluations(request: EvaluateRequest, ds: Dataset, where: int | JobRunner) -> list[Cell]:
     """Every protocol of the request on ``ds`` (one-shot or closed loop), each timed, run ``where``
-    (None: ``request.jobs`` processes or a cluster started for each protocol)."""
+    (a number of local processes or a runner: :func:`open_runner`)."""
     cells: list[Cell] = []
     options = ClosedLoopOptions(limits=request.limits, settings=request.settings())
-    if where is None:
-        where = request.jobs if request.cluster is None else DaskCluster.from_spec(request.cluster)
     objects = load_objects(request.objects)
     if request.objects is not None:
         objects.check_tasks(ds.tasks)

@@ -68,10 +68,10 @@ class StreamingEstimator:
         fm = predictor.fitted
         layout = fm.layout
         self._engine = engine = predictor.engine
-        self._t: list[float] = []
+        self._n = 0  # samples received: rows 0 .. n - 1 of the buffers below
         self._rows: list[np.ndarray] = []  # raw samples (D_o,), NaN in missing groups
-        # the samples' times and scaled values (0 in missing groups) as they arrived, rows 0 .. n - 1
-        # of buffers that double when full: what parts() hands the conditioning (views, no copy)
+        # the samples' times [s] and scaled values (0 in missing groups) as they arrived, in buffers
+        # that double when full: what parts() hands the conditioning (views, no copy)
         self._t_buf = np.empty(64)
         self._y_buf = np.empty((64, layout.n_obs_dims))
         self._absent: list[int] = []  # per sample, bit i set when observed group i is missing
@@ -128,7 +128,7 @@ class StreamingEstimator:
     @property
     def n_samples(self) -> int:
         """Number of samples received."""
-        return len(self._t)
+        return self._n
 
     def update(self, t_s: float, sample: Mapping[str, np.ndarray | None]) -> Recognition | None:
         """Add one sample and return the refreshed recognition (None until 2 samples arrived).
@@ -148,14 +148,15 @@ class StreamingEstimator:
             raise ObservationError(
                 "stream", "sample", f"expected a mapping group -> values, got {type(sample).__name__}"
             )
-        if not math.isfinite(t_s) or (self._t and t_s <= self._t[-1]) or t_s < -1e-9:
+        t_prev = self._t_buf[self._n - 1] if self._n else -math.inf
+        if not math.isfinite(t_s) or t_s <= t_prev or t_s < -1e-9:
             raise ObservationError("stream", "t", f"sample time {t_s} is not after the previous sample")
-        if self._t and t_s - self._t[-1] > self._max_gap:
+        if self._n and t_s - t_prev > self._max_gap:
             raise ObservationError(
                 "stream",
                 "t",
-                f"sample time {t_s:.3f} s is {t_s - self._t[-1]:.2f} s after the previous sample "
-                f"({self._t[-1]:.3f} s): more than {self._max_gap:.2f} s ({MAX_GAP_FRACTION:g} of the "
+                f"sample time {t_s:.3f} s is {t_s - t_prev:.2f} s after the previous sample "
+                f"({t_prev:.3f} s): more than {self._max_gap:.2f} s ({MAX_GAP_FRACTION:g} of the "
                 "model's nominal duration) cannot be one stream; the sample is refused",
             )
         if t_s > self._longest:
@@ -227,17 +228,17 @@ class StreamingEstimator:
             phi = self._accumulate(t_s, set(present), ys)
         if self.predictor.fitted.head is not None:
             self._add_to_window(ys, absent)
-        n = len(self._t)
+        n = self._n
         if n == self._t_buf.size:
             self._t_buf = np.concatenate([self._t_buf, np.empty(n)])
             self._y_buf = np.concatenate([self._y_buf, np.empty(self._y_buf.shape)])
         self._t_buf[n] = t_s
         self._y_buf[n] = ys
-        self._t.append(t_s)
+        self._n = n + 1
         self._rows.append(y)
         self._absent.append(absent)
         self._gaps = self._gaps or bool(absent)
-        if len(self._t) < 2:
+        if self._n < 2:
             return None
         self._last = self._recognise(phi, ys)
         return self._last
@@ -348,7 +349,7 @@ class StreamingEstimator:
         return PartStats(dims, n, ke, gram, proj, sq)
 
     def _recognise(self, phi: np.ndarray, y: np.ndarray) -> Recognition:
-        t_last = self._t[-1]
+        t_last = float(self._t_buf[self._n - 1])
         inc = self.incremental
         if inc is None:
             loglik = self._engine.log_likelihood(self._stats(), t_last)
@@ -378,7 +379,7 @@ class StreamingEstimator:
             task="",
             name="stream",
             source="stream",
-            t=np.array(self._t),
+            t=self._t_buf[: self._n].copy(),
             groups={g: rows[:, lo:hi].copy() for g, lo, hi in self._slices},
             channel_names={g: layout.channel_names[g] for g in layout.observe},
             missing={g: gaps[:, i] for i, g in enumerate(layout.observe) if gaps[:, i].any()},
@@ -390,14 +391,15 @@ class StreamingEstimator:
         gives them, to rounding: the values scaled on arrival, read-only views of the stream's
         buffers, no copy without missing samples; groups with identical presence share a part), and
         the time of the last one in [s]."""
-        n = len(self._t)
+        n = self._n
         if n < 2:
             raise ObservationError("stream", "t", f"need at least 2 samples, got {n}")
         t, y = self._t_buf[:n], self._y_buf[:n]
+        t_last = float(t[-1])
         t.flags.writeable = False
         y.flags.writeable = False
         if not self._gaps:
-            return [ObservationPart(t=t, dims=self._encoder.dims, y=y)], self._t[-1]
+            return [ObservationPart(t=t, dims=self._encoder.dims, y=y)], t_last
         bits = np.array(self._absent, dtype=np.int64)
         by_mask: dict[bytes, tuple[np.ndarray, list[int]]] = {}
         for i, (_, lo, hi) in enumerate(self._slices):
@@ -408,12 +410,12 @@ class StreamingEstimator:
         for valid, cols in by_mask.values():
             dims = np.array(cols, dtype=np.int64)
             parts.append(ObservationPart(t=t[valid], dims=self._encoder.dims[dims], y=y[np.ix_(valid, dims)]))
-        return parts, self._t[-1]
+        return parts, t_last
 
     def recognition(self) -> Recognition:
         """Latest recognition (raises ObservationError before 2 samples)."""
         if self._last is None:
-            raise ObservationError("stream", "t", f"need at least 2 samples, got {len(self._t)}")
+            raise ObservationError("stream", "t", f"need at least 2 samples, got {self._n}")
         return self._last
 
     def predict(
@@ -443,8 +445,6 @@ class StreamingEstimator:
         """Conditioned prediction on all samples received so far (recognised again from the samples,
         as :meth:`IProMP.predict <ipromp_pin.promp.estimator.IProMP.predict>` of :meth:`observation`
         does, with the hand-over regression fused; from the stream's scaled samples, :meth:`parts`)."""
-        if len(self._t) < 2:
-            raise ObservationError("stream", "t", f"need at least 2 samples, got {len(self._t)}")
         with self._limit_threads():
-            parts, t_last = self.parts()
+            parts, t_last = self.parts()  # raises ObservationError before 2 samples
             return self.predictor.predict(parts, t_last)

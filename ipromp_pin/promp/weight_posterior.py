@@ -40,7 +40,7 @@ from .compiled import kernels
 
 # LAPACK without scipy's checked wrappers, for the read-out update of every prediction (the inputs
 # are the model's own finite arrays; the calls are a few microseconds of arithmetic each)
-_POTRF, _POTRS, _TRTRS = lapack.dpotrf, lapack.dpotrs, lapack.dtrtrs
+_POTRF, _POTRS = lapack.dpotrf, lapack.dpotrs
 
 
 def chol_lower(a: np.ndarray, what: str) -> np.ndarray:
@@ -50,12 +50,6 @@ def chol_lower(a: np.ndarray, what: str) -> np.ndarray:
     if info != 0:
         raise ModelError(f"{what} is not numerically positive definite (LAPACK info {info})")
     return low
-
-
-def tri_solve(low: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """``L^-1 b`` (n, c) for a lower triangular ``L`` (n, n) and ``b`` (n, c) (LAPACK ``dtrtrs``)."""
-    x, _ = _TRTRS(low, b, lower=1)
-    return x
 
 
 def chol_solve(low: np.ndarray, b: np.ndarray) -> np.ndarray:

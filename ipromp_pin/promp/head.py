@@ -206,9 +206,13 @@ def head_features(window: np.ndarray, generative_log_posterior: np.ndarray) -> n
     return np.concatenate([window, np.maximum(generative_log_posterior, LOG_POSTERIOR_CLIP)])
 
 
-def _log_softmax(z: np.ndarray) -> np.ndarray:
-    """Row-wise log softmax of ``z`` (n, T)."""
-    z = z - z.max(axis=1, keepdims=True)
+def _log_softmax(z: np.ndarray, overwrite: bool = False) -> np.ndarray:
+    """Row-wise log softmax of ``z`` (n, T) (``overwrite``: ``z`` is a temporary of the caller's,
+    shifted in place)."""
+    if overwrite:
+        z -= z.max(axis=1, keepdims=True)
+    else:
+        z = z - z.max(axis=1, keepdims=True)
     return z - np.log(np.exp(z).sum(axis=1, keepdims=True))
 
 
@@ -235,12 +239,9 @@ def _fit_softmax(
     half_lam = 0.5 * lam
 
     def loss(theta: np.ndarray) -> tuple[float, np.ndarray]:
-        # the same operations as -sum(target * log_softmax(z)) + ||W||^2 lam / 2 and its gradient
-        # (the same rounding), with fewer temporaries and calls
+        # -sum(target * log_softmax(z)) + ||W||^2 lam / 2 and its gradient, with few temporaries
         w = theta[:n_w].reshape(n_classes, f)
-        z = x @ w.T + theta[n_w:]
-        z -= z.max(axis=1, keepdims=True)
-        logp = z - np.log(np.exp(z).sum(axis=1, keepdims=True))
+        logp = _log_softmax(x @ w.T + theta[n_w:], overwrite=True)
         r = np.exp(logp)
         r *= sw
         r -= target

@@ -273,14 +273,22 @@ class PhasePriors:
     duration_nominal_s: float
 
 
+def recognition_terms(priors: PhasePriors, loglik: np.ndarray) -> tuple:
+    """The compiled recognition of the log likelihood (T, C) under ``priors``
+    (``kernels.recognition``): the tasks' log evidence (T,), log phase posteriors (T, C), MAP phases
+    (T,), whether every evidence is finite, and the task posterior (log posterior (T,), posterior
+    (T,), best index)."""
+    return kernels().recognition(
+        loglik, priors.log_prior, priors.alphas, REFINE_WEIGHTS, REFINE_NODES, priors.task_log_prior
+    )
+
+
 def recognise_from_loglik(
     priors: PhasePriors, loglik: np.ndarray, t_last: float
 ) -> tuple[Recognition, np.ndarray]:
     """The recognition from the log likelihood (T, C) of every (task, candidate), and the normalised
     log phase posterior (T, C) it holds."""
-    evidence, logpost, alpha, finite, *task_post = kernels().recognition(
-        loglik, priors.log_prior, priors.alphas, REFINE_WEIGHTS, REFINE_NODES, priors.task_log_prior
-    )
+    evidence, logpost, alpha, finite, *task_post = recognition_terms(priors, loglik)
     if not finite:  # some task cannot explain the observation
         finite = np.isfinite(evidence)
         alpha[~finite] = priors.alpha_mu[~finite]

@@ -45,13 +45,12 @@ import numpy as np
 
 from ..data import Demo
 from ..exceptions import ModelError, ObservationError
-from .compiled import kernels
 from .distribution import shrink_covariances
 from .head import RecognitionHead, WindowSummary, fit_head, head_features, observed_fraction
 from .likelihood import InferenceEngine
 from .noise_path import part_spectrum, robot_path
 from .observation import ObservationEncoder, ObservationPart
-from .posterior import REFINE_NODES, REFINE_WEIGHTS, PhasePriors, recognise_from_loglik
+from .posterior import PhasePriors, recognise_from_loglik, recognition_terms
 from .training import PhaseSettings, TrainingSet, coupling_blocks, task_models
 
 NOISE_GRID = (0.03, 0.1, 0.3, 1.0, 3.0, 10.0, 30.0, 100.0, 300.0, 1000.0)
@@ -228,9 +227,7 @@ def _true_task_posterior(
     (T, C): the numbers of :func:`~ipromp_pin.promp.posterior.recognise_from_loglik` (the same compiled
     kernel) without building the recognition (the noise CV scores thousands of them); an observation
     impossible under every task raises its error."""
-    _, logpost, _, _, log_post, _, best = kernels().recognition(
-        loglik, priors.log_prior, priors.alphas, REFINE_WEIGHTS, REFINE_NODES, priors.task_log_prior
-    )
+    _, logpost, _, _, log_post, _, best = recognition_terms(priors, loglik)
     if not math.isfinite(float(log_post[best])):
         recognise_from_loglik(priors, loglik, t_last)  # raises ObservationError
     return float(log_post[task]), logpost[task]

@@ -32,6 +32,7 @@ import numpy as np
 from ruckig import InputParameter, Result, Ruckig, RuckigError, Trajectory
 
 from ..exceptions import InfeasibleError
+from .ruckig_sampling import sample_trajectory
 from .trajectory import JointLimits
 
 HEADROOM = 0.95
@@ -258,16 +259,6 @@ class _Ruckig:
         return traj
 
 
-def _sample_traj(traj: Trajectory, times: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Positions, velocities and accelerations (len(times), J) of a ruckig trajectory."""
-    out = [traj.at_time(float(t)) for t in times]
-    return (
-        np.array([o[0] for o in out]).reshape(len(out), -1),
-        np.array([o[1] for o in out]).reshape(len(out), -1),
-        np.array([o[2] for o in out]).reshape(len(out), -1),
-    )
-
-
 class Retargeter:
     """Builds :class:`MotionPlan` s under one set of limits (:func:`retarget` for one call).
 
@@ -408,7 +399,7 @@ class Retargeter:
                 continue
             sel = slice(i0, i1)
             if kind == "ruckig":
-                q[sel], qd[sel], qdd[sel] = _sample_traj(data, times[sel] - t0)
+                q[sel], qd[sel], qdd[sel] = sample_trajectory(data, times[sel] - t0)
             else:
                 tau0_, k_ = data
                 tq, tv, ta, _ = reference.evaluate(tau0_ + (times[sel] - t0) / k_, order=2)

@@ -83,12 +83,16 @@ def _sample_distances(robot: Robot, q: np.ndarray) -> tuple[np.ndarray, np.ndarr
 def in_collision(robot: Robot, q: np.ndarray) -> np.ndarray:
     """Whether each configuration (n, n_joints) in [rad] has a contact among the active pairs (n,).
 
-    A contact test only (~0.1 ms per configuration), no distances.
+    A contact test only, no distances: coal's narrow phase for the active pairs whose bounding boxes
+    overlap, found by a sweep-and-prune broad phase (Pinocchio's ``BroadPhaseManager``, built per
+    call: 0.06 ms). The same answers as testing every active pair (tests), 5-10x faster on the
+    shipped Baxter (371 active pairs; 0.25-0.3 ms per configuration without the broad phase).
     """
     model, data = robot.model, robot.data
-    cmodel, cdata = robot.collision_model, robot.collision_data
+    cmodel, cdata = robot.collision()
+    manager = pin.BroadPhaseManager_SSaPCollisionManager(model, cmodel, cdata)
     full = robot.full_configuration(q)
-    hits = [pin.computeCollisions(model, data, cmodel, cdata, row, True) for row in full]
+    hits = [pin.computeCollisions(model, data, manager, row, True) for row in full]
     return np.array(hits, dtype=bool)
 
 

@@ -78,3 +78,20 @@ def test_the_kept_pair_labels_are_the_robots(robot):
     result = cert.certify(demo.groups["robot"])
     pid = next(int(k) for k in robot.active_pair_ids if robot.pair_names(int(k)) == result.pair)
     assert result.links == robot.pair_links(pid)
+
+
+def test_in_collision_equals_every_active_pair_tested(robot):
+    """The broad phase only skips pairs that cannot touch: the same answer as testing every active
+    pair, on random configurations of which many collide."""
+    rng = np.random.default_rng(7)
+    samples = rng.uniform(robot.lower_rad, robot.upper_rad, (600, robot.n_joints))
+    model, data, cmodel, cdata = robot.model, robot.data, robot.collision_model, robot.collision_data
+    brute = np.array(
+        [
+            pin.computeCollisions(model, data, cmodel, cdata, row, True)
+            for row in robot.full_configuration(samples)
+        ]
+    )
+    assert 50 < brute.sum() < 550  # both answers are exercised
+    np.testing.assert_array_equal(in_collision(robot, samples), brute)
+    assert not in_collision(robot, samples[~brute][:1])[0] and in_collision(robot, samples[brute][:1])[0]

@@ -156,7 +156,8 @@ class LatentBlock:
                 # consecutive; their (k, l, a, b) entries and the mirror (l, k, a, b) = (k, l, b, a)
                 # of the rows with k != l both lie in panel l (W^T W is symmetric)
                 for ll in range(k):
-                    panel = (flat[t].T @ flat[t][:, ll * r : (ll + 1) * r]).reshape(-1)
+                    # only the rows of basis functions k <= l are read
+                    panel = (flat[t][:, : (ll + 1) * r].T @ flat[t][:, ll * r : (ll + 1) * r]).reshape(-1)
                     row0 = ll * (ll + 1) // 2
                     z[t, row0 : row0 + ll + 1] = np.take(panel, direct[: ll + 1])
                     if ll:

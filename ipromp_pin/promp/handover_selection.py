@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .distribution import ShrunkCovariance, shrink_covariances
+from .distribution import shrink_covariances
 from .handover import (
     RATIOS,
     TRUST_GRID,
@@ -38,7 +38,7 @@ from .handover import (
 )
 from .handover_orientation import FKRot, OrientationEstimate, conditioned
 from .head import WindowSummary, interpolation
-from .noise_path import part_spectrum, robot_path
+from .noise_path import RobotPrior, part_spectrum, robot_paths, robot_prior
 from .observation import ObservationEncoder
 from .orientation_selection import FinalRow, choose_orientation
 from .posterior import recognise_from_loglik
@@ -301,7 +301,7 @@ def _held_out_predictions(
     encoder = ObservationEncoder(layout, training.scaler, np.inf)
     folds = held_out(training.demos)
     blocks = coupling_blocks(layout, coupled)
-    cov: ShrunkCovariance | None = None  # the leave-one-out covariance of the current demo
+    prior: RobotPrior | None = None  # the leave-one-out distribution of the current demo
     cov_demo = -1
     out = []
     for row in rows:
@@ -312,17 +312,18 @@ def _held_out_predictions(
         if not np.isfinite(alpha) or alpha <= 0.0:
             continue
         fraction = row.t_last / (alpha * training.duration_nominal_s)
-        if cov is None or row.demo != cov_demo:  # the rows of a demo are consecutive
+        if prior is None or row.demo != cov_demo:  # the rows of a demo are consecutive
             keep = np.arange(len(training.demos[task])) != i
             weights = [training.weights[t][keep] if t == task else training.weights[t] for t in tasks]
             cov = shrink_covariances(weights, settings.pooling, blocks, [k], training.cache)[0]
+            prior = robot_prior(cov.mean, cov.diag, cov.factor, rs)
             cov_demo = row.demo
         obs = cv_observations(encoder, training.demos[task][i], [row.ratio], training.encoded)
         if not obs:
             continue
         _, parts, _ = obs[0]
         spectrum = part_spectrum(training.basis, parts, alpha * training.duration_nominal_s)
-        path = robot_path(spectrum, parts, rs, [nu_condition], cov.mean, cov.diag, cov.factor)
+        path = robot_paths(spectrum, parts, [nu_condition], [prior])[0]
         mean = (path.mean[0] @ phi_end) * scale + offset  # (J,) [rad]
         s_cov = path.readout_cov(phi_end)[0] * scale[:, None] * scale[None, :]
         out.append(_HeldOutPrediction(task, i, np.asarray(row.window, dtype=float), fraction, mean, s_cov))

@@ -48,7 +48,7 @@ from ..exceptions import ModelError, ObservationError
 from .distribution import shrink_covariances
 from .head import RecognitionHead, WindowSummary, fit_head, head_features, observed_fraction
 from .likelihood import InferenceEngine
-from .noise_path import part_spectrum, robot_path
+from .noise_path import part_spectrum, robot_paths, robot_prior
 from .observation import ObservationEncoder, ObservationPart
 from .posterior import PhasePriors, recognise_from_loglik, recognition_terms
 from .training import PhaseSettings, TrainingSet, coupling_blocks, task_models
@@ -393,6 +393,8 @@ def choose_coupling(
             shrink_covariances(weights, settings.pooling, coupling_blocks(layout, c), ki, training.cache)[0]
             for c in cands
         ]
+        priors = [robot_prior(c.mean, c.diag, c.factor, rs) for c in covs]
+        del covs  # only the factor columns that load on the robot are kept (memory)
         alpha = float(training.alphas[task][i])
         w_true = training.weights[task][i][rs]
         for ratio, parts, _ in cv_observations(
@@ -401,7 +403,7 @@ def choose_coupling(
             phi = training.basis(np.linspace(ratio, 1.0, CV_PHASES))
             spectrum = part_spectrum(training.basis, parts, alpha * training.duration_nominal_s)
             # (candidates, nu_c, J, K) conditioned robot weights
-            ws = np.stack([robot_path(spectrum, parts, rs, nus, c.mean, c.diag, c.factor).mean for c in covs])
+            ws = np.stack([path.mean for path in robot_paths(spectrum, parts, nus, priors)])
             if fk is None:  # mean squared joint error over the unobserved phases [rad^2]
                 errs = ((ws - w_true) @ phi.T) * scale[:, None]  # (candidates, nu_c, J, phases)
                 rows.append(np.mean(errs * errs, axis=(2, 3)).ravel())

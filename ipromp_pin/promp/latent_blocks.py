@@ -39,8 +39,13 @@ def latent_blocks(models: list[TaskModel], n_obs: int) -> list[tuple[np.ndarray,
         return i
 
     active = [np.any(m.factor[:n_obs] != 0.0, axis=1) for m in models]  # (D_o, r_t) per task
+    seen = set()  # a column's dims are linked already when its pattern was seen (same roots)
     for act in active:
-        for col in act.T:
+        for col in np.ascontiguousarray(act.T):
+            key = col.tobytes()
+            if key in seen:
+                continue
+            seen.add(key)
             dims = np.flatnonzero(col)
             for d in dims[1:]:
                 parent[root(int(d))] = root(int(dims[0]))
@@ -89,12 +94,8 @@ class LatentBlock:
         self.w = np.zeros((n_task, self.dims.size, k, r))
         for i, (m, c) in enumerate(zip(models, cols, strict=True)):
             self.w[i, :, :, : c.size] = m.factor[self.dims][:, :, c] / self.sqrt_delta[i][:, None, None]
-        pk, pl = [], []
-        for ll in range(k):
-            for kk in range(ll + 1):
-                pk.append(kk)
-                pl.append(ll)
-        self.pk, self.pl = np.array(pk, dtype=np.int64), np.array(pl, dtype=np.int64)
+        pl, pk = np.tril_indices(k)  # the basis pairs (k, l), k <= l, ordered by l then k
+        self.pk, self.pl = pk.astype(np.int64), pl.astype(np.int64)
         ia, ib = np.triu_indices(r)
         self.ia, self.ib = ia.astype(np.int64), ib.astype(np.int64)
         unpack = np.zeros((r, r), dtype=np.int64)  # index of Q[i, j] in the packed upper triangle

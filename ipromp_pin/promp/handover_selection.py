@@ -212,7 +212,7 @@ def choose_handover(
     held = _held_out_predictions(training, settings, coupled, nu_condition, rows, temperature)
     best = None
     for dims, feats, fits, kinds in candidates:
-        nested: dict[tuple[int, str, int], RidgeFit | KnnFit | None] = {}
+        nested: dict[tuple[int, str, int], Refit | None] = {}
         scores = _cross_validate(
             training, held, readout, fk, dims, feats, fits, kinds, q_end, targets, nested
         )
@@ -266,6 +266,11 @@ def _pooled(residuals: list[np.ndarray]) -> np.ndarray:
     e = np.concatenate(residuals)
     cov = e.T @ e / e.shape[0]
     return cov + 1e-9 * max(float(np.trace(cov)) / cov.shape[0], 1e-12) * np.eye(cov.shape[0])
+
+
+Refit = tuple[RidgeFit | KnnFit, np.ndarray]
+"""A leave-one-out refit of a regression and its pooled residual second moment (M, M) (the other
+tasks' residuals with the refit's)."""
 
 
 @dataclass(frozen=True)
@@ -338,7 +343,7 @@ def _loo_observation(
     fits: dict[tuple[int, str], RidgeFit | KnnFit],
     kinds: list[bool],
     targets: dict[str, np.ndarray],
-    nested: dict[tuple[int, str, int], RidgeFit | KnnFit | None],
+    nested: dict[tuple[int, str, int], Refit | None],
 ) -> tuple[np.ndarray, np.ndarray] | None:
     """The regression's prediction (M,) and noise covariance (M, M) for held-out row ``h``: refitted
     without its demo (``nested`` caches the refits), interpolated at its estimated fraction; None when
@@ -352,13 +357,14 @@ def _loo_observation(
             continue
         key = (level, h.task, h.index)
         if key not in nested:
-            nested[key] = _fit(feats[h.task][level], targets[h.task], drop=h.index, knn=kinds[level])
-        fit = nested[key]
-        if fit is None:
+            fit = _fit(feats[h.task][level], targets[h.task], drop=h.index, knn=kinds[level])
+            others = [fits[(level, t)].residuals for t in tasks if t != h.task]
+            nested[key] = None if fit is None else (fit, _pooled([*others, fit.residuals]))
+        refit = nested[key]
+        if refit is None:
             return None
-        pred += weight * fit.predict(x)
-        others = [fits[(level, t)].residuals for t in tasks if t != h.task]
-        noise += weight * _pooled([*others, fit.residuals])
+        pred += weight * refit[0].predict(x)
+        noise += weight * refit[1]
     return pred, noise
 
 
@@ -372,7 +378,7 @@ def _final_rows(
     kinds: list[bool],
     targets: dict[str, np.ndarray],
     trust: float,
-    nested: dict[tuple[int, str, int], RidgeFit | KnnFit | None],
+    nested: dict[tuple[int, str, int], Refit | None],
 ) -> list[FinalRow]:
     """The held-out final configurations as online with the chosen regression (trust ``trust``;
     ``inf``: off) applied by exact conditioning, its leave-one-out refits taken from ``nested`` (the
@@ -404,7 +410,7 @@ def _cross_validate(
     kinds: list[bool],
     q_end: dict[str, np.ndarray],
     targets: dict[str, np.ndarray],
-    nested: dict[tuple[int, str, int], RidgeFit | KnnFit | None],
+    nested: dict[tuple[int, str, int], Refit | None],
 ) -> dict[float, float]:
     """Candidate trust factor -> CV error (``inf``: off) of the regression on the features of
     ``dims`` (final configurations ``q_end``, regression targets ``targets``; ``nested`` caches the

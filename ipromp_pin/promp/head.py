@@ -403,16 +403,18 @@ class _CvPath:
             train = used & (folds != k)
             test = folds == k
             rows = np.arange(int(test.sum()))
+            x_train, y_train, w_train = self.x[train], labels[train], pool[train]
+            x_test, y_test = self.x[test], labels[test]
             theta = None
             for j, c in enumerate(HEAD_C_GRID):
-                w, b, theta = _fit_softmax(self.x[train], labels[train], n_tasks, c, pool[train], theta)
-                logp = _log_softmax(self.x[test] @ w.T + b)
-                self.log_loss[j, test] = -logp[rows, labels[test]]
-            w, b = _fit_lda(self.x[train], labels[train], n_tasks, pool[train])
-            z = self.x[test] @ w.T + b
+                w, b, theta = _fit_softmax(x_train, y_train, n_tasks, c, w_train, theta)
+                logp = _log_softmax(x_test @ w.T + b)
+                self.log_loss[j, test] = -logp[rows, y_test]
+            w, b = _fit_lda(x_train, y_train, n_tasks, w_train)
+            z = x_test @ w.T + b
             for j, g in enumerate(gammas):
                 logp = _log_softmax(g * z)
-                self.log_loss[n_c + j, test] = -logp[rows, labels[test]]
+                self.log_loss[n_c + j, test] = -logp[rows, y_test]
 
     @staticmethod
     def parameter(j: int) -> float:

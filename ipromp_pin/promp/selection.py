@@ -383,6 +383,8 @@ def choose_coupling(
     rs = layout.robot_slice
     scale = training.scaler.scale[rs]
     offset = training.scaler.offset[rs]
+    # the basis at the unobserved phases of each observed fraction (K values at CV_PHASES phases)
+    phis = {r: training.basis(np.linspace(r, 1.0, CV_PHASES)) for r in CONDITION_CV_RATIOS}
     rows = []  # per held-out observation, the MSE of every (candidate, nu_c) in [rad^2]
     ends = []  # with fk: per held-out observation, the final robot configurations in [rad]
     for task, i in held_out(training.demos):
@@ -400,7 +402,7 @@ def choose_coupling(
         for ratio, parts, _ in cv_observations(
             encoder, training.demos[task][i], CONDITION_CV_RATIOS, training.encoded
         ):
-            phi = training.basis(np.linspace(ratio, 1.0, CV_PHASES))
+            phi = phis[ratio]
             spectrum = part_spectrum(training.basis, parts, alpha * training.duration_nominal_s)
             # (candidates, nu_c, J, K) conditioned robot weights
             ws = np.stack([path.mean for path in robot_paths(spectrum, parts, nus, priors)])

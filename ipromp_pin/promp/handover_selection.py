@@ -320,7 +320,8 @@ def _held_out_predictions(
         if prior is None or row.demo != cov_demo:  # the rows of a demo are consecutive
             keep = np.arange(len(training.demos[task])) != i
             weights = [training.weights[t][keep] if t == task else training.weights[t] for t in tasks]
-            cov = shrink_covariances(weights, settings.pooling, blocks, [k], training.cache)[0]
+            # the robot's block first: the others' factors are not needed
+            cov = shrink_covariances(weights, settings.pooling, blocks, [k], training.cache, [0])[0]
             prior = robot_prior(cov.mean, cov.diag, cov.factor, rs)
             cov_demo = row.demo
         obs = cv_observations(encoder, training.demos[task][i], [row.ratio], training.encoded)

@@ -391,10 +391,8 @@ def choose_coupling(
         keep = np.arange(len(training.demos[task])) != i
         weights = [training.weights[t][keep] if t == task else training.weights[t] for t in training.tasks]
         ki = [training.tasks.index(task)]
-        covs = [
-            shrink_covariances(weights, settings.pooling, coupling_blocks(layout, c), ki, training.cache)[0]
-            for c in cands
-        ]
+        blocks = [coupling_blocks(layout, c) for c in cands]  # the robot's block first: only its factor
+        covs = [shrink_covariances(weights, settings.pooling, b, ki, training.cache, [0])[0] for b in blocks]
         priors = [robot_prior(c.mean, c.diag, c.factor, rs) for c in covs]
         del covs  # only the factor columns that load on the robot are kept (memory)
         alpha = float(training.alphas[task][i])

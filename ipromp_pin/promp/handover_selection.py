@@ -41,7 +41,6 @@ from .head import WindowSummary, interpolation
 from .noise_path import RobotPrior, part_spectrum, robot_paths, robot_prior
 from .observation import ObservationEncoder
 from .orientation_selection import FinalRow, choose_orientation
-from .posterior import recognise_from_loglik
 from .selection import HeldOutRow, cv_observations, held_out
 from .training import PhaseSettings, TrainingSet, coupling_blocks
 
@@ -312,8 +311,7 @@ def _held_out_predictions(
     for row in rows:
         task, i = folds[row.demo]
         k = tasks.index(task)
-        rec, _ = recognise_from_loglik(row.priors, temperature * row.loglik, row.t_last)
-        alpha = float(rec.alpha[k])
+        alpha = float(row.recognised(temperature)[2][k])
         if not np.isfinite(alpha) or alpha <= 0.0:
             continue
         fraction = row.t_last / (alpha * training.duration_nominal_s)

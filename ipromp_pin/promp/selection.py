@@ -164,6 +164,7 @@ class HeldOutRow:
         loglik: The log likelihood (T, C) of the leave-one-out model at the chosen ``nu``.
         priors: The leave-one-out model's phase priors.
         t_last: Time of the last observed sample in [s].
+        recognitions: Likelihood temperature -> what :meth:`recognised` returned (its cache).
     """
 
     task: int
@@ -173,6 +174,19 @@ class HeldOutRow:
     loglik: np.ndarray
     priors: PhasePriors
     t_last: float
+    recognitions: dict[float, tuple[np.ndarray, np.ndarray, np.ndarray]] = field(
+        default_factory=dict, repr=False, compare=False
+    )
+
+    def recognised(self, temperature: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The generative task log posterior, posterior and MAP phases (T,) each of the row at the
+        likelihood temperature ``temperature`` (:func:`~ipromp_pin.promp.posterior.recognise_from_loglik`;
+        cached: the head and the hand-over regression both read them)."""
+        out = self.recognitions.get(temperature)
+        if out is None:
+            rec, _ = recognise_from_loglik(self.priors, temperature * self.loglik, self.t_last)
+            out = self.recognitions[temperature] = (rec.log_posterior, rec.posterior, rec.alpha)
+        return out
 
 
 def fit_recognition_head(rows: list[HeldOutRow], temperature: float, n_tasks: int) -> RecognitionHead:
@@ -180,9 +194,9 @@ def fit_recognition_head(rows: list[HeldOutRow], temperature: float, n_tasks: in
     the generative posterior at the chosen noise ratio and temperature."""
     feats, fractions = [], []
     for r in rows:
-        rec, _ = recognise_from_loglik(r.priors, temperature * r.loglik, r.t_last)
-        feats.append(head_features(r.window, rec.log_posterior))
-        fractions.append(observed_fraction(rec.posterior, rec.alpha, r.t_last, r.priors.duration_nominal_s))
+        log_posterior, posterior, alpha = r.recognised(temperature)
+        feats.append(head_features(r.window, log_posterior))
+        fractions.append(observed_fraction(posterior, alpha, r.t_last, r.priors.duration_nominal_s))
     labels = np.array([r.task for r in rows])
     groups = np.array([r.demo for r in rows])
     ratios = np.array([r.ratio for r in rows])

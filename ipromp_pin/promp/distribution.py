@@ -169,6 +169,7 @@ def shrink_covariances(
     blocks: list[np.ndarray] | None = None,
     tasks: list[int] | None = None,
     cache: ShrinkageCache | None = None,
+    factor_blocks: Sequence[int] | None = None,
 ) -> list[ShrunkCovariance]:
     """Ledoit-Wolf shrinkage of every task's covariance toward one pooled per-dim diagonal target.
 
@@ -188,6 +189,9 @@ def shrink_covariances(
             and intensities always use every task's demos.
         cache: Per-task statistics of weights arrays seen before (:class:`ShrinkageCache`): a
             leave-one-out estimate then recomputes only the task that lost a demo (same numbers).
+        factor_blocks: Indices into ``blocks`` of the blocks whose factor columns are returned
+            (default all): a caller that reads only the loadings of those blocks' dims skips the
+            others' factorisations (their diagonal and intensity are still estimated).
 
     Returns:
         Per task, the structured SPD estimate, block by block ``(1 - lambda) S_t + lambda T`` with
@@ -211,12 +215,13 @@ def shrink_covariances(
     tasks = list(range(len(weights))) if tasks is None else [int(t) for t in tasks]
     diag = np.empty(d)
     lam_dims = np.empty(d)
-    factors: list[list[np.ndarray]] = [[] for _ in tasks]
-    for dims in blocks:
+    factors: list[list[np.ndarray]] = [[np.zeros((d, k, 0))] for _ in tasks]
+    for n_block, dims in enumerate(blocks):
         if dims.size == 0:
             continue
         stats = [_block_stats(w, dims, cache) for w in weights]
-        lam, diag_b, facs = _shrink_block(stats, pooling, tasks)
+        with_factors = factor_blocks is None or n_block in factor_blocks
+        lam, diag_b, facs = _shrink_block(stats, pooling, tasks if with_factors else [])
         diag[dims] = diag_b
         lam_dims[dims] = lam
         for i, f in enumerate(facs):

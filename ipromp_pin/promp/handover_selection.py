@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .distribution import ShrunkCovariance, shrink_covariances
+from .distribution import shrink_covariances
 from .handover import (
     RATIOS,
     TRUST_GRID,
@@ -38,10 +38,9 @@ from .handover import (
 )
 from .handover_orientation import FKRot, OrientationEstimate, conditioned
 from .head import WindowSummary, interpolation
-from .noise_path import part_spectrum, robot_path
+from .noise_path import RobotPrior, part_spectrum, robot_paths, robot_prior
 from .observation import ObservationEncoder
 from .orientation_selection import FinalRow, choose_orientation
-from .posterior import recognise_from_loglik
 from .selection import HeldOutRow, cv_observations, held_out
 from .training import PhaseSettings, TrainingSet, coupling_blocks
 
@@ -212,7 +211,7 @@ def choose_handover(
     held = _held_out_predictions(training, settings, coupled, nu_condition, rows, temperature)
     best = None
     for dims, feats, fits, kinds in candidates:
-        nested: dict[tuple[int, str, int], RidgeFit | KnnFit | None] = {}
+        nested: dict[tuple[int, str, int], Refit | None] = {}
         scores = _cross_validate(
             training, held, readout, fk, dims, feats, fits, kinds, q_end, targets, nested
         )
@@ -268,6 +267,11 @@ def _pooled(residuals: list[np.ndarray]) -> np.ndarray:
     return cov + 1e-9 * max(float(np.trace(cov)) / cov.shape[0], 1e-12) * np.eye(cov.shape[0])
 
 
+Refit = tuple[RidgeFit | KnnFit, np.ndarray]
+"""A leave-one-out refit of a regression and its pooled residual second moment (M, M) (the other
+tasks' residuals with the refit's)."""
+
+
 @dataclass(frozen=True)
 class _HeldOutPrediction:
     """The leave-one-out robot prediction of one held-out row: its demo (task, index), the window
@@ -301,28 +305,29 @@ def _held_out_predictions(
     encoder = ObservationEncoder(layout, training.scaler, np.inf)
     folds = held_out(training.demos)
     blocks = coupling_blocks(layout, coupled)
-    cov: ShrunkCovariance | None = None  # the leave-one-out covariance of the current demo
+    prior: RobotPrior | None = None  # the leave-one-out distribution of the current demo
     cov_demo = -1
     out = []
     for row in rows:
         task, i = folds[row.demo]
         k = tasks.index(task)
-        rec, _ = recognise_from_loglik(row.priors, temperature * row.loglik, row.t_last)
-        alpha = float(rec.alpha[k])
+        alpha = float(row.recognised(temperature)[2][k])
         if not np.isfinite(alpha) or alpha <= 0.0:
             continue
         fraction = row.t_last / (alpha * training.duration_nominal_s)
-        if cov is None or row.demo != cov_demo:  # the rows of a demo are consecutive
+        if prior is None or row.demo != cov_demo:  # the rows of a demo are consecutive
             keep = np.arange(len(training.demos[task])) != i
             weights = [training.weights[t][keep] if t == task else training.weights[t] for t in tasks]
-            cov = shrink_covariances(weights, settings.pooling, blocks, [k], training.cache)[0]
+            # the robot's block first: the others' factors are not needed
+            cov = shrink_covariances(weights, settings.pooling, blocks, [k], training.cache, [0])[0]
+            prior = robot_prior(cov.mean, cov.diag, cov.factor, rs)
             cov_demo = row.demo
         obs = cv_observations(encoder, training.demos[task][i], [row.ratio], training.encoded)
         if not obs:
             continue
         _, parts, _ = obs[0]
         spectrum = part_spectrum(training.basis, parts, alpha * training.duration_nominal_s)
-        path = robot_path(spectrum, parts, rs, [nu_condition], cov.mean, cov.diag, cov.factor)
+        path = robot_paths(spectrum, parts, [nu_condition], [prior])[0]
         mean = (path.mean[0] @ phi_end) * scale + offset  # (J,) [rad]
         s_cov = path.readout_cov(phi_end)[0] * scale[:, None] * scale[None, :]
         out.append(_HeldOutPrediction(task, i, np.asarray(row.window, dtype=float), fraction, mean, s_cov))
@@ -337,7 +342,7 @@ def _loo_observation(
     fits: dict[tuple[int, str], RidgeFit | KnnFit],
     kinds: list[bool],
     targets: dict[str, np.ndarray],
-    nested: dict[tuple[int, str, int], RidgeFit | KnnFit | None],
+    nested: dict[tuple[int, str, int], Refit | None],
 ) -> tuple[np.ndarray, np.ndarray] | None:
     """The regression's prediction (M,) and noise covariance (M, M) for held-out row ``h``: refitted
     without its demo (``nested`` caches the refits), interpolated at its estimated fraction; None when
@@ -351,13 +356,14 @@ def _loo_observation(
             continue
         key = (level, h.task, h.index)
         if key not in nested:
-            nested[key] = _fit(feats[h.task][level], targets[h.task], drop=h.index, knn=kinds[level])
-        fit = nested[key]
-        if fit is None:
+            fit = _fit(feats[h.task][level], targets[h.task], drop=h.index, knn=kinds[level])
+            others = [fits[(level, t)].residuals for t in tasks if t != h.task]
+            nested[key] = None if fit is None else (fit, _pooled([*others, fit.residuals]))
+        refit = nested[key]
+        if refit is None:
             return None
-        pred += weight * fit.predict(x)
-        others = [fits[(level, t)].residuals for t in tasks if t != h.task]
-        noise += weight * _pooled([*others, fit.residuals])
+        pred += weight * refit[0].predict(x)
+        noise += weight * refit[1]
     return pred, noise
 
 
@@ -371,7 +377,7 @@ def _final_rows(
     kinds: list[bool],
     targets: dict[str, np.ndarray],
     trust: float,
-    nested: dict[tuple[int, str, int], RidgeFit | KnnFit | None],
+    nested: dict[tuple[int, str, int], Refit | None],
 ) -> list[FinalRow]:
     """The held-out final configurations as online with the chosen regression (trust ``trust``;
     ``inf``: off) applied by exact conditioning, its leave-one-out refits taken from ``nested`` (the
@@ -403,7 +409,7 @@ def _cross_validate(
     kinds: list[bool],
     q_end: dict[str, np.ndarray],
     targets: dict[str, np.ndarray],
-    nested: dict[tuple[int, str, int], RidgeFit | KnnFit | None],
+    nested: dict[tuple[int, str, int], Refit | None],
 ) -> dict[float, float]:
     """Candidate trust factor -> CV error (``inf``: off) of the regression on the features of
     ``dims`` (final configurations ``q_end``, regression targets ``targets``; ``nested`` caches the

@@ -206,9 +206,19 @@ def head_features(window: np.ndarray, generative_log_posterior: np.ndarray) -> n
     return np.concatenate([window, np.maximum(generative_log_posterior, LOG_POSTERIOR_CLIP)])
 
 
-def _log_softmax(z: np.ndarray, overwrite: bool = False) -> np.ndarray:
+def _log_softmax(
+    z: np.ndarray, overwrite: bool = False, work: tuple[np.ndarray, np.ndarray] | None = None
+) -> np.ndarray:
     """Row-wise log softmax of ``z`` (n, T) (``overwrite``: ``z`` is a temporary of the caller's,
-    shifted in place)."""
+    shifted in place; ``work``: scratch arrays (n, 1) and (n, T), and the result is written into
+    ``z``: the same numbers without temporaries)."""
+    if work is not None:
+        col, e = work
+        z.max(axis=1, keepdims=True, out=col)
+        z -= col
+        np.exp(z, out=e).sum(axis=1, keepdims=True, out=col)
+        z -= np.log(col, out=col)
+        return z
     if overwrite:
         z -= z.max(axis=1, keepdims=True)
     else:
@@ -238,17 +248,26 @@ def _fit_softmax(
     n_w = n_classes * f
     half_lam = 0.5 * lam
 
+    # scratch arrays reused by every evaluation: logits / log softmax and exp / residuals (n, T),
+    # products (n, T), row maxima / sums (n, 1), W-sized products (T, F)
+    z, r, prod = np.empty((n, n_classes)), np.empty((n, n_classes)), np.empty((n, n_classes))
+    col, wbuf = np.empty((n, 1)), np.empty((n_classes, f))
+
     def loss(theta: np.ndarray) -> tuple[float, np.ndarray]:
-        # -sum(target * log_softmax(z)) + ||W||^2 lam / 2 and its gradient, with few temporaries
+        # -sum(target * log_softmax(z)) + ||W||^2 lam / 2 and its gradient, in the scratch arrays
         w = theta[:n_w].reshape(n_classes, f)
-        logp = _log_softmax(x @ w.T + theta[n_w:], overwrite=True)
-        r = np.exp(logp)
-        r *= sw
-        r -= target
-        value = -float((target * logp).sum()) + half_lam * float((w * w).sum())
+        np.matmul(x, w.T, out=z)
+        np.add(z, theta[n_w:], out=z)
+        logp = _log_softmax(z, work=(col, r))
+        np.subtract(np.multiply(np.exp(logp, out=r), sw, out=r), target, out=r)
+        value = -float(np.multiply(target, logp, out=prod).sum()) + half_lam * float(
+            np.multiply(w, w, out=wbuf).sum()
+        )
         grad = np.empty_like(theta)
-        grad[:n_w] = (r.T @ x + lam * w).ravel()
-        grad[n_w:] = r.sum(axis=0)
+        g_w = grad[:n_w].reshape(n_classes, f)
+        np.matmul(r.T, x, out=g_w)
+        g_w += np.multiply(lam, w, out=wbuf)
+        r.sum(axis=0, out=grad[n_w:])
         return value, grad
 
     theta0 = np.zeros(n_classes * (f + 1)) if start is None else start
@@ -384,16 +403,18 @@ class _CvPath:
             train = used & (folds != k)
             test = folds == k
             rows = np.arange(int(test.sum()))
+            x_train, y_train, w_train = self.x[train], labels[train], pool[train]
+            x_test, y_test = self.x[test], labels[test]
             theta = None
             for j, c in enumerate(HEAD_C_GRID):
-                w, b, theta = _fit_softmax(self.x[train], labels[train], n_tasks, c, pool[train], theta)
-                logp = _log_softmax(self.x[test] @ w.T + b)
-                self.log_loss[j, test] = -logp[rows, labels[test]]
-            w, b = _fit_lda(self.x[train], labels[train], n_tasks, pool[train])
-            z = self.x[test] @ w.T + b
+                w, b, theta = _fit_softmax(x_train, y_train, n_tasks, c, w_train, theta)
+                logp = _log_softmax(x_test @ w.T + b)
+                self.log_loss[j, test] = -logp[rows, y_test]
+            w, b = _fit_lda(x_train, y_train, n_tasks, w_train)
+            z = x_test @ w.T + b
             for j, g in enumerate(gammas):
                 logp = _log_softmax(g * z)
-                self.log_loss[n_c + j, test] = -logp[rows, labels[test]]
+                self.log_loss[n_c + j, test] = -logp[rows, y_test]
 
     @staticmethod
     def parameter(j: int) -> float:

@@ -39,8 +39,13 @@ def latent_blocks(models: list[TaskModel], n_obs: int) -> list[tuple[np.ndarray,
         return i
 
     active = [np.any(m.factor[:n_obs] != 0.0, axis=1) for m in models]  # (D_o, r_t) per task
+    seen = set()  # a column's dims are linked already when its pattern was seen (same roots)
     for act in active:
-        for col in act.T:
+        for col in np.ascontiguousarray(act.T):
+            key = col.tobytes()
+            if key in seen:
+                continue
+            seen.add(key)
             dims = np.flatnonzero(col)
             for d in dims[1:]:
                 parent[root(int(d))] = root(int(dims[0]))
@@ -89,12 +94,8 @@ class LatentBlock:
         self.w = np.zeros((n_task, self.dims.size, k, r))
         for i, (m, c) in enumerate(zip(models, cols, strict=True)):
             self.w[i, :, :, : c.size] = m.factor[self.dims][:, :, c] / self.sqrt_delta[i][:, None, None]
-        pk, pl = [], []
-        for ll in range(k):
-            for kk in range(ll + 1):
-                pk.append(kk)
-                pl.append(ll)
-        self.pk, self.pl = np.array(pk, dtype=np.int64), np.array(pl, dtype=np.int64)
+        pl, pk = np.tril_indices(k)  # the basis pairs (k, l), k <= l, ordered by l then k
+        self.pk, self.pl = pk.astype(np.int64), pl.astype(np.int64)
         ia, ib = np.triu_indices(r)
         self.ia, self.ib = ia.astype(np.int64), ib.astype(np.int64)
         unpack = np.zeros((r, r), dtype=np.int64)  # index of Q[i, j] in the packed upper triangle
@@ -148,19 +149,24 @@ class LatentBlock:
             w = self.w[:, local] if n_basis is None else self.w[:, local, :n_basis]
             n_task, dm, k, r = w.shape
             flat = w.reshape(n_task, dm, k * r)
-            direct, mirror = z_panel_gather(k, r)
             z = np.empty((n_task, k * (k + 1) // 2, r * (r + 1) // 2)) if out is None else out
             for t in range(n_task):
-                # one column panel of W^T W per basis function l: panel[k r + a, b] = sum_d W_dka W_dlb
-                # (K r, r), so W^T W (K r, K r) is never held whole. Z's rows (k, l) for k <= l are
-                # consecutive; their (k, l, a, b) entries and the mirror (l, k, a, b) = (k, l, b, a)
-                # of the rows with k != l both lie in panel l (W^T W is symmetric)
-                for ll in range(k):
-                    panel = (flat[t].T @ flat[t][:, ll * r : (ll + 1) * r]).reshape(-1)
-                    row0 = ll * (ll + 1) // 2
-                    z[t, row0 : row0 + ll + 1] = np.take(panel, direct[: ll + 1])
-                    if ll:
-                        z[t, row0 : row0 + ll] += np.take(panel, mirror[:ll])
+                # the columns of W^T W of Z_CHUNK basis functions l0 <= l < l1 at a time, their rows
+                # k <= l only: panel[k r + a, (l - l0) r + b] = sum_d W_dka W_dlb, so W^T W (K r, K r)
+                # is never held whole. Z's rows (k, l) for k <= l of the chunk are consecutive; their
+                # (k, l, a, b) entries and the mirror (l, k, a, b) = (k, l, b, a) of the rows with
+                # k != l both lie in the panel (W^T W is symmetric)
+                # (rank 1: one basis function at a time against every row, the matrix-vector
+                # product whose rounding Z has always had)
+                step = 1 if r == 1 else Z_CHUNK
+                for l0 in range(0, k, step):
+                    l1 = min(k, l0 + step)
+                    lhs = flat[t] if r == 1 else flat[t][:, : l1 * r]
+                    panel = (lhs.T @ flat[t][:, l0 * r : l1 * r]).reshape(-1)
+                    direct, mirror, off = z_chunk_gather(r, l0, l1)
+                    rows = np.take(panel, direct)
+                    rows[off] += np.take(panel, mirror)
+                    z[t, l0 * (l0 + 1) // 2 : l1 * (l1 + 1) // 2] = rows
             if cache and n_basis is None and out is None:
                 self._z[key] = z
         return z
@@ -205,16 +211,27 @@ class LatentBlock:
         return c
 
 
-@functools.lru_cache(maxsize=16)
-def z_panel_gather(k: int, r: int) -> tuple[np.ndarray, np.ndarray]:
-    """Flat indices into a column panel ``(K r, r)`` of ``W^T W`` (the columns of basis function
-    ``l``) of the packed ``Z`` entries ``(k, l, a, b)`` (``a <= b``): ``(k r + a) r + b``, and of
-    their mirror ``(l, k, a, b)`` read at ``(k r + b) r + a``, (K, r(r+1)/2) each (row ``k``), for
-    ``K = k`` basis functions and rank ``r`` (cached: the cross-validations build many blocks of the
-    same shape)."""
+Z_CHUNK = 4
+"""Basis functions whose columns of ``W^T W`` :meth:`LatentBlock.z_tensor` computes at a time (a
+panel of at most ``K r x Z_CHUNK r`` values)."""
+
+
+@functools.lru_cache(maxsize=256)
+def z_chunk_gather(r: int, l0: int, l1: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Flat indices into a panel ``(l1 r, (l1 - l0) r)`` of ``W^T W`` (rows ``k r + a`` of the basis
+    functions ``k < l1``, columns ``(l - l0) r + b`` of those ``l0 <= l < l1``) of the packed ``Z``
+    entries ``(k, l, a, b)`` (``a <= b``, ``k <= l``, rows ordered by ``l`` then ``k``), and of their
+    mirrors ``(l, k, a, b)`` read at ``(k r + b, (l - l0) r + a)`` for the rows with ``k < l``, with
+    the positions of those rows: (R, r(r+1)/2), (R', r(r+1)/2), (R',) for rank ``r`` (cached: the
+    cross-validations build many blocks of the same shape)."""
     ia, ib = np.triu_indices(r)
-    kk = np.arange(k, dtype=np.int64)[:, None] * r
-    out = ((kk + ia[None, :]) * r + ib[None, :], (kk + ib[None, :]) * r + ia[None, :])
+    width = (l1 - l0) * r
+    pl, pk = np.tril_indices(l1)  # rows (k, l), k <= l, ordered by l then k
+    pk, pl = pk[pl >= l0][:, None], pl[pl >= l0][:, None] - l0
+    direct = (pk * r + ia) * width + pl * r + ib
+    mirror = (pk * r + ib) * width + pl * r + ia
+    off = np.flatnonzero(pk[:, 0] != pl[:, 0] + l0)
+    out = (direct.astype(np.int64), mirror[off].astype(np.int64), off)
     for a in out:
         a.setflags(write=False)
     return out

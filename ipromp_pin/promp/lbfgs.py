@@ -90,7 +90,7 @@ def minimize_lbfgs(
             ln_task,
         )
         if task[0] == 3:  # the routine asks for f and g at x
-            if not np.array_equal(x, x_eval):
+            if not (x == x_eval).all():  # np.array_equal's answer for arrays of one shape, cheaper
                 x_eval = x.copy()
                 f_eval, g_eval = fun(x_eval.copy())
                 n_fev += 1

@@ -91,40 +91,90 @@ class RobotPath:
         return cov
 
 
-def robot_path(
-    spectrum: PartSpectrum,
-    parts: list[ObservationPart],
-    robot: slice,
-    nus: Sequence[float],
-    mean: np.ndarray,
-    diag: np.ndarray,
-    factor: np.ndarray,
-) -> RobotPath:
-    """The robot's weights conditioned on the parts (at the phase of ``spectrum``) for every noise
-    ratio of ``nus``, from a weight distribution ``mean`` (D, K), ``diag`` (D,), ``factor`` (D, K, r)."""
-    nu = np.asarray(nus, dtype=float)
+@dataclass(frozen=True)
+class RobotPrior:
+    """What the robot's conditioning reads of a weight distribution (built once per distribution,
+    for every observation conditioned on it).
+
+    Attributes:
+        mean: (D, K) mean weights (scaled units).
+        diag: (D,) diagonal variances ``delta_d``.
+        factor: (D, K, r) the factor columns that load on the robot (the other latent blocks are
+            independent of its weights).
+        robot: The robot's dims.
+    """
+
+    mean: np.ndarray
+    diag: np.ndarray
+    factor: np.ndarray
+    robot: slice
+
+
+def robot_prior(mean: np.ndarray, diag: np.ndarray, factor: np.ndarray, robot: slice) -> RobotPrior:
+    """The :class:`RobotPrior` of a weight distribution ``mean`` (D, K), ``diag`` (D,), ``factor``
+    (D, K, r) whose robot dims are ``robot``."""
     cols = np.flatnonzero(np.any(factor[robot] != 0.0, axis=(0, 1)))
-    f = factor[:, :, cols]
-    r = cols.size
+    return RobotPrior(mean, diag, factor[:, :, cols], robot)
+
+
+def _latent_terms(
+    spectrum: PartSpectrum, parts: list[ObservationPart], prior: RobotPrior, projected: list[np.ndarray]
+) -> tuple[np.ndarray, np.ndarray]:
+    """The stacked ``M_i`` (I, r r) and ``m_i`` (I, r) of ``prior`` (module docstring), from each
+    part's projected residuals ``V^T B^T (y - B mu)`` (ke, D_m)."""
+    f = prior.factor
+    r = f.shape[2]
     m_blocks, a_blocks = [], []
-    for p, vt, b, ke in zip(parts, spectrum.proj, spectrum.basis_rows, spectrum.ke, strict=True):
-        dims = np.asarray(p.dims)
-        sd = np.sqrt(diag[dims])
-        w = vt @ (f[dims, :ke] / sd[:, None, None])  # W~_d (D_m, ke, r)
+    for p, vt, ke, proj in zip(parts, spectrum.proj, spectrum.ke, projected, strict=True):
+        sd = np.sqrt(prior.diag[np.asarray(p.dims)])
+        w = vt @ (f[np.asarray(p.dims), :ke] / sd[:, None, None])  # W~_d (D_m, ke, r)
         w = np.ascontiguousarray(w.transpose(1, 0, 2))  # (ke, D_m, r)
-        resid = p.y - b @ mean[dims, :ke].T  # (n, D_m)
-        bt = (vt @ (b.T @ resid)) / sd[None, :]  # b~_d / sqrt(delta_d) as columns (ke, D_m)
+        bt = proj / sd[None, :]  # b~_d / sqrt(delta_d) as columns (ke, D_m)
         m_blocks.append(np.matmul(w.transpose(0, 2, 1), w))
         a_blocks.append(np.matmul(bt[:, None, :], w)[:, 0, :])
+    return np.concatenate(m_blocks).reshape(spectrum.values.size, r * r), np.concatenate(a_blocks)
+
+
+def robot_paths(
+    spectrum: PartSpectrum, parts: list[ObservationPart], nus: Sequence[float], priors: Sequence[RobotPrior]
+) -> list[RobotPath]:
+    """Per prior, the robot's weights conditioned on the parts (at the phase of ``spectrum``) for
+    every noise ratio of ``nus``. What depends on the observation alone (the ``nu`` weights, the
+    projected residuals of equal means) is computed once, and the latent systems of equal rank are
+    factorised and solved in one call each (the same LAPACK calls per matrix: the same numbers)."""
+    nu = np.asarray(nus, dtype=float)
     lam = spectrum.values
-    big_m = np.concatenate(m_blocks).reshape(lam.size, r * r)
-    big_a = np.concatenate(a_blocks)
     inv = 1.0 / (nu[:, None] + lam[None, :])  # (n_nu, I)
-    q = ((inv * lam[None, :]) @ big_m).reshape(nu.size, r, r)
-    q[:, np.arange(r), np.arange(r)] += 1.0
-    chol = np.linalg.cholesky(q)
-    a = inv @ big_a  # (n_nu, r)
-    eta = np.linalg.solve(q, a[:, :, None])[:, :, 0]
-    fr = f[robot]
-    w_robot = mean[robot][None] + np.einsum("jkr,nr->njk", fr, eta)
-    return RobotPath(mean=w_robot, latent_chol=chol, robot_factor=fr, robot_diag=diag[robot])
+    inv_lam = inv * lam[None, :]
+    qs, rhs = [], []
+    mean_seen: np.ndarray | None = None
+    projected: list[np.ndarray] = []
+    for prior in priors:
+        if mean_seen is None or not np.array_equal(prior.mean, mean_seen):
+            mean_seen = prior.mean
+            projected = [
+                vt @ (b.T @ (p.y - b @ prior.mean[np.asarray(p.dims), :ke].T))
+                for p, vt, b, ke in zip(parts, spectrum.proj, spectrum.basis_rows, spectrum.ke, strict=True)
+            ]
+        big_m, big_a = _latent_terms(spectrum, parts, prior, projected)
+        r = prior.factor.shape[2]
+        q = (inv_lam @ big_m).reshape(nu.size, r, r)
+        q[:, np.arange(r), np.arange(r)] += 1.0
+        qs.append(q)
+        rhs.append((inv @ big_a)[:, :, None])  # (n_nu, r, 1)
+    chol: list[np.ndarray] = [np.empty(0)] * len(priors)
+    eta: list[np.ndarray] = [np.empty(0)] * len(priors)
+    for r in {q.shape[1] for q in qs}:
+        same = [i for i, q in enumerate(qs) if q.shape[1] == r]
+        q_all = np.concatenate([qs[i] for i in same])
+        c_all = np.linalg.cholesky(q_all)
+        e_all = np.linalg.solve(q_all, np.concatenate([rhs[i] for i in same]))[:, :, 0]
+        for n, i in enumerate(same):
+            chol[i] = c_all[n * nu.size : (n + 1) * nu.size]
+            eta[i] = e_all[n * nu.size : (n + 1) * nu.size]
+    out = []
+    for prior, c, e in zip(priors, chol, eta, strict=True):
+        fr = prior.factor[prior.robot]
+        w_robot = prior.mean[prior.robot][None] + np.einsum("jkr,nr->njk", fr, e)
+        out.append(RobotPath(w_robot, c, fr, prior.diag[prior.robot]))
+    return out

@@ -48,7 +48,7 @@ from ..exceptions import ModelError, ObservationError
 from .distribution import shrink_covariances
 from .head import RecognitionHead, WindowSummary, fit_head, head_features, observed_fraction
 from .likelihood import InferenceEngine
-from .noise_path import part_spectrum, robot_path
+from .noise_path import part_spectrum, robot_paths, robot_prior
 from .observation import ObservationEncoder, ObservationPart
 from .posterior import PhasePriors, recognise_from_loglik, recognition_terms
 from .training import PhaseSettings, TrainingSet, coupling_blocks, task_models
@@ -164,6 +164,7 @@ class HeldOutRow:
         loglik: The log likelihood (T, C) of the leave-one-out model at the chosen ``nu``.
         priors: The leave-one-out model's phase priors.
         t_last: Time of the last observed sample in [s].
+        recognitions: Likelihood temperature -> what :meth:`recognised` returned (its cache).
     """
 
     task: int
@@ -173,6 +174,19 @@ class HeldOutRow:
     loglik: np.ndarray
     priors: PhasePriors
     t_last: float
+    recognitions: dict[float, tuple[np.ndarray, np.ndarray, np.ndarray]] = field(
+        default_factory=dict, repr=False, compare=False
+    )
+
+    def recognised(self, temperature: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The generative task log posterior, posterior and MAP phases (T,) each of the row at the
+        likelihood temperature ``temperature`` (:func:`~ipromp_pin.promp.posterior.recognise_from_loglik`;
+        cached: the head and the hand-over regression both read them)."""
+        out = self.recognitions.get(temperature)
+        if out is None:
+            rec, _ = recognise_from_loglik(self.priors, temperature * self.loglik, self.t_last)
+            out = self.recognitions[temperature] = (rec.log_posterior, rec.posterior, rec.alpha)
+        return out
 
 
 def fit_recognition_head(rows: list[HeldOutRow], temperature: float, n_tasks: int) -> RecognitionHead:
@@ -180,9 +194,9 @@ def fit_recognition_head(rows: list[HeldOutRow], temperature: float, n_tasks: in
     the generative posterior at the chosen noise ratio and temperature."""
     feats, fractions = [], []
     for r in rows:
-        rec, _ = recognise_from_loglik(r.priors, temperature * r.loglik, r.t_last)
-        feats.append(head_features(r.window, rec.log_posterior))
-        fractions.append(observed_fraction(rec.posterior, rec.alpha, r.t_last, r.priors.duration_nominal_s))
+        log_posterior, posterior, alpha = r.recognised(temperature)
+        feats.append(head_features(r.window, log_posterior))
+        fractions.append(observed_fraction(posterior, alpha, r.t_last, r.priors.duration_nominal_s))
     labels = np.array([r.task for r in rows])
     groups = np.array([r.demo for r in rows])
     ratios = np.array([r.ratio for r in rows])
@@ -383,25 +397,27 @@ def choose_coupling(
     rs = layout.robot_slice
     scale = training.scaler.scale[rs]
     offset = training.scaler.offset[rs]
+    # the basis at the unobserved phases of each observed fraction (K values at CV_PHASES phases)
+    phis = {r: training.basis(np.linspace(r, 1.0, CV_PHASES)) for r in CONDITION_CV_RATIOS}
     rows = []  # per held-out observation, the MSE of every (candidate, nu_c) in [rad^2]
     ends = []  # with fk: per held-out observation, the final robot configurations in [rad]
     for task, i in held_out(training.demos):
         keep = np.arange(len(training.demos[task])) != i
         weights = [training.weights[t][keep] if t == task else training.weights[t] for t in training.tasks]
         ki = [training.tasks.index(task)]
-        covs = [
-            shrink_covariances(weights, settings.pooling, coupling_blocks(layout, c), ki, training.cache)[0]
-            for c in cands
-        ]
+        blocks = [coupling_blocks(layout, c) for c in cands]  # the robot's block first: only its factor
+        covs = [shrink_covariances(weights, settings.pooling, b, ki, training.cache, [0])[0] for b in blocks]
+        priors = [robot_prior(c.mean, c.diag, c.factor, rs) for c in covs]
+        del covs  # only the factor columns that load on the robot are kept (memory)
         alpha = float(training.alphas[task][i])
         w_true = training.weights[task][i][rs]
         for ratio, parts, _ in cv_observations(
             encoder, training.demos[task][i], CONDITION_CV_RATIOS, training.encoded
         ):
-            phi = training.basis(np.linspace(ratio, 1.0, CV_PHASES))
+            phi = phis[ratio]
             spectrum = part_spectrum(training.basis, parts, alpha * training.duration_nominal_s)
             # (candidates, nu_c, J, K) conditioned robot weights
-            ws = np.stack([robot_path(spectrum, parts, rs, nus, c.mean, c.diag, c.factor).mean for c in covs])
+            ws = np.stack([path.mean for path in robot_paths(spectrum, parts, nus, priors)])
             if fk is None:  # mean squared joint error over the unobserved phases [rad^2]
                 errs = ((ws - w_true) @ phi.T) * scale[:, None]  # (candidates, nu_c, J, phases)
                 rows.append(np.mean(errs * errs, axis=(2, 3)).ravel())

@@ -52,3 +52,18 @@ def test_cache_ignores_arrays_it_was_not_given() -> None:
     dims = np.arange(4)
     assert cache.stats(w, dims) is cache.stats(w, dims)
     assert cache.stats(w.copy(), dims) is None
+
+
+@pytest.mark.parametrize("pooling", [0.0, 0.4])
+def test_factor_blocks_keep_the_chosen_blocks_columns(pooling: float) -> None:
+    """``factor_blocks``: the chosen blocks' factor columns and every diagonal are those of the full
+    estimate (the same numbers), the other blocks get no columns."""
+    rng = np.random.default_rng(5)
+    weights = [_weights(rng, n) for n in (6, 5, 7)]
+    blocks = [np.array([1, 3]), np.array([0, 2])]
+    full = shrink_covariances(weights, pooling, blocks, [1])[0]
+    part = shrink_covariances(weights, pooling, blocks, [1], factor_blocks=[0])[0]
+    cols = np.flatnonzero(np.any(full.factor[blocks[0]] != 0.0, axis=(0, 1)))
+    np.testing.assert_array_equal(part.factor, full.factor[:, :, cols])
+    for name in ("mean", "diag", "shrinkage"):
+        np.testing.assert_array_equal(getattr(part, name), getattr(full, name))

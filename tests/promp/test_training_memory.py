@@ -55,15 +55,18 @@ def _dense_z(w: np.ndarray) -> np.ndarray:
     return z
 
 
-def test_panel_z_tensor_matches_its_definition() -> None:
+@pytest.mark.parametrize("shape", [(2, 4, 9, 3), (3, 5, 7, 1), (1, 2, 4, 2)])
+def test_panel_z_tensor_matches_its_definition(shape: tuple[int, int, int, int]) -> None:
+    """Panels of several basis functions (a last partial one; rank 1 one at a time) fill every row."""
     rng = np.random.default_rng(3)
     block = LatentBlock.__new__(LatentBlock)  # only the factors matter here
-    block.w, block._z = rng.normal(size=(2, 4, 9, 3)), {}
+    block.w, block._z = rng.normal(size=shape), {}
+    n_task, n_dim, k, r = shape
     ref = _dense_z(block.w)
-    local = np.arange(4)
+    local = np.arange(n_dim)
     assert np.allclose(block.z_tensor(local), ref, rtol=1e-13, atol=1e-13)
-    assert np.allclose(block.z_tensor(local, n_basis=5), _dense_z(block.w[:, :, :5]), rtol=1e-13, atol=1e-13)
-    out = np.full((2, 45, 6), np.nan)
+    assert np.allclose(block.z_tensor(local, n_basis=3), _dense_z(block.w[:, :, :3]), rtol=1e-13, atol=1e-13)
+    out = np.full((n_task, k * (k + 1) // 2, r * (r + 1) // 2), np.nan)
     assert block.z_tensor(local, out=out) is out and np.allclose(out, ref, rtol=1e-13, atol=1e-13)
 
 

@@ -848,6 +848,58 @@ def recognition(
 
 
 @njit(**_JIT)
+def head_log_posterior(
+    values: np.ndarray,
+    generative: np.ndarray,
+    fraction: float,
+    ratios: np.ndarray,
+    w: np.ndarray,
+    b: np.ndarray,
+    clip: float,
+) -> np.ndarray:
+    """Normalised log task posterior (T,) of the recognition head
+    (:meth:`ipromp_pin.promp.head.RecognitionHead.log_posterior`): features ``x`` = the window
+    ``values`` (3 D_o,) then the generative log posterior ``generative`` (T,) clipped below at
+    ``clip``; logits ``w[i] x + b[i]`` (``w`` (R, T, F), ``b`` (R, T)) interpolated linearly between
+    the ratios ``ratios`` (R,) around the observed ``fraction`` (constant outside them); tasks with a
+    non-finite generative log posterior stay impossible."""
+    n_r = ratios.shape[0]
+    n_t = generative.shape[0]
+    i = 0
+    wt = 0.0
+    if fraction > ratios[0]:
+        while i + 1 < n_r and ratios[i + 1] <= fraction:
+            i += 1
+        if i + 1 < n_r:
+            wt = (fraction - ratios[i]) / (ratios[i + 1] - ratios[i])
+    z = np.empty(n_t)
+    for t in range(n_t):
+        z[t] = _head_logit(w[i, t], b[i, t], values, generative, clip)
+        if wt > 0.0:
+            z[t] = (1.0 - wt) * z[t] + wt * _head_logit(w[i + 1, t], b[i + 1, t], values, generative, clip)
+        if not np.isfinite(generative[t]):
+            z[t] = -np.inf
+    top = z.max()
+    s = 0.0
+    for t in range(n_t):
+        z[t] -= top
+        s += np.exp(z[t])
+    return z - np.log(s)
+
+
+@njit(**_JIT)
+def _head_logit(w: np.ndarray, b: float, values: np.ndarray, generative: np.ndarray, clip: float) -> float:
+    """One task's logit ``w x + b`` of :func:`head_log_posterior` (``w`` (F,))."""
+    n_v = values.shape[0]
+    acc = 0.0
+    for f in range(n_v):
+        acc += w[f] * values[f]
+    for t in range(generative.shape[0]):
+        acc += w[n_v + t] * max(generative[t], clip)
+    return acc + b
+
+
+@njit(**_JIT)
 def add_sample(gram: np.ndarray, proj: np.ndarray, phi: np.ndarray, y: np.ndarray) -> None:
     """Add one sample to running statistics: ``gram`` (K, K, U) ``+= phi phi^T`` (lower triangle only:
     :func:`x_inverse` reads no other entry) and ``proj`` (K, U, D) ``+= phi y^T`` for basis values
@@ -917,22 +969,33 @@ def stream_sample(
     gram: np.ndarray,
     proj: np.ndarray,
     sq: np.ndarray,
+    window: np.ndarray,
+    w_sum: np.ndarray,
+    w_count: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray, bool]:
     """Add one sample with every observed dim to the running statistics of a stream.
 
     Scales the raw values ``y`` (D,) as ``ChannelScaler.transform`` (``log(max(y, 0) + c)`` on the
     dims ``log_idx`` with shifts ``log_c``, then ``(y - offset) / scale``), computes the basis values
-    (K, U) at the phases ``t_s inv_dur`` (:func:`basis_rows`) and adds the sample to ``gram``
-    (K, K, U), ``proj`` (K, U, D) and ``sq`` (D,) (:func:`add_sample`). Returns the basis values, the
-    scaled values and whether every raw value is finite and plausible (:func:`scale_samples`; if
-    not, the statistics are left unchanged).
+    (K, U) at the phases ``t_s inv_dur`` (:func:`basis_rows`), adds the sample to ``gram``
+    (K, K, U), ``proj`` (K, U, D) and ``sq`` (D,) (:func:`add_sample`) and to the window summary
+    ``window`` (3, D) (rows: first, mean and last value) with its running sums ``w_sum`` and counts
+    ``w_count`` (D,). Returns the basis values, the scaled values and whether every raw value is
+    finite and plausible (:func:`scale_samples`; if not, the statistics are left unchanged).
     """
     ys: np.ndarray = np.empty((1, y.shape[0]))
     if not scale_samples(y.reshape(1, -1), log_idx, log_c, offset, scale, ys):
         return np.empty((0, 0)), ys.reshape(-1), False
     ys = ys.reshape(-1)
     for d in range(ys.shape[0]):
-        sq[d] += ys[d] * ys[d]
+        v = ys[d]
+        sq[d] += v * v
+        if w_count[d] == 0.0:
+            window[0, d] = v
+        w_sum[d] += v
+        w_count[d] += 1.0
+        window[1, d] = w_sum[d] / w_count[d]
+        window[2, d] = v
     phi = basis_rows(t_s * inv_dur, centres, width, step)
     add_sample(gram, proj, phi, ys)
     return phi, ys, True

@@ -848,23 +848,32 @@ def recognition(
 
 
 @njit(**_JIT)
-def head_log_posterior(
+def head_posterior(
     values: np.ndarray,
     generative: np.ndarray,
-    fraction: float,
+    posterior: np.ndarray,
+    alpha: np.ndarray,
+    t_scale: float,
     ratios: np.ndarray,
     w: np.ndarray,
     b: np.ndarray,
     clip: float,
-) -> np.ndarray:
-    """Normalised log task posterior (T,) of the recognition head
-    (:meth:`ipromp_pin.promp.head.RecognitionHead.log_posterior`): features ``x`` = the window
-    ``values`` (3 D_o,) then the generative log posterior ``generative`` (T,) clipped below at
-    ``clip``; logits ``w[i] x + b[i]`` (``w`` (R, T, F), ``b`` (R, T)) interpolated linearly between
-    the ratios ``ratios`` (R,) around the observed ``fraction`` (constant outside them); tasks with a
-    non-finite generative log posterior stay impossible."""
+) -> tuple[np.ndarray, np.ndarray, int]:
+    """Task posterior of the recognition head (:class:`ipromp_pin.promp.head.RecognitionHead`): the
+    normalised log posterior (T,), the posterior (T,) and the most probable task.
+
+    Features ``x`` = the window ``values`` (3 D_o,) then the generative log posterior ``generative``
+    (T,) clipped below at ``clip``; logits ``w[i] x + b[i]`` (``w`` (R, T, F), ``b`` (R, T))
+    interpolated linearly between the ratios ``ratios`` (R,) around the observed fraction
+    ``t_scale sum_t posterior_t / alpha_t`` (:func:`ipromp_pin.promp.head.observed_fraction`: the
+    generative posterior (T,), MAP phases (T,) and ``t_last / T_norm``), constant outside them;
+    tasks with a non-finite generative log posterior stay impossible."""
     n_r = ratios.shape[0]
     n_t = generative.shape[0]
+    fraction = 0.0
+    for t in range(posterior.shape[0]):
+        fraction += posterior[t] * (1.0 / alpha[t])
+    fraction = t_scale * fraction
     i = 0
     wt = 0.0
     if fraction > ratios[0]:
@@ -884,7 +893,12 @@ def head_log_posterior(
     for t in range(n_t):
         z[t] -= top
         s += np.exp(z[t])
-    return z - np.log(s)
+    log_post = z - np.log(s)
+    best = 0
+    for t in range(n_t):
+        if log_post[t] > log_post[best]:
+            best = t
+    return log_post, np.exp(log_post), best
 
 
 @njit(**_JIT)

@@ -62,7 +62,7 @@ FIT_PREDICT_KERNELS = (
     "add_fused_p",
     "finish_soa",
     "recognition",
-    "head_log_posterior",
+    "head_posterior",
     "task_posterior",
     "scale_samples",
     "condition_block",

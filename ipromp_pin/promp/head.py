@@ -169,12 +169,30 @@ class RecognitionHead:
             generative_log_posterior: (T,) the generative task posterior (log).
             fraction: Estimated observed fraction of the motion (:func:`observed_fraction`).
         """
-        # a task that cannot explain the observation at all (e.g. too long for it) stays impossible
-        return kernels().head_log_posterior(
+        return self.task_posterior(summary, generative_log_posterior, _ONE, _ONE, float(fraction))[0]
+
+    def task_posterior(
+        self,
+        summary: WindowSummary,
+        generative_log_posterior: np.ndarray,
+        generative_posterior: np.ndarray,
+        alpha: np.ndarray,
+        t_scale: float,
+    ) -> tuple[np.ndarray, np.ndarray, int]:
+        """The normalised log posterior (T,), the posterior (T,) and the most probable task, at the
+        observed fraction :func:`observed_fraction` of the generative posterior (T,) and MAP phases
+        ``alpha`` (T,) with ``t_scale = t_last / T_norm`` (one compiled call: ``kernels.head_posterior``).
+        A task that cannot explain the observation at all (e.g. too long for it) stays impossible."""
+        return kernels().head_posterior(
             np.ascontiguousarray(summary.vector(), dtype=float),
             np.ascontiguousarray(generative_log_posterior, dtype=float),
-            float(fraction), self._ratios, self._w, self._b, LOG_POSTERIOR_CLIP,
+            generative_posterior, alpha, t_scale, self._ratios, self._w, self._b, LOG_POSTERIOR_CLIP,
         )  # fmt: skip
+
+
+_ONE = np.ones(1)
+"""The one-task weights with which :meth:`RecognitionHead.task_posterior` reads ``t_scale`` as the
+observed fraction itself."""
 
 
 def observed_fraction(posterior: np.ndarray, alpha: np.ndarray, t_last: float, t_norm: float) -> float:

@@ -30,6 +30,12 @@ from .observation import ObservationPart
 from .posterior import Prediction, Recognition
 from .predictor import Predictor
 
+_NOT_A_TIME = (bool, np.bool_, str, bytes)
+"""Types refused as a sample time although ``float`` accepts them."""
+
+_MAPPINGS = (dict, Mapping)
+"""Accepted sample types (a dict first: faster to check than the abstract class)."""
+
 MAX_GAP_FRACTION = 0.25
 """Largest time between two consecutive samples of one stream, as a fraction of the model's nominal
 duration (about 0.75 s for the 3 s hand-overs): a sample that comes later is refused (a stamp from
@@ -139,13 +145,13 @@ class StreamingEstimator:
             sample: Observed group -> values (D,) in original units; a group that is absent or
                 None is missing for this sample (e.g. a lost skeleton frame).
         """
-        if isinstance(t_s, bool | np.bool_ | str | bytes):  # float(True) is 1.0, float("1") is 1.0
+        if isinstance(t_s, _NOT_A_TIME):  # float(True) is 1.0, float("1") is 1.0
             raise ObservationError("stream", "t", f"sample time {t_s!r} is not a number")
         try:
             t_s = float(t_s)
         except (TypeError, ValueError):
             raise ObservationError("stream", "t", f"sample time {t_s!r} is not a number") from None
-        if not isinstance(sample, Mapping):
+        if not isinstance(sample, _MAPPINGS):
             raise ObservationError(
                 "stream", "sample", f"expected a mapping group -> values, got {type(sample).__name__}"
             )
@@ -180,7 +186,8 @@ class StreamingEstimator:
                 continue
             try:
                 raw = np.asarray(v)
-                v = raw.astype(float).reshape(-1)
+                # numbers are copied into y as they are, anything else converted first (or refused)
+                v = (raw if raw.dtype.kind in "fiu" else raw.astype(float)).reshape(-1)
             except (TypeError, ValueError):
                 raise ObservationError("stream", g, f"sample values are not numbers: {v!r:.80}") from None
             if raw.dtype.kind == "b":

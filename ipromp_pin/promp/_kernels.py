@@ -1250,18 +1250,16 @@ def stream_group(
                     dq = 2.0 * yd * gh - (s[u] - 1.0) * yd * yd - gh * ghs
                     total[off + c] += wd * (yd * yd - dq) / nu
                     chd[c] = (yd - ghs) * sdi
+        fv = np.empty((r, dm, n_p))  # f v, formed in the same pass over v as the update of a
         for i in range(r):
             ai = a[i, lane0 : lane0 + n_p]
             for d in range(dm):
                 vid = v[i, d]
                 chd = ch[d]
+                fvid = fv[i, d]
                 for p in range(n_p):
                     ai[p] += chd[p] * vid[p]
-        fv = np.empty((r, dm, n_p))
-        for i in range(r):
-            for d in range(dm):
-                for p in range(n_p):
-                    fv[i, d, p] = f[p] * v[i, d, p]
+                    fvid[p] = f[p] * vid[p]
         for q in range(npk):
             row = pq[q, lane0 : lane0 + n_p]
             fi = fv[ia[q]]
@@ -1286,24 +1284,34 @@ def stream_group(
 @njit(**_JIT)
 def basis_rows(z: np.ndarray, centres: np.ndarray, width: float, step: np.ndarray) -> np.ndarray:
     """Gaussian basis values (K, U) at phases ``z`` (U,): the running product of
-    :meth:`ipromp_pin.promp.basis.GaussianBasis.values_prefix_t` (``step`` (K-1,) its step factors), exact
-    exponentials for a phase where ``phi_0`` could underflow."""
+    :meth:`ipromp_pin.promp.basis.GaussianBasis.values_prefix_t` (``step`` (K-1,) its step factors),
+    one basis function at a time over all phases; exact exponentials for a phase where ``phi_0``
+    could underflow."""
     n_k = centres.shape[0]
     n_u = z.shape[0]
     inv_h2 = 1.0 / (width * width)
     spacing = centres[1] - centres[0]
     out = np.empty((n_k, n_u))
+    q = np.empty(n_u)
+    exact = False
     for u in range(n_u):
         d0 = z[u] - centres[0]
-        if 0.5 * d0 * d0 * inv_h2 > 650.0:
-            for k in range(n_k):
-                d = (z[u] - centres[k]) / width
-                out[k, u] = np.exp(-0.5 * d * d)
-        else:
-            out[0, u] = np.exp(-0.5 * inv_h2 * d0 * d0)
-            q = np.exp(z[u] * (spacing * inv_h2))
-            for k in range(1, n_k):
-                out[k, u] = out[k - 1, u] * (q * step[k - 1])
+        exact = exact or 0.5 * d0 * d0 * inv_h2 > 650.0
+        out[0, u] = np.exp(-0.5 * inv_h2 * d0 * d0)
+        q[u] = np.exp(z[u] * (spacing * inv_h2))
+    for k in range(1, n_k):
+        sk = step[k - 1]
+        prev = out[k - 1]
+        row = out[k]
+        for u in range(n_u):
+            row[u] = prev[u] * (q[u] * sk)
+    if exact:
+        for u in range(n_u):
+            d0 = z[u] - centres[0]
+            if 0.5 * d0 * d0 * inv_h2 > 650.0:
+                for k in range(n_k):
+                    d = (z[u] - centres[k]) / width
+                    out[k, u] = np.exp(-0.5 * d * d)
     return out
 
 

@@ -848,6 +848,72 @@ def recognition(
 
 
 @njit(**_JIT)
+def head_posterior(
+    values: np.ndarray,
+    generative: np.ndarray,
+    posterior: np.ndarray,
+    alpha: np.ndarray,
+    t_scale: float,
+    ratios: np.ndarray,
+    w: np.ndarray,
+    b: np.ndarray,
+    clip: float,
+) -> tuple[np.ndarray, np.ndarray, int]:
+    """Task posterior of the recognition head (:class:`ipromp_pin.promp.head.RecognitionHead`): the
+    normalised log posterior (T,), the posterior (T,) and the most probable task.
+
+    Features ``x`` = the window ``values`` (3 D_o,) then the generative log posterior ``generative``
+    (T,) clipped below at ``clip``; logits ``w[i] x + b[i]`` (``w`` (R, T, F), ``b`` (R, T))
+    interpolated linearly between the ratios ``ratios`` (R,) around the observed fraction
+    ``t_scale sum_t posterior_t / alpha_t`` (:func:`ipromp_pin.promp.head.observed_fraction`: the
+    generative posterior (T,), MAP phases (T,) and ``t_last / T_norm``), constant outside them;
+    tasks with a non-finite generative log posterior stay impossible."""
+    n_r = ratios.shape[0]
+    n_t = generative.shape[0]
+    fraction = 0.0
+    for t in range(posterior.shape[0]):
+        fraction += posterior[t] * (1.0 / alpha[t])
+    fraction = t_scale * fraction
+    i = 0
+    wt = 0.0
+    if fraction > ratios[0]:
+        while i + 1 < n_r and ratios[i + 1] <= fraction:
+            i += 1
+        if i + 1 < n_r:
+            wt = (fraction - ratios[i]) / (ratios[i + 1] - ratios[i])
+    z = np.empty(n_t)
+    for t in range(n_t):
+        z[t] = _head_logit(w[i, t], b[i, t], values, generative, clip)
+        if wt > 0.0:
+            z[t] = (1.0 - wt) * z[t] + wt * _head_logit(w[i + 1, t], b[i + 1, t], values, generative, clip)
+        if not np.isfinite(generative[t]):
+            z[t] = -np.inf
+    top = z.max()
+    s = 0.0
+    for t in range(n_t):
+        z[t] -= top
+        s += np.exp(z[t])
+    log_post = z - np.log(s)
+    best = 0
+    for t in range(n_t):
+        if log_post[t] > log_post[best]:
+            best = t
+    return log_post, np.exp(log_post), best
+
+
+@njit(**_JIT)
+def _head_logit(w: np.ndarray, b: float, values: np.ndarray, generative: np.ndarray, clip: float) -> float:
+    """One task's logit ``w x + b`` of :func:`head_log_posterior` (``w`` (F,))."""
+    n_v = values.shape[0]
+    acc = 0.0
+    for f in range(n_v):
+        acc += w[f] * values[f]
+    for t in range(generative.shape[0]):
+        acc += w[n_v + t] * max(generative[t], clip)
+    return acc + b
+
+
+@njit(**_JIT)
 def add_sample(gram: np.ndarray, proj: np.ndarray, phi: np.ndarray, y: np.ndarray) -> None:
     """Add one sample to running statistics: ``gram`` (K, K, U) ``+= phi phi^T`` (lower triangle only:
     :func:`x_inverse` reads no other entry) and ``proj`` (K, U, D) ``+= phi y^T`` for basis values
@@ -917,22 +983,33 @@ def stream_sample(
     gram: np.ndarray,
     proj: np.ndarray,
     sq: np.ndarray,
+    window: np.ndarray,
+    w_sum: np.ndarray,
+    w_count: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray, bool]:
     """Add one sample with every observed dim to the running statistics of a stream.
 
     Scales the raw values ``y`` (D,) as ``ChannelScaler.transform`` (``log(max(y, 0) + c)`` on the
     dims ``log_idx`` with shifts ``log_c``, then ``(y - offset) / scale``), computes the basis values
-    (K, U) at the phases ``t_s inv_dur`` (:func:`basis_rows`) and adds the sample to ``gram``
-    (K, K, U), ``proj`` (K, U, D) and ``sq`` (D,) (:func:`add_sample`). Returns the basis values, the
-    scaled values and whether every raw value is finite and plausible (:func:`scale_samples`; if
-    not, the statistics are left unchanged).
+    (K, U) at the phases ``t_s inv_dur`` (:func:`basis_rows`), adds the sample to ``gram``
+    (K, K, U), ``proj`` (K, U, D) and ``sq`` (D,) (:func:`add_sample`) and to the window summary
+    ``window`` (3, D) (rows: first, mean and last value) with its running sums ``w_sum`` and counts
+    ``w_count`` (D,). Returns the basis values, the scaled values and whether every raw value is
+    finite and plausible (:func:`scale_samples`; if not, the statistics are left unchanged).
     """
     ys: np.ndarray = np.empty((1, y.shape[0]))
     if not scale_samples(y.reshape(1, -1), log_idx, log_c, offset, scale, ys):
         return np.empty((0, 0)), ys.reshape(-1), False
     ys = ys.reshape(-1)
     for d in range(ys.shape[0]):
-        sq[d] += ys[d] * ys[d]
+        v = ys[d]
+        sq[d] += v * v
+        if w_count[d] == 0.0:
+            window[0, d] = v
+        w_sum[d] += v
+        w_count[d] += 1.0
+        window[1, d] = w_sum[d] / w_count[d]
+        window[2, d] = v
     phi = basis_rows(t_s * inv_dur, centres, width, step)
     add_sample(gram, proj, phi, ys)
     return phi, ys, True
@@ -1118,11 +1195,24 @@ def stream_group(
     stride = total.shape[0] // n_b
     # g^T B^T y_d per unique candidate (shared by the tasks): (U, D_g)
     gp = np.zeros((n_u, dg))
-    for k in range(ke):
-        for u in range(n_u):
-            gku = g[k, u]
-            for d in range(dg):
-                gp[u, d] += gku * proj[k, u, dims[d]]
+    first = dims[0]
+    in_order = True  # the dims first, first + 1, ...: read in place (no gather)
+    for d in range(dg):
+        in_order = in_order and dims[d] == first + d
+    if in_order:
+        for k in range(ke):
+            for u in range(n_u):
+                gku = g[k, u]
+                pku = proj[k, u, first : first + dg]
+                gpu = gp[u]
+                for d in range(dg):
+                    gpu[d] += gku * pku[d]
+    else:
+        for k in range(ke):
+            for u in range(n_u):
+                gku = g[k, u]
+                for d in range(dg):
+                    gp[u, d] += gku * proj[k, u, dims[d]]
     # W_d^T g and nu mu_d^T g of every block, (latent, dim, task) and unique candidate: (M, U)
     wg = np.dot(w_t, g)
     mu0 = col_off[n_b]
@@ -1173,18 +1263,16 @@ def stream_group(
                     dq = 2.0 * yd * gh - (s[u] - 1.0) * yd * yd - gh * ghs
                     total[off + c] += wd * (yd * yd - dq) / nu
                     chd[c] = (yd - ghs) * sdi
+        fv = np.empty((r, dm, n_p))  # f v, formed in the same pass over v as the update of a
         for i in range(r):
             ai = a[i, lane0 : lane0 + n_p]
             for d in range(dm):
                 vid = v[i, d]
                 chd = ch[d]
+                fvid = fv[i, d]
                 for p in range(n_p):
                     ai[p] += chd[p] * vid[p]
-        fv = np.empty((r, dm, n_p))
-        for i in range(r):
-            for d in range(dm):
-                for p in range(n_p):
-                    fv[i, d, p] = f[p] * v[i, d, p]
+                    fvid[p] = f[p] * vid[p]
         for q in range(npk):
             row = pq[q, lane0 : lane0 + n_p]
             fi = fv[ia[q]]
@@ -1209,24 +1297,34 @@ def stream_group(
 @njit(**_JIT)
 def basis_rows(z: np.ndarray, centres: np.ndarray, width: float, step: np.ndarray) -> np.ndarray:
     """Gaussian basis values (K, U) at phases ``z`` (U,): the running product of
-    :meth:`ipromp_pin.promp.basis.GaussianBasis.values_prefix_t` (``step`` (K-1,) its step factors), exact
-    exponentials for a phase where ``phi_0`` could underflow."""
+    :meth:`ipromp_pin.promp.basis.GaussianBasis.values_prefix_t` (``step`` (K-1,) its step factors),
+    one basis function at a time over all phases; exact exponentials for a phase where ``phi_0``
+    could underflow."""
     n_k = centres.shape[0]
     n_u = z.shape[0]
     inv_h2 = 1.0 / (width * width)
     spacing = centres[1] - centres[0]
     out = np.empty((n_k, n_u))
+    q = np.empty(n_u)
+    exact = False
     for u in range(n_u):
         d0 = z[u] - centres[0]
-        if 0.5 * d0 * d0 * inv_h2 > 650.0:
-            for k in range(n_k):
-                d = (z[u] - centres[k]) / width
-                out[k, u] = np.exp(-0.5 * d * d)
-        else:
-            out[0, u] = np.exp(-0.5 * inv_h2 * d0 * d0)
-            q = np.exp(z[u] * (spacing * inv_h2))
-            for k in range(1, n_k):
-                out[k, u] = out[k - 1, u] * (q * step[k - 1])
+        exact = exact or 0.5 * d0 * d0 * inv_h2 > 650.0
+        out[0, u] = np.exp(-0.5 * inv_h2 * d0 * d0)
+        q[u] = np.exp(z[u] * (spacing * inv_h2))
+    for k in range(1, n_k):
+        sk = step[k - 1]
+        prev = out[k - 1]
+        row = out[k]
+        for u in range(n_u):
+            row[u] = prev[u] * (q[u] * sk)
+    if exact:
+        for u in range(n_u):
+            d0 = z[u] - centres[0]
+            if 0.5 * d0 * d0 * inv_h2 > 650.0:
+                for k in range(n_k):
+                    d = (z[u] - centres[k]) / width
+                    out[k, u] = np.exp(-0.5 * d * d)
     return out
 
 

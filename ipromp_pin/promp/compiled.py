@@ -62,6 +62,7 @@ FIT_PREDICT_KERNELS = (
     "add_fused_p",
     "finish_soa",
     "recognition",
+    "head_posterior",
     "task_posterior",
     "scale_samples",
     "condition_block",

@@ -39,6 +39,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .compiled import kernels
 from .lbfgs import minimize_lbfgs
 from .observation import ObservationPart
 
@@ -148,14 +149,14 @@ class RecognitionHead:
     generative: np.ndarray | None = None
     # derived in __post_init__ (not parameters, not compared)
     _w: np.ndarray = field(init=False, repr=False, compare=False)
-    _ratios: list[float] = field(init=False, repr=False, compare=False)
+    _ratios: np.ndarray = field(init=False, repr=False, compare=False)
     _b: np.ndarray = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         # the standardisation folded into the weights: z = W (x - m) / s + b = W' x + b'
         folded = self.coef / self.feature_scale[:, None, :]
-        object.__setattr__(self, "_w", folded)
-        object.__setattr__(self, "_ratios", [float(r) for r in self.ratios])
+        object.__setattr__(self, "_w", np.ascontiguousarray(folded))
+        object.__setattr__(self, "_ratios", np.ascontiguousarray(self.ratios, dtype=float))
         object.__setattr__(self, "_b", self.intercept - np.einsum("rtf,rf->rt", folded, self.feature_mean))
 
     def log_posterior(
@@ -168,17 +169,30 @@ class RecognitionHead:
             generative_log_posterior: (T,) the generative task posterior (log).
             fraction: Estimated observed fraction of the motion (:func:`observed_fraction`).
         """
-        x = head_features(summary.vector(), generative_log_posterior)
-        i, w = interpolation(self._ratios, fraction)
-        z = self._w[i] @ x + self._b[i]
-        if w > 0.0:
-            z = (1.0 - w) * z + w * (self._w[i + 1] @ x + self._b[i + 1])
-        # a task that cannot explain the observation at all (e.g. too long for it) stays impossible
-        finite = np.isfinite(generative_log_posterior)
-        if not finite.all():
-            z = np.where(finite, z, -np.inf)
-        z = z - z.max()
-        return z - np.log(np.sum(np.exp(z)))
+        return self.task_posterior(summary, generative_log_posterior, _ONE, _ONE, float(fraction))[0]
+
+    def task_posterior(
+        self,
+        summary: WindowSummary,
+        generative_log_posterior: np.ndarray,
+        generative_posterior: np.ndarray,
+        alpha: np.ndarray,
+        t_scale: float,
+    ) -> tuple[np.ndarray, np.ndarray, int]:
+        """The normalised log posterior (T,), the posterior (T,) and the most probable task, at the
+        observed fraction :func:`observed_fraction` of the generative posterior (T,) and MAP phases
+        ``alpha`` (T,) with ``t_scale = t_last / T_norm`` (one compiled call: ``kernels.head_posterior``).
+        A task that cannot explain the observation at all (e.g. too long for it) stays impossible."""
+        return kernels().head_posterior(
+            np.ascontiguousarray(summary.vector(), dtype=float),
+            np.ascontiguousarray(generative_log_posterior, dtype=float),
+            generative_posterior, alpha, t_scale, self._ratios, self._w, self._b, LOG_POSTERIOR_CLIP,
+        )  # fmt: skip
+
+
+_ONE = np.ones(1)
+"""The one-task weights with which :meth:`RecognitionHead.task_posterior` reads ``t_scale`` as the
+observed fraction itself."""
 
 
 def observed_fraction(posterior: np.ndarray, alpha: np.ndarray, t_last: float, t_norm: float) -> float:
@@ -201,9 +215,12 @@ def interpolation(ratios: Sequence[float], fraction: float) -> tuple[int, float]
     return i, (fraction - ratios[i]) / (ratios[i + 1] - ratios[i])
 
 
-def head_features(window: np.ndarray, generative_log_posterior: np.ndarray) -> np.ndarray:
-    """Raw head features (F,): the window values (3 D_o,) then the clipped generative log posterior."""
-    return np.concatenate([window, np.maximum(generative_log_posterior, LOG_POSTERIOR_CLIP)])
+def head_features(
+    window: np.ndarray, generative_log_posterior: np.ndarray, clip: float = LOG_POSTERIOR_CLIP
+) -> np.ndarray:
+    """Raw head features (F,): the window values (3 D_o,) then the generative log posterior clipped
+    below at ``clip``."""
+    return np.concatenate([window, np.maximum(generative_log_posterior, clip)])
 
 
 def _log_softmax(

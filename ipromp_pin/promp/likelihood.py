@@ -462,8 +462,9 @@ class IncrementalTerms:
         # per part dims: per lane group the W_d and nu mu_d of its blocks' dims (K, M) and the model
         # arguments of kernels.stream_group that follow w_t, or None (the part has none of its dims)
         self._model: dict[bytes, list[tuple[np.ndarray, tuple] | None]] = {}
-        # per part dims and the current ke: wcat[:ke].T (C-contiguous: the faster product) and fixed
-        self._w_t: dict[bytes, list[tuple[np.ndarray, tuple] | None]] = {}
+        # per part dims, the current ke and terms: per lane group the arguments of kernels.stream_group
+        # from w_t (wcat[:ke].T, C-contiguous: the faster product) to t_norm, or None
+        self._w_t: dict[bytes, list[tuple | None]] = {}
 
     def _group_inputs(self, dims: np.ndarray) -> list[tuple[np.ndarray, tuple] | None]:
         """Per lane group, the model arrays of ``kernels.stream_group`` for a part observing ``dims``
@@ -502,15 +503,19 @@ class IncrementalTerms:
             self._model[key] = out
         return out
 
-    def _inputs(self, dims: np.ndarray) -> list[tuple[np.ndarray, tuple] | None]:
-        """Per lane group, ``w_t`` (the first ``ke`` basis rows, transposed) and the fixed arguments
-        of ``kernels.stream_group`` for a part observing ``dims``, or None."""
+    def _inputs(self, dims: np.ndarray) -> list[tuple | None]:
+        """Per lane group, the arguments of ``kernels.stream_group`` for a part observing ``dims`` from
+        ``w_t`` (the first ``ke`` basis rows, transposed) to ``t_norm`` (the model's, the group's terms
+        and unpacking), or None (the part has none of the group's dims)."""
         key = dims.tobytes()
         out = self._w_t.get(key)
         if out is None:
+            e = self.engine
             out = [
-                None if m is None else (np.ascontiguousarray(m[0][: self.ke].T), m[1])
-                for m in self._group_inputs(dims)
+                None
+                if m is None
+                else (np.ascontiguousarray(m[0][: self.ke].T), *m[1], *terms, unpack, e.alphas, e.t_norm)
+                for m, terms, unpack in zip(self._group_inputs(dims), self.terms, self._unpack, strict=True)
             ]
             self._w_t[key] = out
         return out
@@ -582,19 +587,16 @@ class IncrementalTerms:
                 self.ke = -1  # partly updated: rebuilt by the next reset
                 raise ModelError("X = nu I + B^T B is not numerically positive definite")
             finish = n == last
-            groups = zip(self._inputs(part.dims), self.terms, self._unpack, strict=True)
-            for j, (inputs, terms, unpack) in enumerate(groups):
+            for j, inputs in enumerate(self._inputs(part.dims)):
                 if inputs is None:
                     if finish:  # no dim of this part here: the terms are as they were
                         try:
-                            e.finish_group(j, terms, t_last, loglik, kern.finish_soa)
+                            e.finish_group(j, self.terms[j], t_last, loglik, kern.finish_soa)
                         except ModelError:
                             self.ke = -1
                             raise
                     continue
-                w_t, fixed = inputs
-                tail = (unpack, e.alphas, e.t_norm, t_last, loglik, j > 0, finish)
-                if not kern.stream_group(g, s, y, proj, w_t, *fixed, *terms, *tail):
+                if not kern.stream_group(g, s, y, proj, *inputs, t_last, loglik, j > 0, finish):
                     self.ke = -1
                     raise ModelError("Q = I + P is not numerically positive definite")
         return loglik

@@ -289,6 +289,24 @@ def recognition(loglik, log_prior, grids, weights, nodes, task_log_prior):
     return evidence, logpost, alpha, finite, log_post, post, best
 
 
+def head_posterior(values, generative, posterior, alpha, t_scale, ratios, w, b, clip):
+    """Task posterior of the recognition head: log posterior (T,), posterior (T,), most probable task
+    (see the compiled kernel)."""
+    from .head import head_features, interpolation  # deferred: the head module imports the kernels'
+
+    x = head_features(values, generative, clip)
+    i, wt = interpolation(ratios, t_scale * np.dot(posterior, 1.0 / alpha))
+    z = w[i] @ x + b[i]
+    if wt > 0.0:
+        z = (1.0 - wt) * z + wt * (w[i + 1] @ x + b[i + 1])
+    finite = np.isfinite(generative)
+    if not finite.all():
+        z = np.where(finite, z, -np.inf)
+    z = z - z.max()
+    log_post = z - np.log(np.sum(np.exp(z)))
+    return log_post, np.exp(log_post), int(np.argmax(log_post))
+
+
 def scale_samples(raw, log_idx, log_c, offset, scale, out):
     """Scaled values (into ``out`` (n, D)) of raw samples; whether every raw value is finite and every
     scaled one within the bounds of :mod:`ipromp_pin.promp.sample_bounds` (see the compiled kernel)."""

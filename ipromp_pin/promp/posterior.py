@@ -296,14 +296,21 @@ def recognise_from_loglik(
     return rec, logpost
 
 
-def with_task_posterior(rec: Recognition, log_posterior: np.ndarray, priors: PhasePriors) -> Recognition:
+def with_task_posterior(
+    rec: Recognition,
+    log_posterior: np.ndarray,
+    priors: PhasePriors,
+    posterior: np.ndarray | None = None,
+    best: int | None = None,
+) -> Recognition:
     """``rec`` (changed in place and returned) with its task posterior replaced by ``log_posterior``
-    (T,) (normalised): the most probable task and its predicted duration follow it; the phase
+    (T,) (normalised; ``posterior`` its exponential and ``best`` its most probable task when the
+    caller has them): the most probable task and its predicted duration follow it; the phase
     estimates stay."""
-    best = int(np.argmax(log_posterior))
+    best = int(np.argmax(log_posterior)) if best is None else int(best)
     rec.task = priors.tasks[best]  # rec is the caller's fresh object: changed in place (no copy)
     rec.log_posterior = log_posterior
-    rec.posterior = np.exp(log_posterior)
+    rec.posterior = np.exp(log_posterior) if posterior is None else posterior
     rec.duration_s = float(rec.alpha[best] * priors.duration_nominal_s)
     return rec
 

@@ -15,7 +15,7 @@ import numpy as np
 from ..data import Demo
 from .conditioning import Conditioner
 from .fitted import FittedModel
-from .head import WindowSummary, observed_fraction
+from .head import WindowSummary
 from .likelihood import InferenceEngine
 from .observation import ObservationEncoder, ObservationPart
 from .posterior import PhasePriors, Prediction, Recognition, recognise_from_loglik, with_task_posterior
@@ -85,8 +85,9 @@ class Predictor:
             return rec
         if window is None:
             raise ValueError("a model with a recognition head needs the observed window's summary")
-        fraction = observed_fraction(rec.posterior, rec.alpha, t_last, self.fitted.duration_nominal_s)
-        return with_task_posterior(rec, head.log_posterior(window, rec.log_posterior, fraction), self.priors)
+        scale = t_last / self.fitted.duration_nominal_s  # of the observed fraction (observed_fraction)
+        log_post, post, best = head.task_posterior(window, rec.log_posterior, rec.posterior, rec.alpha, scale)
+        return with_task_posterior(rec, log_post, self.priors, post, best)
 
     def recognise(
         self, parts: list[ObservationPart], t_last: float, window: WindowSummary | None = None

@@ -30,6 +30,12 @@ from .observation import ObservationPart
 from .posterior import Prediction, Recognition
 from .predictor import Predictor
 
+_NOT_A_TIME = (bool, np.bool_, str, bytes)
+"""Types refused as a sample time although ``float`` accepts them."""
+
+_MAPPINGS = (dict, Mapping)
+"""Accepted sample types (a dict first: faster to check than the abstract class)."""
+
 MAX_GAP_FRACTION = 0.25
 """Largest time between two consecutive samples of one stream, as a fraction of the model's nominal
 duration (about 0.75 s for the 3 s hand-overs): a sample that comes later is refused (a stamp from
@@ -87,9 +93,10 @@ class StreamingEstimator:
         self._patterns: list[list] = [[list(layout.observe), np.zeros((k, k, u)), 0, 0.0]]
         self._proj = np.zeros((k, u, n_obs))  # B^T y of every observed dim (missing samples add 0)
         self._sq = np.zeros(n_obs)
-        # the observed window's summary for the recognition head: first, sum, count, last (scaled)
-        self._w_first, self._w_sum = np.zeros(n_obs), np.zeros(n_obs)
-        self._w_count, self._w_last = np.zeros(n_obs), np.zeros(n_obs)
+        # the observed window's summary for the recognition head (scaled): its values (rows: first,
+        # mean and last; 0 for a dim without a sample) and the running sums and counts of the mean
+        self._window = np.zeros((3, n_obs))
+        self._w_sum, self._w_count = np.zeros(n_obs), np.zeros(n_obs)
         self._dim_group = np.concatenate([np.full(hi - lo, i) for i, (_, lo, hi) in enumerate(self._slices)])
         self._no_gram = np.zeros((k, 0, u))  # placeholders of kernels.add_sample
         self._no_proj = np.zeros((k, u, 0))
@@ -138,13 +145,13 @@ class StreamingEstimator:
             sample: Observed group -> values (D,) in original units; a group that is absent or
                 None is missing for this sample (e.g. a lost skeleton frame).
         """
-        if isinstance(t_s, bool | np.bool_ | str | bytes):  # float(True) is 1.0, float("1") is 1.0
+        if isinstance(t_s, _NOT_A_TIME):  # float(True) is 1.0, float("1") is 1.0
             raise ObservationError("stream", "t", f"sample time {t_s!r} is not a number")
         try:
             t_s = float(t_s)
         except (TypeError, ValueError):
             raise ObservationError("stream", "t", f"sample time {t_s!r} is not a number") from None
-        if not isinstance(sample, Mapping):
+        if not isinstance(sample, _MAPPINGS):
             raise ObservationError(
                 "stream", "sample", f"expected a mapping group -> values, got {type(sample).__name__}"
             )
@@ -179,7 +186,8 @@ class StreamingEstimator:
                 continue
             try:
                 raw = np.asarray(v)
-                v = raw.astype(float).reshape(-1)
+                # numbers are copied into y as they are, anything else converted first (or refused)
+                v = (raw if raw.dtype.kind in "fiu" else raw.astype(float)).reshape(-1)
             except (TypeError, ValueError):
                 raise ObservationError("stream", g, f"sample values are not numbers: {v!r:.80}") from None
             if raw.dtype.kind == "b":
@@ -213,8 +221,9 @@ class StreamingEstimator:
             # running sums in one call
             pattern = self._patterns[0]
             phi, ys, finite = self._kern.stream_sample(
-                t_s, *self._sample_basis, y, *self._sample_scaling, pattern[1], self._proj, self._sq
-            )
+                t_s, *self._sample_basis, y, *self._sample_scaling, pattern[1], self._proj, self._sq,
+                self._window, self._w_sum, self._w_count,
+            )  # fmt: skip
             if not finite:  # the statistics are unchanged
                 self._check_finite(t_s, y, present)  # raises, naming the group
                 raise ObservationError(
@@ -226,7 +235,6 @@ class StreamingEstimator:
         else:
             ys = self._scaled(t_s, y, absent, present)
             phi = self._accumulate(t_s, set(present), ys)
-        if self.predictor.fitted.head is not None:
             self._add_to_window(ys, absent)
         n = self._n
         if n == self._t_buf.size:
@@ -267,26 +275,19 @@ class StreamingEstimator:
         return ys
 
     def _add_to_window(self, ys: np.ndarray, absent: int) -> None:
-        """Add the scaled sample ``ys`` (D,) to the window summary (groups flagged in ``absent`` skipped)."""
-        if absent:
-            have = ((absent >> self._dim_group) & 1) == 0
-            self._w_first[have & (self._w_count == 0)] = ys[have & (self._w_count == 0)]
-            self._w_sum[have] += ys[have]
-            self._w_count[have] += 1
-            self._w_last[have] = ys[have]
-            return
-        first = self._w_count == 0
-        if first.any():
-            self._w_first[first] = ys[first]
-        self._w_sum += ys
-        self._w_count += 1
-        self._w_last[:] = ys
+        """Add the scaled sample ``ys`` (D,) to the window summary (groups flagged in ``absent`` skipped;
+        a sample without gaps goes through ``kernels.stream_sample``)."""
+        have = ((absent >> self._dim_group) & 1) == 0
+        window, count = self._window, self._w_count
+        window[0, have & (count == 0)] = ys[have & (count == 0)]
+        self._w_sum[have] += ys[have]
+        count[have] += 1
+        window[2, have] = ys[have]
+        np.divide(self._w_sum, count, out=window[1], where=count > 0)
 
     def window(self) -> WindowSummary:
         """Summary of the samples received so far (scaled units), as the recognition head reads it."""
-        count = self._w_count
-        mean = np.divide(self._w_sum, count, out=np.zeros(count.size), where=count > 0)
-        return WindowSummary(np.stack([self._w_first, mean, self._w_last]))
+        return WindowSummary(self._window.copy())
 
     def _accumulate(self, t_s: float, present: set[str], y: np.ndarray) -> np.ndarray:
         """Add the sample (scaled values ``y`` (D,), 0 in missing groups) -> basis values (K, U).

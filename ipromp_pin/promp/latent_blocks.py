@@ -193,8 +193,8 @@ class LatentBlock:
                 "mu_k": np.ascontiguousarray(mu.transpose(0, 2, 1)),
                 "mu_rows": np.ascontiguousarray(mu.reshape(n_task * dm, k)),
                 "w_k": np.ascontiguousarray(w_k.reshape(n_task, k * dm, self.rank)),
-                "w_1": np.ascontiguousarray(w.transpose(0, 2, 1, 3).reshape(n_task, k * dm, -1)),
-                "w_s": np.ascontiguousarray(w.transpose(2, 3, 1, 0).reshape(k, -1)),
+                "w_1": np.ascontiguousarray(w.transpose(0, 2, 1, 3).reshape(n_task, k * dm, self.rank)),
+                "w_s": np.ascontiguousarray(w.transpose(2, 3, 1, 0).reshape(k, self.rank * dm * n_task)),
                 "mu2": np.ascontiguousarray(
                     np.concatenate(
                         [

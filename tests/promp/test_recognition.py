@@ -13,6 +13,7 @@ from helpers_model import random_dataset, split
 from ipromp_pin.data import Dataset, Demo
 from ipromp_pin.exceptions import DataError, ModelError, NotFittedError, ObservationError
 from ipromp_pin.promp import NOISE_GRID, IProMP, Prediction
+from ipromp_pin.readers.synthetic import make_synthetic_dataset
 
 
 @pytest.fixture(scope="module")
@@ -479,3 +480,35 @@ def test_training_channels_are_matched_by_name():
     model = IProMP(["a", "b"], n_basis=9, noise=10.0).fit(ds)
     assert np.array_equal(model.scaler_.scale, reference.scaler_.scale)
     assert np.array_equal(model.models_["task1"].mean, reference.models_["task1"].mean)
+
+
+def test_stream_with_a_lost_group_in_a_two_block_model() -> None:
+    # orientation and EMG in two latent blocks that share their lanes (the default coupling on the
+    # synthetic hand-overs): a sample without one of them makes a part with none of the other
+    # block's dims, which the stream takes incrementally (it raised a reshape error before)
+    ds = make_synthetic_dataset(n_tasks=2, n_demos=9, seed=0)
+    train = type(ds)(ds.root, {t: d[:8] for t, d in ds.demos.items()})
+    model = IProMP(["orientation", "emg"], noise=10.0, head=False, handover=False).fit(train)
+    stream = model.stream()
+    demo = ds.demos[ds.tasks[0]][8].head(0.4, model.observe)
+    n_checked = 0
+    for j in range(demo.n_samples):
+        sample = {g: demo.groups[g][j] for g in model.observe}
+        if j in (6, 7, 8):
+            sample["emg"] = None
+        if j == 11:
+            sample["orientation"] = None
+        rec = stream.update(demo.t[j], sample)
+        if j < 2:
+            continue
+        one = model.recognise(stream.observation())
+        assert np.allclose(rec.log_posterior, one.log_posterior, rtol=1e-9, atol=1e-9)
+        assert np.allclose(rec.alpha, one.alpha, rtol=1e-9)
+        n_checked += 1
+    engine = stream.incremental.engine
+    assert any(len(group) == 2 for group in engine.lane_groups)  # two blocks in one lane group
+    assert len(stream.incremental.parts) == 2 and n_checked > 10  # orientation, EMG
+    pred = stream.predict()
+    ref = model.predict(stream.observation())
+    assert pred.task == ref.task
+    assert np.allclose(pred.q_mean, ref.q_mean, rtol=1e-8, atol=1e-10)

@@ -616,11 +616,8 @@ def separation_summary(
             d1x, d1y, d1z = rb[i, m, 0] - p1x, rb[i, m, 1] - p1y, rb[i, m, 2] - p1z
             cx, cy, cz = p1x + 0.5 * d1x, p1y + 0.5 * d1y, p1z + 0.5 * d1z  # bounding sphere
             half_m = 0.5 * math.sqrt(d1x * d1x + d1y * d1y + d1z * d1z)
-            big_r, k = half_m + rr[m], anchor[m]
-            sp_m = sp_bound[m]
-            for p in range(npart):
-                # the loosest of _pair_needs' sphere tests first: most pairs fail it (about 96 %
-                # on a replay), and it is a few operations without branches on `inside`
+            big_r, k, sp_m = half_m + rr[m], anchor[m], sp_bound[m]
+            for p in range(npart):  # the loosest of _pair_needs' sphere tests first: a few operations
                 gx, gy, gz = cx - parts[0, p], cy - parts[1, p], cz - parts[2, p]
                 reach = max(best + big_r + parts[6, p], sp_m + big_r + parts[4, p])
                 if gx * gx + gy * gy + gz * gz > reach * reach:

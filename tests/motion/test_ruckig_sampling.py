@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from ruckig import InputParameter, Ruckig, RuckigError, Trajectory
 
-from ipromp_pin.motion.ruckig_sampling import sample_trajectory
+from ipromp_pin.motion.ruckig_sampling import VECTOR_FROM, sample_trajectory
 
 N_DOF = 7
 
@@ -48,7 +48,7 @@ def test_equals_at_time_bit_for_bit() -> None:
     assert len(trajs) > 250 and n_brake > 30  # the brake pre-profiles are exercised
     for traj in trajs:
         # the control grid past the end (held with constant acceleration), and the exact end
-        times = np.append(np.arange(0.0, traj.duration + 0.05, 0.01), traj.duration)
+        times = np.append(np.arange(0.0, traj.duration + 0.05, 0.005), traj.duration)
         got = sample_trajectory(traj, times)
         for want, have in zip(_at_time(traj, times), got, strict=True):
             assert have.shape == (times.size, N_DOF)
@@ -61,7 +61,8 @@ def test_segment_boundaries_and_brake_ends() -> None:
         times = [0.0, traj.duration]
         for p in traj.profiles[0]:
             times += list(p.brake.duration + np.cumsum(p.t)) + [p.brake.duration, p.brake.t[0]]
-        times_arr = np.clip(np.array(times), 0.0, None)
+        grid = np.linspace(0.0, traj.duration, VECTOR_FROM)  # enough times for the numpy pass
+        times_arr = np.clip(np.concatenate([times, grid]), 0.0, None)
         for want, have in zip(_at_time(traj, times_arr), sample_trajectory(traj, times_arr), strict=True):
             np.testing.assert_array_equal(have, want)
 
@@ -77,3 +78,19 @@ def test_single_time(t: float) -> None:
     traj = _random_trajectories(2, seed=6)[-1]
     for want, have in zip(_at_time(traj, np.array([t])), sample_trajectory(traj, np.array([t])), strict=True):
         np.testing.assert_array_equal(have, want)
+
+
+def test_few_and_many_times_take_their_paths_and_agree(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Below VECTOR_FROM times the states come from at_time, from it on from the numpy pass: the
+    same states either way."""
+    import ipromp_pin.motion.ruckig_sampling as rs
+
+    traj = _random_trajectories(3, seed=8)[-1]
+    times = np.linspace(0.0, traj.duration, rs.VECTOR_FROM + 5)
+    calls: list[int] = []
+    monkeypatch.setattr(rs, "_at_time_loop", lambda tr, t: calls.append(t.size) or _at_time(tr, t))
+    many = sample_trajectory(traj, times)
+    few = sample_trajectory(traj, times[: rs.VECTOR_FROM - 1])
+    assert calls == [rs.VECTOR_FROM - 1]  # only the short request went through at_time
+    for a, b in zip(many, few, strict=True):
+        np.testing.assert_array_equal(a[: rs.VECTOR_FROM - 1], b)

@@ -865,7 +865,7 @@ def head_posterior(
     Features ``x`` = the window ``values`` (3 D_o,) then the generative log posterior ``generative``
     (T,) clipped below at ``clip``; logits ``w[i] x + b[i]`` (``w`` (R, T, F), ``b`` (R, T))
     interpolated linearly between the ratios ``ratios`` (R,) around the observed fraction
-    ``t_scale sum_t posterior_t / alpha_t`` (:func:`ipromp_pin.promp.head.observed_fraction`: the
+    ``t_scale sum_t posterior_t / alpha_t`` (:func:`ipromp_pin.promp.head_features.observed_fraction`: the
     generative posterior (T,), MAP phases (T,) and ``t_last / T_norm``), constant outside them;
     tasks with a non-finite generative log posterior stay impossible."""
     n_r = ratios.shape[0]

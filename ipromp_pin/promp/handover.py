@@ -44,7 +44,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .head import WindowSummary, interpolation
+from .head import WindowSummary
+from .head_features import interpolation
 
 RATIOS = (0.1, 0.2, 0.4, 0.6, 0.8)
 """Observed fractions at which the regressions are fitted."""

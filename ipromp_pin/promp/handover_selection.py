@@ -37,7 +37,8 @@ from .handover import (
     window_features,
 )
 from .handover_orientation import FKRot, OrientationEstimate, conditioned
-from .head import WindowSummary, interpolation
+from .head import WindowSummary
+from .head_features import interpolation
 from .noise_path import RobotPrior, part_spectrum, robot_paths, robot_prior
 from .observation import ObservationEncoder
 from .orientation_selection import FinalRow, choose_orientation

@@ -34,18 +34,14 @@ head; it only decides the task posterior.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from .compiled import kernels
+from .head_features import LOG_POSTERIOR_CLIP, interpolation
 from .lbfgs import minimize_lbfgs
 from .observation import ObservationPart
-
-LOG_POSTERIOR_CLIP = -30.0
-"""The generative log posterior enters the head clipped at this value (a confident generative mistake
-then costs a bounded amount)."""
 
 HEAD_C_GRID = (0.01, 0.03, 0.1, 0.3, 1.0, 3.0, 10.0, 100.0)
 """Candidate inverse penalties ``C`` of the head."""
@@ -193,34 +189,6 @@ class RecognitionHead:
 _ONE = np.ones(1)
 """The one-task weights with which :meth:`RecognitionHead.task_posterior` reads ``t_scale`` as the
 observed fraction itself."""
-
-
-def observed_fraction(posterior: np.ndarray, alpha: np.ndarray, t_last: float, t_norm: float) -> float:
-    """Expected observed fraction of the motion under the generative posterior: the tasks' posterior
-    (T,) weighting ``t_last / (alpha_k T_norm)`` with their MAP phases ``alpha`` (T,), ``t_last`` and
-    ``T_norm`` in [s] (the motion's duration is unknown online)."""
-    return float(t_last / t_norm * np.dot(posterior, 1.0 / alpha))
-
-
-def interpolation(ratios: Sequence[float], fraction: float) -> tuple[int, float]:
-    """Index ``i`` and weight ``w`` of the linear interpolation between ``ratios[i]`` and
-    ``ratios[i + 1]`` at ``fraction`` (``w = 0`` below the first and above the last)."""
-    if fraction <= ratios[0]:
-        return 0, 0.0
-    i = 0
-    while i + 1 < len(ratios) and ratios[i + 1] <= fraction:
-        i += 1
-    if i + 1 == len(ratios):
-        return i, 0.0
-    return i, (fraction - ratios[i]) / (ratios[i + 1] - ratios[i])
-
-
-def head_features(
-    window: np.ndarray, generative_log_posterior: np.ndarray, clip: float = LOG_POSTERIOR_CLIP
-) -> np.ndarray:
-    """Raw head features (F,): the window values (3 D_o,) then the generative log posterior clipped
-    below at ``clip``."""
-    return np.concatenate([window, np.maximum(generative_log_posterior, clip)])
 
 
 def _log_softmax(

@@ -18,6 +18,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.linalg import cho_factor, cho_solve, solve_triangular
 
+from .head_features import head_features, interpolation
 from .sample_bounds import MAX_LOG_SCALED_MAGNITUDE, MAX_SCALED_MAGNITUDE
 
 LOG_2PI = float(np.log(2.0 * np.pi))
@@ -292,7 +293,6 @@ def recognition(loglik, log_prior, grids, weights, nodes, task_log_prior):
 def head_posterior(values, generative, posterior, alpha, t_scale, ratios, w, b, clip):
     """Task posterior of the recognition head: log posterior (T,), posterior (T,), most probable task
     (see the compiled kernel)."""
-    from .head import head_features, interpolation  # deferred: the head module imports the kernels'
 
     x = head_features(values, generative, clip)
     i, wt = interpolation(ratios, t_scale * np.dot(posterior, 1.0 / alpha))

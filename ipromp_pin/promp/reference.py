@@ -17,7 +17,7 @@ from ..data import Demo
 from .basis import GaussianBasis
 from .distribution import TaskModel
 from .fitted import FittedModel
-from .head import LOG_POSTERIOR_CLIP
+from .head_features import LOG_POSTERIOR_CLIP
 from .likelihood import LOG_2PI
 from .observation import ObservationPart
 from .posterior import (

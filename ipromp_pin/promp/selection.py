@@ -46,7 +46,8 @@ import numpy as np
 from ..data import Demo
 from ..exceptions import ModelError, ObservationError
 from .distribution import shrink_covariances
-from .head import RecognitionHead, WindowSummary, fit_head, head_features, observed_fraction
+from .head import RecognitionHead, WindowSummary, fit_head
+from .head_features import head_features, observed_fraction
 from .likelihood import InferenceEngine
 from .noise_path import part_spectrum, robot_paths, robot_prior
 from .observation import ObservationEncoder, ObservationPart

@@ -11,13 +11,11 @@ from ipromp_pin.promp.head import (
     HEAD_C_GRID,
     LDA,
     LDA_TEMPERATURE_GRID,
-    LOG_POSTERIOR_CLIP,
     LOGISTIC,
     WindowSummary,
     fit_head,
-    interpolation,
-    observed_fraction,
 )
+from ipromp_pin.promp.head_features import LOG_POSTERIOR_CLIP, interpolation, observed_fraction
 from ipromp_pin.promp.observation import ObservationPart
 from ipromp_pin.promp.selection import NOISE_GRID, TEMPERATURE_GRID
 

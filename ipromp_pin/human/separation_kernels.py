@@ -530,34 +530,31 @@ def _last_sample_last(n_i: np.ndarray, last: int) -> np.ndarray:
 
 @njit(**_JIT)
 def _pair_needs(
-    c_m: tuple[float, float, float, float, float, float, float],
-    parts: np.ndarray,
-    p: int,
-    best: float,
-    floor_p: float,
+    g: tuple[float, float, float],
+    g2: float,
+    x_clear: float,
+    far: float,
+    halves: float,
+    v_m: float,
     inside: bool,
     end_v: np.ndarray,
     m: int,
+    floor_p: float,
 ) -> tuple[bool, bool, bool]:
-    """Whether the pair of robot capsule ``m`` and body part ``p`` needs its distance (it may be
-    closer than ``best`` [m]), its S_p test (it may be within S_p and no pair of the sample is yet:
-    ``inside``) and its contact-speed ratio (it may be within S_p approaching faster than
-    ``floor_p`` [m/s]). ``c_m``: the capsule's bounding sphere centre [m], half length [m], radius
-    [m], speed bound [m/s] and S_p bound [m]; ``parts`` as :func:`_part_spheres` writes it."""
-    cx, cy, cz, half_m, big_r, v_m, sp_m = c_m
-    # the distance is at least |c_l - c_p| - R_l - R_p: compare the squared centre distance
-    gx, gy, gz = cx - parts[0, p], cy - parts[1, p], cz - parts[2, p]
-    g2 = gx * gx + gy * gy + gz * gz
-    x_clear = best + big_r + parts[6, p]
+    """Whether the pair of robot capsule ``m`` and a body part needs its distance, its S_p test (no
+    pair of the sample is within S_p yet: ``inside``) and its contact-speed ratio, from the bounding
+    spheres: the centre offset ``g`` [m] (capsule minus part) and ``g2 = |g|^2``, the offsets at which
+    the distance may be below the clearance so far (``x_clear``) and within the S_p bound (``far``)
+    [m], the axes' half lengths summed (``halves``) [m], the capsule's speed bound ``v_m`` and the
+    part's approach speed ``floor_p`` below which no ratio matters [m/s]."""
+    fast = v_m > floor_p
     want_clear = x_clear > 0.0 and g2 <= x_clear * x_clear
     want_ratio = want_within = False
-    fast = v_m > floor_p
     if fast or not inside:
-        far = sp_m + big_r + parts[4, p]
         if g2 < far * far:  # near enough to be within S_p
             want_within = not inside
             if fast:  # and moving toward the part fast enough to need its ratio?
-                want_ratio = _approach_bound(end_v, m, gx, gy, gz, g2, half_m + parts[3, p]) > floor_p
+                want_ratio = _approach_bound(end_v, m, g[0], g[1], g[2], g2, halves) > floor_p
     return want_clear, want_within, want_ratio
 
 
@@ -617,14 +614,15 @@ def separation_summary(
             cx, cy, cz = p1x + 0.5 * d1x, p1y + 0.5 * d1y, p1z + 0.5 * d1z  # bounding sphere
             half_m = 0.5 * math.sqrt(d1x * d1x + d1y * d1y + d1z * d1z)
             big_r, k, sp_m = half_m + rr[m], anchor[m], sp_bound[m]
-            for p in range(npart):  # the loosest of _pair_needs' sphere tests first: a few operations
-                gx, gy, gz = cx - parts[0, p], cy - parts[1, p], cz - parts[2, p]
-                reach = max(best + big_r + parts[6, p], sp_m + big_r + parts[4, p])
-                if gx * gx + gy * gy + gz * gz > reach * reach:
+            for p in range(npart):
+                g = (cx - parts[0, p], cy - parts[1, p], cz - parts[2, p])
+                g2 = g[0] * g[0] + g[1] * g[1] + g[2] * g[2]
+                x_clear, far = best + big_r + parts[6, p], sp_m + big_r + parts[4, p]
+                reach = max(x_clear, far)
+                if g2 > reach * reach:  # the distance >= |c_l - c_p| - R_l - R_p: most pairs
                     continue
-                c_m = (cx, cy, cz, half_m, big_r, v_bound[m], sp_m)
                 want_clear, want_within, want_ratio = _pair_needs(
-                    c_m, parts, p, best, floor[p], inside, end_v, m
+                    g, g2, x_clear, far, half_m + parts[3, p], v_bound[m], inside, end_v, m, floor[p]
                 )
                 if not (want_ratio or want_within or want_clear):
                     continue

@@ -903,7 +903,7 @@ def head_posterior(
 
 @njit(**_JIT)
 def _head_logit(w: np.ndarray, b: float, values: np.ndarray, generative: np.ndarray, clip: float) -> float:
-    """One task's logit ``w x + b`` of :func:`head_log_posterior` (``w`` (F,))."""
+    """One task's logit ``w x + b`` of :func:`head_posterior` (``w`` (F,))."""
     n_v = values.shape[0]
     acc = 0.0
     for f in range(n_v):
@@ -1195,24 +1195,11 @@ def stream_group(
     stride = total.shape[0] // n_b
     # g^T B^T y_d per unique candidate (shared by the tasks): (U, D_g)
     gp = np.zeros((n_u, dg))
-    first = dims[0]
-    in_order = True  # the dims first, first + 1, ...: read in place (no gather)
-    for d in range(dg):
-        in_order = in_order and dims[d] == first + d
-    if in_order:
-        for k in range(ke):
-            for u in range(n_u):
-                gku = g[k, u]
-                pku = proj[k, u, first : first + dg]
-                gpu = gp[u]
-                for d in range(dg):
-                    gpu[d] += gku * pku[d]
-    else:
-        for k in range(ke):
-            for u in range(n_u):
-                gku = g[k, u]
-                for d in range(dg):
-                    gp[u, d] += gku * proj[k, u, dims[d]]
+    for k in range(ke):
+        for u in range(n_u):
+            gku = g[k, u]
+            for d in range(dg):
+                gp[u, d] += gku * proj[k, u, dims[d]]
     # W_d^T g and nu mu_d^T g of every block, (latent, dim, task) and unique candidate: (M, U)
     wg = np.dot(w_t, g)
     mu0 = col_off[n_b]

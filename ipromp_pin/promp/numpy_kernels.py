@@ -293,7 +293,6 @@ def recognition(loglik, log_prior, grids, weights, nodes, task_log_prior):
 def head_posterior(values, generative, posterior, alpha, t_scale, ratios, w, b, clip):
     """Task posterior of the recognition head: log posterior (T,), posterior (T,), most probable task
     (see the compiled kernel)."""
-
     x = head_features(values, generative, clip)
     i, wt = interpolation(ratios, t_scale * np.dot(posterior, 1.0 / alpha))
     z = w[i] @ x + b[i]

@@ -191,12 +191,9 @@ _ONE = np.ones(1)
 observed fraction itself."""
 
 
-def _log_softmax(
-    z: np.ndarray, overwrite: bool = False, work: tuple[np.ndarray, np.ndarray] | None = None
-) -> np.ndarray:
-    """Row-wise log softmax of ``z`` (n, T) (``overwrite``: ``z`` is a temporary of the caller's,
-    shifted in place; ``work``: scratch arrays (n, 1) and (n, T), and the result is written into
-    ``z``: the same numbers without temporaries)."""
+def _log_softmax(z: np.ndarray, work: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
+    """Row-wise log softmax of ``z`` (n, T) (``work``: scratch arrays (n, 1) and (n, T), and the
+    result is written into ``z``: the same numbers without temporaries)."""
     if work is not None:
         col, e = work
         z.max(axis=1, keepdims=True, out=col)
@@ -204,10 +201,7 @@ def _log_softmax(
         np.exp(z, out=e).sum(axis=1, keepdims=True, out=col)
         z -= np.log(col, out=col)
         return z
-    if overwrite:
-        z -= z.max(axis=1, keepdims=True)
-    else:
-        z = z - z.max(axis=1, keepdims=True)
+    z = z - z.max(axis=1, keepdims=True)
     return z - np.log(np.exp(z).sum(axis=1, keepdims=True))
 
 

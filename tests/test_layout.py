@@ -18,11 +18,12 @@ LAYERS = {
     "readers": 2,
     **dict.fromkeys(["promp", "robot", "human", "preview", "schemas"], 3),
     "motion": 4,
-    "checks": 5,
-    "handover": 6,
-    **dict.fromkeys(["outputs", "evaluation"], 7),
-    "commands": 8,
-    "cli": 9,
+    "safety": 5,
+    "planning": 6,
+    "evaluation": 7,
+    "outputs": 8,
+    "commands": 9,
+    "cli": 10,
 }
 """Top-level module or package -> layer (0: the shared ground); imports may only go down."""
 

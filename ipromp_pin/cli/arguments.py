@@ -22,7 +22,7 @@ from .progress import progress
 if TYPE_CHECKING:
     from ..commands.config import PipelineConfig
     from ..data import Dataset
-    from ..handover.closed_loop import ClosedLoopSettings
+    from ..planning.closed_loop import ClosedLoopSettings
     from ..robot import Robot
 
 DEFAULT_MARK = "{default}"
@@ -68,10 +68,10 @@ def config_default(name: str) -> Callable[[], Any]:
 
 
 def closed_loop_default(name: str) -> Callable[[], Any]:
-    """The source of the default of ``ClosedLoopSettings`` field ``name`` (``handover.closed_loop``)."""
+    """The source of the default of ``ClosedLoopSettings`` field ``name`` (``planning.closed_loop``)."""
 
     def source() -> Any:
-        from ..handover.closed_loop import ClosedLoopSettings
+        from ..planning.closed_loop import ClosedLoopSettings
 
         return getattr(ClosedLoopSettings(), name)
 
@@ -246,7 +246,7 @@ def closed_loop_settings(args: argparse.Namespace, **given: float | None) -> Clo
     """The closed-loop settings of the command line: :class:`ClosedLoopSettings`' defaults with the
     options given (and the values of ``given`` that are not ``None``, e.g. ``control_rate_hz``),
     validated once (one-line errors naming the field)."""
-    from ..handover.closed_loop import ClosedLoopSettings
+    from ..planning.closed_loop import ClosedLoopSettings
 
     options: dict[str, Any] = {
         "replan_rate_hz": args.replan_rate,

@@ -38,11 +38,11 @@ from ..evaluation.tables import (
     write_closed_loop_results,
     write_results,
 )
-from ..handover.closed_loop import ClosedLoopSettings
+from ..motion.limits import check_profile_choice
+from ..planning.closed_loop import ClosedLoopSettings
 from ..robot import Robot, load_robot
 from ..robot.objects import load_objects
 from ..shipped import DEFAULT_ROBOT
-from .replay import check_limits_choice
 
 
 @dataclass
@@ -172,7 +172,7 @@ def check_request(request: EvaluateRequest) -> Robot:
     robot = load_robot(request.robot)
     load_objects(request.objects)  # a bad task file fails here, before any demo is read
     if request.closed_loop:
-        check_limits_choice(request.limits, robot, "command line")
+        check_profile_choice(request.limits, robot, "command line")
     counts = readers.count_demos(request.dataset, format=request.format)  # lists the demo files, reads none
     for cfg in request.configs():
         check_dataset_size(counts, cfg, request.dataset)

@@ -1,7 +1,7 @@
 """``ipromp-pin preview``: the planned hand-over as a self-contained page, or live while it streams.
 
 :func:`run_preview` sets up the command (:func:`~ipromp_pin.commands.setup.prepare_session`), plans
-the hand-over (:func:`~ipromp_pin.handover.one_shot.plan`) and writes the page
+the hand-over (:func:`~ipromp_pin.planning.one_shot.plan`) and writes the page
 (:func:`write_preview`), or serves it on 127.0.0.1 while the observed samples stream into the
 model's streaming estimator.
 """
@@ -16,17 +16,16 @@ import numpy as np
 
 from ..data import Demo
 from ..exceptions import PipelineError
-from ..handover.one_shot import LogFn, PlanResult, plan
-from ..handover.retreat import RetreatResult
 from ..human import HumanMotion
 from ..outputs.preview_content import preview_content
+from ..planning.one_shot import LogFn, PlanResult
+from ..planning.retreat import RetreatResult
 from ..preview import LivePreview, write_html
 from ..robot import Robot
 from ..robot.objects import ObjectTable
 from .config import PipelineConfig
 from .meshes import preview_visual_model
-from .run import session_retreat
-from .setup import prepare_session
+from .setup import plan_session, prepare_session
 
 
 def run_preview(
@@ -51,20 +50,9 @@ def run_preview(
         raise PipelineError(f"preview speed must be a positive factor, got {speed}")
     session = prepare_session(cfg, log, prefetch_meshes=True)
     observation = session.observed()
-    result = plan(
-        session.model,
-        session.robot,
-        observation,
-        cfg.control_rate_hz,
-        session.hand_position_m,
-        log=log,
-        check_joints=False,
-        checks=session.motion_checks,
-        context=session.check_context,
-    )
-    retreat = session_retreat(session, result, log) if cfg.retreat else None
+    result, retreat = plan_session(session, log)
     if html is not None:
-        ctx = session.check_context
+        ctx = session.context
         path = write_preview(
             result,
             session.robot,
@@ -78,7 +66,7 @@ def run_preview(
         log(f"[preview] wrote {path} ({path.stat().st_size / 1e6:.1f} MB): open it in a browser (no server)")
         return path
     visual = preview_visual_model(session.robot, session.mesh_prefetch)
-    ctx = session.check_context
+    ctx = session.context
     content = preview_content(
         result,
         session.robot,

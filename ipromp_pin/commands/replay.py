@@ -3,7 +3,7 @@
 :func:`run_replay` sets up the command as ``run`` does
 (:func:`~ipromp_pin.commands.setup.prepare_session`: the pipeline's data, the chosen demo held out,
 the model trained on the others or loaded), chooses the limit profile, and replays the demo at its
-recorded timing (:func:`~ipromp_pin.handover.closed_loop.replay_demo`, simulated clock). It writes
+recorded timing (:func:`~ipromp_pin.planning.closed_loop.replay_demo`, simulated clock). It writes
 into the output folder:
 
 - ``trajectory.csv`` and ``trajectory.json``: the commanded trajectory at the control rate
@@ -28,23 +28,11 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
-
 from .. import atomic
-from ..checks import CheckContext, TimedMotion
-from ..checks.joint_torques import JointTorques
 from ..data import ROBOT, Demo
-from ..exceptions import PipelineError
-from ..handover.closed_loop import ClosedLoopResult, ClosedLoopSettings, replay_demo, start_time
-from ..handover.one_shot import LogFn
-from ..handover.score import ClosedLoopScore, score_closed_loop
-from ..motion.limits import (
-    PROFILE_NAMES,
-    LimitProfile,
-    conservative_profile,
-    demonstrated_profile,
-    read_limit_profile,
-)
+from ..evaluation.scoring import ClosedLoopScore, replay_scored
+from ..human import HumanMotion
+from ..motion.limits import LimitProfile, check_profile_choice, choose_limit_profile
 from ..outputs.files import REPLAY, command_outputs, keyed, trajectory_outputs
 from ..outputs.preview_content import replay_preview_html
 from ..outputs.replay_report import (
@@ -56,9 +44,11 @@ from ..outputs.replay_report import (
     summary_lines,
 )
 from ..outputs.staging import stage_report, stage_trajectory
+from ..planning.closed_loop import ClosedLoopResult, ClosedLoopSettings, replay_demo, start_time
+from ..planning.one_shot import LogFn
 from ..promp import IProMP
-from ..robot import Robot, load_robot
-from ..robot.clearance import ClearanceCertifier
+from ..robot import load_robot
+from ..safety import CheckContext, CheckSuite
 from .config import PipelineConfig
 from .meshes import preview_visual_model
 from .model_warnings import warn_stderr
@@ -118,29 +108,6 @@ class ReplayChecks(SetupChecks):
         demo.require(list(model.observe_))
 
 
-def check_limits_choice(limits: str, robot: Robot, source: str) -> LimitProfile | None:
-    """Validate ``--limits`` before any computation: a built-in name (None) or a profile file (read)."""
-    if limits in PROFILE_NAMES:
-        return None
-    if not Path(limits).suffix and not Path(limits).exists():
-        raise PipelineError(
-            f"{source}: field 'limits': unknown limit profile '{limits}' "
-            f"(use {' or '.join(PROFILE_NAMES)}, or a profile file)"
-        )
-    return read_limit_profile(limits, robot)
-
-
-def choose_profile(
-    limits: str, robot: Robot, train: list[Demo], label: str, from_file: LimitProfile | None
-) -> LimitProfile:
-    """The limit profile: the settings' conservative one, the one derived from ``train``, or a file's."""
-    if from_file is not None:
-        return from_file
-    if limits == "conservative":
-        return conservative_profile(robot)
-    return demonstrated_profile(robot, train, robot.settings.demonstrated_limits, label)
-
-
 def training_label(cfg: PipelineConfig) -> str:
     """Where the demonstrated limits come from, as the limit profile's ``source`` names it."""
     label = "the built-in synthetic demos" if cfg.dataset is None else Path(str(cfg.dataset)).name
@@ -149,16 +116,12 @@ def training_label(cfg: PipelineConfig) -> str:
     return label
 
 
-def primed_certifier(robot: Robot, train: list[Demo], log: LogFn) -> ClearanceCertifier:
-    """A collision certifier with the distances near the demonstrated motions computed offline
-    (reused by every re-plan)."""
-    certifier = ClearanceCertifier(robot)
+def prime_checks(suite: CheckSuite, train: list[Demo], log: LogFn) -> None:
+    """Prepare the checks for motions near the demonstrated ones (the self-collision certifier's
+    distances near the training motions, computed offline and reused by every re-plan)."""
     t0 = time.perf_counter()
-    for d in train:
-        certifier.certify(d.groups[ROBOT])
-    primed = time.perf_counter() - t0
-    log(f"[limits] collision certifier primed on {len(train)} training motions ({primed:.1f} s)")
-    return certifier
+    suite.prime([d.groups[ROBOT] for d in train])
+    log(f"[limits] checks primed on {len(train)} training motions ({time.perf_counter() - t0:.1f} s)")
 
 
 @dataclass
@@ -166,18 +129,22 @@ class ReplaySetup:
     """What a replay runs with, set up as ``ipromp-pin replay`` does (:func:`prepare_replay`).
 
     Attributes:
-        session: The pipeline's data, the held-out demo, the model and its training demos.
+        session: The pipeline's data, the held-out demo, the model and its training demos, the checks
+            (primed on the training motions) and their context.
         profile: The limit profile.
-        certifier: The collision certifier, primed on the training motions.
     """
 
     session: Session
     profile: LimitProfile
-    certifier: ClearanceCertifier
 
-    def replay(self, settings: ClosedLoopSettings) -> ClosedLoopResult:
-        """The closed loop of the held-out demo at its recorded timing, with the session's timed-motion
-        checks and their context (what ``ipromp-pin replay`` runs and ``benchmarks/closed_loop.py``
+    def replay(
+        self,
+        settings: ClosedLoopSettings,
+        suite: CheckSuite | None = None,
+        context: CheckContext | None = None,
+    ) -> ClosedLoopResult:
+        """The closed loop of the held-out demo at its recorded timing, with the session's checks and
+        context (or those given: what ``ipromp-pin replay`` runs and ``benchmarks/closed_loop.py``
         times)."""
         s = self.session
         return replay_demo(
@@ -186,10 +153,22 @@ class ReplaySetup:
             s.demo,
             self.profile,
             settings,
-            self.certifier,
-            checks=s.motion_checks,
-            context=s.check_context,
+            s.suite if suite is None else suite,
+            s.context if context is None else context,
         )
+
+    def scored(self, settings: ClosedLoopSettings) -> tuple[ClosedLoopScore, ClosedLoopResult]:
+        """:meth:`replay` scored against the recording (:func:`~ipromp_pin.evaluation.scoring.replay_scored`:
+        the torques with the true task's object; with a tracked skeleton the human checks judged
+        against the recorded human and the arrival without them), as ``evaluate --closed-loop`` scores
+        every trial."""
+        s = self.session
+        recorded = HumanMotion.from_demo(s.demo, s.robot.settings.human)
+
+        def replay(suite: CheckSuite, context: CheckContext) -> ClosedLoopResult:
+            return self.replay(settings, suite, context)
+
+        return replay_scored(replay, s.demo, s.robot, s.suite, s.context, recorded)
 
 
 def prepare_replay(
@@ -204,19 +183,19 @@ def prepare_replay(
     (``benchmarks/closed_loop.py`` times the replays of this set-up)."""
     check_outputs(cfg)
     robot = load_robot(cfg.robot)
-    from_file = check_limits_choice(limits, robot, cfg.source)
+    from_file = check_profile_choice(limits, robot, cfg.source)
     checks = ReplayChecks(cfg.observe, settings.start_ratio)
     session = prepare_session(cfg, log, warn, robot=robot, checks=checks, observe=False)
     demo, train = session.demo, session.train
-    profile = choose_profile(limits, robot, train, training_label(cfg), from_file)
+    profile = choose_limit_profile(from_file or limits, robot, train, training_label(cfg))
     log(f"[limits] {profile.name}: {profile.source}")
-    certifier = primed_certifier(robot, train, log)
+    prime_checks(session.suite, train, log)
     log(
         f"[replay] {demo.task}/{demo.name}: {demo.duration_s:.2f} s at its recorded timing; the robot starts "
         f"after {settings.start_ratio:.0%} ({checks.start_s:.2f} s), re-plans at "
         f"{settings.replan_rate_hz:g} Hz, control at {settings.control_rate_hz:g} Hz"
     )
-    return ReplaySetup(session, profile, certifier)
+    return ReplaySetup(session, profile)
 
 
 def run_replay(
@@ -240,28 +219,15 @@ def run_replay(
     t_start = time.perf_counter()
     setup = prepare_replay(cfg, settings, limits, log, warn)
     session = setup.session
-    demo, robot = session.demo, session.robot
-    result = setup.replay(settings)
-    score = score_closed_loop(result, demo, robot)
-    score_torques(session, result, score)
+    demo = session.demo
+    score, result = setup.scored(settings)
+    truth = CheckContext(task=demo.task, objects=session.context.objects)  # the files' torques
+    result.trajectory = session.suite.annotate(result.trajectory, truth)
     with atomic.OutputSet(cfg.out_dir, managed=REPLAY_OUTPUTS) as out:
         _stage_files(out, session, result, score, allow_failing_checks, preview, log)
         files = keyed(out.commit())
     log(summary_lines(demo, result, score, time.perf_counter() - t_start))
     return ReplayOutcome(demo, result, score, files, replay_passed(score))
-
-
-def score_torques(session: Session, result: ClosedLoopResult, score: ClosedLoopScore) -> None:
-    """With the joint-torque check among the session's checks: the commanded motion's torques (with the
-    true task's object, :mod:`ipromp_pin.robot.objects`) into its trajectory (the files' ``effort``)
-    and its peak torque ratio into ``score`` (in place)."""
-    torques = next((c for c in session.motion_checks if isinstance(c, JointTorques)), None)
-    if torques is None:
-        return
-    context = CheckContext(task=session.demo.task, objects=session.check_context.objects)
-    motion = TimedMotion.from_trajectory(result.trajectory)
-    score.peak_torque_ratio = float(torques.check(motion, context).values.get("peak_torque_ratio", np.nan))
-    result.trajectory.effort_nm = torques.motion_torques(motion, context)
 
 
 def _stage_files(
@@ -284,7 +250,7 @@ def _stage_files(
     if preview:
         t0 = time.perf_counter()
         visual = preview_visual_model(session.robot)
-        ctx = session.check_context
+        ctx = session.context
         html = replay_preview_html(demo, result, score, session.robot, visual, ctx.human, ctx.objects)
         out.write_text("preview.html", html)
         log(f"[preview] {out.path('preview.html')} ({time.perf_counter() - t0:.1f} s)")

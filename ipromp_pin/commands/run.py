@@ -1,8 +1,8 @@
 """``ipromp-pin run``: data -> model -> observe -> recognise -> predict -> check -> time -> files.
 
 :func:`run_pipeline` sets up the command (:func:`~ipromp_pin.commands.setup.prepare_session`), runs
-the online stages (:func:`~ipromp_pin.handover.one_shot.plan`), plans the retreat after the hand-over
-(:func:`~ipromp_pin.handover.retreat.plan_retreat`, when the recognised task has one and
+the online stages (:func:`~ipromp_pin.planning.one_shot.plan`), plans the retreat after the hand-over
+(:func:`~ipromp_pin.planning.retreat.plan_retreat`, when the recognised task has one and
 ``[robot] retreat`` is on) and writes the trajectory, the bags,
 the report, the preview page and the figures together (:data:`RUN_OUTPUTS`). Every stage reports
 through a ``log`` callable.
@@ -14,20 +14,20 @@ import time
 
 from .. import atomic
 from ..data import ROBOT
-from ..handover.one_shot import LogFn, PlanResult, plan
-from ..handover.retreat import RetreatResult, plan_retreat
-from ..handover.score import handover_orientation_error_deg
+from ..evaluation.scoring import handover_orientation_error_deg
 from ..outputs.figures import write_plots
 from ..outputs.files import RUN, command_outputs, keyed, trajectory_outputs
 from ..outputs.preview_content import preview_content
 from ..outputs.report import report_dict, report_text, summary_text
 from ..outputs.rosbag import check_bag_paths
 from ..outputs.staging import OutputOptions, stage_plan, stage_report
+from ..planning.one_shot import LogFn, PlanResult
+from ..planning.retreat import RetreatResult
 from ..preview import render_html
 from .config import PipelineConfig
 from .meshes import preview_visual_model
 from .model_warnings import warn_stderr
-from .setup import Session, check_outputs, prepare_session
+from .setup import Session, check_outputs, plan_session, prepare_session
 
 RUN_OUTPUTS = command_outputs(RUN)
 """Every file ``ipromp-pin run`` may write into its output folder (:mod:`ipromp_pin.outputs.files`). A
@@ -56,18 +56,7 @@ def run_pipeline(
     check_bag_paths(cfg.out_dir)  # never replace or remove a user's own file named rosbag / run.bag
     session = prepare_session(cfg, log, warn, prefetch_meshes=cfg.preview_html)
     robot, observation = session.robot, session.observed()
-    result = plan(
-        session.model,
-        robot,
-        observation,
-        cfg.control_rate_hz,
-        session.hand_position_m,
-        log=log,
-        check_joints=False,
-        checks=session.motion_checks,
-        context=session.check_context,
-    )
-    retreat = session_retreat(session, result, log) if cfg.retreat else None
+    result, retreat = plan_session(session, log)
     options = OutputOptions(cfg.ros, cfg.rosbag, cfg.ros1_bag, robot.base_frame, session.warnings)
     with atomic.OutputSet(cfg.out_dir, managed=RUN_OUTPUTS) as out:
         stage_plan(
@@ -76,9 +65,7 @@ def run_pipeline(
         if cfg.preview_html:
             _stage_preview(result, session, out, log, retreat)
         if cfg.plots:
-            write_plots(
-                result, session.model, session.demo, out, session.robot, session.check_context.objects
-            )
+            write_plots(result, session.model, session.demo, out, session.robot, session.context.objects)
         orientation = recorded_orientation_error(session, result)
         report = stage_report(
             out,
@@ -100,24 +87,6 @@ def run_pipeline(
     return report
 
 
-def session_retreat(session: Session, result: PlanResult, log: LogFn) -> RetreatResult | None:
-    """The retreat after ``result``'s hand-over, planned as the recognised task's entry of the task
-    file says (None: the task has no ``retreat`` entry)."""
-    ctx = session.check_context
-    obj = None if ctx.objects is None else ctx.objects.for_task(result.prediction.task)
-    if obj is None or obj.retreat is None:
-        return None
-    return plan_retreat(
-        session.robot,
-        result,
-        obj.retreat,
-        checks=session.motion_checks,
-        context=ctx,
-        control_rate_hz=session.cfg.control_rate_hz,
-        log=log,
-    )
-
-
 def recorded_orientation_error(session: Session, result: PlanResult) -> float | None:
     """The planned vs the recorded gripper orientation at the hand-over in [deg] (the observed demo's
     last robot sample), or None when the demo has no robot group."""
@@ -133,7 +102,7 @@ def _stage_preview(
     """Stage ``preview.html``: the self-contained preview page of the planned hand-over (and retreat)."""
     t0 = time.perf_counter()
     visual = preview_visual_model(session.robot, session.mesh_prefetch)
-    ctx = session.check_context
+    ctx = session.context
     content = preview_content(
         result,
         session.robot,

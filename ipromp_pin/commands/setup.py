@@ -12,22 +12,23 @@ from __future__ import annotations
 
 import multiprocessing as mp
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from functools import partial
 
 import numpy as np
 
 from .. import atomic
-from ..checks import CheckContext, MotionCheck, build_checks
 from ..data import ROBOT, Dataset, Demo, skeleton_frames
 from ..exceptions import DataError, PipelineError
-from ..handover.one_shot import LogFn, check_model_joints
 from ..human import HumanMotion
+from ..planning.one_shot import LogFn, PlanResult, check_model_joints, plan
+from ..planning.retreat import RetreatResult, plan_retreat
 from ..promp import IProMP
 from ..readers import load_dataset
 from ..readers.synthetic import make_synthetic_dataset
 from ..robot import Robot, ee_positions, gripper_rotations, load_robot
 from ..robot.objects import ObjectTable, load_objects
+from ..safety import CheckContext, CheckSuite
 from .config import PipelineConfig
 from .meshes import start_mesh_prefetch
 from .model_cache import fit_cached
@@ -50,9 +51,9 @@ class Session:
         mesh_prefetch: The process decimating the preview meshes meanwhile
             (:func:`~ipromp_pin.commands.meshes.start_mesh_prefetch`), or None.
         observation: The observed first ``cfg.ratio`` of the demo's human motion (None when not cut).
-        hand_position_m: (3,) the human hand's last known position in [m] (the hand-over point), or None.
-        motion_checks: The timed-motion checks of every plan (:func:`ipromp_pin.checks.build_checks`).
-        check_context: What they know about the world for ``demo`` (:func:`check_context`).
+        suite: The checks of every plan (:meth:`ipromp_pin.safety.CheckSuite.build`).
+        context: What they know about the world for ``demo`` (:func:`check_context`; cut to what the
+            planner knows at the end of the observation when there is one).
     """
 
     cfg: PipelineConfig
@@ -64,9 +65,8 @@ class Session:
     warnings: list[str] = field(default_factory=list)
     mesh_prefetch: mp.process.BaseProcess | None = None
     observation: Demo | None = None
-    hand_position_m: np.ndarray | None = None
-    motion_checks: list[MotionCheck] = field(default_factory=list)
-    check_context: CheckContext = field(default_factory=CheckContext)
+    suite: CheckSuite = field(default_factory=lambda: CheckSuite([]))
+    context: CheckContext = field(default_factory=CheckContext)
 
     def observed(self) -> Demo:
         """The observation of a session prepared with ``observe=True`` (PipelineError without one)."""
@@ -126,16 +126,14 @@ def prepare_session(
     for w in warnings:
         warn(w)
     session = Session(cfg, robot, ds, demo, train, model, warnings, prefetch)
-    session.motion_checks = build_checks(robot)
-    session.check_context = check_context(cfg, demo, robot, objects)
+    session.suite = CheckSuite.build(robot)
+    session.context = check_context(cfg, demo, robot, objects)
     if observe:
         session.observation = observation = demo.head(cfg.ratio, groups=cfg.observe)
-        human = session.check_context.human
+        human = session.context.human
         if human is not None:  # the planner knows the human up to the end of the observation
-            session.check_context = replace(
-                session.check_context, human=human.until(float(observation.t[-1]))
-            )
-        session.hand_position_m = hand_at_handover(demo)
+            session.context = session.context.replace(human=human.until(float(observation.t[-1])))
+        session.context = session.context.replace(hand_position_m=hand_at_handover(demo))
         log(
             f"[observe] {demo.task}/{demo.name}: first {cfg.ratio:.0%} "
             f"({observation.t[-1]:.2f} s, {observation.n_samples} samples) of {', '.join(cfg.observe)}"
@@ -146,7 +144,7 @@ def prepare_session(
 def check_context(
     cfg: PipelineConfig, demo: Demo, robot: Robot | None = None, objects: ObjectTable | None = None
 ) -> CheckContext:
-    """What the timed-motion checks (:mod:`ipromp_pin.checks`) know about the world when the robot
+    """What the timed-motion checks (:mod:`ipromp_pin.safety`) know about the world when the robot
     plans for ``demo``'s human (``cfg``: the pipeline's settings of that world; ``robot``: whose
     ``[human]`` settings shape the body, loaded from ``cfg`` when None; ``objects``: the task file
     already read, else ``cfg.objects`` is read: the payload is the recognised task's object).
@@ -301,3 +299,27 @@ def model_warnings(cfg: PipelineConfig, ds: Dataset, demo: Demo, model: IProMP) 
         return loaded_model_warnings(model, ds, demo, str(cfg.load_model)) + observed
     single = single_task_warning(model)
     return ([] if single is None else [single]) + observed
+
+
+def plan_session(session: Session, log: LogFn = print) -> tuple[PlanResult, RetreatResult | None]:
+    """The one-shot plan of the session's observation with its checks and context (what ``run`` and
+    ``preview`` plan), and the retreat after it when the recognised task has one and ``[robot]
+    retreat`` is on (None otherwise)."""
+    cfg, robot, ctx = session.cfg, session.robot, session.context
+    result = plan(
+        session.model,
+        robot,
+        session.observed(),
+        session.suite,
+        ctx,
+        control_rate_hz=cfg.control_rate_hz,
+        log=log,
+        check_joints=False,
+    )
+    obj = None if ctx.objects is None else ctx.objects.for_task(result.prediction.task)
+    if not cfg.retreat or obj is None or obj.retreat is None:
+        return result, None
+    retreat = plan_retreat(
+        robot, result, obj.retreat, session.suite, ctx, control_rate_hz=cfg.control_rate_hz, log=log
+    )
+    return result, retreat

@@ -9,8 +9,8 @@ demo is then
   recognition, joint errors, ``one_shot_handover_error_cm`` = the gripper position error of the
   one-shot plan's end, which is the prediction's last point);
 * replayed at its recorded timing with ``obs_ratio`` as the start ratio
-  (:func:`~ipromp_pin.handover.closed_loop.replay_demo`) and scored
-  (:func:`~ipromp_pin.handover.score.score_closed_loop`).
+  (:func:`~ipromp_pin.planning.closed_loop.replay_demo`) and scored
+  (:func:`~ipromp_pin.evaluation.scoring.score_closed_loop`).
 
 Each cell gains, over all its test trials (recognised or not): ``closed_loop_handover_error_cm``,
 ``closed_loop_final_error_cm``, ``one_shot_handover_error_cm``, ``arrival_delay_s`` (medians),

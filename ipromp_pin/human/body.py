@@ -3,8 +3,8 @@
 A :class:`BodyPart` is a capsule between two tracked frames (or a sphere about one) with a radius
 from published anthropometric data (``docs/safety.md``; ``[human.radii_m]`` overrides) and the
 ISO/TS 15066 body region it belongs to. :class:`HumanMotion` places every part at any time ``t`` [s]
-on the human's clock (0 at the start of the demo, the clock of :class:`~ipromp_pin.checks.TimedMotion`)
-in the robot base frame:
+on the human's clock (0 at the start of the demo, the clock of every
+:class:`~ipromp_pin.motion.trajectory.Trajectory`) in the robot base frame:
 
 * tracked frames (``demo.extras["skeleton:<frame>"]``, or a modelled group ``demo.groups[<frame>]``)
   are linearly interpolated between reliable samples; a frame that is occluded or all-zero (NaN in

@@ -1,6 +1,6 @@
 """What the human checks judge of the robot-body separation, computed without every pair's numbers.
 
-``human_clearance`` and ``contact_speed`` (:mod:`ipromp_pin.checks`) judge a few reductions of the
+``human_clearance`` and ``contact_speed`` (:mod:`ipromp_pin.safety`) judge a few reductions of the
 per-sample, per-pair :class:`~.separation.Separation` (N samples x L robot capsules x P body parts):
 the smallest distance to the body outside the hand and where it is, how long the robot is within
 S_p, and the largest approach speed / contact-speed limit of each sample and where it is.

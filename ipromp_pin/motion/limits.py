@@ -236,3 +236,40 @@ def read_limit_profile(path: str | Path, robot: Robot) -> LimitProfile:
     source = str(doc.get("source", f"profile file {path.name}"))
     limits = JointLimits(base.lower_rad, base.upper_rad, vel, acc, jerk, base.joint_names)
     return LimitProfile(name, limits, source)
+
+
+def check_profile_choice(choice: str, robot: Robot, source: str) -> LimitProfile | None:
+    """Validate a profile choice before any computation: a built-in name (None) or a profile file
+    (read and returned).
+
+    Raises:
+        PipelineError: an unknown name that is not a file either (naming ``source`` and ``limits``).
+    """
+    if choice in PROFILE_NAMES:
+        return None
+    if not Path(choice).suffix and not Path(choice).exists():
+        raise PipelineError(
+            f"{source}: field 'limits': unknown limit profile '{choice}' "
+            f"(use {' or '.join(PROFILE_NAMES)}, or a profile file)"
+        )
+    return read_limit_profile(choice, robot)
+
+
+def choose_limit_profile(
+    choice: str | LimitProfile,
+    robot: Robot,
+    train: Iterable[Demo],
+    label: str,
+    recipe: DemoLimitRecipe | None = None,
+) -> LimitProfile:
+    """The limit profile a closed loop runs with (``replay`` and ``evaluate --closed-loop`` alike):
+    ``"conservative"`` (the robot settings'), ``"demonstrated"`` (derived from ``train``, the model's
+    training demos, with ``recipe`` or the settings' recipe; ``label`` names them), a profile already
+    read, or a profile file's path."""
+    if isinstance(choice, LimitProfile):
+        return choice
+    if choice == "conservative":
+        return conservative_profile(robot)
+    if choice == "demonstrated":
+        return demonstrated_profile(robot, train, recipe or robot.settings.demonstrated_limits, label)
+    return read_limit_profile(choice, robot)

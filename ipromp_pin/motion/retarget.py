@@ -29,11 +29,12 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from ruckig import InputParameter, Result, Ruckig, RuckigError, Trajectory
+from ruckig import InputParameter, Result, Ruckig, RuckigError
+from ruckig import Trajectory as RuckigTrajectory
 
 from ..exceptions import InfeasibleError
 from .ruckig_sampling import sample_trajectory
-from .trajectory import JointLimits
+from .trajectory import JointLimits, MotionState, Trajectory
 
 HEADROOM = 0.95
 """Fraction of the velocity, acceleration and jerk limits the followed reference may use; the rest
@@ -48,29 +49,6 @@ slow the whole motion down."""
 
 CATCH_UP_ITERATIONS = 4
 """Re-targets of the blend to a later reference time when the limits make it longer than ``h``."""
-
-
-@dataclass(frozen=True)
-class MotionState:
-    """Commanded state of the arm at one control tick.
-
-    Attributes:
-        t_s: Time in [s] from the start of the human's motion.
-        q: Positions (n_joints,) in [rad].
-        qd: Velocities (n_joints,) in [rad/s].
-        qdd: Accelerations (n_joints,) in [rad/s^2].
-    """
-
-    t_s: float
-    q: np.ndarray
-    qd: np.ndarray
-    qdd: np.ndarray
-
-    @classmethod
-    def at_rest(cls, t_s: float, q: np.ndarray) -> MotionState:
-        """The state at rest at ``q`` (n_joints,) in [rad]."""
-        q = np.asarray(q, dtype=float).reshape(-1)
-        return cls(float(t_s), q, np.zeros_like(q), np.zeros_like(q))
 
 
 class ReferenceMotion:
@@ -159,27 +137,17 @@ class ReferenceMotion:
         return self.evaluate(np.array([self.duration_s]), order=0)[0][0]
 
 
-@dataclass
-class MotionPlan:
-    """The remaining commanded motion from one re-plan, sampled at the control rate.
+@dataclass(frozen=True)
+class RetargetReport:
+    """How a re-targeted motion (:meth:`Retargeter.plan`) meets its reference.
 
     Attributes:
-        t0_s: Time of sample 0 (the re-plan's control tick) in [s]; sample ``i`` is at ``t0 + i dt``.
-        dt_s: Control period in [s].
-        q: (N, J) positions in [rad]; sample 0 is the start state, the last one is at rest.
-        qd: (N, J) velocities in [rad/s].
-        qdd: (N, J) accelerations in [rad/s^2].
         arrival_s: Time in [s] at which the motion comes to rest at the hand-over configuration.
         target_s: The reference's hand-over time ``D`` in [s].
         time_scale: Slow-down factor ``k`` of the followed reference (1: on the human's timeline).
         blend_s: Duration of the blend in [s].
     """
 
-    t0_s: float
-    dt_s: float
-    q: np.ndarray
-    qd: np.ndarray
-    qdd: np.ndarray
     arrival_s: float
     target_s: float
     time_scale: float = 1.0
@@ -189,40 +157,6 @@ class MotionPlan:
     def lateness_s(self) -> float:
         """How much later than the reference's hand-over time the motion comes to rest, in [s]."""
         return self.arrival_s - self.target_s
-
-    @property
-    def n_samples(self) -> int:
-        """Number of samples N."""
-        return int(self.q.shape[0])
-
-    @property
-    def t_s(self) -> np.ndarray:
-        """Sample times (N,) in [s]."""
-        return self.t0_s + self.dt_s * np.arange(self.n_samples)
-
-    def state(self, i: int) -> MotionState:
-        """State at sample ``i`` (the final rest state after the last sample)."""
-        j = min(max(int(i), 0), self.n_samples - 1)
-        if i >= self.n_samples:
-            return MotionState.at_rest(self.t0_s + i * self.dt_s, self.q[-1])
-        return MotionState(self.t0_s + i * self.dt_s, self.q[j].copy(), self.qd[j].copy(), self.qdd[j].copy())
-
-
-def hold_plan(state: MotionState, dt_s: float) -> MotionPlan:
-    """The plan that stays at rest at ``state.q`` (the robot before its first plan)."""
-    q = np.asarray(state.q, dtype=float)[None, :]
-    z = np.zeros_like(q)
-    return MotionPlan(state.t_s, dt_s, q, z, z.copy(), state.t_s, state.t_s)
-
-
-def limit_ratios(plan_qd: np.ndarray, plan_qdd: np.ndarray, dt_s: float, limits: JointLimits) -> np.ndarray:
-    """Largest |velocity|, |acceleration| and |jerk| over their limits (3,), the jerk being the
-    difference of consecutive accelerations over the control period (what a controller sees)."""
-    rv = float(np.max(np.abs(plan_qd) / limits.velocity_rad_s)) if plan_qd.size else 0.0
-    ra = float(np.max(np.abs(plan_qdd) / limits.acceleration_rad_s2)) if plan_qdd.size else 0.0
-    jerk = np.diff(plan_qdd, axis=0) / dt_s
-    rj = float(np.max(np.abs(jerk) / limits.jerk_rad_s3)) if jerk.size else 0.0
-    return np.array([rv, ra, rj])
 
 
 RUCKIG_MARGIN = 1e-6
@@ -244,12 +178,12 @@ class _Ruckig:
 
     def __call__(
         self, start: tuple[np.ndarray, ...], target: tuple[np.ndarray, ...], min_duration: float | None
-    ) -> Trajectory:
+    ) -> RuckigTrajectory:
         inp = self.inp
         inp.current_position, inp.current_velocity, inp.current_acceleration = start
         inp.target_position, inp.target_velocity, inp.target_acceleration = target
         inp.minimum_duration = None if min_duration is None or min_duration <= 0 else float(min_duration)
-        traj = Trajectory(len(start[0]))
+        traj = RuckigTrajectory(len(start[0]))
         try:
             result = self.otg.calculate(inp, traj)
         except RuckigError as exc:
@@ -260,7 +194,7 @@ class _Ruckig:
 
 
 class Retargeter:
-    """Builds :class:`MotionPlan` s under one set of limits (:func:`retarget` for one call).
+    """Builds re-targeted motions under one set of limits (:func:`retarget` for one call).
 
     Args:
         limits: Velocity, acceleration and jerk limits (positions are checked by the caller).
@@ -332,11 +266,15 @@ class Retargeter:
         self._scale_cache = (reference, key, k)
         return k
 
-    def plan(self, state: MotionState, reference: ReferenceMotion, min_scale: float = 1.0) -> MotionPlan:
-        """The remaining motion from ``state`` (at a control tick) onto ``reference``'s timeline.
+    def plan(
+        self, state: MotionState, reference: ReferenceMotion, min_scale: float = 1.0
+    ) -> tuple[Trajectory, RetargetReport]:
+        """The remaining motion from ``state`` (at a control tick) onto ``reference``'s timeline: its
+        samples at the control rate from ``state.t_s`` (the start state first, at rest at the end)
+        and how it meets the reference.
 
         ``min_scale``: the followed reference goes at least this many times slower (``k >= 1``; a check
-        that asks for a slower motion, :mod:`ipromp_pin.checks.slowdown`).
+        that asks for a slower motion, :mod:`ipromp_pin.safety.retime`).
 
         Raises:
             InfeasibleError: ruckig finds no trajectory, or the sampled plan exceeds a limit.
@@ -407,7 +345,8 @@ class Retargeter:
                 q[sel], qd[sel], qdd[sel] = tq, tv / k_, ta / k_**2
         q[-1], qd[-1], qdd[-1] = q_end, 0.0, 0.0
         q[0], qd[0], qdd[0] = state.q, state.qd, state.qdd
-        return MotionPlan(t_c, dt, q, qd, qdd, float(arrival), d_end, float(k), float(blend_s))
+        motion = Trajectory(times, q, qd, qdd, self.limits.joint_names)
+        return motion, RetargetReport(float(arrival), d_end, float(k), float(blend_s))
 
 
 def retarget(
@@ -418,6 +357,6 @@ def retarget(
     blend_s: float,
     headroom: float = HEADROOM,
     settle_s: float = SETTLE_S,
-) -> MotionPlan:
+) -> tuple[Trajectory, RetargetReport]:
     """The remaining motion from ``state`` onto ``reference``'s timeline (see the module docstring)."""
     return Retargeter(limits, dt_s, blend_s, headroom, settle_s).plan(state, reference)

@@ -13,7 +13,7 @@ import numpy as np
 
 from .. import atomic
 from ..data import ROBOT, Demo
-from ..handover.one_shot import PlanResult
+from ..planning.one_shot import PlanResult
 from ..promp import IProMP
 from ..robot import Robot
 from ..robot.objects import ObjectTable
@@ -87,7 +87,7 @@ def write_plots(
     track = None if robot is None else plan_torques(result, robot, objects)[0]
     if track is not None:
         files["plot_torques"] = plots.plot_torques(
-            result.trajectory.t_s,
+            result.trajectory.t_s - result.start_s,
             track.ratio * track.limit_nm,
             track.limit_nm,
             target("torques.png"),

@@ -15,10 +15,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..checks import TimedMotion
 from ..data import Demo
 from ..human import HumanMotion
 from ..human.separation import Separation, SeparationAnalyser
+from ..motion.trajectory import Trajectory
 from ..preview.body import SEPARATION_STATES, BodyTrack, SeparationTrack
 from ..robot import Robot
 
@@ -57,7 +57,7 @@ def separation_track(sep: Separation, source: str) -> SeparationTrack:
     )
 
 
-def held_until(motion: TimedMotion, t_end_s: float, dt_s: float) -> TimedMotion:
+def held_until(motion: Trajectory, t_end_s: float, dt_s: float) -> Trajectory:
     """``motion`` followed by its last pose at rest until ``t_end_s`` [s] (every ``dt_s`` [s], its own
     control period if it has one): the robot waits while the human still moves."""
     dt = motion.dt_s if motion.dt_s > 0 else dt_s
@@ -67,11 +67,11 @@ def held_until(motion: TimedMotion, t_end_s: float, dt_s: float) -> TimedMotion:
     t = np.r_[motion.t_s, motion.t_s[-1] + dt * np.arange(1, n_extra + 1)]
     q = np.vstack([motion.q, np.repeat(motion.q[-1:], n_extra, axis=0)])
     zeros = np.zeros((n_extra, motion.q.shape[1]))
-    return TimedMotion(t, q, np.vstack([motion.qd, zeros]), np.vstack([motion.qdd, zeros]), dt)
+    return Trajectory(t, q, np.vstack([motion.qd, zeros]), np.vstack([motion.qdd, zeros]), motion.joint_names)
 
 
 def human_tracks(
-    robot: Robot, motion: TimedMotion, human: HumanMotion | None, dt_s: float = 0.01
+    robot: Robot, motion: Trajectory, human: HumanMotion | None, dt_s: float = 0.01
 ) -> tuple[BodyTrack | None, SeparationTrack | None]:
     """The body and the separation of ``motion`` (on the human's clock) from ``human`` (None: none),
     the robot held at rest after its motion until the human's last sample (``dt_s``: the control

@@ -9,18 +9,20 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..checks import CheckContext, TimedMotion
 from ..data import ROBOT, Demo
-from ..handover.closed_loop import ClosedLoopResult
-from ..handover.one_shot import PlanResult
-from ..handover.retreat import RetreatResult
-from ..handover.score import ClosedLoopScore, handover_orientation_error_deg
+from ..evaluation.scoring import ClosedLoopScore, handover_orientation_error_deg
 from ..human import HumanMotion
 from ..motion.trajectory import Trajectory
+from ..planning.closed_loop import ClosedLoopResult
+from ..planning.one_shot import PlanResult
+from ..planning.retreat import RetreatResult
 from ..preview import PreviewContent
 from ..preview.timeline import TimelineEvent, render_timeline_html
-from ..robot import CheckResult, Robot, ee_positions
+from ..robot import Robot, ee_positions
 from ..robot.objects import ObjectTable
+from ..safety import CheckContext, Verdict
+from ..safety.joint_limits import JointLimitMeasures
+from ..safety.self_collision import SelfCollisionMeasures
 from .human_preview import human_tracks, shown_human
 from .report import arrival_line, orientation_line
 from .torque_preview import plan_torques, torque_preview
@@ -44,9 +46,8 @@ def preview_content(
     after the hand-over (its frames appended, its torques after the approach's, its checks listed as
     ``retreat <check>``)."""
     p = result.prediction
-    tr = with_retreat(result.trajectory, retreat)
-    motion = TimedMotion.from_trajectory(tr, result.start_s)
-    body, separation = human_tracks(robot, motion, shown_human(robot, demo, human))
+    tr = with_retreat(result.trajectory, retreat)  # on the human's clock
+    body, separation = human_tracks(robot, tr, shown_human(robot, demo, human))
     torques, held = plan_torques(result, robot, objects, retreat)
     ee_samples = np.stack([ee_positions(robot, s) for s in result.q_samples])
     truth = None
@@ -61,23 +62,19 @@ def preview_content(
         )
         if "hand_position" in demo.extras:
             hand, hand_t = demo.extras["hand_position"], demo.t
-    r = result.report
-    collision_links: list[str] = []
-    near_limit: list[str] = []
-    for c in r.checks:
-        if c.name == "self_collision" and c.status == "fail":
-            collision_links = list(c.values.get("colliding_links", c.values.get("min_distance_links", [])))
-        if c.name == "joint_limits":
-            near_limit = list(c.values.get("near_limit_joints", c.values.get("violating_joints", [])))
+    checks = result.checks
+    failed = [v.measures for v in checks if not v.passed]
+    collision_links = [link for m in failed if isinstance(m, SelfCollisionMeasures) for link in m.links]
+    near_limit = [m.joint for m in failed if isinstance(m, JointLimitMeasures)]
     return PreviewContent(
         model=robot.model,
         visual_model=visual_model,
         collision_model=robot.collision_model,
-        t_s=tr.t_s,
+        t_s=tr.t_s - result.start_s,  # the page's animation runs from the robot's start
         q=tr.q,
         joint_names=robot.joint_names,
         q_full=robot.full_configuration(tr.q[0]),
-        ee_mean=r.ee_path,
+        ee_mean=result.ee_path,
         ee_samples=ee_samples,
         ee_truth=truth,
         hand_path=hand,
@@ -86,14 +83,14 @@ def preview_content(
         # the observed fraction is of the human's motion: the recorded demo's, else the predicted one
         human_duration_s=p.duration_s if demo is None else demo.duration_s,
         human_duration_source="predicted" if demo is None else "recorded",
-        handover_point=r.handover_pose[:3],
+        handover_point=result.handover_pose[:3],
         body=body,
         separation=separation,
         task=p.task,
         tasks=list(p.tasks),
         posterior=p.posterior,
-        feasibility=[(c.name, c.passed, c.reason, c.status, c.required) for c in r.checks]
-        + ([] if retreat is None else [retreat_row(c) for c in retreat.report.checks]),
+        feasibility=[(c.name, c.passed, c.reason, c.status, c.required) for c in checks]
+        + ([] if retreat is None else [retreat_row(c) for c in retreat.checks]),
         collision_links=collision_links,
         near_limit_joints=near_limit,
         title=f"ipromp_pin: {p.task}" + ("" if demo is None else f" ({demo.task}/{demo.name})"),
@@ -104,21 +101,12 @@ def preview_content(
 
 
 def with_retreat(trajectory: Trajectory, retreat: RetreatResult | None) -> Trajectory:
-    """``trajectory`` followed by the retreat's samples after its first (the hand-over itself), their
-    times continued; ``trajectory`` itself without a retreat."""
-    if retreat is None or retreat.trajectory.n_samples < 2:
-        return trajectory
-    rt = retreat.trajectory
-    return Trajectory(
-        np.concatenate([trajectory.t_s, trajectory.t_s[-1] + rt.t_s[1:]]),
-        np.vstack([trajectory.q, rt.q[1:]]),
-        np.vstack([trajectory.qd, rt.qd[1:]]),
-        np.vstack([trajectory.qdd, rt.qdd[1:]]),
-        trajectory.joint_names,
-    )
+    """``trajectory`` followed by the retreat's samples after its first (the hand-over itself);
+    ``trajectory`` itself without a retreat."""
+    return trajectory if retreat is None else trajectory.then(retreat.trajectory)
 
 
-def retreat_row(c: CheckResult) -> tuple[str, bool, str, str, bool]:
+def retreat_row(c: Verdict) -> tuple[str, bool, str, str, bool]:
     """A feasibility row of a retreat check (times in its reason on the human's clock)."""
     return (f"retreat {c.name}", c.passed, c.reason + " (t on the human's clock)", c.status, c.required)
 
@@ -136,13 +124,10 @@ def replay_preview_html(
     commanded motion's separation from it as in :func:`preview_content`; the torques and the object
     those of the replay's joint-torque score (the true task's object in ``objects``)."""
     traj = result.trajectory
-    motion = TimedMotion.from_trajectory(traj)
     body, separation = human_tracks(
-        robot, motion, shown_human(robot, demo, human), 1.0 / result.settings.control_rate_hz
+        robot, traj, shown_human(robot, demo, human), 1.0 / result.settings.control_rate_hz
     )
-    torques, held = torque_preview(
-        robot, motion, CheckContext(task=demo.task, objects=objects), traj.effort_nm
-    )
+    torques, held = torque_preview(robot, traj, CheckContext(task=demo.task, objects=objects), traj.effort_nm)
     tasks = list(result.replans[0].posterior) if result.replans else []
     committed = [r for r in result.replans if r.committed]
     hand = hand_t = None

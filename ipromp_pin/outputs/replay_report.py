@@ -13,9 +13,10 @@ import json
 import numpy as np
 
 from ..data import Demo
-from ..handover.closed_loop import LIMIT_TOLERANCE, ClosedLoopResult
-from ..handover.score import ARRIVAL_TOLERANCE_M, ClosedLoopScore
+from ..evaluation.scoring import ARRIVAL_TOLERANCE_M, ClosedLoopScore
+from ..planning.closed_loop import ClosedLoopResult
 from ..promp import IProMP
+from ..safety.speed_limits import TOLERANCE as LIMIT_TOLERANCE
 
 REPLAY_FORMAT = "ipromp_pin.replay"
 """Value of the replay ``report.json``'s ``format`` field."""

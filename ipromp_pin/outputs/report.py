@@ -9,8 +9,9 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..data import Demo
-from ..handover.one_shot import PlanResult
-from ..handover.retreat import RetreatResult
+from ..planning.one_shot import PlanResult
+from ..planning.retreat import RetreatResult
+from ..safety.joint_torques import TorqueMeasures
 
 REPORT_FORMAT = "ipromp_pin.report"
 """Value of ``report.json``'s ``format`` field."""
@@ -27,7 +28,7 @@ def arrival(result: PlanResult) -> dict[str, float]:
     = robot minus human (positive: the robot arrives after the human, who waits)."""
     p = result.prediction
     start = float(p.observed_until_s)
-    robot = start + float(result.trajectory.duration_s)
+    robot = result.trajectory.end_s
     return {
         "human_s": float(p.duration_s),
         "robot_start_s": start,
@@ -64,7 +65,7 @@ def report_dict(
     the recorded gripper orientation at the hand-over, in [deg], when the observed demo is recorded;
     ``retreat``: the segment after the hand-over (its section; its failures fail ``passed``)."""
     p = result.prediction
-    torques = next((c for c in result.report.checks if c.name == "joint_torques"), None)
+    torques = next((v.measures for v in result.checks if isinstance(v.measures, TorqueMeasures)), None)
     return {
         "format": REPORT_FORMAT,
         "version": REPORT_VERSION,
@@ -77,15 +78,42 @@ def report_dict(
         "observation": None
         if observation is None
         else {"task": observation.task, "demo": observation.name, "source": observation.source},
-        "feasibility": result.report.to_dict(),
+        "feasibility": feasibility_dict(result),
         "trajectory": result.timing_report.to_dict(),
         "passed": result.passed and (retreat is None or retreat.passed),
         "retreat": None if retreat is None else retreat.to_dict(),
         "stage_ms": {k: round(v, 3) for k, v in result.stage_ms.items()},
         "warnings": list(warnings or []),
         "handover_orientation_error_deg": handover_orientation_error_deg,
-        "peak_torque_ratio": None if torques is None else torques.values.get("peak_torque_ratio"),
+        "peak_torque_ratio": None if torques is None else torques.peak_torque_ratio,
     }
+
+
+def feasibility_dict(result: PlanResult) -> dict:
+    """``report.json``'s ``feasibility`` section: the verdicts on the committed trajectory (times on
+    the human's clock), the hand-over pose, the stages' times."""
+    pose = result.handover_pose
+    return {
+        "robot": result.robot,
+        "passed": result.checks.passed,
+        "failures": result.checks.failures,
+        "handover_position_m": [float(x) for x in pose[:3]],
+        "handover_quat_xyzw": [float(x) for x in pose[3:]],
+        "checks": result.checks.to_dict(),
+        "timings_ms": {k: round(float(v), 3) for k, v in result.stage_ms.items()},
+    }
+
+
+def checks_text(result: PlanResult) -> str:
+    """The verdicts as ``report.txt`` lists them: the verdict line, the hand-over position, one line
+    per check."""
+    p = result.handover_pose
+    verdict = "PASSED" if result.checks.passed else "FAILED: " + ", ".join(result.checks.failures)
+    lines = [
+        f"Feasibility ({result.robot}): {verdict}",
+        f"  hand-over position [m]: ({p[0]:.3f}, {p[1]:.3f}, {p[2]:.3f})",
+    ]
+    return "\n".join(lines + result.checks.lines())
 
 
 def report_text(
@@ -113,10 +141,10 @@ def report_text(
     if handover_orientation_error_deg is not None:
         lines.append(orientation_line(handover_orientation_error_deg))
     lines.append(
-        f"Times in the checks are on the robot trajectory ({result.trajectory.duration_s:.2f} s, t = 0 at "
-        "its start)"
+        f"Times in the checks are on the human's motion (t = 0 at its start); the robot moves from "
+        f"{result.trajectory.start_s:.2f} s to {result.trajectory.end_s:.2f} s"
     )
-    lines.append(result.report.to_text())
+    lines.append(checks_text(result))
     lines.append(result.timing_report.to_text())
     if retreat is not None:
         lines.append(retreat.to_text())
@@ -128,19 +156,18 @@ def summary_text(
 ) -> str:
     """Short end-of-run summary: task, hand-over pose, checks, trajectory, files, total time in [s]."""
     p = result.prediction
-    r = result.report
-    pose = r.handover_pose
+    pose = result.handover_pose
     post = ", ".join(f"{t} {v:.3f}" for t, v in zip(p.tasks, p.posterior, strict=True))
-    checks = ", ".join(f"{c.name} {c.status}" for c in r.checks)
+    checks = ", ".join(f"{v.name} {v.status}" for v in result.checks)
     tr = result.trajectory
     lines = [
         "",
         f"Recognised task: {p.task}   posterior: {post}",
         f"Hand-over pose: position ({pose[0]:.3f}, {pose[1]:.3f}, {pose[2]:.3f}) m, "
         f"quaternion xyzw ({pose[3]:.3f}, {pose[4]:.3f}, {pose[5]:.3f}, {pose[6]:.3f})",
-        f"Checks: {'PASS' if r.passed else 'FAIL'} ({checks})",
+        f"Checks: {'PASS' if result.checks.passed else 'FAIL'} ({checks})",
         arrival_line(result),
-        f"Trajectory: {tr.t_s[-1]:.2f} s, {len(tr.t_s)} samples; online stages "
+        f"Trajectory: {tr.duration_s:.2f} s, {tr.n_samples} samples; online stages "
         + ", ".join(f"{k} {v:.1f} ms" for k, v in result.stage_ms.items()),
         *([] if retreat is None else [retreat.to_text().splitlines()[0]]),
         "Files: " + ", ".join(str(f) for f in files.values()),

@@ -17,7 +17,7 @@ group or extra is the one of its channel-group specification
 * ``/ipromp_pin/joint_states``, ``sensor_msgs/msg/JointState``: the robot's planned joint states
   along it, one per control period (then along the retreat, when there is one);
 * ``/ipromp_pin/retreat_trajectory``, ``trajectory_msgs/msg/JointTrajectory``: the retreat after the
-  hand-over (:mod:`ipromp_pin.handover.retreat`; one message, stamped at the hand-over), when planned;
+  hand-over (:mod:`ipromp_pin.planning.retreat`; one message, stamped at the hand-over), when planned;
 * ``/ipromp_pin/handover_pose``, ``geometry_msgs/msg/PoseStamped``: the predicted hand-over pose of
   the end-effector, in the base frame;
 * ``/ipromp_pin/human/orientation``, ``geometry_msgs/msg/QuaternionStamped``: the observed forearm

@@ -20,9 +20,9 @@ from dataclasses import dataclass
 
 from .. import atomic
 from ..data import Demo
-from ..handover.one_shot import PlanResult
-from ..handover.retreat import RetreatResult
 from ..motion.trajectory import Trajectory
+from ..planning.one_shot import PlanResult
+from ..planning.retreat import RetreatResult
 from .files import report_listing
 from .retreat_files import RETREAT_CSV, RETREAT_KEY, RetreatSegment
 from .rosbag import BagContent, write_ros1_bag, write_rosbag2
@@ -119,7 +119,7 @@ def plan_failures(result: PlanResult, retreat: RetreatResult | None = None) -> l
     later = [] if retreat is None else [f"retreat.{f}" for f in retreat.failures]
     if result.passed and not later:
         return None
-    return list(result.report.failures) + ([] if result.timing_report.passed else ["timing"]) + later
+    return result.failures + later
 
 
 def retreat_segment(result: PlanResult, retreat: RetreatResult | None) -> RetreatSegment | None:
@@ -127,7 +127,10 @@ def retreat_segment(result: PlanResult, retreat: RetreatResult | None) -> Retrea
     if retreat is None:
         return None
     return RetreatSegment(
-        retreat.trajectory, float(result.trajectory.t_s[-1]), retreat.target.dwell_s, retreat.target.kind
+        retreat.trajectory.shifted(-retreat.start_s),
+        result.trajectory.duration_s,
+        retreat.target.dwell_s,
+        retreat.target.kind,
     )
 
 
@@ -142,20 +145,23 @@ def stage_plan(
 ) -> bool:
     """Stage the trajectory files and the bags of a planned hand-over (:func:`stage_trajectory`; the
     bags as ``options`` say), with its ``retreat`` as their second segment; returns whether they were
-    staged (the retreat's failed checks fail the files as the approach's do)."""
+    staged (the retreat's failed checks fail the files as the approach's do). The files' times run
+    from the robot's start (the retreat's from the hand-over); the bags stamp them from the plan's
+    publication."""
+    approach = result.trajectory.shifted(-result.start_s)
     bag = None
     if options.rosbag or options.ros1_bag:
         bag = BagContent(
-            trajectory=result.trajectory,
+            trajectory=approach,
             plan_time_s=float(result.prediction.observed_until_s),
-            handover_pose=result.report.handover_pose,
+            handover_pose=result.handover_pose,
             base_frame=options.base_frame,
             observation=observation,
-            retreat=None if retreat is None else retreat.trajectory,
+            retreat=None if retreat is None else retreat.trajectory.shifted(-retreat.start_s),
         )
     return stage_trajectory(
         out,
-        result.trajectory,
+        approach,
         plan_failures(result, retreat),
         allow_failing_checks=allow_failing_checks,
         ros=options.ros,

@@ -3,7 +3,7 @@
 :func:`torque_preview` turns a timed robot motion and what the checks know (the task, its object, the
 hand-over time) into the preview's plain arrays (:class:`~ipromp_pin.preview.torques.TorqueTrack`,
 :class:`~ipromp_pin.preview.torques.HeldObject`). The torques are the joint-torque check's own
-(:meth:`~ipromp_pin.checks.joint_torques.JointTorques.motion_torques`, computed once: a trajectory
+(:meth:`~ipromp_pin.safety.joint_torques.JointTorques.torques`, computed once: a trajectory
 whose ``effort_nm`` the pipeline has already filled in is not computed again), with the object
 attached while the robot holds it (``robot_gives``: until the hand-over; ``robot_receives``: from it
 on), so that the bars' peak is the check's ``peak_torque_ratio`` (the check evaluates a subsample of a
@@ -16,13 +16,14 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..checks import CheckContext, TimedMotion
-from ..checks.joint_torques import JointTorques, handover_time
-from ..handover.one_shot import PlanResult
-from ..handover.retreat import RetreatResult
+from ..motion.trajectory import Trajectory
+from ..planning.one_shot import PlanResult
+from ..planning.retreat import RetreatResult
 from ..preview.torques import HeldObject, TorqueTrack
 from ..robot import Robot
 from ..robot.objects import ObjectTable, TaskObject
+from ..safety import CheckContext
+from ..safety.joint_torques import JointTorques
 
 __all__ = [
     "SPHERE_RADIUS_M",
@@ -43,18 +44,18 @@ def payload_label(payload: TaskObject | None) -> str:
 
 
 def torque_track(
-    check: JointTorques, motion: TimedMotion, context: CheckContext, tau_nm: np.ndarray | None = None
+    check: JointTorques, motion: Trajectory, context: CheckContext, tau_nm: np.ndarray | None = None
 ) -> TorqueTrack:
     """The torque usage of ``motion`` (on the human's clock); ``tau_nm`` (N, n_joints) [N m]: its
-    torques when already computed by ``check.motion_torques(motion, context)`` (the trajectory's
+    torques when already computed by ``check.torques(motion, context)`` (the trajectory's
     ``effort_nm``), else they are computed here."""
-    tau = check.motion_torques(motion, context) if tau_nm is None else np.asarray(tau_nm, dtype=float)
+    tau = check.torques(motion, context) if tau_nm is None else np.asarray(tau_nm, dtype=float)
     limit = check.dynamics.effort_limit_nm
     payload = context.task_object()
     if payload is None or payload.mass_kg <= 0:
         held = np.zeros(motion.n_samples, dtype=bool)
     else:
-        held = payload.held_at(motion.t_s, handover_time(motion, context))
+        held = payload.held_at(motion.t_s, context.handover_time(motion.t_s))
     return TorqueTrack(
         t_s=motion.t_s,
         ratio=np.abs(tau) / limit,
@@ -98,7 +99,7 @@ def held_object(robot: Robot, payload: TaskObject | None, handover_s: float) -> 
 
 def torque_preview(
     robot: Robot,
-    motion: TimedMotion,
+    motion: Trajectory,
     context: CheckContext,
     tau_nm: np.ndarray | None = None,
     check: JointTorques | None = None,
@@ -110,7 +111,7 @@ def torque_preview(
         return None, None
     torques = check if check is not None else JointTorques(robot)
     track = torque_track(torques, motion, context, tau_nm)
-    return track, held_object(robot, context.task_object(), handover_time(motion, context))
+    return track, held_object(robot, context.task_object(), context.handover_time(motion.t_s))
 
 
 def plan_torques(
@@ -120,15 +121,14 @@ def plan_torques(
     retreat: RetreatResult | None = None,
 ) -> tuple[TorqueTrack | None, HeldObject | None]:
     """:func:`torque_preview` of a planned hand-over as its joint-torque check saw it: the trajectory
-    from the robot's start (``result.start_s`` on the human's clock), the recognised task's object
-    in ``objects``, the hand-over at the trajectory's end, the trajectory's ``effort_nm`` if any. A
-    checked ``retreat`` (its ``effort_nm`` filled in) continues the track after the hand-over, with
-    the object held as after the hand-over."""
+    (on the human's clock), the recognised task's object in ``objects``, the hand-over when both the
+    human (predicted) and the robot are there, the trajectory's ``effort_nm`` if any. A checked
+    ``retreat`` (its ``effort_nm`` filled in) continues the track after the hand-over, with the
+    object held as after the hand-over."""
     tr = result.trajectory
-    motion = TimedMotion.from_trajectory(tr, result.start_s)
-    handover = result.start_s + float(tr.t_s[-1])
-    context = CheckContext(task=result.prediction.task, objects=objects, handover_s=handover)
-    track, held = torque_preview(robot, motion, context, tr.effort_nm)
+    p = result.prediction
+    context = CheckContext(task=p.task, objects=objects, handover_s=float(p.duration_s))
+    track, held = torque_preview(robot, tr, context, tr.effort_nm)
     if track is None or retreat is None:
         return track, held
     rt = retreat.trajectory
@@ -139,7 +139,7 @@ def plan_torques(
     n = rt.n_samples - 1  # the retreat's first sample is the hand-over itself
     track = replace(
         track,
-        t_s=np.concatenate([track.t_s, retreat.start_s + rt.t_s[1:]]),
+        t_s=np.concatenate([track.t_s, rt.t_s[1:]]),
         ratio=np.vstack([track.ratio, np.abs(rt.effort_nm[1:]) / track.limit_nm]),
         held=np.concatenate([track.held, np.full(n, carried)]),
     )

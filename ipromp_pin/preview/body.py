@@ -10,7 +10,7 @@
 Both come from the human checks' numbers (:mod:`ipromp_pin.outputs.preview_content` fills them in),
 so that the preview does not depend on the body model or the checks. Positions in [m] in the robot's
 base frame; times in [s] on the human's clock (0 at the start of the human's motion), like
-:class:`~ipromp_pin.checks.TimedMotion`. Bad input raises :class:`~ipromp_pin.exceptions.DataError`
+:class:`~ipromp_pin.motion.trajectory.Trajectory`. Bad input raises :class:`~ipromp_pin.exceptions.DataError`
 naming the field (source ``"preview"``).
 """
 

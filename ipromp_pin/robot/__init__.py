@@ -7,13 +7,13 @@ Modules, each one concept, from the bottom up:
   and :func:`load_robot`'s cache;
 * :mod:`~ipromp_pin.robot.kinematics`: forward kinematics along a joint path;
 * :mod:`~ipromp_pin.robot.inverse_kinematics`: damped least-squares inverse kinematics;
-* :mod:`~ipromp_pin.robot.report`: check results and the feasibility report;
-* :mod:`~ipromp_pin.robot.collision`: the self-collision check;
-* :mod:`~ipromp_pin.robot.checks`: the other checks and :func:`check_path`, which runs them all;
+* :mod:`~ipromp_pin.robot.collision`: contact tests; :mod:`~ipromp_pin.robot.clearance`: certified
+  self-collision clearance along a path;
+* :mod:`~ipromp_pin.robot.dynamics`: inverse dynamics with a payload;
 * :mod:`~ipromp_pin.robot.calibration`: FK offset calibration and the settings-file writer.
 
-The names below are re-exported here, so ``from ipromp_pin.robot import load_robot, check_path``
-works (``ipromp_pin.robot`` was a single module before).
+The checks that judge a motion with these are :mod:`ipromp_pin.safety`'s. The names below are
+re-exported here (``from ipromp_pin.robot import load_robot``).
 """
 
 from .calibration import (
@@ -23,18 +23,9 @@ from .calibration import (
     uncalibrated_robot,
     write_calibration,
 )
-from .checks import (
-    check_hand_distance,
-    check_joint_limits,
-    check_path,
-    check_uncertainty,
-    check_workspace,
-)
-from .collision import check_self_collision
 from .inverse_kinematics import IKResult, solve_ik
 from .kinematics import ee_positions, forward_kinematics, frame_placements, gripper_rotations
 from .model import Robot, build_robot, clear_robot_cache, load_robot, load_visual_model, map_recorded_joints
-from .report import CheckResult, FeasibilityReport
 from .settings import (
     EE_FRAME,
     ROBOTS_DIR,
@@ -50,21 +41,13 @@ __all__ = [
     "EE_FRAME",
     "ROBOTS_DIR",
     "CalibrationResult",
-    "CheckResult",
     "DemoLimitRecipe",
-    "FeasibilityReport",
     "IKResult",
     "Robot",
     "RobotSettings",
     "Workspace",
     "build_robot",
     "calibrate_tool_offset",
-    "check_hand_distance",
-    "check_joint_limits",
-    "check_path",
-    "check_self_collision",
-    "check_uncertainty",
-    "check_workspace",
     "clear_robot_cache",
     "ee_positions",
     "endpoint_residuals_mm",

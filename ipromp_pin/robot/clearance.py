@@ -33,7 +33,6 @@ import pinocchio as pin
 
 from .kinematics import as_joint_path
 from .model import Robot
-from .report import CheckResult
 
 BALLS_PER_PAIR = 8
 """Balls kept per collision pair (the oldest is replaced)."""
@@ -98,7 +97,8 @@ class ClearanceResult:
         min_distance_m: Smallest pair distance in [m] among the computed configurations whose
             balls certify a part of the path (configurations on or near the path; 0 on failure).
         collision: Whether a computed distance was at or below the clearance.
-        pair: Geometry names of the deciding pair (the one with ``min_distance_m``, or the failing one).
+        pair_id: The deciding collision pair (the one with ``min_distance_m``, or the failing one).
+        pair: Its geometry names.
         links: Their links (parent frames).
         sample: Path sample at which the check failed (0 when certified).
         n_distances: Pair distances computed by this call.
@@ -110,6 +110,7 @@ class ClearanceResult:
     certified: bool
     min_distance_m: float
     collision: bool
+    pair_id: int
     pair: tuple[str, str]
     links: tuple[str, str]
     sample: int
@@ -117,30 +118,6 @@ class ClearanceResult:
     n_balls: int
     elapsed_ms: float
     clearance_m: float
-
-    def to_check(self) -> CheckResult:
-        """The result as the ``self_collision`` :class:`CheckResult` of a feasibility report."""
-        values = {
-            "min_distance_m": self.min_distance_m,
-            "pair": list(self.pair),
-            "links": list(self.links),
-            "sample": self.sample,
-            "n_distances": self.n_distances,
-            "certified": self.certified,
-            "min_clearance_m": self.clearance_m,
-        }
-        where = f"{self.links[0]} - {self.links[1]} near sample {self.sample}"
-        if self.collision:
-            reason = f"self-collision: distance <= {self.clearance_m * 1e3:.1f} mm between {where}"
-            return CheckResult("self_collision", "fail", reason, values)
-        if not self.certified:
-            reason = f"clearance not certified between {where}"
-            return CheckResult("self_collision", "fail", reason, values)
-        reason = (
-            f"certified free of contact between samples; closest computed distance "
-            f"{self.min_distance_m * 1e3:.1f} mm ({self.links[0]} - {self.links[1]})"
-        )
-        return CheckResult("self_collision", "pass", reason, values)
 
 
 class ClearanceCertifier:
@@ -222,6 +199,15 @@ class ClearanceCertifier:
         left = self._split_segment(p, a, mid, depth + 1)
         right = None if left is None else self._split_segment(p, mid, b, depth + 1)
         return None if left is None or right is None else min(left, right)
+
+    def closest_sample(self, q: np.ndarray, pair_id: int) -> int:
+        """The sample of the path ``q`` (N, n_joints) [rad] where the balls of collision pair
+        ``pair_id`` leave the least room (the smallest ``margin - L_p`` of its best ball): where its
+        certified clearance is tightest."""
+        p = int(np.flatnonzero(self._ids == int(pair_id))[0])
+        w = self.weights[p]
+        cost = np.abs(np.asarray(q, dtype=float)[:, None, :] - self._refs[p][None, :, :]) @ w  # (N, B)
+        return int(np.argmin(np.max(self._margin[p][None, :] - cost, axis=1)))
 
     def pair_labels(self, pair_id: int) -> tuple[tuple[str, str], tuple[str, str]]:
         """The geometry and link names of collision pair ``pair_id`` (:meth:`.Robot.pair_names`,
@@ -310,6 +296,7 @@ class ClearanceCertifier:
             certified=failure is None,
             min_distance_m=float(bound + self.clearance_m),
             collision=bool(collision),
+            pair_id=pid,
             pair=pair,
             links=links,
             sample=int(sample),

@@ -16,7 +16,7 @@ file alone can tell (keys, types, finite values, a position at most :data:`MAX_R
 from the base frame's origin, a dwell in [0, :data:`MAX_DWELL_S`] s); :func:`check_retreat_robot`
 what needs the robot (the number of joints, the joint limits less the settings' margin). Both raise
 a :class:`~ipromp_pin.exceptions.RobotError` naming the file, the field and the problem, before
-anything is computed. :mod:`ipromp_pin.handover.retreat` plans the motion.
+anything is computed. :mod:`ipromp_pin.planning.retreat` plans the motion.
 """
 
 from __future__ import annotations

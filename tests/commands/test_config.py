@@ -22,7 +22,7 @@ from ipromp_pin.commands.config import (
     schema,
 )
 from ipromp_pin.exceptions import PipelineError
-from ipromp_pin.handover.closed_loop import ClosedLoopSettings
+from ipromp_pin.planning.closed_loop import ClosedLoopSettings
 from ipromp_pin.shipped import DEFAULT_ROBOT
 
 # A value other than the default for every key of the schema, and what the loaded field holds

@@ -10,14 +10,14 @@ import dataclasses
 import numpy as np
 import pytest
 
-from ipromp_pin.checks import CheckContext, MotionCheck, TimedMotion
+from ipromp_pin.safety import CheckContext, MotionCheck, TimedMotion
 from ipromp_pin.data import Dataset, Demo
 from ipromp_pin.evaluation import closed_loop as evaluation_closed_loop
 from ipromp_pin.evaluation.config import EvaluationConfig
 from ipromp_pin.evaluation.scorers import closed_loop as scorer_module
 from ipromp_pin.evaluation.tables import closed_loop_markdown
-from ipromp_pin.handover.closed_loop import ClosedLoopSettings
-from ipromp_pin.handover.human_score import HUMAN_CHECKS, human_measures
+from ipromp_pin.planning.closed_loop import ClosedLoopSettings
+from ipromp_pin.planning.human_score import HUMAN_CHECKS, human_measures
 from ipromp_pin.human import SKELETON_PREFIX, HumanMotion
 from ipromp_pin.motion.limits import demonstrated_profile
 from ipromp_pin.promp import IProMP
@@ -145,7 +145,7 @@ def test_a_demo_with_skeleton_is_judged_against_the_recorded_human(setup):
 
 
 def trial_trajectory(setup, demo):
-    from ipromp_pin.handover.closed_loop import replay_demo
+    from ipromp_pin.planning.closed_loop import replay_demo
 
     model, robot, train, _, _ = setup
     return replay_demo(

@@ -8,12 +8,12 @@ import dataclasses
 import numpy as np
 import pytest
 
-from ipromp_pin.checks import CheckContext, TimedMotion
-from ipromp_pin.checks.joint_torques import JointTorques
+from ipromp_pin.safety import CheckContext, TimedMotion
+from ipromp_pin.safety.joint_torques import JointTorques
 from ipromp_pin.evaluation.evaluate import EvaluationConfig, evaluate
 from ipromp_pin.evaluation.scorers.one_shot import predict_window
 from ipromp_pin.evaluation.scorers.torques import one_shot_peak_torque_ratio, peak_torque_ratio
-from ipromp_pin.handover.one_shot import time_prediction, torque_limit
+from ipromp_pin.planning.one_shot import time_prediction, torque_limit
 from ipromp_pin.promp import IProMP
 from ipromp_pin.readers.synthetic import make_synthetic_dataset
 from ipromp_pin.robot import load_robot

@@ -9,7 +9,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from ipromp_pin.checks import TimedMotion
+from ipromp_pin.safety import TimedMotion
 from ipromp_pin.human import SKELETON_PREFIX, HumanMotion
 from ipromp_pin.human.separation import SeparationAnalyser
 from ipromp_pin.outputs.human_preview import held_until, human_tracks, shown_human

@@ -15,7 +15,7 @@ from ipromp_pin import cli
 from ipromp_pin.commands.config import load_pipeline
 from ipromp_pin.commands.run import session_retreat
 from ipromp_pin.commands.setup import prepare_session
-from ipromp_pin.handover.one_shot import plan
+from ipromp_pin.planning.one_shot import plan
 from ipromp_pin.outputs.preview_content import preview_content
 from ipromp_pin.outputs.retreat_files import read_retreat_json
 from ipromp_pin.outputs.rosbag import JOINT_STATE, TOPIC_RETREAT

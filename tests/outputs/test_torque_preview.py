@@ -7,8 +7,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ipromp_pin.checks import CheckContext, TimedMotion
-from ipromp_pin.checks.joint_torques import JointTorques
+from ipromp_pin.safety import CheckContext, TimedMotion
+from ipromp_pin.safety.joint_torques import JointTorques
 from ipromp_pin.exceptions import DataError
 from ipromp_pin.outputs import plots
 from ipromp_pin.outputs.torque_preview import SPHERE_RADIUS_M, held_object, torque_preview
@@ -42,9 +42,9 @@ def test_the_track_is_the_checks_and_holds_the_object_as_it_does(robot, task, gi
     track, obj = torque_preview(robot, motion, context, check=check)
     assert track is not None and obj is not None
     assert track.ratio.shape == (motion.n_samples, robot.n_joints)
-    assert track.ratio.max() == pytest.approx(result.values["peak_torque_ratio"], rel=1e-9)
-    np.testing.assert_allclose(track.peak, result.values["ratios"], atol=1e-4)
-    assert track.allowed_ratio == pytest.approx(result.values["allowed_ratio"])
+    assert track.ratio.max() == pytest.approx(result.measures.peak_torque_ratio, rel=1e-9)
+    np.testing.assert_allclose(track.peak, result.measures.ratios, atol=1e-4)
+    assert track.allowed_ratio == pytest.approx(result.measures.allowed_ratio)
     # robot_gives: held up to the hand-over (the motion's end); robot_receives: at the hand-over only
     assert track.held.all() if gives else (track.held.tolist() == [False] * (motion.n_samples - 1) + [True])
     assert obj.held(motion.t_s).tolist() == track.held.tolist()
@@ -86,7 +86,7 @@ def test_torque_plot_is_written_and_checks_its_input(tmp_path, robot):
 def test_the_run_preview_shows_the_checks_torques_and_the_recognised_tasks_object():
     from ipromp_pin.commands.config import load_pipeline, resolve_pipeline_path
     from ipromp_pin.commands.setup import prepare_session
-    from ipromp_pin.handover.one_shot import plan
+    from ipromp_pin.planning.one_shot import plan
     from ipromp_pin.outputs.preview_content import preview_content
 
     cfg = load_pipeline(resolve_pipeline_path("baxter_handover"), task="wrench", demo=2)

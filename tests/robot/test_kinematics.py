@@ -69,10 +69,10 @@ def test_colliding_path_fails_and_names_the_links(robot):
     assert not report.passed
     assert "self_collision" in report.failures
     col = report["self_collision"]
-    assert col.values["min_distance_m"] < 0
+    assert col.measures.min_distance_m < 0
     # the folded end pose alone is in collision with the torso
     end = check_self_collision(robot, Q_TORSO[None])
-    assert end.status == "fail" and "torso" in end.values["links"]
+    assert end.status == "fail" and "torso" in end.measures.links
 
 
 def test_out_of_limit_path_fails_joint_limits(robot):
@@ -80,7 +80,7 @@ def test_out_of_limit_path_fails_joint_limits(robot):
     q[60:, 3] = robot.lower_rad[3] - 0.01  # elbow beyond its lower limit
     report = check_path(robot, q)
     jl = report["joint_limits"]
-    assert jl.status == "fail" and jl.values["joint"] == "left_e1" and jl.values["min_slack_rad"] < 0
+    assert jl.status == "fail" and jl.measures.joint == "left_e1" and jl.measures.min_slack_rad < 0
     # within the hard limit but inside the margin also fails
     q2 = _line(Q_START, Q_HANDOVER)
     q2[-1, 3] = robot.lower_rad[3] + 0.5 * robot.settings.position_margin_rad[3]
@@ -106,7 +106,7 @@ def test_uncertainty_samples_are_advisory(robot):
     samples = np.stack([q, q + 0.01, _line(Q_START, Q_TORSO)])
     report = check_path(robot, q, q_samples=samples)
     unc = report["uncertainty"]
-    assert unc.values["n_in_collision"] == 1 and unc.status == "fail"
+    assert unc.measures.n_in_collision == 1 and unc.status == "fail"
     assert report.passed  # advisory only
 
 

@@ -5,17 +5,17 @@
   scorer does: recognition, joint errors, ``one_shot_handover_error_cm`` = the gripper position
   error of the one-shot plan's end, which is the prediction's last point);
 * replayed at its recorded timing with ``obs_ratio`` as the start ratio
-  (:func:`~ipromp_pin.handover.closed_loop.replay_demo`) and scored
-  (:func:`~ipromp_pin.handover.score.score_closed_loop`).
+  (:func:`~ipromp_pin.planning.closed_loop.replay_demo`) and scored
+  (:func:`~ipromp_pin.evaluation.scoring.score_closed_loop`).
 
 Each cell gains, over all its test trials (recognised or not): ``closed_loop_handover_error_cm``,
 ``closed_loop_final_error_cm``, ``one_shot_handover_error_cm``, ``arrival_delay_s`` (medians),
 ``max_limit_ratio`` (maximum), ``refused_replans``, ``replans`` and ``collisions`` (sums).
 
 Demos with a tracked skeleton (:meth:`~ipromp_pin.human.HumanMotion.from_demo`) are replayed with the
-human checks (:data:`~ipromp_pin.handover.human_score.HUMAN_CHECKS`; the planner knows the human as
+human checks (:data:`~ipromp_pin.safety.HUMAN_CHECKS`; the planner knows the human as
 observed until each re-plan), then judged against the recorded human motion
-(:func:`~ipromp_pin.handover.human_score.human_measures` of the final commanded trajectory), and
+(:func:`~ipromp_pin.evaluation.scoring.human_measures` of the final commanded trajectory), and
 replayed once more without the human checks. Their cells gain ``human_min_separation_m`` (the
 minimum over the trials), ``protective_distance_time_s``, ``arrival_delay_without_human_s``
 (medians) and ``contact_speed_violations`` (sum); without a skeleton these are None and the replay
@@ -25,29 +25,24 @@ is the one without the human checks.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, dataclass, field
 from functools import partial
 
 import numpy as np
 
-from ...checks import CheckContext, MotionCheck, build_checks
-from ...checks.joint_torques import JointTorques
 from ...data import Demo
-from ...handover.closed_loop import ClosedLoopSettings, conditioning_predictor, replay_demo
-from ...handover.human_score import HUMAN_CHECKS, human_measures
-from ...handover.score import ClosedLoopScore, score_closed_loop
 from ...human import HumanMotion
-from ...motion.limits import LimitProfile, conservative_profile, demonstrated_profile, read_limit_profile
-from ...motion.trajectory import Trajectory
+from ...motion.limits import LimitProfile, choose_limit_profile, read_limit_profile
+from ...planning.closed_loop import ClosedLoopResult, ClosedLoopSettings, conditioning_predictor, replay_demo
 from ...promp import IProMP
 from ...robot import DemoLimitRecipe, Robot, ee_positions, gripper_rotations
-from ...robot.clearance import ClearanceCertifier
 from ...robot.objects import ObjectTable
+from ...safety import HUMAN_CHECKS, CheckContext, CheckSuite
 from ..cells import CellResults, ClosedLoopCell, baseline_summary, median
 from ..config import EvaluationConfig
+from ..scoring import ClosedLoopScore, TrialResult, mean_handover_rotations, replay_scored, score_trial
 from .base import Scorer
-from .one_shot import TrialResult, mean_handover_rotations, predict_window, score_trial
-from .torques import peak_torque_ratio
+from .one_shot import predict_window
 
 
 @dataclass(frozen=True)
@@ -125,18 +120,21 @@ def compact(trial: ClosedLoopTrial) -> dict:
 
 def profile_for(options: ClosedLoopOptions, robot: Robot, train: Sequence[Demo], label: str) -> LimitProfile:
     """The limit profile of one model fit (the demonstrated one from its training demos)."""
-    if options.limits == "conservative":
-        return conservative_profile(robot)
-    if options.limits == "demonstrated":
-        recipe = options.recipe or robot.settings.demonstrated_limits
-        return demonstrated_profile(robot, train, recipe, label)
-    return read_limit_profile(options.limits, robot)
+    return choose_limit_profile(options.limits, robot, train, label, options.recipe)
 
 
 def closed_loop_score(trial: ClosedLoopTrial) -> ClosedLoopScore:
     """The trial's closed-loop measures (:func:`replay_trials` scores every trial it makes)."""
     assert trial.closed_loop is not None, "a replayed trial has its closed-loop score"
     return trial.closed_loop
+
+
+def evaluation_suite(robot: Robot, objects: ObjectTable | None, human: bool) -> CheckSuite:
+    """The checks of an evaluation's re-plans: the motion's own (limits, workspace, self-collision),
+    the joint torques with ``objects``, the human checks when ``human`` (they run on the demos with a
+    tracked skeleton)."""
+    drop = ["hand_distance", "uncertainty"] + ([] if objects is not None else ["joint_torques"])
+    return CheckSuite.build(robot, exclude=drop + ([] if human else list(HUMAN_CHECKS)))
 
 
 def replay_trials(
@@ -146,80 +144,40 @@ def replay_trials(
     ratio: float,
     profile: LimitProfile,
     settings: ClosedLoopSettings,
-    certifier: ClearanceCertifier | None = None,
+    suite: CheckSuite,
     check_collisions: bool = True,
     split: int = 0,
     mean_rot: dict[str, np.ndarray] | None = None,
     objects: ObjectTable | None = None,
-    human_checks: Sequence[MotionCheck] = (),
 ) -> list[ClosedLoopTrial]:
     """Replay every test demo with ``ratio`` as the start ratio; one :class:`ClosedLoopTrial` each.
 
-    ``mean_rot``: the orientation baseline per task (:func:`~.one_shot.mean_handover_rotations` of the
-    training demos). ``objects``: the tasks' objects; when given, every re-plan runs the joint-torque
-    check (slowed where it asks) and the commanded motion's peak torque ratio is scored with the true
-    task's object. ``human_checks``: the human's timed-motion checks, for the demos with a tracked
-    skeleton (:func:`replay_scored`)."""
+    ``suite``: the checks of every re-plan (:func:`evaluation_suite`); its human checks run on the
+    demos with a tracked skeleton, against the recorded human as observed until each re-plan, and are
+    then judged against the whole recording (:func:`~ipromp_pin.evaluation.scoring.replay_scored`).
+    ``mean_rot``: the orientation baseline per task (training demos). ``objects``: the tasks'
+    objects; the commanded motion's peak torque ratio is scored with the true task's object."""
     observe = list(model.observe_)
-
-    def fk(q: np.ndarray) -> np.ndarray:
-        return ee_positions(robot, q)
-
+    fk = partial(ee_positions, robot)
     fk_rot = partial(gripper_rotations, robot)
-
-    torques = JointTorques(robot) if objects is not None else None
-    checks = [torques] if torques is not None else []
-
     run = ClosedLoopSettings(**{**settings.to_dict(), "start_ratio": float(ratio)}).validate()
     conditioner = conditioning_predictor(model, run.condition_noise)
     out = []
     for d in test:
         prediction = predict_window(model, d, ratio, observe)
         one_shot = score_trial(prediction, d, ratio, fk, fk_rot, (mean_rot or {}).get(d.task))
-        replay = partial(replay_demo, model, robot, d, profile, run, certifier, conditioner)
-        score, commanded = replay_scored(replay, d, robot, check_collisions, human_checks, checks, objects)
-        if torques is not None and objects is not None:
-            score.peak_torque_ratio = peak_torque_ratio(torques, commanded, d.task, objects)
+        human = (
+            HumanMotion.from_demo(d, robot.settings.human) if set(HUMAN_CHECKS) & set(suite.names) else None
+        )
+        used = suite if human is not None else suite.without(HUMAN_CHECKS)
+
+        def replay(checks: CheckSuite, context: CheckContext, demo: Demo = d) -> ClosedLoopResult:
+            return replay_demo(model, robot, demo, profile, run, checks, context, conditioner)
+
+        context = CheckContext(human=human, objects=objects)
+        score, _ = replay_scored(replay, d, robot, used, context, human, check_collisions)
         out.append(ClosedLoopTrial(**one_shot.__dict__, split=split, closed_loop=score))
     return out
-
-
-def replay_scored(
-    replay,
-    demo: Demo,
-    robot: Robot,
-    check_collisions: bool,
-    human_checks: Sequence[MotionCheck],
-    other_checks: Sequence[MotionCheck] = (),
-    objects: ObjectTable | None = None,
-) -> tuple[ClosedLoopScore, Trajectory]:
-    """Replay ``demo`` (``replay(checks=..., context=...)`` runs the closed loop) and score it.
-
-    Every re-plan runs ``other_checks`` (e.g. the joint torques with ``objects``). With
-    ``human_checks`` and a tracked skeleton: the replay with the human checks as well (the planner's
-    context is the recorded human, which the planner knows until each re-plan's time), its measures
-    against the recorded human motion, and the arrival delay of a replay without the human checks.
-    Returns the score and the commanded trajectory.
-    """
-    human = HumanMotion.from_demo(demo, robot.settings.human) if human_checks else None
-    others = list(other_checks)
-    if human is None:
-        result = replay(checks=others, context=CheckContext(objects=objects))
-        return score_closed_loop(result, demo, robot, check_collisions=check_collisions), result.trajectory
-    context = CheckContext(human=human, objects=objects)
-    result = replay(checks=[*human_checks, *others], context=context)
-    score = score_closed_loop(result, demo, robot, check_collisions=check_collisions)
-    measures = human_measures(result.trajectory, human, human_checks)
-    free_result = replay(checks=others, context=CheckContext(objects=objects))
-    free = score_closed_loop(free_result, demo, robot, check_collisions=False)
-    scored = replace(
-        score,
-        human_min_separation_m=measures.min_separation_m,
-        protective_distance_time_s=measures.protective_distance_time_s,
-        contact_speed_violations=measures.contact_speed_violations,
-        arrival_delay_without_human_s=free.arrival_delay_s,
-    )
-    return scored, result.trajectory
 
 
 class ClosedLoopScorer(Scorer):
@@ -251,8 +209,7 @@ class ClosedLoopScorer(Scorer):
         self.model_params = dict(model_params or {})
         self.label_name = label_name
         self.objects = objects
-        self.certifier_: ClearanceCertifier | None = None
-        self.human_checks_: list[MotionCheck] | None = None
+        self.suite_: CheckSuite | None = None
 
     def check(self) -> None:
         """Validate the settings and read a profile file, before any fit."""
@@ -262,11 +219,9 @@ class ClosedLoopScorer(Scorer):
 
     def fit(self, train: Sequence[Demo], observe: Sequence[str]) -> ClosedLoopScorer:
         """Fit the model (with the robot's kinematics) and derive the fit's limit profile."""
-        if self.certifier_ is None:  # once per process
-            self.certifier_ = ClearanceCertifier(self.robot)
-        self.certifier_.clear()  # each job's replays start from no ball, whichever jobs ran before
-        if self.human_checks_ is None:
-            self.human_checks_ = build_checks(self.robot, HUMAN_CHECKS) if self.options.human else []
+        if self.suite_ is None:  # once per process
+            self.suite_ = evaluation_suite(self.robot, self.objects, self.options.human)
+        self.suite_.reset()  # each job's replays start from no cache, whichever jobs ran before
         fk = partial(ee_positions, self.robot)  # settings chosen for the hand-over position
         fk_rot = partial(gripper_rotations, self.robot)
         model = IProMP(observe=list(observe), **self.model_params)
@@ -284,12 +239,11 @@ class ClosedLoopScorer(Scorer):
             obs_ratio,
             self.profile_,
             self.options.settings,
-            self.certifier_,
+            self.suite_ or evaluation_suite(self.robot, self.objects, self.options.human),
             self.options.check_collisions,
             split,
             self.mean_rot_,
             self.objects,
-            self.human_checks_ or (),
         )
 
     def fit_facts(self) -> dict[str, str]:

@@ -7,20 +7,23 @@ import pytest
 
 from ipromp_pin.data import ROBOT
 from ipromp_pin.exceptions import PipelineError
-from ipromp_pin.handover.closed_loop import (
+from ipromp_pin.planning.closed_loop import (
     ClosedLoopPlanner,
     ClosedLoopSettings,
     conditioning_predictor,
     demo_samples,
     replay_demo,
 )
-from ipromp_pin.handover.score import arrival_time, score_closed_loop
+from ipromp_pin.evaluation.scoring import arrival_time, score_closed_loop
 from ipromp_pin.motion.limits import LimitProfile, conservative_profile, demonstrated_profile
-from ipromp_pin.motion.retarget import MotionState, ReferenceMotion, Retargeter, limit_ratios
+from ipromp_pin.motion.retarget import ReferenceMotion, Retargeter
+from ipromp_pin.motion.trajectory import MotionState, Trajectory
 from ipromp_pin.promp import IProMP
 from ipromp_pin.readers.synthetic import make_synthetic_dataset
 from ipromp_pin.robot import ee_positions, load_robot
-from ipromp_pin.robot.clearance import ClearanceCertifier
+from ipromp_pin.safety import CheckContext, CheckSuite, Verdict
+from ipromp_pin.safety.self_collision import SelfCollision
+from ipromp_pin.safety.speed_limits import limit_ratios as motion_limit_ratios
 
 OBSERVE = ["orientation", "emg"]
 
@@ -38,7 +41,13 @@ def setup():
 
 @pytest.fixture(scope="module")
 def certifier(setup):
-    return ClearanceCertifier(setup[1])
+    """The motion's own checks (limits, workspace, self-collision), shared by the tests' replays."""
+    return CheckSuite.build(setup[1], ["speed_limits", "joint_limits", "workspace", "self_collision"])
+
+
+def limit_ratios(qd, qdd, dt, limits):
+    n = qd.shape[0]
+    return motion_limit_ratios(Trajectory(np.arange(n) * dt, np.zeros_like(qd), qd, qdd, ()), limits)[0]
 
 
 def _reference(model, demo, ratio=0.5):
@@ -84,10 +93,10 @@ def test_retarget_follows_the_prediction_on_time_when_the_limits_allow(setup):
     t_c = 1.0
     q0, v0, a0, _ = ref.evaluate(np.array([t_c]))
     state = MotionState(t_c, q0[0], v0[0], a0[0])  # on the reference
-    plan = Retargeter(limits, dt, 0.2).plan(state, ref)
+    plan, report = Retargeter(limits, dt, 0.2).plan(state, ref)
     _check_plan(plan, state, limits, dt)
-    assert plan.time_scale == 1.0
-    assert abs(plan.arrival_s - ref.duration_s) < 2 * dt  # rests when the human gets there
+    assert report.time_scale == 1.0
+    assert abs(report.arrival_s - ref.duration_s) < 2 * dt  # rests when the human gets there
     # between the blend and the settle it is the prediction itself, on the human's timeline
     mid = (plan.t_s > t_c + 0.3) & (plan.t_s < ref.duration_s - 0.3)
     np.testing.assert_allclose(plan.q[mid], ref.evaluate(plan.t_s[mid])[0], atol=1e-9)
@@ -101,13 +110,13 @@ def test_retarget_is_late_only_as_much_as_the_limits_demand(setup):
     state = MotionState.at_rest(0.5, test[1].groups[ROBOT][0])
     tight = conservative_profile(robot).limits.scaled(1.0, 0.5, 0.5)
     loose = conservative_profile(robot).limits.scaled(4.0, 20.0, 200.0)
-    late = Retargeter(tight, dt, 0.2).plan(state, ref)
-    fast = Retargeter(loose, dt, 0.2).plan(state, ref)
+    late, late_r = Retargeter(tight, dt, 0.2).plan(state, ref)
+    fast, fast_r = Retargeter(loose, dt, 0.2).plan(state, ref)
     _check_plan(late, state, tight, dt)
     _check_plan(fast, state, loose, dt)
-    assert late.time_scale > 1.0 and late.lateness_s > 0.3
-    assert late.lateness_s > fast.lateness_s
-    assert fast.lateness_s < 0.1
+    assert late_r.time_scale > 1.0 and late_r.lateness_s > 0.3
+    assert late_r.lateness_s > fast_r.lateness_s
+    assert fast_r.lateness_s < 0.1
     np.testing.assert_allclose(late.q[-1], fast.q[-1], atol=1e-12)  # same hand-over, later
 
 
@@ -167,18 +176,22 @@ def test_a_refused_replan_keeps_the_last_safe_plan(setup, certifier):
     demo = test[0]
     profile = demonstrated_profile(robot, train)
     start = float(demo.head(0.2).t[-1])
-    planner = ClosedLoopPlanner(model, robot, profile, demo.groups[ROBOT][0], start, None, certifier)
-    calls = {"n": 0}
-    certify = certifier.certify
+    real = certifier.get("self_collision")
 
-    def refuse_after_five(q):
-        calls["n"] += 1
-        result = certify(q)
-        if calls["n"] > 5:
-            result.certified = False
-        return result
+    class RefuseAfterFive(SelfCollision):
+        calls = 0
 
-    planner.certifier = type("C", (), {"certify": staticmethod(refuse_after_five)})()
+        def check(self, motion: Trajectory, context: CheckContext) -> Verdict:
+            RefuseAfterFive.calls += 1
+            v = real.check(motion, context)
+            return (
+                v if RefuseAfterFive.calls <= 5 else Verdict(self.name, "fail", "not certified", v.measures)
+            )
+
+    suite = CheckSuite(
+        [c if c.name != "self_collision" else RefuseAfterFive(robot) for c in certifier.checks]
+    )
+    planner = ClosedLoopPlanner(model, robot, profile, demo.groups[ROBOT][0], start, None, suite)
     for t, sample in zip(demo.t, demo_samples(demo, OBSERVE), strict=True):
         planner.step(float(t), sample)
     result = planner.finish()

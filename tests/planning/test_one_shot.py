@@ -1,5 +1,5 @@
 """The one-shot plan's model/robot check: the model's joints must be the robot's, matched by name
-(ipromp_pin.handover.one_shot)."""
+(ipromp_pin.planning.one_shot)."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ from helpers_cli import PIPELINE, one_error_line, run_tiny
 
 from ipromp_pin.cli import main
 from ipromp_pin.exceptions import ModelError
-from ipromp_pin.handover.one_shot import check_model_joints
+from ipromp_pin.planning.one_shot import check_model_joints
 from ipromp_pin.promp import IProMP
 from ipromp_pin.robot import load_robot
 

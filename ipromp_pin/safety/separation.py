@@ -2,10 +2,9 @@
 
 A :class:`SeparationCheck` holds a :class:`~ipromp_pin.human.separation_summary.SeparationSummariser`
 over a :class:`~ipromp_pin.human.separation.SeparationAnalyser`: the checks that
-:func:`~.registry.build_checks` builds together share one, so the separation of a motion is computed
-once for all of them (each keeps its last result). The checks judge its
-:class:`~ipromp_pin.human.separation_summary.SeparationSummary` (:meth:`SeparationCheck.summary`):
-the numbers they report, without every pair's (:meth:`SeparationCheck.separation` gives those).
+:meth:`~.suite.CheckSuite.build` builds together share one, so the separation of a motion is
+computed once for both. Without a human in the context they judge the robot settings' assumed
+standing human, and say so.
 """
 
 from __future__ import annotations
@@ -13,29 +12,33 @@ from __future__ import annotations
 from ..human import HumanMotion
 from ..human.separation import Separation, SeparationAnalyser
 from ..human.separation_summary import SeparationSummariser, SeparationSummary
+from ..motion.trajectory import Trajectory
 from ..robot import Robot
-from .base import CheckContext, MotionCheck, TimedMotion
+from .base import Check
+from .context import CheckContext
 
 
-class SeparationCheck(MotionCheck):
+class SeparationCheck(Check):
     """A check of the robot-body separation.
 
     Args:
         robot: The loaded robot.
-        summariser: The summariser (and its separation analyser) to use (shared by the checks built
-            together; default: one of this check's own, with the robot's human settings).
-
-    Attributes:
-        summariser: The summariser.
-        analyser: Its separation analyser.
+        summariser: The summariser (shared by the checks built together; default: one of this check's
+            own, with the robot's human settings).
     """
+
+    depends_on = "timing"
 
     def __init__(self, robot: Robot, summariser: SeparationSummariser | None = None) -> None:
         super().__init__(robot)
         self.summariser = (
             summariser if summariser is not None else SeparationSummariser(SeparationAnalyser(robot))
         )
-        self.analyser = self.summariser.analyser
+
+    @property
+    def analyser(self) -> SeparationAnalyser:
+        """The separation analyser."""
+        return self.summariser.analyser
 
     def human(self, context: CheckContext) -> HumanMotion:
         """The context's human, or the robot settings' assumed human when the context has none."""
@@ -43,10 +46,10 @@ class SeparationCheck(MotionCheck):
             return context.human
         return HumanMotion.assumed_human(self.robot.settings.human)
 
-    def separation(self, motion: TimedMotion, context: CheckContext) -> Separation:
-        """The robot-body separation along ``motion``."""
+    def separation(self, motion: Trajectory, context: CheckContext) -> Separation:
+        """The robot-body separation along ``motion``, every pair's numbers."""
         return self.analyser.analyse(motion.t_s, motion.q, motion.qd, self.human(context))
 
-    def summary(self, motion: TimedMotion, context: CheckContext) -> SeparationSummary:
+    def summary(self, motion: Trajectory, context: CheckContext) -> SeparationSummary:
         """What the separation checks judge of the robot-body separation along ``motion``."""
         return self.summariser.summary(motion.t_s, motion.q, motion.qd, self.human(context))

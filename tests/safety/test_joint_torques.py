@@ -1,4 +1,4 @@
-"""The joint-torque check (checks/joint_torques.py) and torque-aware timing (motion/timing.py's
+"""The joint-torque check (safety/joint_torques.py) and torque-aware timing (motion/timing.py's
 TorqueLimit): torques with the payload while held, the slow-down that fits them, toppra's
 torque-constrained profile within its limits, and `run` refusing a too-heavy object."""
 
@@ -12,10 +12,12 @@ from helpers_cli import one_error_line, run_tiny
 from scipy.interpolate import CubicSpline
 
 from ipromp_pin import cli
-from ipromp_pin.checks import CheckContext, TimedMotion, build_checks
-from ipromp_pin.checks.joint_torques import JointTorques
-from ipromp_pin.motion.timing import TorqueLimit, prepare_path, time_path, toppra_profile
-from ipromp_pin.motion.trajectory import JointLimits
+from ipromp_pin.motion.path import prepare_path
+from ipromp_pin.motion.timing import TorqueLimit, time_path
+from ipromp_pin.motion.toppra_profile import toppra_profile
+from ipromp_pin.motion.trajectory import JointLimits, Trajectory
+from ipromp_pin.safety import CheckContext, CheckSuite
+from ipromp_pin.safety.joint_torques import JointTorques
 from ipromp_pin.robot import load_robot
 from ipromp_pin.robot.dynamics import ArmDynamics
 from ipromp_pin.robot.objects import TaskObject
@@ -33,19 +35,26 @@ def obj(mass: float, holder: str = "robot_gives") -> TaskObject:
     return TaskObject("t", mass, np.array([0.0, 0.0, 0.05]), np.eye(3) * 1e-3, holder)
 
 
-def motion(t_total: float, n: int = 201) -> TimedMotion:
+NAMES = ("left_s0", "left_s1", "left_e0", "left_e1", "left_w0", "left_w1", "left_w2")
+
+
+def motion(t_total: float, n: int = 201) -> Trajectory:
     """A minimum-jerk-like cosine motion from Q0 to Q1 in ``t_total`` [s]."""
     t = np.linspace(0.0, t_total, n)
     u = 0.5 - 0.5 * np.cos(np.pi * t / t_total)
     du = 0.5 * np.pi / t_total * np.sin(np.pi * t / t_total)
     ddu = 0.5 * (np.pi / t_total) ** 2 * np.cos(np.pi * t / t_total)
     d = Q1 - Q0
-    return TimedMotion(t, Q0 + u[:, None] * d, du[:, None] * d, ddu[:, None] * d, float(t[1] - t[0]))
+    return Trajectory(t, Q0 + u[:, None] * d, du[:, None] * d, ddu[:, None] * d, NAMES)
 
 
-def test_joint_torques_is_registered_and_required(robot):
-    checks = build_checks(robot)
-    assert any(isinstance(c, JointTorques) for c in checks) and JointTorques.required
+def test_joint_torques_is_registered_required_and_constrains_the_timing(robot):
+    suite = CheckSuite.build(robot)
+    assert isinstance(suite.get("joint_torques"), JointTorques) and JointTorques.required
+    assert suite.timing_constraints(CheckContext()).torque is not None
+    assert (
+        CheckSuite.build(robot, exclude=["joint_torques"]).timing_constraints(CheckContext()).torque is None
+    )
 
 
 def test_slow_motion_passes_and_the_payload_counts_only_while_held(robot):
@@ -55,22 +64,22 @@ def test_slow_motion_passes_and_the_payload_counts_only_while_held(robot):
     assert bare.passed and "no payload" in bare.reason
     heavy = obj(1.5, "robot_gives")
     gives = check.check(m, CheckContext(payload=heavy, handover_s=3.0))
-    assert gives.values["peak_torque_ratio"] > bare.values["peak_torque_ratio"]
+    assert gives.measures.peak_torque_ratio > bare.measures.peak_torque_ratio
     # robot_receives: the object joins at the hand-over (the last sample), at rest
     receives = check.check(m, CheckContext(payload=obj(1.5, "robot_receives"), handover_s=3.0))
-    tau = check.motion_torques(m, CheckContext(payload=obj(1.5, "robot_receives"), handover_s=3.0))
+    tau = check.torques(m, CheckContext(payload=obj(1.5, "robot_receives"), handover_s=3.0))
     plain = ArmDynamics(robot).torques(m.q, m.qd, m.qdd)
     np.testing.assert_allclose(tau[:-1], plain[:-1])
     assert not np.allclose(tau[-1], plain[-1])
-    assert receives.values["peak_torque_ratio"] <= gives.values["peak_torque_ratio"] + 1e-12
+    assert receives.measures.peak_torque_ratio <= gives.measures.peak_torque_ratio + 1e-12
 
 
 def test_a_too_fast_motion_asks_for_the_slowdown_that_fits(robot):
     check = JointTorques(robot)
     fast = motion(0.25)
     res = check.check(fast, CheckContext())
-    assert not res.passed and res.values["peak_torque_ratio"] > res.values["allowed_ratio"]
-    k = res.values["slowdown"]
+    assert not res.passed and res.measures.peak_torque_ratio > res.measures.allowed_ratio
+    k = res.slowdown
     assert k > 1.0
     slowed = motion(0.25 * k)  # a uniform slow-down by k: qd / k, qdd / k^2
     assert check.check(slowed, CheckContext()).passed
@@ -80,7 +89,7 @@ def test_a_too_fast_motion_asks_for_the_slowdown_that_fits(robot):
 
 def test_a_too_heavy_object_fails_without_a_slowdown(robot):
     res = JointTorques(robot).check(motion(3.0), CheckContext(payload=obj(25.0)))
-    assert not res.passed and "slowdown" not in res.values and "slowing down cannot help" in res.reason
+    assert not res.passed and res.slowdown is None and "slowing down cannot help" in res.reason
 
 
 def test_subsampling_keeps_the_peaks(robot):
@@ -94,7 +103,7 @@ def test_subsampling_keeps_the_peaks(robot):
     np.testing.assert_array_equal(idx, np.unique(np.concatenate([even, *peaks, [400]])))
     full = JointTorques(robot, max_samples=10_000).check(m, CheckContext())
     sub = check.check(m, CheckContext())
-    assert sub.values["peak_torque_ratio"] == pytest.approx(full.values["peak_torque_ratio"], rel=0.02)
+    assert sub.measures.peak_torque_ratio == pytest.approx(full.measures.peak_torque_ratio, rel=0.02)
 
 
 def _fast_limits(robot) -> JointLimits:

@@ -1,4 +1,4 @@
-"""The retreat after the hand-over (handover/retreat.py, robot/retreat_target.py): where it ends, the
+"""The retreat after the hand-over (planning/retreat.py, robot/retreat_target.py): where it ends, the
 payload of the phase after the hand-over, its torque failure, the IK target, the slow-down re-timing,
 and the bad-configuration errors (exit 2, one line, before anything is computed)."""
 
@@ -12,15 +12,15 @@ import numpy as np
 import pytest
 from helpers_cli import one_error_line, run_tiny
 
-from ipromp_pin.checks import CheckContext, MotionCheck, TimedMotion, build_checks
 from ipromp_pin.exceptions import RobotError
-from ipromp_pin.handover.retreat import plan_retreat, post_handover_payload
 from ipromp_pin.motion.timing import time_path
-from ipromp_pin.motion.trajectory import JointLimits
-from ipromp_pin.robot import CheckResult, ee_positions, frame_placements, load_robot
+from ipromp_pin.motion.trajectory import JointLimits, Trajectory
+from ipromp_pin.planning.retreat import plan_retreat
+from ipromp_pin.robot import ee_positions, frame_placements, load_robot
 from ipromp_pin.robot.dynamics import ArmDynamics
 from ipromp_pin.robot.objects import ObjectTable, TaskObject, load_objects
 from ipromp_pin.robot.retreat_target import RetreatTarget, parse_retreat
+from ipromp_pin.safety import Check, CheckContext, CheckSuite, Verdict
 
 Q_START = np.array([-0.8, -0.9, 0.4, 1.3, -0.2, 1.2, 1.6])
 Q_HANDOVER = np.array([-0.2, -0.4, 0.1, 0.8, 0.3, 0.9, 1.0])
@@ -34,7 +34,7 @@ def robot():
 @pytest.fixture(scope="module")
 def approach(robot):
     """A stand-in for the one-shot plan: its trajectory (start -> hand-over, at rest), start time and task."""
-    traj, _ = time_path(np.linspace(Q_START, Q_HANDOVER, 30), JointLimits.from_robot(robot))
+    traj, _ = time_path(np.linspace(Q_START, Q_HANDOVER, 30), JointLimits.from_robot(robot), start_s=0.8)
     return SimpleNamespace(trajectory=traj, start_s=0.8, prediction=SimpleNamespace(task="t"))
 
 
@@ -47,23 +47,24 @@ def obj(mass: float, holder: str, retreat: RetreatTarget | None = None) -> TaskO
 
 
 def torque_checks(robot):
-    return build_checks(robot, ["joint_torques"])
+    return CheckSuite.build(robot, ["joint_limits", "self_collision", "joint_torques"])
 
 
 def test_a_retreat_to_start_dwells_then_ends_at_rest_at_the_start(robot, approach):
     target = RetreatTarget("start", dwell_s=0.5)
-    r = plan_retreat(robot, approach, target, checks=torque_checks(robot), context=CheckContext())
+    r = plan_retreat(robot, approach, target, torque_checks(robot), CheckContext())
     tr = r.trajectory
     np.testing.assert_allclose(tr.q[0], Q_HANDOVER, atol=1e-9)  # from the hand-over ...
     np.testing.assert_allclose(tr.q[-1], approach.trajectory.q[0], atol=1e-9)  # ... back to the start
     assert np.abs(tr.qd[-1]).max() < 1e-9 and np.abs(tr.qdd[-1]).max() < 1e-9
-    dwell = tr.t_s <= 0.5 + 1e-9
+    assert tr.start_s == pytest.approx(r.start_s)  # on the human's clock, from the hand-over
+    dwell = tr.t_s - r.start_s <= 0.5 + 1e-9
     assert np.count_nonzero(dwell) == 51  # 0.5 s at 100 Hz, then the motion's first sample (still there)
     assert np.abs(tr.q[dwell] - Q_HANDOVER).max() < 1e-12 and not tr.qd[dwell].any()
     assert np.all(np.diff(tr.t_s) > 0)
-    assert r.start_s == pytest.approx(0.8 + approach.trajectory.t_s[-1])
+    assert r.start_s == pytest.approx(approach.trajectory.t_s[-1])
     assert r.passed, r.failures
-    assert [c.name for c in r.report.checks] == ["joint_limits", "self_collision", "joint_torques"]
+    assert [c.name for c in r.checks] == ["joint_limits", "self_collision", "joint_torques"]
     assert r.timing_report is not None and r.timing_report.passed
     assert r.duration_s > 0.5 + 0.5  # the dwell, then a motion of the same length as the approach's
     doc = r.to_dict()
@@ -77,15 +78,16 @@ def test_the_payload_is_carried_only_after_a_robot_receives_hand_over(robot, app
         robot,
         approach,
         target,
-        checks=checks,
-        context=CheckContext(objects=table(obj(2.0, "robot_receives"))),
+        checks,
+        CheckContext(objects=table(obj(2.0, "robot_receives"))),
     )
     given = plan_retreat(
-        robot, approach, target, checks=checks, context=CheckContext(objects=table(obj(2.0, "robot_gives")))
+        robot, approach, target, checks, CheckContext(objects=table(obj(2.0, "robot_gives")))
     )
     assert received.payload is not None and received.payload.mass_kg == 2.0
     assert given.payload is None
-    assert post_handover_payload(CheckContext(task="t", objects=table(obj(2.0, "robot_gives")))) is None
+    after = CheckContext(task="t", objects=table(obj(2.0, "robot_gives")), after_handover=True)
+    assert after.carried_object() is None
     # the torques written: the given object's are the bare arm's (after the hand-over sample) ...
     dyn = ArmDynamics(robot)
     g = given.trajectory
@@ -96,14 +98,14 @@ def test_the_payload_is_carried_only_after_a_robot_receives_hand_over(robot, app
     extra = np.abs(r.effort_nm - dyn.torques(r.q, r.qd, r.qdd))
     assert extra[:, 1].min() > 3.0
     ratio = {
-        name: next(c for c in res.report.checks if c.name == "joint_torques").values["peak_torque_ratio"]
+        name: res.checks["joint_torques"].measures.peak_torque_ratio
         for name, res in (("received", received), ("given", given))
     }
     assert ratio["received"] > ratio["given"]  # (the given object still counts at the hand-over sample)
 
 
 def test_the_retreat_is_timed_under_the_torques_of_its_payload(robot, approach, monkeypatch):
-    import ipromp_pin.handover.retreat as module
+    import ipromp_pin.planning.timers as module
 
     seen = []
     real = module.time_path
@@ -118,31 +120,29 @@ def test_the_retreat_is_timed_under_the_torques_of_its_payload(robot, approach, 
     dyn = ArmDynamics(robot)
     for holder, mass in (("robot_receives", 2.0), ("robot_gives", 0.0)):
         ctx = CheckContext(objects=table(obj(2.0, holder)))
-        plan_retreat(robot, approach, RetreatTarget("start"), checks=torque_checks(robot), context=ctx)
+        plan_retreat(robot, approach, RetreatTarget("start"), torque_checks(robot), ctx)
         torque = seen.pop()
         assert torque is not None  # toppra's joint-torque constraint, with the phase's payload:
         carried = obj(mass, "robot_receives") if mass else None
         expected = dyn.torques(q[None], None, None, carried)[0]
         np.testing.assert_allclose(torque.inverse_dynamics(q, zero, zero), expected, atol=1e-9)
-    plan_retreat(robot, approach, RetreatTarget("start"), checks=torque_checks(robot), torque_timing=False)
-    assert seen.pop() is None
+    plan_retreat(robot, approach, RetreatTarget("start"), CheckSuite.build(robot, ["joint_limits"]))
+    assert seen.pop() is None  # without the torque check, no torque constraint
 
 
 def test_a_too_heavy_received_object_fails_the_retreats_torque_check(robot, approach):
     ctx = CheckContext(objects=table(obj(12.0, "robot_receives")))
-    r = plan_retreat(
-        robot, approach, RetreatTarget("start", dwell_s=0.0), checks=torque_checks(robot), context=ctx
-    )
+    r = plan_retreat(robot, approach, RetreatTarget("start", dwell_s=0.0), torque_checks(robot), ctx)
     assert not r.passed and r.failures == ["joint_torques"]
-    tq = next(c for c in r.report.checks if c.name == "joint_torques")
-    assert "slowing down cannot help" in tq.reason and "slowdown" not in tq.values
+    tq = r.checks["joint_torques"]
+    assert "slowing down cannot help" in tq.reason and tq.slowdown is None
 
 
 def test_a_position_target_is_reached_within_1_mm_with_the_hand_over_orientation(robot, approach):
     p_handover = ee_positions(robot, Q_HANDOVER)[0]
     goal = p_handover + np.array([-0.15, 0.05, 0.10])
     target = RetreatTarget("position", position_m=goal, dwell_s=0.3)
-    r = plan_retreat(robot, approach, target, checks=torque_checks(robot), context=CheckContext())
+    r = plan_retreat(robot, approach, target, torque_checks(robot), CheckContext())
     assert r.ik is not None and r.ik.converged
     end, rot_end = frame_placements(robot, r.trajectory.q[-1])
     assert np.linalg.norm(end[0] - goal) < 1e-3
@@ -161,23 +161,23 @@ def test_an_unreachable_position_target_is_a_one_line_error(robot, approach):
     assert "\n" not in str(exc.value)
 
 
-class _NeedsSlowerThan(MotionCheck):
+class _NeedsSlowerThan(Check):
     """Fails when a joint moves faster than ``limit`` [rad/s], asking for the slow-down that fits."""
 
     name = "speed_cap"
     limit = 0.3
 
-    def check(self, motion: TimedMotion, context: CheckContext) -> CheckResult:
+    def check(self, motion: Trajectory, context: CheckContext) -> Verdict:
         peak = float(np.abs(motion.qd).max())
         if peak <= self.limit:
-            return CheckResult(self.name, "pass", f"{peak:.2f} rad/s")
-        return CheckResult(self.name, "fail", f"{peak:.2f} rad/s", {"slowdown": peak / self.limit})
+            return Verdict(self.name, "pass", f"{peak:.2f} rad/s")
+        return Verdict(self.name, "fail", f"{peak:.2f} rad/s", slowdown=peak / self.limit)
 
 
 def test_a_check_asking_for_a_slower_retreat_gets_it_re_timed(robot, approach):
     target = RetreatTarget("start", dwell_s=0.2)
-    fast = plan_retreat(robot, approach, target)
-    slow = plan_retreat(robot, approach, target, checks=[_NeedsSlowerThan(robot)])
+    fast = plan_retreat(robot, approach, target, CheckSuite([]))
+    slow = plan_retreat(robot, approach, target, CheckSuite([_NeedsSlowerThan(robot)]))
     assert slow.passed and slow.slowdown > 1.0
     assert np.abs(slow.trajectory.qd).max() <= _NeedsSlowerThan.limit
     assert slow.duration_s > fast.duration_s + 0.5

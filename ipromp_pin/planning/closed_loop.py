@@ -9,16 +9,14 @@ and runs a simulated control loop at ``control_rate_hz`` (no waiting):
   re-targeted with ruckig from the commanded position, velocity and acceleration at the next
   control tick (:mod:`ipromp_pin.motion.retarget`): it follows the predicted robot trajectory on the
   human's predicted timeline, slowed only where the limits demand;
-* the remaining motion of every re-plan is checked before it is committed: velocity,
-  acceleration and jerk at every control sample against the :class:`~ipromp_pin.motion.limits.LimitProfile`,
-  joint limits with the settings' margin, the hand-over position inside the workspace, and
-  self-collision certified between samples (:class:`~ipromp_pin.robot.clearance.ClearanceCertifier`),
-  then the timed-motion checks (:mod:`ipromp_pin.checks`: the human, the arm's torques, ...) with the
-  planner's :class:`~ipromp_pin.checks.CheckContext`. When a failing check says a slower motion would
-  pass, the re-plan follows the prediction that much slower (at most
-  :data:`~ipromp_pin.checks.MAX_SLOWDOWN` times) and is checked again; the delay it costs is recorded.
-  A re-plan that fails is not committed: the robot keeps the last safe plan and the
-  :class:`Replan` record says why. A change of recognised task is handled the same way.
+* the remaining motion of every re-plan is checked before it is committed, by the run's checks
+  (:class:`~ipromp_pin.safety.CheckSuite`: the velocity, acceleration and jerk against the
+  :class:`~ipromp_pin.motion.limits.LimitProfile`, joint limits, workspace, self-collision, the
+  human as observed until then, the arm's torques), re-targeted slower while they ask for it by the
+  one loop of every planner (:func:`~ipromp_pin.safety.retime.retime_until_safe`, with the re-target
+  as its timer: :func:`~.timers.retarget_timer`); the delay it costs is recorded. A re-plan that
+  fails is not committed: the robot keeps the last safe plan and the :class:`Replan` record says
+  why. A change of recognised task is handled the same way.
 
 Before its first committed plan the robot rests at its start configuration. :meth:`finish` plays
 the last committed plan to its end and returns the commanded trajectory with every re-plan.
@@ -28,44 +26,23 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Mapping, Sequence
-from dataclasses import asdict, dataclass, field, replace
+from collections.abc import Mapping
+from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from ..checks import (
-    MAX_SLOWDOWN,
-    MAX_SLOWDOWN_ROUNDS,
-    CheckContext,
-    MotionCheck,
-    TimedMotion,
-    needed_slowdown,
-    run_checks,
-)
 from ..data import Demo
 from ..exceptions import IPrompPinError, ObservationError, PipelineError
 from ..motion.limits import LimitProfile
-from ..motion.retarget import (
-    HEADROOM,
-    SETTLE_S,
-    MotionPlan,
-    MotionState,
-    ReferenceMotion,
-    Retargeter,
-    hold_plan,
-    limit_ratios,
-)
-from ..motion.trajectory import Trajectory
+from ..motion.retarget import HEADROOM, SETTLE_S, ReferenceMotion, Retargeter, RetargetReport
+from ..motion.trajectory import MotionState, Trajectory
 from ..promp import IProMP, Predictor
-from ..robot import CheckResult, Robot, check_joint_limits, check_workspace, ee_positions
-from ..robot.clearance import ClearanceCertifier
-
-LIMIT_TOLERANCE = 1e-6
-"""Relative tolerance of the velocity, acceleration and jerk checks of a re-plan."""
-
-
-SLOWDOWN_STEP = 1.05
-"""Each slower re-target asks for 5 % more slow-down than the failing checks estimated."""
+from ..robot import Robot
+from ..safety import CheckContext, CheckSuite, Timed, Verdict
+from ..safety.self_collision import SelfCollisionMeasures
+from ..safety.speed_limits import SpeedLimitMeasures
+from ..safety.workspace import WorkspaceMeasures
+from .timers import retarget_timer
 
 CONDITION_NOISE = 0.3
 """Observation-noise ratio ``nu`` with which the closed loop conditions the robot trajectory (the
@@ -168,7 +145,7 @@ class Replan:
         reason: Why it was refused (empty when committed).
         limit_ratios: Largest |v|, |a|, |jerk| over their limits in the plan (3,).
         min_distance_m: Closest computed self-collision distance near the plan, in [m].
-        checks: Timed-motion check name -> its status, reason and values (:mod:`ipromp_pin.checks`),
+        checks: Timed-motion check name -> its status, reason and values (:mod:`ipromp_pin.safety`),
             for the last plan checked.
         slowdown: Extra slow-down ``k >= 1`` that the timed-motion checks asked for (1: none).
         slowdown_delay_s: How much later the slowed plan arrives than the plan without it, in [s].
@@ -230,7 +207,7 @@ class ClosedLoopResult:
     settings: ClosedLoopSettings
     start_s: float
     stopped: str = ""
-    plans: list[MotionPlan] = field(default_factory=list)
+    plans: list[Trajectory] = field(default_factory=list)
 
     @property
     def n_refused(self) -> int:
@@ -264,14 +241,15 @@ class ClosedLoopPlanner:
         start_s: Time in [s] from the motion start at which the robot may start (its first re-plan
             is at the first sample at or after it).
         settings: Closed-loop settings (validated here).
-        certifier: Self-collision certifier to use (default: a new one; reuse one across runs of the
-            same robot to keep its cache of computed distances).
+        suite: The checks of every re-plan's remaining motion (default: every registered check,
+            :meth:`~ipromp_pin.safety.CheckSuite.build`; reuse one across runs of the same robot to
+            keep its self-collision certifier's computed distances).
+        context: What the checks know about the world (the human, the object, ...); each re-plan
+            adds the recognised task, the predicted hand-over time, the limit profile and cuts the
+            human to what was observed until then.
         conditioner: The predictor whose conditioner conditions the robot trajectory (default: the
             stream's predictor for ``settings.condition_noise``,
             :meth:`~ipromp_pin.promp.streaming.StreamingEstimator.predict`).
-        checks: Timed-motion checks run on every re-plan's remaining motion (default: none;
-            :func:`ipromp_pin.checks.build_checks` gives the registered ones).
-        context: What the checks know about the world (the human, the object, ...).
     """
 
     def __init__(
@@ -282,10 +260,9 @@ class ClosedLoopPlanner:
         q_start: np.ndarray,
         start_s: float,
         settings: ClosedLoopSettings | None = None,
-        certifier: ClearanceCertifier | None = None,
-        conditioner: Predictor | None = None,
-        checks: Sequence[MotionCheck] = (),
+        suite: CheckSuite | None = None,
         context: CheckContext | None = None,
+        conditioner: Predictor | None = None,
     ) -> None:
         self.settings = (settings or ClosedLoopSettings()).validate()
         self.model = model
@@ -293,22 +270,20 @@ class ClosedLoopPlanner:
         self.profile = profile
         self.start_s = float(start_s)
         self.dt_s = 1.0 / self.settings.control_rate_hz
-        self.certifier = certifier if certifier is not None else ClearanceCertifier(robot)
+        self.suite = suite if suite is not None else CheckSuite.build(robot)
         s = self.settings
         self.retargeter = Retargeter(profile.limits, self.dt_s, s.blend_s, s.headroom, s.settle_s)
         self._conditioner = conditioner
-        self.checks = list(checks)
-        self.context = context if context is not None else CheckContext()
+        self.context = (context if context is not None else CheckContext()).replace(limits=profile.limits)
         self._stream = model.stream()
         self._open = False
-        self._plans: list[tuple[int, MotionPlan]] = [
-            (0, hold_plan(MotionState.at_rest(0.0, q_start), self.dt_s))
+        self._plans: list[tuple[int, Trajectory]] = [
+            (0, Trajectory.at_rest(0.0, q_start, tuple(robot.joint_names)))
         ]
         self.replans: list[Replan] = []
         self._next_replan = self.start_s
         self._stopped = ""
         self._finished = False
-        self._pose_cache: tuple[bytes, np.ndarray, CheckResult] | None = None
 
     def __enter__(self) -> ClosedLoopPlanner:
         self._open_stream()
@@ -387,7 +362,9 @@ class ClosedLoopPlanner:
         r.task = pred.task
         r.posterior = {k: float(v) for k, v in zip(pred.tasks, pred.posterior, strict=True)}
         r.predicted_handover_s = float(pred.duration_s)
-        context = replace(self.context, task=pred.task, handover_s=float(pred.duration_s))
+        context = self.context.replace(task=pred.task, handover_s=float(pred.duration_s))
+        if context.human is not None:  # the human as observed up to this re-plan
+            context = context.replace(human=context.human.until(r.observed_until_s))
         plan = self._plan_checked(state, reference, r, ms, context)
         r.stage_ms = ms
         if plan is not None and not r.reason:
@@ -402,77 +379,40 @@ class ClosedLoopPlanner:
         r: Replan,
         ms: dict[str, float],
         context: CheckContext,
-    ) -> MotionPlan | None:
-        """Re-target, check, and re-target slower while a failing check asks for it -> the last plan
-        (``r.reason`` empty if it passed) or None when re-targeting failed."""
-        plan: MotionPlan | None = None
-        scale, first_arrival, k0 = 1.0, None, 1.0
-        t_start = time.perf_counter()
-        t_checks = 0.0
-        if context.human is not None:  # the human as observed up to this re-plan, for every round
-            context = replace(context, human=context.human.until(r.observed_until_s))
-        for _ in range(MAX_SLOWDOWN_ROUNDS + 1):
+    ) -> Trajectory | None:
+        """Re-target, check, and re-target slower while the failing checks ask for it -> the committed
+        plan (``r.reason`` empty), the refused one (``r.reason`` says why) or None when re-targeting
+        failed."""
+        t0 = time.perf_counter()
+        timer = retarget_timer(self.retargeter, state, reference)
+        spent = [0.0]  # in the re-target, the rest of the loop is the checks
+
+        def timed(k: float) -> Timed:
+            t = time.perf_counter()
             try:
-                plan = self.retargeter.plan(state, reference, min_scale=scale)
-            except IPrompPinError as exc:
-                r.reason = f"re-target failed: {exc}"
-                break
-            t0 = time.perf_counter()
-            if first_arrival is None:
-                first_arrival, k0 = plan.arrival_s, plan.time_scale
-            r.planned_arrival_s = plan.arrival_s
-            r.lateness_s = plan.lateness_s
-            r.time_scale = plan.time_scale
-            r.slowdown_delay_s = float(plan.arrival_s - first_arrival)
-            r.reason, k = self._check(plan, r, context)
-            t_checks += time.perf_counter() - t0
-            if not r.reason or k is None or k <= 1.0 or plan.time_scale >= k0 * MAX_SLOWDOWN:
-                break
-            scale = min(plan.time_scale * k * SLOWDOWN_STEP, k0 * MAX_SLOWDOWN)
-            r.slowdown = scale / k0
-        ms["checks"] = t_checks * 1e3
-        ms["retarget"] = (time.perf_counter() - t_start - t_checks) * 1e3
-        return plan if r.planned_arrival_s is not None else None
+                return timer(k)
+            finally:
+                spent[0] += time.perf_counter() - t
 
-    def _handover_pose(self, q_end: np.ndarray) -> tuple[np.ndarray, CheckResult]:
-        """The gripper position (3,) [m] at a plan's end configuration (n_joints,) [rad] and its
-        workspace check; kept for the next call with the same configuration (the slower re-targets
-        of a re-plan end where it does)."""
-        key = np.asarray(q_end, dtype=float).tobytes()
-        if self._pose_cache is None or self._pose_cache[0] != key:
-            end = ee_positions(self.robot, q_end)[0]
-            self._pose_cache = (key, end, check_workspace(self.robot, end))
-        return self._pose_cache[1], self._pose_cache[2]
-
-    def _check(self, plan: MotionPlan, r: Replan, context: CheckContext) -> tuple[str, float | None]:
-        """Check a plan's remaining motion against ``context`` (its human as observed up to the
-        re-plan) -> the reason to refuse it ("" if it passes) and the slow-down the failing
-        timed-motion checks ask for (None: slowing would not help)."""
-        ratios = limit_ratios(plan.qd, plan.qdd, self.dt_s, self.profile.limits)
-        r.limit_ratios = [float(x) for x in ratios]
-        if np.any(ratios > 1.0 + LIMIT_TOLERANCE):
-            names = ("velocity", "acceleration", "jerk")
-            i = int(np.argmax(ratios))
-            return f"{names[i]} limit exceeded ({ratios[i]:.3f} of the limit)", None
-        end, ws = self._handover_pose(plan.q[-1])
-        r.predicted_handover_position_m = [float(x) for x in end]
-        lim = check_joint_limits(self.robot, plan.q, t_s=plan.t_s)
-        if not lim.passed:
-            return f"joint_limits: {lim.reason}", None
-        if not ws.passed:
-            return f"workspace: {ws.reason}", None
-        clearance = self.certifier.certify(plan.q)
-        r.min_distance_m = clearance.min_distance_m
-        if not clearance.certified:
-            return f"self_collision: {clearance.to_check().reason}", None
-        if not self.checks:
-            return "", None
-        results = run_checks(self.checks, TimedMotion.from_plan(plan), context)
-        r.checks = {c.name: {"status": c.status, "reason": c.reason, **c.values} for c in results}
-        failed = [c for c in results if c.required and not c.passed]
-        if not failed:
-            return "", None
-        return "; ".join(f"{c.name}: {c.reason}" for c in failed), needed_slowdown(results)
+        try:
+            retimed = self.suite.retime_until_safe(timed, context, stop_early=True)
+        except IPrompPinError as exc:
+            r.reason = f"re-target failed: {exc}"
+            return None
+        finally:
+            ms["retarget"] = spent[0] * 1e3
+            ms["checks"] = (time.perf_counter() - t0 - spent[0]) * 1e3
+        report = retimed.timed.report
+        first = retimed.first.report
+        assert isinstance(report, RetargetReport) and isinstance(first, RetargetReport)
+        r.planned_arrival_s = report.arrival_s
+        r.lateness_s = report.lateness_s
+        r.time_scale = report.time_scale
+        r.slowdown = retimed.slowdown
+        r.slowdown_delay_s = float(report.arrival_s - first.arrival_s)
+        record_verdicts(r, retimed.verdicts)
+        r.reason = retimed.report.refusal()
+        return retimed.motion
 
     def close(self) -> None:
         """Stop receiving samples (releases the streaming estimator's BLAS thread limit)."""
@@ -510,6 +450,20 @@ class ClosedLoopPlanner:
         )
 
 
+def record_verdicts(r: Replan, verdicts: list[Verdict]) -> None:
+    """Fill ``r``'s check fields from the verdicts of its plan: every verdict, the limit ratios, the
+    self-collision distance and the predicted hand-over position (those the checks reached)."""
+    r.checks = {v.name: v.to_dict() for v in verdicts}
+    for v in verdicts:
+        m = v.measures
+        if isinstance(m, SpeedLimitMeasures):
+            r.limit_ratios = list(m.limit_ratios)
+        elif isinstance(m, WorkspaceMeasures):
+            r.predicted_handover_position_m = list(m.position_m)
+        elif isinstance(m, SelfCollisionMeasures):
+            r.min_distance_m = float(m.min_distance_m)
+
+
 def demo_samples(demo: Demo, groups: list[str]) -> list[dict[str, np.ndarray | None]]:
     """The demo's human samples as the planner receives them: group -> values, None where missing."""
     out = []
@@ -543,16 +497,15 @@ def replay_demo(
     demo: Demo,
     profile: LimitProfile,
     settings: ClosedLoopSettings | None = None,
-    certifier: ClearanceCertifier | None = None,
-    conditioner: Predictor | None = None,
-    checks: Sequence[MotionCheck] = (),
+    suite: CheckSuite | None = None,
     context: CheckContext | None = None,
+    conditioner: Predictor | None = None,
 ) -> ClosedLoopResult:
     """Run the closed loop on a recorded demo at its recorded timing (simulated clock, no waiting).
 
     The robot starts at rest at the demo's first recorded configuration; the human's observed groups
-    (``model.observe_``) arrive sample by sample. ``checks`` and ``context``: the timed-motion checks
-    of every re-plan (:class:`ClosedLoopPlanner`).
+    (``model.observe_``) arrive sample by sample. ``suite`` and ``context``: the checks of every
+    re-plan and what they know (:class:`ClosedLoopPlanner`).
 
     Raises:
         DataError: the demo lacks an observed group or the robot group.
@@ -564,7 +517,7 @@ def replay_demo(
     start = start_time(demo, settings.start_ratio)
     q_start = demo.groups[model.robot_group][0]
     with ClosedLoopPlanner(
-        model, robot, profile, q_start, start, settings, certifier, conditioner, checks, context
+        model, robot, profile, q_start, start, settings, suite, context, conditioner
     ) as planner:
         for t, sample in zip(demo.t - demo.t[0], demo_samples(demo, groups), strict=True):
             planner.step(float(t), sample)

@@ -1,4 +1,4 @@
-"""The human checks (ipromp_pin.checks.human_clearance, contact_speed): a body part on the robot's
+"""The human checks (ipromp_pin.safety.human_clearance, contact_speed): a body part on the robot's
 path fails human_clearance and passes once moved away; inside S_p the approach speed is held to the
 body region's v_max = F / sqrt(mu k) with the effective mass at the contact point, and a too fast
 approach asks for the slow-down that passes; without a human the assumed one is checked; ``run``
@@ -14,9 +14,10 @@ import pytest
 from helpers_cli import ROBOT_FILE, one_error_line, run_tiny
 
 from ipromp_pin import cli
-from ipromp_pin.checks import CheckContext, TimedMotion
-from ipromp_pin.checks.contact_speed import SLOWDOWN_MARGIN, ContactSpeed
-from ipromp_pin.checks.human_clearance import HumanClearance
+from ipromp_pin.motion.trajectory import Trajectory
+from ipromp_pin.safety import CheckContext
+from ipromp_pin.safety.contact_speed import SLOWDOWN_MARGIN, ContactSpeed
+from ipromp_pin.safety.human_clearance import HumanClearance
 from ipromp_pin.exceptions import RobotError
 from ipromp_pin.human import BodyPart, HumanMotion
 from ipromp_pin.human.geometry import segment_closest_points
@@ -26,16 +27,17 @@ from ipromp_pin.human.separation import SeparationAnalyser
 from ipromp_pin.robot import ee_positions, load_robot, load_robot_settings
 from ipromp_pin.robot.human_settings import REGION_LIMITS
 
+NAMES = ("left_s0", "left_s1", "left_e0", "left_e1", "left_w0", "left_w1", "left_w2")
 QA = np.array([0.0, -0.6, 0.0, 1.2, 0.0, 0.6, 0.0])
 QB = np.array([0.5, -0.2, 0.3, 0.7, 0.2, 0.9, 0.1])
 
 
-def _motion(duration_s: float = 1.0, t0: float = 0.5) -> TimedMotion:
+def _motion(duration_s: float = 1.0, t0: float = 0.5) -> Trajectory:
     t = np.arange(0.0, duration_s + 1e-9, 0.01)
     s = t / duration_s
     q = QA + s[:, None] * (QB - QA)
     qd = np.tile((QB - QA) / duration_s, (t.size, 1))
-    return TimedMotion(t0 + t, q, qd, np.zeros_like(q), 0.01)
+    return Trajectory(t0 + t, q, qd, np.zeros_like(q), NAMES)
 
 
 def _sphere_human(centre: np.ndarray, region: str, radius: float = 0.1) -> HumanMotion:
@@ -57,15 +59,15 @@ def test_a_body_part_on_the_path_fails_and_moved_away_passes(robot):
     mid = ee_positions(robot, motion.q[50:51])[0]
     check = HumanClearance(robot)
     on_path = check.check(motion, CheckContext(human=_sphere_human(mid, "chest")))
-    assert on_path.status == "fail" and on_path.values["min_separation_m"] < 0
-    assert on_path.values["body_part"] == "part" and on_path.values["human"] == "tracked"
-    assert 0.5 < on_path.values["t_s"] < 1.5 and on_path.values["link"]
+    assert on_path.status == "fail" and on_path.measures.min_separation_m < 0
+    assert on_path.measures.body_part == "part" and on_path.measures.human == "tracked"
+    assert 0.5 < on_path.measures.t_s < 1.5 and on_path.measures.link
     away = check.check(motion, CheckContext(human=_sphere_human(mid + [3.0, 0.0, 0.0], "chest")))
-    assert away.status == "pass" and away.values["min_separation_m"] > 2.0
-    assert away.values["time_within_sp_s"] == 0.0
+    assert away.status == "pass" and away.measures.min_separation_m > 2.0
+    assert away.measures.time_within_sp_s == 0.0
     # the hand region is not judged by the clearance (the hand-over contact is intended)
     hand = check.check(motion, CheckContext(human=_sphere_human(mid, "hand")))
-    assert hand.status == "pass" and math.isinf(hand.values["min_separation_m"])
+    assert hand.status == "pass" and math.isinf(hand.measures.min_separation_m)
 
 
 def test_contact_speed_bound_toward_a_hand_matches_the_formula(robot):
@@ -74,7 +76,7 @@ def test_contact_speed_bound_toward_a_hand_matches_the_formula(robot):
     centre = end + np.array([0.25, 0.0, 0.0])
     human = _sphere_human(centre, "hand")
     result = ContactSpeed(robot).check(motion, CheckContext(human=human))
-    v = result.values
+    v = result.measures.to_dict()
     assert v["max_speed_ratio"] > 0 and v["region"] == "hand"
     hand = REGION_LIMITS["hand"]
     mu = 1.0 / (1.0 / hand.mass_kg + 1.0 / v["robot_mass_kg"])
@@ -98,17 +100,15 @@ def test_a_too_fast_approach_asks_for_the_slowdown_that_passes(robot):
     context = CheckContext(human=_sphere_human(end + np.array([0.3, 0.0, 0.0]), "face"))
     check = ContactSpeed(robot)
     fast = check.check(motion, context)
-    assert fast.status == "fail" and fast.values["n_speed_violations"] > 0
-    k = fast.values["slowdown"]
+    assert fast.status == "fail" and fast.measures.n_speed_violations > 0
+    k = fast.slowdown
     allowed = 1.0 - robot.settings.human.speed_margin
-    assert fast.values["planning_limit_ratio"] == pytest.approx(allowed)
-    assert k == pytest.approx(fast.values["max_speed_ratio"] / allowed * SLOWDOWN_MARGIN) and k > 1
+    assert fast.measures.planning_limit_ratio == pytest.approx(allowed)
+    assert k == pytest.approx(fast.measures.max_speed_ratio / allowed * SLOWDOWN_MARGIN) and k > 1
     t0 = motion.t_s[0]
-    slow = TimedMotion(
-        t0 + (motion.t_s - t0) * k, motion.q, motion.qd / k, motion.qdd / k**2, motion.dt_s * k
-    )
+    slow = Trajectory(t0 + (motion.t_s - t0) * k, motion.q, motion.qd / k, motion.qdd / k**2, NAMES)
     again = check.check(slow, context)
-    assert again.status == "pass" and again.values["max_speed_ratio"] <= allowed
+    assert again.status == "pass" and again.measures.max_speed_ratio <= allowed
 
 
 def test_the_speed_margin_keeps_room_below_the_limit_and_violations_count_the_limit_itself(robot):
@@ -117,17 +117,17 @@ def test_the_speed_margin_keeps_room_below_the_limit_and_violations_count_the_li
     motion = _motion(0.5)
     end = ee_positions(robot, motion.q[-1:])[0]
     context = CheckContext(human=_sphere_human(end + np.array([0.3, 0.0, 0.0]), "face"))
-    ratio = ContactSpeed(robot).check(motion, context).values["max_speed_ratio"]
+    ratio = ContactSpeed(robot).check(motion, context).measures.max_speed_ratio
     # slowed to 95 % of the limit: beyond a 10 % margin, within the limit itself
     k = ratio / 0.95
     t0 = motion.t_s[0]
-    slow = TimedMotion(t0 + (motion.t_s - t0) * k, motion.q, motion.qd / k, motion.qdd / k**2, 0.01 * k)
+    slow = Trajectory(t0 + (motion.t_s - t0) * k, motion.q, motion.qd / k, motion.qdd / k**2, NAMES)
     strict = load_robot(replace(robot.settings, human=replace(robot.settings.human, speed_margin=0.1)))
     loose = load_robot(replace(robot.settings, human=replace(robot.settings.human, speed_margin=0.0)))
     held = ContactSpeed(strict).check(slow, context)
-    assert held.status == "fail" and held.values["n_over_planning_limit"] > 0
-    assert held.values["n_speed_violations"] == 0 and "90% of the contact-speed limit" in held.reason
-    assert held.values["max_speed_ratio"] == pytest.approx(0.95, rel=1e-3)
+    assert held.status == "fail" and held.measures.n_over_planning_limit > 0
+    assert held.measures.n_speed_violations == 0 and "90% of the contact-speed limit" in held.reason
+    assert held.measures.max_speed_ratio == pytest.approx(0.95, rel=1e-3)
     free = ContactSpeed(loose).check(slow, context)
     assert free.status == "pass", free.reason
 
@@ -136,7 +136,7 @@ def test_without_a_human_the_assumed_human_is_checked(robot):
     motion = _motion()
     for check in (HumanClearance(robot), ContactSpeed(robot)):
         result = check.check(motion, CheckContext())
-        assert result.values["human"] == "assumed" and "assumed human" in result.reason
+        assert result.measures.human == "assumed" and "assumed human" in result.reason
 
 
 def test_bad_human_parameters_are_one_line_errors(tmp_path, tiny, capsys):

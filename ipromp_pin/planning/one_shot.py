@@ -1,0 +1,192 @@
+"""The one-shot plan of a hand-over: recognise and predict, time, check, re-time until safe.
+
+:func:`plan` takes a fitted model, a loaded robot, the observed first part of the human's motion and
+the checks (:class:`~ipromp_pin.safety.CheckSuite`) with what they know
+(:class:`~ipromp_pin.safety.CheckContext`) and returns a :class:`PlanResult`: the prediction and the
+committed trajectory (toppra + ruckig, on the human's clock: it starts when the observation ends)
+with its verdicts, slowed where the checks ask for it (:func:`~ipromp_pin.safety.retime.retime_until_safe`).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..data import Demo
+from ..exceptions import ModelError
+from ..motion.timing import TimingReport
+from ..motion.trajectory import JointLimits, Trajectory
+from ..promp import IProMP, Prediction
+from ..robot import Robot, ee_positions, frame_placements
+from ..robot.kinematics import rotations_to_quat_xyzw
+from ..safety import CheckContext, CheckReport, CheckSuite
+from .timers import path_timer
+
+LogFn = Callable[[str], None]
+"""Where progress messages go (one line each)."""
+
+N_UNCERTAINTY_SAMPLES = 16
+"""Joint trajectories drawn from the prediction for the uncertainty check and the preview."""
+
+
+@dataclass
+class PlanResult:
+    """A planned hand-over.
+
+    Attributes:
+        robot: The robot settings' name.
+        prediction: The model's conditioned prediction.
+        trajectory: The committed trajectory (times on the human's clock from :attr:`start_s`;
+            ``effort_nm``: the joint torques when the torque check ran).
+        timing_report: Verification of the trajectory against the limits and the path.
+        checks: The verdicts on the trajectory.
+        handover_pose: The gripper's pose at the trajectory's end (7,): x, y, z [m], quaternion xyzw.
+        ee_path: The gripper positions (M, 3) [m] along the predicted mean path.
+        q_samples: (n, M, n_joints) joint trajectories [rad] drawn from the prediction (the uncertainty
+            check's hand-overs, the preview's sampled paths).
+        stage_ms: Wall time of every stage in [ms].
+        start_s: When the robot starts (the end of the observation), in [s] on the human's clock.
+        slowdown: The uniform slow-down ``k >= 1`` the checks asked for (1: none): velocity,
+            acceleration and jerk limits / k, k^2, k^3.
+        slowdown_delay_s: How much longer the slowed trajectory takes, in [s].
+        slowdown_tried: The largest slow-down tried (above ``slowdown`` when no slower timing passed).
+    """
+
+    robot: str
+    prediction: Prediction
+    trajectory: Trajectory
+    timing_report: TimingReport
+    checks: CheckReport
+    handover_pose: np.ndarray
+    ee_path: np.ndarray
+    q_samples: np.ndarray
+    stage_ms: dict[str, float]
+    start_s: float = 0.0
+    slowdown: float = 1.0
+    slowdown_delay_s: float = 0.0
+    slowdown_tried: float = 1.0
+
+    @property
+    def passed(self) -> bool:
+        """Whether every required check and the timing's verification passed."""
+        return bool(self.checks.passed and self.timing_report.passed)
+
+    @property
+    def failures(self) -> list[str]:
+        """The failed required checks (and ``timing`` when its verification failed)."""
+        return self.checks.failures + ([] if self.timing_report.passed else ["timing"])
+
+
+def check_model_joints(model: IProMP, robot: Robot) -> None:
+    """Refuse a model whose robot joints are not the robot's arm joints in kinematic order, matched
+    by name through the settings' recorded names (a left-arm model run with a right-arm robot would
+    otherwise command the right arm with the left arm's angles).
+
+    Raises:
+        ModelError: naming both joint lists.
+    """
+    names = tuple(model.joint_names_)
+    recorded = robot.settings.recorded_names
+    if tuple(recorded.get(n, n) for n in names) == robot.joint_names:
+        return
+    have = robot.settings.recorded_arm_joints
+    hint = (
+        "the same joints in another order"
+        if sorted(recorded.get(n, n) for n in names) == sorted(robot.joint_names)
+        else f"a model trained for robot '{robot.settings.name}' is needed"
+    )
+    raise ModelError(
+        f"the model predicts joints {list(names)} but robot '{robot.settings.name}' moves "
+        f"{list(have)} ({hint})"
+    )
+
+
+def prediction_context(prediction: Prediction, context: CheckContext, samples: np.ndarray) -> CheckContext:
+    """What the checks know once ``prediction`` is made: the recognised task, the predicted hand-over
+    time and the sampled hand-over configurations (``samples`` (n, M, n_joints) [rad])."""
+    return context.replace(
+        task=prediction.task, handover_s=float(prediction.duration_s), handover_samples=samples[:, -1, :]
+    )
+
+
+def plan(
+    model: IProMP,
+    robot: Robot,
+    observation: Demo,
+    suite: CheckSuite | None = None,
+    context: CheckContext | None = None,
+    *,
+    control_rate_hz: float = 100.0,
+    log: LogFn | None = None,
+    check_joints: bool = True,
+) -> PlanResult:
+    """Recognise and predict from ``observation``, time the predicted path from the end of the
+    observation, check it with ``suite`` and re-time it slower while the checks ask for it.
+
+    Args:
+        model: A fitted :class:`~ipromp_pin.promp.IProMP`.
+        robot: A loaded :class:`~ipromp_pin.robot.Robot`.
+        observation: The observed first part of the human's motion.
+        suite: The checks (their torque limits constrain the timing too; default: every registered
+            check, :meth:`~ipromp_pin.safety.CheckSuite.build`).
+        context: What the checks know about the world (the human as observed, the objects, ...).
+        control_rate_hz: Output sampling rate in [Hz].
+        log: Progress messages (None: silent).
+        check_joints: Refuse a model whose joints are not the robot's (False: checked already).
+
+    Raises:
+        InfeasibleError: the predicted path cannot be timed at all.
+    """
+    say = log or (lambda _msg: None)
+    if check_joints:
+        check_model_joints(model, robot)
+    suite = suite if suite is not None else CheckSuite.build(robot)
+    ms: dict[str, float] = {}
+    t0 = time.perf_counter()
+    prediction = model.predict(observation)
+    assert isinstance(prediction, Prediction), "IProMP.predict of one Demo returns one Prediction"
+    t1 = time.perf_counter()
+    ms["recognise_predict"] = (t1 - t0) * 1e3
+    say(
+        f"[recognise] {prediction.task} (posterior {float(np.max(prediction.posterior)):.3f}), "
+        f"predicted duration {prediction.duration_s:.2f} s"
+    )
+    samples = prediction.sample_q(N_UNCERTAINTY_SAMPLES, np.random.default_rng(0))
+    start_s = float(observation.t[-1] - observation.t[0])
+    ctx = prediction_context(prediction, context if context is not None else CheckContext(), samples)
+    limits = JointLimits.from_robot(robot)
+    timer = path_timer(
+        prediction.q_mean, limits, suite.timing_constraints(ctx), control_rate_hz, start_s, say
+    )
+    retimed = suite.retime_until_safe(timer, ctx)
+    t2 = time.perf_counter()
+    ms["time_check"] = (t2 - t1) * 1e3
+    trajectory = suite.annotate(retimed.motion, ctx)
+    pos, rot = frame_placements(robot, trajectory.q[-1:])
+    result = PlanResult(
+        robot=robot.settings.name,
+        prediction=prediction,
+        trajectory=trajectory,
+        timing_report=retimed.timed.report,  # type: ignore[arg-type]  # a path timer's report
+        checks=retimed.report,
+        handover_pose=np.hstack([pos[0], rotations_to_quat_xyzw(rot)[0]]),
+        ee_path=ee_positions(robot, prediction.q_mean),
+        q_samples=samples,
+        stage_ms=ms,
+        start_s=start_s,
+        slowdown=retimed.slowdown,
+        slowdown_delay_s=retimed.delay_s,
+        slowdown_tried=retimed.tried,
+    )
+    ms["annotate"] = (time.perf_counter() - t2) * 1e3
+    say(f"[check] {'pass' if result.passed else 'FAIL: ' + ', '.join(result.failures)}")
+    say(
+        f"[timing] {trajectory.duration_s:.2f} s at {control_rate_hz:g} Hz, {trajectory.n_samples} samples, "
+        f"from t = {start_s:.2f} s"
+    )
+    if result.slowdown > 1.0:
+        say(f"[timing] slowed {result.slowdown:.2f}x for the checks: {result.slowdown_delay_s:+.2f} s")
+    return result

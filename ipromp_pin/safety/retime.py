@@ -1,0 +1,164 @@
+"""The one re-time-until-safe loop of every planner (the one-shot plan, the retreat, every re-plan).
+
+A planner gives a :data:`Timer`: a function from a requested slow-down to the motion timed that much
+slower (the one-shot plan and the retreat re-time their path with toppra under limits scaled by
+``k``, ``k^2``, ``k^3``; the closed loop re-targets its prediction followed ``k`` times slower). The
+loop times the motion, runs the checks, and while the failing required checks all ask for a slower
+motion, times it again ``k`` times slower than the last (times :data:`SLOWDOWN_STEP`, a margin over
+the checks' first-order estimates), at most :data:`MAX_SLOWDOWN_ROUNDS` times and
+:data:`MAX_SLOWDOWN` in all. The first motion that passes is committed; when none does, the first
+(unslowed) motion and its verdicts are returned, refused, with the largest slow-down tried.
+
+A timing of the same path (the timer says so, :attr:`Timed.path`) keeps the verdicts of the checks
+that depend on the path only (:attr:`~.base.Check.depends_on`) for the decision; the committed motion
+is then checked by them once more, so that every verdict's numbers and times are those of the motion
+that is committed.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Protocol
+
+from ..exceptions import InfeasibleError
+from ..motion.trajectory import Trajectory
+from .context import CheckContext
+from .verdict import CheckReport, Verdict, needed_slowdown
+
+MAX_SLOWDOWN = 4.0
+"""The largest slow-down a motion is given before it is refused (4x the duration)."""
+
+MAX_SLOWDOWN_ROUNDS = 3
+"""How many times a motion is slowed again while its slower version still fails a check that asks
+for a slower motion (a check's factor is a first-order estimate: a slower motion meets the moving
+human at other times and places)."""
+
+SLOWDOWN_STEP = 1.05
+"""Each slower timing asks for 5 % more slow-down than the failing checks estimated."""
+
+
+@dataclass(frozen=True)
+class Timed:
+    """A motion as a timer made it.
+
+    Attributes:
+        motion: The motion (times on the human's clock).
+        report: The timing's own report (e.g. a toppra timing's verification, a re-target's arrival).
+        scale: The slow-down the motion has in the timer's own units (its first motion's scale is the
+            base the slow-downs are counted from).
+        path: The geometric path the motion follows, the same object for every timing of it (None: the
+            timer does not promise one).
+    """
+
+    motion: Trajectory
+    report: object
+    scale: float = 1.0
+    path: object | None = None
+
+
+Timer = Callable[[float], Timed]
+"""A requested slow-down scale (1.0 first, then larger) -> the motion timed so.
+
+Raises :class:`~ipromp_pin.exceptions.InfeasibleError` when it cannot time the motion."""
+
+
+class Runs(Protocol):
+    """What the loop needs of a suite: its checks' names by dependency, and running them."""
+
+    def run(
+        self,
+        motion: Trajectory,
+        context: CheckContext,
+        *,
+        reuse: Sequence[Verdict] = (),
+        stop_early: bool = False,
+    ) -> list[Verdict]: ...
+
+    def path_checks(self) -> set[str]: ...
+
+
+@dataclass(frozen=True)
+class Retimed:
+    """The outcome of :func:`retime_until_safe`.
+
+    Attributes:
+        timed: The committed motion (the first one when none passed).
+        verdicts: Its verdicts.
+        first: The first (unslowed) motion.
+        slowdown: The committed motion's slow-down over the first (1: none).
+        rounds: Motions timed and checked.
+        tried: The largest slow-down tried (equal to ``slowdown`` when one passed).
+    """
+
+    timed: Timed
+    verdicts: list[Verdict]
+    first: Timed
+    slowdown: float = 1.0
+    rounds: int = 1
+    tried: float = 1.0
+
+    @property
+    def motion(self) -> Trajectory:
+        """The committed motion."""
+        return self.timed.motion
+
+    @property
+    def report(self) -> CheckReport:
+        """The verdicts as a report."""
+        return CheckReport(list(self.verdicts))
+
+    @property
+    def passed(self) -> bool:
+        """Whether every required check passed."""
+        return not any(v.blocks for v in self.verdicts)
+
+    @property
+    def delay_s(self) -> float:
+        """How much later the committed motion ends than the first, in [s]."""
+        return self.timed.motion.end_s - self.first.motion.end_s
+
+
+def retime_until_safe(
+    suite: Runs, timer: Timer, context: CheckContext, *, stop_early: bool = False
+) -> Retimed:
+    """Time, check, and time slower while the failing checks ask for it (see the module docstring).
+
+    Args:
+        suite: The checks.
+        timer: The planner's timer.
+        context: What the checks know.
+        stop_early: Stop checking a motion at its first failure that no slow-down fixes (the closed
+            loop: a refused re-plan needs no further verdicts).
+
+    Raises:
+        InfeasibleError: the timer cannot time the first motion.
+    """
+    first = timer(1.0)
+    verdicts = suite.run(first.motion, context, stop_early=stop_early)
+    path_names = suite.path_checks()
+    cur, cur_v, requested, rounds, reused = first, verdicts, 1.0, 1, False
+    base = first.scale
+    while rounds <= MAX_SLOWDOWN_ROUNDS:
+        k = needed_slowdown(cur_v, MAX_SLOWDOWN)
+        if k is None or k <= 1.0 or cur.scale >= base * MAX_SLOWDOWN:
+            break
+        requested = min(cur.scale * k * SLOWDOWN_STEP, base * MAX_SLOWDOWN)
+        try:
+            nxt = timer(requested)
+        except InfeasibleError:
+            break
+        rounds += 1
+        same = nxt.path is not None and nxt.path is cur.path
+        keep = [v for v in cur_v if v.name in path_names] if same else []
+        reused = bool(keep)
+        cur, cur_v = nxt, suite.run(nxt.motion, context, reuse=keep, stop_early=stop_early)
+    tried = requested / base
+    if cur is first or any(v.blocks for v in cur_v):
+        return Retimed(first, verdicts, first, 1.0, rounds, tried)
+    if reused:  # the path checks' numbers and times of the committed motion itself
+        timing = [v for v in cur_v if v.name not in path_names]
+        cur_v = suite.run(cur.motion, context, reuse=timing)
+        if any(v.blocks for v in cur_v):
+            return Retimed(first, verdicts, first, 1.0, rounds, tried)
+    return Retimed(cur, cur_v, first, requested / base, rounds, tried)

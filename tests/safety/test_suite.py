@@ -1,0 +1,236 @@
+"""The check interface and the one re-time-until-safe loop (ipromp_pin.safety): a verdict joins the
+plan's report, a check that asks for a slower motion gets it (the one-shot re-timing, the closed loop's
+slower re-target, by the same loop), one that slowing cannot fix fails the plan, path checks are not
+run again on a re-timing of the same path, and a check that does not apply gives no verdict."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pytest
+
+from ipromp_pin.exceptions import PipelineError
+from ipromp_pin.motion.limits import demonstrated_profile
+from ipromp_pin.motion.trajectory import Trajectory
+from ipromp_pin.planning.closed_loop import ClosedLoopSettings, replay_demo
+from ipromp_pin.planning.one_shot import plan
+from ipromp_pin.promp import IProMP
+from ipromp_pin.readers.synthetic import make_synthetic_dataset
+from ipromp_pin.robot import load_robot
+from ipromp_pin.safety import (
+    CHECKS,
+    MAX_SLOWDOWN,
+    MAX_SLOWDOWN_ROUNDS,
+    Check,
+    CheckContext,
+    CheckSuite,
+    Measures,
+    Timed,
+    Verdict,
+    needed_slowdown,
+)
+from ipromp_pin.safety.retime import retime_until_safe
+
+OBSERVE = ["orientation", "emg"]
+
+
+@dataclass(frozen=True)
+class PeakMeasures(Measures):
+    peak_rad_s: float
+
+
+class SpeedBound(Check):
+    """A toy check: every joint speed at most ``bound`` [rad/s]; asks for the slow-down that gives it."""
+
+    name = "speed_bound"
+
+    def __init__(self, robot, bound: float = np.inf, fixable: bool = True, power: float = 1.0) -> None:
+        super().__init__(robot)
+        self.bound = bound
+        self.fixable = fixable
+        self.power = power  # < 1: asks for less slow-down than it needs (a first-order estimate)
+        self.seen: list[Trajectory] = []
+        self.contexts: list[CheckContext] = []
+
+    def check(self, motion: Trajectory, context: CheckContext) -> Verdict:
+        self.seen.append(motion)
+        self.contexts.append(context)
+        peak = float(np.max(np.abs(motion.qd)))
+        m = PeakMeasures(peak)
+        if peak <= self.bound:
+            return Verdict(self.name, "pass", f"peak {peak:.3f} rad/s", m)
+        k = (peak / self.bound) ** self.power if self.fixable else None
+        return Verdict(self.name, "fail", f"peak {peak:.3f} rad/s > {self.bound}", m, slowdown=k)
+
+
+class PathCount(Check):
+    """A toy path check that counts its runs and never fails."""
+
+    name = "path_count"
+    depends_on = "path"
+
+    def __init__(self, robot) -> None:
+        super().__init__(robot)
+        self.runs = 0
+
+    def check(self, motion: Trajectory, context: CheckContext) -> Verdict:
+        self.runs += 1
+        return Verdict(self.name, "pass", f"run {self.runs}")
+
+
+class NotAfter(PathCount):
+    """A toy check that does not apply after the hand-over."""
+
+    name = "not_after"
+
+    def applies(self, context: CheckContext) -> bool:
+        return not context.after_handover
+
+
+@pytest.fixture(scope="module")
+def setup():
+    ds = make_synthetic_dataset(n_tasks=2, n_demos=6, seed=5)
+    train = [d for demos in ds.demos.values() for d in demos[:-1]]
+    test = [demos[-1] for demos in ds.demos.values()]
+    return IProMP(observe=OBSERVE).fit(train), load_robot("baxter_left"), train, test
+
+
+def test_needed_slowdown_combines_the_failing_required_checks():
+    ok = Verdict("a", "pass", "", slowdown=9.0)
+    slow2 = Verdict("b", "fail", "", slowdown=2.0)
+    slow3 = Verdict("c", "fail", "", slowdown=3.0)
+    advisory = Verdict("d", "fail", "", required=False)
+    assert needed_slowdown([ok, advisory], MAX_SLOWDOWN) == 1.0
+    assert needed_slowdown([ok, slow2, slow3, advisory], MAX_SLOWDOWN) == 3.0
+    assert needed_slowdown([slow2, Verdict("e", "fail", "")], MAX_SLOWDOWN) is None
+    assert needed_slowdown([Verdict("f", "fail", "", slowdown=MAX_SLOWDOWN * 1.01)], MAX_SLOWDOWN) is None
+    assert needed_slowdown([Verdict("g", "fail", "", slowdown=float("nan"))], MAX_SLOWDOWN) is None
+
+
+def test_the_suite_builds_the_registered_checks_and_names_an_unknown_one():
+    robot = load_robot("baxter_left")
+    assert [type(c) for c in CheckSuite.build(robot).checks] == list(CHECKS)
+    assert CheckSuite.build(robot, exclude=["uncertainty"]).names == [
+        c.name for c in CHECKS if c.name != "uncertainty"
+    ]
+    with pytest.raises(PipelineError, match="did you mean 'contact_speed'"):
+        CheckSuite.build(robot, ["contact_sped"])
+    human = CheckSuite.build(robot, ["human_clearance", "contact_speed"])
+    assert human.checks[0].summariser is human.checks[1].summariser  # one separation for both
+
+
+def test_one_shot_plan_runs_the_checks_on_the_timed_motion_from_the_observation_end(setup):
+    model, robot, _, test = setup
+    obs = test[0].head(0.3, groups=OBSERVE)
+    base = plan(model, robot, obs, CheckSuite([]))
+    check = SpeedBound(robot)
+    result = plan(model, robot, obs, CheckSuite([check]), CheckContext())
+    assert result.checks["speed_bound"].status == "pass" and result.passed
+    motion = check.seen[0]
+    t_end = float(obs.t[-1] - obs.t[0])
+    assert motion.t_s[0] == pytest.approx(t_end) and result.start_s == pytest.approx(t_end)
+    assert result.trajectory.start_s == pytest.approx(t_end)  # the human's clock
+    np.testing.assert_array_equal(motion.q, base.trajectory.q)
+    assert check.contexts[0].task == result.prediction.task
+    assert check.contexts[0].handover_s == pytest.approx(result.prediction.duration_s)
+    assert result.slowdown == 1.0 and result.slowdown_delay_s == 0.0
+
+
+def test_one_shot_plan_is_re_timed_when_a_check_asks_for_a_slower_motion(setup):
+    model, robot, _, test = setup
+    obs = test[0].head(0.3, groups=OBSERVE)
+    base = plan(model, robot, obs, CheckSuite([]))
+    peak = float(np.max(np.abs(base.trajectory.qd)))
+    result = plan(model, robot, obs, CheckSuite([SpeedBound(robot, 0.6 * peak)]))
+    assert result.passed and result.checks["speed_bound"].status == "pass"
+    assert np.max(np.abs(result.trajectory.qd)) <= 0.6 * peak
+    assert result.slowdown > 1.0 / 0.6
+    assert result.slowdown_delay_s == pytest.approx(result.trajectory.end_s - base.trajectory.end_s)
+    assert result.slowdown_delay_s > 0.1
+    # the same path: only its timing changed
+    np.testing.assert_allclose(result.trajectory.q[-1], base.trajectory.q[-1], atol=1e-6)
+    # a failure that slowing cannot fix fails the plan, untouched
+    stuck = plan(model, robot, obs, CheckSuite([SpeedBound(robot, 0.6 * peak, fixable=False)]))
+    assert not stuck.passed and stuck.checks.failures == ["speed_bound"]
+    assert stuck.slowdown == 1.0 and stuck.trajectory.end_s == base.trajectory.end_s
+
+
+def test_a_slowed_plan_that_still_fails_is_slowed_again_until_it_passes(setup):
+    model, robot, _, test = setup
+    obs = test[0].head(0.3, groups=OBSERVE)
+    peak = float(np.max(np.abs(plan(model, robot, obs, CheckSuite([])).trajectory.qd)))
+    check = SpeedBound(robot, 0.6 * peak, power=0.5)  # asks for the square root of what it needs
+    result = plan(model, robot, obs, CheckSuite([check]))
+    assert result.passed and np.max(np.abs(result.trajectory.qd)) <= 0.6 * peak
+    assert result.slowdown > 1.0 / 0.6
+    assert 3 <= len(check.seen) <= 1 + MAX_SLOWDOWN_ROUNDS  # the plan, then one timing per round
+    # rounds are bounded: a check that asks for too little every time leaves the plan failing, and
+    # the failing plan reported is the first one, with the largest slow-down tried
+    stingy = SpeedBound(robot, 0.2 * peak, power=0.05)
+    failed = plan(model, robot, obs, CheckSuite([stingy]))
+    assert not failed.passed and failed.slowdown == 1.0 and len(stingy.seen) == 1 + MAX_SLOWDOWN_ROUNDS
+    assert failed.slowdown_tried > 1.0
+
+
+def test_path_checks_run_once_per_path_and_again_on_the_committed_motion(setup):
+    model, robot, _, test = setup
+    obs = test[0].head(0.3, groups=OBSERVE)
+    peak = float(np.max(np.abs(plan(model, robot, obs, CheckSuite([])).trajectory.qd)))
+    counter = PathCount(robot)
+    speed = SpeedBound(robot, 0.6 * peak, power=0.5)
+    result = plan(model, robot, obs, CheckSuite([counter, speed]))
+    assert result.passed and len(speed.seen) >= 3
+    # the first timing, then the committed one (not every slower timing of the same path)
+    assert counter.runs == 2
+    assert result.checks["path_count"].reason == "run 2"
+
+
+def test_the_loop_refuses_when_the_timer_cannot_slow_down(setup):
+    _, robot, _, _ = setup
+    q = np.linspace(np.zeros(7), np.full(7, 0.1), 5)
+    motion = Trajectory(np.arange(5) * 0.01, q, np.ones((5, 7)), np.zeros((5, 7)), tuple(robot.joint_names))
+    calls = []
+
+    def timer(k: float) -> Timed:
+        calls.append(k)
+        if k > 1.0:
+            from ipromp_pin.exceptions import InfeasibleError
+
+            raise InfeasibleError("cannot")
+        return Timed(motion, None, 1.0)
+
+    out = retime_until_safe(CheckSuite([SpeedBound(robot, 0.5)]), timer, CheckContext())
+    assert not out.passed and out.motion is motion and calls[0] == 1.0 and len(calls) == 2
+
+
+def test_a_check_that_does_not_apply_gives_no_verdict(setup):
+    _, robot, _, _ = setup
+    q = np.zeros((3, 7))
+    motion = Trajectory(np.arange(3) * 0.01, q, q, q, tuple(robot.joint_names))
+    suite = CheckSuite([NotAfter(robot), PathCount(robot)])
+    assert [v.name for v in suite.run(motion, CheckContext())] == ["not_after", "path_count"]
+    assert [v.name for v in suite.run(motion, CheckContext(after_handover=True))] == ["path_count"]
+
+
+def test_closed_loop_re_targets_slower_when_a_check_asks_and_records_the_delay(setup):
+    model, robot, train, test = setup
+    demo = test[1]
+    profile = demonstrated_profile(robot, train)
+    settings = ClosedLoopSettings(start_ratio=0.2)
+    base = CheckSuite.build(robot, ["speed_limits", "joint_limits", "workspace", "self_collision"])
+    free = replay_demo(model, robot, demo, profile, settings, base)
+    peak = float(np.max(np.abs(free.trajectory.qd)))
+    check = SpeedBound(robot, 0.7 * peak)
+    slowed = replay_demo(model, robot, demo, profile, settings, CheckSuite([*base.checks, check]))
+    assert np.max(np.abs(slowed.trajectory.qd)) <= 0.7 * peak + 1e-9
+    committed = [r for r in slowed.replans if r.committed]
+    assert committed and all(r.checks["speed_bound"]["status"] == "pass" for r in committed)
+    assert any(r.slowdown > 1.0 and r.slowdown_delay_s > 0 for r in committed)
+    assert slowed.arrival_s > free.arrival_s
+    assert all(r.slowdown == 1.0 and "speed_bound" not in r.checks for r in free.replans)
+    # a check that slowing cannot fix refuses every re-plan: the robot stays at rest
+    stuck = CheckSuite([*base.checks, SpeedBound(robot, 0.0, False)])
+    never = replay_demo(model, robot, demo, profile, settings, stuck)
+    assert never.n_committed == 0 and not never.trajectory.qd.any()
+    assert all("speed_bound" in r.reason for r in never.replans)

@@ -3,8 +3,8 @@
 The command line is parsed by the ``replay`` command's own parser, and the set-up is the replay's
 (:func:`ipromp_pin.commands.replay.prepare_replay`: the pipeline's data and settings, the demo held
 out, the model trained on every other demo with the robot's kinematics, or taken from the model
-cache, the limit profile, the certifier primed on the training motions). The held-out demo is then
-replayed ``--replays`` times after one warm-up replay (:func:`~ipromp_pin.handover.closed_loop.replay_demo`,
+cache, the limit profile, the checks primed on the training motions). The held-out demo is then
+replayed ``--replays`` times after one warm-up replay (:func:`~ipromp_pin.planning.closed_loop.replay_demo`,
 the replay's closed loop: streaming update with every human sample, the re-plan's conditioning,
 ruckig re-target and checks). A cycle is one re-plan as the replay report counts it
 (``Re-plan cycle median`` of ``report.txt`` is the median over one replay's re-plans).
@@ -115,13 +115,11 @@ def main() -> None:
         settings = closed_loop_settings(ns, control_rate_hz=cfg.control_rate_hz, start_ratio=ns.start_ratio)
         setup = prepare_replay(cfg, settings, ns.limits)
         session = setup.session
-        known = {c.name for c in session.motion_checks}
+        known = set(session.suite.names)
         unknown = sorted(set(left_out) - known)
         if unknown:
             raise SystemExit(f"--without: unknown checks {unknown} (the replay runs {sorted(known)})")
-        fewer = replace(setup, session=replace(session, motion_checks=[
-            c for c in session.motion_checks if c.name not in left_out
-        ]))  # fmt: skip
+        fewer = replace(setup, session=replace(session, suite=session.suite.without(left_out)))
         cycles: list[list[float]] = []
         cycles_without: list[list[float]] = []
         stages: dict[str, list[float]] = {}

@@ -4,7 +4,7 @@ Pool: the first ``--n-train`` demos of every task (the authors' order on ``chen2
 recorded order otherwise): training demos in every cell of the paper's protocol with at least that
 many training demos. k-fold cross-validation over the pool: each fold trains the model (and derives
 the demonstrated limit profile) on the other folds and replays its held-out demos in the closed loop
-(``ipromp_pin.handover.closed_loop.replay_demo``) at start ratios 0.1 and 0.2 (the evaluation's ratios) for
+(``ipromp_pin.planning.closed_loop.replay_demo``) at start ratios 0.1 and 0.2 (the evaluation's ratios) for
 every candidate setting.
 
     python benchmarks/closed_loop_cv.py DATASET --observe GROUPS [--n-train 10] [--folds 5] [--jobs 2]
@@ -37,14 +37,14 @@ from pathlib import Path
 import numpy as np
 
 from ipromp_pin.data import parse_groups, skeleton_frames
-from ipromp_pin.handover.closed_loop import ClosedLoopSettings, replay_demo
-from ipromp_pin.handover.score import score_closed_loop
+from ipromp_pin.evaluation.scoring import score_closed_loop
 from ipromp_pin.motion.limits import demonstrated_profile
+from ipromp_pin.planning.closed_loop import ClosedLoopSettings, replay_demo
 from ipromp_pin.promp import IProMP
 from ipromp_pin.readers import load_dataset
 from ipromp_pin.readers.synthetic import make_synthetic_dataset
 from ipromp_pin.robot import DemoLimitRecipe, load_robot, load_robot_settings
-from ipromp_pin.robot.clearance import ClearanceCertifier
+from ipromp_pin.safety import CheckSuite
 
 _STATE: dict = {}
 
@@ -52,7 +52,8 @@ _STATE: dict = {}
 def _fold(args: tuple) -> list[dict]:
     fold, train, test, candidates, ratios, observe, model_settings = args
     robot = load_robot("baxter_left")
-    cert = _STATE.setdefault("cert", ClearanceCertifier(robot))
+    motion_checks = ["speed_limits", "joint_limits", "workspace", "self_collision"]  # the motion's own
+    cert = _STATE.setdefault("cert", CheckSuite.build(robot, motion_checks))
     model = IProMP(observe=observe, **model_settings).fit(train)
     profiles = {}
     rows = []

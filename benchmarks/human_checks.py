@@ -7,7 +7,7 @@ model of a fold is trained on the other folds' demos), observing ``--observe`` f
 * *before*: the plan timed without the human checks, checked against the human as the planner knows
   it (the tracked skeleton until the end of the observation, then held and growing at the human
   speed; the assumed human without a skeleton) and against the recorded human (what happened);
-* *after*: the plan of ``plan(..., checks=registered)``, re-timed when a failing check asks for a
+* *after*: the plan of ``plan(..., suite)`` with the human checks, re-timed when a failing check asks for a
   slower motion; its delay (the longer duration).
 
 Prints the share of plans failing each human check before and after the re-timing, the delays and
@@ -30,14 +30,15 @@ from pathlib import Path
 
 import numpy as np
 
-from ipromp_pin.checks import CheckContext, TimedMotion, build_checks, run_checks
 from ipromp_pin.data import parse_groups, skeleton_frames
-from ipromp_pin.handover.one_shot import plan
 from ipromp_pin.human import HumanMotion
+from ipromp_pin.motion.trajectory import Trajectory
+from ipromp_pin.planning.one_shot import plan
 from ipromp_pin.promp import IProMP
 from ipromp_pin.readers import load_dataset
 from ipromp_pin.readers.synthetic import make_synthetic_dataset
 from ipromp_pin.robot import ee_positions, gripper_rotations, load_robot
+from ipromp_pin.safety import CheckContext, CheckSuite
 
 NAMES = ("human_clearance", "contact_speed")
 REPEATS = 5
@@ -64,19 +65,21 @@ def _one(model, robot, checks, demo, observe, ratio) -> dict:
     t_end = float(obs.t[-1] - obs.t[0])
     recorded = _human(demo, robot.settings.human)
     known = recorded.until(float(obs.t[-1]))
-    base = plan(model, robot, obs, 100.0, _hand(demo), check_joints=False)
-    motion = TimedMotion.from_trajectory(base.trajectory, t_end)
-    before = run_checks(checks, motion, CheckContext(human=known))
+    base = plan(model, robot, obs, CheckSuite([]), check_joints=False)
+    motion = base.trajectory  # on the human's clock, from the end of the observation
+    assert abs(motion.start_s - t_end) < 1e-9
+    before = checks.run(motion, CheckContext(human=known))
     costs = []
     for _ in range(REPEATS):  # a fresh motion each time: the analyser keeps only the last result
-        again = TimedMotion(motion.t_s.copy(), motion.q, motion.qd, motion.qdd, motion.dt_s)
+        again = Trajectory(motion.t_s.copy(), motion.q, motion.qd, motion.qdd, motion.joint_names)
         t0 = time.perf_counter()
-        run_checks(checks, again, CheckContext(human=known))
+        checks.run(again, CheckContext(human=known))
         costs.append((time.perf_counter() - t0) * 1e3)
     cost_ms = float(np.median(costs))
-    truth = run_checks(checks, motion, CheckContext(human=recorded))
-    after = plan(model, robot, obs, 100.0, _hand(demo), check_joints=False, checks=checks,
-                 context=CheckContext(human=known))  # fmt: skip
+    truth = checks.run(motion, CheckContext(human=recorded))
+    after = plan(
+        model, robot, obs, checks, CheckContext(human=known, hand_position_m=_hand(demo)), check_joints=False
+    )
     out = {
         "demo": f"{demo.task}/{demo.name}",
         "human": known.label,
@@ -88,8 +91,10 @@ def _one(model, robot, checks, demo, observe, ratio) -> dict:
     for r, r_true in zip(before, truth, strict=True):
         out[f"{r.name}_before"] = r.passed
         out[f"{r.name}_recorded"] = r_true.passed
-        out[f"{r.name}_after"] = after.report[r.name].passed
-        out[f"{r.name}_values"] = {k: v for k, v in r.values.items() if isinstance(v, float | int | str)}
+        out[f"{r.name}_after"] = after.checks[r.name].passed
+        out[f"{r.name}_values"] = {
+            k: v for k, v in r.measures.to_dict().items() if isinstance(v, float | int | str)
+        }
     return out
 
 
@@ -118,7 +123,7 @@ def main() -> None:
             end_effector=partial(ee_positions, robot),
         )
     demos = ds.all_demos()
-    checks = build_checks(robot, NAMES)
+    checks = CheckSuite.build(robot, NAMES)
     rows = []
     smoke_model = {"head": False, "handover": False, "coupling": "all"} if args.smoke else {}
     for f in range(args.folds):

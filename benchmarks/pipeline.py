@@ -29,10 +29,11 @@ from threadpoolctl import threadpool_limits
 from ipromp_pin import atomic
 from ipromp_pin.commands.config import PipelineConfig
 from ipromp_pin.commands.setup import choose_demo, get_model, load_data
-from ipromp_pin.handover.one_shot import plan
 from ipromp_pin.outputs.report import report_dict, report_text
 from ipromp_pin.outputs.staging import OutputOptions, stage_plan, stage_report
+from ipromp_pin.planning.one_shot import plan
 from ipromp_pin.robot import load_robot
+from ipromp_pin.safety import CheckSuite
 
 
 def main() -> None:
@@ -59,6 +60,7 @@ def main() -> None:
     cfg.demo = -1
     model = get_model(cfg, ds, choose_demo(ds, cfg), quiet)
     observations = [d.head(cfg.ratio, groups=cfg.observe) for d in demos]
+    suite = CheckSuite.build(robot)  # every check, as ``run`` builds them (the assumed human)
 
     stages: dict[str, list[float]] = {}
     totals = []
@@ -66,7 +68,7 @@ def main() -> None:
         for i in range(args.repeats + 3):
             obs = observations[i % len(observations)]
             t0 = time.perf_counter()
-            result = plan(model, robot, obs, cfg.control_rate_hz)
+            result = plan(model, robot, obs, suite, control_rate_hz=cfg.control_rate_hz)
             t1 = time.perf_counter()
             with atomic.OutputSet(tmp) as out:  # the files as ``ipromp-pin run`` stages them
                 stage_plan(result, out, obs, OutputOptions(rosbag=not args.no_rosbag))

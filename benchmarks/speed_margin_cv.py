@@ -31,17 +31,16 @@ from pathlib import Path
 
 import numpy as np
 
-from ipromp_pin.checks import build_checks
 from ipromp_pin.data import parse_groups, skeleton_frames
-from ipromp_pin.evaluation.scorers.closed_loop import replay_scored
-from ipromp_pin.handover.closed_loop import ClosedLoopSettings, conditioning_predictor, replay_demo
-from ipromp_pin.handover.human_score import HUMAN_CHECKS
+from ipromp_pin.evaluation.scoring import replay_scored
+from ipromp_pin.human import HumanMotion
 from ipromp_pin.motion.limits import demonstrated_profile
+from ipromp_pin.planning.closed_loop import ClosedLoopSettings, conditioning_predictor, replay_demo
 from ipromp_pin.promp import IProMP
 from ipromp_pin.readers import load_dataset
 from ipromp_pin.readers.synthetic import make_synthetic_dataset
 from ipromp_pin.robot import ee_positions, load_robot, load_robot_settings
-from ipromp_pin.robot.clearance import ClearanceCertifier
+from ipromp_pin.safety import HUMAN_CHECKS, CheckContext, CheckSuite
 
 MARGINS = (0.0, 0.05, 0.1, 0.2)
 RATIOS = (0.1, 0.2)
@@ -52,18 +51,25 @@ def _fold(args: tuple) -> list[dict]:
     base = load_robot_settings("baxter_left")
     robots = {m: load_robot(replace(base, human=replace(base.human, speed_margin=m))) for m in margins}
     first = robots[margins[0]]
-    cert = ClearanceCertifier(first)
+    motion_checks = CheckSuite.build(first, ["speed_limits", "joint_limits", "workspace", "self_collision"])
     model = IProMP(observe=observe, **model_settings).fit(train, fk=partial(ee_positions, first))
     profile = demonstrated_profile(first, train, base.demonstrated_limits, "cv")
     rows = []
     for margin, robot in robots.items():
-        checks = build_checks(robot, HUMAN_CHECKS)
+        suite = CheckSuite([*motion_checks.checks, *CheckSuite.build(robot, HUMAN_CHECKS).checks])
         for ratio in ratios:
             settings = ClosedLoopSettings(start_ratio=ratio)
             cond = conditioning_predictor(model, settings.condition_noise)
             for d in test:
-                replay = partial(replay_demo, model, robot, d, profile, settings, cert, cond)
-                score, _ = replay_scored(replay, d, robot, False, checks)
+                human = HumanMotion.from_demo(d, robot.settings.human)
+
+                def replay(
+                    checks: CheckSuite, context: CheckContext, demo=d, settings=settings, cond=cond, arm=robot
+                ):
+                    return replay_demo(model, arm, demo, profile, settings, checks, context, cond)
+
+                used = suite if human is not None else suite.without(HUMAN_CHECKS)
+                score, _ = replay_scored(replay, d, robot, used, CheckContext(human=human), human, False)
                 rows.append(
                     {
                         "margin": margin,

@@ -29,17 +29,17 @@ from pathlib import Path
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from ipromp_pin.checks import CheckContext, TimedMotion
-from ipromp_pin.checks.joint_torques import JointTorques
 from ipromp_pin.exceptions import InfeasibleError
-from ipromp_pin.handover.closed_loop import ClosedLoopSettings, replay_demo
-from ipromp_pin.handover.one_shot import plan
 from ipromp_pin.motion.limits import demonstrated_profile
+from ipromp_pin.planning.closed_loop import ClosedLoopSettings, replay_demo
+from ipromp_pin.planning.one_shot import plan
 from ipromp_pin.promp import IProMP
 from ipromp_pin.readers import load_dataset
 from ipromp_pin.readers.synthetic import make_synthetic_dataset
 from ipromp_pin.robot import ee_positions, load_robot
 from ipromp_pin.robot.objects import load_objects
+from ipromp_pin.safety import CheckContext, CheckSuite, TimingConstraints
+from ipromp_pin.safety.joint_torques import JointTorques
 
 
 def summary(name: str, ratios: list[float], allowed: float, delays: list[float] | None = None) -> str:
@@ -52,6 +52,19 @@ def summary(name: str, ratios: list[float], allowed: float, delays: list[float] 
         d = np.array(delays)
         text += f"; arrival delay median {np.median(d):+.3f} s, max {d.max():+.3f} s"
     return text
+
+
+class UntimedTorques(JointTorques):
+    """The joint-torque check without its toppra constraint (the plan is only re-timed slower)."""
+
+    def timing_constraints(self, context: CheckContext) -> TimingConstraints:
+        return TimingConstraints()
+
+
+def peak(check: JointTorques, motion, context, verdict=None) -> float:
+    """The check's peak |torque| / effort limit of ``motion`` (or of a verdict already made)."""
+    v = verdict if verdict is not None else check.check(motion, context)
+    return float(v.measures.peak_torque_ratio)
 
 
 def main() -> None:
@@ -88,6 +101,8 @@ def main() -> None:
     test = [d for demos in ds.demos.values() for d in demos[args.n_train :]][: args.max_tests]
     objects = load_objects(args.objects)
     check = JointTorques(robot, springs=not args.no_springs)
+    untimed = UntimedTorques(robot, springs=not args.no_springs)
+    motion_checks = CheckSuite.build(robot, ["speed_limits", "joint_limits", "workspace", "self_collision"])
     allowed = 1.0 - robot.settings.effort_margin
     rows: dict[str, list[float]] = {"before": [], "check": [], "torque_timing": []}
     delays: dict[str, list[float]] = {"check": [], "torque_timing": []}
@@ -99,26 +114,17 @@ def main() -> None:
         for d in test:
             obs = d.head(args.ratio, groups=observe)
             try:
-                base = plan(model, robot, obs, check_joints=False)
-                ctx = CheckContext(objects=objects)
-                ctx.task = base.prediction.task
-                motion = TimedMotion.from_trajectory(base.trajectory, base.start_s)
-                ctx.handover_s = float(motion.t_s[-1])
+                base = plan(model, robot, obs, CheckSuite([]), check_joints=False)
+                ctx = CheckContext(objects=objects, task=base.prediction.task)
+                motion = base.trajectory  # on the human's clock
                 t0 = time.perf_counter()
-                rows["before"].append(check.check(motion, ctx).values["peak_torque_ratio"])
+                rows["before"].append(peak(check, motion, ctx))
                 ms["check"].append((time.perf_counter() - t0) * 1e3)
                 for key, tt in (("check", False), ("torque_timing", True)):
-                    res = plan(
-                        model,
-                        robot,
-                        obs,
-                        check_joints=False,
-                        checks=[check],
-                        context=CheckContext(objects=objects),
-                        torque_timing=tt,
-                    )
-                    rows[key].append(res.report["joint_torques"].values["peak_torque_ratio"])
-                    delays[key].append(float(res.trajectory.t_s[-1] - base.trajectory.t_s[-1]))
+                    suite = CheckSuite([check if tt else untimed])
+                    res = plan(model, robot, obs, suite, CheckContext(objects=objects), check_joints=False)
+                    rows[key].append(peak(check, res.trajectory, None, res.checks["joint_torques"]))
+                    delays[key].append(float(res.trajectory.end_s - base.trajectory.end_s))
                     ms["time_path_torque" if tt else "time_path_plain"].append(
                         res.timing_report.timings_ms.get("total_ms", np.nan)
                     )
@@ -143,27 +149,23 @@ def main() -> None:
             stage_free: list[float] = []
             stage_slow: list[float] = []
             for d in test:
-                free = replay_demo(model, robot, d, profile, ClosedLoopSettings())
+                free = replay_demo(model, robot, d, profile, ClosedLoopSettings(), motion_checks)
                 slow = replay_demo(
                     model,
                     robot,
                     d,
                     profile,
                     ClosedLoopSettings(),
-                    checks=[check],
-                    context=CheckContext(objects=objects),
+                    CheckSuite([*motion_checks.checks, check]),
+                    CheckContext(objects=objects),
                 )
+                truth = CheckContext(objects=objects, task=d.task)
                 for key, res in (("free", free), ("checked", slow)):
-                    ctx = CheckContext(objects=objects, task=d.task)
-                    ratios[key].append(
-                        check.check(TimedMotion.from_trajectory(res.trajectory), ctx).values[
-                            "peak_torque_ratio"
-                        ]
-                    )
+                    ratios[key].append(peak(check, res.trajectory, truth))
                 cl_delay.append(slow.arrival_s - free.arrival_s)
                 for p in slow.plans:  # the check alone, on every committed re-plan's remaining motion
                     t0 = time.perf_counter()
-                    check.check(TimedMotion.from_plan(p), CheckContext(objects=objects, task=d.task))
+                    check.check(p, truth)
                     check_ms.append((time.perf_counter() - t0) * 1e3)
                 stage_free.extend(r.stage_ms.get("checks", np.nan) for r in free.replans)
                 stage_slow.extend(r.stage_ms.get("checks", np.nan) for r in slow.replans)

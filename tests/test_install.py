@@ -106,7 +106,7 @@ def test_installed_copy_runs_the_main_job_from_another_folder(installed):
     # the run imported the installed modules (installed without .pyc files, so these are the run's)
     assert list((site / "ipromp_pin" / "cli" / "__pycache__").glob("run.*.pyc"))
     assert list((site / "ipromp_pin" / "commands" / "__pycache__").glob("config.*.pyc"))
-    assert list((site / "ipromp_pin" / "handover" / "__pycache__").glob("one_shot.*.pyc"))
+    assert list((site / "ipromp_pin" / "planning" / "__pycache__").glob("one_shot.*.pyc"))
     assert list((site / "ipromp_pin" / "commands" / "__pycache__").glob("run.*.pyc"))
-    assert list((site / "ipromp_pin" / "robot" / "__pycache__").glob("checks.*.pyc"))
+    assert list((site / "ipromp_pin" / "safety" / "__pycache__").glob("suite.*.pyc"))
     assert not list(site.rglob("*.nbi"))  # and no numba kernel was compiled

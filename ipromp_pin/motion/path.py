@@ -17,7 +17,7 @@ import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
 from ..exceptions import InfeasibleError
-from .trajectory import JointLimits, Trajectory
+from .trajectory import JointLimits
 
 TOLERANCE_RAD = 1e-9
 """How far a path point may lie outside the position limits before it is refused, in [rad]."""
@@ -139,26 +139,3 @@ def path_deviation(q: np.ndarray, path: np.ndarray) -> np.ndarray:
         np.minimum(best, d, out=best)
     out = np.sqrt(best)
     return out
-
-
-def path_times(traj: Trajectory, q_path: np.ndarray) -> np.ndarray:
-    """Time (M,) in [s] on ``traj`` at which it passes each point of the path ``q_path`` (M, n) it
-    was timed from (:func:`time_path` with the robot at rest at the path start).
-
-    The trajectory follows the cleaned path, so a point is matched by its fraction of the path's
-    joint-space arc length: point ``i`` is passed when the trajectory has covered the same fraction
-    of its own arc length (the first time it does). Converts times or sample indices of the
-    prediction (the human's time base) to the trajectory's time base.
-    """
-    q_path = np.asarray(q_path, dtype=float)
-    s_path = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(q_path, axis=0), axis=1))])
-    s_traj = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(traj.q, axis=0), axis=1))])
-    if s_path[-1] <= 0.0 or s_traj[-1] <= 0.0:
-        return np.full(q_path.shape[0], float(traj.t_s[0]))
-    f_path = s_path / s_path[-1]
-    f_traj = s_traj / s_traj[-1]
-    k = np.clip(np.searchsorted(f_traj, f_path, side="left"), 1, f_traj.size - 1)
-    f0, f1 = f_traj[k - 1], f_traj[k]
-    w = np.where(f1 > f0, (f_path - f0) / np.where(f1 > f0, f1 - f0, 1.0), 1.0)
-    w = np.clip(w, 0.0, 1.0)
-    return traj.t_s[k - 1] + w * (traj.t_s[k] - traj.t_s[k - 1])

@@ -70,7 +70,7 @@ def preview_content(
         model=robot.model,
         visual_model=visual_model,
         collision_model=robot.collision_model,
-        t_s=tr.t_s - result.start_s,  # the page's animation runs from the robot's start
+        t_s=tr.t_s,  # the page's one clock: the human's
         q=tr.q,
         joint_names=robot.joint_names,
         q_full=robot.full_configuration(tr.q[0]),
@@ -94,6 +94,8 @@ def preview_content(
         collision_links=collision_links,
         near_limit_joints=near_limit,
         title=f"ipromp_pin: {p.task}" + ("" if demo is None else f" ({demo.task}/{demo.name})"),
+        timebase=f"Times are on the human's motion (t = 0 at its start); the robot moves from "
+        f"{result.trajectory.start_s:.2f} s to {result.trajectory.end_s:.2f} s",
         notes=notes + ([] if retreat is None else [retreat.to_text().splitlines()[0]]),
         torques=torques,
         held_object=held,

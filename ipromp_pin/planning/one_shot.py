@@ -50,9 +50,8 @@ class PlanResult:
         stage_ms: Wall time of every stage in [ms].
         start_s: When the robot starts (the end of the observation), in [s] on the human's clock.
         slowdown: The uniform slow-down ``k >= 1`` the checks asked for (1: none): velocity,
-            acceleration and jerk limits / k, k^2, k^3.
+            acceleration and jerk limits / k, k^2, k^3 (when the plan failed: the largest tried).
         slowdown_delay_s: How much longer the slowed trajectory takes, in [s].
-        slowdown_tried: The largest slow-down tried (above ``slowdown`` when no slower timing passed).
     """
 
     robot: str
@@ -67,7 +66,6 @@ class PlanResult:
     start_s: float = 0.0
     slowdown: float = 1.0
     slowdown_delay_s: float = 0.0
-    slowdown_tried: float = 1.0
 
     @property
     def passed(self) -> bool:
@@ -179,7 +177,6 @@ def plan(
         start_s=start_s,
         slowdown=retimed.slowdown,
         slowdown_delay_s=retimed.delay_s,
-        slowdown_tried=retimed.tried,
     )
     ms["annotate"] = (time.perf_counter() - t2) * 1e3
     say(f"[check] {'pass' if result.passed else 'FAIL: ' + ', '.join(result.failures)}")

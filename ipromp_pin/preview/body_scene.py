@@ -177,8 +177,8 @@ def body_frame(
         shown["state"] = state
 
 
-def separation_panel(separation: SeparationTrack, offset_s: float, body: BodyTrack | None = None) -> dict:
-    """The HTML panel's separation data on the animation's time base (human time - ``offset_s``):
+def separation_panel(separation: SeparationTrack, body: BodyTrack | None = None) -> dict:
+    """The HTML panel's separation data on the animation's clock (the human's):
     per sample time, distance [m], state, pair, ``S_p`` [m] and speed ratio (rounded), the minimum
     and the samples per state; read by ``static/separation.js``."""
     i = separation.closest
@@ -189,7 +189,7 @@ def separation_panel(separation: SeparationTrack, offset_s: float, body: BodyTra
         return None if x is None else [round(float(v), digits) if np.isfinite(v) else None for v in x]
 
     return {
-        "t_s": rounded(separation.t_s - offset_s, 3),
+        "t_s": rounded(separation.t_s, 3),
         "distance_m": rounded(separation.distance_m),
         "state": list(separation.state),
         "link": list(separation.link),
@@ -197,7 +197,7 @@ def separation_panel(separation: SeparationTrack, offset_s: float, body: BodyTra
         "protective_distance_m": rounded(sp),
         "speed_ratio": rounded(ratio, 3),
         "min": {
-            "t_s": round(float(separation.t_s[i] - offset_s), 3),
+            "t_s": round(float(separation.t_s[i]), 3),
             "distance_m": round(float(separation.distance_m[i]), 4),
             "link": separation.link[i],
             "body_part": separation.body_part[i],

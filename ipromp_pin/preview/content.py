@@ -69,7 +69,7 @@ class FeasibilityCheck(NamedTuple):
         name: Check name, e.g. ``"joint limits"``.
         passed: Whether the check passed (``True`` for a skipped check: it does not fail the plan).
         detail: Short detail, e.g. ``"left_e1 within 0.02 rad of its limit"``; times in it are on the
-            robot trajectory's time base (``t_s``), as everywhere on the page.
+            page's one clock (the human's motion, as ``t_s``).
         status: ``"pass"``, ``"fail"`` or ``"skip"`` (``""``: from ``passed``).
         required: Whether the check counts towards the verdict (``False``: advisory).
     """
@@ -104,7 +104,8 @@ class PreviewContent:
     Attributes:
         model: Pinocchio model of the whole robot.
         visual_model: Visual geometry (meshes) of the robot; ``None`` draws ``collision_model``.
-        t_s: (N,) trajectory time in [s], strictly increasing, starting at the motion start.
+        t_s: (N,) times of the robot trajectory in [s] on the human's clock (t = 0 at the start of the
+            human's motion; the robot rests at ``q[0]`` before ``t_s[0]``), strictly increasing.
         q: (N, J) arm joint positions in [rad] at ``t_s``.
         joint_names: (J,) model joint names of the columns of ``q``.
         q_full: (nq,) full configuration giving the other joints' fixed values (``None``: neutral).
@@ -136,7 +137,7 @@ class PreviewContent:
         near_limit_joints: Joints near a limit: the link they move is drawn orange.
         title: Title of the page / panel.
         notes: Lines shown in the panel below the time base (e.g. when the human and the robot arrive).
-        timebase: What the panel's times are measured on ("": the robot trajectory, t = 0 at its start).
+        timebase: One line saying what the page's clock is ("": the human's motion, t = 0 at its start).
         label_prefix: Text before the task in the 3-D label (e.g. ``"final task: "`` for a replay,
             whose panel follows the re-plans while the label is fixed).
         torques: The joints' torque usage per control sample (:class:`~.torques.TorqueTrack`, human's

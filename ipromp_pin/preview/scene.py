@@ -15,9 +15,9 @@ viewer whose window is a :class:`~ipromp_pin.preview.recorder.SceneRecorder`:
   the scene's bounding box (:func:`camera_view`), so that any robot fills the view;
 - the state of the HTML panel (:func:`overlay_state`).
 
-Positions in [m] in the robot's base frame. The animation runs on the robot trajectory's time base
-(``t_s``: 0 when the observation ends and the robot starts); the hand marker, the body and the
-closest pair follow the human's motion from the end of the observation.
+Positions in [m] in the robot's base frame. One clock: the animation runs on the human's motion
+(t = 0 at its start), the clock of the content's robot trajectory, hand path, body, separation and
+torques; the robot rests at its first configuration until its trajectory starts.
 """
 
 from __future__ import annotations
@@ -271,27 +271,20 @@ def scene_points(content: PreviewContent, robot: RobotView, n_poses: int = 5) ->
         if extra is not None:
             parts.append(np.atleast_2d(extra))
     if content.body is not None:  # the body at the animation's start
-        a, b, _ = content.body.at(np.array([_hand_offset_s(content)]))
+        a, b, _ = content.body.at(np.array([0.0]))
         parts += [a[0], b[0]]
     return np.vstack(parts)
-
-
-def _hand_offset_s(content: PreviewContent) -> float:
-    """Human time [s] at the animation's (the robot trajectory's) time 0: the robot starts moving when
-    the observation ends, so the hand marker plays the human's motion from ``observed_until_s``."""
-    return 0.0 if content.observed_until_s is None else content.observed_until_s
 
 
 def _animate(viewer: meshcat.Visualizer, robot: RobotView, content: PreviewContent, fps: float) -> None:
     """Meshcat animation of the robot (and of the hand marker) in real time at ``fps`` frames/s.
 
-    One time base: the animation's time is the robot trajectory's (``t_s``, 0 when the observation
-    ends); the hand marker is at the human's time ``t + observed_until_s``.
+    One clock: the animation's time is the human's (the content's ``t_s``, ``hand_t_s``, body and
+    separation tracks), from 0 to the later of the robot's and the hand's last sample.
     """
     duration = content.duration_s
-    offset = _hand_offset_s(content)
     if content.hand_t_s is not None:
-        duration = max(duration, float(content.hand_t_s[-1]) - offset)
+        duration = max(duration, float(content.hand_t_s[-1]))
     n_frames = max(2, int(np.ceil(duration * fps)) + 1)
     times = np.arange(n_frames) / fps
     qs = content.configurations(times)
@@ -305,13 +298,12 @@ def _animate(viewer: meshcat.Visualizer, robot: RobotView, content: PreviewConte
     animation = meshcat.animation.Animation(default_framerate=fps)
     hand = None
     if content.hand_path is not None and content.hand_t_s is not None:
-        t_human = times + offset
-        hand = np.stack([np.interp(t_human, content.hand_t_s, content.hand_path[:, d]) for d in range(3)], -1)
+        hand = np.stack([np.interp(times, content.hand_t_s, content.hand_path[:, d]) for d in range(3)], -1)
     shown: dict[str, Any] = {}
     shown_object: dict[str, Any] = {}
     obj = content.held_object
     obj_poses = None if obj is None else object_placements(content, obj, times)
-    obj_held = None if obj is None else obj.held(times + offset)
+    obj_held = None if obj is None else obj.held(times)
     for k in range(n_frames):
         with animation.at_frame(viewer, k) as frame:
             for i in moving:
@@ -320,7 +312,7 @@ def _animate(viewer: meshcat.Visualizer, robot: RobotView, content: PreviewConte
                 T = np.eye(4)
                 T[:3, 3] = hand[k]
                 frame["human/hand"].set_transform(T)
-            body_frame(frame, content.body, content.separation, float(times[k] + offset), shown, k == 0)
+            body_frame(frame, content.body, content.separation, float(times[k]), shown, k == 0)
             if obj_poses is not None and obj_held is not None:
                 object_frame(frame, obj_poses[k], bool(obj_held[k]), shown_object, k == 0)
     viewer.set_animation(animation, play=True, repetitions=1)
@@ -343,11 +335,11 @@ def _draw_human(viewer: meshcat.Visualizer, content: PreviewContent) -> None:
         if content.hand_t_s is not None:
             _set_mesh(viewer["human/hand"], sphere_mesh(np.zeros(3), 0.03), COLOR_HAND_OBSERVED, 0.9)
             T = np.eye(4)
-            T[:3, 3] = [np.interp(_hand_offset_s(content), content.hand_t_s, path[:, d]) for d in range(3)]
+            T[:3, 3] = [np.interp(0.0, content.hand_t_s, path[:, d]) for d in range(3)]
             viewer["human/hand"].set_transform(T)
     if content.handover_point is not None:
         _set_mesh(viewer["human/handover"], sphere_mesh(content.handover_point, 0.035), COLOR_HANDOVER)
-    draw_body(viewer, content.body, content.separation, _hand_offset_s(content))
+    draw_body(viewer, content.body, content.separation, 0.0)
     _draw_closest_label(viewer, content)
 
 
@@ -487,10 +479,8 @@ def overlay_state(content: PreviewContent) -> dict[str, Any]:
         "legend": legend,
         "separation": None
         if content.separation is None
-        else separation_panel(content.separation, _hand_offset_s(content), content.body),
-        "torques": None
-        if content.torques is None
-        else torque_panel(content.torques, _hand_offset_s(content)),
+        else separation_panel(content.separation, content.body),
+        "torques": None if content.torques is None else torque_panel(content.torques),
     }
 
 
@@ -538,7 +528,7 @@ def _draw_object(viewer: meshcat.Visualizer, content: PreviewContent) -> None:
     """The held object at the animation's start (its pose and visibility then follow the animation)."""
     obj = content.held_object
     pose = None if obj is None else object_placements(content, obj, np.array([0.0]))[0]
-    held = obj is not None and bool(obj.held(np.array([_hand_offset_s(content)]))[0])
+    held = obj is not None and bool(obj.held(np.array([0.0]))[0])
     draw_object(viewer, obj, pose, held)
 
 

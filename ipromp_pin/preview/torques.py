@@ -183,19 +183,19 @@ class HeldObject:
         return out
 
 
-def torque_panel(track: TorqueTrack, offset_s: float) -> dict:
-    """The HTML panel's torque data on the animation's time base (human time - ``offset_s``): per
+def torque_panel(track: TorqueTrack) -> dict:
+    """The HTML panel's torque data on the animation's clock (the human's): per
     sample the usages (rounded) and whether the object is held; per joint the peak and its time;
     the allowed usage, the colour thresholds and the payload; read by ``static/torques.js``."""
     peak, at = track.peak, track.peak_index
     return {
-        "t_s": [round(float(t - offset_s), 3) for t in track.t_s],
+        "t_s": [round(float(t), 3) for t in track.t_s],
         "ratio": np.round(track.ratio, 3).tolist(),
         "held": [bool(h) for h in track.held],
         "joints": list(track.joint_names),
         "limit_nm": [float(v) for v in track.limit_nm],
         "peak": [round(float(p), 4) for p in peak],
-        "peak_t_s": [round(float(track.t_s[i] - offset_s), 3) for i in at],
+        "peak_t_s": [round(float(track.t_s[i]), 3) for i in at],
         "allowed": track.allowed_ratio,
         "warn": WARN_RATIO,
         "payload": track.payload,

@@ -26,7 +26,7 @@ from ..motion.toppra_profile import TorqueLimit
 from ..motion.trajectory import Trajectory
 from ..robot import Robot
 from .context import CheckContext
-from .verdict import Verdict
+from .verdict import Measures, NoMeasures, Verdict
 
 Dependency = Literal["path", "timing"]
 """What a verdict depends on: the positions only, or their times too."""
@@ -48,6 +48,8 @@ class Check(ABC):
 
     Class attributes:
         name: The check's name in reports.
+        measures_type: The type of its verdicts' measures (their fields are the report's, see
+            :mod:`.schema`).
         required: Whether a failure fails the plan (else advisory).
         depends_on: ``"path"`` or ``"timing"`` (see the module docstring).
 
@@ -56,6 +58,7 @@ class Check(ABC):
     """
 
     name: ClassVar[str]
+    measures_type: ClassVar[type[Measures]] = NoMeasures
     required: ClassVar[bool] = True
     depends_on: ClassVar[Dependency] = "timing"
 

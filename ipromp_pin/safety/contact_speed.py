@@ -69,6 +69,7 @@ class ContactSpeed(SeparationCheck):
     """Inside S_p, approach speeds within the body regions' limits (see the module docstring)."""
 
     name = "contact_speed"
+    measures_type = ContactSpeedMeasures
 
     def check(self, motion: Trajectory, context: CheckContext) -> Verdict:
         sep = self.summary(motion, context)

@@ -33,6 +33,7 @@ class HandDistance(Check):
     """Gripper-hand distance at the hand-over (see the module docstring)."""
 
     name = "hand_distance"
+    measures_type = HandDistanceMeasures
     depends_on = "path"
 
     def applies(self, context: CheckContext) -> bool:

@@ -48,6 +48,7 @@ class HumanClearance(SeparationCheck):
     """The robot stays clear of the body outside the hand region (see the module docstring)."""
 
     name = "human_clearance"
+    measures_type = ClearanceMeasures
 
     def check(self, motion: Trajectory, context: CheckContext) -> Verdict:
         sep = self.summary(motion, context)

@@ -38,6 +38,7 @@ class JointLimits(Check):
     """Positions within the URDF limits less the settings' margin, at every sample."""
 
     name = "joint_limits"
+    measures_type = JointLimitMeasures
     depends_on = "path"
 
     def check(self, motion: Trajectory, context: CheckContext) -> Verdict:

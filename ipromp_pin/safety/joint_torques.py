@@ -83,6 +83,7 @@ class JointTorques(Check):
     """
 
     name = "joint_torques"
+    measures_type = TorqueMeasures
     depends_on = "timing"
 
     def __init__(self, robot: Robot, max_samples: int = 100, springs: bool = True) -> None:

@@ -6,8 +6,9 @@ slower (the one-shot plan and the retreat re-time their path with toppra under l
 loop times the motion, runs the checks, and while the failing required checks all ask for a slower
 motion, times it again ``k`` times slower than the last (times :data:`SLOWDOWN_STEP`, a margin over
 the checks' first-order estimates), at most :data:`MAX_SLOWDOWN_ROUNDS` times and
-:data:`MAX_SLOWDOWN` in all. The first motion that passes is committed; when none does, the first
-(unslowed) motion and its verdicts are returned, refused, with the largest slow-down tried.
+:data:`MAX_SLOWDOWN` in all. The first motion that passes is committed; when none does, the last
+(slowest) motion tried is returned with its verdicts, refused: it says how far slowing went and what
+still fails.
 
 A timing of the same path (the timer says so, :attr:`Timed.path`) keeps the verdicts of the checks
 that depend on the path only (:attr:`~.base.Check.depends_on`) for the decision; the committed motion
@@ -83,12 +84,11 @@ class Retimed:
     """The outcome of :func:`retime_until_safe`.
 
     Attributes:
-        timed: The committed motion (the first one when none passed).
+        timed: The committed motion (the last one tried when none passed).
         verdicts: Its verdicts.
         first: The first (unslowed) motion.
-        slowdown: The committed motion's slow-down over the first (1: none).
+        slowdown: Its slow-down over the first (1: none).
         rounds: Motions timed and checked.
-        tried: The largest slow-down tried (equal to ``slowdown`` when one passed).
     """
 
     timed: Timed
@@ -96,7 +96,6 @@ class Retimed:
     first: Timed
     slowdown: float = 1.0
     rounds: int = 1
-    tried: float = 1.0
 
     @property
     def motion(self) -> Trajectory:
@@ -153,12 +152,7 @@ def retime_until_safe(
         keep = [v for v in cur_v if v.name in path_names] if same else []
         reused = bool(keep)
         cur, cur_v = nxt, suite.run(nxt.motion, context, reuse=keep, stop_early=stop_early)
-    tried = requested / base
-    if cur is first or any(v.blocks for v in cur_v):
-        return Retimed(first, verdicts, first, 1.0, rounds, tried)
-    if reused:  # the path checks' numbers and times of the committed motion itself
+    if reused:  # the path checks' numbers and times of the returned motion itself
         timing = [v for v in cur_v if v.name not in path_names]
-        cur_v = suite.run(cur.motion, context, reuse=timing)
-        if any(v.blocks for v in cur_v):
-            return Retimed(first, verdicts, first, 1.0, rounds, tried)
-    return Retimed(cur, cur_v, first, requested / base, rounds, tried)
+        cur_v = suite.run(cur.motion, context, reuse=timing, stop_early=stop_early)
+    return Retimed(cur, cur_v, first, 1.0 if cur is first else requested / base, rounds)

@@ -58,6 +58,7 @@ class SelfCollision(Check):
     """
 
     name = "self_collision"
+    measures_type = SelfCollisionMeasures
     depends_on = "path"
 
     def __init__(self, robot: Robot, certifier: ClearanceCertifier | None = None) -> None:

@@ -64,6 +64,7 @@ class SpeedLimits(Check):
     """|qd|, |qdd|, |jerk| within the context's (or the robot's) limits at every sample."""
 
     name = "speed_limits"
+    measures_type = SpeedLimitMeasures
     depends_on = "timing"
 
     def check(self, motion: Trajectory, context: CheckContext) -> Verdict:

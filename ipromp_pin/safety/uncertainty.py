@@ -47,6 +47,7 @@ class Uncertainty(Check):
     """
 
     name = "uncertainty"
+    measures_type = UncertaintyMeasures
     required = False
     depends_on = "path"
 

@@ -36,6 +36,7 @@ class Workspace(Check):
     answer."""
 
     name = "workspace"
+    measures_type = WorkspaceMeasures
     depends_on = "path"
 
     def applies(self, context: CheckContext) -> bool:

@@ -10,12 +10,13 @@ import pytest
 
 from ipromp_pin.cli import main
 from ipromp_pin.motion.limits import read_limit_profile
-from ipromp_pin.motion.retarget import limit_ratios
+from ipromp_pin.motion.trajectory import Trajectory
 from ipromp_pin.outputs.trajectory_files import read_trajectory_csv, read_trajectory_json
 from ipromp_pin.promp import IProMP
 from ipromp_pin.readers.native import write_demo
 from ipromp_pin.readers.synthetic import make_synthetic_dataset
 from ipromp_pin.robot import load_robot
+from ipromp_pin.safety.speed_limits import limit_ratios
 
 PIPELINE = Path(__file__).resolve().parents[2] / "pipelines" / "baxter_handover.toml"
 
@@ -36,7 +37,8 @@ def test_replay_of_the_synthetic_default_writes_every_file(tmp_path, capsys):
     # every control sample within the profile written beside it, at rest at both ends
     dt = traj.t_s[1] - traj.t_s[0]
     assert dt == pytest.approx(0.01)
-    assert np.all(limit_ratios(traj.qd, traj.qdd, dt, profile.limits) <= 1 + 1e-5)
+    motion = Trajectory(traj.t_s, traj.q, traj.qd, traj.qdd, traj.joint_names)
+    assert np.all(limit_ratios(motion, profile.limits)[0] <= 1 + 1e-5)
     assert not np.abs(traj.qd[0]).any() and not np.abs(traj.qd[-1]).any()
     assert report["demo"]["task"] == "tape" and report["settings"]["start_ratio"] == 0.25
     assert report["settings"]["condition_noise"] == 0.3 and report["model"]["noise_ratio"] > 0

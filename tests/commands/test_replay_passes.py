@@ -11,7 +11,7 @@ import pytest
 from helpers_cli import PIPELINE, ROBOT_FILE, one_error_line
 
 from ipromp_pin.cli import main
-from ipromp_pin.planning.score import ClosedLoopScore
+from ipromp_pin.evaluation.scoring import ClosedLoopScore
 from ipromp_pin.outputs.replay_report import replay_failures, replay_passed
 
 

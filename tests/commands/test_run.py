@@ -168,34 +168,36 @@ def test_live_preview_streams_the_observation_on_loopback(capsys):
     assert out.count("  t=") >= 5 and "[preview] recognised" in out
 
 
-def test_preview_content_shows_one_time_base_and_skipped_checks():
-    """The page's observed fraction is of the human's motion, the check times are on the robot
-    trajectory's clock, and a check that could not be made is marked skipped."""
+def test_preview_content_shows_one_clock_and_skipped_checks():
+    """The page's observed fraction is of the human's motion, every time on it (the robot's
+    trajectory, the checks' times) is on the human's clock and points at a sample of the trajectory,
+    and a check that could not be made is marked skipped."""
     import re
 
     from ipromp_pin.commands.setup import prepare_session
-    from ipromp_pin.handover.one_shot import plan
-    from ipromp_pin.motion.timing import path_times
     from ipromp_pin.outputs.preview_content import preview_content
+    from ipromp_pin.planning.one_shot import plan
 
     cfg = load_pipeline(PIPELINE, task="tape", demo=2)
     prep = prepare_session(cfg, log=lambda _msg: None)
-    result = plan(prep.model, prep.robot, prep.observation, cfg.control_rate_hz, prep.hand_position_m)
+    result = plan(prep.model, prep.robot, prep.observed(), prep.suite, prep.context)
     content = preview_content(result, prep.robot, prep.demo)
     assert content.human_duration_s == prep.demo.duration_s and content.human_duration_source == "recorded"
     assert content.observed_fraction() == pytest.approx(prep.observation.t[-1] / prep.demo.duration_s)
     assert content.observed_fraction() == pytest.approx(cfg.ratio, abs=0.02)
-    assert abs(content.duration_s - result.prediction.duration_s) > 0.1  # robot and human clocks differ
-    times = path_times(result.trajectory, result.prediction.q_mean)
-    limits = result.report["joint_limits"]
+    assert content.t_s[0] == pytest.approx(result.start_s) and content.t_s[0] > 0.1  # the human's clock
+    assert "human's motion" in content.timebase
+    limits = result.checks["joint_limits"]
     shown = [c for c in content.feasibility if c.name == "joint_limits"][0].detail
     t_shown = float(re.search(r"t=(\d+\.\d+) s", shown).group(1))
-    assert t_shown == pytest.approx(times[limits.values["sample"]], abs=0.006)
+    assert t_shown == pytest.approx(result.trajectory.t_s[limits.measures.sample], abs=0.006)
     for check in content.feasibility:
         for t in re.findall(r"t=(\d+\.\d+) s", check.detail):
-            assert 0.0 <= float(t) <= content.duration_s + 0.005
+            assert content.t_s[0] - 0.005 <= float(t) <= content.duration_s + 0.005
     # without the human hand's position the distance check is skipped, and shown as skipped
-    blind = plan(prep.model, prep.robot, prep.observation, cfg.control_rate_hz, None)
+    blind = plan(
+        prep.model, prep.robot, prep.observed(), prep.suite, prep.context.replace(hand_position_m=None)
+    )
     skipped = [c for c in preview_content(blind, prep.robot, None).feasibility if c.status == "skip"]
     assert [c.name for c in skipped] == ["hand_distance"] and skipped[0].passed and not skipped[0].required
     unknown = preview_content(blind, prep.robot, None)
@@ -265,11 +267,13 @@ def test_failing_checks_exit_3_without_trajectory_files(tmp_path, tiny, capsys):
     robot = _tiny_workspace_robot(tmp_path)
     assert run_tiny(tiny, out, "--robot", str(robot)) == cli.EXIT_CHECKS_FAILED
     line = one_error_line(capsys.readouterr().err)
-    assert "failed its checks (workspace)" in line and "not written" in line
+    assert "failed its checks (workspace" in line and "not written" in line
     # the earlier run's trajectory is gone too: a script cannot pick up a stale plan
     assert sorted(p.name for p in out.iterdir()) == ["report.json", "report.txt"]
     report = json.loads((out / "report.json").read_text())
-    assert report["passed"] is False and report["feasibility"]["failures"] == ["workspace"]
+    assert report["passed"] is False and "workspace" in report["feasibility"]["failures"]
+    # slowing down cannot move the hand-over into the workspace: the plan is not slowed for the rest
+    assert report["feasibility"]["checks"]["workspace"].get("slowdown") is None
 
 
 def test_allowed_failing_checks_write_marked_files(tmp_path, tiny, capsys):
@@ -278,9 +282,9 @@ def test_allowed_failing_checks_write_marked_files(tmp_path, tiny, capsys):
     assert run_tiny(tiny, out, "--robot", str(robot), "--allow-failing-checks") == cli.EXIT_CHECKS_FAILED
     assert "written marked as failing" in one_error_line(capsys.readouterr().err)
     text = (out / "trajectory.csv").read_text()
-    assert text.startswith("# ipromp_pin: checks FAILED (workspace)")
+    assert text.startswith("# ipromp_pin: checks FAILED (workspace")
     doc = json.loads((out / "trajectory.json").read_text())
-    assert doc["ipromp_pin_checks"] == {"passed": False, "failures": ["workspace"]}
+    assert doc["ipromp_pin_checks"]["passed"] is False and "workspace" in doc["ipromp_pin_checks"]["failures"]
     a, b = read_trajectory_csv(out / "trajectory.csv"), read_trajectory_json(out / "trajectory.json")
     assert np.array_equal(a.q, b.q) and a.q.shape[1] == 7
 

@@ -10,19 +10,22 @@ import dataclasses
 import numpy as np
 import pytest
 
-from ipromp_pin.safety import CheckContext, MotionCheck, TimedMotion
 from ipromp_pin.data import Dataset, Demo
 from ipromp_pin.evaluation import closed_loop as evaluation_closed_loop
 from ipromp_pin.evaluation.config import EvaluationConfig
 from ipromp_pin.evaluation.scorers import closed_loop as scorer_module
+from ipromp_pin.evaluation.scoring import human_measures
 from ipromp_pin.evaluation.tables import closed_loop_markdown
-from ipromp_pin.planning.closed_loop import ClosedLoopSettings
-from ipromp_pin.planning.human_score import HUMAN_CHECKS, human_measures
 from ipromp_pin.human import SKELETON_PREFIX, HumanMotion
 from ipromp_pin.motion.limits import demonstrated_profile
+from ipromp_pin.motion.trajectory import Trajectory
+from ipromp_pin.planning.closed_loop import ClosedLoopSettings
 from ipromp_pin.promp import IProMP
 from ipromp_pin.readers.synthetic import make_synthetic_dataset
-from ipromp_pin.robot import CheckResult, ee_positions, load_robot
+from ipromp_pin.robot import ee_positions, load_robot
+from ipromp_pin.safety import HUMAN_CHECKS, Check, CheckContext, CheckSuite, Verdict
+from ipromp_pin.safety.contact_speed import ContactSpeedMeasures
+from ipromp_pin.safety.human_clearance import ClearanceMeasures
 
 OBSERVE = ["orientation", "emg"]
 SP_M = 0.35
@@ -41,7 +44,7 @@ def with_skeleton(demo: Demo, shift_m: tuple[float, float, float] = (0.0, 0.0, 0
     return dataclasses.replace(demo, extras=extras)
 
 
-class GripperSeparation(MotionCheck):
+class GripperSeparation(Check):
     """A stand-in human check: the gripper point's distance to the body outside the hand; inside
     ``SP_M`` the gripper speed must stay below ``limit`` [m/s] (asks for the slow-down that gives it)."""
 
@@ -51,7 +54,7 @@ class GripperSeparation(MotionCheck):
         self.limit = limit
         self.horizons: list[tuple[float, float]] = []
 
-    def check(self, motion: TimedMotion, context: CheckContext) -> CheckResult:
+    def check(self, motion: Trajectory, context: CheckContext) -> Verdict:
         human = context.human
         assert human is not None
         self.horizons.append((float(motion.t_s[0]), float(human.horizon_s)))
@@ -70,20 +73,30 @@ class GripperSeparation(MotionCheck):
         inside = dist.min(axis=1) < SP_M
         fast = inside & (speed > self.limit)
         k = int(np.argmin(dist_body.min(axis=1)))
-        values = {
-            "min_separation_m": float(dist_body.min()),
-            "link": "left_gripper",
-            "body_part": str(human.part_names[int(np.argmin(dist_body[k]))]),
-            "t_s": float(motion.t_s[k]),
-            "protective_distance_m": SP_M,
-            "time_within_sp_s": float(inside.sum() * motion.dt_s),
-            "n_speed_violations": int(fast.sum()),
-            "max_speed_ratio": float(speed[inside].max() / self.limit) if inside.any() else None,
-        }
+        part = str(human.part_names[int(np.argmin(dist_body[k]))])
+        within = float(inside.sum() * motion.dt_s)
+        m: ClearanceMeasures | ContactSpeedMeasures
+        if self.name == "human_clearance":
+            m = ClearanceMeasures(
+                float(dist_body.min()),
+                "left_gripper",
+                part,
+                float(motion.t_s[k]),
+                SP_M,
+                within,
+                0.0,
+                "tracked",
+            )
+        else:
+            ratio = float(speed[inside].max() / self.limit) if inside.any() else 0.0
+            m = ContactSpeedMeasures(
+                int(fast.sum()), int(fast.sum()), 1.0, ratio, "left_gripper", part, "chest",
+                float(motion.t_s[k]), 0.0, None, None, None, within, "tracked",
+            )  # fmt: skip
         if not fast.any():
-            return CheckResult(self.name, "pass", "", values)
-        values["slowdown"] = float(speed[fast].max() / self.limit)
-        return CheckResult(self.name, "fail", f"{int(fast.sum())} samples too fast", values)
+            return Verdict(self.name, "pass", "", m)
+        k_slow = float(speed[fast].max() / self.limit)
+        return Verdict(self.name, "fail", f"{int(fast.sum())} samples too fast", m, slowdown=k_slow)
 
 
 @pytest.fixture(scope="module")
@@ -102,11 +115,26 @@ def stand_ins(robot, limit: float = np.inf) -> list[GripperSeparation]:
     ]
 
 
+EVALUATION_SUITE = scorer_module.evaluation_suite
+
+
+def suite_with(robot, checks) -> CheckSuite:
+    """The evaluation's checks without the human ones, and ``checks`` instead."""
+    return CheckSuite([*EVALUATION_SUITE(robot, None, False).checks, *checks])
+
+
 def replay_one(setup, demo, checks):
     model, robot, train, _, _ = setup
     profile = demonstrated_profile(robot, train)
     return scorer_module.replay_trials(
-        model, robot, [demo], 0.2, profile, ClosedLoopSettings(), check_collisions=False, human_checks=checks
+        model,
+        robot,
+        [demo],
+        0.2,
+        profile,
+        ClosedLoopSettings(),
+        suite_with(robot, checks),
+        check_collisions=False,
     )[0]
 
 
@@ -137,7 +165,7 @@ def test_a_demo_with_skeleton_is_judged_against_the_recorded_human(setup):
     assert planned and all(h <= t0 + 1e-9 for t0, h in planned)
     assert judged == (0.0, np.inf)
     human = HumanMotion.from_demo(demo)
-    expected = human_measures(trial_trajectory(setup, demo), human, stand_ins(robot))
+    expected = human_measures(trial_trajectory(setup, demo), human, CheckSuite(stand_ins(robot)))
     assert score.human_min_separation_m == pytest.approx(expected.min_separation_m)
     assert score.protective_distance_time_s == pytest.approx(expected.protective_distance_time_s)
     assert score.contact_speed_violations == expected.contact_speed_violations == 0
@@ -148,9 +176,9 @@ def trial_trajectory(setup, demo):
     from ipromp_pin.planning.closed_loop import replay_demo
 
     model, robot, train, _, _ = setup
-    return replay_demo(
-        model, robot, demo, demonstrated_profile(robot, train), ClosedLoopSettings(start_ratio=0.2)
-    ).trajectory
+    settings = ClosedLoopSettings(start_ratio=0.2)
+    suite = EVALUATION_SUITE(robot, None, False)
+    return replay_demo(model, robot, demo, demonstrated_profile(robot, train), settings, suite).trajectory
 
 
 def test_a_contact_speed_limit_slows_the_robot_and_costs_delay(setup):
@@ -166,7 +194,11 @@ def test_a_contact_speed_limit_slows_the_robot_and_costs_delay(setup):
 
 def test_tiny_grid_cells_have_the_human_fields(setup, monkeypatch):
     _, robot, _, _, ds = setup
-    monkeypatch.setattr(scorer_module, "build_checks", lambda r, names=None: stand_ins(r))
+    monkeypatch.setattr(
+        scorer_module,
+        "evaluation_suite",
+        lambda r, objects, human: suite_with(r, stand_ins(r) if human else []),
+    )
     skeleton = Dataset("skeleton", {t: [with_skeleton(d) for d in demos] for t, demos in ds.demos.items()})
     config = EvaluationConfig(protocol="splits", observe=[OBSERVE], grid=[(4, 0.2)], n_test=2, n_splits=1)
     cells = evaluation_closed_loop.evaluate_closed_loop(skeleton, config, robot="baxter_left")

@@ -8,16 +8,16 @@ import dataclasses
 import numpy as np
 import pytest
 
-from ipromp_pin.safety import CheckContext, TimedMotion
-from ipromp_pin.safety.joint_torques import JointTorques
 from ipromp_pin.evaluation.evaluate import EvaluationConfig, evaluate
 from ipromp_pin.evaluation.scorers.one_shot import predict_window
-from ipromp_pin.evaluation.scorers.torques import one_shot_peak_torque_ratio, peak_torque_ratio
-from ipromp_pin.planning.one_shot import time_prediction, torque_limit
+from ipromp_pin.evaluation.scoring import one_shot_peak_torque_ratio, peak_torque_ratio
+from ipromp_pin.motion.timing import time_path
+from ipromp_pin.motion.trajectory import JointLimits
 from ipromp_pin.promp import IProMP
 from ipromp_pin.readers.synthetic import make_synthetic_dataset
 from ipromp_pin.robot import load_robot
 from ipromp_pin.robot.objects import TaskObject, load_objects
+from ipromp_pin.safety import CheckContext, CheckSuite
 
 
 @pytest.fixture(scope="module")
@@ -48,15 +48,17 @@ def test_the_one_shot_peak_is_the_checks_on_the_timed_plan_with_the_true_object(
     demo = synthetic.demos["rod"][6]
     model = IProMP(observe=["orientation", "emg"]).fit(train)
     prediction = predict_window(model, demo, 0.3, ["orientation", "emg"])
-    check = JointTorques(robot)
-    got = one_shot_peak_torque_ratio(check, prediction, "rod", objects)
-    torque = torque_limit([check], CheckContext(objects=objects), prediction.task)
-    trajectory, _, _ = time_prediction(prediction, robot, 100.0, torque)
-    motion = TimedMotion.from_trajectory(trajectory, prediction.observed_until_s)
-    expected = check.check(motion, CheckContext(task="rod", objects=objects)).values["peak_torque_ratio"]
+    suite = CheckSuite.build(robot, ["joint_torques"])
+    check = suite.get("joint_torques")
+    got = one_shot_peak_torque_ratio(suite, robot, prediction, "rod", objects)
+    # timed as run times it first: under the recognised task's torque limits, from the observation's end
+    torque = suite.timing_constraints(CheckContext(task=prediction.task, objects=objects)).torque
+    limits = JointLimits.from_robot(robot)
+    trajectory, _ = time_path(prediction.q_mean, limits, torque=torque, start_s=prediction.observed_until_s)
+    expected = check.check(trajectory, CheckContext(task="rod", objects=objects)).measures.peak_torque_ratio
     assert got == pytest.approx(expected)
-    assert got == pytest.approx(peak_torque_ratio(check, trajectory, "rod", objects))  # starts do not matter
+    assert got == pytest.approx(peak_torque_ratio(suite, trajectory.shifted(-1.0), "rod", objects))
     # a heavier true object: a higher peak (the rod is received: it joins at the hand-over, at rest)
     heavy = TaskObject("rod", 3.0, np.array([0.0, 0.0, 0.05]), np.eye(3) * 1e-3, "robot_receives")
     table = dataclasses.replace(objects, objects={**objects.objects, "rod": heavy})
-    assert peak_torque_ratio(check, trajectory, "rod", table) > got + 0.02
+    assert peak_torque_ratio(suite, trajectory, "rod", table) > got + 0.02

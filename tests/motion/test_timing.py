@@ -10,15 +10,10 @@ import numpy as np
 import pytest
 
 from ipromp_pin.exceptions import InfeasibleError
-from ipromp_pin.motion.timing import (
-    MAX_TRAJECTORY_SAMPLES,
-    JointLimits,
-    path_deviation,
-    path_times,
-    prepare_path,
-    time_path,
-    verify_trajectory,
-)
+from ipromp_pin.motion.path import MAX_TRAJECTORY_SAMPLES, path_deviation, prepare_path
+from ipromp_pin.motion.timing import time_path, verify_trajectory
+from ipromp_pin.motion.tracking import reachable_target
+from ipromp_pin.motion.trajectory import JointLimits
 from ipromp_pin.robot import load_robot
 
 Q_START = np.array([-0.839, -0.969, 0.377, 1.262, -0.204, 1.189, 1.661])
@@ -62,23 +57,6 @@ def test_trajectory_respects_all_limits_at_every_sample(limits, noise):
     assert rep.duration_s < 2.5 * clean.duration_s
     d = rep.to_dict()
     assert d["passed"] and d["velocity_ratio"] == rep.velocity_ratio
-
-
-def test_path_times_give_when_the_trajectory_passes_each_path_point(limits):
-    # a path sampled unevenly (like a prediction on the human's clock): slow start, fast end
-    u = np.linspace(0, 1, 60) ** 2
-    q = _curved_path(m=400)[np.round(u * 399).astype(int)]
-    traj, _ = time_path(q, limits)
-    t = path_times(traj, q)
-    assert t.shape == (60,) and t[0] == 0.0 and np.all(np.diff(t) >= 0.0)
-    assert t[-1] <= traj.duration_s + 1e-12
-    # at those times the robot is at those points (up to the smoothing of the path)
-    q_at = np.stack([np.interp(t, traj.t_s, traj.q[:, j]) for j in range(q.shape[1])], -1)
-    assert np.max(np.linalg.norm(q_at - q, axis=1)) < 0.03
-    # and not at the same fraction of the duration: the two time bases differ
-    naive = np.linspace(0.0, traj.duration_s, 60)
-    q_naive = np.stack([np.interp(naive, traj.t_s, traj.q[:, j]) for j in range(q.shape[1])], -1)
-    assert np.max(np.linalg.norm(q_naive - q, axis=1)) > 0.2
 
 
 def test_straight_path_is_followed_exactly(limits):
@@ -165,7 +143,6 @@ def test_no_network_access_during_smoothing(limits, monkeypatch):
 
 
 def test_reachable_target_never_implies_exceeding_the_velocity_limit():
-    from ipromp_pin.motion.timing import reachable_target
 
     rng = np.random.default_rng(0)
     for _ in range(2000):

@@ -9,9 +9,9 @@ import dataclasses
 import numpy as np
 import pytest
 
-from ipromp_pin.safety import TimedMotion
 from ipromp_pin.human import SKELETON_PREFIX, HumanMotion
 from ipromp_pin.human.separation import SeparationAnalyser
+from ipromp_pin.motion.trajectory import Trajectory
 from ipromp_pin.outputs.human_preview import held_until, human_tracks, shown_human
 from ipromp_pin.preview.body import SEPARATION_STATES
 from ipromp_pin.readers.synthetic import make_synthetic_dataset
@@ -26,8 +26,9 @@ def case():
     extras = dict(demo.extras) | {SKELETON_PREFIX + f: h.positions_m[:, j] for j, f in enumerate(h.frames)}
     skeleton = dataclasses.replace(demo, extras=extras)
     q = demo.groups["robot"]
-    motion = TimedMotion(
-        demo.t[:100], q[:100], np.gradient(q[:100], demo.t[:100], axis=0), np.zeros_like(q[:100]), 0.02
+    names = tuple(robot.joint_names)
+    motion = Trajectory(
+        demo.t[:100], q[:100], np.gradient(q[:100], demo.t[:100], axis=0), np.zeros_like(q[:100]), names
     )
     return robot, demo, skeleton, motion
 
@@ -49,7 +50,7 @@ def test_the_robot_is_held_at_rest_while_the_human_moves(case):
         held.q[motion.n_samples :], np.repeat(motion.q[-1:], held.n_samples - motion.n_samples, 0)
     )
     assert not held.qd[motion.n_samples :].any()
-    one = TimedMotion(motion.t_s[:1], motion.q[:1], 0 * motion.qd[:1], 0 * motion.qdd[:1], 0.0)
+    one = Trajectory(motion.t_s[:1], motion.q[:1], 0 * motion.qd[:1], 0 * motion.qdd[:1], motion.joint_names)
     assert np.allclose(np.diff(held_until(one, 1.0, 0.01).t_s), 0.01)
     assert held_until(motion, 0.0, 0.01) is motion
 

@@ -13,9 +13,7 @@ from helpers_cli import PIPELINE, one_error_line, run_tiny
 
 from ipromp_pin import cli
 from ipromp_pin.commands.config import load_pipeline
-from ipromp_pin.commands.run import session_retreat
-from ipromp_pin.commands.setup import prepare_session
-from ipromp_pin.planning.one_shot import plan
+from ipromp_pin.commands.setup import plan_session, prepare_session
 from ipromp_pin.outputs.preview_content import preview_content
 from ipromp_pin.outputs.retreat_files import read_retreat_json
 from ipromp_pin.outputs.rosbag import JOINT_STATE, TOPIC_RETREAT
@@ -63,7 +61,8 @@ def test_the_report_has_a_retreat_section(run_out):
     r = report["retreat"]
     assert r["passed"] and report["passed"] and r["target"]["to"] == "start"
     assert r["payload"] is not None and r["payload"]["holder"] == "robot_receives"  # rod: received
-    assert set(r["checks"]) == {
+    assert set(r["checks"]) == {  # the hand-over checks do not apply after the hand-over
+        "speed_limits",
         "joint_limits",
         "self_collision",
         "human_clearance",
@@ -116,22 +115,15 @@ def test_a_failing_retreat_check_fails_the_run_with_exit_3(tmp_path, tiny, capsy
 def test_the_preview_animates_the_retreat_after_the_hand_over(tmp_path, tiny):
     cfg = load_pipeline(PIPELINE, dataset=tiny[0], load_model=tiny[1], out_dir=tmp_path)
     session = prepare_session(cfg, log=lambda _m: None)
-    result = plan(
-        session.model,
-        session.robot,
-        session.observed(),
-        checks=session.motion_checks,
-        context=session.check_context,
-        check_joints=False,
-    )
-    retreat = session_retreat(session, result, lambda _m: None)
+    result, retreat = plan_session(session, lambda _m: None)
     assert retreat is not None
     alone = preview_content(result, session.robot, session.demo)
     both = preview_content(result, session.robot, session.demo, retreat=retreat)
     n = result.trajectory.n_samples
     assert both.t_s.size == n + retreat.trajectory.n_samples - 1 and alone.t_s.size == n
     np.testing.assert_allclose(both.q[-1], retreat.q_target, atol=1e-12)
-    assert both.t_s[-1] == pytest.approx(result.trajectory.t_s[-1] + retreat.duration_s)
+    assert both.t_s[-1] == pytest.approx(result.trajectory.end_s + retreat.duration_s)
+    assert both.t_s[0] == pytest.approx(result.start_s)  # the human's clock
     names = [c.name for c in both.checks]
     assert "retreat joint_torques" in names and "retreat self_collision" in names
     assert any(note.startswith("Retreat to") for note in both.notes)

@@ -14,8 +14,8 @@ import pytest
 from ipromp_pin.cli import main
 from ipromp_pin.commands.config import load_pipeline
 from ipromp_pin.commands.setup import prepare_session
-from ipromp_pin.handover.one_shot import plan
 from ipromp_pin.outputs.report import report_dict
+from ipromp_pin.planning.one_shot import plan
 from ipromp_pin.schemas import SCHEMA_FILES, SCHEMAS_DIR, load_schema, schema_path
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -52,7 +52,9 @@ def test_written_report_validates_and_reports_the_configured_rate(written_report
 def test_report_with_a_skipped_check_validates(tmp_path):
     cfg = load_pipeline(PIPELINE, out_dir=tmp_path, task="tape")
     prep = prepare_session(cfg, log=lambda _m: None)
-    result = plan(prep.model, prep.robot, prep.observation, 100.0, hand_position_m=None)
+    result = plan(
+        prep.model, prep.robot, prep.observed(), prep.suite, prep.context.replace(hand_position_m=None)
+    )
     doc = json.loads(json.dumps(report_dict(result, None, ["a warning"]), allow_nan=False))
     assert doc["feasibility"]["checks"]["hand_distance"]["status"] == "skip"
     assert doc["observation"] is None

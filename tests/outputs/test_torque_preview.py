@@ -7,13 +7,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ipromp_pin.safety import CheckContext, TimedMotion
-from ipromp_pin.safety.joint_torques import JointTorques
 from ipromp_pin.exceptions import DataError
+from ipromp_pin.motion.trajectory import Trajectory
 from ipromp_pin.outputs import plots
 from ipromp_pin.outputs.torque_preview import SPHERE_RADIUS_M, held_object, torque_preview
 from ipromp_pin.robot import load_robot
 from ipromp_pin.robot.objects import TaskObject, load_objects
+from ipromp_pin.safety import CheckContext
+from ipromp_pin.safety.joint_torques import JointTorques
 
 
 @pytest.fixture(scope="module")
@@ -21,7 +22,7 @@ def robot():
     return load_robot("baxter_left")
 
 
-def reach(robot, n: int = 80, t0: float = 1.0) -> TimedMotion:
+def reach(robot, n: int = 80, t0: float = 1.0) -> Trajectory:
     """A smooth reach of the arm, ``n`` samples at 100 Hz from ``t0`` [s] on the human's clock."""
     dt = 0.01
     t = np.arange(n) * dt
@@ -30,7 +31,7 @@ def reach(robot, n: int = 80, t0: float = 1.0) -> TimedMotion:
     q1 = np.array([0.6, -0.2, -0.3, 1.2, 0.2, 0.6, 0.0])
     q = q0 + s[:, None] * (q1 - q0)
     qd = np.gradient(q, dt, axis=0)
-    return TimedMotion(t0 + t, q, qd, np.gradient(qd, dt, axis=0), dt)
+    return Trajectory(t0 + t, q, qd, np.gradient(qd, dt, axis=0), tuple(robot.joint_names))
 
 
 @pytest.mark.parametrize("task, gives", [("spanner_handover", True), ("aluminum_hold", False)])
@@ -51,7 +52,7 @@ def test_the_track_is_the_checks_and_holds_the_object_as_it_does(robot, task, gi
     assert obj.frame == robot.settings.ee_parent_frame
     assert obj.kind == ("box" if gives else "cylinder") and (gives or obj.axis == 1)
     # the torques the pipeline already has (the trajectory's effort) are used as they are
-    tau = check.motion_torques(motion, context)
+    tau = check.torques(motion, context)
     again, _ = torque_preview(robot, motion, context, tau_nm=tau * 2.0, check=check)
     assert again is not None
     np.testing.assert_allclose(again.ratio, 2.0 * track.ratio)
@@ -69,7 +70,7 @@ def test_no_payload_no_object_and_a_shapeless_object_is_a_sphere(robot):
 
 def test_torque_plot_is_written_and_checks_its_input(tmp_path, robot):
     motion = reach(robot)
-    tau = JointTorques(robot).motion_torques(motion, CheckContext())
+    tau = JointTorques(robot).torques(motion, CheckContext())
     limit = np.full(7, 50.0)
     path = plots.plot_torques(
         motion.t_s, tau, limit, tmp_path / "torques.png", effort_margin=0.1, held=np.ones(80, bool)
@@ -86,25 +87,21 @@ def test_torque_plot_is_written_and_checks_its_input(tmp_path, robot):
 def test_the_run_preview_shows_the_checks_torques_and_the_recognised_tasks_object():
     from ipromp_pin.commands.config import load_pipeline, resolve_pipeline_path
     from ipromp_pin.commands.setup import prepare_session
-    from ipromp_pin.planning.one_shot import plan
     from ipromp_pin.outputs.preview_content import preview_content
+    from ipromp_pin.planning.one_shot import plan
 
     cfg = load_pipeline(resolve_pipeline_path("baxter_handover"), task="wrench", demo=2)
     s = prepare_session(cfg, log=lambda _msg: None)
-    ctx = s.check_context
-    result = plan(
-        s.model, s.robot, s.observation, cfg.control_rate_hz, s.hand_position_m,
-        checks=s.motion_checks, context=ctx,
-    )  # fmt: skip
+    ctx = s.context
+    result = plan(s.model, s.robot, s.observed(), s.suite, ctx, control_rate_hz=cfg.control_rate_hz)
     assert result.prediction.task == "wrench" and result.trajectory.effort_nm is not None
     content = preview_content(result, s.robot, s.demo, human=ctx.human, objects=ctx.objects)
-    peak = result.report["joint_torques"].values["peak_torque_ratio"]
+    peak = result.checks["joint_torques"].measures.peak_torque_ratio
     assert content.torques is not None and content.torques.t_s.size == result.trajectory.n_samples
     # every sample vs the check's subsample: the same peak, or above it by little
     assert peak - 1e-9 <= content.torques.ratio.max() <= peak + 0.01
     obj = content.held_object
     assert obj is not None and obj.name == "wrench" and obj.kind == "box"  # robot_gives: until the end
-    assert content.torques.held.all() and obj.held_until_s == pytest.approx(
-        result.start_s + result.trajectory.t_s[-1]
-    )
+    handover = max(result.trajectory.end_s, result.prediction.duration_s)  # when both are there
+    assert content.torques.held.all() and obj.held_until_s == pytest.approx(handover)
     assert any(n.startswith("Gripper orientation at the hand-over: ") for n in content.notes)

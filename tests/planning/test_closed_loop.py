@@ -6,7 +6,11 @@ import numpy as np
 import pytest
 
 from ipromp_pin.data import ROBOT
+from ipromp_pin.evaluation.scoring import arrival_time, score_closed_loop
 from ipromp_pin.exceptions import PipelineError
+from ipromp_pin.motion.limits import LimitProfile, conservative_profile, demonstrated_profile
+from ipromp_pin.motion.retarget import ReferenceMotion, Retargeter
+from ipromp_pin.motion.trajectory import MotionState, Trajectory
 from ipromp_pin.planning.closed_loop import (
     ClosedLoopPlanner,
     ClosedLoopSettings,
@@ -14,10 +18,6 @@ from ipromp_pin.planning.closed_loop import (
     demo_samples,
     replay_demo,
 )
-from ipromp_pin.evaluation.scoring import arrival_time, score_closed_loop
-from ipromp_pin.motion.limits import LimitProfile, conservative_profile, demonstrated_profile
-from ipromp_pin.motion.retarget import ReferenceMotion, Retargeter
-from ipromp_pin.motion.trajectory import MotionState, Trajectory
 from ipromp_pin.promp import IProMP
 from ipromp_pin.readers.synthetic import make_synthetic_dataset
 from ipromp_pin.robot import ee_positions, load_robot

@@ -143,12 +143,10 @@ def test_capsule_nodes_span_the_segment():
     assert point[1] > 0
 
 
-def test_panel_separation_is_on_the_animation_time_base(human_content):
+def test_panel_separation_is_on_the_pages_one_clock(human_content):
     sep = human_content.separation
     state = overlay_state(human_content)["separation"]
-    offset = human_content.observed_until_s
-    np.testing.assert_allclose(state["t_s"], sep.t_s - offset, atol=1e-3)
-    assert state["t_s"][0] == pytest.approx(0.0)
+    np.testing.assert_allclose(state["t_s"], sep.t_s, atol=1e-3)  # the human's clock
     i = int(np.argmin(sep.distance_m))
     assert state["min"]["distance_m"] == pytest.approx(sep.distance_m[i], abs=1e-4)
     assert state["min"]["body_part"] == sep.body_part[i]
@@ -161,7 +159,7 @@ def test_panel_separation_is_on_the_animation_time_base(human_content):
     assert state["separation"] is None and "human body (assumed, no skeleton)" in [
         x["label"] for x in state["legend"]
     ]
-    assert separation_panel(sep, 0.0)["t_s"][0] == pytest.approx(sep.t_s[0], abs=1e-3)
+    assert separation_panel(sep)["t_s"][0] == pytest.approx(sep.t_s[0], abs=1e-3)
 
 
 def animation_tracks(commands: list[dict]) -> dict[str, dict[str, list]]:
@@ -201,7 +199,7 @@ def check_body_scene(commands: list[dict], content: preview.PreviewContent, offs
 def test_offline_page_draws_the_moving_body_and_the_closest_pair(human_content, tmp_path):
     path = preview.write_html(human_content, tmp_path / "body.html")
     commands = scene_commands(path.read_text())
-    check_body_scene(commands, human_content, human_content.observed_until_s)
+    check_body_scene(commands, human_content, 0.0)  # one clock: the human's
     assert "/meshcat/labels/closest" in objects_by_path(commands)
     assert "ipromp-separation" in path.read_text()  # the panel's script is on the page
 
@@ -229,7 +227,7 @@ def test_separation_keeps_unknown_values_as_null(human_content):
     track = SeparationTrack(
         s.t_s, s.distance_m, s.robot_point_m, s.body_point_m, s.state, protective_distance_m=sp
     )
-    panel = separation_panel(track, 0.0)
+    panel = separation_panel(track)
     assert panel["protective_distance_m"][:3] == [None] * 3 and panel["protective_distance_m"][3] == 0.3
     sp[4] = np.inf
     with pytest.raises(DataError, match="protective_distance_m"):

@@ -62,16 +62,20 @@ def test_cylinder_axis_is_turned_onto_the_objects_axis():
         assert np.allclose(T[:3, 3], [0.0, 0.0, 0.02]) and np.isclose(np.linalg.det(T[:3, :3]), 1.0)
 
 
-def test_torque_track_validates_and_the_panel_is_on_the_animation_time_base(baxter):
+def test_torque_track_validates_and_the_panel_is_on_the_animation_clock(baxter):
     content = make_content(*baxter)
     n = content.t_s.size
     track = make_track(content, 1.0, np.ones(n, bool))
     assert track.peak.shape == (7,) and track.payload_at(0) == "holding rod (0.42 kg)"
-    panel = torque_panel(track, 1.0)
-    assert panel["t_s"][0] == pytest.approx(0.0) and len(panel["ratio"]) == n and len(panel["ratio"][0]) == 7
+    panel = torque_panel(track)
+    assert (
+        panel["t_s"][0] == pytest.approx(track.t_s[0])
+        and len(panel["ratio"]) == n
+        and len(panel["ratio"][0]) == 7
+    )
     j = int(np.argmax(track.peak))
     assert panel["peak"][j] == pytest.approx(track.ratio.max(), abs=1e-4)
-    assert panel["peak_t_s"][j] == pytest.approx(content.t_s[track.ratio[:, j].argmax()], abs=1e-3)
+    assert panel["peak_t_s"][j] == pytest.approx(track.t_s[track.ratio[:, j].argmax()], abs=1e-3)
     assert [usage_color(r, 0.9) for r in (0.5, 0.8, 0.95)] == ["ok", "high", "over"]
     with pytest.raises(DataError, match="torques.ratio"):
         TorqueTrack(track.t_s, track.ratio[:, :3], track.joint_names, track.limit_nm, 0.9, track.held)

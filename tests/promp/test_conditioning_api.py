@@ -12,7 +12,7 @@ import pytest
 from helpers_model import random_dataset, split
 
 from ipromp_pin.exceptions import DataError, InfeasibleError, ModelError
-from ipromp_pin.handover.goal import condition_on_goal_pose
+from ipromp_pin.planning.goal import condition_on_goal_pose
 from ipromp_pin.promp import IProMP
 from ipromp_pin.robot import forward_kinematics, load_robot, solve_ik
 

@@ -53,7 +53,6 @@ def test_free_motion_is_certified_and_reused(robot):
     assert first.min_distance_m == pytest.approx(dense.min(), abs=0.02)
     again = cert.certify(q + 1e-4)  # nearly the same path: the cached balls certify it
     assert again.certified and again.n_distances < first.n_distances / 10
-    assert first.to_check().passed
 
 
 def test_a_motion_through_a_collision_is_refused(robot):
@@ -66,8 +65,6 @@ def test_a_motion_through_a_collision_is_refused(robot):
     path = np.linspace(free, bad, 60)
     result = ClearanceCertifier(robot).certify(path)
     assert not result.certified
-    assert not result.to_check().passed
-    assert "self-collision" in result.to_check().reason or "not certified" in result.to_check().reason
 
 
 def test_the_kept_pair_labels_are_the_robots(robot):

@@ -1,15 +1,14 @@
-"""FK, feasibility checks and calibration (ipromp_pin.robot: kinematics, checks, collision, calibration)."""
+"""FK and calibration (ipromp_pin.robot: kinematics, calibration)."""
 
 from __future__ import annotations
 
-import json
 import shutil
 
 import numpy as np
 import pytest
 
 from ipromp_pin.data import ROBOT, Demo
-from ipromp_pin.exceptions import DataError, InfeasibleError
+from ipromp_pin.exceptions import DataError
 from ipromp_pin.robot import ROBOTS_DIR, load_robot
 from ipromp_pin.robot.calibration import (
     calibrate_tool_offset,
@@ -17,8 +16,6 @@ from ipromp_pin.robot.calibration import (
     uncalibrated_robot,
     write_calibration,
 )
-from ipromp_pin.robot.checks import check_path
-from ipromp_pin.robot.collision import check_self_collision
 from ipromp_pin.robot.kinematics import forward_kinematics, frame_placements
 
 # A typical hand-over start pose of the recordings and a pose with the forearm folded into the torso.
@@ -47,76 +44,6 @@ def test_fk_format_and_calibrated_frame(robot):
     shift = pose[0, :3] - p0
     assert 0.007 < np.linalg.norm(shift) < 0.013
     assert shift[2] < -0.007
-
-
-def test_typical_path_passes_every_check(robot):
-    q = _line(Q_START, Q_HANDOVER)
-    report = check_path(robot, q, q_std=np.full(7, 0.02), hand_position_m=None)
-    assert report.passed, report.to_text()
-    col = report["self_collision"].values
-    assert col["min_distance_m"] > 0.01
-    assert col["max_step_rad"] <= robot.settings.collision_max_step_rad + 1e-12
-    assert report["hand_distance"].status == "skip"
-    assert report["uncertainty"].required is False
-    d = json.loads(json.dumps(report.to_dict()))
-    assert d["passed"] is True and set(d["checks"]) >= {"joint_limits", "self_collision", "workspace"}
-    assert "PASSED" in report.to_text()
-
-
-def test_colliding_path_fails_and_names_the_links(robot):
-    q = _line(Q_START, Q_TORSO)
-    report = check_path(robot, q)
-    assert not report.passed
-    assert "self_collision" in report.failures
-    col = report["self_collision"]
-    assert col.measures.min_distance_m < 0
-    # the folded end pose alone is in collision with the torso
-    end = check_self_collision(robot, Q_TORSO[None])
-    assert end.status == "fail" and "torso" in end.measures.links
-
-
-def test_out_of_limit_path_fails_joint_limits(robot):
-    q = _line(Q_START, Q_HANDOVER)
-    q[60:, 3] = robot.lower_rad[3] - 0.01  # elbow beyond its lower limit
-    report = check_path(robot, q)
-    jl = report["joint_limits"]
-    assert jl.status == "fail" and jl.measures.joint == "left_e1" and jl.measures.min_slack_rad < 0
-    # within the hard limit but inside the margin also fails
-    q2 = _line(Q_START, Q_HANDOVER)
-    q2[-1, 3] = robot.lower_rad[3] + 0.5 * robot.settings.position_margin_rad[3]
-    assert not check_path(robot, q2)["joint_limits"].passed
-
-
-def test_workspace_and_hand_distance(robot):
-    q = _line(Q_START, Q_HANDOVER)
-    report = check_path(robot, q, hand_position_m=np.array([5.0, 0.0, 0.0]))
-    assert report["hand_distance"].status == "fail"
-    p = report.handover_pose[:3]
-    near = check_path(robot, q, hand_position_m=p + [0.05, 0.0, 0.0])
-    assert near["hand_distance"].status == "pass"
-    assert near["hand_distance"].values["distance_m"] == pytest.approx(0.05, abs=1e-9)
-    assert near["workspace"].passed
-    # pointing the arm straight up leaves the hand-over workspace
-    up = _line(Q_START, np.array([0.0, -1.5, 0.0, 0.0, 0.0, 0.0, 0.0]))
-    assert check_path(robot, up)["workspace"].status == "fail"
-
-
-def test_uncertainty_samples_are_advisory(robot):
-    q = _line(Q_START, Q_HANDOVER)
-    samples = np.stack([q, q + 0.01, _line(Q_START, Q_TORSO)])
-    report = check_path(robot, q, q_samples=samples)
-    unc = report["uncertainty"]
-    assert unc.measures.n_in_collision == 1 and unc.status == "fail"
-    assert report.passed  # advisory only
-
-
-def test_bad_path_input_raises(robot):
-    q = _line(Q_START, Q_HANDOVER)
-    q[5, 2] = np.nan
-    with pytest.raises(InfeasibleError, match="NaN"):
-        check_path(robot, q)
-    with pytest.raises(InfeasibleError, match="shape"):
-        check_path(robot, np.zeros((10, 6)))
 
 
 def test_calibration_recovers_a_known_offset(robot, tmp_path):
@@ -170,14 +97,3 @@ def test_fk_matches_recorded_endpoints(robot, dataset, request):
     res = calibrate_tool_offset(robot, demos)
     assert np.linalg.norm(res.mount_offset_m - robot.settings.mount_offset_m) < 0.003
     assert res.after_mm["median"] < 2.0
-
-
-@pytest.mark.realdata
-def test_recorded_handover_paths_are_feasible(robot, chen2017_dir):
-    from ipromp_pin.readers import load_dataset
-
-    ds = load_dataset(chen2017_dir)
-    for task, demos in ds.demos.items():
-        q = demos[0].groups[ROBOT]
-        report = check_path(robot, q)
-        assert report["self_collision"].passed and report["workspace"].passed, (task, report.to_text())

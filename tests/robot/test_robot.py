@@ -165,8 +165,10 @@ def test_kinematics_only_robot_has_no_collision_model():
 
 def test_panda_settings_describe_another_robot_without_code():
     """robots/panda.toml: a Franka Panda from example-robot-data, through the same schema as Baxter."""
-    from ipromp_pin.motion.timing import JointLimits, time_path
-    from ipromp_pin.robot import check_path, ee_positions
+    from ipromp_pin.motion.timing import time_path
+    from ipromp_pin.motion.trajectory import JointLimits
+    from ipromp_pin.robot import ee_positions
+    from ipromp_pin.safety import CheckContext, CheckSuite
 
     panda = load_robot("panda")
     assert panda.joint_names == tuple(f"panda_joint{i}" for i in range(1, 8))
@@ -176,7 +178,8 @@ def test_panda_settings_describe_another_robot_without_code():
     assert np.allclose(ee_positions(panda, ready[None])[0], [0.307, 0.0, 0.487], atol=2e-3)
     reach = ready + np.array([0.3, 0.5, 0.0, 0.5, 0.0, 0.3, 0.0])
     path = ready + np.linspace(0.0, 1.0, 40)[:, None] * (reach - ready)
-    report = check_path(panda, path)
-    assert report.passed, report.to_text()
     traj, timing = time_path(path, JointLimits.from_robot(panda))
     assert timing.passed and 0.5 < traj.duration_s < 5.0
+    path_checks = CheckSuite.build(panda, ["speed_limits", "joint_limits", "workspace", "self_collision"])
+    report = path_checks.report(traj, CheckContext())
+    assert report.passed, report.lines()

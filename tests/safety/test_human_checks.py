@@ -14,18 +14,18 @@ import pytest
 from helpers_cli import ROBOT_FILE, one_error_line, run_tiny
 
 from ipromp_pin import cli
-from ipromp_pin.motion.trajectory import Trajectory
-from ipromp_pin.safety import CheckContext
-from ipromp_pin.safety.contact_speed import SLOWDOWN_MARGIN, ContactSpeed
-from ipromp_pin.safety.human_clearance import HumanClearance
 from ipromp_pin.exceptions import RobotError
 from ipromp_pin.human import BodyPart, HumanMotion
 from ipromp_pin.human.geometry import segment_closest_points
 from ipromp_pin.human.iso15066 import point_effective_mass_kg
 from ipromp_pin.human.robot_capsules import arm_kinematics
 from ipromp_pin.human.separation import SeparationAnalyser
+from ipromp_pin.motion.trajectory import Trajectory
 from ipromp_pin.robot import ee_positions, load_robot, load_robot_settings
 from ipromp_pin.robot.human_settings import REGION_LIMITS
+from ipromp_pin.safety import CheckContext
+from ipromp_pin.safety.contact_speed import SLOWDOWN_MARGIN, ContactSpeed
+from ipromp_pin.safety.human_clearance import HumanClearance
 
 NAMES = ("left_s0", "left_s1", "left_e0", "left_e1", "left_w0", "left_w1", "left_w2")
 QA = np.array([0.0, -0.6, 0.0, 1.2, 0.0, 0.6, 0.0])

@@ -16,11 +16,11 @@ from ipromp_pin.motion.path import prepare_path
 from ipromp_pin.motion.timing import TorqueLimit, time_path
 from ipromp_pin.motion.toppra_profile import toppra_profile
 from ipromp_pin.motion.trajectory import JointLimits, Trajectory
-from ipromp_pin.safety import CheckContext, CheckSuite
-from ipromp_pin.safety.joint_torques import JointTorques
 from ipromp_pin.robot import load_robot
 from ipromp_pin.robot.dynamics import ArmDynamics
 from ipromp_pin.robot.objects import TaskObject
+from ipromp_pin.safety import CheckContext, CheckSuite
+from ipromp_pin.safety.joint_torques import JointTorques
 
 Q0 = np.array([-0.8, -0.9, 0.4, 1.3, -0.2, 1.2, 1.6])
 Q1 = np.array([-0.2, -0.4, 0.1, 0.8, 0.3, 0.9, 1.0])

@@ -39,7 +39,8 @@ function iprompRender(s) {
     root.appendChild(iprompEl("div", {id: "ipromp-observed"}, text));
   }
   root.appendChild(iprompEl("div", {id: "ipromp-timebase"}, s.timebase ||
-    ("Robot trajectory: " + s.robot_duration_s.toFixed(2) + " s; times below are on it (t = 0 at its start)")));
+    ("Times are on the human's motion (t = 0 at its start); the robot comes to rest at " +
+     s.robot_duration_s.toFixed(2) + " s")));
   for (const note of (s.notes || [])) root.appendChild(iprompEl("div", {"class": "ipromp-note"}, note));
   if (s.feasibility.length) {
     const list = iprompEl("ul", {id: "ipromp-feasibility"});

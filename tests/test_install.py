@@ -109,4 +109,7 @@ def test_installed_copy_runs_the_main_job_from_another_folder(installed):
     assert list((site / "ipromp_pin" / "planning" / "__pycache__").glob("one_shot.*.pyc"))
     assert list((site / "ipromp_pin" / "commands" / "__pycache__").glob("run.*.pyc"))
     assert list((site / "ipromp_pin" / "safety" / "__pycache__").glob("suite.*.pyc"))
-    assert not list(site.rglob("*.nbi"))  # and no numba kernel was compiled
+    # and no inference or human-separation kernel was compiled (the self-collision certifier's small
+    # kernel, about 1.5 s to compile, is the one the run's self_collision check compiles)
+    compiled = {p.name.split(".")[0] for p in site.rglob("*.nbi")}
+    assert compiled <= {"clearance_kernels"}, compiled

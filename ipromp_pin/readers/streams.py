@@ -3,9 +3,9 @@
 The chen2017 CSV export, the original ROS bags and rosbag2 recordings hold the same four message
 streams (rosbag2 recordings may add tracked frames); their readers parse them into
 :class:`RawRecording` and build the demo with :func:`assemble_recording`, so the formats give the
-same :class:`Demo`. The multimodal reader bundles the same Myo and Baxter streams: every reader builds them with
-:func:`recorded_streams` and the demo's Myo groups with :func:`myo_groups`; channel names and
-interpolation kinds come from the channel-group specifications (:mod:`ipromp_pin.signals.groups`).
+same :class:`Demo`. The multimodal reader bundles the same Myo and Baxter streams: every reader
+builds them with :func:`recorded_streams` and the demo's Myo groups with :func:`myo_groups`; channel
+names and interpolation kinds come from the channel-group specifications (:mod:`ipromp_pin.signals.groups`).
 """
 
 from __future__ import annotations

@@ -274,3 +274,128 @@ def multimodal_records(csv_path: Path) -> list[Record]:
             tfs.append(transform(bundle[k], r[p + "header.frame_id"], child, [float(r[p + c]) for c in cols]))
         out.append(("/tf_of_interest", TF_MESSAGE, receive[k], tf_message(tfs)))
     return out
+
+
+# --------------------------------------------------------------------------- a synthetic recording
+BAXTER_NAMES = tuple(
+    ["head_nod", "head_pan"]
+    + [f"left_{j}" for j in ("e0", "e1", "s0", "s1", "w0", "w1", "w2")]
+    + [f"right_{j}" for j in ("e0", "e1", "s0", "s1", "w0", "w1", "w2")]
+    + ["torso_t0"]
+)
+"""Baxter's 17 joint-state names, alphabetical as the robot publishes them."""
+ARM = ("left_s0", "left_s1", "left_e0", "left_e1", "left_w0", "left_w1", "left_w2")
+Q_START = np.array([-0.84, -0.97, 0.38, 1.26, -0.20, 1.19, 1.66])
+Q_END = np.array([-1.50, -0.50, 0.38, 0.64, -0.49, 0.95, 1.27])
+ROBOT_CLOCK_AHEAD_S = 4.0
+"""The robot stamps its messages with its own clock, this far ahead of the recording PC."""
+START_NS = 1_700_000_000 * 10**9
+
+
+class Synthetic:
+    """A synthetic recording: every stream a known function of the true time ``tau`` [s] from the
+    start, sampled at its own rate with jitter, received 1-4 ms after it was stamped.
+
+    Streams: raw EMG (8 channels, 50 Hz, ``Float32MultiArray``: no header), the forearm orientation
+    (rotation about x by ``0.5 tau`` [rad]) and gravity in the sensor frame (``sensor_msgs/Imu`` in SI
+    units, 50 Hz, PC clock), Baxter's 17 joint states with the left arm moving linearly from
+    :data:`Q_START` to :data:`Q_END` and one-name gripper messages between them (100 Hz and 10 Hz,
+    robot clock), the end-point (``PoseStamped``, 100 Hz, robot clock) and tracked frames
+    (``TFMessage``, 30 Hz, PC clock): ``/left_hand_1`` moving 0.2 m/s along x (absent from every
+    7th message, all zeros in message 40), ``/right_hand_1``, ``/head_1``, ``left_gripper`` in the
+    base frame and a camera frame in another parent (not read).
+    """
+
+    def __init__(self, seed: int = 0, duration_s: float = 3.0) -> None:
+        self.rng = np.random.default_rng(seed)
+        self.duration_s = duration_s
+
+    def times(self, rate_hz: float) -> np.ndarray:
+        """Sample times [s] of a stream at ``rate_hz`` with 10 % jitter."""
+        n = int(self.duration_s * rate_hz)
+        return np.arange(n) / rate_hz + self.rng.uniform(0.0, 0.1 / rate_hz, n)
+
+    def latency(self, n: int) -> np.ndarray:
+        return self.rng.uniform(0.001, 0.004, n)
+
+    @staticmethod
+    def ns(t_s: np.ndarray) -> np.ndarray:
+        return START_NS + np.round(np.asarray(t_s) * 1e9).astype(np.int64)
+
+    @staticmethod
+    def angle(tau: np.ndarray) -> np.ndarray:
+        return 0.5 * np.asarray(tau)
+
+    def q(self, tau: np.ndarray) -> np.ndarray:
+        return Q_START + (np.asarray(tau) / self.duration_s)[:, None] * (Q_END - Q_START)
+
+    @staticmethod
+    def hand(tau: np.ndarray) -> np.ndarray:
+        tau = np.asarray(tau)
+        return np.column_stack([0.3 + 0.2 * tau, 0.1 + 0 * tau, 0.2 + 0 * tau])
+
+    def records(self) -> list[Record]:
+        """Every message of the recording; also sets the raw arrays as attributes (``emg``, ``imu``,
+        ``joints``, ``endpoint``, ``tf``: (header [s], receive [s], values))."""
+        out: list[Record] = []
+        t = self.times(50.0)
+        r = t + self.latency(t.size)
+        emg = self.rng.integers(5, 120, (t.size, 8)).astype(float)
+        for k in range(t.size):
+            out.append(("/myo_raw_emg_pub", FLOAT32_ARRAY, int(self.ns(r[k])), float32_array(emg[k])))
+        self.emg = (self.ns(r) * 1e-9, self.ns(r) * 1e-9, emg)
+
+        t = self.times(50.0)
+        r = t + self.latency(t.size)
+        a = self.angle(t)
+        q = np.column_stack([np.cos(a / 2), np.sin(a / 2), 0 * a, 0 * a])
+        acc = STANDARD_GRAVITY_MS2 * np.column_stack([0 * a, np.sin(a), np.cos(a)])
+        for k in range(t.size):
+            out.append(("/myo_raw_imu_pub", IMU, int(self.ns(r[k])), imu(int(self.ns(t[k])), q[k], acc[k])))
+        self.imu = (self.ns(t) * 1e-9, self.ns(r) * 1e-9, np.hstack([q, acc]))
+
+        t = self.times(100.0)
+        r = t + self.latency(t.size)
+        h = t + ROBOT_CLOCK_AHEAD_S
+        arm = self.q(t)
+        full = np.zeros((t.size, len(BAXTER_NAMES)))
+        for j, name in enumerate(ARM):
+            full[:, BAXTER_NAMES.index(name)] = arm[:, j]
+        for k in range(t.size):
+            msg = joint_state(int(self.ns(h[k])), BAXTER_NAMES, full[k])
+            out.append(("/robot/joint_states", JOINT_STATE, int(self.ns(r[k])), msg))
+            if k % 10 == 5:  # the gripper's one-name messages on the same topic
+                grip = joint_state(int(self.ns(h[k])) + 1000, ["left_gripper"], [0.02])
+                out.append(("/robot/joint_states", JOINT_STATE, int(self.ns(r[k])) + 1000, grip))
+        self.joints = (self.ns(h) * 1e-9, self.ns(r) * 1e-9, arm)
+        ep = np.column_stack([0.6 + 0.05 * t, 0.1 + 0 * t, 0.2 + 0 * t, 0 * t, 0 * t, 0 * t, 1 + 0 * t])
+        for k in range(t.size):
+            msg = T(POSE_STAMPED)(header=header(int(self.ns(h[k])), "base"), pose=pose(ep[k]))
+            out.append(("/robot/limb/left/endpoint_state", POSE_STAMPED, int(self.ns(r[k])), msg))
+        self.endpoint = (self.ns(h) * 1e-9, self.ns(r) * 1e-9, ep)
+
+        t = self.times(30.0)
+        r = t + self.latency(t.size)
+        frames = {
+            "/left_hand_1": self.hand(t),
+            "/right_hand_1": self.hand(t) + [0.0, -0.4, 0.0],
+            "/head_1": np.tile([0.2, -0.2, 0.6], (t.size, 1)),
+            "left_gripper": np.column_stack([0.6 + 0.05 * t, 0.1 + 0 * t, 0.2 + 0 * t]),
+        }
+        self.tf_positions = {f: np.array(p, dtype=float) for f, p in frames.items()}
+        self.tf_positions["/left_hand_1"][::7] = np.nan
+        self.tf_positions["/left_hand_1"][40] = np.nan
+        identity = [0.0, 0.0, 0.0, 1.0]
+        for k in range(t.size):
+            tfs = [transform(int(self.ns(t[k])), "world", "camera", [1.0, 0, 0, *identity])]
+            for f, p in frames.items():
+                if f == "/left_hand_1" and k % 7 == 0:
+                    continue
+                v = [0.0] * 7 if (f == "/left_hand_1" and k == 40) else [*p[k], *identity]
+                tfs.append(transform(int(self.ns(t[k])), "base", f, v))
+            out.append(("/tf", TF_MESSAGE, int(self.ns(r[k])), tf_message(tfs)))
+        self.tf = (self.ns(t) * 1e-9, self.ns(r) * 1e-9)
+        return out
+
+
+STANDARD_GRAVITY_MS2 = 9.80665

@@ -239,10 +239,18 @@ def _store_for(path: Path, conns: list, distro: str | None):
     try:
         return _typestore(tuple(sorted(defs.values())), tuple(sorted(standard)), distro or "")
     except Exception as exc:  # rosbags raises its own errors on a malformed definition
-        raise DataError(path, None, f"cannot parse the bag's message definitions ({exc})") from None
+        raise DataError(
+            path, None, f"cannot parse the bag's message definitions ({_one_line(exc)})"
+        ) from None
 
 
 # ------------------------------------------------------------------------------------- decoding
+def _one_line(exc: Exception, limit: int = 300) -> str:
+    """An exception's text on one line (a YAML parser's carets and line breaks folded), shortened."""
+    text = " ".join(str(exc).split())
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
 def read_messages(path: Path, topics: Sequence[str]) -> tuple[dict[str, list[Message]], list[str]]:
     """The decoded messages of ``topics`` in a rosbag2 recording, in record-time order per topic.
 
@@ -271,7 +279,9 @@ def read_messages(path: Path, topics: Sequence[str]) -> tuple[dict[str, list[Mes
     except PermissionError as exc:
         raise DataError(path, None, f"cannot read: {exc.strerror or exc}") from None
     except Exception as exc:  # rosbags, sqlite3, the MCAP parser and zstd raise many kinds
-        raise DataError(path, None, f"corrupt or unreadable rosbag2 ({type(exc).__name__}: {exc})") from None
+        raise DataError(
+            path, None, f"corrupt or unreadable rosbag2 ({type(exc).__name__}: {_one_line(exc)})"
+        ) from None
     return out, available
 
 

@@ -111,6 +111,7 @@ def read_demo(
     emg_cutoff_hz: float = DEFAULT_EMG_CUTOFF_HZ,
     joint_limits: Mapping[str, tuple[float, float]] | None = None,
     end_effector: Callable[[np.ndarray], np.ndarray] | None = None,
+    topics: Mapping[str, str] | None = None,
 ) -> Demo:
     """Read one demonstration and check that its values are physically plausible.
 
@@ -133,6 +134,9 @@ def read_demo(
         end_effector: Forward kinematics of the robot group, (T, J) [rad] -> (T, 3) [m] in the base
             frame; used by the multimodal and rosbag2 readers to find the human's handing hand when the
             robot's end-point stream was not recorded.
+        topics: Stream -> topic, replacing the default topics of the ``bag`` and ``rosbag2``
+            readers (:data:`.rosbag2.DEFAULT_TOPICS`; rosbag2 also ``"frame:<name>"``); an error for
+            the other formats.
 
     Returns:
         The demo on a uniform time grid starting at 0.
@@ -149,6 +153,13 @@ def read_demo(
     if frames and format in ("chen2017", "bag"):
         raise DataError(
             path, "frames", f"the {format} recordings have no tracked frames (asked for {list(frames)})"
+        )
+    if topics and format not in ("bag", "rosbag2"):
+        raise DataError(path, "topics", f"the {format} recordings have no topics to choose")
+    if topics and format == "bag" and not set(topics) <= set(rosbag.DEFAULT_TOPICS):
+        unknown = sorted(set(topics) - set(rosbag.DEFAULT_TOPICS))
+        raise DataError(
+            path, "topics", f"unknown stream {unknown[0]!r} (use {', '.join(rosbag.DEFAULT_TOPICS)})"
         )
     # The recordings' readers resample at 50 Hz by default; a native file keeps its own rate.
     rate = 50.0 if rate_hz is None else rate_hz
@@ -168,7 +179,7 @@ def read_demo(
         )
     elif format == "bag":
         demo = rosbag.read_demo(
-            path, task, rate_hz=rate, robot_joints=robot_joints, emg_cutoff_hz=emg_cutoff_hz
+            path, task, rate_hz=rate, robot_joints=robot_joints, emg_cutoff_hz=emg_cutoff_hz, topics=topics
         )
     elif format == "rosbag2":
         demo = rosbag2.read_demo(
@@ -179,6 +190,7 @@ def read_demo(
             robot_joints=robot_joints,
             emg_cutoff_hz=emg_cutoff_hz,
             end_effector=end_effector,
+            topics=topics,
         )
     else:
         demo = native.read_demo(path, task, rate_hz=rate_hz, frames=frames, robot_joints=robot_joints)
@@ -194,6 +206,7 @@ def read_recording(
     emg_cutoff_hz: float = DEFAULT_EMG_CUTOFF_HZ,
     joint_limits: Mapping[str, tuple[float, float]] | None = None,
     end_effector: Callable[[np.ndarray], np.ndarray] | None = None,
+    topics: Mapping[str, str] | None = None,
 ) -> Demo:
     """Read ONE recording of an unknown task, its format detected (:mod:`.recordings`).
 
@@ -202,7 +215,8 @@ def read_recording(
             folder), a ROS 1 ``.bag``, a rosbag2 folder or ``.mcap`` / ``.db3`` file, a native
             ``.npz`` / ``.csv``, or one chen2017 export stamp (any of its ``<stamp>-<topic>.csv``
             files, their prefix, or a folder holding only that stamp's files).
-        frames, rate_hz, robot_joints, emg_cutoff_hz, joint_limits, end_effector: As :func:`read_demo`.
+        frames, rate_hz, robot_joints, emg_cutoff_hz, joint_limits, end_effector, topics: As
+            :func:`read_demo`.
 
     Returns:
         The demo, with ``task`` :data:`UNKNOWN_TASK` (``""``: the recording's folder names no task,
@@ -232,6 +246,7 @@ def read_recording(
         emg_cutoff_hz=emg_cutoff_hz,
         joint_limits=joint_limits,
         end_effector=end_effector,
+        topics=topics,
     )
 
 

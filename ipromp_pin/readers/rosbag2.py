@@ -22,7 +22,8 @@ fields as one below is read as well:
   messages without every requested joint (Baxter's one-name gripper messages) are dropped;
 * ``endpoint``, ``/robot/limb/left/endpoint_state`` (optional): anything with a ``pose``
   (``baxter_core_msgs/msg/EndpointState``, ``geometry_msgs/msg/PoseStamped``);
-* tracked frames, every topic of :data:`TF_TOPICS` present (optional): ``tf2_msgs/msg/TFMessage``
+* tracked frames, every topic of :data:`TF_TOPICS` present, or the one topic ``topics["tf"]``
+  (optional): ``tf2_msgs/msg/TFMessage``
   or ``geometry_msgs/msg/TransformStamped``; a transform whose parent (``header.frame_id``) is the
   robot's base frame (``base_frames``) gives the position of its ``child_frame_id`` (the skeleton's
   ``/left_hand_1`` ..., Baxter's ``left_gripper``); transforms to other parents are not composed
@@ -78,12 +79,14 @@ TF_TOPICS = ("/tf_of_interest", "/tf")
 """Topics whose transforms to the base frame give tracked frames (the first topic listing a frame wins)."""
 BASE_FRAMES = ("base", "/base")
 """Names of the robot's base frame, the parent of the tracked frames' transforms (Baxter's ``base``)."""
+TF_KEY = "tf"
+"""The ``topics`` key naming the one TF topic to read instead of :data:`TF_TOPICS`."""
 FRAME_KEY = "frame:"
 """Prefix of the ``topics`` keys naming a topic of one tracked frame (``"frame:/left_hand_1"``)."""
 STORAGE_SUFFIXES = (".mcap", ".db3")
 """The storage files of a rosbag2 recording (MCAP, SQLite)."""
-MAGIC = {".mcap": b"\x89MCAP0\r\n", ".db3": b"SQLite format 3\x00"}
-"""The first bytes of each storage file."""
+MAGIC = {".mcap": b"\x89MCAP0\r\n", ".db3": b"SQLite format 3\x00", ".zstd": b"\x28\xb5\x2f\xfd"}
+"""The first bytes of each storage file (``.zstd``: a storage file compressed whole)."""
 STANDARD_GRAVITY = 9.80665
 """[m/s^2] per g: a ``sensor_msgs/Imu`` in SI units gives its acceleration in [m/s^2]."""
 SCALE_TOLERANCE = 0.05
@@ -129,6 +132,15 @@ def list_demos(folder: Path, order: str = "config") -> list[Path]:
     return sorted(p for p in folder.iterdir() if not p.name.startswith(".") and is_recording(p))
 
 
+def _storage_files(folder: Path) -> list[Path]:
+    """The storage files of a rosbag2 folder (``.mcap``, ``.db3``, or either compressed ``.zstd``)."""
+    return sorted(
+        p
+        for p in folder.iterdir()
+        if p.suffix in STORAGE_SUFFIXES or (p.suffix == ".zstd" and Path(p.stem).suffix in STORAGE_SUFFIXES)
+    )
+
+
 def check_storage(path: Path) -> None:
     """Refuse, with a one-line error, what cannot be a rosbag2 recording: a folder without
     ``metadata.yaml`` or without storage files, an empty file, a file without its format's magic
@@ -137,7 +149,7 @@ def check_storage(path: Path) -> None:
     if path.is_dir():
         if not (path / "metadata.yaml").is_file():
             raise DataError(path, "metadata.yaml", "not a rosbag2 folder (no metadata.yaml)")
-        files = sorted(p for p in path.iterdir() if p.suffix in STORAGE_SUFFIXES)
+        files = _storage_files(path)
         if not files:
             raise DataError(path, None, "rosbag2 folder without .mcap or .db3 storage files")
     elif not path.exists():
@@ -146,7 +158,7 @@ def check_storage(path: Path) -> None:
         files = [path]
     for f in files:
         if f.suffix not in MAGIC:
-            raise DataError(f, None, "not a rosbag2 storage file (expected .mcap or .db3)")
+            raise DataError(f, None, "not a rosbag2 storage file (expected .mcap, .db3 or .zstd)")
         try:
             with open(f, "rb") as fh:
                 head = fh.read(len(MAGIC[f.suffix]))
@@ -155,7 +167,7 @@ def check_storage(path: Path) -> None:
         if not head:
             raise DataError(f, None, "empty file")
         if head != MAGIC[f.suffix]:
-            kind = "an MCAP file" if f.suffix == ".mcap" else "an SQLite database"
+            kind = {".mcap": "an MCAP file", ".db3": "an SQLite database", ".zstd": "a zstd file"}[f.suffix]
             raise DataError(f, None, f"not {kind} (its first bytes are not {MAGIC[f.suffix]!r})")
 
 
@@ -531,7 +543,8 @@ def read_raw(
     Args:
         path: The rosbag2 folder, or an ``.mcap`` / ``.db3`` file.
         robot_joints: Joint names of the robot group, in the wanted order.
-        topics: Overrides of :data:`DEFAULT_TOPICS`, and ``"frame:<name>"`` topics of tracked frames.
+        topics: Overrides of :data:`DEFAULT_TOPICS`; ``"tf"``: the one TF topic to read instead of
+            :data:`TF_TOPICS`; ``"frame:<name>"``: the topic of one tracked frame.
         base_frames: Names of the robot's base frame (parent of the tracked frames).
 
     Raises:
@@ -540,14 +553,15 @@ def read_raw(
     """
     path = recording_path(Path(path))
     topics = dict(DEFAULT_TOPICS, **(topics or {}))
+    tf_topics = (topics.pop(TF_KEY),) if TF_KEY in topics else TF_TOPICS
     for key in topics:
         if key not in DEFAULT_TOPICS and not key.startswith(FRAME_KEY):
             raise DataError(
                 path,
                 "topics",
-                f"unknown stream {key!r} (use {', '.join(DEFAULT_TOPICS)} or '{FRAME_KEY}<name>')",
+                f"unknown stream {key!r} (use {', '.join(DEFAULT_TOPICS)}, {TF_KEY} or '{FRAME_KEY}<name>')",
             )
-    wanted = list(dict.fromkeys([*topics.values(), *TF_TOPICS]))
+    wanted = list(dict.fromkeys([*topics.values(), *tf_topics]))
     messages, available = read_messages(path, wanted)
     for key in ("emg", "imu", "joints"):
         if not messages[topics[key]]:
@@ -568,7 +582,7 @@ def read_raw(
             if not messages[topic]:
                 raise DataError(path, topic, "topic of a tracked frame missing or without messages")
             tracked.append(_point_topic(source(topic), key[len(FRAME_KEY) :], messages[topic], base_frames))
-    for topic in TF_TOPICS:
+    for topic in tf_topics:
         tf = _tf_topic(source(topic), messages[topic], base_frames) if topic not in topics.values() else None
         if tf is not None:
             tracked.append(tf)

@@ -109,6 +109,23 @@ def test_read_recording_of_the_recorded_formats(chen2017_dir, handover2017_dir, 
         same_but_task(reference, read_recording(path, frames=["/left_hand_1"]))
 
 
+def test_read_recording_with_other_topic_names(tmp_path, native_demo):
+    """A recording on other topics than the defaults reads with ``topics=``; without it the missing
+    topic is named; a format without topics refuses them."""
+    renamed = {"/myo_raw_emg_pub": "/myo/emg", "/myo_raw_imu_pub": "/myo/imu", "/tf": "/tracker/tf"}
+    records = [(renamed.get(t, t), m, ns, msg) for t, m, ns, msg in h.Synthetic(seed=2).records()]
+    folder = h.write_rosbag2(tmp_path / "renamed", records)
+    msg = one_line_error(folder, lambda: read_recording(folder))
+    assert "field '/myo_raw_emg_pub': topic missing" in msg and "/myo/emg" in msg
+    demo = read_recording(folder, topics={"emg": "/myo/emg", "imu": "/myo/imu"})
+    assert demo.task == UNKNOWN_TASK and "acc" in demo.groups
+    assert not any(k.startswith("skeleton:") for k in demo.extras)  # /tracker/tf is not a default TF topic
+    demo = read_recording(folder, topics={"emg": "/myo/emg", "imu": "/myo/imu", "tf": "/tracker/tf"})
+    assert "skeleton:/head_1" in demo.extras
+    path = write_demo(native_demo, tmp_path / "d.npz")
+    assert "no topics to choose" in one_line_error(path, lambda: read_recording(path, topics={"emg": "/e"}))
+
+
 # -------------------------------------------------------------------------------- expand_recordings
 def test_expand_recordings_files_folders_and_nesting(tmp_path, synthetic_rosbag2, native_demo):
     """One recording per file or recording folder; a folder of recordings expands to each, by name;

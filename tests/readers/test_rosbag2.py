@@ -62,13 +62,19 @@ def test_chen2017_demo_written_to_rosbag2_reads_as_its_ros1_bag(chen2017_dir, tm
 @pytest.mark.realdata
 def test_ros1_bag_converted_by_rosbags_reads_the_same(chen2017_dir, tmp_path):
     """``rosbags-convert`` (how a ROS 1 bag becomes a rosbag2: docs/your_data.md) keeps stamps,
-    record times and the bag's own definitions: the same demo."""
+    record times and the bag's own definitions: the same demo, also compressed (zstd, per file or
+    per message)."""
     from rosbags.convert.converter import convert
 
     bag = chen2017_dir / "tape_hold" / f"{CHEN_STAMP}.bag"
-    dst = tmp_path / "tape_hold" / CHEN_STAMP
-    convert([bag], dst, "mcap", 8, None, "file", None, None, [], [], [], [])
-    assert_same_demo(read_demo(bag), read_demo(dst))
+    for storage, compress, mode in (
+        ("mcap", None, "file"),
+        ("mcap", "zstd", "file"),
+        ("sqlite3", "zstd", "message"),
+    ):
+        dst = tmp_path / f"{storage}_{compress}_{mode}" / CHEN_STAMP
+        convert([bag], dst, storage, 8, compress, mode, None, None, [], [], [], [])
+        assert_same_demo(read_demo(bag), read_demo(dst, "tape_hold"))
 
 
 @pytest.mark.realdata

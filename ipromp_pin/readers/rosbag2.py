@@ -532,11 +532,42 @@ def _point_topic(
     return TrackedTopic(header, receive, {frame: np.asarray(rows, dtype=float)}, source)
 
 
+def _check_frames(
+    path: Path,
+    frames: Sequence[str],
+    tracked: Sequence[TrackedTopic],
+    tf_topics: Sequence[str],
+    messages: Mapping[str, Sequence[Message]],
+    base_frames: Sequence[str],
+) -> None:
+    """Refuse a requested frame that no topic gives in the base frame, naming what the TF topics hold."""
+    have = {f for t in tracked for f in t.positions}
+    missing = [f for f in frames if f not in have]
+    if not missing:
+        return
+    seen: set[tuple[str, str]] = set()
+    for topic in tf_topics:
+        for _, _, msg in messages[topic]:
+            seen.update((tf.header.frame_id, tf.child_frame_id) for tf in _transforms(msg) or [])
+    if not seen:
+        problem = (
+            f"frame never tracked (no TF messages on {', '.join(TF_TOPICS)}; 'tf' in topics names another)"
+        )
+    else:
+        pairs = ", ".join(f"{p or '?'}->{c}" for p, c in sorted(seen)[:12])
+        problem = (
+            f"frame never tracked in the base frame ({', '.join(base_frames)}; transforms are not composed); "
+            f"the TF messages hold {pairs}"
+        )
+    raise DataError(path, missing[0], problem)
+
+
 def read_raw(
     path: Path,
     robot_joints: Sequence[str] = BAXTER_LEFT_JOINTS,
     topics: Mapping[str, str] | None = None,
     base_frames: Sequence[str] = BASE_FRAMES,
+    frames: Sequence[str] = (),
 ) -> RawRecording:
     """The raw streams of one rosbag2 recording (see the module docstring for topics and types).
 
@@ -546,6 +577,7 @@ def read_raw(
         topics: Overrides of :data:`DEFAULT_TOPICS`; ``"tf"``: the one TF topic to read instead of
             :data:`TF_TOPICS`; ``"frame:<name>"``: the topic of one tracked frame.
         base_frames: Names of the robot's base frame (parent of the tracked frames).
+        frames: Tracked frames that must be there (named in the error, with the transforms there are).
 
     Raises:
         DataError: unreadable recording, a required topic missing, a message type that cannot be
@@ -586,6 +618,7 @@ def read_raw(
         tf = _tf_topic(source(topic), messages[topic], base_frames) if topic not in topics.values() else None
         if tf is not None:
             tracked.append(tf)
+    _check_frames(path, frames, tracked, [t for t in tf_topics if messages[t]], messages, base_frames)
     fields = {"emg": ".ch0-7" if hasattr(messages[topics["emg"]][0][2], "ch0") else ".data"}
     fields.update(IMU_FIELDS[layout], joints=".position", endpoint=".pose")
     return RawRecording(
@@ -625,7 +658,7 @@ def read_demo(
         topics, base_frames: See :func:`read_raw`.
     """
     path = recording_path(Path(path))
-    raw = read_raw(path, robot_joints, topics, base_frames)
+    raw = read_raw(path, robot_joints, topics, base_frames, list(frames or []))
     return assemble_recording(
         raw,
         task=task if task is not None else path.parent.name,

@@ -341,8 +341,14 @@ def test_bad_rosbag2_recordings(synthetic, tmp_path):
         rosbag2.read_demo(folders["mcap"], "x", topics={"emg": "/tf"})
     with pytest.raises(DataError, match=r"unknown stream 'gaze'"):
         rosbag2.read_demo(folders["mcap"], "x", topics={"gaze": "/gaze"})
-    with pytest.raises(DataError, match=r"field '/left_foot_1': frame never tracked \(child_frame_ids: "):
+    with pytest.raises(
+        DataError, match=r"field '/left_foot_1': frame never tracked in the base frame .*world->camera"
+    ):
         read_demo(folders["mcap"], "x", frames=["/left_foot_1"])
+    with pytest.raises(
+        DataError, match=r"field 'camera': frame never tracked in the base frame .*transforms are not"
+    ):
+        read_demo(folders["mcap"], "x", frames=["camera"])
 
 
 def test_mixed_stamps_and_frames_outside_the_base_frame_are_refused(tmp_path):

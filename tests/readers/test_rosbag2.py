@@ -142,7 +142,7 @@ def test_multimodal_demo_written_to_rosbag2_reads_as_its_csv(handover2017_dir, t
 
     Compared with the CSV read with each message counted once: the CSV repeats a stale message in
     later rows with later receive times, which the CSV reader's clock-offset estimate counts (it
-    shifts its streams by up to a few ms against the rosbag2's). Tolerance 1e-4 (rad, m, g, unit
+    shifts its streams by milliseconds against the rosbag2's). Tolerance 1e-4 (rad, m, g, unit
     quaternion; 1e-3 on the EMG envelope): the CSV's stamps are nanosecond integers read as floats
     (0.25 us steps at 1.5e9 s), the rosbag2's exact.
     """

@@ -39,6 +39,7 @@ EXPECTED = {
     "inference.py": [r"(?m)^paper\s+\d+\s+12\s", r"speed-up \d+x", r"task accuracy [\d.]+"],
     "model_load.py": [r"this checkout:\s+[\d.]+ ms", r"paired difference \(this - other\): median"],
     "pipeline.py": [r"total \(observation->files\)\s+[\d.]+"],
+    "read_formats.py": [r"rosbag2 \(MCAP\)\s+[\d.]+ ms", r"rosbag2 \(SQLite\)\s+[\d.]+ ms"],
     "profile_update.py": [r"(?m)^  total\s+[\d.]+", r"stream_group \(per update\)\s+[\d.]+"],
     "speed_margin_cv.py": [r"(?m)^0\.1 \| 8 \| 0 \| 0 \| [\d.]+ \|", r"chosen: speed_margin = 0"],
     "settings_cv.py": [r"(?m)^log_groups= pooling=0\.0\s+0\.2\s+[\d.]+"],

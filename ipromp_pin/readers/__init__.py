@@ -10,10 +10,17 @@ Each task folder is in one of these formats, detected per folder when
   see :mod:`.multimodal`;
 * ``"native"``: the project's own format, one ``.npz`` or ``.csv`` per demo,
   see :mod:`.native`;
-* ``"bag"``: ROS1 bags ``<stamp>.bag`` of the chen2017 topics, see :mod:`.rosbag`.
+* ``"bag"``: ROS1 bags ``<stamp>.bag`` of the chen2017 topics, see :mod:`.rosbag`;
+* ``"rosbag2"``: ROS 2 recordings, one rosbag2 folder ``<stamp>/`` (``metadata.yaml`` with MCAP or
+  SQLite storage) or ``<stamp>.mcap`` / ``<stamp>.db3`` file per demo, see :mod:`.rosbag2`.
 
 A chen2017 task folder holds both the CSV export and the bags; ``"auto"`` reads
 the CSVs (faster), ``format="bag"`` the bags (the same demos, see the tests).
+
+Single recordings without a task label (a new recording to plan from): :func:`read_recording`
+reads one file or folder in any of these formats into a :class:`~ipromp_pin.data.Demo` whose task
+is :data:`UNKNOWN_TASK` (``""``), and :func:`expand_recordings` lists the recordings that files and
+folders hold (:mod:`.recordings`).
 """
 
 from __future__ import annotations
@@ -27,29 +34,34 @@ import numpy as np
 from ..data import Dataset, Demo
 from ..exceptions import DataError
 from ..signals.preprocess import DEFAULT_EMG_CUTOFF_HZ
-from . import chen2017, multimodal, native, plausibility, rosbag
+from . import chen2017, multimodal, native, plausibility, rosbag, rosbag2
 from .native import write_dataset, write_demo
+from .recordings import UNKNOWN_TASK, expand_recordings, recording_format
 from .streams import BAXTER_LEFT_JOINTS
 
-FORMATS = ("auto", "chen2017", "multimodal", "bag", "native")
+FORMATS = ("auto", "chen2017", "multimodal", "bag", "native", "rosbag2")
 """Accepted values of ``format``."""
 
 __all__ = [
     "BAXTER_LEFT_JOINTS",
     "FORMATS",
+    "UNKNOWN_TASK",
     "count_demos",
     "detect_format",
+    "expand_recordings",
     "list_demos",
     "load_dataset",
     "plausibility",
     "read_demo",
+    "read_recording",
+    "recording_format",
     "write_dataset",
     "write_demo",
 ]
 
 
 def detect_format(folder: Path) -> str:
-    """Format of a task folder: ``"chen2017"``, ``"multimodal"``, ``"native"`` or ``"bag"``.
+    """Format of a task folder: ``"chen2017"``, ``"multimodal"``, ``"native"``, ``"bag"`` or ``"rosbag2"``.
 
     Raises:
         DataError: the folder holds none of them.
@@ -63,11 +75,13 @@ def detect_format(folder: Path) -> str:
         return "native"
     if rosbag.is_bag_folder(folder):
         return "bag"
+    if rosbag2.is_rosbag2_folder(folder):
+        return "rosbag2"
     raise DataError(
         folder,
         "format",
         "cannot detect the format: no csv/<stamp>-myo_raw_emg_pub.csv, csv/<stamp>/multiModal_states.csv, "
-        "*.npz / *.csv demo files or *.bag files",
+        "*.npz / *.csv demo files, *.bag files or rosbag2 recordings (<stamp>/metadata.yaml, *.mcap, *.db3)",
     )
 
 
@@ -81,23 +95,9 @@ def list_demos(folder: Path, format: str, order: str = "config") -> list[Path]:
         return native.list_demos(folder, order)
     if format == "bag":
         return rosbag.list_demos(folder, order)
+    if format == "rosbag2":
+        return rosbag2.list_demos(folder, order)
     raise DataError(folder, "format", f"unknown format {format!r} (use one of {', '.join(FORMATS)})")
-
-
-def _detect_file_format(path: Path) -> str:
-    if path.is_dir() and (path / multimodal.FILE_NAME).is_file():
-        return "multimodal"
-    if path.name == multimodal.FILE_NAME:
-        return "multimodal"
-    if path.suffix == ".bag":
-        return "bag"
-    if path.suffix == ".npz":
-        return "native"
-    if chen2017.STAMP_RE.match(path.name) and path.parent.name == "csv":
-        return "chen2017"
-    if path.suffix == ".csv":
-        return "native"
-    raise DataError(path, "format", "cannot detect the demo's format from its path")
 
 
 def read_demo(
@@ -111,17 +111,20 @@ def read_demo(
     emg_cutoff_hz: float = DEFAULT_EMG_CUTOFF_HZ,
     joint_limits: Mapping[str, tuple[float, float]] | None = None,
     end_effector: Callable[[np.ndarray], np.ndarray] | None = None,
+    topics: Mapping[str, str] | None = None,
 ) -> Demo:
     """Read one demonstration and check that its values are physically plausible.
 
     Args:
         path: The demo: a chen2017 ``<task>/csv/<stamp>`` prefix or one of its CSV files,
-            a ``multiModal_states.csv`` (or its folder), a ``.bag``, or a native ``.npz``/``.csv``.
+            a ``multiModal_states.csv`` (or its folder), a ``.bag``, a rosbag2 folder or
+            ``.mcap``/``.db3`` file, or a native ``.npz``/``.csv``
+            (:func:`~.recordings.recording_format`).
         task: Task name (default: derived from the path).
         format: One of :data:`FORMATS`.
         frames: Skeleton frames (child_frame_id, e.g. ``"/left_hand_1"``) to read as
-            human groups (multimodal format; native demos must contain them; an error
-            for chen2017 recordings, which have none).
+            human groups (multimodal and rosbag2 formats; native demos must contain them; an
+            error for chen2017 recordings, which have none).
         rate_hz: Output sampling rate in [Hz] (native demos are resampled when theirs differs;
             ``None`` keeps a native demo's rate).
         robot_joints: Joint names of the ``"robot"`` group, in the wanted order.
@@ -129,8 +132,11 @@ def read_demo(
         joint_limits: Recorded joint name -> (lower, upper) in [rad]: the robot's limits, which the
             recorded angles must respect (see :mod:`.plausibility`; default: a generic bound).
         end_effector: Forward kinematics of the robot group, (T, J) [rad] -> (T, 3) [m] in the base
-            frame; used by the multimodal reader to find the human's handing hand when the
+            frame; used by the multimodal and rosbag2 readers to find the human's handing hand when the
             robot's end-point stream was not recorded.
+        topics: Stream -> topic, replacing the default topics of the ``bag`` and ``rosbag2``
+            readers (:data:`.rosbag2.DEFAULT_TOPICS`; rosbag2 also ``"frame:<name>"``); an error for
+            the other formats.
 
     Returns:
         The demo on a uniform time grid starting at 0.
@@ -143,10 +149,17 @@ def read_demo(
     if format not in FORMATS:
         raise DataError(path, "format", f"unknown format {format!r} (use one of {', '.join(FORMATS)})")
     if format == "auto":
-        format = _detect_file_format(path)
+        format = recording_format(path)
     if frames and format in ("chen2017", "bag"):
         raise DataError(
             path, "frames", f"the {format} recordings have no tracked frames (asked for {list(frames)})"
+        )
+    if topics and format not in ("bag", "rosbag2"):
+        raise DataError(path, "topics", f"the {format} recordings have no topics to choose")
+    if topics and format == "bag" and not set(topics) <= set(rosbag.DEFAULT_TOPICS):
+        unknown = sorted(set(topics) - set(rosbag.DEFAULT_TOPICS))
+        raise DataError(
+            path, "topics", f"unknown stream {unknown[0]!r} (use {', '.join(rosbag.DEFAULT_TOPICS)})"
         )
     # The recordings' readers resample at 50 Hz by default; a native file keeps its own rate.
     rate = 50.0 if rate_hz is None else rate_hz
@@ -166,11 +179,75 @@ def read_demo(
         )
     elif format == "bag":
         demo = rosbag.read_demo(
-            path, task, rate_hz=rate, robot_joints=robot_joints, emg_cutoff_hz=emg_cutoff_hz
+            path, task, rate_hz=rate, robot_joints=robot_joints, emg_cutoff_hz=emg_cutoff_hz, topics=topics
+        )
+    elif format == "rosbag2":
+        demo = rosbag2.read_demo(
+            path,
+            task,
+            frames=frames,
+            rate_hz=rate,
+            robot_joints=robot_joints,
+            emg_cutoff_hz=emg_cutoff_hz,
+            end_effector=end_effector,
+            topics=topics,
         )
     else:
         demo = native.read_demo(path, task, rate_hz=rate_hz, frames=frames, robot_joints=robot_joints)
     return plausibility.check_demo(demo, joint_limits)
+
+
+def read_recording(
+    path: str | Path,
+    *,
+    frames: Sequence[str] | None = None,
+    rate_hz: float | None = 50.0,
+    robot_joints: Sequence[str] = BAXTER_LEFT_JOINTS,
+    emg_cutoff_hz: float = DEFAULT_EMG_CUTOFF_HZ,
+    joint_limits: Mapping[str, tuple[float, float]] | None = None,
+    end_effector: Callable[[np.ndarray], np.ndarray] | None = None,
+    topics: Mapping[str, str] | None = None,
+) -> Demo:
+    """Read ONE recording of an unknown task, its format detected (:mod:`.recordings`).
+
+    Args:
+        path: A file, or a folder holding one recording: a ``multiModal_states.csv`` (or its
+            folder), a ROS 1 ``.bag``, a rosbag2 folder or ``.mcap`` / ``.db3`` file, a native
+            ``.npz`` / ``.csv``, or one chen2017 export stamp (any of its ``<stamp>-<topic>.csv``
+            files, their prefix, or a folder holding only that stamp's files).
+        frames, rate_hz, robot_joints, emg_cutoff_hz, joint_limits, end_effector, topics: As
+            :func:`read_demo`.
+
+    Returns:
+        The demo, with ``task`` :data:`UNKNOWN_TASK` (``""``: the recording's folder names no task,
+        and a label stored in a native file is not used) and ``name`` the recording's (its stamp,
+        folder or file name).
+
+    Raises:
+        DataError: nothing there, not a recording, a folder of several recordings (list them with
+            :func:`expand_recordings`), or bad data (as :func:`read_demo`), naming the file, field and
+            problem.
+    """
+    found = expand_recordings([path])
+    if len(found) != 1:
+        raise DataError(
+            path,
+            None,
+            f"holds {len(found)} recordings, not one (name one of them, e.g. {found[0]}; or list them with "
+            "expand_recordings)",
+        )
+    return read_demo(
+        found[0],
+        UNKNOWN_TASK,
+        format=recording_format(found[0]),
+        frames=frames,
+        rate_hz=rate_hz,
+        robot_joints=robot_joints,
+        emg_cutoff_hz=emg_cutoff_hz,
+        joint_limits=joint_limits,
+        end_effector=end_effector,
+        topics=topics,
+    )
 
 
 def _check_readable(folder: Path) -> None:

@@ -13,7 +13,7 @@ Every file has ``time`` (the recording PC's receive time as local wall-clock
 text) and ``.header.stamp.secs``/``.nsecs``. The robot stamps its messages with
 its own clock (about 3.95 s ahead of the PC in these recordings; estimated per
 stream and per demo, never assumed) while the PC stamps the Myo messages; see
-:func:`ipromp_pin.readers.streams.assemble_chen2017` for the alignment.
+:func:`ipromp_pin.readers.streams.assemble_recording` for the alignment.
 
 Resulting :class:`~ipromp_pin.data.Demo` groups, on a uniform grid at
 ``rate_hz`` spanning the streams' overlap, ``t`` from 0:
@@ -55,7 +55,7 @@ from .streams import (
     CsvTable,
     RawRecording,
     RawStream,
-    assemble_chen2017,
+    assemble_recording,
     parse_receive_times,
     select_joint_messages,
 )
@@ -267,7 +267,7 @@ def read_demo(
     """
     prefix = _demo_prefix(Path(path))
     raw = read_raw(prefix, robot_joints)
-    return assemble_chen2017(
+    return assemble_recording(
         raw,
         task=task if task is not None else prefix.parent.parent.name,
         name=prefix.name,
@@ -281,5 +281,5 @@ def read_demo(
 def clock_offsets(path: Path, robot_joints: Sequence[str] = BAXTER_LEFT_JOINTS) -> dict[str, float]:
     """Estimated clock offset (header stamp minus PC clock) of each stream of a demo, in [s]."""
     raw = read_raw(Path(path), robot_joints)
-    assemble_chen2017(raw, task="", name="", source=path, rate_hz=50.0, robot_joints=robot_joints)
+    assemble_recording(raw, task="", name="", source=path, rate_hz=50.0, robot_joints=robot_joints)
     return dict(raw.clock_offsets_s)

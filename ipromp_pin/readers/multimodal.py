@@ -63,9 +63,8 @@ import numpy as np
 
 from ..data import ROBOT, Demo
 from ..exceptions import DataError
-from ..signals.checks import EMG_RAW_RANGE, POSITION_BOUND_M, check_joint_angles, check_norms, check_range
+from ..signals.checks import EMG_RAW_RANGE, check_joint_angles, check_range
 from ..signals.groups import EMG
-from ..signals.groups import SKELETON_FRAME as FRAME
 from ..signals.preprocess import DEFAULT_EMG_CUTOFF_HZ, Stream, align_streams, estimate_clock_offset
 from .streams import (
     BAXTER_LEFT_JOINTS,
@@ -79,20 +78,35 @@ from .streams import (
     recorded_streams,
     select_joint_messages,
 )
+from .tracked import (
+    GRIPPER_FRAMES,
+    HAND_FRAMES,
+    JUMP_THRESHOLD_M,
+    JUMP_WINDOW,
+    SKELETON_EXTRA,
+    FrameTrack,
+    flag_jumps,
+    frame_extras,
+    frame_groups,
+    frame_streams,
+    is_skeleton_frame,
+    needed_frames,
+)
+
+__all__ = [  # the tracked-frame names live in .tracked since the rosbag2 reader shares them
+    "FILE_NAME",
+    "GRIPPER_FRAMES",
+    "HAND_FRAMES",
+    "JUMP_THRESHOLD_M",
+    "JUMP_WINDOW",
+    "SKELETON_EXTRA",
+    "flag_jumps",
+    "is_multimodal_folder",
+    "list_demos",
+    "read_demo",
+]
 
 FILE_NAME = "multiModal_states.csv"
-JUMP_THRESHOLD_M = 0.25
-"""A tracked position farther than this from the median of its neighbours is a jump (missing), in [m]."""
-JUMP_WINDOW = 5
-"""Number of valid samples (centred) whose median a tracked position is compared with."""
-HAND_FRAMES = ("/left_hand_1", "/right_hand_1")
-SKELETON_EXTRA = "skeleton:"
-"""Prefix of the extras holding every tracked skeleton frame (``"skeleton:/head_1"`` ...): positions
-(T, 3) [m], NaN where the frame is not listed, all-zero or a jump (the body model of
-:mod:`ipromp_pin.human.body` reads them; they are not modelled)."""
-GRIPPER_FRAMES = ("left_gripper", "/left_gripper")
-"""Tracked frames at the robot's end-point (the tf of Baxter's left gripper), used to choose the
-handing hand when the end-point stream was not recorded."""
 N_TRANSFORMS_MAX = 64
 
 P = "field."
@@ -174,31 +188,6 @@ def _frame_positions(table: CsvTable, prefixes: list[str], frame: str) -> np.nda
     return pos if found else None
 
 
-def flag_jumps(
-    pos: np.ndarray, threshold_m: float = JUMP_THRESHOLD_M, window: int = JUMP_WINDOW
-) -> np.ndarray:
-    """Mask (N,) of tracked positions (N, 3) farther than ``threshold_m`` from the median of the
-    ``window`` valid samples centred on them (isolated spikes); NaN rows are not flagged."""
-    valid = np.flatnonzero(np.all(np.isfinite(pos), axis=1))
-    out = np.zeros(pos.shape[0], dtype=bool)
-    if valid.size < 3:
-        return out
-    v = pos[valid]
-    h = window // 2
-    padded = np.concatenate([np.repeat(v[:1], h, 0), v, np.repeat(v[-1:], h, 0)])
-    windows = np.stack([padded[i : i + v.shape[0]] for i in range(window)], axis=0)
-    med = np.median(windows, axis=0)
-    out[valid] = np.linalg.norm(v - med, axis=1) > threshold_m
-    return out
-
-
-def _fill_gaps(t: np.ndarray, x: np.ndarray) -> np.ndarray:
-    ok = np.all(np.isfinite(x), axis=1)
-    if ok.all() or ok.sum() < 2:
-        return x
-    return np.stack([np.interp(t, t[ok], x[ok, j]) for j in range(x.shape[1])], axis=1)
-
-
 def _joint_stream(
     table: CsvTable, receive: np.ndarray, robot_joints: Sequence[str]
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -259,81 +248,24 @@ def _message_streams(table: CsvTable, receive: np.ndarray, robot_joints: Sequenc
     return recorded_streams(t, emg, q, acc, jpos, robot_joints, ep, sources)
 
 
-def _frame_streams(
-    table: CsvTable, frames: list[str], t: np.ndarray, reserved: set[str], with_gripper: bool
-) -> dict[str, Stream]:
-    """Streams ``"frame:<f>"`` of the requested frames, the hand frames and (``with_gripper``) the
-    gripper frames, on the skeleton's time base ``t`` [s]; jumps and untracked samples missing."""
-    path = table.path
-    for f in frames:
-        if f in reserved:
-            raise DataError(path, f, "frame name clashes with a channel group name")
-    prefixes = _find_transforms(table)
-    out = {}
-    gripper = list(GRIPPER_FRAMES) if with_gripper else []
-    skeleton = _skeleton_frames(table, prefixes)
-    for f in dict.fromkeys(frames + list(HAND_FRAMES) + gripper + skeleton):
+def _frame_tracks(
+    table: CsvTable, prefixes: list[str], frames: list[str], t: np.ndarray, with_gripper: bool
+) -> dict[str, FrameTrack]:
+    """The tracks of the frames :func:`.tracked.frame_streams` reads (the requested frames, the hand
+    frames, with ``with_gripper`` the gripper frames, every skeleton frame) that the file lists, on the
+    skeleton's time base ``t`` [s]."""
+    tracks = {}
+    for f in needed_frames(frames, _skeleton_frames(table, prefixes), with_gripper):
         p = _frame_positions(table, prefixes, f)
         if p is not None:
-            check_norms(path, f, p, 0.0, POSITION_BOUND_M, "m", what="row")
-        if p is None:
-            if f in frames:
-                available = sorted({s for pr in prefixes for s in table.text(pr + "child_frame_id") if s})
-                raise DataError(path, f, f"frame never tracked (child_frame_ids: {', '.join(available)})")
-            continue
-        p[flag_jumps(p)] = np.nan
-        if np.sum(np.all(np.isfinite(p), axis=1)) < 2:
-            if f in frames:
-                raise DataError(path, f, "fewer than 2 valid samples of the frame")
-            continue
-        out["frame:" + f] = Stream(t, p, FRAME.channels, FRAME.raw_kind, str(path), allow_missing=True)
-    return out
+            tracks[f] = FrameTrack(t, p)
+    return tracks
 
 
 def _skeleton_frames(table: CsvTable, prefixes: list[str]) -> list[str]:
     """The tracked skeleton frames of the file (``child_frame_id`` starting with ``/``, not the gripper)."""
     ids = {s.strip() for p in prefixes for s in table.text(p + "child_frame_id")}
-    return sorted(f for f in ids if f.startswith("/") and f not in GRIPPER_FRAMES)
-
-
-def _hand_position(
-    t: np.ndarray,
-    values: dict[str, np.ndarray],
-    reference: np.ndarray | None,
-) -> np.ndarray | None:
-    """The hand frame that ends closest to ``reference`` (T, 3) [m], gaps filled; None without one."""
-    best, best_d = None, np.inf
-    for f in HAND_FRAMES:
-        v = values.get("frame:" + f)
-        if v is None or reference is None:
-            continue
-        tail = slice(int(0.8 * t.size), None)
-        d = np.linalg.norm(v[tail] - reference[tail], axis=1)
-        d = float(np.nanmedian(d)) if np.any(np.isfinite(d)) else np.inf
-        if d < best_d:
-            best, best_d = v, d
-    if best is not None and np.sum(np.all(np.isfinite(best), axis=1)) >= 2:
-        return _fill_gaps(t, best)
-    return None
-
-
-def _gripper_reference(
-    t: np.ndarray,
-    values: dict[str, np.ndarray],
-    extras: dict[str, np.ndarray],
-    end_effector: Callable[[np.ndarray], np.ndarray] | None,
-) -> np.ndarray | None:
-    """Where the robot's gripper is (T, 3) [m]: the end-point, else a tracked gripper frame, else the
-    forward kinematics ``end_effector`` of the joints; None without any."""
-    if "endpoint_pose" in extras:
-        return extras["endpoint_pose"][:, :3]
-    for f in GRIPPER_FRAMES:
-        v = values.get("frame:" + f)
-        if v is not None and np.any(np.all(np.isfinite(v[int(0.8 * t.size) :]), axis=1)):
-            return v
-    if end_effector is not None:
-        return np.asarray(end_effector(values[ROBOT]), dtype=float).reshape(t.size, 3)
-    return None
+    return sorted(f for f in ids if is_skeleton_frame(f))
 
 
 def read_demo(
@@ -370,31 +302,22 @@ def read_demo(
     streams = _message_streams(table, receive, robot_joints)
     sk_t = pc_stamp - estimate_clock_offset(pc_stamp, receive)
     frames = list(frames or [])
+    with_gripper = "endpoint_position" not in streams
+    prefixes = _find_transforms(table)
+    available = sorted({s for pr in prefixes for s in table.text(pr + "child_frame_id") if s})
+    tracks = _frame_tracks(table, prefixes, frames, sk_t, with_gripper)
     reserved = set(streams) | {"hand_position"}
-    streams.update(_frame_streams(table, frames, sk_t, reserved, "endpoint_position" not in streams))
+    streams.update(frame_streams(path, tracks, frames, reserved, with_gripper, available))
 
     t, values, _ = align_streams(streams, rate_hz, src)
     groups, names = myo_groups(values, rate_hz, emg_cutoff_hz)
-    missing = {}
-    for f in frames:
-        v = values["frame:" + f]
-        groups[f] = v
-        names[f] = FRAME.channels
-        m = ~np.all(np.isfinite(v), axis=1)
-        if m.all():
-            raise DataError(path, f, "frame missing over the whole demo")
-        v[m] = np.nan
-        if m.any():
-            missing[f] = m
+    frame_values, frame_names, missing = frame_groups(path, values, frames)
+    groups.update(frame_values)
+    names.update(frame_names)
     groups[ROBOT] = values[ROBOT]
     names[ROBOT] = tuple(robot_joints)
     extras = endpoint_extras(values)
-    for name, v in values.items():
-        if name.startswith("frame:/") and name[len("frame:") :] not in GRIPPER_FRAMES:
-            extras[SKELETON_EXTRA + name[len("frame:") :]] = v
-    hand = _hand_position(t, values, _gripper_reference(t, values, extras, end_effector))
-    if hand is not None:
-        extras["hand_position"] = hand
+    frame_extras(t, values, extras, end_effector)
     return Demo(
         task=task if task is not None else path.parent.parent.parent.name,
         name=path.parent.name,

@@ -32,7 +32,7 @@ from .streams import (
     BAXTER_LEFT_JOINTS,
     RawRecording,
     RawStream,
-    assemble_chen2017,
+    assemble_recording,
     select_joint_messages,
 )
 
@@ -191,7 +191,7 @@ def read_demo(
     """
     path = Path(path)
     raw = read_raw(path, robot_joints, topics)
-    return assemble_chen2017(
+    return assemble_recording(
         raw,
         task=task if task is not None else path.parent.name,
         name=path.stem,

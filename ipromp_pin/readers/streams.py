@@ -1,18 +1,18 @@
 """Pieces shared by the readers: joint names, CSV access, the recorded streams and the demo assembly.
 
-The chen2017 CSV export and the original ROS bags hold the same four message
-streams; both readers parse them into :class:`RawRecording` and build the demo
-with :func:`assemble_chen2017`, so the two formats give the same :class:`Demo`.
-The multimodal reader bundles the same Myo and Baxter streams: every reader builds them with
-:func:`recorded_streams` and the demo's Myo groups with :func:`myo_groups`; channel names and
-interpolation kinds come from the channel-group specifications (:mod:`ipromp_pin.signals.groups`).
+The chen2017 CSV export, the original ROS bags and rosbag2 recordings hold the same four message
+streams (rosbag2 recordings may add tracked frames); their readers parse them into
+:class:`RawRecording` and build the demo with :func:`assemble_recording`, so the formats give the
+same :class:`Demo`. The multimodal reader bundles the same Myo and Baxter streams: every reader
+builds them with :func:`recorded_streams` and the demo's Myo groups with :func:`myo_groups`; channel
+names and interpolation kinds come from the channel-group specifications (:mod:`ipromp_pin.signals.groups`).
 """
 
 from __future__ import annotations
 
 import csv
 import datetime
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -38,6 +38,7 @@ from ..signals.preprocess import (
     estimate_clock_offset,
     quaternion_continuity,
 )
+from .tracked import FrameTrack, TrackedTopic, frame_extras, frame_groups, frame_streams
 
 BAXTER_LEFT_JOINTS: tuple[str, ...] = (
     "left_s0",
@@ -179,10 +180,10 @@ def parse_receive_times(path: object, values: Sequence[str]) -> np.ndarray:
 
 # ------------------------------------------------------------------------------ raw plausibility
 def check_raw_imu(
-    source: object, orientation_field: str, acc_field: str, q: np.ndarray, acc: np.ndarray
+    source: object, orientation_field: str, acc_field: str, q: np.ndarray, acc: np.ndarray | None
 ) -> None:
-    """Myo IMU messages after the firmware scaling: unit quaternions (N, 4), accelerations (N, 3)
-    in [g] within the accelerometer's range (:mod:`.plausibility`); DataError otherwise."""
+    """IMU messages after the scaling to units: unit quaternions (N, 4), accelerations (N, 3) in [g]
+    within the accelerometer's range (:mod:`.plausibility`; None: not recorded); DataError otherwise."""
     tol = UNIT_QUATERNION_TOLERANCE
     check_norms(
         source,
@@ -193,7 +194,8 @@ def check_raw_imu(
         f"(after the Myo scaling 1/{MYO_ORIENTATION_SCALE:g})",
         what="message",
     )
-    check_norms(source, acc_field, acc, 0.0, ACCELERATION_MAX_G, "g", what="message")
+    if acc is not None:
+        check_norms(source, acc_field, acc, 0.0, ACCELERATION_MAX_G, "g", what="message")
 
 
 def check_raw_endpoint(source: object, field: str, pose: np.ndarray) -> None:
@@ -233,13 +235,27 @@ class RawStream:
     source: str
 
 
+CHEN2017_FIELDS: dict[str, str] = {
+    "orientation": ".quat0-3",
+    "acc": ".acc0-2",
+    "emg": ".ch0-7",
+    "joints": ".position",
+    "endpoint": ".pose",
+}
+"""The fields of the raw streams that error messages name (here the chen2017 message fields)."""
+
+
 @dataclass
 class RawRecording:
-    """The four chen2017 streams of one demo (Myo EMG, Myo IMU, arm joints, end-point).
+    """The streams of one recording (Myo EMG, Myo IMU, arm joints, end-point, tracked frames).
 
-    ``joints.values`` holds the requested joints in the requested order; ``endpoint``
-    (position xyz, quaternion xyzw) is optional: ``None`` when it was not recorded (no file, no
-    message, or only messages stamped 0).
+    ``joints.values`` holds the requested joints in the requested order; ``imu.values`` is (N, 7),
+    the orientation quaternion w, x, y, z then the acceleration x, y, z, or (N, 4) without an
+    acceleration (the demo then has no ``"acc"`` group), in the units that ``imu_scales`` divides
+    into units (1 and [g]; default: the Myo's raw integers); ``endpoint`` (position xyz,
+    quaternion xyzw) is optional: ``None`` when it was not recorded (no file, no message, or only
+    messages stamped 0). ``tracked``: topics of tracked frames (skeleton, gripper), if any.
+    ``fields``: the message fields of the streams, for error messages (:data:`CHEN2017_FIELDS`).
     """
 
     emg: RawStream
@@ -247,6 +263,9 @@ class RawRecording:
     joints: RawStream
     endpoint: RawStream | None = None
     clock_offsets_s: dict[str, float] = field(default_factory=dict)
+    imu_scales: tuple[float, float] = (MYO_ORIENTATION_SCALE, MYO_ACCELEROMETER_SCALE)
+    tracked: list[TrackedTopic] = field(default_factory=list)
+    fields: dict[str, str] = field(default_factory=lambda: dict(CHEN2017_FIELDS))
 
 
 def select_joint_messages(
@@ -301,24 +320,16 @@ def select_joint_messages(
     return keep, [layout.index(j) for j in robot_joints]
 
 
-def assemble_chen2017(
-    raw: RawRecording,
-    *,
-    task: str,
-    name: str,
-    source: object,
-    rate_hz: float,
-    robot_joints: Sequence[str],
-    emg_cutoff_hz: float = DEFAULT_EMG_CUTOFF_HZ,
-) -> Demo:
-    """Build a :class:`Demo` from the raw chen2017 streams.
+def clock_streams(raw: RawRecording, robot_joints: Sequence[str]) -> tuple[dict[str, Stream], float]:
+    """The streams of ``raw`` (EMG, IMU, joints, end-point) on the recording PC's clock, checked.
 
-    Each stream's clock offset (header stamp vs receive time, after removing a
-    whole-quarter-hour time-zone difference) is estimated and removed, putting
-    every stream on the recording PC's clock; the demo spans the streams'
-    overlap on a uniform grid at ``rate_hz``. The EMG is sample-and-hold
-    resampled then turned into a causal envelope; quaternions are made
-    unit-norm and sign-continuous.
+    Each stream's clock offset (header stamp vs receive time, after removing a whole-quarter-hour
+    time-zone difference) is estimated and removed (stored in ``raw.clock_offsets_s``); the raw EMG,
+    the IMU after its scaling, the joint angles and the end-point poses are checked against their
+    physical limits.
+
+    Returns:
+        The streams to align (:func:`recorded_streams`) and the time-zone difference in [s].
     """
     raw.endpoint = stream_received(raw.endpoint)
     streams = {"emg": raw.emg, "imu": raw.imu, "robot": raw.joints}
@@ -333,27 +344,82 @@ def assemble_chen2017(
     offsets = {k: estimate_clock_offset(s.header_s, s.receive_s + tz) for k, s in streams.items()}
     raw.clock_offsets_s.update(offsets)
 
-    imu = raw.imu.values
-    q_raw = imu[:, :4] / MYO_ORIENTATION_SCALE
-    check_raw_imu(raw.imu.source, ".quat0-3", ".acc0-2", q_raw, imu[:, 4:7] / MYO_ACCELEROMETER_SCALE)
-    check_range(raw.emg.source, ".ch0-7", raw.emg.values, *EMG_RAW_RANGE, "", EMG_CHANNELS, what="message")
-    check_joint_angles(raw.joints.source, ".position", raw.joints.values, robot_joints, what="message")
+    imu, (q_scale, acc_scale), fields = raw.imu.values, raw.imu_scales, raw.fields
+    q_raw = imu[:, :4] / q_scale
+    acc = imu[:, 4:7] / acc_scale if imu.shape[1] >= 7 else None
+    check_raw_imu(raw.imu.source, fields["orientation"], fields["acc"], q_raw, acc)
+    check_range(
+        raw.emg.source, fields["emg"], raw.emg.values, *EMG_RAW_RANGE, "", EMG_CHANNELS, what="message"
+    )
+    check_joint_angles(raw.joints.source, fields["joints"], raw.joints.values, robot_joints, what="message")
     if raw.endpoint is not None:
-        check_raw_endpoint(raw.endpoint.source, ".pose", raw.endpoint.values)
+        check_raw_endpoint(raw.endpoint.source, fields["endpoint"], raw.endpoint.values)
     on_pc = {k: s.header_s - offsets[k] for k, s in streams.items()}
     sources = {k: s.source for k, s in streams.items()}
     ep = None if raw.endpoint is None else raw.endpoint.values
-    emg = raw.emg.values
-    aligned_in = recorded_streams(
-        on_pc, emg, q_raw, imu[:, 4:7] / MYO_ACCELEROMETER_SCALE, raw.joints.values, robot_joints, ep, sources
+    streams_out = recorded_streams(
+        on_pc, raw.emg.values, q_raw, acc, raw.joints.values, robot_joints, ep, sources
     )
+    return streams_out, float(tz)
+
+
+def assemble_recording(
+    raw: RawRecording,
+    *,
+    task: str,
+    name: str,
+    source: object,
+    rate_hz: float,
+    robot_joints: Sequence[str],
+    emg_cutoff_hz: float = DEFAULT_EMG_CUTOFF_HZ,
+    frames: Sequence[str] = (),
+    end_effector: Callable[[np.ndarray], np.ndarray] | None = None,
+) -> Demo:
+    """Build a :class:`Demo` from the raw streams of a recording.
+
+    The streams are put on the recording PC's clock (:func:`clock_streams`; tracked frames with
+    their topic's offset); the demo spans the streams' overlap on a uniform grid at ``rate_hz``. The
+    EMG is sample-and-hold resampled then turned into a causal envelope; quaternions are made
+    unit-norm and sign-continuous. With tracked frames: the requested ``frames`` as groups, the
+    skeleton and the hand as extras (:mod:`.tracked`; ``end_effector`` as there).
+
+    Raises:
+        DataError: implausible or unsynchronised streams, a requested frame that was not tracked.
+    """
+    aligned_in, tz = clock_streams(raw, robot_joints)
+    frames = list(frames)
+    if raw.tracked:
+        tracks: dict[str, FrameTrack] = {}
+        for topic in raw.tracked:
+            t_pc = topic.header_s - estimate_clock_offset(topic.header_s, topic.receive_s + tz)
+            for f, pos in topic.positions.items():
+                tracks.setdefault(f, FrameTrack(t_pc, pos))
+        with_gripper = "endpoint_position" not in aligned_in
+        reserved = set(aligned_in) | {"hand_position"}
+        aligned_in.update(frame_streams(source, tracks, frames, reserved, with_gripper, sorted(tracks)))
+    elif frames:
+        raise DataError(source, frames[0], "frame never tracked (the recording has no tracked frames)")
     t, values, _ = align_streams(aligned_in, rate_hz, source)
     groups, names = myo_groups(values, rate_hz, emg_cutoff_hz)
+    missing: dict[str, np.ndarray] = {}
+    if raw.tracked:
+        frame_values, frame_names, missing = frame_groups(source, values, frames)
+        groups.update(frame_values)
+        names.update(frame_names)
     groups[ROBOT] = values[ROBOT]
     names[ROBOT] = tuple(robot_joints)
     extras = endpoint_extras(values)
+    if raw.tracked:
+        frame_extras(t, values, extras, end_effector)
     return Demo(
-        task=task, name=name, source=str(source), t=t, groups=groups, channel_names=names, extras=extras
+        task=task,
+        name=name,
+        source=str(source),
+        t=t,
+        groups=groups,
+        channel_names=names,
+        missing=missing,
+        extras=extras,
     )
 
 
@@ -361,7 +427,7 @@ def recorded_streams(
     t: dict[str, np.ndarray],
     emg: np.ndarray,
     orientation: np.ndarray,
-    acc: np.ndarray,
+    acc: np.ndarray | None,
     joints: np.ndarray,
     robot_joints: Sequence[str],
     endpoint: np.ndarray | None,
@@ -375,7 +441,7 @@ def recorded_streams(
             recording PC's clock in [s], shape (N_stream,).
         emg: Raw EMG samples (N_emg, 8).
         orientation: Unit quaternions w, x, y, z (N_imu, 4) (made sign-continuous here).
-        acc: Accelerations (N_imu, 3) in [g].
+        acc: Accelerations (N_imu, 3) in [g], or None (not recorded: no ``"acc"`` stream).
         joints: Joint angles (N_robot, J) in [rad] of ``robot_joints``.
         endpoint: End-point poses (N_endpoint, 7), position [m] and quaternion x, y, z, w, or None.
         sources: Stream -> file it came from.
@@ -389,9 +455,10 @@ def recorded_streams(
             ORIENTATION.raw_kind,
             sources["imu"],
         ),
-        "acc": Stream(t["imu"], acc, ACC.channels, ACC.raw_kind, sources["imu"]),
-        ROBOT: Stream(t["robot"], joints, tuple(robot_joints), ROBOT_GROUP.raw_kind, sources["robot"]),
     }
+    if acc is not None:
+        out["acc"] = Stream(t["imu"], acc, ACC.channels, ACC.raw_kind, sources["imu"])
+    out[ROBOT] = Stream(t["robot"], joints, tuple(robot_joints), ROBOT_GROUP.raw_kind, sources["robot"])
     if endpoint is not None:
         ep_t, src = t["endpoint"], sources["endpoint"]
         out["endpoint_position"] = Stream(
@@ -407,14 +474,16 @@ def myo_groups(
     values: dict[str, np.ndarray], rate_hz: float, emg_cutoff_hz: float
 ) -> tuple[dict[str, np.ndarray], dict[str, tuple[str, ...]]]:
     """The demo's Myo groups from the aligned streams: ``"orientation"``, ``"emg"`` (the causal
-    envelope of the held raw EMG, cut-off ``emg_cutoff_hz`` [Hz]) and ``"acc"``, with their
-    channel names."""
+    envelope of the held raw EMG, cut-off ``emg_cutoff_hz`` [Hz]) and ``"acc"`` (when recorded),
+    with their channel names."""
     groups = {
         "orientation": values["orientation"],
         "emg": emg_envelope(values["emg"], 1.0 / rate_hz, emg_cutoff_hz),
-        "acc": values["acc"],
     }
-    names = {"orientation": ORIENTATION.channels, "emg": EMG.channels, "acc": ACC.channels}
+    names = {"orientation": ORIENTATION.channels, "emg": EMG.channels}
+    if "acc" in values:
+        groups["acc"] = values["acc"]
+        names["acc"] = ACC.channels
     return groups, names
 
 

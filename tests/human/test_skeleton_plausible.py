@@ -14,7 +14,7 @@ import pytest
 
 from ipromp_pin.data import Demo
 from ipromp_pin.exceptions import DataError
-from ipromp_pin.human import SKELETON_PREFIX, HumanMotion
+from ipromp_pin.human import BODY_PARTS, SKELETON_PREFIX, HumanMotion
 from ipromp_pin.human.body import ASSUMED_POSE_M
 from ipromp_pin.human.skeleton import SEGMENT_RANGES
 from ipromp_pin.readers import load_dataset
@@ -78,11 +78,15 @@ def test_a_few_impossible_samples_become_gaps():
     assert np.all(np.isnan(h.positions_m[60:63, j])) and np.all(np.isfinite(h.positions_m[:60, j]))
 
 
-def test_every_segment_range_holds_the_assumed_pose():
-    h = HumanMotion.assumed_human(HumanSettings())
-    lengths = {p.name: float(np.linalg.norm(a - b)) for p, a, b in zip(h.parts, *h.capsules_at(0.0)[:2], strict=True)}
-    for name, rng in SEGMENT_RANGES.items():
-        assert rng.contains(lengths[name]), (name, lengths[name], rng.text())
+def test_every_capsule_part_has_a_range_that_holds_the_assumed_pose():
+    def end(e: str) -> np.ndarray:
+        return np.mean([np.array(ASSUMED_POSE_M[f]) for f in e.split("+")], axis=0)
+
+    capsules = [p for p in BODY_PARTS if p.b is not None]
+    assert set(SEGMENT_RANGES) == {p.name for p in capsules}
+    for part in capsules:
+        length = float(np.linalg.norm(end(part.a) - end(part.b)))
+        assert SEGMENT_RANGES[part.name].contains(length), (part.name, length)
 
 
 def _copy_one(src: Path, dst: Path) -> Path:

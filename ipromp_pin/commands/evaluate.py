@@ -39,6 +39,7 @@ from ..evaluation.tables import (
     write_results,
 )
 from ..handover.closed_loop import ClosedLoopSettings
+from ..human.placement import check_assumed_human
 from ..robot import Robot, load_robot
 from ..robot.objects import load_objects
 from ..shipped import DEFAULT_ROBOT
@@ -170,6 +171,7 @@ def check_request(request: EvaluateRequest) -> Robot:
     if request.plots and not request.closed_loop:
         atomic.check_output_dir(request.plots, "plots folder")
     robot = load_robot(request.robot)
+    check_assumed_human(robot)  # an assumed human inside the robot's fixed links
     load_objects(request.objects)  # a bad task file fails here, before any demo is read
     if request.closed_loop:
         check_limits_choice(request.limits, robot, "command line")

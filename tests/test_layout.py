@@ -26,7 +26,18 @@ LAYERS = {
 }
 """Top-level module or package -> layer (0: the shared ground); imports may only go down."""
 
-TOP_LEVEL = {"__init__", "cli", "data", "exceptions", "atomic", "cache", "inputs", "fields", "shipped", "version"}
+TOP_LEVEL = {
+    "__init__",
+    "cli",
+    "data",
+    "exceptions",
+    "atomic",
+    "cache",
+    "inputs",
+    "fields",
+    "shipped",
+    "version",
+}
 """What the package's top level may hold besides packages."""
 
 MAX_FUNCTION_LINES = 100

@@ -175,12 +175,13 @@ class HumanMotion:
         found = {f: _demo_frame(demo, f) for f in frames}
         if all(v is None for v in found.values()):
             return None
-        untracked = [f for f in frames if found[f] is None]
+        tracked = {f: v for f, v in found.items() if v is not None}
+        untracked = [f for f in frames if f not in tracked]
         if untracked:
             raise DataError(
                 demo.source, untracked[0], "skeleton frame of the body model never reliably tracked"
             )
-        raw = np.stack([found[f] for f in frames], axis=1)  # (T, F, 3)
+        raw = np.stack([tracked[f] for f in frames], axis=1)  # (T, F, 3)
         pos = plausible_positions(raw, frames, parts, demo.source)
         for j, f in enumerate(frames):
             if not np.any(np.all(np.isfinite(pos[:, j]), axis=1)):

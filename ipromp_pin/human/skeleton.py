@@ -28,9 +28,16 @@ SEGMENT_RANGES: dict[str, Range] = {part: segment_range(part) for part in SEGMEN
 
 
 class _Part(Protocol):
-    name: str
-    a: str
-    b: str | None
+    """A body part: its name and the frames of its ends (:class:`~ipromp_pin.human.BodyPart`)."""
+
+    @property
+    def name(self) -> str: ...
+
+    @property
+    def a(self) -> str: ...
+
+    @property
+    def b(self) -> str | None: ...
 
 
 def zeros_as_missing(positions: np.ndarray) -> np.ndarray:
@@ -78,5 +85,5 @@ def plausible_positions(
         bad = seen & ~((length >= rng.lo) & (length <= rng.hi))
         if bad.any():
             cols = [index[f] for end in (part.a, part.b) for f in end.split("+")]
-            out[np.ix_(np.flatnonzero(bad), cols)] = np.nan
+            out[np.ix_(np.flatnonzero(bad), np.array(cols))] = np.nan
     return out

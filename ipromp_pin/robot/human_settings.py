@@ -93,7 +93,7 @@ class HumanSettings:
         robot_uncertainty_m: Z_r, the position uncertainty of the robot in [m].
         contact: ``"transient"`` or ``"quasi_static"``: which Annex A force limits the contact
             speed is held to.
-        speed_margin: Fraction in [0, 1) of the contact-speed limit that a plan keeps free: a plan
+        speed_margin: Fraction in [0, 0.5] of the contact-speed limit that a plan keeps free: a plan
             passes ``contact_speed`` when, inside S_p, every approach is at most ``(1 - speed_margin)
             v_max``. The human keeps moving after each observation; the margin absorbs what that
             changes of distance, direction and effective mass before the next re-plan. Violations

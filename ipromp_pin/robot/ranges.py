@@ -62,7 +62,7 @@ STATURE_M = (1.4, 2.1)
 TRACKER_FACTORS = (0.5, 1.5)
 """The tracker's frames are joint-centre estimates, not anatomical landmarks: a segment may measure
 between these multiples of its anatomical length (the OpenNI skeleton of handover_20171128 measures
-its forearms and shoulders at 0.7-0.9 of it)."""
+its median segments at 0.48 (hips) to 0.90 (forearm, neck) of a 1.75 m adult's: docs/safety.md)."""
 
 _SKELETON_SOURCE = (
     "segment / stature {f:g} (Drillis and Contini 1966, Winter Fig. 4.1) for statures 1.4-2.1 m, "

@@ -188,7 +188,7 @@ class RobotSettings:
         collision_max_step_rad: Largest joint step between collision-checked path samples in [rad].
         max_hand_distance_m: Largest gripper-hand distance at the hand-over in [m].
         effort_margin: Fraction of the URDF's effort limits kept free by the joint-torque check, in
-            [0, 1) (``[limits] effort_margin``; default 0.1: torques up to 90 % of the limits).
+            [0, 0.5] (``[limits] effort_margin``; default 0.1: torques up to 90 % of the limits).
         spring_torque_nm: Arm joint name -> ``(c0, c1)``: a spring (Baxter's shoulder counterbalance)
             adds ``c0 + c1 * q`` [N m] (``q`` in [rad]) to that joint, so the motor delivers the rest
             (``[springs]``; default none).

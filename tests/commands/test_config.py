@@ -100,10 +100,14 @@ def test_unknown_key_is_a_one_line_error_naming_section_and_key(tmp_path, capsys
     lines = capsys.readouterr().err.strip().splitlines()
     assert lines == [f"ipromp-pin run: error: {pipe}: field 'timing.control_rate': {problem}"]
     pipe.write_text("[timng]\ncontrol_rate_hz = 100.0\n")
-    with pytest.raises(PipelineError, match=r"field 'timng': unknown section; did you mean 'timing'\? \(known: data"):
+    with pytest.raises(
+        PipelineError, match=r"field 'timng': unknown section; did you mean 'timing'\? \(known: data"
+    ):
         load_pipeline(pipe)
     pipe.write_text("[observation]\nratoi = 0.2\n")
-    with pytest.raises(PipelineError, match=r"field 'observation.ratoi': unknown key; did you mean 'ratio'\?"):
+    with pytest.raises(
+        PipelineError, match=r"field 'observation.ratoi': unknown key; did you mean 'ratio'\?"
+    ):
         load_pipeline(pipe)
     pipe.write_text('[timing]\ncontrol_rate_hz = "fast"\n')
     with pytest.raises(PipelineError, match=r"field 'timing.control_rate_hz': wrong type str$"):

@@ -24,7 +24,9 @@ def test_a_task_without_an_object_is_warned_before_training(tmp_path, tiny):
     objects = _objects(tmp_path)
     cfg = load_pipeline(PIPELINE, dataset=ds, objects=objects, model_cache=False)
     events: list[str] = []
-    session = prepare_session(cfg, log=lambda m: events.append("log " + m), warn=lambda m: events.append("warn " + m))
+    session = prepare_session(
+        cfg, log=lambda m: events.append("log " + m), warn=lambda m: events.append("warn " + m)
+    )
     lines = [e for e in events if "wrench" in e and "objects.toml" in e]
     assert len(lines) == 1 and lines[0].startswith("warn "), events
     assert "no payload and no retreat" in lines[0]

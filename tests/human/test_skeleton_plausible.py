@@ -107,7 +107,10 @@ def test_a_recorded_head_at_the_origin_with_a_rotation_is_missing(tmp_path, hand
     for r, row in enumerate(rows[1:], start=1):
         for k in range(16):
             col = f"field.tf_of_interest.transforms{k}."
-            if col + "child_frame_id" in head and row[head.index(col + "child_frame_id")].strip() == "/head_1":
+            if (
+                col + "child_frame_id" in head
+                and row[head.index(col + "child_frame_id")].strip() == "/head_1"
+            ):
                 if 100 <= r < 110:
                     for a in "xyz":
                         row[head.index(col + f"transform.translation.{a}")] = "0.0"

@@ -35,10 +35,7 @@ def _refused(tmp_path, body: str, field: str) -> str:
 
 
 def test_an_inertia_asymmetric_by_rounding_is_symmetrised_and_pinocchio_takes_it(tmp_path, robot):
-    body = (
-        "mass_kg = 0.3\n"
-        "inertia_kg_m2 = [[1e-3, 1e-13, 0.0], [0.0, 2e-3, 0.0], [0.0, 0.0, 2.5e-3]]"
-    )
+    body = "mass_kg = 0.3\ninertia_kg_m2 = [[1e-3, 1e-13, 0.0], [0.0, 2e-3, 0.0], [0.0, 0.0, 2.5e-3]]"
     obj = load_objects(_file(tmp_path, body)).for_task("t")
     assert obj is not None
     np.testing.assert_array_equal(obj.inertia_kg_m2, obj.inertia_kg_m2.T)

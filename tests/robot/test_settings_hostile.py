@@ -92,7 +92,8 @@ def test_a_key_with_nothing_near_lists_the_known_ones(tmp_path):
     ("edit", "field", "source"),
     [
         (("append", "[iso15066.regions.face]\nforce_n = 1e9"), "iso15066.regions.face.force_n", "Table A.2"),
-        (("append", "[iso15066.regions.hand]\nforce_n = 141.0"), "iso15066.regions.hand.force_n", "Table A.2"),
+        (("append", "[iso15066.regions.hand]\nforce_n = 141.0"), "iso15066.regions.hand.force_n",
+         "Table A.2"),
         (("append", "[iso15066.regions.hand]\ntransient_factor = 1e6"),
          "iso15066.regions.hand.transient_factor", "A.3.2"),
         (("append", "[iso15066.regions.face]\ntransient_factor = 2.0"),

@@ -153,25 +153,26 @@ SHAPE_KEYS = {"box": ("kind", "size_m"), "cylinder": ("kind", "radius_m", "lengt
 """The keys of a ``shape`` table, per kind."""
 
 INERTIA_SYMMETRY_RTOL = 1e-9
-"""An ``inertia_kg_m2`` is symmetric when ``|I - I^T| <= 1e-9 max|I|`` entry by entry: what a matrix
-written with a few significant digits and rounded differently on either side can differ by (a
-TOML float keeps 17). It is then replaced by ``(I + I^T) / 2``, exactly symmetric, which Pinocchio
-requires (it refuses a 1e-13 asymmetry)."""
+"""An ``inertia_kg_m2`` is symmetric when ``|I - I^T| <= 1e-9 max|I|`` entry by entry: the round-off
+of a matrix computed by a program (1e-16 relative) or printed with 10 significant digits or more
+passes, an entry typed differently on either side of the diagonal does not. It is then replaced by
+``(I + I^T) / 2``, exactly symmetric, which Pinocchio requires (it refuses a 1e-13 asymmetry)."""
 
 
-def _range(task: str, key: str) -> Range:
+def _range(key: str) -> Range:
+    """The plausible range of a task's ``key`` (``"<task>.key"`` in :data:`PLAUSIBLE_RANGES`)."""
     return PLAUSIBLE_RANGES[f"<task>.{key}"]
 
 
-def _shape_inertia(table: Table, task: str, mass: float) -> np.ndarray:
+def _shape_inertia(table: Table, mass: float) -> np.ndarray:
     shape = table.table("shape", ("kind", "size_m", "radius_m", "length_m", "axis"))
     kind = shape.text("kind", REQUIRED, SHAPE_KEYS)
     shape = Table(shape.data, shape.prefix, shape.error_fn, SHAPE_KEYS[kind])
     if kind == "box":
-        size = shape.vector("size_m", 3, _range(task, "shape.size_m"))
+        size = shape.vector("size_m", 3, _range("shape.size_m"))
         return box_inertia(mass, size)
-    radius = shape.number("radius_m", _range(task, "shape.radius_m"))
-    length = shape.number("length_m", _range(task, "shape.length_m"))
+    radius = shape.number("radius_m", _range("shape.radius_m"))
+    length = shape.number("length_m", _range("shape.length_m"))
     axis = shape.text("axis", "z", ("x", "y", "z"))
     return cylinder_inertia(mass, radius, length, "xyz".index(axis))
 
@@ -208,7 +209,7 @@ def _inertia_matrix(table: Table, mass: float) -> np.ndarray:
             "(each at most the sum of the other two: no rigid body has them)",
         )
     gyration = float(np.sqrt(eig[2] / mass))
-    rng = _range("", key)
+    rng = _range(key)
     if not rng.contains(gyration):
         raise table.error(key, f"radius of gyration {rng.problem(gyration)}")
     return inertia
@@ -220,16 +221,16 @@ def _task_object(task: str, value: object, path: Path, error: FieldError) -> Tas
         problem = "must be a table (mass_kg, com_m, holder, shape or inertia_kg_m2)"
         raise error(task, f"unknown key{hint}" if hint else problem)
     table = Table(value, task, error, _KEYS)
-    mass = table.number("mass_kg", _range(task, "mass_kg"))
+    mass = table.number("mass_kg", _range("mass_kg"))
     com = table.vector("com_m", 3, None, [0.0, 0.0, 0.0])
-    _range(task, "com_m").check(float(np.linalg.norm(com)), table.field("com_m"), error)
+    _range("com_m").check(float(np.linalg.norm(com)), table.field("com_m"), error)
     holder = table.text("holder", REQUIRED, HOLDERS)
     if "shape" in table and "inertia_kg_m2" in table:
         raise table.error(None, "give either shape or inertia_kg_m2, not both")
     if "inertia_kg_m2" in table:
         inertia = _inertia_matrix(table, mass)
     elif "shape" in table:
-        inertia = _shape_inertia(table, task, mass)
+        inertia = _shape_inertia(table, mass)
     else:
         inertia = np.zeros((3, 3))  # a point mass
     source = table.text("source", "")

@@ -167,7 +167,7 @@ def test_run_reports_the_human_checks_and_a_failing_one_exits_3(tmp_path, tiny, 
     strict = tmp_path / "strict.toml"
     strict.write_text(
         ROBOT_FILE.read_text().replace(
-            "max_inflation_m = 0.15", "max_inflation_m = 0.15\nmin_separation_m = 5.0"
+            "max_inflation_m = 0.15", "max_inflation_m = 0.15\nmin_separation_m = 0.5"
         )
     )
     capsys.readouterr()
@@ -175,5 +175,5 @@ def test_run_reports_the_human_checks_and_a_failing_one_exits_3(tmp_path, tiny, 
     assert "human_clearance" in one_error_line(capsys.readouterr().err)
     report = json.loads((out / "report.json").read_text())
     failed = report["feasibility"]["checks"]["human_clearance"]
-    assert failed["status"] == "fail" and failed["min_separation_m"] < 5.0 and failed["body_part"]
+    assert failed["status"] == "fail" and failed["min_separation_m"] < 0.5 and failed["body_part"]
     assert "human_clearance" in report["feasibility"]["failures"]

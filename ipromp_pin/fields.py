@@ -70,6 +70,12 @@ def check_keys(
             raise error(dotted(prefix, key), unknown(key, names, what))
 
 
+def shown(value: object, limit: int = 80) -> str:
+    """``repr(value)``, cut to ``limit`` characters (a message stays one short line)."""
+    text = repr(value)
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
 def is_number(value: object) -> bool:
     """Whether ``value`` is an int or a float (a bool is not a number)."""
     return isinstance(value, int | float) and not isinstance(value, bool)
@@ -146,7 +152,7 @@ class Table:
         what: str = "key",
     ) -> None:
         if not isinstance(value, dict):
-            raise error(prefix or None, f"must be a table, got {value!r}")
+            raise error(prefix or None, f"must be a table, got {shown(value)}")
         self.data: dict[str, Any] = value
         self.prefix = prefix
         self.error_fn = error
@@ -166,7 +172,7 @@ class Table:
 
     def error(self, key: str | None, problem: str) -> Exception:
         """The one-line error about ``key`` of this table (None: the table itself)."""
-        return self.error_fn(self.prefix or None if key is None else self.field(key), problem)
+        return self.error_fn((self.prefix or None) if key is None else self.field(key), problem)
 
     def raw(self, key: str, default: Any = REQUIRED) -> Any:
         """The value of ``key`` as parsed, or ``default`` when absent (:data:`REQUIRED`: refused)."""
@@ -189,7 +195,7 @@ class Table:
             return default
         value = self.raw(key)
         if not is_number(value):
-            raise self.error(key, f"must be a number, got {value!r}")
+            raise self.error(key, f"must be a number, got {shown(value)}")
         out = float(value)
         if not math.isfinite(out):
             raise self.error(key, f"must be finite, got {out}")
@@ -217,12 +223,12 @@ class Table:
             return default
         value = self.raw(key)
         if not isinstance(value, str):
-            raise self.error(key, f"must be a string, got {value!r}")
+            raise self.error(key, f"must be a string, got {shown(value)}")
         if choices is not None:
             allowed = list(choices)
             if value not in allowed:
                 raise self.error(
-                    key, f"must be one of {', '.join(repr(c) for c in allowed)}, got {value!r}"
+                    key, f"must be one of {', '.join(repr(c) for c in allowed)}, got {shown(value)}"
                     + did_you_mean(value, allowed).replace(";", ",", 1)
                 )  # fmt: skip
         return value
@@ -242,12 +248,12 @@ def numbers(
         value = [value] * n
     if not isinstance(value, list) or (n is not None and len(value) != n):
         want = "a list of numbers" if n is None else f"a list of {n} numbers"
-        raise error(field, f"must be {'a number or ' if scalar else ''}{want}, got {value!r}")
+        raise error(field, f"must be {'a number or ' if scalar else ''}{want}, got {shown(value)}")
     if not all(is_number(v) for v in value):
-        raise error(field, f"must contain numbers only, got {value!r}")
+        raise error(field, f"must contain numbers only, got {shown(value)}")
     arr = np.asarray(value, dtype=float)
     if not np.all(np.isfinite(arr)):
-        raise error(field, f"must be finite, got {arr.tolist()}")
+        raise error(field, f"must be finite, got {shown(arr.tolist())}")
     if rng is not None:
         rng.check(arr, field, error)
     return arr

@@ -156,7 +156,7 @@ def _placement(human: Table) -> HumanPlacement:
 
 def _regions(iso: Table) -> dict[str, RegionLimit]:
     out = dict(REGION_LIMITS)
-    regions = iso.table("regions", REGION_LIMITS)
+    regions = iso.table("regions", REGION_LIMITS, what="body region")
     for region in regions.keys():
         table = regions.table(region, REGION_KEYS, required=True)
         d = out[region]
@@ -177,7 +177,7 @@ def _regions(iso: Table) -> dict[str, RegionLimit]:
 
 
 def _radii(human: Table) -> dict[str, float]:
-    table = human.table("radii_m", BODY_PART_RADII_M)
+    table = human.table("radii_m", BODY_PART_RADII_M, what="body part")
     return {part: table.number(part, radius_range(part)) for part in table.keys()}
 
 

@@ -65,7 +65,7 @@ PROBLEMS = {
 
 
 @pytest.mark.parametrize("kind", KINDS)
-@pytest.mark.parametrize("where", ["pipeline", "robot", "limits"])
+@pytest.mark.parametrize("where", ["pipeline", "robot", "limits", "objects"])
 def test_unbounded_or_special_input_files_are_refused_in_one_line(
     tiny, tmp_path, capsys, watchdog, kind, where
 ):
@@ -77,6 +77,9 @@ def test_unbounded_or_special_input_files_are_refused_in_one_line(
         args = ["run", str(bad), "--out", str(tmp_path / "out")]
     elif where == "robot":
         args = ["run", str(PIPELINE), "--dataset", str(ds), "--model", str(model), "--robot", str(bad),
+                "--out", str(tmp_path / "out")]  # fmt: skip
+    elif where == "objects":
+        args = ["run", str(PIPELINE), "--dataset", str(ds), "--model", str(model), "--objects", str(bad),
                 "--out", str(tmp_path / "out")]  # fmt: skip
     else:
         args = ["replay", str(PIPELINE), "--dataset", str(ds), "--model", str(model), "--limits", str(bad),

@@ -13,7 +13,7 @@ from pathlib import Path
 PACKAGE = Path(__file__).resolve().parents[1] / "ipromp_pin"
 
 LAYERS = {
-    **dict.fromkeys(["data", "exceptions", "atomic", "cache", "inputs", "shipped", "version"], 0),
+    **dict.fromkeys(["data", "exceptions", "atomic", "cache", "inputs", "fields", "shipped", "version"], 0),
     "signals": 1,
     "readers": 2,
     **dict.fromkeys(["promp", "robot", "human", "preview", "schemas"], 3),
@@ -27,7 +27,18 @@ LAYERS = {
 }
 """Top-level module or package -> layer (0: the shared ground); imports may only go down."""
 
-TOP_LEVEL = {"__init__", "cli", "data", "exceptions", "atomic", "cache", "inputs", "shipped", "version"}
+TOP_LEVEL = {
+    "__init__",
+    "cli",
+    "data",
+    "exceptions",
+    "atomic",
+    "cache",
+    "inputs",
+    "fields",
+    "shipped",
+    "version",
+}
 """What the package's top level may hold besides packages."""
 
 MAX_FUNCTION_LINES = 100

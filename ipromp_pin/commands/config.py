@@ -18,7 +18,6 @@ in the file, where an empty string means the field's default.
 
 from __future__ import annotations
 
-import math
 import tomllib
 import typing
 from dataclasses import MISSING, dataclass, field, fields
@@ -27,13 +26,25 @@ from typing import Any, ClassVar, Generic, TypeVar
 
 from ..data import ROBOT
 from ..exceptions import PipelineError
+from ..fields import Range, check_keys, field_errors
 from ..inputs import load_toml
 from ..shipped import DEFAULT_ROBOT, PIPELINES_DIR
 
-RATE_RANGE_HZ = (1.0, 1000.0)
-"""Plausible sampling rates in [Hz] of the aligned streams (``data.rate_hz``; the recordings run at
-50-100 Hz) and of the output trajectory (``timing.control_rate_hz``; Baxter's joint command loop
-runs at 100 Hz, the fastest common arms at 1 kHz). Outside it a run would allocate absurd arrays."""
+RATE_RANGE = Range(
+    1.0,
+    1000.0,
+    "Hz",
+    "the recordings run at 50-100 Hz, Baxter's joint command loop at 100 Hz, the fastest common arms' "
+    "at 1 kHz",
+)
+"""Plausible sampling rates of the aligned streams (``data.rate_hz``) and of the output trajectory
+(``timing.control_rate_hz``). Outside it a run would allocate absurd arrays."""
+
+RATE_RANGE_HZ = (RATE_RANGE.lo, RATE_RANGE.hi)
+""":data:`RATE_RANGE`'s bounds in [Hz]."""
+
+RATIO_RANGE = Range(0.0, 1.0, "", "a fraction of the human's motion", lo_open=True)
+"""Plausible observed fractions (``observation.ratio``)."""
 
 DEFAULT_OUT_DIR = Path("out")
 """Output folder when neither the pipeline file nor the command line names one (current folder)."""
@@ -289,19 +300,18 @@ class PipelineConfig:
         def bad(name: str, problem: str) -> PipelineError:
             return PipelineError(f"{self.source}: field '{self.flat_names()[name]}': {problem}")
 
-        if not (0.0 < self.ratio <= 1.0):
-            raise bad("ratio", f"must be in (0, 1], got {self.ratio}")
+        if not RATIO_RANGE.contains(self.ratio):
+            raise bad("ratio", f"must be in {RATIO_RANGE.text()}, got {self.ratio}")
         if not self.observe:
             raise bad("observe", "no channel group given")
         if ROBOT in self.observe:
             raise bad("observe", "the robot group cannot be observed")
         if self.ros not in (1, 2):
             raise bad("ros", f"must be 1 or 2, got {self.ros}")
-        lo, hi = RATE_RANGE_HZ
         for name in ("rate_hz", "control_rate_hz"):
             value = getattr(self, name)
-            if not (math.isfinite(value) and lo <= value <= hi):
-                raise bad(name, f"must be a rate in [{lo:g}, {hi:g}] Hz, got {value}")
+            if not RATE_RANGE.contains(value):
+                raise bad(name, f"must be a rate in {RATE_RANGE.text()} ({RATE_RANGE.source}), got {value}")
         if self.synthetic_seed < 0:
             raise bad("synthetic_seed", f"must be >= 0, got {self.synthetic_seed}")
         demo = self.demo
@@ -353,17 +363,17 @@ def _read_toml(path: Path) -> dict[str, Any]:
 
 
 def _check_types(path: Path, doc: dict[str, Any]) -> None:
-    """Every section and key of ``doc`` known, every value of its schema type."""
+    """Every section and key of ``doc`` known (else the known one it resembles), every value of its
+    schema type."""
     known = schema()
+    error = field_errors(PipelineError, path)
+    check_keys(doc, known, "", error, what="section")
     for section, table in doc.items():
-        if section not in known:
-            raise PipelineError(f"{path}: unknown section [{section}] (known: {', '.join(known)})")
         if not isinstance(table, dict):
-            raise PipelineError(f"{path}: field '{section}': expected a table")
+            raise error(section, "expected a table")
+        check_keys(table, known[section], section, error)
         for key, value in table.items():
-            kind = known[section].get(key)
-            if kind is None:
-                raise _bad(str(path), section, key, "unknown key")
+            kind = known[section][key]
             if not isinstance(value, kind) or (kind in (int, (int, float)) and isinstance(value, bool)):
                 raise _bad(str(path), section, key, f"wrong type {type(value).__name__}")
             if isinstance(value, list) and not all(isinstance(x, str) and x for x in value):

@@ -38,6 +38,7 @@ from ..evaluation.tables import (
     write_closed_loop_results,
     write_results,
 )
+from ..human.placement import check_assumed_human
 from ..motion.limits import check_profile_choice
 from ..planning.closed_loop import ClosedLoopSettings
 from ..robot import Robot, load_robot
@@ -170,6 +171,7 @@ def check_request(request: EvaluateRequest) -> Robot:
     if request.plots and not request.closed_loop:
         atomic.check_output_dir(request.plots, "plots folder")
     robot = load_robot(request.robot)
+    check_assumed_human(robot)  # an assumed human inside the robot's fixed links
     load_objects(request.objects)  # a bad task file fails here, before any demo is read
     if request.closed_loop:
         check_profile_choice(request.limits, robot, "command line")

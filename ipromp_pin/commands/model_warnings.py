@@ -6,7 +6,9 @@
   model), or a model file that does not record its training set;
 * a model with a single task (every observation is recognised as it, at posterior 1);
 * an observation far outside everything the model was trained on, in the model's own scaled units
-  (EMG in other units, another sensor): it is still "recognised", often at posterior 1.
+  (EMG in other units, another sensor): it is still "recognised", often at posterior 1;
+* a task the data or the model has but the objects file lacks: its plans carry no payload and have
+  no retreat (said otherwise only inside the joint-torque check's reason).
 
 The checks are pure functions returning messages; :func:`warn_stderr` prints one the way the
 command line does (``warning: ...``, no traceback).
@@ -15,12 +17,14 @@ command line does (``warning: ...``, no traceback).
 from __future__ import annotations
 
 import sys
+from collections.abc import Iterable
 
 import numpy as np
 
 from ..data import Dataset, Demo
 from ..promp import IProMP
 from ..promp.provenance import find_in_training
+from ..robot.objects import ObjectTable
 
 
 def warn_stderr(message: str) -> None:
@@ -130,3 +134,13 @@ def loaded_model_warnings(model: IProMP, dataset: Dataset, demo: Demo, model_nam
         if w is not None:
             out.append(w)
     return out
+
+
+def missing_object_warnings(tasks: Iterable[str], objects: ObjectTable) -> list[str]:
+    """A warning per task of ``tasks`` (the data's or the model's) without an entry in ``objects``."""
+    return [
+        f"task '{task}' has no entry in {objects.path}: no payload and no retreat for its plans (the "
+        "joint torques of an empty gripper)"
+        for task in tasks
+        if objects.for_task(task) is None
+    ]

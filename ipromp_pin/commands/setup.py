@@ -21,6 +21,7 @@ from .. import atomic
 from ..data import ROBOT, Dataset, Demo, skeleton_frames
 from ..exceptions import DataError, PipelineError
 from ..human import HumanMotion
+from ..human.placement import check_assumed_human
 from ..planning.one_shot import LogFn, PlanResult, check_model_joints, plan
 from ..planning.retreat import RetreatResult, plan_retreat
 from ..promp import IProMP
@@ -32,7 +33,13 @@ from ..safety import CheckContext, CheckSuite
 from .config import PipelineConfig
 from .meshes import start_mesh_prefetch
 from .model_cache import fit_cached
-from .model_warnings import loaded_model_warnings, range_warnings, single_task_warning, warn_stderr
+from .model_warnings import (
+    loaded_model_warnings,
+    missing_object_warnings,
+    range_warnings,
+    single_task_warning,
+    warn_stderr,
+)
 
 
 @dataclass
@@ -106,9 +113,13 @@ def prepare_session(
     """
     checks = checks or SetupChecks()
     robot = robot if robot is not None else load_robot(cfg.robot)
+    check_assumed_human(robot)  # an assumed human inside the robot's fixed links, before any computation
     objects = load_objects(cfg.objects)
     objects.check_robot(robot)  # retreat targets the robot cannot take, before any computation
     ds = load_data(cfg, log, robot)
+    early = missing_object_warnings(ds.tasks, objects)  # before training: the model learns ds.tasks
+    for w in early:
+        warn(w)
     if cfg.load_model is None:  # before training: a robot the demos were not recorded on cannot plan
         check_recorded_joints(
             ds, robot, "the built-in synthetic demos" if cfg.dataset is None else str(cfg.dataset)
@@ -125,6 +136,10 @@ def prepare_session(
     warnings = model_warnings(cfg, ds, demo, model)
     for w in warnings:
         warn(w)
+    later = [w for w in missing_object_warnings(model.tasks_, objects) if w not in early]  # a loaded model's
+    for w in later:
+        warn(w)
+    warnings = early + warnings + later
     session = Session(cfg, robot, ds, demo, train, model, warnings, prefetch)
     session.suite = CheckSuite.build(robot)
     session.context = check_context(cfg, demo, robot, objects)

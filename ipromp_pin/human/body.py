@@ -29,7 +29,10 @@ import numpy as np
 
 from ..data import Demo
 from ..exceptions import DataError
+from ..fields import unknown
 from ..robot.human_settings import HumanSettings
+from ..robot.ranges import BODY_PART_RADII_M as RADII
+from .skeleton import plausible_positions
 
 SKELETON_PREFIX = "skeleton:"
 """Prefix of the demo extras holding a tracked skeleton frame's positions (T, 3) [m], NaN where
@@ -52,25 +55,25 @@ class BodyPart:
 
 
 BODY_PARTS: tuple[BodyPart, ...] = (
-    BodyPart("head", "/head_1", None, 0.11, "face"),
-    BodyPart("neck", "/neck_1", "/head_1", 0.07, "neck"),
-    BodyPart("shoulders", "/left_shoulder_1", "/right_shoulder_1", 0.08, "back_shoulders"),
-    BodyPart("chest", "/neck_1", "/torso_1", 0.17, "chest"),
-    BodyPart("abdomen", "/torso_1", "/left_hip_1+/right_hip_1", 0.16, "abdomen"),
-    BodyPart("pelvis", "/left_hip_1", "/right_hip_1", 0.14, "pelvis"),
-    BodyPart("left_upper_arm", "/left_shoulder_1", "/left_elbow_1", 0.065, "upper_arm"),
-    BodyPart("right_upper_arm", "/right_shoulder_1", "/right_elbow_1", 0.065, "upper_arm"),
-    BodyPart("left_forearm", "/left_elbow_1", "/left_hand_1", 0.055, "lower_arm", 0.155),
-    BodyPart("right_forearm", "/right_elbow_1", "/right_hand_1", 0.055, "lower_arm", 0.155),
-    BodyPart("left_hand", "/left_hand_1", None, 0.10, "hand"),
-    BodyPart("right_hand", "/right_hand_1", None, 0.10, "hand"),
-    BodyPart("left_thigh", "/left_hip_1", "/left_knee_1", 0.10, "thigh"),
-    BodyPart("right_thigh", "/right_hip_1", "/right_knee_1", 0.10, "thigh"),
+    BodyPart("head", "/head_1", None, RADII["head"], "face"),
+    BodyPart("neck", "/neck_1", "/head_1", RADII["neck"], "neck"),
+    BodyPart("shoulders", "/left_shoulder_1", "/right_shoulder_1", RADII["shoulders"], "back_shoulders"),
+    BodyPart("chest", "/neck_1", "/torso_1", RADII["chest"], "chest"),
+    BodyPart("abdomen", "/torso_1", "/left_hip_1+/right_hip_1", RADII["abdomen"], "abdomen"),
+    BodyPart("pelvis", "/left_hip_1", "/right_hip_1", RADII["pelvis"], "pelvis"),
+    BodyPart("left_upper_arm", "/left_shoulder_1", "/left_elbow_1", RADII["left_upper_arm"], "upper_arm"),
+    BodyPart("right_upper_arm", "/right_shoulder_1", "/right_elbow_1", RADII["right_upper_arm"], "upper_arm"),
+    BodyPart("left_forearm", "/left_elbow_1", "/left_hand_1", RADII["left_forearm"], "lower_arm", 0.155),
+    BodyPart("right_forearm", "/right_elbow_1", "/right_hand_1", RADII["right_forearm"], "lower_arm", 0.155),
+    BodyPart("left_hand", "/left_hand_1", None, RADII["left_hand"], "hand"),
+    BodyPart("right_hand", "/right_hand_1", None, RADII["right_hand"], "hand"),
+    BodyPart("left_thigh", "/left_hip_1", "/left_knee_1", RADII["left_thigh"], "thigh"),
+    BodyPart("right_thigh", "/right_hip_1", "/right_knee_1", RADII["right_thigh"], "thigh"),
 )
 """The default body: frames of the skeleton tracker of handover_20171128 (OpenNI names, whose
 ``/left_*`` frames are the tracker's mirrored labels), radii about the 95th-percentile adult male
-(``docs/safety.md``: half of head length, neck, chest breadth, hip depth, biceps, forearm and thigh
-circumferences / 2 pi, half of hand length)."""
+(:data:`~ipromp_pin.robot.ranges.BODY_PART_RADII_M`; ``docs/safety.md``: half of head length, neck,
+chest breadth, hip depth, biceps, forearm and thigh circumferences / 2 pi, half of hand length)."""
 
 ASSUMED_POSE_M: dict[str, tuple[float, float, float]] = {
     "/head_1": (0.04, 0.0, 0.35),
@@ -159,22 +162,30 @@ class HumanMotion:
         settings: HumanSettings | None = None,
         parts: tuple[BodyPart, ...] = BODY_PARTS,
     ) -> HumanMotion | None:
-        """The tracked human of ``demo`` (None when the demo has no tracked skeleton).
+        """The tracked human of ``demo`` (None when the demo has no tracked skeleton). Frames at
+        exactly (0, 0, 0) and samples of impossible segment lengths are missing samples
+        (:func:`~ipromp_pin.human.skeleton.plausible_positions`).
 
         Raises:
-            DataError: a body frame that is never reliably tracked in a demo that has a skeleton.
+            DataError: a body frame that is never reliably tracked in a demo that has a skeleton, or
+                an impossible skeleton (a part's median length outside its anthropometric range).
         """
         settings = settings if settings is not None else HumanSettings()
         frames = _frame_list(parts)
         found = {f: _demo_frame(demo, f) for f in frames}
         if all(v is None for v in found.values()):
             return None
-        pos = np.full((demo.n_samples, len(frames), 3), np.nan)
+        tracked = {f: v for f, v in found.items() if v is not None}
+        untracked = [f for f in frames if f not in tracked]
+        if untracked:
+            raise DataError(
+                demo.source, untracked[0], "skeleton frame of the body model never reliably tracked"
+            )
+        raw = np.stack([tracked[f] for f in frames], axis=1)  # (T, F, 3)
+        pos = plausible_positions(raw, frames, parts, demo.source)
         for j, f in enumerate(frames):
-            v = found[f]
-            if v is None or not np.any(np.all(np.isfinite(v), axis=1)):
+            if not np.any(np.all(np.isfinite(pos[:, j]), axis=1)):
                 raise DataError(demo.source, f, "skeleton frame of the body model never reliably tracked")
-            pos[:, j] = v
         return cls(
             demo.t.copy(),
             tuple(frames),
@@ -406,9 +417,14 @@ def _demo_frame(demo: Demo, frame: str) -> np.ndarray | None:
 
 
 def _radii(parts: tuple[BodyPart, ...], settings: HumanSettings) -> np.ndarray:
-    unknown = sorted(set(settings.radii_m) - {p.name for p in parts})
-    if unknown:
-        raise DataError("human settings", "human.radii_m", f"unknown body part(s) {unknown}")
+    names = [p.name for p in parts]
+    for part in settings.radii_m:
+        if part not in names:
+            raise DataError(
+                settings.source or "human settings",
+                f"human.radii_m.{part}",
+                unknown(part, names, "body part"),
+            )
     return np.array([settings.radii_m.get(p.name, p.radius_m) for p in parts])
 
 

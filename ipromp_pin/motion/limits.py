@@ -31,9 +31,10 @@ from scipy.signal import savgol_filter
 
 from ..data import ROBOT, Demo
 from ..exceptions import PipelineError
+from ..fields import Table, field_errors
 from ..inputs import load_toml
 from ..robot import DemoLimitRecipe, Robot
-from ..robot.settings import PLAUSIBLE_RANGES
+from ..robot.ranges import PLAUSIBLE_RANGES
 from .trajectory import JointLimits
 
 PROFILE_NAMES = ("conservative", "demonstrated")
@@ -156,29 +157,18 @@ def demonstrated_profile(
     return LimitProfile("demonstrated", limits, source)
 
 
-def _vector(doc: dict, key: str, n: int, path: Path) -> np.ndarray:
-    value = doc.get(key)
-    if value is None:
-        raise PipelineError(f"{path}: field '{key}': missing")
-    if isinstance(value, int | float) and not isinstance(value, bool):
-        value = [value] * n
-    if not isinstance(value, list) or len(value) != n:
-        raise PipelineError(f"{path}: field '{key}': must be a number or a list of {n} numbers")
-    if not all(isinstance(v, int | float) and not isinstance(v, bool) for v in value):
-        raise PipelineError(f"{path}: field '{key}': must contain numbers only")
-    arr = np.asarray(value, dtype=float)
-    bad = ~np.isfinite(arr) | (arr <= 0)
+PROFILE_KEYS = ("name", "source", "velocity_rad_s", "acceleration_rad_s2", "jerk_rad_s3")
+"""The keys of a profile file (anything else is refused, naming the known key it resembles)."""
+
+
+def _vector(doc: Table, key: str, n: int) -> np.ndarray:
+    """A profile's limits (n,): a number or one per joint, positive, in the settings' plausible range."""
+    arr = doc.vector(key, n, scalar=True)
+    bad = arr <= 0
     if np.any(bad):
-        raise PipelineError(
-            f"{path}: field '{key}': value {arr[bad][0]} is not positive and finite (values: {arr.tolist()})"
-        )
-    lo, hi = PLAUSIBLE_RANGES[f"limits.{key}"]
-    bad = (arr < lo) | (arr > hi)
-    if np.any(bad):
-        raise PipelineError(
-            f"{path}: field '{key}': implausible value {arr[bad][0]:g} (plausible range [{lo:g}, {hi:g}], "
-            f"as for the robot settings; values: {arr.tolist()})"
-        )
+        raise doc.error(key, f"value {arr[bad][0]} is not positive and finite (values: {arr.tolist()})")
+    rng = PLAUSIBLE_RANGES[f"limits.{key}"]
+    rng.check(arr, key, doc.error_fn)
     return arr
 
 
@@ -197,7 +187,7 @@ def check_ceiling(values: np.ndarray, settings: np.ndarray, robot: Robot, path: 
 def read_limit_profile(path: str | Path, robot: Robot) -> LimitProfile:
     """Read a profile file: ``velocity_rad_s``, ``acceleration_rad_s2``, ``jerk_rad_s3`` (a number or
     one per arm joint, positive and finite, within the settings' plausible ranges
-    (:data:`~ipromp_pin.robot.settings.PLAUSIBLE_RANGES`); velocities at most the URDF's, accelerations
+    (:data:`~ipromp_pin.robot.ranges.PLAUSIBLE_RANGES`); velocities at most the URDF's, accelerations
     and jerks at most :data:`PROFILE_CEILING_FACTOR` times the settings'), optional ``name`` and
     ``source``.
 
@@ -207,19 +197,16 @@ def read_limit_profile(path: str | Path, robot: Robot) -> LimitProfile:
     """
     path = Path(path)
     try:
-        doc = load_toml(path, "limit profile", lambda problem: PipelineError(f"{path}: {problem}"))
+        raw = load_toml(path, "limit profile", lambda problem: PipelineError(f"{path}: {problem}"))
     except FileNotFoundError:
         raise PipelineError(
             f"{path}: limit profile not found (use {' or '.join(PROFILE_NAMES)}, or a profile file)"
         ) from None
     except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
         raise PipelineError(f"{path}: not a valid TOML limit profile: {exc}") from None
-    known = {"name", "source", "velocity_rad_s", "acceleration_rad_s2", "jerk_rad_s3"}
-    for key in doc:
-        if key not in known:
-            raise PipelineError(f"{path}: field '{key}': unknown key (known: {', '.join(sorted(known))})")
+    doc = Table(raw, "", field_errors(PipelineError, path), PROFILE_KEYS)
     n = robot.n_joints
-    vel = _vector(doc, "velocity_rad_s", n, path)
+    vel = _vector(doc, "velocity_rad_s", n)
     over = vel > robot.velocity_rad_s * (1 + 1e-9)
     if np.any(over):
         j = int(np.argmax(over))
@@ -227,13 +214,13 @@ def read_limit_profile(path: str | Path, robot: Robot) -> LimitProfile:
             f"{path}: field 'velocity_rad_s': {vel[j]} rad/s for {robot.joint_names[j]} is above the "
             f"URDF's limit {robot.velocity_rad_s[j]}"
         )
-    acc = _vector(doc, "acceleration_rad_s2", n, path)
-    jerk = _vector(doc, "jerk_rad_s3", n, path)
+    acc = _vector(doc, "acceleration_rad_s2", n)
+    jerk = _vector(doc, "jerk_rad_s3", n)
     base = JointLimits.from_robot(robot)
     check_ceiling(acc, base.acceleration_rad_s2, robot, path, "acceleration_rad_s2")
     check_ceiling(jerk, base.jerk_rad_s3, robot, path, "jerk_rad_s3")
-    name = str(doc.get("name", path.stem))
-    source = str(doc.get("source", f"profile file {path.name}"))
+    name = doc.text("name", path.stem)
+    source = doc.text("source", f"profile file {path.name}")
     limits = JointLimits(base.lower_rad, base.upper_rad, vel, acc, jerk, base.joint_names)
     return LimitProfile(name, limits, source)
 

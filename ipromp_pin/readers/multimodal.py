@@ -22,7 +22,8 @@ Tracked frames. Which ``transformsK`` holds which frame is read from its
 (``frames=["/left_hand_1"]``) becomes a group of positions x, y, z [m] in the
 ``frame_id`` frame (``/base``, Baxter's base frame). Samples are missing (NaN in
 the group, True in ``Demo.missing``) where the frame is not listed, its
-transform is all zeros (the recorders' publishing bug), or it jumps: more than
+translation is (0, 0, 0) (the recorders' publishing bug leaves transforms at all zeros; a
+translation of zeros with a rotation is no position either), or it jumps: more than
 :data:`JUMP_THRESHOLD_M` from the component-wise median of the
 :data:`JUMP_WINDOW` valid samples centred on it (an isolated spike of at most 2
 samples; the tracker's genuine catch-up steps after a stall, up to ~0.4 m
@@ -164,7 +165,8 @@ def _find_transforms(table: CsvTable) -> list[str]:
 
 
 def _frame_positions(table: CsvTable, prefixes: list[str], frame: str) -> np.ndarray | None:
-    """Positions (N, 3) of ``frame`` with NaN where it is not listed or all-zero; None if never listed."""
+    """Positions (N, 3) of ``frame`` with NaN where it is not listed or its translation is (0, 0, 0)
+    (the publishing bug's all-zero transform, also when its rotation is not zero); None if never listed."""
     n = len(table)
     pos = np.full((n, 3), np.nan)
     found = False
@@ -182,7 +184,8 @@ def _frame_positions(table: CsvTable, prefixes: list[str], frame: str) -> np.nda
             v = np.array([[table.rows[r][i] for i in idx] for r in rows], dtype=float)
         except ValueError:
             raise DataError(table.path, p + "transform", f"non-numeric value for frame {frame!r}") from None
-        zero = np.all(v == 0.0, axis=1)
+        # no position at the base frame's origin, whatever the rotation
+        zero = np.all(v[:, :3] == 0.0, axis=1)
         v[zero] = np.nan
         pos[rows] = v[:, :3]
     return pos if found else None

@@ -4,19 +4,19 @@
 unseen body part may move, the cap of that inflation) and the placement of the *assumed* human used
 when a recording has no tracked skeleton; ``[iso15066]`` holds the parameters of the protective
 separation distance (ISO/TS 15066:2016 clause 5.5.4) and overrides of the Annex A body-region limits.
-Every value is checked here (finite, positive where it must be); the defaults and their sources are
-described in ``docs/safety.md`` and in the shipped ``robots/*.toml``.
+Every key is known or refused (with the known one it resembles), every value lies in its plausible
+range (:mod:`ipromp_pin.robot.ranges`, whose source the message names); the defaults and their
+sources are described in ``docs/safety.md`` and in the shipped ``robots/*.toml``.
 """
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
-from ..exceptions import RobotError
+from ..fields import Table
+from .ranges import BODY_PART_RADII_M, PLAUSIBLE_RANGES, radius_range, region_range
 
 ISO13855_HUMAN_SPEED_M_S = 1.6
 """Walking speed of a person approaching a machine, ISO 13855:2010 clause 6.2.3 (K = 1600 mm/s for
@@ -93,12 +93,13 @@ class HumanSettings:
         robot_uncertainty_m: Z_r, the position uncertainty of the robot in [m].
         contact: ``"transient"`` or ``"quasi_static"``: which Annex A force limits the contact
             speed is held to.
-        speed_margin: Fraction in [0, 1) of the contact-speed limit that a plan keeps free: a plan
+        speed_margin: Fraction in [0, 0.5] of the contact-speed limit that a plan keeps free: a plan
             passes ``contact_speed`` when, inside S_p, every approach is at most ``(1 - speed_margin)
             v_max``. The human keeps moving after each observation; the margin absorbs what that
             changes of distance, direction and effective mass before the next re-plan. Violations
             of what happened are still counted against ``v_max`` itself.
         regions: Body region -> its Annex A values (defaults :data:`REGION_LIMITS`, overridable).
+        source: The settings file the values come from (for messages; ``""``: built in code).
     """
 
     radii_m: dict[str, float] = field(default_factory=dict)
@@ -114,111 +115,98 @@ class HumanSettings:
     contact: str = "transient"
     speed_margin: float = 0.1
     regions: dict[str, RegionLimit] = field(default_factory=lambda: dict(REGION_LIMITS))
+    source: str = ""
 
 
-def _error(source: Path, name: str, problem: str) -> RobotError:
-    return RobotError(f"{source}: field '{name}': {problem}")
+HUMAN_KEYS = ("speed_m_s", "max_inflation_m", "min_separation_m", "radii_m", "assumed")
+"""Keys of the ``[human]`` table."""
+
+ASSUMED_KEYS = ("torso_m", "facing_deg")
+"""Keys of the ``[human.assumed]`` table."""
+
+ISO15066_KEYS = (
+    "reaction_time_s",
+    "stopping_time_s",
+    "intrusion_m",
+    "human_uncertainty_m",
+    "robot_uncertainty_m",
+    "contact",
+    "speed_margin",
+    "regions",
+)
+"""Keys of the ``[iso15066]`` table."""
+
+REGION_KEYS = ("force_n", "transient_factor", "spring_n_mm", "mass_kg")
+"""Keys of an ``[iso15066.regions.<region>]`` table."""
+
+CONTACTS = ("transient", "quasi_static")
+"""Values of ``[iso15066] contact``."""
 
 
-def _number(table: dict, key: str, source: Path, prefix: str, default: float, zero_ok: bool = False) -> float:
-    """``table[key]`` as a finite positive float (or >= 0 with ``zero_ok``), else ``default``."""
-    if key not in table:
-        return float(default)
-    value = table[key]
-    name = f"{prefix}.{key}"
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        raise _error(source, name, f"must be a number, got {value!r}")
-    value = float(value)
-    if not math.isfinite(value) or value < 0 or (value == 0 and not zero_ok):
-        raise _error(source, name, f"must be {'>= 0' if zero_ok else '> 0'} and finite, got {value}")
-    return value
+def _ranged(table: Table, key: str, default: float) -> float:
+    return table.number(key, PLAUSIBLE_RANGES[table.field(key)], default)
 
 
-def _sub_table(doc: dict, key: str, source: Path, prefix: str = "") -> dict:
-    value = doc.get(key, {})
-    if not isinstance(value, dict):
-        raise _error(source, prefix + key, "must be a table")
-    return value
+def _placement(human: Table) -> HumanPlacement:
+    table = human.table("assumed", ASSUMED_KEYS)
+    d = HumanPlacement()
+    torso = table.vector("torso_m", 3, PLAUSIBLE_RANGES["human.assumed.torso_m"], d.torso_m)
+    return HumanPlacement(torso, _ranged(table, "facing_deg", d.facing_deg))
 
 
-def _placement(table: dict, source: Path) -> HumanPlacement:
-    default = HumanPlacement()
-    torso = table.get("torso_m", default.torso_m.tolist())
-    if not isinstance(torso, list) or len(torso) != 3:
-        raise _error(source, "human.assumed.torso_m", "must be a list of 3 numbers")
-    try:
-        arr = np.asarray(torso, dtype=float)
-    except (TypeError, ValueError):
-        raise _error(source, "human.assumed.torso_m", "must contain numbers only") from None
-    if not np.all(np.isfinite(arr)) or np.any(np.abs(arr) > 10.0):
-        raise _error(source, "human.assumed.torso_m", f"must be finite and within 10 m, got {arr.tolist()}")
-    facing = table.get("facing_deg", default.facing_deg)
-    if isinstance(facing, bool) or not isinstance(facing, int | float) or not math.isfinite(facing):
-        raise _error(source, "human.assumed.facing_deg", f"must be a finite number, got {facing!r}")
-    return HumanPlacement(arr, float(facing))
-
-
-def _regions(table: dict, source: Path) -> dict[str, RegionLimit]:
+def _regions(iso: Table) -> dict[str, RegionLimit]:
     out = dict(REGION_LIMITS)
-    for region, values in table.items():
-        prefix = f"iso15066.regions.{region}"
-        if region not in out:
-            raise _error(source, prefix, f"unknown body region (known: {', '.join(REGION_LIMITS)})")
-        if not isinstance(values, dict):
-            raise _error(source, prefix, "must be a table")
+    regions = iso.table("regions", REGION_LIMITS, what="body region")
+    for region in regions.keys():
+        table = regions.table(region, REGION_KEYS, required=True)
         d = out[region]
         out[region] = RegionLimit(
-            _number(values, "force_n", source, prefix, d.force_n),
-            _number(values, "transient_factor", source, prefix, d.transient_factor),
-            _number(values, "spring_n_mm", source, prefix, d.spring_n_m / 1e3) * 1e3,
-            _number(values, "mass_kg", source, prefix, d.mass_kg),
+            table.number("force_n", region_range(region, "force_n", d.force_n), d.force_n),
+            table.number(
+                "transient_factor",
+                region_range(region, "transient_factor", d.transient_factor),
+                d.transient_factor,
+            ),
+            table.number(
+                "spring_n_mm", region_range(region, "spring_n_mm", d.spring_n_m / 1e3), d.spring_n_m / 1e3
+            )
+            * 1e3,
+            table.number("mass_kg", region_range(region, "mass_kg", d.mass_kg), d.mass_kg),
         )
     return out
 
 
-def _margin(iso: dict, source: Path, default: float) -> float:
-    value = iso.get("speed_margin", default)
-    if isinstance(value, bool) or not isinstance(value, int | float) or not 0.0 <= float(value) < 1.0:
-        raise _error(source, "iso15066.speed_margin", f"must be a number in [0, 1), got {value!r}")
-    return float(value)
+def _radii(human: Table) -> dict[str, float]:
+    table = human.table("radii_m", BODY_PART_RADII_M, what="body part")
+    return {part: table.number(part, radius_range(part)) for part in table.keys()}
 
 
-def read_human_settings(doc: dict, source: Path) -> HumanSettings:
-    """The validated ``[human]`` / ``[iso15066]`` tables of a settings document (defaults when absent).
+def read_human_settings(doc: Table, source: object) -> HumanSettings:
+    """The validated ``[human]`` / ``[iso15066]`` tables of the settings document ``doc`` of file
+    ``source`` (defaults when absent).
 
     Raises:
-        RobotError: a non-positive or non-finite value, an unknown body region or contact kind,
-            naming the file and the field.
+        RobotError: an unknown key, table, body part or region (with the known name it resembles), a
+            value that is not a finite number or lies outside its plausible range
+            (:data:`~ipromp_pin.robot.ranges.PLAUSIBLE_RANGES`, whose source the message names), an
+            unknown contact kind; naming the file and the field.
     """
-    human = _sub_table(doc, "human", source)
-    iso = _sub_table(doc, "iso15066", source)
+    human = doc.table("human", HUMAN_KEYS)
+    iso = doc.table("iso15066", ISO15066_KEYS)
     d = HumanSettings()
-    radii_raw = human.get("radii_m", {})
-    if not isinstance(radii_raw, dict):
-        raise _error(source, "human.radii_m", "must be a table (body part = radius in m)")
-    radii = {k: _number(radii_raw, k, source, "human.radii_m", 0.0) for k in radii_raw}
-    for k, r in radii.items():
-        if r > 1.0:
-            raise _error(source, f"human.radii_m.{k}", f"implausible radius {r} m (at most 1 m)")
-    contact = iso.get("contact", d.contact)
-    if contact not in ("transient", "quasi_static"):
-        raise _error(source, "iso15066.contact", f"must be 'transient' or 'quasi_static', got {contact!r}")
     return HumanSettings(
-        radii_m=radii,
-        speed_m_s=_number(human, "speed_m_s", source, "human", d.speed_m_s),
-        max_inflation_m=_number(human, "max_inflation_m", source, "human", d.max_inflation_m, True),
-        min_separation_m=_number(human, "min_separation_m", source, "human", d.min_separation_m, True),
-        placement=_placement(_sub_table(human, "assumed", source, "human."), source),
-        reaction_time_s=_number(iso, "reaction_time_s", source, "iso15066", d.reaction_time_s, True),
-        stopping_time_s=_number(iso, "stopping_time_s", source, "iso15066", d.stopping_time_s, True),
-        intrusion_m=_number(iso, "intrusion_m", source, "iso15066", d.intrusion_m, True),
-        human_uncertainty_m=_number(
-            iso, "human_uncertainty_m", source, "iso15066", d.human_uncertainty_m, True
-        ),
-        robot_uncertainty_m=_number(
-            iso, "robot_uncertainty_m", source, "iso15066", d.robot_uncertainty_m, True
-        ),
-        contact=str(contact),
-        speed_margin=_margin(iso, source, d.speed_margin),
-        regions=_regions(_sub_table(iso, "regions", source, "iso15066."), source),
+        radii_m=_radii(human),
+        speed_m_s=_ranged(human, "speed_m_s", d.speed_m_s),
+        max_inflation_m=_ranged(human, "max_inflation_m", d.max_inflation_m),
+        min_separation_m=_ranged(human, "min_separation_m", d.min_separation_m),
+        placement=_placement(human),
+        reaction_time_s=_ranged(iso, "reaction_time_s", d.reaction_time_s),
+        stopping_time_s=_ranged(iso, "stopping_time_s", d.stopping_time_s),
+        intrusion_m=_ranged(iso, "intrusion_m", d.intrusion_m),
+        human_uncertainty_m=_ranged(iso, "human_uncertainty_m", d.human_uncertainty_m),
+        robot_uncertainty_m=_ranged(iso, "robot_uncertainty_m", d.robot_uncertainty_m),
+        contact=iso.text("contact", d.contact, CONTACTS),
+        speed_margin=_ranged(iso, "speed_margin", d.speed_margin),
+        regions=_regions(iso),
+        source=str(source),
     )

@@ -22,16 +22,18 @@ the gripper frame.
 
 from __future__ import annotations
 
-import math
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from ..exceptions import RobotError
+from ..fields import REQUIRED, FieldError, Range, Table, did_you_mean, field_errors, numbers
+from ..inputs import load_toml
 from ..shipped import ROBOTS_DIR
 from .model import Robot
+from .ranges import PLAUSIBLE_RANGES
 from .retreat_target import RetreatTarget, check_retreat_robot, parse_retreat
 from .settings import settings_error
 
@@ -41,10 +43,10 @@ DEFAULT_OBJECTS = ROBOTS_DIR / "objects.toml"
 HOLDERS = ("robot_gives", "robot_receives")
 """``robot_gives``: the robot holds the object until the hand-over; ``robot_receives``: from it on."""
 
-MAX_COM_DISTANCE_M = 1.0
+MAX_COM_DISTANCE_M = PLAUSIBLE_RANGES["<task>.com_m"].hi
 """Largest distance of an object's centre of mass from the gripper frame's origin [m]."""
 
-_KEYS = {"mass_kg", "com_m", "holder", "shape", "inertia_kg_m2", "source", "retreat"}
+_KEYS = ("mass_kg", "com_m", "holder", "shape", "inertia_kg_m2", "source", "retreat")
 
 
 @dataclass(frozen=True)
@@ -147,115 +149,114 @@ def cylinder_inertia(mass_kg: float, radius_m: float, length_m: float, axis: int
     return np.diag(diag)
 
 
-def _number(value: object, path: Path, name: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        raise settings_error(path, name, f"must be a number, got {value!r}")
-    out = float(value)
-    if not math.isfinite(out):
-        raise settings_error(path, name, f"must be finite, got {out}")
-    return out
+SHAPE_KEYS = {"box": ("kind", "size_m"), "cylinder": ("kind", "radius_m", "length_m", "axis")}
+"""The keys of a ``shape`` table, per kind."""
+
+INERTIA_SYMMETRY_RTOL = 1e-9
+"""An ``inertia_kg_m2`` is symmetric when ``|I - I^T| <= 1e-9 max|I|`` entry by entry: the round-off
+of a matrix computed by a program (1e-16 relative) or printed with 10 significant digits or more
+passes, an entry typed differently on either side of the diagonal does not. It is then replaced by
+``(I + I^T) / 2``, exactly symmetric, which Pinocchio requires (it refuses a 1e-13 asymmetry)."""
 
 
-def _positive(value: object, path: Path, name: str) -> float:
-    out = _number(value, path, name)
-    if out <= 0:
-        raise settings_error(path, name, f"must be positive, got {out}")
-    return out
+def _range(key: str) -> Range:
+    """The plausible range of a task's ``key`` (``"<task>.key"`` in :data:`PLAUSIBLE_RANGES`)."""
+    return PLAUSIBLE_RANGES[f"<task>.{key}"]
 
 
-def _shape_inertia(shape: object, mass: float, path: Path, name: str) -> np.ndarray:
-    if not isinstance(shape, dict):
-        raise settings_error(path, name, "must be a table (kind = 'box' or 'cylinder')")
-    kind = shape.get("kind")
+def _shape_inertia(table: Table, mass: float) -> np.ndarray:
+    shape = table.table("shape", ("kind", "size_m", "radius_m", "length_m", "axis"))
+    kind = shape.text("kind", REQUIRED, SHAPE_KEYS)
+    shape = Table(shape.data, shape.prefix, shape.error_fn, SHAPE_KEYS[kind])
     if kind == "box":
-        size = shape.get("size_m")
-        if not isinstance(size, list) or len(size) != 3:
-            raise settings_error(path, f"{name}.size_m", "must be a list of 3 edge lengths [m]")
-        return box_inertia(mass, np.array([_positive(v, path, f"{name}.size_m") for v in size]))
-    if kind == "cylinder":
-        radius = _positive(shape.get("radius_m"), path, f"{name}.radius_m")
-        length = _positive(shape.get("length_m"), path, f"{name}.length_m")
-        axis = shape.get("axis", "z")
-        if axis not in ("x", "y", "z"):
-            raise settings_error(path, f"{name}.axis", f"must be 'x', 'y' or 'z', got {axis!r}")
-        return cylinder_inertia(mass, radius, length, "xyz".index(axis))
-    raise settings_error(path, f"{name}.kind", f"must be 'box' or 'cylinder', got {kind!r}")
+        size = shape.vector("size_m", 3, _range("shape.size_m"))
+        return box_inertia(mass, size)
+    radius = shape.number("radius_m", _range("shape.radius_m"))
+    length = shape.number("length_m", _range("shape.length_m"))
+    axis = shape.text("axis", "z", ("x", "y", "z"))
+    return cylinder_inertia(mass, radius, length, "xyz".index(axis))
 
 
-def _inertia_matrix(value: object, mass: float, path: Path, name: str) -> np.ndarray:
-    if not (
-        isinstance(value, list)
-        and len(value) == 3
-        and all(isinstance(r, list) and len(r) == 3 for r in value)
-    ):
-        raise settings_error(path, name, "must be a 3 x 3 list of lists [kg m^2]")
-    inertia = np.array([[_number(v, path, name) for v in row] for row in value])
-    if not np.allclose(inertia, inertia.T, atol=1e-12):
-        raise settings_error(path, name, "must be symmetric")
+def _inertia_matrix(table: Table, mass: float) -> np.ndarray:
+    """``inertia_kg_m2``: symmetric to :data:`INERTIA_SYMMETRY_RTOL` (then symmetrised exactly),
+    positive definite (zero for a massless object), principal moments obeying the triangle
+    inequality and a radius of gyration in its plausible range."""
+    key = "inertia_kg_m2"
+    value = table.raw(key)
+    if not (isinstance(value, list) and len(value) == 3):
+        raise table.error(key, "must be a 3 x 3 list of lists [kg m^2]")
+    inertia = np.stack([numbers(row, 3, table.field(key), table.error_fn) for row in value])
+    scale = float(np.max(np.abs(inertia)))
+    asym = float(np.max(np.abs(inertia - inertia.T)))
+    if asym > INERTIA_SYMMETRY_RTOL * scale:
+        raise table.error(
+            key, f"must be symmetric (|I - I^T| up to {asym:.3g}, above {INERTIA_SYMMETRY_RTOL:g} x max |I|)"
+        )
+    inertia = (inertia + inertia.T) / 2.0
+    if mass == 0:
+        if scale > 0:
+            raise table.error(
+                key, "a massless object (mass_kg = 0) has no inertia: give zeros or leave it out"
+            )
+        return inertia
     eig = np.linalg.eigvalsh(inertia)
-    if mass > 0 and eig[0] <= 0:
-        raise settings_error(path, name, f"must be positive definite (eigenvalues {eig.round(9).tolist()})")
-    if eig[0] < 0:
-        raise settings_error(path, name, f"must be positive semi-definite (eigenvalues {eig.tolist()})")
+    if eig[0] <= 0:
+        raise table.error(key, f"must be positive definite (eigenvalues {eig.round(9).tolist()})")
+    if eig[2] > eig[0] + eig[1] + 1e-12 * eig[2]:
+        raise table.error(
+            key,
+            f"principal moments {eig.round(9).tolist()} violate the triangle inequality "
+            "(each at most the sum of the other two: no rigid body has them)",
+        )
+    gyration = float(np.sqrt(eig[2] / mass))
+    rng = _range(key)
+    if not rng.contains(gyration):
+        raise table.error(key, f"radius of gyration {rng.problem(gyration)}")
     return inertia
 
 
-def _task_object(task: str, table: object, path: Path) -> TaskObject:
-    if not isinstance(table, dict):
-        raise settings_error(path, task, "must be a table (mass_kg, com_m, holder, shape or inertia_kg_m2)")
-    for key in table:
-        if key not in _KEYS:
-            raise settings_error(path, f"{task}.{key}", f"unknown key (known: {', '.join(sorted(_KEYS))})")
-    if "mass_kg" not in table:
-        raise settings_error(path, f"{task}.mass_kg", "missing")
-    mass = _number(table["mass_kg"], path, f"{task}.mass_kg")
-    if mass < 0:
-        raise settings_error(path, f"{task}.mass_kg", f"must be >= 0, got {mass}")
-    com_raw = table.get("com_m", [0.0, 0.0, 0.0])
-    if not isinstance(com_raw, list) or len(com_raw) != 3:
-        raise settings_error(path, f"{task}.com_m", "must be a list of 3 numbers [m]")
-    com = np.array([_number(v, path, f"{task}.com_m") for v in com_raw])
-    if np.linalg.norm(com) > MAX_COM_DISTANCE_M:
-        raise settings_error(
-            path,
-            f"{task}.com_m",
-            f"{np.linalg.norm(com):.3f} m from the gripper (at most {MAX_COM_DISTANCE_M} m)",
-        )
-    holder = table.get("holder")
-    if holder not in HOLDERS:
-        raise settings_error(path, f"{task}.holder", f"must be one of {', '.join(HOLDERS)}, got {holder!r}")
+def _task_object(task: str, value: object, path: Path, error: FieldError) -> TaskObject:
+    if not isinstance(value, dict):
+        hint = did_you_mean(task, ["schema_version"])  # the only top-level value
+        problem = "must be a table (mass_kg, com_m, holder, shape or inertia_kg_m2)"
+        raise error(task, f"unknown key{hint}" if hint else problem)
+    table = Table(value, task, error, _KEYS)
+    mass = table.number("mass_kg", _range("mass_kg"))
+    com = table.vector("com_m", 3, None, [0.0, 0.0, 0.0])
+    _range("com_m").check(float(np.linalg.norm(com)), table.field("com_m"), error)
+    holder = table.text("holder", REQUIRED, HOLDERS)
     if "shape" in table and "inertia_kg_m2" in table:
-        raise settings_error(path, task, "give either shape or inertia_kg_m2, not both")
+        raise table.error(None, "give either shape or inertia_kg_m2, not both")
     if "inertia_kg_m2" in table:
-        inertia = _inertia_matrix(table["inertia_kg_m2"], mass, path, f"{task}.inertia_kg_m2")
+        inertia = _inertia_matrix(table, mass)
     elif "shape" in table:
-        inertia = _shape_inertia(table["shape"], mass, path, f"{task}.shape")
+        inertia = _shape_inertia(table, mass)
     else:
         inertia = np.zeros((3, 3))  # a point mass
-    source = table.get("source", "")
-    if not isinstance(source, str):
-        raise settings_error(path, f"{task}.source", "must be a string")
-    retreat = None if "retreat" not in table else parse_retreat(table["retreat"], path, f"{task}.retreat")
-    shape = dict(table["shape"]) if "shape" in table else None
-    return TaskObject(task, mass, com, inertia, str(holder), source, retreat, shape)
+    source = table.text("source", "")
+    retreat = None if "retreat" not in table else parse_retreat(table.raw("retreat"), path, f"{task}.retreat")
+    shape = dict(table.raw("shape")) if "shape" in table else None
+    return TaskObject(task, mass, com, inertia, holder, source, retreat, shape)
 
 
 def load_objects(path: str | Path | None = None) -> ObjectTable:
-    """Read and validate a task file (``None``: the shipped :data:`DEFAULT_OBJECTS`).
+    """Read and validate a task file (``None``: the shipped :data:`DEFAULT_OBJECTS`), through the
+    bounded reader of every settings file (:func:`ipromp_pin.inputs.load_toml`: a regular file of at
+    most 1 MB, nested not too deeply).
 
     Raises:
-        RobotError: unreadable file, bad TOML, or a bad field (negative or non-finite mass, a centre of
-            mass more than :data:`MAX_COM_DISTANCE_M` from the gripper, an inertia that is not positive
-            definite, an unknown holder or key), naming the file, the field and the problem.
+        RobotError: unreadable, special or oversized file, bad TOML, an unknown key (naming the known
+            one it resembles) or a bad field (a mass, size or centre of mass outside its plausible
+            range, an inertia that is not symmetric, not positive definite or violates the triangle
+            inequality, an unknown holder or shape), naming the file, the field and the problem.
     """
     p = DEFAULT_OBJECTS if path is None else Path(path)
+    error = field_errors(RobotError, p)
     try:
-        doc = tomllib.loads(p.read_text(encoding="utf-8"))
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise settings_error(p, None, f"not a valid TOML task file: {exc}") from None
+        doc = load_toml(p, "task", lambda problem: error(None, problem))
     except OSError as exc:
-        raise settings_error(p, None, f"cannot read the task file: {exc.strerror or exc}") from None
+        raise error(None, f"cannot read the task file: {exc.strerror or exc}") from None
     version = doc.pop("schema_version", 1)
-    if version != 1:
-        raise settings_error(p, "schema_version", f"unsupported version {version!r} (this code reads 1)")
-    return ObjectTable(p, {task: _task_object(task, table, p) for task, table in doc.items()})
+    if version != 1 or isinstance(version, bool):
+        raise error("schema_version", f"unsupported version {version!r} (this code reads 1)")
+    return ObjectTable(p, {task: _task_object(task, table, p, error) for task, table in doc.items()})

@@ -28,7 +28,9 @@ from typing import Any
 
 import numpy as np
 
+from ..fields import unknown
 from .model import Robot
+from .ranges import PLAUSIBLE_RANGES
 from .settings import settings_error
 
 RETREAT_KINDS = ("start", "joints", "position")
@@ -39,10 +41,10 @@ DEFAULT_DWELL_S = 0.5
 """Default time [s] the arm holds still at the hand-over before it retreats (the gripper closes on, or
 lets go of, the object meanwhile)."""
 
-MAX_DWELL_S = 10.0
+MAX_DWELL_S = PLAUSIBLE_RANGES["<task>.retreat.dwell_s"].hi
 """Longest dwell [s] accepted."""
 
-MAX_RETREAT_DISTANCE_M = 2.0
+MAX_RETREAT_DISTANCE_M = PLAUSIBLE_RANGES["<task>.retreat.position_m"].hi
 """Largest distance [m] of a retreat position from the base frame's origin (Baxter reaches ~1.2 m)."""
 
 _KEYS = ("to", "joints_rad", "position_m", "dwell_s")
@@ -99,8 +101,9 @@ def _numbers(value: object, path: Path, name: str, length: int | None = None) ->
 def _dwell(value: object, path: Path, name: str) -> float:
     if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(float(value)):
         raise settings_error(path, name, f"must be a finite number of seconds, got {value!r}")
-    if not 0.0 <= float(value) <= MAX_DWELL_S:
-        raise settings_error(path, name, f"must be in [0, {MAX_DWELL_S:g}] s, got {value}")
+    rng = PLAUSIBLE_RANGES["<task>.retreat.dwell_s"]
+    if not rng.contains(float(value)):
+        raise settings_error(path, name, f"must be in {rng.text()} ({rng.source}), got {value}")
     return float(value)
 
 
@@ -120,7 +123,7 @@ def parse_retreat(value: object, path: Path, field: str) -> RetreatTarget:
         )
     for key in value:
         if key not in _KEYS:
-            raise settings_error(path, f"{field}.{key}", f"unknown key (known: {', '.join(_KEYS)})")
+            raise settings_error(path, f"{field}.{key}", unknown(key, _KEYS))
     given = [k for k in ("to", "joints_rad", "position_m") if k in value]
     if len(given) != 1:
         raise settings_error(
@@ -139,7 +142,8 @@ def parse_retreat(value: object, path: Path, field: str) -> RetreatTarget:
         raise settings_error(
             path,
             f"{field}.position_m",
-            f"{np.linalg.norm(p):.3f} m from the base frame's origin (at most {MAX_RETREAT_DISTANCE_M:g} m)",
+            f"{np.linalg.norm(p):.3f} m from the base frame's origin (at most {MAX_RETREAT_DISTANCE_M:g} m: "
+            f"{PLAUSIBLE_RANGES['<task>.retreat.position_m'].source})",
         )
     return RetreatTarget("position", position_m=p, dwell_s=dwell, field=field, path=path)
 

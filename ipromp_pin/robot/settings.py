@@ -14,20 +14,22 @@ A bare name such as ``"baxter_left"`` is looked up among the shipped settings fi
 from __future__ import annotations
 
 import importlib.metadata
-import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
 from ..exceptions import RobotError
+from ..fields import Range, Table, field_errors
 from ..inputs import MAX_DOCUMENT_BYTES, check_regular, load_toml
 from ..shipped import ROBOTS_DIR
-from .human_settings import HumanSettings, read_human_settings
+from .human_settings import HUMAN_KEYS, ISO15066_KEYS, HumanSettings, read_human_settings
+from .ranges import PLAUSIBLE_RANGES
 
 __all__ = [
     "EE_FRAME",
+    "PLAUSIBLE_RANGES",
+    "TABLES",
     "DemoLimitRecipe",
     "ROBOTS_DIR",
     "RobotSettings",
@@ -43,24 +45,39 @@ EE_FRAME = "ee"
 
 _SCHEMA_VERSION = 1
 
-PLAUSIBLE_RANGES: dict[str, tuple[float, float]] = {
-    "limits.position_margin_rad": (0.0, 0.5),
-    "limits.velocity_rad_s": (1e-3, 100.0),
-    "limits.acceleration_rad_s2": (1e-3, 1e4),
-    "limits.jerk_rad_s3": (1e-2, 1e6),
-    "checks.min_clearance_m": (0.0, 1.0),
-    "checks.collision_max_step_rad": (1e-3, 1.0),
-    "checks.max_hand_distance_m": (1e-3, 10.0),
-    "calibration offsets [m]": (0.0, 1.0),
-    "workspace [m]": (-10.0, 10.0),
-    "fixed_joints [rad or m]": (-10.0, 10.0),
+TABLES: dict[str, tuple[str, ...] | None] = {
+    "schema_version": None,
+    "name": None,
+    "description": ("package", "urdf", "srdf"),
+    "arm": ("joints", "recorded_names"),
+    "end_effector": ("parent_frame", "frame"),
+    "calibration": (
+        "fit",
+        "tool_offset_m",
+        "mount_offset_m",
+        "calibrated_by",
+        "calibrated_on",
+        "residual_median_mm_before",
+        "residual_median_mm_after",
+    ),
+    "limits": (
+        "position_margin_rad",
+        "velocity_rad_s",
+        "acceleration_rad_s2",
+        "jerk_rad_s3",
+        "effort_margin",
+        "demonstrated",
+    ),
+    "fixed_joints": None,
+    "workspace": ("shape", "min_m", "max_m", "center_m", "radius_m"),
+    "checks": ("min_clearance_m", "collision_max_step_rad", "max_hand_distance_m"),
+    "springs": None,
+    "human": HUMAN_KEYS,
+    "iso15066": ISO15066_KEYS,
 }
-"""Ranges, in the units of each field, outside which a settings value is refused before anything
-is computed: the limits of real arms lie well inside them (Baxter: 1.5-4 rad/s, 1 rad/s^2), and
-values outside make the planner allocate absurd amounts (a velocity limit of 1e-9 rad/s: a
-trajectory of 1e9 s, or a collision step of 1e-12 rad: 1e12 checked samples) or make every check
-meaningless. Calibration offsets are corrections of millimetres, positions are within the tracking
-range of the hand (bounds: each coordinate)."""
+"""The top-level keys of a settings file and the keys of each table (None: a value, or a table whose
+keys are names checked elsewhere: joints, recorded names). Anything else is refused, naming the
+known key it resembles."""
 
 
 def settings_error(source: object, field_name: str | None, problem: str) -> RobotError:
@@ -171,7 +188,7 @@ class RobotSettings:
         collision_max_step_rad: Largest joint step between collision-checked path samples in [rad].
         max_hand_distance_m: Largest gripper-hand distance at the hand-over in [m].
         effort_margin: Fraction of the URDF's effort limits kept free by the joint-torque check, in
-            [0, 1) (``[limits] effort_margin``; default 0.1: torques up to 90 % of the limits).
+            [0, 0.5] (``[limits] effort_margin``; default 0.1: torques up to 90 % of the limits).
         spring_torque_nm: Arm joint name -> ``(c0, c1)``: a spring (Baxter's shoulder counterbalance)
             adds ``c0 + c1 * q`` [N m] (``q`` in [rad]) to that joint, so the motor delivers the rest
             (``[springs]``; default none).
@@ -249,101 +266,43 @@ def resolve_settings_path(path_or_name: str | Path) -> Path:
     raise RobotError(f"{path_or_name}: robot settings file not found (known robots: {known or 'none'})")
 
 
-def _table(doc: dict, key: str, source: Path, required: bool = True) -> dict:
-    value = doc.get(key)
-    if value is None:
-        if required:
-            raise settings_error(source, key, "missing table")
-        return {}
-    if not isinstance(value, dict):
-        raise settings_error(source, key, "must be a table")
-    return value
+def _range(name: str) -> Range:
+    return PLAUSIBLE_RANGES[name]
 
 
-def _get(table: dict, key: str, source: Path, prefix: str, kind: type | tuple, default: Any = ...) -> Any:
-    """``table[key]``, which must be of type ``kind`` (an int is accepted as a float), or ``default``
-    when absent (``...``: the key is required)."""
+def _positive_vector(
+    table: Table, key: str, n: int, default: object = ..., allow_zero: bool = False
+) -> np.ndarray:
+    """``table[key]``: a number or ``n`` numbers (n,), positive (``allow_zero``: >= 0), in their range."""
     if key not in table:
         if default is ...:
-            raise settings_error(source, f"{prefix}.{key}", "missing")
-        return default
-    value = table[key]
-    if kind is float and isinstance(value, int) and not isinstance(value, bool):
-        value = float(value)
-    if not isinstance(value, kind) or isinstance(value, bool) and kind is not bool:
-        raise settings_error(source, f"{prefix}.{key}", f"must be of type {getattr(kind, '__name__', kind)}")
-    return value
-
-
-def _in_range(arr: np.ndarray, source: Path, name: str, key: str | None = None) -> np.ndarray:
-    lo, hi = PLAUSIBLE_RANGES[key or name]
-    bad = (arr < lo) | (arr > hi)
-    if np.any(bad):
-        raise settings_error(
-            source,
-            name,
-            f"implausible value {arr[bad][0]:g} (plausible range [{lo:g}, {hi:g}]; values: {arr.tolist()})",
-        )
-    return arr
-
-
-def _positive_vector(value: object, n: int, source: Path, name: str, allow_zero: bool = False) -> np.ndarray:
-    if isinstance(value, int | float) and not isinstance(value, bool):
-        value = [value] * n
-    if not isinstance(value, list) or len(value) != n:
-        raise settings_error(source, name, f"must be a number or a list of {n} numbers")
-    try:
-        arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise settings_error(source, name, "must contain numbers only") from exc
-    if not np.all(np.isfinite(arr)):
-        raise settings_error(source, name, f"must be finite, got {arr.tolist()}")
+            raise table.error(key, "missing")
+        return np.full(n, float(default))  # type: ignore[arg-type]
+    arr = table.vector(key, n, scalar=True)
     bad = arr < 0 if allow_zero else arr <= 0
     if np.any(bad):
         which = "negative" if allow_zero else "zero or negative"
-        raise settings_error(source, name, f"{which} value {arr[bad][0]} (values: {arr.tolist()})")
-    return _in_range(arr, source, name) if name in PLAUSIBLE_RANGES else arr
-
-
-def _vector3(value: object, source: Path, name: str) -> np.ndarray:
-    if not isinstance(value, list) or len(value) != 3:
-        raise settings_error(source, name, "must be a list of 3 numbers")
-    try:
-        arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise settings_error(source, name, "must contain numbers only") from exc
-    if not np.all(np.isfinite(arr)):
-        raise settings_error(source, name, f"must be finite, got {arr.tolist()}")
+        raise table.error(key, f"{which} value {arr[bad][0]} (values: {arr.tolist()})")
+    _range(table.field(key)).check(arr, table.field(key), table.error_fn)
     return arr
 
 
-def _demo_limit_recipe(limits: dict, path: Path) -> DemoLimitRecipe:
-    """The optional ``[limits.demonstrated]`` table (percentile in (0, 100], window_s > 0)."""
-    table = limits.get("demonstrated", {})
-    if not isinstance(table, dict):
-        raise settings_error(path, "limits.demonstrated", "must be a table")
-    known = {"percentile", "window_s"}
-    for key in table:
-        if key not in known:
-            raise settings_error(
-                path, f"limits.demonstrated.{key}", "unknown key (known: percentile, window_s)"
-            )
-    default = DemoLimitRecipe()
-    pct = _get(table, "percentile", path, "limits.demonstrated", float, default.percentile)
-    win = _get(table, "window_s", path, "limits.demonstrated", float, default.window_s)
-    if not (math.isfinite(pct) and 0 < pct <= 100):
-        raise settings_error(path, "limits.demonstrated.percentile", f"must be in (0, 100], got {pct}")
-    if not (math.isfinite(win) and win > 0):
-        raise settings_error(path, "limits.demonstrated.window_s", f"must be positive and finite, got {win}")
-    return DemoLimitRecipe(float(pct), float(win))
+def _demo_limit_recipe(limits: Table) -> DemoLimitRecipe:
+    """The optional ``[limits.demonstrated]`` table (percentile in (0, 100], window_s in (0, 5] s)."""
+    table = limits.table("demonstrated", ("percentile", "window_s"))
+    d = DemoLimitRecipe()
+    pct = table.number("percentile", _range("limits.demonstrated.percentile"), d.percentile)
+    win = table.number("window_s", _range("limits.demonstrated.window_s"), d.window_s)
+    return DemoLimitRecipe(pct, win)
 
 
-def _read_document(path: Path) -> dict:
-    """The parsed TOML document of ``path``, its ``schema_version`` checked."""
+def _read_document(path: Path) -> Table:
+    """The parsed TOML document of ``path``, its top-level keys known and ``schema_version`` checked."""
     try:
         doc = load_toml(path, "robot settings", lambda problem: settings_error(path, None, problem))
     except OSError as exc:
         raise settings_error(path, None, f"cannot read: {exc.strerror or exc}") from None
+    table = Table(doc, "", field_errors(RobotError, path), TABLES, what="key or table")
     version = doc.get("schema_version", _SCHEMA_VERSION)
     if not isinstance(version, int) or isinstance(version, bool):
         raise settings_error(
@@ -355,7 +314,12 @@ def _read_document(path: Path) -> dict:
         raise settings_error(
             path, "schema_version", f"unsupported version {version} (this code reads {_SCHEMA_VERSION})"
         )
-    return doc
+    return table
+
+
+def _sub(doc: Table, key: str, required: bool = True) -> Table:
+    """Table ``key`` of the document with its known keys (:data:`TABLES`)."""
+    return doc.table(key, TABLES[key], required=required)
 
 
 def _description_file(rel: str, key: str, base: Path, path: Path) -> Path:
@@ -370,137 +334,87 @@ def _description_file(rel: str, key: str, base: Path, path: Path) -> Path:
     return resolved
 
 
-def _arm_joints(arm: dict, path: Path) -> tuple[list[str], dict[str, str]]:
+def _arm_joints(arm: Table) -> tuple[list[str], dict[str, str]]:
     """The ``[arm]`` table: joint names in kinematic order and the recorded -> model name mapping."""
-    joints = _get(arm, "joints", path, "arm", list)
-    if not joints or not all(isinstance(j, str) and j for j in joints):
-        raise settings_error(path, "arm.joints", "must be a non-empty list of joint names")
+    joints = arm.raw("joints")
+    if not isinstance(joints, list) or not joints or not all(isinstance(j, str) and j for j in joints):
+        raise arm.error("joints", "must be a non-empty list of joint names")
     if len(set(joints)) != len(joints):
-        raise settings_error(path, "arm.joints", f"joint listed twice in {joints}")
-    recorded = _get(arm, "recorded_names", path, "arm", dict, {j: j for j in joints})
+        raise arm.error("joints", f"joint listed twice in {joints}")
+    recorded = arm.table("recorded_names").data if "recorded_names" in arm else {j: j for j in joints}
     for rec, mod in recorded.items():
         if not isinstance(mod, str) or mod not in joints:
-            raise settings_error(
-                path, f"arm.recorded_names.{rec}", f"maps to '{mod}', which is not one of arm.joints"
-            )
+            raise arm.error(f"recorded_names.{rec}", f"maps to '{mod}', which is not one of arm.joints")
     missing = [j for j in joints if j not in recorded.values()]
     if missing:
-        raise settings_error(path, "arm.recorded_names", f"no recorded name maps to {missing}")
+        raise arm.error("recorded_names", f"no recorded name maps to {missing}")
     return joints, recorded
 
 
-def _calibration(calib: dict, path: Path) -> tuple[np.ndarray, np.ndarray, dict]:
+def _calibration(calib: Table) -> tuple[np.ndarray, np.ndarray, dict]:
     """The optional ``[calibration]`` table: tool offset (3,) and mount offset (3,) in [m], provenance."""
-    offset = _vector3(calib.get("tool_offset_m", [0.0, 0.0, 0.0]), path, "calibration.tool_offset_m")
-    mount = _vector3(calib.get("mount_offset_m", [0.0, 0.0, 0.0]), path, "calibration.mount_offset_m")
-    for key, v in (("calibration.tool_offset_m", offset), ("calibration.mount_offset_m", mount)):
-        _in_range(np.abs(v), path, key, "calibration offsets [m]")
-    calib_info = {k: v for k, v in calib.items() if k not in ("tool_offset_m", "mount_offset_m")}
-    return offset, mount, calib_info
+    offsets = [
+        calib.vector(key, 3, _range(calib.field(key)), [0.0, 0.0, 0.0])
+        for key in ("tool_offset_m", "mount_offset_m")
+    ]
+    calib_info = {k: v for k, v in calib.data.items() if k not in ("tool_offset_m", "mount_offset_m")}
+    return offsets[0], offsets[1], calib_info
 
 
-def _joint_limits(
-    limits: dict, n: int, path: Path
-) -> tuple[np.ndarray, np.ndarray | None, np.ndarray, np.ndarray]:
+def _joint_limits(limits: Table, n: int) -> tuple[np.ndarray, np.ndarray | None, np.ndarray, np.ndarray]:
     """The ``[limits]`` vectors (n,): position margin [rad], velocity override [rad/s] or ``None``,
     acceleration [rad/s^2] and jerk [rad/s^3]."""
-    margin = _positive_vector(
-        limits.get("position_margin_rad", 0.0), n, path, "limits.position_margin_rad", allow_zero=True
-    )
-    vel = None
-    if "velocity_rad_s" in limits:
-        vel = _positive_vector(limits["velocity_rad_s"], n, path, "limits.velocity_rad_s")
+    margin = _positive_vector(limits, "position_margin_rad", n, 0.0, allow_zero=True)
+    vel = _positive_vector(limits, "velocity_rad_s", n) if "velocity_rad_s" in limits else None
     if "acceleration_rad_s2" not in limits:
-        raise settings_error(
-            path, "limits.acceleration_rad_s2", "missing (the URDF has no acceleration limits)"
-        )
-    acc = _positive_vector(limits["acceleration_rad_s2"], n, path, "limits.acceleration_rad_s2")
+        raise limits.error("acceleration_rad_s2", "missing (the URDF has no acceleration limits)")
+    acc = _positive_vector(limits, "acceleration_rad_s2", n)
     if "jerk_rad_s3" not in limits:
-        raise settings_error(path, "limits.jerk_rad_s3", "missing (the URDF has no jerk limits)")
-    jerk = _positive_vector(limits["jerk_rad_s3"], n, path, "limits.jerk_rad_s3")
+        raise limits.error("jerk_rad_s3", "missing (the URDF has no jerk limits)")
+    jerk = _positive_vector(limits, "jerk_rad_s3", n)
     return margin, vel, acc, jerk
 
 
-def _effort_margin(limits: dict, path: Path) -> float:
-    """The optional ``[limits] effort_margin`` in [0, 1) (default 0.1)."""
-    margin = _get(limits, "effort_margin", path, "limits", float, 0.1)
-    if not (math.isfinite(margin) and 0.0 <= margin < 1.0):
-        raise settings_error(path, "limits.effort_margin", f"must be in [0, 1), got {margin}")
-    return float(margin)
-
-
-def _springs(table: dict, joints: list[str], path: Path) -> dict[str, tuple[float, float]]:
-    """The optional ``[springs]`` table: arm joint -> [c0 N m, c1 N m/rad], finite, |c| <= 1000."""
+def _springs(table: Table, joints: list[str]) -> dict[str, tuple[float, float]]:
+    """The optional ``[springs]`` table: arm joint -> [c0 N m, c1 N m/rad] within their range."""
     out: dict[str, tuple[float, float]] = {}
-    for name, value in table.items():
-        key = f"springs.{name}"
+    for name in table.keys():
         if name not in joints:
-            raise settings_error(path, key, f"not an arm joint ({', '.join(joints)})")
-        ok = isinstance(value, list) and len(value) == 2
-        if not ok or not all(isinstance(v, int | float) and not isinstance(v, bool) for v in value):
-            raise settings_error(path, key, "must be [c0, c1]: torque c0 + c1 * q in [N m]")
-        c0, c1 = float(value[0]), float(value[1])
-        if not (math.isfinite(c0) and math.isfinite(c1) and abs(c0) <= 1e3 and abs(c1) <= 1e3):
-            raise settings_error(path, key, f"must be finite and at most 1000 in size, got {value}")
-        out[name] = (c0, c1)
+            raise table.error(name, f"not an arm joint ({', '.join(joints)})")
+        c = table.vector(name, 2, _range("springs.<joint>"))
+        out[name] = (float(c[0]), float(c[1]))
     return out
 
 
-def _fixed_joints(fixed_raw: dict, joints: list[str], path: Path) -> dict[str, float]:
+def _fixed_joints(table: Table, joints: list[str]) -> dict[str, float]:
     """The optional ``[fixed_joints]`` table: non-arm joint name -> held value in [rad] or [m]."""
     fixed: dict[str, float] = {}
-    for k, v in fixed_raw.items():
-        if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
-            raise settings_error(path, f"fixed_joints.{k}", f"must be a finite number, got {v!r}")
+    for k in table.keys():
         if k in joints:
-            raise settings_error(
-                path, f"fixed_joints.{k}", "is an arm joint; only non-arm joints can be fixed"
-            )
-        fixed[k] = float(
-            _in_range(np.array([float(v)]), path, f"fixed_joints.{k}", "fixed_joints [rad or m]")[0]
-        )
+            raise table.error(k, "is an arm joint; only non-arm joints can be fixed")
+        fixed[k] = table.number(k, _range("fixed_joints.<joint>"))
     return fixed
 
 
-def _workspace(ws: dict, path: Path) -> Workspace:
+def _workspace(ws: Table) -> Workspace:
     """The ``[workspace]`` table: a box (``min_m``, ``max_m``) or a sphere (``center_m``, ``radius_m``)."""
-    shape = _get(ws, "shape", path, "workspace", str, "box")
+    shape = ws.text("shape", "box", ("box", "sphere"))
+    keys = ("shape", "min_m", "max_m") if shape == "box" else ("shape", "center_m", "radius_m")
+    Table(ws.data, ws.prefix, ws.error_fn, keys)  # a sphere's keys in a box are typos, and vice versa
     if shape == "box":
-        lo = _in_range(
-            _vector3(ws.get("min_m"), path, "workspace.min_m"), path, "workspace.min_m", "workspace [m]"
-        )
-        hi = _in_range(
-            _vector3(ws.get("max_m"), path, "workspace.max_m"), path, "workspace.max_m", "workspace [m]"
-        )
+        lo, hi = (ws.vector(k, 3, _range(ws.field(k))) for k in ("min_m", "max_m"))
         if np.any(lo >= hi):
-            raise settings_error(path, "workspace", f"min_m {lo.tolist()} must be below max_m {hi.tolist()}")
+            raise ws.error(None, f"min_m {lo.tolist()} must be below max_m {hi.tolist()}")
         return Workspace("box", min_m=lo, max_m=hi)
-    if shape == "sphere":
-        c = _vector3(ws.get("center_m"), path, "workspace.center_m")
-        _in_range(c, path, "workspace.center_m", "workspace [m]")
-        r = _get(ws, "radius_m", path, "workspace", float)
-        if not (math.isfinite(r) and 0 < r <= PLAUSIBLE_RANGES["workspace [m]"][1]):
-            raise settings_error(path, "workspace.radius_m", f"must be in (0, 10] m, got {r}")
-        return Workspace("sphere", center_m=c, radius_m=float(r))
-    raise settings_error(path, "workspace.shape", f"must be 'box' or 'sphere', got '{shape}'")
+    centre = ws.vector("center_m", 3, _range("workspace.center_m"))
+    return Workspace("sphere", center_m=centre, radius_m=ws.number("radius_m", _range("workspace.radius_m")))
 
 
-def _check_thresholds(checks: dict, path: Path) -> tuple[float, float, float]:
+def _check_thresholds(checks: Table) -> tuple[float, float, float]:
     """The optional ``[checks]`` table: min clearance [m], collision step [rad], hand distance [m]."""
-    clearance = _get(checks, "min_clearance_m", path, "checks", float, 0.0)
-    step = _get(checks, "collision_max_step_rad", path, "checks", float, 0.05)
-    hand = _get(checks, "max_hand_distance_m", path, "checks", float, 0.25)
-    for key, value, lo_ok in (
-        ("min_clearance_m", clearance, True),
-        ("collision_max_step_rad", step, False),
-        ("max_hand_distance_m", hand, False),
-    ):
-        if not math.isfinite(value) or value < 0 or (value == 0 and not lo_ok):
-            raise settings_error(
-                path, f"checks.{key}", f"must be {'>= 0' if lo_ok else '> 0'} and finite, got {value}"
-            )
-        _in_range(np.array([value]), path, f"checks.{key}")
-    return float(clearance), float(step), float(hand)
+    defaults = {"min_clearance_m": 0.0, "collision_max_step_rad": 0.05, "max_hand_distance_m": 0.25}
+    clearance, step, hand = (checks.number(k, _range(checks.field(k)), d) for k, d in defaults.items())
+    return clearance, step, hand
 
 
 def load_robot_settings(path_or_name: str | Path) -> RobotSettings:
@@ -510,37 +424,33 @@ def load_robot_settings(path_or_name: str | Path) -> RobotSettings:
         path_or_name: Path of a ``.toml`` settings file, or the name of one in ``robots/``.
 
     Raises:
-        RobotError: unreadable file, missing or malformed field, infeasible limits; the message
-            names the file, the field and the problem.
+        RobotError: unreadable file, an unknown table or key (naming the known one it resembles), a
+            missing or malformed field, a value outside its plausible range (naming the range and
+            its source, :data:`PLAUSIBLE_RANGES`), infeasible limits; the message names the file, the
+            field and the problem.
     """
     path = resolve_settings_path(path_or_name)
     doc = _read_document(path)
-    name = _get(doc, "name", path, "", str, path.stem)
+    name = doc.text("name", path.stem)
 
-    desc = _table(doc, "description", path)
-    package = _get(desc, "package", path, "description", str, "")
+    desc = _sub(doc, "description")
+    package = desc.text("package", "")
     base = find_robot_data_dir(package) if package else path.parent
-    urdf_path = _description_file(_get(desc, "urdf", path, "description", str), "urdf", base, path)
-    srdf_rel = _get(desc, "srdf", path, "description", str, "")
+    urdf_path = _description_file(desc.text("urdf"), "urdf", base, path)
+    srdf_rel = desc.text("srdf", "")
     srdf_path = _description_file(srdf_rel, "srdf", base, path) if srdf_rel else None
 
-    joints, recorded = _arm_joints(_table(doc, "arm", path), path)
+    joints, recorded = _arm_joints(_sub(doc, "arm"))
 
-    ee = _table(doc, "end_effector", path)
-    parent_frame = _get(ee, "parent_frame", path, "end_effector", str)
-    ee_frame = _get(ee, "frame", path, "end_effector", str, EE_FRAME)
+    ee = _sub(doc, "end_effector")
+    parent_frame = ee.text("parent_frame")
+    ee_frame = ee.text("frame", EE_FRAME)
 
-    offset, mount, calib_info = _calibration(_table(doc, "calibration", path, required=False), path)
+    offset, mount, calib_info = _calibration(_sub(doc, "calibration", required=False))
 
-    limits = _table(doc, "limits", path)
-    margin, vel, acc, jerk = _joint_limits(limits, len(joints), path)
-    demo_limits = _demo_limit_recipe(limits, path)
-    effort_margin = _effort_margin(limits, path)
-
-    fixed = _fixed_joints(_table(doc, "fixed_joints", path, required=False), joints, path)
-    workspace = _workspace(_table(doc, "workspace", path), path)
-    clearance, step, hand = _check_thresholds(_table(doc, "checks", path, required=False), path)
-    springs = _springs(_table(doc, "springs", path, required=False), joints, path)
+    limits = _sub(doc, "limits")
+    margin, vel, acc, jerk = _joint_limits(limits, len(joints))
+    clearance, step, hand = _check_thresholds(_sub(doc, "checks", required=False))
 
     return RobotSettings(
         name=name,
@@ -559,13 +469,13 @@ def load_robot_settings(path_or_name: str | Path) -> RobotSettings:
         velocity_override_rad_s=vel,
         acceleration_rad_s2=acc,
         jerk_rad_s3=jerk,
-        demonstrated_limits=demo_limits,
-        fixed_joints=fixed,
-        workspace=workspace,
+        demonstrated_limits=_demo_limit_recipe(limits),
+        fixed_joints=_fixed_joints(_sub(doc, "fixed_joints", required=False), joints),
+        workspace=_workspace(_sub(doc, "workspace")),
         min_clearance_m=clearance,
         collision_max_step_rad=step,
         max_hand_distance_m=hand,
-        effort_margin=effort_margin,
-        spring_torque_nm=springs,
+        effort_margin=limits.number("effort_margin", _range("limits.effort_margin"), 0.1),
+        spring_torque_nm=_springs(_sub(doc, "springs", required=False), joints),
         human=read_human_settings(doc, path),
     )

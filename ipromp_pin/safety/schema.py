@@ -47,7 +47,7 @@ def _json_type(annotation: object) -> dict[str, Any]:
     if origin is dict or annotation is dict:
         return {"type": "object"}
     table = {float: ["number", "null"], int: "integer", str: "string", bool: "boolean"}
-    return {"type": table[annotation]} if annotation in table else {}  # type: ignore[index]
+    return {"type": table[annotation]} if annotation in table else {}
 
 
 def _descriptions(cls: type) -> dict[str, str]:

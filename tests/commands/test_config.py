@@ -94,10 +94,21 @@ def test_unknown_key_is_a_one_line_error_naming_section_and_key(tmp_path, capsys
     pipe.write_text("[timing]\ncontrol_rate = 100.0\n")
     with pytest.raises(PipelineError) as err:
         load_pipeline(pipe)
-    assert str(err.value) == f"{pipe}: field 'timing.control_rate': unknown key"
+    problem = "unknown key; did you mean 'control_rate_hz'? (known: control_rate_hz)"
+    assert str(err.value) == f"{pipe}: field 'timing.control_rate': {problem}"
     assert main(["run", str(pipe), "--out", str(tmp_path / "out")]) == 2
     lines = capsys.readouterr().err.strip().splitlines()
-    assert lines == [f"ipromp-pin run: error: {pipe}: field 'timing.control_rate': unknown key"]
+    assert lines == [f"ipromp-pin run: error: {pipe}: field 'timing.control_rate': {problem}"]
+    pipe.write_text("[timng]\ncontrol_rate_hz = 100.0\n")
+    with pytest.raises(
+        PipelineError, match=r"field 'timng': unknown section; did you mean 'timing'\? \(known: data"
+    ):
+        load_pipeline(pipe)
+    pipe.write_text("[observation]\nratoi = 0.2\n")
+    with pytest.raises(
+        PipelineError, match=r"field 'observation.ratoi': unknown key; did you mean 'ratio'\?"
+    ):
+        load_pipeline(pipe)
     pipe.write_text('[timing]\ncontrol_rate_hz = "fast"\n')
     with pytest.raises(PipelineError, match=r"field 'timing.control_rate_hz': wrong type str$"):
         load_pipeline(pipe)

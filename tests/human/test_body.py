@@ -16,17 +16,20 @@ from ipromp_pin.robot.human_settings import HumanPlacement, HumanSettings
 RATE = 50.0
 
 
+LIFT = np.array([0.0, 0.0, 1.0])
+"""The skeleton stands 1 m above the base frame's origin (a frame at exactly (0, 0, 0) is missing)."""
+
+
 def _skeleton_demo(n: int = 100, gap: tuple[int, int] | None = None, frame: str = "/head_1") -> Demo:
-    """A demo whose tracked skeleton stands still at the assumed pose (torso at the origin, facing
-    -x) except that ``frame`` moves along +x at 0.5 m/s; samples ``gap`` of ``frame`` are missing."""
+    """A demo whose tracked skeleton has the assumed pose (torso at :data:`LIFT`, facing -x) and moves
+    along +x at 0.5 m/s; samples ``gap`` of ``frame`` are missing."""
     t = np.arange(n) / RATE
     extras = {}
     for f, off in ASSUMED_POSE_M.items():
-        p = np.tile(np.array([-off[0], off[1], off[2]]), (n, 1))
-        if f == frame:
-            p[:, 0] += 0.5 * t
-            if gap is not None:
-                p[gap[0] : gap[1]] = np.nan
+        p = np.tile(np.array([-off[0], off[1], off[2]]) + LIFT, (n, 1))
+        p[:, 0] += 0.5 * t
+        if f == frame and gap is not None:
+            p[gap[0] : gap[1]] = np.nan
         extras[SKELETON_PREFIX + f] = p
     groups = {"emg": np.zeros((n, 8))}
     names = {"emg": tuple(f"ch{i}" for i in range(8))}
@@ -42,8 +45,8 @@ def test_parts_are_capsules_between_their_frames_with_regions():
     a, b, r = h.capsules_at(0.0)
     k = names.index("left_upper_arm")
     off_s, off_e = ASSUMED_POSE_M["/left_shoulder_1"], ASSUMED_POSE_M["/left_elbow_1"]
-    np.testing.assert_allclose(a[k], [-off_s[0], off_s[1], off_s[2]])
-    np.testing.assert_allclose(b[k], [-off_e[0], off_e[1], off_e[2]])
+    np.testing.assert_allclose(a[k], np.array([-off_s[0], off_s[1], off_s[2]]) + LIFT)
+    np.testing.assert_allclose(b[k], np.array([-off_e[0], off_e[1], off_e[2]]) + LIFT)
     head = names.index("head")
     np.testing.assert_array_equal(a[head], b[head])  # a sphere
     np.testing.assert_allclose(r, [p.radius_m for p in BODY_PARTS])

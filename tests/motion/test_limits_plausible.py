@@ -92,3 +92,22 @@ def test_replay_and_evaluate_refuse_the_profile_before_computing(
     line = one_error_line(capsys.readouterr().err)
     assert f"{path}: field 'acceleration_rad_s2': implausible value" in line
     assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize(
+    ("text", "field", "hint"),
+    [
+        ("acceleration_rad_s = 2.0", "acceleration_rad_s", "acceleration_rad_s2"),
+        ("veloctiy_rad_s = 1.0", "veloctiy_rad_s", "velocity_rad_s"),
+        ("[limits]\njerk_rad_s3 = 20.0", "limits", None),
+    ],
+)
+def test_an_unknown_profile_key_is_refused_with_a_suggestion(robot, tmp_path, text, field, hint):
+    path = tmp_path / "limits.toml"
+    path.write_text("velocity_rad_s = 1.0\nacceleration_rad_s2 = 2.0\njerk_rad_s3 = 20.0\n" + text + "\n")
+    with pytest.raises(PipelineError) as exc:
+        read_limit_profile(path, robot)
+    msg = str(exc.value)
+    assert msg.startswith(f"{path}: field '{field}': unknown key") and "\n" not in msg, msg
+    if hint:
+        assert f"did you mean '{hint}'?" in msg

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ipromp_pin.cli import main
+from ipromp_pin.app import main
 
 PROJECT_ROOT = Path(__file__).resolve().parents[1]
 PIPELINE = PROJECT_ROOT / "pipelines" / "baxter_handover.toml"

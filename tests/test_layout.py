@@ -22,14 +22,12 @@ LAYERS = {
     "planning": 6,
     "evaluation": 7,
     "outputs": 8,
-    "commands": 9,
-    "cli": 10,
+    "app": 9,
 }
 """Top-level module or package -> layer (0: the shared ground); imports may only go down."""
 
 TOP_LEVEL = {
     "__init__",
-    "cli",
     "data",
     "exceptions",
     "atomic",

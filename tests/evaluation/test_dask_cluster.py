@@ -74,7 +74,7 @@ def test_a_worker_that_dies_costs_a_rerun_not_a_cell(tmp_path) -> None:
 
 
 def test_a_bad_cluster_is_a_one_line_error_before_any_demo_is_read(tmp_path, capsys) -> None:
-    from ipromp_pin.cli import main
+    from ipromp_pin.app import main
 
     assert main(["evaluate", str(tmp_path), "--cluster", "localhost:8786"]) == 2
     err = capsys.readouterr().err
@@ -86,7 +86,7 @@ def test_a_scheduler_address_runs_both_protocols_of_the_closed_loop_with_the_bas
     pytest.importorskip("sklearn")
     from test_protocol import _write_dataset
 
-    from ipromp_pin.commands.evaluate import EvaluateRequest, grid_from, run_evaluate
+    from ipromp_pin.evaluation.run import EvaluateRequest, grid_from, run_evaluate
 
     data = _write_dataset(tmp_path / "data")
     seen: list[tuple[int, int]] = []

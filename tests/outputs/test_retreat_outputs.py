@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 from helpers_cli import PIPELINE, one_error_line, run_tiny
 
-from ipromp_pin import cli
-from ipromp_pin.commands.config import load_pipeline
-from ipromp_pin.commands.setup import plan_session, prepare_session
+from ipromp_pin import app as cli
+from ipromp_pin.app.config import load_pipeline
+from ipromp_pin.app.session import plan_session, prepare_session
 from ipromp_pin.outputs.preview_content import preview_content
 from ipromp_pin.outputs.retreat_files import read_retreat_json
 from ipromp_pin.outputs.rosbag import JOINT_STATE, TOPIC_RETREAT

@@ -221,7 +221,7 @@ def test_ros1_bag_has_the_same_messages(content, tmp_path):
 
 
 def test_run_writes_the_bags_and_the_requested_ros_form(tmp_path):
-    from ipromp_pin.cli import main
+    from ipromp_pin.app import main
     from ipromp_pin.outputs.trajectory_files import read_trajectory_csv
 
     pipeline = "baxter_handover"

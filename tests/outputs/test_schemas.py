@@ -11,9 +11,9 @@ from pathlib import Path
 import jsonschema
 import pytest
 
-from ipromp_pin.cli import main
-from ipromp_pin.commands.config import load_pipeline
-from ipromp_pin.commands.setup import prepare_session
+from ipromp_pin.app import main
+from ipromp_pin.app.config import load_pipeline
+from ipromp_pin.app.session import prepare_session
 from ipromp_pin.outputs.report import report_dict
 from ipromp_pin.planning.one_shot import plan
 from ipromp_pin.schemas import SCHEMA_FILES, SCHEMAS_DIR, load_schema, schema_path

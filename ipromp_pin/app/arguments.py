@@ -268,17 +268,10 @@ def closed_loop_settings(args: argparse.Namespace, **given: float | None) -> Clo
 def read_dataset(args: argparse.Namespace, frames, robot: Robot, timed: bool = False) -> Dataset:
     """The dataset ``args.dataset`` (``args.format``), its arm joints and limits those of ``robot``,
     with a progress line (and, when ``timed``, a line saying what was read in how long)."""
-    from ..readers import load_dataset
+    from ..robot.recordings import read_recordings
 
     t0 = time.perf_counter()
-    ds = load_dataset(
-        args.dataset,
-        format=args.format,
-        frames=frames,
-        robot_joints=robot.settings.recorded_arm_joints,
-        joint_limits=robot.recorded_joint_limits(),
-        progress=progress(),
-    )
+    ds = read_recordings(args.dataset, robot, format=args.format, frames=frames, progress=progress())
     if timed:
         print(
             f"read {len(ds.all_demos())} demos of {', '.join(ds.tasks)} in {time.perf_counter() - t0:.1f} s"

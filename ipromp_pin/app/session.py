@@ -15,7 +15,6 @@ from __future__ import annotations
 import multiprocessing as mp
 import time
 from dataclasses import dataclass, field
-from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -31,10 +30,10 @@ from ..planning.closed_loop import ClosedLoopResult, ClosedLoopSettings, replay_
 from ..planning.one_shot import LogFn, PlanResult, check_model_joints, plan
 from ..planning.retreat import RetreatResult, plan_retreat
 from ..promp import IProMP
-from ..readers import load_dataset
 from ..readers.synthetic import make_synthetic_dataset
-from ..robot import Robot, ee_positions, gripper_rotations, load_robot
+from ..robot import Robot, gripper_kinematics, load_robot
 from ..robot.objects import ObjectTable, load_objects
+from ..robot.recordings import read_recordings
 from ..safety import CheckContext, CheckSuite
 from .config import PipelineConfig
 from .meshes import start_mesh_prefetch
@@ -224,27 +223,13 @@ def load_data(cfg: PipelineConfig, log: LogFn = print, robot: Robot | None = Non
     log(f"[data] reading {cfg.dataset} (format {cfg.format})")
     frames = skeleton_frames([*cfg.frames, *cfg.observe])
     try:
-        ds = read_robot_dataset(cfg, robot, frames)
+        ds = read_recordings(cfg.dataset, robot, format=cfg.format, frames=frames, rate_hz=cfg.rate_hz)
     except DataError as exc:
         if exc.field in robot.settings.recorded_arm_joints and exc.problem.startswith("unknown joint name"):
             raise PipelineError(f"{exc}: {robot_data_hint(robot)}") from None
         raise
     log(f"[data] {len(ds.all_demos())} demos of tasks {', '.join(ds.tasks)}")
     return ds
-
-
-def read_robot_dataset(cfg: PipelineConfig, robot: Robot, frames: list[str]) -> Dataset:
-    """The recordings of ``cfg.dataset`` with ``robot``'s joints, limits and kinematics."""
-    assert cfg.dataset is not None  # the synthetic demos are made, not read
-    return load_dataset(
-        cfg.dataset,
-        format=cfg.format,
-        frames=frames or None,
-        rate_hz=cfg.rate_hz,
-        robot_joints=robot.settings.recorded_arm_joints,
-        joint_limits=robot.recorded_joint_limits(),
-        end_effector=lambda q: ee_positions(robot, q),
-    )
 
 
 def choose_demo(ds: Dataset, cfg: PipelineConfig) -> Demo:
@@ -286,8 +271,7 @@ def get_model(
     if train is None:
         train = [d for d in ds.all_demos() if d is not held_out]
     t0 = time.perf_counter()
-    fk = None if robot is None else partial(ee_positions, robot)
-    fk_rot = None if robot is None else partial(gripper_rotations, robot)
+    fk, fk_rot = (None, None) if robot is None else gripper_kinematics(robot)
     what = f"{len(train)} demos ({', '.join(cfg.observe)} + robot)"
     if cfg.model_cache:
         model, cached = fit_cached(IProMP(observe=cfg.observe), train, fk, log=log, fk_rot=fk_rot)

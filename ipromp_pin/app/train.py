@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import time
-from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -57,7 +56,7 @@ def main(args: argparse.Namespace) -> int:
     from .. import atomic
     from ..data import parse_groups, skeleton_frames
     from ..promp import IProMP
-    from ..robot import ee_positions, gripper_rotations, load_robot
+    from ..robot import gripper_kinematics, load_robot
     from .model_warnings import single_task_warning, warn_stderr
 
     atomic.check_output_file(args.out, "model file")
@@ -68,14 +67,12 @@ def main(args: argparse.Namespace) -> int:
     robot = load_robot(args.robot)
     ds = read_dataset(args, frames, robot)
     t0 = time.perf_counter()
-    fk = partial(ee_positions, robot)  # settings chosen for the hand-over position of this robot
+    kinematics = gripper_kinematics(robot)  # settings chosen for the hand-over position of this robot
     held = held_out_demos(ds, args.holdout)
     train = [d for d in ds.all_demos() if not any(d is h for h in held)]
     for h in held:
         print(f"held out {h.task}/{h.name} ({h.source})")
-    model = IProMP(observe=observe, coupling=coupling).fit(
-        train, fk=fk, fk_rot=partial(gripper_rotations, robot)
-    )
+    model = IProMP(observe=observe, coupling=coupling).fit(train, **kinematics._asdict())
     single = single_task_warning(model)
     if single is not None:
         warn_stderr(single)

@@ -27,6 +27,7 @@ from ..motion.limits import check_profile_choice
 from ..planning.closed_loop import ClosedLoopSettings
 from ..robot import Robot, load_robot
 from ..robot.objects import load_objects
+from ..robot.recordings import read_recordings
 from ..shipped import DEFAULT_ROBOT
 from .baselines import require_sklearn
 from .cells import Cell
@@ -184,12 +185,11 @@ def check_request(request: EvaluateRequest) -> Robot:
 def read_dataset(request: EvaluateRequest, robot: Robot) -> Dataset:
     """The dataset, its arm joints and limits those of ``robot``; says what was read in how long."""
     t0 = time.perf_counter()
-    ds = readers.load_dataset(
+    ds = read_recordings(
         request.dataset,
+        robot,
         format=request.format,
-        frames=skeleton_frames(g for o in request.observe for g in o) or None,
-        robot_joints=robot.settings.recorded_arm_joints,
-        joint_limits=robot.recorded_joint_limits(),
+        frames=skeleton_frames(g for o in request.observe for g in o),
         progress=request.progress() if request.progress else None,
     )
     request.log(

@@ -22,7 +22,7 @@ from threadpoolctl import threadpool_limits
 
 import ipromp_pin.promp.compiled as compiled
 from ipromp_pin import IProMP
-from ipromp_pin.promp.head import WindowSummary
+from ipromp_pin.promp.window import WindowSummary
 from ipromp_pin.readers.synthetic import make_synthetic_dataset
 
 STREAM_KERNELS = ("stream_sample", "sherman_morrison", "stream_group", "finish_soa", "recognition")

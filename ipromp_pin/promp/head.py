@@ -10,23 +10,22 @@ combines both in one multinomial logistic regression fitted on held-out training
 ``log p(k | obs) = log softmax_k( b_k + W_k^T x )``,
 ``x = ((first, mean, last, g) - m) / s``
 
-with, per observed dim (scaled units, :class:`~ipromp_pin.promp.distribution.ChannelScaler`), the
-first, mean and last valid value of the observed window (:class:`WindowSummary`; a dim without a
-sample is at its training mean, 0), and ``g`` the generative log posterior of every task clipped at
-:data:`LOG_POSTERIOR_CLIP`. ``m``, ``s`` standardise the features on the training rows. ``W``, ``b``
-minimise the mean log loss plus ``||W||^2 / (2 C n)``. The rows are the held-out demos of the
-leave-one-out cross-validation (:mod:`~ipromp_pin.promp.selection`), each observed at several
+with, per observed dim (scaled units, :class:`~ipromp_pin.promp.distribution.ChannelScaler`), the first,
+mean and last valid value of the observed window (:class:`~ipromp_pin.promp.window.WindowSummary`; a dim
+without a sample is at its training mean, 0), and ``g`` the generative log posterior of every task
+clipped at :data:`LOG_POSTERIOR_CLIP`. ``m``, ``s`` standardise the features on the training rows.
+``W``, ``b`` minimise the mean log loss plus ``||W||^2 / (2 C n)``. The rows are the held-out demos of
+the leave-one-out cross-validation (:mod:`~ipromp_pin.promp.selection`), each observed at several
 fractions (:data:`~ipromp_pin.promp.selection.HEAD_RATIOS`), so ``g`` is what the model says about a
 demo it was not fitted on. There is one regression per observed fraction. Each is chosen by grouped
-cross-validation of the log loss (the rows of one demo in one fold, scored on the rows of its
-fraction; :func:`fit_head`) among: a multinomial logistic regression (its ``C`` among
-:data:`HEAD_C_GRID`) or a linear discriminant analysis (class means and a pooled covariance with
-Ledoit-Wolf shrinkage, its logits scaled by a temperature among :data:`LDA_TEMPERATURE_GRID`, which
-calibrates them), on all the features or on the window features alone (the weights of ``g`` are then
-0), trained on the rows of its fraction or on the rows of every fraction. Both are linear in ``x``,
-so inference is the same for all. Online the fraction is unknown: the logits of the two regressions
-around the expected observed fraction under the generative posterior (:func:`observed_fraction`)
-are interpolated linearly.
+cross-validation of the log loss (the rows of one demo in one fold, scored on the rows of its fraction;
+:func:`fit_head`) among: a multinomial logistic regression (its ``C`` among :data:`HEAD_C_GRID`) or a
+linear discriminant analysis (class means and a pooled covariance with Ledoit-Wolf shrinkage, its logits
+scaled by a temperature among :data:`LDA_TEMPERATURE_GRID`, which calibrates them), on all the features
+or on the window features alone (the weights of ``g`` are then 0), trained on the rows of its fraction
+or on the rows of every fraction. Both are linear in ``x``, so inference is the same for all. Online the
+fraction is unknown: the logits of the two regressions around the expected observed fraction under the
+generative posterior (:func:`observed_fraction`) are interpolated linearly.
 
 The phase posterior, the MAP phase and the robot's conditioned prediction are not changed by the
 head; it only decides the task posterior.
@@ -41,7 +40,7 @@ import numpy as np
 from .compiled import kernels
 from .head_features import LOG_POSTERIOR_CLIP, interpolation
 from .lbfgs import minimize_lbfgs
-from .observation import ObservationPart
+from .window import WindowSummary
 
 HEAD_C_GRID = (0.01, 0.03, 0.1, 0.3, 1.0, 3.0, 10.0, 100.0)
 """Candidate inverse penalties ``C`` of the head."""
@@ -54,65 +53,6 @@ HEAD_FOLDS = 5
 
 LOGISTIC, LDA = 0, 1
 """Codes of the head's model families (:attr:`RecognitionHead.kind`)."""
-
-
-@dataclass(frozen=True)
-class WindowSummary:
-    """First, mean and last valid value of every observed dim over an observed window (scaled units).
-
-    Attributes:
-        values: (3, D_o) rows: the first, mean and last values; 0 (the training mean) for a dim
-            without a sample.
-    """
-
-    values: np.ndarray
-
-    @property
-    def first(self) -> np.ndarray:
-        """(D_o,) first valid values."""
-        return self.values[0]
-
-    @property
-    def mean(self) -> np.ndarray:
-        """(D_o,) mean values."""
-        return self.values[1]
-
-    @property
-    def last(self) -> np.ndarray:
-        """(D_o,) last valid values."""
-        return self.values[2]
-
-    @classmethod
-    def from_parts(cls, parts: list[ObservationPart], n_obs: int) -> WindowSummary:
-        """Summary of encoded observation parts (dims ``0 .. n_obs - 1``)."""
-        if len(parts) == 1 and parts[0].dims.size == n_obs and parts[0].t.size:
-            y = parts[0].y
-            out = np.empty((3, n_obs))
-            dims = parts[0].dims
-            out[0, dims] = y[0]
-            out[1, dims] = y.mean(axis=0)
-            out[2, dims] = y[-1]
-            return cls(out)
-        first, last, total = np.zeros(n_obs), np.zeros(n_obs), np.zeros(n_obs)
-        count = np.zeros(n_obs)
-        t_first, t_last = np.full(n_obs, np.inf), np.full(n_obs, -np.inf)
-        for p in parts:
-            if p.t.size == 0:
-                continue
-            d = p.dims
-            early = p.t[0] < t_first[d]
-            first[d] = np.where(early, p.y[0], first[d])
-            t_first[d] = np.where(early, p.t[0], t_first[d])
-            late = p.t[-1] > t_last[d]
-            last[d] = np.where(late, p.y[-1], last[d])
-            t_last[d] = np.where(late, p.t[-1], t_last[d])
-            total[d] += p.y.sum(axis=0)
-            count[d] += p.t.size
-        return cls(np.stack([first, np.divide(total, count, out=np.zeros(n_obs), where=count > 0), last]))
-
-    def vector(self) -> np.ndarray:
-        """(3 D_o,) first, mean and last values side by side."""
-        return self.values.reshape(-1)
 
 
 @dataclass(frozen=True)

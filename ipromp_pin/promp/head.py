@@ -36,10 +36,10 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.optimize import minimize
 
 from .compiled import kernels
 from .head_features import LOG_POSTERIOR_CLIP, interpolation
-from .lbfgs import minimize_lbfgs
 from .window import WindowSummary
 
 HEAD_C_GRID = (0.01, 0.03, 0.1, 0.3, 1.0, 3.0, 10.0, 100.0)
@@ -50,6 +50,10 @@ LDA_TEMPERATURE_GRID = (0.1, 0.2, 0.3, 0.5, 0.7, 1.0)
 
 HEAD_FOLDS = 5
 """Folds of the head's grouped cross-validation."""
+
+SOFTMAX_MAX_ITER = 500
+"""Largest number of L-BFGS iterations of one logistic regression (scipy's other L-BFGS-B options at
+their defaults: ``gtol`` 1e-5, ``ftol`` 2.2e-9, 10 correction pairs)."""
 
 LOGISTIC, LDA = 0, 1
 """Codes of the head's model families (:attr:`RecognitionHead.kind`)."""
@@ -145,18 +149,21 @@ def _log_softmax(z: np.ndarray, work: tuple[np.ndarray, np.ndarray] | None = Non
     return z - np.log(np.exp(z).sum(axis=1, keepdims=True))
 
 
-def _fit_softmax(
+def fit_softmax(
     x: np.ndarray,
     y: np.ndarray,
     n_classes: int,
     c: float,
     weight: np.ndarray | None = None,
     start: np.ndarray | None = None,
+    options: dict | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Multinomial logistic regression on standardised ``x`` (n, F), labels ``y`` (n,), row weights
     ``weight`` (n,) (default 1): weighted mean log loss plus ``||W||^2 / (2 C S)`` (``S`` the sum of
-    the weights) minimised by L-BFGS (:func:`~ipromp_pin.promp.lbfgs.minimize_lbfgs`) from ``start``
-    (the parameters of a nearby problem; default 0) -> (W (T, F), b (T,), the parameters (T (F + 1),))."""
+    the weights) minimised by scipy's L-BFGS-B (``options``: further options of it) from ``start`` (the
+    parameters of a nearby problem; default 0) -> (W (T, F), b (T,), the parameters (T (F + 1),)).
+    The minimiser of scikit-learn's ``LogisticRegression(C=c)`` fitted with ``sample_weight=weight``
+    (``C = 2 c`` for two classes, where it fits one binary model; tests/promp/test_sklearn_equivalence.py)."""
     n, f = x.shape
     weight = np.ones(n) if weight is None else weight
     total = float(weight.sum())
@@ -190,16 +197,21 @@ def _fit_softmax(
         return value, grad
 
     theta0 = np.zeros(n_classes * (f + 1)) if start is None else start
-    theta = minimize_lbfgs(loss, theta0, max_iter=500)
+    settings = {"maxiter": SOFTMAX_MAX_ITER, **(options or {})}
+    theta = minimize(loss, theta0, jac=True, method="L-BFGS-B", options=settings).x
     return theta[:n_w].reshape(n_classes, f), theta[n_w:], theta
 
 
-def _fit_lda(
-    x: np.ndarray, y: np.ndarray, n_classes: int, weight: np.ndarray
+def fit_lda(
+    x: np.ndarray, y: np.ndarray, n_classes: int, weight: np.ndarray, shrinkage: float | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
     """Linear discriminant analysis on standardised ``x`` (n, F) with row weights ``weight`` (n,):
     weighted class means, their pooled covariance shrunk toward a multiple of the identity with the
-    Ledoit-Wolf intensity, class priors from the weights -> the logits' (W (T, F), b (T,))."""
+    intensity ``shrinkage`` (None: Ledoit-Wolf's, the squares of the weights in its variance term),
+    class priors from the weights -> the logits' (W (T, F), b (T,)). With unit weights scikit-learn's
+    ``LinearDiscriminantAnalysis(solver="lsqr", shrinkage=s)`` with ``s`` from
+    ``sklearn.covariance.ledoit_wolf_shrinkage`` of the class-centred rows (which takes no row
+    weights; tests/promp/test_sklearn_equivalence.py)."""
     n, f = x.shape
     total = float(weight.sum())
     counts = np.array([weight[y == k].sum() for k in range(n_classes)])
@@ -215,7 +227,7 @@ def _fit_lda(
     sq = np.sum(xc * xc, axis=1)
     err = sq * sq - 2.0 * np.einsum("ni,ij,nj->n", xc, cov, xc) + float(np.sum(cov * cov))
     beta = float(np.sum(weight * weight * err)) / (total * total)
-    lam = 1.0 if dist <= 0.0 else min(1.0, beta / dist)
+    lam = (1.0 if dist <= 0.0 else min(1.0, beta / dist)) if shrinkage is None else shrinkage
     shrunk = (1.0 - lam) * cov + lam * mu * np.eye(f)
     coef = np.linalg.solve(shrunk, means.T).T  # (T, F)
     with np.errstate(divide="ignore"):
@@ -326,10 +338,10 @@ class _CvPath:
             x_test, y_test = self.x[test], labels[test]
             theta = None
             for j, c in enumerate(HEAD_C_GRID):
-                w, b, theta = _fit_softmax(x_train, y_train, n_tasks, c, w_train, theta)
+                w, b, theta = fit_softmax(x_train, y_train, n_tasks, c, w_train, theta)
                 logp = _log_softmax(x_test @ w.T + b)
                 self.log_loss[j, test] = -logp[rows, y_test]
-            w, b = _fit_lda(x_train, y_train, n_tasks, w_train)
+            w, b = fit_lda(x_train, y_train, n_tasks, w_train)
             z = x_test @ w.T + b
             for j, g in enumerate(gammas):
                 logp = _log_softmax(g * z)
@@ -347,9 +359,9 @@ class _CvPath:
             u = self.used
             x, y, pool = self.x[u], self.labels[u], self.pool[u]
             if j < len(HEAD_C_GRID):
-                w, b, _ = _fit_softmax(x, y, self.n_tasks, HEAD_C_GRID[j], pool)
+                w, b, _ = fit_softmax(x, y, self.n_tasks, HEAD_C_GRID[j], pool)
             else:
-                w, b = _fit_lda(x, y, self.n_tasks, pool)
+                w, b = fit_lda(x, y, self.n_tasks, pool)
                 gamma = self.parameter(j)
                 w, b = gamma * w, gamma * b
             self._final[j] = (w, b)

@@ -175,9 +175,7 @@ def use_kernels(backend: str) -> Iterator[None]:
 
 def kernels(name: str = INFERENCE) -> ModuleType:
     """The kernels module of set ``name`` for the current backend (see the module docstring)."""
-    backend = _state["backend"]
-    if backend == "auto":
-        backend = _state["auto"].get(name) or _decide(name)
+    backend = active_backend(name)
     module = _state["modules"].get((name, backend))
     return module if module is not None else _load(name, backend)
 
@@ -185,7 +183,8 @@ def kernels(name: str = INFERENCE) -> ModuleType:
 def active_backend(name: str = INFERENCE) -> str:
     """``"numba"`` or ``"numpy"``: what :func:`kernels` uses for set ``name`` in this process
     (deciding ``"auto"`` now if the set was not used yet)."""
-    return "numpy" if kernels(name) is _load(name, "numpy") else "numba"
+    backend = _state["backend"]
+    return backend if backend != "auto" else _state["auto"].get(name) or _decide(name)
 
 
 def numba_kernels(name: str = INFERENCE) -> ModuleType:

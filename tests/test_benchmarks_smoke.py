@@ -43,7 +43,7 @@ EXPECTED = {
     "speed_margin_cv.py": [r"(?m)^0\.1 \| 8 \| 0 \| 0 \| [\d.]+ \|", r"chosen: speed_margin = 0"],
     "settings_cv.py": [r"(?m)^log_groups= pooling=0\.0\s+0\.2\s+[\d.]+"],
     "kernel_gains.py": [
-        r"(?m)^  part_stats\s+\d+\s+[\d.]+ -> [\d.]+",
+        r"(?m)^  part_stats\s+\d+\s+[\d.]+ ->\s+[\d.]+",
         r"full update, 20 % observed",
     ],
     "sklearn_models.py": [

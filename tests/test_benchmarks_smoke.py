@@ -43,6 +43,14 @@ EXPECTED = {
     "profile_update.py": [r"(?m)^  total\s+[\d.]+", r"stream_group \(per update\)\s+[\d.]+"],
     "speed_margin_cv.py": [r"(?m)^0\.1 \| 8 \| 0 \| 0 \| [\d.]+ \|", r"chosen: speed_margin = 0"],
     "settings_cv.py": [r"(?m)^log_groups= pooling=0\.0\s+0\.2\s+[\d.]+"],
+    "kernel_gains.py": [
+        r"(?m)^  part_stats\s+\d+\s+[\d.]+ ->\s+[\d.]+",
+        r"full update, 20 % observed",
+    ],
+    "sklearn_models.py": [
+        r"logistic regression \(head\): \d+ fits, [\d.]+ -> [\d.]+ s",
+        r"k nearest neighbours \(hand-over\): \d+ fits, [\d.]+ -> [\d.]+ s",
+    ],
 }
 """Benchmark -> patterns its smoke run must print (its result lines)."""
 

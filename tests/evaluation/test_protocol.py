@@ -180,9 +180,10 @@ def test_the_evaluate_command_compiles_the_kernels_once_before_forking(monkeypat
 
     calls, messages = [], []
     monkeypatch.setattr(compiled, "compiled_kernels_cached", lambda *a: False)
+    monkeypatch.setattr(compiled, "kernels_cached", lambda *a: False)
     monkeypatch.setattr(warmup, "compile_kernels", lambda: calls.append(1) or 1.0)
-    monkeypatch.setitem(compiled._state, "numba", None)
-    monkeypatch.setitem(compiled._state, "announced_compile", False)
+    monkeypatch.setitem(compiled._state, "modules", {})  # as in a new process
+    monkeypatch.setitem(compiled._state, "announced", set())
     compiled.set_announcer(messages.append)
     try:
         with use_kernels("numba"):

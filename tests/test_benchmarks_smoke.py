@@ -39,6 +39,10 @@ EXPECTED = {
     "inference.py": [r"(?m)^paper\s+\d+\s+12\s", r"speed-up \d+x", r"task accuracy [\d.]+"],
     "model_load.py": [r"this checkout:\s+[\d.]+ ms", r"paired difference \(this - other\): median"],
     "pipeline.py": [r"total \(observation->files\)\s+[\d.]+"],
+    "plan_batch.py": [
+        r"per recording \(--jobs 1, warm, no preview\): median [\d.]+ s",
+        r"batch wall time: --jobs 1 [\d.]+ s, --jobs 2 [\d.]+ s: [\d.]+x faster",
+    ],
     "read_formats.py": [r"rosbag2 \(MCAP\)\s+[\d.]+ ms", r"rosbag2 \(SQLite\)\s+[\d.]+ ms"],
     "profile_update.py": [r"(?m)^  total\s+[\d.]+", r"stream_group \(per update\)\s+[\d.]+"],
     "speed_margin_cv.py": [r"(?m)^0\.1 \| 8 \| 0 \| 0 \| [\d.]+ \|", r"chosen: speed_margin = 0"],

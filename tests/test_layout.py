@@ -23,7 +23,8 @@ LAYERS = {
     "planning": 6,
     "evaluation": 7,
     "outputs": 8,
-    "app": 9,
+    "plans": 9,
+    "app": 10,
 }
 """Top-level module or package -> layer (0: the shared ground); imports may only go down."""
 

@@ -30,7 +30,7 @@ def signatures():
     return out
 
 before = signatures()
-from ipromp_pin.cli import main
+from ipromp_pin.app import main
 code = main(["run", "pipelines/baxter_handover.toml", "--out", sys.argv[1], "--no-preview", "--no-rosbag"])
 after = signatures()
 print(json.dumps({"code": code, "new": {k: v for k, v in after.items() if v != before.get(k, [])}}))

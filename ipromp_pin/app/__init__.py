@@ -17,7 +17,7 @@ typed request in, a typed outcome out) and its exit status (``main``). They shar
 :mod:`.arguments` (argument types, the pipeline overrides), :mod:`.config` (pipeline definitions),
 :mod:`.session` (the set-up of the commands that plan on one held-out demo), :mod:`.progress` (the
 progress line, one-line errors, exit codes), :mod:`.interrupt` (SIGINT / SIGTERM),
-:mod:`.model_cache`, :mod:`.model_warnings` and :mod:`.meshes`. A command imports the modules that
+:mod:`.model_cache`. A command imports the modules that
 compute when it runs (the scientific stack takes a second or two to import), so that ``--help``
 and argument errors answer at once.
 """
@@ -34,14 +34,14 @@ import os
 import sys
 
 from ..exceptions import IPrompPinError
-from . import calibrate, evaluate, preview, replay, run, synth, train
+from . import calibrate, evaluate, plan, preview, replay, run, synth, train
 from .arguments import OneLineErrorParser
 from .interrupt import EXIT_INTERRUPTED, interruptible, interruption_behind, report_interruption
 from .progress import EXIT_CHECKS_FAILED, EXIT_ERROR, ProgressLine, print_error
 
 __all__ = ["EXIT_CHECKS_FAILED", "EXIT_ERROR", "build_parser", "console_main", "main"]
 
-COMMANDS = (run, replay, evaluate, train, preview, calibrate, synth)
+COMMANDS = (run, train, plan, replay, evaluate, preview, calibrate, synth)
 """The command modules, in the order of ``ipromp-pin --help``; each adds its parser."""
 
 

@@ -87,7 +87,7 @@ def run_preview(
     from ..exceptions import PipelineError
     from ..outputs.preview_content import preview_content
     from ..preview import LivePreview
-    from .meshes import preview_visual_model
+    from ..preview.mesh_cache import preview_visual_model
     from .session import plan_session, prepare_session
 
     log = log or print
@@ -95,7 +95,8 @@ def run_preview(
         raise PipelineError(f"preview speed must be a positive factor, got {speed}")
     session = prepare_session(cfg, log, prefetch_meshes=True)
     observation = session.observed()
-    result, retreat = plan_session(session, log)
+    planned = plan_session(session, log)
+    result, retreat = planned.approach, planned.retreat
     if html is not None:
         ctx = session.context
         path = write_preview(
@@ -169,7 +170,7 @@ def write_preview(
     ``retreat``: animated after the hand-over."""
     from ..outputs.preview_content import preview_content
     from ..preview import write_html
-    from .meshes import preview_visual_model
+    from ..preview.mesh_cache import preview_visual_model
 
     visual = preview_visual_model(robot, prefetch)
     content = preview_content(

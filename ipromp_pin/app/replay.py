@@ -143,8 +143,8 @@ def run_replay(
     from .. import atomic
     from ..outputs.files import REPLAY, command_outputs, keyed
     from ..outputs.replay_report import replay_passed, summary_lines
+    from ..plans.warnings import warn_stderr
     from ..safety import CheckContext
-    from .model_warnings import warn_stderr
     from .session import prepare_replay
 
     t_start = time.perf_counter()
@@ -175,7 +175,7 @@ def _stage_files(
     from ..outputs.preview_content import replay_preview_html
     from ..outputs.replay_report import replans_text, replay_failures, report_dict, report_text
     from ..outputs.staging import stage_report, stage_trajectory
-    from .meshes import preview_visual_model
+    from ..preview.mesh_cache import preview_visual_model
 
     demo = session.demo
     stage_trajectory(

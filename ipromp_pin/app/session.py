@@ -17,8 +17,6 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import numpy as np
-
 from .. import atomic
 from ..data import ROBOT, Dataset, Demo, skeleton_frames
 from ..evaluation.scoring import ClosedLoopScore, replay_scored
@@ -27,8 +25,16 @@ from ..human import HumanMotion
 from ..human.placement import check_assumed_human
 from ..motion.limits import LimitProfile, check_profile_choice, choose_limit_profile
 from ..planning.closed_loop import ClosedLoopResult, ClosedLoopSettings, replay_demo, start_time
-from ..planning.one_shot import LogFn, PlanResult, check_model_joints, plan
-from ..planning.retreat import RetreatResult, plan_retreat
+from ..planning.one_shot import LogFn, check_model_joints
+from ..plans import HandoverPlan, plan
+from ..plans.warnings import (
+    loaded_model_warnings,
+    missing_object_warnings,
+    range_warnings,
+    single_task_warning,
+    warn_stderr,
+)
+from ..preview.mesh_cache import start_mesh_prefetch
 from ..promp import IProMP
 from ..readers.synthetic import make_synthetic_dataset
 from ..robot import Robot, gripper_kinematics, load_robot
@@ -36,15 +42,7 @@ from ..robot.objects import ObjectTable, load_objects
 from ..robot.recordings import read_recordings
 from ..safety import CheckContext, CheckSuite
 from .config import PipelineConfig
-from .meshes import start_mesh_prefetch
 from .model_cache import fit_cached
-from .model_warnings import (
-    loaded_model_warnings,
-    missing_object_warnings,
-    range_warnings,
-    single_task_warning,
-    warn_stderr,
-)
 
 
 @dataclass
@@ -58,10 +56,10 @@ class Session:
         demo: The demo whose first part is observed (held out of training).
         train: Every demo but ``demo`` (the model's training demos, unless it was loaded).
         model: The fitted model (trained, reused from the cache or loaded).
-        warnings: Warnings about the model and the data (:mod:`ipromp_pin.app.model_warnings`), one
+        warnings: Warnings about the model and the data (:mod:`ipromp_pin.plans.warnings`), one
             line each.
         mesh_prefetch: The process decimating the preview meshes meanwhile
-            (:func:`~ipromp_pin.app.meshes.start_mesh_prefetch`), or None.
+            (:func:`~ipromp_pin.preview.mesh_cache.start_mesh_prefetch`), or None.
         observation: The observed first ``cfg.ratio`` of the demo's human motion (None when not cut).
         suite: The checks of every plan (:meth:`ipromp_pin.safety.CheckSuite.build`).
         context: What they know about the world for ``demo`` (:func:`check_context`; cut to what the
@@ -153,7 +151,6 @@ def prepare_session(
         human = session.context.human
         if human is not None:  # the planner knows the human up to the end of the observation
             session.context = session.context.replace(human=human.until(float(observation.t[-1])))
-        session.context = session.context.replace(hand_position_m=hand_at_handover(demo))
         log(
             f"[observe] {demo.task}/{demo.name}: first {cfg.ratio:.0%} "
             f"({observation.t[-1]:.2f} s, {observation.n_samples} samples) of {', '.join(cfg.observe)}"
@@ -287,15 +284,6 @@ def get_model(
     return model
 
 
-def hand_at_handover(demo: Demo) -> np.ndarray | None:
-    """The human hand's last finite position (3,) in [m] in the demo, or None when it is unknown."""
-    hand = demo.extras.get("hand_position")
-    if hand is None:
-        return None
-    finite = np.flatnonzero(np.all(np.isfinite(hand), axis=1))
-    return hand[finite[-1]] if finite.size else None
-
-
 def model_warnings(cfg: PipelineConfig, ds: Dataset, demo: Demo, model: IProMP) -> list[str]:
     """Warnings about the model: a loaded one that does not match the data or was trained on ``demo``,
     a single-task one, or a ``demo`` far outside the training data."""
@@ -306,28 +294,23 @@ def model_warnings(cfg: PipelineConfig, ds: Dataset, demo: Demo, model: IProMP) 
     return ([] if single is None else [single]) + observed
 
 
-def plan_session(session: Session, log: LogFn = print) -> tuple[PlanResult, RetreatResult | None]:
-    """The one-shot plan of the session's observation with its checks and context (what ``run`` and
-    ``preview`` plan), and the retreat after it when the recognised task has one and ``[robot]
-    retreat`` is on (None otherwise)."""
-    cfg, robot, ctx = session.cfg, session.robot, session.context
-    result = plan(
+def plan_session(session: Session, log: LogFn = print) -> HandoverPlan:
+    """The hand-over planned from the session's observation (:func:`ipromp_pin.plans.plan`: what
+    ``run`` and ``preview`` plan, with the session's checks and objects; the human as the
+    observation shows it), with its retreat when ``[robot] retreat`` is on, scored against the
+    session's recorded demo."""
+    cfg, ctx = session.cfg, session.context
+    planned = plan(
         session.model,
-        robot,
         session.observed(),
-        session.suite,
-        ctx,
+        session.robot,
+        objects=ctx.objects,
+        suite=session.suite,
         control_rate_hz=cfg.control_rate_hz,
+        retreat=cfg.retreat,
         log=log,
-        check_joints=False,
     )
-    obj = None if ctx.objects is None else ctx.objects.for_task(result.prediction.task)
-    if not cfg.retreat or obj is None or obj.retreat is None:
-        return result, None
-    retreat = plan_retreat(
-        robot, result, obj.retreat, session.suite, ctx, control_rate_hz=cfg.control_rate_hz, log=log
-    )
-    return result, retreat
+    return planned.scored(session.demo)
 
 
 @dataclass

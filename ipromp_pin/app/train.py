@@ -55,9 +55,9 @@ def main(args: argparse.Namespace) -> int:
     """Train on every demo of the dataset and save the model."""
     from .. import atomic
     from ..data import parse_groups, skeleton_frames
+    from ..plans.warnings import single_task_warning, warn_stderr
     from ..promp import IProMP
     from ..robot import gripper_kinematics, load_robot
-    from .model_warnings import single_task_warning, warn_stderr
 
     atomic.check_output_file(args.out, "model file")
     observe = parse_groups(args.observe)

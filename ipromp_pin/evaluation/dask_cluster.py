@@ -1,5 +1,6 @@
-"""Evaluation jobs on a Dask cluster (``ipromp-pin evaluate --cluster``), behind the interface of the
-local pool (:class:`~.jobs.LocalPool`): ``run(worker, work)`` yields every job's result.
+"""Jobs on a Dask cluster (``ipromp-pin evaluate --cluster``, ``ipromp-pin plan --cluster``), behind
+the interface of the local pool (:class:`~.jobs.LocalPool`): ``run(worker, work)`` yields every
+job's result.
 
 Two kinds of cluster:
 
@@ -42,7 +43,7 @@ from dataclasses import dataclass
 from types import ModuleType
 
 from ..exceptions import IPrompPinError
-from .jobs import Job, JobResult, Worker, single_threaded_blas
+from .jobs import J, R, Worker, single_threaded_blas
 
 LOCAL_PREFIX = "dask-local:"
 """``--cluster`` prefix of a local cluster (followed by its number of workers)."""
@@ -118,7 +119,7 @@ class DaskCluster:
         """How the run reports the cluster."""
         return f"{LOCAL_PREFIX}{self.n_workers}" if self.address is None else self.address
 
-    def run(self, worker: Worker, work: Sequence[Job]) -> Iterator[JobResult]:
+    def run(self, worker: Worker[J, R], work: Sequence[J]) -> Iterator[R]:
         """``worker.run_job`` over the jobs on the cluster, started (or connected to) for this call
         and closed after it (results in completion order)."""
         if not work:
@@ -184,7 +185,7 @@ class DaskSession:
             for w in workers
         ]
 
-    def run(self, worker: Worker, work: Sequence[Job]) -> Iterator[JobResult]:
+    def run(self, worker: Worker[J, R], work: Sequence[J]) -> Iterator[R]:
         """``worker.run_job`` over the jobs, in the order given (results in completion order)."""
         if not work:
             return
@@ -192,9 +193,9 @@ class DaskSession:
         run_id = uuid.uuid4().hex[:8]
         futures = [
             self.client.submit(
-                run_job, remote, job, key=f"ipromp-job-{run_id}-{job.index}", retries=self.spec.retries
+                run_job, remote, job, key=f"ipromp-job-{run_id}-{i}", retries=self.spec.retries
             )
-            for job in work
+            for i, job in enumerate(work)
         ]
         for future in self.distributed.as_completed(futures):
             yield future.result()
@@ -256,7 +257,7 @@ _thread = threading.local()
 """Per thread of a Dask worker: the scattered worker it last ran a job of, and its own copy of it."""
 
 
-def run_job(worker: Worker, job: Job) -> JobResult:
+def run_job(worker: Worker[J, R], job: J) -> R:
     """One job on a Dask worker, with this thread's own copy of the scattered worker (its scorers
     keep each job's fit; made once per thread and run, so that what a scorer keeps for the process,
     e.g. the closed loop's collision certifier and its computed distances, serves every later job

@@ -11,8 +11,8 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
-from ..data import Dataset
-from ..readers import load_dataset
+from ..data import Dataset, Demo
+from ..readers import load_dataset, read_recording
 from .kinematics import gripper_kinematics
 from .model import Robot
 
@@ -38,4 +38,23 @@ def read_recordings(
         joint_limits=robot.recorded_joint_limits(),
         end_effector=gripper_kinematics(robot).fk,
         progress=progress,
+    )
+
+
+def read_recording_for(
+    path: str | Path,
+    robot: Robot,
+    *,
+    frames: Sequence[str] | None = None,
+    rate_hz: float = 50.0,
+) -> Demo:
+    """The one recording at ``path`` (any supported format, no task label) read with ``robot``'s
+    joints, limits and kinematics (:func:`~ipromp_pin.readers.read_recording`)."""
+    return read_recording(
+        path,
+        frames=frames or None,
+        rate_hz=rate_hz,
+        robot_joints=robot.settings.recorded_arm_joints,
+        joint_limits=robot.recorded_joint_limits(),
+        end_effector=gripper_kinematics(robot).fk,
     )

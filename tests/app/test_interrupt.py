@@ -59,7 +59,7 @@ def test_interrupted_while_writing_outputs(tiny, tmp_path, capsys, monkeypatch, 
             os.kill(os.getpid(), sig)
             time.sleep(1)
 
-        monkeypatch.setattr("ipromp_pin.outputs.staging.stage_report", interrupted_report)
+        monkeypatch.setattr("ipromp_pin.plans.files.stage_report", interrupted_report)
     else:  # in the middle of the renames of the commit
         calls = []
         original_replace = os.replace

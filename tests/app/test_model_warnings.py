@@ -12,13 +12,13 @@ import pytest
 from helpers_model import random_dataset, split
 
 from ipromp_pin.app import main
-from ipromp_pin.app.model_warnings import (
+from ipromp_pin.data import Dataset
+from ipromp_pin.plans.warnings import (
     dataset_mismatch_warnings,
     held_out_warning,
     loaded_model_warnings,
     single_task_warning,
 )
-from ipromp_pin.data import Dataset
 from ipromp_pin.promp import IProMP
 
 PIPELINE = Path(__file__).resolve().parents[2] / "pipelines" / "baxter_handover.toml"

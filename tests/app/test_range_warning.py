@@ -11,7 +11,7 @@ import pytest
 from helpers_cli import PIPELINE
 
 from ipromp_pin.app import main
-from ipromp_pin.app.model_warnings import RANGE_WARNING_SD, group_distance_sd, range_warnings
+from ipromp_pin.plans.warnings import RANGE_WARNING_SD, group_distance_sd, range_warnings
 from ipromp_pin.promp import IProMP
 from ipromp_pin.readers import load_dataset
 from ipromp_pin.readers.native import write_demo

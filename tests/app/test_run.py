@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from helpers_cli import ROBOT_FILE, one_error_line, run_tiny
+from helpers_cli import ROBOT_FILE, one_error_line, run_tiny, without_uncertainty
 
 from ipromp_pin import app as cli
 from ipromp_pin import preview as preview_module
@@ -16,9 +16,9 @@ from ipromp_pin.app import main
 from ipromp_pin.app.config import load_pipeline, resolve_pipeline_path
 from ipromp_pin.exceptions import PipelineError
 from ipromp_pin.motion.trajectory import JointLimits
-from ipromp_pin.outputs import report as report_module
 from ipromp_pin.outputs import staging
 from ipromp_pin.outputs.trajectory_files import read_trajectory_csv, read_trajectory_json
+from ipromp_pin.plans import files as plan_files
 from ipromp_pin.promp import IProMP
 from ipromp_pin.robot import load_robot
 from ipromp_pin.shipped import PIPELINES_DIR
@@ -47,6 +47,13 @@ def _check_outputs(out: Path) -> dict:
     failed = [n for n, c in checks.items() if c["required"] and c["status"] == "fail"]
     assert report["feasibility"]["failures"] == failed
     assert report["passed"] == (not failed and report["trajectory"]["passed"])
+    # one clock: every check's time is a sample of the written trajectory
+    times = [c["t_s"] for c in checks.values() if c.get("t_s") is not None]
+    assert len(times) >= 4, checks
+    for t in times:
+        assert np.min(np.abs(csv_traj.t_s - t)) < 1e-6, (t, csv_traj.t_s[[0, -1]])
+    assert report["arrival"]["robot_start_s"] == pytest.approx(csv_traj.t_s[0], abs=1e-6)
+    assert report["arrival"]["robot_s"] == pytest.approx(csv_traj.t_s[-1], abs=1e-6)
     return report
 
 
@@ -62,7 +69,7 @@ def test_pipeline_runs_on_synthetic_default(tmp_path, capsys):
     assert not (out / "preview.html").exists()
     text = (out / "report.txt").read_text()
     assert "Recognised task: wrench" in text and "joint_limits" in text
-    deg = report["handover_orientation_error_deg"]
+    deg = report["scores"]["handover_orientation_error_deg"]
     assert f"Gripper orientation at the hand-over: {deg:.1f} deg from the recorded one" in text
 
 
@@ -197,12 +204,10 @@ def test_preview_content_shows_one_clock_and_skipped_checks():
     for check in content.feasibility:
         for t in re.findall(r"t=(\d+\.\d+) s", check.detail):
             assert content.t_s[0] - 0.005 <= float(t) <= content.duration_s + 0.005
-    # without the human hand's position the distance check is skipped, and shown as skipped
-    blind = plan(
-        prep.model, prep.robot, prep.observed(), prep.suite, prep.context.replace(hand_position_m=None)
-    )
+    # a check that could not be made is shown as skipped
+    blind = without_uncertainty(result, prep.suite)
     skipped = [c for c in preview_content(blind, prep.robot, None).feasibility if c.status == "skip"]
-    assert [c.name for c in skipped] == ["hand_distance"] and skipped[0].passed and not skipped[0].required
+    assert [c.name for c in skipped] == ["uncertainty"] and skipped[0].passed and not skipped[0].required
     unknown = preview_content(blind, prep.robot, None)
     assert unknown.human_duration_source == "predicted"
     assert unknown.human_duration_s == pytest.approx(result.prediction.duration_s)
@@ -317,7 +322,7 @@ def _snapshot(folder: Path) -> dict[str, bytes]:
 
 @pytest.mark.parametrize(
     "module, stage",
-    [(report_module, "report_text"), (staging, "trajectory_json_text"), (preview_module, "render_html")],
+    [(plan_files, "report_text"), (staging, "trajectory_json_text"), (preview_module, "render_html")],
 )
 def test_run_failing_midway_leaves_the_earlier_outputs(tmp_path, tiny, monkeypatch, capsys, module, stage):
     out = tmp_path / "out"

@@ -34,10 +34,11 @@ def test_run_reports_the_human_and_robot_arrival_and_the_delay(tiny, tmp_path, r
     assert main([*args, "--ratio", ratio, "--no-rosbag"]) == 0
     report = json.loads((out / "report.json").read_text())
     a = report["arrival"]
-    duration = read_trajectory_csv(out / "trajectory.csv").t_s[-1]
+    t_s = read_trajectory_csv(out / "trajectory.csv").t_s  # on the human's clock
     assert a["human_s"] == pytest.approx(report["predicted_duration_s"])
-    assert a["robot_start_s"] == pytest.approx(report["observed_until_s"])
-    assert a["robot_s"] == pytest.approx(a["robot_start_s"] + duration, abs=1e-6)
+    assert a["robot_start_s"] == pytest.approx(report["observed_until_s"]) == pytest.approx(t_s[0])
+    assert a["robot_s"] == pytest.approx(t_s[-1], abs=1e-6)
+    assert a["robot_s"] - a["robot_start_s"] == pytest.approx(report["trajectory"]["duration_s"], abs=1e-6)
     assert a["delay_s"] == pytest.approx(a["robot_s"] - a["human_s"])
     text = (out / "report.txt").read_text()
     when = "after" if a["delay_s"] >= 0 else "before"

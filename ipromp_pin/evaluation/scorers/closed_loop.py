@@ -132,7 +132,7 @@ def evaluation_suite(robot: Robot, objects: ObjectTable | None, human: bool) -> 
     """The checks of an evaluation's re-plans: the motion's own (limits, workspace, self-collision),
     the joint torques with ``objects``, the human checks when ``human`` (they run on the demos with a
     tracked skeleton)."""
-    drop = ["hand_distance", "uncertainty"] + ([] if objects is not None else ["joint_torques"])
+    drop = ["uncertainty"] + ([] if objects is not None else ["joint_torques"])
     return CheckSuite.build(robot, exclude=drop + ([] if human else list(HUMAN_CHECKS)))
 
 

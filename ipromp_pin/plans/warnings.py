@@ -111,18 +111,25 @@ def dataset_mismatch_warnings(model: IProMP, dataset: Dataset, model_name: str =
     return out
 
 
-def held_out_warning(model: IProMP, demo: Demo, model_name: str = "the model") -> str | None:
-    """A warning when ``demo`` was in the model's training set, or when that cannot be checked."""
+def held_out_warning(
+    model: IProMP,
+    demo: Demo,
+    model_name: str = "the model",
+    hint: str = "choose another --demo, or train without it",
+) -> str | None:
+    """A warning when ``demo`` was in the model's training set (``hint``: what to do about it), or when
+    that cannot be checked."""
+    label = f"{demo.task}/{demo.name}" if demo.task else demo.name
     records = model.trained_on_
     if records is None:
         return (
             f"{model_name} does not record its training demos (model file format version 1): cannot check "
-            f"that {demo.task}/{demo.name} was held out of training"
+            f"that {label} was held out of training"
         )
     if find_in_training(records, demo) is not None:
         return (
-            f"{demo.task}/{demo.name} was in {model_name}'s training set: the recognition and prediction "
-            "are not a test on unseen data (choose another --demo, or train without it)"
+            f"{label} was in {model_name}'s training set: the recognition and prediction are not a test on "
+            f"unseen data ({hint})"
         )
     return None
 

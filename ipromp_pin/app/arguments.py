@@ -25,6 +25,11 @@ if TYPE_CHECKING:
     from ..robot import Robot
     from .config import PipelineConfig
 
+MAX_WINDOW_S = 600.0
+"""Longest observation window in seconds the command line takes (``--until-s``, ``--window-s``): the
+upper bound of :data:`ipromp_pin.data.WINDOW_RANGE_S` (not imported here: ``--help`` answers without
+the scientific stack)."""
+
 DEFAULT_MARK = "{default}"
 """Where a help string shows the default that :func:`show_default` attached to its option."""
 
@@ -143,13 +148,22 @@ def add_pipeline_overrides(p: argparse.ArgumentParser, ratio: bool = True) -> No
         config_default("observation.demo"),
     )
     if ratio:
+        window = p.add_mutually_exclusive_group()
         show_default(
-            p.add_argument(
+            window.add_argument(
                 "--ratio",
                 type=bounded(float, 0.0, 1.0, open_low=True),
-                help=f"observed fraction of the motion, in (0, 1] (default {DEFAULT_MARK})",
+                help=f"observed fraction of the motion, in (0, 1] (default {DEFAULT_MARK}; offline: the "
+                "motion's length is known once it is over)",
             ),
             config_default("observation.ratio"),
+        )
+        window.add_argument(
+            "--until-s",
+            type=bounded(float, 0.0, MAX_WINDOW_S, open_low=True),
+            metavar="S",
+            help=f"observe the first S seconds of the motion instead, in (0, {MAX_WINDOW_S:g}] (the "
+            "pipeline's [observation] until_s)",
         )
     p.add_argument("--model", type=Path, help="use this saved model instead of training")
     p.add_argument("--save-model", type=Path, help="save the trained model here")
@@ -188,6 +202,7 @@ def pipeline_config(args: argparse.Namespace) -> PipelineConfig:
         task=args.task,
         demo=args.demo,
         ratio=getattr(args, "ratio", None),
+        until_s=getattr(args, "until_s", None),
         load_model=args.model,
         save_model=args.save_model,
         model_cache=False if getattr(args, "retrain", False) else None,

@@ -147,15 +147,33 @@ def prepare_session(
     session.suite = CheckSuite.build(robot)
     session.context = check_context(cfg, demo, robot, objects)
     if observe:
-        session.observation = observation = demo.head(cfg.ratio, groups=cfg.observe)
+        session.observation = observation = observe_window(session, warn)
         human = session.context.human
         if human is not None:  # the planner knows the human up to the end of the observation
             session.context = session.context.replace(human=human.until(float(observation.t[-1])))
+        window = f"{cfg.ratio:.0%}" if cfg.until_s is None else f"{cfg.until_s:g} s"
         log(
-            f"[observe] {demo.task}/{demo.name}: first {cfg.ratio:.0%} "
+            f"[observe] {demo.task}/{demo.name}: first {window} "
             f"({observation.t[-1]:.2f} s, {observation.n_samples} samples) of {', '.join(cfg.observe)}"
         )
     return session
+
+
+def observe_window(session: Session, warn: LogFn = warn_stderr) -> Demo:
+    """The observed part of the session's demo: its first ``[observation] ratio``, or its samples of
+    the first ``until_s`` seconds (all of it, with a warning in the session's, when the demo ends
+    before)."""
+    cfg, demo = session.cfg, session.demo
+    observation = cfg.window.cut(demo, cfg.observe, float(session.model.duration_nominal_s_))
+    length = float(demo.t[-1] - demo.t[0])
+    if cfg.until_s is not None and length < cfg.until_s:
+        note = (
+            f"{demo.task}/{demo.name} ends at {length:.2f} s, before the observed window's end "
+            f"({cfg.until_s:g} s): planned from all of it"
+        )
+        warn(note)
+        session.warnings.append(note)
+    return observation
 
 
 def check_context(

@@ -7,6 +7,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 from ..exceptions import DataError
+from .windows import Window
 
 PAPER_GRID: tuple[tuple[int, float], ...] = ((20, 0.1), (15, 0.1), (10, 0.1), (10, 0.2))
 """(n_train, obs_ratio) cells of the paper's table."""
@@ -37,7 +38,8 @@ class EvaluationConfig:
     Attributes:
         protocol: ``"paper"`` or ``"splits"``.
         observe: Observed channel sets, each a list of group names.
-        grid: (n_train, obs_ratio) cells.
+        grid: (n_train, window) cells: a window is an observed fraction of each test demo (a float,
+            the paper's ``obs_ratio``) or a :class:`~.windows.Window` (e.g. in seconds).
         n_test: Test demos per task.
         n_splits: Random splits (``splits`` protocol).
         seed: Seed of the random splits.
@@ -48,7 +50,7 @@ class EvaluationConfig:
 
     protocol: str = "paper"
     observe: list[list[str]] = field(default_factory=lambda: [["orientation"], ["orientation", "emg"]])
-    grid: list[tuple[int, float]] = field(default_factory=lambda: list(PAPER_GRID))
+    grid: list[tuple[int, float | Window]] = field(default_factory=lambda: [(n, r) for n, r in PAPER_GRID])
     n_test: int = 10
     n_splits: int = 20
     seed: int = 0
@@ -59,6 +61,10 @@ class EvaluationConfig:
         """Raise a :class:`DataError` naming the field when the protocol is not one of :data:`PROTOCOLS`."""
         if self.protocol not in PROTOCOLS:
             raise DataError(None, "protocol", f"unknown protocol '{self.protocol}' (use paper or splits)")
+
+    def cells(self) -> list[tuple[int, Window]]:
+        """The grid's (n_train, window) cells, a bare fraction as a ``ratio`` window, each once."""
+        return list(dict.fromkeys((int(n), Window.of(w)) for n, w in self.grid))
 
     @property
     def repeats(self) -> int:

@@ -405,6 +405,9 @@ class TrialResult:
         baselines: Baseline name -> its outcome on the same window (``--baselines``).
         peak_torque_ratio: Peak |joint torque| / effort limit of the one-shot plan with the true task's
             object (NaN: not scored).
+        observed_s: Time of the last observed sample, in [s] from the demo's start.
+        observed_fraction: The fraction of the demo's length its window covers (the unobserved part
+            the joint errors are over starts there).
     """
 
     task: str
@@ -423,6 +426,8 @@ class TrialResult:
     handover_orientation_baseline_deg: float = float("nan")
     baselines: dict[str, Any] = field(default_factory=dict)
     peak_torque_ratio: float = float("nan")
+    observed_s: float = float("nan")
+    observed_fraction: float = float("nan")
 
     @property
     def correct(self) -> bool:
@@ -449,7 +454,8 @@ def score_trial(
     Args:
         prediction: The model's prediction from the observed part of ``demo``.
         demo: The full test demo.
-        obs_ratio: Observed fraction, in (0, 1].
+        obs_ratio: Observed fraction of the demo's length, in (0, 1] (its window's end over its
+            duration, for a window in seconds).
         fk: Gripper positions of joint configurations (None: no Cartesian error).
         fk_rot: Gripper rotations of joint configurations (None: no orientation errors).
         baseline_rot: (3, 3) the baseline's hand-over rotation (:func:`mean_handover_rotations`).
@@ -488,6 +494,8 @@ def score_trial(
         brier=float(np.sum((np.asarray(prediction.posterior) - onehot) ** 2)),
         handover_orientation_error_deg=rot_err,
         handover_orientation_baseline_deg=rot_base,
+        observed_s=float(prediction.observed_until_s),
+        observed_fraction=float(obs_ratio),
     )
 
 

@@ -33,11 +33,18 @@ class MajorityScorer(Scorer):
         self.task_ = max(dict.fromkeys(names), key=names.count)
         return self
 
-    def score(self, test, obs_ratio, split=0):
+    def score(self, test, window, split=0):
         nan = float("nan")
-        return [
+        return [  # the observed fraction of each demo as its "hand-over error"
             TrialResult(
-                d.task, d.name, self.task_, float(d.task == self.task_), *[nan] * 4, obs_ratio, nan, 0.0
+                d.task,
+                d.name,
+                self.task_,
+                float(d.task == self.task_),
+                *[nan] * 4,
+                window.fraction(d),
+                nan,
+                0.0,
             )
             for d in test
         ]

@@ -40,6 +40,7 @@ from ...safety import HUMAN_CHECKS, CheckContext, CheckSuite
 from ..cells import CellResults, ClosedLoopCell, baseline_summary, median
 from ..config import EvaluationConfig
 from ..scoring import ClosedLoopScore, TrialResult, mean_handover_rotations, replay_scored, score_trial
+from ..windows import FitWindow
 from .base import Scorer
 from .one_shot import predict_window
 
@@ -193,6 +194,7 @@ class ClosedLoopScorer(Scorer):
 
     label = "closed loop "
     cell_type = ClosedLoopCell
+    window_kinds = ("ratio",)  # the replay starts at a fraction of each demo (its start_ratio)
 
     def __init__(
         self,
@@ -227,13 +229,15 @@ class ClosedLoopScorer(Scorer):
         self.mean_rot_ = mean_handover_rotations(train, fk_rot)
         return self
 
-    def score(self, test: Sequence[Demo], obs_ratio: float, split: int = 0) -> list[ClosedLoopTrial]:
-        """One :class:`ClosedLoopTrial` per test demo."""
+    def score(self, test: Sequence[Demo], window: FitWindow | float, split: int = 0) -> list[ClosedLoopTrial]:
+        """One :class:`ClosedLoopTrial` per test demo (a ``ratio`` window: the replay's start ratio)."""
+        window = FitWindow.of(window)
+        assert window.window.is_ratio, "the protocol runner refuses other windows (window_kinds)"
         return replay_trials(
             self.model_,
             self.robot,
             test,
-            obs_ratio,
+            window.window.value,
             self.profile_,
             self.options.settings,
             self.suite_ or evaluation_suite(self.robot, self.objects, self.options.human),

@@ -133,7 +133,7 @@ def test_a_scheduler_address_runs_both_protocols_of_the_closed_loop_with_the_bas
     local = json.loads((tmp_path / "local.json").read_text())["cells"]
     seen.clear()
     with distributed.LocalCluster(
-        n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None
+        n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None, protocol="tcp"
     ) as scheduler:  # an existing scheduler, its worker a thread of this process (one: the robot is shared)
         run_evaluate(request(tmp_path / "remote.json", cluster=scheduler.scheduler_address))
     remote = json.loads((tmp_path / "remote.json").read_text())["cells"]

@@ -246,6 +246,13 @@ def add_closed_loop_options(p: argparse.ArgumentParser) -> None:
         ),
         closed_loop_default("blend_s"),
     )
+    p.add_argument(
+        "--start-confidence",
+        type=float,  # checked with the other closed-loop settings (one line naming start_confidence)
+        metavar="P",
+        help="the robot also starts as soon as a task is recognised with posterior P, in (0, 1] "
+        "(default: by time alone)",
+    )
     show_default(
         p.add_argument(
             "--freeze-phase",
@@ -267,6 +274,7 @@ def closed_loop_settings(args: argparse.Namespace, **given: float | None) -> Clo
         "replan_rate_hz": args.replan_rate,
         "blend_s": args.blend,
         "freeze_phase": args.freeze_phase,
+        "start_confidence": args.start_confidence,
         **given,
     }
     chosen = {name: value for name, value in options.items() if value is not None}

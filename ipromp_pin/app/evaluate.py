@@ -114,8 +114,10 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--closed-loop",
         action="store_true",
-        help="replay every test demo in the closed loop (start ratio = the cell's obs ratio) and add "
-        "its hand-over error, arrival delay, limit ratio, refused re-plans and collisions to each cell",
+        help="replay every test demo in the closed loop, the robot starting at the end of the cell's "
+        "window (a fraction cell: after that fraction of the test demo, the paper's protocol; a cell in "
+        "seconds: after those seconds, the online start rule) and add its hand-over error, arrival "
+        "delay, limit ratio, refused re-plans and collisions to each cell",
     )
     add_closed_loop_options(p)
     p.set_defaults(func=main)
@@ -131,8 +133,7 @@ def add_window_options(p: argparse.ArgumentParser) -> None:
         "length (the paper's protocol: that length is known only once the motion is over); seconds = "
         "each test demo observed for its first seconds, by default the grid's fractions of the training "
         "demos' mean length (a time the robot knows before the motion starts), else --window-s and "
-        "--window-of-train; both = the two, in separate tables (default %(default)s; --closed-loop: "
-        "fraction)",
+        "--window-of-train; both = the two, in separate tables (default %(default)s)",
     )
     p.add_argument(
         "--window-s",
@@ -158,10 +159,10 @@ def main(args: argparse.Namespace) -> int:
     from ..evaluation.run import EvaluateRequest, grid_from, protocols_from, run_evaluate, window_cells
 
     fractions = grid_from(args.grid, args.n_train, args.ratios)
-    grid = window_cells(fractions, args.windows, args.window_s, args.window_of_train, args.closed_loop)
+    grid = window_cells(fractions, args.windows, args.window_s, args.window_of_train)
     settings = None
-    if args.closed_loop:  # validated once here; each cell's ratio replaces the start ratio
-        settings = closed_loop_settings(args, control_rate_hz=100.0, start_ratio=fractions[0][1])
+    if args.closed_loop:  # validated once here; each cell's window replaces the start
+        settings = closed_loop_settings(args, control_rate_hz=100.0)
     request = EvaluateRequest(
         dataset=args.dataset,
         format=args.format,

@@ -116,6 +116,7 @@ class ClosedLoopCell(Cell):
     ``protective_distance_time_s`` (median time closer than ``S_p``), ``contact_speed_violations``
     (sum of the control samples inside ``S_p`` faster than the contact-speed limit) and
     ``arrival_delay_without_human_s`` (median arrival delay of the replays without the human checks).
+    ``robot_start_s`` is the median time the robot started, [s] from the motion start.
     """
 
     limit_profile: str = ""
@@ -123,6 +124,7 @@ class ClosedLoopCell(Cell):
     closed_loop_final_error_cm: float | None = None
     one_shot_handover_error_cm: float | None = None
     arrival_delay_s: float | None = None
+    robot_start_s: float | None = None
     max_limit_ratio: float | None = None
     refused_replans: int = 0
     replans: int = 0

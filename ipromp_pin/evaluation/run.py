@@ -5,7 +5,7 @@ processes fork), then every protocol run, printed and written.
 
 The command line (:mod:`ipromp_pin.app.evaluate`) builds the request from its arguments, e.g.
 ``EvaluateRequest(dataset=args.dataset, grid=window_cells(grid_from(args.grid, args.n_train,
-args.ratios), args.windows, args.window_s, args.window_of_train, args.closed_loop),
+args.ratios), args.windows, args.window_s, args.window_of_train),
 protocols=protocols_from(args.protocol), closed_loop_settings=<the --condition-noise ... options>,
 command=" ".join(["ipromp-pin", *sys.argv[1:]]), progress=<a progress-line factory>, ...)``, and
 calls :func:`run_evaluate`.
@@ -74,8 +74,8 @@ class EvaluateRequest:
         objects: Task file of the objects (``--objects``; None: the shipped ``robots/objects.toml``):
             the closed loop torque-checks every re-plan with them; both protocols score each cell's
             ``peak_torque_ratio`` (the one-shot plans' or the commanded motions', true task's object).
-        closed_loop_settings: The closed loop's settings (each cell's ratio replaces ``start_ratio``;
-            None: the defaults).
+        closed_loop_settings: The closed loop's settings (each cell's window replaces the start:
+            :func:`~.scorers.closed_loop.start_settings`; None: the defaults).
         json: JSON results file (None: not written).
         md: Markdown results file (None: beside the JSON, if any).
         plots: Folder of the accuracy plot (one-shot evaluation; None: no plot).
@@ -133,10 +133,8 @@ class EvaluateRequest:
         return [w.value for w in windows if w.is_ratio]
 
     def settings(self) -> ClosedLoopSettings:
-        """The closed loop's settings with the first cell's ratio as start ratio."""
-        settings = self.closed_loop_settings or ClosedLoopSettings(control_rate_hz=100.0)
-        ratios = self.ratios()
-        return dataclasses.replace(settings, start_ratio=ratios[0]) if ratios else settings
+        """The closed loop's settings (each cell replaces their start)."""
+        return self.closed_loop_settings or ClosedLoopSettings(control_rate_hz=100.0)
 
 
 def grid_from(choice: str, n_train: list[int], ratios: list[float]) -> list[tuple[int, float]]:
@@ -153,7 +151,6 @@ def window_cells(
     windows: str = "both",
     seconds: list[float] | None = None,
     train_fractions: list[float] | None = None,
-    closed_loop: bool = False,
 ) -> list[tuple[int, float | Window]]:
     """The cells of an evaluation: ``grid``'s, each observing a fraction of each test demo (the
     paper's protocol, unchanged), then the cells observing windows in seconds (:mod:`.windows`).
@@ -165,29 +162,22 @@ def window_cells(
 
     Args:
         windows: ``"both"`` (default), ``"fraction"`` (the grid's cells only) or ``"seconds"`` (the
-            cells in seconds only).
-        closed_loop: The closed loop starts at a fraction of each test demo for now: its cells are
-            the grid's, and windows in seconds asked for explicitly are refused.
+            cells in seconds only). With the closed loop, the robot starts at the end of each cell's
+            window: a fraction of each test demo (the paper's protocol) or the window's seconds (the
+            online start rule; the default cells in seconds are its default, a fraction of the
+            model's nominal duration).
 
     Raises:
-        DataError: an unknown choice, or windows in seconds asked for with ``"fraction"`` or with the
-            closed loop (one line).
+        DataError: an unknown choice, or windows in seconds asked for with ``"fraction"`` (one line).
     """
     seconds, train_fractions = list(seconds or []), list(train_fractions or [])
     asked = bool(seconds or train_fractions)
     if windows not in WINDOW_PROTOCOLS:
         raise DataError(None, "windows", f"unknown choice '{windows}' (use {', '.join(WINDOW_PROTOCOLS)})")
-    if closed_loop and (asked or windows == "seconds"):
-        raise DataError(
-            None,
-            None,
-            "--closed-loop starts the robot at a fraction of each test demo for now: it does not take "
-            "--window-s, --window-of-train or --windows seconds",
-        )
     if windows == "fraction" and asked:
         raise DataError(None, None, "--window-s and --window-of-train need --windows both or seconds")
     fraction: list[tuple[int, float | Window]] = [(n, r) for n, r in grid]
-    if closed_loop or windows == "fraction":
+    if windows == "fraction":
         return fraction
     sizes = list(dict.fromkeys(n for n, _ in grid))
     if asked:
@@ -229,11 +219,8 @@ def check_request(request: EvaluateRequest) -> Robot:
         DaskCluster.from_spec(request.cluster)
         require_dask()
     if request.closed_loop:
-        if any(not Window.of(w).is_ratio for _, w in request.grid):
-            problem = "the closed loop starts at a fraction of each test demo for now: no window in seconds"
-            raise DataError(None, "window", problem)
         base = request.settings()
-        for ratio in request.ratios():  # every cell's obs_ratio is a start ratio
+        for ratio in request.ratios():  # every ratio cell's obs_ratio is a start ratio
             dataclasses.replace(base, start_ratio=ratio).validate("command line")
     for path in (request.json, request.md_path):
         if path is not None:
@@ -302,7 +289,11 @@ def report(request: EvaluateRequest, cells: list[Cell], seconds: float) -> None:
     meta: dict = {"dataset": str(request.dataset), "command": request.command, "seconds": round(seconds, 2)}
     if request.closed_loop:
         settings = request.settings().to_dict()
-        meta["closed_loop"] = {"limits": request.limits, **settings, "start_ratio": "obs_ratio of each cell"}
+        start = {
+            "start_ratio": "obs_ratio of each ratio cell",
+            "start_after_s": "seconds of each cell in seconds",
+        }
+        meta["closed_loop"] = {"limits": request.limits, **settings, **start}
         request.log(closed_loop_markdown(cells))  # type: ignore[arg-type]
         write_closed_loop_results(cells, request.json, md, meta)  # type: ignore[arg-type]
     else:

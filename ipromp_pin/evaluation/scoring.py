@@ -263,6 +263,7 @@ class ClosedLoopScore:
         contact_speed_violations: Control samples inside it faster than the contact-speed limit.
         arrival_delay_without_human_s: ``arrival_delay_s`` of the same replay without the human
             checks, [s].
+        start_s: When the robot started (its first re-plan), [s] from the motion start.
     """
 
     handover_error_cm: float
@@ -285,6 +286,7 @@ class ClosedLoopScore:
     protective_distance_time_s: float | None = None
     contact_speed_violations: int | None = None
     arrival_delay_without_human_s: float | None = None
+    start_s: float = float("nan")
 
     def to_dict(self) -> dict:
         """JSON-serialisable form."""
@@ -323,6 +325,7 @@ def score_closed_loop(
         recorded_arrival_s=recorded,
         handover_time_s=t_end,
         rest_s=result.arrival_s,
+        start_s=float(result.start_s),
         max_limit_ratio=float(ratios.max()),
         limit_ratios=[float(x) for x in ratios],
         position_excess_rad=excess,

@@ -329,6 +329,14 @@ def orientation_markdown(cells: Sequence[Cell]) -> list[str]:
     return [*out, ""]
 
 
+START_KINDS = {
+    "ratio": "robot starting after a fraction of each test demo",
+    "seconds": "robot starting by the online rule",
+    "train_fraction": "robot starting by the online rule",
+}
+"""How the robot starts in a closed-loop cell of each window kind (the summary lines' groups)."""
+
+
 def closed_loop_markdown(cells: Sequence[ClosedLoopCell]) -> str:
     """The closed-loop table (one row per cell) and its medians over cells, as Markdown."""
     lines = []
@@ -337,20 +345,23 @@ def closed_loop_markdown(cells: Sequence[ClosedLoopCell]) -> str:
         profile = ", ".join(dict.fromkeys(c.limit_profile for c in pc))
         lines.append(f"### Closed loop, protocol `{protocol}` (limit profile: {profile})\n")
         lines.append(
-            "| n_train | obs ratio | observed | task | hand-over err [cm] closed loop | one-shot "
-            "| final err [cm] | arrival delay [s] | max limit ratio | refused / re-plans | collisions |"
+            "| n_train | window | observed | task | hand-over err [cm] closed loop | one-shot "
+            "| robot start [s] | final err [cm] | arrival delay [s] | max limit ratio | refused / re-plans "
+            "| collisions |"
         )
-        lines.append("|---|---|---|---|---|---|---|---|---|---|---|")
+        lines.append("|---|---|---|---|---|---|---|---|---|---|---|---|")
         for c in pc:
             lines.append(
-                f"| {c.n_train} | {c.obs_ratio:g} | {observe_key(c.observe)} | {c.task} "
+                f"| {c.n_train} | {c.window_label()} | {observe_key(c.observe)} | {c.task} "
                 f"| {_fmt(c.closed_loop_handover_error_cm)} | {_fmt(c.one_shot_handover_error_cm)} "
+                f"| {_fmt(c.robot_start_s)} "
                 f"| {_fmt(c.closed_loop_final_error_cm)} | {_fmt(c.arrival_delay_s)} "
                 f"| {_fmt(c.max_limit_ratio, 3)} | {c.refused_replans} / {c.replans} | {c.collisions} |"
             )
         lines.append("")
-        for key in dict.fromkeys(observe_key(c.observe) for c in pc):
-            kc = [c for c in pc if observe_key(c.observe) == key]
+        groups = {(observe_key(c.observe), START_KINDS[c.window_kind]) for c in pc}
+        for key, start in sorted(groups, key=lambda g: (g[0], g[1] != START_KINDS["ratio"])):
+            kc = [c for c in pc if observe_key(c.observe) == key and START_KINDS[c.window_kind] == start]
             below = sum(
                 1
                 for c in kc
@@ -359,7 +370,7 @@ def closed_loop_markdown(cells: Sequence[ClosedLoopCell]) -> str:
                 and c.closed_loop_handover_error_cm < c.one_shot_handover_error_cm
             )
             lines.append(
-                f"- {key}, median over {len(kc)} cells: hand-over error "
+                f"- {key}, {start}, median over {len(kc)} cells: hand-over error "
                 f"{_fmt(median([c.closed_loop_handover_error_cm for c in kc]))} cm closed loop vs "
                 f"{_fmt(median([c.one_shot_handover_error_cm for c in kc]))} cm one-shot (closed loop "
                 f"below one-shot in {below} of {len(kc)} cells); final error "
@@ -388,14 +399,14 @@ def human_markdown(cells: Sequence[ClosedLoopCell]) -> list[str]:
     lines = [
         f"### The human in the closed loop, protocol `{hc[0].protocol}` (judged against the recorded "
         "human motion)\n",
-        "| n_train | obs ratio | observed | task | min separation [m] (outside the hand) "
+        "| n_train | window | observed | task | min separation [m] (outside the hand) "
         "| time within S_p [s] | contact-speed violations | arrival delay [s] with / without the human |",
         "|---|---|---|---|---|---|---|---|",
     ]
     for c in hc:
         violations = "-" if c.contact_speed_violations is None else str(c.contact_speed_violations)
         lines.append(
-            f"| {c.n_train} | {c.obs_ratio:g} | {observe_key(c.observe)} | {c.task} "
+            f"| {c.n_train} | {c.window_label()} | {observe_key(c.observe)} | {c.task} "
             f"| {_fmt(c.human_min_separation_m, 3)} | {_fmt(c.protective_distance_time_s)} | {violations} "
             f"| {_fmt(c.arrival_delay_s)} / {_fmt(c.arrival_delay_without_human_s)} |"
         )

@@ -166,8 +166,11 @@ def test_help_defaults_are_those_of_the_settings(capsys, monkeypatch):
     assert float(_shown(run, "--rate")) == default_of("timing.control_rate_hz")
     replay = _help(capsys, "replay")
     settings = ClosedLoopSettings()
+    assert (
+        "--start-after S the robot starts S seconds after the human's motion starts (default: 20% of"
+        in replay
+    )
     for option, name in (
-        ("--start-ratio", "start_ratio"),
         ("--replan-rate", "replan_rate_hz"),
         ("--blend", "blend_s"),
         ("--freeze-phase", "freeze_phase"),
@@ -182,6 +185,7 @@ def test_help_defaults_are_those_of_the_settings(capsys, monkeypatch):
 
 def _closed_loop_args(**given) -> argparse.Namespace:
     options = {"replan_rate": None, "blend": None, "freeze_phase": None, "condition_noise": None}
+    options["start_confidence"] = None
     return argparse.Namespace(**{**options, **given})
 
 

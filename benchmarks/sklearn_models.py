@@ -12,7 +12,8 @@ features with its leave-one-out predictions; ``KNeighborsRegressor`` with ``cros
 ``LeaveOneOut`` for every candidate ``k`` and weighting). Prints per model the fits of one training,
 the seconds all of them take with each (fastest of ``--repeats``; scikit-learn's k-nearest-neighbour
 leave-one-out on ``--knn-problems`` problems, scaled to all) and their ratio, and the largest
-difference of the answers. ``--smoke``: 2 tasks of 5 demos, numpy kernels, one repeat, 12 problems per model: seconds.
+difference of the answers. ``--smoke``: 2 tasks of 5 demos, numpy kernels, one repeat, 12 problems
+per model: seconds.
 """
 
 from __future__ import annotations

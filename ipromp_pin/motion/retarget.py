@@ -279,7 +279,13 @@ class Retargeter:
         Raises:
             InfeasibleError: ruckig finds no trajectory, or the sampled plan exceeds a limit.
         """
-        dt, h = self.dt_s, self.blend_s
+        planned = self.planned(state, reference, min_scale)
+        return planned.sample(), planned.report
+
+    def planned(self, state: MotionState, reference: ReferenceMotion, min_scale: float = 1.0) -> Planned:
+        """:meth:`plan` up to its samples: the pieces and the report, the samples made on demand
+        (:meth:`Planned.sample`; a caller that needs only the report saves their cost)."""
+        h = self.blend_s
         t_c = float(state.t_s)
         d_end = reference.duration_s
         start = (state.q, state.qd, state.qdd)
@@ -324,29 +330,73 @@ class Retargeter:
             )
             pieces.append(("ruckig", t_f, t_f + settle.duration, settle))
         arrival = pieces[-1][2]
-        n = int(math.ceil((arrival - t_c) / dt - 1e-9)) + 1
-        times = t_c + dt * np.arange(n)
-        nj = q_end.size
-        q = np.empty((n, nj))
-        qd = np.empty((n, nj))
-        qdd = np.empty((n, nj))
-        for kind, t0, t1, data in pieces:
-            i0 = max(0, int(math.ceil((t0 - t_c) / dt - 1e-9)))
-            i1 = min(n, int(math.ceil((t1 - t_c) / dt - 1e-9)))
-            if i1 <= i0:
-                continue
-            sel = slice(i0, i1)
-            if kind == "ruckig":
-                q[sel], qd[sel], qdd[sel] = sample_trajectory(data, times[sel] - t0)
-            else:
-                tau0_, k_ = data
-                tq, tv, ta, _ = reference.evaluate(tau0_ + (times[sel] - t0) / k_, order=2)
-                assert tv is not None and ta is not None
-                q[sel], qd[sel], qdd[sel] = tq, tv / k_, ta / k_**2
-        q[-1], qd[-1], qdd[-1] = q_end, 0.0, 0.0
-        q[0], qd[0], qdd[0] = state.q, state.qd, state.qdd
-        motion = Trajectory(times, q, qd, qdd, self.limits.joint_names)
-        return motion, RetargetReport(float(arrival), d_end, float(k), float(blend_s))
+        report = RetargetReport(float(arrival), d_end, float(k), float(blend_s))
+        return Planned(state, reference, q_end, pieces, report, self.dt_s, self.limits.joint_names)
+
+
+class Planned:
+    """A re-targeted motion (:meth:`Retargeter.planned`) before its samples: its report, and its
+    samples at the control rate made on demand (:meth:`sample`, once).
+
+    Attributes:
+        report: How the motion meets its reference.
+    """
+
+    def __init__(
+        self,
+        state: MotionState,
+        reference: ReferenceMotion,
+        q_end: np.ndarray,
+        pieces: list[tuple[str, float, float, Any]],
+        report: RetargetReport,
+        dt_s: float,
+        joint_names: tuple[str, ...],
+    ) -> None:
+        self.report = report
+        self._args = (state, reference, q_end, pieces, dt_s, joint_names)
+        self._motion: Trajectory | None = None
+
+    def sample(self) -> Trajectory:
+        """The motion's samples at the control rate from the start state's time (the start state
+        first, at rest at the hand-over configuration at the end)."""
+        if self._motion is None:
+            self._motion = _sample_pieces(*self._args)
+        return self._motion
+
+
+def _sample_pieces(
+    state: MotionState,
+    reference: ReferenceMotion,
+    q_end: np.ndarray,
+    pieces: list[tuple[str, float, float, Any]],
+    dt: float,
+    joint_names: tuple[str, ...],
+) -> Trajectory:
+    """The samples of a re-targeted motion's pieces (:meth:`Retargeter.planned`) every ``dt`` [s]."""
+    t_c = float(state.t_s)
+    arrival = pieces[-1][2]
+    n = int(math.ceil((arrival - t_c) / dt - 1e-9)) + 1
+    times = t_c + dt * np.arange(n)
+    nj = q_end.size
+    q = np.empty((n, nj))
+    qd = np.empty((n, nj))
+    qdd = np.empty((n, nj))
+    for kind, t0, t1, data in pieces:
+        i0 = max(0, int(math.ceil((t0 - t_c) / dt - 1e-9)))
+        i1 = min(n, int(math.ceil((t1 - t_c) / dt - 1e-9)))
+        if i1 <= i0:
+            continue
+        sel = slice(i0, i1)
+        if kind == "ruckig":
+            q[sel], qd[sel], qdd[sel] = sample_trajectory(data, times[sel] - t0)
+        else:
+            tau0_, k_ = data
+            tq, tv, ta, _ = reference.evaluate(tau0_ + (times[sel] - t0) / k_, order=2)
+            assert tv is not None and ta is not None
+            q[sel], qd[sel], qdd[sel] = tq, tv / k_, ta / k_**2
+    q[-1], qd[-1], qdd[-1] = q_end, 0.0, 0.0
+    q[0], qd[0], qdd[0] = state.q, state.qd, state.qdd
+    return Trajectory(times, q, qd, qdd, joint_names)
 
 
 def retarget(

@@ -53,12 +53,13 @@ SLOWDOWN_STEP = 1.05
 """Each slower timing asks for 5 % more slow-down than the failing checks estimated."""
 
 
-@dataclass(frozen=True)
 class Timed:
     """A motion as a timer made it.
 
-    Attributes:
-        motion: The motion (times on the human's clock).
+    Args:
+        motion: The motion (times on the human's clock), or a function that makes it: a timer whose
+            samples cost time gives one, and the loop samples only the motions it checks (the
+            unslowed motion of a plan that starts from a guess is only the base of the slow-downs).
         report: The timing's own report (e.g. a toppra timing's verification, a re-target's arrival).
         scale: The slow-down the motion has in the timer's own units (its first motion's scale is the
             base the slow-downs are counted from).
@@ -66,10 +67,28 @@ class Timed:
             timer does not promise one).
     """
 
-    motion: Trajectory
-    report: object
-    scale: float = 1.0
-    path: object | None = None
+    __slots__ = ("_make", "_motion", "path", "report", "scale")
+
+    def __init__(
+        self,
+        motion: Trajectory | Callable[[], Trajectory],
+        report: object,
+        scale: float = 1.0,
+        path: object | None = None,
+    ) -> None:
+        self._motion: Trajectory | None = motion if isinstance(motion, Trajectory) else None
+        self._make: Callable[[], Trajectory] | None = None if isinstance(motion, Trajectory) else motion
+        self.report = report
+        self.scale = scale
+        self.path = path
+
+    @property
+    def motion(self) -> Trajectory:
+        """The motion (made on first use when the timer gave a function)."""
+        if self._motion is None:
+            assert self._make is not None
+            self._motion, self._make = self._make(), None
+        return self._motion
 
 
 Timer = Callable[[float], Timed]

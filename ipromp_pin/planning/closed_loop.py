@@ -14,12 +14,10 @@ and runs a simulated control loop at ``control_rate_hz`` (no waiting):
   :class:`~ipromp_pin.motion.limits.LimitProfile`, joint limits, workspace, self-collision, the
   human as observed until then, the arm's torques), re-targeted slower while they ask for it by the
   one loop of every planner (:func:`~ipromp_pin.safety.retime.retime_until_safe`, with the re-target
-  as its timer: :func:`~.timers.retarget_timer`), which knows the slow-down the last committed plan
-  turned out to need (:func:`~ipromp_pin.safety.retime.next_guess`: re-plans are 50 ms apart, and
-  the human rarely changes it much in between): every other re-plan checks its motion at that
-  slow-down first, the others their unslowed motion (and when it fails, re-target it at least that
-  much slower), so that a robot slowed for the human speeds up again as soon as it may; the delay
-  it costs is recorded. A re-plan that
+  as its timer: :func:`~.timers.retarget_timer`); after a re-plan that checked its unslowed motion
+  and had to slow it down, the next one starts from the slow-down that turned out to be needed
+  (:func:`~ipromp_pin.safety.retime.next_guess`: re-plans are 50 ms apart, and the human rarely
+  changes the needed slow-down much in between); the delay it costs is recorded. A re-plan that
   fails is not committed: the robot keeps the last safe plan and the :class:`Replan` record says
   why. A change of recognised task is handled the same way.
 
@@ -288,7 +286,6 @@ class ClosedLoopPlanner:
         self.replans: list[Replan] = []
         self._next_replan = self.start_s
         self._guess: float | None = None
-        self._guessed = False  # whether the last re-plan checked its guessed motion first
         self._stopped = ""
         self._finished = False
 
@@ -411,12 +408,10 @@ class ClosedLoopPlanner:
             return Timed(sample, got.report, got.scale, got.path)
 
         try:
-            retimed = self.suite.retime_until_safe(
-                timed, context, stop_early=True, guess=self._guess, unslowed_first=self._guessed
-            )
+            retimed = self.suite.retime_until_safe(timed, context, stop_early=True, guess=self._guess)
         except IPrompPinError as exc:
             r.reason = f"re-target failed: {exc}"
-            self._guess, self._guessed = None, False
+            self._guess = None
             return None
         finally:
             ms["retarget"] = spent[0] * 1e3
@@ -431,7 +426,7 @@ class ClosedLoopPlanner:
         r.slowdown_delay_s = float(report.arrival_s - first.arrival_s)
         record_verdicts(r, retimed.verdicts)
         r.reason = retimed.report.refusal()
-        self._guess, self._guessed = next_guess(retimed), retimed.guessed
+        self._guess = next_guess(retimed)
         return retimed.motion
 
     def close(self) -> None:

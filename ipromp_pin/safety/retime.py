@@ -11,17 +11,16 @@ the checks' first-order estimates), at most :data:`MAX_SLOWDOWN_ROUNDS` times an
 still fails.
 
 A planner that plans the same motion again and again (the closed loop, every 50 ms) may pass a
-``guess``: the slow-down its last committed motion turned out to need, at most (:func:`next_guess`). The first
-(unslowed) motion is still timed, as the base the slow-downs are counted from. With
-``unslowed_first`` false the first motion checked is the one timed ``guess`` times slower, and the
-loop goes on from there as from any other timing: a guess below what the motion needs costs the
-rounds the loop would take anyway, one above it commits a motion slower than needed. With
-``unslowed_first`` (the default) the unslowed motion is checked first, and when it fails asking for
-a slow-down, the next timing is at least ``guess`` times slower: the checks' first-order estimates
-from the unslowed motion fall short when slowing changes the path (a slowed re-target takes another
-path), and do not see that a slowed motion no longer needs to be slowed (so a planner that starts
-from its guess should check its unslowed motion first now and then: the closed loop does every
-other plan).
+``guess``: the slow-down its last committed motion turned out to need (:func:`next_guess`). The first
+(unslowed) motion is still timed, as the base the slow-downs are counted from (its samples are not
+made: :class:`Timed`), but the first motion checked is the one timed ``guess`` times slower; the loop
+goes on from there as from any other timing. A guess below what the motion needs costs the rounds
+the loop would take anyway; one above it commits a motion slower than needed. A guessed plan gives
+no guess for the next one (:func:`next_guess`): that one checks its unslowed motion first, so that a
+motion slowed for the human is sped up again at most one plan later when it no longer needs to be
+slowed (the checks' first-order estimates of how much faster would still pass,
+:attr:`~.verdict.Verdict.fits_at`, do not see it: a re-target slowed down takes another path than the
+unslowed one), and guesses do not build on guesses.
 
 A timing of the same path (the timer says so, :attr:`Timed.path`) keeps the verdicts of the checks
 that depend on the path only (:attr:`~.base.Check.depends_on`) for the decision; the committed motion
@@ -154,19 +153,18 @@ class Retimed:
 
 
 def next_guess(retimed: Retimed) -> float | None:
-    """The slow-down the next timing of a similar motion is expected to need (``guess`` of
-    :func:`retime_until_safe`): the committed slow-down, less when the checks estimate that the
-    committed motion would still pass faster (:attr:`~.verdict.Verdict.fits_at` below 1, times
-    :data:`SLOWDOWN_STEP` as for a requested slow-down), never more: a slower motion is only ever
-    asked for by a failing check (a motion that passes with little room would otherwise ratchet the
-    guess up by the step's margin from plan to plan). None when the motion was not slowed, was
-    refused, or no check estimates it."""
-    if not retimed.passed or retimed.slowdown <= 1.0:
+    """The slow-down to start the next timing of a similar motion from (``guess`` of
+    :func:`retime_until_safe`): the committed slow-down times the largest slow-down at which the
+    checks estimate the committed motion would just pass (:attr:`~.verdict.Verdict.fits_at`, below 1
+    when it passed with room), times :data:`SLOWDOWN_STEP` as for a requested slow-down. None (start
+    unslowed) when the motion was not slowed, was refused, started from a guess itself (see the
+    module docstring), or no check estimates it."""
+    if retimed.guessed or not retimed.passed or retimed.slowdown <= 1.0:
         return None
     fits = [float(v.fits_at) for v in retimed.verdicts if v.fits_at is not None and v.required]
     if not fits or not all(math.isfinite(f) for f in fits):
         return None
-    return retimed.slowdown * min(1.0, max(fits) * SLOWDOWN_STEP)
+    return retimed.slowdown * max(fits) * SLOWDOWN_STEP
 
 
 def retime_until_safe(
@@ -176,7 +174,6 @@ def retime_until_safe(
     *,
     stop_early: bool = False,
     guess: float | None = None,
-    unslowed_first: bool = True,
 ) -> Retimed:
     """Time, check, and time slower while the failing checks ask for it (see the module docstring).
 
@@ -186,25 +183,21 @@ def retime_until_safe(
         context: What the checks know.
         stop_early: Stop checking a motion at its first failure that no slow-down fixes (the closed
             loop: a refused re-plan needs no further verdicts).
-        guess: The slow-down the motion is expected to need (used when above 1; at most
+        guess: Check first the motion timed this much slower than the first (when above 1; at most
             :data:`MAX_SLOWDOWN`), e.g. :func:`next_guess` of the previous plan.
-        unslowed_first: Check the unslowed motion first, and re-time a failing one at least
-            ``guess`` times slower; else check the motion timed ``guess`` times slower first.
 
     Raises:
         InfeasibleError: the timer cannot time the first motion.
     """
     first = timer(1.0)
     base = first.scale
-    if guess is None or not math.isfinite(guess) or guess <= 1.0:
-        guess = None
-    hint = base * min(float(guess), MAX_SLOWDOWN) if guess is not None else 1.0
     cur, requested, guessed = first, 1.0, False
-    if guess is not None and not unslowed_first:
+    if guess is not None and math.isfinite(guess) and guess > 1.0:
         try:
-            cur, requested, guessed = timer(hint), hint, True
+            requested = base * min(float(guess), MAX_SLOWDOWN)
+            cur, guessed = timer(requested), True
         except InfeasibleError:
-            pass
+            cur, requested = first, 1.0
     verdicts = suite.run(cur.motion, context, stop_early=stop_early)
     path_names = suite.path_checks()
     cur_v, rounds, reused = verdicts, 1, False
@@ -213,8 +206,6 @@ def retime_until_safe(
         if k is None or k <= 1.0 or cur.scale >= base * MAX_SLOWDOWN:
             break
         requested = min(cur.scale * k * SLOWDOWN_STEP, base * MAX_SLOWDOWN)
-        if cur is first:  # the unslowed motion failed: at least as slow as the guess
-            requested = max(requested, hint)
         try:
             nxt = timer(requested)
         except InfeasibleError:

@@ -178,13 +178,10 @@ class CheckSuite:
         *,
         stop_early: bool = False,
         guess: float | None = None,
-        unslowed_first: bool = True,
     ) -> Retimed:
         """The motion ``timer`` gives, re-timed slower while its failing checks ask for it
         (:func:`~.retime.retime_until_safe`)."""
-        return retime_until_safe(
-            self, timer, context, stop_early=stop_early, guess=guess, unslowed_first=unslowed_first
-        )
+        return retime_until_safe(self, timer, context, stop_early=stop_early, guess=guess)
 
 
 __all__ = ["CHECKS", "HUMAN_CHECKS", "CheckSuite"]

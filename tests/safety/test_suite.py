@@ -225,74 +225,38 @@ def test_a_guess_checks_the_guessed_timing_first_and_the_slowdown_counts_from_th
     _, robot, _, _ = setup
     calls: list[float] = []
     check = SpeedBound(robot, 0.5)  # needs 2x slower
-    suite = CheckSuite([check])
-    out = retime_until_safe(
-        suite, _scaled_timer(robot, calls), CheckContext(), guess=2.5, unslowed_first=False
-    )
+    out = retime_until_safe(CheckSuite([check]), _scaled_timer(robot, calls), CheckContext(), guess=2.5)
     # the unslowed motion is timed (the base) but not checked: one round, at the guess
-    assert calls == [1.0, 2.5] and len(check.seen) == 1 and out.rounds == 1 and out.guessed
+    assert calls == [1.0, 2.5] and len(check.seen) == 1 and out.rounds == 1
     assert out.passed and out.slowdown == 2.5 and out.first.scale == 1.0
     # a guess below what is needed: the loop goes on from the guessed timing
     calls.clear()
     low = retime_until_safe(
-        suite, _scaled_timer(robot, calls), CheckContext(), guess=1.5, unslowed_first=False
+        CheckSuite([SpeedBound(robot, 0.5)]), _scaled_timer(robot, calls), CheckContext(), guess=1.5
     )
     assert low.passed and calls[:2] == [1.0, 1.5] and low.rounds == 2
     assert low.slowdown == pytest.approx(1.5 * (2.0 / 1.5) * SLOWDOWN_STEP)
-    # no guess (or one of at most 1): the unslowed motion is checked first, as without one
+    # no guess (or one of at most 1): the unslowed motion is checked first, as before
     calls.clear()
     plain = retime_until_safe(
-        suite, _scaled_timer(robot, calls), CheckContext(), guess=0.9, unslowed_first=False
+        CheckSuite([SpeedBound(robot, 0.5)]), _scaled_timer(robot, calls), CheckContext(), guess=0.9
     )
     assert calls[0] == 1.0 and plain.rounds == 2 and plain.slowdown == pytest.approx(2.0 * SLOWDOWN_STEP)
-    assert not plain.guessed
-
-
-def test_a_guess_after_a_failing_unslowed_motion_is_the_least_slow_down_tried(setup):
-    _, robot, _, _ = setup
-    calls: list[float] = []
-    # a check whose estimate falls short (asks for the square root of what it needs): from the
-    # unslowed motion the loop goes straight to the guess when the guess is the larger
-    short = CheckSuite([SpeedBound(robot, 0.26, power=0.5)])  # needs 3.85x, asks 1.96x unslowed
-    out = retime_until_safe(short, _scaled_timer(robot, calls), CheckContext(), guess=3.9)
-    assert calls == [1.0, 3.9] and out.passed and out.rounds == 2 and not out.guessed
-    # a guess below the checks' own estimate does not hold it back
-    calls.clear()
-    out = retime_until_safe(
-        CheckSuite([SpeedBound(robot, 0.5)]), _scaled_timer(robot, calls), CheckContext(), guess=1.2
-    )
-    assert calls == [1.0, pytest.approx(2.0 * SLOWDOWN_STEP)] and out.passed
-    # an unslowed motion that passes is committed, whatever the guess
-    calls.clear()
-    free = retime_until_safe(
-        CheckSuite([SpeedBound(robot, 3.0)]), _scaled_timer(robot, calls), CheckContext(), guess=2.0
-    )
-    assert calls == [1.0] and free.passed and free.slowdown == 1.0
 
 
 def test_the_next_guess_follows_what_the_committed_motion_needed(setup):
     _, robot, _, _ = setup
     calls: list[float] = []
-    suite = CheckSuite([SpeedBound(robot, 0.5)])  # needs 2x slower
-    # slowed from the unslowed motion: the next plan expects what it needed (2x, with the step's margin)
-    out = retime_until_safe(suite, _scaled_timer(robot, calls), CheckContext())
-    assert out.slowdown == pytest.approx(2.0 * SLOWDOWN_STEP) and next_guess(out) == pytest.approx(
-        2.0 * SLOWDOWN_STEP
+    # slowed from the unslowed motion: the next plan starts from what it needed (2x, with the step's
+    # margin)
+    out = retime_until_safe(CheckSuite([SpeedBound(robot, 0.5)]), _scaled_timer(robot, calls), CheckContext())
+    assert out.slowdown == pytest.approx(2.0 * SLOWDOWN_STEP) and not out.guessed
+    assert next_guess(out) == pytest.approx(2.0 * SLOWDOWN_STEP)
+    # a plan that started from a guess gives none: the next one checks its unslowed motion again
+    guessed = retime_until_safe(
+        CheckSuite([SpeedBound(robot, 0.5)]), _scaled_timer(robot, calls), CheckContext(), guess=2.5
     )
-    # committed slower than needed (a guess too high): the next guess is faster
-    high = retime_until_safe(
-        suite, _scaled_timer(robot, calls), CheckContext(), guess=3.0, unslowed_first=False
-    )
-    assert high.slowdown == 3.0 and next_guess(high) == pytest.approx(2.0 * SLOWDOWN_STEP)
-    # the human moved away: the check would pass much faster, and the guess goes below 1 (none)
-    roomy = retime_until_safe(
-        CheckSuite([SpeedBound(robot, 3.0)]),
-        _scaled_timer(robot, calls),
-        CheckContext(),
-        guess=2.0,
-        unslowed_first=False,
-    )
-    assert roomy.passed and next_guess(roomy) is not None and next_guess(roomy) < 1.0
+    assert guessed.guessed and guessed.passed and next_guess(guessed) is None
     # an unslowed motion, a refused one, or no estimate: no guess
     free = retime_until_safe(
         CheckSuite([SpeedBound(robot, 3.0)]), _scaled_timer(robot, calls), CheckContext()
@@ -303,15 +267,10 @@ def test_the_next_guess_follows_what_the_committed_motion_needed(setup):
         _scaled_timer(robot, calls),
         CheckContext(),
         guess=2.0,
-        unslowed_first=False,
     )
     assert not stuck.passed and next_guess(stuck) is None
     silent = retime_until_safe(
-        CheckSuite([PathCount(robot)]),
-        _scaled_timer(robot, calls),
-        CheckContext(),
-        guess=2.0,
-        unslowed_first=False,
+        CheckSuite([PathCount(robot)]), _scaled_timer(robot, calls), CheckContext(), guess=2.0
     )
     assert silent.slowdown == 2.0 and next_guess(silent) is None
 

@@ -570,6 +570,45 @@ def _block_active(
     return count
 
 
+@njit(**_JIT)
+def _pair_distance(
+    i: int,
+    m: int,
+    p: int,
+    ra: np.ndarray,
+    rb: np.ndarray,
+    rr: np.ndarray,
+    ha: np.ndarray,
+    hb: np.ndarray,
+    hr: np.ndarray,
+) -> tuple[float, tuple[float, float, float], tuple[float, float, float]]:
+    """The distance [m] of robot capsule ``m`` and body part ``p`` at sample ``i`` (negative: they
+    overlap) and the closest points of their axes [m], as :func:`capsule_distances` computes them."""
+    p1x, p1y, p1z = ra[i, m, 0], ra[i, m, 1], ra[i, m, 2]
+    d1x, d1y, d1z = rb[i, m, 0] - p1x, rb[i, m, 1] - p1y, rb[i, m, 2] - p1z
+    p2x, p2y, p2z = ha[i, p, 0], ha[i, p, 1], ha[i, p, 2]
+    d2x, d2y, d2z = hb[i, p, 0] - p2x, hb[i, p, 1] - p2y, hb[i, p, 2] - p2z
+    s, t = _closest(p1x, p1y, p1z, d1x, d1y, d1z, p2x, p2y, p2z, d2x, d2y, d2z)
+    x = (p1x + s * d1x, p1y + s * d1y, p1z + s * d1z)
+    y = (p2x + t * d2x, p2y + t * d2y, p2z + t * d2z)
+    dist = math.sqrt((x[0] - y[0]) ** 2 + (x[1] - y[1]) ** 2 + (x[2] - y[2]) ** 2) - rr[m] - hr[i, p]
+    return dist, x, y
+
+
+@njit(**_JIT)
+def _next_pair(
+    q: int, j: int, inside: bool, active: np.ndarray, n_active: int, n_pairs: int
+) -> tuple[int, int]:
+    """The next pair of a sample of :func:`separation_summary` from pair ``q`` on (``capsule * P + part``)
+    and the position ``j`` in the block's ``active`` pairs (its first ``n_active``): every pair until
+    one is within S_p (``inside``), then only the active ones; -1 after the last."""
+    if inside:
+        while j < n_active and active[j] < q:
+            j += 1
+        return (active[j], j) if j < n_active else (-1, j)
+    return (q, j) if q < n_pairs else (-1, j)
+
+
 BLOCK = 8
 """Samples per block of :func:`separation_summary`'s pair bounds (:func:`_block_active`)."""
 
@@ -604,9 +643,9 @@ def separation_summary(
     within S_p approaching faster than their ``floor``: sample, capsule, part (K,) in the order of
     ``np.nonzero``, approach speed [m/s], S_p [m] and ``J^T u`` (K, n_joints) as :func:`pair_jtu`.
 
-    Samples are visited in blocks of :data:`BLOCK`; once some pair of a sample is within S_p (which
-    decides the sample's state: every pair is visited until then), only the pairs that the block's
-    bounds do not settle are (:func:`_block_active`): the same pairs are computed as without them.
+    Samples are visited in blocks of :data:`BLOCK`; once a sample has a pair within S_p (every pair
+    is visited until then), only the pairs that the block's bounds do not settle are
+    (:func:`_block_active`): the same pairs are computed as without the blocks.
     """
     n, nl = ra.shape[0], ra.shape[1]
     npart, nj = ha.shape[1], origins.shape[1]
@@ -628,18 +667,12 @@ def separation_summary(
         inside = False
         q, j = 0, 0  # the next pair (capsule-major) and the next active one
         while True:
-            if inside:  # only the pairs the block's bounds did not settle
-                while j < n_active and active[j] < q:
-                    j += 1
-                if j == n_active:
-                    break
-                q = active[j]
-            elif q == nl * npart:
+            q, j = _next_pair(q, j, inside, active, n_active, nl * npart)
+            if q < 0:
                 break
             m, p = q // npart, q % npart
             q += 1
-            half_m, k = caps[i, m, 3], anchor[m]
-            big_r = half_m + rr[m]
+            half_m, k, big_r = caps[i, m, 3], anchor[m], caps[i, m, 3] + rr[m]
             g = (
                 caps[i, m, 0] - parts[i, 0, p],
                 caps[i, m, 1] - parts[i, 1, p],
@@ -656,14 +689,7 @@ def separation_summary(
             )
             if not (want_ratio or want_within or want_clear):
                 continue
-            p1x, p1y, p1z = ra[i, m, 0], ra[i, m, 1], ra[i, m, 2]
-            d1x, d1y, d1z = rb[i, m, 0] - p1x, rb[i, m, 1] - p1y, rb[i, m, 2] - p1z
-            p2x, p2y, p2z = ha[i, p, 0], ha[i, p, 1], ha[i, p, 2]
-            d2x, d2y, d2z = hb[i, p, 0] - p2x, hb[i, p, 1] - p2y, hb[i, p, 2] - p2z
-            s, t = _closest(p1x, p1y, p1z, d1x, d1y, d1z, p2x, p2y, p2z, d2x, d2y, d2z)
-            x = (p1x + s * d1x, p1y + s * d1y, p1z + s * d1z)
-            y = (p2x + t * d2x, p2y + t * d2y, p2z + t * d2z)
-            dist = math.sqrt((x[0] - y[0]) ** 2 + (x[1] - y[1]) ** 2 + (x[2] - y[2]) ** 2) - rr[m] - hr[i, p]
+            dist, x, y = _pair_distance(i, m, p, ra, rb, rr, ha, hb, hr)
             if nominal[p]:
                 d_nom = dist + parts[i, 5, p]
                 if d_nom < clear[i]:
@@ -681,8 +707,7 @@ def separation_summary(
                 continue
             if k_pairs == n_i.size:
                 n_i, l_i, p_i, app, sp, jtu = _grow_pairs(n_i, l_i, p_i, app, sp, jtu)
-            n_i[k_pairs], l_i[k_pairs], p_i[k_pairs] = i, m, p
-            app[k_pairs], sp[k_pairs] = v, protective
+            n_i[k_pairs], l_i[k_pairs], p_i[k_pairs], app[k_pairs], sp[k_pairs] = i, m, p, v, protective
             xs = (x[0] + rr[m] * ux, x[1] + rr[m] * uy, x[2] + rr[m] * uz)  # the closest surface point
             _surface_jtu(i, k, xs, ux, uy, uz, met, origins, axes, qd, jtu[k_pairs])
             k_pairs += 1

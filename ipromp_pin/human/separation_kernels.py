@@ -570,7 +570,7 @@ def _block_active(
     return count
 
 
-@njit(**_JIT)
+@njit(**_JIT, inline="always")
 def _pair_distance(
     i: int,
     m: int,
@@ -595,7 +595,7 @@ def _pair_distance(
     return dist, x, y
 
 
-@njit(**_JIT)
+@njit(**_JIT, inline="always")
 def _next_pair(
     q: int, j: int, inside: bool, active: np.ndarray, n_active: int, n_pairs: int
 ) -> tuple[int, int]:

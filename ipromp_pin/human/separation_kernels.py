@@ -38,7 +38,7 @@ _SLACK = 1e-9
 at metre scale)."""
 
 
-@njit(**_JIT)
+@njit(**_JIT, inline="always")
 def _closest(
     p1x: float,
     p1y: float,
@@ -223,7 +223,7 @@ def _grow_pairs(
     return out
 
 
-@njit(**_JIT)
+@njit(**_JIT, inline="always")
 def _approach_bound(
     end_v: np.ndarray, m: int, gx: float, gy: float, gz: float, g2: float, halves: float
 ) -> float:
@@ -344,7 +344,7 @@ def _part_spheres(
         out[6, p] = out[4, p] - out[5, p] + slack if nominal[p] else -np.inf
 
 
-@njit(**_JIT)
+@njit(**_JIT, inline="always")
 def _surface_approach(
     i: int,
     k: int,
@@ -438,7 +438,7 @@ def _last_sample_last(n_i: np.ndarray, last: int) -> np.ndarray:
     return order
 
 
-@njit(**_JIT)
+@njit(**_JIT, inline="always")
 def _pair_needs(
     g: tuple[float, float, float],
     g2: float,

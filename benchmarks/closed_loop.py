@@ -1,7 +1,7 @@
 """Benchmark: the re-plan cycle of the closed loop, timed on exactly what ``ipromp-pin replay`` runs.
 
 The command line is parsed by the ``replay`` command's own parser, and the set-up is the replay's
-(:func:`ipromp_pin.commands.replay.prepare_replay`: the pipeline's data and settings, the demo held
+(:func:`ipromp_pin.app.replay.prepare_replay`: the pipeline's data and settings, the demo held
 out, the model trained on every other demo with the robot's kinematics, or taken from the model
 cache, the limit profile, the checks primed on the training motions). The held-out demo is then
 replayed ``--replays`` times after one warm-up replay (:func:`~ipromp_pin.planning.closed_loop.replay_demo`,
@@ -44,9 +44,9 @@ from typing import Any
 
 import numpy as np
 
-from ipromp_pin.cli import build_parser
-from ipromp_pin.cli.arguments import closed_loop_settings, pipeline_config
-from ipromp_pin.commands.replay import prepare_replay
+from ipromp_pin.app import build_parser
+from ipromp_pin.app.arguments import closed_loop_settings, pipeline_config
+from ipromp_pin.app.session import prepare_replay
 from ipromp_pin.promp import IProMP
 from ipromp_pin.readers.synthetic import make_synthetic_dataset
 from ipromp_pin.safety import CheckSuite

@@ -1,6 +1,6 @@
 """Benchmark: the first minute of a new user, ``ipromp-pin run pipelines/baxter_handover.toml``.
 
-Runs the README's first command (the ``ipromp-pin run`` part, as ``python -m ipromp_pin.cli run``,
+Runs the README's first command (the ``ipromp-pin run`` part, as ``python -m ipromp_pin.app run``,
 preview included) in fresh processes and measures, per run, the wall time to the command's exit and
 the CPU time of the command's process (user + system):
 
@@ -56,7 +56,7 @@ def run_once(
 ) -> dict[str, float | str]:
     """One ``ipromp-pin run`` of ``tree`` in a new process (``extra``: more arguments): wall and CPU
     time in [s], and its output."""
-    command = [sys.executable, "-m", "ipromp_pin.cli", "run", "pipelines/baxter_handover.toml", *extra]
+    command = [sys.executable, "-m", "ipromp_pin.app", "run", "pipelines/baxter_handover.toml", *extra]
     env = {**env, "PYTHONPATH": str(tree)}
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()

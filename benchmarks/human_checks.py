@@ -52,14 +52,6 @@ def _human(demo, settings) -> HumanMotion:
     return human
 
 
-def _hand(demo) -> np.ndarray | None:
-    hand = demo.extras.get("hand_position")
-    if hand is None:
-        return None
-    ok = np.flatnonzero(np.all(np.isfinite(hand), axis=1))
-    return hand[ok[-1]] if ok.size else None
-
-
 def _one(model, robot, checks, demo, observe, ratio) -> dict:
     obs = demo.head(ratio, groups=observe)
     t_end = float(obs.t[-1] - obs.t[0])
@@ -77,9 +69,7 @@ def _one(model, robot, checks, demo, observe, ratio) -> dict:
         costs.append((time.perf_counter() - t0) * 1e3)
     cost_ms = float(np.median(costs))
     truth = checks.run(motion, CheckContext(human=recorded))
-    after = plan(
-        model, robot, obs, checks, CheckContext(human=known, hand_position_m=_hand(demo)), check_joints=False
-    )
+    after = plan(model, robot, obs, checks, CheckContext(human=known), check_joints=False)
     out = {
         "demo": f"{demo.task}/{demo.name}",
         "human": known.label,

@@ -27,8 +27,8 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from ipromp_pin import atomic
-from ipromp_pin.commands.config import PipelineConfig
-from ipromp_pin.commands.setup import choose_demo, get_model, load_data
+from ipromp_pin.app.config import PipelineConfig
+from ipromp_pin.app.session import choose_demo, get_model, load_data
 from ipromp_pin.outputs.report import report_dict, report_text
 from ipromp_pin.outputs.staging import OutputOptions, stage_plan, stage_report
 from ipromp_pin.planning.one_shot import plan

@@ -22,7 +22,7 @@ from threadpoolctl import threadpool_limits
 
 import ipromp_pin.promp.compiled as compiled
 from ipromp_pin import IProMP
-from ipromp_pin.promp.head import WindowSummary
+from ipromp_pin.promp.window import WindowSummary
 from ipromp_pin.readers.synthetic import make_synthetic_dataset
 
 STREAM_KERNELS = ("stream_sample", "sherman_morrison", "stream_group", "finish_soa", "recognition")
@@ -107,11 +107,12 @@ def streaming_stages(model: IProMP, obs, passes: int = 30) -> dict[str, float]:
     kernels = compiled.numba_kernels()  # the streaming kernels are the compiled ones on every backend
     timed = _TimedKernels(kernels)
     previous = compiled.set_kernel_backend("numba")
-    compiled._state["numba"] = timed  # the streams created below call the timed kernels
+    # the streams created below call the timed kernels
+    compiled._state["modules"][(compiled.INFERENCE, "numba")] = timed
     try:
         updates = stream_update_times(model, obs, passes)
     finally:
-        compiled._state["numba"] = kernels
+        compiled._state["modules"][(compiled.INFERENCE, "numba")] = kernels
         compiled.set_kernel_backend(previous)
     n = len(updates) + 2 * passes  # every update calls the kernels, the first two included
     out = {"update (median)": float(np.median(updates)) * 1e6}

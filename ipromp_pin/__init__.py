@@ -20,6 +20,7 @@ from .version import __version__
 
 if TYPE_CHECKING:
     from .data import ROBOT, Dataset, Demo
+    from .plans import HandoverPlan, plan
     from .promp import IProMP, Prediction, Recognition, StreamingEstimator
 
 _LAZY = {
@@ -30,6 +31,8 @@ _LAZY = {
     "Prediction": "promp",
     "Recognition": "promp",
     "StreamingEstimator": "promp",
+    "plan": "plans",
+    "HandoverPlan": "plans",
 }
 """Names imported on first use: the model's modules take 2-3 s to import (numpy, scipy, numba), which
 ``import ipromp_pin`` (and so ``ipromp-pin --help``, or a Ctrl-C during start-up) need not wait for."""
@@ -48,6 +51,8 @@ __all__ = [
     "__version__",
     "ROBOT",
     "IProMP",
+    "HandoverPlan",
+    "plan",
     "Prediction",
     "Recognition",
     "StreamingEstimator",

@@ -208,6 +208,24 @@ class Demo:
             )
         return self.slice(n, groups)
 
+    def until(self, t_s: float, groups: Iterable[str] | None = None) -> Demo:
+        """The samples of the first ``t_s`` [s] from the demo's start: what is observed online after
+        ``t_s`` seconds, whatever the demo's length (:meth:`head` cuts a fraction of it, which needs
+        the whole recording's length).
+
+        Raises:
+            ObservationError: ``t_s`` is not positive and finite, or leaves fewer than 2 samples.
+        """
+        t_s = float(t_s)
+        if not (np.isfinite(t_s) and t_s > 0.0):
+            raise ObservationError(self.source, "until_s", f"must be a positive time in [s], got {t_s}")
+        n = int(np.searchsorted(self.t, self.t[0] + t_s + 1e-9, side="right"))
+        if n < 2:
+            raise ObservationError(
+                self.source, "until_s", f"the first {t_s:g} s of the recording hold fewer than 2 samples"
+            )
+        return self.slice(n, groups)
+
     def slice(self, n: int, groups: Iterable[str] | None = None) -> Demo:
         """First ``n`` samples of the demo (restricted to ``groups``)."""
         keep = list(self.groups) if groups is None else list(groups)
@@ -222,6 +240,55 @@ class Demo:
             missing={g: self.missing[g][:n] for g in keep if g in self.missing},
             extras={k: v[:n] for k, v in self.extras.items()},
             duration_s=self.duration_s,
+        )
+
+
+DEFAULT_WINDOW_FRACTION = 0.2
+"""The observation window when none is given: this fraction of the model's nominal duration (the
+mean length of its training demos), a time a robot knows before the motion starts."""
+
+
+@dataclass(frozen=True)
+class ObservationWindow:
+    """How much of a recording is observed: its first ``until_s`` seconds; or, offline only, its first
+    ``ratio`` of its own length (the paper's protocol: that length is known once the motion is over);
+    or, with neither, the first ``nominal_fraction`` of the model's nominal duration.
+
+    Attributes:
+        until_s: Seconds from the recording's start [s] (None: not by time).
+        ratio: Fraction of the recording's duration in (0, 1] (None: not by fraction).
+        nominal_fraction: The fraction of the nominal duration when neither is given.
+    """
+
+    until_s: float | None = None
+    ratio: float | None = None
+    nominal_fraction: float = DEFAULT_WINDOW_FRACTION
+
+    def end_s(self, nominal_s: float) -> float | None:
+        """The window's end [s] from the start (None for a ``ratio`` window: it depends on the
+        recording); ``nominal_s``: the model's nominal duration [s]."""
+        if self.ratio is not None:
+            return None
+        return self.until_s if self.until_s is not None else self.nominal_fraction * float(nominal_s)
+
+    def cut(self, demo: Demo, groups: Iterable[str] | None, nominal_s: float) -> Demo:
+        """The observed part of ``demo`` (restricted to ``groups``); all of it when the window reaches
+        past its end."""
+        if self.ratio is not None:
+            return demo.head(self.ratio, groups)
+        end = self.end_s(nominal_s)
+        assert end is not None
+        return demo.until(end, groups)
+
+    def text(self, nominal_s: float) -> str:
+        """The window in words, e.g. ``first 0.64 s (20% of the model's nominal 3.20 s)``."""
+        if self.ratio is not None:
+            return f"first {self.ratio:.0%} of each recording"
+        if self.until_s is not None:
+            return f"first {self.until_s:.2f} s"
+        return (
+            f"first {self.nominal_fraction * nominal_s:.2f} s ({self.nominal_fraction:.0%} of the model's "
+            f"nominal {nominal_s:.2f} s)"
         )
 
 

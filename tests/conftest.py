@@ -65,7 +65,7 @@ def handover2017_dir(datasets_dir: Path) -> Path:
 def tiny(tmp_path_factory) -> tuple[Path, Path]:
     """A native dataset of 2 tasks x 4 synthetic demos and a model trained on it, built once per session:
     (dataset folder, model file). Tests read them and never change them."""
-    from ipromp_pin.cli import main  # imported here: after IPROMP_PIN_KERNELS is set above
+    from ipromp_pin.app import main  # imported here: after IPROMP_PIN_KERNELS is set above
 
     root = tmp_path_factory.mktemp("tiny")
     assert main(["synth", str(root / "ds"), "--tasks", "2", "--demos", "4"]) == 0

@@ -3,9 +3,12 @@
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
-from ipromp_pin.cli import main
+from ipromp_pin.app import main
+from ipromp_pin.planning.one_shot import PlanResult
+from ipromp_pin.safety import CheckContext, CheckReport, CheckSuite
 
 PROJECT_ROOT = Path(__file__).resolve().parents[1]
 PIPELINE = PROJECT_ROOT / "pipelines" / "baxter_handover.toml"
@@ -26,3 +29,12 @@ def one_error_line(err: str) -> str:
     errors = [ln for ln in lines if ": error: " in ln]
     assert len(errors) == 1, err
     return errors[0]
+
+
+def without_uncertainty(result: PlanResult, suite: CheckSuite) -> PlanResult:
+    """``result`` as if the prediction had given no uncertainty (``suite``'s check skipped)."""
+    check = suite.get("uncertainty")
+    assert check is not None
+    skipped = check.check(result.trajectory, CheckContext())
+    verdicts = [skipped if v.name == "uncertainty" else v for v in result.checks]
+    return dataclasses.replace(result, checks=CheckReport(verdicts))

@@ -39,10 +39,22 @@ EXPECTED = {
     "inference.py": [r"(?m)^paper\s+\d+\s+12\s", r"speed-up \d+x", r"task accuracy [\d.]+"],
     "model_load.py": [r"this checkout:\s+[\d.]+ ms", r"paired difference \(this - other\): median"],
     "pipeline.py": [r"total \(observation->files\)\s+[\d.]+"],
+    "plan_batch.py": [
+        r"per recording \(--jobs 1, warm, no preview\): median [\d.]+ s",
+        r"batch wall time: --jobs 1 [\d.]+ s, --jobs 2 [\d.]+ s: [\d.]+x faster",
+    ],
     "read_formats.py": [r"rosbag2 \(MCAP\)\s+[\d.]+ ms", r"rosbag2 \(SQLite\)\s+[\d.]+ ms"],
     "profile_update.py": [r"(?m)^  total\s+[\d.]+", r"stream_group \(per update\)\s+[\d.]+"],
     "speed_margin_cv.py": [r"(?m)^0\.1 \| 8 \| 0 \| 0 \| [\d.]+ \|", r"chosen: speed_margin = 0"],
     "settings_cv.py": [r"(?m)^log_groups= pooling=0\.0\s+0\.2\s+[\d.]+"],
+    "kernel_gains.py": [
+        r"(?m)^  part_stats\s+\d+\s+[\d.]+ ->\s+[\d.]+",
+        r"full update, 20 % observed",
+    ],
+    "sklearn_models.py": [
+        r"logistic regression \(head\): \d+ fits, [\d.]+ -> [\d.]+ s",
+        r"k nearest neighbours \(hand-over\): \d+ fits, [\d.]+ -> [\d.]+ s",
+    ],
 }
 """Benchmark -> patterns its smoke run must print (its result lines)."""
 

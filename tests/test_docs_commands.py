@@ -8,7 +8,7 @@ import re
 import shlex
 from pathlib import Path
 
-from ipromp_pin.cli import main
+from ipromp_pin.app import main
 
 DOCS = Path(__file__).resolve().parents[1] / "docs"
 

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from helpers_cli import PIPELINE, ROBOT_FILE, one_error_line
 
-from ipromp_pin.cli import main
+from ipromp_pin.app import main
 from ipromp_pin.readers.native import read_demo, write_demo
 from ipromp_pin.readers.synthetic import make_synthetic_dataset
 

@@ -79,7 +79,7 @@ def test_installed_copy_runs_the_main_job_from_another_folder(installed):
     work.mkdir()
     env = _env(site)
     probe = (
-        "import json, ipromp_pin, ipromp_pin.commands.config as p\n"
+        "import json, ipromp_pin, ipromp_pin.app.config as p\n"
         "from ipromp_pin.robot import ROBOTS_DIR, load_robot\n"
         "robot = load_robot('baxter_left')\n"
         "print(json.dumps({'package': ipromp_pin.__file__, 'robots': str(ROBOTS_DIR),\n"
@@ -95,7 +95,7 @@ def test_installed_copy_runs_the_main_job_from_another_folder(installed):
 
     out = work / "out"
     run = _run(
-        [sys.executable, "-m", "ipromp_pin.cli", "run", "baxter_handover", "--out", "out", "--no-preview"],
+        [sys.executable, "-m", "ipromp_pin.app", "run", "baxter_handover", "--out", "out", "--no-preview"],
         cwd=work,
         env={**env, "IPROMP_PIN_KERNELS": "numpy"},  # what a first run uses: nothing to compile
     )
@@ -104,10 +104,10 @@ def test_installed_copy_runs_the_main_job_from_another_folder(installed):
     report = json.loads((out / "report.json").read_text())
     assert report["format"] == "ipromp_pin.report" and report["trajectory"]
     # the run imported the installed modules (installed without .pyc files, so these are the run's)
-    assert list((site / "ipromp_pin" / "cli" / "__pycache__").glob("run.*.pyc"))
-    assert list((site / "ipromp_pin" / "commands" / "__pycache__").glob("config.*.pyc"))
+    assert list((site / "ipromp_pin" / "app" / "__pycache__").glob("run.*.pyc"))
+    assert list((site / "ipromp_pin" / "app" / "__pycache__").glob("config.*.pyc"))
     assert list((site / "ipromp_pin" / "planning" / "__pycache__").glob("one_shot.*.pyc"))
-    assert list((site / "ipromp_pin" / "commands" / "__pycache__").glob("run.*.pyc"))
+    assert list((site / "ipromp_pin" / "app" / "__pycache__").glob("session.*.pyc"))
     assert list((site / "ipromp_pin" / "safety" / "__pycache__").glob("suite.*.pyc"))
     # and no inference or human-separation kernel was compiled (the self-collision certifier's small
     # kernel, about 1.5 s to compile, is the one the run's self_collision check compiles)

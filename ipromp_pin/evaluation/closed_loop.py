@@ -19,11 +19,10 @@ Each cell gains, over all its test trials (recognised or not): ``closed_loop_han
 
 from __future__ import annotations
 
-from functools import partial
 from pathlib import Path
 
 from ..data import Dataset
-from ..robot import ee_positions, load_robot
+from ..robot import gripper_kinematics, load_robot
 from ..robot.objects import ObjectTable
 from ..shipped import DEFAULT_ROBOT
 from .cells import ClosedLoopCell
@@ -74,6 +73,6 @@ def evaluate_closed_loop(
     config.check_protocol()
     loaded = load_robot(robot)
     scorer = ClosedLoopScorer(loaded, options, config.model_params, Path(str(dataset.root)).name, objects)
-    extras = [BaselineScorer(partial(ee_positions, loaded))] if config.baselines else []
+    extras = [BaselineScorer(gripper_kinematics(loaded).fk)] if config.baselines else []
     cells = run_protocol(dataset, config, scorer, extras, progress, jobs)
     return [c for c in cells if isinstance(c, ClosedLoopCell)]

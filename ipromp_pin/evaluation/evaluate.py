@@ -28,12 +28,11 @@ one-shot evaluation's entry point (:func:`evaluate`) and keeps the names it has 
 from __future__ import annotations
 
 from collections.abc import Callable
-from functools import partial
 
 import numpy as np
 
 from ..data import Dataset
-from ..robot import ee_positions, gripper_rotations, load_robot
+from ..robot import gripper_kinematics, load_robot
 from ..robot.objects import ObjectTable
 from ..shipped import DEFAULT_ROBOT
 from .cells import PROBABILITY_FLOOR, Cell, cell_fields, summarise
@@ -75,19 +74,13 @@ __all__ = [
 def robot_fk(robot: str | None) -> Callable[[np.ndarray], np.ndarray] | None:
     """Forward kinematics of the robot settings ``robot`` (name or file): joint configurations
     (n, 7) in [rad] -> gripper positions (n, 3) in [m]; ``None`` for no robot."""
-    if robot is None:
-        return None
-    loaded = load_robot(robot)
-    return lambda q: ee_positions(loaded, q)
+    return None if robot is None else gripper_kinematics(load_robot(robot)).fk
 
 
 def robot_fk_rotations(robot: str | None) -> Callable[[np.ndarray], np.ndarray] | None:
     """Gripper rotations of the robot settings ``robot``: joint configurations (n, 7) in [rad] ->
     rotation matrices (n, 3, 3); ``None`` for no robot."""
-    if robot is None:
-        return None
-    loaded = load_robot(robot)
-    return partial(gripper_rotations, loaded)
+    return None if robot is None else gripper_kinematics(load_robot(robot)).fk_rot
 
 
 def evaluate(

@@ -1,6 +1,7 @@
 """The jobs of an evaluation (one model fit each: a split, a training size, an observed set) and
-the pool that runs them. Worker processes receive their state (the dataset and the scorers) from
-the pool's initializer once, at their start; nothing is read from the parent's module state."""
+the pool that runs them, or any other jobs (a plan batch's recordings: :mod:`ipromp_pin.plans.batch`).
+Worker processes receive their state (e.g. the dataset and the scorers) from the pool's initializer
+once, at their start; nothing is read from the parent's module state."""
 
 from __future__ import annotations
 
@@ -8,7 +9,7 @@ import multiprocessing as mp
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, field
-from typing import Protocol, TypeVar
+from typing import Any, Protocol, TypeVar
 
 from threadpoolctl import threadpool_limits
 
@@ -18,6 +19,8 @@ from .splits import Indices, iter_splits
 
 J = TypeVar("J")
 R = TypeVar("R")
+JobT = TypeVar("JobT", contravariant=True)
+ResultT = TypeVar("ResultT", covariant=True)
 
 
 @dataclass
@@ -91,19 +94,20 @@ def run_jobs(
             yield f.result()
 
 
-class Worker(Protocol):
-    """What runs a job in a worker (see :class:`~.protocol.ProtocolWorker`)."""
+class Worker(Protocol[JobT, ResultT]):
+    """What runs a job in a worker (see :class:`~.protocol.ProtocolWorker`,
+    :class:`~ipromp_pin.plans.batch.PlanWorker`)."""
 
-    def run_job(self, job: Job) -> JobResult:
-        """Fit and score one job."""
+    def run_job(self, job: JobT) -> ResultT:
+        """Run one job (e.g. fit and score)."""
         ...
 
-    def for_one_job(self) -> Worker:
+    def for_one_job(self) -> Worker[JobT, ResultT]:
         """A worker for one job that shares nothing mutable with this one (threads of a Dask worker)."""
         ...
 
 
-_installed: list[Worker] = []
+_installed: list[Worker[Any, Any]] = []
 """This worker process's worker, installed by the pool initializer (empty in the parent)."""
 
 
@@ -115,28 +119,28 @@ def single_threaded_blas() -> None:
     threadpool_limits(limits=1, user_api="blas")
 
 
-def install_worker(worker: Worker) -> None:
+def install_worker(worker: Worker[Any, Any]) -> None:
     """Pool initializer: make ``worker`` the one :func:`run_installed` uses in this process, with
     :func:`single_threaded_blas`."""
     single_threaded_blas()
     _installed[:] = [worker]
 
 
-def installed_worker() -> Worker | None:
+def installed_worker() -> Worker[Any, Any] | None:
     """This process's installed worker (None in the parent process and in a serial run)."""
     return _installed[0] if _installed else None
 
 
-def run_installed(job: Job) -> JobResult:
+def run_installed(job: Any) -> Any:
     """Run ``job`` with this process's installed worker."""
     return _installed[0].run_job(job)
 
 
 class JobRunner(Protocol):
-    """Where an evaluation's jobs run: :class:`LocalPool` (this machine's processes) or a cluster
+    """Where jobs run: :class:`LocalPool` (this machine's processes) or a cluster
     (:class:`~.dask_cluster.DaskCluster`). The results never depend on it."""
 
-    def run(self, worker: Worker, work: Sequence[Job]) -> Iterator[JobResult]:
+    def run(self, worker: Worker[J, R], work: Sequence[J]) -> Iterator[R]:
         """``worker.run_job`` over the jobs (results in completion order)."""
         ...
 
@@ -147,7 +151,7 @@ class LocalPool:
 
     jobs: int = 1
 
-    def run(self, worker: Worker, work: Sequence[Job]) -> Iterator[JobResult]:
+    def run(self, worker: Worker[J, R], work: Sequence[J]) -> Iterator[R]:
         """``worker.run_job`` over the jobs (:func:`run_worker_jobs`)."""
         return run_worker_jobs(worker, work, self.jobs)
 
@@ -157,7 +161,7 @@ def runner_of(jobs: int | JobRunner) -> JobRunner:
     return LocalPool(jobs) if isinstance(jobs, int) else jobs
 
 
-def run_worker_jobs(worker: Worker, work: Sequence[Job], jobs: int) -> Iterator[JobResult]:
+def run_worker_jobs(worker: Worker[J, R], work: Sequence[J], jobs: int) -> Iterator[R]:
     """``worker.run_job`` over the jobs: in this process when ``jobs`` <= 1, else in ``jobs`` worker
     processes, each given ``worker`` by the pool initializer (results in completion order)."""
     if jobs <= 1 or len(work) <= 1:

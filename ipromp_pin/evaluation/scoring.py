@@ -22,6 +22,9 @@ included; the checks before execution never use it):
 * **the human** (recordings with a tracked skeleton): the human checks of the run's suite judged
   against the recorded human motion (every sample known; :class:`HumanMeasures`), and the arrival
   delay of the same replay without the human checks;
+* a **planned** hand-over's measures against its recording (:func:`recorded_scores`, the scores of
+  ``run`` and ``plan`` when the recording has its future): hand-over position and orientation
+  errors, and the gripper's distance from the recorded hand where it was last seen;
 * the **one-shot** trial's measures (:func:`score_trial`): recognition, joint errors, hand-over
   position and orientation errors of a prediction, also for the unconditioned prior.
 """
@@ -40,6 +43,7 @@ from ..exceptions import InfeasibleError
 from ..human import HumanMotion
 from ..motion.trajectory import JointLimits, Trajectory
 from ..planning.closed_loop import ClosedLoopResult
+from ..planning.one_shot import PlanResult
 from ..planning.timers import path_timer
 from ..promp import Prediction, handover_orientation
 from ..robot import Robot, ee_positions, frame_placements
@@ -74,6 +78,51 @@ def handover_orientation_error_deg(robot: Robot, q_commanded: np.ndarray, q_reco
     configuration (n_joints,) [rad], e.g. at the hand-over."""
     rot = frame_placements(robot, np.stack([q_commanded, q_recorded]))[1]
     return float(geodesic_deg(rot[0], rot[1]))
+
+
+# --------------------------------------------------------------------------------------------------
+# A planned hand-over against its recording
+# --------------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class RecordedScores:
+    """A planned hand-over measured against the whole recording it was planned from (None: the
+    recording lacks what the measure needs).
+
+    Attributes:
+        handover_error_cm: The planned gripper position at rest vs the recorded robot's at the
+            recording's end, [cm].
+        handover_orientation_error_deg: The planned vs the recorded gripper rotation there, [deg].
+        hand_distance_m: The planned gripper at rest vs the human hand's last recorded position, [m].
+        recorded_duration_s: The recording's duration, [s].
+    """
+
+    handover_error_cm: float | None
+    handover_orientation_error_deg: float | None
+    hand_distance_m: float | None
+    recorded_duration_s: float
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-serialisable form."""
+        return asdict(self)
+
+
+def recorded_scores(result: PlanResult, recording: Demo, robot: Robot) -> RecordedScores:
+    """``result`` (planned from the first part of ``recording``) measured against the recording."""
+    q_end = result.trajectory.q[-1]
+    truth = recording.groups.get(ROBOT)
+    error = orientation = hand = None
+    if truth is not None and len(truth):
+        p = ee_positions(robot, np.stack([q_end, truth[-1]]))
+        error = float(np.linalg.norm(p[0] - p[1]) * 100.0)
+        orientation = handover_orientation_error_deg(robot, q_end, truth[-1])
+    path = recording.extras.get("hand_position")
+    if path is not None:
+        seen = np.flatnonzero(np.all(np.isfinite(path), axis=1))
+        if seen.size:
+            hand = float(np.linalg.norm(ee_positions(robot, q_end)[0] - path[seen[-1]]))
+    return RecordedScores(error, orientation, hand, float(recording.t[-1] - recording.t[0]))
 
 
 # --------------------------------------------------------------------------------------------------

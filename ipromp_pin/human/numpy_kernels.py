@@ -3,7 +3,7 @@
 Same functions, arguments, results and shapes as :mod:`ipromp_pin.human.separation_kernels`, written
 as batched numpy operations over all samples and pairs (loops only over the arm's joints): the same
 arithmetic up to the order of summation, so results agree to rounding (the tests hold both to 1e-9).
-Nothing to compile; :func:`ipromp_pin.human.kernels.human_kernels` chooses between them.
+Nothing to compile; the kernel switch (:func:`ipromp_pin.promp.compiled.kernels`) chooses between them.
 """
 
 from __future__ import annotations

@@ -305,7 +305,7 @@ class SeparationAnalyser:
         need = (dist < protective) & (approach > floor[None, None, :])
         if not np.any(need):
             return
-        n_i, l_i, p_i = np.nonzero(need)
+        n_i, l_i, p_i = (np.ascontiguousarray(i) for i in np.nonzero(need))  # the kernel's one signature
         w = kernels.pair_jtu(n_i, l_i, p_i, cr, unit, caps.radius_m, origins, axes, caps.anchor, qd)  # J^T u
         r, m_r = self.pair_ratios(n_i, p_i, w, approach[n_i, l_i, p_i], q, human)
         mass[n_i, l_i, p_i] = m_r

@@ -93,7 +93,8 @@ def summarise(
     q = np.ascontiguousarray(q, dtype=float)
     qd = np.ascontiguousarray(qd, dtype=float)
     origins, axes, ra, rb = arm_kinematics(caps, q)
-    ha, hb, hr = human.capsules(t)
+    ha, hb, hr = human.capsules(t)  # C-ordered below: the kernels' one signature (the warm-up's)
+    ha, hb = np.ascontiguousarray(ha), np.ascontiguousarray(hb)
     if not (np.all(np.isfinite(ha)) and np.all(np.isfinite(hb)) and np.all(np.isfinite(hr))):
         raise DataError(human.source or "human", "body capsules", "non-finite position or radius")
     hr = np.ascontiguousarray(hr)

@@ -1,6 +1,6 @@
-"""The human kernels compiled through the real code path, for the background compile
-(:func:`ipromp_pin.promp.compiled.register_warmup` names this module; :mod:`ipromp_pin.human.kernels`
-registers it)."""
+"""The human kernels compiled through the real code path: the human set's part of the one warm-up
+(``python -m ipromp_pin.promp.warmup``; :mod:`ipromp_pin.human.kernels` registers the set with this
+module as its warm-up)."""
 
 from __future__ import annotations
 

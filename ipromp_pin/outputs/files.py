@@ -20,6 +20,9 @@ RUN = "run"
 REPLAY = "replay"
 """Command name of ``ipromp-pin replay``."""
 
+PLAN = "plan"
+"""Command name of ``ipromp-pin plan`` (its files in each recording's folder)."""
+
 T = TypeVar("T")
 
 
@@ -45,16 +48,16 @@ def _row(name: str, key: str, trajectory: bool, *commands: str) -> OutputFile:
 
 
 OUTPUT_FILES: tuple[OutputFile, ...] = (
-    _row("trajectory.csv", "trajectory_csv", True, RUN, REPLAY),
-    _row("trajectory.json", "trajectory_json", True, RUN, REPLAY),
-    _row("retreat.csv", "retreat_csv", True, RUN),
-    _row("rosbag", "rosbag", True, RUN),
-    _row("run.bag", "ros1_bag", True, RUN),
+    _row("trajectory.csv", "trajectory_csv", True, RUN, REPLAY, PLAN),
+    _row("trajectory.json", "trajectory_json", True, RUN, REPLAY, PLAN),
+    _row("retreat.csv", "retreat_csv", True, RUN, PLAN),
+    _row("rosbag", "rosbag", True, RUN, PLAN),
+    _row("run.bag", "ros1_bag", True, RUN, PLAN),
     _row("replans.json", "replans", False, REPLAY),
-    _row("report.json", "report", False, RUN, REPLAY),
-    _row("report.txt", "report_text", False, RUN, REPLAY),
+    _row("report.json", "report", False, RUN, REPLAY, PLAN),
+    _row("report.txt", "report_text", False, RUN, REPLAY, PLAN),
     _row("limits.toml", "limits", False, REPLAY),
-    _row("preview.html", "preview", False, RUN, REPLAY),
+    _row("preview.html", "preview", False, RUN, REPLAY, PLAN),
     _row("prediction.png", "plot_prediction", False, RUN),
     _row("phase_posterior.png", "plot_phase", False, RUN),
     _row("distributions.png", "plot_distributions", False, RUN),
@@ -66,15 +69,15 @@ FILE_KEYS: dict[str, str] = {f.name: f.key for f in OUTPUT_FILES}
 """File name -> key of the report's ``files``."""
 
 
-def command_outputs(command: str) -> tuple[str, ...]:
-    """The names of every file ``command`` may write (its :class:`~ipromp_pin.atomic.OutputSet`'s
-    managed names), in table order."""
-    return tuple(f.name for f in OUTPUT_FILES if command in f.commands)
+def trajectory_outputs(command: str | None = None) -> tuple[str, ...]:
+    """The names of the files a robot executes (of ``command``, or of any), in table order."""
+    return tuple(f.name for f in OUTPUT_FILES if f.trajectory and (command is None or command in f.commands))
 
 
-def trajectory_outputs(command: str) -> tuple[str, ...]:
-    """The names of the files of ``command`` that a robot executes, in table order."""
-    return tuple(f.name for f in OUTPUT_FILES if command in f.commands and f.trajectory)
+ALL_OUTPUTS: tuple[str, ...] = tuple(f.name for f in OUTPUT_FILES)
+"""Every file any command writes into an output folder. Each command's output set manages them all
+(:class:`~ipromp_pin.atomic.OutputSet`): after a command the folder holds its files only, whatever
+wrote there before (a replay into a run's folder removes the run's retreat and bags)."""
 
 
 def keyed(files: Mapping[str, T]) -> dict[str, T]:

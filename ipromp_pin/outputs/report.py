@@ -9,6 +9,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..data import Demo
+from ..evaluation.scoring import RecordedScores
 from ..planning.one_shot import PlanResult
 from ..planning.retreat import RetreatResult
 from ..safety.joint_torques import TorqueMeasures
@@ -16,7 +17,7 @@ from ..safety.joint_torques import TorqueMeasures
 REPORT_FORMAT = "ipromp_pin.report"
 """Value of ``report.json``'s ``format`` field."""
 
-REPORT_VERSION = 1
+REPORT_VERSION = 2
 """Value of ``report.json``'s ``version`` field."""
 
 
@@ -27,11 +28,10 @@ def arrival(result: PlanResult) -> dict[str, float]:
     ``robot_s`` when it comes to rest at the hand-over (start + trajectory duration) and ``delay_s``
     = robot minus human (positive: the robot arrives after the human, who waits)."""
     p = result.prediction
-    start = float(p.observed_until_s)
     robot = result.trajectory.end_s
     return {
         "human_s": float(p.duration_s),
-        "robot_start_s": start,
+        "robot_start_s": result.trajectory.start_s,
         "robot_s": robot,
         "delay_s": robot - float(p.duration_s),
     }
@@ -57,18 +57,20 @@ def report_dict(
     result: PlanResult,
     observation: Demo | None = None,
     warnings: list[str] | None = None,
-    handover_orientation_error_deg: float | None = None,
     retreat: RetreatResult | None = None,
+    scores: RecordedScores | None = None,
 ) -> dict:
-    """The machine-readable pipeline report (JSON-serialisable; schema:
-    ``ipromp_pin/schemas/report.schema.json``); ``handover_orientation_error_deg``: the commanded vs
-    the recorded gripper orientation at the hand-over, in [deg], when the observed demo is recorded;
-    ``retreat``: the segment after the hand-over (its section; its failures fail ``passed``)."""
+    """The machine-readable report of a planned hand-over (JSON-serialisable; schema:
+    ``ipromp_pin/schemas/report.schema.json``); ``retreat``: the segment after the hand-over (its
+    section; its failures fail ``passed``); ``scores``: the plan measured against the whole
+    recording, when it has its future (``run`` on a dataset's demo, ``plan`` of a recorded demo).
+    Every time is on the human's clock (t = 0 at the start of the human's motion)."""
     p = result.prediction
     torques = next((v.measures for v in result.checks if isinstance(v.measures, TorqueMeasures)), None)
     return {
         "format": REPORT_FORMAT,
         "version": REPORT_VERSION,
+        "clock": "t = 0 at the start of the human's motion",
         "recognised_task": p.task,
         "posterior": {t: float(v) for t, v in zip(p.tasks, p.posterior, strict=True)},
         "alpha": {t: float(v) for t, v in zip(p.tasks, p.alpha, strict=True)},
@@ -84,7 +86,7 @@ def report_dict(
         "retreat": None if retreat is None else retreat.to_dict(),
         "stage_ms": {k: round(v, 3) for k, v in result.stage_ms.items()},
         "warnings": list(warnings or []),
-        "handover_orientation_error_deg": handover_orientation_error_deg,
+        "scores": None if scores is None else scores.to_dict(),
         "peak_torque_ratio": None if torques is None else torques.peak_torque_ratio,
     }
 
@@ -116,19 +118,38 @@ def checks_text(result: PlanResult) -> str:
     return "\n".join(lines + result.checks.lines())
 
 
+def scores_lines(scores: RecordedScores) -> list[str]:
+    """The scores against the recording, a line each (for ``report.txt`` and the preview)."""
+    lines = []
+    if scores.handover_error_cm is not None:
+        lines.append(
+            f"Against the recording ({scores.recorded_duration_s:.2f} s): gripper "
+            f"{scores.handover_error_cm:.1f} cm from the recorded robot's hand-over position"
+        )
+    if scores.handover_orientation_error_deg is not None:
+        lines.append(orientation_line(scores.handover_orientation_error_deg))
+    if scores.hand_distance_m is not None:
+        lines.append(
+            f"Gripper at rest {scores.hand_distance_m * 1e3:.0f} mm from the recorded hand's last position"
+        )
+    return lines
+
+
 def report_text(
     result: PlanResult,
     observation: Demo | None = None,
     warnings: list[str] | None = None,
     retreat: RetreatResult | None = None,
-    handover_orientation_error_deg: float | None = None,
+    scores: RecordedScores | None = None,
 ) -> str:
-    """The human-readable report: warnings, recognition, feasibility checks and trajectory verification
-    (and the hand-over orientation error in [deg], when the observed demo is recorded)."""
+    """The human-readable report: warnings, recognition, the arrival, the scores against the
+    recording (when scored), the checks and the trajectory's verification."""
     p = result.prediction
     lines = [f"Warning: {w}" for w in warnings or []]
     if observation is not None:
-        lines.append(f"Observed: {observation.task}/{observation.name} ({observation.source})")
+        lines.append(
+            f"Observed: {observation.task or '(no task label)'}/{observation.name} ({observation.source})"
+        )
     lines.append(
         f"Recognised task: {p.task}; posterior "
         + ", ".join(f"{t} {v:.3f}" for t, v in zip(p.tasks, p.posterior, strict=True))
@@ -138,10 +159,10 @@ def report_text(
         f"(observed {p.observed_until_s:.2f} s)"
     )
     lines.append(arrival_line(result))
-    if handover_orientation_error_deg is not None:
-        lines.append(orientation_line(handover_orientation_error_deg))
+    if scores is not None:
+        lines += scores_lines(scores)
     lines.append(
-        f"Times in the checks are on the human's motion (t = 0 at its start); the robot moves from "
+        f"Every time is on the human's motion (t = 0 at its start); the robot moves from "
         f"{result.trajectory.start_s:.2f} s to {result.trajectory.end_s:.2f} s"
     )
     lines.append(checks_text(result))

@@ -2,17 +2,18 @@
 ``retreat`` member of ``trajectory.json``.
 
 ``retreat.csv`` has the columns of ``trajectory.csv`` (:mod:`ipromp_pin.outputs.trajectory_files`;
-read it with :func:`~ipromp_pin.outputs.trajectory_files.read_trajectory_csv`), times from 0 at the
-hand-over, the approach's last sample. In ``trajectory.json`` the approach stays the envelope's
+read it with :func:`~ipromp_pin.outputs.trajectory_files.read_trajectory_csv`), its first sample the
+approach's last (the hand-over). In ``trajectory.json`` the approach stays the envelope's
 ``message`` (existing readers read it unchanged); the retreat is a second ``JointTrajectory`` beside
 it::
 
-    {"format": "ipromp_pin.trajectory", "version": 2, ...,
-     "retreat": {"start_after_s": 2.4, "dwell_s": 0.5, "target": "start", "message": {JointTrajectory}},
+    {"format": "ipromp_pin.trajectory", "version": 3, ...,
+     "retreat": {"start_s": 7.85, "dwell_s": 0.5, "target": "start", "message": {JointTrajectory}},
      "message": {JointTrajectory of the approach}}
 
-``start_after_s`` [s] is when the retreat starts on the approach's clock (its duration); the retreat's
-``time_from_start`` runs from 0 there. :func:`read_retreat_json` reads it back.
+Every time is on the human's clock, as the approach's: ``start_s`` [s] is when the retreat starts
+(the hand-over) and its ``time_from_start`` (and ``retreat.csv``'s ``time_s``) run on from there.
+:func:`read_retreat_json` reads it back.
 """
 
 from __future__ import annotations
@@ -37,21 +38,21 @@ class RetreatSegment:
     """The retreat as the files hold it.
 
     Attributes:
-        trajectory: Its samples (times from 0 at the hand-over).
-        start_after_s: When it starts on the approach's clock [s] (the approach's duration).
+        trajectory: Its samples (times on the human's clock, from the hand-over).
+        start_s: When it starts [s] on the human's clock (the hand-over: the approach's last sample).
         dwell_s: Its first part, holding still at the hand-over [s].
         target: The kind of its target (``start``, ``joints``, ``position``).
     """
 
     trajectory: Trajectory
-    start_after_s: float
+    start_s: float
     dwell_s: float
     target: str
 
     def member(self, frame_id: str = "", ros: int = 2) -> dict:
         """The ``retreat`` member of ``trajectory.json`` (its message with ROS ``ros`` field names)."""
         return {
-            "start_after_s": float(self.start_after_s),
+            "start_s": float(self.start_s),
             "dwell_s": float(self.dwell_s),
             "target": self.target,
             "message": trajectory_to_ros(self.trajectory, frame_id, ros=ros),

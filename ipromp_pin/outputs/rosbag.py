@@ -94,7 +94,8 @@ class BagContent:
     """What goes into the bag.
 
     Attributes:
-        trajectory: The timed trajectory (joint names, positions [rad], velocities [rad/s], ...).
+        trajectory: The timed trajectory (joint names, positions [rad], velocities [rad/s], ...; times
+            on the human's clock: t = 0 at the start of the human's motion).
         plan_time_s: When the plan is published, in [s] from the start of the human's motion (the
             end of the observation).
         handover_pose: (7,) the predicted hand-over pose: position x, y, z [m] and quaternion x, y,
@@ -105,7 +106,7 @@ class BagContent:
         failures: None when the trajectory passed its checks, else the failed checks: the robot's
             topics then go under :data:`FAILED_PREFIX` and a ``std_msgs/String`` on
             :data:`TOPIC_CHECKS` (and the rosbag2 custom data ``ipromp_pin.checks``) says so.
-        retreat: The segment after the hand-over (times from 0 at the hand-over), or None.
+        retreat: The segment after the hand-over (times on the human's clock), or None.
     """
 
     trajectory: Trajectory
@@ -282,16 +283,18 @@ def bag_messages(content: BagContent, ros1: bool = False) -> list[BagMessage]:
         out.extend(_human_messages(b, content.observation, start, content.base_frame))
     out.append(BagMessage(TOPIC_CHECKS, STRING, start, b.t[STRING](data=checks_text(content))))
     topics = [robot_topic(t, content) for t in (TOPIC_TRAJECTORY, TOPIC_HANDOVER_POSE, TOPIC_JOINT_STATES)]
-    out.append(BagMessage(topics[0], JOINT_TRAJECTORY, plan_ns, b.joint_trajectory(traj, plan_ns)))
+    # every time on the human's clock: the messages' header stamp is the start of the human's motion,
+    # their points' times from it, the joint states stamped at their sample's time
+    out.append(BagMessage(topics[0], JOINT_TRAJECTORY, plan_ns, b.joint_trajectory(traj, start)))
     out.append(
         BagMessage(topics[1], POSE_STAMPED, plan_ns, b.pose_stamped(plan_ns, content.base_frame, pose))
     )
-    out.extend(_joint_states(b, topics[2], traj, plan_ns))
+    out.extend(_joint_states(b, topics[2], traj, start))
     if content.retreat is not None:
-        ho_ns = plan_ns + _ns(traj.t_s[-1])
+        ho_ns = start + _ns(traj.t_s[-1])
         topic = robot_topic(TOPIC_RETREAT, content)
-        out.append(BagMessage(topic, JOINT_TRAJECTORY, ho_ns, b.joint_trajectory(content.retreat, ho_ns)))
-        out.extend(_joint_states(b, topics[2], content.retreat, ho_ns, first=1))
+        out.append(BagMessage(topic, JOINT_TRAJECTORY, ho_ns, b.joint_trajectory(content.retreat, start)))
+        out.extend(_joint_states(b, topics[2], content.retreat, start, first=1))
     out.sort(key=lambda m: m.stamp_ns)
     return out
 

@@ -94,6 +94,8 @@ def stage_trajectory(
     if retreat is not None:
         extra = {**(extra or {}), RETREAT_KEY: retreat.member(ros=ros)}
         out.write_text(RETREAT_CSV, trajectory_csv_text(retreat.trajectory, comment))
+    clock = {"t0": "start of the human's motion", "robot_start_s": float(trajectory.t_s[0])}
+    extra = {"clock": clock, **(extra or {})}
     out.write_text("trajectory.json", trajectory_json_text(trajectory, ros=ros, extra=extra))
     if bag is not None and rosbag:
         write_rosbag2(bag, out.stage_dir("rosbag"))
@@ -126,12 +128,7 @@ def retreat_segment(result: PlanResult, retreat: RetreatResult | None) -> Retrea
     """The retreat of ``result`` as the files hold it (None without one)."""
     if retreat is None:
         return None
-    return RetreatSegment(
-        retreat.trajectory.shifted(-retreat.start_s),
-        result.trajectory.duration_s,
-        retreat.target.dwell_s,
-        retreat.target.kind,
-    )
+    return RetreatSegment(retreat.trajectory, retreat.start_s, retreat.target.dwell_s, retreat.target.kind)
 
 
 def stage_plan(
@@ -145,10 +142,10 @@ def stage_plan(
 ) -> bool:
     """Stage the trajectory files and the bags of a planned hand-over (:func:`stage_trajectory`; the
     bags as ``options`` say), with its ``retreat`` as their second segment; returns whether they were
-    staged (the retreat's failed checks fail the files as the approach's do). The files' times run
-    from the robot's start (the retreat's from the hand-over); the bags stamp them from the plan's
-    publication."""
-    approach = result.trajectory.shifted(-result.start_s)
+    staged (the retreat's failed checks fail the files as the approach's do). Every time in them is
+    on the human's clock (t = 0 at the start of the human's motion; the robot starts at
+    ``result.start_s``), as in the reports."""
+    approach = result.trajectory
     bag = None
     if options.rosbag or options.ros1_bag:
         bag = BagContent(
@@ -157,7 +154,7 @@ def stage_plan(
             handover_pose=result.handover_pose,
             base_frame=options.base_frame,
             observation=observation,
-            retreat=None if retreat is None else retreat.trajectory.shifted(-retreat.start_s),
+            retreat=None if retreat is None else retreat.trajectory,
         )
     return stage_trajectory(
         out,

@@ -7,12 +7,19 @@ JSON: the message with the field names of ROS 2 ``trajectory_msgs/msg/JointTraje
 or of ROS 1 ``trajectory_msgs/JointTrajectory`` (``ros=1``), inside a small envelope that says
 which::
 
-    {"format": "ipromp_pin.trajectory", "version": 2, "ros": 2,
+    {"format": "ipromp_pin.trajectory", "version": 3, "ros": 2,
      "type": "trajectory_msgs/msg/JointTrajectory",
+     "clock": {"t0": "start of the human's motion", "robot_start_s": 0.64},
      "message": {"header": {"stamp": {"sec": 0, "nanosec": 0}, "frame_id": ""},
                  "joint_names": [...],
                  "points": [{"positions": [...], "velocities": [...], "accelerations": [...],
                              "effort": [], "time_from_start": {"sec": 1, "nanosec": 250000000}}, ...]}}
+
+Every time is on the human's clock: ``time_from_start`` counts from the start of the human's
+motion (the header's stamp is 0: "now" for a controller that receives it then), so the first point,
+the robot at rest, comes at ``clock.robot_start_s``, when the observation ended and the robot starts.
+A controller that receives it only then subtracts ``robot_start_s``. ``trajectory.csv``'s ``time_s``
+is on the same clock.
 
 ROS 1 form: ``"ros": 1``, ``"type": "trajectory_msgs/JointTrajectory"``, a header with ``seq`` and
 times as ``{"secs": .., "nsecs": ..}``. ``message`` is exactly the message (no other keys), so
@@ -127,7 +134,7 @@ def read_trajectory_csv(path: str | Path) -> Trajectory:
 TRAJECTORY_FORMAT = "ipromp_pin.trajectory"
 """Value of ``trajectory.json``'s ``format`` field."""
 
-TRAJECTORY_VERSION = 2
+TRAJECTORY_VERSION = 3
 """Value of ``trajectory.json``'s ``version`` field (1: the bare ROS 1 message, no envelope)."""
 
 ROS_TYPES = {1: "trajectory_msgs/JointTrajectory", 2: "trajectory_msgs/msg/JointTrajectory"}

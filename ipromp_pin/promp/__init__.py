@@ -13,9 +13,13 @@ The estimator is :class:`IProMP` (:mod:`.estimator`; its parameters and their co
 - :mod:`.latent_blocks`, :mod:`.likelihood`: the exact batched likelihood of every (task, phase);
 - :mod:`.posterior`: task and phase posteriors (:class:`Recognition`, :class:`Prediction`);
 - :mod:`.conditioning`: the conditioned robot trajectory and its covariance;
-- :mod:`.predictor`: the above bundled for one fitted model; :mod:`.streaming`: sample by sample;
+- :mod:`.predictor`: the above bundled for one fitted model; :mod:`.streaming`: sample by sample
+  (its running sums per presence pattern: :mod:`.stream_parts`);
+- :mod:`.window`: the observed window's summary (first, mean and last valid value per dim);
+- :mod:`.head`, :mod:`.handover`: the recognition head and the hand-over regression;
 - :mod:`.reference`: the textbook implementation the fast one is tested against;
-- :mod:`.compiled` / ``_kernels``: the numba kernels, imported on first use.
+- :mod:`.compiled`: the one switch of every kernel set (``_kernels``: the numba kernels, imported on
+  first use; ``numpy_kernels``: their numpy version); :mod:`.warmup`: the one warm-up.
 """
 
 from .basis import GaussianBasis

@@ -1,30 +1,36 @@
-"""Which implementation of the inference kernels a process uses: :func:`kernels` is the one entry point.
+"""The one switch between the package's compiled kernels and their numpy versions: :func:`kernels`.
 
-Two implementations with the same functions and results (to rounding: the tests hold them to 1e-9):
+Every set of numba kernels registers here (:func:`register_kernel_set`): the inference kernels
+(``"inference"``: :mod:`ipromp_pin.promp._kernels`, numpy version :mod:`ipromp_pin.promp.numpy_kernels`)
+and the human checks' (``"human"``: :mod:`ipromp_pin.human.separation_kernels` and
+:mod:`ipromp_pin.human.numpy_kernels`, registered by :mod:`ipromp_pin.human.kernels`). Both versions
+of a set have the same functions and results (to rounding: the tests hold them to 1e-9). One backend
+holds for every set:
 
-* ``"numba"``: the compiled kernels (:mod:`ipromp_pin.promp._kernels`). Importing :mod:`ipromp_pin`
-  does not import numba; the kernels module is imported when an inference first needs it and its
-  machine code is loaded from numba's on-disk cache, or compiled on the very first use of a fresh
-  install (about 20 s, once; announced through :func:`set_announcer`).
-* ``"numpy"``: the same kernels in plain numpy (:mod:`ipromp_pin.promp.numpy_kernels`): nothing to
-  compile or load, a little slower per call on large problems.
+* ``"numba"``: the compiled kernels. Importing :mod:`ipromp_pin` does not import numba; a set's
+  module is imported when it is first needed and its machine code is loaded from numba's on-disk
+  cache, or compiled on the very first use of a fresh install (announced through :func:`set_announcer`).
+* ``"numpy"``: the numpy versions: nothing to compile or load, slower per call (docs/first-minute.md).
+* ``"auto"``: per set, decided once per process at its first use: the compiled kernels when numba's
+  cache holds them, else the numpy version for the whole process while one background process
+  (:func:`start_background_compile`: ``python -m ipromp_pin.promp.warmup``, the one warm-up, which
+  compiles every registered set) fills the cache for the next runs. A fresh install's first run does
+  not wait for the compile, and a process never mixes the two versions of a set.
 
-The backend is ``$IPROMP_PIN_KERNELS`` when set, else ``"numba"`` for library use; the short
-commands (``ipromp-pin run``, ``preview``, ``train``) use ``"auto"``: decided once per process, at
-its first inference, the compiled kernels when numba's cache already holds them, else the numpy
-kernels for the whole process while a background process (``python -m ipromp_pin.promp.warmup``,
-detached, at low priority, one at a time) compiles them into the cache for the next runs. So a
-fresh install's first run does not wait for the compile, and a process never mixes the two.
+The backend is ``$IPROMP_PIN_KERNELS`` when set, else ``"numba"`` for library use; the short commands
+(``ipromp-pin run``, ``preview``, ``train``, ``synth``) use ``"auto"``.
 """
 
 from __future__ import annotations
 
 import contextlib
+import importlib
 import os
 import subprocess
 import sys
 import time
 from collections.abc import Callable, Iterator
+from dataclasses import dataclass
 from pathlib import Path
 from types import ModuleType
 
@@ -33,12 +39,16 @@ __all__ = [
     "BACKEND_ENV",
     "COMPILE_SECONDS",
     "FIT_PREDICT_KERNELS",
-    "compiled_kernels_cached",
+    "INFERENCE",
+    "KernelSet",
     "active_backend",
+    "compiled_kernels_cached",
     "kernel_backend",
+    "kernel_sets",
     "kernels",
+    "kernels_cached",
     "numba_kernels",
-    "register_warmup",
+    "register_kernel_set",
     "set_announcer",
     "set_kernel_backend",
     "start_background_compile",
@@ -52,8 +62,10 @@ BACKEND_ENV = "IPROMP_PIN_KERNELS"
 """Environment variable choosing the backend (overrides the library's and the command line's default)."""
 
 COMPILE_SECONDS = 20
-"""Announced duration in [s] of the one-time compile (measured: 17-20 s on one core, see
-``benchmarks/first_minute.py``)."""
+"""Announced duration in [s] of the one-time compile of the inference kernels (docs/first-minute.md)."""
+
+INFERENCE = "inference"
+"""Name of the inference kernels' set."""
 
 FIT_PREDICT_KERNELS = (
     "part_stats",
@@ -70,18 +82,60 @@ FIT_PREDICT_KERNELS = (
     "prediction_cov",
     "readout_update",
 )
-"""The kernels that fitting and prediction call (streaming adds ``stream_sample``, ``sherman_morrison``,
-``stream_group``, ``add_sample``, ``basis_rows``)."""
+"""The inference kernels that fitting and prediction call (streaming adds ``stream_sample``,
+``sherman_morrison``, ``stream_group``, ``add_sample``, ``basis_rows``)."""
 
+
+@dataclass(frozen=True)
+class KernelSet:
+    """A set of numba kernels and its numpy version.
+
+    Attributes:
+        compiled: The numba kernels' module (imported on first use).
+        numpy: The numpy version's module.
+        names: The kernels whose cache entries say that the set is compiled.
+        warmup: The module whose ``compile_kernels()`` compiles the set through the real code paths
+            (run by the warm-up, ``python -m ipromp_pin.promp.warmup``).
+        label: What the notices call the set, e.g. "inference kernels".
+    """
+
+    compiled: str
+    numpy: str
+    names: tuple[str, ...]
+    warmup: str
+    label: str
+
+
+_sets: dict[str, KernelSet] = {}
 _state: dict = {
     "backend": os.environ.get(BACKEND_ENV) or "numba",
-    "numba": None,  # the compiled kernels module once imported
-    "numpy": None,
-    "auto_numpy": False,  # auto mode decided on the numpy kernels for this process
+    "modules": {},  # (set, "numba" | "numpy") -> module, once imported
+    "auto": {},  # set -> the version "auto" decided on in this process
+    "announced": set(),  # sets whose cold compile was announced
     "announce": None,
-    "announced_compile": False,
-    "warmups": [],  # modules whose compile_kernels() the background compile also runs
 }
+
+
+def register_kernel_set(name: str, kernel_set: KernelSet) -> None:
+    """Register a set of kernels under ``name`` (the package that owns them does, at import)."""
+    _sets[name] = kernel_set
+
+
+def kernel_sets() -> dict[str, KernelSet]:
+    """The registered kernel sets, by name."""
+    return dict(_sets)
+
+
+register_kernel_set(
+    INFERENCE,
+    KernelSet(
+        "ipromp_pin.promp._kernels",
+        "ipromp_pin.promp.numpy_kernels",
+        FIT_PREDICT_KERNELS,
+        "ipromp_pin.promp.warmup",
+        "inference kernels",
+    ),
+)
 
 
 def set_announcer(announce: Callable[[str], None] | None) -> None:
@@ -105,7 +159,7 @@ def set_kernel_backend(backend: str) -> str:
         raise ValueError(f"unknown kernel backend {backend!r} (use one of {', '.join(BACKENDS)})")
     previous = _state["backend"]
     _state["backend"] = backend
-    _state["auto_numpy"] = False  # "auto" decides afresh at its next first inference
+    _state["auto"] = {}  # "auto" decides afresh at each set's next first use
     return previous
 
 
@@ -119,86 +173,84 @@ def use_kernels(backend: str) -> Iterator[None]:
         set_kernel_backend(previous)
 
 
-def active_backend() -> str:
-    """``"numba"`` or ``"numpy"``: what :func:`kernels` uses in this process (deciding ``"auto"`` now if
-    no inference has yet). Other packages' kernels follow it, so that a process never mixes them."""
-    return "numpy" if kernels() is _state["numpy"] else "numba"
+def kernels(name: str = INFERENCE) -> ModuleType:
+    """The kernels module of set ``name`` for the current backend (see the module docstring)."""
+    backend = active_backend(name)
+    module = _state["modules"].get((name, backend))
+    return module if module is not None else _load(name, backend)
 
 
-def register_warmup(module: str) -> None:
-    """Have the background compile also run ``module``'s ``compile_kernels()`` (another package's
-    numba kernels, e.g. ``"ipromp_pin.human.warmup"``), after the inference kernels."""
-    if module not in _state["warmups"]:
-        _state["warmups"].append(module)
+def active_backend(name: str = INFERENCE) -> str:
+    """``"numba"`` or ``"numpy"``: what :func:`kernels` uses for set ``name`` in this process
+    (deciding ``"auto"`` now if the set was not used yet)."""
+    backend = _state["backend"]
+    return backend if backend != "auto" else _state["auto"].get(name) or _decide(name)
 
 
-def _numpy_module() -> ModuleType:
-    if _state["numpy"] is None:
-        from . import numpy_kernels
-
-        _state["numpy"] = numpy_kernels
-    return _state["numpy"]
+def numba_kernels(name: str = INFERENCE) -> ModuleType:
+    """The compiled kernels module of set ``name``, whatever the backend (announcing a compile the
+    cache lacks)."""
+    return _load(name, "numba")
 
 
-def _numba_module(announce_compile: bool = True) -> ModuleType:
-    if _state["numba"] is None:
-        from . import _kernels  # deferred: numba is heavy and only inference needs it
-
-        _state["numba"] = _kernels
-        if announce_compile and not _state["announced_compile"] and not compiled_kernels_cached():
-            _state["announced_compile"] = True
-            _say(
-                f"[kernels] compiling the inference kernels (up to about {COMPILE_SECONDS} s, once; "
-                "cached on disk for the next runs)"
-            )
-    return _state["numba"]
-
-
-def numba_kernels() -> ModuleType:
-    """The compiled kernels module, whatever the backend (announcing a compile the cache lacks)."""
-    return _state["numba"] or _numba_module()
-
-
-def compiled_kernels_cached(names: tuple[str, ...] = FIT_PREDICT_KERNELS) -> bool:
-    """Whether numba's on-disk cache holds valid machine code of the kernels ``names`` (for this
-    source, numba and Python version): then loading them takes a fraction of a second. Imports numba."""
-    from . import _kernels
-
+def kernels_cached(name: str = INFERENCE, names: tuple[str, ...] | None = None) -> bool:
+    """Whether numba's on-disk cache holds valid machine code of the kernels ``names`` (default: the
+    set's own list) of set ``name`` (for this source, numba and Python version): then loading them
+    takes a fraction of a second. Imports numba."""
+    kernel_set = _sets[name]
+    module = importlib.import_module(kernel_set.compiled)
     try:
-        return all(len(getattr(_kernels, n)._cache._cache_file._load_index()) > 0 for n in names)
+        return all(
+            len(getattr(module, n)._cache._cache_file._load_index()) > 0 for n in names or kernel_set.names
+        )
     except Exception:  # numba's cache internals changed: assume a compile is needed
         return False
 
 
-def kernels() -> ModuleType:
-    """The kernels module of the current backend (see the module docstring)."""
-    backend = _state["backend"]
-    if backend == "numba":
-        return _state["numba"] or _numba_module()
-    if backend == "numpy":
-        return _state["numpy"] or _numpy_module()
-    return _auto()
+def compiled_kernels_cached(names: tuple[str, ...] = FIT_PREDICT_KERNELS) -> bool:
+    """:func:`kernels_cached` of the inference kernels ``names``."""
+    return kernels_cached(INFERENCE, names)
 
 
-def _auto() -> ModuleType:
-    """Decided once per process: compiled kernels when cached, else numpy (and compile them apart)."""
-    if _state["numba"] is not None:
-        return _state["numba"]
-    if _state["auto_numpy"]:
-        return _state["numpy"]
-    if compiled_kernels_cached():
-        return _numba_module(announce_compile=False)
-    started = start_background_compile()
-    _say(
-        "[kernels] the inference kernels are not compiled yet: this run uses their numpy version"
-        + (
-            f"; compiling them in the background for the next runs (about {COMPILE_SECONDS} s, once)"
-            if started
-            else f" (a compile is running, or failed within a day: see its log in {_lock_path().parent})"
+def _load(name: str, backend: str) -> ModuleType:
+    """Set ``name``'s module of ``backend`` (imported once; a cold compile announced once per set)."""
+    key = (name, backend)
+    if key not in _state["modules"]:
+        kernel_set = _sets[name]
+        if backend == "numba":
+            if name not in _state["announced"] and not kernels_cached(name):
+                _state["announced"].add(name)
+                seconds = f"up to about {COMPILE_SECONDS} s" if name == INFERENCE else "a few seconds"
+                _say(
+                    f"[kernels] compiling the {kernel_set.label} ({seconds}, once; cached on disk for "
+                    "the next runs)"
+                )
+        _state["modules"][key] = importlib.import_module(
+            kernel_set.compiled if backend == "numba" else kernel_set.numpy
         )
-    )
-    _state["auto_numpy"] = True
-    return _numpy_module()
+    return _state["modules"][key]
+
+
+def _decide(name: str) -> str:
+    """The version ``"auto"`` takes for set ``name`` in this process: compiled when cached, else numpy
+    (and the kernels compiled apart, announced once per process)."""
+    if kernels_cached(name):
+        _state["announced"].add(name)  # loaded, not compiled: nothing to announce
+        choice = "numba"
+    else:
+        choice = "numpy"
+        if not any(v == "numpy" for v in _state["auto"].values()):  # the first set found uncompiled
+            started = start_background_compile()
+            log = _lock_path().parent
+            why = (
+                f"; compiling them in the background for the next runs (about {COMPILE_SECONDS} s, once)"
+                if started
+                else f" (a compile is running, or failed within a day: see its log in {log})"
+            )
+            label = _sets[name].label
+            _say(f"[kernels] the {label} are not compiled yet: this run uses their numpy version{why}")
+    _state["auto"][name] = choice
+    return choice
 
 
 def _lock_path() -> Path:
@@ -215,9 +267,10 @@ def _lock_is_stale(lock: Path, max_age_s: float = 600.0) -> bool:
 
 
 def start_background_compile() -> bool:
-    """Start ``python -m ipromp_pin.promp.warmup`` detached (output in the cache folder's
-    ``kernels/compile.log``), unless one is running (its lock is less than 10 min old) or a compile
-    failed within the last 24 h. Returns whether one was started."""
+    """Start the warm-up (``python -m ipromp_pin.promp.warmup``, compiling every registered set)
+    detached, at low priority (output in the cache folder's ``kernels/compile.log``), unless one is
+    running (its lock is less than 10 min old) or a compile failed within the last 24 h. Returns
+    whether one was started."""
     lock = _lock_path()
     failed = lock.with_name("compile.failed")
     try:
@@ -239,9 +292,10 @@ def start_background_compile() -> bool:
             options["creationflags"] = getattr(subprocess, "DETACHED_PROCESS", 0) | getattr(
                 subprocess, "CREATE_NEW_PROCESS_GROUP", 0
             )
+        others = [s.warmup for n, s in _sets.items() if n != INFERENCE]
         subprocess.Popen(
             [sys.executable, "-m", "ipromp_pin.promp.warmup", "--lock", str(lock)]
-            + [f"--also={m}" for m in _state["warmups"]],
+            + [f"--also={m}" for m in others],
             stdin=subprocess.DEVNULL,
             stdout=log,
             stderr=subprocess.STDOUT,

@@ -17,7 +17,7 @@ with, per task,
   (M = J, joint space);
 * features: the mean and the last value over the observed window of each dim of the groups coupled
   to the robot, or of every observed group (chosen by cross-validation; scaled units;
-  :class:`~ipromp_pin.promp.head.WindowSummary`);
+  :class:`~ipromp_pin.promp.window.WindowSummary`);
 * the regression: per observed fraction (:data:`RATIOS`) a ridge regression ``y = W x + c`` or a
   k-nearest-neighbour regression (:func:`fit_knn`), whichever has the smaller leave-one-out squared
   error summed over the tasks at that fraction, on the task's training demos (targets: their
@@ -44,8 +44,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .head import WindowSummary
 from .head_features import interpolation
+from .window import WindowSummary, window_features
 
 RATIOS = (0.1, 0.2, 0.4, 0.6, 0.8)
 """Observed fractions at which the regressions are fitted."""
@@ -70,13 +70,6 @@ NEIGHBOUR_ARRAYS = (
 
 JACOBIAN_STEP_RAD = 1e-6
 """Step of the central finite differences of the forward kinematics, in [rad]."""
-
-
-def window_features(window: np.ndarray, dims: np.ndarray) -> np.ndarray:
-    """Regression features (2 F,): the mean and the last value of the dims ``dims`` of a window summary
-    ((3, D_o) or its (3 D_o,) vector: first, mean and last values, scaled units)."""
-    values = np.asarray(window, dtype=float).reshape(3, -1)
-    return values[1:, dims].reshape(-1)
 
 
 @dataclass(frozen=True)

@@ -34,16 +34,15 @@ from .handover import (
     fit_ridge,
     neighbour_arrays,
     readouts,
-    window_features,
 )
 from .handover_orientation import FKRot, OrientationEstimate, conditioned
-from .head import WindowSummary
 from .head_features import interpolation
 from .noise_path import RobotPrior, part_spectrum, robot_paths, robot_prior
 from .observation import ObservationEncoder
 from .orientation_selection import FinalRow, choose_orientation
 from .selection import HeldOutRow, cv_observations, held_out
 from .training import PhaseSettings, TrainingSet, coupling_blocks
+from .window import WindowSummary, window_features
 
 
 @dataclass(frozen=True)

@@ -10,23 +10,22 @@ combines both in one multinomial logistic regression fitted on held-out training
 ``log p(k | obs) = log softmax_k( b_k + W_k^T x )``,
 ``x = ((first, mean, last, g) - m) / s``
 
-with, per observed dim (scaled units, :class:`~ipromp_pin.promp.distribution.ChannelScaler`), the
-first, mean and last valid value of the observed window (:class:`WindowSummary`; a dim without a
-sample is at its training mean, 0), and ``g`` the generative log posterior of every task clipped at
-:data:`LOG_POSTERIOR_CLIP`. ``m``, ``s`` standardise the features on the training rows. ``W``, ``b``
-minimise the mean log loss plus ``||W||^2 / (2 C n)``. The rows are the held-out demos of the
-leave-one-out cross-validation (:mod:`~ipromp_pin.promp.selection`), each observed at several
+with, per observed dim (scaled units, :class:`~ipromp_pin.promp.distribution.ChannelScaler`), the first,
+mean and last valid value of the observed window (:class:`~ipromp_pin.promp.window.WindowSummary`; a dim
+without a sample is at its training mean, 0), and ``g`` the generative log posterior of every task
+clipped at :data:`LOG_POSTERIOR_CLIP`. ``m``, ``s`` standardise the features on the training rows.
+``W``, ``b`` minimise the mean log loss plus ``||W||^2 / (2 C n)``. The rows are the held-out demos of
+the leave-one-out cross-validation (:mod:`~ipromp_pin.promp.selection`), each observed at several
 fractions (:data:`~ipromp_pin.promp.selection.HEAD_RATIOS`), so ``g`` is what the model says about a
 demo it was not fitted on. There is one regression per observed fraction. Each is chosen by grouped
-cross-validation of the log loss (the rows of one demo in one fold, scored on the rows of its
-fraction; :func:`fit_head`) among: a multinomial logistic regression (its ``C`` among
-:data:`HEAD_C_GRID`) or a linear discriminant analysis (class means and a pooled covariance with
-Ledoit-Wolf shrinkage, its logits scaled by a temperature among :data:`LDA_TEMPERATURE_GRID`, which
-calibrates them), on all the features or on the window features alone (the weights of ``g`` are then
-0), trained on the rows of its fraction or on the rows of every fraction. Both are linear in ``x``,
-so inference is the same for all. Online the fraction is unknown: the logits of the two regressions
-around the expected observed fraction under the generative posterior (:func:`observed_fraction`)
-are interpolated linearly.
+cross-validation of the log loss (the rows of one demo in one fold, scored on the rows of its fraction;
+:func:`fit_head`) among: a multinomial logistic regression (its ``C`` among :data:`HEAD_C_GRID`) or a
+linear discriminant analysis (class means and a pooled covariance with Ledoit-Wolf shrinkage, its logits
+scaled by a temperature among :data:`LDA_TEMPERATURE_GRID`, which calibrates them), on all the features
+or on the window features alone (the weights of ``g`` are then 0), trained on the rows of its fraction
+or on the rows of every fraction. Both are linear in ``x``, so inference is the same for all. Online the
+fraction is unknown: the logits of the two regressions around the expected observed fraction under the
+generative posterior (:func:`observed_fraction`) are interpolated linearly.
 
 The phase posterior, the MAP phase and the robot's conditioned prediction are not changed by the
 head; it only decides the task posterior.
@@ -37,11 +36,11 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.optimize import minimize
 
 from .compiled import kernels
 from .head_features import LOG_POSTERIOR_CLIP, interpolation
-from .lbfgs import minimize_lbfgs
-from .observation import ObservationPart
+from .window import WindowSummary
 
 HEAD_C_GRID = (0.01, 0.03, 0.1, 0.3, 1.0, 3.0, 10.0, 100.0)
 """Candidate inverse penalties ``C`` of the head."""
@@ -52,67 +51,12 @@ LDA_TEMPERATURE_GRID = (0.1, 0.2, 0.3, 0.5, 0.7, 1.0)
 HEAD_FOLDS = 5
 """Folds of the head's grouped cross-validation."""
 
+SOFTMAX_MAX_ITER = 500
+"""Largest number of L-BFGS iterations of one logistic regression (scipy's other L-BFGS-B options at
+their defaults: ``gtol`` 1e-5, ``ftol`` 2.2e-9, 10 correction pairs)."""
+
 LOGISTIC, LDA = 0, 1
 """Codes of the head's model families (:attr:`RecognitionHead.kind`)."""
-
-
-@dataclass(frozen=True)
-class WindowSummary:
-    """First, mean and last valid value of every observed dim over an observed window (scaled units).
-
-    Attributes:
-        values: (3, D_o) rows: the first, mean and last values; 0 (the training mean) for a dim
-            without a sample.
-    """
-
-    values: np.ndarray
-
-    @property
-    def first(self) -> np.ndarray:
-        """(D_o,) first valid values."""
-        return self.values[0]
-
-    @property
-    def mean(self) -> np.ndarray:
-        """(D_o,) mean values."""
-        return self.values[1]
-
-    @property
-    def last(self) -> np.ndarray:
-        """(D_o,) last valid values."""
-        return self.values[2]
-
-    @classmethod
-    def from_parts(cls, parts: list[ObservationPart], n_obs: int) -> WindowSummary:
-        """Summary of encoded observation parts (dims ``0 .. n_obs - 1``)."""
-        if len(parts) == 1 and parts[0].dims.size == n_obs and parts[0].t.size:
-            y = parts[0].y
-            out = np.empty((3, n_obs))
-            dims = parts[0].dims
-            out[0, dims] = y[0]
-            out[1, dims] = y.mean(axis=0)
-            out[2, dims] = y[-1]
-            return cls(out)
-        first, last, total = np.zeros(n_obs), np.zeros(n_obs), np.zeros(n_obs)
-        count = np.zeros(n_obs)
-        t_first, t_last = np.full(n_obs, np.inf), np.full(n_obs, -np.inf)
-        for p in parts:
-            if p.t.size == 0:
-                continue
-            d = p.dims
-            early = p.t[0] < t_first[d]
-            first[d] = np.where(early, p.y[0], first[d])
-            t_first[d] = np.where(early, p.t[0], t_first[d])
-            late = p.t[-1] > t_last[d]
-            last[d] = np.where(late, p.y[-1], last[d])
-            t_last[d] = np.where(late, p.t[-1], t_last[d])
-            total[d] += p.y.sum(axis=0)
-            count[d] += p.t.size
-        return cls(np.stack([first, np.divide(total, count, out=np.zeros(n_obs), where=count > 0), last]))
-
-    def vector(self) -> np.ndarray:
-        """(3 D_o,) first, mean and last values side by side."""
-        return self.values.reshape(-1)
 
 
 @dataclass(frozen=True)
@@ -205,18 +149,21 @@ def _log_softmax(z: np.ndarray, work: tuple[np.ndarray, np.ndarray] | None = Non
     return z - np.log(np.exp(z).sum(axis=1, keepdims=True))
 
 
-def _fit_softmax(
+def fit_softmax(
     x: np.ndarray,
     y: np.ndarray,
     n_classes: int,
     c: float,
     weight: np.ndarray | None = None,
     start: np.ndarray | None = None,
+    options: dict | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Multinomial logistic regression on standardised ``x`` (n, F), labels ``y`` (n,), row weights
     ``weight`` (n,) (default 1): weighted mean log loss plus ``||W||^2 / (2 C S)`` (``S`` the sum of
-    the weights) minimised by L-BFGS (:func:`~ipromp_pin.promp.lbfgs.minimize_lbfgs`) from ``start``
-    (the parameters of a nearby problem; default 0) -> (W (T, F), b (T,), the parameters (T (F + 1),))."""
+    the weights) minimised by scipy's L-BFGS-B (``options``: further options of it) from ``start`` (the
+    parameters of a nearby problem; default 0) -> (W (T, F), b (T,), the parameters (T (F + 1),)).
+    The minimiser of scikit-learn's ``LogisticRegression(C=c)`` fitted with ``sample_weight=weight``
+    (``C = 2 c`` for two classes, where it fits one binary model; tests/promp/test_sklearn_equivalence.py)."""
     n, f = x.shape
     weight = np.ones(n) if weight is None else weight
     total = float(weight.sum())
@@ -250,16 +197,21 @@ def _fit_softmax(
         return value, grad
 
     theta0 = np.zeros(n_classes * (f + 1)) if start is None else start
-    theta = minimize_lbfgs(loss, theta0, max_iter=500)
+    settings = {"maxiter": SOFTMAX_MAX_ITER, **(options or {})}
+    theta = minimize(loss, theta0, jac=True, method="L-BFGS-B", options=settings).x
     return theta[:n_w].reshape(n_classes, f), theta[n_w:], theta
 
 
-def _fit_lda(
-    x: np.ndarray, y: np.ndarray, n_classes: int, weight: np.ndarray
+def fit_lda(
+    x: np.ndarray, y: np.ndarray, n_classes: int, weight: np.ndarray, shrinkage: float | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
     """Linear discriminant analysis on standardised ``x`` (n, F) with row weights ``weight`` (n,):
     weighted class means, their pooled covariance shrunk toward a multiple of the identity with the
-    Ledoit-Wolf intensity, class priors from the weights -> the logits' (W (T, F), b (T,))."""
+    intensity ``shrinkage`` (None: Ledoit-Wolf's, the squares of the weights in its variance term),
+    class priors from the weights -> the logits' (W (T, F), b (T,)). With unit weights scikit-learn's
+    ``LinearDiscriminantAnalysis(solver="lsqr", shrinkage=s)`` with ``s`` from
+    ``sklearn.covariance.ledoit_wolf_shrinkage`` of the class-centred rows (which takes no row
+    weights; tests/promp/test_sklearn_equivalence.py)."""
     n, f = x.shape
     total = float(weight.sum())
     counts = np.array([weight[y == k].sum() for k in range(n_classes)])
@@ -275,7 +227,7 @@ def _fit_lda(
     sq = np.sum(xc * xc, axis=1)
     err = sq * sq - 2.0 * np.einsum("ni,ij,nj->n", xc, cov, xc) + float(np.sum(cov * cov))
     beta = float(np.sum(weight * weight * err)) / (total * total)
-    lam = 1.0 if dist <= 0.0 else min(1.0, beta / dist)
+    lam = (1.0 if dist <= 0.0 else min(1.0, beta / dist)) if shrinkage is None else shrinkage
     shrunk = (1.0 - lam) * cov + lam * mu * np.eye(f)
     coef = np.linalg.solve(shrunk, means.T).T  # (T, F)
     with np.errstate(divide="ignore"):
@@ -386,10 +338,10 @@ class _CvPath:
             x_test, y_test = self.x[test], labels[test]
             theta = None
             for j, c in enumerate(HEAD_C_GRID):
-                w, b, theta = _fit_softmax(x_train, y_train, n_tasks, c, w_train, theta)
+                w, b, theta = fit_softmax(x_train, y_train, n_tasks, c, w_train, theta)
                 logp = _log_softmax(x_test @ w.T + b)
                 self.log_loss[j, test] = -logp[rows, y_test]
-            w, b = _fit_lda(x_train, y_train, n_tasks, w_train)
+            w, b = fit_lda(x_train, y_train, n_tasks, w_train)
             z = x_test @ w.T + b
             for j, g in enumerate(gammas):
                 logp = _log_softmax(g * z)
@@ -407,9 +359,9 @@ class _CvPath:
             u = self.used
             x, y, pool = self.x[u], self.labels[u], self.pool[u]
             if j < len(HEAD_C_GRID):
-                w, b, _ = _fit_softmax(x, y, self.n_tasks, HEAD_C_GRID[j], pool)
+                w, b, _ = fit_softmax(x, y, self.n_tasks, HEAD_C_GRID[j], pool)
             else:
-                w, b = _fit_lda(x, y, self.n_tasks, pool)
+                w, b = fit_lda(x, y, self.n_tasks, pool)
                 gamma = self.parameter(j)
                 w, b = gamma * w, gamma * b
             self._final[j] = (w, b)

@@ -15,10 +15,10 @@ import numpy as np
 from ..data import Demo
 from .conditioning import Conditioner
 from .fitted import FittedModel
-from .head import WindowSummary
 from .likelihood import InferenceEngine
 from .observation import ObservationEncoder, ObservationPart
 from .posterior import PhasePriors, Prediction, Recognition, recognise_from_loglik, with_task_posterior
+from .window import WindowSummary
 
 
 class Predictor:

@@ -46,13 +46,14 @@ import numpy as np
 from ..data import Demo
 from ..exceptions import ModelError, ObservationError
 from .distribution import shrink_covariances
-from .head import RecognitionHead, WindowSummary, fit_head
+from .head import RecognitionHead, fit_head
 from .head_features import head_features, observed_fraction
 from .likelihood import InferenceEngine
 from .noise_path import part_spectrum, robot_paths, robot_prior
 from .observation import ObservationEncoder, ObservationPart
 from .posterior import PhasePriors, recognise_from_loglik, recognition_terms
 from .training import PhaseSettings, TrainingSet, coupling_blocks, task_models
+from .window import WindowSummary
 
 NOISE_GRID = (0.03, 0.1, 0.3, 1.0, 3.0, 10.0, 30.0, 100.0, 300.0, 1000.0)
 """Candidate noise ratios ``nu`` for ``noise="auto"``."""
@@ -160,7 +161,7 @@ class HeldOutRow:
     Attributes:
         task: Index of the true task.
         demo: Index of the held-out demo among all held-out demos.
-        window: (3 D_o,) its window summary (:class:`~ipromp_pin.promp.head.WindowSummary`).
+        window: (3 D_o,) its window summary (:class:`~ipromp_pin.promp.window.WindowSummary`).
         ratio: Its observed fraction.
         loglik: The log likelihood (T, C) of the leave-one-out model at the chosen ``nu``.
         priors: The leave-one-out model's phase priors.

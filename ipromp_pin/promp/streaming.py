@@ -24,11 +24,12 @@ import numpy as np
 from ..data import Demo
 from ..exceptions import ObservationError
 from .compiled import kernels
-from .head import WindowSummary
 from .likelihood import IncrementalTerms, PartStats
 from .observation import ObservationPart
 from .posterior import Prediction, Recognition
 from .predictor import Predictor
+from .stream_parts import PresencePatterns
+from .window import RunningWindow, WindowSummary
 
 _NOT_A_TIME = (bool, np.bool_, str, bytes)
 """Types refused as a sample time although ``float`` accepts them."""
@@ -83,26 +84,16 @@ class StreamingEstimator:
         self._absent: list[int] = []  # per sample, bit i set when observed group i is missing
         self._gaps = False  # whether some sample missed a group
         self._last: Recognition | None = None
-        u, k = engine.alpha_unique.size, fm.basis.n_basis
-        n_obs = layout.n_obs_dims
+        self._n_obs = n_obs = layout.n_obs_dims
         self._inv_dur = 1.0 / (engine.alpha_unique * fm.duration_nominal_s)
         self._inv_dur_max = float(self._inv_dur.max())
         self._slices = [(g, *layout.slices[g]) for g in layout.observe]
         self._groups = set(layout.observe)
-        # presence pattern -> [groups, gram (K, K, U), n, last time]
-        self._patterns: list[list] = [[list(layout.observe), np.zeros((k, k, u)), 0, 0.0]]
-        self._proj = np.zeros((k, u, n_obs))  # B^T y of every observed dim (missing samples add 0)
-        self._sq = np.zeros(n_obs)
-        # the observed window's summary for the recognition head (scaled): its values (rows: first,
-        # mean and last; 0 for a dim without a sample) and the running sums and counts of the mean
-        self._window = np.zeros((3, n_obs))
-        self._w_sum, self._w_count = np.zeros(n_obs), np.zeros(n_obs)
-        self._dim_group = np.concatenate([np.full(hi - lo, i) for i, (_, lo, hi) in enumerate(self._slices)])
-        self._no_gram = np.zeros((k, 0, u))  # placeholders of kernels.add_sample
-        self._no_proj = np.zeros((k, u, 0))
-        self._no_y = np.zeros(0)
-        self.incremental: IncrementalTerms | None = IncrementalTerms(engine)
         self._kern = kernels()
+        self._sums = PresencePatterns(layout, fm.basis, engine.alpha_unique.size, self._kern)
+        self._window = RunningWindow(n_obs)  # the observed window's summary for the recognition head
+        self._dim_group = np.concatenate([np.full(hi - lo, i) for i, (_, lo, hi) in enumerate(self._slices)])
+        self.incremental: IncrementalTerms | None = IncrementalTerms(engine)
         self._longest = fm.longest_s
         self._max_gap = MAX_GAP_FRACTION * fm.duration_nominal_s
         self._held: contextlib.AbstractContextManager | None = None
@@ -111,7 +102,6 @@ class StreamingEstimator:
         self._encoder = enc
         self._sample_basis = (self._inv_dur, b.centres, b.width, b.step_factor)  # kernels.stream_sample
         self._sample_scaling = (enc.log_idx, enc.log_shift, enc.offset, enc.scale)
-        self._receivers: list[int] = []  # the presence patterns that received the latest sample
         # raw values that scale to the training mean: placeholders of missing groups in the one-call
         # scaling and check of a sample (None: they would not scale to plausible values)
         fill = fm.scaler.inverse(np.zeros(n_obs), enc.dims)
@@ -175,7 +165,7 @@ class StreamingEstimator:
             raise ObservationError(
                 "stream", g, f"not an observed group ({list(self.predictor.fitted.layout.observe)})"
             )
-        y = np.empty(self._sq.size)
+        y = np.empty(self._n_obs)
         present = []
         absent = 0
         for i, (g, lo, hi) in enumerate(self._slices):
@@ -216,26 +206,24 @@ class StreamingEstimator:
     def _add(self, t_s: float, y: np.ndarray, absent: int, present: list[str]) -> Recognition | None:
         """Check and add the sample ``y`` (D,) (raw values, NaN in the groups flagged in ``absent``)
         to the statistics and refresh the recognition."""
-        if not absent and len(self._patterns) == 1:
+        sums, window = self._sums, self._window
+        if not absent and len(sums.patterns) == 1:
             # every group present and one presence history: finiteness check, scaling, basis row and
             # running sums in one call
-            pattern = self._patterns[0]
             phi, ys, finite = self._kern.stream_sample(
-                t_s, *self._sample_basis, y, *self._sample_scaling, pattern[1], self._proj, self._sq,
-                self._window, self._w_sum, self._w_count,
+                t_s, *self._sample_basis, y, *self._sample_scaling, sums.patterns[0][1], sums.proj,
+                sums.sq, window.values, window.total, window.count,
             )  # fmt: skip
             if not finite:  # the statistics are unchanged
                 self._check_finite(t_s, y, present)  # raises, naming the group
                 raise ObservationError(
                     "stream", "sample", f"implausible value in the sample at t={t_s:.3f} s"
                 )
-            pattern[2] += 1
-            pattern[3] = t_s
-            self._receivers = [0]
+            sums.received_by_all(t_s)
         else:
             ys = self._scaled(t_s, y, absent, present)
-            phi = self._accumulate(t_s, set(present), ys)
-            self._add_to_window(ys, absent)
+            phi = sums.accumulate(t_s * self._inv_dur, t_s, set(present), ys, self.incremental)
+            window.add(ys, ((absent >> self._dim_group) & 1) == 0)
         n = self._n
         if n == self._t_buf.size:
             self._t_buf = np.concatenate([self._t_buf, np.empty(n)])
@@ -259,7 +247,7 @@ class StreamingEstimator:
             missing = ((absent >> self._dim_group) & 1) == 1
             if self._fill is None:  # the per-group path
                 self._check_finite(t_s, y, present)
-                ys = np.zeros(self._sq.size)
+                ys = np.zeros(self._n_obs)
                 for g, lo, hi in self._slices:
                     if g in present:
                         ys[lo:hi] = self._encoder.scale_group(g, y[lo:hi])
@@ -274,80 +262,17 @@ class StreamingEstimator:
             ys[missing] = 0.0
         return ys
 
-    def _add_to_window(self, ys: np.ndarray, absent: int) -> None:
-        """Add the scaled sample ``ys`` (D,) to the window summary (groups flagged in ``absent`` skipped;
-        a sample without gaps goes through ``kernels.stream_sample``)."""
-        have = ((absent >> self._dim_group) & 1) == 0
-        window, count = self._window, self._w_count
-        window[0, have & (count == 0)] = ys[have & (count == 0)]
-        self._w_sum[have] += ys[have]
-        count[have] += 1
-        window[2, have] = ys[have]
-        np.divide(self._w_sum, count, out=window[1], where=count > 0)
-
     def window(self) -> WindowSummary:
         """Summary of the samples received so far (scaled units), as the recognition head reads it."""
-        return WindowSummary(self._window.copy())
-
-    def _accumulate(self, t_s: float, present: set[str], y: np.ndarray) -> np.ndarray:
-        """Add the sample (scaled values ``y`` (D,), 0 in missing groups) -> basis values (K, U).
-
-        A presence pattern some of whose groups missed the sample splits in two (the groups that
-        missed it keep the statistics so far); the incremental terms follow its parts
-        (:meth:`IncrementalTerms.regroup`) and :attr:`_receivers` says which parts got the sample."""
-        kern = self._kern
-        b = self.predictor.fitted.basis
-        phi = kern.basis_rows(t_s * self._inv_dur, b.centres, b.width, b.step_factor)
-        patterns: list[list] = []
-        origin: list[int] = []
-        receivers: list[int] = []
-        for i, (groups, gram, n, t_last) in enumerate(self._patterns):
-            have = [g for g in groups if g in present]
-            absent = [g for g in groups if g not in present]
-            if absent:
-                patterns.append([absent, gram.copy() if have else gram, n, t_last])
-                origin.append(i)
-            if have:
-                kern.add_sample(gram, self._no_proj, phi, self._no_y)
-                receivers.append(len(patterns))
-                patterns.append([have, gram, n + 1, t_s])
-                origin.append(i)
-        inc = self.incremental
-        if len(patterns) != len(self._patterns) and inc is not None and inc.ke >= 0:
-            inc.regroup([(i, self._pattern_dims(p[0])) for i, p in zip(origin, patterns, strict=True)])
-        self._patterns = patterns
-        self._receivers = receivers
-        kern.add_sample(self._no_gram, self._proj, phi, y)
-        self._sq += y * y
-        return phi
-
-    def _pattern_dims(self, groups: list[str]) -> np.ndarray:
-        """The observed dims (model order) of a presence pattern's groups."""
-        layout = self.predictor.fitted.layout
-        return layout.dims([g for g in layout.observe if g in groups])
+        return self._window.summary()
 
     def _stats(self) -> list[PartStats]:
         """Part statistics of the presence patterns with samples (each with its own active basis
         functions)."""
-        basis = self.predictor.fitted.basis
-        stats = [
-            self._pattern_stats(i, basis.support_count(p[3] * self._inv_dur_max))
-            for i, p in enumerate(self._patterns)
-            if p[2] > 0
-        ]
+        stats = self._sums.stats(self._inv_dur_max)
         if sum(s.n for s in stats) < 2:
             raise ObservationError("stream", "t", "need at least 2 observed samples")
         return stats
-
-    def _pattern_stats(self, i: int, ke: int) -> PartStats:
-        """Part statistics of presence pattern ``i`` with ``ke`` active basis functions."""
-        groups, gram, n, _ = self._patterns[i]
-        dims = self._pattern_dims(groups)
-        if dims.size == self._sq.size:
-            proj, sq = self._proj, self._sq
-        else:
-            proj, sq = np.ascontiguousarray(self._proj[:, :, dims]), self._sq[dims]
-        return PartStats(dims, n, ke, gram, proj, sq)
 
     def _recognise(self, phi: np.ndarray, y: np.ndarray) -> Recognition:
         t_last = float(self._t_buf[self._n - 1])
@@ -359,13 +284,14 @@ class StreamingEstimator:
             z_last = t_last * self._inv_dur_max
             need = inc.ke if 0 <= inc.ke and z_last < self._support_until else basis.support_count(z_last)
             if inc.ke >= need:
-                loglik = inc.add(phi, y, self._proj, t_last, self._receivers)
+                loglik = inc.add(phi, y, self._sums.proj, t_last, self._sums.receivers)
             else:
                 # a few more basis functions than needed (each below the support threshold on the
                 # observed window, as the one-shot truncation) so that resets stay rare; every
                 # presence pattern's part with the same ones
                 ke = min(basis.n_basis, need + STREAM_EXTRA_BASIS)
-                loglik = inc.reset([self._pattern_stats(i, ke) for i in range(len(self._patterns))], t_last)
+                sums = self._sums
+                loglik = inc.reset([sums.pattern_stats(i, ke) for i in range(len(sums.patterns))], t_last)
                 self._support_until = basis.support_limit(ke)
         window = self.window() if self.predictor.fitted.head is not None else None
         return self.predictor.recognition_from_loglik(loglik, t_last, window)
@@ -373,7 +299,7 @@ class StreamingEstimator:
     def observation(self) -> Demo:
         """The samples received so far as a :class:`Demo`."""
         layout = self.predictor.fitted.layout
-        rows = np.array(self._rows).reshape(len(self._rows), self._sq.size)
+        rows = np.array(self._rows).reshape(len(self._rows), self._n_obs)
         bits = np.array(self._absent, dtype=np.int64)
         gaps = (bits[:, None] >> np.arange(len(self._slices))[None, :]) & 1 == 1  # (n, groups)
         return Demo(

@@ -1,10 +1,13 @@
-"""Compile the inference kernels into numba's on-disk cache: ``python -m ipromp_pin.promp.warmup``.
+"""The one warm-up: compile the package's kernels into numba's on-disk cache,
+``python -m ipromp_pin.promp.warmup [--also=MODULE ...]``.
 
-Runs the compiled kernels once on a small synthetic problem (fit with cross-validation, predict,
-stream a few samples), which compiles every kernel with the signatures the package uses, and
-checks that the cache now holds them. :func:`ipromp_pin.promp.compiled.kernels` starts it in the
-background (with ``--lock``: the lock file it removes when done, and ``compile.failed`` beside it
-when the compile fails, so that it is not retried on every run). Takes about 20 s once.
+Runs the compiled inference kernels once on a small synthetic problem (fit with cross-validation,
+predict, stream a few samples), which compiles every kernel with the signatures the package uses,
+then every other registered kernel set's ``compile_kernels()`` named by ``--also`` (the human
+checks': ``--also=ipromp_pin.human.warmup``), and checks that the cache now holds them.
+:func:`ipromp_pin.promp.compiled.start_background_compile` starts it in the background with every
+registered set (with ``--lock``: the lock file it removes when done, and ``compile.failed`` beside it
+when the compile fails, so that it is not retried on every run).
 """
 
 from __future__ import annotations

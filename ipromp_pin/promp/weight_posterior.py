@@ -293,9 +293,9 @@ class RobotWeightPosterior:
             phi_f = np.einsum("mk,jkr->rjm", self.phi, self.factor)
         c = np.ascontiguousarray
         ok, v, dw, d_mean, d_cov = kernels().readout_update(
-            c(self.mean), np.sqrt(self.diag), c(self.factor), c(base), extra, extra_u, extra_s, c(self.phi),
-            c(phi_f), c(self.scale), c(self.offset), c(row, dtype=float), readout, c(values, dtype=float),
-            c(cov, dtype=float),
+            c(self.mean), np.sqrt(self.diag), c(self.factor), c(base), c(extra), c(extra_u), c(extra_s),
+            c(self.phi), c(phi_f), c(self.scale), c(self.offset), c(row, dtype=float), readout,
+            c(values, dtype=float), c(cov, dtype=float),
         )  # fmt: skip
         if not ok:
             raise ModelError(

@@ -164,15 +164,28 @@ def _find_transforms(table: CsvTable) -> list[str]:
     return prefixes
 
 
-def _frame_positions(table: CsvTable, prefixes: list[str], frame: str) -> np.ndarray | None:
+def _frame_rows(table: CsvTable, prefixes: list[str]) -> dict[str, dict[str, list[int]]]:
+    """Per transform prefix: frame id -> the rows that list it there."""
+    out: dict[str, dict[str, list[int]]] = {}
+    for p in prefixes:
+        rows: dict[str, list[int]] = {}
+        for i, s in enumerate(table.text(p + "child_frame_id")):
+            rows.setdefault(s.strip(), []).append(i)
+        out[p] = rows
+    return out
+
+
+def _frame_positions(
+    table: CsvTable, listed: dict[str, dict[str, list[int]]], frame: str
+) -> np.ndarray | None:
     """Positions (N, 3) of ``frame`` with NaN where it is not listed or its translation is (0, 0, 0)
-    (the publishing bug's all-zero transform, also when its rotation is not zero); None if never listed."""
+    (the publishing bug's all-zero transform, also when its rotation is not zero); None if never
+    listed. ``listed``: :func:`_frame_rows`."""
     n = len(table)
     pos = np.full((n, 3), np.nan)
     found = False
-    for p in prefixes:
-        ids = table.text(p + "child_frame_id")
-        rows = [i for i, s in enumerate(ids) if s.strip() == frame]
+    for p, frames in listed.items():
+        rows = frames.get(frame)
         if not rows:
             continue
         found = True
@@ -258,17 +271,13 @@ def _frame_tracks(
     frames, with ``with_gripper`` the gripper frames, every skeleton frame) that the file lists, on the
     skeleton's time base ``t`` [s]."""
     tracks = {}
-    for f in needed_frames(frames, _skeleton_frames(table, prefixes), with_gripper):
-        p = _frame_positions(table, prefixes, f)
+    listed = _frame_rows(table, prefixes)
+    skeleton = sorted({f for rows in listed.values() for f in rows if is_skeleton_frame(f)})
+    for f in needed_frames(frames, skeleton, with_gripper):
+        p = _frame_positions(table, listed, f)
         if p is not None:
             tracks[f] = FrameTrack(t, p)
     return tracks
-
-
-def _skeleton_frames(table: CsvTable, prefixes: list[str]) -> list[str]:
-    """The tracked skeleton frames of the file (``child_frame_id`` starting with ``/``, not the gripper)."""
-    ids = {s.strip() for p in prefixes for s in table.text(p + "child_frame_id")}
-    return sorted(f for f in ids if is_skeleton_frame(f))
 
 
 def read_demo(

@@ -113,6 +113,19 @@ def _canonical(path: Path, fmt: str) -> Path:
     return path
 
 
+def recording_name(path: str | Path) -> str:
+    """The name the readers give the recording at ``path`` (a path :func:`expand_recordings` returns):
+    a multimodal recording's folder name, a chen2017 stamp, a rosbag2 folder's name, else the file's
+    name without its suffix."""
+    path = Path(path)
+    fmt = recording_format(path)
+    if fmt == "multimodal":
+        return (path if path.is_dir() else path.parent).name
+    if fmt == "chen2017" or (fmt == "rosbag2" and path.is_dir()):
+        return path.name
+    return path.stem
+
+
 def _visible(folder: Path) -> list[Path]:
     try:
         return sorted(p for p in folder.iterdir() if not p.name.startswith("."))

@@ -24,7 +24,14 @@ from .calibration import (
     write_calibration,
 )
 from .inverse_kinematics import IKResult, solve_ik
-from .kinematics import ee_positions, forward_kinematics, frame_placements, gripper_rotations
+from .kinematics import (
+    GripperKinematics,
+    ee_positions,
+    forward_kinematics,
+    frame_placements,
+    gripper_kinematics,
+    gripper_rotations,
+)
 from .model import Robot, build_robot, clear_robot_cache, load_robot, load_visual_model, map_recorded_joints
 from .settings import (
     EE_FRAME,
@@ -42,6 +49,7 @@ __all__ = [
     "ROBOTS_DIR",
     "CalibrationResult",
     "DemoLimitRecipe",
+    "GripperKinematics",
     "IKResult",
     "Robot",
     "RobotSettings",
@@ -54,6 +62,7 @@ __all__ = [
     "find_robot_data_dir",
     "forward_kinematics",
     "frame_placements",
+    "gripper_kinematics",
     "gripper_rotations",
     "load_robot",
     "load_robot_settings",

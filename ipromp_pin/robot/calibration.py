@@ -2,7 +2,7 @@
 
 :func:`calibrate_tool_offset` fits the arm-mount and/or tool offsets by least squares;
 :func:`write_calibration` stores them in the ``[calibration]`` table of a settings file. Reading the
-datasets and printing the report is the application's part (:mod:`ipromp_pin.commands.calibrate`).
+datasets and printing the report is the application's part (:mod:`ipromp_pin.app.calibrate`).
 """
 
 from __future__ import annotations

@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from functools import partial
+from typing import NamedTuple
+
 import numpy as np
 import pinocchio as pin
 
@@ -86,3 +90,22 @@ def gripper_rotations(robot: Robot, q: np.ndarray) -> np.ndarray:
     """End-effector rotation matrices (M, 3, 3) in the base frame along a joint path (M, n_joints) in
     [rad]."""
     return frame_placements(robot, q)[1]
+
+
+class GripperKinematics(NamedTuple):
+    """The gripper's forward kinematics of one robot, in the form :meth:`IProMP.fit
+    <ipromp_pin.promp.IProMP.fit>` and the scores take them
+    (``fit(demos, **gripper_kinematics(robot)._asdict())``).
+
+    Attributes:
+        fk: Joint configurations (n, n_joints) [rad] -> gripper positions (n, 3) [m].
+        fk_rot: Joint configurations (n, n_joints) [rad] -> gripper rotation matrices (n, 3, 3).
+    """
+
+    fk: Callable[[np.ndarray], np.ndarray]
+    fk_rot: Callable[[np.ndarray], np.ndarray]
+
+
+def gripper_kinematics(robot: Robot) -> GripperKinematics:
+    """The gripper's forward kinematics of ``robot`` (picklable: the evaluation's workers get them)."""
+    return GripperKinematics(partial(ee_positions, robot), partial(gripper_rotations, robot))

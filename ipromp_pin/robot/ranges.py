@@ -123,9 +123,6 @@ PLAUSIBLE_RANGES: dict[str, Range] = {
         "below 1e-3 rad a path needs 1000 collision checks per radian; above 1 rad links pass through "
         "each other between two checks",
     ),
-    "checks.max_hand_distance_m": Range(
-        1e-3, 10.0, "m", "a gripper-hand distance (0.25 m shipped); 10 m: beyond any tracking range"
-    ),
     "calibration.tool_offset_m": Range(
         -1.0, 1.0, "m", "calibration corrects millimetres (Baxter's mount: 10 mm); per axis"
     ),

@@ -70,7 +70,7 @@ TABLES: dict[str, tuple[str, ...] | None] = {
     ),
     "fixed_joints": None,
     "workspace": ("shape", "min_m", "max_m", "center_m", "radius_m"),
-    "checks": ("min_clearance_m", "collision_max_step_rad", "max_hand_distance_m"),
+    "checks": ("min_clearance_m", "collision_max_step_rad"),
     "springs": None,
     "human": HUMAN_KEYS,
     "iso15066": ISO15066_KEYS,
@@ -186,7 +186,6 @@ class RobotSettings:
         workspace: Hand-over workspace.
         min_clearance_m: Required minimum self-collision clearance in [m].
         collision_max_step_rad: Largest joint step between collision-checked path samples in [rad].
-        max_hand_distance_m: Largest gripper-hand distance at the hand-over in [m].
         effort_margin: Fraction of the URDF's effort limits kept free by the joint-torque check, in
             [0, 0.5] (``[limits] effort_margin``; default 0.1: torques up to 90 % of the limits).
         spring_torque_nm: Arm joint name -> ``(c0, c1)``: a spring (Baxter's shoulder counterbalance)
@@ -216,7 +215,6 @@ class RobotSettings:
     workspace: Workspace
     min_clearance_m: float
     collision_max_step_rad: float
-    max_hand_distance_m: float
     effort_margin: float = 0.1
     spring_torque_nm: dict[str, tuple[float, float]] = field(default_factory=dict)
     human: HumanSettings = field(default_factory=HumanSettings)
@@ -317,8 +315,22 @@ def _read_document(path: Path) -> Table:
     return table
 
 
+RETIRED_KEYS = {
+    "checks.max_hand_distance_m": "is no longer read: the gripper-hand distance at the hand-over "
+    "needs the hand's future position, so it is a score against a recording (report.json "
+    "scores.hand_distance_m), not a check; remove the key",
+}
+"""Keys that earlier versions read, each refused with what became of it."""
+
+
 def _sub(doc: Table, key: str, required: bool = True) -> Table:
-    """Table ``key`` of the document with its known keys (:data:`TABLES`)."""
+    """Table ``key`` of the document with its known keys (:data:`TABLES`); a retired key is refused
+    with what became of it (:data:`RETIRED_KEYS`)."""
+    raw = doc.data.get(key)
+    for name in raw if isinstance(raw, dict) else ():
+        problem = RETIRED_KEYS.get(f"{key}.{name}")
+        if problem is not None:
+            raise doc.error(f"{key}.{name}", problem)
     return doc.table(key, TABLES[key], required=required)
 
 
@@ -410,11 +422,11 @@ def _workspace(ws: Table) -> Workspace:
     return Workspace("sphere", center_m=centre, radius_m=ws.number("radius_m", _range("workspace.radius_m")))
 
 
-def _check_thresholds(checks: Table) -> tuple[float, float, float]:
-    """The optional ``[checks]`` table: min clearance [m], collision step [rad], hand distance [m]."""
-    defaults = {"min_clearance_m": 0.0, "collision_max_step_rad": 0.05, "max_hand_distance_m": 0.25}
-    clearance, step, hand = (checks.number(k, _range(checks.field(k)), d) for k, d in defaults.items())
-    return clearance, step, hand
+def _check_thresholds(checks: Table) -> tuple[float, float]:
+    """The optional ``[checks]`` table: min clearance [m], collision step [rad]."""
+    defaults = {"min_clearance_m": 0.0, "collision_max_step_rad": 0.05}
+    clearance, step = (checks.number(k, _range(checks.field(k)), d) for k, d in defaults.items())
+    return clearance, step
 
 
 def load_robot_settings(path_or_name: str | Path) -> RobotSettings:
@@ -450,7 +462,7 @@ def load_robot_settings(path_or_name: str | Path) -> RobotSettings:
 
     limits = _sub(doc, "limits")
     margin, vel, acc, jerk = _joint_limits(limits, len(joints))
-    clearance, step, hand = _check_thresholds(_sub(doc, "checks", required=False))
+    clearance, step = _check_thresholds(_sub(doc, "checks", required=False))
 
     return RobotSettings(
         name=name,
@@ -474,7 +486,6 @@ def load_robot_settings(path_or_name: str | Path) -> RobotSettings:
         workspace=_workspace(_sub(doc, "workspace")),
         min_clearance_m=clearance,
         collision_max_step_rad=step,
-        max_hand_distance_m=hand,
         effort_margin=limits.number("effort_margin", _range("limits.effort_margin"), 0.1),
         spring_torque_nm=_springs(_sub(doc, "springs", required=False), joints),
         human=read_human_settings(doc, path),

@@ -6,7 +6,7 @@
   for) and :class:`~.verdict.CheckReport`;
 - :mod:`.context`: :class:`~.context.CheckContext`, what the checks know at plan time;
 - one file per check: :mod:`.speed_limits`, :mod:`.joint_limits`, :mod:`.workspace`,
-  :mod:`.self_collision`, :mod:`.hand_distance`, :mod:`.uncertainty` (advisory),
+  :mod:`.self_collision`, :mod:`.uncertainty` (advisory),
   :mod:`.human_clearance`, :mod:`.contact_speed` (on the shared :mod:`.separation` base) and
   :mod:`.joint_torques`;
 - :mod:`.suite`: the registry (:data:`~.suite.CHECKS`) and :class:`~.suite.CheckSuite`;

@@ -35,7 +35,6 @@ class CheckContext:
             at :attr:`handover_s`, its first sample, not at its end.
         limits: The joint limits the motion must keep (positions with margin, velocities,
             accelerations, jerks); None: the robot's own (:meth:`JointLimits.from_robot`).
-        hand_position_m: The human hand's position (3,) [m] at the hand-over, if known.
         handover_samples: Hand-over configurations (n, n_joints) [rad] drawn from the prediction, for
             the advisory uncertainty check; or ``handover_std_rad``: their standard deviation
             (n_joints,) [rad].
@@ -49,7 +48,6 @@ class CheckContext:
     payload: TaskObject | None = None
     after_handover: bool = False
     limits: JointLimits | None = None
-    hand_position_m: np.ndarray | None = None
     handover_samples: np.ndarray | None = None
     handover_std_rad: np.ndarray | None = None
 

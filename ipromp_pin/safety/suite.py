@@ -21,7 +21,6 @@ from ..robot import Robot
 from .base import Check, TimingConstraints
 from .contact_speed import ContactSpeed
 from .context import CheckContext
-from .hand_distance import HandDistance
 from .human_clearance import HumanClearance
 from .joint_limits import JointLimits
 from .joint_torques import JointTorques
@@ -38,7 +37,6 @@ CHECKS: tuple[type[Check], ...] = (
     JointLimits,
     Workspace,
     SelfCollision,
-    HandDistance,
     Uncertainty,
     HumanClearance,
     ContactSpeed,

@@ -3,7 +3,8 @@
 ============================  ============================  ==================================
 file                          schema                        written by
 ============================  ============================  ==================================
-``report.json``               ``report.schema.json``        ``ipromp-pin run``
+``report.json``               ``report.schema.json``        ``ipromp-pin run``, ``plan``
+``summary.json``              ``plan_summary.schema.json``  ``ipromp-pin plan``
 ``replans.json``              ``replans.schema.json``       ``ipromp-pin replay``
 replay ``report.json``        ``replay_report.schema.json`` ``ipromp-pin replay``
 ============================  ============================  ==================================
@@ -26,6 +27,7 @@ SCHEMA_FILES = {
     "report": "report.schema.json",
     "replans": "replans.schema.json",
     "replay_report": "replay_report.schema.json",
+    "plan_summary": "plan_summary.schema.json",
 }
 """Schema name -> file in :data:`SCHEMAS_DIR`."""
 

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from helpers_model import random_dataset, split
 
-from ipromp_pin.cli import main
+from ipromp_pin.app import main
 from ipromp_pin.evaluation.baselines import (
     CLASSIFIERS,
     REGRESSORS,

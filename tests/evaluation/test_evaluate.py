@@ -7,7 +7,7 @@ import json
 import numpy as np
 import pytest
 
-from ipromp_pin.cli import main
+from ipromp_pin.app import main
 from ipromp_pin.evaluation.evaluate import (
     EvaluationConfig,
     check_dataset_size,
@@ -118,7 +118,7 @@ def test_evaluate_command_says_up_front_when_the_dataset_is_too_small(tmp_path, 
 
 
 def test_evaluate_help_documents_the_protocols_and_spares_a_core(capsys, monkeypatch):
-    from ipromp_pin.cli import evaluate as cli_evaluate
+    from ipromp_pin.app import evaluate as cli_evaluate
 
     monkeypatch.setattr(cli_evaluate.os, "sched_getaffinity", lambda pid: set(range(4)), raising=False)
     assert cli_evaluate.default_jobs() == 3

@@ -141,7 +141,7 @@ def _write_dataset(folder: Path) -> Path:
 
 def test_the_evaluate_request_runs_the_closed_loop_with_the_baselines(tmp_path):
     pytest.importorskip("sklearn")
-    from ipromp_pin.commands.evaluate import EvaluateRequest, grid_from, run_evaluate
+    from ipromp_pin.evaluation.run import EvaluateRequest, grid_from, run_evaluate
 
     data = _write_dataset(tmp_path / "data")
     out = tmp_path / "cl.json"
@@ -174,15 +174,16 @@ def test_the_evaluate_request_runs_the_closed_loop_with_the_baselines(tmp_path):
 
 
 def test_the_evaluate_command_compiles_the_kernels_once_before_forking(monkeypatch):
-    from ipromp_pin.commands.evaluate import compile_kernels_once
+    from ipromp_pin.evaluation.run import compile_kernels_once
     from ipromp_pin.promp import compiled, warmup
     from ipromp_pin.promp.compiled import use_kernels
 
     calls, messages = [], []
     monkeypatch.setattr(compiled, "compiled_kernels_cached", lambda *a: False)
+    monkeypatch.setattr(compiled, "kernels_cached", lambda *a: False)
     monkeypatch.setattr(warmup, "compile_kernels", lambda: calls.append(1) or 1.0)
-    monkeypatch.setitem(compiled._state, "numba", None)
-    monkeypatch.setitem(compiled._state, "announced_compile", False)
+    monkeypatch.setitem(compiled._state, "modules", {})  # as in a new process
+    monkeypatch.setitem(compiled._state, "announced", set())
     compiled.set_announcer(messages.append)
     try:
         with use_kernels("numba"):

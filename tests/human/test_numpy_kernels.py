@@ -98,19 +98,39 @@ def test_the_numpy_backend_gives_the_same_separation_as_numba():
     assert np.isfinite(a.distance_m).all() and (a.speed_ratio > 0).sum() > 10  # the contact path ran
 
 
-@pytest.mark.parametrize("inference", ["numba", "numpy"])
-def test_auto_follows_the_inference_kernels(monkeypatch, inference):
-    from ipromp_pin.human import kernels as hk
+@pytest.mark.parametrize("cached", [True, False])
+def test_auto_decides_the_human_set_from_its_own_cache(monkeypatch, tmp_path, cached):
     from ipromp_pin.promp import compiled
 
-    monkeypatch.setattr(compiled, "active_backend", lambda: inference)
-    monkeypatch.setattr(compiled, "start_background_compile", lambda: False)
-    monkeypatch.setattr(hk, "human_kernels_cached", lambda: True)
-    with use_kernels("auto"):
-        assert human_kernels() is (sk if inference == "numba" else nk)
-    monkeypatch.setattr(hk, "human_kernels_cached", lambda: False)
-    with use_kernels("auto"):
-        assert human_kernels() is nk  # not compiled yet: numpy while the background compile runs
+    monkeypatch.setenv("IPROMP_PIN_CACHE_DIR", str(tmp_path))
+    starts, messages = [], []
+    monkeypatch.setattr(compiled, "start_background_compile", lambda: starts.append(1) or True)
+    monkeypatch.setattr(
+        compiled, "kernels_cached", lambda name="inference", names=None: name == "inference" or cached
+    )
+    compiled.set_announcer(messages.append)
+    try:
+        with use_kernels("auto"):
+            assert compiled.kernels().__name__.endswith("promp._kernels")  # cached: compiled
+            assert human_kernels() is (sk if cached else nk)
+            assert human_kernels() is (sk if cached else nk)  # decided once
+    finally:
+        compiled.set_announcer(None)
+    # not compiled yet: numpy while the one background compile (every set) runs, said once
+    assert starts == ([] if cached else [1]) and len(messages) == (0 if cached else 1)
+    if not cached:
+        assert "human-check kernels are not compiled yet" in messages[0]
+
+
+def test_one_switch_for_every_kernel_set():
+    from ipromp_pin.promp import compiled
+
+    assert set(compiled.kernel_sets()) >= {"inference", "human"}
+    with use_kernels("numpy"):
+        assert compiled.kernels().__name__ == "ipromp_pin.promp.numpy_kernels"
+        assert human_kernels() is nk
+    with use_kernels("numba"):
+        assert human_kernels() is sk and compiled.active_backend("human") == "numba"
 
 
 def test_the_background_compile_also_compiles_the_human_kernels(monkeypatch, tmp_path):

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from helpers_cli import PIPELINE, one_error_line
 
-from ipromp_pin.cli import main
+from ipromp_pin.app import main
 from ipromp_pin.exceptions import PipelineError
 from ipromp_pin.motion.limits import PROFILE_CEILING_FACTOR, demonstrated_profile, read_limit_profile
 from ipromp_pin.readers.synthetic import make_synthetic_dataset

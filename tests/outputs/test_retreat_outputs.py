@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 from helpers_cli import PIPELINE, one_error_line, run_tiny
 
-from ipromp_pin import cli
-from ipromp_pin.commands.config import load_pipeline
-from ipromp_pin.commands.setup import plan_session, prepare_session
+from ipromp_pin import app as cli
+from ipromp_pin.app.config import load_pipeline
+from ipromp_pin.app.session import plan_session, prepare_session
 from ipromp_pin.outputs.preview_content import preview_content
 from ipromp_pin.outputs.retreat_files import read_retreat_json
 from ipromp_pin.outputs.rosbag import JOINT_STATE, TOPIC_RETREAT
@@ -46,12 +46,13 @@ def test_the_retreat_is_the_second_segment_of_the_files(run_out):
     assert retreat is not None and retreat.n_samples == csv.n_samples > 50
     np.testing.assert_allclose(retreat.t_s, csv.t_s, atol=1e-9)
     np.testing.assert_array_equal(retreat.q, csv.q)
-    np.testing.assert_allclose(retreat.q[0], main.q[-1], atol=1e-12)  # from the hand-over ...
+    assert retreat.t_s[0] == pytest.approx(main.t_s[-1])  # one clock: from the hand-over ...
+    np.testing.assert_allclose(retreat.q[0], main.q[-1], atol=1e-12)
     np.testing.assert_allclose(retreat.q[-1], main.q[0], atol=1e-12)  # ... back to the start (shipped)
     doc = json.loads((run_out / "trajectory.json").read_text())
     member = doc["retreat"]
     assert member["target"] == "start" and member["dwell_s"] == 0.5
-    assert member["start_after_s"] == pytest.approx(main.t_s[-1])
+    assert member["start_s"] == pytest.approx(main.t_s[-1])
     assert len(member["message"]["points"][5]["effort"]) == 7  # the torques, as the approach's
 
 
@@ -115,7 +116,8 @@ def test_a_failing_retreat_check_fails_the_run_with_exit_3(tmp_path, tiny, capsy
 def test_the_preview_animates_the_retreat_after_the_hand_over(tmp_path, tiny):
     cfg = load_pipeline(PIPELINE, dataset=tiny[0], load_model=tiny[1], out_dir=tmp_path)
     session = prepare_session(cfg, log=lambda _m: None)
-    result, retreat = plan_session(session, lambda _m: None)
+    planned = plan_session(session, lambda _m: None)
+    result, retreat = planned.approach, planned.retreat
     assert retreat is not None
     alone = preview_content(result, session.robot, session.demo)
     both = preview_content(result, session.robot, session.demo, retreat=retreat)

@@ -75,7 +75,10 @@ def content(traj) -> BagContent:
     demo = make_synthetic_dataset(n_tasks=1, n_demos=2, seed=3).demos["rod"][0]
     obs = demo.head(0.2, groups=["orientation", "emg", "acc"])
     pose = np.array([0.8, -0.3, 0.2, 0.0, 0.6, 0.0, 0.8])
-    return BagContent(traj, float(obs.t[-1]), pose, "base", obs, start_time_ns=1_700_000_000_000_000_000)
+    plan_s = float(obs.t[-1])  # the robot starts when the observation ends, on the human's clock
+    return BagContent(
+        traj.shifted(plan_s), plan_s, pose, "base", obs, start_time_ns=1_700_000_000_000_000_000
+    )
 
 
 def test_trajectory_json_is_a_ros2_message_by_default(traj, tmp_path):
@@ -157,9 +160,12 @@ def test_rosbag2_mcap_reads_back_with_types_stamps_and_values(content, tmp_path)
     }
     traj, obs, start = content.trajectory, content.observation, content.start_time_ns
     plan_ns = start + round(content.plan_time_s * 1e9)
-    # the trajectory: one message at the plan time, every point
+    # the trajectory: one message at the plan time, every point on the human's clock (its header
+    # stamped at the start of the human's motion, its first point when the robot starts)
     [(stamp, jt)] = msgs[TOPIC_TRAJECTORY]
-    assert stamp == plan_ns == _stamp(jt)
+    assert stamp == plan_ns and _stamp(jt) == start
+    first = jt.points[0].time_from_start
+    assert first.sec * 1_000_000_000 + first.nanosec == plan_ns - start
     assert list(jt.joint_names) == list(traj.joint_names) and len(jt.points) == traj.n_samples
     np.testing.assert_array_equal(np.array([p.accelerations for p in jt.points]), traj.qdd)
     # joint states at the control rate along it
@@ -221,7 +227,7 @@ def test_ros1_bag_has_the_same_messages(content, tmp_path):
 
 
 def test_run_writes_the_bags_and_the_requested_ros_form(tmp_path):
-    from ipromp_pin.cli import main
+    from ipromp_pin.app import main
     from ipromp_pin.outputs.trajectory_files import read_trajectory_csv
 
     pipeline = "baxter_handover"

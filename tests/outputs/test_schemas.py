@@ -10,10 +10,11 @@ from pathlib import Path
 
 import jsonschema
 import pytest
+from helpers_cli import without_uncertainty
 
-from ipromp_pin.cli import main
-from ipromp_pin.commands.config import load_pipeline
-from ipromp_pin.commands.setup import prepare_session
+from ipromp_pin.app import main
+from ipromp_pin.app.config import load_pipeline
+from ipromp_pin.app.session import prepare_session
 from ipromp_pin.outputs.report import report_dict
 from ipromp_pin.planning.one_shot import plan
 from ipromp_pin.schemas import SCHEMA_FILES, SCHEMAS_DIR, load_schema, schema_path
@@ -52,11 +53,11 @@ def test_written_report_validates_and_reports_the_configured_rate(written_report
 def test_report_with_a_skipped_check_validates(tmp_path):
     cfg = load_pipeline(PIPELINE, out_dir=tmp_path, task="tape")
     prep = prepare_session(cfg, log=lambda _m: None)
-    result = plan(
-        prep.model, prep.robot, prep.observed(), prep.suite, prep.context.replace(hand_position_m=None)
+    result = without_uncertainty(
+        plan(prep.model, prep.robot, prep.observed(), prep.suite, prep.context), prep.suite
     )
     doc = json.loads(json.dumps(report_dict(result, None, ["a warning"]), allow_nan=False))
-    assert doc["feasibility"]["checks"]["hand_distance"]["status"] == "skip"
+    assert doc["feasibility"]["checks"]["uncertainty"]["status"] == "skip"
     assert doc["observation"] is None
     _validate(doc)
     assert doc["trajectory"]["rate_hz"] == 100.0
@@ -93,11 +94,30 @@ def _documented_fields(section: str) -> set[str]:
 
 def test_docs_list_every_field_of_the_report_schema():
     schema = load_schema("report")
-    documented = _documented_fields("## Run report")
+    documented = _documented_fields("## Plan report")
     assert set(schema["properties"]) <= documented, set(schema["properties"]) - documented
     traj = schema["properties"]["trajectory"]["properties"]
     feas = schema["properties"]["feasibility"]["properties"]
     assert set(traj) <= documented and set(feas) <= documented
+    measures = {f for c in feas["checks"]["properties"].values() for f in c["properties"]}
+    named = set(re.findall(r"`([A-Za-z_0-9]+)`", _section("## Plan report")))
+    assert measures <= named, measures - named
+
+
+def test_docs_list_every_field_of_the_plan_summary_schema():
+    schema = load_schema("plan_summary")
+    documented = _documented_fields("## Plan summary")
+    rows = schema["properties"]["recordings"]["items"]["properties"]
+    assert set(schema["properties"]) | set(rows) <= documented, (
+        set(schema["properties"]) | set(rows)
+    ) - documented
+
+
+def _section(heading: str) -> str:
+    text = (ROOT / "docs" / "formats.md").read_text()
+    start = text.index(f"\n{heading}\n")
+    end = text.find("\n## ", start + 1)
+    return text[start : end if end > 0 else None]
 
 
 @pytest.fixture(scope="module")

@@ -85,8 +85,8 @@ def test_torque_plot_is_written_and_checks_its_input(tmp_path, robot):
 
 
 def test_the_run_preview_shows_the_checks_torques_and_the_recognised_tasks_object():
-    from ipromp_pin.commands.config import load_pipeline, resolve_pipeline_path
-    from ipromp_pin.commands.setup import prepare_session
+    from ipromp_pin.app.config import load_pipeline, resolve_pipeline_path
+    from ipromp_pin.app.session import prepare_session
     from ipromp_pin.outputs.preview_content import preview_content
     from ipromp_pin.planning.one_shot import plan
 

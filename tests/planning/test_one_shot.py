@@ -6,7 +6,7 @@ from __future__ import annotations
 import pytest
 from helpers_cli import PIPELINE, one_error_line, run_tiny
 
-from ipromp_pin.cli import main
+from ipromp_pin.app import main
 from ipromp_pin.exceptions import ModelError
 from ipromp_pin.planning.one_shot import check_model_joints
 from ipromp_pin.promp import IProMP

@@ -166,7 +166,7 @@ def test_unchanged_mesh_files_are_not_read_again(tmp_path):
 
 
 def test_a_first_run_decimates_the_preview_meshes_while_it_trains(tmp_path, monkeypatch):
-    from ipromp_pin.commands.meshes import preview_visual_model, start_mesh_prefetch
+    from ipromp_pin.preview.mesh_cache import preview_visual_model, start_mesh_prefetch
     from ipromp_pin.robot import load_robot
 
     monkeypatch.setenv("IPROMP_PIN_CACHE_DIR", str(tmp_path / "cache"))

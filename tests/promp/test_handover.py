@@ -23,7 +23,7 @@ from ipromp_pin.promp.handover import (
     neighbour_arrays,
     readouts,
 )
-from ipromp_pin.promp.head import WindowSummary
+from ipromp_pin.promp.window import WindowSummary
 
 
 def fk(q: np.ndarray) -> np.ndarray:

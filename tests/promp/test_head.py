@@ -12,28 +12,11 @@ from ipromp_pin.promp.head import (
     LDA,
     LDA_TEMPERATURE_GRID,
     LOGISTIC,
-    WindowSummary,
     fit_head,
 )
 from ipromp_pin.promp.head_features import LOG_POSTERIOR_CLIP, interpolation, observed_fraction
-from ipromp_pin.promp.observation import ObservationPart
 from ipromp_pin.promp.selection import NOISE_GRID, TEMPERATURE_GRID
-
-
-def test_window_summary_of_parts_with_gaps():
-    rng = np.random.default_rng(0)
-    t = np.arange(10) * 0.1
-    a = ObservationPart(t=t[[0, 2, 5, 7]], dims=np.array([0, 1]), y=rng.normal(size=(4, 2)))
-    b = ObservationPart(t=t, dims=np.array([2]), y=rng.normal(size=(10, 1)))
-    c = ObservationPart(t=t[[1, 9]], dims=np.array([0, 1]), y=rng.normal(size=(2, 2)))
-    w = WindowSummary.from_parts([a, b, c], 4)
-    both = np.concatenate([a.y, c.y])
-    assert np.allclose(w.first[:2], a.y[0]) and np.allclose(w.last[:2], c.y[-1])
-    assert np.allclose(w.mean[:2], both.mean(axis=0))
-    assert w.first[2] == b.y[0, 0] and w.last[2] == b.y[-1, 0] and np.isclose(w.mean[2], b.y.mean())
-    assert w.first[3] == w.mean[3] == w.last[3] == 0.0  # never observed: the training mean
-    one = WindowSummary.from_parts([ObservationPart(t=t, dims=np.arange(3), y=rng.normal(size=(10, 3)))], 3)
-    assert np.array_equal(one.vector()[:3], one.first) and one.vector().shape == (9,)
+from ipromp_pin.promp.window import WindowSummary
 
 
 def test_interpolation_and_observed_fraction():

@@ -72,7 +72,8 @@ def fresh_auto(monkeypatch, tmp_path):
     monkeypatch.setenv("IPROMP_PIN_CACHE_DIR", str(tmp_path))
     messages, starts = [], []
     monkeypatch.setattr(compiled, "start_background_compile", lambda: starts.append(1) or True)
-    monkeypatch.setitem(compiled._state, "numba", None)  # as in a new process
+    monkeypatch.setitem(compiled._state, "modules", {})  # as in a new process
+    monkeypatch.setitem(compiled._state, "auto", {})
     compiled.set_announcer(messages.append)
     previous = compiled.set_kernel_backend("auto")
     yield messages, starts
@@ -82,18 +83,18 @@ def fresh_auto(monkeypatch, tmp_path):
 
 def test_auto_runs_on_numpy_while_the_kernels_compile_in_the_background(fresh_auto, monkeypatch):
     messages, starts = fresh_auto
-    monkeypatch.setattr(compiled, "compiled_kernels_cached", lambda *a: False)
+    monkeypatch.setattr(compiled, "kernels_cached", lambda *a: False)
     assert kernels() is numpy_kernels
     assert starts == [1] and len(messages) == 1
     assert "numpy version" in messages[0] and f"about {compiled.COMPILE_SECONDS} s, once" in messages[0]
     # decided once per process: it stays on numpy even when the compile has finished meanwhile
-    monkeypatch.setattr(compiled, "compiled_kernels_cached", lambda *a: True)
+    monkeypatch.setattr(compiled, "kernels_cached", lambda *a: True)
     assert kernels() is numpy_kernels and starts == [1] and len(messages) == 1
 
 
 def test_auto_uses_the_compiled_kernels_when_cached(fresh_auto, monkeypatch):
     messages, starts = fresh_auto
-    monkeypatch.setattr(compiled, "compiled_kernels_cached", lambda *a: True)
+    monkeypatch.setattr(compiled, "kernels_cached", lambda *a: True)
     assert kernels().__name__.endswith("._kernels") and not starts and not messages
 
 
@@ -146,9 +147,9 @@ def test_warmup_compiles_every_kernel_into_the_cache():
 def test_numba_backend_announces_a_cold_compile(monkeypatch):
     messages = []
     compiled.set_announcer(messages.append)
-    monkeypatch.setitem(compiled._state, "numba", None)
-    monkeypatch.setitem(compiled._state, "announced_compile", False)
-    monkeypatch.setattr(compiled, "compiled_kernels_cached", lambda *a: False)
+    monkeypatch.setitem(compiled._state, "modules", {})
+    monkeypatch.setitem(compiled._state, "announced", set())
+    monkeypatch.setattr(compiled, "kernels_cached", lambda *a: False)
     try:
         with use_kernels("numba"):
             kernels()

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ipromp_pin.commands.calibrate import run_calibration
+from ipromp_pin.app.calibrate import run_calibration
 from ipromp_pin.exceptions import DataError
 from ipromp_pin.readers import load_dataset, plausibility, read_demo, write_dataset
 from ipromp_pin.readers.synthetic import make_synthetic_dataset

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from helpers_cli import ROBOT_FILE, one_error_line, run_tiny
 
-from ipromp_pin import cli
+from ipromp_pin import app as cli
 from ipromp_pin.exceptions import RobotError
 from ipromp_pin.human import BodyPart, HumanMotion
 from ipromp_pin.human.geometry import segment_closest_points

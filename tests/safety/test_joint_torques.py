@@ -11,7 +11,7 @@ import pytest
 from helpers_cli import one_error_line, run_tiny
 from scipy.interpolate import CubicSpline
 
-from ipromp_pin import cli
+from ipromp_pin import app as cli
 from ipromp_pin.motion.path import prepare_path
 from ipromp_pin.motion.timing import TorqueLimit, time_path
 from ipromp_pin.motion.toppra_profile import toppra_profile

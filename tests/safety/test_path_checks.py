@@ -1,7 +1,7 @@
 """The path checks of a motion (ipromp_pin.safety: joint_limits, workspace, self_collision,
-hand_distance, uncertainty) on a straight joint-space motion: a typical hand-over passes, a motion
-into the torso fails self-collision naming the links, a joint beyond its margin fails joint_limits,
-the hand distance and the workspace are judged at the motion's end, the uncertainty is advisory."""
+uncertainty) on a straight joint-space motion: a typical hand-over passes, a motion into the torso
+fails self-collision naming the links, a joint beyond its margin fails joint_limits, the workspace
+is judged at the motion's end, the uncertainty is advisory."""
 
 from __future__ import annotations
 
@@ -13,13 +13,13 @@ import pytest
 from ipromp_pin.data import ROBOT
 from ipromp_pin.exceptions import InfeasibleError
 from ipromp_pin.motion.trajectory import Trajectory
-from ipromp_pin.robot import ee_positions, load_robot
+from ipromp_pin.robot import load_robot
 from ipromp_pin.safety import CheckContext, CheckReport, CheckSuite
 
 Q_START = np.array([-0.839, -0.969, 0.377, 1.262, -0.204, 1.189, 1.661])
 Q_HANDOVER = np.array([-1.5, -0.498, 0.38, 0.64, -0.49, 0.946, 1.274])
 Q_TORSO = np.array([0.13, 0.67, 0.13, 2.46, 1.71, 0.72, 0.57])
-PATH_CHECKS = ["joint_limits", "workspace", "self_collision", "hand_distance", "uncertainty"]
+PATH_CHECKS = ["joint_limits", "workspace", "self_collision", "uncertainty"]
 
 
 @pytest.fixture(scope="module")
@@ -32,24 +32,23 @@ def _line(a, b, m=100):
     return a + s * (b - a)
 
 
-def check_path(robot, q, *, q_std=None, q_samples=None, hand_position_m=None) -> CheckReport:
+def check_path(robot, q, *, q_std=None, q_samples=None) -> CheckReport:
     """The path checks of a motion through ``q`` (M, 7) at 100 Hz."""
     q = np.asarray(q, dtype=float)
     z = np.zeros_like(q)
     motion = Trajectory(np.arange(q.shape[0]) * 0.01, q, z, z, tuple(robot.joint_names))
     ends = None if q_samples is None else np.asarray(q_samples)[:, -1, :]
-    ctx = CheckContext(hand_position_m=hand_position_m, handover_samples=ends, handover_std_rad=q_std)
+    ctx = CheckContext(handover_samples=ends, handover_std_rad=q_std)
     return CheckSuite.build(robot, PATH_CHECKS).report(motion, ctx)
 
 
 def test_typical_path_passes_every_check(robot):
     q = _line(Q_START, Q_HANDOVER)
-    report = check_path(robot, q, q_std=np.full(7, 0.02), hand_position_m=None)
+    report = check_path(robot, q, q_std=np.full(7, 0.02))
     assert report.passed, report.lines()
     col = report["self_collision"].measures
     assert col.min_distance_m > 0.01 and col.certified
     assert 0.0 <= col.t_s <= 0.99  # a sample of the motion
-    assert report["hand_distance"].status == "skip"
     assert report["uncertainty"].required is False
     d = json.loads(json.dumps(report.to_dict()))
     assert set(d) >= {"joint_limits", "self_collision", "workspace"}
@@ -80,15 +79,9 @@ def test_out_of_limit_path_fails_joint_limits(robot):
     assert not check_path(robot, q2)["joint_limits"].passed
 
 
-def test_workspace_and_hand_distance(robot):
+def test_workspace(robot):
     q = _line(Q_START, Q_HANDOVER)
-    report = check_path(robot, q, hand_position_m=np.array([5.0, 0.0, 0.0]))
-    assert report["hand_distance"].status == "fail"
-    p = ee_positions(robot, q[-1])[0]
-    near = check_path(robot, q, hand_position_m=p + [0.05, 0.0, 0.0])
-    assert near["hand_distance"].status == "pass"
-    assert near["hand_distance"].measures.distance_m == pytest.approx(0.05, abs=1e-9)
-    assert near["workspace"].passed
+    assert check_path(robot, q)["workspace"].passed
     # pointing the arm straight up leaves the hand-over workspace
     up = _line(Q_START, np.array([0.0, -1.5, 0.0, 0.0, 0.0, 0.0, 0.0]))
     assert check_path(robot, up)["workspace"].status == "fail"

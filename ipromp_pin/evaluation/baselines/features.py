@@ -8,6 +8,8 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from ...data import ROBOT, Demo
+from ...promp.window import window_features as promp_window_features
+from ...promp.window import window_summary
 from .base import Transformer
 
 N_PHASES = 50
@@ -18,19 +20,14 @@ FK = Callable[[np.ndarray], np.ndarray]
 
 
 def window_features(window: Demo, observe: Sequence[str]) -> np.ndarray:
-    """Window features (2 D_o,) of an observed window: per channel of the observed groups, in
-    ``observe`` order, the mean and the last valid value (NaN for a group with no valid sample)."""
-    means, lasts = [], []
-    for g in observe:
-        v = np.asarray(window.groups[g], dtype=float)
-        valid = ~window.missing[g] if g in window.missing else np.ones(v.shape[0], dtype=bool)
-        if np.any(valid):
-            means.append(v[valid].mean(axis=0))
-            lasts.append(v[valid][-1])
-        else:
-            means.append(np.full(v.shape[1], np.nan))
-            lasts.append(np.full(v.shape[1], np.nan))
-    return np.concatenate(means + lasts)
+    """Window features (2 D_o,) of an observed window: the mean values, then the last valid values, of
+    every channel of the observed groups in ``observe`` order (NaN for a group with no valid sample;
+    :func:`ipromp_pin.promp.window.window_summary`, as the model's hand-over regression reads them)."""
+    summaries = [
+        window_summary(window.groups[g], ~window.missing[g] if g in window.missing else None, fill=np.nan)
+        for g in observe
+    ]
+    return promp_window_features(np.concatenate(summaries, axis=1))
 
 
 def phase_trajectory(demo: Demo, obs_ratio: float) -> np.ndarray:

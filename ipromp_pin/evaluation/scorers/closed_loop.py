@@ -26,7 +26,6 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
-from functools import partial
 
 import numpy as np
 
@@ -35,7 +34,7 @@ from ...human import HumanMotion
 from ...motion.limits import LimitProfile, choose_limit_profile, read_limit_profile
 from ...planning.closed_loop import ClosedLoopResult, ClosedLoopSettings, conditioning_predictor, replay_demo
 from ...promp import IProMP
-from ...robot import DemoLimitRecipe, Robot, ee_positions, gripper_rotations
+from ...robot import DemoLimitRecipe, Robot, gripper_kinematics
 from ...robot.objects import ObjectTable
 from ...safety import HUMAN_CHECKS, CheckContext, CheckSuite
 from ..cells import CellResults, ClosedLoopCell, baseline_summary, median
@@ -133,7 +132,7 @@ def evaluation_suite(robot: Robot, objects: ObjectTable | None, human: bool) -> 
     """The checks of an evaluation's re-plans: the motion's own (limits, workspace, self-collision),
     the joint torques with ``objects``, the human checks when ``human`` (they run on the demos with a
     tracked skeleton)."""
-    drop = ["hand_distance", "uncertainty"] + ([] if objects is not None else ["joint_torques"])
+    drop = ["uncertainty"] + ([] if objects is not None else ["joint_torques"])
     return CheckSuite.build(robot, exclude=drop + ([] if human else list(HUMAN_CHECKS)))
 
 
@@ -158,8 +157,7 @@ def replay_trials(
     ``mean_rot``: the orientation baseline per task (training demos). ``objects``: the tasks'
     objects; the commanded motion's peak torque ratio is scored with the true task's object."""
     observe = list(model.observe_)
-    fk = partial(ee_positions, robot)
-    fk_rot = partial(gripper_rotations, robot)
+    fk, fk_rot = gripper_kinematics(robot)
     run = ClosedLoopSettings(**{**settings.to_dict(), "start_ratio": float(ratio)}).validate()
     conditioner = conditioning_predictor(model, run.condition_noise)
     out = []
@@ -222,8 +220,7 @@ class ClosedLoopScorer(Scorer):
         if self.suite_ is None:  # once per process
             self.suite_ = evaluation_suite(self.robot, self.objects, self.options.human)
         self.suite_.reset()  # each job's replays start from no cache, whichever jobs ran before
-        fk = partial(ee_positions, self.robot)  # settings chosen for the hand-over position
-        fk_rot = partial(gripper_rotations, self.robot)
+        fk, fk_rot = gripper_kinematics(self.robot)  # settings chosen for the hand-over position
         model = IProMP(observe=list(observe), **self.model_params)
         self.model_ = model.fit(train, fk=fk, fk_rot=fk_rot)
         self.profile_ = profile_for(self.options, self.robot, train, self.label_name)

@@ -1,0 +1,98 @@
+"""``ipromp-pin calibrate DATASET``: calibrate FK (the arm mount) against the robot's end-point reports.
+
+:func:`run_calibration` reads the recorded datasets, fits the FK offsets
+(:mod:`ipromp_pin.robot.calibration`), reports them and optionally stores them in the settings file;
+the modules that compute are imported when it runs, so that ``--help`` answers at once.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from ..shipped import DEFAULT_ROBOT, ROBOTS_DIR
+
+if TYPE_CHECKING:
+    from ..robot.calibration import CalibrationResult
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    """Add the ``calibrate`` command to ``subparsers``."""
+    p = subparsers.add_parser(
+        "calibrate", help="calibrate FK (arm mount) against the robot's own end-point reports"
+    )
+    p.add_argument(
+        "dataset",
+        type=Path,
+        nargs="+",
+        help="dataset folders whose recordings hold the robot's own end-point reports",
+    )
+    p.add_argument(
+        "--robot",
+        default=DEFAULT_ROBOT,
+        help="robot settings: a shipped name (robots/<name>.toml of the package) or a settings file "
+        "(default %(default)s)",
+    )
+    p.add_argument(
+        "--write",
+        action="store_true",
+        help="store the fitted offsets in the [calibration] table of that settings file (the --robot "
+        f"file; default {ROBOTS_DIR / (DEFAULT_ROBOT + '.toml')}); the line printed after it names the file",
+    )
+    p.set_defaults(func=main)
+
+
+def main(args: argparse.Namespace) -> int:
+    """Fit, report and optionally store the calibration."""
+    run_calibration(args.dataset, args.robot, write=args.write)
+    return 0
+
+
+def run_calibration(
+    dataset_paths: str | Path | Sequence[str | Path],
+    settings_path: str | Path = DEFAULT_ROBOT,
+    write: bool = False,
+    *,
+    fit: str = "mount",
+    command: str | None = None,
+    out: Callable[[str], None] | None = print,
+) -> CalibrationResult:
+    """``ipromp-pin calibrate DATASET [--robot SETTINGS] [--write]``: fit, report and optionally store.
+
+    Args:
+        dataset_paths: One or more dataset folders (read with ``ipromp_pin.readers.load_dataset``).
+        settings_path: Robot settings file or name.
+        write: Store the fitted offsets in the settings file.
+        fit: ``"mount"`` (default), ``"tool"`` or ``"both"`` (see :func:`calibrate_tool_offset`).
+        command: Command line recorded in the file (default: ``sys.argv``).
+        out: Where the text report goes (``None``: silent).
+    """
+    from ..readers import load_dataset
+    from ..robot.calibration import calibrate_tool_offset, write_calibration
+    from ..robot.model import load_robot
+    from ..robot.settings import load_robot_settings
+
+    if isinstance(dataset_paths, str | Path):
+        dataset_paths = [dataset_paths]
+    settings = load_robot_settings(settings_path)
+    robot = load_robot(settings)
+    recorded = settings.recorded_arm_joints
+    demos, labels = [], []
+    limits = robot.recorded_joint_limits()
+    for path in dataset_paths:
+        ds = load_dataset(path, robot_joints=recorded, joint_limits=limits)
+        for d in ds.all_demos():
+            demos.append(d)
+            labels.append(Path(path).name)
+    result = calibrate_tool_offset(robot, demos, labels, fit=fit)
+    if out is not None:
+        out(result.to_text())
+    if write:
+        cmd = command if command is not None else " ".join(["ipromp-pin", *sys.argv[1:]])
+        written = write_calibration(settings.path, result, cmd)
+        if out is not None:
+            out(f"  written to {written}")
+    return result

@@ -1,0 +1,428 @@
+"""The set-up every command that plans on one held-out demo shares (``run``, ``preview``, ``replay``),
+and the plan of ``run`` and ``preview`` (:func:`plan_session`) and the replay's set-up
+(:func:`prepare_replay`).
+
+:func:`prepare_session` builds a :class:`Session` from a pipeline definition, once per command: it
+loads the robot, reads the data (the built-in synthetic demos by default), picks the observed demo
+(held out of training), starts decimating the preview meshes meanwhile when asked, trains, reuses
+or loads the model, checks its joints against the robot's, collects the warnings and cuts the
+observation. A command's own checks of the demo and the model run as soon as their inputs exist
+(:class:`SetupChecks`), so that bad input fails before the computation that needs it.
+"""
+
+from __future__ import annotations
+
+import multiprocessing as mp
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from .. import atomic
+from ..data import ROBOT, Dataset, Demo, skeleton_frames
+from ..evaluation.scoring import ClosedLoopScore, replay_scored
+from ..exceptions import DataError, PipelineError
+from ..human import HumanMotion
+from ..human.placement import check_assumed_human
+from ..motion.limits import LimitProfile, check_profile_choice, choose_limit_profile
+from ..planning.closed_loop import ClosedLoopResult, ClosedLoopSettings, replay_demo, start_time
+from ..planning.one_shot import LogFn, check_model_joints
+from ..plans import HandoverPlan, plan
+from ..plans.warnings import (
+    loaded_model_warnings,
+    missing_object_warnings,
+    range_warnings,
+    single_task_warning,
+    warn_stderr,
+)
+from ..preview.mesh_cache import start_mesh_prefetch
+from ..promp import IProMP
+from ..readers.synthetic import make_synthetic_dataset
+from ..robot import Robot, gripper_kinematics, load_robot
+from ..robot.objects import ObjectTable, load_objects
+from ..robot.recordings import read_recordings
+from ..safety import CheckContext, CheckSuite
+from .config import PipelineConfig
+from .model_cache import fit_cached
+
+
+@dataclass
+class Session:
+    """Everything a command needs after the set-up, built by :func:`prepare_session`.
+
+    Attributes:
+        cfg: The pipeline definition.
+        robot: The loaded robot.
+        dataset: The demonstrations.
+        demo: The demo whose first part is observed (held out of training).
+        train: Every demo but ``demo`` (the model's training demos, unless it was loaded).
+        model: The fitted model (trained, reused from the cache or loaded).
+        warnings: Warnings about the model and the data (:mod:`ipromp_pin.plans.warnings`), one
+            line each.
+        mesh_prefetch: The process decimating the preview meshes meanwhile
+            (:func:`~ipromp_pin.preview.mesh_cache.start_mesh_prefetch`), or None.
+        observation: The observed first ``cfg.ratio`` of the demo's human motion (None when not cut).
+        suite: The checks of every plan (:meth:`ipromp_pin.safety.CheckSuite.build`).
+        context: What they know about the world for ``demo`` (:func:`check_context`; cut to what the
+            planner knows at the end of the observation when there is one).
+    """
+
+    cfg: PipelineConfig
+    robot: Robot
+    dataset: Dataset
+    demo: Demo
+    train: list[Demo]
+    model: IProMP
+    warnings: list[str] = field(default_factory=list)
+    mesh_prefetch: mp.process.BaseProcess | None = None
+    observation: Demo | None = None
+    suite: CheckSuite = field(default_factory=lambda: CheckSuite([]))
+    context: CheckContext = field(default_factory=CheckContext)
+
+    def observed(self) -> Demo:
+        """The observation of a session prepared with ``observe=True`` (PipelineError without one)."""
+        if self.observation is None:
+            raise PipelineError("the session has no observation (prepared with observe=False)")
+        return self.observation
+
+
+class SetupChecks:
+    """A command's checks of the held-out demo and the model, run by :func:`prepare_session` as soon
+    as their inputs exist (these do nothing; a command overrides what it needs)."""
+
+    def check_demo(self, demo: Demo) -> None:
+        """Refuse a held-out demo the command cannot use (called before the model is trained)."""
+
+    def check_model(self, model: IProMP, demo: Demo) -> None:
+        """Refuse a model the command cannot use on ``demo`` (called before the warnings are shown)."""
+
+
+def prepare_session(
+    cfg: PipelineConfig,
+    log: LogFn = print,
+    warn: LogFn = warn_stderr,
+    *,
+    robot: Robot | None = None,
+    checks: SetupChecks | None = None,
+    prefetch_meshes: bool = False,
+    observe: bool = True,
+) -> Session:
+    """The set-up of one command on ``cfg`` (``warn``: where warnings go; ``robot``: the loaded
+    robot, loaded here when None; ``checks``: the command's own checks; ``prefetch_meshes``: decimate
+    the preview meshes meanwhile when they are not cached yet; ``observe``: cut the observation).
+
+    Raises:
+        ModelError: the model's joints are not the robot's (e.g. a left-arm model run with
+            ``--robot baxter_right``).
+    """
+    checks = checks or SetupChecks()
+    robot = robot if robot is not None else load_robot(cfg.robot)
+    check_assumed_human(robot)  # an assumed human inside the robot's fixed links, before any computation
+    objects = load_objects(cfg.objects)
+    objects.check_robot(robot)  # retreat targets the robot cannot take, before any computation
+    ds = load_data(cfg, log, robot)
+    early = missing_object_warnings(ds.tasks, objects)  # before training: the model learns ds.tasks
+    for w in early:
+        warn(w)
+    if cfg.load_model is None:  # before training: a robot the demos were not recorded on cannot plan
+        check_recorded_joints(
+            ds, robot, "the built-in synthetic demos" if cfg.dataset is None else str(cfg.dataset)
+        )
+    if cfg.objects is not None:
+        objects.check_tasks(ds.tasks)
+    demo = choose_demo(ds, cfg)
+    checks.check_demo(demo)
+    prefetch = start_mesh_prefetch(robot) if prefetch_meshes else None
+    train = [d for d in ds.all_demos() if d is not demo]
+    model = get_model(cfg, ds, demo, log, robot, train=train)
+    check_model_joints(model, robot)
+    checks.check_model(model, demo)
+    warnings = model_warnings(cfg, ds, demo, model)
+    for w in warnings:
+        warn(w)
+    later = [w for w in missing_object_warnings(model.tasks_, objects) if w not in early]  # a loaded model's
+    for w in later:
+        warn(w)
+    warnings = early + warnings + later
+    session = Session(cfg, robot, ds, demo, train, model, warnings, prefetch)
+    session.suite = CheckSuite.build(robot)
+    session.context = check_context(cfg, demo, robot, objects)
+    if observe:
+        session.observation = observation = demo.head(cfg.ratio, groups=cfg.observe)
+        human = session.context.human
+        if human is not None:  # the planner knows the human up to the end of the observation
+            session.context = session.context.replace(human=human.until(float(observation.t[-1])))
+        log(
+            f"[observe] {demo.task}/{demo.name}: first {cfg.ratio:.0%} "
+            f"({observation.t[-1]:.2f} s, {observation.n_samples} samples) of {', '.join(cfg.observe)}"
+        )
+    return session
+
+
+def check_context(
+    cfg: PipelineConfig, demo: Demo, robot: Robot | None = None, objects: ObjectTable | None = None
+) -> CheckContext:
+    """What the timed-motion checks (:mod:`ipromp_pin.safety`) know about the world when the robot
+    plans for ``demo``'s human (``cfg``: the pipeline's settings of that world; ``robot``: whose
+    ``[human]`` settings shape the body, loaded from ``cfg`` when None; ``objects``: the task file
+    already read, else ``cfg.objects`` is read: the payload is the recognised task's object).
+
+    The human is the demo's tracked skeleton (:meth:`~ipromp_pin.human.HumanMotion.from_demo`), as
+    recorded over the whole demo (callers cut it to what the planner knows with ``until``); a demo
+    without a skeleton gets the settings' assumed standing human (its handing hand following the
+    demo's ``hand_position`` when there is one), which the reports call "assumed human"."""
+    robot = robot if robot is not None else load_robot(cfg.robot)
+    settings = robot.settings.human
+    human = HumanMotion.from_demo(demo, settings)
+    if human is None:
+        human = HumanMotion.assumed_human(settings, demo.t, demo.extras.get("hand_position"))
+    table = objects if objects is not None else load_objects(cfg.objects)
+    return CheckContext(task=None, human=human, objects=table)
+
+
+def check_outputs(cfg: PipelineConfig) -> None:
+    """Refuse, before any computation, output paths that cannot be written (a file where the output
+    folder should be, a read-only folder, a folder where the model file should be)."""
+    atomic.check_output_dir(cfg.out_dir)
+    if cfg.save_model is not None:
+        atomic.check_output_file(cfg.save_model, "model file")
+
+
+def robot_data_hint(robot: Robot) -> str:
+    """What a robot whose joints the demos do not record needs (one clause)."""
+    return (
+        f"robot '{robot.settings.name}' needs demonstrations recorded with its own joints "
+        f"({', '.join(robot.settings.recorded_arm_joints)}); the built-in synthetic demos and the shipped "
+        "recordings are Baxter's left arm (use --robot baxter_left, or a dataset recorded on this robot)"
+    )
+
+
+def check_recorded_joints(ds: Dataset, robot: Robot, what: str) -> None:
+    """Refuse, before training, demos whose robot group does not record the robot's arm joints."""
+    want = tuple(robot.settings.recorded_arm_joints)
+    for d in ds.all_demos():
+        have = tuple(d.channel_names.get(ROBOT, ()))
+        if have != want:
+            raise PipelineError(
+                f"{what}: the demos record joints {', '.join(have) or '(none)'}: {robot_data_hint(robot)}"
+            )
+
+
+def load_data(cfg: PipelineConfig, log: LogFn = print, robot: Robot | None = None) -> Dataset:
+    """The dataset of ``cfg``: real recordings, or the built-in synthetic demos.
+
+    Recordings are read with the robot's joints (by name) and checked against its joint limits;
+    the robot's forward kinematics locates the gripper when a recording lacks the end-point stream.
+    """
+    if cfg.dataset is None:
+        log(f"[data] built-in synthetic hand-over demos (seed {cfg.synthetic_seed})")
+        return make_synthetic_dataset(seed=cfg.synthetic_seed, rate_hz=cfg.rate_hz)
+    robot = robot if robot is not None else load_robot(cfg.robot)
+    log(f"[data] reading {cfg.dataset} (format {cfg.format})")
+    frames = skeleton_frames([*cfg.frames, *cfg.observe])
+    try:
+        ds = read_recordings(cfg.dataset, robot, format=cfg.format, frames=frames, rate_hz=cfg.rate_hz)
+    except DataError as exc:
+        if exc.field in robot.settings.recorded_arm_joints and exc.problem.startswith("unknown joint name"):
+            raise PipelineError(f"{exc}: {robot_data_hint(robot)}") from None
+        raise
+    log(f"[data] {len(ds.all_demos())} demos of tasks {', '.join(ds.tasks)}")
+    return ds
+
+
+def choose_demo(ds: Dataset, cfg: PipelineConfig) -> Demo:
+    """The demo to observe (raises :class:`PipelineError` for an unknown task or index)."""
+    task = cfg.task or ds.tasks[0]
+    if task not in ds.demos:
+        raise PipelineError(
+            f"{cfg.source}: field 'observation.task': unknown task '{task}' ({', '.join(ds.tasks)})"
+        )
+    demos = ds.demos[task]
+    if not -len(demos) <= cfg.demo < len(demos):
+        raise PipelineError(
+            f"{cfg.source}: field 'observation.demo': index {cfg.demo} out of range for {len(demos)} demos"
+        )
+    return demos[cfg.demo]
+
+
+def get_model(
+    cfg: PipelineConfig,
+    ds: Dataset,
+    held_out: Demo,
+    log: LogFn = print,
+    robot: Robot | None = None,
+    *,
+    train: list[Demo] | None = None,
+) -> IProMP:
+    """Load the saved model, or train one on ``train`` (default: every demo but ``held_out``), with
+    the ``robot``'s forward kinematics when given, so that its settings are chosen for the hand-over
+    position error."""
+    if cfg.load_model is not None:
+        log(f"[model] loading {cfg.load_model}")
+        model = IProMP.load(cfg.load_model)
+        missing = [g for g in cfg.observe if g not in model.observe_]
+        if missing:
+            raise PipelineError(
+                f"{cfg.load_model}: model does not observe {missing} (observes {model.observe_})"
+            )
+        return model
+    if train is None:
+        train = [d for d in ds.all_demos() if d is not held_out]
+    t0 = time.perf_counter()
+    fk, fk_rot = (None, None) if robot is None else gripper_kinematics(robot)
+    what = f"{len(train)} demos ({', '.join(cfg.observe)} + robot)"
+    if cfg.model_cache:
+        model, cached = fit_cached(IProMP(observe=cfg.observe), train, fk, log=log, fk_rot=fk_rot)
+    else:
+        model, cached = IProMP(observe=cfg.observe).fit(train, fk=fk, fk_rot=fk_rot), None
+    if cached is not None:
+        log(f"[model] reused the model an earlier run trained on {what}: {cached} (--retrain: train again)")
+    else:
+        log(f"[model] trained on {what}, {time.perf_counter() - t0:.2f} s")
+    if cfg.save_model is not None:
+        model.save(cfg.save_model)  # atomic: an earlier file is replaced only by a complete one
+        log(f"[model] saved {cfg.save_model}")
+    return model
+
+
+def model_warnings(cfg: PipelineConfig, ds: Dataset, demo: Demo, model: IProMP) -> list[str]:
+    """Warnings about the model: a loaded one that does not match the data or was trained on ``demo``,
+    a single-task one, or a ``demo`` far outside the training data."""
+    observed = range_warnings(model, demo)
+    if cfg.load_model is not None:
+        return loaded_model_warnings(model, ds, demo, str(cfg.load_model)) + observed
+    single = single_task_warning(model)
+    return ([] if single is None else [single]) + observed
+
+
+def plan_session(session: Session, log: LogFn = print) -> HandoverPlan:
+    """The hand-over planned from the session's observation (:func:`ipromp_pin.plans.plan`: what
+    ``run`` and ``preview`` plan, with the session's checks and objects; the human as the
+    observation shows it), with its retreat when ``[robot] retreat`` is on, scored against the
+    session's recorded demo."""
+    cfg, ctx = session.cfg, session.context
+    planned = plan(
+        session.model,
+        session.observed(),
+        session.robot,
+        objects=ctx.objects,
+        suite=session.suite,
+        control_rate_hz=cfg.control_rate_hz,
+        retreat=cfg.retreat,
+        log=log,
+    )
+    return planned.scored(session.demo)
+
+
+@dataclass
+class ReplayChecks(SetupChecks):
+    """The replay's checks in the set-up: the demo holds the observed and robot groups and a start
+    window of at least 2 samples; it holds every group the model observes.
+
+    Attributes:
+        observe: The observed groups of the pipeline.
+        start_ratio: The fraction of the demo observed before the robot starts.
+        start_s: When the robot starts, in [s] (set by :meth:`check_demo`).
+    """
+
+    observe: tuple[str, ...] | list[str]
+    start_ratio: float
+    start_s: float = 0.0
+
+    def check_demo(self, demo: Demo) -> None:
+        """Refuse a demo without the observed and robot groups or with a start window under 2 samples."""
+        demo.require(list(self.observe) + [ROBOT])
+        self.start_s = start_time(demo, self.start_ratio)
+
+    def check_model(self, model: IProMP, demo: Demo) -> None:
+        """Refuse a demo without every group the model observes."""
+        demo.require(list(model.observe_))
+
+
+def training_label(cfg: PipelineConfig) -> str:
+    """Where the demonstrated limits come from, as the limit profile's ``source`` names it."""
+    label = "the built-in synthetic demos" if cfg.dataset is None else Path(str(cfg.dataset)).name
+    if cfg.load_model is not None:  # its training demos are unknown: every demo but the replayed one
+        label += " (every demo but the replayed one; the loaded model's training set is unknown)"
+    return label
+
+
+def prime_checks(suite: CheckSuite, train: list[Demo], log: LogFn) -> None:
+    """Prepare the checks for motions near the demonstrated ones (the self-collision certifier's
+    distances near the training motions, computed offline and reused by every re-plan)."""
+    t0 = time.perf_counter()
+    suite.prime([d.groups[ROBOT] for d in train])
+    log(f"[limits] checks primed on {len(train)} training motions ({time.perf_counter() - t0:.1f} s)")
+
+
+@dataclass
+class ReplaySetup:
+    """What a replay runs with, set up as ``ipromp-pin replay`` does (:func:`prepare_replay`).
+
+    Attributes:
+        session: The pipeline's data, the held-out demo, the model and its training demos, the checks
+            (primed on the training motions) and their context.
+        profile: The limit profile.
+    """
+
+    session: Session
+    profile: LimitProfile
+
+    def replay(
+        self,
+        settings: ClosedLoopSettings,
+        suite: CheckSuite | None = None,
+        context: CheckContext | None = None,
+    ) -> ClosedLoopResult:
+        """The closed loop of the held-out demo at its recorded timing, with the session's checks and
+        context (or those given: what ``ipromp-pin replay`` runs and ``benchmarks/closed_loop.py``
+        times)."""
+        s = self.session
+        return replay_demo(
+            s.model,
+            s.robot,
+            s.demo,
+            self.profile,
+            settings,
+            s.suite if suite is None else suite,
+            s.context if context is None else context,
+        )
+
+    def scored(self, settings: ClosedLoopSettings) -> tuple[ClosedLoopScore, ClosedLoopResult]:
+        """:meth:`replay` scored against the recording (:func:`~ipromp_pin.evaluation.scoring.replay_scored`:
+        the torques with the true task's object; with a tracked skeleton the human checks judged
+        against the recorded human and the arrival without them), as ``evaluate --closed-loop`` scores
+        every trial."""
+        s = self.session
+        recorded = HumanMotion.from_demo(s.demo, s.robot.settings.human)
+
+        def replay(suite: CheckSuite, context: CheckContext) -> ClosedLoopResult:
+            return self.replay(settings, suite, context)
+
+        return replay_scored(replay, s.demo, s.robot, s.suite, s.context, recorded)
+
+
+def prepare_replay(
+    cfg: PipelineConfig,
+    settings: ClosedLoopSettings,
+    limits: str,
+    log: LogFn = print,
+    warn: LogFn = warn_stderr,
+) -> ReplaySetup:
+    """Everything before the closed loop: outputs and limits checked, the session prepared (the demo
+    held out, the model trained or loaded), the limit profile chosen, the certifier primed
+    (``benchmarks/closed_loop.py`` times the replays of this set-up)."""
+    check_outputs(cfg)
+    robot = load_robot(cfg.robot)
+    from_file = check_profile_choice(limits, robot, cfg.source)
+    checks = ReplayChecks(cfg.observe, settings.start_ratio)
+    session = prepare_session(cfg, log, warn, robot=robot, checks=checks, observe=False)
+    demo, train = session.demo, session.train
+    profile = choose_limit_profile(from_file or limits, robot, train, training_label(cfg))
+    log(f"[limits] {profile.name}: {profile.source}")
+    prime_checks(session.suite, train, log)
+    log(
+        f"[replay] {demo.task}/{demo.name}: {demo.duration_s:.2f} s at its recorded timing; the robot starts "
+        f"after {settings.start_ratio:.0%} ({checks.start_s:.2f} s), re-plans at "
+        f"{settings.replan_rate_hz:g} Hz, control at {settings.control_rate_hz:g} Hz"
+    )
+    return ReplaySetup(session, profile)

@@ -1,0 +1,112 @@
+"""``ipromp-pin train DATASET --out MODEL``: train a model on a dataset and save it."""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from ..shipped import DEFAULT_ROBOT
+from .arguments import read_dataset
+
+if TYPE_CHECKING:
+    from ..data import Dataset, Demo
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    """Add the ``train`` command to ``subparsers``."""
+    p = subparsers.add_parser("train", help="train a model on a dataset and save it")
+    p.add_argument("dataset", type=Path, help="dataset folder: one sub-folder of demos per task")
+    p.add_argument(
+        "--observe",
+        default="orientation,emg",
+        help="comma-separated channel groups the model observes of the human (default %(default)s)",
+    )
+    p.add_argument(
+        "--format",
+        default="auto",
+        help="the demos' format: auto (detected per task folder), native, chen2017, multimodal or bag "
+        "(default %(default)s)",
+    )
+    p.add_argument("--out", type=Path, required=True, help="model file (.npz)")
+    p.add_argument(
+        "--holdout",
+        action="append",
+        default=[],
+        metavar="TASK/DEMO",
+        help="leave a demo out of training, by its index in its task (as run --task/--demo count) or "
+        "its name, e.g. give/0 or give/give_000; repeatable",
+    )
+    p.add_argument(
+        "--robot",
+        default=DEFAULT_ROBOT,
+        help="robot settings: the recorded joints of the robot group and their limits (default %(default)s)",
+    )
+    p.add_argument(
+        "--coupling",
+        default="auto",
+        help="observed groups that predict the robot: auto (cross-validated), all, or a comma-separated list",
+    )
+    p.set_defaults(func=main)
+
+
+def main(args: argparse.Namespace) -> int:
+    """Train on every demo of the dataset and save the model."""
+    from .. import atomic
+    from ..data import parse_groups, skeleton_frames
+    from ..plans.warnings import single_task_warning, warn_stderr
+    from ..promp import IProMP
+    from ..robot import gripper_kinematics, load_robot
+
+    atomic.check_output_file(args.out, "model file")
+    observe = parse_groups(args.observe)
+    coupling = args.coupling if args.coupling in ("auto", "all") else parse_groups(args.coupling)
+    IProMP(observe=observe, coupling=coupling).check_params()  # before reading the data
+    frames = skeleton_frames(observe) or None
+    robot = load_robot(args.robot)
+    ds = read_dataset(args, frames, robot)
+    t0 = time.perf_counter()
+    kinematics = gripper_kinematics(robot)  # settings chosen for the hand-over position of this robot
+    held = held_out_demos(ds, args.holdout)
+    train = [d for d in ds.all_demos() if not any(d is h for h in held)]
+    for h in held:
+        print(f"held out {h.task}/{h.name} ({h.source})")
+    model = IProMP(observe=observe, coupling=coupling).fit(train, **kinematics._asdict())
+    single = single_task_warning(model)
+    if single is not None:
+        warn_stderr(single)
+    model.save(args.out)  # atomic: a failed save leaves an earlier model file intact
+    print(f"trained on {len(train)} demos of {', '.join(ds.tasks)} in {time.perf_counter() - t0:.2f} s")
+    print(
+        f"noise ratio {model.noise_ratio_:g}; groups coupled to the robot: "
+        f"{', '.join(model.coupled_groups_) or 'none (the prediction is the prior)'}"
+    )
+    print(f"wrote {args.out}")
+    return 0
+
+
+def held_out_demos(ds: Dataset, specs: list[str]) -> list[Demo]:
+    """The demos ``--holdout TASK/DEMO`` names (index in its task or name); a one-line error
+    (:class:`~ipromp_pin.exceptions.PipelineError`) for an unknown task or demo."""
+    from ..exceptions import PipelineError
+
+    out = []
+    for spec in specs:
+        task, sep, which = spec.partition("/")
+        if not sep or task not in ds.demos:
+            raise PipelineError(
+                f"command line: field 'holdout': {spec!r} is not TASK/DEMO of a task ({', '.join(ds.tasks)})"
+            )
+        demos = ds.demos[task]
+        names = [d.name for d in demos]
+        if which in names:
+            out.append(demos[names.index(which)])
+        elif which.lstrip("-").isdigit() and -len(demos) <= int(which) < len(demos):
+            out.append(demos[int(which)])
+        else:
+            raise PipelineError(
+                f"command line: field 'holdout': task '{task}' has no demo {which!r} "
+                f"({len(demos)} demos: index 0-{len(demos) - 1} or a name such as {names[0]!r})"
+            )
+    return out

@@ -1,0 +1,263 @@
+"""An evaluation run from a typed request (:class:`EvaluateRequest`, what ``ipromp-pin evaluate``
+builds), with the prologue every evaluation shares: outputs and settings checked, the dataset's size checked
+from its file list, the dataset read once, the inference kernels compiled once (before the worker
+processes fork), then every protocol run, printed and written.
+
+The command line (:mod:`ipromp_pin.app.evaluate`) builds the request from its arguments, e.g.
+``EvaluateRequest(dataset=args.dataset, grid=grid_from(args.grid, args.n_train, args.ratios),
+protocols=protocols_from(args.protocol), closed_loop_settings=<the --condition-noise ... options>,
+command=" ".join(["ipromp-pin", *sys.argv[1:]]), progress=<a progress-line factory>, ...)``, and
+calls :func:`run_evaluate`.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from functools import partial
+from pathlib import Path
+
+from .. import atomic, readers
+from ..data import Dataset, skeleton_frames
+from ..human.placement import check_assumed_human
+from ..motion.limits import check_profile_choice
+from ..planning.closed_loop import ClosedLoopSettings
+from ..robot import Robot, load_robot
+from ..robot.objects import load_objects
+from ..robot.recordings import read_recordings
+from ..shipped import DEFAULT_ROBOT
+from .baselines import require_sklearn
+from .cells import Cell
+from .closed_loop import ClosedLoopOptions, evaluate_closed_loop
+from .config import PAPER_GRID, EvaluationConfig, ProgressFn
+from .dask_cluster import DaskCluster, prepare_worker, require_dask
+from .evaluate import evaluate
+from .jobs import JobRunner
+from .splits import check_dataset_size
+from .tables import (
+    closed_loop_markdown,
+    overall,
+    paper_comparison,
+    to_markdown,
+    write_closed_loop_results,
+    write_results,
+)
+
+
+@dataclass
+class EvaluateRequest:
+    """Everything an evaluation run needs (what ``ipromp-pin evaluate`` passes).
+
+    Attributes:
+        dataset: Dataset folder.
+        format: Dataset format (``"auto"``, ...).
+        observe: Observed channel sets, each a list of group names.
+        grid: (n_train, obs_ratio) cells.
+        protocols: Protocols to run, in order (``"paper"``, ``"splits"``).
+        n_test: Test demos per task.
+        n_splits: Random splits (``splits`` protocol).
+        seed: Seed of the random splits.
+        robot: Robot settings (name or file).
+        jobs: Worker processes.
+        cluster: A Dask cluster to run the model fits on instead (``dask-local:N`` or a scheduler
+            address such as ``tcp://HOST:8786``; :mod:`~ipromp_pin.evaluation.dask_cluster`).
+        baselines: Also run the reference baselines (needs scikit-learn).
+        closed_loop: Replay every test demo in the closed loop (``--closed-loop``).
+        limits: Limit profile of the closed loop (``demonstrated``, ``conservative`` or a file).
+        objects: Task file of the objects (``--objects``; None: the shipped ``robots/objects.toml``):
+            the closed loop torque-checks every re-plan with them; both protocols score each cell's
+            ``peak_torque_ratio`` (the one-shot plans' or the commanded motions', true task's object).
+        closed_loop_settings: The closed loop's settings (each cell's ratio replaces ``start_ratio``;
+            None: the defaults).
+        json: JSON results file (None: not written).
+        md: Markdown results file (None: beside the JSON, if any).
+        plots: Folder of the accuracy plot (one-shot evaluation; None: no plot).
+        command: The command line, recorded in the JSON's ``meta``.
+        progress: Makes a progress callable ``(done, total, label)`` (None: no progress).
+        log: Prints a line of the run's report.
+    """
+
+    dataset: Path
+    format: str = "auto"
+    observe: list[list[str]] = field(default_factory=lambda: [["orientation"], ["orientation", "emg"]])
+    grid: list[tuple[int, float]] = field(default_factory=lambda: list(PAPER_GRID))
+    protocols: list[str] = field(default_factory=lambda: ["paper"])
+    n_test: int = 10
+    n_splits: int = 20
+    seed: int = 0
+    robot: str = DEFAULT_ROBOT
+    jobs: int = 1
+    cluster: str | None = None
+    baselines: bool = False
+    closed_loop: bool = False
+    limits: str = "demonstrated"
+    objects: Path | None = None
+    closed_loop_settings: ClosedLoopSettings | None = None
+    json: Path | None = None
+    md: Path | None = None
+    plots: Path | None = None
+    command: str = ""
+    progress: Callable[[], ProgressFn] | None = None
+    log: Callable[[str], None] = print
+
+    @property
+    def md_path(self) -> Path | None:
+        """The Markdown file: ``md``, else beside the JSON file."""
+        return self.md or (self.json.with_suffix(".md") if self.json else None)
+
+    def configs(self) -> list[EvaluationConfig]:
+        """One evaluation config per protocol."""
+        return [
+            EvaluationConfig(
+                protocol=protocol,
+                observe=self.observe,
+                grid=self.grid,
+                n_test=self.n_test,
+                n_splits=self.n_splits,
+                seed=self.seed,
+                baselines=self.baselines,
+            )
+            for protocol in self.protocols
+        ]
+
+    def settings(self) -> ClosedLoopSettings:
+        """The closed loop's settings with the first cell's ratio as start ratio."""
+        settings = self.closed_loop_settings or ClosedLoopSettings(control_rate_hz=100.0)
+        return dataclasses.replace(settings, start_ratio=self.grid[0][1])
+
+
+def grid_from(choice: str, n_train: list[int], ratios: list[float]) -> list[tuple[int, float]]:
+    """The cells of ``--grid``: the paper's (``"paper"``), else every (n_train, ratio) pair."""
+    return list(PAPER_GRID) if choice == "paper" else [(n, r) for n in n_train for r in ratios]
+
+
+def protocols_from(choice: str) -> list[str]:
+    """The protocols of ``--protocol``: ``"both"`` is the paper's, then the random splits."""
+    return ["paper", "splits"] if choice == "both" else [choice]
+
+
+def compile_kernels_once() -> None:
+    """Compile the numba kernels in this process (announced) before worker processes are forked,
+    which then inherit them, instead of each worker compiling its own copy."""
+    from ..promp.compiled import compiled_kernels_cached, kernel_backend, numba_kernels
+    from ..promp.warmup import compile_kernels
+
+    if kernel_backend() == "numba" and not compiled_kernels_cached():
+        numba_kernels()  # announces the compile
+        try:
+            compile_kernels()
+        except RuntimeError:  # compiled but not cached (read-only cache): the workers compile again
+            pass
+
+
+def check_request(request: EvaluateRequest) -> Robot:
+    """Every check before any demo is read: baselines' dependency, closed-loop settings (each cell's
+    ratio as start ratio), output files, limit profile, dataset size (from its file list); returns
+    the loaded robot."""
+    if request.baselines:
+        require_sklearn()
+    if request.cluster is not None:
+        DaskCluster.from_spec(request.cluster)
+        require_dask()
+    if request.closed_loop:
+        base = request.settings()
+        for _, ratio in request.grid:  # every cell's obs_ratio is a start ratio
+            dataclasses.replace(base, start_ratio=ratio).validate("command line")
+    for path in (request.json, request.md_path):
+        if path is not None:
+            atomic.check_output_file(path)
+    if request.plots and not request.closed_loop:
+        atomic.check_output_dir(request.plots, "plots folder")
+    robot = load_robot(request.robot)
+    check_assumed_human(robot)  # an assumed human inside the robot's fixed links
+    load_objects(request.objects)  # a bad task file fails here, before any demo is read
+    if request.closed_loop:
+        check_profile_choice(request.limits, robot, "command line")
+    counts = readers.count_demos(request.dataset, format=request.format)  # lists the demo files, reads none
+    for cfg in request.configs():
+        check_dataset_size(counts, cfg, request.dataset)
+    return robot
+
+
+def read_dataset(request: EvaluateRequest, robot: Robot) -> Dataset:
+    """The dataset, its arm joints and limits those of ``robot``; says what was read in how long."""
+    t0 = time.perf_counter()
+    ds = read_recordings(
+        request.dataset,
+        robot,
+        format=request.format,
+        frames=skeleton_frames(g for o in request.observe for g in o),
+        progress=request.progress() if request.progress else None,
+    )
+    request.log(
+        f"read {len(ds.all_demos())} demos of {', '.join(ds.tasks)} in {time.perf_counter() - t0:.1f} s"
+    )
+    return ds
+
+
+def open_runner(request: EvaluateRequest) -> contextlib.AbstractContextManager[int | JobRunner]:
+    """Where the request's jobs run, as a context: ``request.jobs`` local processes, or a Dask session
+    (:meth:`~ipromp_pin.evaluation.dask_cluster.DaskCluster.open`) started now, so that its workers
+    start, import the package and load the robot while the dataset is read, and serve every protocol."""
+    if request.cluster is None:
+        return contextlib.nullcontext(request.jobs)
+    return DaskCluster.from_spec(request.cluster).open(partial(prepare_worker, request.robot))
+
+
+def run_evaluations(request: EvaluateRequest, ds: Dataset, where: int | JobRunner) -> list[Cell]:
+    """Every protocol of the request on ``ds`` (one-shot or closed loop), each timed, run ``where``
+    (a number of local processes or a runner: :func:`open_runner`)."""
+    cells: list[Cell] = []
+    options = ClosedLoopOptions(limits=request.limits, settings=request.settings())
+    objects = load_objects(request.objects)
+    if request.objects is not None:
+        objects.check_tasks(ds.tasks)
+    for cfg in request.configs():
+        progress = request.progress() if request.progress else None
+        t1 = time.perf_counter()
+        if request.closed_loop:
+            cells += evaluate_closed_loop(ds, cfg, options, request.robot, progress, where, objects)
+            request.log(f"protocol {cfg.protocol} (closed loop): {time.perf_counter() - t1:.1f} s")
+        else:
+            cells += evaluate(ds, cfg, robot=request.robot, progress=progress, jobs=where, objects=objects)
+            request.log(f"protocol {cfg.protocol}: {time.perf_counter() - t1:.1f} s")
+    return cells
+
+
+def report(request: EvaluateRequest, cells: list[Cell], seconds: float) -> None:
+    """Print the tables, write the JSON, Markdown and plot, and print the summary."""
+    md = request.md_path
+    meta: dict = {"dataset": str(request.dataset), "command": request.command, "seconds": round(seconds, 2)}
+    if request.closed_loop:
+        settings = request.settings().to_dict()
+        meta["closed_loop"] = {"limits": request.limits, **settings, "start_ratio": "obs_ratio of each cell"}
+        request.log(closed_loop_markdown(cells))  # type: ignore[arg-type]
+        write_closed_loop_results(cells, request.json, md, meta)  # type: ignore[arg-type]
+    else:
+        request.log(to_markdown(cells))
+        write_results(cells, request.json, md, meta)
+        for key, o in overall(cells).items():
+            paper = f"; {paper_comparison(o)}" if "paper_mean_accuracy" in o else ""
+            request.log(f"{key}: mean accuracy {o['mean_accuracy']:.3f} over {o['cells']} cells{paper}")
+    if request.json:
+        request.log(f"wrote {request.json}" + (f" and {md}" if md else ""))
+
+
+def run_evaluate(request: EvaluateRequest) -> list[Cell]:
+    """Run the evaluation of ``request`` (see the module docstring) and return its cells.
+
+    Raises:
+        IPrompPinError: bad input (one line naming the file or option and the problem), before any
+            demo is read where it can be known then.
+    """
+    robot = check_request(request)
+    t0 = time.perf_counter()
+    with open_runner(request) as where:
+        ds = read_dataset(request, robot)
+        compile_kernels_once()
+        cells = run_evaluations(request, ds, where)
+    report(request, cells, time.perf_counter() - t0)
+    return cells

@@ -141,7 +141,7 @@ def run_replay(
     marks its files).
     """
     from .. import atomic
-    from ..outputs.files import REPLAY, command_outputs, keyed
+    from ..outputs.files import ALL_OUTPUTS, keyed
     from ..outputs.replay_report import replay_passed, summary_lines
     from ..plans.warnings import warn_stderr
     from ..safety import CheckContext
@@ -154,7 +154,7 @@ def run_replay(
     score, result = setup.scored(settings)
     truth = CheckContext(task=demo.task, objects=session.context.objects)  # the files' torques
     result.trajectory = session.suite.annotate(result.trajectory, truth)
-    with atomic.OutputSet(cfg.out_dir, managed=command_outputs(REPLAY)) as out:
+    with atomic.OutputSet(cfg.out_dir, managed=ALL_OUTPUTS) as out:  # one command's files only
         _stage_files(out, session, result, score, allow_failing_checks, preview, log)
         files = keyed(out.commit())
     log(summary_lines(demo, result, score, time.perf_counter() - t_start))

@@ -30,7 +30,14 @@ from .handover_orientation import OrientationEstimate
 from .handover_selection import HandoverChoice, choose_handover
 from .head import RecognitionHead
 from .provenance import demo_record
-from .selection import NOISE_GRID, TEMPERATURE_GRID, choose_coupling, choose_noise, fit_recognition_head
+from .selection import (
+    NOISE_GRID,
+    TEMPERATURE_GRID,
+    choose_coupling,
+    choose_noise,
+    explained_rows,
+    fit_recognition_head,
+)
 from .training import PhaseSettings, TrainingSet, demos_by_task, log_task_prior, prepare_training, task_models
 from .validation import check_fitted
 
@@ -90,7 +97,11 @@ def select_hyperparameters(
     head, rows = None, []
     if len(nus) > 1 or len(taus) > 1 or params["head"] or params["handover"]:
         noise = choose_noise(training, settings, task_log_prior, nus, taus)
-        nu, tau, rows = noise.nu, noise.temperature, noise.rows
+        nu, tau, rows = (
+            noise.nu,
+            noise.temperature,
+            explained_rows(noise.rows, noise.temperature, training.demos),
+        )
         nu_scores = noise.scores if len(nus) > 1 else {}
         if params["head"] and rows:
             head = fit_recognition_head(rows, tau, len(training.tasks))

@@ -38,6 +38,7 @@ def compile_kernels() -> float:
         model = IProMP(observe=["orientation", "emg"], n_basis=9, n_alpha=20).fit(demos[1:])
         observation = demos[0].head(0.3, groups=model.observe)
         prediction = model.predict(observation)
+        assert not isinstance(prediction, list)  # one observation, one prediction
         # the hand-over estimates' read-out update (a model fitted with the robot's kinematics): one
         # call with the shapes it gets, (3, J) read-out of the last phase's joint angles
         weights = prediction.robot_weights

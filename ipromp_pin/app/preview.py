@@ -98,7 +98,7 @@ def run_preview(
     planned = plan_session(session, log)
     result, retreat = planned.approach, planned.retreat
     if html is not None:
-        ctx = session.context
+        ctx = planned.context  # what the checks knew: the human they judged
         path = write_preview(
             result,
             session.robot,
@@ -112,7 +112,7 @@ def run_preview(
         log(f"[preview] wrote {path} ({path.stat().st_size / 1e6:.1f} MB): open it in a browser (no server)")
         return path
     visual = preview_visual_model(session.robot, session.mesh_prefetch)
-    ctx = session.context
+    ctx = planned.context  # what the checks knew: the human they judged
     content = preview_content(
         result,
         session.robot,
@@ -165,7 +165,7 @@ def write_preview(
     retreat: RetreatResult | None = None,
 ) -> Path:
     """Write the self-contained offline preview page (after the mesh ``prefetch`` process, if any);
-    ``human``: the body drawn when ``demo`` has no tracked skeleton (e.g. the assumed human);
+    ``human``: the human the checks judged (the body drawn, its separation measured);
     ``objects``: the tasks' objects (the recognised task's is drawn and in the torques);
     ``retreat``: animated after the hand-over."""
     from ..outputs.preview_content import preview_content

@@ -330,8 +330,19 @@ class PreviewContent:
 
     @property
     def duration_s(self) -> float:
-        """Duration of the robot trajectory in [s]."""
+        """The robot trajectory's last time in [s] on the human's clock (it rests before ``t_s[0]``)."""
         return float(self.t_s[-1])
+
+    @property
+    def end_s(self) -> float:
+        """The page's last time in [s] on the human's clock: the latest last sample of the robot's
+        trajectory, the hand path, the body, the separation and the torques (the animation ends
+        there, and never later)."""
+        tracks = (
+            self.hand_t_s,
+            *(None if x is None else x.t_s for x in (self.body, self.separation, self.torques)),
+        )
+        return max([self.duration_s] + [float(t[-1]) for t in tracks if t is not None])
 
     def observed_fraction(self) -> float | None:
         """Observed fraction of the human's motion (``observed_until_s / human_duration_s``, at most 1),

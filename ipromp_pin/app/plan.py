@@ -11,7 +11,6 @@ their checks, 2 some could not be read (one line each on standard error) or bad 
 from __future__ import annotations
 
 import argparse
-import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -145,7 +144,7 @@ def main(args: argparse.Namespace) -> int:
     )
     outcome = run(
         args.model, args.recordings, args.out, options, robot=args.robot, objects=args.objects,
-        jobs=args.jobs, cluster=args.cluster,
+        jobs=args.jobs, cluster=args.cluster, log=lambda line: print(line, flush=True),
     )  # fmt: skip
     for row in outcome.rows:
         if row.status == "unreadable":
@@ -173,7 +172,8 @@ def run(
     log=print,
 ) -> PlanOutcome:
     """Plan ``recordings`` with the model at ``model_path`` into ``out_dir`` (see the module docstring);
-    ``log``: one line per recording as it is done."""
+    ``log``: one line per recording as it is done (flushed: the command's lines reach a log file as
+    they are printed, e.g. under nohup or SLURM)."""
     from .. import atomic
     from ..evaluation.dask_cluster import DaskCluster
     from ..planning.one_shot import check_model_joints
@@ -195,12 +195,16 @@ def run(
     nominal = float(model.duration_nominal_s_)
     log(
         f"[plan] {len(work)} recording{'s' * (len(work) != 1)}, {options.window.text(nominal)}, "
-        f"model {model_path} ({', '.join(model.tasks_)}), robot {arm.settings.name}"
+        f"model {model_path} ({', '.join(model.tasks_)}), robot {arm.settings.name}, "
+        + (
+            f"on the Dask cluster {runner.label}"
+            if runner is not None
+            else f"{jobs} process{'es' * (jobs > 1)}"
+        )
     )
 
     def progress(done: int, total: int, row: PlannedRecording) -> None:
         log(f"[{done}/{total}] {row.line()}")
-        sys.stdout.flush()
 
     rows = plan_batch(worker, work, runner if runner is not None else jobs, progress)
     about = {

@@ -144,7 +144,7 @@ def run_replay(
     """
     from .. import atomic
     from ..human import HumanMotion
-    from ..outputs.files import REPLAY, command_outputs, keyed
+    from ..outputs.files import ALL_OUTPUTS, keyed
     from ..outputs.replay_report import replay_checks, replay_passed, summary_lines
     from ..plans.warnings import warn_stderr
     from ..safety import CheckContext
@@ -161,7 +161,7 @@ def run_replay(
     # preview's checks (the human checks against the recorded human, when the demo tracks one)
     recorded = HumanMotion.from_demo(demo, session.robot.settings.human)
     judged = replay_checks(result.trajectory, session.suite, demo.task, truth.objects, recorded)
-    with atomic.OutputSet(cfg.out_dir, managed=command_outputs(REPLAY)) as out:
+    with atomic.OutputSet(cfg.out_dir, managed=ALL_OUTPUTS) as out:  # one command's files only
         _stage_files(out, session, result, score, judged, recorded, allow_failing_checks, preview, log)
         files = keyed(out.commit())
     log(summary_lines(demo, result, score, time.perf_counter() - t_start))

@@ -39,6 +39,7 @@ import threading
 import time
 import uuid
 from collections.abc import Callable, Iterator, Sequence
+from concurrent.futures import CancelledError
 from dataclasses import dataclass
 from types import ModuleType
 
@@ -48,8 +49,18 @@ from .jobs import J, R, Worker, single_threaded_blas
 LOCAL_PREFIX = "dask-local:"
 """``--cluster`` prefix of a local cluster (followed by its number of workers)."""
 
-SCHEMES = ("tcp://", "tls://", "ws://", "wss://", "inproc://", "ucx://")
-"""Address schemes of an existing Dask scheduler."""
+SCHEMES = ("tcp://", "tls://", "ws://", "wss://")
+"""Address schemes of an existing Dask scheduler on another machine (``inproc://`` reaches only this
+process, ``ucx://`` needs UCX-Py: neither is a cluster of this command)."""
+
+CONNECT_TIMEOUT_S = 15.0
+"""How long to try reaching a scheduler [s]."""
+
+WORKER_WAIT_S = 30.0
+"""How long to wait for a scheduler's first worker [s]."""
+
+WORKER_MEMORY_BYTES = 600 * 2**20
+"""What a local worker needs at least (the package, the robot, a model fit), for the bound on N."""
 
 RETRIES = 3
 """Re-runs of a job that raised before its error is reported (a job whose worker died is run again by
@@ -101,18 +112,32 @@ class DaskCluster:
 
     @classmethod
     def from_spec(cls, spec: str) -> DaskCluster:
-        """The cluster of a ``--cluster`` value (``dask-local:N`` or a scheduler address)."""
+        """The cluster of a ``--cluster`` value (``dask-local:N`` or a scheduler address
+        ``SCHEME://HOST:PORT``), or ClusterError naming what is wrong with it."""
         spec = spec.strip()
         if spec.startswith(LOCAL_PREFIX):
             count = spec[len(LOCAL_PREFIX) :]
-            if not count.isdigit() or not 1 <= int(count) <= 1024:
-                raise ClusterError(f"--cluster: '{spec}': the number of workers must be 1-1024")
+            most = max_local_workers()
+            if not count.isdigit() or not 1 <= int(count) <= most:
+                raise ClusterError(
+                    f"--cluster: '{spec}': the number of local workers must be 1-{most} (this machine's "
+                    f"cores and memory; a bigger cluster is a scheduler address such as tcp://HOST:8786)"
+                )
             return cls(n_workers=int(count))
-        if spec.startswith(SCHEMES) and len(spec.split("://", 1)[1]) > 0:
-            return cls(address=spec)
-        raise ClusterError(
-            f"--cluster: '{spec}' is neither {LOCAL_PREFIX}N nor a scheduler address such as tcp://HOST:8786"
-        )
+        scheme, sep, rest = spec.partition("://")
+        if not sep or f"{scheme}://" not in SCHEMES:
+            raise ClusterError(
+                f"--cluster: '{spec}' is neither {LOCAL_PREFIX}N nor a scheduler address such as "
+                f"tcp://HOST:8786 (schemes: {', '.join(s[:-3] for s in SCHEMES)})"
+            )
+        host, colon, port = rest.rpartition(":")
+        if not colon or not host or "/" in rest:
+            raise ClusterError(
+                f"--cluster: '{spec}': give the scheduler's host and port, e.g. {scheme}://HOST:8786"
+            )
+        if not port.isdigit() or not 1 <= int(port) <= 65535:
+            raise ClusterError(f"--cluster: '{spec}': the port must be a number in 1-65535, got '{port}'")
+        return cls(address=spec)
 
     @property
     def label(self) -> str:
@@ -147,11 +172,23 @@ class DaskCluster:
                     )
                 client = distributed.Client(cluster)
             else:
-                client = distributed.Client(self.address, timeout="30s")
-        except OSError as exc:
+                client = distributed.Client(self.address, timeout=f"{CONNECT_TIMEOUT_S:g}s")
+        except (OSError, TimeoutError) as exc:
             if cluster is not None:
                 cluster.close()
-            raise ClusterError(f"--cluster {self.label}: cannot reach the scheduler ({exc})") from None
+            raise ClusterError(
+                f"--cluster {self.label}: cannot reach the scheduler at {self.label} within "
+                f"{CONNECT_TIMEOUT_S:g} s ({exc or type(exc).__name__})"
+            ) from None
+        if self.address is not None:
+            try:
+                client.wait_for_workers(1, timeout=WORKER_WAIT_S)
+            except (OSError, TimeoutError):
+                client.close()
+                raise ClusterError(
+                    f"--cluster {self.label}: the scheduler has no workers (waited {WORKER_WAIT_S:g} s); "
+                    "start some with dask-worker, or dask-jobqueue on SLURM"
+                ) from None
         session = DaskSession(self, distributed, client, cluster)
         if prepare is not None:
             session.prepare(prepare)
@@ -197,8 +234,14 @@ class DaskSession:
             )
             for i, job in enumerate(work)
         ]
-        for future in self.distributed.as_completed(futures):
-            yield future.result()
+        try:
+            for future in self.distributed.as_completed(futures):
+                yield future.result()
+        except (CancelledError, OSError) as exc:  # FutureCancelledError is a CancelledError
+            raise ClusterError(
+                f"--cluster {self.label}: the cluster stopped running the jobs (its workers or its "
+                f"scheduler were lost: {type(exc).__name__})"
+            ) from None
 
     def close(self) -> None:
         """Close the client, and the local cluster if the session started one."""
@@ -269,6 +312,17 @@ def run_job(worker: Worker[J, R], job: J) -> R:
     if held is None or held[0] is not worker:
         held = _thread.worker = (worker, worker.for_one_job())
     return held[1].run_job(job)
+
+
+def max_local_workers() -> int:
+    """The most local workers this machine can run: its cores, and its memory at
+    :data:`WORKER_MEMORY_BYTES` each (at least 1)."""
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    try:
+        memory = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (ValueError, OSError, AttributeError):
+        return max(cores, 1)
+    return max(1, min(cores, memory // WORKER_MEMORY_BYTES))
 
 
 def dask_config() -> ModuleType:

@@ -69,12 +69,6 @@ FILE_KEYS: dict[str, str] = {f.name: f.key for f in OUTPUT_FILES}
 """File name -> key of the report's ``files``."""
 
 
-def command_outputs(command: str) -> tuple[str, ...]:
-    """The names of every file ``command`` may write (its :class:`~ipromp_pin.atomic.OutputSet`'s
-    managed names), in table order."""
-    return tuple(f.name for f in OUTPUT_FILES if command in f.commands)
-
-
 def trajectory_outputs(command: str | None = None) -> tuple[str, ...]:
     """The names of the files a robot executes (of ``command``, or of any), in table order."""
     return tuple(f.name for f in OUTPUT_FILES if f.trajectory and (command is None or command in f.commands))

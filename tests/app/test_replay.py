@@ -161,3 +161,19 @@ def test_closed_loop_evaluation_chooses_the_model_settings_for_the_hand_over(tmp
     assert main(args) == 0
     assert seen and all(fk is not None and fk_rot is not None for fk, fk_rot in seen)
     assert seen[0][0](np.zeros((2, 7))).shape == (2, 3) and seen[0][1](np.zeros((2, 7))).shape == (2, 3, 3)
+
+
+def test_a_replay_into_a_run_folder_leaves_the_replay_files_only(tmp_path, tiny):
+    """An output folder holds one command's consistent set: the run's retreat and bag, which the
+    replay does not write, go (the replay's trajectory does not end where that retreat starts)."""
+    out = tmp_path / "out"
+    ds, model = tiny
+    common = ["--dataset", str(ds), "--model", str(model), "--out", str(out), "--no-preview"]
+    assert main(["run", str(PIPELINE), *common]) == 0
+    assert (out / "retreat.csv").exists() and (out / "rosbag").is_dir()
+    (out / "notes.txt").write_text("mine")
+    assert main(["replay", str(PIPELINE), *common]) == 0
+    report = json.loads((out / "report.json").read_text())
+    written = {Path(p).name for p in report["files"].values()}
+    assert sorted(p.name for p in out.iterdir()) == sorted(written | {"notes.txt"})
+    assert "retreat.csv" not in written and "rosbag" not in written

@@ -5,11 +5,12 @@ from __future__ import annotations
 
 import json
 import os
+import re
 
 import pytest
 
 from ipromp_pin.evaluation.config import EvaluationConfig
-from ipromp_pin.evaluation.dask_cluster import ClusterError, DaskCluster
+from ipromp_pin.evaluation.dask_cluster import ClusterError, DaskCluster, max_local_workers
 from ipromp_pin.evaluation.evaluate import evaluate
 from ipromp_pin.evaluation.tables import to_json
 from ipromp_pin.readers.synthetic import make_synthetic_dataset
@@ -20,11 +21,40 @@ TINY_MODEL = {"n_basis": 9, "n_alpha": 8, "head": False, "handover": False, "cou
 
 
 def test_cluster_values_are_parsed_or_refused() -> None:
-    assert DaskCluster.from_spec("dask-local:3") == DaskCluster(n_workers=3)
+    assert DaskCluster.from_spec("dask-local:1") == DaskCluster(n_workers=1)
     assert DaskCluster.from_spec("tcp://10.0.0.5:8786").address == "tcp://10.0.0.5:8786"
-    for bad in ("dask-local:0", "dask-local:x", "localhost:8786", "tcp://"):
-        with pytest.raises(ClusterError, match="--cluster"):
-            DaskCluster.from_spec(bad)
+    assert DaskCluster.from_spec(" tls://[::1]:8786 ").address == "tls://[::1]:8786"
+    bad = {
+        "dask-local:0": "number of local workers",
+        "dask-local:x": "number of local workers",
+        f"dask-local:{max_local_workers() + 1}": "cores and memory",
+        "localhost:8786": "neither",
+        "tcp://": "host and port",
+        "tcp://127.0.0.1": "host and port",
+        "tcp://:8786": "host and port",
+        "tcp://h:abc": "port must be a number",
+        "tcp://h:99999": "port must be a number",
+        "inproc://": "neither",
+        "ucx://h:1": "neither",
+    }
+    for spec, problem in bad.items():
+        with pytest.raises(ClusterError, match=f"--cluster: '{re.escape(spec)}'.*{problem}"):
+            DaskCluster.from_spec(spec)
+
+
+def test_an_unreachable_scheduler_is_named(monkeypatch) -> None:
+    pytest.importorskip("distributed")
+    import socket
+
+    from ipromp_pin.evaluation import dask_cluster
+
+    monkeypatch.setattr(dask_cluster, "CONNECT_TIMEOUT_S", 1.0)
+
+    with socket.socket() as s:  # a port nobody listens on
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    with pytest.raises(ClusterError, match=f"cannot reach the scheduler at tcp://127.0.0.1:{port}"):
+        DaskCluster.from_spec(f"tcp://127.0.0.1:{port}").open()
 
 
 def test_a_robot_travels_as_its_settings() -> None:
@@ -103,7 +133,7 @@ def test_a_scheduler_address_runs_both_protocols_of_the_closed_loop_with_the_bas
     local = json.loads((tmp_path / "local.json").read_text())["cells"]
     seen.clear()
     with distributed.LocalCluster(
-        n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None
+        n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None, protocol="tcp"
     ) as scheduler:  # an existing scheduler, its worker a thread of this process (one: the robot is shared)
         run_evaluate(request(tmp_path / "remote.json", cluster=scheduler.scheduler_address))
     remote = json.loads((tmp_path / "remote.json").read_text())["cells"]

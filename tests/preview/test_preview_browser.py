@@ -257,10 +257,11 @@ def test_offline_page_panel_names_the_task(browser, offline):
     observed = browser.evaluate(session, "document.getElementById('ipromp-observed').textContent")
     assert observed == "Observed: 1.00 s of the human's 4.00 s motion (25 %, recorded duration)"
     timebase = browser.evaluate(session, "document.getElementById('ipromp-timebase').textContent")
-    assert timebase.startswith("Robot trajectory: 3.00 s; times below are on it")
-    # The animation is loaded: meshcat's animator knows the clip duration.
+    assert timebase == "Times are on the human's motion (t = 0 at its start); the robot comes to rest at 3.00 s"
+    # The animation is loaded on the one clock: it spans the human's 4 s motion, longer than the
+    # robot's 3 s trajectory.
     duration = browser.evaluate(session, "viewer.animator.duration")
-    assert duration == pytest.approx(3.0, abs=0.05)
+    assert duration == pytest.approx(4.0, abs=0.05)
 
 
 def scene_extent(shot: np.ndarray) -> tuple[int, float]:

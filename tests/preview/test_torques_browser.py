@@ -31,9 +31,9 @@ def browser(tmp_path_factory):
 
 def test_bars_and_object_follow_the_time(browser, tmp_path):
     base = make_content(*load_baxter())
-    handover = 3.0  # human's clock; the animation starts at the observation's end, 1 s
-    held = base.t_s + 1.0 <= handover + 1e-9
-    content = base.replace(torques=make_track(base, 1.0, held), held_object=spanner(handover, True))
+    handover = 2.0  # one clock: the animation's time is the human's, like the content's and the track's
+    held = base.t_s <= handover + 1e-9
+    content = base.replace(torques=make_track(base, 0.0, held), held_object=spanner(handover, True))
     page = preview.write_html(content, tmp_path / "torques.html", max_triangles=20_000)
     session = browser.open(page.as_uri())
     browser.wait_for(session, "window.iprompReady")
@@ -44,7 +44,7 @@ def test_bars_and_object_follow_the_time(browser, tmp_path):
         text = browser.evaluate(session, "document.getElementById('ipromp-torques-now').textContent")
         assert text.endswith("gripper holding rod (0.42 kg)" if holding else "gripper empty"), text
         assert browser.evaluate(session, VISIBLE) is holding
-        i = int(np.searchsorted(track.t_s, t + 1.0 + 1e-9) - 1)
+        i = int(np.searchsorted(track.t_s, t + 1e-9) - 1)
         shown = browser.evaluate(session, "window.iprompTorquesShown.ratio")
         np.testing.assert_allclose(shown, track.ratio[i], atol=1e-3)
     # the bars' colours: a green, an orange or a red pixel in each joint's bar at its usage

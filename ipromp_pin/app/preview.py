@@ -45,7 +45,11 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         default=1.0,
         help="live streaming speed factor, > 0 (default %(default)g: real time)",
     )
-    p.add_argument("--no-wait", action="store_true", help="live: exit when streaming is done")
+    p.add_argument(
+        "--no-wait",
+        action="store_true",
+        help="live: stream at once (without waiting for a browser to connect) and exit when done",
+    )
     p.add_argument(
         "--no-retreat", action="store_true", help="do not plan and show the retreat after the hand-over"
     )
@@ -72,12 +76,16 @@ def run_preview(
     speed: float = 1.0,
     wait: bool = True,
     log: LogFn | None = None,
+    wait_for_page: bool | None = None,
+    page_timeout_s: float | None = None,
 ) -> Path | None:
     """``ipromp-pin preview``: a self-contained HTML file, or a live page on 127.0.0.1.
 
     Live mode streams the observed samples of the chosen demo one by one into the model's
     streaming estimator (at ``speed`` times real time), updating the task posterior and the
-    observation window on the page, then shows the planned trajectory and its checks.
+    observation window on the page, then shows the planned trajectory and its checks. The stream
+    starts once a browser page has connected (``wait_for_page``, default ``wait``; at most
+    ``page_timeout_s`` [s], None: as long as it takes); ``wait``: then serve until Ctrl-C.
 
     Returns:
         The HTML file written, or ``None`` in live mode.
@@ -125,8 +133,17 @@ def run_preview(
     tasks = list(result.prediction.tasks)
     start = content.replace(posterior=np.full(len(tasks), 1.0 / len(tasks)), task="", observed_until_s=0.0)
     live = LivePreview(start, port=port)
-    log(f"[preview] live at {live.url} (127.0.0.1 only); streaming {observation.n_samples} samples")
+    if wait_for_page is None:
+        wait_for_page = wait
     try:
+        if wait_for_page:
+            # the stream is for someone to watch: it starts when a page has the scene
+            log(f"[preview] live at {live.url} (127.0.0.1 only): open it in a browser; streaming starts then")
+            seen = live.wait_for_page(page_timeout_s)
+            said = "a browser is connected" if seen else f"no browser within {page_timeout_s} s"
+            log(f"[preview] {said}: streaming {observation.n_samples} samples")
+        else:
+            log(f"[preview] live at {live.url} (127.0.0.1 only); streaming {observation.n_samples} samples")
         stream = session.model.stream()
         t_wall = time.perf_counter()
         for i, t in enumerate(observation.t):

@@ -205,14 +205,16 @@ def replay_preview_html(
     return render_timeline_html(content, events, motion_s=score.handover_time_s, summary=summary)
 
 
-def closed_loop_rows(result: ClosedLoopResult, score: ClosedLoopScore) -> list[tuple[str, bool, str]]:
-    """The replay's check-list rows of the closed loop: re-plans, limits, collisions."""
+def closed_loop_rows(result: ClosedLoopResult, score: ClosedLoopScore) -> list[tuple]:
+    """The replay's check-list rows of the closed loop: re-plans, limits, collisions. The re-plans row
+    states its counts neutrally (a refused re-plan keeps the committed plan: it is normal); it fails
+    only when no re-plan was committed (the robot never moved towards a hand-over: a failed replay)."""
+    committed = result.n_committed > 0
+    replans = f"{result.n_committed} committed, {score.refused_replans} refused"
+    if score.refused_replans and committed:
+        replans += " (a refused re-plan keeps the committed plan)"
     return [
-        (
-            "re-plans",
-            score.refused_replans == 0,
-            f"{result.n_committed} committed, {score.refused_replans} refused",
-        ),
+        ("re-plans", committed, replans, "info" if committed else "fail", True),
         (
             "limits",
             score.max_limit_ratio <= 1 + 1e-6,

@@ -57,9 +57,11 @@ def _optional_array(value: Any, field_name: str, ndim: int, last: int | None = N
     return None if value is None else finite_array(value, field_name, ndim, last)
 
 
-CHECK_STATUSES = ("pass", "fail", "skip")
+CHECK_STATUSES = ("pass", "fail", "skip", "info")
 """Statuses of a :class:`FeasibilityCheck`: ``"skip"`` is a check that could not be made (e.g. the
-human hand position is unknown), drawn as skipped, neither passed nor failed."""
+human hand position is unknown), drawn as skipped, neither passed nor failed; ``"info"`` is a line
+that states a figure without judging it (e.g. a replay's refused re-plans, which are normal), drawn
+neutrally."""
 
 
 class FeasibilityCheck(NamedTuple):
@@ -70,7 +72,7 @@ class FeasibilityCheck(NamedTuple):
         passed: Whether the check passed (``True`` for a skipped check: it does not fail the plan).
         detail: Short detail, e.g. ``"left_e1 within 0.02 rad of its limit"``; times in it are on the
             page's one clock (the human's motion, as ``t_s``).
-        status: ``"pass"``, ``"fail"`` or ``"skip"`` (``""``: from ``passed``).
+        status: One of :data:`CHECK_STATUSES` (``""``: ``"pass"`` or ``"fail"`` from ``passed``).
         required: Whether the check counts towards the verdict (``False``: advisory).
     """
 

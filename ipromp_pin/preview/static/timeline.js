@@ -57,8 +57,11 @@
       " s on the human's clock (t = 0 at the start of the human's motion)";
     window.iprompTimelineShown = t;
   }
-  let last = null;
+  let last = null, below = null;
   function loop() {
+    // the HTML panel (top left) ends above this one (bottom left) and scrolls (page.css)
+    const h = panel.offsetHeight + 8;
+    if (h !== below) { document.documentElement.style.setProperty("--ipromp-below", h + "px"); below = h; }
     const t = (viewer.animator && typeof viewer.animator.time === "number") ? viewer.animator.time : 0;
     if (t !== last) {
       last = t;

@@ -167,6 +167,8 @@ def test_the_replay_time_never_passes_its_end(browser, replay_page):
     shown = browser.evaluate(session, "window.shownTimes")
     pairs = [tuple(map(float, re.match(r"Time (\d+\.\d+) s of (\d+\.\d+) s", s).groups())) for s in shown]
     (total,) = {e for _, e in pairs}
+    # the animation itself ends at the stated end
+    assert browser.evaluate(session, "viewer.animator.duration") == pytest.approx(total, abs=0.006)
     assert max(t for t, _ in pairs) <= total and end.startswith(f"Time {total:.2f} s of"), shown
     # the end is the later of the robot's rest and the human's recorded motion, on the human's clock
     assert total == pytest.approx(max(report["rest_s"], report["handover_time_s"]), abs=0.011)

@@ -24,6 +24,8 @@ if TYPE_CHECKING:
     from ..human import HumanMotion
     from ..planning.one_shot import LogFn, PlanResult
     from ..planning.retreat import RetreatResult
+    from ..preview import LivePreview
+    from ..promp import IProMP
     from ..robot import Robot
     from ..robot.objects import ObjectTable
     from .config import PipelineConfig
@@ -144,20 +146,7 @@ def run_preview(
             log(f"[preview] {said}: streaming {observation.n_samples} samples")
         else:
             log(f"[preview] live at {live.url} (127.0.0.1 only); streaming {observation.n_samples} samples")
-        stream = session.model.stream()
-        t_wall = time.perf_counter()
-        for i, t in enumerate(observation.t):
-            rec = stream.update(float(t), {g: observation.groups[g][i] for g in observation.groups})
-            if rec is not None and (i % 3 == 0 or i == observation.n_samples - 1):
-                live.update_posterior(rec.posterior, tasks=list(rec.tasks))
-                live.update_observation(float(t))
-                log(
-                    f"  t={t:5.2f} s  "
-                    + "  ".join(f"{k} {v:.2f}" for k, v in zip(rec.tasks, rec.posterior, strict=True))
-                )
-            delay = t / speed - (time.perf_counter() - t_wall)
-            if delay > 0:
-                time.sleep(delay)
+        stream_observation(live, session.model, observation, speed, log)
         live.show(content)
         log(f"[preview] recognised {result.prediction.task}; trajectory and checks shown")
         if wait:
@@ -169,6 +158,26 @@ def run_preview(
     finally:
         live.close()
     return None
+
+
+def stream_observation(live: LivePreview, model: IProMP, observation: Demo, speed: float, log: LogFn) -> None:
+    """Stream ``observation``'s samples into ``model``'s streaming estimator at ``speed`` times real
+    time, showing the posterior and the observation window on ``live`` (every third sample and the
+    last) and logging them."""
+    stream = model.stream()
+    t_wall = time.perf_counter()
+    for i, t in enumerate(observation.t):
+        rec = stream.update(float(t), {g: observation.groups[g][i] for g in observation.groups})
+        if rec is not None and (i % 3 == 0 or i == observation.n_samples - 1):
+            live.update_posterior(rec.posterior, tasks=list(rec.tasks))
+            live.update_observation(float(t))
+            log(
+                f"  t={t:5.2f} s  "
+                + "  ".join(f"{k} {v:.2f}" for k, v in zip(rec.tasks, rec.posterior, strict=True))
+            )
+        delay = t / speed - (time.perf_counter() - t_wall)
+        if delay > 0:
+            time.sleep(delay)
 
 
 def write_preview(

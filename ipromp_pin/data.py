@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .exceptions import DataError, ObservationError
+from .fields import did_you_mean
 
 ROBOT = "robot"
 """Name of the channel group holding the robot's joint angles in [rad]."""
@@ -128,8 +129,9 @@ class Demo:
         """Raise :class:`DataError` naming the first of ``groups`` this demo lacks."""
         for g in groups:
             if g not in self.groups:
+                hint = did_you_mean(g, self.groups)
                 raise DataError(
-                    self.source, g, f"channel group not in demo (has: {', '.join(sorted(self.groups))})"
+                    self.source, g, f"channel group not in demo{hint} (has: {', '.join(sorted(self.groups))})"
                 )
 
     def select(self, groups: Iterable[str]) -> Demo:

@@ -184,7 +184,8 @@ def run(
     from ..robot.objects import load_objects
 
     t0 = time.perf_counter()
-    runner = None if cluster is None else DaskCluster.from_spec(cluster)  # a bad spec: before any work
+    # a bad spec fails here, before any work; the cluster says when it has started
+    runner = None if cluster is None else DaskCluster.from_spec(cluster, log=log)
     atomic.check_output_dir(out_dir)
     arm = load_robot(robot)
     model = IProMP.load(model_path)

@@ -204,7 +204,8 @@ def open_runner(request: EvaluateRequest) -> contextlib.AbstractContextManager[i
     start, import the package and load the robot while the dataset is read, and serve every protocol."""
     if request.cluster is None:
         return contextlib.nullcontext(request.jobs)
-    return DaskCluster.from_spec(request.cluster).open(partial(prepare_worker, request.robot))
+    cluster = DaskCluster.from_spec(request.cluster, log=request.log)
+    return cluster.open(partial(prepare_worker, request.robot))
 
 
 def run_evaluations(request: EvaluateRequest, ds: Dataset, where: int | JobRunner) -> list[Cell]:

@@ -14,7 +14,10 @@ and runs a simulated control loop at ``control_rate_hz`` (no waiting):
   :class:`~ipromp_pin.motion.limits.LimitProfile`, joint limits, workspace, self-collision, the
   human as observed until then, the arm's torques), re-targeted slower while they ask for it by the
   one loop of every planner (:func:`~ipromp_pin.safety.retime.retime_until_safe`, with the re-target
-  as its timer: :func:`~.timers.retarget_timer`); the delay it costs is recorded. A re-plan that
+  as its timer: :func:`~.timers.retarget_timer`); after a re-plan that checked its unslowed motion
+  and had to slow it down, the next one starts from the slow-down that turned out to be needed
+  (:func:`~ipromp_pin.safety.retime.next_guess`: re-plans are 50 ms apart, and the human rarely
+  changes the needed slow-down much in between); the delay it costs is recorded. A re-plan that
   fails is not committed: the robot keeps the last safe plan and the :class:`Replan` record says
   why. A change of recognised task is handled the same way.
 
@@ -38,7 +41,7 @@ from ..motion.retarget import HEADROOM, SETTLE_S, ReferenceMotion, Retargeter, R
 from ..motion.trajectory import MotionState, Trajectory
 from ..promp import IProMP, Predictor
 from ..robot import Robot
-from ..safety import CheckContext, CheckSuite, Timed, Verdict
+from ..safety import CheckContext, CheckSuite, Timed, Verdict, next_guess
 from ..safety.self_collision import SelfCollisionMeasures
 from ..safety.speed_limits import SpeedLimitMeasures
 from ..safety.workspace import WorkspaceMeasures
@@ -282,6 +285,7 @@ class ClosedLoopPlanner:
         ]
         self.replans: list[Replan] = []
         self._next_replan = self.start_s
+        self._guess: float | None = None
         self._stopped = ""
         self._finished = False
 
@@ -390,14 +394,24 @@ class ClosedLoopPlanner:
         def timed(k: float) -> Timed:
             t = time.perf_counter()
             try:
-                return timer(k)
+                got = timer(k)
             finally:
                 spent[0] += time.perf_counter() - t
 
+            def sample() -> Trajectory:  # the samples, when the loop needs them, count as re-target too
+                t = time.perf_counter()
+                try:
+                    return got.motion
+                finally:
+                    spent[0] += time.perf_counter() - t
+
+            return Timed(sample, got.report, got.scale, got.path)
+
         try:
-            retimed = self.suite.retime_until_safe(timed, context, stop_early=True)
+            retimed = self.suite.retime_until_safe(timed, context, stop_early=True, guess=self._guess)
         except IPrompPinError as exc:
             r.reason = f"re-target failed: {exc}"
+            self._guess = None
             return None
         finally:
             ms["retarget"] = spent[0] * 1e3
@@ -412,6 +426,7 @@ class ClosedLoopPlanner:
         r.slowdown_delay_s = float(report.arrival_s - first.arrival_s)
         record_verdicts(r, retimed.verdicts)
         r.reason = retimed.report.refusal()
+        self._guess = next_guess(retimed)
         return retimed.motion
 
     def close(self) -> None:

@@ -78,7 +78,10 @@ def _write_dataset(folder: Path, short: bool = False) -> Path:
         (["--limits", "fast"], "field 'limits': unknown limit profile 'fast'"),
         (["--condition-noise", "-1"], "field 'condition_noise': must be a positive number"),
         (["--condition-noise", "x"], "field 'condition_noise': must be a positive number"),
-        (["--observe", "orientation,/left_hand_1"], "field '/left_hand_1': channel group not in demo"),
+        (
+            ["--observe", "orientation,/left_hand_1"],
+            "option '--observe': channel group '/left_hand_1' not in the data",
+        ),
     ],
 )
 def test_replay_bad_input_fails_in_one_line_before_computing(tmp_path, capsys, args, message):

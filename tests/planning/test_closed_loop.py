@@ -71,6 +71,13 @@ def test_reference_motion_is_the_prediction_with_exact_derivatives(setup):
     q_after, qd_after, _, _ = ref.evaluate(np.array([pred.duration_s + 1.0]))
     np.testing.assert_allclose(q_after[0], pred.q_mean[-1], atol=1e-12)
     assert not qd_after.any()
+    # one time at a time (what a re-target asks for): the same numbers to the bit, inside, at the
+    # ends and outside
+    for t1 in (*t, 0.0, pred.duration_s, -0.5, pred.duration_s + 1.0):
+        many = ref.evaluate(np.array([t1]), order=2)
+        for x, y in zip(ref.at(float(t1)), many[:3], strict=True):
+            assert np.array_equal(x, y[0])
+    assert np.array_equal(ref.end(), ref.evaluate(np.array([pred.duration_s]), order=0)[0][0])
 
 
 def _check_plan(plan, state, limits, dt):

@@ -30,6 +30,25 @@ ROBOT = "robot"
 """Name of the channel group holding the robot's joint angles in [rad]."""
 
 
+def _numeric_values(source: str, name: str, values: object) -> np.ndarray:
+    """A channel group's values as floats, or DataError: booleans, strings and ragged rows are no
+    measurements."""
+    try:
+        raw = np.asarray(values) if not isinstance(values, str) else np.asarray([values])
+    except ValueError:  # rows of different lengths
+        raise DataError(source, name, "values must be a (T, D) array; its rows differ in length") from None
+    if raw.dtype == bool:
+        raise DataError(source, name, "values are booleans (True/False), not measurements")
+    if raw.dtype.kind == "O":
+        try:
+            return raw.astype(float)
+        except (TypeError, ValueError):
+            pass
+    if raw.dtype.kind not in "iuf":
+        raise DataError(source, name, f"values must be a numeric (T, D) array, got {raw.dtype.name} values")
+    return raw.astype(float)
+
+
 @dataclass(frozen=True)
 class Demo:
     """One demonstration (or a partial observation of one).
@@ -78,7 +97,7 @@ class Demo:
             raise DataError(self.source, None, "demo has no channel groups")
         groups = {}
         for name, values in self.groups.items():
-            v = np.asarray(values, dtype=float)
+            v = _numeric_values(self.source, name, values)
             if v.ndim == 1:
                 v = v[:, None]
             if v.ndim != 2 or v.shape[0] != t.size:

@@ -10,6 +10,7 @@ with its verdicts, slowed where the checks ask for it (:func:`~ipromp_pin.safety
 from __future__ import annotations
 
 import time
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -20,6 +21,7 @@ from ..exceptions import ModelError
 from ..motion.timing import TimingReport
 from ..motion.trajectory import JointLimits, Trajectory
 from ..promp import IProMP, Prediction
+from ..promp.inputs import ObservationWarning
 from ..robot import Robot, ee_positions, frame_placements
 from ..robot.kinematics import rotations_to_quat_xyzw
 from ..safety import CheckContext, CheckReport, CheckSuite
@@ -144,7 +146,9 @@ def plan(
     suite = suite if suite is not None else CheckSuite.build(robot)
     ms: dict[str, float] = {}
     t0 = time.perf_counter()
-    prediction = model.predict(observation)
+    with warnings.catch_warnings():  # the plan's own warnings name them (plans.warnings.range_warnings)
+        warnings.simplefilter("ignore", ObservationWarning)
+        prediction = model.predict(observation)
     assert isinstance(prediction, Prediction), "IProMP.predict of one Demo returns one Prediction"
     t1 = time.perf_counter()
     ms["recognise_predict"] = (t1 - t0) * 1e3

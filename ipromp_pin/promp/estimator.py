@@ -32,6 +32,7 @@ from ..exceptions import IPrompPinError, ModelError, ModelFileError, NotFittedEr
 from ..signals.groups import DEFAULT_LOG_GROUPS
 from .fit import fit_model
 from .fitted import FittedModel
+from .inputs import check_observation
 from .parameters import MAX_BLAS_THREADS, MAX_POINTS, PARAMETER_CONSTRAINTS, ParameterMixin, parse_params
 from .posterior import Prediction, Recognition
 from .predictor import Predictor
@@ -302,7 +303,8 @@ class IProMP(ParameterMixin):
         predictor = self._predictor()
         if not isinstance(observation, Demo):
             return [self._infer(o, method) for o in _batch(observation)]
-        parts, t_last = predictor.encode(observation)
+        parts, t_last = predictor.encode(observation)  # the groups' shapes and finite values
+        check_observation(predictor.fitted, observation)
         with self._limit_threads():
             return method(predictor, parts, t_last)
 

@@ -90,7 +90,7 @@ def test_hand_ends_at_the_robot_handover_point(ds):
         for d in ds.demos[task]:
             hand, offset = d.extras["hand_position"], handover_offset(d)
             np.testing.assert_array_equal(d.extras["handover_offset"], np.tile(offset, (d.n_samples, 1)))
-            target = synthetic.HANDOVER_POINT_M[k] + offset + synthetic.HAND_BEYOND_GRIPPER_M
+            target = synthetic.HANDOVER_POINT_M[k] + offset + synthetic.HAND_FROM_GRIPPER_M
             assert np.linalg.norm(hand[-1] - target) < 0.05
             assert np.linalg.norm(hand[0] - synthetic.HANDOVER_POINT_M[k]) > 0.4
 

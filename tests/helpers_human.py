@@ -11,9 +11,10 @@ from ipromp_pin.robot.human_settings import HumanSettings
 
 def leaning_skeleton(settings: HumanSettings, demo: Demo, lean_m: float = 0.12) -> Demo:
     """``demo`` with a tracked skeleton (``skeleton:<frame>`` extras, as the readers write them): the
-    assumed standing human of ``settings`` (a robot's ``[human]``), its handing hand on the demo's
-    hand path, its body leaning ``lean_m`` [m] toward the robot's base over the recording."""
-    h = HumanMotion.assumed_human(settings, demo.t, demo.extras["hand_position"])
+    assumed standing human of ``settings`` (a robot's ``[human]``; its arm as assumed, a plausible
+    skeleton), its body but the handing hand leaning ``lean_m`` [m] toward the robot's base over the
+    recording."""
+    h = HumanMotion.assumed_human(settings, demo.t)
     toward = -np.asarray(settings.placement.torso_m, dtype=float) * np.array([1.0, 1.0, 0.0])
     toward /= np.linalg.norm(toward)
     s = (demo.t - demo.t[0]) / (demo.t[-1] - demo.t[0])

@@ -245,7 +245,9 @@ def _true_task_posterior(
     impossible under every task raises its error."""
     _, logpost, _, _, log_post, _, best = recognition_terms(priors, loglik)
     if not math.isfinite(float(log_post[best])):
-        recognise_from_loglik(priors, loglik, t_last)  # raises ObservationError
+        raise ObservationError(
+            None, "t", f"a held-out observation of {t_last:.2f} s is impossible under every task"
+        )
     return float(log_post[task]), logpost[task]
 
 

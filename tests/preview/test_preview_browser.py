@@ -257,7 +257,9 @@ def test_offline_page_panel_names_the_task(browser, offline):
     observed = browser.evaluate(session, "document.getElementById('ipromp-observed').textContent")
     assert observed == "Observed: 1.00 s of the human's 4.00 s motion (25 %, recorded duration)"
     timebase = browser.evaluate(session, "document.getElementById('ipromp-timebase').textContent")
-    assert timebase == "Times are on the human's motion (t = 0 at its start); the robot comes to rest at 3.00 s"
+    assert (
+        timebase == "Times are on the human's motion (t = 0 at its start); the robot comes to rest at 3.00 s"
+    )
     # The animation is loaded on the one clock: it spans the human's 4 s motion, longer than the
     # robot's 3 s trajectory.
     duration = browser.evaluate(session, "viewer.animator.duration")

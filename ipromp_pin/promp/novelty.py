@@ -31,9 +31,10 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.linalg.blas import dtrsv
 
 from .head_features import interpolation
 
@@ -113,12 +114,6 @@ def _gaussian(x: np.ndarray, shrinkage: float) -> tuple[np.ndarray, np.ndarray]:
     return mean, np.linalg.cholesky(shrunk)
 
 
-def _neg2_log_density(x: np.ndarray, mean: np.ndarray, chol: np.ndarray) -> np.ndarray:
-    """Mahalanobis distance squared plus log det of rows ``x`` (n, F) under N(mean, L L^T) (n,)."""
-    z = np.linalg.solve(chol, (x - mean).T)
-    return np.sum(z * z, axis=0) + 2.0 * float(np.sum(np.log(np.diag(chol))))
-
-
 @dataclass(frozen=True)
 class NoveltyDetector:
     """The fitted novelty score and its conformal calibration (see the module docstring).
@@ -145,6 +140,27 @@ class NoveltyDetector:
     calibration_group: np.ndarray
     shrinkage: float
     cv_auroc: np.ndarray
+    # derived in __post_init__ (not parameters, not compared): Fortran-ordered factors for BLAS'
+    # triangular solve, their log determinants (T, R), the fractions as floats
+    _chol_f: list = field(init=False, repr=False, compare=False)
+    _logdet: np.ndarray = field(init=False, repr=False, compare=False)
+    _ratios: list = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        chol = np.asarray(self.chol, dtype=float)
+        factors = [
+            [np.asfortranarray(chol[k, j]) for j in range(chol.shape[1])] for k in range(chol.shape[0])
+        ]
+        with np.errstate(divide="ignore", invalid="ignore"):  # a broken factor is refused by check_novelty
+            logdet = 2.0 * np.sum(np.log(np.diagonal(chol, axis1=2, axis2=3)), axis=2)
+        object.__setattr__(self, "_chol_f", factors)
+        object.__setattr__(self, "_logdet", logdet)
+        object.__setattr__(self, "_ratios", [float(r) for r in np.asarray(self.ratios).reshape(-1)])
+
+    def _d(self, x: np.ndarray, k: int, j: int) -> float:
+        """``d_k`` of the features ``x`` (F,) under task ``k``'s Gaussian at fraction ``j``."""
+        z = dtrsv(self._chol_f[k][j], x - self.mean[k, j], lower=1)
+        return float(z @ z) + float(self._logdet[k, j])
 
     def group(self, t_last: float, t_norm: float) -> int:
         """Observed-time group of an observation: the nearest of :attr:`ratios` to ``t_last / T_norm``."""
@@ -154,19 +170,19 @@ class NoveltyDetector:
         """Novelty score of the window vector (3 D_o,) with the tasks' MAP phases ``alpha`` (T,)
         (non-finite or non-positive: the task cannot explain the observation), ``t_last`` and
         ``T_norm`` in [s]: ``min_k d_k`` (inf when no task can)."""
-        x = np.asarray(window, float)[self.columns][None, :]
-        ratios = [float(r) for r in self.ratios]
-        best = math.inf
-        for k in range(self.mean.shape[0]):
-            a = float(alpha[k])
-            if not (math.isfinite(a) and a > 0.0):
-                continue
-            i, w = interpolation(ratios, t_last / (a * t_norm))
-            d = (1.0 - w) * float(_neg2_log_density(x, self.mean[k, i], self.chol[k, i])[0])
-            if w > 0.0:
-                d += w * float(_neg2_log_density(x, self.mean[k, i + 1], self.chol[k, i + 1])[0])
-            best = min(best, d)
-        return best
+        x = np.asarray(window, float)[self.columns]
+        return min(self.task_score(x, k, float(alpha[k]), t_last, t_norm) for k in range(len(self._chol_f)))
+
+    def task_score(self, x: np.ndarray, k: int, alpha: float, t_last: float, t_norm: float) -> float:
+        """``d_k`` of the features ``x`` (F,) (the window's :attr:`columns`) with the task's MAP phase
+        ``alpha`` (inf when it cannot explain the observation: non-finite or non-positive)."""
+        if not (math.isfinite(alpha) and alpha > 0.0):
+            return math.inf
+        i, w = interpolation(self._ratios, t_last / (alpha * t_norm))
+        d = (1.0 - w) * self._d(x, k, i)
+        if w > 0.0:
+            d += w * self._d(x, k, i + 1)
+        return d
 
     def p_value(self, score: float, t_last: float, t_norm: float) -> float:
         """Conformal p-value of a score among the calibration rows of the same observed-time group
@@ -230,19 +246,20 @@ def _row_scores(
     t_norm: float,
 ) -> np.ndarray:
     """(n, T) every row's ``d_k`` under every task, its own task's Gaussians without its demo."""
-    mean, chol = _fits(x, rows, levels, n_tasks, shrinkage)
-    cols = np.arange(x.shape[1])
+    empty = np.zeros(0)
+
+    def detector(mean: np.ndarray, chol: np.ndarray) -> NoveltyDetector:
+        return NoveltyDetector(0.0, levels, np.arange(x.shape[1]), mean, chol, empty, empty, 0.0, empty)
+
+    full = detector(*_fits(x, rows, levels, n_tasks, shrinkage))
     out = np.empty((len(rows), n_tasks))
-    loo: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+    loo: dict[int, NoveltyDetector] = {}
     for n, r in enumerate(rows):
         if r.demo not in loo:
-            loo[r.demo] = _fits(x, rows, levels, n_tasks, shrinkage, skip=r.demo, only=r.task)
+            loo[r.demo] = detector(*_fits(x, rows, levels, n_tasks, shrinkage, skip=r.demo, only=r.task))
         for k in range(n_tasks):
-            m, c = loo[r.demo] if k == r.task else (mean, chol)
-            one = NoveltyDetector(
-                0.0, levels, cols, m[k : k + 1], c[k : k + 1], x[:0, 0], x[:0, 0], 0.0, x[:0, 0]
-            )
-            out[n, k] = one.score(x[n], r.alpha[k : k + 1], r.t_last, t_norm)
+            det = loo[r.demo] if k == r.task else full
+            out[n, k] = det.task_score(x[n], k, float(r.alpha[k]), r.t_last, t_norm)
     return out
 
 

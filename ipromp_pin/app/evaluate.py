@@ -44,13 +44,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         help="comma-separated observed groups (orientation, emg, acc, /left_hand_1 ...); repeat to compare "
         "(default: orientation and orientation,emg)",
     )
-    p.add_argument(
-        "--alpha",
-        type=_alpha,
-        default=0.05,
-        help="open-set protocol: the largest fraction of known-task observations refused as unknown, in "
-        "(0, 0.5] (the models' novelty_alpha; default %(default)s)",
-    )
+    _add_alpha(p)
     p.add_argument("--json", type=Path, help="write the table as JSON here")
     p.add_argument("--md", type=Path, help="write the table as Markdown here (default: beside --json)")
     p.add_argument("--format", default="auto", help="dataset format (default %(default)s)")
@@ -182,3 +176,14 @@ def _alpha(text: str) -> float:
     if not 0.0 < value <= 0.5:
         raise argparse.ArgumentTypeError(f"{value:g} is not in (0, 0.5]")
     return value
+
+
+def _add_alpha(p: argparse.ArgumentParser) -> None:
+    """The open-set protocol's ``--alpha``."""
+    p.add_argument(
+        "--alpha",
+        type=_alpha,
+        default=0.05,
+        help="open-set protocol: the largest fraction of known-task observations refused as unknown, in "
+        "(0, 0.5] (the models' novelty_alpha; default %(default)s)",
+    )

@@ -136,9 +136,8 @@ class Replan:
         n_observed: Human samples received.
         task: Recognised task.
         posterior: Task -> posterior probability.
-        known: Whether the observation was recognised as one of the model's tasks (before the first
-            committed re-plan an unknown one refuses the re-plan: the robot does not start toward
-            the human until the task is known; once moving it goes on re-targeting, recorded).
+        known: Whether the observation was recognised as one of the model's tasks (recorded; the
+            closed loop does not act on it yet).
         novelty_p_value: The observation's conformal novelty p-value (None: no novelty detector).
         predicted_handover_s: Predicted hand-over time (end of the human's motion) in [s].
         predicted_handover_position_m: Gripper position (3,) at the predicted hand-over in [m].
@@ -370,10 +369,6 @@ class ClosedLoopPlanner:
         r.known = bool(pred.known)
         r.novelty_p_value = None if math.isnan(pred.novelty_p_value) else float(pred.novelty_p_value)
         r.predicted_handover_s = float(pred.duration_s)
-        if not pred.known and len(self._plans) == 1:  # the robot starts only toward a known task
-            r.reason = "unknown task"  # (its p-value in novelty_p_value)
-            r.stage_ms = ms
-            return r
         context = self.context.replace(task=pred.task, handover_s=float(pred.duration_s))
         if context.human is not None:  # the human as observed up to this re-plan
             context = context.replace(human=context.human.until(r.observed_until_s))

@@ -139,6 +139,9 @@ class Replan:
         n_observed: Human samples received.
         task: Recognised task.
         posterior: Task -> posterior probability.
+        known: Whether the observation was recognised as one of the model's tasks (recorded; the
+            closed loop does not act on it yet).
+        novelty_p_value: The observation's conformal novelty p-value (None: no novelty detector).
         predicted_handover_s: Predicted hand-over time (end of the human's motion) in [s].
         predicted_handover_position_m: Gripper position (3,) at the predicted hand-over in [m].
         planned_arrival_s: When the planned motion comes to rest, in [s] (None if no plan was made).
@@ -163,6 +166,8 @@ class Replan:
     n_observed: int
     task: str = ""
     posterior: dict[str, float] = field(default_factory=dict)
+    known: bool = True
+    novelty_p_value: float | None = None
     predicted_handover_s: float | None = None
     predicted_handover_position_m: list[float] | None = None
     planned_arrival_s: float | None = None
@@ -365,6 +370,8 @@ class ClosedLoopPlanner:
         ms["condition"] = (t1 - t0) * 1e3
         r.task = pred.task
         r.posterior = {k: float(v) for k, v in zip(pred.tasks, pred.posterior, strict=True)}
+        r.known = bool(pred.known)
+        r.novelty_p_value = None if math.isnan(pred.novelty_p_value) else float(pred.novelty_p_value)
         r.predicted_handover_s = float(pred.duration_s)
         context = self.context.replace(task=pred.task, handover_s=float(pred.duration_s))
         if context.human is not None:  # the human as observed up to this re-plan

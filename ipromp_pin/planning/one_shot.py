@@ -34,6 +34,10 @@ N_UNCERTAINTY_SAMPLES = 16
 """Joint trajectories drawn from the prediction for the uncertainty check and the preview."""
 
 
+UNKNOWN_TASK = "unknown_task"
+"""The failure of a plan whose observation matches none of the model's tasks."""
+
+
 @dataclass
 class PlanResult:
     """A planned hand-over.
@@ -70,14 +74,22 @@ class PlanResult:
     slowdown_delay_s: float = 0.0
 
     @property
+    def known(self) -> bool:
+        """Whether the observation was recognised as one of the model's tasks (``Prediction.known``):
+        the robot acts only on a known task."""
+        return bool(self.prediction.known)
+
+    @property
     def passed(self) -> bool:
-        """Whether every required check and the timing's verification passed."""
-        return bool(self.checks.passed and self.timing_report.passed)
+        """Whether the task is known and every required check and the timing's verification passed."""
+        return bool(self.known and self.checks.passed and self.timing_report.passed)
 
     @property
     def failures(self) -> list[str]:
-        """The failed required checks (and ``timing`` when its verification failed)."""
-        return self.checks.failures + ([] if self.timing_report.passed else ["timing"])
+        """``unknown_task`` when the observation matches none of the tasks, the failed required checks
+        (and ``timing`` when its verification failed)."""
+        unknown = [] if self.known else [UNKNOWN_TASK]
+        return unknown + self.checks.failures + ([] if self.timing_report.passed else ["timing"])
 
 
 def check_model_joints(model: IProMP, robot: Robot) -> None:
@@ -156,6 +168,8 @@ def plan(
         f"[recognise] {prediction.task} (posterior {float(np.max(prediction.posterior)):.3f}), "
         f"predicted duration {prediction.duration_s:.2f} s"
     )
+    if not prediction.known:
+        say(f"[recognise] UNKNOWN: {prediction.unknown_reason}")
     samples = prediction.sample_q(N_UNCERTAINTY_SAMPLES, np.random.default_rng(0))
     start_s = float(observation.t[-1] - observation.t[0])
     ctx = prediction_context(prediction, context if context is not None else CheckContext(), samples)

@@ -188,6 +188,8 @@ class HeldOutRow:
         out = self.recognitions.get(temperature)
         if out is None:
             rec, _ = recognise_from_loglik(self.priors, temperature * self.loglik, self.t_last)
+            if math.isinf(rec.novelty_score):  # no task explains the row (see explained_rows)
+                raise ObservationError(None, "t", rec.unknown_reason or "no task explains it")
             out = self.recognitions[temperature] = (rec.log_posterior, rec.posterior, rec.alpha)
         return out
 
@@ -283,7 +285,9 @@ def _true_task_posterior(
     impossible under every task raises its error."""
     _, logpost, _, _, log_post, _, best = recognition_terms(priors, loglik)
     if not math.isfinite(float(log_post[best])):
-        recognise_from_loglik(priors, loglik, t_last)  # raises ObservationError
+        raise ObservationError(
+            None, "t", f"a held-out observation of {t_last:.2f} s is impossible under every task"
+        )
     return float(log_post[task]), logpost[task]
 
 

@@ -323,3 +323,18 @@ def test_the_planner_is_a_context_manager_that_opens_and_closes_its_stream(setup
     assert np.array_equal(result.trajectory.q, again.trajectory.q)
     replayed = replay_demo(model, robot, demo, profile, ClosedLoopSettings(), certifier)
     assert np.array_equal(result.trajectory.q, replayed.trajectory.q)
+
+
+def test_every_replan_records_whether_the_task_is_known(setup, certifier):
+    # a model of two of the three tasks sees the third: its re-plans say unknown, with the p-value;
+    # the same demo with its task learned reads as known at the end
+    model, robot, train, test = setup
+    demo = test[2]
+    two = IProMP(observe=OBSERVE).fit([d for d in train if d.task != demo.task])
+    profile = demonstrated_profile(robot, train)
+    settings = ClosedLoopSettings(start_ratio=0.2)
+    result = replay_demo(two, robot, demo, profile, settings, certifier)
+    assert result.replans and not any(r.known for r in result.replans)
+    assert all(r.novelty_p_value is not None and r.novelty_p_value <= 0.05 for r in result.replans)
+    known = replay_demo(model, robot, demo, profile, settings, certifier)
+    assert known.replans[-1].known and known.replans[-1].novelty_p_value > 0.05

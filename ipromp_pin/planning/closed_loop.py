@@ -5,7 +5,11 @@ and runs a simulated control loop at ``control_rate_hz`` (no waiting):
 
 * every sample goes into the model's streaming estimator (:meth:`~ipromp_pin.promp.IProMP.stream`);
 * from ``start_s`` on (the replay's start ratio of the human's motion), at ``replan_rate_hz`` the
-  task, phase and conditioned robot trajectory are re-estimated and the commanded motion is
+  task, phase and conditioned robot trajectory are re-estimated (by the one-shot plan's predictor:
+  conditioned on the samples, then on the model's hand-over estimates, the hand-over regression and
+  the orientation estimate, :meth:`~ipromp_pin.promp.streaming.StreamingEstimator.predict`; with the
+  model's own conditioning noise the first re-plan's prediction is :meth:`IProMP.predict
+  <ipromp_pin.promp.IProMP.predict>` of the same samples) and the commanded motion is
   re-targeted with ruckig from the commanded position, velocity and acceleration at the next
   control tick (:mod:`ipromp_pin.motion.retarget`): it follows the predicted robot trajectory on the
   human's predicted timeline, slowed only where the limits demand;
@@ -39,7 +43,7 @@ from ..exceptions import IPrompPinError, ObservationError, PipelineError
 from ..motion.limits import LimitProfile
 from ..motion.retarget import HEADROOM, SETTLE_S, ReferenceMotion, Retargeter, RetargetReport
 from ..motion.trajectory import MotionState, Trajectory
-from ..promp import IProMP, Predictor
+from ..promp import IProMP, Prediction, Predictor
 from ..robot import Robot
 from ..safety import CheckContext, CheckSuite, Timed, Verdict, next_guess
 from ..safety.self_collision import SelfCollisionMeasures
@@ -250,9 +254,12 @@ class ClosedLoopPlanner:
         context: What the checks know about the world (the human, the object, ...); each re-plan
             adds the recognised task, the predicted hand-over time, the limit profile and cuts the
             human to what was observed until then.
-        conditioner: The predictor whose conditioner conditions the robot trajectory (default: the
-            stream's predictor for ``settings.condition_noise``,
+        conditioner: The predictor that conditions the robot trajectory and applies the hand-over
+            estimates (default: the stream's predictor for ``settings.condition_noise``,
             :meth:`~ipromp_pin.promp.streaming.StreamingEstimator.predict`).
+
+    Attributes:
+        prediction: The prediction of the latest re-plan (None before the first).
     """
 
     def __init__(
@@ -285,6 +292,7 @@ class ClosedLoopPlanner:
         ]
         self.replans: list[Replan] = []
         self._next_replan = self.start_s
+        self.prediction: Prediction | None = None  # that of the latest re-plan
         self._guess: float | None = None
         self._stopped = ""
         self._finished = False
@@ -363,6 +371,7 @@ class ClosedLoopPlanner:
             return r
         t1 = time.perf_counter()
         ms["condition"] = (t1 - t0) * 1e3
+        self.prediction = pred
         r.task = pred.task
         r.posterior = {k: float(v) for k, v in zip(pred.tasks, pred.posterior, strict=True)}
         r.predicted_handover_s = float(pred.duration_s)

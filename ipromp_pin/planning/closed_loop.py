@@ -5,10 +5,11 @@ and runs a simulated control loop at ``control_rate_hz`` (no waiting):
 
 * every sample goes into the model's streaming estimator (:meth:`~ipromp_pin.promp.IProMP.stream`);
 * from ``start_s`` on (the replay's start ratio of the human's motion), at ``replan_rate_hz`` the
-  task, phase and conditioned robot trajectory are re-estimated (by the one-shot plan's predictor:
-  conditioned on the samples, then on the model's hand-over estimates, the hand-over regression and
-  the orientation estimate, :meth:`~ipromp_pin.promp.streaming.StreamingEstimator.predict`; with the
-  model's own conditioning noise the first re-plan's prediction is :meth:`IProMP.predict
+  task, phase and conditioned robot trajectory are re-estimated
+  (:meth:`~ipromp_pin.promp.streaming.StreamingEstimator.predict`; with
+  ``settings.handover_estimates`` also conditioned on the model's hand-over estimates, the hand-over
+  regression and the orientation estimate, by the one-shot plan's predictor: with the model's own
+  conditioning noise each re-plan's prediction is then :meth:`IProMP.predict
   <ipromp_pin.promp.IProMP.predict>` of the same samples) and the commanded motion is
   re-targeted with ruckig from the commanded position, velocity and acceleration at the next
   control tick (:mod:`ipromp_pin.motion.retarget`): it follows the predicted robot trajectory on the
@@ -87,6 +88,11 @@ class ClosedLoopSettings:
             plan. 1: re-plan while samples arrive.
         condition_noise: Noise ratio with which the robot trajectory is conditioned (None: the
             model's own).
+        handover_estimates: Whether each re-plan also applies the model's hand-over estimates (the
+            hand-over regression and the orientation estimate), as :meth:`IProMP.predict
+            <ipromp_pin.promp.IProMP.predict>` and the one-shot plan do. Off by default: measured
+            against the closed loop without them (``docs/closed_loop.md``), they made the arrival
+            later.
     """
 
     start_ratio: float = 0.2
@@ -97,6 +103,7 @@ class ClosedLoopSettings:
     headroom: float = HEADROOM
     freeze_phase: float = 0.9
     condition_noise: float | None = CONDITION_NOISE
+    handover_estimates: bool = False
 
     def validate(self, source: str = "closed loop") -> ClosedLoopSettings:
         """Check the values; raise :class:`PipelineError` naming ``source`` and the field."""
@@ -125,6 +132,8 @@ class ClosedLoopSettings:
         nu = self.condition_noise
         if nu is not None and not (isinstance(nu, int | float) and math.isfinite(nu) and nu > 0):
             raise bad("condition_noise", f"must be a positive number (or the model's own), got {nu}")
+        if not isinstance(self.handover_estimates, bool):
+            raise bad("handover_estimates", f"must be true or false, got {self.handover_estimates!r}")
         return self
 
     def to_dict(self) -> dict:
@@ -364,7 +373,8 @@ class ClosedLoopPlanner:
         r = Replan(len(self.replans), tick * self.dt_s, float(t_s), stream.n_samples)
         t0 = time.perf_counter()
         try:
-            pred = stream.predict(self.settings.condition_noise, self._conditioner)
+            s = self.settings
+            pred = stream.predict(s.condition_noise, self._conditioner, s.handover_estimates)
             reference = ReferenceMotion.from_prediction(pred)
         except IPrompPinError as exc:
             r.reason = f"prediction failed: {exc}"

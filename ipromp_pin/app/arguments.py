@@ -279,6 +279,14 @@ def add_closed_loop_options(p: argparse.ArgumentParser) -> None:
         ),
         closed_loop_default("condition_noise"),
     )
+    p.add_argument(
+        "--handover-estimates",
+        choices=["on", "off"],
+        default=None,
+        help="whether every re-plan also applies the model's hand-over estimates (hand-over regression, "
+        "orientation estimate) as the one-shot plan does (default off: they made the arrival later, "
+        "docs/closed_loop.md)",
+    )
     show_default(
         p.add_argument("--replan-rate", type=float, help=f"re-plan rate in [Hz] (default {DEFAULT_MARK})"),
         closed_loop_default("replan_rate_hz"),
@@ -313,6 +321,8 @@ def closed_loop_settings(args: argparse.Namespace, **given: float | None) -> Clo
         **given,
     }
     chosen = {name: value for name, value in options.items() if value is not None}
+    if getattr(args, "handover_estimates", None) is not None:
+        chosen["handover_estimates"] = args.handover_estimates == "on"
     if args.condition_noise is not None:  # None in the settings: the model's own
         try:
             chosen["condition_noise"] = (

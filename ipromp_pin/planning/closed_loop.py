@@ -5,7 +5,12 @@ and runs a simulated control loop at ``control_rate_hz`` (no waiting):
 
 * every sample goes into the model's streaming estimator (:meth:`~ipromp_pin.promp.IProMP.stream`);
 * from ``start_s`` on (the replay's start ratio of the human's motion), at ``replan_rate_hz`` the
-  task, phase and conditioned robot trajectory are re-estimated and the commanded motion is
+  task, phase and conditioned robot trajectory are re-estimated
+  (:meth:`~ipromp_pin.promp.streaming.StreamingEstimator.predict`; with
+  ``settings.handover_estimates`` also conditioned on the model's hand-over estimates, the hand-over
+  regression and the orientation estimate, by the one-shot plan's predictor: with the model's own
+  conditioning noise each re-plan's prediction is then :meth:`IProMP.predict
+  <ipromp_pin.promp.IProMP.predict>` of the same samples) and the commanded motion is
   re-targeted with ruckig from the commanded position, velocity and acceleration at the next
   control tick (:mod:`ipromp_pin.motion.retarget`): it follows the predicted robot trajectory on the
   human's predicted timeline, slowed only where the limits demand;
@@ -39,7 +44,7 @@ from ..exceptions import IPrompPinError, ObservationError, PipelineError
 from ..motion.limits import LimitProfile
 from ..motion.retarget import HEADROOM, SETTLE_S, ReferenceMotion, Retargeter, RetargetReport
 from ..motion.trajectory import MotionState, Trajectory
-from ..promp import IProMP, Predictor
+from ..promp import IProMP, Prediction, Predictor
 from ..robot import Robot
 from ..safety import CheckContext, CheckSuite, Timed, Verdict, next_guess
 from ..safety.self_collision import SelfCollisionMeasures
@@ -83,6 +88,11 @@ class ClosedLoopSettings:
             plan. 1: re-plan while samples arrive.
         condition_noise: Noise ratio with which the robot trajectory is conditioned (None: the
             model's own).
+        handover_estimates: Whether each re-plan also applies the model's hand-over estimates (the
+            hand-over regression and the orientation estimate), as :meth:`IProMP.predict
+            <ipromp_pin.promp.IProMP.predict>` and the one-shot plan do. Off by default: measured
+            against the closed loop without them (``docs/closed_loop.md``), they made the arrival
+            later.
     """
 
     start_ratio: float = 0.2
@@ -93,6 +103,7 @@ class ClosedLoopSettings:
     headroom: float = HEADROOM
     freeze_phase: float = 0.9
     condition_noise: float | None = CONDITION_NOISE
+    handover_estimates: bool = False
 
     def validate(self, source: str = "closed loop") -> ClosedLoopSettings:
         """Check the values; raise :class:`PipelineError` naming ``source`` and the field."""
@@ -121,6 +132,8 @@ class ClosedLoopSettings:
         nu = self.condition_noise
         if nu is not None and not (isinstance(nu, int | float) and math.isfinite(nu) and nu > 0):
             raise bad("condition_noise", f"must be a positive number (or the model's own), got {nu}")
+        if not isinstance(self.handover_estimates, bool):
+            raise bad("handover_estimates", f"must be true or false, got {self.handover_estimates!r}")
         return self
 
     def to_dict(self) -> dict:
@@ -255,9 +268,12 @@ class ClosedLoopPlanner:
         context: What the checks know about the world (the human, the object, ...); each re-plan
             adds the recognised task, the predicted hand-over time, the limit profile and cuts the
             human to what was observed until then.
-        conditioner: The predictor whose conditioner conditions the robot trajectory (default: the
-            stream's predictor for ``settings.condition_noise``,
+        conditioner: The predictor that conditions the robot trajectory and applies the hand-over
+            estimates (default: the stream's predictor for ``settings.condition_noise``,
             :meth:`~ipromp_pin.promp.streaming.StreamingEstimator.predict`).
+
+    Attributes:
+        prediction: The prediction of the latest re-plan (None before the first).
     """
 
     def __init__(
@@ -290,6 +306,7 @@ class ClosedLoopPlanner:
         ]
         self.replans: list[Replan] = []
         self._next_replan = self.start_s
+        self.prediction: Prediction | None = None  # that of the latest re-plan
         self._guess: float | None = None
         self._stopped = ""
         self._finished = False
@@ -361,13 +378,15 @@ class ClosedLoopPlanner:
         r = Replan(len(self.replans), tick * self.dt_s, float(t_s), stream.n_samples)
         t0 = time.perf_counter()
         try:
-            pred = stream.predict(self.settings.condition_noise, self._conditioner)
+            s = self.settings
+            pred = stream.predict(s.condition_noise, self._conditioner, s.handover_estimates)
             reference = ReferenceMotion.from_prediction(pred)
         except IPrompPinError as exc:
             r.reason = f"prediction failed: {exc}"
             return r
         t1 = time.perf_counter()
         ms["condition"] = (t1 - t0) * 1e3
+        self.prediction = pred
         r.task = pred.task
         r.posterior = {k: float(v) for k, v in zip(pred.tasks, pred.posterior, strict=True)}
         r.known = bool(pred.known)

@@ -116,23 +116,36 @@ class Predictor:
         return self.recognition_from_loglik(loglik, t_last, window)
 
     def predict(self, parts: list[ObservationPart], t_last: float) -> Prediction:
-        """Recognition and the conditioned prediction of the most probable task (with a hand-over
-        regression, conditioned on it as well, then on the orientation estimate:
-        :meth:`Conditioner.observe_handover`)."""
+        """Recognition and the conditioned prediction of the most probable task, with the model's
+        hand-over estimates applied (:meth:`with_estimates`)."""
         fm = self.fitted
         window = None
         if fm.head is not None or fm.handover is not None or fm.novelty is not None:
             window = WindowSummary.from_parts(parts, fm.layout.n_obs_dims)
+<<<<<<< HEAD
         rec = self.recognise(parts, t_last, window)
         if math.isinf(rec.novelty_score):  # no task explains it: the prior of the most probable task
             return self.conditioner.prior_prediction(rec)
         pred = self.conditioner.condition(rec, parts)
+=======
+        pred = self.conditioner.condition(self.recognise(parts, t_last, window), parts)
+        return self.with_estimates(pred, window, t_last)
+
+    def with_estimates(self, pred: Prediction, window: WindowSummary | None, t_last: float) -> Prediction:
+        """``pred`` (conditioned on the observation by this predictor's conditioner) also conditioned on
+        the model's hand-over estimates: the hand-over regression given the observed ``window``
+        (needed when the model has one) and the fraction ``t_last`` [s] of the predicted motion, then
+        the orientation estimate (:meth:`Conditioner.observe_handover`); ``pred`` itself when the
+        model has neither. The one step that the one-shot prediction and the stream share."""
+        fm = self.fitted
+>>>>>>> cl-predict
         if fm.handover is None and fm.orientation is None:
             return pred
         k = fm.tasks.index(pred.task)
         if fm.handover is not None:
+            if window is None:
+                raise ValueError("a model with a hand-over regression needs the observed window's summary")
             fraction = t_last / (float(pred.alpha[k]) * fm.duration_nominal_s)
-            assert window is not None  # summarised above for the hand-over regression
             readout, values, cov = fm.handover.observation(k, window, fraction)
             pred = self.conditioner.observe_handover(pred, readout, values, cov)
         if fm.orientation is not None:

@@ -353,27 +353,45 @@ class StreamingEstimator:
         return self._last
 
     def predict(
-        self, condition_noise: float | None = None, conditioner: Predictor | None = None
+        self,
+        condition_noise: float | None = None,
+        conditioner: Predictor | None = None,
+        estimates: bool = True,
     ) -> Prediction:
         """The latest recognition (task and phase from the stream's statistics) with the robot
         trajectory of its task conditioned on the samples received so far at its MAP phase, with the
         noise ratio ``condition_noise`` (None: the model's own ``nu_c``; see
         :meth:`Predictor.with_condition_noise <ipromp_pin.promp.predictor.Predictor.with_condition_noise>`)
-        or by ``conditioner``'s conditioner when given. The hand-over regression is not fused (see
-        :meth:`prediction`).
+        or by ``conditioner``'s conditioner when given; then, with ``estimates``, conditioned on the
+        model's hand-over estimates (the regression from the stream's running window summary, the
+        orientation estimate: :meth:`Predictor.with_estimates
+        <ipromp_pin.promp.predictor.Predictor.with_estimates>`, as :meth:`IProMP.predict
+        <ipromp_pin.promp.estimator.IProMP.predict>` does). With the model's own noise ratio this
+        equals :meth:`prediction` (to rounding) without recognising again.
 
         Raises:
             ObservationError: fewer than 2 samples received.
         """
         rec = self.recognition()
-        parts, _ = self.parts()
-        condition = (
-            conditioner or self.predictor.with_condition_noise(condition_noise)
-        ).conditioner.condition
+        parts, t_last = self.parts()
+        predictor = conditioner or self.predictor.with_condition_noise(condition_noise)
+        window = self.window() if estimates and predictor.fitted.handover is not None else None
         if self._held is None:
             with self._limit_threads():
-                return condition(rec, parts)
-        return condition(rec, parts)
+                return self._predict(predictor, rec, parts, window, t_last, estimates)
+        return self._predict(predictor, rec, parts, window, t_last, estimates)
+
+    @staticmethod
+    def _predict(
+        predictor: Predictor,
+        rec: Recognition,
+        parts: list[ObservationPart],
+        window: WindowSummary | None,
+        t_last: float,
+        estimates: bool,
+    ) -> Prediction:
+        pred = predictor.conditioner.condition(rec, parts)
+        return predictor.with_estimates(pred, window, t_last) if estimates else pred
 
     def prediction(self) -> Prediction:
         """Conditioned prediction on all samples received so far (recognised again from the samples,

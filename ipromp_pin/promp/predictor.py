@@ -122,13 +122,10 @@ class Predictor:
         window = None
         if fm.head is not None or fm.handover is not None or fm.novelty is not None:
             window = WindowSummary.from_parts(parts, fm.layout.n_obs_dims)
-<<<<<<< HEAD
         rec = self.recognise(parts, t_last, window)
         if math.isinf(rec.novelty_score):  # no task explains it: the prior of the most probable task
             return self.conditioner.prior_prediction(rec)
         pred = self.conditioner.condition(rec, parts)
-=======
-        pred = self.conditioner.condition(self.recognise(parts, t_last, window), parts)
         return self.with_estimates(pred, window, t_last)
 
     def with_estimates(self, pred: Prediction, window: WindowSummary | None, t_last: float) -> Prediction:
@@ -138,7 +135,6 @@ class Predictor:
         the orientation estimate (:meth:`Conditioner.observe_handover`); ``pred`` itself when the
         model has neither. The one step that the one-shot prediction and the stream share."""
         fm = self.fitted
->>>>>>> cl-predict
         if fm.handover is None and fm.orientation is None:
             return pred
         k = fm.tasks.index(pred.task)

@@ -102,7 +102,18 @@ def test_replay_bad_limit_profile_and_short_demo(tmp_path, capsys):
     assert code == 2 and f"{bad}: field 'acceleration_rad_s2': value -2.0 is not positive" in err
     data = _write_dataset(tmp_path / "data", short=True)
     code = main(
-        ["replay", str(PIPELINE), "--out", str(tmp_path / "o"), "--dataset", str(data), "--demo", "-1"]
+        [
+            "replay",
+            str(PIPELINE),
+            "--out",
+            str(tmp_path / "o"),
+            "--dataset",
+            str(data),
+            "--task",
+            "rod",
+            "--demo",
+            "-1",
+        ]
     )
     captured = capsys.readouterr()
     assert code == 2 and "field 'start_ratio': the start window" in captured.err

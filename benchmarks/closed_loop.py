@@ -27,7 +27,8 @@ back to back.
 seconds, what the test suite runs.
 
 Prints the median and 95th percentile of the cycle and of each stage over every re-plan of the timed
-replays, and the median of each replay's own median.
+replays, the median of each replay's own median, and how many motions the checks judged per re-plan
+(a re-plan slowed for the checks judges its slower re-targets too).
 """
 
 from __future__ import annotations
@@ -39,6 +40,7 @@ import platform
 import tempfile
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -47,6 +49,7 @@ from ipromp_pin.app.arguments import closed_loop_settings, pipeline_config
 from ipromp_pin.app.session import prepare_replay
 from ipromp_pin.promp import IProMP
 from ipromp_pin.readers.synthetic import make_synthetic_dataset
+from ipromp_pin.safety import CheckSuite
 
 SMOKE_MODEL = {"head": False, "handover": False, "coupling": "all", "n_basis": 15}
 """The small model of ``--smoke`` (fitted in seconds)."""
@@ -72,6 +75,19 @@ def replay_args(
     if model is not None:
         argv += ["--model", str(model)]
     return build_parser().parse_args(argv)
+
+
+def count_rounds(suite: CheckSuite) -> list[int]:
+    """A one-element counter of the motions ``suite`` checks (its ``run`` calls), from now on."""
+    calls = [0]
+    run = suite.run
+
+    def counted(*args: Any, **kwargs: Any) -> list:
+        calls[0] += 1
+        return run(*args, **kwargs)
+
+    suite.run = counted  # type: ignore[method-assign]
+    return calls
 
 
 def summary(cycles: list[list[float]], stages: dict[str, list[float]]) -> dict:
@@ -121,6 +137,7 @@ def main() -> None:
         if unknown:
             raise SystemExit(f"--without: unknown checks {unknown} (the replay runs {sorted(known)})")
         fewer = replace(setup, session=replace(session, suite=session.suite.without(left_out)))
+        rounds = count_rounds(session.suite)
         cycles: list[list[float]] = []
         cycles_without: list[list[float]] = []
         stages: dict[str, list[float]] = {}
@@ -132,6 +149,7 @@ def main() -> None:
                 first = replans
                 if left_out:
                     fewer.replay(settings)  # its warm-up
+                rounds[0] = 0
                 continue
             cycles.append(replans)
             for r in result.replans:
@@ -140,6 +158,7 @@ def main() -> None:
             if left_out:
                 cycles_without.append([r.cycle_ms for r in fewer.replay(settings).replans])
     out = summary(cycles, stages)
+    out["check_rounds_per_replan"] = rounds[0] / max(out["n_replans"], 1)
     if left_out:
         with_ms, without_ms = out["cycle_ms"]["median"], float(np.median(np.concatenate(cycles_without)))
         out["without"] = {"checks": left_out, "cycle_median_ms": without_ms, "added_ms": with_ms - without_ms}
@@ -155,6 +174,7 @@ def main() -> None:
         print(f"{k:<16}{v['median']:>12.3f}{v['p95']:>10.3f}")
     print(f"{'cycle':<16}{out['cycle_ms']['median']:>12.3f}{out['cycle_ms']['p95']:>10.3f}")
     print(f"median of each replay's median: {out['replay_median_ms']:.2f} ms")
+    print(f"check rounds per re-plan: {out['check_rounds_per_replan']:.2f}")
     print(
         f"first replay (warm-up; what `ipromp-pin replay` reports as Re-plan cycle median): "
         f"median {np.median(first):.2f} ms"

@@ -24,10 +24,29 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .exceptions import DataError, ObservationError
-from .fields import Range
+from .fields import Range, did_you_mean
 
 ROBOT = "robot"
 """Name of the channel group holding the robot's joint angles in [rad]."""
+
+
+def _numeric_values(source: str, name: str, values: object) -> np.ndarray:
+    """A channel group's values as floats, or DataError: booleans, strings and ragged rows are no
+    measurements."""
+    try:
+        raw = np.asarray(values) if not isinstance(values, str) else np.asarray([values])
+    except ValueError:  # rows of different lengths
+        raise DataError(source, name, "values must be a (T, D) array; its rows differ in length") from None
+    if raw.dtype == bool:
+        raise DataError(source, name, "values are booleans (True/False), not measurements")
+    if raw.dtype.kind == "O":
+        try:
+            return raw.astype(float)
+        except (TypeError, ValueError):
+            pass
+    if raw.dtype.kind not in "iuf":
+        raise DataError(source, name, f"values must be a numeric (T, D) array, got {raw.dtype.name} values")
+    return raw.astype(float)
 
 
 @dataclass(frozen=True)
@@ -78,7 +97,7 @@ class Demo:
             raise DataError(self.source, None, "demo has no channel groups")
         groups = {}
         for name, values in self.groups.items():
-            v = np.asarray(values, dtype=float)
+            v = _numeric_values(self.source, name, values)
             if v.ndim == 1:
                 v = v[:, None]
             if v.ndim != 2 or v.shape[0] != t.size:
@@ -129,8 +148,9 @@ class Demo:
         """Raise :class:`DataError` naming the first of ``groups`` this demo lacks."""
         for g in groups:
             if g not in self.groups:
+                hint = did_you_mean(g, self.groups)
                 raise DataError(
-                    self.source, g, f"channel group not in demo (has: {', '.join(sorted(self.groups))})"
+                    self.source, g, f"channel group not in demo{hint} (has: {', '.join(sorted(self.groups))})"
                 )
 
     def select(self, groups: Iterable[str]) -> Demo:

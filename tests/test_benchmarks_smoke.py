@@ -36,6 +36,10 @@ EXPECTED = {
     "closed_loop_cv.py": [r"\| err \[cm\] \|", r"(?m)^0\.2 \| 20 \| 0\.9 \| 90 \| 0\.2 \| [\d.]+ \|"],
     "human_checks.py": [r"failing the human checks \(after re-timing\): \d+/\d+", r"cost of both checks"],
     "first_minute.py": [r"(?m)^cold\s+median\s+[\d.]+ s wall"],
+    "handover_geometry.py": [
+        r"synthetic \(seed 0, assumed human\): \d+ demos",
+        r"gripper - torso\s+x [-+][\d.]+",
+    ],
     "inference.py": [r"(?m)^paper\s+\d+\s+12\s", r"speed-up \d+x", r"task accuracy [\d.]+"],
     "model_load.py": [r"this checkout:\s+[\d.]+ ms", r"paired difference \(this - other\): median"],
     "pipeline.py": [r"total \(observation->files\)\s+[\d.]+"],

@@ -42,5 +42,5 @@ def test_readme_python_example_runs_as_pasted(datasets_dir, tmp_path, monkeypatc
     namespace: dict = {"__name__": "readme"}
     for i, block in enumerate(blocks):
         exec(compile(block, f"README.md block {i + 1}", "exec"), namespace)  # noqa: S102
-    assert (work / "model.npz").is_file()
+    assert (work / "out" / "model.npz").is_file()
     assert namespace["via"].q_mean.shape == namespace["pred"].q_mean.shape

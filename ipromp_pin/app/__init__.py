@@ -34,6 +34,7 @@ import os
 import sys
 
 from ..exceptions import IPrompPinError
+from ..version import __version__
 from . import calibrate, evaluate, plan, preview, replay, run, synth, train
 from .arguments import OneLineErrorParser
 from .interrupt import EXIT_INTERRUPTED, interruptible, interruption_behind, report_interruption
@@ -51,6 +52,7 @@ def build_parser() -> argparse.ArgumentParser:
         prog="ipromp-pin",
         description="EMG-augmented Interaction ProMPs: recognise a hand-over task, plan Baxter's part.",
     )
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     subparsers = parser.add_subparsers(dest="command", required=True)
     for command in COMMANDS:
         command.add_parser(subparsers)

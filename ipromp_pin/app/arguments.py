@@ -11,7 +11,9 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import difflib
 import math
+import re
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -90,9 +92,44 @@ class OneLineErrorParser(argparse.ArgumentParser):
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         kwargs.setdefault("formatter_class", HelpFormatter)
         super().__init__(*args, **kwargs)
+        self.commands: dict[str, argparse.ArgumentParser] = {}
+        """The parsers of the sub-commands (:meth:`add_subparsers`), by name."""
+
+    def add_subparsers(self, **kwargs: Any) -> Any:
+        """argparse's sub-commands, remembered so that an unknown option is reported by its command."""
+        action = super().add_subparsers(**kwargs)
+        self.commands = action.choices
+        return action
+
+    def parse_args(self, args: Any = None, namespace: Any = None) -> argparse.Namespace:  # type: ignore[override]
+        """argparse's, an unknown option reported by the command's parser with the closest option."""
+        parsed, extras = self.parse_known_args(args, namespace)
+        if extras:
+            parser = self.commands.get(getattr(parsed, "command", None) or "", self)
+            names = list(getattr(parser, "_option_string_actions", {}))
+            hints = [(x, close[0]) for x in extras if (close := closest_option(x, names))]
+            if len(hints) == 1:
+                hint = f"; did you mean {hints[0][1]}?"
+            else:
+                hint = "".join(f"; {given}: did you mean {name}?" for given, name in hints)
+            parser.error(f"unrecognized arguments: {' '.join(extras)}{hint}")
+        return parsed
 
     def error(self, message: str) -> NoReturn:
+        choice = re.search(r"invalid choice: '([^']*)' \(choose from (.*)\)", message)
+        if choice:
+            close = difflib.get_close_matches(choice.group(1), re.findall(r"'([^']*)'", choice.group(2)), n=1)
+            if close:
+                message = message.replace(" (choose from", f"; did you mean '{close[0]}'? (choose from", 1)
         self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
+def closest_option(given: str, names: list[str]) -> list[str]:
+    """The option of ``names`` closest to the unknown ``given`` (``--tsk`` -> ``--task``; an
+    ``--opt=value`` compared by its name), or ``[]`` when none is close or ``given`` is no option."""
+    if not given.startswith("-"):
+        return []
+    return difflib.get_close_matches(given.split("=", 1)[0], names, n=1, cutoff=0.75)
 
 
 def port(text: str) -> int:
@@ -194,6 +231,7 @@ def pipeline_config(args: argparse.Namespace) -> PipelineConfig:
 
     return load_pipeline(
         args.pipeline,
+        options=PIPELINE_OPTIONS,
         out_dir=args.out,
         dataset=args.dataset,
         format=args.format,
@@ -218,6 +256,26 @@ def pipeline_config(args: argparse.Namespace) -> PipelineConfig:
     )
 
 
+PIPELINE_OPTIONS = {
+    "out_dir": "--out",
+    "dataset": "--dataset",
+    "format": "--format",
+    "frames": "--frames",
+    "observe": "--observe",
+    "task": "--task",
+    "demo": "--demo",
+    "ratio": "--ratio",
+    "load_model": "--model",
+    "save_model": "--save-model",
+    "robot": "--robot",
+    "objects": "--objects",
+    "control_rate_hz": "--rate",
+    "ros": "--ros",
+}
+"""The pipeline's flat names (:class:`~ipromp_pin.app.config.PipelineConfig`) and the options of
+:func:`add_pipeline_overrides` that set them: an error about such a value names the option."""
+
+
 def add_closed_loop_options(p: argparse.ArgumentParser) -> None:
     """The closed-loop options of ``replay`` and ``evaluate --closed-loop``."""
     p.add_argument(
@@ -235,6 +293,14 @@ def add_closed_loop_options(p: argparse.ArgumentParser) -> None:
             "closed loop)",
         ),
         closed_loop_default("condition_noise"),
+    )
+    p.add_argument(
+        "--handover-estimates",
+        choices=["on", "off"],
+        default=None,
+        help="whether every re-plan also applies the model's hand-over estimates (hand-over regression, "
+        "orientation estimate) as the one-shot plan does (default off: they made the arrival later, "
+        "docs/closed_loop.md)",
     )
     show_default(
         p.add_argument("--replan-rate", type=float, help=f"re-plan rate in [Hz] (default {DEFAULT_MARK})"),
@@ -278,6 +344,8 @@ def closed_loop_settings(args: argparse.Namespace, **given: float | None) -> Clo
         **given,
     }
     chosen = {name: value for name, value in options.items() if value is not None}
+    if getattr(args, "handover_estimates", None) is not None:
+        chosen["handover_estimates"] = args.handover_estimates == "on"
     if args.condition_noise is not None:  # None in the settings: the model's own
         try:
             chosen["condition_noise"] = (

@@ -38,16 +38,20 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     )
     p.add_argument(
         "--write",
-        action="store_true",
-        help="store the fitted offsets in the [calibration] table of that settings file (the --robot "
-        f"file; default {ROBOTS_DIR / (DEFAULT_ROBOT + '.toml')}); the line printed after it names the file",
+        nargs="?",
+        const="",
+        metavar="FILE",
+        help="store the fitted offsets in the [calibration] table of a settings file: FILE, else the "
+        "--robot file when it is yours; a shipped robot's settings are copied to <name>_calibrated.toml "
+        "in the current folder (the shipped file is never changed); the line printed after it names the "
+        "file and how to use it",
     )
     p.set_defaults(func=main)
 
 
 def main(args: argparse.Namespace) -> int:
     """Fit, report and optionally store the calibration."""
-    run_calibration(args.dataset, args.robot, write=args.write)
+    run_calibration(args.dataset, args.robot, write=args.write is not None, write_to=args.write or None)
     return 0
 
 
@@ -56,6 +60,7 @@ def run_calibration(
     settings_path: str | Path = DEFAULT_ROBOT,
     write: bool = False,
     *,
+    write_to: str | Path | None = None,
     fit: str = "mount",
     command: str | None = None,
     out: Callable[[str], None] | None = print,
@@ -65,7 +70,9 @@ def run_calibration(
     Args:
         dataset_paths: One or more dataset folders (read with ``ipromp_pin.readers.load_dataset``).
         settings_path: Robot settings file or name.
-        write: Store the fitted offsets in the settings file.
+        write: Store the fitted offsets: in ``write_to``, else in the settings file when it is not
+            a shipped one, else in ``<name>_calibrated.toml`` in the current folder.
+        write_to: The settings file to write (a copy of ``settings_path`` with the calibration).
         fit: ``"mount"`` (default), ``"tool"`` or ``"both"`` (see :func:`calibrate_tool_offset`).
         command: Command line recorded in the file (default: ``sys.argv``).
         out: Where the text report goes (``None``: silent).
@@ -92,7 +99,21 @@ def run_calibration(
         out(result.to_text())
     if write:
         cmd = command if command is not None else " ".join(["ipromp-pin", *sys.argv[1:]])
-        written = write_calibration(settings.path, result, cmd)
+        target = calibration_target(settings.path, write_to)
+        written = write_calibration(settings.path, result, cmd, target)
         if out is not None:
-            out(f"  written to {written}")
+            out(
+                f"  written to {written}"
+                + ("" if written == settings.path else f"; use it with --robot {written}")
+            )
     return result
+
+
+def calibration_target(settings_path: Path, write_to: str | Path | None) -> Path:
+    """The file a calibration is written to: ``write_to``; else the settings file itself unless it is
+    one the package ships (inside a wheel it may be read-only, and it is shared by every user), then
+    ``<name>_calibrated.toml`` in the current folder."""
+    if write_to is not None:
+        return Path(write_to)
+    shipped = settings_path.resolve().parent == ROBOTS_DIR.resolve()
+    return Path.cwd() / f"{settings_path.stem}_calibrated.toml" if shipped else settings_path

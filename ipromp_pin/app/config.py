@@ -282,12 +282,21 @@ class PipelineConfig:
     ) -> None:
         self.source = source
         self.sections = PipelineSections() if sections is None else sections
+        self.options: dict[str, str] = {}
+        """Flat name -> the command-line option that gave its value (``{"task": "--task"}``)."""
         self.update(**values)
 
     @classmethod
     def flat_names(cls) -> dict[str, str]:
         """The flat attribute names and the field each stands for: ``{"ratio": "observation.ratio"}``."""
         return {n: f"{v.section}.{v.key}" for n, v in vars(cls).items() if isinstance(v, Flat)}
+
+    def where(self, name: str) -> str:
+        """Where the value of the flat attribute ``name`` came from, as an error names it:
+        ``command line: option '--task'`` or ``FILE: field 'observation.task'``."""
+        if name in self.options:
+            return f"command line: option '{self.options[name]}'"
+        return f"{self.source}: field '{self.flat_names()[name]}'"
 
     def update(self, **values: Any) -> PipelineConfig:
         """Set the flat attributes given (``None`` values are skipped); an unknown name is an error."""
@@ -303,7 +312,7 @@ class PipelineConfig:
         """Check value ranges; raise :class:`PipelineError` naming the field (``'observation.ratio'``)."""
 
         def bad(name: str, problem: str) -> PipelineError:
-            return PipelineError(f"{self.source}: field '{self.flat_names()[name]}': {problem}")
+            return PipelineError(f"{self.where(name)}: {problem}")
 
         if not RATIO_RANGE.contains(self.ratio):
             raise bad("ratio", f"must be in {RATIO_RANGE.text()}, got {self.ratio}")
@@ -422,11 +431,15 @@ def _relative(value: str, base: Path) -> Path:
     return p if p.is_absolute() else base / p
 
 
-def load_pipeline(path: str | Path, **overrides: Any) -> PipelineConfig:
+def load_pipeline(
+    path: str | Path, options: dict[str, str] | None = None, **overrides: Any
+) -> PipelineConfig:
     """Read a pipeline definition; ``overrides`` (non-``None`` values) replace its fields.
 
     Args:
         path: A pipeline file, or the name of a shipped one (see :func:`resolve_pipeline_path`).
+        options: Flat name -> the command-line option that gave its override (``{"task": "--task"}``):
+            errors about that value name the option instead of the file's field.
         **overrides: Values of :class:`PipelineConfig`'s flat attributes that replace the file's.
 
     The observed window is ``[observation] ratio`` or ``until_s``, never both; an override of either
@@ -451,4 +464,5 @@ def load_pipeline(path: str | Path, **overrides: Any) -> PipelineConfig:
     cfg = PipelineConfig(str(path), sections).update(**overrides)
     if overrides.get("ratio") is not None:  # the command line's fraction replaces the file's seconds
         cfg.until_s = None
+    cfg.options = {k: v for k, v in (options or {}).items() if overrides.get(k) is not None}
     return cfg.validate()

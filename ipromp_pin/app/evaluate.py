@@ -30,12 +30,14 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("dataset", type=Path, help="dataset folder (one sub-folder per task)")
     p.add_argument(
         "--protocol",
-        choices=["paper", "splits", "both"],
+        choices=["paper", "splits", "both", "open-set"],
         default="paper",
         help="paper: the paper's experiment, per task the first n_train demos train and the next --n-test "
         "test (its cells train on up to 20: 21+ demos per task); splits: every cell over --splits random "
         "train/test splits per task, mean and standard deviation (for smaller datasets, with --grid full "
-        "--n-train); both: one after the other (default: paper)",
+        "--n-train); both: one after the other; open-set: the random splits, each task in turn left out of "
+        "training, is it recognised as unknown (false reject/accept rates, AUROC; see docs/open_set.md) "
+        "(default: paper)",
     )
     p.add_argument(
         "--observe",
@@ -43,6 +45,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         help="comma-separated observed groups (orientation, emg, acc, /left_hand_1 ...); repeat to compare "
         "(default: orientation and orientation,emg)",
     )
+    _add_alpha(p)
     p.add_argument("--json", type=Path, help="write the table as JSON here")
     p.add_argument("--md", type=Path, help="write the table as Markdown here (default: beside --json)")
     p.add_argument("--format", default="auto", help="dataset format (default %(default)s)")
@@ -183,6 +186,7 @@ def main(args: argparse.Namespace) -> int:
         json=args.json,
         md=args.md,
         plots=args.plots,
+        alpha=args.alpha,
         command=" ".join(["ipromp-pin", *sys.argv[1:]]),
         progress=progress,
     )
@@ -210,3 +214,25 @@ def accuracy_records(cells) -> list[dict]:
             observe = ",".join(c.observe) + " (s)"
             records.append(c.__dict__ | {"obs_ratio": c.window["value"], "observe": observe})
     return records
+
+
+def _alpha(text: str) -> float:
+    """A ``--alpha`` value: a number in (0, 0.5]."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not 0.0 < value <= 0.5:
+        raise argparse.ArgumentTypeError(f"{value:g} is not in (0, 0.5]")
+    return value
+
+
+def _add_alpha(p: argparse.ArgumentParser) -> None:
+    """The open-set protocol's ``--alpha``."""
+    p.add_argument(
+        "--alpha",
+        type=_alpha,
+        default=0.05,
+        help="open-set protocol: the largest fraction of known-task observations refused as unknown, in "
+        "(0, 0.5] (the models' novelty_alpha; default %(default)s)",
+    )

@@ -172,10 +172,23 @@ def verify_entry(path: Path, key: str, model: IProMP, cached: IProMP, demos: Seq
         return "it does not record the demos it was trained on"
     # by task, name and source: the content is bound by the key and the file digest above, and
     # hashing every demo's content again would cost about 10 ms for 60 demos
-    want = sorted((d.task, d.name, str(d.source)) for d in demos)
-    if sorted((r.task, r.name, r.source) for r in records) != want:
-        return f"it was trained on other demos ({len(records)}, not these {len(want)})"
+    want = {(d.task, d.name, str(d.source)) for d in demos}
+    have = {(r.task, r.name, r.source) for r in records}
+    if have != want:
+        return "it was trained on other demos: " + demo_set_difference(have, want)
     return ""
+
+
+def demo_set_difference(have: set[tuple[str, str, str]], want: set[tuple[str, str, str]]) -> str:
+    """How two sets of (task, name, source) demos differ, in a few words with an example of each side."""
+    parts = []
+    if have - want:
+        task, name, _ = sorted(have - want)[0]
+        parts.append(f"{len(have - want)} of its {len(have)} are not among these (e.g. {task}/{name})")
+    if want - have:
+        task, name, _ = sorted(want - have)[0]
+        parts.append(f"{len(want - have)} of these {len(want)} were not in its training (e.g. {task}/{name})")
+    return "; ".join(parts)
 
 
 def fit_cached(

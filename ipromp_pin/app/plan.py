@@ -5,7 +5,8 @@ its observed window cut, the task recognised and the robot's motion planned, che
 written into a sub-folder of DIR (:mod:`ipromp_pin.plans.batch`), with ``summary.json`` and
 ``summary.csv`` beside them (:mod:`ipromp_pin.plans.summary`). One line per recording as it is done
 (also in logs, without a terminal). Exit status: 0 every recording planned and passed, 3 some failed
-their checks, 2 some could not be read (one line each on standard error) or bad arguments.
+their checks or matched none of the model's tasks, 2 some could not be read (one line each on standard
+error) or bad arguments.
 """
 
 from __future__ import annotations
@@ -147,8 +148,8 @@ def main(args: argparse.Namespace) -> int:
         jobs=args.jobs, cluster=args.cluster, log=lambda line: print(line, flush=True),
     )  # fmt: skip
     for row in outcome.rows:
-        if row.status == "unreadable":
-            print_error("plan", str(row.error))
+        if row.status == "unreadable" or row.known is False:
+            print_error("plan", f"{row.recording}: {row.error}" if row.known is False else str(row.error))
     failed = [r for r in outcome.rows if r.status == "failed"]
     if failed:
         print_error(
@@ -184,7 +185,8 @@ def run(
     from ..robot.objects import load_objects
 
     t0 = time.perf_counter()
-    runner = None if cluster is None else DaskCluster.from_spec(cluster)  # a bad spec: before any work
+    # a bad spec fails here, before any work; the cluster says when it has started
+    runner = None if cluster is None else DaskCluster.from_spec(cluster, log=log)
     atomic.check_output_dir(out_dir)
     arm = load_robot(robot)
     model = IProMP.load(model_path)

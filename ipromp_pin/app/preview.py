@@ -24,6 +24,8 @@ if TYPE_CHECKING:
     from ..human import HumanMotion
     from ..planning.one_shot import LogFn, PlanResult
     from ..planning.retreat import RetreatResult
+    from ..preview import LivePreview
+    from ..promp import IProMP
     from ..robot import Robot
     from ..robot.objects import ObjectTable
     from .config import PipelineConfig
@@ -45,7 +47,11 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         default=1.0,
         help="live streaming speed factor, > 0 (default %(default)g: real time)",
     )
-    p.add_argument("--no-wait", action="store_true", help="live: exit when streaming is done")
+    p.add_argument(
+        "--no-wait",
+        action="store_true",
+        help="live: stream at once (without waiting for a browser to connect) and exit when done",
+    )
     p.add_argument(
         "--no-retreat", action="store_true", help="do not plan and show the retreat after the hand-over"
     )
@@ -72,12 +78,16 @@ def run_preview(
     speed: float = 1.0,
     wait: bool = True,
     log: LogFn | None = None,
+    wait_for_page: bool | None = None,
+    page_timeout_s: float | None = None,
 ) -> Path | None:
     """``ipromp-pin preview``: a self-contained HTML file, or a live page on 127.0.0.1.
 
     Live mode streams the observed samples of the chosen demo one by one into the model's
     streaming estimator (at ``speed`` times real time), updating the task posterior and the
-    observation window on the page, then shows the planned trajectory and its checks.
+    observation window on the page, then shows the planned trajectory and its checks. The stream
+    starts once a browser page has connected (``wait_for_page``, default ``wait``; at most
+    ``page_timeout_s`` [s], None: as long as it takes); ``wait``: then serve until Ctrl-C.
 
     Returns:
         The HTML file written, or ``None`` in live mode.
@@ -98,7 +108,7 @@ def run_preview(
     planned = plan_session(session, log)
     result, retreat = planned.approach, planned.retreat
     if html is not None:
-        ctx = session.context
+        ctx = planned.context  # what the checks knew: the human they judged
         path = write_preview(
             result,
             session.robot,
@@ -112,7 +122,7 @@ def run_preview(
         log(f"[preview] wrote {path} ({path.stat().st_size / 1e6:.1f} MB): open it in a browser (no server)")
         return path
     visual = preview_visual_model(session.robot, session.mesh_prefetch)
-    ctx = session.context
+    ctx = planned.context  # what the checks knew: the human they judged
     content = preview_content(
         result,
         session.robot,
@@ -125,22 +135,18 @@ def run_preview(
     tasks = list(result.prediction.tasks)
     start = content.replace(posterior=np.full(len(tasks), 1.0 / len(tasks)), task="", observed_until_s=0.0)
     live = LivePreview(start, port=port)
-    log(f"[preview] live at {live.url} (127.0.0.1 only); streaming {observation.n_samples} samples")
+    if wait_for_page is None:
+        wait_for_page = wait
     try:
-        stream = session.model.stream()
-        t_wall = time.perf_counter()
-        for i, t in enumerate(observation.t):
-            rec = stream.update(float(t), {g: observation.groups[g][i] for g in observation.groups})
-            if rec is not None and (i % 3 == 0 or i == observation.n_samples - 1):
-                live.update_posterior(rec.posterior, tasks=list(rec.tasks))
-                live.update_observation(float(t))
-                log(
-                    f"  t={t:5.2f} s  "
-                    + "  ".join(f"{k} {v:.2f}" for k, v in zip(rec.tasks, rec.posterior, strict=True))
-                )
-            delay = t / speed - (time.perf_counter() - t_wall)
-            if delay > 0:
-                time.sleep(delay)
+        if wait_for_page:
+            # the stream is for someone to watch: it starts when a page has the scene
+            log(f"[preview] live at {live.url} (127.0.0.1 only): open it in a browser; streaming starts then")
+            seen = live.wait_for_page(page_timeout_s)
+            said = "a browser is connected" if seen else f"no browser within {page_timeout_s} s"
+            log(f"[preview] {said}: streaming {observation.n_samples} samples")
+        else:
+            log(f"[preview] live at {live.url} (127.0.0.1 only); streaming {observation.n_samples} samples")
+        stream_observation(live, session.model, observation, speed, log)
         live.show(content)
         log(f"[preview] recognised {result.prediction.task}; trajectory and checks shown")
         if wait:
@@ -154,6 +160,26 @@ def run_preview(
     return None
 
 
+def stream_observation(live: LivePreview, model: IProMP, observation: Demo, speed: float, log: LogFn) -> None:
+    """Stream ``observation``'s samples into ``model``'s streaming estimator at ``speed`` times real
+    time, showing the posterior and the observation window on ``live`` (every third sample and the
+    last) and logging them."""
+    stream = model.stream()
+    t_wall = time.perf_counter()
+    for i, t in enumerate(observation.t):
+        rec = stream.update(float(t), {g: observation.groups[g][i] for g in observation.groups})
+        if rec is not None and (i % 3 == 0 or i == observation.n_samples - 1):
+            live.update_posterior(rec.posterior, tasks=list(rec.tasks))
+            live.update_observation(float(t))
+            log(
+                f"  t={t:5.2f} s  "
+                + "  ".join(f"{k} {v:.2f}" for k, v in zip(rec.tasks, rec.posterior, strict=True))
+            )
+        delay = t / speed - (time.perf_counter() - t_wall)
+        if delay > 0:
+            time.sleep(delay)
+
+
 def write_preview(
     result: PlanResult,
     robot: Robot,
@@ -165,7 +191,7 @@ def write_preview(
     retreat: RetreatResult | None = None,
 ) -> Path:
     """Write the self-contained offline preview page (after the mesh ``prefetch`` process, if any);
-    ``human``: the body drawn when ``demo`` has no tracked skeleton (e.g. the assumed human);
+    ``human``: the human the checks judged (the body drawn, its separation measured);
     ``objects``: the tasks' objects (the recognised task's is drawn and in the torques);
     ``retreat``: animated after the hand-over."""
     from ..outputs.preview_content import preview_content

@@ -41,8 +41,10 @@ if TYPE_CHECKING:
     from .. import atomic
     from ..data import Demo
     from ..evaluation.scoring import ClosedLoopScore
+    from ..human import HumanMotion
     from ..planning.closed_loop import ClosedLoopResult, ClosedLoopSettings
     from ..planning.one_shot import LogFn
+    from ..safety import CheckReport
     from .config import PipelineConfig
     from .session import Session
 
@@ -161,8 +163,9 @@ def run_replay(
     marks its files).
     """
     from .. import atomic
+    from ..human import HumanMotion
     from ..outputs.files import ALL_OUTPUTS, keyed
-    from ..outputs.replay_report import replay_passed, summary_lines
+    from ..outputs.replay_report import replay_checks, replay_passed, summary_lines
     from ..plans.warnings import warn_stderr
     from ..safety import CheckContext
     from .session import prepare_replay
@@ -174,8 +177,12 @@ def run_replay(
     score, result = setup.scored(settings)
     truth = CheckContext(task=demo.task, objects=session.context.objects)  # the files' torques
     result.trajectory = session.suite.annotate(result.trajectory, truth)
+    # the commanded motion judged after the fact, as the score judges it: the report's and the
+    # preview's checks (the human checks against the recorded human, when the demo tracks one)
+    recorded = HumanMotion.from_demo(demo, session.robot.settings.human)
+    judged = replay_checks(result.trajectory, session.suite, demo.task, truth.objects, recorded)
     with atomic.OutputSet(cfg.out_dir, managed=ALL_OUTPUTS) as out:  # one command's files only
-        _stage_files(out, session, result, score, allow_failing_checks, preview, log)
+        _stage_files(out, session, result, score, judged, recorded, allow_failing_checks, preview, log)
         files = keyed(out.commit())
     log(summary_lines(demo, result, score, time.perf_counter() - t_start))
     return ReplayOutcome(demo, result, score, files, replay_passed(score))
@@ -186,12 +193,16 @@ def _stage_files(
     session: Session,
     result: ClosedLoopResult,
     score: ClosedLoopScore,
+    judged: CheckReport,
+    recorded: HumanMotion | None,
     allow_failing_checks: bool,
     preview: bool,
     log: LogFn,
 ) -> None:
     """Stage the replay's files: the trajectory (:func:`~ipromp_pin.outputs.staging.stage_trajectory`),
-    ``replans.json``, ``limits.toml``, ``preview.html`` and, last, the reports."""
+    ``replans.json``, ``limits.toml``, ``preview.html`` and, last, the reports; ``judged``: the
+    commanded motion's verdicts after the fact (the report's ``checks``, the preview's), ``recorded``:
+    the recorded human they judged (None: no tracked skeleton)."""
     from ..outputs.preview_content import replay_preview_html
     from ..outputs.replay_report import replans_text, replay_failures, report_dict, report_text
     from ..outputs.staging import stage_report, stage_trajectory
@@ -207,8 +218,9 @@ def _stage_files(
         t0 = time.perf_counter()
         visual = preview_visual_model(session.robot)
         ctx = session.context
-        html = replay_preview_html(demo, result, score, session.robot, visual, ctx.human, ctx.objects)
+        human = recorded if recorded is not None else ctx.human  # else the one the closed loop planned with
+        html = replay_preview_html(demo, result, score, session.robot, visual, judged, human, ctx.objects)
         out.write_text("preview.html", html)
         log(f"[preview] {out.path('preview.html')} ({time.perf_counter() - t0:.1f} s)")
-    report = report_dict(result, score, demo, session.model, session.warnings)
-    stage_report(out, report, report_text(result, score, demo, session.warnings))
+    report = report_dict(result, score, demo, session.model, session.warnings, judged)
+    stage_report(out, report, report_text(result, score, demo, session.warnings, judged))

@@ -36,6 +36,7 @@ class RunOutcome:
         files: The files written, by report key.
         trajectory_written: Whether the trajectory files were written (when it passed, or marked as
             failing with ``--allow-failing-checks``).
+        unknown_reason: Why the observation matches none of the model's tasks (None: a known task).
     """
 
     report: dict
@@ -43,6 +44,7 @@ class RunOutcome:
     failures: list[str] = field(default_factory=list)
     files: dict[str, Path] = field(default_factory=dict)
     trajectory_written: bool = False
+    unknown_reason: str | None = None
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -77,11 +79,15 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    """Run the pipeline; exit status 3 when the planned motion fails its checks."""
+    """Run the pipeline; exit status 3 when the observation matches none of the model's tasks or the
+    planned motion fails its checks."""
     outcome = run(pipeline_config(args), log=print, allow_failing_checks=args.allow_failing_checks)
     if outcome.passed:
         return 0
     written = "written marked as failing" if outcome.trajectory_written else "not written"
+    if outcome.unknown_reason is not None:
+        print_error("run", f"{outcome.unknown_reason}; trajectory {written}")
+        return EXIT_CHECKS_FAILED
     print_error(
         "run", f"the planned motion failed its checks ({', '.join(outcome.failures)}); trajectory {written}"
     )
@@ -130,7 +136,16 @@ def run(
         log=log,
     )
     log(summary_text(planned.approach, written.files, time.perf_counter() - t_start, planned.retreat))
-    if not planned.passed:
+    if not planned.known:
+        log(
+            f"UNKNOWN TASK ({planned.approach.prediction.unknown_reason}): "
+            + (
+                "the trajectory was written marked as failing"
+                if written.trajectory_written
+                else "no trajectory written"
+            )
+        )
+    elif not planned.passed:
         log(
             "Checks FAILED: "
             + (
@@ -140,5 +155,10 @@ def run(
             )
         )
     return RunOutcome(
-        written.report, planned.passed, planned.failures, written.files, written.trajectory_written
+        written.report,
+        planned.passed,
+        planned.failures,
+        written.files,
+        written.trajectory_written,
+        None if planned.known else planned.approach.prediction.unknown_reason,
     )

@@ -22,6 +22,7 @@ from .. import atomic
 from ..data import ROBOT, Dataset, Demo, skeleton_frames
 from ..evaluation.scoring import ClosedLoopScore, replay_scored
 from ..exceptions import DataError, PipelineError
+from ..fields import did_you_mean
 from ..human import HumanMotion
 from ..human.placement import check_assumed_human
 from ..motion.limits import LimitProfile, check_profile_choice, choose_limit_profile
@@ -253,14 +254,24 @@ def choose_demo(ds: Dataset, cfg: PipelineConfig) -> Demo:
     task = cfg.task or ds.tasks[0]
     if task not in ds.demos:
         raise PipelineError(
-            f"{cfg.source}: field 'observation.task': unknown task '{task}' ({', '.join(ds.tasks)})"
+            f"{cfg.where('task')}: unknown task '{task}'{did_you_mean(task, ds.tasks)} "
+            f"({', '.join(ds.tasks)})"
         )
     demos = ds.demos[task]
     if not -len(demos) <= cfg.demo < len(demos):
         raise PipelineError(
-            f"{cfg.source}: field 'observation.demo': index {cfg.demo} out of range for {len(demos)} demos"
+            f"{cfg.where('demo')}: index {cfg.demo} out of range for {len(demos)} demos of task '{task}' "
+            f"(0 to {len(demos) - 1}, or -{len(demos)} to -1 from the end)"
         )
-    return demos[cfg.demo]
+    demo = demos[cfg.demo]
+    for group in cfg.observe:
+        if group not in demo.groups:
+            known = sorted(g for g in demo.groups if g != ROBOT)
+            raise PipelineError(
+                f"{cfg.where('observe')}: channel group '{group}' not in the data"
+                f"{did_you_mean(group, known)} (has: {', '.join(known)})"
+            )
+    return demo
 
 
 def get_model(

@@ -52,8 +52,10 @@ class Cell:
     ``coupled_groups`` counts, over the cell's model fits, the observed groups each fitted model
     coupled to the robot (``"+"``-joined, ``""`` for none; see ``IProMP(coupling=...)``).
     ``log_loss`` (mean of ``-log p(true task)``, posteriors floored at :data:`PROBABILITY_FLOOR`) and
-    ``brier`` (mean multi-class Brier score) say how well calibrated the task posterior is.
-    ``baselines`` (``--baselines``): baseline name -> ``accuracy``, ``log_loss``, ``brier`` (and
+    ``brier`` (mean multi-class Brier score) say how well calibrated the task posterior is, and ``ece``
+    (:func:`expected_calibration_error` of the recognised task's posterior) whether its confidence
+    is the accuracy it has.
+    ``baselines`` (``--baselines``): baseline name -> ``accuracy``, ``log_loss``, ``brier``, ``ece`` (and
     ``accuracy_std`` over splits) for the classifiers, the median ``handover_error_cm``,
     ``joint_rmse_rad`` and ``final_joint_error_rad`` over the trials ipromp_pin recognised for the
     regressors (the true task given to them).
@@ -85,6 +87,7 @@ class Cell:
     coupled_groups: dict[str, int] = field(default_factory=dict)
     log_loss: float | None = None
     brier: float | None = None
+    ece: float | None = None
     baselines: dict[str, dict[str, float | None]] = field(default_factory=dict)
     trials: list[dict] = field(default_factory=list)
 
@@ -176,6 +179,25 @@ def calibration(rows: Sequence[tuple[float, float]]) -> tuple[float | None, floa
     return float(np.mean(-np.log(p))), float(np.mean([r[1] for r in rows]))
 
 
+ECE_BINS = 10
+"""Equal-width confidence bins over [0, 1] of the expected calibration error."""
+
+
+def expected_calibration_error(rows: Sequence[tuple[float, bool]]) -> float | None:
+    """Expected calibration error of (confidence, correct) rows: the confidence of the recognised
+    task binned in :data:`ECE_BINS` equal-width bins, the mean over rows of |accuracy - mean
+    confidence| of their bin (Guo et al. 2017); None for no row (NaN confidences skipped)."""
+    conf = np.array([c for c, _ in rows], dtype=float)
+    ok = np.array([k for _, k in rows], dtype=float)
+    keep = np.isfinite(conf)
+    conf, ok = conf[keep], ok[keep]
+    if conf.size == 0:
+        return None
+    bins = np.minimum((conf * ECE_BINS).astype(int), ECE_BINS - 1)
+    gap = sum(abs(ok[bins == b].sum() - conf[bins == b].sum()) for b in range(ECE_BINS))
+    return float(gap / conf.size)
+
+
 def baseline_summary(reps: Sequence[Sequence], splits: bool) -> dict[str, dict[str, float | None]]:
     """Baseline name -> its summary over a cell's trials per split (see :class:`Cell`)."""
     flat = [r for rep in reps for r in rep]
@@ -187,7 +209,8 @@ def baseline_summary(reps: Sequence[Sequence], splits: bool) -> dict[str, dict[s
         task = flat[0].task
         accs = [np.mean([r.baselines[name].predicted == task for r in rep]) for rep in reps if rep]
         log_loss, brier = calibration([(b.posterior, b.brier) for b in rows])
-        out[name] = {"accuracy": float(np.mean(accs)), "log_loss": log_loss, "brier": brier}
+        ece = expected_calibration_error([(b.confidence, b.predicted == task) for b in rows])
+        out[name] = {"accuracy": float(np.mean(accs)), "log_loss": log_loss, "brier": brier, "ece": ece}
         if splits:
             out[name]["accuracy_std"] = float(np.std(accs))
     for name in REGRESSORS:

@@ -24,7 +24,7 @@ PAPER_ACCURACY: dict[tuple[int, float, str], dict[str, float]] = {
 }
 """Accuracies reported in the paper (Chen et al. 2017) on ``chen2017_handover``, per task."""
 
-PROTOCOLS = ("paper", "splits")
+PROTOCOLS = ("paper", "splits", "open-set")
 """The evaluation protocols."""
 
 ProgressFn = Callable[[int, int, str], None]
@@ -36,7 +36,8 @@ class EvaluationConfig:
     """Settings of an evaluation run.
 
     Attributes:
-        protocol: ``"paper"`` or ``"splits"``.
+        protocol: ``"paper"``, ``"splits"`` or ``"open-set"`` (the random splits, each task left out
+            in turn: :mod:`~ipromp_pin.evaluation.open_set`).
         observe: Observed channel sets, each a list of group names.
         grid: (n_train, window) cells: a window is an observed fraction of each test demo (a float,
             the paper's ``obs_ratio``) or a :class:`~.windows.Window` (e.g. in seconds).
@@ -60,7 +61,9 @@ class EvaluationConfig:
     def check_protocol(self) -> None:
         """Raise a :class:`DataError` naming the field when the protocol is not one of :data:`PROTOCOLS`."""
         if self.protocol not in PROTOCOLS:
-            raise DataError(None, "protocol", f"unknown protocol '{self.protocol}' (use paper or splits)")
+            raise DataError(
+                None, "protocol", f"unknown protocol '{self.protocol}' (use paper, splits or open-set)"
+            )
 
     def cells(self) -> list[tuple[int, Window]]:
         """The grid's (n_train, window) cells, a bare fraction as a ``ratio`` window, each once."""

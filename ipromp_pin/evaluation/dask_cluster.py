@@ -40,7 +40,7 @@ import time
 import uuid
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import CancelledError
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from types import ModuleType
 
 from ..exceptions import IPrompPinError
@@ -103,17 +103,20 @@ class ClusterError(IPrompPinError):
 class DaskCluster:
     """Where the jobs run: a local cluster of ``n_workers`` processes (``address`` None) or the
     scheduler at ``address``; ``retries`` re-runs of a job whose worker dies; ``processes`` False
-    runs a local cluster's workers as threads of this process (the tests)."""
+    runs a local cluster's workers as threads of this process (the tests); ``log`` (when given) gets
+    one line when the cluster has started or been reached (:meth:`DaskSession.describe`)."""
 
     address: str | None = None
     n_workers: int = 0
     retries: int = RETRIES
     processes: bool = True
+    log: Callable[[str], object] | None = field(default=None, compare=False, repr=False)
 
     @classmethod
-    def from_spec(cls, spec: str) -> DaskCluster:
+    def from_spec(cls, spec: str, log: Callable[[str], object] | None = None) -> DaskCluster:
         """The cluster of a ``--cluster`` value (``dask-local:N`` or a scheduler address
-        ``SCHEME://HOST:PORT``), or ClusterError naming what is wrong with it."""
+        ``SCHEME://HOST:PORT``), or ClusterError naming what is wrong with it; ``log``: where the line
+        saying that it started or was reached goes."""
         spec = spec.strip()
         if spec.startswith(LOCAL_PREFIX):
             count = spec[len(LOCAL_PREFIX) :]
@@ -123,7 +126,7 @@ class DaskCluster:
                     f"--cluster: '{spec}': the number of local workers must be 1-{most} (this machine's "
                     f"cores and memory; a bigger cluster is a scheduler address such as tcp://HOST:8786)"
                 )
-            return cls(n_workers=int(count))
+            return cls(n_workers=int(count), log=log)
         scheme, sep, rest = spec.partition("://")
         if not sep or f"{scheme}://" not in SCHEMES:
             raise ClusterError(
@@ -137,7 +140,7 @@ class DaskCluster:
             )
         if not port.isdigit() or not 1 <= int(port) <= 65535:
             raise ClusterError(f"--cluster: '{spec}': the port must be a number in 1-65535, got '{port}'")
-        return cls(address=spec)
+        return cls(address=spec, log=log)
 
     @property
     def label(self) -> str:
@@ -190,6 +193,8 @@ class DaskCluster:
                     "start some with dask-worker, or dask-jobqueue on SLURM"
                 ) from None
         session = DaskSession(self, distributed, client, cluster)
+        if self.log is not None:
+            self.log(session.describe())
         if prepare is not None:
             session.prepare(prepare)
         return session
@@ -212,6 +217,20 @@ class DaskSession:
     def label(self) -> str:
         """How the run reports the cluster."""
         return self.spec.label
+
+    def describe(self) -> str:
+        """One line: the cluster started (local) or reached (its scheduler's address) and its workers
+        now (``[cluster] started a local Dask cluster at tcp://127.0.0.1:PORT: 2 workers, 2 threads``)."""
+        info = self.client.scheduler_info()
+        workers = info.get("workers", {})
+        threads = sum(int(w.get("nthreads", 0)) for w in workers.values())
+        address = info.get("address") or self.spec.address or "?"
+        count = f"{len(workers)} worker{'s' * (len(workers) != 1)}, {threads} thread{'s' * (threads != 1)}"
+        if self.cluster is not None:
+            kind = "processes" if self.spec.processes else "threads of this process"
+            return f"[cluster] started a local Dask cluster at {address} ({kind}): {count}"
+        waiting = "" if workers else " (none yet: the jobs wait for workers to join)"
+        return f"[cluster] connected to the Dask scheduler at {address}: {count}{waiting}"
 
     def prepare(self, prepare: Callable[[], object]) -> None:
         """Run ``prepare`` once on every worker present, as a task (not waited for: the jobs queue

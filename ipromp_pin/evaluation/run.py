@@ -15,11 +15,13 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import json
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import partial
 from pathlib import Path
+from typing import Any, cast
 
 from .. import atomic, readers
 from ..data import Dataset, skeleton_frames
@@ -38,6 +40,7 @@ from .config import PAPER_GRID, EvaluationConfig, ProgressFn
 from .dask_cluster import DaskCluster, prepare_worker, require_dask
 from .evaluate import evaluate
 from .jobs import JobRunner
+from .open_set import OpenSetCell, evaluate_open_set, open_set_json, open_set_markdown
 from .splits import check_dataset_size
 from .tables import (
     closed_loop_markdown,
@@ -79,6 +82,7 @@ class EvaluateRequest:
         json: JSON results file (None: not written).
         md: Markdown results file (None: beside the JSON, if any).
         plots: Folder of the accuracy plot (one-shot evaluation; None: no plot).
+        alpha: The open-set protocol's largest fraction of known-task observations refused.
         command: The command line, recorded in the JSON's ``meta``.
         progress: Makes a progress callable ``(done, total, label)`` (None: no progress).
         log: Prints a line of the run's report.
@@ -103,6 +107,7 @@ class EvaluateRequest:
     json: Path | None = None
     md: Path | None = None
     plots: Path | None = None
+    alpha: float = 0.05
     command: str = ""
     progress: Callable[[], ProgressFn] | None = None
     log: Callable[[str], None] = print
@@ -218,6 +223,8 @@ def check_request(request: EvaluateRequest) -> Robot:
     if request.cluster is not None:
         DaskCluster.from_spec(request.cluster)
         require_dask()
+    if "open-set" in request.protocols and (request.closed_loop or request.plots):
+        raise DataError(None, "--protocol", "open-set has no closed loop and no accuracy plot")
     if request.closed_loop:
         base = request.settings()
         for ratio in request.ratios():  # every ratio cell's obs_ratio is a start ratio
@@ -260,7 +267,8 @@ def open_runner(request: EvaluateRequest) -> contextlib.AbstractContextManager[i
     start, import the package and load the robot while the dataset is read, and serve every protocol."""
     if request.cluster is None:
         return contextlib.nullcontext(request.jobs)
-    return DaskCluster.from_spec(request.cluster).open(partial(prepare_worker, request.robot))
+    cluster = DaskCluster.from_spec(request.cluster, log=request.log)
+    return cluster.open(partial(prepare_worker, request.robot))
 
 
 def run_evaluations(request: EvaluateRequest, ds: Dataset, where: int | JobRunner) -> list[Cell]:
@@ -274,7 +282,10 @@ def run_evaluations(request: EvaluateRequest, ds: Dataset, where: int | JobRunne
     for cfg in request.configs():
         progress = request.progress() if request.progress else None
         t1 = time.perf_counter()
-        if request.closed_loop:
+        if cfg.protocol == "open-set":
+            cells += evaluate_open_set(ds, cfg, request.alpha, progress, where)  # type: ignore[arg-type]
+            request.log(f"protocol open-set: {time.perf_counter() - t1:.1f} s")
+        elif request.closed_loop:
             cells += evaluate_closed_loop(ds, cfg, options, request.robot, progress, where, objects)
             request.log(f"protocol {cfg.protocol} (closed loop): {time.perf_counter() - t1:.1f} s")
         else:
@@ -287,6 +298,21 @@ def report(request: EvaluateRequest, cells: list[Cell], seconds: float) -> None:
     """Print the tables, write the JSON, Markdown and plot, and print the summary."""
     md = request.md_path
     meta: dict = {"dataset": str(request.dataset), "command": request.command, "seconds": round(seconds, 2)}
+    open_set: list[OpenSetCell] = [c for c in cast(list[Any], cells) if isinstance(c, OpenSetCell)]
+    if open_set:  # its own table (the other protocols' cells, if any, below)
+        request.log(open_set_markdown(open_set))
+        cells = [c for c in cells if not isinstance(c, OpenSetCell)]
+        if request.json:
+            target = (
+                request.json if not cells else request.json.with_name(request.json.stem + "_open_set.json")
+            )
+            atomic.write_text(target, json.dumps(open_set_json(open_set, meta), indent=1, allow_nan=False))
+            request.log(f"wrote {target}")
+        if md:
+            target_md = md if not cells else md.with_name(md.stem + "_open_set.md")
+            atomic.write_text(target_md, open_set_markdown(open_set))
+        if not cells:
+            return
     if request.closed_loop:
         settings = request.settings().to_dict()
         start = {

@@ -401,6 +401,7 @@ class TrialResult:
         handover_error_prior_cm: The same for the prior mean, in [cm].
         duration_error_s: Predicted minus true duration of the motion, in [s].
         brier: Multi-class Brier score of the task posterior (sum over tasks of squared errors).
+        confidence: The posterior of the recognised task (its largest), for the calibration error.
         handover_orientation_error_deg: Geodesic angle between the predicted and the recorded gripper
             rotations at the hand-over, in [deg] (NaN without FK).
         handover_orientation_baseline_deg: The same for the baseline: the mean hand-over rotation
@@ -425,6 +426,7 @@ class TrialResult:
     handover_error_prior_cm: float
     duration_error_s: float
     brier: float = float("nan")
+    confidence: float = float("nan")
     handover_orientation_error_deg: float = float("nan")
     handover_orientation_baseline_deg: float = float("nan")
     baselines: dict[str, Any] = field(default_factory=dict)
@@ -495,6 +497,7 @@ def score_trial(
         handover_error_prior_cm=ho_prior,
         duration_error_s=float(prediction.duration_s - demo.duration_s),
         brier=float(np.sum((np.asarray(prediction.posterior) - onehot) ** 2)),
+        confidence=float(np.max(prediction.posterior)),
         handover_orientation_error_deg=rot_err,
         handover_orientation_baseline_deg=rot_base,
         observed_s=float(prediction.observed_until_s),

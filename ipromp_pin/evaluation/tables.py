@@ -232,12 +232,14 @@ def baseline_markdown(cells: Sequence[Cell], title: str = "") -> list[str]:
         + " / ".join(names)
         + " | log loss: "
         + " / ".join(names)
+        + " | ECE: "
+        + " / ".join(names)
         + " | hand-over err [cm]: ipromp_pin / "
         + " / ".join(REGRESSORS)
         + " | joint RMSE [rad]: ipromp_pin / "
         + " / ".join(REGRESSORS)
         + " |",
-        "|---|---|---|---|---|---|---|",
+        "|---|---|---|---|---|---|---|---|",
     ]
 
     def base(row: list[Cell], name: str, key: str) -> float | None:
@@ -246,6 +248,7 @@ def baseline_markdown(cells: Sequence[Cell], title: str = "") -> list[str]:
     for (n_train, window, key), row in rows.items():
         acc = [row_mean([c.accuracy for c in row])] + [base(row, n, "accuracy") for n in CLASSIFIERS]
         loss = [row_mean([c.log_loss for c in row])] + [base(row, n, "log_loss") for n in CLASSIFIERS]
+        ece = [row_mean([c.ece for c in row])] + [base(row, n, "ece") for n in CLASSIFIERS]
         ho = [row_mean([c.handover_error_cm for c in row])] + [
             base(row, n, "handover_error_cm") for n in REGRESSORS
         ]
@@ -255,6 +258,7 @@ def baseline_markdown(cells: Sequence[Cell], title: str = "") -> list[str]:
         lines.append(
             f"| {n_train} | {window} | {key} | "
             + " / ".join(_fmt(v) for v in acc) + " | " + " / ".join(_fmt(v) for v in loss) + " | "
+            + " / ".join(_fmt(v) for v in ece) + " | "
             + " / ".join(_fmt(v, 1) for v in ho) + " | " + " / ".join(_fmt(v, 3) for v in rmse) + " |"
         )  # fmt: skip
     lines.append("")

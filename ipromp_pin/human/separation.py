@@ -102,6 +102,10 @@ class Separation(SeparationReductions):
         robot_mass_kg: The robot's effective mass (N, L, P) [kg] where computed (NaN elsewhere).
         closest_robot_m: The robot's closest surface point (N, 3) [m] to the body (hand included).
         closest_body_m: The body's closest surface point (N, 3) [m].
+        clearance_robot_m: The robot's surface point (N, 3) [m] of the pair closest to the body
+            outside the hand at its nominal position (the pair of :meth:`clearance_pairs`; the
+            closest pair's without a part outside the hand).
+        clearance_body_m: That part's nominal surface point (N, 3) [m].
         links: Robot capsule links (L,).
         geometries: Robot capsule geometry names (L,).
         parts: Body part names (P,).
@@ -118,6 +122,8 @@ class Separation(SeparationReductions):
     robot_mass_kg: np.ndarray
     closest_robot_m: np.ndarray
     closest_body_m: np.ndarray
+    clearance_robot_m: np.ndarray
+    clearance_body_m: np.ndarray
     links: tuple[str, ...]
     geometries: tuple[str, ...]
     parts: tuple[str, ...]
@@ -142,6 +148,14 @@ class Separation(SeparationReductions):
     def nominal_distance_m(self) -> np.ndarray:
         """(N, L, P) distances [m] to the parts at their nominal positions (without inflation)."""
         return self.distance_m + self.inflation_m[:, None, :]
+
+    def clearance_pairs(
+        self, exclude_region: str | None = HAND_REGION
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Per sample (N,): the smallest distance [m] to the nominal parts outside
+        ``exclude_region`` (:meth:`clearance_m`) and the (capsule, part) indices of it, the pair
+        :meth:`where` names with ``nominal=True``."""
+        return clearance_pairs(self.distance_m, self.inflation_m, self.regions, exclude_region)
 
     def clearance_m(self, exclude_region: str | None = HAND_REGION) -> np.ndarray:
         """(N,) the smallest distance [m] to the nominal parts outside ``exclude_region``."""
@@ -169,6 +183,21 @@ class Separation(SeparationReductions):
             d[:, [r == exclude_region for r in self.regions]] = np.inf
         li, pi = np.unravel_index(int(np.argmin(d)), d.shape)
         return self.links[li], self.parts[pi], float(self.t_s[n]), float(d[li, pi])
+
+
+def clearance_pairs(
+    distance_m: np.ndarray, inflation_m: np.ndarray, regions: tuple[str, ...], exclude_region: str | None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per sample (N,) of distances ``distance_m`` (N, L, P) [m] with the parts' inflation
+    ``inflation_m`` (N, P) [m]: the smallest distance [m] to the nominal parts whose region is not
+    ``exclude_region`` and its capsule and part indices (the first in (capsule, part) order; inf and
+    (0, 0) without such a part)."""
+    n, nl, npart = distance_m.shape
+    d = distance_m + inflation_m[:, None, :]
+    d[:, :, [r == exclude_region for r in regions]] = np.inf
+    flat = d.reshape(n, -1).argmin(axis=1)
+    li, pi = np.unravel_index(flat, (nl, npart))
+    return d.reshape(n, -1)[np.arange(n), flat], li, pi
 
 
 def sample_groups(n_i: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -242,16 +271,24 @@ class SeparationAnalyser:
         li, pi = np.unravel_index(flat, (nl, npart))
         rows = np.arange(n)
         u = np.nan_to_num(unit[rows, li, pi])
+        inflation = hr - caps_radius_p
+        if any(r != HAND_REGION for r in human.regions):
+            _, lc, pc = clearance_pairs(dist, inflation, tuple(human.regions.tolist()), HAND_REGION)
+        else:
+            lc, pc = li, pi
+        uc = np.nan_to_num(unit[rows, lc, pc])
         return Separation(
             t_s=t,
             distance_m=dist,
-            inflation_m=hr - caps_radius_p,
+            inflation_m=inflation,
             approach_m_s=approach,
             protective_m=protective,
             speed_ratio=ratio,
             robot_mass_kg=mass,
             closest_robot_m=cr[rows, li, pi] + u * caps.radius_m[li][:, None],
             closest_body_m=ch[rows, li, pi] - u * hr[rows, pi][:, None],
+            clearance_robot_m=cr[rows, lc, pc] + uc * caps.radius_m[lc][:, None],
+            clearance_body_m=ch[rows, lc, pc] - uc * human.radius_m[pc][:, None],
             links=caps.links,
             geometries=caps.names,
             parts=tuple(human.part_names.tolist()),

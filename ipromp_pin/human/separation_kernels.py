@@ -1,5 +1,6 @@
-"""Compiled (numba) loops of the human checks: the arm's forward kinematics over many samples and
-the capsule-capsule distances between the robot and the body. Imported on first use (importing
+"""Compiled (numba) loops of the human checks: the capsule-capsule distances between the robot and
+the body, the approach speeds, and with them (from :mod:`.chain_kernels`) the arm's forward
+kinematics over many samples and its inertia. Imported on first use (importing
 :mod:`ipromp_pin.human` does not import numba); compiled on the first call and cached on disk.
 
 :func:`separation_summary` computes every number as :func:`capsule_distances`,
@@ -7,7 +8,8 @@ the capsule-capsule distances between the robot and the body. Imported on first 
 cannot matter: the distance is at least the bounding spheres' (``|c_l - c_p| - R_l - R_p``), and the
 speed of any surface point of a robot capsule is at most ``max(|v(a)|, |v(b)|) + r |w|`` (the
 velocity field of a rigid body is affine in the point), so a pair farther than the S_p of that speed
-is outside S_p, and a pair of a capsule slower than the part's ``floor`` never needs its ratio.
+is outside S_p, and a pair of a capsule slower than the part's ``floor`` never needs its ratio. The
+same bounds over a block of samples settle most pairs for the whole block at once.
 """
 
 from __future__ import annotations
@@ -17,94 +19,26 @@ import math
 import numpy as np
 from numba import njit
 
+from .chain_kernels import arm_frames, chain_mass_matrices, inverse_effective_masses
+
+__all__ = [
+    "BLOCK",
+    "approach_speeds",
+    "arm_frames",
+    "capsule_distances",
+    "chain_mass_matrices",
+    "inverse_effective_masses",
+    "pair_jtu",
+    "separation_summary",
+]
+
 _JIT = {"cache": True, "nogil": True, "fastmath": False, "error_model": "numpy"}
 _SLACK = 1e-9
 """Margin [m], [m/s] of the separation summary's bounds: far above the rounding of their sums (1e-15
 at metre scale)."""
 
 
-@njit(**_JIT)
-def _axis_rotation(x: float, y: float, z: float, angle: float, out: np.ndarray) -> None:
-    """The rotation (3, 3) by ``angle`` [rad] about the unit axis ``(x, y, z)`` into ``out``
-    (Rodrigues' formula)."""
-    c_, s_ = math.cos(angle), math.sin(angle)
-    t_ = 1.0 - c_
-    out[0, 0] = c_ + t_ * x * x
-    out[0, 1] = t_ * x * y - s_ * z
-    out[0, 2] = t_ * x * z + s_ * y
-    out[1, 0] = t_ * x * y + s_ * z
-    out[1, 1] = c_ + t_ * y * y
-    out[1, 2] = t_ * y * z - s_ * x
-    out[2, 0] = t_ * x * z - s_ * y
-    out[2, 1] = t_ * y * z + s_ * x
-    out[2, 2] = c_ + t_ * z * z
-
-
-@njit(**_JIT)
-def _rotate(rot: np.ndarray, by: np.ndarray, tmp: np.ndarray) -> None:
-    """``rot <- rot @ by`` for (3, 3) matrices, through the scratch matrix ``tmp``."""
-    for r in range(3):
-        for c in range(3):
-            tmp[r, c] = rot[r, 0] * by[0, c] + rot[r, 1] * by[1, c] + rot[r, 2] * by[2, c]
-    rot[:] = tmp
-
-
-@njit(**_JIT)
-def arm_frames(
-    q: np.ndarray,
-    x0: np.ndarray,
-    axis: np.ndarray,
-    anchor: np.ndarray,
-    a_local: np.ndarray,
-    b_local: np.ndarray,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Joint origins, world joint axes (N, J, 3) and capsule end points (N, L, 3) along ``q`` (N, J)
-    (``x0`` (J, 4, 4): previous joint frame -> joint frame at zero angle; ``axis`` (J, 3) local)."""
-    n, nj = q.shape
-    nl = anchor.size
-    origins = np.empty((n, nj, 3))
-    axes = np.empty((n, nj, 3))
-    ca = np.empty((n, nl, 3))
-    cb = np.empty((n, nl, 3))
-    rots = np.empty((nj, 3, 3))
-    rot = np.empty((3, 3))
-    tmp = np.empty((3, 3))
-    kx = np.empty((3, 3))
-    for i in range(n):
-        pos = np.zeros(3)
-        rot[:] = 0.0
-        rot[0, 0] = rot[1, 1] = rot[2, 2] = 1.0
-        for k in range(nj):
-            for r in range(3):
-                pos[r] += rot[r, 0] * x0[k, 0, 3] + rot[r, 1] * x0[k, 1, 3] + rot[r, 2] * x0[k, 2, 3]
-            for r in range(3):
-                for c in range(3):
-                    tmp[r, c] = rot[r, 0] * x0[k, 0, c] + rot[r, 1] * x0[k, 1, c] + rot[r, 2] * x0[k, 2, c]
-            rot[:] = tmp
-            origins[i, k] = pos
-            for r in range(3):
-                axes[i, k, r] = rot[r, 0] * axis[k, 0] + rot[r, 1] * axis[k, 1] + rot[r, 2] * axis[k, 2]
-            # Rodrigues rotation about the local axis by q[i, k]
-            _axis_rotation(axis[k, 0], axis[k, 1], axis[k, 2], q[i, k], kx)
-            _rotate(rot, kx, tmp)
-            rots[k] = rot
-        for m in range(nl):
-            k = anchor[m]
-            for r in range(3):
-                ca[i, m, r] = origins[i, k, r] + (
-                    rots[k, r, 0] * a_local[m, 0]
-                    + rots[k, r, 1] * a_local[m, 1]
-                    + rots[k, r, 2] * a_local[m, 2]
-                )
-                cb[i, m, r] = origins[i, k, r] + (
-                    rots[k, r, 0] * b_local[m, 0]
-                    + rots[k, r, 1] * b_local[m, 1]
-                    + rots[k, r, 2] * b_local[m, 2]
-                )
-    return origins, axes, ca, cb
-
-
-@njit(**_JIT)
+@njit(**_JIT, inline="always")
 def _closest(
     p1x: float,
     p1y: float,
@@ -216,30 +150,6 @@ def approach_speeds(
 
 
 @njit(**_JIT)
-def inverse_effective_masses(mass: np.ndarray, sample: np.ndarray, jtu: np.ndarray) -> np.ndarray:
-    """``u^T J M^-1 J^T u`` [1/kg] per pair: ``mass`` (S, n, n) the arm's inertia at S samples,
-    ``sample`` (K,) which one each pair uses, ``jtu`` (K, n) its ``J^T u``; one Cholesky
-    factorisation per sample and a forward substitution per pair (``|L^-1 J^T u|^2``)."""
-    k_pairs, nj = jtu.shape
-    out = np.empty(k_pairs)
-    lowers = np.empty_like(mass)
-    for s in range(mass.shape[0]):
-        lowers[s] = np.linalg.cholesky(mass[s])
-    y = np.empty(nj)
-    for k in range(k_pairs):
-        low = lowers[sample[k]]
-        acc = 0.0
-        for i in range(nj):
-            v = jtu[k, i]
-            for j in range(i):
-                v -= low[i, j] * y[j]
-            y[i] = v / low[i, i]
-            acc += y[i] * y[i]
-        out[k] = acc
-    return out
-
-
-@njit(**_JIT)
 def pair_jtu(
     n_i: np.ndarray,
     l_i: np.ndarray,
@@ -313,7 +223,7 @@ def _grow_pairs(
     return out
 
 
-@njit(**_JIT)
+@njit(**_JIT, inline="always")
 def _approach_bound(
     end_v: np.ndarray, m: int, gx: float, gy: float, gz: float, g2: float, halves: float
 ) -> float:
@@ -434,7 +344,7 @@ def _part_spheres(
         out[6, p] = out[4, p] - out[5, p] + slack if nominal[p] else -np.inf
 
 
-@njit(**_JIT)
+@njit(**_JIT, inline="always")
 def _surface_approach(
     i: int,
     k: int,
@@ -528,7 +438,7 @@ def _last_sample_last(n_i: np.ndarray, last: int) -> np.ndarray:
     return order
 
 
-@njit(**_JIT)
+@njit(**_JIT, inline="always")
 def _pair_needs(
     g: tuple[float, float, float],
     g2: float,
@@ -556,6 +466,151 @@ def _pair_needs(
             if fast:  # and moving toward the part fast enough to need its ratio?
                 want_ratio = _approach_bound(end_v, m, g[0], g[1], g[2], g2, halves) > floor_p
     return want_clear, want_within, want_ratio
+
+
+@njit(**_JIT)
+def _sample_bounds(
+    ra: np.ndarray,
+    rb: np.ndarray,
+    rr: np.ndarray,
+    ha: np.ndarray,
+    hb: np.ndarray,
+    hr: np.ndarray,
+    body_r: np.ndarray,
+    nominal: np.ndarray,
+    origins: np.ndarray,
+    axes: np.ndarray,
+    qd: np.ndarray,
+    anchor: np.ndarray,
+    sp_const: float,
+    sp_per_speed: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """What the bounds of :func:`separation_summary` start from at every sample (N): each joint's body
+    angular velocity and origin velocity (N, n_joints, 3) (:func:`_chain_velocities`); each robot
+    capsule's end-point velocities (N, L, 2, 3) and surface speed bound and its S_p (N, 2, L)
+    (:func:`_capsule_speed_bounds`) and its bounding sphere, centre and half axis length (N, L, 4) [m];
+    each body part's rows of :func:`_part_spheres` (N, 7, P)."""
+    n, nl = ra.shape[0], ra.shape[1]
+    npart, nj = ha.shape[1], origins.shape[1]
+    omega, v_o = np.empty((n, nj, 3)), np.empty((n, nj, 3))
+    end_v, speed = np.empty((n, nl, 2, 3)), np.empty((n, 2, nl))
+    caps, parts = np.empty((n, nl, 4)), np.empty((n, 7, npart))
+    for i in range(n):
+        _chain_velocities(i, origins, axes, qd, omega[i], v_o[i])
+        _capsule_speed_bounds(
+            i, ra, rb, rr, anchor, origins, omega[i], v_o[i], sp_const, sp_per_speed, end_v[i], speed[i, 0],
+            speed[i, 1],
+        )  # fmt: skip
+        _part_spheres(i, ha, hb, hr, body_r, nominal, parts[i])
+        for m in range(nl):
+            p1x, p1y, p1z = ra[i, m, 0], ra[i, m, 1], ra[i, m, 2]
+            d1x, d1y, d1z = rb[i, m, 0] - p1x, rb[i, m, 1] - p1y, rb[i, m, 2] - p1z
+            caps[i, m, 0], caps[i, m, 1], caps[i, m, 2] = p1x + 0.5 * d1x, p1y + 0.5 * d1y, p1z + 0.5 * d1z
+            caps[i, m, 3] = 0.5 * math.sqrt(d1x * d1x + d1y * d1y + d1z * d1z)
+    return omega, v_o, end_v, speed, caps, parts
+
+
+@njit(**_JIT)
+def _spread(centres: np.ndarray, lo: int, hi: int, mid: int) -> float:
+    """The largest distance [m] of the points ``centres[lo:hi]`` ((N, 3) rows) from ``centres[mid]``."""
+    top = 0.0
+    for i in range(lo, hi):
+        dx = centres[i, 0] - centres[mid, 0]
+        dy = centres[i, 1] - centres[mid, 1]
+        dz = centres[i, 2] - centres[mid, 2]
+        top = max(top, math.sqrt(dx * dx + dy * dy + dz * dz))
+    return top
+
+
+@njit(**_JIT)
+def _block_active(
+    lo: int,
+    hi: int,
+    caps: np.ndarray,
+    rr: np.ndarray,
+    speed: np.ndarray,
+    parts: np.ndarray,
+    floor: np.ndarray,
+    best: float,
+    active: np.ndarray,
+) -> int:
+    """The pairs that may need their distance (for the clearance, while the smallest is ``best``) or
+    their contact-speed ratio at some sample of ``lo .. hi - 1``: their indices ``capsule * P +
+    part``, ascending, into ``active`` (L P,); returns how many. Over the block, every sample's
+    bounding sphere lies in the sphere about the middle sample's centre that holds the block's
+    centres, so a pair whose spheres stay farther apart than the block's largest reaches fails the
+    per-sample tests of :func:`separation_summary` at every sample of it, as does a capsule never
+    faster than the part's ``floor`` for the ratio."""
+    nl, npart = caps.shape[1], parts.shape[2]
+    mid = (lo + hi - 1) // 2
+    slack = _SLACK
+    spread_p, reach_p, clear_p = np.empty(npart), np.full(npart, -np.inf), np.full(npart, -np.inf)
+    count = 0
+    for p in range(npart):
+        spread_p[p] = _spread(parts[:, 0:3, p], lo, hi, mid)
+        for i in range(lo, hi):
+            reach_p[p] = max(reach_p[p], parts[i, 4, p])
+            clear_p[p] = max(clear_p[p], parts[i, 6, p])
+    for m in range(nl):
+        spread_m = _spread(caps[:, m, 0:3], lo, hi, mid)
+        big_r = v_top = sp_top = 0.0
+        for i in range(lo, hi):
+            big_r = max(big_r, caps[i, m, 3] + rr[m])
+            v_top, sp_top = max(v_top, speed[i, 0, m]), max(sp_top, speed[i, 1, m])
+        for p in range(npart):
+            gx = caps[mid, m, 0] - parts[mid, 0, p]
+            gy = caps[mid, m, 1] - parts[mid, 1, p]
+            gz = caps[mid, m, 2] - parts[mid, 2, p]
+            apart = math.sqrt(gx * gx + gy * gy + gz * gz) - spread_m - spread_p[p] - slack
+            no_clear = clear_p[p] == -np.inf or apart > best + big_r + clear_p[p]
+            no_ratio = v_top <= floor[p] or apart > sp_top + big_r + reach_p[p]
+            if not (no_clear and no_ratio):
+                active[count] = m * npart + p
+                count += 1
+    return count
+
+
+@njit(**_JIT, inline="always")
+def _pair_distance(
+    i: int,
+    m: int,
+    p: int,
+    ra: np.ndarray,
+    rb: np.ndarray,
+    rr: np.ndarray,
+    ha: np.ndarray,
+    hb: np.ndarray,
+    hr: np.ndarray,
+) -> tuple[float, tuple[float, float, float], tuple[float, float, float]]:
+    """The distance [m] of robot capsule ``m`` and body part ``p`` at sample ``i`` (negative: they
+    overlap) and the closest points of their axes [m], as :func:`capsule_distances` computes them."""
+    p1x, p1y, p1z = ra[i, m, 0], ra[i, m, 1], ra[i, m, 2]
+    d1x, d1y, d1z = rb[i, m, 0] - p1x, rb[i, m, 1] - p1y, rb[i, m, 2] - p1z
+    p2x, p2y, p2z = ha[i, p, 0], ha[i, p, 1], ha[i, p, 2]
+    d2x, d2y, d2z = hb[i, p, 0] - p2x, hb[i, p, 1] - p2y, hb[i, p, 2] - p2z
+    s, t = _closest(p1x, p1y, p1z, d1x, d1y, d1z, p2x, p2y, p2z, d2x, d2y, d2z)
+    x = (p1x + s * d1x, p1y + s * d1y, p1z + s * d1z)
+    y = (p2x + t * d2x, p2y + t * d2y, p2z + t * d2z)
+    dist = math.sqrt((x[0] - y[0]) ** 2 + (x[1] - y[1]) ** 2 + (x[2] - y[2]) ** 2) - rr[m] - hr[i, p]
+    return dist, x, y
+
+
+@njit(**_JIT, inline="always")
+def _next_pair(
+    q: int, j: int, inside: bool, active: np.ndarray, n_active: int, n_pairs: int
+) -> tuple[int, int]:
+    """The next pair of a sample of :func:`separation_summary` from pair ``q`` on (``capsule * P + part``)
+    and the position ``j`` in the block's ``active`` pairs (its first ``n_active``): every pair until
+    one is within S_p (``inside``), then only the active ones; -1 after the last."""
+    if inside:
+        while j < n_active and active[j] < q:
+            j += 1
+        return (active[j], j) if j < n_active else (-1, j)
+    return (q, j) if q < n_pairs else (-1, j)
+
+
+BLOCK = 8
+"""Samples per block of :func:`separation_summary`'s pair bounds (:func:`_block_active`)."""
 
 
 @njit(**_JIT)
@@ -587,6 +642,10 @@ def separation_summary(
     elsewhere, ``inf`` where no pair was computed) and whether some pair is within S_p; and the pairs
     within S_p approaching faster than their ``floor``: sample, capsule, part (K,) in the order of
     ``np.nonzero``, approach speed [m/s], S_p [m] and ``J^T u`` (K, n_joints) as :func:`pair_jtu`.
+
+    Samples are visited in blocks of :data:`BLOCK`; once a sample has a pair within S_p (every pair
+    is visited until then), only the pairs that the block's bounds do not settle are
+    (:func:`_block_active`): the same pairs are computed as without the blocks.
     """
     n, nl = ra.shape[0], ra.shape[1]
     npart, nj = ha.shape[1], origins.shape[1]
@@ -595,149 +654,63 @@ def separation_summary(
     n_i, l_i, p_i = np.empty(cap, np.int64), np.empty(cap, np.int64), np.empty(cap, np.int64)
     app, sp, jtu = np.empty(cap), np.empty(cap), np.empty((cap, nj))
     k_pairs = 0
-    omega, v_o = np.empty((nj, 3)), np.empty((nj, 3))
-    v_bound, sp_bound = np.empty(nl), np.empty(nl)
-    parts = np.empty((7, npart))  # per body part: bounding sphere centre (3), half, reach, infl, reach_clear
-    end_v = np.empty((nl, 2, 3))  # the velocities of the capsules' end points
+    omega, v_o, end_v, speed, caps, parts = _sample_bounds(
+        ra, rb, rr, ha, hb, hr, body_r, nominal, origins, axes, qd, anchor, sp_const, sp_per_speed
+    )
+    active, n_active = np.empty(nl * npart, np.int64), 0
     best = np.inf  # the smallest nominal clearance computed so far (at least the motion's)
     for step in range(n):
         i = n - 1 if step == 0 else step - 1  # the last sample first: the hand-over, usually closest
-        _chain_velocities(i, origins, axes, qd, omega, v_o)
-        _capsule_speed_bounds(
-            i, ra, rb, rr, anchor, origins, omega, v_o, sp_const, sp_per_speed, end_v, v_bound, sp_bound
-        )
-        _part_spheres(i, ha, hb, hr, body_r, nominal, parts)
+        if step == 0 or i % BLOCK == 0:
+            hi = n if step == 0 else min(i + BLOCK, n - 1)
+            n_active = _block_active(i, hi, caps, rr, speed, parts, floor, best, active)
         inside = False
-        for m in range(nl):
-            p1x, p1y, p1z = ra[i, m, 0], ra[i, m, 1], ra[i, m, 2]
-            d1x, d1y, d1z = rb[i, m, 0] - p1x, rb[i, m, 1] - p1y, rb[i, m, 2] - p1z
-            cx, cy, cz = p1x + 0.5 * d1x, p1y + 0.5 * d1y, p1z + 0.5 * d1z  # bounding sphere
-            half_m = 0.5 * math.sqrt(d1x * d1x + d1y * d1y + d1z * d1z)
-            big_r, k, sp_m = half_m + rr[m], anchor[m], sp_bound[m]
-            for p in range(npart):
-                g = (cx - parts[0, p], cy - parts[1, p], cz - parts[2, p])
-                g2 = g[0] * g[0] + g[1] * g[1] + g[2] * g[2]
-                x_clear, far = best + big_r + parts[6, p], sp_m + big_r + parts[4, p]
-                reach = max(x_clear, far)
-                if g2 > reach * reach:  # the distance >= |c_l - c_p| - R_l - R_p: most pairs
-                    continue
-                want_clear, want_within, want_ratio = _pair_needs(
-                    g, g2, x_clear, far, half_m + parts[3, p], v_bound[m], inside, end_v, m, floor[p]
-                )
-                if not (want_ratio or want_within or want_clear):
-                    continue
-                p2x, p2y, p2z = ha[i, p, 0], ha[i, p, 1], ha[i, p, 2]
-                d2x, d2y, d2z = hb[i, p, 0] - p2x, hb[i, p, 1] - p2y, hb[i, p, 2] - p2z
-                s, t = _closest(p1x, p1y, p1z, d1x, d1y, d1z, p2x, p2y, p2z, d2x, d2y, d2z)
-                x = (p1x + s * d1x, p1y + s * d1y, p1z + s * d1z)
-                y = (p2x + t * d2x, p2y + t * d2y, p2z + t * d2z)
-                dist = (
-                    math.sqrt((x[0] - y[0]) ** 2 + (x[1] - y[1]) ** 2 + (x[2] - y[2]) ** 2) - rr[m] - hr[i, p]
-                )
-                if nominal[p]:
-                    d_nom = dist + parts[5, p]
-                    if d_nom < clear[i]:
-                        clear[i] = d_nom
-                    if d_nom < best:
-                        best = d_nom
-                if not (want_ratio or want_within):
-                    continue
-                v, ux, uy, uz, met = _surface_approach(i, k, x, y, rr[m], origins, omega, v_o)
-                protective = sp_const + max(v, 0.0) * sp_per_speed
-                if not dist < protective:
-                    continue
-                inside = True
-                if not v > floor[p]:
-                    continue
-                if k_pairs == n_i.size:
-                    n_i, l_i, p_i, app, sp, jtu = _grow_pairs(n_i, l_i, p_i, app, sp, jtu)
-                n_i[k_pairs], l_i[k_pairs], p_i[k_pairs] = i, m, p
-                app[k_pairs], sp[k_pairs] = v, protective
-                xs = (x[0] + rr[m] * ux, x[1] + rr[m] * uy, x[2] + rr[m] * uz)  # the closest surface point
-                _surface_jtu(i, k, xs, ux, uy, uz, met, origins, axes, qd, jtu[k_pairs])
-                k_pairs += 1
+        q, j = 0, 0  # the next pair (capsule-major) and the next active one
+        while True:
+            q, j = _next_pair(q, j, inside, active, n_active, nl * npart)
+            if q < 0:
+                break
+            m, p = q // npart, q % npart
+            q += 1
+            half_m, k, big_r = caps[i, m, 3], anchor[m], caps[i, m, 3] + rr[m]
+            g = (
+                caps[i, m, 0] - parts[i, 0, p],
+                caps[i, m, 1] - parts[i, 1, p],
+                caps[i, m, 2] - parts[i, 2, p],
+            )
+            g2 = g[0] * g[0] + g[1] * g[1] + g[2] * g[2]
+            x_clear, far = best + big_r + parts[i, 6, p], speed[i, 1, m] + big_r + parts[i, 4, p]
+            reach = max(x_clear, far)
+            if g2 > reach * reach:  # the distance >= |c_l - c_p| - R_l - R_p: most pairs
+                continue
+            halves, v_m = half_m + parts[i, 3, p], speed[i, 0, m]
+            want_clear, want_within, want_ratio = _pair_needs(
+                g, g2, x_clear, far, halves, v_m, inside, end_v[i], m, floor[p]
+            )
+            if not (want_ratio or want_within or want_clear):
+                continue
+            dist, x, y = _pair_distance(i, m, p, ra, rb, rr, ha, hb, hr)
+            if nominal[p]:
+                d_nom = dist + parts[i, 5, p]
+                if d_nom < clear[i]:
+                    clear[i] = d_nom
+                if d_nom < best:
+                    best = d_nom
+            if not (want_ratio or want_within):
+                continue
+            v, ux, uy, uz, met = _surface_approach(i, k, x, y, rr[m], origins, omega[i], v_o[i])
+            protective = sp_const + max(v, 0.0) * sp_per_speed
+            if not dist < protective:
+                continue
+            inside = True
+            if not v > floor[p]:
+                continue
+            if k_pairs == n_i.size:
+                n_i, l_i, p_i, app, sp, jtu = _grow_pairs(n_i, l_i, p_i, app, sp, jtu)
+            n_i[k_pairs], l_i[k_pairs], p_i[k_pairs], app[k_pairs], sp[k_pairs] = i, m, p, v, protective
+            xs = (x[0] + rr[m] * ux, x[1] + rr[m] * uy, x[2] + rr[m] * uz)  # the closest surface point
+            _surface_jtu(i, k, xs, ux, uy, uz, met, origins, axes, qd, jtu[k_pairs])
+            k_pairs += 1
         within[i] = inside
     order = _last_sample_last(n_i[:k_pairs], n - 1)
     return clear, within, n_i[order], l_i[order], p_i[order], app[order], sp[order], jtu[order]
-
-
-@njit(**_JIT)
-def chain_mass_matrices(
-    q: np.ndarray,
-    placement: np.ndarray,
-    axis: np.ndarray,
-    mass: np.ndarray,
-    com: np.ndarray,
-    inertia: np.ndarray,
-) -> np.ndarray:
-    """Joint-space inertia matrices (S, n, n) [kg m^2] of a serial chain of n revolute joints at
-    angles ``q`` (S, n) [rad]: ``placement`` (n, 4, 4) each joint's frame in its parent's at zero
-    angle, ``axis`` (n, 3) its unit axis in its own frame, and each body's ``mass`` (n,) [kg],
-    centre of mass ``com`` (n, 3) [m] and rotational inertia about it ``inertia`` (n, 3, 3)
-    [kg m^2], in its joint's frame (what CRBA computes, as
-    ``M_ij = sum_{b >= max(i, j)} m_b (z_i x (c_b - o_i)) . (z_j x (c_b - o_j)) + z_i . I_b z_j``)."""
-    s_n, n = q.shape
-    out = np.empty((s_n, n, n))
-    rot = np.empty((3, 3))
-    tmp = np.empty((3, 3))
-    kx = np.empty((3, 3))
-    o = np.empty((n, 3))
-    z = np.empty((n, 3))
-    c = np.empty((n, 3))
-    ib = np.empty((n, 3, 3))
-    for si in range(s_n):
-        pos = np.zeros(3)
-        rot[:] = 0.0
-        rot[0, 0] = rot[1, 1] = rot[2, 2] = 1.0
-        for k in range(n):
-            for r in range(3):
-                pos[r] += (
-                    rot[r, 0] * placement[k, 0, 3]
-                    + rot[r, 1] * placement[k, 1, 3]
-                    + rot[r, 2] * placement[k, 2, 3]
-                )
-            for r in range(3):
-                for cc in range(3):
-                    tmp[r, cc] = (
-                        rot[r, 0] * placement[k, 0, cc]
-                        + rot[r, 1] * placement[k, 1, cc]
-                        + rot[r, 2] * placement[k, 2, cc]
-                    )
-            rot[:] = tmp
-            _axis_rotation(axis[k, 0], axis[k, 1], axis[k, 2], q[si, k], kx)
-            _rotate(rot, kx, tmp)
-            for r in range(3):
-                o[k, r] = pos[r]
-                z[k, r] = rot[r, 0] * axis[k, 0] + rot[r, 1] * axis[k, 1] + rot[r, 2] * axis[k, 2]
-                c[k, r] = pos[r] + rot[r, 0] * com[k, 0] + rot[r, 1] * com[k, 1] + rot[r, 2] * com[k, 2]
-            for r in range(3):  # R I R^T
-                for cc in range(3):
-                    tmp[r, cc] = (
-                        rot[r, 0] * inertia[k, 0, cc]
-                        + rot[r, 1] * inertia[k, 1, cc]
-                        + rot[r, 2] * inertia[k, 2, cc]
-                    )
-            for r in range(3):
-                for cc in range(3):
-                    ib[k, r, cc] = tmp[r, 0] * rot[cc, 0] + tmp[r, 1] * rot[cc, 1] + tmp[r, 2] * rot[cc, 2]
-        for i in range(n):
-            for j in range(i, n):
-                acc = 0.0
-                for b in range(j, n):
-                    lix, liy, liz = c[b, 0] - o[i, 0], c[b, 1] - o[i, 1], c[b, 2] - o[i, 2]
-                    ljx, ljy, ljz = c[b, 0] - o[j, 0], c[b, 1] - o[j, 1], c[b, 2] - o[j, 2]
-                    aix = z[i, 1] * liz - z[i, 2] * liy
-                    aiy = z[i, 2] * lix - z[i, 0] * liz
-                    aiz = z[i, 0] * liy - z[i, 1] * lix
-                    ajx = z[j, 1] * ljz - z[j, 2] * ljy
-                    ajy = z[j, 2] * ljx - z[j, 0] * ljz
-                    ajz = z[j, 0] * ljy - z[j, 1] * ljx
-                    rot_term = 0.0
-                    for r in range(3):
-                        rot_term += z[i, r] * (
-                            ib[b, r, 0] * z[j, 0] + ib[b, r, 1] * z[j, 1] + ib[b, r, 2] * z[j, 2]
-                        )
-                    acc += mass[b] * (aix * ajx + aiy * ajy + aiz * ajz) + rot_term
-                out[si, i, j] = acc
-                out[si, j, i] = acc
-    return out

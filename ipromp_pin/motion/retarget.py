@@ -132,9 +132,31 @@ class ReferenceMotion:
             qd, qdd, qddd = (None if x is None else np.where(outside, 0.0, x) for x in (qd, qdd, qddd))
         return q, qd, qdd, qddd
 
+    def at(self, t_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Position, velocity and acceleration (J,) each at one time ``t_s`` [s]: :meth:`evaluate` of
+        ``[t_s]`` to the bit (the same operations on the same shapes), without its handling of many
+        times (a re-target asks for a few single times)."""
+        d = self.duration_s
+        inv_h2 = 1.0 / (self.width * self.width)
+        diff = min(max(float(t_s), 0.0), d) * (1.0 / d) - self.centres[None, :]  # (1, K)
+        phi = np.exp(diff * diff * (-0.5 * inv_h2))
+        m0 = phi @ self._ws
+        u = diff * inv_h2
+        up = u * phi
+        m1 = up @ self._ws
+        m2 = (u * up) @ self._ws
+        q = (m0 + self.offset)[0]
+        if not 0.0 <= t_s <= d:
+            zero = np.zeros_like(q)
+            return q, zero, zero.copy()
+        return q, (m1 * (-1.0 / d))[0], ((m2 - inv_h2 * m0) * (1.0 / d**2))[0]
+
     def end(self) -> np.ndarray:
-        """The hand-over configuration ``q(D)`` (J,) in [rad]."""
-        return self.evaluate(np.array([self.duration_s]), order=0)[0][0]
+        """The hand-over configuration ``q(D)`` (J,) in [rad] (kept: a re-target asks for it again)."""
+        q_end = self.__dict__.get("_end")
+        if q_end is None:
+            q_end = self._end = self.evaluate(np.array([self.duration_s]), order=0)[0][0]
+        return q_end.copy()
 
 
 @dataclass(frozen=True)
@@ -279,7 +301,13 @@ class Retargeter:
         Raises:
             InfeasibleError: ruckig finds no trajectory, or the sampled plan exceeds a limit.
         """
-        dt, h = self.dt_s, self.blend_s
+        planned = self.planned(state, reference, min_scale)
+        return planned.sample(), planned.report
+
+    def planned(self, state: MotionState, reference: ReferenceMotion, min_scale: float = 1.0) -> Planned:
+        """:meth:`plan` up to its samples: the pieces and the report, the samples made on demand
+        (:meth:`Planned.sample`; a caller that needs only the report saves their cost)."""
+        h = self.blend_s
         t_c = float(state.t_s)
         d_end = reference.duration_s
         start = (state.q, state.qd, state.qdd)
@@ -302,13 +330,12 @@ class Retargeter:
             k_follow = k
             for _ in range(CATCH_UP_ITERATIONS):
                 tau0 = target_t
-                q0, v0, a0, _ = reference.evaluate(np.array([tau0]), order=2)
-                assert v0 is not None and a0 is not None
-                k = self.reachable_scale(v0[0], a0[0], k_follow)
+                q0, v0, a0 = reference.at(tau0)
+                k = self.reachable_scale(v0, a0, k_follow)
                 # a slowed plan (min_scale > 1) catches up min_scale times slower too: the catch-up is
                 # part of the motion the checks asked to slow down
                 window = (tau0 - t_c) * float(min_scale)
-                blend = self._ruckig(start, (q0[0], v0[0] / k, a0[0] / k**2), window)
+                blend = self._ruckig(start, (q0, v0 / k, a0 / k**2), window)
                 if blend.duration <= window + 1e-9 or tau0 >= d_follow:
                     break
                 target_t = min(t_c + blend.duration, d_follow)
@@ -317,36 +344,77 @@ class Retargeter:
             t_f = t_b + k * (d_follow - tau0)
             pieces.append(("ruckig", t_c, t_b, blend))
             pieces.append(("follow", t_b, t_f, (tau0, k)))
-            q_f, v_f, a_f, _ = reference.evaluate(np.array([d_follow]), order=2)
-            assert v_f is not None and a_f is not None
-            settle = self._ruckig(
-                (q_f[0], v_f[0] / k, a_f[0] / k**2), (q_end, zeros, zeros), k * self.settle_s
-            )
+            q_f, v_f, a_f = reference.at(d_follow)
+            settle = self._ruckig((q_f, v_f / k, a_f / k**2), (q_end, zeros, zeros), k * self.settle_s)
             pieces.append(("ruckig", t_f, t_f + settle.duration, settle))
         arrival = pieces[-1][2]
-        n = int(math.ceil((arrival - t_c) / dt - 1e-9)) + 1
-        times = t_c + dt * np.arange(n)
-        nj = q_end.size
-        q = np.empty((n, nj))
-        qd = np.empty((n, nj))
-        qdd = np.empty((n, nj))
-        for kind, t0, t1, data in pieces:
-            i0 = max(0, int(math.ceil((t0 - t_c) / dt - 1e-9)))
-            i1 = min(n, int(math.ceil((t1 - t_c) / dt - 1e-9)))
-            if i1 <= i0:
-                continue
-            sel = slice(i0, i1)
-            if kind == "ruckig":
-                q[sel], qd[sel], qdd[sel] = sample_trajectory(data, times[sel] - t0)
-            else:
-                tau0_, k_ = data
-                tq, tv, ta, _ = reference.evaluate(tau0_ + (times[sel] - t0) / k_, order=2)
-                assert tv is not None and ta is not None
-                q[sel], qd[sel], qdd[sel] = tq, tv / k_, ta / k_**2
-        q[-1], qd[-1], qdd[-1] = q_end, 0.0, 0.0
-        q[0], qd[0], qdd[0] = state.q, state.qd, state.qdd
-        motion = Trajectory(times, q, qd, qdd, self.limits.joint_names)
-        return motion, RetargetReport(float(arrival), d_end, float(k), float(blend_s))
+        report = RetargetReport(float(arrival), d_end, float(k), float(blend_s))
+        return Planned(state, reference, q_end, pieces, report, self.dt_s, self.limits.joint_names)
+
+
+class Planned:
+    """A re-targeted motion (:meth:`Retargeter.planned`) before its samples: its report, and its
+    samples at the control rate made on demand (:meth:`sample`, once).
+
+    Attributes:
+        report: How the motion meets its reference.
+    """
+
+    def __init__(
+        self,
+        state: MotionState,
+        reference: ReferenceMotion,
+        q_end: np.ndarray,
+        pieces: list[tuple[str, float, float, Any]],
+        report: RetargetReport,
+        dt_s: float,
+        joint_names: tuple[str, ...],
+    ) -> None:
+        self.report = report
+        self._args = (state, reference, q_end, pieces, dt_s, joint_names)
+        self._motion: Trajectory | None = None
+
+    def sample(self) -> Trajectory:
+        """The motion's samples at the control rate from the start state's time (the start state
+        first, at rest at the hand-over configuration at the end)."""
+        if self._motion is None:
+            self._motion = _sample_pieces(*self._args)
+        return self._motion
+
+
+def _sample_pieces(
+    state: MotionState,
+    reference: ReferenceMotion,
+    q_end: np.ndarray,
+    pieces: list[tuple[str, float, float, Any]],
+    dt: float,
+    joint_names: tuple[str, ...],
+) -> Trajectory:
+    """The samples of a re-targeted motion's pieces (:meth:`Retargeter.planned`) every ``dt`` [s]."""
+    t_c = float(state.t_s)
+    arrival = pieces[-1][2]
+    n = int(math.ceil((arrival - t_c) / dt - 1e-9)) + 1
+    times = t_c + dt * np.arange(n)
+    nj = q_end.size
+    q = np.empty((n, nj))
+    qd = np.empty((n, nj))
+    qdd = np.empty((n, nj))
+    for kind, t0, t1, data in pieces:
+        i0 = max(0, int(math.ceil((t0 - t_c) / dt - 1e-9)))
+        i1 = min(n, int(math.ceil((t1 - t_c) / dt - 1e-9)))
+        if i1 <= i0:
+            continue
+        sel = slice(i0, i1)
+        if kind == "ruckig":
+            q[sel], qd[sel], qdd[sel] = sample_trajectory(data, times[sel] - t0)
+        else:
+            tau0_, k_ = data
+            tq, tv, ta, _ = reference.evaluate(tau0_ + (times[sel] - t0) / k_, order=2)
+            assert tv is not None and ta is not None
+            q[sel], qd[sel], qdd[sel] = tq, tv / k_, ta / k_**2
+    q[-1], qd[-1], qdd[-1] = q_end, 0.0, 0.0
+    q[0], qd[0], qdd[0] = state.q, state.qd, state.qdd
+    return Trajectory(times, q, qd, qdd, joint_names)
 
 
 def retarget(

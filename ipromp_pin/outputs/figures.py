@@ -84,7 +84,7 @@ def write_plots(
         units=[group_unit(label.split("/", 1)[0]) for label in labels],
         title=f"learned distribution of task {p.task} (mean or median, 2-sigma band, training demos)",
     )
-    track = None if robot is None else plan_torques(result, robot, objects)[0]
+    track = None if robot is None else plan_torques(result, robot, objects, every_sample=True)[0]
     if track is not None:
         files["plot_torques"] = plots.plot_torques(
             result.trajectory.t_s - result.start_s,

@@ -3,9 +3,17 @@
 :func:`preview_content` is the :class:`~ipromp_pin.preview.PreviewContent` of a planned hand-over
 (rendered by :func:`~ipromp_pin.preview.render_html` or shown live); :func:`replay_preview_html` is
 the time-scrubbing ``preview.html`` of a replay (:mod:`ipromp_pin.preview.timeline`).
+
+The pages show the report's figures: the check list is the verdicts (each with its time, the
+report's ``t_s``), the separation and torque panels state the verdicts of ``human_clearance``,
+``contact_speed`` and ``joint_torques`` and draw the checks' own per-sample measures for the human
+and the motions they judged (:mod:`.human_preview`, :mod:`.torque_preview`). One clock: every time
+is on the human's motion (t = 0 at its start).
 """
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 
@@ -20,12 +28,12 @@ from ..preview import PreviewContent
 from ..preview.timeline import TimelineEvent, render_timeline_html
 from ..robot import Robot, ee_positions
 from ..robot.objects import ObjectTable
-from ..safety import CheckContext, Verdict
+from ..safety import CheckContext, CheckReport, Verdict
 from ..safety.joint_limits import JointLimitMeasures
 from ..safety.self_collision import SelfCollisionMeasures
-from .human_preview import human_tracks, shown_human
+from .human_preview import human_label, human_tracks, judged_human, separation_figures
 from .report import arrival_line, orientation_line
-from .torque_preview import plan_torques, torque_preview
+from .torque_preview import plan_torques, torque_figures, torque_preview
 
 
 def preview_content(
@@ -39,15 +47,21 @@ def preview_content(
 ) -> PreviewContent:
     """The :class:`~ipromp_pin.preview.PreviewContent` of a planned hand-over.
 
-    The body drawn, and the plan's separation from it, is the demo's recorded human (a tracked
-    skeleton), else ``human`` (the one the checks were given, e.g. the assumed human). The joints'
-    torque usage and the object in the gripper are those of the joint-torque check (the recognised
-    task's object in ``objects``, the hand-over at the trajectory's end). A ``retreat`` is animated
-    after the hand-over (its frames appended, its torques after the approach's, its checks listed as
-    ``retreat <check>``)."""
+    The body drawn, and the plan's separation from it, is ``human``: the human the checks judged
+    (the plan's context's: as observed until the end of the observation, then held; None: the robot
+    settings' assumed human, as the checks take a context without one). The separation panel states
+    the human checks' verdicts and draws ``human_clearance``'s measure per sample; the torque panel
+    states the joint-torque verdicts and draws the torques at the samples the check evaluated (the
+    recognised task's object in ``objects``, the hand-over at the trajectory's end). ``demo``: the
+    recording (the recorded robot and hand paths, the human's recorded duration). A ``retreat`` is
+    animated after the hand-over (its frames appended, its torques after the approach's, its checks
+    listed and stated as ``retreat <check>``)."""
     p = result.prediction
     tr = with_retreat(result.trajectory, retreat)  # on the human's clock
-    body, separation = human_tracks(robot, tr, shown_human(robot, demo, human))
+    checks = result.checks
+    later = [] if retreat is None else list(retreat.checks)
+    figures = separation_figures(checks) + separation_figures(later, "retreat ")
+    body, separation = human_tracks(robot, tr, judged_human(robot, human), reported=figures)
     torques, held = plan_torques(result, robot, objects, retreat)
     ee_samples = np.stack([ee_positions(robot, s) for s in result.q_samples])
     truth = None
@@ -62,7 +76,6 @@ def preview_content(
         )
         if "hand_position" in demo.extras:
             hand, hand_t = demo.extras["hand_position"], demo.t
-    checks = result.checks
     failed = [v.measures for v in checks if not v.passed]
     collision_links = [link for m in failed if isinstance(m, SelfCollisionMeasures) for link in m.links]
     near_limit = [m.joint for m in failed if isinstance(m, JointLimitMeasures)]
@@ -89,8 +102,7 @@ def preview_content(
         task=p.task,
         tasks=list(p.tasks),
         posterior=p.posterior,
-        feasibility=[(c.name, c.passed, c.reason, c.status, c.required) for c in checks]
-        + ([] if retreat is None else [retreat_row(c) for c in retreat.checks]),
+        feasibility=[check_row(c) for c in checks] + [check_row(c, "retreat ") for c in later],
         collision_links=collision_links,
         near_limit_joints=near_limit,
         title=f"ipromp_pin: {p.task}" + ("" if demo is None else f" ({demo.task}/{demo.name})"),
@@ -108,9 +120,15 @@ def with_retreat(trajectory: Trajectory, retreat: RetreatResult | None) -> Traje
     return trajectory if retreat is None else trajectory.then(retreat.trajectory)
 
 
-def retreat_row(c: Verdict) -> tuple[str, bool, str, str, bool]:
-    """A feasibility row of a retreat check (times in its reason on the human's clock)."""
-    return (f"retreat {c.name}", c.passed, c.reason + " (t on the human's clock)", c.status, c.required)
+def check_row(v: Verdict, prefix: str = "") -> tuple[str, bool, str, str, bool]:
+    """A row of the page's check list: the verdict's name (``prefix``: e.g. ``"retreat "``), whether
+    it passed, its reason, status and whether it is required; a verdict whose measures have a time
+    (the report's ``t_s``, on the human's clock) that its reason does not state gets it appended."""
+    detail = v.reason
+    t = getattr(v.measures, "t_s", None)
+    if isinstance(t, int | float) and math.isfinite(t) and f"t={t:.2f} s" not in detail:
+        detail += f" (t={t:.2f} s)"
+    return (prefix + v.name, v.passed, detail, v.status, v.required)
 
 
 def replay_preview_html(
@@ -119,17 +137,28 @@ def replay_preview_html(
     score: ClosedLoopScore,
     robot: Robot,
     visual_model: object,
+    checks: CheckReport,
     human: HumanMotion | None = None,
     objects: ObjectTable | None = None,
 ) -> str:
-    """The time-scrubbing ``preview.html`` of a replay (one self-contained page); the body and the
-    commanded motion's separation from it as in :func:`preview_content`; the torques and the object
-    those of the replay's joint-torque score (the true task's object in ``objects``)."""
+    """The time-scrubbing ``preview.html`` of a replay (one self-contained page).
+
+    ``checks`` are the commanded motion's verdicts as the replay report judges it
+    (:func:`~.replay_report.replay_checks`): the check list shows them after the closed loop's rows,
+    the torque panel states the joint-torque verdict and draws the torques at its samples (the true
+    task's object in ``objects``), and, when they hold the human checks, the separation panel states
+    theirs and draws ``human_clearance``'s measure against ``human``, the human they judged (the
+    recorded one). Without human verdicts (no tracked skeleton) the body and separation drawn are
+    ``human``'s (e.g. the assumed one the closed loop planned with), labelled as not judged by the
+    report."""
     traj = result.trajectory
+    figures = separation_figures(checks)
+    source = "" if human is None or figures else f"{human_label(human)}; not judged in report.json"
     body, separation = human_tracks(
-        robot, traj, shown_human(robot, demo, human), 1.0 / result.settings.control_rate_hz
+        robot, traj, human, 1.0 / result.settings.control_rate_hz, reported=figures, source=source
     )
-    torques, held = torque_preview(robot, traj, CheckContext(task=demo.task, objects=objects), traj.effort_nm)
+    context = CheckContext(task=demo.task, objects=objects)
+    torques, held = torque_preview(robot, traj, context, reported=torque_figures(checks))
     tasks = list(result.replans[0].posterior) if result.replans else []
     committed = [r for r in result.replans if r.committed]
     hand = hand_t = None
@@ -138,6 +167,66 @@ def replay_preview_html(
         ok = np.all(np.isfinite(hp), axis=1)
         if ok.sum() >= 2:
             hand, hand_t = hp[ok], (demo.t - demo.t[0])[ok]
+    final = committed[-1] if committed else None
+    content = PreviewContent(
+        model=robot.model,
+        visual_model=visual_model,
+        collision_model=robot.collision_model,
+        t_s=traj.t_s,
+        q=traj.q,
+        joint_names=robot.joint_names,
+        q_full=robot.full_configuration(traj.q[0]),
+        ee_mean=ee_positions(robot, traj.q[:: max(1, traj.n_samples // 200)]),
+        ee_truth=ee_positions(robot, demo.groups[ROBOT]),
+        hand_path=hand,
+        hand_t_s=hand_t,
+        body=body,
+        separation=separation,
+        task=final.task if final else "",
+        tasks=tasks,
+        posterior=np.array([final.posterior[t] for t in tasks]) if final else None,
+        feasibility=closed_loop_rows(result, score) + [check_row(c) for c in checks],
+        title=f"ipromp_pin replay: {demo.task}/{demo.name}",
+        timebase=f"Times are on the human's motion ({score.handover_time_s:.2f} s recorded, t = 0 at its "
+        f"start); the robot starts at {result.start_s:.2f} s and comes to rest at {score.rest_s:.2f} s",
+        label_prefix="final task: ",
+        torques=torques,
+        held_object=held,
+    )
+    summary = [
+        f"Hand-over error {score.handover_error_cm:.1f} cm at the recorded hand-over time "
+        f"({score.handover_time_s:.2f} s); {score.final_error_cm:.1f} cm at rest; gripper orientation "
+        f"error {score.handover_orientation_error_deg:.1f} deg",
+        f"Arrival {score.arrival_s:.2f} s vs recorded {score.recorded_arrival_s:.2f} s "
+        f"(delay {score.arrival_delay_s:+.2f} s); {result.profile.name} limits",
+        "Blue: commanded gripper path; cyan: the latest plan; purple: recorded robot; green: hand observed.",
+    ]
+    events = timeline_events(result, robot, tasks)
+    return render_timeline_html(content, events, motion_s=score.handover_time_s, summary=summary)
+
+
+def closed_loop_rows(result: ClosedLoopResult, score: ClosedLoopScore) -> list[tuple]:
+    """The replay's check-list rows of the closed loop: re-plans, limits, collisions. The re-plans row
+    states its counts neutrally (a refused re-plan keeps the committed plan: it is normal); it fails
+    only when no re-plan was committed (the robot never moved towards a hand-over: a failed replay)."""
+    committed = result.n_committed > 0
+    replans = f"{result.n_committed} committed, {score.refused_replans} refused"
+    if score.refused_replans and committed:
+        replans += " (a refused re-plan keeps the committed plan)"
+    return [
+        ("re-plans", committed, replans, "info" if committed else "fail", True),
+        (
+            "limits",
+            score.max_limit_ratio <= 1 + 1e-6,
+            f"max ratio {score.max_limit_ratio:.3f} ({result.profile.name})",
+        ),
+        ("collisions", score.collisions == 0, f"{score.collisions} commanded samples in contact"),
+    ]
+
+
+def timeline_events(result: ClosedLoopResult, robot: Robot, tasks: list[str]) -> list[TimelineEvent]:
+    """The re-plans of a replay as the timeline shows them (times on the human's clock), each
+    committed one with its planned gripper path."""
     plans = iter(result.plans)
     events = []
     for r in result.replans:
@@ -161,50 +250,4 @@ def replay_preview_html(
                 reason=r.reason,
             )
         )
-    final = committed[-1] if committed else None
-    content = PreviewContent(
-        model=robot.model,
-        visual_model=visual_model,
-        collision_model=robot.collision_model,
-        t_s=traj.t_s,
-        q=traj.q,
-        joint_names=robot.joint_names,
-        q_full=robot.full_configuration(traj.q[0]),
-        ee_mean=ee_positions(robot, traj.q[:: max(1, traj.n_samples // 200)]),
-        ee_truth=ee_positions(robot, demo.groups[ROBOT]),
-        hand_path=hand,
-        hand_t_s=hand_t,
-        body=body,
-        separation=separation,
-        task=final.task if final else "",
-        tasks=tasks,
-        posterior=np.array([final.posterior[t] for t in tasks]) if final else None,
-        feasibility=[
-            (
-                "re-plans",
-                score.refused_replans == 0,
-                f"{result.n_committed} committed, {score.refused_replans} refused",
-            ),
-            (
-                "limits",
-                score.max_limit_ratio <= 1 + 1e-6,
-                f"max ratio {score.max_limit_ratio:.3f} ({result.profile.name})",
-            ),
-            ("collisions", score.collisions == 0, f"{score.collisions} commanded samples in contact"),
-        ],
-        title=f"ipromp_pin replay: {demo.task}/{demo.name}",
-        timebase=f"Times are on the human's motion ({score.handover_time_s:.2f} s recorded, t = 0 at its "
-        f"start); the robot starts at {result.start_s:.2f} s and comes to rest at {score.rest_s:.2f} s",
-        label_prefix="final task: ",
-        torques=torques,
-        held_object=held,
-    )
-    summary = [
-        f"Hand-over error {score.handover_error_cm:.1f} cm at the recorded hand-over time "
-        f"({score.handover_time_s:.2f} s); {score.final_error_cm:.1f} cm at rest; gripper orientation "
-        f"error {score.handover_orientation_error_deg:.1f} deg",
-        f"Arrival {score.arrival_s:.2f} s vs recorded {score.recorded_arrival_s:.2f} s "
-        f"(delay {score.arrival_delay_s:+.2f} s); {result.profile.name} limits",
-        "Blue: commanded gripper path; cyan: the latest plan; purple: recorded robot; green: hand observed.",
-    ]
-    return render_timeline_html(content, events, motion_s=score.handover_time_s, summary=summary)
+    return events

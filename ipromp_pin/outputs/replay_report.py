@@ -14,8 +14,12 @@ import numpy as np
 
 from ..data import Demo
 from ..evaluation.scoring import ARRIVAL_TOLERANCE_M, ClosedLoopScore
+from ..human import HumanMotion
+from ..motion.trajectory import Trajectory
 from ..planning.closed_loop import ClosedLoopResult
 from ..promp import IProMP
+from ..robot.objects import ObjectTable
+from ..safety import HUMAN_CHECKS, CheckContext, CheckReport, CheckSuite
 from ..safety.speed_limits import TOLERANCE as LIMIT_TOLERANCE
 
 REPLAY_FORMAT = "ipromp_pin.replay"
@@ -67,15 +71,39 @@ def replans_json(result: ClosedLoopResult, demo: Demo) -> dict:
     }
 
 
+def replay_checks(
+    trajectory: Trajectory,
+    suite: CheckSuite,
+    task: str,
+    objects: ObjectTable | None,
+    human: HumanMotion | None,
+) -> CheckReport:
+    """The commanded motion (on the human's clock) judged after the fact, as the replay's score
+    judges it (:func:`~ipromp_pin.evaluation.scoring.replay_scored`, the same checks on the same
+    inputs): ``suite``'s joint-torque check with the object of the TRUE ``task`` in ``objects``, and
+    with ``human`` (the recorded human, every sample known; None: no tracked skeleton) its human
+    checks against it. The report's ``checks``, and what the preview's check list and panels show."""
+    verdicts = []
+    torques = suite.only(["joint_torques"])
+    if torques.checks:
+        verdicts += torques.run(trajectory, CheckContext(task=task, objects=objects))
+    humans = suite.only(HUMAN_CHECKS)
+    if human is not None and humans.checks:
+        verdicts += humans.run(trajectory, CheckContext(human=human))
+    return CheckReport(verdicts)
+
+
 def report_dict(
     result: ClosedLoopResult,
     score: ClosedLoopScore,
     demo: Demo,
     model: IProMP | None = None,
     warnings: list[str] | None = None,
+    checks: CheckReport | None = None,
 ) -> dict:
     """The machine-readable replay report (JSON-serialisable; its schema:
-    ``ipromp_pin/schemas/replay_report.schema.json``)."""
+    ``ipromp_pin/schemas/replay_report.schema.json``); ``checks``: the commanded motion's verdicts
+    judged after the fact (:func:`replay_checks`; None: none)."""
     cycles = np.array([r.cycle_ms for r in result.replans]) if result.replans else np.zeros(0)
     reasons: dict[str, int] = {}
     for r in result.replans:
@@ -107,6 +135,7 @@ def report_dict(
             "protective_distance_time_s": score.protective_distance_time_s,
             "contact_speed_violations": score.contact_speed_violations,
             "arrival_delay_without_human_s": score.arrival_delay_without_human_s,
+            "checks": {} if checks is None else checks.to_dict(),
             "final_error_cm": score.final_error_cm,
             "arrival_delay_s": score.arrival_delay_s,
             "arrival_s": score.arrival_s,
@@ -136,9 +165,14 @@ def report_dict(
 
 
 def report_text(
-    result: ClosedLoopResult, score: ClosedLoopScore, demo: Demo, warnings: list[str] | None = None
+    result: ClosedLoopResult,
+    score: ClosedLoopScore,
+    demo: Demo,
+    warnings: list[str] | None = None,
+    checks: CheckReport | None = None,
 ) -> str:
-    """The human-readable replay report."""
+    """The human-readable replay report (``checks``: the commanded motion's verdicts judged after the
+    fact, one line each)."""
     p = result.profile
     s = result.settings
     lines = [f"Warning: {w}" for w in warnings or []]
@@ -159,6 +193,8 @@ def report_text(
         "Limits: max ratio velocity {:.3f}, acceleration {:.3f}, jerk {:.3f}; position excess {:.1e} rad; "
         "collisions {}".format(*score.limit_ratios, score.position_excess_rad, score.collisions),
     ]
+    if checks is not None and checks.verdicts:
+        lines += ["The commanded motion judged after the fact (times on the human's clock):", *checks.lines()]
     if not replay_passed(score):
         lines.append(f"FAILED: {failure_reason(result, score)}")
     if result.stopped:

@@ -6,12 +6,14 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 from ..data import Demo
 from ..evaluation.scoring import RecordedScores
 from ..planning.one_shot import PlanResult
 from ..planning.retreat import RetreatResult
+from ..promp import Prediction
 from ..safety.joint_torques import TorqueMeasures
 
 REPORT_FORMAT = "ipromp_pin.report"
@@ -73,6 +75,9 @@ def report_dict(
         "clock": "t = 0 at the start of the human's motion",
         "recognised_task": p.task,
         "posterior": {t: float(v) for t, v in zip(p.tasks, p.posterior, strict=True)},
+        "known": bool(p.known),
+        "novelty_p_value": None if not math.isfinite(p.novelty_p_value) else float(p.novelty_p_value),
+        "unknown_reason": p.unknown_reason,
         "alpha": {t: float(v) for t, v in zip(p.tasks, p.alpha, strict=True)},
         "predicted_duration_s": float(p.duration_s),
         "observed_until_s": float(p.observed_until_s),
@@ -154,6 +159,7 @@ def report_text(
         f"Recognised task: {p.task}; posterior "
         + ", ".join(f"{t} {v:.3f}" for t, v in zip(p.tasks, p.posterior, strict=True))
     )
+    lines.append(known_line(p))
     lines.append(
         f"Predicted duration of the human's motion: {p.duration_s:.2f} s "
         f"(observed {p.observed_until_s:.2f} s)"
@@ -184,6 +190,7 @@ def summary_text(
     lines = [
         "",
         f"Recognised task: {p.task}   posterior: {post}",
+        known_line(p),
         f"Hand-over pose: position ({pose[0]:.3f}, {pose[1]:.3f}, {pose[2]:.3f}) m, "
         f"quaternion xyzw ({pose[3]:.3f}, {pose[4]:.3f}, {pose[5]:.3f}, {pose[6]:.3f})",
         f"Checks: {'PASS' if result.checks.passed else 'FAIL'} ({checks})",
@@ -195,3 +202,12 @@ def summary_text(
         f"Total {elapsed_s:.1f} s",
     ]
     return "\n".join(lines)
+
+
+def known_line(p: Prediction) -> str:
+    """Whether the observation is one of the model's tasks, in one line."""
+    if not p.known:
+        return f"UNKNOWN TASK: {p.unknown_reason}; the robot does not act on it"
+    if math.isnan(p.novelty_p_value):
+        return "Known task: the model has no novelty detector (trained before ipromp_pin had one)"
+    return f"Known task: novelty p = {p.novelty_p_value:.3f}"

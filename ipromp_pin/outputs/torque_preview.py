@@ -2,16 +2,17 @@
 
 :func:`torque_preview` turns a timed robot motion and what the checks know (the task, its object, the
 hand-over time) into the preview's plain arrays (:class:`~ipromp_pin.preview.torques.TorqueTrack`,
-:class:`~ipromp_pin.preview.torques.HeldObject`). The torques are the joint-torque check's own
-(:meth:`~ipromp_pin.safety.joint_torques.JointTorques.torques`, computed once: a trajectory
-whose ``effort_nm`` the pipeline has already filled in is not computed again), with the object
-attached while the robot holds it (``robot_gives``: until the hand-over; ``robot_receives``: from it
-on), so that the bars' peak is the check's ``peak_torque_ratio`` (the check evaluates a subsample of a
-long motion: the bars' peak is then at least the check's).
+:class:`~ipromp_pin.preview.torques.HeldObject`). The torques are the joint-torque check's own, at
+the samples it evaluates (:meth:`~ipromp_pin.safety.joint_torques.JointTorques.evaluated`: every
+sample of a short motion, a subsample of a long one), with the object attached while the robot holds
+it (``robot_gives``: until the hand-over; ``robot_receives``: from it on), so that the bars' peak is
+the check's ``peak_torque_ratio`` at its time and each joint's the check's ``ratios``; the panel
+states the report's figures themselves (:func:`torque_figures`, read from the verdicts).
 """
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Sequence
 from dataclasses import replace
 
 import numpy as np
@@ -19,17 +20,19 @@ import numpy as np
 from ..motion.trajectory import Trajectory
 from ..planning.one_shot import PlanResult
 from ..planning.retreat import RetreatResult
+from ..preview.reported import ReportedFigure
 from ..preview.torques import HeldObject, TorqueTrack
 from ..robot import Robot
 from ..robot.objects import ObjectTable, TaskObject
-from ..safety import CheckContext
-from ..safety.joint_torques import JointTorques
+from ..safety import CheckContext, Verdict
+from ..safety.joint_torques import JointTorques, TorqueMeasures
 
 __all__ = [
     "SPHERE_RADIUS_M",
     "held_object",
     "payload_label",
     "plan_torques",
+    "torque_figures",
     "torque_preview",
     "torque_track",
 ]
@@ -44,27 +47,46 @@ def payload_label(payload: TaskObject | None) -> str:
 
 
 def torque_track(
-    check: JointTorques, motion: Trajectory, context: CheckContext, tau_nm: np.ndarray | None = None
+    check: JointTorques, motion: Trajectory, context: CheckContext, every_sample: bool = False
 ) -> TorqueTrack:
-    """The torque usage of ``motion`` (on the human's clock); ``tau_nm`` (N, n_joints) [N m]: its
-    torques when already computed by ``check.torques(motion, context)`` (the trajectory's
-    ``effort_nm``), else they are computed here."""
-    tau = check.torques(motion, context) if tau_nm is None else np.asarray(tau_nm, dtype=float)
+    """The torque usage of ``motion`` (on the human's clock) at the samples ``check`` evaluates in
+    ``context`` (:meth:`~ipromp_pin.safety.joint_torques.JointTorques.evaluated`); ``every_sample``:
+    at every sample instead (the motion's ``effort_nm`` when the pipeline filled it in, e.g. for the
+    torque plot)."""
+    if every_sample:
+        idx = np.arange(motion.n_samples)
+        tau = check.torques(motion, context) if motion.effort_nm is None else np.asarray(motion.effort_nm)
+    else:
+        idx, tau = check.evaluated(motion, context)
     limit = check.dynamics.effort_limit_nm
     payload = context.task_object()
+    t = motion.t_s[idx]
     if payload is None or payload.mass_kg <= 0:
-        held = np.zeros(motion.n_samples, dtype=bool)
+        held = np.zeros(idx.size, dtype=bool)
     else:
-        held = payload.held_at(motion.t_s, context.handover_time(motion.t_s))
+        held = payload.held_at(t, context.handover_time(motion.t_s))
     return TorqueTrack(
-        t_s=motion.t_s,
+        t_s=t,
         ratio=np.abs(tau) / limit,
         joint_names=check.robot.joint_names,
         limit_nm=limit,
         allowed_ratio=1.0 - check.robot.settings.effort_margin,
         held=held,
         payload=payload_label(payload),
+        samples="every control sample"
+        if every_sample
+        else f"the {idx.size} of {motion.n_samples} samples the {check.name} check evaluated",
     )
+
+
+def torque_figures(verdicts: Iterable[Verdict], prefix: str = "") -> list[ReportedFigure]:
+    """The report's figures of the joint-torque check among ``verdicts`` (``prefix``: how the check
+    list names it, e.g. ``"retreat "``): its peak usage, with its joint, time and the verdict's reason."""
+    return [
+        ReportedFigure(prefix + v.name, m.peak_torque_ratio, m.t_s, v.reason, (m.joint,))
+        for v in verdicts
+        if isinstance(m := v.measures, TorqueMeasures)
+    ]
 
 
 def held_object(robot: Robot, payload: TaskObject | None, handover_s: float) -> HeldObject | None:
@@ -101,16 +123,18 @@ def torque_preview(
     robot: Robot,
     motion: Trajectory,
     context: CheckContext,
-    tau_nm: np.ndarray | None = None,
     check: JointTorques | None = None,
+    reported: Sequence[ReportedFigure] = (),
+    every_sample: bool = False,
 ) -> tuple[TorqueTrack | None, HeldObject | None]:
-    """The torque track and the held object of ``motion`` (on the human's clock) in ``context`` (the
-    task, the objects, the hand-over time; the check's hand-over time when it has none). ``check``:
-    the session's joint-torque check (None: one is made for ``robot``)."""
+    """The torque track (:func:`torque_track`) and the held object of ``motion`` (on the human's
+    clock) in ``context`` (the task, the objects, the hand-over time; the check's hand-over time when
+    it has none). ``check``: the session's joint-torque check (None: one is made for ``robot``);
+    ``reported``: the report's figures the panel states."""
     if motion.n_samples == 0:
         return None, None
     torques = check if check is not None else JointTorques(robot)
-    track = torque_track(torques, motion, context, tau_nm)
+    track = replace(torque_track(torques, motion, context, every_sample), reported=tuple(reported))
     return track, held_object(robot, context.task_object(), context.handover_time(motion.t_s))
 
 
@@ -119,28 +143,31 @@ def plan_torques(
     robot: Robot,
     objects: ObjectTable | None = None,
     retreat: RetreatResult | None = None,
+    check: JointTorques | None = None,
+    every_sample: bool = False,
 ) -> tuple[TorqueTrack | None, HeldObject | None]:
     """:func:`torque_preview` of a planned hand-over as its joint-torque check saw it: the trajectory
     (on the human's clock), the recognised task's object in ``objects``, the hand-over when both the
-    human (predicted) and the robot are there, the trajectory's ``effort_nm`` if any. A checked
-    ``retreat`` (its ``effort_nm`` filled in) continues the track after the hand-over, with the
-    object held as after the hand-over."""
+    human (predicted) and the robot are there. A ``retreat`` continues the track after the hand-over
+    as its own check saw it (the object held as after the hand-over; its first sample, the
+    hand-over, at the approach's last time). The panel states both verdicts' figures; ``every_sample``:
+    see :func:`torque_track`."""
     tr = result.trajectory
     p = result.prediction
+    torques = check if check is not None else JointTorques(robot)
     context = CheckContext(task=p.task, objects=objects, handover_s=float(p.duration_s))
-    track, held = torque_preview(robot, tr, context, tr.effort_nm)
-    if track is None or retreat is None:
+    figures = torque_figures(result.checks)
+    track, held = torque_preview(robot, tr, context, torques, figures, every_sample)
+    if track is None or retreat is None or retreat.trajectory.n_samples < 2:
         return track, held
-    rt = retreat.trajectory
-    if rt.effort_nm is None or rt.n_samples < 2:
-        return track, held
-    payload = context.task_object()
-    carried = payload is not None and payload.mass_kg > 0 and payload.holder == "robot_receives"
-    n = rt.n_samples - 1  # the retreat's first sample is the hand-over itself
+    after = context.replace(handover_s=retreat.start_s, after_handover=True)
+    more = torque_track(torques, retreat.trajectory, after, every_sample)
     track = replace(
         track,
-        t_s=np.concatenate([track.t_s, rt.t_s[1:]]),
-        ratio=np.vstack([track.ratio, np.abs(rt.effort_nm[1:]) / track.limit_nm]),
-        held=np.concatenate([track.held, np.full(n, carried)]),
+        t_s=np.concatenate([track.t_s, more.t_s]),
+        ratio=np.vstack([track.ratio, more.ratio]),
+        held=np.concatenate([track.held, more.held]),
+        samples=f"approach: {track.samples}; retreat: {more.samples}",
+        reported=(*figures, *torque_figures(retreat.checks, "retreat ")),
     )
     return track, held

@@ -6,7 +6,12 @@ and runs a simulated control loop at ``control_rate_hz`` (no waiting):
 * every sample goes into the model's streaming estimator (:meth:`~ipromp_pin.promp.IProMP.stream`);
 * from ``start_s`` on (the start rule's time: :meth:`ClosedLoopSettings.start_after`, or earlier
   once a task is recognised with the settings' ``start_confidence``), at ``replan_rate_hz`` the
-  task, phase and conditioned robot trajectory are re-estimated and the commanded motion is
+  task, phase and conditioned robot trajectory are re-estimated
+  (:meth:`~ipromp_pin.promp.streaming.StreamingEstimator.predict`; with
+  ``settings.handover_estimates`` also conditioned on the model's hand-over estimates, the hand-over
+  regression and the orientation estimate, by the one-shot plan's predictor: with the model's own
+  conditioning noise each re-plan's prediction is then :meth:`IProMP.predict
+  <ipromp_pin.promp.IProMP.predict>` of the same samples) and the commanded motion is
   re-targeted with ruckig from the commanded position, velocity and acceleration at the next
   control tick (:mod:`ipromp_pin.motion.retarget`): it follows the predicted robot trajectory on the
   human's predicted timeline, slowed only where the limits demand;
@@ -15,7 +20,10 @@ and runs a simulated control loop at ``control_rate_hz`` (no waiting):
   :class:`~ipromp_pin.motion.limits.LimitProfile`, joint limits, workspace, self-collision, the
   human as observed until then, the arm's torques), re-targeted slower while they ask for it by the
   one loop of every planner (:func:`~ipromp_pin.safety.retime.retime_until_safe`, with the re-target
-  as its timer: :func:`~.timers.retarget_timer`); the delay it costs is recorded. A re-plan that
+  as its timer: :func:`~.timers.retarget_timer`); after a re-plan that checked its unslowed motion
+  and had to slow it down, the next one starts from the slow-down that turned out to be needed
+  (:func:`~ipromp_pin.safety.retime.next_guess`: re-plans are 50 ms apart, and the human rarely
+  changes the needed slow-down much in between); the delay it costs is recorded. A re-plan that
   fails is not committed: the robot keeps the last safe plan and the :class:`Replan` record says
   why. A change of recognised task is handled the same way.
 
@@ -37,9 +45,9 @@ from ..exceptions import IPrompPinError, ObservationError, PipelineError
 from ..motion.limits import LimitProfile
 from ..motion.retarget import HEADROOM, SETTLE_S, ReferenceMotion, Retargeter, RetargetReport
 from ..motion.trajectory import MotionState, Trajectory
-from ..promp import IProMP, Predictor, Recognition
+from ..promp import IProMP, Prediction, Predictor, Recognition
 from ..robot import Robot
-from ..safety import CheckContext, CheckSuite, Timed, Verdict
+from ..safety import CheckContext, CheckSuite, Timed, Verdict, next_guess
 from ..safety.self_collision import SelfCollisionMeasures
 from ..safety.speed_limits import SpeedLimitMeasures
 from ..safety.workspace import WorkspaceMeasures
@@ -98,6 +106,11 @@ class ClosedLoopSettings:
             plan. 1: re-plan while samples arrive.
         condition_noise: Noise ratio with which the robot trajectory is conditioned (None: the
             model's own).
+        handover_estimates: Whether each re-plan also applies the model's hand-over estimates (the
+            hand-over regression and the orientation estimate), as :meth:`IProMP.predict
+            <ipromp_pin.promp.IProMP.predict>` and the one-shot plan do. Off by default: measured
+            against the closed loop without them (``docs/closed_loop.md``), they made the arrival
+            later.
     """
 
     start_ratio: float | None = None
@@ -110,6 +123,7 @@ class ClosedLoopSettings:
     headroom: float = HEADROOM
     freeze_phase: float = 0.9
     condition_noise: float | None = CONDITION_NOISE
+    handover_estimates: bool = False
 
     def validate(self, source: str = "closed loop") -> ClosedLoopSettings:
         """Check the values; raise :class:`PipelineError` naming ``source`` and the field."""
@@ -146,6 +160,8 @@ class ClosedLoopSettings:
         nu = self.condition_noise
         if nu is not None and not (isinstance(nu, int | float) and math.isfinite(nu) and nu > 0):
             raise bad("condition_noise", f"must be a positive number (or the model's own), got {nu}")
+        if not isinstance(self.handover_estimates, bool):
+            raise bad("handover_estimates", f"must be true or false, got {self.handover_estimates!r}")
         return self
 
     def to_dict(self) -> dict:
@@ -184,6 +200,9 @@ class Replan:
         n_observed: Human samples received.
         task: Recognised task.
         posterior: Task -> posterior probability.
+        known: Whether the observation was recognised as one of the model's tasks (recorded; the
+            closed loop does not act on it yet).
+        novelty_p_value: The observation's conformal novelty p-value (None: no novelty detector).
         predicted_handover_s: Predicted hand-over time (end of the human's motion) in [s].
         predicted_handover_position_m: Gripper position (3,) at the predicted hand-over in [m].
         planned_arrival_s: When the planned motion comes to rest, in [s] (None if no plan was made).
@@ -208,6 +227,8 @@ class Replan:
     n_observed: int
     task: str = ""
     posterior: dict[str, float] = field(default_factory=dict)
+    known: bool = True
+    novelty_p_value: float | None = None
     predicted_handover_s: float | None = None
     predicted_handover_position_m: list[float] | None = None
     planned_arrival_s: float | None = None
@@ -301,9 +322,12 @@ class ClosedLoopPlanner:
         context: What the checks know about the world (the human, the object, ...); each re-plan
             adds the recognised task, the predicted hand-over time, the limit profile and cuts the
             human to what was observed until then.
-        conditioner: The predictor whose conditioner conditions the robot trajectory (default: the
-            stream's predictor for ``settings.condition_noise``,
+        conditioner: The predictor that conditions the robot trajectory and applies the hand-over
+            estimates (default: the stream's predictor for ``settings.condition_noise``,
             :meth:`~ipromp_pin.promp.streaming.StreamingEstimator.predict`).
+
+    Attributes:
+        prediction: The prediction of the latest re-plan (None before the first).
     """
 
     def __init__(
@@ -339,6 +363,8 @@ class ClosedLoopPlanner:
         self._started = False
         self.start_reason = ""
         self.start_rule = self.settings.start_text(float(model.duration_nominal_s_))
+        self.prediction: Prediction | None = None  # that of the latest re-plan
+        self._guess: float | None = None
         self._stopped = ""
         self._finished = False
 
@@ -429,15 +455,19 @@ class ClosedLoopPlanner:
         r = Replan(len(self.replans), tick * self.dt_s, float(t_s), stream.n_samples)
         t0 = time.perf_counter()
         try:
-            pred = stream.predict(self.settings.condition_noise, self._conditioner)
+            s = self.settings
+            pred = stream.predict(s.condition_noise, self._conditioner, s.handover_estimates)
             reference = ReferenceMotion.from_prediction(pred)
         except IPrompPinError as exc:
             r.reason = f"prediction failed: {exc}"
             return r
         t1 = time.perf_counter()
         ms["condition"] = (t1 - t0) * 1e3
+        self.prediction = pred
         r.task = pred.task
         r.posterior = {k: float(v) for k, v in zip(pred.tasks, pred.posterior, strict=True)}
+        r.known = bool(pred.known)
+        r.novelty_p_value = None if math.isnan(pred.novelty_p_value) else float(pred.novelty_p_value)
         r.predicted_handover_s = float(pred.duration_s)
         context = self.context.replace(task=pred.task, handover_s=float(pred.duration_s))
         if context.human is not None:  # the human as observed up to this re-plan
@@ -467,14 +497,24 @@ class ClosedLoopPlanner:
         def timed(k: float) -> Timed:
             t = time.perf_counter()
             try:
-                return timer(k)
+                got = timer(k)
             finally:
                 spent[0] += time.perf_counter() - t
 
+            def sample() -> Trajectory:  # the samples, when the loop needs them, count as re-target too
+                t = time.perf_counter()
+                try:
+                    return got.motion
+                finally:
+                    spent[0] += time.perf_counter() - t
+
+            return Timed(sample, got.report, got.scale, got.path)
+
         try:
-            retimed = self.suite.retime_until_safe(timed, context, stop_early=True)
+            retimed = self.suite.retime_until_safe(timed, context, stop_early=True, guess=self._guess)
         except IPrompPinError as exc:
             r.reason = f"re-target failed: {exc}"
+            self._guess = None
             return None
         finally:
             ms["retarget"] = spent[0] * 1e3
@@ -489,6 +529,7 @@ class ClosedLoopPlanner:
         r.slowdown_delay_s = float(report.arrival_s - first.arrival_s)
         record_verdicts(r, retimed.verdicts)
         r.reason = retimed.report.refusal()
+        self._guess = next_guess(retimed)
         return retimed.motion
 
     def close(self) -> None:

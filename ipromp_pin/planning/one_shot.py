@@ -10,6 +10,7 @@ with its verdicts, slowed where the checks ask for it (:func:`~ipromp_pin.safety
 from __future__ import annotations
 
 import time
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -20,6 +21,7 @@ from ..exceptions import ModelError
 from ..motion.timing import TimingReport
 from ..motion.trajectory import JointLimits, Trajectory
 from ..promp import IProMP, Prediction
+from ..promp.inputs import ObservationWarning
 from ..robot import Robot, ee_positions, frame_placements
 from ..robot.kinematics import rotations_to_quat_xyzw
 from ..safety import CheckContext, CheckReport, CheckSuite
@@ -30,6 +32,10 @@ LogFn = Callable[[str], None]
 
 N_UNCERTAINTY_SAMPLES = 16
 """Joint trajectories drawn from the prediction for the uncertainty check and the preview."""
+
+
+UNKNOWN_TASK = "unknown_task"
+"""The failure of a plan whose observation matches none of the model's tasks."""
 
 
 @dataclass
@@ -68,14 +74,22 @@ class PlanResult:
     slowdown_delay_s: float = 0.0
 
     @property
+    def known(self) -> bool:
+        """Whether the observation was recognised as one of the model's tasks (``Prediction.known``):
+        the robot acts only on a known task."""
+        return bool(self.prediction.known)
+
+    @property
     def passed(self) -> bool:
-        """Whether every required check and the timing's verification passed."""
-        return bool(self.checks.passed and self.timing_report.passed)
+        """Whether the task is known and every required check and the timing's verification passed."""
+        return bool(self.known and self.checks.passed and self.timing_report.passed)
 
     @property
     def failures(self) -> list[str]:
-        """The failed required checks (and ``timing`` when its verification failed)."""
-        return self.checks.failures + ([] if self.timing_report.passed else ["timing"])
+        """``unknown_task`` when the observation matches none of the tasks, the failed required checks
+        (and ``timing`` when its verification failed)."""
+        unknown = [] if self.known else [UNKNOWN_TASK]
+        return unknown + self.checks.failures + ([] if self.timing_report.passed else ["timing"])
 
 
 def check_model_joints(model: IProMP, robot: Robot) -> None:
@@ -144,7 +158,9 @@ def plan(
     suite = suite if suite is not None else CheckSuite.build(robot)
     ms: dict[str, float] = {}
     t0 = time.perf_counter()
-    prediction = model.predict(observation)
+    with warnings.catch_warnings():  # the plan's own warnings name them (plans.warnings.range_warnings)
+        warnings.simplefilter("ignore", ObservationWarning)
+        prediction = model.predict(observation)
     assert isinstance(prediction, Prediction), "IProMP.predict of one Demo returns one Prediction"
     t1 = time.perf_counter()
     ms["recognise_predict"] = (t1 - t0) * 1e3
@@ -152,6 +168,8 @@ def plan(
         f"[recognise] {prediction.task} (posterior {float(np.max(prediction.posterior)):.3f}), "
         f"predicted duration {prediction.duration_s:.2f} s"
     )
+    if not prediction.known:
+        say(f"[recognise] UNKNOWN: {prediction.unknown_reason}")
     samples = prediction.sample_q(N_UNCERTAINTY_SAMPLES, np.random.default_rng(0))
     start_s = float(observation.t[-1] - observation.t[0])
     ctx = prediction_context(prediction, context if context is not None else CheckContext(), samples)

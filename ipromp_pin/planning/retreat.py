@@ -277,5 +277,6 @@ def plan_retreat(
     )
     ms["total"] = (time.perf_counter() - t0) * 1e3
     out.stage_ms = ms
-    say(out.to_text())
+    verdict = "pass" if out.passed else "fail: " + ", ".join(out.failures)
+    say(f"[retreat] {verdict}; {out.duration_s:.2f} s, planned in {ms['total']:.0f} ms")
     return out

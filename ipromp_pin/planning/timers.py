@@ -64,10 +64,11 @@ def retarget_timer(retargeter: Retargeter, state: MotionState, reference: Refere
     """A timer of the remaining motion from ``state`` (the commanded state at a control tick) onto
     ``reference``'s timeline; its scale is the followed reference's slow-down
     (:attr:`~ipromp_pin.motion.retarget.RetargetReport.time_scale`). The path is not the same for
-    every slow-down (the blend to the reference changes with it)."""
+    every slow-down (the blend to the reference changes with it). A motion is sampled when it is
+    first used (:meth:`~ipromp_pin.motion.retarget.Planned.sample`)."""
 
     def timer(k: float) -> Timed:
-        motion, report = retargeter.plan(state, reference, min_scale=k)
-        return Timed(motion, report, report.time_scale, None)
+        planned = retargeter.planned(state, reference, min_scale=k)
+        return Timed(planned.sample, planned.report, planned.report.time_scale, None)
 
     return timer

@@ -100,6 +100,8 @@ class PlannedRecording:
         out_dir: Its sub-folder (None: nothing written).
         task: The recognised task (None: not planned).
         posterior: That task's posterior probability.
+        known: Whether the observation was recognised as one of the model's tasks (None: not planned).
+        novelty_p_value: Its conformal novelty p-value (None: not planned, or no novelty detector).
         failures: The failed checks (``timing``, ``retreat.<check>``).
         observed_until_s: The end of the observed window [s] from the recording's start.
         arrival: When the human (predicted) and the robot reach the hand-over [s], and the delay.
@@ -116,6 +118,8 @@ class PlannedRecording:
     out_dir: str | None = None
     task: str | None = None
     posterior: float | None = None
+    known: bool | None = None
+    novelty_p_value: float | None = None
     failures: list[str] = field(default_factory=list)
     observed_until_s: float | None = None
     arrival: dict[str, float] | None = None
@@ -131,6 +135,8 @@ class PlannedRecording:
         if self.task is None:
             return f"{self.recording}: FAILED: {self.error}"
         verdict = "passed" if self.status == "passed" else f"FAILED ({', '.join(self.failures)})"
+        if self.known is False:
+            verdict = f"UNKNOWN task: {self.error}"
         text = f"{self.recording}: {self.task} (posterior {self.posterior:.3f}), {verdict}"
         if self.arrival is not None:
             a = self.arrival
@@ -244,7 +250,10 @@ def summary_row(job: RecordingJob, planned: HandoverPlan, files: dict[str, str])
         out_dir=str(job.out_dir),
         task=planned.task,
         posterior=planned.posterior[planned.task],
+        known=planned.known,
+        novelty_p_value=planned.novelty_p_value,
         failures=planned.failures,
+        error=None if planned.known else planned.approach.prediction.unknown_reason,
         observed_until_s=float(planned.observation.t[-1]),
         arrival=planned.arrival,
         handover_error_cm=None if scores is None else scores.handover_error_cm,

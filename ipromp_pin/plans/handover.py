@@ -80,6 +80,18 @@ class HandoverPlan:
         return {t: float(v) for t, v in zip(p.tasks, p.posterior, strict=True)}
 
     @property
+    def known(self) -> bool:
+        """Whether the observation was recognised as one of the model's tasks (else the plan fails
+        with ``unknown_task``: the robot acts only on a known task)."""
+        return self.approach.known
+
+    @property
+    def novelty_p_value(self) -> float | None:
+        """The observation's conformal novelty p-value (None: the model has no novelty detector)."""
+        p = float(self.approach.prediction.novelty_p_value)
+        return None if p != p else p
+
+    @property
     def trajectory(self) -> Trajectory:
         """The approach's committed trajectory (on the human's clock)."""
         return self.approach.trajectory

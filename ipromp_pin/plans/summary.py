@@ -29,6 +29,8 @@ CSV_COLUMNS = (
     "status",
     "task",
     "posterior",
+    "known",
+    "novelty_p_value",
     "failures",
     "observed_until_s",
     "human_s",

@@ -19,10 +19,9 @@ from __future__ import annotations
 import sys
 from collections.abc import Iterable
 
-import numpy as np
-
 from ..data import Dataset, Demo
 from ..promp import IProMP
+from ..promp.inputs import range_warnings as observed_range_warnings
 from ..promp.provenance import find_in_training
 from ..robot.objects import ObjectTable
 
@@ -32,42 +31,10 @@ def warn_stderr(message: str) -> None:
     print(f"warning: {message}", file=sys.stderr, flush=True)
 
 
-RANGE_WARNING_SD = 4.0
-"""An observed group is far outside the training data when the median over its samples of the
-root-mean-square of its scaled channels (training data: mean 0, standard deviation 1 per channel)
-exceeds this. Basis: the synthetic demos' groups lie at 0.4-2.0; EMG scaled by 0.1 reaches 5.8, by
-0.001 9.6, a quaternion of the other sign 28."""
-
-
-def group_distance_sd(model: IProMP, group: str, values: np.ndarray) -> float:
-    """How far the raw values (n, D_g) of an observed group lie from the training data: the median
-    over the samples of the RMS of its scaled channels, in standard deviations (NaN samples ignored)."""
-    lo, hi = model.group_slices_[group]
-    with np.errstate(all="ignore"):
-        z = model.scaler_.transform(np.asarray(values, dtype=float), slice(lo, hi))
-    seen = np.isfinite(z).any(axis=1)  # samples with at least one channel (occluded ones have none)
-    if not seen.any():
-        return 0.0
-    rms = np.sqrt(np.nanmean(z[seen] ** 2, axis=1))
-    rms = rms[np.isfinite(rms)]
-    return float(np.median(rms)) if rms.size else 0.0
-
-
 def range_warnings(model: IProMP, observation: Demo) -> list[str]:
     """A warning per observed group of ``observation`` that lies far outside the training data
-    (:data:`RANGE_WARNING_SD`), naming the group and how far out it is."""
-    out = []
-    for g in model.observe_:
-        if g not in observation.groups:
-            continue
-        d = group_distance_sd(model, g, observation.groups[g])
-        if d > RANGE_WARNING_SD:
-            out.append(
-                f"the observed '{g}' lies {d:.1f} standard deviations from the model's training data "
-                f"(median over its samples; the training data lie within about 2): in other units, from "
-                "another sensor or of another sign? The recognition and prediction are then unreliable"
-            )
-    return out
+    (:data:`~ipromp_pin.promp.inputs.RANGE_WARNING_SD`), naming the group and how far out it is."""
+    return observed_range_warnings(model.fitted_, observation)
 
 
 def single_task_warning(model: IProMP) -> str | None:

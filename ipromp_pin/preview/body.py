@@ -2,13 +2,16 @@
 
 - :class:`BodyTrack`: the body's capsules (segment ends and radius per body part) at the samples of
   a recording, on the human's clock: drawn as capsules moving with the recording;
-- :class:`SeparationTrack`: per control sample of the robot's motion, the closest robot point and
-  body point, their distance, and the separation state (:data:`SEPARATION_STATES`): drawn as a line
-  between the two points coloured by the state, the value in the panel, and the state along the
-  time slider.
+- :class:`SeparationTrack`: per control sample of the robot's motion, the checks' measure of the
+  separation (``human_clearance``'s: the smallest distance to the body outside the hand), its robot
+  and body points, and the separation state (:data:`SEPARATION_STATES`, ``contact_speed``'s): drawn
+  as a line between the two points coloured by the state, the value in the panel, and the state
+  along the time slider; the panel states the report's figures (:class:`~.reported.ReportedFigure`,
+  the verdicts') beside it.
 
-Both come from the human checks' numbers (:mod:`ipromp_pin.outputs.preview_content` fills them in),
-so that the preview does not depend on the body model or the checks. Positions in [m] in the robot's
+Both come from the human checks' numbers for the human they judged
+(:mod:`ipromp_pin.outputs.preview_content` fills them in), so that the preview does not depend on the
+body model or the checks. Positions in [m] in the robot's
 base frame; times in [s] on the human's clock (0 at the start of the human's motion), like
 :class:`~ipromp_pin.motion.trajectory.Trajectory`. Bad input raises :class:`~ipromp_pin.exceptions.DataError`
 naming the field (source ``"preview"``).
@@ -23,6 +26,7 @@ from typing import Any
 import numpy as np
 
 from ..exceptions import DataError
+from .reported import ReportedFigure, checked_figures
 
 __all__ = ["SEPARATION_STATES", "BodyTrack", "SeparationTrack"]
 
@@ -77,9 +81,11 @@ class BodyTrack:
         t_s: (T,) sample times in [s] on the human's clock, strictly increasing.
         a_m: (T, P, 3) first end of every body part's segment in [m].
         b_m: (T, P, 3) second end in [m].
-        radius_m: (T, P) capsule radius in [m] (> 0; an occluded part's is inflated).
+        radius_m: (T, P) capsule radius in [m] (> 0).
         part_names: (P,) body part names.
         assumed: Whether the body is an assumed standing human (no skeleton recorded).
+        label: What the body is, for the legend (e.g. "tracked human as observed until 0.64 s, then
+            held"; "": from ``assumed``).
     """
 
     t_s: np.ndarray
@@ -88,6 +94,7 @@ class BodyTrack:
     radius_m: np.ndarray
     part_names: Sequence[str]
     assumed: bool = False
+    label: str = ""
 
     def __post_init__(self) -> None:
         self.t_s = _times(self.t_s, "body.t_s")
@@ -101,6 +108,7 @@ class BodyTrack:
         if np.any(self.radius_m <= 0.0):
             raise DataError("preview", "body.radius_m", "radii must be > 0")
         self.assumed = bool(self.assumed)
+        self.label = str(self.label)
 
     @property
     def n_parts(self) -> int:
@@ -130,17 +138,23 @@ class SeparationTrack:
 
     Attributes:
         t_s: (N,) sample times in [s] on the human's clock, strictly increasing.
-        distance_m: (N,) minimum distance in [m] between the robot and the body (0 in contact).
-        robot_point_m: (N, 3) the robot's closest point in [m].
-        body_point_m: (N, 3) the body's closest point in [m].
+        distance_m: (N,) the distance in [m] that ``measure`` names (0 in contact): the checks'
+            per-sample measure, whose smallest value over a judged motion is the report's.
+        robot_point_m: (N, 3) the robot's point of that distance in [m].
+        body_point_m: (N, 3) the body's point of that distance in [m].
         state: (N,) one of :data:`SEPARATION_STATES` per sample.
-        link: (N,) the robot link of the closest pair (or empty).
-        body_part: (N,) the body part of the closest pair (or empty).
-        protective_distance_m: (N,) the protective separation distance ``S_p`` in [m] of the closest
-            pair, if known (NaN: not computed at that sample).
+        link: (N,) the robot link of that pair (or empty).
+        body_part: (N,) the body part of that pair (or empty).
+        protective_distance_m: (N,) a protective separation distance ``S_p`` in [m] at the sample, if
+            known (NaN: not computed at that sample).
         speed_ratio: (N,) approach speed over the body region's contact-speed limit, if known (NaN:
             not computed).
         source: What the separation is judged against, e.g. ``"recorded human"``, ``"assumed human"``.
+        measure: What ``distance_m`` is, for the panel ("": the smallest robot-body distance).
+        judged: (N,) whether the sample is one of a motion the checks judged (False: e.g. the robot
+            at rest after its motion while the human still moves); None: every sample.
+        reported: The report's figures the panel states (the checks' verdicts), each at a judged
+            sample.
     """
 
     t_s: np.ndarray
@@ -153,6 +167,9 @@ class SeparationTrack:
     protective_distance_m: np.ndarray | None = None
     speed_ratio: np.ndarray | None = None
     source: str = ""
+    measure: str = ""
+    judged: np.ndarray | None = None
+    reported: Sequence[ReportedFigure] = ()
 
     def __post_init__(self) -> None:
         self.t_s = _times(self.t_s, "separation.t_s")
@@ -179,11 +196,20 @@ class SeparationTrack:
         if self.speed_ratio is not None:
             self.speed_ratio = _optional_values(self.speed_ratio, "separation.speed_ratio", n)
         self.source = str(self.source)
+        self.measure = str(self.measure)
+        judged = np.ones(n, dtype=bool) if self.judged is None else np.asarray(self.judged)
+        if judged.shape != (n,) or judged.dtype != bool:
+            raise DataError("preview", "separation.judged", f"expected {n} booleans, got {judged!r:.60}")
+        self.judged = judged
+        self.reported = checked_figures(self.reported, "separation.reported")
 
     @property
     def closest(self) -> int:
-        """Index of the sample of the smallest distance."""
-        return int(np.argmin(self.distance_m))
+        """Index of the sample of the smallest distance among the judged samples (among all when
+        none is judged)."""
+        assert self.judged is not None  # set by __post_init__
+        d = np.where(self.judged, self.distance_m, np.inf) if self.judged.any() else self.distance_m
+        return int(np.argmin(d))
 
     def state_counts(self) -> dict[str, int]:
         """Number of samples in each state of :data:`SEPARATION_STATES`."""

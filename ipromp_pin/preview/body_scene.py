@@ -6,9 +6,10 @@
 - the closest robot-body pair of a :class:`~ipromp_pin.preview.body.SeparationTrack` is a thin rod
   from the robot's closest point to the body's, one node per separation state (the node of the
   sample's state is the one shown), so that its colour says the state;
-- :func:`separation_panel` is the HTML panel's data: the per-sample distance, state and pair on the
-  animation's time base, read by ``static/separation.js`` (the value at the current time and the
-  states along the time slider).
+- :func:`separation_panel` is the HTML panel's data: the report's figures as the verdicts give them,
+  and the per-sample distance, state and pair on the animation's time base, read by
+  ``static/separation.js`` (the figures, the value at the current time and the states along the
+  time slider).
 
 The scene's animation calls :func:`body_frame` at every frame with the human's time.
 """
@@ -179,11 +180,13 @@ def body_frame(
 
 def separation_panel(separation: SeparationTrack, body: BodyTrack | None = None) -> dict:
     """The HTML panel's separation data on the animation's clock (the human's):
-    per sample time, distance [m], state, pair, ``S_p`` [m] and speed ratio (rounded), the minimum
-    and the samples per state; read by ``static/separation.js``."""
-    i = separation.closest
+    per sample time, distance [m] (what ``measure`` says), state, pair, ``S_p`` [m], speed ratio
+    (rounded) and whether a check judged it; the samples per state; the report's figures (the
+    verdicts', stated as they are) and what the separation is judged against; read by
+    ``static/separation.js``."""
     sp = separation.protective_distance_m
     ratio = separation.speed_ratio
+    judged = separation.judged if separation.judged is not None else np.ones(separation.t_s.size, bool)
 
     def rounded(x: np.ndarray | None, digits: int = 4) -> list[float | None] | None:
         return None if x is None else [round(float(v), digits) if np.isfinite(v) else None for v in x]
@@ -196,12 +199,9 @@ def separation_panel(separation: SeparationTrack, body: BodyTrack | None = None)
         "body_part": list(separation.body_part),
         "protective_distance_m": rounded(sp),
         "speed_ratio": rounded(ratio, 3),
-        "min": {
-            "t_s": round(float(separation.t_s[i]), 3),
-            "distance_m": round(float(separation.distance_m[i]), 4),
-            "link": separation.link[i],
-            "body_part": separation.body_part[i],
-        },
+        "judged": [bool(j) for j in judged],
+        "measure": separation.measure or "smallest robot-body distance",
+        "reported": [f.to_dict() for f in separation.reported],
         "counts": separation.state_counts(),
         "source": separation.source or ("assumed human" if body is not None and body.assumed else ""),
         "colors": {s: f"#{c:06x}" for s, c in SEPARATION_COLORS.items()},

@@ -57,9 +57,11 @@ def _optional_array(value: Any, field_name: str, ndim: int, last: int | None = N
     return None if value is None else finite_array(value, field_name, ndim, last)
 
 
-CHECK_STATUSES = ("pass", "fail", "skip")
+CHECK_STATUSES = ("pass", "fail", "skip", "info")
 """Statuses of a :class:`FeasibilityCheck`: ``"skip"`` is a check that could not be made (e.g. the
-human hand position is unknown), drawn as skipped, neither passed nor failed."""
+human hand position is unknown), drawn as skipped, neither passed nor failed; ``"info"`` is a line
+that states a figure without judging it (e.g. a replay's refused re-plans, which are normal), drawn
+neutrally."""
 
 
 class FeasibilityCheck(NamedTuple):
@@ -70,7 +72,7 @@ class FeasibilityCheck(NamedTuple):
         passed: Whether the check passed (``True`` for a skipped check: it does not fail the plan).
         detail: Short detail, e.g. ``"left_e1 within 0.02 rad of its limit"``; times in it are on the
             page's one clock (the human's motion, as ``t_s``).
-        status: ``"pass"``, ``"fail"`` or ``"skip"`` (``""``: from ``passed``).
+        status: One of :data:`CHECK_STATUSES` (``""``: ``"pass"`` or ``"fail"`` from ``passed``).
         required: Whether the check counts towards the verdict (``False``: advisory).
     """
 
@@ -330,8 +332,19 @@ class PreviewContent:
 
     @property
     def duration_s(self) -> float:
-        """Duration of the robot trajectory in [s]."""
+        """The robot trajectory's last time in [s] on the human's clock (it rests before ``t_s[0]``)."""
         return float(self.t_s[-1])
+
+    @property
+    def end_s(self) -> float:
+        """The page's last time in [s] on the human's clock: the latest last sample of the robot's
+        trajectory, the hand path, the body, the separation and the torques (the animation ends
+        there, and never later)."""
+        tracks = (
+            self.hand_t_s,
+            *(None if x is None else x.t_s for x in (self.body, self.separation, self.torques)),
+        )
+        return max([self.duration_s] + [float(t[-1]) for t in tracks if t is not None])
 
     def observed_fraction(self) -> float | None:
         """Observed fraction of the human's motion (``observed_until_s / human_duration_s``, at most 1),

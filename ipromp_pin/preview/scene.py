@@ -59,6 +59,7 @@ __all__ = [
     "COLOR_HAND_REST",
     "COLOR_NEAR_LIMIT",
     "RobotView",
+    "animation_times",
     "build_scene",
     "camera_view",
     "overlay_state",
@@ -276,17 +277,24 @@ def scene_points(content: PreviewContent, robot: RobotView, n_poses: int = 5) ->
     return np.vstack(parts)
 
 
-def _animate(viewer: meshcat.Visualizer, robot: RobotView, content: PreviewContent, fps: float) -> None:
-    """Meshcat animation of the robot (and of the hand marker) in real time at ``fps`` frames/s.
+def animation_times(end_s: float, fps: float) -> tuple[np.ndarray, float]:
+    """The frame times (n,) [s] of an animation from 0 to ``end_s`` [s] at about ``fps`` frames/s, and
+    the frame rate that puts its last frame exactly at ``end_s`` (meshcat's frame k is at k / rate):
+    the animation's time never runs past the page's last time."""
+    n_frames = max(2, int(np.ceil(end_s * fps - 1e-9)) + 1)
+    if end_s <= 0.0:
+        return np.arange(n_frames) / fps, fps
+    return np.linspace(0.0, end_s, n_frames), (n_frames - 1) / end_s
 
-    One clock: the animation's time is the human's (the content's ``t_s``, ``hand_t_s``, body and
-    separation tracks), from 0 to the later of the robot's and the hand's last sample.
+
+def _animate(viewer: meshcat.Visualizer, robot: RobotView, content: PreviewContent, fps: float) -> None:
+    """Meshcat animation of the robot (and of the hand marker) in real time at about ``fps`` frames/s.
+
+    One clock: the animation's time is the human's (the content's ``t_s``, ``hand_t_s``, body,
+    separation and torque tracks), from 0 to the page's last time (:attr:`PreviewContent.end_s`).
     """
-    duration = content.duration_s
-    if content.hand_t_s is not None:
-        duration = max(duration, float(content.hand_t_s[-1]))
-    n_frames = max(2, int(np.ceil(duration * fps)) + 1)
-    times = np.arange(n_frames) / fps
+    times, rate = animation_times(content.end_s, fps)
+    n_frames = times.size
     qs = content.configurations(times)
     frames = [robot.placements(q) for q in qs]
     names = [
@@ -295,7 +303,7 @@ def _animate(viewer: meshcat.Visualizer, robot: RobotView, content: PreviewConte
     moving = [
         i for i in range(len(names)) if any(not np.allclose(f[i], frames[0][i], atol=1e-9) for f in frames)
     ]
-    animation = meshcat.animation.Animation(default_framerate=fps)
+    animation = meshcat.animation.Animation(default_framerate=rate)
     hand = None
     if content.hand_path is not None and content.hand_t_s is not None:
         hand = np.stack([np.interp(times, content.hand_t_s, content.hand_path[:, d]) for d in range(3)], -1)
@@ -344,15 +352,23 @@ def _draw_human(viewer: meshcat.Visualizer, content: PreviewContent) -> None:
 
 
 def _draw_closest_label(viewer: meshcat.Visualizer, content: PreviewContent) -> None:
-    """The smallest robot-body distance as text beside the closest pair at that sample."""
+    """The report's smallest clearance (the first reported figure of the separation, e.g. the
+    approach's ``human_clearance``) as text beside its pair at its sample; without one, the smallest
+    per-sample distance, marked as not in the report."""
     node = viewer[_CLOSEST_LABEL_NODE]
     node.delete()
     sep = content.separation
     if sep is None:
         return
-    i = sep.closest
+    figure = sep.reported[0] if sep.reported else None
+    if figure is not None:
+        i = int(np.argmin(np.abs(sep.t_s - figure.t_s)))
+        text = f"{figure.value * 1e3:.0f} mm ({figure.check})"
+    else:
+        i = sep.closest
+        text = f"{sep.distance_m[i] * 1e3:.0f} mm (not in the report)"
     position = (sep.robot_point_m[i] + sep.body_point_m[i]) / 2.0 + np.array([0.0, 0.0, 0.08])
-    node.set_object(_text_plane(f"min {sep.distance_m[i]:.3f} m"))
+    node.set_object(_text_plane(text))
     node.set_transform(_plane_facing_x(position, 0.22))
 
 
@@ -462,6 +478,7 @@ def overlay_state(content: PreviewContent) -> dict[str, Any]:
         "posterior": posterior,
         "observed": observed,
         "robot_duration_s": content.duration_s,
+        "end_s": content.end_s,
         "timebase": content.timebase,
         "notes": [str(n) for n in content.notes],
         "feasibility": [
@@ -491,6 +508,8 @@ def _body_legend(content: PreviewContent) -> list[dict[str, str]]:
         assumed = content.body.assumed
         color = COLOR_BODY_ASSUMED if assumed else COLOR_BODY
         label = "human body (assumed, no skeleton)" if assumed else "human body (tracked)"
+        if content.body.label:
+            label = f"human body: {content.body.label}"
         out.append({"label": label, "color": f"#{color:06x}"})
     if content.separation is not None:
         names = {"within_sp": "within S_p", "speed_limited": "speed-limited"}

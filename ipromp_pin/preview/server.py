@@ -109,6 +109,7 @@ class LivePreview:
         self._robot = RobotView(content, max_triangles)
         build_scene(self._recorder, content, robot=self._robot, fps=self.fps)
         self._clients: set = set()
+        self._connected = threading.Event()  # set once a page has received the whole scene
         self._loop: tornado.ioloop.IOLoop | None = None
         self._server: tornado.httpserver.HTTPServer | None = None
         self._thread: threading.Thread | None = None
@@ -198,7 +199,8 @@ class LivePreview:
         for data in commands:
             if not self._send(socket, data):
                 return
-        self._send(socket, umsgpack.packb({"type": "ipromp_synced", "count": len(commands)}))
+        if self._send(socket, umsgpack.packb({"type": "ipromp_synced", "count": len(commands)})):
+            self._connected.set()
 
     def _send(self, socket: Any, data: bytes) -> bool:
         """Send ``data`` to one page; a page that went away is dropped quietly (no traceback, now or
@@ -227,6 +229,11 @@ class LivePreview:
     def running(self) -> bool:
         """Whether the server thread is running."""
         return self._thread is not None and self._thread.is_alive()
+
+    def wait_for_page(self, timeout_s: float | None = None) -> bool:
+        """Block until a browser page has connected and been sent the whole scene (``timeout_s`` [s]:
+        at most that long; None: as long as it takes); returns whether one has."""
+        return self._connected.wait(timeout_s)
 
     @property
     def n_clients(self) -> int:

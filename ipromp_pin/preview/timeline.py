@@ -45,9 +45,9 @@ from .meshes import DEFAULT_MAX_TRIANGLES, sphere_mesh, tube_mesh
 from .object_scene import object_frame, object_placements
 from .page import recorded_page
 from .recorder import SceneRecorder
-from .scene import COLOR_HAND_OBSERVED, COLOR_HANDOVER, RobotView, build_scene, overlay_state
+from .scene import COLOR_HAND_OBSERVED, COLOR_HANDOVER, RobotView, animation_times, build_scene, overlay_state
 
-__all__ = ["TimelineEvent", "render_timeline_html", "write_timeline_html"]
+__all__ = ["TimelineEvent", "render_timeline_html", "timeline_end_s", "write_timeline_html"]
 
 _TRAIL_PIECES = 40
 """The observed hand trail is drawn in this many pieces, each shown from its time on."""
@@ -127,6 +127,13 @@ def _tube(
     node.set_object(mg.TriangularMeshGeometry(vertices, faces), material)
 
 
+def timeline_end_s(content: PreviewContent, events: Sequence[TimelineEvent]) -> float:
+    """The page's last time in [s] on the human's clock: the content's (:attr:`PreviewContent.end_s`:
+    the robot's, the hand's, the body's, ... last samples) or the last re-plan's, whichever is later.
+    The animation ends there and the page states it as the duration."""
+    return max(content.end_s, events[-1].t_s if events else 0.0)
+
+
 def _timeline_scene(
     window: SceneRecorder, content: PreviewContent, events: list[TimelineEvent], robot: RobotView, fps: float
 ) -> None:
@@ -152,13 +159,7 @@ def _timeline_scene(
             viewer[f"timeline/trail/{k}"].set_property("visible", False)
             trail_t.append(float(content.hand_t_s[b]))
 
-    duration = max(content.duration_s, events[-1].t_s if events else 0.0)
-    if content.hand_t_s is not None:
-        duration = max(duration, float(content.hand_t_s[-1]))
-    if content.body is not None:
-        duration = max(duration, float(content.body.t_s[-1]))
-    n_frames = max(2, int(np.ceil(duration * fps)) + 1)
-    times = np.arange(n_frames) / fps
+    times, rate = animation_times(timeline_end_s(content, events), fps)
     frames = [robot.placements(q) for q in content.configurations(times)]
     names = [
         robot.visualizer.getViewerNodeName(o, pin.GeometryType.VISUAL) for o in robot.geometry.geometryObjects
@@ -172,7 +173,7 @@ def _timeline_scene(
     event_t = np.array([e.t_s for e in events])
     plan_t = event_t[plans] if plans else np.zeros(0)
     point_t = event_t[points] if points else np.zeros(0)
-    animation = meshcat.animation.Animation(default_framerate=fps)
+    animation = meshcat.animation.Animation(default_framerate=rate)
     shown_plan, shown_point = -2, -2
     shown_trail = 0
     shown_body: dict = {}
@@ -254,10 +255,9 @@ def render_timeline_html(
         {"label": "predicted hand-over point", "color": f"#{COLOR_HANDOVER:06x}"},
         {"label": "plan of the latest committed re-plan", "color": f"#{COLOR_PLAN:06x}"},
     ]
-    duration = max(base.duration_s, events[-1].t_s if events else 0.0)
     data = {
         "overlay": overlay,
-        "duration_s": duration,
+        "duration_s": timeline_end_s(base, events),
         "motion_s": float(motion_s) if motion_s is not None else None,
         "summary": [str(s) for s in summary],
         "events": [

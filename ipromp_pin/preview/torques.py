@@ -1,9 +1,10 @@
 """The arm's joint torques and the object it holds, as a preview shows them: plain arrays, validated.
 
-- :class:`TorqueTrack`: per control sample of the robot's motion, every joint's torque usage
+- :class:`TorqueTrack`: at the samples the joint-torque check evaluated, every joint's torque usage
   ``|tau| / effort limit`` and whether the gripper holds the task's object: drawn as one bar per
   joint at the current time (its peak over the motion marked), coloured by :func:`usage_color`, with
-  the payload held stated (``static/torques.js``);
+  the payload held and the report's peak (:class:`~.reported.ReportedFigure`, the verdict's) stated
+  (``static/torques.js``);
 - :class:`HeldObject`: the task's object, a box, a cylinder or (no shape given) a small sphere in the
   gripper frame, and when the robot holds it: drawn in the gripper while held
   (:mod:`~ipromp_pin.preview.object_scene`).
@@ -23,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..exceptions import DataError
+from .reported import ReportedFigure, checked_figures
 
 __all__ = [
     "OBJECT_KINDS",
@@ -70,16 +72,21 @@ def _finite(value: object, name: str, ndim: int) -> np.ndarray:
 
 @dataclass
 class TorqueTrack:
-    """Every joint's torque usage at the control samples of the robot's motion.
+    """Every joint's torque usage at samples of the robot's motion.
 
     Attributes:
-        t_s: (N,) sample times in [s] on the human's clock, strictly increasing.
+        t_s: (N,) sample times in [s] on the human's clock, non-decreasing (two samples at one time:
+            the gripper before and after the object changes hands, the end of the approach and the
+            start of the retreat).
         ratio: (N, J) ``|tau| / effort limit`` per sample and joint (>= 0).
         joint_names: (J,) the arm joints.
         limit_nm: (J,) the effort limits in [N m] (> 0).
         allowed_ratio: The usage the joint-torque check allows, ``1 - effort_margin``, in (0, 1].
         held: (N,) whether the gripper holds the object at each sample (all False: no object).
         payload: The object, e.g. ``"spanner_handover 0.25 kg"`` ("": the task has none).
+        samples: Which samples these are, for the panel (e.g. "the 112 samples the joint_torques
+            check evaluated"; "": every control sample).
+        reported: The report's figures the panel states (the joint-torque verdicts).
     """
 
     t_s: np.ndarray
@@ -89,11 +96,13 @@ class TorqueTrack:
     allowed_ratio: float
     held: np.ndarray
     payload: str = ""
+    samples: str = ""
+    reported: Sequence[ReportedFigure] = ()
 
     def __post_init__(self) -> None:
         self.t_s = _finite(self.t_s, "torques.t_s", 1)
-        if self.t_s.size >= 2 and np.any(np.diff(self.t_s) <= 0.0):
-            raise _error("torques.t_s", "times must be strictly increasing")
+        if self.t_s.size >= 2 and np.any(np.diff(self.t_s) < 0.0):
+            raise _error("torques.t_s", "times must be non-decreasing")
         self.joint_names = tuple(str(n) for n in self.joint_names)
         self.ratio = _finite(self.ratio, "torques.ratio", 2)
         if self.ratio.shape != (self.t_s.size, len(self.joint_names)):
@@ -113,6 +122,8 @@ class TorqueTrack:
         if self.held.size != self.t_s.size:
             raise _error("torques.held", f"has {self.held.size} values for {self.t_s.size} samples")
         self.payload = str(self.payload)
+        self.samples = str(self.samples)
+        self.reported = checked_figures(self.reported, "torques.reported")
 
     @property
     def peak(self) -> np.ndarray:
@@ -186,7 +197,8 @@ class HeldObject:
 def torque_panel(track: TorqueTrack) -> dict:
     """The HTML panel's torque data on the animation's clock (the human's): per
     sample the usages (rounded) and whether the object is held; per joint the peak and its time;
-    the allowed usage, the colour thresholds and the payload; read by ``static/torques.js``."""
+    the allowed usage, the colour thresholds, the payload, which samples these are and the report's
+    figures; read by ``static/torques.js``."""
     peak, at = track.peak, track.peak_index
     return {
         "t_s": [round(float(t), 3) for t in track.t_s],
@@ -199,5 +211,7 @@ def torque_panel(track: TorqueTrack) -> dict:
         "allowed": track.allowed_ratio,
         "warn": WARN_RATIO,
         "payload": track.payload,
+        "samples": track.samples,
+        "reported": [f.to_dict() for f in track.reported],
         "colors": dict(TORQUE_COLORS),
     }

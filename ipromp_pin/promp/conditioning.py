@@ -226,6 +226,16 @@ class Conditioner:
         lq = robot_chol[0] if len(robot_chol) == 1 and n_free == 0 else block_diag_chol(robot_chol, n_free)
         return self.prediction(rec, info.robot_factor, m, alpha, w_post, lq, human=human_weights)
 
+    def prior_prediction(self, rec: Recognition) -> Prediction:
+        """The unconditioned prediction (the prior) of the recognised task at its phase estimate: what
+        an observation no task explains leaves (it informs no weight)."""
+        fm = self.fitted
+        m = fm.models[rec.task]
+        alpha = float(rec.alpha[fm.tasks.index(rec.task)])
+        info = self.task_blocks(rec.task)
+        lq = np.eye(info.robot_cols.size)
+        return self.prediction(rec, info.robot_factor, m, alpha, m.mean.copy(), lq)
+
     def observe_handover(
         self, pred: Prediction, readout: np.ndarray, values: np.ndarray, cov: np.ndarray
     ) -> Prediction:

@@ -32,6 +32,8 @@ from ..exceptions import IPrompPinError, ModelError, ModelFileError, NotFittedEr
 from ..signals.groups import DEFAULT_LOG_GROUPS
 from .fit import fit_model
 from .fitted import FittedModel
+from .inputs import check_observation
+from .novelty import DEFAULT_ALPHA
 from .parameters import MAX_BLAS_THREADS, MAX_POINTS, PARAMETER_CONSTRAINTS, ParameterMixin, parse_params
 from .posterior import Prediction, Recognition
 from .predictor import Predictor
@@ -97,6 +99,9 @@ class IProMP(ParameterMixin):
             observed fraction a ridge or k-nearest-neighbour regression from the window to the
             hand-over) and condition the robot's
             prediction on it as far as cross-validation trusts it (possibly not at all); False: never.
+        novelty_alpha: Open-set recognition (:mod:`~ipromp_pin.promp.novelty`): the largest fraction
+            of observations of the learned tasks recognised as unknown (``known = False``), by
+            split-conformal calibration on held-out training demos; None: no novelty detector.
         n_points: Number M of points of the predicted trajectories.
         task_prior: Prior task probabilities (task -> p, or None for uniform).
         robot_group: Name of the robot's joint-angle group.
@@ -140,6 +145,7 @@ class IProMP(ParameterMixin):
         condition_noise: float | str = "auto",
         head: bool = True,
         handover: bool = True,
+        novelty_alpha: float | None = DEFAULT_ALPHA,
         n_points: int = 100,
         task_prior: Mapping[str, float] | None = None,
         robot_group: str = ROBOT,
@@ -160,6 +166,7 @@ class IProMP(ParameterMixin):
         self.condition_noise = condition_noise
         self.head = head
         self.handover = handover
+        self.novelty_alpha = novelty_alpha
         self.n_points = n_points
         self.task_prior = task_prior
         self.robot_group = robot_group
@@ -302,7 +309,9 @@ class IProMP(ParameterMixin):
         predictor = self._predictor()
         if not isinstance(observation, Demo):
             return [self._infer(o, method) for o in _batch(observation)]
-        parts, t_last = predictor.encode(observation)
+        # longer than any learned motion is not an error: no task explains it (``known`` False)
+        parts, t_last = predictor.encode(observation, check_length=False)  # shapes, finite values
+        check_observation(predictor.fitted, observation)
         with self._limit_threads():
             return method(predictor, parts, t_last)
 

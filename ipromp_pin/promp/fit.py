@@ -29,8 +29,17 @@ from .handover import HandoverRegression
 from .handover_orientation import OrientationEstimate
 from .handover_selection import HandoverChoice, choose_handover
 from .head import RecognitionHead
+from .novelty import NoveltyDetector, NoveltyRow, fit_novelty
 from .provenance import demo_record
-from .selection import NOISE_GRID, TEMPERATURE_GRID, choose_coupling, choose_noise, fit_recognition_head
+from .selection import (
+    NOISE_GRID,
+    TEMPERATURE_GRID,
+    HeldOutRow,
+    choose_coupling,
+    choose_noise,
+    explained_rows,
+    fit_recognition_head,
+)
 from .training import PhaseSettings, TrainingSet, demos_by_task, log_task_prior, prepare_training, task_models
 from .validation import check_fitted
 
@@ -51,6 +60,7 @@ class Hyperparameters:
         handover: The hand-over regression (None: none); ``handover_cv_scores`` the trust factors'.
         orientation: The hand-over orientation estimate (None: none); ``orientation_cv_scores`` the
             trust factors'.
+        novelty: The novelty detector (None: none).
     """
 
     noise_ratio: float
@@ -65,6 +75,7 @@ class Hyperparameters:
     handover_cv_scores: Mapping[float, float] = field(default_factory=dict)
     orientation: OrientationEstimate | None = None
     orientation_cv_scores: Mapping[float, float] = field(default_factory=dict)
+    novelty: NoveltyDetector | None = None
 
 
 def phase_settings(params: Mapping[str, Any]) -> PhaseSettings:
@@ -87,13 +98,26 @@ def select_hyperparameters(
     nus = NOISE_GRID if isinstance(params["noise"], str) else (float(params["noise"]),)
     temp = params["temperature"]
     taus = TEMPERATURE_GRID if isinstance(temp, str) else (float(temp),)
-    head, rows = None, []
-    if len(nus) > 1 or len(taus) > 1 or params["head"] or params["handover"]:
+    head, rows, novelty = None, [], None
+    alpha = params.get("novelty_alpha")
+    if len(nus) > 1 or len(taus) > 1 or params["head"] or params["handover"] or alpha is not None:
         noise = choose_noise(training, settings, task_log_prior, nus, taus)
-        nu, tau, rows = noise.nu, noise.temperature, noise.rows
+        nu, tau, rows = (
+            noise.nu,
+            noise.temperature,
+            explained_rows(noise.rows, noise.temperature, training.demos),
+        )
         nu_scores = noise.scores if len(nus) > 1 else {}
         if params["head"] and rows:
             head = fit_recognition_head(rows, tau, len(training.tasks))
+        if alpha is not None and rows:
+            novelty = fit_novelty(
+                novelty_rows(rows, tau),
+                len(training.tasks),
+                training.layout.n_obs_dims,
+                training.duration_nominal_s,
+                float(alpha),
+            )
     else:
         nu, tau, nu_scores = nus[0], taus[0], {}
     nu_c = {"auto": None, "same": nu}.get(params["condition_noise"], params["condition_noise"])
@@ -116,7 +140,15 @@ def select_hyperparameters(
         condition_cv_scores=choice.nu_scores,
         handover_cv_scores=ho.scores,
         orientation_cv_scores=ho.orientation_scores,
+        novelty=novelty,
     )
+
+
+def novelty_rows(rows: list[HeldOutRow], temperature: float) -> list[NoveltyRow]:
+    """The held-out rows as the novelty detector reads them (MAP phases at the temperature)."""
+    return [
+        NoveltyRow(r.task, r.demo, r.window, r.ratio, r.recognised(temperature)[2], r.t_last) for r in rows
+    ]
 
 
 def fit_model(
@@ -173,6 +205,7 @@ def fit_model(
         handover_cv_scores=hp.handover_cv_scores,
         orientation=hp.orientation,
         orientation_cv_scores=hp.orientation_cv_scores,
+        novelty=hp.novelty,
         trained_on=tuple(demo_record(d) for demos in by_task.values() for d in demos),
     )
     return checked(fitted)

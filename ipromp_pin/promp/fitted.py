@@ -22,6 +22,7 @@ from .handover import HandoverRegression
 from .handover_orientation import OrientationEstimate
 from .head import RecognitionHead
 from .layout import ChannelLayout
+from .novelty import NoveltyDetector
 from .provenance import DemoRecord
 
 
@@ -61,6 +62,8 @@ class FittedModel:
             gripper's rotations or a model file of format version 4 or older).
         orientation_cv_scores: Its candidate trust factors (``inf``: off) -> mean hand-over
             orientation error in [deg] on the held-out training demos.
+        novelty: The open-set novelty detector with its conformal calibration
+            (:mod:`~ipromp_pin.promp.novelty`; None: none, every observation a task explains is known).
     """
 
     layout: ChannelLayout
@@ -84,6 +87,7 @@ class FittedModel:
     handover_cv_scores: Mapping[float, float] = field(default_factory=dict)
     orientation: OrientationEstimate | None = None
     orientation_cv_scores: Mapping[float, float] = field(default_factory=dict)
+    novelty: NoveltyDetector | None = None
 
     @property
     def nu_condition(self) -> float:

@@ -113,6 +113,12 @@ PARAMETER_CONSTRAINTS: dict[str, Constraint | None] = {
     "width": None,
     "head": None,
     "handover": None,
+    "novelty_alpha": Constraint(
+        "be None or a number in (0, 0.5]",
+        lambda v: (
+            v is None or bool(isinstance(v, (int, float)) and not isinstance(v, bool) and 0.0 < v <= 0.5)
+        ),
+    ),
     "log_groups": None,
 }
 """Parameter name -> its :class:`Constraint` (None: not checked on its own), in checking order."""

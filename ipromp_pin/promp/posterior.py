@@ -105,6 +105,14 @@ class Recognition:
         phase_grid: (K, n_alpha) phase candidates per task.
         phase_log_post: (K, n_alpha) normalised log posterior of the candidates.
         log_evidence: (K,) log p(observation | task).
+        novelty_score: How far the observation is from every learned task
+            (:mod:`~ipromp_pin.promp.novelty`; NaN: the model has no novelty detector, inf: no task
+            can explain the observation).
+        novelty_p_value: Its conformal p-value among held-out observations of the learned tasks
+            (NaN: no detector; 0: no task can explain the observation).
+        known: Whether the observation is one of the learned tasks (``novelty_p_value > alpha``);
+            ``task`` stays the most probable learned task either way.
+        unknown_reason: Why the observation is unknown (None when known).
     """
 
     task: str
@@ -117,6 +125,14 @@ class Recognition:
     phase_grid: np.ndarray
     phase_log_post: np.ndarray
     log_evidence: np.ndarray
+    novelty_score: float = math.nan
+    novelty_p_value: float = math.nan
+    known: bool = True
+    unknown_reason: str | None = None
+
+
+IMPOSSIBLE_REASON = "the observation is impossible under every task (longer than any learned motion?)"
+"""The :attr:`Recognition.unknown_reason` of an observation no task can explain."""
 
 
 @dataclass
@@ -329,9 +345,13 @@ def finish_recognition(
     if task_post is None:
         task_post = kernels().task_posterior(priors.task_log_prior, np.ascontiguousarray(evidence))
     log_post, posterior, best = task_post
-    if not math.isfinite(float(log_post[best])):
-        raise ObservationError(None, "t", "the observation is impossible under every task (too long?)")
-    return Recognition(
+    unexplained = not math.isfinite(float(log_post[best]))
+    if unexplained:  # no task explains it: the task prior, unknown (the caller decides)
+        log_post = priors.task_log_prior - np.logaddexp.reduce(priors.task_log_prior)
+        posterior = np.exp(log_post)
+        best = int(np.argmax(log_post))
+        alpha = np.where(np.isfinite(evidence), alpha, priors.alpha_mu)
+    rec = Recognition(
         task=priors.tasks[best],
         tasks=list(priors.tasks),
         log_posterior=log_post,
@@ -343,3 +363,7 @@ def finish_recognition(
         phase_log_post=logpost,
         log_evidence=evidence,
     )
+    if unexplained:
+        rec.novelty_score, rec.novelty_p_value = math.inf, 0.0
+        rec.known, rec.unknown_reason = False, IMPOSSIBLE_REASON
+    return rec

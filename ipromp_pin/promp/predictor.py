@@ -9,6 +9,7 @@ model), the phase and task priors, and the conditioner with its caches. The one-
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import numpy as np
 
@@ -78,16 +79,30 @@ class Predictor:
         """The recognition from the log likelihood (T, C) of every (task, candidate) (tempered by the
         model's ``temperature``); with a recognition head, its task posterior given the observed
         ``window`` (needed then)."""
-        tau = self.fitted.temperature
+        fm = self.fitted
+        tau = fm.temperature
         rec = recognise_from_loglik(self.priors, loglik if tau == 1.0 else tau * loglik, t_last)[0]
-        head = self.fitted.head
-        if head is None:
+        if not rec.known:  # no task explains the observation: nothing more to decide
             return rec
-        if window is None:
-            raise ValueError("a model with a recognition head needs the observed window's summary")
-        scale = t_last / self.fitted.duration_nominal_s  # of the observed fraction (observed_fraction)
-        log_post, post, best = head.task_posterior(window, rec.log_posterior, rec.posterior, rec.alpha, scale)
-        return with_task_posterior(rec, log_post, self.priors, post, best)
+        if (fm.head is not None or fm.novelty is not None) and window is None:
+            raise ValueError("a model with a recognition head or novelty detector needs the window's summary")
+        if fm.head is not None:
+            assert window is not None
+            scale = t_last / fm.duration_nominal_s  # of the observed fraction (observed_fraction)
+            log_post, post, best = fm.head.task_posterior(
+                window, rec.log_posterior, rec.posterior, rec.alpha, scale
+            )
+            rec = with_task_posterior(rec, log_post, self.priors, post, best)
+        if fm.novelty is not None:
+            assert window is not None
+            novelty, t_norm = fm.novelty, fm.duration_nominal_s
+            alpha = np.where(np.isfinite(rec.log_evidence), rec.alpha, np.nan)
+            rec.novelty_score = novelty.score(window.vector(), alpha, t_last, t_norm)
+            rec.novelty_p_value = novelty.p_value(rec.novelty_score, t_last, t_norm)
+            rec.known = rec.novelty_p_value > novelty.alpha
+            if not rec.known:
+                rec.unknown_reason = unknown_reason(rec, len(fm.tasks))
+        return rec
 
     def recognise(
         self, parts: list[ObservationPart], t_last: float, window: WindowSummary | None = None
@@ -96,28 +111,45 @@ class Predictor:
         computed when the model needs it and it is not given)."""
         engine = self.engine
         loglik = engine.log_likelihood([engine.part_stats(p) for p in parts], t_last)
-        if window is None and self.fitted.head is not None:
+        if window is None and (self.fitted.head is not None or self.fitted.novelty is not None):
             window = WindowSummary.from_parts(parts, self.fitted.layout.n_obs_dims)
         return self.recognition_from_loglik(loglik, t_last, window)
 
     def predict(self, parts: list[ObservationPart], t_last: float) -> Prediction:
-        """Recognition and the conditioned prediction of the most probable task (with a hand-over
-        regression, conditioned on it as well, then on the orientation estimate:
-        :meth:`Conditioner.observe_handover`)."""
+        """Recognition and the conditioned prediction of the most probable task, with the model's
+        hand-over estimates applied (:meth:`with_estimates`)."""
         fm = self.fitted
         window = None
-        if fm.head is not None or fm.handover is not None:
+        if fm.head is not None or fm.handover is not None or fm.novelty is not None:
             window = WindowSummary.from_parts(parts, fm.layout.n_obs_dims)
-        pred = self.conditioner.condition(self.recognise(parts, t_last, window), parts)
+        rec = self.recognise(parts, t_last, window)
+        if math.isinf(rec.novelty_score):  # no task explains it: the prior of the most probable task
+            return self.conditioner.prior_prediction(rec)
+        pred = self.conditioner.condition(rec, parts)
+        return self.with_estimates(pred, window, t_last)
+
+    def with_estimates(self, pred: Prediction, window: WindowSummary | None, t_last: float) -> Prediction:
+        """``pred`` (conditioned on the observation by this predictor's conditioner) also conditioned on
+        the model's hand-over estimates: the hand-over regression given the observed ``window``
+        (needed when the model has one) and the fraction ``t_last`` [s] of the predicted motion, then
+        the orientation estimate (:meth:`Conditioner.observe_handover`); ``pred`` itself when the
+        model has neither. The one step that the one-shot prediction and the stream share."""
+        fm = self.fitted
         if fm.handover is None and fm.orientation is None:
             return pred
         k = fm.tasks.index(pred.task)
         if fm.handover is not None:
+            if window is None:
+                raise ValueError("a model with a hand-over regression needs the observed window's summary")
             fraction = t_last / (float(pred.alpha[k]) * fm.duration_nominal_s)
-            assert window is not None  # summarised above for the hand-over regression
             readout, values, cov = fm.handover.observation(k, window, fraction)
             pred = self.conditioner.observe_handover(pred, readout, values, cov)
         if fm.orientation is not None:
             readout, values, cov = fm.orientation.observation(k, pred.q_mean[-1], pred.q_cov[-1])
             pred = self.conditioner.observe_handover(pred, readout, values, cov)
         return pred
+
+
+def unknown_reason(rec: Recognition, n_tasks: int) -> str:
+    """The one-line reason of an observation recognised as none of the ``n_tasks`` tasks."""
+    return f"the observation matches none of the {n_tasks} tasks: p = {rec.novelty_p_value:.3g}"

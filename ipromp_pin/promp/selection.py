@@ -37,6 +37,7 @@ best coupling's; it can be chosen explicitly (``coupling=[]``).
 from __future__ import annotations
 
 import math
+import warnings
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from itertools import combinations
@@ -187,8 +188,47 @@ class HeldOutRow:
         out = self.recognitions.get(temperature)
         if out is None:
             rec, _ = recognise_from_loglik(self.priors, temperature * self.loglik, self.t_last)
+            if math.isinf(rec.novelty_score):  # no task explains the row (see explained_rows)
+                raise ObservationError(None, "t", rec.unknown_reason or "no task explains it")
             out = self.recognitions[temperature] = (rec.log_posterior, rec.posterior, rec.alpha)
         return out
+
+
+class UnexplainedRowsWarning(UserWarning):
+    """Training went on without held-out rows that no leave-one-out model explains."""
+
+
+def explained_rows(
+    rows: list[HeldOutRow], temperature: float, by_task: Mapping[str, list[Demo]]
+) -> list[HeldOutRow]:
+    """The held-out rows that some task's leave-one-out model explains at ``temperature``.
+
+    A row no remaining demo's phase range explains (its held-out demo is much longer than every
+    other demo of the training set) tells the head and the hand-over estimate nothing; it is left
+    out, and an :class:`UnexplainedRowsWarning` says how many and of which demos (``by_task``: the
+    training demos the rows were held out of)."""
+    kept, dropped = [], []
+    for r in rows:
+        try:
+            r.recognised(temperature)
+        except ObservationError:
+            dropped.append(r)
+            continue
+        kept.append(r)
+    if dropped:
+        folds = held_out(by_task)
+        names = sorted(
+            {f"{folds[r.demo][0]}/{by_task[folds[r.demo][0]][folds[r.demo][1]].name}" for r in dropped}
+        )
+        warnings.warn(
+            f"{len(dropped)} of the {len(rows)} held-out observations of the recognition head's "
+            f"cross-validation (of {', '.join(names)}) are longer than any other demo of the training "
+            "set allows; they were left out of the head and the hand-over estimate (is that demo much "
+            "slower than the others?)",
+            UnexplainedRowsWarning,
+            stacklevel=2,
+        )
+    return kept
 
 
 def fit_recognition_head(rows: list[HeldOutRow], temperature: float, n_tasks: int) -> RecognitionHead:
@@ -245,7 +285,9 @@ def _true_task_posterior(
     impossible under every task raises its error."""
     _, logpost, _, _, log_post, _, best = recognition_terms(priors, loglik)
     if not math.isfinite(float(log_post[best])):
-        recognise_from_loglik(priors, loglik, t_last)  # raises ObservationError
+        raise ObservationError(
+            None, "t", f"a held-out observation of {t_last:.2f} s is impossible under every task"
+        )
     return float(log_post[task]), logpost[task]
 
 

@@ -38,12 +38,18 @@ A model file is a single ``.npz`` archive (``numpy.savez``) read back with
   (trust factor or ``"off"`` -> CV error in [deg]), and with an orientation estimate its arrays
   ``orientation_position_readout`` and ``orientation_rotation_readout`` (T, 3, J),
   ``orientation_target`` (T, 3) and ``orientation_noise_cov`` (T, 3, 3)
-  (:mod:`~ipromp_pin.promp.handover_orientation`).
+  (:mod:`~ipromp_pin.promp.handover_orientation`);
+* (version 6) the parameter ``novelty_alpha`` and the header's ``novelty`` (null, or ``{"alpha": a,
+  "ratios": R, "features": F, "calibration": n, "shrinkage": s}``), and with a novelty detector its
+  arrays ``novelty_ratios`` (R,), ``novelty_columns`` (F,), ``novelty_mean`` (T, R, F),
+  ``novelty_chol`` (T, R, F, F), ``novelty_calibration`` and ``novelty_calibration_group`` (n,) and
+  ``novelty_cv_auroc`` (number of candidates) (:mod:`~ipromp_pin.promp.novelty`).
 
 Files of format version 1 (no ``trained_on``) load with ``trained_on`` None
 (unknown); files of format version 2 load with an all-logistic head and no hand-over regression;
 files of format version 3 with an all-ridge hand-over regression; files of format version 4 and
-older without an orientation estimate (as they predicted).
+older without an orientation estimate (as they predicted); files of format version 5 and older
+without a novelty detector (every observation some task explains is known, as they predicted).
 Files written before the coupling was introduced (no ``coupling`` parameter, no
 ``task{i}_shrinkage``) load as fully coupled models with one shrinkage intensity;
 the covariance is entirely in ``diag`` and ``factor``, so older readers also load
@@ -83,22 +89,24 @@ from .handover import NEIGHBOUR_ARRAYS, HandoverRegression
 from .handover_orientation import OrientationEstimate
 from .head import RecognitionHead
 from .layout import ChannelLayout
+from .novelty import novelty_arrays, novelty_from_arrays, novelty_meta, novelty_shapes
 from .provenance import DemoRecord
 from .validation import check_fitted
 
 FORMAT_NAME = "ipromp_pin.IProMP"
 """Value of the header's ``format`` field."""
 
-FORMAT_VERSION = 5
+FORMAT_VERSION = 6
 """Current (and highest readable) format version. Version 2 added ``trained_on`` (the training demos),
 the likelihood temperature, the conditioning noise ratio and the recognition head (``head_*``
 arrays); version 3 the head's model families and features and the hand-over regression
 (``handover_*`` arrays); version 4 the hand-over's k-nearest-neighbour estimates
 (``handover_kind``, ``handover_neighbour_*``); version 5 the hand-over orientation estimate
-(``orientation_*``). Version-1 files load with no record of their training
-demos, temperature 1, the conditioning noise ratio equal to the noise ratio and no head; version-2
-files with an all-logistic head and no hand-over regression (as they predicted); version-3 files with
-an all-ridge hand-over regression (as they predicted)."""
+(``orientation_*``); version 6 the novelty detector (``novelty_*``). Version-1 files load with no
+record of their training demos, temperature 1, the conditioning noise ratio equal to the noise ratio
+and no head; version-2 files with an all-logistic head and no hand-over regression (as they
+predicted); version-3 files with an all-ridge hand-over regression (as they predicted); files before
+version 6 with no novelty detector."""
 
 _HEAD_ARRAYS = ("ratios", "coef", "intercept", "feature_mean", "feature_scale", "c", "cv_log_loss")
 _HEAD_V3_ARRAYS = ("kind", "generative")
@@ -111,12 +119,12 @@ _HEADER_KEYS = {
     "format", "format_version", "package_version", "params", "tasks", "groups", "channel_names",
     "duration_nominal_s", "noise_ratio", "cv_scores", "coupled_groups", "coupling_cv_scores", "task_scalars",
     "trained_on", "temperature", "condition_noise_ratio", "condition_cv_scores", "head", "handover",
-    "handover_cv_scores", "orientation", "orientation_cv_scores",
+    "handover_cv_scores", "orientation", "orientation_cv_scores", "novelty",
 }  # fmt: skip
 _PARAM_KEYS = {
     "observe", "n_basis", "width", "ridge", "margin", "blas_threads", "n_alpha", "alpha_width", "noise",
     "n_points", "task_prior", "robot_group", "log_groups", "pooling", "coupling", "temperature",
-    "condition_noise", "head", "handover",
+    "condition_noise", "head", "handover", "novelty_alpha",
 }  # fmt: skip
 
 MAX_HEAD_REGRESSIONS = 100
@@ -155,6 +163,7 @@ def _header_params(params: dict) -> dict:
         "condition_noise": _number_or_text(params["condition_noise"]),
         "head": bool(params["head"]),
         "handover": bool(params["handover"]),
+        "novelty_alpha": None if params.get("novelty_alpha") is None else float(params["novelty_alpha"]),
         "n_points": int(params["n_points"]),
         "task_prior": None if params["task_prior"] is None else dict(params["task_prior"]),
         "robot_group": params["robot_group"],
@@ -231,6 +240,7 @@ def write_model(params: dict, fitted: FittedModel, path: str | Path) -> None:
             for m in fitted.task_models()
         ],
         "trained_on": None if fitted.trained_on is None else [r.to_json() for r in fitted.trained_on],
+        "novelty": None if fitted.novelty is None else novelty_meta(fitted.novelty),
     }
     arrays: dict[str, Any] = {  # np.savez's keyword arguments (all arrays)
         "header": np.array(json.dumps(header)),
@@ -259,6 +269,7 @@ def write_model(params: dict, fitted: FittedModel, path: str | Path) -> None:
     if fitted.orientation is not None:
         for name in _ORIENTATION_ARRAYS:
             arrays[f"orientation_{name}"] = np.asarray(getattr(fitted.orientation, name), dtype=float)
+    arrays.update(novelty_arrays(fitted.novelty))
     for i, m in enumerate(fitted.task_models()):
         for name in _TASK_ARRAYS:
             arrays[f"task{i}_{name}"] = np.asarray(getattr(m, name), dtype=float)
@@ -408,6 +419,11 @@ def _expected_shapes(path: Path, header: dict) -> dict[str, tuple[int | None, ..
     ho = header.get("handover")
     if ho is not None:
         shapes.update(_handover_shapes(path, ho, len(tasks), names, groups))
+    if header.get("novelty") is not None:
+        try:
+            shapes.update(novelty_shapes(header["novelty"], len(tasks), n_obs_dims(names, groups)))
+        except ValueError as exc:
+            raise ModelFileError(f"{path}: header field 'novelty': {exc}") from None
     orientation = header.get("orientation")
     if orientation is not None:
         if not isinstance(orientation, dict) or set(orientation) != {"trust"}:
@@ -531,6 +547,7 @@ def _params(header: dict) -> dict:
         "condition_noise": p.get("condition_noise", "same"),
         "head": bool(p.get("head", False)),
         "handover": bool(p.get("handover", False)),
+        "novelty_alpha": p.get("novelty_alpha"),  # None before version 6
     }
 
 
@@ -595,6 +612,7 @@ def _fitted(header: dict, arrays: dict[str, np.ndarray]) -> FittedModel:
         head=_head(header.get("head"), arrays, layout.n_obs_dims, len(tasks)),
         handover=_handover(header.get("handover"), arrays),
         orientation=_orientation(header.get("orientation"), arrays),
+        novelty=novelty_from_arrays(header.get("novelty"), arrays),
         orientation_cv_scores={
             (np.inf if k == "off" else float(k)): float(v) for k, v in header.get("orientation_cv_scores", [])
         },
@@ -658,3 +676,8 @@ def _trained_on(header: dict) -> tuple[DemoRecord, ...] | None:
     if header["format_version"] < 2 or header.get("trained_on") is None:
         return None
     return tuple(DemoRecord.from_json(r) for r in header["trained_on"])
+
+
+def n_obs_dims(names: dict, groups: list) -> int:
+    """Number of observed dims of a header's channels (every group but the last, the robot's)."""
+    return sum(len(names[g]) for g in groups[:-1])

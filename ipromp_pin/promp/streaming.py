@@ -17,6 +17,7 @@ from __future__ import annotations
 import contextlib
 import math
 from collections.abc import Callable, Mapping
+from dataclasses import replace
 from types import TracebackType
 
 import numpy as np
@@ -26,7 +27,7 @@ from ..exceptions import ObservationError
 from .compiled import kernels
 from .likelihood import IncrementalTerms, PartStats
 from .observation import ObservationPart
-from .posterior import Prediction, Recognition
+from .posterior import IMPOSSIBLE_REASON, Prediction, Recognition
 from .predictor import Predictor
 from .stream_parts import PresencePatterns
 from .window import RunningWindow, WindowSummary
@@ -95,6 +96,7 @@ class StreamingEstimator:
         self._dim_group = np.concatenate([np.full(hi - lo, i) for i, (_, lo, hi) in enumerate(self._slices)])
         self.incremental: IncrementalTerms | None = IncrementalTerms(engine)
         self._longest = fm.longest_s
+        self._beyond = -math.inf  # time of the latest sample no task explains (none: -inf)
         self._max_gap = MAX_GAP_FRACTION * fm.duration_nominal_s
         self._held: contextlib.AbstractContextManager | None = None
         self._support_until = -np.inf  # phases below this need at most incremental.ke basis functions
@@ -145,7 +147,7 @@ class StreamingEstimator:
             raise ObservationError(
                 "stream", "sample", f"expected a mapping group -> values, got {type(sample).__name__}"
             )
-        t_prev = self._t_buf[self._n - 1] if self._n else -math.inf
+        t_prev = max(self._t_buf[self._n - 1] if self._n else -math.inf, self._beyond)
         if not math.isfinite(t_s) or t_s <= t_prev or t_s < -1e-9:
             raise ObservationError("stream", "t", f"sample time {t_s} is not after the previous sample")
         if self._n and t_s - t_prev > self._max_gap:
@@ -156,10 +158,14 @@ class StreamingEstimator:
                 f"({t_prev:.3f} s): more than {self._max_gap:.2f} s ({MAX_GAP_FRACTION:g} of the "
                 "model's nominal duration) cannot be one stream; the sample is refused",
             )
-        if t_s > self._longest:
-            raise ObservationError(
-                "stream", "t", f"observation lasts {t_s:.2f} s, longer than any task's plausible motion"
-            )
+        if t_s > self._longest:  # no task explains it: unknown from now on (the sample is not used)
+            self._beyond = t_s
+            if self._last is not None:
+                self._last = replace(
+                    self._last, observed_until_s=t_s, known=False, novelty_score=math.inf,
+                    novelty_p_value=0.0, unknown_reason=IMPOSSIBLE_REASON,
+                )  # fmt: skip
+            return self._last
         if not self._groups.issuperset(sample):
             g = next(g for g in sample if g not in self._groups)
             raise ObservationError(
@@ -293,7 +299,8 @@ class StreamingEstimator:
                 sums = self._sums
                 loglik = inc.reset([sums.pattern_stats(i, ke) for i in range(len(sums.patterns))], t_last)
                 self._support_until = basis.support_limit(ke)
-        window = self.window() if self.predictor.fitted.head is not None else None
+        fm = self.predictor.fitted
+        window = self.window() if fm.head is not None or fm.novelty is not None else None
         return self.predictor.recognition_from_loglik(loglik, t_last, window)
 
     def observation(self) -> Demo:
@@ -346,27 +353,45 @@ class StreamingEstimator:
         return self._last
 
     def predict(
-        self, condition_noise: float | None = None, conditioner: Predictor | None = None
+        self,
+        condition_noise: float | None = None,
+        conditioner: Predictor | None = None,
+        estimates: bool = True,
     ) -> Prediction:
         """The latest recognition (task and phase from the stream's statistics) with the robot
         trajectory of its task conditioned on the samples received so far at its MAP phase, with the
         noise ratio ``condition_noise`` (None: the model's own ``nu_c``; see
         :meth:`Predictor.with_condition_noise <ipromp_pin.promp.predictor.Predictor.with_condition_noise>`)
-        or by ``conditioner``'s conditioner when given. The hand-over regression is not fused (see
-        :meth:`prediction`).
+        or by ``conditioner``'s conditioner when given; then, with ``estimates``, conditioned on the
+        model's hand-over estimates (the regression from the stream's running window summary, the
+        orientation estimate: :meth:`Predictor.with_estimates
+        <ipromp_pin.promp.predictor.Predictor.with_estimates>`, as :meth:`IProMP.predict
+        <ipromp_pin.promp.estimator.IProMP.predict>` does). With the model's own noise ratio this
+        equals :meth:`prediction` (to rounding) without recognising again.
 
         Raises:
             ObservationError: fewer than 2 samples received.
         """
         rec = self.recognition()
-        parts, _ = self.parts()
-        condition = (
-            conditioner or self.predictor.with_condition_noise(condition_noise)
-        ).conditioner.condition
+        parts, t_last = self.parts()
+        predictor = conditioner or self.predictor.with_condition_noise(condition_noise)
+        window = self.window() if estimates and predictor.fitted.handover is not None else None
         if self._held is None:
             with self._limit_threads():
-                return condition(rec, parts)
-        return condition(rec, parts)
+                return self._predict(predictor, rec, parts, window, t_last, estimates)
+        return self._predict(predictor, rec, parts, window, t_last, estimates)
+
+    @staticmethod
+    def _predict(
+        predictor: Predictor,
+        rec: Recognition,
+        parts: list[ObservationPart],
+        window: WindowSummary | None,
+        t_last: float,
+        estimates: bool,
+    ) -> Prediction:
+        pred = predictor.conditioner.condition(rec, parts)
+        return predictor.with_estimates(pred, window, t_last) if estimates else pred
 
     def prediction(self) -> Prediction:
         """Conditioned prediction on all samples received so far (recognised again from the samples,

@@ -94,8 +94,9 @@ def demos_by_task(data: Dataset | Iterable[Demo]) -> dict[str, list[Demo]]:
 
 def check_distinct(by_task: Mapping[str, list[Demo]]) -> None:
     """Refuse a degenerate training set: a task whose demos are all one recording (no variation to
-    learn), or two tasks that hold the same demos (they cannot be told apart). Demos are compared by
-    content (:func:`~ipromp_pin.promp.provenance.demo_digest`)."""
+    learn) or that holds one recording twice (it would count double), or two tasks that hold the
+    same demos (they cannot be told apart). Demos are compared by content
+    (:func:`~ipromp_pin.promp.provenance.demo_digest`)."""
     seen: dict[frozenset[str], str] = {}
     for task, demos in by_task.items():
         digests = [demo_digest(d) for d in demos]
@@ -106,6 +107,16 @@ def check_distinct(by_task: Mapping[str, list[Demo]]) -> None:
                 f"task '{task}': its {len(demos)} demos are all the same recording (identical content); "
                 "a task needs at least 2 different demos",
             )
+        first: dict[str, Demo] = {}
+        for d, digest in zip(demos, digests, strict=True):
+            if digest in first:
+                raise DataError(
+                    d.source,
+                    "task",
+                    f"task '{task}' holds one recording twice ('{first[digest].name}' and '{d.name}' have "
+                    "identical content): it would count double; drop one",
+                )
+            first[digest] = d
         key = frozenset(digests)
         if key in seen:
             raise DataError(

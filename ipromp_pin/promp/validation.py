@@ -22,6 +22,7 @@ from .fitted import FittedModel
 from .handover import HandoverRegression
 from .handover_orientation import OrientationEstimate
 from .head import RecognitionHead
+from .novelty import check_novelty
 
 MAX_DURATION_S = 86400.0
 """Largest nominal duration ``T_norm`` of a model in [s] (one day: hand-overs last seconds)."""
@@ -168,6 +169,11 @@ def check_fitted(fitted: FittedModel) -> FittedModel:
         _check_handover(fitted.handover, len(tasks), layout.n_obs_dims, d - layout.n_obs_dims)
     if fitted.orientation is not None:
         _check_orientation(fitted.orientation, len(tasks), d - layout.n_obs_dims)
+    if fitted.novelty is not None:
+        try:
+            check_novelty(fitted.novelty, len(tasks), layout.n_obs_dims)
+        except ValueError as exc:
+            raise _fail("novelty", str(exc)) from None
     return fitted
 
 

@@ -20,6 +20,8 @@ import time
 import traceback
 from pathlib import Path
 
+import numpy as np
+
 STREAMING_KERNELS = ("stream_sample", "sherman_morrison", "stream_group", "add_sample", "basis_rows")
 
 
@@ -35,7 +37,14 @@ def compile_kernels() -> float:
         demos = data.all_demos()
         model = IProMP(observe=["orientation", "emg"], n_basis=9, n_alpha=20).fit(demos[1:])
         observation = demos[0].head(0.3, groups=model.observe)
-        model.predict(observation)
+        prediction = model.predict(observation)
+        assert not isinstance(prediction, list)  # one observation, one prediction
+        # the hand-over estimates' read-out update (a model fitted with the robot's kinematics): one
+        # call with the shapes it gets, (3, J) read-out of the last phase's joint angles
+        weights = prediction.robot_weights
+        if weights is not None:
+            joints = prediction.q_mean.shape[1]
+            weights.readout_update(weights.phi[-1], np.eye(3, joints), np.zeros(3), np.eye(3) * 1e-2)
         stream = model.stream()
         for i, t in enumerate(observation.t[:6]):
             stream.update(float(t), {g: observation.groups[g][i] for g in observation.groups})

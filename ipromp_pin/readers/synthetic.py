@@ -1,7 +1,13 @@
 """Synthetic hand-over demonstrations with known ground truth.
 
-:func:`make_synthetic_dataset` mimics the chen2017 recordings: a human hands an
-object to Baxter's left arm while wearing a Myo armband.
+:func:`make_synthetic_dataset` mimics the shared recordings: a human hands an
+object to Baxter's left arm while wearing a Myo armband. The human's channels (Myo
+orientation, EMG) are modelled on ``chen2017_handover``; the robot's side (its start and
+hand-over configurations) and the human's hand path on ``handover_20171128``, the session
+whose tracked partner stands where the robot settings' assumed human stands
+(``robots/baxter_left.toml`` ``[human.assumed]``, :data:`HUMAN_TORSO_M`), so that the
+hand-over lies where that session put it relative to the human's torso
+(``benchmarks/handover_geometry.py``).
 
 * The human forearm orientation follows nearly the same path in every task
   (one common start and end orientation, a task-specific tilt of only
@@ -36,7 +42,7 @@ object to Baxter's left arm while wearing a Myo armband.
   start configuration to that hand-over configuration along a minimum-jerk
   profile, inside Baxter's joint limits.
 * ``extras["hand_position"]`` is a human hand path in the Baxter base frame
-  [m], ending just in front of the robot's hand-over point (shifted by ``d``).
+  [m], from in front of the torso to beside the robot's hand-over point (shifted by ``d``).
 
 Everything is deterministic for a given ``seed``.
 """
@@ -55,12 +61,12 @@ from ..signals.groups import ACC, EMG, ORIENTATION
 from ..signals.preprocess import DEFAULT_EMG_CUTOFF_HZ, emg_envelope, quaternion_continuity
 from .streams import full_duration_s
 
-NOMINAL_DURATION_S = 3.3
+NOMINAL_DURATION_S = 3.8
 """Nominal demo duration in [s]; a demo's true phase ratio is ``duration_s / NOMINAL_DURATION_S``."""
 nominal_duration_s = NOMINAL_DURATION_S
 """Alias of :data:`NOMINAL_DURATION_S`."""
 
-DURATION_RANGE_S = (2.5, 4.2)
+DURATION_RANGE_S = (3.0, 4.6)
 """Demo durations are drawn uniformly in this range, in [s] (as in the real recordings)."""
 
 JOINT_NAMES = ("left_s0", "left_s1", "left_e0", "left_e1", "left_w0", "left_w1", "left_w2")
@@ -82,89 +88,91 @@ BAXTER_LEFT_LIMITS_RAD = np.array(
 LIMIT_MARGIN_RAD = 0.1
 """Synthetic configurations stay this far inside the joint limits, in [rad]."""
 
-# Measured on the real chen2017_handover recordings (all 99 demos, read with
-# ipromp_pin.readers.load_dataset at 50 Hz): median of the first sample of the robot
-# group (the start is the same for all three tasks, std < 0.015 rad).
-START_Q_RAD = np.array([-0.838, -0.969, 0.377, 1.262, -0.204, 1.189, 1.662])
+# The robot's side is measured on the real handover_20171128 recordings (all 90 demos, read with
+# ipromp_pin.robot.recordings.read_recordings at 50 Hz; benchmarks/handover_geometry.py prints every
+# value below): median of the first sample of the robot group (the start is the same for all three
+# tasks, std < 0.07 rad).
+START_Q_RAD = np.array([0.074, -0.889, -0.947, 1.446, 0.533, 1.299, -0.119])
 """Start configuration [rad] (median first sample of the real demos)."""
 
 # Median of the last sample of the robot group per task (the hand-over pose), and the
 # across-demo standard deviation of that last sample, same recordings.
 TASKS = ("rod", "wrench", "tape")
-"""Names of the first three synthetic tasks (modelled on aluminum_hold, spanner_handover, tape_hold)."""
+"""Names of the first three synthetic tasks: the human's channels modelled on chen2017's aluminum_hold,
+spanner_handover, tape_hold, the robot's hand-over on handover_20171128's pincer, screwdriver, tape."""
 HANDOVER_Q_RAD = np.array(
     [
-        [-1.466, -0.559, 0.363, 0.618, -0.538, 1.001, 1.514],  # aluminum_hold
-        [-1.593, -0.445, 0.425, 0.519, -0.326, 1.256, 1.016],  # spanner_handover
-        [-1.439, -0.526, 0.371, 0.812, -0.594, 0.745, 1.398],  # tape_hold
+        [-0.518, -0.777, -0.747, 0.507, 0.528, 1.393, -0.318],  # pincer
+        [-0.543, -0.681, -0.749, 0.513, 0.562, 1.540, -0.182],  # screwdriver
+        [-0.555, -0.768, -0.757, 0.504, 0.535, 1.531, -0.134],  # tape
     ]
 )
 """Task hand-over configurations [rad] (median last sample of the real demos per task)."""
-HANDOVER_Q_STD_RAD = np.array([0.06, 0.05, 0.03, 0.15, 0.11, 0.26, 0.19])
+HANDOVER_Q_STD_RAD = np.array([0.064, 0.097, 0.047, 0.194, 0.067, 0.118, 0.083])
 """Across-demo std of the hand-over configuration [rad] (mean of the three tasks' std)."""
 # Same recordings: per task, least-squares regression of the last robot sample on the last
 # endpoint_state position (both centred); mean over the three tasks of the per-axis std of the
 # end-point and of the per-joint std of the regression residual.
-HANDOVER_OFFSET_STD_M = np.array([0.069, 0.026, 0.050])
+HANDOVER_OFFSET_STD_M = np.array([0.026, 0.035, 0.042])
 """Across-demo std of the hand-over point per base-frame axis (x, y, z) in [m]."""
-HANDOVER_Q_RESIDUAL_STD_RAD = np.array([0.033, 0.038, 0.026, 0.079, 0.092, 0.051, 0.155])
+HANDOVER_Q_RESIDUAL_STD_RAD = np.array([0.053, 0.069, 0.039, 0.157, 0.061, 0.089, 0.066])
 """Std of the hand-over configuration not explained by the hand-over point [rad] (per joint)."""
-HANDOVER_POINT_M = np.array([[0.868, -0.302, 0.175], [0.785, -0.289, 0.099], [0.918, -0.264, 0.127]])
+HANDOVER_POINT_M = np.array([[0.974, 0.227, 0.418], [0.921, 0.268, 0.282], [0.943, 0.239, 0.397]])
 """Robot end-point position at hand-over [m] in the base frame (median last endpoint_state per task)."""
 
-# Position Jacobian (base-frame axes) of the "ee" frame at HANDOVER_Q_RAD, computed once with
-# Pinocchio from robots/baxter_left.toml (ipromp_pin.robot.load_robot, pin.computeFrameJacobian,
-# LOCAL_WORLD_ALIGNED); left_w2 does not move the gripper's position.
+# Position Jacobian (base-frame axes) of the "ee" frame at HANDOVER_Q_RAD, computed once from
+# robots/baxter_left.toml's forward kinematics (ipromp_pin.robot.kinematics.ee_positions, central
+# differences); left_w2 does not move the gripper's position.
 HANDOVER_JACOBIAN_M_PER_RAD = np.array(
     [
         [
-            [0.571, -0.159, 0.389, -0.190, 0.147, -0.317, 0.0],
-            [0.812, 0.128, 0.536, 0.295, 0.292, 0.108, 0.0],
-            [0.0, -0.921, 0.057, -0.548, -0.077, -0.194, 0.0],
+            [0.008, 0.012, 0.021, -0.201, 0.039, -0.330, 0.0],
+            [0.914, 0.003, 0.585, -0.212, 0.389, 0.030, 0.0],
+            [0.0, -0.811, -0.178, -0.474, -0.006, -0.201, 0.0],
         ],
         [
-            [0.542, -0.203, 0.404, -0.204, 0.214, -0.303, 0.0],
-            [0.723, 0.213, 0.474, 0.363, 0.311, 0.216, 0.0],
-            [0.0, -0.823, 0.133, -0.446, 0.021, -0.107, 0.0],
+            [0.014, -0.086, 0.003, -0.259, 0.046, -0.367, 0.0],
+            [0.859, -0.021, 0.565, -0.184, 0.394, 0.041, 0.0],
+            [0.0, -0.761, -0.171, -0.401, -0.007, -0.116, 0.0],
         ],
         [
-            [0.513, -0.227, 0.387, -0.264, 0.081, -0.325, 0.0],
-            [0.855, 0.174, 0.598, 0.334, 0.251, 0.049, 0.0],
-            [0.0, -0.922, 0.097, -0.551, -0.069, -0.204, 0.0],
+            [0.038, -0.014, 0.035, -0.227, 0.056, -0.353, 0.0],
+            [0.867, -0.003, 0.566, -0.178, 0.393, 0.047, 0.0],
+            [0.0, -0.766, -0.169, -0.431, -0.008, -0.152, 0.0],
         ],
     ]
 )
 """Per task (3, 3, 7): gripper position change [m] per joint change [rad] at the hand-over configuration."""
 # Same real recordings as above: per task, least-squares regression of the last robot sample on
-# the last endpoint_state position (both centred). J B is within ~0.2 of the identity.
+# the last endpoint_state position (both centred). Only its null-space part is used (offset_maps).
 HANDOVER_REGRESSION_RAD_PER_M = np.array(
     [
         [
-            [0.784, 0.182, 0.392],
-            [-0.272, -0.195, -0.415],
-            [-0.228, 0.133, 0.118],
-            [1.684, -0.466, -1.951],
-            [-1.383, 1.910, 0.042],
-            [-3.685, 2.119, 2.307],
-            [1.642, -1.716, -1.266],
+            [0.199, 0.534, 0.096],
+            [0.222, 1.022, -1.035],
+            [0.713, -0.617, -0.002],
+            [1.176, -2.305, -0.354],
+            [-0.532, 0.821, -0.498],
+            [-3.794, 1.695, 0.181],
+            [-3.003, 2.734, -0.644],
         ],
         [
-            [0.309, 0.627, 0.244],
-            [0.190, -1.092, -0.218],
-            [0.081, -0.374, 0.151],
-            [0.464, 1.428, -2.321],
-            [0.381, 1.149, 0.065],
-            [-2.863, 1.115, 2.151],
-            [-0.310, 1.200, -0.753],
+            [-0.530, 0.815, 0.010],
+            [2.588, -0.439, -1.263],
+            [-0.765, 0.270, 0.258],
+            [-4.570, 0.702, -0.259],
+            [0.366, 0.656, -0.564],
+            [-0.104, -0.462, 0.482],
+            [-0.182, 0.936, -0.242],
         ],
         [
-            [0.338, 0.901, 0.223],
-            [0.106, -0.533, -0.528],
-            [0.193, -0.371, 0.067],
-            [0.952, 0.750, -1.883],
-            [-0.683, -0.173, 0.943],
-            [-3.328, 0.679, 2.500],
-            [1.960, 1.184, -1.433],
+            [-0.503, 1.949, -0.032],
+            [1.912, -1.655, -0.467],
+            [-0.340, 0.188, -0.603],
+            [-2.714, 3.626, -1.703],
+            [0.475, -0.171, -0.058],
+            [-1.418, -2.070, 0.892],
+            [0.065, 0.079, 0.088],
         ],
     ]
 )
@@ -222,10 +230,15 @@ EMG_ACTIVE = np.array(
     dtype=float,
 )
 
-HAND_START_M = np.array([1.35, -0.45, -0.20])
-"""Human hand start position [m] in the Baxter base frame (in front of the robot, hand lowered)."""
-HAND_BEYOND_GRIPPER_M = np.array([0.08, 0.0, 0.0])
-"""The hand ends this far from the robot's hand-over point (the object lies in between), in [m]."""
+HUMAN_TORSO_M = np.array([1.27, -0.26, 0.15])
+"""Where the synthetic demos' human stands: its torso in the Baxter base frame [m], facing the robot
+(the median tracked torso of handover_20171128, the assumed human of ``robots/baxter_left.toml``)."""
+# handover_20171128 (benchmarks/handover_geometry.py): the tracked hand at the demo's start relative
+# to the torso, and at its end relative to the recorded gripper (medians over the 90 demos).
+HAND_START_M = HUMAN_TORSO_M + np.array([-0.238, 0.009, 0.132])
+"""Human hand start position [m] in the Baxter base frame (in front of the torso, object held up)."""
+HAND_FROM_GRIPPER_M = np.array([-0.048, -0.075, 0.038])
+"""The hand ends this far from the robot's hand-over point, in [m] (base frame; the object between)."""
 
 
 def true_alpha(demo: Demo) -> float:
@@ -449,8 +462,8 @@ def _synthetic_demo(rng: np.random.Generator, s: _Setting, k: int, task: str, i:
     s_r = min_jerk((phase - a) / (b - a))
     q = q0 + s_r[:, None] * (q1 - q0)
 
-    # Human hand: from its start to just in front of the robot's hand-over point, slight arc.
-    h1 = s.defs["point"][k] + offset + HAND_BEYOND_GRIPPER_M + rng.normal(0, 0.01 * noise, 3)
+    # Human hand: from in front of the torso to beside the robot's hand-over point, slight arc.
+    h1 = s.defs["point"][k] + offset + HAND_FROM_GRIPPER_M + rng.normal(0, 0.01 * noise, 3)
     h0 = HAND_START_M + rng.normal(0, 0.03 * noise, 3)
     arc = np.array([0.0, 0.0, 0.10]) * np.sin(np.pi * s_h)[:, None]
     hand = h0 + s_h[:, None] * (h1 - h0) + arc + rng.normal(0, 0.003 * noise, (n, 3))

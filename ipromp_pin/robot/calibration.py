@@ -280,20 +280,23 @@ def endpoint_residuals_mm(robot: Robot, demo: Demo) -> np.ndarray:
     return np.linalg.norm(ee_positions(robot, q) - ep[:, :3], axis=1) * 1e3
 
 
-def write_calibration(settings_path: str | Path, result: CalibrationResult, command: str) -> Path:
+def write_calibration(
+    settings_path: str | Path, result: CalibrationResult, command: str, out_path: str | Path | None = None
+) -> Path:
     """Store calibrated offsets in the ``[calibration]`` table of a settings file (other lines kept).
 
     Args:
         settings_path: Settings file (path or robot name).
         result: Calibration result.
         command: Command line that produced it (recorded in the file with today's date).
+        out_path: Where the calibrated settings go (None: the settings file itself).
 
     Returns:
         The settings file path written.
     """
     settings = load_robot_settings(settings_path)
-    path = settings.path
-    text = path.read_text(encoding="utf-8")
+    text = settings.path.read_text(encoding="utf-8")
+    path = settings.path if out_path is None else Path(out_path)
 
     def vec(v: np.ndarray) -> str:
         return "[" + ", ".join(f"{x:.6f}" for x in v) + "]"

@@ -233,12 +233,17 @@ class ClearanceCertifier:
         n_seg = q.shape[0] - 1
         chunk = CHUNK
         n_chunks = (n_seg - 1) // chunk + 1
+        # per chunk the box of its samples c * chunk .. (c + 1) * chunk (its end sample included),
+        # then the whole path's
         lo = np.empty((n_chunks + 1, q.shape[1]))
         hi = np.empty_like(lo)
-        for c in range(n_chunks):
-            part = q[c * chunk : min((c + 1) * chunk, n_seg) + 1]
-            lo[c], hi[c] = part.min(axis=0), part.max(axis=0)
-        lo[n_chunks], hi[n_chunks] = q.min(axis=0), q.max(axis=0)
+        starts = np.arange(n_chunks) * chunk
+        np.minimum.reduceat(q, starts, axis=0, out=lo[:n_chunks])
+        np.maximum.reduceat(q, starts, axis=0, out=hi[:n_chunks])
+        ends = q[starts[1:]]
+        np.minimum(lo[: n_chunks - 1], ends, out=lo[: n_chunks - 1])
+        np.maximum(hi[: n_chunks - 1], ends, out=hi[: n_chunks - 1])
+        lo[n_chunks], hi[n_chunks] = lo[:n_chunks].min(axis=0), hi[:n_chunks].max(axis=0)
         n_pairs = self.weights.shape[0]
         pairs = np.arange(n_pairs, dtype=np.int64)
         start = np.zeros(n_pairs, dtype=np.int64)

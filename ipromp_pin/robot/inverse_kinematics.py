@@ -42,10 +42,17 @@ class IKResult:
 
 def target_placement(position_m: np.ndarray, quat_xyzw: np.ndarray | None) -> pin.SE3:
     """The target pose (identity rotation when ``quat_xyzw`` is None)."""
-    p = np.asarray(position_m, dtype=float).reshape(3)
+    p = np.asarray(position_m, dtype=float).ravel()
+    if p.size != 3 or not np.all(np.isfinite(p)):
+        raise InfeasibleError(f"goal position: give 3 finite values x, y, z in [m], got {p.tolist()}")
     if quat_xyzw is None:
         return pin.SE3(np.eye(3), p)
-    x, y, z, w = (float(v) for v in np.asarray(quat_xyzw, dtype=float).reshape(4))
+    quat = np.asarray(quat_xyzw, dtype=float).ravel()
+    if quat.size != 4:
+        raise InfeasibleError(f"goal orientation: give a quaternion of 4 values x, y, z, w, got {quat.size}")
+    if not np.all(np.isfinite(quat)):
+        raise InfeasibleError(f"goal orientation: the quaternion has NaN or infinite values: {quat.tolist()}")
+    x, y, z, w = (float(v) for v in quat)
     norm = np.sqrt(x * x + y * y + z * z + w * w)
     if not norm > 0:
         raise InfeasibleError("goal orientation: the quaternion is zero")

@@ -17,7 +17,7 @@ A new check is one file here plus one line in :data:`~.suite.CHECKS`.
 
 from .base import Check, TimingConstraints
 from .context import CheckContext
-from .retime import MAX_SLOWDOWN, MAX_SLOWDOWN_ROUNDS, SLOWDOWN_STEP, Retimed, Timed, Timer
+from .retime import MAX_SLOWDOWN, MAX_SLOWDOWN_ROUNDS, SLOWDOWN_STEP, Retimed, Timed, Timer, next_guess
 from .suite import CHECKS, HUMAN_CHECKS, CheckSuite
 from .verdict import CheckReport, Measures, Verdict, needed_slowdown
 
@@ -38,4 +38,5 @@ __all__ = [
     "TimingConstraints",
     "Verdict",
     "needed_slowdown",
+    "next_guess",
 ]

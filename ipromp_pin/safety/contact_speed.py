@@ -12,7 +12,9 @@ settings' ``[iso15066] speed_margin``: room for the human's motion after the obs
 was checked against). ``n_speed_violations`` counts the samples faster than ``v_max`` itself,
 ``n_over_planning_limit`` those beyond the margin. A failing check asks for the uniform slow-down
 ``k = max(approach speed / v_max) / (1 - speed_margin)`` (times :data:`SLOWDOWN_MARGIN`): going
-``k`` times slower divides every approach speed by ``k`` and shrinks S_p.
+``k`` times slower divides every approach speed by ``k`` and shrinks S_p. The same ``k`` of a passing
+motion (below 1) is its estimate of how much faster would still pass (:attr:`Verdict.fits_at
+<ipromp_pin.safety.verdict.Verdict.fits_at>`).
 """
 
 from __future__ import annotations
@@ -95,6 +97,7 @@ class ContactSpeed(SeparationCheck):
             human=sep.human,
         )
         who = "assumed human" if sep.human == "assumed" else "tracked human"
+        fits = worst / allowed * SLOWDOWN_MARGIN
         where = f"{m.link} toward the {who}'s {m.body_part} ({m.region}) at t={m.t_s:.2f} s"
         if over:
             reason = (
@@ -102,7 +105,10 @@ class ContactSpeed(SeparationCheck):
                 f"({m.n_speed_violations} beyond the limit): {speed:.2f} m/s, limit {m.v_max_m_s:.2f} m/s "
                 f"({where})"
             )
-            return Verdict(self.name, "fail", reason, m, slowdown=worst / allowed * SLOWDOWN_MARGIN)
+            return Verdict(self.name, "fail", reason, m, slowdown=fits, fits_at=fits)
         if worst <= 0:
-            return Verdict(self.name, "pass", f"no approach near a contact-speed limit ({who})", m)
-        return Verdict(self.name, "pass", f"at most {worst:.0%} of the contact-speed limit ({where})", m)
+            return Verdict(
+                self.name, "pass", f"no approach near a contact-speed limit ({who})", m, fits_at=0.0
+            )
+        reason = f"at most {worst:.0%} of the contact-speed limit ({where})"
+        return Verdict(self.name, "pass", reason, m, fits_at=fits)

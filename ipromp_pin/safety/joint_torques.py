@@ -130,17 +130,25 @@ class JointTorques(Check):
         """``motion`` with its torques at every sample (``effort_nm``)."""
         return dataclasses.replace(motion, effort_nm=self.torques(motion, context))
 
+    def evaluated(self, motion: Trajectory, context: CheckContext) -> tuple[np.ndarray, np.ndarray]:
+        """The samples the check evaluates (K,) (:meth:`sample_indices`) and the torques there
+        (K, n_joints) in [N m], the payload included while held: what :meth:`check` judges (the
+        previews show these)."""
+        idx = self.sample_indices(motion)
+        payload = context.task_object()
+        held = (
+            None if payload is None else payload.held_at(motion.t_s[idx], context.handover_time(motion.t_s))
+        )
+        return idx, self.dynamics.torques(motion.q[idx], motion.qd[idx], motion.qdd[idx], payload, held)
+
     def check(self, motion: Trajectory, context: CheckContext) -> Verdict:
         """Peak torque ratios; a slow-down when a slower motion would pass."""
         if motion.n_samples == 0:
             return Verdict(self.name, "skip", "no samples")
         dyn = self.dynamics
-        idx = self.sample_indices(motion)
+        idx, tau = self.evaluated(motion, context)
         payload = context.task_object()
         t = motion.t_s[idx]
-        held = None if payload is None else payload.held_at(t, context.handover_time(motion.t_s))
-        q, qd, qdd = motion.q[idx], motion.qd[idx], motion.qdd[idx]
-        tau = dyn.torques(q, qd, qdd, payload, held)
         limit = dyn.effort_limit_nm
         ratio = np.abs(tau) / limit
         per_joint = ratio.max(axis=0)
@@ -160,11 +168,12 @@ class JointTorques(Check):
         )
         text = (
             f"peak |torque| {peak:.0%} of the effort limit ({m.joint}, {tau[i, j]:+.1f} of {limit[j]:g} N m "
-            f"at t = {t[i]:.2f} s; allowed {allowed:.0%}; {payload_text(payload, context)})"
+            f"at t={t[i]:.2f} s; allowed {allowed:.0%}; {payload_text(payload, context)})"
         )
         if peak <= allowed:
             return Verdict(self.name, "pass", text, m)
-        g = dyn.torques(q, None, None, payload, held)
+        held = None if payload is None else payload.held_at(t, context.handover_time(motion.t_s))
+        g = dyn.torques(motion.q[idx], None, None, payload, held)
         room = allowed * limit - np.abs(g)
         m = dataclasses.replace(m, gravity_ratio=float((np.abs(g) / limit).max()))
         if np.all(room > 0):

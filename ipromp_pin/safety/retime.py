@@ -10,6 +10,18 @@ the checks' first-order estimates), at most :data:`MAX_SLOWDOWN_ROUNDS` times an
 (slowest) motion tried is returned with its verdicts, refused: it says how far slowing went and what
 still fails.
 
+A planner that plans the same motion again and again (the closed loop, every 50 ms) may pass a
+``guess``: the slow-down its last committed motion turned out to need (:func:`next_guess`). The first
+(unslowed) motion is still timed, as the base the slow-downs are counted from (its samples are not
+made: :class:`Timed`), but the first motion checked is the one timed ``guess`` times slower; the loop
+goes on from there as from any other timing. A guess below what the motion needs costs the rounds
+the loop would take anyway; one above it commits a motion slower than needed. A guessed plan gives
+no guess for the next one (:func:`next_guess`): that one checks its unslowed motion first, so that a
+motion slowed for the human is sped up again at most one plan later when it no longer needs to be
+slowed (the checks' first-order estimates of how much faster would still pass,
+:attr:`~.verdict.Verdict.fits_at`, do not see it: a re-target slowed down takes another path than the
+unslowed one), and guesses do not build on guesses.
+
 A timing of the same path (the timer says so, :attr:`Timed.path`) keeps the verdicts of the checks
 that depend on the path only (:attr:`~.base.Check.depends_on`) for the decision; the committed motion
 is then checked by them once more, so that every verdict's numbers and times are those of the motion
@@ -18,6 +30,7 @@ that is committed.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Protocol
@@ -39,12 +52,13 @@ SLOWDOWN_STEP = 1.05
 """Each slower timing asks for 5 % more slow-down than the failing checks estimated."""
 
 
-@dataclass(frozen=True)
 class Timed:
     """A motion as a timer made it.
 
-    Attributes:
-        motion: The motion (times on the human's clock).
+    Args:
+        motion: The motion (times on the human's clock), or a function that makes it: a timer whose
+            samples cost time gives one, and the loop samples only the motions it checks (the
+            unslowed motion of a plan that starts from a guess is only the base of the slow-downs).
         report: The timing's own report (e.g. a toppra timing's verification, a re-target's arrival).
         scale: The slow-down the motion has in the timer's own units (its first motion's scale is the
             base the slow-downs are counted from).
@@ -52,10 +66,28 @@ class Timed:
             timer does not promise one).
     """
 
-    motion: Trajectory
-    report: object
-    scale: float = 1.0
-    path: object | None = None
+    __slots__ = ("_make", "_motion", "path", "report", "scale")
+
+    def __init__(
+        self,
+        motion: Trajectory | Callable[[], Trajectory],
+        report: object,
+        scale: float = 1.0,
+        path: object | None = None,
+    ) -> None:
+        self._motion: Trajectory | None = motion if isinstance(motion, Trajectory) else None
+        self._make: Callable[[], Trajectory] | None = None if isinstance(motion, Trajectory) else motion
+        self.report = report
+        self.scale = scale
+        self.path = path
+
+    @property
+    def motion(self) -> Trajectory:
+        """The motion (made on first use when the timer gave a function)."""
+        if self._motion is None:
+            assert self._make is not None
+            self._motion, self._make = self._make(), None
+        return self._motion
 
 
 Timer = Callable[[float], Timed]
@@ -88,7 +120,8 @@ class Retimed:
         verdicts: Its verdicts.
         first: The first (unslowed) motion.
         slowdown: Its slow-down over the first (1: none).
-        rounds: Motions timed and checked.
+        rounds: Motions checked.
+        guessed: Whether the first motion checked was a guess (not the unslowed one).
     """
 
     timed: Timed
@@ -96,6 +129,7 @@ class Retimed:
     first: Timed
     slowdown: float = 1.0
     rounds: int = 1
+    guessed: bool = False
 
     @property
     def motion(self) -> Trajectory:
@@ -118,8 +152,28 @@ class Retimed:
         return self.timed.motion.end_s - self.first.motion.end_s
 
 
+def next_guess(retimed: Retimed) -> float | None:
+    """The slow-down to start the next timing of a similar motion from (``guess`` of
+    :func:`retime_until_safe`): the committed slow-down times the largest slow-down at which the
+    checks estimate the committed motion would just pass (:attr:`~.verdict.Verdict.fits_at`, below 1
+    when it passed with room), times :data:`SLOWDOWN_STEP` as for a requested slow-down. None (start
+    unslowed) when the motion was not slowed, was refused, started from a guess itself (see the
+    module docstring), or no check estimates it."""
+    if retimed.guessed or not retimed.passed or retimed.slowdown <= 1.0:
+        return None
+    fits = [float(v.fits_at) for v in retimed.verdicts if v.fits_at is not None and v.required]
+    if not fits or not all(math.isfinite(f) for f in fits):
+        return None
+    return retimed.slowdown * max(fits) * SLOWDOWN_STEP
+
+
 def retime_until_safe(
-    suite: Runs, timer: Timer, context: CheckContext, *, stop_early: bool = False
+    suite: Runs,
+    timer: Timer,
+    context: CheckContext,
+    *,
+    stop_early: bool = False,
+    guess: float | None = None,
 ) -> Retimed:
     """Time, check, and time slower while the failing checks ask for it (see the module docstring).
 
@@ -129,15 +183,24 @@ def retime_until_safe(
         context: What the checks know.
         stop_early: Stop checking a motion at its first failure that no slow-down fixes (the closed
             loop: a refused re-plan needs no further verdicts).
+        guess: Check first the motion timed this much slower than the first (when above 1; at most
+            :data:`MAX_SLOWDOWN`), e.g. :func:`next_guess` of the previous plan.
 
     Raises:
         InfeasibleError: the timer cannot time the first motion.
     """
     first = timer(1.0)
-    verdicts = suite.run(first.motion, context, stop_early=stop_early)
-    path_names = suite.path_checks()
-    cur, cur_v, requested, rounds, reused = first, verdicts, 1.0, 1, False
     base = first.scale
+    cur, requested, guessed = first, 1.0, False
+    if guess is not None and math.isfinite(guess) and guess > 1.0:
+        try:
+            requested = base * min(float(guess), MAX_SLOWDOWN)
+            cur, guessed = timer(requested), True
+        except InfeasibleError:
+            cur, requested = first, 1.0
+    verdicts = suite.run(cur.motion, context, stop_early=stop_early)
+    path_names = suite.path_checks()
+    cur_v, rounds, reused = verdicts, 1, False
     while rounds <= MAX_SLOWDOWN_ROUNDS:
         k = needed_slowdown(cur_v, MAX_SLOWDOWN)
         if k is None or k <= 1.0 or cur.scale >= base * MAX_SLOWDOWN:
@@ -155,4 +218,4 @@ def retime_until_safe(
     if reused:  # the path checks' numbers and times of the returned motion itself
         timing = [v for v in cur_v if v.name not in path_names]
         cur_v = suite.run(cur.motion, context, reuse=timing, stop_early=stop_early)
-    return Retimed(cur, cur_v, first, 1.0 if cur is first else requested / base, rounds)
+    return Retimed(cur, cur_v, first, 1.0 if cur is first else requested / base, rounds, guessed)

@@ -169,10 +169,17 @@ class CheckSuite:
         for c in self.checks:
             c.reset()
 
-    def retime_until_safe(self, timer: Timer, context: CheckContext, *, stop_early: bool = False) -> Retimed:
+    def retime_until_safe(
+        self,
+        timer: Timer,
+        context: CheckContext,
+        *,
+        stop_early: bool = False,
+        guess: float | None = None,
+    ) -> Retimed:
         """The motion ``timer`` gives, re-timed slower while its failing checks ask for it
         (:func:`~.retime.retime_until_safe`)."""
-        return retime_until_safe(self, timer, context, stop_early=stop_early)
+        return retime_until_safe(self, timer, context, stop_early=stop_early, guess=guess)
 
 
 __all__ = ["CHECKS", "HUMAN_CHECKS", "CheckSuite"]

@@ -64,6 +64,11 @@ class Verdict:
         required: Whether a failure fails the plan (else the check is advisory).
         slowdown: For a failure that a uniform slow-down ``k >= 1`` of the motion would fix
             (velocities / k, accelerations / k^2): that ``k``; None otherwise.
+        fits_at: The check's first-order estimate of the uniform slow-down at which the motion would
+            just pass (with the margin of :attr:`slowdown`), failing or passing: below 1 when the
+            motion passes with room (that much faster would still pass); None when the check does
+            not estimate it. Not part of the report: a planner's next timing may start from it
+            (:func:`~.retime.next_guess`).
     """
 
     name: str
@@ -72,6 +77,7 @@ class Verdict:
     measures: Measures = NoMeasures()
     required: bool = True
     slowdown: float | None = None
+    fits_at: float | None = None
 
     @property
     def passed(self) -> bool:

@@ -4,6 +4,7 @@ leave the earlier outputs and no temporary file."""
 from __future__ import annotations
 
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -33,6 +34,7 @@ def _no_temporary(folder: Path) -> None:
 
 def _one_line(err: str, name: str) -> None:
     lines = [ln for ln in err.splitlines() if ln.strip() and not ln.startswith("warning: ")]
+    lines = [ln for ln in lines if not re.match(r"\[\d+/\d+\] ", ln)]  # progress lines (no terminal)
     assert "Traceback" not in err and len(lines) == 1, err
     assert f"interrupted ({name})" in lines[0]
 

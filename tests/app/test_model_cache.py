@@ -138,7 +138,7 @@ def _swap_entry(tmp_path, demos, how: str) -> None:
     ("how", "why"),
     [
         ("other demos", "not the one stored under its key"),
-        ("other demos and sidecar", "trained on other demos (10, not these 11)"),
+        ("other demos and sidecar", "of these 11 were not in its training (e.g. "),
         ("other settings", "trained with other settings"),
         ("no sidecar", "no readable record of the key"),
         ("sidecar of another key", "names another key"),

@@ -76,13 +76,17 @@ def test_cli_warns_on_stderr_in_one_line_when_the_demo_was_trained_on(tmp_path, 
     common = ["run", str(PIPELINE), "--no-preview", "--no-rosbag"]
     assert main([*common, "--out", str(tmp_path / "a"), "--save-model", str(model)]) == 0
     assert "warning" not in capsys.readouterr().err
-    # demo 3 of the first task was in the saved model's training set (demo -1 was held out)
+    # demo 3 of the pipeline's task was in the saved model's training set (demo -1 was held out)
     assert main([*common, "--out", str(tmp_path / "b"), "--model", str(model), "--demo", "3"]) == 0
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and err[0].startswith("warning: rod/rod_003 was in ") and "Traceback" not in err[0]
+    assert (
+        len(err) == 1
+        and err[0].startswith("warning: wrench/wrench_003 was in ")
+        and "Traceback" not in err[0]
+    )
     report = json.loads((tmp_path / "b" / "report.json").read_text())
     assert report["warnings"] == [err[0].removeprefix("warning: ")]
-    assert (tmp_path / "b" / "report.txt").read_text().startswith("Warning: rod/rod_003 was in")
+    assert (tmp_path / "b" / "report.txt").read_text().startswith("Warning: wrench/wrench_003 was in")
     # the held-out demo raises no warning
     assert main([*common, "--out", str(tmp_path / "c"), "--model", str(model)]) == 0
     assert capsys.readouterr().err == ""

@@ -11,8 +11,9 @@ import pytest
 from helpers_cli import PIPELINE
 
 from ipromp_pin.app import main
-from ipromp_pin.plans.warnings import RANGE_WARNING_SD, group_distance_sd, range_warnings
+from ipromp_pin.plans.warnings import range_warnings
 from ipromp_pin.promp import IProMP
+from ipromp_pin.promp.inputs import RANGE_WARNING_SD, group_distance_sd
 from ipromp_pin.readers import load_dataset
 from ipromp_pin.readers.native import write_demo
 from ipromp_pin.readers.synthetic import make_synthetic_dataset
@@ -27,7 +28,9 @@ def test_demos_like_the_training_data_get_no_warning(model, tiny):
     fresh = make_synthetic_dataset(n_tasks=3, n_demos=8, seed=21).all_demos()
     for d in [*load_dataset(tiny[0]).all_demos(), *fresh]:
         assert range_warnings(model, d) == [], d.name
-        assert all(group_distance_sd(model, g, d.groups[g]) < RANGE_WARNING_SD / 1.5 for g in model.observe_)
+        assert all(
+            group_distance_sd(model.fitted_, g, d.groups[g]) < RANGE_WARNING_SD / 1.5 for g in model.observe_
+        )
 
 
 @pytest.mark.parametrize(
@@ -45,7 +48,7 @@ def test_an_observation_far_outside_the_training_data_is_named(model, group, cha
     demo = make_synthetic_dataset(n_tasks=1, n_demos=2, seed=21).all_demos()[0]
     bad = dataclasses.replace(demo, groups={**demo.groups, group: change(demo.groups[group])})
     [warning] = range_warnings(model, bad)
-    d = group_distance_sd(model, group, bad.groups[group])
+    d = group_distance_sd(model.fitted_, group, bad.groups[group])
     assert d > RANGE_WARNING_SD
     assert f"the observed '{group}' lies {d:.1f} standard deviations" in warning and "\n" not in warning
 
@@ -81,8 +84,8 @@ def test_run_on_emg_in_other_units_warns_and_reports_it(tiny, tmp_path, capsys):
 def test_occluded_samples_are_ignored_without_a_runtime_warning(model, recwarn):
     demo = make_synthetic_dataset(n_tasks=1, n_demos=2, seed=21).all_demos()[0]
     values = demo.groups["orientation"].copy()
-    clean = group_distance_sd(model, "orientation", values)
+    clean = group_distance_sd(model.fitted_, "orientation", values)
     values[::2] = np.nan  # every other sample occluded (a tracked frame that was not seen)
-    assert group_distance_sd(model, "orientation", values) == pytest.approx(clean, rel=0.3)
-    assert group_distance_sd(model, "orientation", np.full_like(values, np.nan)) == 0.0
+    assert group_distance_sd(model.fitted_, "orientation", values) == pytest.approx(clean, rel=0.3)
+    assert group_distance_sd(model.fitted_, "orientation", np.full_like(values, np.nan)) == 0.0
     assert not [w for w in recwarn if issubclass(w.category, RuntimeWarning)]

@@ -78,7 +78,10 @@ def _write_dataset(folder: Path, short: bool = False) -> Path:
         (["--limits", "fast"], "field 'limits': unknown limit profile 'fast'"),
         (["--condition-noise", "-1"], "field 'condition_noise': must be a positive number"),
         (["--condition-noise", "x"], "field 'condition_noise': must be a positive number"),
-        (["--observe", "orientation,/left_hand_1"], "field '/left_hand_1': channel group not in demo"),
+        (
+            ["--observe", "orientation,/left_hand_1"],
+            "option '--observe': channel group '/left_hand_1' not in the data",
+        ),
     ],
 )
 def test_replay_bad_input_fails_in_one_line_before_computing(tmp_path, capsys, args, message):
@@ -98,7 +101,8 @@ def test_replay_bad_limit_profile_and_short_demo(tmp_path, capsys):
     err = capsys.readouterr().err.strip()
     assert code == 2 and f"{bad}: field 'acceleration_rad_s2': value -2.0 is not positive" in err
     data = _write_dataset(tmp_path / "data", short=True)
-    short = ["replay", str(PIPELINE), "--out", str(tmp_path / "o"), "--dataset", str(data), "--demo", "-1"]
+    short = ["replay", str(PIPELINE), "--out", str(tmp_path / "o"), "--dataset", str(data)]
+    short += ["--task", "rod", "--demo", "-1"]
     code = main([*short, "--start-ratio", "0.2"])  # offline: refused before training
     captured = capsys.readouterr()
     assert code == 2 and "field 'start_ratio': the start window" in captured.err

@@ -227,7 +227,7 @@ def test_phase_plot_gets_the_joint_posterior_of_task_and_phase(tmp_path, monkeyp
 
     monkeypatch.setattr(plots, "plot_phase_posterior", spy)
     out = tmp_path / "plots"
-    assert main(["run", str(PIPELINE), "--out", str(out), "--no-preview", "--plots", "--task", "rod"]) == 0
+    assert main(["run", str(PIPELINE), "--out", str(out), "--no-preview", "--plots", "--task", "wrench"]) == 0
     report = json.loads((out / "report.json").read_text())
     joint = seen["log_posterior"]
     assert seen["ylabel"] == "log p(task, alpha | observation)"

@@ -76,9 +76,13 @@ def test_evaluate_with_baselines_reports_them_beside_the_model():
         for name in REGRESSORS:
             assert c.baselines[name]["handover_error_cm"] >= 0.0
         assert c.log_loss is not None and c.log_loss >= 0.0 and 0.0 <= c.brier <= 2.0
+        # the expected calibration error beside them, for us and every classifier
+        assert c.ece is not None and 0.0 <= c.ece <= 1.0
+        assert all(0.0 <= c.baselines[name]["ece"] <= 1.0 for name in CLASSIFIERS)
     doc = json.loads(json.dumps(to_json(cells)))
     assert "logistic_regression" in doc["cells"][0]["baselines"]
     md = to_markdown(cells)
+    assert "| ECE: ipromp_pin / logistic_regression" in md
     assert "ipromp_pin and the baselines" in md and "| 10 | 0.2 | orientation+emg |" in md
 
 

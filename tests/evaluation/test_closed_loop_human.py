@@ -169,7 +169,9 @@ def test_a_demo_with_skeleton_is_judged_against_the_recorded_human(setup):
     assert score.human_min_separation_m == pytest.approx(expected.min_separation_m)
     assert score.protective_distance_time_s == pytest.approx(expected.protective_distance_time_s)
     assert score.contact_speed_violations == expected.contact_speed_violations == 0
-    assert 0.0 < score.human_min_separation_m < 1.0
+    # finite and near: at the hand-over the gripper meets the hand, and the stand-in's gripper point
+    # reaches the forearm's capsule beside it (the real check's hand region excludes it)
+    assert -0.1 < score.human_min_separation_m < 1.0
 
 
 def trial_trajectory(setup, demo):

@@ -140,3 +140,24 @@ def test_a_scheduler_address_runs_both_protocols_of_the_closed_loop_with_the_bas
     assert len(local) == 4 and json.dumps(remote) == json.dumps(local)
     assert {c["protocol"] for c in remote} == {"paper", "splits"}
     assert seen[-2:] == [(1, 1), (1, 1)]  # jobs done / total, per protocol (after the reading)
+
+
+def test_the_cluster_says_that_it_started_and_how_many_workers_it_has() -> None:
+    distributed = pytest.importorskip("distributed")
+    lines: list[str] = []
+    with DaskCluster.from_spec("dask-local:2", log=lines.append).open():
+        pass
+    with DaskCluster(n_workers=2, processes=False, log=lines.append).open():
+        pass
+    with distributed.LocalCluster(
+        n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None, protocol="tcp"
+    ) as sch:
+        with DaskCluster.from_spec(sch.scheduler_address, log=lines.append).open():
+            pass
+    assert lines[0].startswith("[cluster] started a local Dask cluster at tcp://127.0.0.1:")
+    assert lines[0].endswith("(processes): 2 workers, 2 threads")
+    assert lines[1].endswith("(threads of this process): 2 workers, 2 threads")
+    assert (
+        lines[2]
+        == f"[cluster] connected to the Dask scheduler at {sch.scheduler_address}: 1 worker, 1 thread"
+    )

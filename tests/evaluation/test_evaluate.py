@@ -84,7 +84,8 @@ def test_evaluate_command_writes_json_and_markdown(tmp_path, capsys):
     assert md.startswith("### Recognition accuracy")
     peak = max(cell["peak_torque_ratio"] for cell in doc["cells"])
     assert f"- peak joint torque ratio at most {peak:.3f}" in md
-    assert "[2/2]" not in capsys.readouterr().err  # progress lines only on a terminal
+    err = capsys.readouterr().err  # without a terminal, progress as plain lines (logs), no \r
+    assert "[2/2]" in err and "\r" not in err
 
 
 def test_evaluate_command_rejects_unknown_groups(tmp_path, capsys):

@@ -141,3 +141,41 @@ def test_the_background_compile_also_compiles_the_human_kernels(monkeypatch, tmp
     monkeypatch.setattr(compiled.subprocess, "Popen", lambda args, **kwargs: launched.append(args))
     assert compiled.start_background_compile()
     assert "--also=ipromp_pin.human.warmup" in launched[0]  # registered when ipromp_pin.human.kernels loads
+
+
+def test_the_summary_kernels_block_bounds_skip_no_pair_that_matters():
+    """A long, smooth motion of a chain past a slowly moving body: many blocks of
+    ``separation_kernels.BLOCK`` samples, pairs near and far, slow and fast. The compiled summary,
+    which skips the pairs its block bounds settle, finds the same samples within S_p, the same fast
+    pairs in the same order with the same numbers, and the same closest sample as the numpy one
+    that computes every pair."""
+    rng = np.random.default_rng(11)
+    q, x0, axis, anchor, a_loc, b_loc = _chain(rng, n=2, nl=6)
+    n = 40 * sk.BLOCK + 3
+    s = np.linspace(0.0, 1.0, n)[:, None]
+    q = q[0] + s * (q[1] - q[0])
+    qd = np.gradient(q, 0.01, axis=0)
+    origins, axes, ra, rb = sk.arm_frames(q, x0, axis, anchor, a_loc, b_loc)
+    rr = rng.uniform(0.03, 0.08, size=ra.shape[1])
+    centre = ra.mean(axis=(0, 1))
+    npart = 6
+    away = np.array([1.0, 0.5, 0.2]) * 2.0 * s[:, :, None]  # the body leaves the chain's reach
+    ha = centre + rng.normal(scale=0.3, size=(npart, 3)) + away
+    hb = ha + rng.normal(scale=0.1, size=(npart, 3))
+    hr = np.ascontiguousarray(np.tile(rng.uniform(0.03, 0.1, size=npart), (n, 1)) + 0.02 * s)
+    body_r = hr[0] - 0.01
+    nominal = np.array([True, True, False, True, True, True])
+    floor = np.array([0.05, 0.3, 0.1, 0.2, 1.0, 0.02])
+    args = (ra, rb, rr, ha, hb, hr, body_r, nominal, floor, origins, axes, qd, anchor, 0.25, 0.15)
+    fast = sk.separation_summary(*args)
+    every = nk.separation_summary(*args)
+    clear, within, n_i, l_i, p_i = fast[:5]
+    assert np.array_equal(within, every[1]) and within.any() and not within.all()
+    for x, y in zip(fast[2:5], every[2:5], strict=True):
+        assert np.array_equal(x, y)
+    for x, y in zip(fast[5:], every[5:], strict=True):
+        np.testing.assert_allclose(x, y, rtol=1e-12, atol=1e-12)
+    assert 0 < n_i.size < n * ra.shape[1] * npart // 4  # some pairs are fast, most are not
+    nc = int(np.argmin(clear))
+    assert nc == int(np.argmin(every[0])) and clear[nc] == pytest.approx(every[0][nc], rel=1e-12)
+    assert np.all(clear >= every[0] - 1e-12)  # elsewhere at least the true clearance

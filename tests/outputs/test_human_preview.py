@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 from ipromp_pin.human import SKELETON_PREFIX, HumanMotion
-from ipromp_pin.human.separation import SeparationAnalyser
+from ipromp_pin.human.separation import HAND_REGION, SeparationAnalyser
 from ipromp_pin.motion.trajectory import Trajectory
-from ipromp_pin.outputs.human_preview import held_until, human_tracks, shown_human
+from ipromp_pin.outputs.human_preview import held_until, human_tracks, judged_human
 from ipromp_pin.preview.body import SEPARATION_STATES
 from ipromp_pin.readers.synthetic import make_synthetic_dataset
 from ipromp_pin.robot import load_robot
@@ -33,13 +33,12 @@ def case():
     return robot, demo, skeleton, motion
 
 
-def test_the_recorded_skeleton_is_shown_else_the_fallback(case):
-    robot, demo, skeleton, _ = case
-    assumed = HumanMotion.assumed_human(robot.settings.human)
-    recorded = shown_human(robot, skeleton, assumed)
-    assert recorded is not None and not recorded.assumed and recorded.t_s.size == demo.n_samples
-    assert shown_human(robot, demo, assumed) is assumed
-    assert shown_human(robot, demo, None) is None and shown_human(robot, None, assumed) is assumed
+def test_the_human_shown_is_the_one_judged_else_the_assumed_one(case):
+    robot, _, skeleton, _ = case
+    recorded = HumanMotion.from_demo(skeleton, robot.settings.human)
+    assert judged_human(robot, recorded) is recorded
+    assumed = judged_human(robot, None)
+    assert assumed.assumed and assumed.n_parts == recorded.n_parts
 
 
 def test_the_robot_is_held_at_rest_while_the_human_moves(case):
@@ -60,14 +59,18 @@ def test_tracks_follow_the_checks_analysis(case):
     human = HumanMotion.from_demo(skeleton, robot.settings.human)
     body, sep = human_tracks(robot, motion, human)
     assert body.n_parts == human.n_parts and body.t_s.size == human.t_s.size and not body.assumed
-    assert sep.t_s[-1] == pytest.approx(human.t_s[-1], abs=0.02) and sep.source == "recorded human"
+    assert sep.t_s[-1] == pytest.approx(human.t_s[-1], abs=0.02) and "recorded human" in sep.source
     full = held_until(motion, float(human.t_s[-1]), 0.01)
     ref = SeparationAnalyser(robot).analyse(full.t_s, full.q, full.qd, human)
-    np.testing.assert_allclose(sep.distance_m, np.maximum(ref.min_distance_m, 0.0))
+    # human_clearance's measure: the closest part outside the hand
+    np.testing.assert_allclose(sep.distance_m, np.maximum(ref.clearance_m(HAND_REGION), 0.0))
+    assert sep.judged is not None and sep.judged.sum() == motion.n_samples
     assert [SEPARATION_STATES.index(s) for s in sep.state] == ref.state().tolist()
-    i = int(np.argmin(ref.min_distance_m))
-    link, part, _, _ = ref.where(i)
-    assert (sep.link[i], sep.body_part[i]) == (link, part)
+    clearance = ref.clearance_m(HAND_REGION)
+    i = int(np.argmin(clearance))
+    _, li, pi = ref.clearance_pairs(HAND_REGION)
+    assert (sep.link[i], sep.body_part[i]) == (ref.links[li[i]], ref.parts[pi[i]])
+    assert ref.regions[pi[i]] != HAND_REGION
     gap = float(np.linalg.norm(sep.robot_point_m[i] - sep.body_point_m[i]))
-    assert ref.min_distance_m[i] <= 0 or gap == pytest.approx(ref.min_distance_m[i], abs=1e-6)
+    assert clearance[i] <= 0 or gap == pytest.approx(clearance[i], abs=1e-6)
     assert human_tracks(robot, motion, None) == (None, None)

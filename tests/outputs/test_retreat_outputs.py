@@ -4,6 +4,8 @@ retreat check fails the run with exit 3."""
 
 from __future__ import annotations
 
+import contextlib
+import io
 import json
 
 import jsonschema
@@ -34,7 +36,10 @@ retreat = {{ joints_rad = [-1.25, 0.65, 1.72, 1.51, 1.57, 1.42, 1.49], dwell_s =
 @pytest.fixture(scope="module")
 def run_out(tmp_path_factory, tiny):
     out = tmp_path_factory.mktemp("retreat") / "out"
-    assert run_tiny(tiny, out) == 0
+    log = io.StringIO()
+    with contextlib.redirect_stdout(log):
+        assert run_tiny(tiny, out) == 0
+    (out.parent / "log.txt").write_text(log.getvalue())
     return out
 
 
@@ -73,6 +78,10 @@ def test_the_report_has_a_retreat_section(run_out):
     assert r["duration_s"] > r["dwell_s"] and r["stage_ms"]["total"] > 0
     assert report["files"]["retreat_csv"].endswith("retreat.csv")
     assert "Retreat to the start configuration: PASSED" in (run_out / "report.txt").read_text()
+    log = (
+        run_out.parent / "log.txt"
+    ).read_text()  # the verdict once in the log: a progress line, the summary
+    assert log.count("Retreat to the start configuration: PASSED") == 1 and "[retreat] pass;" in log
 
 
 def test_the_bag_carries_the_retreat(run_out):

@@ -72,6 +72,13 @@ def test_reference_motion_is_the_prediction_with_exact_derivatives(setup):
     q_after, qd_after, _, _ = ref.evaluate(np.array([pred.duration_s + 1.0]))
     np.testing.assert_allclose(q_after[0], pred.q_mean[-1], atol=1e-12)
     assert not qd_after.any()
+    # one time at a time (what a re-target asks for): the same numbers to the bit, inside, at the
+    # ends and outside
+    for t1 in (*t, 0.0, pred.duration_s, -0.5, pred.duration_s + 1.0):
+        many = ref.evaluate(np.array([t1]), order=2)
+        for x, y in zip(ref.at(float(t1)), many[:3], strict=True):
+            assert np.array_equal(x, y[0])
+    assert np.array_equal(ref.end(), ref.evaluate(np.array([pred.duration_s]), order=0)[0][0])
 
 
 def _check_plan(plan, state, limits, dt):
@@ -330,8 +337,10 @@ def test_stream_predict_is_the_conditioning_of_the_streams_recognition_on_its_sa
                 assert np.array_equal(a.t, b.t) and np.array_equal(a.dims, b.dims)
                 assert np.array_equal(a.y, b.y)
             for noise in (None, 0.3, 3.0):
-                conditioner = conditioning_predictor(model, noise).conditioner
-                ref = conditioner.condition(stream.recognition(), parts)
+                predictor = conditioning_predictor(model, noise)
+                ref = predictor.conditioner.condition(stream.recognition(), parts)
+                # then the model's hand-over estimates, as the one-shot prediction applies them
+                ref = predictor.with_estimates(ref, stream.window(), t_last)
                 pred = stream.predict(condition_noise=noise)
                 assert pred.task == ref.task and np.array_equal(pred.q_mean, ref.q_mean)
                 assert np.array_equal(pred.q_cov, ref.q_cov)
@@ -371,3 +380,18 @@ def test_the_planner_is_a_context_manager_that_opens_and_closes_its_stream(setup
     assert np.array_equal(result.trajectory.q, again.trajectory.q)
     replayed = replay_demo(model, robot, demo, profile, ClosedLoopSettings(start_ratio=0.2), certifier)
     assert np.array_equal(result.trajectory.q, replayed.trajectory.q)
+
+
+def test_every_replan_records_whether_the_task_is_known(setup, certifier):
+    # a model of two of the three tasks sees the third: its re-plans say unknown, with the p-value;
+    # the same demo with its task learned reads as known at the end
+    model, robot, train, test = setup
+    demo = test[2]
+    two = IProMP(observe=OBSERVE).fit([d for d in train if d.task != demo.task])
+    profile = demonstrated_profile(robot, train)
+    settings = ClosedLoopSettings(start_ratio=0.2)
+    result = replay_demo(two, robot, demo, profile, settings, certifier)
+    assert result.replans and not any(r.known for r in result.replans)
+    assert all(r.novelty_p_value is not None and r.novelty_p_value <= 0.05 for r in result.replans)
+    known = replay_demo(model, robot, demo, profile, settings, certifier)
+    assert known.replans[-1].known and known.replans[-1].novelty_p_value > 0.05

@@ -78,3 +78,32 @@ def test_abrupt_websocket_disconnects_are_quiet(live, capfd, caplog):
     err = capfd.readouterr().err + "\n".join(r.getMessage() + str(r.exc_info or "") for r in caplog.records)
     assert "Traceback" not in err and "WebSocketClosedError" not in err and "StreamClosedError" not in err
     assert live.n_clients == 0
+
+
+def test_a_page_is_waited_for_until_it_has_the_whole_scene(live):
+    import asyncio
+
+    import tornado.websocket
+    import umsgpack
+
+    from ipromp_pin.preview import LivePreview
+
+    server = LivePreview(live.content, port=0)
+    try:
+        assert not server.wait_for_page(0.2)  # nobody connected yet
+
+        async def read_scene() -> int:
+            ws = await tornado.websocket.websocket_connect(f"ws://127.0.0.1:{server.port}/ws")
+            n = 0
+            while True:
+                msg = await ws.read_message()
+                assert msg is not None
+                n += 1
+                if umsgpack.unpackb(msg).get("type") == "ipromp_synced":
+                    ws.close()
+                    return n
+
+        n = asyncio.run(read_scene())
+        assert n == len(server.commands()) + 1 and server.wait_for_page(5.0)
+    finally:
+        server.close()

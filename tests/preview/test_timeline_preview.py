@@ -4,6 +4,7 @@ following the scrubbed time."""
 from __future__ import annotations
 
 import json
+import re
 
 import numpy as np
 import pinocchio as pin
@@ -61,6 +62,22 @@ def test_timeline_page_holds_the_changing_prediction(page):
     assert data["summary"] == ["error 3.0 cm"] and data["motion_s"] == 3.0
 
 
+def test_the_page_ends_where_its_stated_duration_does(page):
+    """One span on the human's clock: the animation's last frame is the duration the page states, the
+    latest of the robot's (3 s), the re-plans' (2 s) and the human hand's (4 s) last samples."""
+    html = page.read_text()
+    data = json.loads(html.split('id="ipromp-timeline-data">')[1].split("</script>")[0].replace("<\\/", "</"))
+    assert data["duration_s"] == pytest.approx(4.0)
+    (anim,) = [c for c in scene_commands(html) if c["type"] == "set_animation"]
+    ends = [
+        k["time"] / a["clip"]["fps"]
+        for a in anim["animations"]
+        for t in a["clip"]["tracks"]
+        for k in t["keys"]
+    ]
+    assert max(ends) == pytest.approx(data["duration_s"], abs=1e-9)
+
+
 def test_timeline_rejects_bad_events(content):
     bad = _events(content)[::-1]  # not in time order
     with pytest.raises(DataError, match="events"):
@@ -108,6 +125,15 @@ def test_timeline_panel_follows_the_scrubbed_time(page, tmp_path_factory):
         assert "refused" in refused["status"] and "workspace: out" in refused["status"]
         last = seek(2.5)
         assert last["task"] == "handover_tape"
+        # played to its end, the page's time is its stated duration, never beyond it
+        browser.evaluate(
+            session,
+            "(() => { const a = viewer.animator; a.mixer.timeScale = 20; a.reset(); a.play(); return 1; })()",
+        )
+        browser.wait_for(session, "!viewer.animator.playing && viewer.animator.time > 3.5", timeout=30)
+        head = browser.evaluate(session, "document.getElementById('ipromp-timeline-time').textContent")
+        shown, total = (float(x) for x in re.match(r"Time (\d+\.\d+) s of (\d+\.\d+) s", head).groups())
+        assert shown <= total and total == 4.0 and "human's" in head, head
         shot = browser.screenshot(session)
         assert shot.std() > 10.0
     finally:

@@ -209,7 +209,7 @@ def test_sklearn_clone_and_grid_search(setup):
     demos = train.all_demos() + [d for t in test for d in test[t]]
     labels = [d.task for d in demos]
     search = GridSearchCV(
-        IProMP(["a", "b"], n_basis=9, coupling="all"),
+        IProMP(["a", "b"], n_basis=9, coupling="all", head=False, handover=False),
         {"noise": [0.1, 30.0], "n_basis": [5, 9]},
         cv=StratifiedKFold(3, shuffle=True, random_state=0),
         error_score="raise",

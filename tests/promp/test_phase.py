@@ -91,7 +91,7 @@ def test_refine_peak_finds_vertex_of_a_parabola() -> None:
 
 
 def test_phase_estimate_beats_the_prior_on_synthetic_data() -> None:
-    from ipromp_pin.readers.synthetic import make_synthetic_dataset, true_alpha
+    from ipromp_pin.readers.synthetic import NOMINAL_DURATION_S, make_synthetic_dataset, true_alpha
 
     ds = make_synthetic_dataset(n_tasks=3, n_demos=26, seed=3)
     train = type(ds)(ds.root, {t: d[:16] for t, d in ds.demos.items()})
@@ -102,7 +102,7 @@ def test_phase_estimate_beats_the_prior_on_synthetic_data() -> None:
     for task, demos in ds.demos.items():
         for d in demos[16:]:
             true = d.duration_s / scale
-            assert np.isclose(true * scale, true_alpha(d) * 3.3)
+            assert np.isclose(true * scale, true_alpha(d) * NOMINAL_DURATION_S)
             rec = model.recognise(d.head(0.2, model.observe))
             k = rec.tasks.index(task)
             err_est.append(abs(rec.alpha[k] - true) / true)

@@ -211,8 +211,12 @@ def test_observation_errors(fitted) -> None:
         {"a": np.zeros((t_long.size, 2)), "b": np.zeros((t_long.size, 3))},
         {"a": demo.channel_names["a"], "b": demo.channel_names["b"]},
     )
-    with pytest.raises(ObservationError, match="longer than any task"):
-        model.recognise(long)
+    # longer than any learned motion: no task explains it, which is an answer (unknown), not an error
+    for rec in (model.recognise(long), model.predict(long)):
+        assert not rec.known and rec.novelty_p_value == 0.0
+        assert rec.unknown_reason is not None and "impossible under every task" in rec.unknown_reason
+        assert rec.task in model.tasks_
+    assert np.all(np.isfinite(model.predict(long).q_mean))
 
 
 @pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])

@@ -23,6 +23,8 @@ def test_the_shipped_schemas_are_the_checks_own():
     assert report["retreat"]["properties"]["checks"] == expected
     replans = load_schema("replans")["properties"]["replans"]["items"]["properties"]
     assert replans["checks"] == expected
+    replay = dict(load_schema("replay_report")["properties"]["checks"])
+    assert replay.pop("description") and replay == expected
 
 
 def test_every_measure_is_described():

@@ -22,6 +22,7 @@ from ipromp_pin.safety import (
     CHECKS,
     MAX_SLOWDOWN,
     MAX_SLOWDOWN_ROUNDS,
+    SLOWDOWN_STEP,
     Check,
     CheckContext,
     CheckSuite,
@@ -29,6 +30,7 @@ from ipromp_pin.safety import (
     Timed,
     Verdict,
     needed_slowdown,
+    next_guess,
 )
 from ipromp_pin.safety.retime import retime_until_safe
 
@@ -58,10 +60,12 @@ class SpeedBound(Check):
         self.contexts.append(context)
         peak = float(np.max(np.abs(motion.qd)))
         m = PeakMeasures(peak)
+        fits = (peak / self.bound) ** self.power if self.fixable else None
         if peak <= self.bound:
-            return Verdict(self.name, "pass", f"peak {peak:.3f} rad/s", m)
-        k = (peak / self.bound) ** self.power if self.fixable else None
-        return Verdict(self.name, "fail", f"peak {peak:.3f} rad/s > {self.bound}", m, slowdown=k)
+            return Verdict(self.name, "pass", f"peak {peak:.3f} rad/s", m, fits_at=fits)
+        return Verdict(
+            self.name, "fail", f"peak {peak:.3f} rad/s > {self.bound}", m, slowdown=fits, fits_at=fits
+        )
 
 
 class PathCount(Check):
@@ -203,6 +207,72 @@ def test_the_loop_refuses_when_the_timer_cannot_slow_down(setup):
     out = retime_until_safe(CheckSuite([SpeedBound(robot, 0.5)]), timer, CheckContext())
     assert not out.passed and out.motion is motion and calls[0] == 1.0 and len(calls) == 2
     assert out.slowdown == 1.0
+
+
+def _scaled_timer(robot, calls: list[float]):
+    """A timer of a fixed joint path whose speeds are divided by the requested slow-down."""
+    q = np.linspace(np.zeros(7), np.full(7, 0.1), 5)
+
+    def timer(k: float) -> Timed:
+        calls.append(k)
+        qd = np.ones((5, 7)) / k
+        return Timed(Trajectory(np.arange(5) * 0.01 * k, q, qd, 0 * qd, tuple(robot.joint_names)), None, k)
+
+    return timer
+
+
+def test_a_guess_checks_the_guessed_timing_first_and_the_slowdown_counts_from_the_unslowed(setup):
+    _, robot, _, _ = setup
+    calls: list[float] = []
+    check = SpeedBound(robot, 0.5)  # needs 2x slower
+    out = retime_until_safe(CheckSuite([check]), _scaled_timer(robot, calls), CheckContext(), guess=2.5)
+    # the unslowed motion is timed (the base) but not checked: one round, at the guess
+    assert calls == [1.0, 2.5] and len(check.seen) == 1 and out.rounds == 1
+    assert out.passed and out.slowdown == 2.5 and out.first.scale == 1.0
+    # a guess below what is needed: the loop goes on from the guessed timing
+    calls.clear()
+    low = retime_until_safe(
+        CheckSuite([SpeedBound(robot, 0.5)]), _scaled_timer(robot, calls), CheckContext(), guess=1.5
+    )
+    assert low.passed and calls[:2] == [1.0, 1.5] and low.rounds == 2
+    assert low.slowdown == pytest.approx(1.5 * (2.0 / 1.5) * SLOWDOWN_STEP)
+    # no guess (or one of at most 1): the unslowed motion is checked first, as before
+    calls.clear()
+    plain = retime_until_safe(
+        CheckSuite([SpeedBound(robot, 0.5)]), _scaled_timer(robot, calls), CheckContext(), guess=0.9
+    )
+    assert calls[0] == 1.0 and plain.rounds == 2 and plain.slowdown == pytest.approx(2.0 * SLOWDOWN_STEP)
+
+
+def test_the_next_guess_follows_what_the_committed_motion_needed(setup):
+    _, robot, _, _ = setup
+    calls: list[float] = []
+    # slowed from the unslowed motion: the next plan starts from what it needed (2x, with the step's
+    # margin)
+    out = retime_until_safe(CheckSuite([SpeedBound(robot, 0.5)]), _scaled_timer(robot, calls), CheckContext())
+    assert out.slowdown == pytest.approx(2.0 * SLOWDOWN_STEP) and not out.guessed
+    assert next_guess(out) == pytest.approx(2.0 * SLOWDOWN_STEP)
+    # a plan that started from a guess gives none: the next one checks its unslowed motion again
+    guessed = retime_until_safe(
+        CheckSuite([SpeedBound(robot, 0.5)]), _scaled_timer(robot, calls), CheckContext(), guess=2.5
+    )
+    assert guessed.guessed and guessed.passed and next_guess(guessed) is None
+    # an unslowed motion, a refused one, or no estimate: no guess
+    free = retime_until_safe(
+        CheckSuite([SpeedBound(robot, 3.0)]), _scaled_timer(robot, calls), CheckContext()
+    )
+    assert free.slowdown == 1.0 and next_guess(free) is None
+    stuck = retime_until_safe(
+        CheckSuite([SpeedBound(robot, 0.4, fixable=False)]),
+        _scaled_timer(robot, calls),
+        CheckContext(),
+        guess=2.0,
+    )
+    assert not stuck.passed and next_guess(stuck) is None
+    silent = retime_until_safe(
+        CheckSuite([PathCount(robot)]), _scaled_timer(robot, calls), CheckContext(), guess=2.0
+    )
+    assert silent.slowdown == 2.0 and next_guess(silent) is None
 
 
 def test_a_check_that_does_not_apply_gives_no_verdict(setup):

@@ -24,6 +24,7 @@ class BaselineTrial:
         predicted: Recognised task (classifiers), or the true task (regressors are given it).
         posterior: Predicted probability of the true task (classifiers; NaN for regressors).
         brier: Multi-class Brier score of the predicted probabilities (classifiers; NaN otherwise).
+        confidence: The probability of the predicted task (classifiers; NaN otherwise).
         joint_rmse_rad: RMSE over joints and the unobserved phases, in [rad] (regressors).
         final_joint_error_rad: RMS over joints of the final configuration error, in [rad] (regressors).
         handover_error_cm: Gripper position error at the hand-over, in [cm] (regressors with FK).
@@ -32,6 +33,7 @@ class BaselineTrial:
     predicted: str
     posterior: float = float("nan")
     brier: float = float("nan")
+    confidence: float = float("nan")
     joint_rmse_rad: float = float("nan")
     final_joint_error_rad: float = float("nan")
     handover_error_cm: float = float("nan")
@@ -101,6 +103,7 @@ class WindowBaselines:
                     predicted=str(classes[int(np.argmax(proba[i]))]),
                     posterior=p_true,
                     brier=float(np.sum((proba[i] - onehot) ** 2)),
+                    confidence=float(np.max(proba[i])),
                 )
         for i, d in enumerate(test):
             if d.task not in self.tasks_:

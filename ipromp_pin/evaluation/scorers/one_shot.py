@@ -19,7 +19,7 @@ from ...promp import IProMP, Prediction
 from ...robot import Robot
 from ...robot.objects import ObjectTable
 from ...safety import CheckSuite
-from ..cells import CellResults, baseline_summary, calibration
+from ..cells import CellResults, baseline_summary, calibration, expected_calibration_error
 from ..config import EvaluationConfig
 from ..scoring import FK, FKRot, TrialResult, mean_handover_rotations, one_shot_peak_torque_ratio, score_trial
 from ..windows import FitWindow
@@ -107,6 +107,7 @@ class OneShotScorer(Scorer):
         out: dict[str, Any] = {
             "log_loss": log_loss,
             "brier": brier,
+            "ece": expected_calibration_error([(r.confidence, r.correct) for r in flat]),
             "baselines": baseline_summary(reps, config.protocol == "splits"),
         }
         if self.scores_torques:

@@ -8,6 +8,11 @@ function iprompRender(s) {
   window.iprompOverlayState = s;
   const root = document.getElementById("ipromp-overlay");
   root.replaceChildren();
+  // the panel scrolls within the window (page.css); "Hide details" folds it to the title and task
+  const fold = iprompEl("button", {id: "ipromp-collapse", type: "button"}, window.iprompCollapsed ? "Show details" : "Hide details");
+  fold.addEventListener("click", function () { window.iprompCollapsed = !window.iprompCollapsed; iprompRender(window.iprompOverlayState); });
+  root.classList.toggle("collapsed", !!window.iprompCollapsed);
+  root.appendChild(fold);
   root.appendChild(iprompEl("h1", {id: "ipromp-title"}, s.title));
   const task = iprompEl("div", {id: "ipromp-task"}, "Recognised task: ");
   task.appendChild(iprompEl("b", {id: "ipromp-task-name"}, s.task || s.no_task_text || "(none)"));
@@ -46,7 +51,7 @@ function iprompRender(s) {
     const list = iprompEl("ul", {id: "ipromp-feasibility"});
     for (const c of s.feasibility) {
       const status = c.status || (c.passed ? "pass" : "fail");
-      const tag = status === "skip" ? " (skipped)" : (!c.required ? " (advisory)" : "");
+      const tag = status === "skip" ? " (skipped)" : (!c.required && status !== "info" ? " (advisory)" : "");
       list.appendChild(iprompEl("li", {"class": status, "data-check": c.name},
         c.name + tag + (c.detail ? ": " + c.detail : "")));
     }

@@ -1,7 +1,8 @@
-// The robot-body separation at the current time: distance, closest pair and state, and the states
-// along the time axis (a strip under the replay's time slider, or in its own panel). Reads the
-// panel state's "separation" (window.iprompOverlayState, set by overlay.js); times are on the
-// animation's time base.
+// The robot-body separation: the report's figures as the checks' verdicts give them, the checks'
+// per-sample measure at the current time (its pair and state; samples no check judged are marked so),
+// and the states along the time axis (a strip under the replay's time slider, or in its own panel),
+// the reported figures' times marked on it. Reads the panel state's "separation"
+// (window.iprompOverlayState, set by overlay.js); times are on the animation's time base, the human's.
 (function () {
   const NAMES = {free: "free", within_sp: "within S_p", speed_limited: "speed-limited", violation: "violation"};
   let panel = null, strip = null, text = null, key = null, drawn = null, lastT = null, lastSpan = null;
@@ -45,12 +46,15 @@
       ctx.fillStyle = sep.colors[sep.state[i]];
       ctx.fillRect(x0, 0, Math.max(1, x1 - x0), h);
     }
+    ctx.fillStyle = "#555";  // the reported figures' times
+    for (const r of sep.reported) ctx.fillRect(Math.min(w - 1, Math.max(0, Math.round(w * r.t_s / span))), 0, 1, h);
     ctx.fillStyle = "#000";
     ctx.fillRect(Math.min(w - 2, Math.max(0, Math.round(w * t / span) - 1)), 0, 2, h);
   }
   function describe(sep, i) {
     const pair = sep.link[i] || sep.body_part[i] ? " (" + (sep.link[i] || "?") + " to " + (sep.body_part[i] || "?") + ")" : "";
     let s = "Separation " + sep.distance_m[i].toFixed(3) + " m" + pair + ": " + NAMES[sep.state[i]];
+    if (sep.judged && !sep.judged[i]) s += " (the robot at rest after its motion: not judged by the checks)";
     const sp = sep.protective_distance_m ? sep.protective_distance_m[i] : null;
     const ratio = sep.speed_ratio ? sep.speed_ratio[i] : null;
     if (sp !== null) s += ", S_p " + sp.toFixed(3) + " m";
@@ -59,9 +63,12 @@
   }
   function keyText(sep) {
     key.replaceChildren();
-    const m = sep.min;
-    key.appendChild(iprompEl("div", {}, "Closest " + m.distance_m.toFixed(3) + " m at " + m.t_s.toFixed(2) + " s" +
-      (m.link ? " (" + m.link + " to " + m.body_part + ")" : "") + (sep.source ? "; judged against the " + sep.source : "")));
+    if (sep.reported.length) {
+      for (const r of sep.reported) key.appendChild(iprompEl("div", {"class": "ipromp-reported", "data-check": r.check}, r.check + ": " + r.text));
+    } else {
+      key.appendChild(iprompEl("div", {"class": "ipromp-reported"}, "No check in the report judged this separation."));
+    }
+    key.appendChild(iprompEl("div", {}, "Per sample: " + sep.measure + (sep.source ? "; the " + sep.source : "")));
     const row = iprompEl("div");
     for (const s of Object.keys(NAMES)) {
       const sw = iprompEl("span", {"class": "ipromp-swatch"});
@@ -81,7 +88,7 @@
       panel.style.display = "";
       const slider = place();
       const last = sep.t_s[sep.t_s.length - 1];
-      const span = slider ? parseFloat(slider.max) : Math.max(last, state.robot_duration_s || 0);
+      const span = slider ? parseFloat(slider.max) : Math.max(last, state.end_s || state.robot_duration_s || 0);
       const t = now();
       if (sep !== drawn || t !== lastT || span !== lastSpan) {
         const i = indexAt(sep, t);

@@ -1,7 +1,8 @@
-// The joints' torque usage at the current time: one bar per joint (|tau| / effort limit, coloured
-// green below "warn", orange up to the allowed usage, red beyond), each joint's peak over the motion
-// marked by a tick, and what the gripper holds. Reads the panel state's "torques"
-// (window.iprompOverlayState, set by overlay.js); times are on the animation's time base.
+// The joints' torque usage at the current time, at the samples the joint-torque check evaluated: one
+// bar per joint (|tau| / effort limit, coloured green below "warn", orange up to the allowed usage,
+// red beyond), each joint's peak over them marked by a tick, what the gripper holds, and the report's
+// figures as the check's verdicts give them. Reads the panel state's "torques"
+// (window.iprompOverlayState, set by overlay.js); times are on the animation's time base, the human's.
 (function () {
   const W = 300, ROW = 14, LABEL = 70, BAR = 170;
   let panel = null, canvas = null, text = null, key = null, drawn = null, lastT = null;
@@ -55,11 +56,9 @@
   }
   function keyText(tq) {
     key.replaceChildren();
-    let j = 0;
-    tq.peak.forEach((p, k) => { if (p > tq.peak[j]) j = k; });
-    key.appendChild(iprompEl("div", {}, "Peak " + Math.round(100 * tq.peak[j]) + " % (" + tq.joints[j] + " at " +
-      tq.peak_t_s[j].toFixed(2) + " s; tick: each joint's peak); allowed " + Math.round(100 * tq.allowed) +
-      " % (red line)"));
+    for (const r of tq.reported) key.appendChild(iprompEl("div", {"class": "ipromp-reported", "data-check": r.check}, r.check + ": " + r.text));
+    key.appendChild(iprompEl("div", {}, "Bars: " + (tq.samples || "every control sample") +
+      "; tick: each joint's peak over them; allowed " + Math.round(100 * tq.allowed) + " % (red line)"));
     const row = iprompEl("div");
     for (const [name, label] of [["ok", "< " + Math.round(100 * tq.warn) + " %"], ["high", "< " + Math.round(100 * tq.allowed) + " %"], ["over", "beyond"]]) {
       const sw = iprompEl("span", {"class": "ipromp-swatch"});
@@ -85,7 +84,7 @@
         const i = indexAt(tq, t);
         draw(tq, i);
         const holding = tq.payload && tq.held[i] ? "holding " + tq.payload : "empty";
-        text.textContent = "Joint torques at t = " + t.toFixed(2) + " s (of the effort limits); gripper " + holding;
+        text.textContent = "Joint torques at the sample t = " + tq.t_s[i].toFixed(2) + " s (of the effort limits); gripper " + holding;
         if (tq !== drawn) keyText(tq);
         window.iprompTorquesShown = {t_s: t, index: i, holding: holding, ratio: tq.ratio[i]};
         drawn = tq; lastT = t;

@@ -128,7 +128,8 @@ def main() -> None:
         model = smoke_model(Path(tmp)) if args.smoke else None
         ns = replay_args(args, rest, Path(tmp) / "out", model)
         cfg = pipeline_config(ns)
-        settings = closed_loop_settings(ns, control_rate_hz=cfg.control_rate_hz, start_ratio=ns.start_ratio)
+        start = {"start_ratio": ns.start_ratio, "start_after_s": ns.start_after}
+        settings = closed_loop_settings(ns, control_rate_hz=cfg.control_rate_hz, **start)
         setup = prepare_replay(cfg, settings, ns.limits)
         session = setup.session
         known = set(session.suite.names)

@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .exceptions import DataError, ObservationError
-from .fields import did_you_mean
+from .fields import Range, did_you_mean
 
 ROBOT = "robot"
 """Name of the channel group holding the robot's joint angles in [rad]."""
@@ -263,6 +263,16 @@ class Demo:
             duration_s=self.duration_s,
         )
 
+
+WINDOW_RANGE_S = Range(
+    0.0,
+    600.0,
+    "s",
+    "a hand-over motion lasts seconds (2-6 s in the shipped recordings); 10 minutes is far beyond any",
+    lo_open=True,
+)
+"""Plausible observation windows in seconds (``--until-s``, ``[observation] until_s``, ``evaluate
+--window-s``)."""
 
 DEFAULT_WINDOW_FRACTION = 0.2
 """The observation window when none is given: this fraction of the model's nominal duration (the

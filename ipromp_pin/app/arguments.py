@@ -27,6 +27,11 @@ if TYPE_CHECKING:
     from ..robot import Robot
     from .config import PipelineConfig
 
+MAX_WINDOW_S = 600.0
+"""Longest observation window in seconds the command line takes (``--until-s``, ``--window-s``): the
+upper bound of :data:`ipromp_pin.data.WINDOW_RANGE_S` (not imported here: ``--help`` answers without
+the scientific stack)."""
+
 DEFAULT_MARK = "{default}"
 """Where a help string shows the default that :func:`show_default` attached to its option."""
 
@@ -180,13 +185,22 @@ def add_pipeline_overrides(p: argparse.ArgumentParser, ratio: bool = True) -> No
         config_default("observation.demo"),
     )
     if ratio:
+        window = p.add_mutually_exclusive_group()
         show_default(
-            p.add_argument(
+            window.add_argument(
                 "--ratio",
                 type=bounded(float, 0.0, 1.0, open_low=True),
-                help=f"observed fraction of the motion, in (0, 1] (default {DEFAULT_MARK})",
+                help=f"observed fraction of the motion, in (0, 1] (default {DEFAULT_MARK}; offline: the "
+                "motion's length is known once it is over)",
             ),
             config_default("observation.ratio"),
+        )
+        window.add_argument(
+            "--until-s",
+            type=bounded(float, 0.0, MAX_WINDOW_S, open_low=True),
+            metavar="S",
+            help=f"observe the first S seconds of the motion instead, in (0, {MAX_WINDOW_S:g}] (the "
+            "pipeline's [observation] until_s)",
         )
     p.add_argument("--model", type=Path, help="use this saved model instead of training")
     p.add_argument("--save-model", type=Path, help="save the trained model here")
@@ -226,6 +240,7 @@ def pipeline_config(args: argparse.Namespace) -> PipelineConfig:
         task=args.task,
         demo=args.demo,
         ratio=getattr(args, "ratio", None),
+        until_s=getattr(args, "until_s", None),
         load_model=args.model,
         save_model=args.save_model,
         model_cache=False if getattr(args, "retrain", False) else None,
@@ -297,6 +312,13 @@ def add_closed_loop_options(p: argparse.ArgumentParser) -> None:
         ),
         closed_loop_default("blend_s"),
     )
+    p.add_argument(
+        "--start-confidence",
+        type=float,  # checked with the other closed-loop settings (one line naming start_confidence)
+        metavar="P",
+        help="the robot also starts as soon as a task is recognised with posterior P, in (0, 1] "
+        "(default: by time alone)",
+    )
     show_default(
         p.add_argument(
             "--freeze-phase",
@@ -318,6 +340,7 @@ def closed_loop_settings(args: argparse.Namespace, **given: float | None) -> Clo
         "replan_rate_hz": args.replan_rate,
         "blend_s": args.blend,
         "freeze_phase": args.freeze_phase,
+        "start_confidence": args.start_confidence,
         **given,
     }
     chosen = {name: value for name, value in options.items() if value is not None}

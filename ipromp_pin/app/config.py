@@ -24,7 +24,7 @@ from dataclasses import MISSING, dataclass, field, fields
 from pathlib import Path
 from typing import Any, ClassVar, Generic, TypeVar
 
-from ..data import ROBOT
+from ..data import ROBOT, WINDOW_RANGE_S, ObservationWindow
 from ..exceptions import PipelineError
 from ..fields import Range, check_keys, field_errors
 from ..inputs import load_toml
@@ -105,13 +105,17 @@ class ObservationConfig:
         task: Task of the observed demo (``None``: the first task).
         demo: Index of the observed demo within its task (held out of training; negative counts
             from the end).
-        ratio: Observed fraction of the human's motion, in (0, 1].
+        ratio: Observed fraction of the human's motion, in (0, 1] (offline: the motion's length is
+            known once it is over).
+        until_s: Observe the first ``until_s`` seconds of the human's motion instead, in (0, 600]
+            (``None``: the ``ratio``); the file gives one or the other.
     """
 
     SECTION: ClassVar[str] = "observation"
     task: str | None = None
     demo: int = -1
     ratio: float = 0.2
+    until_s: float | None = None
 
 
 @dataclass
@@ -191,7 +195,7 @@ class PipelineSections:
 
 def _kind(hint: Any) -> type | tuple[type, ...]:
     """The TOML type of a field annotated ``hint`` (paths and optional strings are strings)."""
-    if hint is float:
+    if hint is float or hint == float | None:
         return (int, float)
     if hint in (bool, int, str):
         return hint
@@ -261,6 +265,7 @@ class PipelineConfig:
     task = Flat[str | None]("observation", "task")
     demo = Flat[int]("observation", "demo")
     ratio = Flat[float]("observation", "ratio")
+    until_s = Flat[float | None]("observation", "until_s")
     robot = Flat[str]("robot", "settings")
     objects = Flat[Path | None]("robot", "objects")
     retreat = Flat[bool]("robot", "retreat")
@@ -311,6 +316,9 @@ class PipelineConfig:
 
         if not RATIO_RANGE.contains(self.ratio):
             raise bad("ratio", f"must be in {RATIO_RANGE.text()}, got {self.ratio}")
+        if self.until_s is not None and not WINDOW_RANGE_S.contains(self.until_s):
+            span = WINDOW_RANGE_S
+            raise bad("until_s", f"must be a time in {span.text()} ({span.source}), got {self.until_s}")
         if not self.observe:
             raise bad("observe", "no channel group given")
         if ROBOT in self.observe:
@@ -333,6 +341,13 @@ class PipelineConfig:
         if len(set(self.observe)) != len(self.observe):
             raise bad("observe", f"a group is listed twice in {self.observe}")
         return self
+
+    @property
+    def window(self) -> ObservationWindow:
+        """The observed window: the first ``until_s`` seconds when set, else the first ``ratio``."""
+        if self.until_s is not None:
+            return ObservationWindow(until_s=self.until_s)
+        return ObservationWindow(ratio=self.ratio)
 
     def __repr__(self) -> str:
         return f"PipelineConfig(source={self.source!r}, sections={self.sections!r})"
@@ -396,7 +411,7 @@ def _section_from_table(cls: type[Any], table: dict[str, Any], base: Path) -> An
     values: dict[str, Any] = {}
     for key, value in table.items():
         hint = hints[key]
-        if hint is float:
+        if hint is float or hint == float | None:
             value = float(value)
         elif typing.get_origin(hint) is list:
             value = [str(x) for x in value]
@@ -427,16 +442,27 @@ def load_pipeline(
             errors about that value name the option instead of the file's field.
         **overrides: Values of :class:`PipelineConfig`'s flat attributes that replace the file's.
 
+    The observed window is ``[observation] ratio`` or ``until_s``, never both; an override of either
+    replaces the file's window (``ratio=`` clears the file's ``until_s``).
+
     Raises:
-        PipelineError: unreadable file, unknown section or key, wrong type or value.
+        PipelineError: unreadable file, unknown section or key, wrong type or value, a window given
+            twice.
     """
     path = resolve_pipeline_path(path)
     doc = _read_toml(path)
     _check_types(path, doc)
+    observation = doc.get(ObservationConfig.SECTION, {})
+    if "ratio" in observation and "until_s" in observation:
+        raise _bad(str(path), "observation", "until_s", "give ratio or until_s, not both")
+    if overrides.get("ratio") is not None and overrides.get("until_s") is not None:
+        raise PipelineError(f"{path}: observe a ratio or until_s seconds, not both")
     base = path.resolve().parent
     sections = PipelineSections(
         **{cls.SECTION: _section_from_table(cls, doc.get(cls.SECTION, {}), base) for cls in SECTIONS}
     )
     cfg = PipelineConfig(str(path), sections).update(**overrides)
+    if overrides.get("ratio") is not None:  # the command line's fraction replaces the file's seconds
+        cfg.until_s = None
     cfg.options = {k: v for k, v in (options or {}).items() if overrides.get(k) is not None}
     return cfg.validate()

@@ -1,5 +1,6 @@
 """``ipromp-pin evaluate DATASET``: recognition accuracy and prediction error on a dataset, in the
-paper's protocol or over random splits, optionally with the closed loop."""
+paper's protocol or over random splits, observing a fraction of each test demo (the paper's windows)
+and windows in seconds, optionally with the closed loop."""
 
 from __future__ import annotations
 
@@ -9,7 +10,7 @@ import sys
 from pathlib import Path
 
 from ..shipped import DEFAULT_ROBOT
-from .arguments import add_closed_loop_options, bounded, closed_loop_settings
+from .arguments import MAX_WINDOW_S, add_closed_loop_options, bounded, closed_loop_settings
 from .progress import progress
 
 MAX_SPLITS = 1000
@@ -63,8 +64,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         type=bounded(float, 0.0, 1.0, open_low=True),
         nargs="+",
         default=[0.1, 0.2],
-        help="observed fractions (--grid full)",
+        help="observed fractions of each test demo's length (--grid full)",
     )
+    add_window_options(p)
     p.add_argument(
         "--n-test",
         type=bounded(int, 1, 100_000),
@@ -115,22 +117,55 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--closed-loop",
         action="store_true",
-        help="replay every test demo in the closed loop (start ratio = the cell's obs ratio) and add "
-        "its hand-over error, arrival delay, limit ratio, refused re-plans and collisions to each cell",
+        help="replay every test demo in the closed loop, the robot starting at the end of the cell's "
+        "window (a fraction cell: after that fraction of the test demo, the paper's protocol; a cell in "
+        "seconds: after those seconds, the online start rule) and add its hand-over error, arrival "
+        "delay, limit ratio, refused re-plans and collisions to each cell",
     )
     add_closed_loop_options(p)
     p.set_defaults(func=main)
 
 
+def add_window_options(p: argparse.ArgumentParser) -> None:
+    """The options of ``evaluate``'s observation windows in seconds (beside the grid's fractions)."""
+    p.add_argument(
+        "--windows",
+        choices=["both", "fraction", "seconds"],
+        default="both",
+        help="which cells: fraction = the grid's, each test demo observed for a fraction of its own "
+        "length (the paper's protocol: that length is known only once the motion is over); seconds = "
+        "each test demo observed for its first seconds, by default the grid's fractions of the training "
+        "demos' mean length (a time the robot knows before the motion starts), else --window-s and "
+        "--window-of-train; both = the two, in separate tables (default %(default)s)",
+    )
+    p.add_argument(
+        "--window-s",
+        type=bounded(float, 0.0, MAX_WINDOW_S, open_low=True),
+        nargs="+",
+        metavar="S",
+        help=f"observe each test demo's first S seconds, in (0, {MAX_WINDOW_S:g}], for every training size "
+        "of the grid (instead of the grid's fractions of the training demos' mean length)",
+    )
+    p.add_argument(
+        "--window-of-train",
+        type=bounded(float, 0.0, 1.0, open_low=True),
+        nargs="+",
+        metavar="F",
+        help="observe each test demo's first F x the training demos' mean length [s] (each fit's own: the "
+        "model's nominal duration), F in (0, 1], for every training size of the grid",
+    )
+
+
 def main(args: argparse.Namespace) -> int:
     """Run ``ipromp-pin evaluate`` (:func:`ipromp_pin.evaluation.run.run_evaluate`)."""
     from ..data import parse_groups
-    from ..evaluation.run import EvaluateRequest, grid_from, protocols_from, run_evaluate
+    from ..evaluation.run import EvaluateRequest, grid_from, protocols_from, run_evaluate, window_cells
 
-    grid = grid_from(args.grid, args.n_train, args.ratios)
+    fractions = grid_from(args.grid, args.n_train, args.ratios)
+    grid = window_cells(fractions, args.windows, args.window_s, args.window_of_train)
     settings = None
-    if args.closed_loop:  # validated once here; each cell's ratio replaces the start ratio
-        settings = closed_loop_settings(args, control_rate_hz=100.0, start_ratio=grid[0][1])
+    if args.closed_loop:  # validated once here; each cell's window replaces the start
+        settings = closed_loop_settings(args, control_rate_hz=100.0)
     request = EvaluateRequest(
         dataset=args.dataset,
         format=args.format,
@@ -160,11 +195,25 @@ def main(args: argparse.Namespace) -> int:
         from ..outputs import plots
 
         plots.plot_accuracy(
-            [c.__dict__ for c in cells],
+            accuracy_records(cells),
             args.plots / "accuracy.png",
             title=f"Recognition accuracy: {args.dataset.name}",
         )
     return 0
+
+
+def accuracy_records(cells) -> list[dict]:
+    """The records of the accuracy plot: the cells observing a fraction of each test demo, and beside
+    them those observing the same fraction of the training demos' mean length (their observed set
+    marked ``(s)``); the cells of a fixed number of seconds have no fraction and are left out."""
+    records = []
+    for c in cells:
+        if c.window_kind == "ratio":
+            records.append(c.__dict__)
+        elif c.window_kind == "train_fraction":
+            observe = ",".join(c.observe) + " (s)"
+            records.append(c.__dict__ | {"obs_ratio": c.window["value"], "observe": observe})
+    return records
 
 
 def _alpha(text: str) -> float:

@@ -31,7 +31,6 @@ from .arguments import (
     DEFAULT_MARK,
     add_closed_loop_options,
     add_pipeline_overrides,
-    closed_loop_default,
     closed_loop_settings,
     pipeline_config,
     show_default,
@@ -78,14 +77,22 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "human moves",
     )
     add_pipeline_overrides(p, ratio=False)
+    start = p.add_mutually_exclusive_group()
     show_default(
-        p.add_argument(
-            "--start-ratio",
-            type=float,  # checked with the other closed-loop settings (one line naming start_ratio)
-            help="fraction of the human's motion observed before the robot starts, in (0, 1) "
-            f"(default {DEFAULT_MARK})",
+        start.add_argument(
+            "--start-after",
+            type=float,  # checked with the other closed-loop settings (one line naming start_after_s)
+            metavar="S",
+            help=f"the robot starts S seconds after the human's motion starts (default: {DEFAULT_MARK} of "
+            "the model's nominal duration, the mean length of its training demos)",
         ),
-        closed_loop_default("start_ratio"),
+        start_fraction,
+    )
+    start.add_argument(
+        "--start-ratio",
+        type=float,
+        help="offline instead: the robot starts after this fraction of the recorded motion's length, in "
+        "(0, 1) (a length known only once the motion is over)",
     )
     add_closed_loop_options(p)
     p.add_argument("--no-preview", action="store_true", help="do not write preview.html")
@@ -98,11 +105,24 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.set_defaults(func=main)
 
 
+def start_fraction() -> str:
+    """The default start, as ``replay --help`` shows it (``%`` escaped for argparse):
+    :data:`~ipromp_pin.planning.closed_loop.START_FRACTION`."""
+    from ..planning.closed_loop import START_FRACTION
+
+    return f"{START_FRACTION:.0%}%"
+
+
 def main(args: argparse.Namespace) -> int:
     """Replay the demo; exit status 3 when no re-plan was committed or the commanded motion collides or
     exceeds the limits."""
     cfg = pipeline_config(args)
-    settings = closed_loop_settings(args, control_rate_hz=cfg.control_rate_hz, start_ratio=args.start_ratio)
+    settings = closed_loop_settings(
+        args,
+        control_rate_hz=cfg.control_rate_hz,
+        start_ratio=args.start_ratio,
+        start_after_s=args.start_after,
+    )
     outcome = run_replay(
         cfg,
         settings,

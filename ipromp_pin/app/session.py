@@ -12,6 +12,7 @@ observation. A command's own checks of the demo and the model run as soon as the
 
 from __future__ import annotations
 
+import math
 import multiprocessing as mp
 import time
 from dataclasses import dataclass, field
@@ -148,15 +149,33 @@ def prepare_session(
     session.suite = CheckSuite.build(robot)
     session.context = check_context(cfg, demo, robot, objects)
     if observe:
-        session.observation = observation = demo.head(cfg.ratio, groups=cfg.observe)
+        session.observation = observation = observe_window(session, warn)
         human = session.context.human
         if human is not None:  # the planner knows the human up to the end of the observation
             session.context = session.context.replace(human=human.until(float(observation.t[-1])))
+        window = f"{cfg.ratio:.0%}" if cfg.until_s is None else f"{cfg.until_s:g} s"
         log(
-            f"[observe] {demo.task}/{demo.name}: first {cfg.ratio:.0%} "
+            f"[observe] {demo.task}/{demo.name}: first {window} "
             f"({observation.t[-1]:.2f} s, {observation.n_samples} samples) of {', '.join(cfg.observe)}"
         )
     return session
+
+
+def observe_window(session: Session, warn: LogFn = warn_stderr) -> Demo:
+    """The observed part of the session's demo: its first ``[observation] ratio``, or its samples of
+    the first ``until_s`` seconds (all of it, with a warning in the session's, when the demo ends
+    before)."""
+    cfg, demo = session.cfg, session.demo
+    observation = cfg.window.cut(demo, cfg.observe, float(session.model.duration_nominal_s_))
+    length = float(demo.t[-1] - demo.t[0])
+    if cfg.until_s is not None and length < cfg.until_s:
+        note = (
+            f"{demo.task}/{demo.name} ends at {length:.2f} s, before the observed window's end "
+            f"({cfg.until_s:g} s): planned from all of it"
+        )
+        warn(note)
+        session.warnings.append(note)
+    return observation
 
 
 def check_context(
@@ -327,26 +346,30 @@ def plan_session(session: Session, log: LogFn = print) -> HandoverPlan:
 @dataclass
 class ReplayChecks(SetupChecks):
     """The replay's checks in the set-up: the demo holds the observed and robot groups and a start
-    window of at least 2 samples; it holds every group the model observes.
+    window of at least 2 samples that ends within it; it holds every group the model observes.
 
     Attributes:
         observe: The observed groups of the pipeline.
-        start_ratio: The fraction of the demo observed before the robot starts.
-        start_s: When the robot starts, in [s] (set by :meth:`check_demo`).
+        settings: The closed loop's settings (their start rule).
+        start_s: When the robot starts by the rule's time, in [s] (set by :meth:`check_demo` when
+            the rule does not need the model, else by :meth:`check_model`).
     """
 
     observe: tuple[str, ...] | list[str]
-    start_ratio: float
+    settings: ClosedLoopSettings
     start_s: float = 0.0
 
     def check_demo(self, demo: Demo) -> None:
-        """Refuse a demo without the observed and robot groups or with a start window under 2 samples."""
+        """Refuse a demo without the observed and robot groups or with a start window under 2 samples
+        (before training, when the start rule does not depend on the model)."""
         demo.require(list(self.observe) + [ROBOT])
-        self.start_s = start_time(demo, self.start_ratio)
+        if self.settings.start_ratio is not None or self.settings.start_after_s is not None:
+            self.start_s = start_time(demo, self.settings, math.nan)
 
     def check_model(self, model: IProMP, demo: Demo) -> None:
-        """Refuse a demo without every group the model observes."""
+        """Refuse a demo without every group the model observes or too short for the start rule."""
         demo.require(list(model.observe_))
+        self.start_s = start_time(demo, self.settings, float(model.duration_nominal_s_))
 
 
 def training_label(cfg: PipelineConfig) -> str:
@@ -425,7 +448,7 @@ def prepare_replay(
     check_outputs(cfg)
     robot = load_robot(cfg.robot)
     from_file = check_profile_choice(limits, robot, cfg.source)
-    checks = ReplayChecks(cfg.observe, settings.start_ratio)
+    checks = ReplayChecks(cfg.observe, settings)
     session = prepare_session(cfg, log, warn, robot=robot, checks=checks, observe=False)
     demo, train = session.demo, session.train
     profile = choose_limit_profile(from_file or limits, robot, train, training_label(cfg))
@@ -433,7 +456,8 @@ def prepare_replay(
     prime_checks(session.suite, train, log)
     log(
         f"[replay] {demo.task}/{demo.name}: {demo.duration_s:.2f} s at its recorded timing; the robot starts "
-        f"after {settings.start_ratio:.0%} ({checks.start_s:.2f} s), re-plans at "
+        f"{settings.start_text(float(session.model.duration_nominal_s_))} (its sample at "
+        f"{checks.start_s:.2f} s), re-plans at "
         f"{settings.replan_rate_hz:g} Hz, control at {settings.control_rate_hz:g} Hz"
     )
     return ReplaySetup(session, profile)

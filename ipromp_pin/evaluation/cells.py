@@ -1,4 +1,4 @@
-"""Cells of the evaluation table and the aggregation of trials into them, by (n_train, obs ratio,
+"""Cells of the evaluation table and the aggregation of trials into them, by (n_train, window,
 observed set, task): accuracy (mean over splits), median prediction errors over the correctly
 recognised trials, calibration, and the baselines' summaries."""
 
@@ -7,6 +7,7 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -14,6 +15,7 @@ from ..data import Dataset
 from .baselines import CLASSIFIERS, REGRESSORS
 from .config import PAPER_ACCURACY, EvaluationConfig, observe_key
 from .jobs import JobResult
+from .windows import Window
 
 PROBABILITY_FLOOR = 1e-15
 """Posteriors are floored at this value in the log loss (a confident mistake costs at most 34.5)."""
@@ -31,13 +33,21 @@ ERROR_FIELDS = (
 )
 """The prediction errors of a trial summarised (median) in a cell."""
 
-CellKey = tuple[int, float, str, str]
-"""(n_train, obs_ratio, observe_key, task)."""
+CellKey = tuple[int, Window, str, str]
+"""(n_train, window, observe_key, task)."""
 
 
 @dataclass
 class Cell:
-    """One cell of the accuracy table: a protocol, training size, ratio, observed set and task.
+    """One cell of the accuracy table: a protocol, training size, window, observed set and task.
+
+    ``window`` says how much of each test demo was observed (:mod:`~.windows`): ``{"kind": "ratio",
+    "value": obs_ratio, "seconds": None}`` (the paper's fraction of each test demo; ``obs_ratio`` is
+    that fraction), ``{"kind": "seconds", "value": S, "seconds": S}`` or ``{"kind":
+    "train_fraction", "value": F, "seconds": F x the median over the cell's fits of their training
+    demos' mean length}`` (``obs_ratio`` is None for both). ``observed_s`` and ``observed_fraction``
+    are the medians over the cell's test trials of the last observed sample's time [s] and of the
+    fraction of the test demo's length the window covered.
 
     ``coupled_groups`` counts, over the cell's model fits, the observed groups each fitted model
     coupled to the robot (``"+"``-joined, ``""`` for none; see ``IProMP(coupling=...)``).
@@ -53,11 +63,14 @@ class Cell:
 
     protocol: str
     n_train: int
-    obs_ratio: float
+    obs_ratio: float | None
     observe: list[str]
     task: str
     accuracy: float
     n_test: int
+    window: dict[str, Any] = field(default_factory=dict)
+    observed_s: float | None = None
+    observed_fraction: float | None = None
     accuracy_std: float | None = None
     n_splits: int | None = None
     paper_accuracy: float | None = None
@@ -78,6 +91,24 @@ class Cell:
     baselines: dict[str, dict[str, float | None]] = field(default_factory=dict)
     trials: list[dict] = field(default_factory=list)
 
+    def __post_init__(self) -> None:
+        if not self.window and self.obs_ratio is not None:
+            self.window = Window("ratio", self.obs_ratio).to_dict()
+
+    @property
+    def window_kind(self) -> str:
+        """The kind of the cell's window (``"ratio"``, ``"seconds"``, ``"train_fraction"``)."""
+        return str(self.window.get("kind", "ratio"))
+
+    def window_label(self) -> str:
+        """The window in a table: ``0.2`` (a fraction of each test demo), ``0.6 s``, ``0.2 of train
+        (0.63 s)`` (the fraction of the training demos' mean length, and its seconds)."""
+        w = self.window
+        label = Window(str(w["kind"]), float(w["value"])).label()
+        if w["kind"] == "train_fraction" and w.get("seconds") is not None:
+            label += f" ({w['seconds']:.2f} s)"
+        return label
+
 
 @dataclass
 class ClosedLoopCell(Cell):
@@ -88,6 +119,7 @@ class ClosedLoopCell(Cell):
     ``protective_distance_time_s`` (median time closer than ``S_p``), ``contact_speed_violations``
     (sum of the control samples inside ``S_p`` faster than the contact-speed limit) and
     ``arrival_delay_without_human_s`` (median arrival delay of the replays without the human checks).
+    ``robot_start_s`` is the median time the robot started, [s] from the motion start.
     """
 
     limit_profile: str = ""
@@ -95,6 +127,7 @@ class ClosedLoopCell(Cell):
     closed_loop_final_error_cm: float | None = None
     one_shot_handover_error_cm: float | None = None
     arrival_delay_s: float | None = None
+    robot_start_s: float | None = None
     max_limit_ratio: float | None = None
     refused_replans: int = 0
     replans: int = 0
@@ -128,6 +161,14 @@ def summarise(trials: Sequence) -> dict[str, float | None]:
         vals = [abs(getattr(r, name)) if name == "duration_error_s" else getattr(r, name) for r in ok]
         out[name] = median(vals)
     return out
+
+
+def observed(trials: Sequence) -> dict[str, float | None]:
+    """Medians over all the trials (``TrialResult``-like) of ``observed_s`` and ``observed_fraction``
+    (None when no trial has them)."""
+    return {
+        name: median([getattr(r, name, None) for r in trials]) for name in ("observed_s", "observed_fraction")
+    }
 
 
 def calibration(rows: Sequence[tuple[float, float]]) -> tuple[float | None, float | None]:
@@ -186,16 +227,21 @@ def baseline_summary(reps: Sequence[Sequence], splits: bool) -> dict[str, dict[s
 def cell_fields(
     dataset: Dataset,
     config: EvaluationConfig,
-    where: tuple[int, float, Sequence[str], str],
+    where: tuple[int, float | Window, Sequence[str], str],
     n_test: int,
     accs: Sequence[float],
     summary: Mapping[str, float | None],
+    window_s: float | None = None,
 ) -> dict:
-    """The :class:`Cell` fields shared by every evaluation of one cell ``where`` = (n_train, obs
-    ratio, observed groups, task): ``accs`` the accuracies per split (or the one of the paper's
-    protocol), ``summary`` the :func:`summarise` of all its test trials."""
-    n_train, ratio, observe, task = where
-    paper = PAPER_ACCURACY.get((n_train, ratio, observe_key(observe)), {}).get(task)
+    """The :class:`Cell` fields shared by every evaluation of one cell ``where`` = (n_train, window
+    (a bare float: an observed ratio), observed groups, task): ``accs`` the accuracies per split (or
+    the one of the paper's protocol), ``summary`` the :func:`summarise` of all its test trials,
+    ``window_s`` the window's end in [s] (a ``train_fraction`` window's, over the cell's fits).
+    Only a ratio window's cells have the paper's accuracy: the paper observed fractions."""
+    n_train, window, observe, task = where
+    window = Window.of(window)
+    ratio = window.value if window.is_ratio else None
+    paper = PAPER_ACCURACY.get((n_train, ratio, observe_key(observe)), {}).get(task) if ratio else None
     return {
         "protocol": config.protocol,
         "n_train": n_train,
@@ -204,6 +250,9 @@ def cell_fields(
         "task": task,
         "accuracy": float(np.mean(accs)) if accs else float("nan"),
         "n_test": n_test,
+        "window": window.to_dict(window_s),
+        "observed_s": summary.get("observed_s"),
+        "observed_fraction": summary.get("observed_fraction"),
         "paper_accuracy": paper if Path(str(dataset.root)).name == "chen2017_handover" else None,
         **{name: summary[name] for name in ERROR_FIELDS},
     }
@@ -213,9 +262,11 @@ class CellResults:
     """The trials of every job, grouped by cell, and the facts of every fit (in completion order).
 
     Attributes:
-        trials: (n_train, ratio, observe_key, task) -> per split, the trials of that task.
+        trials: (n_train, window, observe_key, task) -> per split, the trials of that task.
         couplings: (n_train, observe_key) -> coupled groups of the fitted models -> number of fits.
         fits: The ``fit`` facts of every job, in completion order.
+        nominal_s: (n_train, observe_key) -> the nominal duration [s] of every fit (the mean length
+            of its training demos).
     """
 
     def __init__(self, tasks: Sequence[str]) -> None:
@@ -223,6 +274,7 @@ class CellResults:
         self.trials: dict[CellKey, list[list]] = {}
         self.couplings: dict[tuple[int, str], dict[str, int]] = {}
         self.fits: list[dict[str, str]] = []
+        self.nominal_s: dict[tuple[int, str], list[float]] = {}
 
     def add(self, result: JobResult) -> None:
         """Add one job's trials and fit facts."""
@@ -232,11 +284,19 @@ class CellResults:
         coupled = result.fit.get("coupled", "")
         counts[coupled] = counts.get(coupled, 0) + 1
         self.fits.append(result.fit)
-        for ratio, rows in result.trials.items():
+        self.nominal_s.setdefault((job.n_train, key), []).append(result.nominal_s)
+        for window, rows in result.trials.items():
             for task in self.tasks:
-                self.trials.setdefault((job.n_train, ratio, key, task), []).append(
+                self.trials.setdefault((job.n_train, window, key, task), []).append(
                     [r for r in rows if r.task == task]
                 )
+
+    def window_s(self, n_train: int, window: Window, key: str) -> float | None:
+        """The end [s] of a ``train_fraction`` window over the cell's fits (its fraction of the
+        median of their nominal durations); a ``seconds`` window's value; None for a ratio."""
+        if window.kind == "train_fraction":
+            return window.value * float(np.median(self.nominal_s[(n_train, key)]))
+        return window.value if window.kind == "seconds" else None
 
 
 def build_cells(
@@ -255,16 +315,18 @@ def build_cells(
             ``cell_fields``).
     """
     cells = []
-    for n_train, ratio in config.grid:
+    for n_train, window in config.cells():
         for observe in config.observe:
             key = observe_key(observe)
             for task in dataset.tasks:
-                reps = results.trials[(n_train, ratio, key, task)]
+                reps = results.trials[(n_train, window, key, task)]
                 flat = [r for rep in reps for r in rep]
                 accs = [accuracy(rep) for rep in reps if rep]
-                where = (n_train, ratio, observe, task)
+                where = (n_train, window, observe, task)
+                summary = summarise(flat) | observed(flat)
+                window_s = results.window_s(n_train, window, key)
                 cell = cell_type(
-                    **cell_fields(dataset, config, where, len(flat), accs, summarise(flat)),
+                    **cell_fields(dataset, config, where, len(flat), accs, summary, window_s),
                     coupled_groups=dict(sorted(results.couplings.get((n_train, key), {}).items())),
                     **(extra_fields(reps, config, results) if extra_fields is not None else {}),
                 )

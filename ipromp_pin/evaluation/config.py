@@ -7,6 +7,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 from ..exceptions import DataError
+from .windows import Window
 
 PAPER_GRID: tuple[tuple[int, float], ...] = ((20, 0.1), (15, 0.1), (10, 0.1), (10, 0.2))
 """(n_train, obs_ratio) cells of the paper's table."""
@@ -38,7 +39,8 @@ class EvaluationConfig:
         protocol: ``"paper"``, ``"splits"`` or ``"open-set"`` (the random splits, each task left out
             in turn: :mod:`~ipromp_pin.evaluation.open_set`).
         observe: Observed channel sets, each a list of group names.
-        grid: (n_train, obs_ratio) cells.
+        grid: (n_train, window) cells: a window is an observed fraction of each test demo (a float,
+            the paper's ``obs_ratio``) or a :class:`~.windows.Window` (e.g. in seconds).
         n_test: Test demos per task.
         n_splits: Random splits (``splits`` protocol).
         seed: Seed of the random splits.
@@ -49,7 +51,7 @@ class EvaluationConfig:
 
     protocol: str = "paper"
     observe: list[list[str]] = field(default_factory=lambda: [["orientation"], ["orientation", "emg"]])
-    grid: list[tuple[int, float]] = field(default_factory=lambda: list(PAPER_GRID))
+    grid: list[tuple[int, float | Window]] = field(default_factory=lambda: [(n, r) for n, r in PAPER_GRID])
     n_test: int = 10
     n_splits: int = 20
     seed: int = 0
@@ -62,6 +64,10 @@ class EvaluationConfig:
             raise DataError(
                 None, "protocol", f"unknown protocol '{self.protocol}' (use paper, splits or open-set)"
             )
+
+    def cells(self) -> list[tuple[int, Window]]:
+        """The grid's (n_train, window) cells, a bare fraction as a ``ratio`` window, each once."""
+        return list(dict.fromkeys((int(n), Window.of(w)) for n, w in self.grid))
 
     @property
     def repeats(self) -> int:

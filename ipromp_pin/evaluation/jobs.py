@@ -16,6 +16,7 @@ from threadpoolctl import threadpool_limits
 from ..data import Dataset
 from .config import EvaluationConfig
 from .splits import Indices, iter_splits
+from .windows import Window
 
 J = TypeVar("J")
 R = TypeVar("R")
@@ -32,7 +33,7 @@ class Job:
         n_train: Training demos per task.
         observe: Observed groups.
         indices: Task -> (train, test) demo indices.
-        ratios: Observed fractions at which the test demos are scored.
+        windows: The observation windows at which the test demos are scored.
         index: Position of the job in its protocol's list (results are aggregated in this order,
             whatever order the workers finish in).
     """
@@ -41,36 +42,38 @@ class Job:
     n_train: int
     observe: list[str]
     indices: Indices
-    ratios: list[float]
+    windows: list[Window]
     index: int = 0
 
 
 @dataclass
 class JobResult:
-    """What one job returns: per ratio the test trials, and facts about the fit (e.g. ``coupled``,
-    the observed groups the fitted model couples to the robot, ``"+"``-joined)."""
+    """What one job returns: per window the test trials, facts about the fit (e.g. ``coupled``,
+    the observed groups the fitted model couples to the robot, ``"+"``-joined) and the fit's nominal
+    duration [s] (the mean length of its training demos: the end of its ``train_fraction`` windows)."""
 
     job: Job
-    trials: dict[float, list] = field(default_factory=dict)
+    trials: dict[Window, list] = field(default_factory=dict)
     fit: dict[str, str] = field(default_factory=dict)
+    nominal_s: float = float("nan")
 
 
 def build_jobs(dataset: Dataset, config: EvaluationConfig) -> list[Job]:
     """Every job of ``config``: per split (:func:`~.splits.iter_splits`), one per observed set."""
     work = []
     for rep, n_train, indices in iter_splits(dataset, config):
-        ratios = [r for n, r in config.grid if n == n_train]
-        work += [Job(rep, n_train, list(o), indices, ratios) for o in config.observe]
+        windows = [w for n, w in config.cells() if n == n_train]
+        work += [Job(rep, n_train, list(o), indices, windows) for o in config.observe]
     for i, job in enumerate(work):
         job.index = i
     return work
 
 
 def longest_first(work: Sequence[Job]) -> list[Job]:
-    """The jobs in the order to run them: the longest first (most ratios scored, then most training
+    """The jobs in the order to run them: the longest first (most windows scored, then most training
     demos; ties in protocol order), so that the workers' last jobs are short ones and they finish
     together. The order changes no result: the cells are aggregated by :attr:`Job.index`."""
-    return sorted(work, key=lambda job: (-len(job.ratios), -job.n_train, job.index))
+    return sorted(work, key=lambda job: (-len(job.windows), -job.n_train, job.index))
 
 
 def run_jobs(

@@ -154,7 +154,8 @@ class OpenSetWorker:
         params = {"handover": False, **self.model_params, "novelty_alpha": self.alpha}
         model = IProMP(observe=list(job.observe), **params).fit(train)
         out = {}
-        for ratio in job.ratios:
+        for window in job.windows:  # fractions of each test demo only (build_open_set_jobs)
+            ratio = window.value
             rows: list[dict] = []
             for d in test:
                 rec = model.recognise(d.head(ratio, job.observe))
@@ -174,7 +175,7 @@ class OpenSetWorker:
                 )
             if self.baselines:
                 self._baselines(train, test, ratio, job.observe, rows)
-            out[ratio] = rows
+            out[window] = rows
         return JobResult(job, out, {"coupled": "+".join(model.fitted_.coupled_groups)})
 
     def _baselines(
@@ -200,7 +201,7 @@ def build_open_set_jobs(dataset: Dataset, config: EvaluationConfig) -> list[Open
     """Per random split, per left-out task, per observed set: one job."""
     work = []
     for rep, n_train, indices in iter_splits(dataset, config):
-        ratios = [r for n, r in config.grid if n == n_train]
+        ratios = [w for n, w in config.cells() if n == n_train and w.is_ratio]
         for unknown in dataset.tasks:
             work += [
                 OpenSetJob(rep, n_train, list(o), indices, ratios, unknown=unknown) for o in config.observe
@@ -241,10 +242,11 @@ def open_set_cells(
     for result in sorted(results, key=lambda r: r.job.index):
         job = result.job
         assert isinstance(job, OpenSetJob)
-        for ratio, rows in result.trials.items():
-            grouped.setdefault((job.n_train, ratio, observe_key(job.observe), job.unknown), []).extend(rows)
+        for window, rows in result.trials.items():
+            key = (job.n_train, window.value, observe_key(job.observe), job.unknown)
+            grouped.setdefault(key, []).extend(rows)
     cells = []
-    for n_train, ratio in config.grid:
+    for n_train, ratio in [(n, w.value) for n, w in config.cells() if w.is_ratio]:
         for observe in config.observe:
             for unknown in dataset.tasks:
                 rows = grouped[(n_train, ratio, observe_key(observe), unknown)]

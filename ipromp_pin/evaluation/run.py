@@ -4,7 +4,8 @@ from its file list, the dataset read once, the inference kernels compiled once (
 processes fork), then every protocol run, printed and written.
 
 The command line (:mod:`ipromp_pin.app.evaluate`) builds the request from its arguments, e.g.
-``EvaluateRequest(dataset=args.dataset, grid=grid_from(args.grid, args.n_train, args.ratios),
+``EvaluateRequest(dataset=args.dataset, grid=window_cells(grid_from(args.grid, args.n_train,
+args.ratios), args.windows, args.window_s, args.window_of_train),
 protocols=protocols_from(args.protocol), closed_loop_settings=<the --condition-noise ... options>,
 command=" ".join(["ipromp-pin", *sys.argv[1:]]), progress=<a progress-line factory>, ...)``, and
 calls :func:`run_evaluate`.
@@ -49,6 +50,7 @@ from .tables import (
     write_closed_loop_results,
     write_results,
 )
+from .windows import Window
 
 
 @dataclass
@@ -59,7 +61,8 @@ class EvaluateRequest:
         dataset: Dataset folder.
         format: Dataset format (``"auto"``, ...).
         observe: Observed channel sets, each a list of group names.
-        grid: (n_train, obs_ratio) cells.
+        grid: (n_train, window) cells: a window is a fraction of each test demo (a float) or a
+            :class:`~.windows.Window` (:func:`window_cells` adds those in seconds to a grid).
         protocols: Protocols to run, in order (``"paper"``, ``"splits"``).
         n_test: Test demos per task.
         n_splits: Random splits (``splits`` protocol).
@@ -74,8 +77,8 @@ class EvaluateRequest:
         objects: Task file of the objects (``--objects``; None: the shipped ``robots/objects.toml``):
             the closed loop torque-checks every re-plan with them; both protocols score each cell's
             ``peak_torque_ratio`` (the one-shot plans' or the commanded motions', true task's object).
-        closed_loop_settings: The closed loop's settings (each cell's ratio replaces ``start_ratio``;
-            None: the defaults).
+        closed_loop_settings: The closed loop's settings (each cell's window replaces the start:
+            :func:`~.scorers.closed_loop.start_settings`; None: the defaults).
         json: JSON results file (None: not written).
         md: Markdown results file (None: beside the JSON, if any).
         plots: Folder of the accuracy plot (one-shot evaluation; None: no plot).
@@ -88,7 +91,7 @@ class EvaluateRequest:
     dataset: Path
     format: str = "auto"
     observe: list[list[str]] = field(default_factory=lambda: [["orientation"], ["orientation", "emg"]])
-    grid: list[tuple[int, float]] = field(default_factory=lambda: list(PAPER_GRID))
+    grid: list[tuple[int, float | Window]] = field(default_factory=lambda: [(n, r) for n, r in PAPER_GRID])
     protocols: list[str] = field(default_factory=lambda: ["paper"])
     n_test: int = 10
     n_splits: int = 20
@@ -129,15 +132,67 @@ class EvaluateRequest:
             for protocol in self.protocols
         ]
 
+    def ratios(self) -> list[float]:
+        """The fractions of the cells that observe a fraction of each test demo."""
+        windows = [Window.of(w) for _, w in self.grid]
+        return [w.value for w in windows if w.is_ratio]
+
     def settings(self) -> ClosedLoopSettings:
-        """The closed loop's settings with the first cell's ratio as start ratio."""
-        settings = self.closed_loop_settings or ClosedLoopSettings(control_rate_hz=100.0)
-        return dataclasses.replace(settings, start_ratio=self.grid[0][1])
+        """The closed loop's settings (each cell replaces their start)."""
+        return self.closed_loop_settings or ClosedLoopSettings(control_rate_hz=100.0)
 
 
 def grid_from(choice: str, n_train: list[int], ratios: list[float]) -> list[tuple[int, float]]:
     """The cells of ``--grid``: the paper's (``"paper"``), else every (n_train, ratio) pair."""
     return list(PAPER_GRID) if choice == "paper" else [(n, r) for n in n_train for r in ratios]
+
+
+WINDOW_PROTOCOLS = ("both", "fraction", "seconds")
+"""The choices of ``evaluate --windows``: which cells an evaluation reports."""
+
+
+def window_cells(
+    grid: list[tuple[int, float]],
+    windows: str = "both",
+    seconds: list[float] | None = None,
+    train_fractions: list[float] | None = None,
+) -> list[tuple[int, float | Window]]:
+    """The cells of an evaluation: ``grid``'s, each observing a fraction of each test demo (the
+    paper's protocol, unchanged), then the cells observing windows in seconds (:mod:`.windows`).
+
+    The windows in seconds, for every training size of ``grid``: the first ``seconds`` [s] of each
+    test demo and the ``train_fractions`` of the training demos' mean length; with neither given,
+    the fractions of ``grid`` itself, of the training demos' mean length ((n, r) -> (n, r of train),
+    the counterpart of every cell of the grid).
+
+    Args:
+        windows: ``"both"`` (default), ``"fraction"`` (the grid's cells only) or ``"seconds"`` (the
+            cells in seconds only). With the closed loop, the robot starts at the end of each cell's
+            window: a fraction of each test demo (the paper's protocol) or the window's seconds (the
+            online start rule; the default cells in seconds are its default, a fraction of the
+            model's nominal duration).
+
+    Raises:
+        DataError: an unknown choice, or windows in seconds asked for with ``"fraction"`` (one line).
+    """
+    seconds, train_fractions = list(seconds or []), list(train_fractions or [])
+    asked = bool(seconds or train_fractions)
+    if windows not in WINDOW_PROTOCOLS:
+        raise DataError(None, "windows", f"unknown choice '{windows}' (use {', '.join(WINDOW_PROTOCOLS)})")
+    if windows == "fraction" and asked:
+        raise DataError(None, None, "--window-s and --window-of-train need --windows both or seconds")
+    fraction: list[tuple[int, float | Window]] = [(n, r) for n, r in grid]
+    if windows == "fraction":
+        return fraction
+    sizes = list(dict.fromkeys(n for n, _ in grid))
+    if asked:
+        extra = [Window("seconds", s) for s in seconds] + [
+            Window("train_fraction", f) for f in train_fractions
+        ]
+        timed: list[tuple[int, float | Window]] = [(n, w) for n in sizes for w in extra]
+    else:
+        timed = [(n, Window("train_fraction", r)) for n, r in grid]
+    return timed if windows == "seconds" else fraction + timed
 
 
 def protocols_from(choice: str) -> list[str]:
@@ -172,7 +227,7 @@ def check_request(request: EvaluateRequest) -> Robot:
         raise DataError(None, "--protocol", "open-set has no closed loop and no accuracy plot")
     if request.closed_loop:
         base = request.settings()
-        for _, ratio in request.grid:  # every cell's obs_ratio is a start ratio
+        for ratio in request.ratios():  # every ratio cell's obs_ratio is a start ratio
             dataclasses.replace(base, start_ratio=ratio).validate("command line")
     for path in (request.json, request.md_path):
         if path is not None:
@@ -260,7 +315,11 @@ def report(request: EvaluateRequest, cells: list[Cell], seconds: float) -> None:
             return
     if request.closed_loop:
         settings = request.settings().to_dict()
-        meta["closed_loop"] = {"limits": request.limits, **settings, "start_ratio": "obs_ratio of each cell"}
+        start = {
+            "start_ratio": "obs_ratio of each ratio cell",
+            "start_after_s": "seconds of each cell in seconds",
+        }
+        meta["closed_loop"] = {"limits": request.limits, **settings, **start}
         request.log(closed_loop_markdown(cells))  # type: ignore[arg-type]
         write_closed_loop_results(cells, request.json, md, meta)  # type: ignore[arg-type]
     else:

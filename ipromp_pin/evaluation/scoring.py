@@ -263,6 +263,7 @@ class ClosedLoopScore:
         contact_speed_violations: Control samples inside it faster than the contact-speed limit.
         arrival_delay_without_human_s: ``arrival_delay_s`` of the same replay without the human
             checks, [s].
+        start_s: When the robot started (its first re-plan), [s] from the motion start.
     """
 
     handover_error_cm: float
@@ -285,6 +286,7 @@ class ClosedLoopScore:
     protective_distance_time_s: float | None = None
     contact_speed_violations: int | None = None
     arrival_delay_without_human_s: float | None = None
+    start_s: float = float("nan")
 
     def to_dict(self) -> dict:
         """JSON-serialisable form."""
@@ -323,6 +325,7 @@ def score_closed_loop(
         recorded_arrival_s=recorded,
         handover_time_s=t_end,
         rest_s=result.arrival_s,
+        start_s=float(result.start_s),
         max_limit_ratio=float(ratios.max()),
         limit_ratios=[float(x) for x in ratios],
         position_excess_rad=excess,
@@ -406,6 +409,9 @@ class TrialResult:
         baselines: Baseline name -> its outcome on the same window (``--baselines``).
         peak_torque_ratio: Peak |joint torque| / effort limit of the one-shot plan with the true task's
             object (NaN: not scored).
+        observed_s: Time of the last observed sample, in [s] from the demo's start.
+        observed_fraction: The fraction of the demo's length its window covers (the unobserved part
+            the joint errors are over starts there).
     """
 
     task: str
@@ -425,6 +431,8 @@ class TrialResult:
     handover_orientation_baseline_deg: float = float("nan")
     baselines: dict[str, Any] = field(default_factory=dict)
     peak_torque_ratio: float = float("nan")
+    observed_s: float = float("nan")
+    observed_fraction: float = float("nan")
 
     @property
     def correct(self) -> bool:
@@ -451,7 +459,8 @@ def score_trial(
     Args:
         prediction: The model's prediction from the observed part of ``demo``.
         demo: The full test demo.
-        obs_ratio: Observed fraction, in (0, 1].
+        obs_ratio: Observed fraction of the demo's length, in (0, 1] (its window's end over its
+            duration, for a window in seconds).
         fk: Gripper positions of joint configurations (None: no Cartesian error).
         fk_rot: Gripper rotations of joint configurations (None: no orientation errors).
         baseline_rot: (3, 3) the baseline's hand-over rotation (:func:`mean_handover_rotations`).
@@ -491,6 +500,8 @@ def score_trial(
         confidence=float(np.max(prediction.posterior)),
         handover_orientation_error_deg=rot_err,
         handover_orientation_baseline_deg=rot_base,
+        observed_s=float(prediction.observed_until_s),
+        observed_fraction=float(obs_ratio),
     )
 
 

@@ -65,6 +65,7 @@ def replans_json(result: ClosedLoopResult, demo: Demo) -> dict:
         "settings": result.settings.to_dict(),
         "limit_profile": result.profile.to_dict(),
         "start_s": result.start_s,
+        "start_reason": result.start_reason,
         "stopped": result.stopped,
         "replans": rows,
     }
@@ -126,6 +127,7 @@ def report_dict(
             "settings": result.settings.to_dict(),
             "limit_profile": result.profile.to_dict(),
             "start_s": result.start_s,
+            "start_reason": result.start_reason,
             "handover_error_cm": score.handover_error_cm,
             "handover_orientation_error_deg": finite_or_none(score.handover_orientation_error_deg),
             "peak_torque_ratio": finite_or_none(score.peak_torque_ratio),
@@ -176,7 +178,7 @@ def report_text(
     lines = [f"Warning: {w}" for w in warnings or []]
     lines += [
         f"Replayed: {demo.task}/{demo.name} ({demo.source}), {score.handover_time_s:.2f} s",
-        f"Closed loop: start after {s.start_ratio:.0%} ({result.start_s:.2f} s), re-plan "
+        f"Closed loop: start {result.start_rule}: started {result.start_reason or 'never'}; re-plan "
         f"{s.replan_rate_hz:g} Hz, control {s.control_rate_hz:g} Hz, blend {s.blend_s:g} s, "
         f"freeze phase {s.freeze_phase:g}",
         f"Limit profile: {p.name} ({p.source})",

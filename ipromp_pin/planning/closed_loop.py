@@ -4,7 +4,8 @@
 and runs a simulated control loop at ``control_rate_hz`` (no waiting):
 
 * every sample goes into the model's streaming estimator (:meth:`~ipromp_pin.promp.IProMP.stream`);
-* from ``start_s`` on (the replay's start ratio of the human's motion), at ``replan_rate_hz`` the
+* from ``start_s`` on (the start rule's time: :meth:`ClosedLoopSettings.start_after`, or earlier
+  once a task is recognised with the settings' ``start_confidence``), at ``replan_rate_hz`` the
   task, phase and conditioned robot trajectory are re-estimated
   (:meth:`~ipromp_pin.promp.streaming.StreamingEstimator.predict`; with
   ``settings.handover_estimates`` also conditioned on the model's hand-over estimates, the hand-over
@@ -39,12 +40,12 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from ..data import Demo
+from ..data import DEFAULT_WINDOW_FRACTION, WINDOW_RANGE_S, Demo
 from ..exceptions import IPrompPinError, ObservationError, PipelineError
 from ..motion.limits import LimitProfile
 from ..motion.retarget import HEADROOM, SETTLE_S, ReferenceMotion, Retargeter, RetargetReport
 from ..motion.trajectory import MotionState, Trajectory
-from ..promp import IProMP, Prediction, Predictor
+from ..promp import IProMP, Prediction, Predictor, Recognition
 from ..robot import Robot
 from ..safety import CheckContext, CheckSuite, Timed, Verdict, next_guess
 from ..safety.self_collision import SelfCollisionMeasures
@@ -69,15 +70,32 @@ def conditioning_predictor(model: IProMP, noise: float | None) -> Predictor:
     return model.predictor_.with_condition_noise(noise)
 
 
+START_FRACTION = DEFAULT_WINDOW_FRACTION
+"""The start rule's default: the robot starts this fraction of the model's nominal duration (the mean
+length of its training demos) after the motion's start, a time it knows before the motion starts (as
+``plan``'s default observation window)."""
+
+
 @dataclass(frozen=True)
 class ClosedLoopSettings:
-    """Settings of the closed loop. The defaults of the start ratio, re-plan rate, blend horizon,
-    freeze phase and conditioning noise were chosen by cross-validation on training demos
+    """Settings of the closed loop. The defaults of the start, re-plan rate, blend horizon, freeze
+    phase and conditioning noise were chosen by cross-validation on training demos
     (``docs/closed_loop.md``); the settle window and the headroom are technical margins
     (:mod:`ipromp_pin.motion.retarget`).
 
+    When the robot starts is a rule it can apply online: ``start_after_s`` seconds after the motion's
+    start (by default :data:`START_FRACTION` of the model's nominal duration), or earlier once a task
+    is recognised with posterior ``start_confidence``. Offline, ``start_ratio`` starts it after a
+    fraction of the recorded motion's own length instead (the paper's protocol: that length is known
+    only once the motion is over).
+
     Attributes:
-        start_ratio: Fraction of the human's motion observed before the robot starts, in (0, 1).
+        start_ratio: Offline only: start after this fraction of the demo's own length, in (0, 1)
+            (None: the online rule).
+        start_after_s: Start this long after the motion's start, in [s] (None: :data:`START_FRACTION`
+            of the model's nominal duration); not with ``start_ratio``.
+        start_confidence: Also start as soon as a task's posterior reaches this, in (0, 1] (None: by
+            time alone).
         replan_rate_hz: Re-plan rate in [Hz] (> 0, at most the control rate).
         control_rate_hz: Control rate in [Hz] of the commanded trajectory.
         blend_s: Blend horizon in [s]: a re-plan joins the predicted trajectory this much later.
@@ -95,7 +113,9 @@ class ClosedLoopSettings:
             later.
     """
 
-    start_ratio: float = 0.2
+    start_ratio: float | None = None
+    start_after_s: float | None = None
+    start_confidence: float | None = None
     replan_rate_hz: float = 20.0
     control_rate_hz: float = 100.0
     blend_s: float = 0.2
@@ -112,8 +132,16 @@ class ClosedLoopSettings:
             return PipelineError(f"{source}: field '{name}': {problem}")
 
         r = self.start_ratio
-        if not (isinstance(r, int | float) and math.isfinite(r) and 0.0 < r < 1.0):
+        if r is not None and not (isinstance(r, int | float) and math.isfinite(r) and 0.0 < r < 1.0):
             raise bad("start_ratio", f"must be in (0, 1), got {r}")
+        a = self.start_after_s
+        if a is not None and not (isinstance(a, int | float) and WINDOW_RANGE_S.contains(a)):
+            raise bad("start_after_s", f"must be a time in {WINDOW_RANGE_S.text()}, got {a}")
+        if r is not None and a is not None:
+            raise bad("start_after_s", "give start_ratio (offline) or start_after_s, not both")
+        p = self.start_confidence
+        if p is not None and not (isinstance(p, int | float) and math.isfinite(p) and 0.0 < p <= 1.0):
+            raise bad("start_confidence", f"must be a posterior in (0, 1], got {p}")
         c = self.control_rate_hz
         if not (math.isfinite(c) and c > 0):
             raise bad("control_rate_hz", f"must be a positive rate, got {c}")
@@ -139,6 +167,26 @@ class ClosedLoopSettings:
     def to_dict(self) -> dict:
         """JSON-serialisable form."""
         return asdict(self)
+
+    def start_after(self, nominal_s: float) -> float | None:
+        """The start rule's time in [s] from the motion's start for a model of nominal duration
+        ``nominal_s`` [s] (None with ``start_ratio``: it depends on the recording's length)."""
+        if self.start_ratio is not None:
+            return None
+        return self.start_after_s if self.start_after_s is not None else START_FRACTION * float(nominal_s)
+
+    def start_text(self, nominal_s: float) -> str:
+        """The start rule in words, e.g. ``after 0.64 s (20% of the model's nominal 3.20 s)``."""
+        if self.start_ratio is not None:
+            text = f"after {self.start_ratio:.0%} of the recording (offline)"
+        elif self.start_after_s is not None:
+            text = f"after {self.start_after_s:g} s"
+        else:
+            nominal = f"{START_FRACTION:.0%} of the model's nominal {nominal_s:.2f} s"
+            text = f"after {START_FRACTION * nominal_s:.2f} s ({nominal})"
+        if self.start_confidence is not None:
+            text += f" or once a task's posterior reaches {self.start_confidence:g}"
+        return text
 
 
 @dataclass
@@ -217,9 +265,12 @@ class ClosedLoopResult:
         replans: Every re-plan, committed or refused.
         profile: The limit profile used.
         settings: The closed-loop settings.
-        start_s: When the robot was allowed to start, in [s].
+        start_s: When the robot was allowed to start, in [s] (its first re-plan; the start rule's time
+            when it never started).
         stopped: Why re-planning stopped before the human's last sample (empty if it did not).
         plans: The committed plans, in the order of the committed re-plans.
+        start_reason: What started the robot and when (empty: it never started).
+        start_rule: The start rule in words (:meth:`ClosedLoopSettings.start_text`).
     """
 
     trajectory: Trajectory
@@ -229,6 +280,8 @@ class ClosedLoopResult:
     start_s: float
     stopped: str = ""
     plans: list[Trajectory] = field(default_factory=list)
+    start_reason: str = ""
+    start_rule: str = ""
 
     @property
     def n_refused(self) -> int:
@@ -260,7 +313,8 @@ class ClosedLoopPlanner:
         profile: Velocity, acceleration and jerk limits (and position limits with margin).
         q_start: The robot's configuration (n_joints,) in [rad] at the motion start (at rest).
         start_s: Time in [s] from the motion start at which the robot may start (its first re-plan
-            is at the first sample at or after it).
+            is at the first sample at or after it, or earlier at the first sample whose task
+            posterior reaches ``settings.start_confidence``).
         settings: Closed-loop settings (validated here).
         suite: The checks of every re-plan's remaining motion (default: every registered check,
             :meth:`~ipromp_pin.safety.CheckSuite.build`; reuse one across runs of the same robot to
@@ -306,6 +360,9 @@ class ClosedLoopPlanner:
         ]
         self.replans: list[Replan] = []
         self._next_replan = self.start_s
+        self._started = False
+        self.start_reason = ""
+        self.start_rule = self.settings.start_text(float(model.duration_nominal_s_))
         self.prediction: Prediction | None = None  # that of the latest re-plan
         self._guess: float | None = None
         self._stopped = ""
@@ -353,7 +410,7 @@ class ClosedLoopPlanner:
             self._stopped = f"stream stopped at t={t_s:.3f} s: {exc}"
             return None
         t1 = time.perf_counter()
-        if rec is None or t_s < self.start_s - 1e-9 or t_s < self._next_replan - 1e-9:
+        if rec is None or not self._may_start(t_s, rec) or t_s < self._next_replan - 1e-9:
             return None
         freeze = self.settings.freeze_phase
         if freeze < 1.0 and len(self._plans) > 1 and t_s >= freeze * rec.duration_s:
@@ -369,6 +426,26 @@ class ClosedLoopPlanner:
         replan.cycle_ms = (time.perf_counter() - t0) * 1e3
         self.replans.append(replan)
         return replan
+
+    def _may_start(self, t_s: float, rec: Recognition) -> bool:
+        """Whether the robot has started by ``t_s``: the start rule's time is reached, or the task
+        posterior reaches ``start_confidence`` (the start is then at ``t_s``)."""
+        if self._started:
+            return True
+        confidence = self.settings.start_confidence
+        best = int(np.argmax(rec.posterior))
+        if t_s >= self.start_s - 1e-9:
+            self.start_reason = f"at {t_s:.2f} s, the start rule's time"
+        elif confidence is not None and rec.posterior[best] >= confidence:
+            self.start_reason = (
+                f"at {t_s:.2f} s, {rec.tasks[best]} recognised with posterior {rec.posterior[best]:.3f} >= "
+                f"{confidence:g}"
+            )
+        else:
+            return False
+        self._started = True
+        self.start_s = self._next_replan = t_s
+        return True
 
     def _replan(self, t_s: float, update_s: float) -> Replan:
         tick = self._tick(t_s)
@@ -487,7 +564,15 @@ class ClosedLoopPlanner:
         traj = Trajectory(t, q, qd, qdd, tuple(self.robot.joint_names), qddd)
         plans = [p for _, p in self._plans[1:]]
         return ClosedLoopResult(
-            traj, self.replans, self.profile, self.settings, self.start_s, self._stopped, plans
+            traj,
+            self.replans,
+            self.profile,
+            self.settings,
+            self.start_s,
+            self._stopped,
+            plans,
+            self.start_reason,
+            self.start_rule,
         )
 
 
@@ -515,21 +600,33 @@ def demo_samples(demo: Demo, groups: list[str]) -> list[dict[str, np.ndarray | N
     return out
 
 
-def start_time(demo: Demo, start_ratio: float) -> float:
-    """Time in [s] of the last sample of the first ``start_ratio`` of ``demo`` (when the robot starts).
+def start_time(demo: Demo, settings: ClosedLoopSettings, nominal_s: float) -> float:
+    """When the robot starts replaying ``demo`` by the start rule, in [s] from its start: the last
+    sample of its first ``start_ratio`` (offline), else the rule's time
+    (:meth:`ClosedLoopSettings.start_after` of a model of nominal duration ``nominal_s`` [s]); the
+    ``start_confidence`` may start it earlier (:class:`ClosedLoopPlanner`).
 
     Raises:
-        ObservationError: the start window holds fewer than 2 samples.
+        ObservationError: the start window holds fewer than 2 samples, or ends after the demo.
     """
+    length = float(demo.t[-1] - demo.t[0])
+    ratio = settings.start_ratio
+    after = settings.start_after(nominal_s)
+    name = "start_ratio" if ratio is not None else "start_after_s"
+    window = f"{ratio:.0%} of" if ratio is not None else f"{after:.2f} s of"
+    if after is not None and after > length:
+        problem = f"the robot would start at {after:.2f} s, after the demo's end ({length:.2f} s)"
+        raise ObservationError(demo.source, name, problem)
     try:
-        return float(demo.head(start_ratio).t[-1])
+        cut = demo.head(ratio) if ratio is not None else demo.until(after or 0.0)
     except ObservationError:
         raise ObservationError(
             demo.source,
-            "start_ratio",
-            f"the start window ({start_ratio:.0%} of a {demo.t[-1] - demo.t[0]:.2f} s demo of "
-            f"{demo.n_samples} samples) holds fewer than 2 samples",
+            name,
+            f"the start window ({window} a {length:.2f} s demo of {demo.n_samples} samples) holds fewer "
+            "than 2 samples",
         ) from None
+    return float(cut.t[-1] - demo.t[0])
 
 
 def replay_demo(
@@ -550,12 +647,12 @@ def replay_demo(
 
     Raises:
         DataError: the demo lacks an observed group or the robot group.
-        ObservationError: the start window holds fewer than 2 samples.
+        ObservationError: the start window holds fewer than 2 samples or ends after the demo.
     """
     settings = (settings or ClosedLoopSettings()).validate()
     groups = list(model.observe_)
     demo.require(groups + [model.robot_group])
-    start = start_time(demo, settings.start_ratio)
+    start = start_time(demo, settings, float(model.duration_nominal_s_))
     q_start = demo.groups[model.robot_group][0]
     with ClosedLoopPlanner(
         model, robot, profile, q_start, start, settings, suite, context, conditioner

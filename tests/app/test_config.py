@@ -39,6 +39,7 @@ OTHER_VALUES = {
     "observation.task": ("tape", lambda base: "tape"),
     "observation.demo": (3, lambda base: 3),
     "observation.ratio": (0.5, lambda base: 0.5),
+    "observation.until_s": (0.6, lambda base: 0.6),
     "robot.settings": ("robots/arm.toml", lambda base: str(base / "robots" / "arm.toml")),
     "robot.objects": ("my_objects.toml", lambda base: base / "my_objects.toml"),
     "robot.retreat": (False, lambda base: False),
@@ -124,10 +125,25 @@ def test_validation_names_the_field_of_the_file(tmp_path):
         ("[outputs]\nros = 3\n", "outputs.ros"),
         ("[model]\nobserve = []\n", "model.observe"),
         ("[data]\nsynthetic_seed = -1\n", "data.synthetic_seed"),
+        ("[observation]\nuntil_s = 0\n", "observation.until_s"),
+        ("[observation]\nuntil_s = 1e4\n", "observation.until_s"),
+        ("[observation]\nratio = 0.2\nuntil_s = 0.6\n", "observation.until_s"),
     ):
         pipe.write_text(text)
         with pytest.raises(PipelineError, match=rf"^{re.escape(str(pipe))}: field '{field}': "):
             load_pipeline(pipe)
+
+
+def test_the_window_is_a_ratio_or_seconds_and_the_command_line_replaces_the_files(tmp_path):
+    pipe = tmp_path / "p.toml"
+    pipe.write_text("[observation]\nuntil_s = 0.6\n")
+    cfg = load_pipeline(pipe)
+    assert (cfg.window.until_s, cfg.window.ratio) == (0.6, None)
+    cfg = load_pipeline(pipe, ratio=0.3)  # --ratio: the file's seconds give way
+    assert (cfg.until_s, cfg.window.ratio) == (None, 0.3)
+    assert load_pipeline("baxter_handover", until_s=1.5).window.until_s == 1.5
+    with pytest.raises(PipelineError, match="not both"):
+        load_pipeline("baxter_handover", ratio=0.3, until_s=1.5)
 
 
 def _help(capsys, *command: str) -> str:
@@ -138,7 +154,7 @@ def _help(capsys, *command: str) -> str:
 
 def _shown(text: str, option: str) -> str:
     """The "(default X" the help of ``option`` shows."""
-    match = re.search(rf"{option} [A-Z_]+ .*?\(default ([^,)]+)", text)
+    match = re.search(rf"{option} [A-Z_]+ [a-z].*?\(default ([^,);]+)", text)  # the help, not the usage
     assert match, option
     return match.group(1)
 
@@ -150,8 +166,11 @@ def test_help_defaults_are_those_of_the_settings(capsys, monkeypatch):
     assert float(_shown(run, "--rate")) == default_of("timing.control_rate_hz")
     replay = _help(capsys, "replay")
     settings = ClosedLoopSettings()
+    assert (
+        "--start-after S the robot starts S seconds after the human's motion starts (default: 20% of"
+        in replay
+    )
     for option, name in (
-        ("--start-ratio", "start_ratio"),
         ("--replan-rate", "replan_rate_hz"),
         ("--blend", "blend_s"),
         ("--freeze-phase", "freeze_phase"),
@@ -166,6 +185,7 @@ def test_help_defaults_are_those_of_the_settings(capsys, monkeypatch):
 
 def _closed_loop_args(**given) -> argparse.Namespace:
     options = {"replan_rate": None, "blend": None, "freeze_phase": None, "condition_noise": None}
+    options["start_confidence"] = None
     return argparse.Namespace(**{**options, **given})
 
 

@@ -101,24 +101,21 @@ def test_replay_bad_limit_profile_and_short_demo(tmp_path, capsys):
     err = capsys.readouterr().err.strip()
     assert code == 2 and f"{bad}: field 'acceleration_rad_s2': value -2.0 is not positive" in err
     data = _write_dataset(tmp_path / "data", short=True)
-    code = main(
-        [
-            "replay",
-            str(PIPELINE),
-            "--out",
-            str(tmp_path / "o"),
-            "--dataset",
-            str(data),
-            "--task",
-            "rod",
-            "--demo",
-            "-1",
-        ]
-    )
+    short = ["replay", str(PIPELINE), "--out", str(tmp_path / "o"), "--dataset", str(data)]
+    short += ["--task", "rod", "--demo", "-1"]
+    code = main([*short, "--start-ratio", "0.2"])  # offline: refused before training
     captured = capsys.readouterr()
     assert code == 2 and "field 'start_ratio': the start window" in captured.err
     assert "holds fewer than 2 samples" in captured.err and ".npz" in captured.err
     assert "[model]" not in captured.out
+    code = main(short)  # the online rule: its time needs the model's nominal duration
+    err = capsys.readouterr().err.strip()
+    assert (
+        code == 2
+        and len(err.splitlines()) == 1
+        and ".npz: field 'start_after_s': the robot would start" in err
+    )
+    assert "after the demo's end" in err and not (tmp_path / "o").exists()
 
 
 def test_evaluate_closed_loop_adds_the_closed_loop_fields(tmp_path, capsys):
@@ -131,7 +128,12 @@ def test_evaluate_closed_loop_adds_the_closed_loop_fields(tmp_path, capsys):
     doc = json.loads(out.read_text())
     assert doc["meta"]["closed_loop"]["limits"] == "demonstrated"
     cells = doc["cells"]
-    assert len(cells) == 2
+    # the paper's start after 20 % of each test demo, then the online rule: after 20 % of the model's
+    # nominal duration (the training demos' mean length), whatever the test demo's length
+    assert [c["window"]["kind"] for c in cells] == ["ratio"] * 2 + ["train_fraction"] * 2
+    for c in cells[2:]:
+        starts = {t["closed_loop_start_s"] for t in c["closed_loop_trials"]}
+        assert len(starts) == 1 and c["window"]["seconds"] - 0.05 < starts.pop() <= c["window"]["seconds"]
     for c in cells:
         for key in (
             "closed_loop_handover_error_cm",

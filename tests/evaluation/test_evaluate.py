@@ -67,11 +67,15 @@ def test_evaluate_command_writes_json_and_markdown(tmp_path, capsys):
     )
     assert code == 0
     doc = json.loads(out.read_text())
-    assert len(doc["cells"]) == 3
+    # by default each cell of the grid and its counterpart in seconds: the same fraction of the
+    # training demos' mean length
+    assert len(doc["cells"]) == 6
+    assert [c["window"]["kind"] for c in doc["cells"]] == ["ratio"] * 3 + ["train_fraction"] * 3
     for cell in doc["cells"]:
         for key in ("protocol", "n_train", "obs_ratio", "observe", "task", "accuracy", "accuracy_std"):
             assert key in cell
         assert cell["protocol"] == "splits" and cell["observe"] == ["orientation", "emg"]
+        assert cell["window"]["value"] == 0.2
         assert 0.0 <= cell["accuracy"] <= 1.0
         assert "handover_error_cm" in cell and "handover_error_prior_cm" in cell
         # the one-shot plans' peak joint torque with the true task's (shipped) object

@@ -33,11 +33,18 @@ class MajorityScorer(Scorer):
         self.task_ = max(dict.fromkeys(names), key=names.count)
         return self
 
-    def score(self, test, obs_ratio, split=0):
+    def score(self, test, window, split=0):
         nan = float("nan")
-        return [
+        return [  # the observed fraction of each demo as its "hand-over error"
             TrialResult(
-                d.task, d.name, self.task_, float(d.task == self.task_), *[nan] * 4, obs_ratio, nan, 0.0
+                d.task,
+                d.name,
+                self.task_,
+                float(d.task == self.task_),
+                *[nan] * 4,
+                window.fraction(d),
+                nan,
+                0.0,
             )
             for d in test
         ]
@@ -165,7 +172,7 @@ def test_the_evaluate_request_runs_the_closed_loop_with_the_baselines(tmp_path):
     for c in doc["cells"]:
         assert c["closed_loop_handover_error_cm"] is not None and len(c["closed_loop_trials"]) == 1
         assert {"logistic_regression", "lda"} <= set(c["baselines"])
-    assert doc["meta"]["closed_loop"]["start_ratio"] == "obs_ratio of each cell"
+    assert doc["meta"]["closed_loop"]["start_ratio"] == "obs_ratio of each ratio cell"
     assert any(line.startswith("### Closed loop, protocol `splits`") for line in lines)
     assert out.with_suffix(".md").read_text().startswith("### Closed loop")
     too_big = EvaluateRequest(dataset=data, grid=[(6, 0.2)], protocols=["splits"], log=lines.append)

@@ -7,7 +7,7 @@ import pytest
 
 from ipromp_pin.data import ROBOT
 from ipromp_pin.evaluation.scoring import arrival_time, score_closed_loop
-from ipromp_pin.exceptions import PipelineError
+from ipromp_pin.exceptions import ObservationError, PipelineError
 from ipromp_pin.motion.limits import LimitProfile, conservative_profile, demonstrated_profile
 from ipromp_pin.motion.retarget import ReferenceMotion, Retargeter
 from ipromp_pin.motion.trajectory import MotionState, Trajectory
@@ -17,6 +17,7 @@ from ipromp_pin.planning.closed_loop import (
     conditioning_predictor,
     demo_samples,
     replay_demo,
+    start_time,
 )
 from ipromp_pin.promp import IProMP
 from ipromp_pin.readers.synthetic import make_synthetic_dataset
@@ -135,9 +136,63 @@ def test_settings_are_validated_naming_the_field():
         ({"replan_rate_hz": 200.0}, "replan_rate_hz"),
         ({"blend_s": float("nan")}, "blend_s"),
         ({"freeze_phase": 0.0}, "freeze_phase"),
+        ({"start_after_s": 0.0}, "start_after_s"),
+        ({"start_after_s": 1e4}, "start_after_s"),
+        ({"start_ratio": 0.2, "start_after_s": 0.5}, "start_after_s"),
+        ({"start_confidence": 0.0}, "start_confidence"),
+        ({"start_confidence": 1.5}, "start_confidence"),
     ):
         with pytest.raises(PipelineError, match=f"somewhere: field '{field}'"):
             ClosedLoopSettings(**kwargs).validate("somewhere")
+
+
+def test_the_start_rule_is_a_time_whatever_the_recordings_length(setup):
+    model, _, _, test = setup
+    demo = test[0]
+    dt = float(demo.t[1] - demo.t[0])
+    nominal = float(model.duration_nominal_s_)
+    shorter = demo.slice(int(0.7 * demo.n_samples))  # the same motion, recorded for less time
+    rule = ClosedLoopSettings()  # by default: a fraction of the model's nominal duration
+    t_rule = start_time(demo, rule, nominal)
+    assert t_rule == start_time(shorter, rule, nominal)
+    assert 0.2 * nominal - dt < t_rule <= 0.2 * nominal  # its last sample observed by then
+    assert (
+        rule.start_text(nominal)
+        == f"after {0.2 * nominal:.2f} s (20% of the model's nominal {nominal:.2f} s)"
+    )
+    # the paper's fraction of the recording moves with the recording's length
+    paper = ClosedLoopSettings(start_ratio=0.2)
+    assert start_time(demo, paper, nominal) != start_time(shorter, paper, nominal)
+    assert start_time(demo, ClosedLoopSettings(start_after_s=0.5), nominal) == pytest.approx(0.5, abs=dt)
+    with pytest.raises(ObservationError, match="start_after_s.*after the demo's end"):
+        start_time(demo, ClosedLoopSettings(start_after_s=100.0), nominal)
+
+
+def _first_replan(model, robot, demo, settings, certifier):
+    """The planner and its first re-plan on ``demo`` (replayed at its recorded timing)."""
+    profile = demonstrated_profile(robot, [demo])
+    start = start_time(demo, settings, float(model.duration_nominal_s_))
+    with ClosedLoopPlanner(
+        model, robot, profile, demo.groups[ROBOT][0], start, settings, certifier
+    ) as planner:
+        for t, sample in zip(demo.t - demo.t[0], demo_samples(demo, OBSERVE), strict=True):
+            replan = planner.step(float(t), sample)
+            if replan is not None:
+                return planner, start, replan
+    raise AssertionError("no re-plan")
+
+
+def test_the_robot_starts_earlier_once_a_task_is_recognised_with_the_set_confidence(setup, certifier):
+    model, robot, _, test = setup
+    demo = test[1]
+    planner, start, first = _first_replan(model, robot, demo, ClosedLoopSettings(), certifier)
+    assert start - 1e-9 <= first.observed_until_s < start + 0.05
+    assert planner.start_s == first.observed_until_s and "the start rule's time" in planner.start_reason
+    # recognised with posterior 0.9 before the rule's time: the robot starts then
+    planner, _, early = _first_replan(model, robot, demo, ClosedLoopSettings(start_confidence=0.9), certifier)
+    assert early.observed_until_s < start and max(early.posterior.values()) >= 0.9
+    assert planner.start_s == early.observed_until_s
+    assert f"{early.task} recognised with posterior" in planner.start_reason
 
 
 def test_replay_starts_late_stays_within_limits_and_reaches_the_handover(setup, certifier):
@@ -323,7 +378,7 @@ def test_the_planner_is_a_context_manager_that_opens_and_closes_its_stream(setup
         other.step(float(t), sample)
     again = other.finish()
     assert np.array_equal(result.trajectory.q, again.trajectory.q)
-    replayed = replay_demo(model, robot, demo, profile, ClosedLoopSettings(), certifier)
+    replayed = replay_demo(model, robot, demo, profile, ClosedLoopSettings(start_ratio=0.2), certifier)
     assert np.array_equal(result.trajectory.q, replayed.trajectory.q)
 
 

@@ -1,9 +1,10 @@
 """Reference baselines for the evaluation: what a user would try first, with scikit-learn.
 
-On exactly the windows ipromp_pin sees (the first ``obs_ratio`` of each demo's observed groups),
-every demo is reduced to **window features**: per observed channel, the mean and the last valid
-value over the window (missing samples skipped; a group with no valid sample in the window is
-imputed with the training mean), standardised on the training demos. From them:
+On exactly the windows ipromp_pin sees (the first ``obs_ratio`` of each demo's observed groups, or
+its first seconds: :mod:`ipromp_pin.evaluation.windows`; training and test demos alike), every demo
+is reduced to **window features**: per observed channel, the mean and the last valid value over the
+window (missing samples skipped; a group with no valid sample in the window is imputed with the
+training mean), standardised on the training demos. From them:
 
 * recognition: a multinomial logistic regression (``logistic_regression``, its penalty ``C``
   chosen by stratified 5-fold cross-validation of the log loss on the training demos,
@@ -14,7 +15,8 @@ imputed with the training mean), standardised on the training demos. From them:
   and a k-nearest-neighbours regressor (``knn``, number of neighbours and weighting by 5-fold
   ``GridSearchCV``) of the hand-over gripper position in [m] (the final robot configuration through
   forward kinematics) and, separately, of the joint trajectory in [rad] at :data:`N_PHASES`
-  normalised phases over the unobserved part ``[obs_ratio, 1]``.
+  normalised phases over the unobserved part ``[obs_ratio, 1]`` of each demo (``obs_ratio``: the
+  fraction of the demo's own length its window covers).
 
 Every setting is chosen on the training demos only. scikit-learn is an optional dependency (the
 ``baselines`` extra): :func:`require_sklearn` says so in one line when it is missing.

@@ -1,4 +1,4 @@
-"""The baselines of one observed set and fraction: fitted on the training demos' windows, scored on
+"""The baselines of one observed set and window: fitted on the training demos' windows, scored on
 the test demos' (:class:`WindowBaselines`), one :class:`BaselineTrial` per baseline and test demo."""
 
 from __future__ import annotations
@@ -10,6 +10,7 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from ...data import ROBOT, Demo
+from ..windows import FitWindow
 from .base import Estimator, require_sklearn
 from .features import FK, phase_trajectory, standardiser, window_features
 from .registry import CLASSIFIERS, REGRESSORS
@@ -39,22 +40,24 @@ class BaselineTrial:
 
 
 class WindowBaselines:
-    """The baselines of one observed set and observed fraction, fitted on training demos.
+    """The baselines of one observed set and observation window, fitted on training demos.
 
     Args:
         observe: Observed human groups.
-        obs_ratio: Observed fraction of every demo, in (0, 1].
+        window: The window of every demo, training and test alike (:class:`~..windows.FitWindow`;
+            a bare float: that observed fraction of every demo, in (0, 1]). The trajectory regressors
+            predict each demo's unobserved part, ``[fraction, 1]`` of its own length.
         fk: Forward kinematics for the hand-over position (None: no hand-over regressor).
     """
 
-    def __init__(self, observe: Sequence[str], obs_ratio: float, fk: FK | None = None) -> None:
+    def __init__(self, observe: Sequence[str], window: FitWindow | float, fk: FK | None = None) -> None:
         self.observe = list(observe)
-        self.obs_ratio = float(obs_ratio)
+        self.window = FitWindow.of(window)
         self.fk = fk
 
     def features(self, demos: Sequence[Demo]) -> np.ndarray:
-        """Window features (n, 2 D_o) of the demos' first ``obs_ratio`` (raw: not standardised)."""
-        return np.stack([window_features(d.head(self.obs_ratio, self.observe), self.observe) for d in demos])
+        """Window features (n, 2 D_o) of the demos' windows (raw: not standardised)."""
+        return np.stack([window_features(self.window.cut(d, self.observe), self.observe) for d in demos])
 
     def fit(self, train: Sequence[Demo]) -> WindowBaselines:
         """Fit every baseline on the training demos (settings by cross-validation on them)."""
@@ -73,7 +76,8 @@ class WindowBaselines:
         for task in self.tasks_:
             rows = np.flatnonzero(y == task)
             demos = [train[int(i)] for i in rows]
-            targets = {"trajectory": np.stack([phase_trajectory(d, self.obs_ratio).ravel() for d in demos])}
+            unobserved = [phase_trajectory(d, self.window.fraction(d)).ravel() for d in demos]
+            targets = {"trajectory": np.stack(unobserved)}
             if self.fk is not None:
                 targets["handover"] = self.fk(np.stack([d.groups[ROBOT][-1] for d in demos]))
             for name in REGRESSORS:
@@ -104,7 +108,7 @@ class WindowBaselines:
         for i, d in enumerate(test):
             if d.task not in self.tasks_:
                 continue
-            q_true = phase_trajectory(d, self.obs_ratio)
+            q_true = phase_trajectory(d, self.window.fraction(d))
             p_hand = self.fk(d.groups[ROBOT][-1:])[0] if self.fk is not None else None
             for name in REGRESSORS:
                 q = (

@@ -8,6 +8,7 @@ from collections.abc import Sequence
 from ...data import Demo
 from ..baselines import BaselineTrial, WindowBaselines, require_sklearn
 from ..baselines.features import FK
+from ..windows import FitWindow
 from .base import Scorer
 
 
@@ -26,11 +27,14 @@ class BaselineScorer(Scorer):
         require_sklearn()
 
     def fit(self, train: Sequence[Demo], observe: Sequence[str]) -> BaselineScorer:
-        """Keep the training demos: the baselines are fitted per observed fraction, in :meth:`score`."""
+        """Keep the training demos: the baselines are fitted per window, in :meth:`score`."""
         self.train_ = list(train)
         self.observe_ = list(observe)
         return self
 
-    def score(self, test: Sequence[Demo], obs_ratio: float, split: int = 0) -> list[dict[str, BaselineTrial]]:
-        """Per test demo, baseline name -> its outcome on the demo's first ``obs_ratio``."""
-        return WindowBaselines(self.observe_, obs_ratio, self.fk).fit(self.train_).score(test)
+    def score(
+        self, test: Sequence[Demo], window: FitWindow | float, split: int = 0
+    ) -> list[dict[str, BaselineTrial]]:
+        """Per test demo, baseline name -> its outcome on the demo's ``window`` (fitted on the same
+        window of every training demo)."""
+        return WindowBaselines(self.observe_, window, self.fk).fit(self.train_).score(test)

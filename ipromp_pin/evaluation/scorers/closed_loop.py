@@ -1,11 +1,13 @@
 """The closed-loop scorer: per fit a limit profile (derived from the fit's training demos,
 ``demonstrated``, or the robot's ``conservative`` one, or a profile file); every test demo is
 
-* predicted once from its first ``obs_ratio`` (the one-shot prediction, scored as the one-shot
-  scorer does: recognition, joint errors, ``one_shot_handover_error_cm`` = the gripper position
-  error of the one-shot plan's end, which is the prediction's last point);
-* replayed at its recorded timing with ``obs_ratio`` as the start ratio
-  (:func:`~ipromp_pin.planning.closed_loop.replay_demo`) and scored
+* predicted once from its cell's window (its first ``obs_ratio``, or its first seconds; the one-shot
+  prediction, scored as the one-shot scorer does: recognition, joint errors,
+  ``one_shot_handover_error_cm`` = the gripper position error of the one-shot plan's end, which is
+  the prediction's last point);
+* replayed at its recorded timing, the robot starting at the window's end (``obs_ratio`` as the
+  start ratio, the paper's protocol; or the window's seconds as the online start rule's time,
+  :func:`start_settings`; :func:`~ipromp_pin.planning.closed_loop.replay_demo`) and scored
   (:func:`~ipromp_pin.evaluation.scoring.score_closed_loop`).
 
 Each cell gains, over all its test trials (recognised or not): ``closed_loop_handover_error_cm``,
@@ -24,6 +26,7 @@ is the one without the human checks.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
 
@@ -40,6 +43,7 @@ from ...safety import HUMAN_CHECKS, CheckContext, CheckSuite
 from ..cells import CellResults, ClosedLoopCell, baseline_summary, median
 from ..config import EvaluationConfig
 from ..scoring import ClosedLoopScore, TrialResult, mean_handover_rotations, replay_scored, score_trial
+from ..windows import FitWindow
 from .base import Scorer
 from .one_shot import predict_window
 
@@ -50,7 +54,9 @@ class ClosedLoopOptions:
 
     Attributes:
         limits: ``"demonstrated"``, ``"conservative"`` or a limit profile file.
-        settings: Closed-loop settings; each cell's ``obs_ratio`` replaces ``start_ratio``.
+        settings: Closed-loop settings; each cell's window replaces the start: a ratio window's
+            fraction of each test demo is its ``start_ratio`` (the paper's protocol), a window in
+            seconds' end its ``start_after_s`` (the online rule; ``start_confidence`` is kept).
         recipe: How the demonstrated profile is derived (default: the robot settings').
         check_collisions: Contact-test every commanded control sample.
         human: Replay demos with a tracked skeleton with the human checks and measure them
@@ -93,6 +99,7 @@ TRIAL_KEYS = (
     "handover_error_cm",
     "closed_loop_handover_error_cm",
     "closed_loop_final_error_cm",
+    "closed_loop_start_s",
     "closed_loop_arrival_delay_s",
     "closed_loop_max_limit_ratio",
     "closed_loop_replans",
@@ -136,11 +143,20 @@ def evaluation_suite(robot: Robot, objects: ObjectTable | None, human: bool) -> 
     return CheckSuite.build(robot, exclude=drop + ([] if human else list(HUMAN_CHECKS)))
 
 
+def start_settings(settings: ClosedLoopSettings, window: FitWindow) -> ClosedLoopSettings:
+    """``settings`` starting the robot at the end of a cell's ``window``: after its fraction of each
+    test demo (a ratio window, ``start_ratio``: the paper's protocol) or after its seconds
+    (``start_after_s``: the online rule); validated."""
+    if window.window.is_ratio:
+        return dataclasses.replace(settings, start_ratio=window.window.value, start_after_s=None).validate()
+    return dataclasses.replace(settings, start_ratio=None, start_after_s=window.end_s).validate()
+
+
 def replay_trials(
     model: IProMP,
     robot: Robot,
     test: Sequence[Demo],
-    ratio: float,
+    window: FitWindow | float,
     profile: LimitProfile,
     settings: ClosedLoopSettings,
     suite: CheckSuite,
@@ -149,7 +165,8 @@ def replay_trials(
     mean_rot: dict[str, np.ndarray] | None = None,
     objects: ObjectTable | None = None,
 ) -> list[ClosedLoopTrial]:
-    """Replay every test demo with ``ratio`` as the start ratio; one :class:`ClosedLoopTrial` each.
+    """Replay every test demo starting at the end of ``window`` (:func:`start_settings`); one
+    :class:`ClosedLoopTrial` each, its one-shot fields from the same window.
 
     ``suite``: the checks of every re-plan (:func:`evaluation_suite`); its human checks run on the
     demos with a tracked skeleton, against the recorded human as observed until each re-plan, and are
@@ -158,12 +175,14 @@ def replay_trials(
     objects; the commanded motion's peak torque ratio is scored with the true task's object."""
     observe = list(model.observe_)
     fk, fk_rot = gripper_kinematics(robot)
-    run = ClosedLoopSettings(**{**settings.to_dict(), "start_ratio": float(ratio)}).validate()
+    window = FitWindow.of(window)
+    run = start_settings(settings, window)
     conditioner = conditioning_predictor(model, run.condition_noise)
     out = []
     for d in test:
-        prediction = predict_window(model, d, ratio, observe)
-        one_shot = score_trial(prediction, d, ratio, fk, fk_rot, (mean_rot or {}).get(d.task))
+        prediction = predict_window(model, d, window, observe)
+        fraction = window.fraction(d)
+        one_shot = score_trial(prediction, d, fraction, fk, fk_rot, (mean_rot or {}).get(d.task))
         human = (
             HumanMotion.from_demo(d, robot.settings.human) if set(HUMAN_CHECKS) & set(suite.names) else None
         )
@@ -227,13 +246,13 @@ class ClosedLoopScorer(Scorer):
         self.mean_rot_ = mean_handover_rotations(train, fk_rot)
         return self
 
-    def score(self, test: Sequence[Demo], obs_ratio: float, split: int = 0) -> list[ClosedLoopTrial]:
-        """One :class:`ClosedLoopTrial` per test demo."""
+    def score(self, test: Sequence[Demo], window: FitWindow | float, split: int = 0) -> list[ClosedLoopTrial]:
+        """One :class:`ClosedLoopTrial` per test demo, the robot starting at the end of ``window``."""
         return replay_trials(
             self.model_,
             self.robot,
             test,
-            obs_ratio,
+            window,
             self.profile_,
             self.options.settings,
             self.suite_ or evaluation_suite(self.robot, self.objects, self.options.human),
@@ -260,6 +279,7 @@ class ClosedLoopScorer(Scorer):
             "closed_loop_final_error_cm": median([s.final_error_cm for s in scores]),
             "one_shot_handover_error_cm": median([t.handover_error_cm for t in flat]),
             "arrival_delay_s": median([s.arrival_delay_s for s in scores]),
+            "robot_start_s": median([s.start_s for s in scores]),
             "max_limit_ratio": max((s.max_limit_ratio for s in scores), default=None),
             "refused_replans": int(sum(s.refused_replans for s in scores)),
             "replans": int(sum(s.replans for s in scores)),

@@ -1,6 +1,7 @@
-"""The one-shot scorer: the model predicts each test demo once from its first ``obs_ratio`` and the
-prediction is measured against the whole demo (recognition, joint errors in [rad], the hand-over
-gripper position error in [cm], each also for the unconditioned prior). With a robot and the tasks'
+"""The one-shot scorer: the model predicts each test demo once from its observed window (its first
+``obs_ratio``, or its first seconds: :mod:`..windows`) and the prediction is measured against the
+whole demo (recognition, joint errors in [rad], the hand-over gripper position error in [cm], each
+also for the unconditioned prior). With a robot and the tasks'
 objects, each trial's one-shot plan (the prediction timed as ``run`` times it) also gets its peak
 joint torque ratio with the true task's object (:mod:`..scoring`), and each cell the maximum over its
 trials, ``peak_torque_ratio``."""
@@ -21,14 +22,18 @@ from ...safety import CheckSuite
 from ..cells import CellResults, baseline_summary, calibration, expected_calibration_error
 from ..config import EvaluationConfig
 from ..scoring import FK, FKRot, TrialResult, mean_handover_rotations, one_shot_peak_torque_ratio, score_trial
+from ..windows import FitWindow
 from .base import Scorer
 
 __all__ = ["OneShotScorer", "TrialResult", "predict_window", "score_trial"]
 
 
-def predict_window(model: IProMP, demo: Demo, obs_ratio: float, observe: Sequence[str]) -> Prediction:
-    """The model's prediction from the first ``obs_ratio`` of the demo's ``observe`` groups."""
-    prediction = model.predict(demo.head(obs_ratio, groups=observe))
+def predict_window(
+    model: IProMP, demo: Demo, window: FitWindow | float, observe: Sequence[str]
+) -> Prediction:
+    """The model's prediction from the ``window`` of the demo's ``observe`` groups (a bare float:
+    that fraction of the demo)."""
+    prediction = model.predict(FitWindow.of(window).cut(demo, observe))
     assert isinstance(prediction, Prediction), "IProMP.predict of one Demo returns one Prediction"
     return prediction
 
@@ -74,12 +79,14 @@ class OneShotScorer(Scorer):
         self.mean_rot_ = {} if self.fk_rot is None else mean_handover_rotations(train, self.fk_rot)
         return self
 
-    def score(self, test: Sequence[Demo], obs_ratio: float, split: int = 0) -> list[TrialResult]:
+    def score(self, test: Sequence[Demo], window: FitWindow | float, split: int = 0) -> list[TrialResult]:
         """One :class:`TrialResult` per test demo (its one-shot plan torque-scored, with objects)."""
+        window = FitWindow.of(window)
         out = []
         for d in test:
-            prediction = predict_window(self.model_, d, obs_ratio, self.observe_)
-            trial = score_trial(prediction, d, obs_ratio, self.fk, self.fk_rot, self.mean_rot_.get(d.task))
+            prediction = predict_window(self.model_, d, window, self.observe_)
+            fraction = window.fraction(d)
+            trial = score_trial(prediction, d, fraction, self.fk, self.fk_rot, self.mean_rot_.get(d.task))
             if self.robot is not None and self.objects is not None:
                 if self.suite_ is None:  # once per process (the arm's dynamics are built on first use)
                     self.suite_ = CheckSuite.build(self.robot, ["joint_torques"])

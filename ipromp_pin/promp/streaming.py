@@ -358,16 +358,12 @@ class StreamingEstimator:
         conditioner: Predictor | None = None,
         estimates: bool = True,
     ) -> Prediction:
-        """The latest recognition (task and phase from the stream's statistics) with the robot
-        trajectory of its task conditioned on the samples received so far at its MAP phase, with the
-        noise ratio ``condition_noise`` (None: the model's own ``nu_c``; see
-        :meth:`Predictor.with_condition_noise <ipromp_pin.promp.predictor.Predictor.with_condition_noise>`)
-        or by ``conditioner``'s conditioner when given; then, with ``estimates``, conditioned on the
-        model's hand-over estimates (the regression from the stream's running window summary, the
-        orientation estimate: :meth:`Predictor.with_estimates
-        <ipromp_pin.promp.predictor.Predictor.with_estimates>`, as :meth:`IProMP.predict
-        <ipromp_pin.promp.estimator.IProMP.predict>` does). With the model's own noise ratio this
-        equals :meth:`prediction` (to rounding) without recognising again.
+        """The latest recognition with the robot trajectory of its task conditioned on the samples so
+        far at its MAP phase, with the noise ratio ``condition_noise`` (None: the model's own ``nu_c``;
+        :meth:`Predictor.with_condition_noise`) or by ``conditioner``'s conditioner; then, with
+        ``estimates``, on the model's hand-over estimates (:meth:`Predictor.with_estimates`, as
+        :meth:`IProMP.predict` does). With the model's own noise ratio this equals :meth:`prediction`
+        (to rounding) without recognising again.
 
         Raises:
             ObservationError: fewer than 2 samples received.

@@ -5,6 +5,7 @@ the pipeline file."""
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import re
 from pathlib import Path
 
@@ -84,7 +85,12 @@ def test_every_schema_key_round_trips(tmp_path):
 
 
 def test_the_shipped_pipeline_states_the_defaults():
-    assert load_pipeline("baxter_handover").sections == PipelineSections()
+    shipped = load_pipeline("baxter_handover").sections
+    # the defaults, but for the demo it observes: a wrench demo (the first task's is refused as unknown)
+    assert shipped.observation.task == "wrench"
+    assert shipped == dataclasses.replace(
+        PipelineSections(), observation=dataclasses.replace(PipelineSections().observation, task="wrench")
+    )
     assert PipelineConfig().robot == DEFAULT_ROBOT == default_of("robot.settings")
     assert PipelineConfig(ratio=0.4).sections.observation.ratio == 0.4
 

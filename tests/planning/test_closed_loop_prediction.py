@@ -27,7 +27,7 @@ OBSERVE = ["orientation", "emg"]
 def setup():
     """A model with a hand-over regression and an orientation estimate (fitted with the robot's
     kinematics, as the evaluation and ``train`` fit it) and held-out demos."""
-    ds = make_synthetic_dataset(n_tasks=3, n_demos=8, seed=3)
+    ds = make_synthetic_dataset(n_tasks=3, n_demos=10, seed=3)
     train = [d for demos in ds.demos.values() for d in demos[:-1]]
     test = [demos[-1] for demos in ds.demos.values()]
     robot = load_robot("baxter_left")
@@ -42,7 +42,7 @@ def setup():
 def _replans(model, robot, demo, suite, noise, n_replans, estimates=True):
     """Run the closed loop on ``demo`` until ``n_replans`` re-plans -> (re-plan, its prediction) each."""
     settings = ClosedLoopSettings(condition_noise=noise, handover_estimates=estimates)
-    start = start_time(demo, settings.start_ratio)
+    start = start_time(demo, settings, float(model.duration_nominal_s_))
     q_start = demo.groups[model.robot_group][0]
     out = []
     with ClosedLoopPlanner(

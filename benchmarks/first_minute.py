@@ -101,7 +101,7 @@ def smoke(tmp: Path) -> dict[str, list]:
     model = tmp / "small.npz"
     with threadpool_limits(1):
         ds = make_synthetic_dataset(n_tasks=3, n_demos=4, seed=0)
-        IProMP(noise=10.0, head=False, handover=False, coupling="all").fit(ds).save(model)
+        IProMP(noise=10.0, head=False, handover=False, coupling="all", novelty_alpha=None).fit(ds).save(model)
     env = {k: v for k, v in os.environ.items() if k not in ("NUMBA_CACHE_DIR", "PYTHONPATH")}
     env.update(IPROMP_PIN_CACHE_DIR=str(tmp / "cache"), IPROMP_PIN_KERNELS="numpy")
     extra = ("--model", str(model), "--no-preview")

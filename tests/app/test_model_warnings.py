@@ -91,4 +91,4 @@ def test_cli_warns_on_stderr_in_one_line_when_the_demo_was_trained_on(tmp_path, 
     assert main([*common, "--out", str(tmp_path / "c"), "--model", str(model)]) == 0
     assert capsys.readouterr().err == ""
     assert json.loads((tmp_path / "c" / "report.json").read_text())["warnings"] == []
-    np.testing.assert_equal(report["observation"]["demo"], "rod_003")
+    np.testing.assert_equal(report["observation"]["demo"], "wrench_003")

@@ -38,7 +38,7 @@ def run_out(tmp_path_factory, tiny):
     out = tmp_path_factory.mktemp("retreat") / "out"
     log = io.StringIO()
     with contextlib.redirect_stdout(log):
-        assert run_tiny(tiny, out) == 0
+        assert run_tiny(tiny, out, "--task", "rod") == 0  # the rod is received: the retreat carries it
     (out.parent / "log.txt").write_text(log.getvalue())
     return out
 

@@ -181,7 +181,7 @@ def test_trajectory_files_and_bag_messages_carry_the_torques(tmp_path, tiny, rob
     from ipromp_pin.outputs.trajectory_files import read_trajectory_csv
 
     out = tmp_path / "out"
-    assert run_tiny(tiny, out) == 0
+    assert run_tiny(tiny, out, "--task", "rod") == 0  # received at the hand-over: empty-handed before
     doc = json.loads((out / "trajectory.json").read_text())
     effort = np.array([p["effort"] for p in doc["message"]["points"]])
     traj = read_trajectory_csv(out / "trajectory.csv")

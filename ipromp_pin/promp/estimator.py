@@ -311,7 +311,7 @@ class IProMP(ParameterMixin):
             return [self._infer(o, method) for o in _batch(observation)]
         # longer than any learned motion is not an error: no task explains it (``known`` False)
         parts, t_last = predictor.encode(observation, check_length=False)  # shapes, finite values
-        check_observation(predictor.fitted, predictor.encoder.align_signs(observation))  # q ~ -q
+        check_observation(predictor.fitted, observation, parts)
         with self._limit_threads():
             return method(predictor, parts, t_last)
 

@@ -18,6 +18,7 @@ HELPERS = {"checkouts.py"}
 """Modules of ``benchmarks/`` that are imported by the scripts, not run."""
 
 EXPECTED = {
+    "add_task.py": [r"(?m)^N=3: accuracy of the refit minus the addition: median [-+][\d.]+", r"of a refit"],
     "ab_compare.py": [
         r"full update, 10% observed: [\d.]+ -> [\d.]+",
         r"streaming update: [\d.]+ -> [\d.]+",

@@ -1,4 +1,5 @@
-"""``ipromp-pin train DATASET --out MODEL``: train a model on a dataset and save it."""
+"""``ipromp-pin train DATASET --out MODEL``: train a model on a dataset and save it;
+``ipromp-pin train --add-task DIR --model MODEL --out MODEL2``: add new tasks to a trained model."""
 
 from __future__ import annotations
 
@@ -17,7 +18,7 @@ if TYPE_CHECKING:
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     """Add the ``train`` command to ``subparsers``."""
     p = subparsers.add_parser("train", help="train a model on a dataset and save it")
-    p.add_argument("dataset", type=Path, help="dataset folder: one sub-folder of demos per task")
+    p.add_argument("dataset", type=Path, nargs="?", help="dataset folder: one sub-folder of demos per task")
     p.add_argument(
         "--observe",
         default="orientation,emg",
@@ -48,6 +49,14 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         default="auto",
         help="observed groups that predict the robot: auto (cross-validated), all, or a comma-separated list",
     )
+    p.add_argument(
+        "--add-task",
+        type=Path,
+        metavar="DIR",
+        help="instead of training: add the tasks of DIR (one sub-folder of demos per new task) to the "
+        "model --model, without re-fitting its tasks",
+    )
+    p.add_argument("--model", type=Path, help="with --add-task: the trained model file to add to")
     p.set_defaults(func=main)
 
 
@@ -55,11 +64,18 @@ def main(args: argparse.Namespace) -> int:
     """Train on every demo of the dataset and save the model."""
     from .. import atomic
     from ..data import parse_groups, skeleton_frames
+    from ..exceptions import PipelineError
     from ..plans.warnings import single_task_warning, warn_stderr
     from ..promp import IProMP
     from ..robot import gripper_kinematics, load_robot
 
     atomic.check_output_file(args.out, "model file")
+    if args.add_task is not None or args.model is not None:
+        return add_tasks(args)
+    if args.dataset is None:
+        raise PipelineError(
+            "command line: field 'dataset': give the dataset folder (or --add-task DIR --model M)"
+        )
     observe = parse_groups(args.observe)
     coupling = args.coupling if args.coupling in ("auto", "all") else parse_groups(args.coupling)
     IProMP(observe=observe, coupling=coupling).check_params()  # before reading the data
@@ -82,6 +98,39 @@ def main(args: argparse.Namespace) -> int:
         f"noise ratio {model.noise_ratio_:g}; groups coupled to the robot: "
         f"{', '.join(model.coupled_groups_) or 'none (the prediction is the prior)'}"
     )
+    print(f"wrote {args.out}")
+    return 0
+
+
+def add_tasks(args: argparse.Namespace) -> int:
+    """``--add-task DIR --model M``: every task of DIR added to the model in turn (its other tasks
+    kept as trained), saved to ``--out``."""
+    from ..data import skeleton_frames
+    from ..exceptions import PipelineError
+    from ..promp import IProMP
+    from ..robot import load_robot
+
+    if args.add_task is None or args.model is None:
+        raise PipelineError("command line: field 'add-task': give both --add-task DIR and --model MODEL")
+    if args.dataset is not None:
+        raise PipelineError(
+            f"command line: field 'dataset': {args.dataset} with --add-task: the new tasks' demos are in DIR"
+        )
+    model = IProMP.load(args.model)
+    robot = load_robot(args.robot)
+    args.dataset = args.add_task
+    ds = read_dataset(args, skeleton_frames(model.observe_) or None, robot)
+    t0 = time.perf_counter()
+    for task in ds.tasks:
+        model.add_task(ds.demos[task])
+        print(f"added task {task} from {len(ds.demos[task])} demos")
+    model.save(args.out)  # atomic: a failed save leaves an earlier model file intact
+    print(
+        f"the model has {len(model.tasks_)} tasks ({', '.join(model.tasks_)}), "
+        f"{len(model.fitted_.added_tasks)} added after its training; {time.perf_counter() - t0:.2f} s"
+    )
+    if model.fitted_.novelty is None and IProMP.load(args.model).fitted_.novelty is not None:
+        print("note: the model has no open-set recognition now (too few demos of an added task)")
     print(f"wrote {args.out}")
     return 0
 

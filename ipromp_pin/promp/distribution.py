@@ -239,6 +239,49 @@ def shrink_covariances(
     ]
 
 
+def added_task_covariance(
+    weights: list[np.ndarray],
+    new: np.ndarray,
+    pooling: float,
+    blocks: list[np.ndarray],
+    diag: np.ndarray,
+    shrinkage: np.ndarray,
+) -> ShrunkCovariance:
+    """The shrunk covariance of a task added to fitted ones without changing them: the fitted tasks'
+    shared diagonal ``diag`` (D,) and per-dim intensities ``shrinkage`` (D,) are kept, the new task's
+    low-rank part is ``(1 - lambda)`` times its own covariance pooled (weight ``pooling``) with every
+    task's, as :func:`shrink_covariances` builds it.
+
+    Args:
+        weights: Per fitted task, (N_t, D, K) the training weights.
+        new: (N, D, K) the new task's weights (N >= 2).
+        pooling, blocks: As in :func:`shrink_covariances` (the fit's coupling blocks).
+        diag, shrinkage: The fitted tasks' shared diagonal and intensities.
+    """
+    n, d, k = new.shape
+    if n < 2:
+        raise ModelError(f"covariance needs at least 2 demos per task, got {n}")
+    factors = [np.zeros((d, k, 0))]
+    for dims in (np.asarray(b, dtype=int).reshape(-1) for b in blocks):
+        if dims.size == 0:
+            continue
+        stats = [_BlockStats(w[:, dims]) for w in [*weights, new]]
+        pool = None
+        if pooling > 0.0:
+            pool = np.vstack([st.xc for st in stats]) / np.sqrt(sum(st.shape[0] for st in stats))
+        lam = float(shrinkage[dims[0]])
+        f = stats[-1].unscaled_factor(pool, pooling) * np.sqrt(1.0 - lam)
+        full = np.zeros((d, k, f.shape[1]))
+        full[dims] = f.reshape(dims.size, k, -1)
+        factors.append(full)
+    return ShrunkCovariance(
+        mean=np.ascontiguousarray(new.mean(axis=0)),
+        diag=np.array(diag, dtype=float),
+        factor=np.ascontiguousarray(np.concatenate(factors, axis=2)),
+        shrinkage=np.array(shrinkage, dtype=float),
+    )
+
+
 class _BlockStats:
     """One task's statistics of one block of dims that do not depend on the other tasks: centred
     weights ``xc`` (N, D_b K), their Gram matrix (N, N), per-dim sums of squares / K (D_b,),
@@ -405,18 +448,36 @@ def alpha_candidates(
     Returns:
         Per task: candidates (C,) and their normalised log prior weights (C,).
     """
-    lo = np.array([max(mu - width * sd, 0.2 * mu) for mu, sd in priors])
-    hi = np.array([mu + width * sd for mu, sd in priors])
+    origin, spacing, n_cand = candidate_lattice(priors, n_alpha, width)
+    return [lattice_candidates(origin, spacing, n_cand, prior, width) for prior in priors]
+
+
+def _support(prior: tuple[float, float], width: float) -> tuple[float, float]:
+    mu, sd = prior
+    return max(mu - width * sd, 0.2 * mu), mu + width * sd
+
+
+def candidate_lattice(
+    priors: list[tuple[float, float]], n_alpha: int, width: float
+) -> tuple[float, float, int]:
+    """The common lattice of :func:`alpha_candidates`: its origin, spacing and the number ``C`` of
+    candidates of every task."""
+    lo, hi = (np.array(v) for v in zip(*(_support(p, width) for p in priors), strict=True))
     spacing = float(np.min(hi - lo)) / n_alpha  # any interval this long holds >= n_alpha lattice points
-    origin = float(np.min(lo))
     n_cand = int(np.max(np.ceil((hi - lo) / spacing - 1e-9))) + 2
-    out = []
-    for (mu, sd), low in zip(priors, lo, strict=True):
-        start = int(np.floor((low - origin) / spacing + 1e-9))
-        grid = origin + spacing * (start + np.arange(n_cand))
-        logp = -0.5 * ((grid - mu) / sd) ** 2
-        out.append((grid, logp - np.logaddexp.reduce(logp)))
-    return out
+    return float(np.min(lo)), spacing, n_cand
+
+
+def lattice_candidates(
+    origin: float, spacing: float, n_cand: int, prior: tuple[float, float], width: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """One task's ``n_cand`` candidates on the lattice from its support's start, and their
+    normalised log prior weights."""
+    mu, sd = prior
+    start = int(np.floor((_support(prior, width)[0] - origin) / spacing + 1e-9))
+    grid = origin + spacing * (start + np.arange(n_cand))
+    logp = -0.5 * ((grid - mu) / sd) ** 2
+    return grid, logp - np.logaddexp.reduce(logp)
 
 
 def fit_demo_weights(

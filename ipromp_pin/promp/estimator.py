@@ -30,9 +30,10 @@ from threadpoolctl import ThreadpoolController
 from ..data import ROBOT, Dataset, Demo, parse_groups
 from ..exceptions import IPrompPinError, ModelError, ModelFileError, NotFittedError
 from ..signals.groups import DEFAULT_LOG_GROUPS
-from .fit import fit_model
+from .fit import checked, fit_model
 from .fitted import FittedModel
 from .inputs import check_observation
+from .new_task import add_task
 from .novelty import DEFAULT_ALPHA
 from .parameters import MAX_BLAS_THREADS, MAX_POINTS, PARAMETER_CONSTRAINTS, ParameterMixin, parse_params
 from .posterior import Prediction, Recognition
@@ -227,6 +228,23 @@ class IProMP(ParameterMixin):
         return self._set_fitted(
             fit_model(data, self.get_params(), observe, coupling, fk, self._limit_threads, fk_rot)
         )
+
+    def add_task(self, demos: Iterable[Demo], task_prior: Mapping[str, float] | None = None) -> IProMP:
+        """Add one task, learned from ``demos`` (at least 2 of one new task), without re-fitting the
+        tasks the model knows (:func:`~ipromp_pin.promp.new_task.add_task` says what is kept and what
+        is new). Returns this estimator, changed in place (as ``fit``).
+
+        Args:
+            demos: The new task's demos, with the model's observed groups and robot group.
+            task_prior: Task -> prior probability over every task, needed when the model was fitted
+                with a ``task_prior``.
+        """
+        fitted = self._predictor().fitted
+        with self._limit_threads():
+            grown = add_task(fitted, list(demos), self.get_params(), task_prior)
+        if task_prior is not None:
+            self.task_prior = dict(task_prior)
+        return self._set_fitted(checked(grown))
 
     def _set_fitted(self, fitted: FittedModel) -> IProMP:
         """Store a fitted state and its predictor (the fitted attributes read them)."""

@@ -64,6 +64,9 @@ class FittedModel:
             orientation error in [deg] on the held-out training demos.
         novelty: The open-set novelty detector with its conformal calibration
             (:mod:`~ipromp_pin.promp.novelty`; None: none, every observation a task explains is known).
+        added_tasks: Tasks added after the fit (:func:`~ipromp_pin.promp.new_task.add_task`), the last
+            ones of :attr:`tasks`. The recognition head, the hand-over regression and the orientation
+            estimate cover the first :attr:`n_fit_tasks` tasks only.
     """
 
     layout: ChannelLayout
@@ -88,6 +91,12 @@ class FittedModel:
     orientation: OrientationEstimate | None = None
     orientation_cv_scores: Mapping[float, float] = field(default_factory=dict)
     novelty: NoveltyDetector | None = None
+    added_tasks: tuple[str, ...] = ()
+
+    @property
+    def n_fit_tasks(self) -> int:
+        """Number of tasks of the fit itself (the first ones; the others were added after it)."""
+        return len(self.tasks) - len(self.added_tasks)
 
     @property
     def nu_condition(self) -> float:

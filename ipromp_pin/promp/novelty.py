@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.linalg.blas import dtrsv
@@ -46,6 +46,7 @@ __all__ = [
     "auroc",
     "conformal_p_values",
     "fit_novelty",
+    "with_added_task",
 ]
 
 DEFAULT_ALPHA = 0.05
@@ -326,6 +327,44 @@ def fit_novelty(
         calibration_group=group,
         shrinkage=float(shrinkage),
         cv_auroc=np.array(cv, dtype=float),
+    )
+
+
+def with_added_task(
+    detector: NoveltyDetector, rows: Sequence[NoveltyRow], t_norm: float
+) -> NoveltyDetector | None:
+    """``detector`` with a task added after the fit: its Gaussians fitted on its rows ``rows`` (its
+    demos' windows at every fraction of :attr:`NoveltyDetector.ratios`, ``task`` the new index, ``alpha``
+    the MAP phases of every task, the new one last) with the fitted feature set and shrinkage; its rows'
+    scores (its own Gaussians without the row's demo) join the calibration. The fitted tasks' calibration
+    scores are kept: with one more task to be near, their scores could only fall, so the kept ones make
+    the p-values of known observations larger, never smaller (the false-reject guarantee holds).
+    None when the new task has fewer than :data:`MIN_TASK_ROWS` demos (too few to model it)."""
+    new = len(detector._chol_f)
+    if int(np.unique([r.demo for r in rows]).size) < MIN_TASK_ROWS:
+        return None
+    x = np.array([np.asarray(r.window, float)[detector.columns] for r in rows])
+    levels = np.asarray(detector.ratios, float)
+    mean, chol = _fits(x, rows, levels, new + 1, detector.shrinkage, only=new)
+    grown = replace(
+        detector,
+        mean=np.concatenate([detector.mean, mean[new:]]),
+        chol=np.concatenate([detector.chol, chol[new:]]),
+    )
+    scores, loo = [], {}
+    for r in rows:
+        if r.demo not in loo:
+            m, c = _fits(x, rows, levels, new + 1, detector.shrinkage, skip=r.demo, only=new)
+            loo[r.demo] = replace(grown, mean=np.concatenate([detector.mean, m[new:]]),
+                                  chol=np.concatenate([detector.chol, c[new:]]))  # fmt: skip
+        scores.append(loo[r.demo].score(r.window, r.alpha, r.t_last, t_norm))
+    group = [int(np.argmin(np.abs(levels - r.t_last / t_norm))) for r in rows]
+    return replace(
+        grown,
+        calibration=np.concatenate([detector.calibration, scores]),
+        calibration_group=np.concatenate([detector.calibration_group, group]).astype(
+            detector.calibration_group.dtype
+        ),
     )
 
 

@@ -88,11 +88,7 @@ class Predictor:
             raise ValueError("a model with a recognition head or novelty detector needs the window's summary")
         if fm.head is not None:
             assert window is not None
-            scale = t_last / fm.duration_nominal_s  # of the observed fraction (observed_fraction)
-            log_post, post, best = fm.head.task_posterior(
-                window, rec.log_posterior, rec.posterior, rec.alpha, scale
-            )
-            rec = with_task_posterior(rec, log_post, self.priors, post, best)
+            rec = self._head_posterior(rec, window, t_last)
         if fm.novelty is not None:
             assert window is not None
             novelty, t_norm = fm.novelty, fm.duration_nominal_s
@@ -103,6 +99,27 @@ class Predictor:
             if not rec.known:
                 rec.unknown_reason = unknown_reason(rec, len(fm.tasks))
         return rec
+
+    def _head_posterior(self, rec: Recognition, window: WindowSummary, t_last: float) -> Recognition:
+        """``rec`` with the recognition head's task posterior. With tasks added after the fit (which
+        the head does not know), the generative posterior splits the mass between the fitted tasks and
+        the added ones, the head shares the fitted tasks' mass among them."""
+        fm = self.fitted
+        assert fm.head is not None
+        scale = t_last / fm.duration_nominal_s  # of the observed fraction (observed_fraction)
+        n_fit = fm.n_fit_tasks
+        if n_fit == len(fm.tasks):
+            log_post, post, best = fm.head.task_posterior(
+                window, rec.log_posterior, rec.posterior, rec.alpha, scale
+            )
+            return with_task_posterior(rec, log_post, self.priors, post, best)
+        fitted_mass = float(np.logaddexp.reduce(rec.log_posterior[:n_fit]))
+        if not np.isfinite(fitted_mass):  # only added tasks explain it: the generative posterior
+            return rec
+        sub = rec.log_posterior[:n_fit] - fitted_mass
+        head_lp, _, _ = fm.head.task_posterior(window, sub, np.exp(sub), rec.alpha[:n_fit], scale)
+        log_post = np.concatenate([fitted_mass + head_lp, rec.log_posterior[n_fit:]])
+        return with_task_posterior(rec, log_post, self.priors)
 
     def recognise(
         self, parts: list[ObservationPart], t_last: float, window: WindowSummary | None = None
@@ -138,6 +155,8 @@ class Predictor:
         if fm.handover is None and fm.orientation is None:
             return pred
         k = fm.tasks.index(pred.task)
+        if k >= fm.n_fit_tasks:  # a task added after the fit has no hand-over estimates
+            return pred
         if fm.handover is not None:
             if window is None:
                 raise ValueError("a model with a hand-over regression needs the observed window's summary")

@@ -216,9 +216,19 @@ def direct_predict(predictor: Predictor, observation: Demo) -> Prediction:
         logpost[i] = lp - evidence[i]
         alpha[i] = refine_peak(m.alpha_grid, lp)
     rec = finish_recognition(predictor.priors, evidence, alpha, logpost, t_last)
-    if fm.head is not None:
+    n_fit = fm.n_fit_tasks  # the head and the hand-over estimates know the fitted tasks only
+    fitted_mass = float(np.logaddexp.reduce(rec.log_posterior[:n_fit]))
+    if fm.head is not None and n_fit == len(fm.tasks):
         fraction = sum(p * t_last / (a * tn) for p, a in zip(rec.posterior, rec.alpha, strict=True))
         post = direct_head(fm, parts, rec.log_posterior, float(fraction))
+        rec = with_task_posterior(rec, post, predictor.priors)
+    elif fm.head is not None and np.isfinite(fitted_mass):
+        # the fitted tasks' part of the generative posterior, shared among them by the head
+        gen = rec.log_posterior[:n_fit] - fitted_mass
+        fraction = sum(np.exp(g) * t_last / (a * tn) for g, a in zip(gen, rec.alpha[:n_fit], strict=True))
+        post = np.concatenate(
+            [fitted_mass + direct_head(fm, parts, gen, float(fraction)), rec.log_posterior[n_fit:]]
+        )
         rec = with_task_posterior(rec, post, predictor.priors)
     m = fm.models[rec.task]
     a_best = float(rec.alpha[fm.tasks.index(rec.task)])
@@ -235,7 +245,8 @@ def direct_predict(predictor: Predictor, observation: Demo) -> Prediction:
     sel = slice(rs.start * k, rs.stop * k)
     scale = fm.scaler.scale[rs]
     wr = w_mean.reshape(n_dims, k)  # the human's estimates do not use the hand-over regression
-    if fm.handover is not None:  # y = A q(T) + e, q(T) = scale * (phi(1) w_robot) + offset
+    estimates = fm.tasks.index(rec.task) < n_fit
+    if fm.handover is not None and estimates:  # y = A q(T) + e, q(T) = scale * (phi(1) w_robot) + offset
         task_index = fm.tasks.index(rec.task)
         readout, values, noise = direct_handover(fm, parts, task_index, t_last / (a_best * tn))
         phi_end = fm.basis(np.array([1.0]))[0]
@@ -247,7 +258,9 @@ def direct_predict(predictor: Predictor, observation: Demo) -> Prediction:
         gain_t = cho_solve(c, h @ w_cov)  # (M, p)
         w_mean = w_mean + gain_t.T @ (values - readout @ q_end)
         w_cov = w_cov - (h @ w_cov).T @ gain_t
-    if fm.orientation is not None:  # the orientation observed where it is uncorrelated with the position
+    if (
+        fm.orientation is not None and estimates
+    ):  # the orientation observed where it is uncorrelated with the position
         o = fm.orientation
         task_index = fm.tasks.index(rec.task)
         phi_end = fm.basis(np.array([1.0]))[0]

@@ -43,7 +43,10 @@ A model file is a single ``.npz`` archive (``numpy.savez``) read back with
   "ratios": R, "features": F, "calibration": n, "shrinkage": s}``), and with a novelty detector its
   arrays ``novelty_ratios`` (R,), ``novelty_columns`` (F,), ``novelty_mean`` (T, R, F),
   ``novelty_chol`` (T, R, F, F), ``novelty_calibration`` and ``novelty_calibration_group`` (n,) and
-  ``novelty_cv_auroc`` (number of candidates) (:mod:`~ipromp_pin.promp.novelty`).
+  ``novelty_cv_auroc`` (number of candidates) (:mod:`~ipromp_pin.promp.novelty`);
+* (version 7) the header's ``added_tasks``: the tasks added after the fit
+  (:func:`~ipromp_pin.promp.new_task.add_task`), the last ones of ``tasks``; the head's, the hand-over
+  regression's and the orientation estimate's task axis then holds the fitted tasks only.
 
 Files of format version 1 (no ``trained_on``) load with ``trained_on`` None
 (unknown); files of format version 2 load with an all-logistic head and no hand-over regression;
@@ -96,13 +99,14 @@ from .validation import check_fitted
 FORMAT_NAME = "ipromp_pin.IProMP"
 """Value of the header's ``format`` field."""
 
-FORMAT_VERSION = 6
+FORMAT_VERSION = 7
 """Current (and highest readable) format version. Version 2 added ``trained_on`` (the training demos),
 the likelihood temperature, the conditioning noise ratio and the recognition head (``head_*``
 arrays); version 3 the head's model families and features and the hand-over regression
 (``handover_*`` arrays); version 4 the hand-over's k-nearest-neighbour estimates
 (``handover_kind``, ``handover_neighbour_*``); version 5 the hand-over orientation estimate
-(``orientation_*``); version 6 the novelty detector (``novelty_*``). Version-1 files load with no
+(``orientation_*``); version 6 the novelty detector (``novelty_*``); version 7 the tasks added after
+the fit (``added_tasks``). Version-1 files load with no
 record of their training demos, temperature 1, the conditioning noise ratio equal to the noise ratio
 and no head; version-2 files with an all-logistic head and no hand-over regression (as they
 predicted); version-3 files with an all-ridge hand-over regression (as they predicted); files before
@@ -119,7 +123,7 @@ _HEADER_KEYS = {
     "format", "format_version", "package_version", "params", "tasks", "groups", "channel_names",
     "duration_nominal_s", "noise_ratio", "cv_scores", "coupled_groups", "coupling_cv_scores", "task_scalars",
     "trained_on", "temperature", "condition_noise_ratio", "condition_cv_scores", "head", "handover",
-    "handover_cv_scores", "orientation", "orientation_cv_scores", "novelty",
+    "handover_cv_scores", "orientation", "orientation_cv_scores", "novelty", "added_tasks",
 }  # fmt: skip
 _PARAM_KEYS = {
     "observe", "n_basis", "width", "ridge", "margin", "blas_threads", "n_alpha", "alpha_width", "noise",
@@ -241,6 +245,7 @@ def write_model(params: dict, fitted: FittedModel, path: str | Path) -> None:
         ],
         "trained_on": None if fitted.trained_on is None else [r.to_json() for r in fitted.trained_on],
         "novelty": None if fitted.novelty is None else novelty_meta(fitted.novelty),
+        "added_tasks": list(fitted.added_tasks),
     }
     arrays: dict[str, Any] = {  # np.savez's keyword arguments (all arrays)
         "header": np.array(json.dumps(header)),
@@ -412,13 +417,14 @@ def _expected_shapes(path: Path, header: dict) -> dict[str, tuple[int | None, ..
                 f"task{i}_shrinkage": (d,),
             }
         )
+    n_fit = len(tasks) - len(_added_tasks(path, header))  # the head's and hand-over estimates' tasks
     head = header.get("head")
     if head is not None:
-        n_feat = 3 * sum(len(names[g]) for g in groups[:-1]) + len(tasks)
-        shapes.update(_head_shapes(path, head, len(tasks), n_feat))
+        n_feat = 3 * sum(len(names[g]) for g in groups[:-1]) + n_fit
+        shapes.update(_head_shapes(path, head, n_fit, n_feat))
     ho = header.get("handover")
     if ho is not None:
-        shapes.update(_handover_shapes(path, ho, len(tasks), names, groups))
+        shapes.update(_handover_shapes(path, ho, n_fit, names, groups))
     if header.get("novelty") is not None:
         try:
             shapes.update(novelty_shapes(header["novelty"], len(tasks), n_obs_dims(names, groups)))
@@ -428,7 +434,7 @@ def _expected_shapes(path: Path, header: dict) -> dict[str, tuple[int | None, ..
     if orientation is not None:
         if not isinstance(orientation, dict) or set(orientation) != {"trust"}:
             raise ModelFileError(f"{path}: header field 'orientation' must be null or {{\"trust\": s}}")
-        nj, t = len(names[groups[-1]]), len(tasks)
+        nj, t = len(names[groups[-1]]), n_fit
         shapes.update(
             {
                 "orientation_position_readout": (t, 3, nj),
@@ -438,6 +444,18 @@ def _expected_shapes(path: Path, header: dict) -> dict[str, tuple[int | None, ..
             }
         )
     return shapes
+
+
+def _added_tasks(path: Path, header: dict) -> list[str]:
+    """The header's tasks added after the fit (none before version 7): the last of its tasks."""
+    added, tasks = header.get("added_tasks", []), header["tasks"]
+    if (
+        not isinstance(added, list)
+        or len(added) >= len(tasks)
+        or (added and added != tasks[len(tasks) - len(added) :])
+    ):
+        raise ModelFileError(f"{path}: header field 'added_tasks' must list the last of its tasks")
+    return added
 
 
 def _head_shapes(path: Path, head: object, t: int, n_feat: int) -> dict[str, tuple[int | None, ...]]:
@@ -564,6 +582,7 @@ def _fitted(header: dict, arrays: dict[str, np.ndarray]) -> FittedModel:
         offset=arrays["scaler_offset"], scale=arrays["scaler_scale"], log_shift=arrays["scaler_log_shift"]
     )
     tasks = tuple(header["tasks"])
+    added = tuple(header.get("added_tasks", ()))  # none before version 7
     coupled = tuple(header.get("coupled_groups", observe))
     if any(g not in observe for g in coupled):
         raise ValueError(f"coupled groups {list(coupled)} are not observed groups")
@@ -609,10 +628,11 @@ def _fitted(header: dict, arrays: dict[str, np.ndarray]) -> FittedModel:
         condition_noise_ratio=header.get("condition_noise_ratio"),
         condition_cv_scores={float(k): float(v) for k, v in header.get("condition_cv_scores", [])},
         trained_on=_trained_on(header),
-        head=_head(header.get("head"), arrays, layout.n_obs_dims, len(tasks)),
+        head=_head(header.get("head"), arrays, layout.n_obs_dims, len(tasks) - len(added)),
         handover=_handover(header.get("handover"), arrays),
         orientation=_orientation(header.get("orientation"), arrays),
         novelty=novelty_from_arrays(header.get("novelty"), arrays),
+        added_tasks=added,
         orientation_cv_scores={
             (np.inf if k == "off" else float(k)): float(v) for k, v in header.get("orientation_cv_scores", [])
         },

@@ -161,14 +161,20 @@ def check_fitted(fitted: FittedModel) -> FittedModel:
         if n < 2:
             raise _fail(f"{w} train_weights", f"{n} training demo(s); a task needs at least 2")
         _positive(f"{w} train_alpha", _array(f"{w} train_alpha", m.train_alpha, (n,)), bound=MAX_PHASE)
-        if factor.shape[2] > max(n - 1, 1) * n_blocks:
-            raise _fail(f"{w} factor", f"rank {factor.shape[2]} exceeds what {n} demos can give")
+        # a covariance pooled over tasks (``pooling`` > 0) has at most the rank of every task's demos
+        n_all = sum(int(np.shape(x.train_weights)[0]) for x in fitted.models.values())
+        if factor.shape[2] > max(n_all - 1, 1) * n_blocks:
+            raise _fail(f"{w} factor", f"rank {factor.shape[2]} exceeds what {n_all} demos can give")
+    added = tuple(fitted.added_tasks)
+    if added != tuple(tasks[len(tasks) - len(added) :]) or len(added) >= len(tasks):
+        raise _fail("added_tasks", f"must be the last tasks and leave a fitted one, got {list(added)}")
+    n_fit = fitted.n_fit_tasks  # the head and the hand-over estimates cover the fitted tasks only
     if fitted.head is not None:
-        _check_head(fitted.head, len(tasks), layout.n_obs_dims)
+        _check_head(fitted.head, n_fit, layout.n_obs_dims)
     if fitted.handover is not None:
-        _check_handover(fitted.handover, len(tasks), layout.n_obs_dims, d - layout.n_obs_dims)
+        _check_handover(fitted.handover, n_fit, layout.n_obs_dims, d - layout.n_obs_dims)
     if fitted.orientation is not None:
-        _check_orientation(fitted.orientation, len(tasks), d - layout.n_obs_dims)
+        _check_orientation(fitted.orientation, n_fit, d - layout.n_obs_dims)
     if fitted.novelty is not None:
         try:
             check_novelty(fitted.novelty, len(tasks), layout.n_obs_dims)

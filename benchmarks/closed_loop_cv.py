@@ -8,17 +8,19 @@ the demonstrated limit profile) on the other folds and replays its held-out demo
 every candidate setting.
 
     python benchmarks/closed_loop_cv.py DATASET --observe GROUPS [--n-train 10] [--folds 5] [--jobs 2]
-        [--study settings|start] [--json FILE]
+        [--study settings|start|noise|estimates] [--json FILE]
 
 ``--study settings`` crosses blend horizon x re-plan rate x freeze phase x demonstrated-limit
 percentile; ``--study start`` compares start ratios 0.1, 0.2, 0.3 at the chosen settings;
 ``--study noise`` compares the noise ratio with which the closed loop conditions the robot
 trajectory (``condition_noise``: the model's own, chosen for recognition inside ``fit``, against
-fixed values; ``--noise model,0.3,1`` restricts the candidates) at the chosen settings. The settings
-and start studies condition with the model's own noise ratio (they were run before the noise study).
-Each fold's model is fitted with the robot's kinematics, as the evaluation fits it (so with the
-hand-over regression and orientation estimate its cross-validation keeps, which every re-plan
-applies).
+fixed values; ``--noise model,0.3,1`` restricts the candidates) at the chosen settings;
+``--study estimates`` compares re-plans with and without the model's hand-over estimates
+(``handover_estimates``: the hand-over regression and orientation estimate that the one-shot
+prediction applies) at the chosen settings. The settings and start studies condition with the model's
+own noise ratio (they were run before the noise study). Each fold's model is fitted with the robot's
+kinematics, as the evaluation fits it (so with the hand-over regression and orientation estimate its
+cross-validation keeps; the re-plans apply them where ``handover_estimates`` is true).
 Prints, per candidate, the median (over held-out replays) closed-loop hand-over error [cm], final error [cm],
 arrival delay [s], the largest limit ratio and the refused re-plans. The rule (fixed before running
 it): the lowest hand-over error (mean of the datasets' medians) among the candidates whose median
@@ -72,6 +74,7 @@ def _fold(args: tuple) -> list[dict]:
                 blend_s=cand["blend_s"],
                 freeze_phase=cand["freeze_phase"],
                 condition_noise=cand.get("condition_noise"),
+                handover_estimates=cand.get("handover_estimates", False),
             )
             for d in test:
                 res = replay_demo(model, robot, d, profiles[pct], settings, cert)
@@ -118,7 +121,7 @@ def main() -> None:
     parser.add_argument("--n-train", type=int, default=10)
     parser.add_argument("--folds", type=int, default=5)
     parser.add_argument("--jobs", type=int, default=1)
-    parser.add_argument("--study", choices=["settings", "start", "noise"], default="settings")
+    parser.add_argument("--study", choices=["settings", "start", "noise", "estimates"], default="settings")
     parser.add_argument("--blend", type=float, default=0.2, help="blend horizon of --study start [s]")
     parser.add_argument("--replan", type=float, default=20.0, help="re-plan rate of --study start [Hz]")
     parser.add_argument("--freeze", type=float, default=0.9, help="freeze phase of --study start|noise")
@@ -164,6 +167,9 @@ def main() -> None:
         if args.study == "start":
             candidates = [base]
             ratios = [0.2] if args.smoke else [0.1, 0.2, 0.3]
+        elif args.study == "estimates":
+            candidates = [{**base, "handover_estimates": e} for e in (False, True)]
+            ratios = [0.1, 0.2]
         else:
             candidates = [{**base, "condition_noise": nu} for nu in args.noises]
             ratios = [0.1, 0.2]
@@ -178,7 +184,12 @@ def main() -> None:
     else:
         rows = [r for part in map(_fold, work) for r in part]
     keys = ("blend_s", "replan_rate_hz", "freeze_phase", "percentile")
-    keys += {"settings": (), "start": ("ratio",), "noise": ("condition_noise",)}[args.study]
+    keys += {
+        "settings": (),
+        "start": ("ratio",),
+        "noise": ("condition_noise",),
+        "estimates": ("handover_estimates",),
+    }[args.study]
     print(
         f"{args.dataset.name}, observing {args.observe}: {len(rows)} replays, {args.folds}-fold CV on "
         f"the first {args.n_train} demos per task"

@@ -302,6 +302,13 @@ def add_closed_loop_options(p: argparse.ArgumentParser) -> None:
         "orientation estimate) as the one-shot plan does (default off: they made the arrival later, "
         "docs/closed_loop.md)",
     )
+    p.add_argument(
+        "--unknown-task",
+        choices=["hold", "ignore"],
+        default=None,
+        help="what the robot does while the observation matches none of the model's tasks: hold (default: "
+        "it does not start, and stops re-targeting once started) or ignore (acts on the most probable task)",
+    )
     show_default(
         p.add_argument("--replan-rate", type=float, help=f"re-plan rate in [Hz] (default {DEFAULT_MARK})"),
         closed_loop_default("replan_rate_hz"),
@@ -346,6 +353,8 @@ def closed_loop_settings(args: argparse.Namespace, **given: float | None) -> Clo
     chosen = {name: value for name, value in options.items() if value is not None}
     if getattr(args, "handover_estimates", None) is not None:
         chosen["handover_estimates"] = args.handover_estimates == "on"
+    if getattr(args, "unknown_task", None) is not None:
+        chosen["require_known"] = args.unknown_task == "hold"
     if args.condition_noise is not None:  # None in the settings: the model's own
         try:
             chosen["condition_noise"] = (

@@ -111,6 +111,11 @@ class ClosedLoopSettings:
             <ipromp_pin.promp.IProMP.predict>` and the one-shot plan do. Off by default: measured
             against the closed loop without them (``docs/closed_loop.md``), they made the arrival
             later.
+        require_known: The robot acts only on a known task: it does not start while the observation
+            matches none of the model's tasks (its novelty p-value at most the model's ``alpha``, or no
+            task explains it), and once started, a re-plan whose observation is unknown is not
+            committed (the robot keeps its last committed plan: it stops re-targeting). False: act on
+            the most probable task whatever its novelty.
     """
 
     start_ratio: float | None = None
@@ -124,6 +129,7 @@ class ClosedLoopSettings:
     freeze_phase: float = 0.9
     condition_noise: float | None = CONDITION_NOISE
     handover_estimates: bool = False
+    require_known: bool = True
 
     def validate(self, source: str = "closed loop") -> ClosedLoopSettings:
         """Check the values; raise :class:`PipelineError` naming ``source`` and the field."""
@@ -160,8 +166,9 @@ class ClosedLoopSettings:
         nu = self.condition_noise
         if nu is not None and not (isinstance(nu, int | float) and math.isfinite(nu) and nu > 0):
             raise bad("condition_noise", f"must be a positive number (or the model's own), got {nu}")
-        if not isinstance(self.handover_estimates, bool):
-            raise bad("handover_estimates", f"must be true or false, got {self.handover_estimates!r}")
+        for name in ("handover_estimates", "require_known"):
+            if not isinstance(getattr(self, name), bool):
+                raise bad(name, f"must be true or false, got {getattr(self, name)!r}")
         return self
 
     def to_dict(self) -> dict:
@@ -267,7 +274,8 @@ class ClosedLoopResult:
         settings: The closed-loop settings.
         start_s: When the robot was allowed to start, in [s] (its first re-plan; the start rule's time
             when it never started).
-        stopped: Why re-planning stopped before the human's last sample (empty if it did not).
+        stopped: Why re-planning stopped before the human's last sample, or why the robot never
+            started (an unknown task, ``require_known``; empty if neither).
         plans: The committed plans, in the order of the committed re-plans.
         start_reason: What started the robot and when (empty: it never started).
         start_rule: The start rule in words (:meth:`ClosedLoopSettings.start_text`).
@@ -362,6 +370,8 @@ class ClosedLoopPlanner:
         self._next_replan = self.start_s
         self._started = False
         self.start_reason = ""
+        self._waiting = ""  # why the robot has not started although the start rule's time has come
+        self._unknown_since = ""
         self.start_rule = self.settings.start_text(float(model.duration_nominal_s_))
         self.prediction: Prediction | None = None  # that of the latest re-plan
         self._guess: float | None = None
@@ -432,6 +442,13 @@ class ClosedLoopPlanner:
         posterior reaches ``start_confidence`` (the start is then at ``t_s``)."""
         if self._started:
             return True
+        if self.settings.require_known and not rec.known:
+            if not self._unknown_since:
+                self._unknown_since = f"{t_s:.2f} s"
+            self.start_reason = ""
+            self._waiting = f"never started: unknown task from {self._unknown_since} ({rec.unknown_reason})"
+            return False
+        self._unknown_since = ""
         confidence = self.settings.start_confidence
         best = int(np.argmax(rec.posterior))
         if t_s >= self.start_s - 1e-9:
@@ -444,6 +461,7 @@ class ClosedLoopPlanner:
         else:
             return False
         self._started = True
+        self._waiting = ""
         self.start_s = self._next_replan = t_s
         return True
 
@@ -469,6 +487,10 @@ class ClosedLoopPlanner:
         r.known = bool(pred.known)
         r.novelty_p_value = None if math.isnan(pred.novelty_p_value) else float(pred.novelty_p_value)
         r.predicted_handover_s = float(pred.duration_s)
+        if self.settings.require_known and not pred.known:
+            r.reason = f"not re-targeted: unknown task ({pred.unknown_reason})"
+            r.stage_ms = ms
+            return r
         context = self.context.replace(task=pred.task, handover_s=float(pred.duration_s))
         if context.human is not None:  # the human as observed up to this re-plan
             context = context.replace(human=context.human.until(r.observed_until_s))
@@ -569,7 +591,7 @@ class ClosedLoopPlanner:
             self.profile,
             self.settings,
             self.start_s,
-            self._stopped,
+            self._stopped or self._waiting,
             plans,
             self.start_reason,
             self.start_rule,

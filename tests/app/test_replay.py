@@ -132,8 +132,10 @@ def test_evaluate_closed_loop_adds_the_closed_loop_fields(tmp_path, capsys):
     # nominal duration (the training demos' mean length), whatever the test demo's length
     assert [c["window"]["kind"] for c in cells] == ["ratio"] * 2 + ["train_fraction"] * 2
     for c in cells[2:]:
-        starts = {t["closed_loop_start_s"] for t in c["closed_loop_trials"]}
-        assert len(starts) == 1 and c["window"]["seconds"] - 0.05 < starts.pop() <= c["window"]["seconds"]
+        # never before the rule's time; later only while the observation matches none of the tasks
+        # (require_known: 4 training demos per task make a narrow model)
+        starts = sorted({t["closed_loop_start_s"] for t in c["closed_loop_trials"]})
+        assert c["window"]["seconds"] - 0.05 < starts[0] <= c["window"]["seconds"]
     for c in cells:
         for key in (
             "closed_loop_handover_error_cm",

@@ -278,7 +278,9 @@ def test_a_change_of_task_is_followed_smoothly(setup, certifier):
     samples = demo_samples(a, OBSERVE)[:cut] + demo_samples(b, OBSERVE)[cut:n]
     profile = demonstrated_profile(robot, train)
     start = float(a.t[cut // 2])
-    planner = ClosedLoopPlanner(model, robot, profile, a.groups[ROBOT][0], start, None, certifier)
+    # a stitched motion is none of the learned ones: followed only when the robot may act on it
+    settings = ClosedLoopSettings(require_known=False)
+    planner = ClosedLoopPlanner(model, robot, profile, a.groups[ROBOT][0], start, settings, certifier)
     for t, sample in zip(a.t[:n], samples, strict=True):
         planner.step(float(t), sample)
     result = planner.finish()
@@ -389,9 +391,36 @@ def test_every_replan_records_whether_the_task_is_known(setup, certifier):
     demo = test[2]
     two = IProMP(observe=OBSERVE).fit([d for d in train if d.task != demo.task])
     profile = demonstrated_profile(robot, train)
-    settings = ClosedLoopSettings(start_ratio=0.2)
+    settings = ClosedLoopSettings(start_ratio=0.2, require_known=False)  # re-plans although unknown
     result = replay_demo(two, robot, demo, profile, settings, certifier)
     assert result.replans and not any(r.known for r in result.replans)
     assert all(r.novelty_p_value is not None and r.novelty_p_value <= 0.05 for r in result.replans)
     known = replay_demo(model, robot, demo, profile, settings, certifier)
     assert known.replans[-1].known and known.replans[-1].novelty_p_value > 0.05
+
+
+def test_the_robot_acts_only_on_a_known_task(setup, certifier):
+    # a model without the last task: that task's demo is unknown. The robot never starts (and says
+    # when the observation became unknown); with require_known=False it acts on the nearest task
+    model, robot, train, test = setup
+    unknown = test[2]
+    small = IProMP(observe=OBSERVE).fit([d for d in train if d.task != unknown.task])
+    profile = demonstrated_profile(robot, train)
+    results = {}
+    for require in (True, False):
+        settings = ClosedLoopSettings(require_known=require)
+        planner = ClosedLoopPlanner(small, robot, profile, unknown.groups[ROBOT][0], 0.3, settings, certifier)
+        for t, sample in zip(unknown.t, demo_samples(unknown, OBSERVE), strict=True):
+            planner.step(float(t), sample)
+        results[require] = planner.finish()
+    held, acted = results[True], results[False]
+    assert not any(r.committed for r in held.replans)
+    assert held.start_reason == "" and held.stopped.startswith("never started: unknown task from ")
+    np.testing.assert_allclose(held.trajectory.q, unknown.groups[ROBOT][0][None, :], atol=1e-12)
+    assert any(r.committed for r in acted.replans) and not any(r.known for r in acted.replans)
+    # a known task's replay is not held
+    known = test[0]
+    planner = ClosedLoopPlanner(model, robot, profile, known.groups[ROBOT][0], 0.3, None, certifier)
+    for t, sample in zip(known.t, demo_samples(known, OBSERVE), strict=True):
+        planner.step(float(t), sample)
+    assert planner.finish().n_committed > 0

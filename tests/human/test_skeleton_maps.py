@@ -143,7 +143,10 @@ def test_a_joint_mapped_to_several_frames_is_their_mean():
 
 
 def _settings_with(tmp_path: Path, human_lines: str, tables: str = "") -> Path:
-    text = LEFT.read_text().replace("[human]\n", "[human]\n" + human_lines + "\n", 1) + "\n" + tables + "\n"
+    """The left arm's settings with ``human_lines`` for its ``skeleton = "openni"`` and ``tables`` added."""
+    shipped = 'skeleton = "openni"\n'
+    assert shipped in LEFT.read_text()
+    text = LEFT.read_text().replace(shipped, human_lines + "\n", 1) + "\n" + tables + "\n"
     path = tmp_path / "robot.toml"
     path.write_text(text)
     return path

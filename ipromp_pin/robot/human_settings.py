@@ -2,8 +2,12 @@
 
 ``[human]`` holds the body model's parameters (radii overrides per body part, the speed at which an
 unseen body part may move, the cap of that inflation) and the placement of the *assumed* human used
-when a recording has no tracked skeleton; ``[iso15066]`` holds the parameters of the protective
+when a recording has no tracked skeleton, and the skeleton map (which frames of a recording are the
+body's joints, :mod:`.skeleton_maps`); ``[iso15066]`` holds the parameters of the protective
 separation distance (ISO/TS 15066:2016 clause 5.5.4) and overrides of the Annex A body-region limits.
+The ISO/TS's content is now part of ISO 10218-2:2025 and ISO 13855:2024 replaced the 2010 edition;
+the clauses cited are those of the documents the values were read from (``docs/safety.md``, *The
+standards and their editions*: no value changed as far as the new editions' published changes say).
 Every key is known or refused (with the known one it resembles), every value lies in its plausible
 range (:mod:`ipromp_pin.robot.ranges`, whose source the message names); the defaults and their
 sources are described in ``docs/safety.md`` and in the shipped ``robots/*.toml``.
@@ -21,12 +25,14 @@ from .skeleton_maps import MAP_KEYS, SKELETONS, SkeletonMap
 
 ISO13855_HUMAN_SPEED_M_S = 1.6
 """Walking speed of a person approaching a machine, ISO 13855:2010 clause 6.2.3 (K = 1600 mm/s for
-distances over 500 mm): the human speed of S_h unless measured."""
+distances over 500 mm; ISO 13855:2024, which replaced it, lists no change of the approach speeds in its
+published changes, not verified against its text): the human speed of S_h unless measured."""
 
 
 @dataclass(frozen=True)
 class RegionLimit:
-    """ISO/TS 15066:2016 Annex A values of one body region.
+    """ISO/TS 15066:2016 Annex A values of one body region (the ISO/TS's content is now in
+    ISO 10218-2:2025; table numbers are the ISO/TS's).
 
     Attributes:
         force_n: Maximum permissible quasi-static contact force in [N] (Table A.2).
@@ -56,7 +62,8 @@ REGION_LIMITS: dict[str, RegionLimit] = {
     "thigh": RegionLimit(220.0, 2.0, 50e3, 75.0),
     "lower_leg": RegionLimit(130.0, 2.0, 60e3, 75.0),
 }
-"""Body regions of ISO/TS 15066:2016 Annex A: maximum permissible quasi-static force (Table A.2,
+"""Body regions of ISO/TS 15066:2016 Annex A (now in ISO 10218-2:2025; no changed value found in
+what is published about it, not verified against its text): maximum permissible quasi-static force (Table A.2,
 body-region column), effective spring constant and effective mass (Table A.3). The transient factor
 is 2 (A.3.2: transient contact values may be twice the quasi-static ones) except for the head and
 the neck, kept at the quasi-static value (the standard advises against any contact with the head)."""

@@ -6,16 +6,20 @@ against the assumed human instead."""
 from __future__ import annotations
 
 import glob
+import json
 from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers_cli import PIPELINE, one_error_line
 
+from ipromp_pin.app import main
 from ipromp_pin.data import Demo
 from ipromp_pin.exceptions import DataError, RobotError
 from ipromp_pin.human import SKELETON_PREFIX, HumanMotion
 from ipromp_pin.human.body import ASSUMED_POSE_M
 from ipromp_pin.human.separation import SeparationAnalyser
+from ipromp_pin.readers import load_dataset, write_demo
 from ipromp_pin.readers.multimodal import read_demo
 from ipromp_pin.robot import ROBOTS_DIR, load_robot, load_robot_settings
 from ipromp_pin.robot.human_settings import HumanSettings
@@ -186,3 +190,38 @@ def test_the_settings_choose_a_shipped_map_or_replace_its_joints(tmp_path):
 )
 def test_an_unknown_or_malformed_map_key_is_refused(tmp_path, human_lines, tables, field, hint):
     assert hint in _refused(_settings_with(tmp_path, human_lines, tables), field)
+
+
+AZURE_OF_ASSUMED = {f: OPENNI_TO_AZURE[f] for f in ASSUMED_POSE_M}
+
+
+def _with_azure_skeleton(src: Path, dst: Path) -> Path:
+    """The native dataset ``src`` with a tracked skeleton in every demo, its frames named as Azure
+    Kinect names them (the assumed standing human of the Baxter settings)."""
+    settings = load_robot_settings(LEFT).human
+    for demo in load_dataset(src, format="native").all_demos():
+        h = HumanMotion.assumed_human(settings, demo.t)
+        extras = dict(demo.extras)
+        for j, frame in enumerate(h.frames):
+            extras[SKELETON_PREFIX + AZURE_OF_ASSUMED[frame]] = h.positions_m[:, j]
+        out = Demo(demo.task, demo.name, demo.source, demo.t, demo.groups, demo.channel_names,
+                   demo.missing, extras)  # fmt: skip
+        write_demo(out, dst / demo.task / f"{demo.name}.npz")
+    return dst
+
+
+def test_the_command_refuses_an_uncovered_skeleton_before_training_and_plans_with_its_map(
+    tiny, tmp_path, capsys
+):
+    ds = _with_azure_skeleton(tiny[0], tmp_path / "azure")
+    args = ["run", str(PIPELINE), "--dataset", str(ds), "--no-preview"]
+    assert main([*args, "--out", str(tmp_path / "refused")]) == 2
+    err = capsys.readouterr().err
+    line = one_error_line(err)
+    assert "field 'skeleton'" in line and "/head_1" in line and "skeleton map 'openni'" in line
+    assert "[model]" not in err  # refused before any training
+    robot = _settings_with(tmp_path, 'skeleton = "azure_kinect"')
+    assert main([*args, "--robot", str(robot), "--out", str(tmp_path / "planned")]) in (0, 3)
+    checks = json.loads((tmp_path / "planned" / "report.json").read_text())["feasibility"]["checks"]
+    assert checks["human_clearance"]["human"] == "tracked"  # the recorded skeleton, not the assumed human
+    assert checks["contact_speed"]["human"] == "tracked"

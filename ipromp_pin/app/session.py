@@ -133,6 +133,7 @@ def prepare_session(
         objects.check_tasks(ds.tasks)
     demo = choose_demo(ds, cfg)
     checks.check_demo(demo)
+    context = check_context(cfg, demo, robot, objects)  # a skeleton the map does not cover: before training
     prefetch = start_mesh_prefetch(robot) if prefetch_meshes else None
     train = [d for d in ds.all_demos() if d is not demo]
     model = get_model(cfg, ds, demo, log, robot, train=train)
@@ -147,7 +148,7 @@ def prepare_session(
     warnings = early + warnings + later
     session = Session(cfg, robot, ds, demo, train, model, warnings, prefetch)
     session.suite = CheckSuite.build(robot)
-    session.context = check_context(cfg, demo, robot, objects)
+    session.context = context
     if observe:
         session.observation = observation = observe_window(session, warn)
         human = session.context.human

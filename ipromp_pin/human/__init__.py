@@ -1,4 +1,5 @@
-"""The human side of the feasibility checks: the body model and the ISO/TS 15066 limits.
+"""The human side of the feasibility checks: the body model and the ISO/TS 15066:2016 limits (their
+content now in ISO 10218-2:2025; clause numbers below are the ISO/TS's, ``docs/safety.md``).
 
 * :mod:`~ipromp_pin.human.body`: :class:`HumanMotion`, body parts as capsules between tracked
   skeleton frames (or an assumed standing human), over time, with occlusions inflated;

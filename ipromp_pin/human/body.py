@@ -162,25 +162,21 @@ class HumanMotion:
         settings: HumanSettings | None = None,
         parts: tuple[BodyPart, ...] = BODY_PARTS,
     ) -> HumanMotion | None:
-        """The tracked human of ``demo`` (None when the demo has no tracked skeleton). Frames at
-        exactly (0, 0, 0) and samples of impossible segment lengths are missing samples
+        """The tracked human of ``demo`` (None when the demo has no tracked skeleton), its joints read
+        through the settings' skeleton map (:attr:`HumanSettings.skeleton`). Frames at exactly
+        (0, 0, 0) and samples of impossible segment lengths are missing samples
         (:func:`~ipromp_pin.human.skeleton.plausible_positions`).
 
         Raises:
-            DataError: a body frame that is never reliably tracked in a demo that has a skeleton, or
-                an impossible skeleton (a part's median length outside its anthropometric range).
+            DataError: a demo with a tracked skeleton that lacks frames of the map (naming them: never
+                the assumed human instead), a body frame that is never reliably tracked, or an
+                impossible skeleton (a part's median length outside its anthropometric range).
         """
         settings = settings if settings is not None else HumanSettings()
         frames = _frame_list(parts)
-        found = {f: _demo_frame(demo, f) for f in frames}
-        if all(v is None for v in found.values()):
+        tracked = _mapped_frames(demo, frames, settings)
+        if tracked is None:
             return None
-        tracked = {f: v for f, v in found.items() if v is not None}
-        untracked = [f for f in frames if f not in tracked]
-        if untracked:
-            raise DataError(
-                demo.source, untracked[0], "skeleton frame of the body model never reliably tracked"
-            )
         raw = np.stack([tracked[f] for f in frames], axis=1)  # (T, F, 3)
         pos = plausible_positions(raw, frames, parts, demo.source)
         for j, f in enumerate(frames):
@@ -406,6 +402,47 @@ class HumanMotion:
         """Capsule end points ``a``, ``b`` (P, 3) [m] and radii (P,) [m] at time ``t_s`` [s]."""
         a, b, r = self.capsules(np.array([float(t_s)]))
         return a[0], b[0], r[0]
+
+
+def _mapped_frames(demo: Demo, frames: list[str], settings: HumanSettings) -> dict[str, np.ndarray] | None:
+    """Body frame -> its positions (T, 3) [m] in ``demo`` through the settings' skeleton map (the mean
+    of the recording's frames it maps to; a frame the map does not name is read as itself); None when
+    the demo has no tracked skeleton at all.
+
+    Raises:
+        DataError: the demo has a tracked skeleton but not every frame the map names, listing them.
+    """
+    mapped = settings.skeleton.body_frames()
+    sources = {f: mapped.get(f, (f,)) for f in frames}
+    found = {name: _demo_frame(demo, name) for names in sources.values() for name in names}
+    present = {name: v for name, v in found.items() if v is not None}
+    lacking = [name for name in found if name not in present]
+    if not lacking:
+        return {f: _mean([present[n] for n in names]) for f, names in sources.items()}
+    has = recorded_skeleton_frames(demo)
+    if len(lacking) == len(found) and not has:
+        return None
+    shown_has = ", ".join(has[:12]) + (f" and {len(has) - 12} more" if len(has) > 12 else "")
+    raise DataError(
+        demo.source,
+        "skeleton",
+        f"the tracked skeleton lacks the frames {', '.join(lacking)} of skeleton map "
+        f"'{settings.skeleton.name}' (it has {shown_has or 'none of them'}); name its frames in the robot "
+        "settings' [human] skeleton or [human.skeleton_map] (docs/your_data.md)",
+    )
+
+
+def _mean(arrays: list[np.ndarray]) -> np.ndarray:
+    """The mean (T, 3) of a joint's frames (one frame: itself, unchanged); NaN where any is NaN."""
+    return arrays[0] if len(arrays) == 1 else np.mean(np.stack(arrays), axis=0)
+
+
+def recorded_skeleton_frames(demo: Demo) -> list[str]:
+    """The tracked skeleton frames ``demo`` holds (its ``skeleton:<frame>`` extras, then its groups
+    that are frames, ``/<name>``), once each, in order."""
+    names = [k[len(SKELETON_PREFIX) :] for k in demo.extras if k.startswith(SKELETON_PREFIX)]
+    names += [g for g in demo.groups if g.startswith("/")]
+    return list(dict.fromkeys(names))
 
 
 def _demo_frame(demo: Demo, frame: str) -> np.ndarray | None:

@@ -1,8 +1,12 @@
 """ISO/TS 15066:2016 limits: the protective separation distance and the contact-speed limit.
 
+The ISO/TS's content is now part of ISO 10218-2:2025; the clause and table numbers here are the
+ISO/TS's, where the values were read (their place in ISO 10218-2:2025 is not verified:
+``docs/safety.md``, *The standards and their editions*).
+
 * Speed and separation monitoring (clause 5.5.4, formula (1)): the protective separation distance
   ``S_p = S_h + S_r + S_s + C + Z_d + Z_r``, with ``S_h = v_h (T_r + T_s)`` the human's motion while
-  the robot reacts and stops (``v_h`` = 1.6 m/s, ISO 13855, unless measured), ``S_r = v_r T_r`` the
+  the robot reacts and stops (``v_h`` = 1.6 m/s, ISO 13855's K, unless measured), ``S_r = v_r T_r`` the
   robot's motion during its reaction time, ``S_s = v_r T_s / 2`` its stopping distance at a constant
   deceleration, ``C`` the intrusion distance and ``Z_d``, ``Z_r`` the position uncertainties of the
   human and the robot (:func:`protective_distance_m`).

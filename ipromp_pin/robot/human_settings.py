@@ -2,8 +2,12 @@
 
 ``[human]`` holds the body model's parameters (radii overrides per body part, the speed at which an
 unseen body part may move, the cap of that inflation) and the placement of the *assumed* human used
-when a recording has no tracked skeleton; ``[iso15066]`` holds the parameters of the protective
+when a recording has no tracked skeleton, and the skeleton map (which frames of a recording are the
+body's joints, :mod:`.skeleton_maps`); ``[iso15066]`` holds the parameters of the protective
 separation distance (ISO/TS 15066:2016 clause 5.5.4) and overrides of the Annex A body-region limits.
+The ISO/TS's content is now part of ISO 10218-2:2025 and ISO 13855:2024 replaced the 2010 edition;
+the clauses cited are those of the documents the values were read from (``docs/safety.md``, *The
+standards and their editions*: no value changed as far as the new editions' published changes say).
 Every key is known or refused (with the known one it resembles), every value lies in its plausible
 range (:mod:`ipromp_pin.robot.ranges`, whose source the message names); the defaults and their
 sources are described in ``docs/safety.md`` and in the shipped ``robots/*.toml``.
@@ -17,15 +21,18 @@ import numpy as np
 
 from ..fields import Table
 from .ranges import BODY_PART_RADII_M, PLAUSIBLE_RANGES, radius_range, region_range
+from .skeleton_maps import MAP_KEYS, SKELETONS, SkeletonMap
 
 ISO13855_HUMAN_SPEED_M_S = 1.6
 """Walking speed of a person approaching a machine, ISO 13855:2010 clause 6.2.3 (K = 1600 mm/s for
-distances over 500 mm): the human speed of S_h unless measured."""
+distances over 500 mm; ISO 13855:2024, which replaced it, lists no change of the approach speeds in its
+published changes, not verified against its text): the human speed of S_h unless measured."""
 
 
 @dataclass(frozen=True)
 class RegionLimit:
-    """ISO/TS 15066:2016 Annex A values of one body region.
+    """ISO/TS 15066:2016 Annex A values of one body region (the ISO/TS's content is now in
+    ISO 10218-2:2025; table numbers are the ISO/TS's).
 
     Attributes:
         force_n: Maximum permissible quasi-static contact force in [N] (Table A.2).
@@ -55,7 +62,8 @@ REGION_LIMITS: dict[str, RegionLimit] = {
     "thigh": RegionLimit(220.0, 2.0, 50e3, 75.0),
     "lower_leg": RegionLimit(130.0, 2.0, 60e3, 75.0),
 }
-"""Body regions of ISO/TS 15066:2016 Annex A: maximum permissible quasi-static force (Table A.2,
+"""Body regions of ISO/TS 15066:2016 Annex A (now in ISO 10218-2:2025; no changed value found in
+what is published about it, not verified against its text): maximum permissible quasi-static force (Table A.2,
 body-region column), effective spring constant and effective mass (Table A.3). The transient factor
 is 2 (A.3.2: transient contact values may be twice the quasi-static ones) except for the head and
 the neck, kept at the quasi-static value (the standard advises against any contact with the head)."""
@@ -99,6 +107,8 @@ class HumanSettings:
             changes of distance, direction and effective mass before the next re-plan. Violations
             of what happened are still counted against ``v_max`` itself.
         regions: Body region -> its Annex A values (defaults :data:`REGION_LIMITS`, overridable).
+        skeleton: Which frames of a recording's tracked skeleton are the body's joints
+            (:mod:`ipromp_pin.robot.skeleton_maps`; default the OpenNI frames).
         source: The settings file the values come from (for messages; ``""``: built in code).
     """
 
@@ -115,10 +125,19 @@ class HumanSettings:
     contact: str = "transient"
     speed_margin: float = 0.1
     regions: dict[str, RegionLimit] = field(default_factory=lambda: dict(REGION_LIMITS))
+    skeleton: SkeletonMap = field(default_factory=lambda: SKELETONS["openni"])
     source: str = ""
 
 
-HUMAN_KEYS = ("speed_m_s", "max_inflation_m", "min_separation_m", "radii_m", "assumed")
+HUMAN_KEYS = (
+    "speed_m_s",
+    "max_inflation_m",
+    "min_separation_m",
+    "radii_m",
+    "assumed",
+    "skeleton",
+    "skeleton_map",
+)
 """Keys of the ``[human]`` table."""
 
 ASSUMED_KEYS = ("torso_m", "facing_deg")
@@ -181,6 +200,31 @@ def _radii(human: Table) -> dict[str, float]:
     return {part: table.number(part, radius_range(part)) for part in table.keys()}
 
 
+def _frame_names(table: Table, joint: str) -> tuple[str, ...]:
+    """A ``[human.skeleton_map]`` joint: one frame name, or a non-empty list of them (their mean)."""
+    value = table.raw(joint)
+    names = [value] if isinstance(value, str) else value
+    if not isinstance(names, list) or not names or not all(isinstance(n, str) and n for n in names):
+        raise table.error(joint, f"must be a frame name or a non-empty list of frame names, got {value!r}")
+    if len(set(names)) != len(names):
+        raise table.error(joint, f"lists a frame twice: {names!r}")
+    return tuple(names)
+
+
+def _skeleton(human: Table) -> SkeletonMap:
+    """``[human] skeleton`` (a shipped map's name) with the joints ``[human.skeleton_map]`` replaces."""
+    base = SKELETONS[human.text("skeleton", "openni", SKELETONS)]
+    table = human.table("skeleton_map", MAP_KEYS, what="skeleton map key")
+    if not table.keys():
+        return base
+    frames = dict(base.frames)
+    frames.update({j: _frame_names(table, j) for j in table.keys() if j != "mirrored"})
+    mirrored = table.raw("mirrored", base.mirrored)
+    if not isinstance(mirrored, bool):
+        raise table.error("mirrored", f"must be true or false, got {mirrored!r}")
+    return SkeletonMap(f"{base.name}+[human.skeleton_map]", frames, mirrored)
+
+
 def read_human_settings(doc: Table, source: object) -> HumanSettings:
     """The validated ``[human]`` / ``[iso15066]`` tables of the settings document ``doc`` of file
     ``source`` (defaults when absent).
@@ -189,7 +233,8 @@ def read_human_settings(doc: Table, source: object) -> HumanSettings:
         RobotError: an unknown key, table, body part or region (with the known name it resembles), a
             value that is not a finite number or lies outside its plausible range
             (:data:`~ipromp_pin.robot.ranges.PLAUSIBLE_RANGES`, whose source the message names), an
-            unknown contact kind; naming the file and the field.
+            unknown contact kind or shipped skeleton map, a skeleton map's frame that is not a name;
+            naming the file and the field.
     """
     human = doc.table("human", HUMAN_KEYS)
     iso = doc.table("iso15066", ISO15066_KEYS)
@@ -208,5 +253,6 @@ def read_human_settings(doc: Table, source: object) -> HumanSettings:
         contact=iso.text("contact", d.contact, CONTACTS),
         speed_margin=_ranged(iso, "speed_margin", d.speed_margin),
         regions=_regions(iso),
+        skeleton=_skeleton(human),
         source=str(source),
     )

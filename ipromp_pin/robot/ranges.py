@@ -77,8 +77,9 @@ def _segment(fraction: float, longest: float | None = None) -> Range:
 
 
 _REGION_SOURCE_A2 = (
-    "ISO/TS 15066:2016 Table A.2: at most the region's own maximum permissible quasi-static force "
-    "(more is outside the standard), at least the strictest any region has (face, 65 N)"
+    "ISO/TS 15066:2016 Table A.2 (its content now in ISO 10218-2:2025): at most the region's own "
+    "maximum permissible quasi-static force (more is outside the standard), at least the strictest "
+    "any region has (face, 65 N)"
 )
 
 PLAUSIBLE_RANGES: dict[str, Range] = {
@@ -147,8 +148,9 @@ PLAUSIBLE_RANGES: dict[str, Range] = {
     # --- robot settings: [human], [human.assumed]
     "human.speed_m_s": Range(
         1.6, 2.0, "m/s",
-        "ISO 13855:2010 approach speeds, which ISO/TS 15066:2016 clause 5.5.4 takes for v_h: 1600 mm/s "
-        "walking, 2000 mm/s hand and arm",
+        "ISO 13855 approach speeds K (2010 clause 6.2.3: 1600 mm/s walking, 2000 mm/s hand and arm; "
+        "ISO 13855:2024's values not verified against its text), v_h of the protective separation "
+        "distance (ISO/TS 15066:2016 clause 5.5.4, now in ISO 10218-2:2025)",
     ),
     "human.max_inflation_m": Range(
         0.07, 1.0, "m",
@@ -185,7 +187,7 @@ PLAUSIBLE_RANGES: dict[str, Range] = {
     "iso15066.intrusion_m": Range(
         0.0, 1.2, "m",
         "C of ISO 13855:2010: 850 mm for an arm reaching through a detection zone, up to 1200 mm "
-        "reaching over one",
+        "reaching over one (ISO 13855:2024 splits it into D_DS and Z; not verified against its text)",
     ),
     "iso15066.human_uncertainty_m": Range(
         0.0, 0.5, "m",

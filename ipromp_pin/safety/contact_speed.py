@@ -1,5 +1,5 @@
 """``contact_speed``: inside the protective separation distance, the robot approaches every body
-region no faster than its ISO/TS 15066 contact-speed limit.
+region no faster than its ISO/TS 15066:2016 contact-speed limit (content now in ISO 10218-2:2025).
 
 Where a robot geometry is closer to a body part than S_p (clause 5.5.4), its closest point's speed
 toward that part must be at most ``v_max = F_max / sqrt(mu k)`` of the part's body region (clause

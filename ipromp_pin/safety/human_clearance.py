@@ -8,7 +8,8 @@ the last observation; distance at most ``[human] min_separation_m``): a contact 
 intended, and going slower does not remove it. How far unseen parts could have moved counts toward
 the protective separation distance and the contact-speed limits (``contact_speed``), not here; the
 hand, where the hand-over happens, is judged by ``contact_speed`` too. The time the robot spends
-closer than the protective separation distance S_p (ISO/TS 15066 clause 5.5.4) is reported.
+closer than the protective separation distance S_p (ISO/TS 15066:2016 clause 5.5.4, now in
+ISO 10218-2:2025) is reported.
 """
 
 from __future__ import annotations

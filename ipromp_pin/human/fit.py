@@ -247,7 +247,8 @@ class HumanFit:
         if c is not None and not self.registration.is_identity:
             t = ", ".join(f"{x * 100:+.1f}" for x in self.registration.translation_m)
             lines.append(
-                f"  registration corrected by [{t}] cm: inside beyond {PENETRATION_TOLERANCE_M * 100:g} cm in "
+                f"  registration corrected by [{t}] cm: inside beyond {PENETRATION_TOLERANCE_M * 100:g} cm "
+                f"in "
                 f"{c.n_inside} demos; clearance worst {c.worst_clearance_m * 100:.1f} cm, median "
                 f"{c.median_clearance_m * 100:.1f} cm; hand to gripper {c.hand_reach_m * 100:.1f} cm: "
                 + ("fits" if c.fits else "still DOES NOT FIT")
@@ -378,7 +379,8 @@ def measure(evidence: Sequence[DemoEvidence], registration: Registration = Regis
         raise ValueError("no demo with a skeleton to measure")
     shift = np.asarray(registration.translation_m, dtype=float)
     per = np.array([_clearances(ev, shift) for ev in evidence])  # (D, P')
-    names = [str(n) for n, r in zip(evidence[0].human.part_names, evidence[0].human.regions) if r != "hand"]
+    body = evidence[0].human
+    names = [str(n) for n, r in zip(body.part_names, body.regions, strict=True) if r != "hand"]
     worst = per.min(axis=1)
     inside = worst < -PENETRATION_TOLERANCE_M
     parts = []

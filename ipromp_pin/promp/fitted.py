@@ -11,6 +11,7 @@ changes it.
 from __future__ import annotations
 
 from collections.abc import Mapping
+from typing import Any
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -64,6 +65,9 @@ class FittedModel:
             orientation error in [deg] on the held-out training demos.
         novelty: The open-set novelty detector with its conformal calibration
             (:mod:`~ipromp_pin.promp.novelty`; None: none, every observation a task explains is known).
+        human_fit: The self-check and calibration of the training demos' body model, as the JSON
+            object of :meth:`ipromp_pin.human.fit.HumanFit.to_json` (None: not measured, e.g. no
+            skeleton in the training demos or a model file of format version 6 or older).
     """
 
     layout: ChannelLayout
@@ -88,6 +92,7 @@ class FittedModel:
     orientation: OrientationEstimate | None = None
     orientation_cv_scores: Mapping[float, float] = field(default_factory=dict)
     novelty: NoveltyDetector | None = None
+    human_fit: Mapping[str, Any] | None = None
 
     @property
     def nu_condition(self) -> float:

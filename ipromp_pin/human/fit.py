@@ -31,8 +31,9 @@ does not fit the person.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 
@@ -262,6 +263,11 @@ def _num(x: float) -> float | None:
 
 def _float(x: object) -> float:
     return math.nan if x is None else float(x)  # type: ignore[arg-type]
+
+
+def registration_of(record: Mapping[str, Any] | None, source: str = "model") -> Registration | None:
+    """The registration correction of a model's ``human_fit`` record (None: not measured)."""
+    return None if record is None else HumanFit.from_json(dict(record), source).registration
 
 
 def registered(human: HumanMotion, registration: Registration | None) -> HumanMotion:

@@ -20,8 +20,8 @@ Samples can also arrive one by one (:meth:`IProMP.stream`, :mod:`~ipromp_pin.pro
 from __future__ import annotations
 
 import contextlib
-from dataclasses import replace
 from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 

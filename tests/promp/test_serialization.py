@@ -178,7 +178,12 @@ def test_model_remembers_its_training_demos_and_version_1_files_still_load(tmp_p
 
 def test_human_fit_round_trips_and_version_6_files_load_without_it(tmp_path: Path, model_and_obs):
     model, obs = model_and_obs
-    record = {"version": 1, "translation_m": [0.01, -0.02, 0.0], "stature_m": None, "parts": [["chest", 3, 0.05]]}
+    record = {
+        "version": 1,
+        "translation_m": [0.01, -0.02, 0.0],
+        "stature_m": None,
+        "parts": [["chest", 3, 0.05]],
+    }
     path = tmp_path / "model.npz"
     model.with_human_fit(record).save(path)
     loaded = IProMP.load(path)

@@ -53,16 +53,17 @@ depth-camera skeleton tracker places its joint centres within about 1-2 cm; a sh
 within the model's own error."""
 
 FIT_PENETRATION_M = 0.01
-"""The calibration moves the body until the recorded robot is at most this deep [m] in it."""
+"""The calibration moves the body until the recorded robot is at most this deep [m] in it (it aims
+:data:`FIT_MARGIN_M` inside: the optimiser stops at the boundary of a one-sided cost, on either
+side of it)."""
 
 HAND_REACH_M = 0.15
 """Largest median distance [m] between the tracked handing hand (the tracker's hand joint, at the
 palm) and the gripper frame at the hand-over for a body that fits: the hand's sphere (10 cm, half a
 95th-percentile hand length) plus 5 cm of the held object between the palm and the gripper frame."""
 
-FIT_REACH_MARGIN_M = 0.005
-"""The calibration brings the hand this much [m] inside :data:`HAND_REACH_M` (the optimiser stops
-at the boundary of a one-sided cost, on either side of it)."""
+FIT_MARGIN_M = 0.002
+"""How far [m] inside :data:`FIT_PENETRATION_M` and :data:`HAND_REACH_M` the calibration aims."""
 
 HANDING_HAND = "/left_hand_1"
 """The tracked frame of the handing hand (OpenNI's mirrored label of the person's right hand)."""
@@ -448,9 +449,9 @@ def _cost(evidence: Sequence[DemoEvidence], shift: np.ndarray) -> float:
     pen = 0.0
     for ev in evidence:
         c = float(_clearances(ev, shift).min()) if ev.t_s.size else math.inf
-        pen += max(-c - FIT_PENETRATION_M, 0.0) ** 2
+        pen += max(-c - (FIT_PENETRATION_M - FIT_MARGIN_M), 0.0) ** 2
     reach = np.array([_hand_reach(ev, shift) for ev in evidence])
-    goal = HAND_REACH_M - FIT_REACH_MARGIN_M
+    goal = HAND_REACH_M - FIT_MARGIN_M
     over = max(float(np.nanmedian(reach)) - goal, 0.0) if np.isfinite(reach).any() else 0.0
     return 100.0 * pen / len(evidence) + 100.0 * over**2 + 1e-3 * norm**2
 

@@ -11,6 +11,7 @@ import dataclasses
 
 import numpy as np
 import pytest
+from helpers_cli import one_error_line, run_tiny
 
 from ipromp_pin import app as cli
 from ipromp_pin.app.human_fit import HumanModelMisfit, check_human_fit
@@ -163,3 +164,22 @@ def test_plan_strict_human_exits_3_with_one_line(misfit_model, tmp_path, capsys)
     code = cli.main(["plan", str(path), str(tmp_path / "none.csv"), "--out", str(out), "--strict-human"])
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 3 and len(err) == 1 and "does not fit" in err[0] and "--strict-human" in err[0]
+
+
+def test_run_warns_about_a_misfit_model_and_refuses_it_with_strict_human(
+    misfit_model, tiny, tmp_path, capsys
+):
+    path = tmp_path / "misfit.npz"
+    misfit_model.save(path)
+    ds, _ = tiny
+    code = run_tiny((ds, path), tmp_path / "strict", "--strict-human")
+    err = one_error_line(capsys.readouterr().err)
+    assert code == 3 and "does not fit" in err and "--strict-human" in err
+    assert not (tmp_path / "strict" / "report.json").exists()
+    code = run_tiny((ds, path), tmp_path / "warned")
+    captured = capsys.readouterr()
+    assert code == 0, captured.err
+    warned = [ln for ln in captured.err.splitlines() if "does not fit" in ln]
+    assert len(warned) == 1 and "--strict-human" not in warned[0]
+    report = (tmp_path / "warned" / "report.json").read_text()
+    assert "human model does not fit" in report

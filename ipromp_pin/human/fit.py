@@ -188,6 +188,7 @@ class HumanFit:
         calibrated: Measures with the correction applied (the residuals).
         segments_m: Body part -> median tracked length [m] between its frames.
         stature_m: Median stature [m] the segment lengths imply (NaN: none measured).
+        refused: One error per demo whose skeleton the body model refused (not measured).
     """
 
     recorded: FitMeasures
@@ -195,6 +196,7 @@ class HumanFit:
     calibrated: FitMeasures | None = None
     segments_m: dict[str, float] = field(default_factory=dict)
     stature_m: float = math.nan
+    refused: tuple[str, ...] = ()
 
     @property
     def fits(self) -> bool:
@@ -210,6 +212,7 @@ class HumanFit:
             "calibrated": None if self.calibrated is None else self.calibrated.to_json(),
             "segments_m": dict(self.segments_m),
             "stature_m": _num(self.stature_m),
+            "refused": list(self.refused),
         }
 
     @classmethod
@@ -229,6 +232,7 @@ class HumanFit:
                 None if d["calibrated"] is None else FitMeasures.from_json(d["calibrated"]),
                 {str(k): float(v) for k, v in d["segments_m"].items()},
                 _float(d["stature_m"]),
+                tuple(str(x) for x in d.get("refused", [])),
             )
         except (KeyError, TypeError, ValueError) as exc:
             raise DataError(source, "human_fit", f"malformed human model fit ({exc})") from None
@@ -244,6 +248,10 @@ class HumanFit:
             + ("fits" if r.fits else "DOES NOT FIT")
         ]
         lines += [f"  {p}" for p in r.problems()]
+        if self.refused:
+            lines.append(
+                f"  {len(self.refused)} demos not measured, their skeleton refused (first: {self.refused[0]})"
+            )
         if math.isfinite(self.stature_m):
             seg = ", ".join(f"{k} {v * 100:.1f}" for k, v in self.segments_m.items())
             lines.append(
@@ -311,14 +319,24 @@ class DemoEvidence:
 
 
 def demo_evidence(
-    demos: Sequence[Demo], robot: Robot, settings: HumanSettings | None = None
+    demos: Sequence[Demo],
+    robot: Robot,
+    settings: HumanSettings | None = None,
+    refused: list[str] | None = None,
 ) -> list[DemoEvidence]:
-    """The evidence of every demo with a tracked skeleton (none: an empty list)."""
+    """The evidence of every demo with a tracked skeleton (none: an empty list). A demo whose
+    skeleton the body model refuses (:meth:`~ipromp_pin.human.HumanMotion.from_demo`: a frame never
+    tracked, an impossible segment) is left out, its error appended to ``refused`` when given."""
     settings = settings if settings is not None else robot.settings.human
     caps: RobotCapsules | None = None
     out = []
     for demo in demos:
-        human = HumanMotion.from_demo(demo, settings)
+        try:
+            human = HumanMotion.from_demo(demo, settings)
+        except DataError as exc:
+            if refused is not None:
+                refused.append(str(exc))
+            continue
         if human is None or ROBOT not in demo.groups:
             continue
         caps = caps if caps is not None else fit_robot_capsules(robot)
@@ -485,12 +503,13 @@ def self_check(
 ) -> HumanFit | None:
     """The self-check of the demos' body model and (``fit``) the calibrated registration; None when
     no demo has a tracked skeleton (not measured)."""
-    evidence = demo_evidence(demos, robot, settings)
+    refused: list[str] = []
+    evidence = demo_evidence(demos, robot, settings, refused)
     if not evidence:
         return None
     recorded = measure(evidence)
     segments, stature = segment_lengths(evidence)
     if not fit or recorded.fits:
-        return HumanFit(recorded, Registration(), None, segments, stature)
+        return HumanFit(recorded, Registration(), None, segments, stature, tuple(refused))
     reg = calibrate(evidence)
-    return HumanFit(recorded, reg, measure(evidence, reg), segments, stature)
+    return HumanFit(recorded, reg, measure(evidence, reg), segments, stature, tuple(refused))

@@ -183,3 +183,15 @@ def test_run_warns_about_a_misfit_model_and_refuses_it_with_strict_human(
     assert len(warned) == 1 and "--strict-human" not in warned[0]
     report = (tmp_path / "warned" / "report.json").read_text()
     assert "human model does not fit" in report
+
+
+def test_a_demo_whose_skeleton_is_refused_is_left_out_and_reported(robot, demos):
+    good = [with_skeleton(robot, d) for d in demos[:4]]
+    extras = dict(good[0].extras)
+    extras[SKELETON_PREFIX + "/left_knee_1"] = np.full_like(extras[SKELETON_PREFIX + "/left_knee_1"], np.nan)
+    bad = dataclasses.replace(good[0], extras=extras)
+    found = fit.self_check([bad, *good[1:]], robot)
+    assert found is not None and found.recorded.n_demos == 3
+    assert len(found.refused) == 1 and "/left_knee_1" in found.refused[0]
+    assert any("1 demos not measured" in line for line in found.summary())
+    assert fit.HumanFit.from_json(found.to_json()) == found

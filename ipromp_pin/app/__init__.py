@@ -90,8 +90,13 @@ def _main(argv: list[str] | None, seen: list[str]) -> int:
     short = args.command in ("run", "preview", "train", "synth")
     previous = set_kernel_backend(os.environ.get(BACKEND_ENV) or ("auto" if short else "numba"))
     set_announcer(lambda message: print(message, file=sys.stderr, flush=True))
+    from .human_fit import HumanModelMisfit
+
     try:
         return int(args.func(args) or 0)
+    except HumanModelMisfit as exc:  # --strict-human: refused like a plan that fails its checks
+        print_error(args.command, str(exc))
+        return EXIT_CHECKS_FAILED
     except IPrompPinError as exc:
         print_error(args.command, str(exc))
         return EXIT_ERROR

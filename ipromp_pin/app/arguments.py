@@ -365,6 +365,16 @@ def closed_loop_settings(args: argparse.Namespace, **given: float | None) -> Clo
     return dataclasses.replace(ClosedLoopSettings(), **chosen).validate("command line")
 
 
+def add_strict_human(p: argparse.ArgumentParser) -> None:
+    """Add ``--strict-human`` to a planning command's parser."""
+    p.add_argument(
+        "--strict-human",
+        action="store_true",
+        help="refuse (exit status 3) when the model's human model is known not to fit its training "
+        "demonstrations (default: a warning; docs/human_model.md)",
+    )
+
+
 def read_dataset(args: argparse.Namespace, frames, robot: Robot, timed: bool = False) -> Dataset:
     """The dataset ``args.dataset`` (``args.format``), its arm joints and limits those of ``robot``,
     with a progress line (and, when ``timed``, a line saying what was read in how long)."""

@@ -97,6 +97,9 @@ def run_calibration(
     result = calibrate_tool_offset(robot, demos, labels, fit=fit)
     if out is not None:
         out(result.to_text())
+        for label in dict.fromkeys(labels):  # each dataset's body model, in the order given
+            for line in human_fit_lines([d for d, k in zip(demos, labels, strict=True) if k == label], robot):
+                out(f"{label}: {line}")
     if write:
         cmd = command if command is not None else " ".join(["ipromp-pin", *sys.argv[1:]])
         target = calibration_target(settings.path, write_to)
@@ -107,6 +110,17 @@ def run_calibration(
                 + ("" if written == settings.path else f"; use it with --robot {written}")
             )
     return result
+
+
+def human_fit_lines(demos: list, robot: object) -> list[str]:
+    """The self-check and registration calibration of the demos' body model
+    (:func:`~ipromp_pin.human.fit.self_check`) as report lines ("not measured" without a skeleton)."""
+    from ..human.fit import self_check
+
+    found = self_check(demos, robot)  # type: ignore[arg-type]
+    if found is None:
+        return ["human model self-check: not measured (no demo has a tracked skeleton)"]
+    return found.summary()
 
 
 def calibration_target(settings_path: Path, write_to: str | Path | None) -> Path:

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from .arguments import bounded
+from .arguments import add_strict_human, bounded
 from .progress import EXIT_CHECKS_FAILED, EXIT_ERROR, print_error
 
 if TYPE_CHECKING:
@@ -102,6 +102,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         help="plan on a Dask cluster instead of --jobs processes: dask-local:N or a scheduler address "
         "such as tcp://HOST:8786 (needs pip install 'ipromp_pin[dask]')",
     )
+    add_strict_human(p)
     p.set_defaults(func=main)
 
 
@@ -146,6 +147,7 @@ def main(args: argparse.Namespace) -> int:
     outcome = run(
         args.model, args.recordings, args.out, options, robot=args.robot, objects=args.objects,
         jobs=args.jobs, cluster=args.cluster, log=lambda line: print(line, flush=True),
+        strict_human=args.strict_human,
     )  # fmt: skip
     for row in outcome.rows:
         if row.status == "unreadable" or row.known is False:
@@ -171,18 +173,22 @@ def run(
     jobs: int = 1,
     cluster: str | None = None,
     log=print,
+    strict_human: bool = False,
 ) -> PlanOutcome:
     """Plan ``recordings`` with the model at ``model_path`` into ``out_dir`` (see the module docstring);
     ``log``: one line per recording as it is done (flushed: the command's lines reach a log file as
-    they are printed, e.g. under nohup or SLURM)."""
+    they are printed, e.g. under nohup or SLURM); ``strict_human``: refuse a model whose human model
+    is known not to fit its training demonstrations (:mod:`.human_fit`), else warn."""
     from .. import atomic
     from ..evaluation.dask_cluster import DaskCluster
     from ..planning.one_shot import check_model_joints
     from ..plans.batch import PlanWorker, batch_jobs, plan_batch
     from ..plans.summary import counts, write_summary
+    from ..plans.warnings import warn_stderr
     from ..promp import IProMP
     from ..robot import load_robot
     from ..robot.objects import load_objects
+    from .human_fit import check_human_fit
 
     t0 = time.perf_counter()
     # a bad spec fails here, before any work; the cluster says when it has started
@@ -191,6 +197,7 @@ def run(
     arm = load_robot(robot)
     model = IProMP.load(model_path)
     check_model_joints(model, arm)
+    check_human_fit(model, str(model_path), strict_human, warn_stderr)
     table = load_objects(objects)
     work = batch_jobs(recordings, out_dir)
     worker = PlanWorker(model, arm, table, options)

@@ -31,6 +31,7 @@ from .arguments import (
     DEFAULT_MARK,
     add_closed_loop_options,
     add_pipeline_overrides,
+    add_strict_human,
     closed_loop_settings,
     pipeline_config,
     show_default,
@@ -102,6 +103,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         help="write the commanded trajectory even when it collides or exceeds the limits, marked as "
         "failing (exit status 3 still)",
     )
+    add_strict_human(p)
     p.set_defaults(func=main)
 
 
@@ -130,6 +132,7 @@ def main(args: argparse.Namespace) -> int:
         preview=not args.no_preview,
         log=print,
         allow_failing_checks=args.allow_failing_checks,
+        strict_human=args.strict_human,
     )
     if outcome.passed:
         return 0
@@ -153,6 +156,7 @@ def run_replay(
     warn: LogFn | None = None,
     *,
     allow_failing_checks: bool = False,
+    strict_human: bool = False,
 ) -> ReplayOutcome:
     """Replay the pipeline's held-out demo in the closed loop and write the files into ``cfg.out_dir``
     together (:data:`REPLAY_OUTPUTS`): complete, or the folder's earlier files untouched.
@@ -163,15 +167,14 @@ def run_replay(
     marks its files).
     """
     from .. import atomic
-    from ..human import HumanMotion
     from ..outputs.files import ALL_OUTPUTS, keyed
     from ..outputs.replay_report import replay_checks, replay_passed, summary_lines
     from ..plans.warnings import warn_stderr
     from ..safety import CheckContext
-    from .session import prepare_replay
+    from .session import prepare_replay, recorded_human
 
     t_start = time.perf_counter()
-    setup = prepare_replay(cfg, settings, limits, log, warn or warn_stderr)
+    setup = prepare_replay(cfg, settings, limits, log, warn or warn_stderr, strict_human)
     session = setup.session
     demo = session.demo
     score, result = setup.scored(settings)
@@ -179,7 +182,7 @@ def run_replay(
     result.trajectory = session.suite.annotate(result.trajectory, truth)
     # the commanded motion judged after the fact, as the score judges it: the report's and the
     # preview's checks (the human checks against the recorded human, when the demo tracks one)
-    recorded = HumanMotion.from_demo(demo, session.robot.settings.human)
+    recorded = recorded_human(session)
     judged = replay_checks(result.trajectory, session.suite, demo.task, truth.objects, recorded)
     with atomic.OutputSet(cfg.out_dir, managed=ALL_OUTPUTS) as out:  # one command's files only
         _stage_files(out, session, result, score, judged, recorded, allow_failing_checks, preview, log)

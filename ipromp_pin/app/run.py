@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from .arguments import add_pipeline_overrides, pipeline_config
+from .arguments import add_pipeline_overrides, add_strict_human, pipeline_config
 from .progress import EXIT_CHECKS_FAILED, print_error
 
 if TYPE_CHECKING:
@@ -75,13 +75,19 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         action="store_true",
         help="write the trajectory files even when the checks fail, marked as failing (exit status 3 still)",
     )
+    add_strict_human(p)
     p.set_defaults(func=main)
 
 
 def main(args: argparse.Namespace) -> int:
     """Run the pipeline; exit status 3 when the observation matches none of the model's tasks or the
     planned motion fails its checks."""
-    outcome = run(pipeline_config(args), log=print, allow_failing_checks=args.allow_failing_checks)
+    outcome = run(
+        pipeline_config(args),
+        log=print,
+        allow_failing_checks=args.allow_failing_checks,
+        strict_human=args.strict_human,
+    )
     if outcome.passed:
         return 0
     written = "written marked as failing" if outcome.trajectory_written else "not written"
@@ -95,7 +101,12 @@ def main(args: argparse.Namespace) -> int:
 
 
 def run(
-    cfg: PipelineConfig, log: LogFn = print, warn: LogFn | None = None, *, allow_failing_checks: bool = False
+    cfg: PipelineConfig,
+    log: LogFn = print,
+    warn: LogFn | None = None,
+    *,
+    allow_failing_checks: bool = False,
+    strict_human: bool = False,
 ) -> RunOutcome:
     """Run every stage of ``cfg`` and write its outputs (``warn``: where warnings go, one line each;
     default standard error; they are also in the report).
@@ -115,7 +126,7 @@ def run(
     check_outputs(cfg)
     check_bag_paths(cfg.out_dir)  # never replace or remove a user's own file named rosbag / run.bag
     say = warn or warn_stderr
-    session = prepare_session(cfg, log, say, prefetch_meshes=cfg.preview_html)
+    session = prepare_session(cfg, log, say, prefetch_meshes=cfg.preview_html, strict_human=strict_human)
     planned = plan_session(session, log)
     for w in planned.warnings:
         if w not in session.warnings:

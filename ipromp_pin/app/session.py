@@ -24,6 +24,7 @@ from ..evaluation.scoring import ClosedLoopScore, replay_scored
 from ..exceptions import DataError, PipelineError
 from ..fields import did_you_mean
 from ..human import HumanMotion
+from ..human.fit import registered
 from ..human.placement import check_assumed_human
 from ..motion.limits import LimitProfile, check_profile_choice, choose_limit_profile
 from ..planning.closed_loop import ClosedLoopResult, ClosedLoopSettings, replay_demo, start_time
@@ -44,6 +45,7 @@ from ..robot.objects import ObjectTable, load_objects
 from ..robot.recordings import read_recordings
 from ..safety import CheckContext, CheckSuite
 from .config import PipelineConfig
+from .human_fit import check_human_fit, model_registration
 from .model_cache import fit_cached
 
 
@@ -107,14 +109,18 @@ def prepare_session(
     checks: SetupChecks | None = None,
     prefetch_meshes: bool = False,
     observe: bool = True,
+    strict_human: bool = False,
 ) -> Session:
     """The set-up of one command on ``cfg`` (``warn``: where warnings go; ``robot``: the loaded
     robot, loaded here when None; ``checks``: the command's own checks; ``prefetch_meshes``: decimate
-    the preview meshes meanwhile when they are not cached yet; ``observe``: cut the observation).
+    the preview meshes meanwhile when they are not cached yet; ``observe``: cut the observation;
+    ``strict_human``: refuse a model whose body model is known not to fit, else warn). A tracked
+    body is placed through the model's corrected registration (:mod:`.human_fit`).
 
     Raises:
         ModelError: the model's joints are not the robot's (e.g. a left-arm model run with
             ``--robot baxter_right``).
+        HumanModelMisfit: ``strict_human`` and the model's body model does not fit its demos.
     """
     checks = checks or SetupChecks()
     robot = robot if robot is not None else load_robot(cfg.robot)
@@ -139,8 +145,10 @@ def prepare_session(
     model = get_model(cfg, ds, demo, log, robot, train=train)
     check_model_joints(model, robot)
     checks.check_model(model, demo)
-    warnings = model_warnings(cfg, ds, demo, model)
-    for w in warnings:
+    source = str(cfg.load_model or "model")
+    misfit = check_human_fit(model, source, strict_human, warn)
+    warnings = model_warnings(cfg, ds, demo, model) + ([] if misfit is None else [misfit])
+    for w in warnings[: len(warnings) - (misfit is not None)]:
         warn(w)
     later = [w for w in missing_object_warnings(model.tasks_, objects) if w not in early]  # a loaded model's
     for w in later:
@@ -149,6 +157,9 @@ def prepare_session(
     session = Session(cfg, robot, ds, demo, train, model, warnings, prefetch)
     session.suite = CheckSuite.build(robot)
     session.context = context
+    if session.context.human is not None:
+        corrected = registered(session.context.human, model_registration(model, source))
+        session.context = session.context.replace(human=corrected)
     if observe:
         session.observation = observation = observe_window(session, warn)
         human = session.context.human
@@ -160,6 +171,15 @@ def prepare_session(
             f"({observation.t[-1]:.2f} s, {observation.n_samples} samples) of {', '.join(cfg.observe)}"
         )
     return session
+
+
+def recorded_human(session: Session) -> HumanMotion | None:
+    """The session's demo's tracked body as recorded (None: no skeleton), through the model's
+    corrected registration (:mod:`.human_fit`): what the scores judge after the fact."""
+    human = HumanMotion.from_demo(session.demo, session.robot.settings.human)
+    if human is None:
+        return None
+    return registered(human, model_registration(session.model, str(session.cfg.load_model or "model")))
 
 
 def observe_window(session: Session, warn: LogFn = warn_stderr) -> Demo:
@@ -428,7 +448,7 @@ class ReplaySetup:
         against the recorded human and the arrival without them), as ``evaluate --closed-loop`` scores
         every trial."""
         s = self.session
-        recorded = HumanMotion.from_demo(s.demo, s.robot.settings.human)
+        recorded = recorded_human(s)
 
         def replay(suite: CheckSuite, context: CheckContext) -> ClosedLoopResult:
             return self.replay(settings, suite, context)
@@ -442,6 +462,7 @@ def prepare_replay(
     limits: str,
     log: LogFn = print,
     warn: LogFn = warn_stderr,
+    strict_human: bool = False,
 ) -> ReplaySetup:
     """Everything before the closed loop: outputs and limits checked, the session prepared (the demo
     held out, the model trained or loaded), the limit profile chosen, the certifier primed
@@ -450,7 +471,9 @@ def prepare_replay(
     robot = load_robot(cfg.robot)
     from_file = check_profile_choice(limits, robot, cfg.source)
     checks = ReplayChecks(cfg.observe, settings)
-    session = prepare_session(cfg, log, warn, robot=robot, checks=checks, observe=False)
+    session = prepare_session(
+        cfg, log, warn, robot=robot, checks=checks, observe=False, strict_human=strict_human
+    )
     demo, train = session.demo, session.train
     profile = choose_limit_profile(from_file or limits, robot, train, training_label(cfg))
     log(f"[limits] {profile.name}: {profile.source}")

@@ -13,6 +13,7 @@ from .arguments import read_dataset
 
 if TYPE_CHECKING:
     from ..data import Dataset, Demo
+    from ..robot import Robot
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -89,6 +90,7 @@ def main(args: argparse.Namespace) -> int:
     for h in held:
         print(f"held out {h.task}/{h.name} ({h.source})")
     model = IProMP(observe=observe, coupling=coupling).fit(train, **kinematics._asdict())
+    model = model.with_human_fit(human_self_check(train, robot))
     single = single_task_warning(model)
     if single is not None:
         warn_stderr(single)
@@ -133,6 +135,21 @@ def add_tasks(args: argparse.Namespace) -> int:
         print("note: the model has no open-set recognition now (too few demos of an added task)")
     print(f"wrote {args.out}")
     return 0
+
+
+def human_self_check(train: list[Demo], robot: Robot) -> dict | None:
+    """The self-check (and calibration) of the training demos' body model
+    (:func:`~ipromp_pin.human.fit.self_check`), printed; its JSON object for the model file, or
+    None when no training demo has a tracked skeleton (printed as not measured)."""
+    from ..human.fit import self_check
+
+    found = self_check(train, robot)
+    if found is None:
+        print("human model self-check: not measured (no training demo has a tracked skeleton)")
+        return None
+    for line in found.summary():
+        print(line)
+    return found.to_json()
 
 
 def held_out_demos(ds: Dataset, specs: list[str]) -> list[Demo]:

@@ -29,6 +29,7 @@ from typing import TYPE_CHECKING, Any
 from ..data import Demo
 from ..evaluation.scoring import RecordedScores, recorded_scores
 from ..human import HumanMotion
+from ..human.fit import Registration, registered, registration_of
 from ..motion.trajectory import Trajectory
 from ..planning.one_shot import PlanResult, check_model_joints
 from ..planning.one_shot import plan as plan_one_shot
@@ -133,13 +134,20 @@ class HandoverPlan:
         return write_plan(self, Path(out_dir), **options)
 
 
-def human_as_observed(observation: Demo, robot: Robot, human: HumanMotion | None = None) -> HumanMotion:
+def human_as_observed(
+    observation: Demo,
+    robot: Robot,
+    human: HumanMotion | None = None,
+    registration: Registration | None = None,
+) -> HumanMotion:
     """The human the checks judge, as known at the end of ``observation``: ``human`` when given,
-    else the observation's tracked skeleton, else the robot settings' assumed standing human with
+    else the observation's tracked skeleton (through ``registration``, the model's corrected
+    registration: :mod:`ipromp_pin.human.fit`), else the robot settings' assumed standing human with
     the observed hand path; later samples unknown (held and growing at the human speed)."""
     settings = robot.settings.human
     if human is None:
         human = HumanMotion.from_demo(observation, settings)
+        human = None if human is None else registered(human, registration)
     if human is None:
         human = HumanMotion.assumed_human(settings, observation.t, observation.extras.get("hand_position"))
     return human.until(float(observation.t[-1]))
@@ -166,8 +174,9 @@ def plan(
         robot: The robot settings (a shipped name, a settings file) or a loaded robot.
         objects: The tasks' objects (a task file, or a table read already; None: the shipped
             ``robots/objects.toml``).
-        human: The human the checks judge (None: the observation's tracked skeleton, else the assumed
-            human); it is cut to the end of the observation.
+        human: The human the checks judge (None: the observation's tracked skeleton through the
+            model's corrected registration, else the assumed human); it is cut to the end of the
+            observation.
         suite: The checks (None: every registered check); their caches are reset first, so that
             the plan does not depend on what the suite checked before.
         control_rate_hz: The trajectory's control rate in [Hz].
@@ -183,7 +192,8 @@ def plan(
     check_model_joints(model, arm)
     checks = suite if suite is not None else CheckSuite.build(arm)
     checks.reset()  # a plan does not depend on the plans before it (e.g. distances computed for them)
-    context = CheckContext(human=human_as_observed(observation, arm, human), objects=table)
+    correction = registration_of(getattr(model, "human_fit_", None))
+    context = CheckContext(human=human_as_observed(observation, arm, human, correction), objects=table)
     approach = plan_one_shot(
         model, arm, observation, checks, context, control_rate_hz=control_rate_hz, log=log, check_joints=False
     )

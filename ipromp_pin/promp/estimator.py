@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import contextlib
 from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -246,6 +247,11 @@ class IProMP(ParameterMixin):
             self.task_prior = dict(task_prior)
         return self._set_fitted(checked(grown))
 
+    def with_human_fit(self, record: Mapping[str, Any] | None) -> IProMP:
+        """Store the self-check of the training demos' body model (a JSON object,
+        :meth:`ipromp_pin.human.fit.HumanFit.to_json`; None: not measured); written by :meth:`save`."""
+        return self._set_fitted(replace(self._predictor().fitted, human_fit=record))
+
     def _set_fitted(self, fitted: FittedModel) -> IProMP:
         """Store a fitted state and its predictor (the fitted attributes read them)."""
         predictor = Predictor(fitted, int(self.n_points))
@@ -257,6 +263,9 @@ class IProMP(ParameterMixin):
     predictor_: Predictor
     observe_ = FittedAttribute(lambda f: list(f.layout.observe), "Observed groups (a list).")
     tasks_ = FittedAttribute(lambda f: list(f.tasks), "Task names.")
+    human_fit_ = FittedAttribute(
+        lambda f: f.human_fit, "The training demos' body-model self-check (a JSON object, or None)."
+    )
     models_ = FittedAttribute(lambda f: dict(f.models), "Task name -> its TaskModel.")
     basis_ = FittedAttribute(lambda f: f.basis, "The GaussianBasis.")
     scaler_ = FittedAttribute(lambda f: f.scaler, "Per-channel ChannelScaler (all dims).")

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -67,6 +68,9 @@ class FittedModel:
         added_tasks: Tasks added after the fit (:func:`~ipromp_pin.promp.new_task.add_task`), the last
             ones of :attr:`tasks`. The recognition head, the hand-over regression and the orientation
             estimate cover the first :attr:`n_fit_tasks` tasks only.
+        human_fit: The self-check and calibration of the training demos' body model, as the JSON
+            object of :meth:`ipromp_pin.human.fit.HumanFit.to_json` (None: not measured, e.g. no
+            skeleton in the training demos or a model file of format version 6 or older).
     """
 
     layout: ChannelLayout
@@ -97,6 +101,8 @@ class FittedModel:
     def n_fit_tasks(self) -> int:
         """Number of tasks of the fit itself (the first ones; the others were added after it)."""
         return len(self.tasks) - len(self.added_tasks)
+
+    human_fit: Mapping[str, Any] | None = None
 
     @property
     def nu_condition(self) -> float:

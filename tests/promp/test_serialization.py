@@ -174,3 +174,34 @@ def test_model_remembers_its_training_demos_and_version_1_files_still_load(tmp_p
     v1 = IProMP.load(old)
     assert v1.trained_on_ is None
     assert np.array_equal(v1.predict(obs).q_mean, model.predict(obs).q_mean)
+
+
+def test_human_fit_round_trips_and_version_6_files_load_without_it(tmp_path: Path, model_and_obs):
+    model, obs = model_and_obs
+    record = {
+        "version": 1,
+        "translation_m": [0.01, -0.02, 0.0],
+        "stature_m": None,
+        "parts": [["chest", 3, 0.05]],
+    }
+    path = tmp_path / "model.npz"
+    model.with_human_fit(record).save(path)
+    loaded = IProMP.load(path)
+    assert loaded.human_fit_ == record
+    assert np.array_equal(loaded.predict(obs).q_mean, model.predict(obs).q_mean)
+
+    def to_v6(h: dict) -> None:
+        h["format_version"] = 6
+        del h["human_fit"]
+
+    old = tmp_path / "v6.npz"
+    _rewrite_header(path, old, to_v6)
+    assert IProMP.load(old).human_fit_ is None  # not measured
+
+    def not_an_object(h: dict) -> None:
+        h["human_fit"] = [1, 2]
+
+    bad = tmp_path / "bad.npz"
+    _rewrite_header(path, bad, not_an_object)
+    with pytest.raises(ModelFileError, match="human_fit"):
+        IProMP.load(bad)

@@ -66,6 +66,8 @@ class Session:
         suite: The checks of every plan (:meth:`ipromp_pin.safety.CheckSuite.build`).
         context: What they know about the world for ``demo`` (:func:`check_context`; cut to what the
             planner knows at the end of the observation when there is one).
+        source: The robot of the recordings and the model when ``robot`` executes it retargeted
+            (its ``[placement] source``), None: ``robot`` itself.
     """
 
     cfg: PipelineConfig
@@ -79,6 +81,7 @@ class Session:
     observation: Demo | None = None
     suite: CheckSuite = field(default_factory=lambda: CheckSuite([]))
     context: CheckContext = field(default_factory=CheckContext)
+    source: Robot | None = None
 
     def observed(self) -> Demo:
         """The observation of a session prepared with ``observe=True`` (PipelineError without one)."""
@@ -121,13 +124,16 @@ def prepare_session(
     check_assumed_human(robot)  # an assumed human inside the robot's fixed links, before any computation
     objects = load_objects(cfg.objects)
     objects.check_robot(robot)  # retreat targets the robot cannot take, before any computation
-    ds = load_data(cfg, log, robot)
+    placement = robot.settings.placement
+    source = None if placement is None else load_robot(placement.source)  # the recordings' robot
+    recorded = robot if source is None else source
+    ds = load_data(cfg, log, recorded)
     early = missing_object_warnings(ds.tasks, objects)  # before training: the model learns ds.tasks
     for w in early:
         warn(w)
     if cfg.load_model is None:  # before training: a robot the demos were not recorded on cannot plan
         check_recorded_joints(
-            ds, robot, "the built-in synthetic demos" if cfg.dataset is None else str(cfg.dataset)
+            ds, recorded, "the built-in synthetic demos" if cfg.dataset is None else str(cfg.dataset)
         )
     if cfg.objects is not None:
         objects.check_tasks(ds.tasks)
@@ -135,8 +141,8 @@ def prepare_session(
     checks.check_demo(demo)
     prefetch = start_mesh_prefetch(robot) if prefetch_meshes else None
     train = [d for d in ds.all_demos() if d is not demo]
-    model = get_model(cfg, ds, demo, log, robot, train=train)
-    check_model_joints(model, robot)
+    model = get_model(cfg, ds, demo, log, recorded, train=train)
+    check_model_joints(model, recorded)
     checks.check_model(model, demo)
     warnings = model_warnings(cfg, ds, demo, model)
     for w in warnings:
@@ -145,7 +151,7 @@ def prepare_session(
     for w in later:
         warn(w)
     warnings = early + warnings + later
-    session = Session(cfg, robot, ds, demo, train, model, warnings, prefetch)
+    session = Session(cfg, robot, ds, demo, train, model, warnings, prefetch, source=source)
     session.suite = CheckSuite.build(robot)
     session.context = check_context(cfg, demo, robot, objects)
     if observe:

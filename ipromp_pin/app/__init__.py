@@ -33,7 +33,7 @@ import argparse
 import os
 import sys
 
-from ..exceptions import IPrompPinError
+from ..exceptions import IPrompPinError, UnreachableError
 from ..version import __version__
 from . import calibrate, evaluate, plan, preview, replay, run, synth, train
 from .arguments import OneLineErrorParser
@@ -92,6 +92,9 @@ def _main(argv: list[str] | None, seen: list[str]) -> int:
     set_announcer(lambda message: print(message, file=sys.stderr, flush=True))
     try:
         return int(args.func(args) or 0)
+    except UnreachableError as exc:  # the arm cannot reach the hand-over: refused like a failed check
+        print_error(args.command, str(exc))
+        return EXIT_CHECKS_FAILED
     except IPrompPinError as exc:
         print_error(args.command, str(exc))
         return EXIT_ERROR

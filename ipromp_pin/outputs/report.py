@@ -109,8 +109,6 @@ def retarget_lines(result: PlanResult) -> list[str]:
         f"hand-over residual {d['ik_residual_mm']:.3f} mm / {d['ik_residual_deg']:.3f} deg, "
         f"path at most {d['max_path_residual_mm']:.3f} mm"
     )
-    if not r.reached:
-        line += f"; REFUSED: {d['reason']}"
     return [line]
 
 

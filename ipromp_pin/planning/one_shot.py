@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..data import Demo
-from ..exceptions import ModelError
+from ..exceptions import ModelError, UnreachableError
 from ..motion.timing import TimingReport
 from ..motion.trajectory import JointLimits, Trajectory
 from ..promp import IProMP, Prediction
@@ -34,9 +34,6 @@ LogFn = Callable[[str], None]
 N_UNCERTAINTY_SAMPLES = 16
 """Joint trajectories drawn from the prediction for the uncertainty check and the preview."""
 
-
-RETARGET = "retarget"
-"""The failure of a plan whose arm cannot reach the predicted hand-over pose (a retargeted plan)."""
 
 UNKNOWN_TASK = "unknown_task"
 """The failure of a plan whose observation matches none of the model's tasks."""
@@ -89,16 +86,13 @@ class PlanResult:
     @property
     def passed(self) -> bool:
         """Whether the task is known and every required check and the timing's verification passed."""
-        reached = self.retarget is None or self.retarget.reached
-        return bool(self.known and reached and self.checks.passed and self.timing_report.passed)
+        return bool(self.known and self.checks.passed and self.timing_report.passed)
 
     @property
     def failures(self) -> list[str]:
-        """``unknown_task`` when the observation matches none of the tasks, ``retarget`` when the arm
-        cannot reach the predicted hand-over pose, the failed required checks (and ``timing`` when its
-        verification failed)."""
+        """``unknown_task`` when the observation matches none of the tasks, the failed required checks
+        (and ``timing`` when its verification failed)."""
         unknown = [] if self.known else [UNKNOWN_TASK]
-        unknown += [] if self.retarget is None or self.retarget.reached else [RETARGET]
         return unknown + self.checks.failures + ([] if self.timing_report.passed else ["timing"])
 
 
@@ -165,6 +159,7 @@ def plan(
 
     Raises:
         InfeasibleError: the predicted path cannot be timed at all.
+        UnreachableError: ``robot`` cannot reach the hand-over pose of ``source``'s prediction.
     """
     say = log or (lambda _msg: None)
     if check_joints:
@@ -194,14 +189,13 @@ def plan(
             f"[retarget] {source.settings.name} -> {robot.settings.name} through the gripper: hand-over "
             f"residual {moved['ik_residual_mm']:.3f} mm / {moved['ik_residual_deg']:.3f} deg, path at most "
             f"{moved['max_path_residual_mm']:.3f} mm"
-            + ("" if retarget.reached else f"; NOT REACHED: {retarget.path.why_not_reached(robot)}")
         )
+        if not retarget.reached:  # refused: never a hand-over shifted to where the arm reaches
+            raise UnreachableError(retarget.path.why_not_reached(robot))
     start_s = float(observation.t[-1] - observation.t[0])
     ctx = prediction_context(prediction, context if context is not None else CheckContext(), samples)
     limits = JointLimits.from_robot(robot)
-    timer = path_timer(
-        q_path, limits, suite.timing_constraints(ctx), control_rate_hz, start_s, say
-    )
+    timer = path_timer(q_path, limits, suite.timing_constraints(ctx), control_rate_hz, start_s, say)
     retimed = suite.retime_until_safe(timer, ctx)
     t2 = time.perf_counter()
     ms["time_check"] = (t2 - t1) * 1e3 - ms.get("retarget", 0.0)

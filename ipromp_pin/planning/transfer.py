@@ -50,7 +50,6 @@ class Retargeting:
             "ik_residual_deg": round(self.path.handover_residual_deg, 4),
             "max_path_residual_mm": round(self.path.max_path_residual_mm, 4),
             "ms": round(self.ms, 3),
-            "reason": None if self.reached else self.path.why_not_reached(self.target),
         }
 
 
@@ -85,5 +84,8 @@ def retarget_prediction(
     gripper follows ``source``'s along ``q_mean`` (M, n_source) and ``samples`` (n, M, n_source)."""
     t0 = time.perf_counter()
     path = transfer_path(source, robot, q_mean)
-    moved = transfer_samples(source, robot, samples, path, q_mean)
+    if path.reached:
+        moved = transfer_samples(source, robot, samples, path, q_mean)
+    else:  # refused: the samples are not followed either
+        moved = np.broadcast_to(path.q, (samples.shape[0],) + path.q.shape).copy()
     return path.q, moved, Retargeting(source, robot, path, (time.perf_counter() - t0) * 1e3)

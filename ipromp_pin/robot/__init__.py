@@ -17,6 +17,7 @@ The checks that judge a motion with these are :mod:`ipromp_pin.safety`'s. The na
 re-exported here (``from ipromp_pin.robot import load_robot``).
 """
 
+from .arm_transfer import TransferredPath, transfer_path, transfer_samples
 from .calibration import (
     CalibrationResult,
     calibrate_tool_offset,
@@ -24,7 +25,6 @@ from .calibration import (
     uncalibrated_robot,
     write_calibration,
 )
-from .arm_transfer import TransferredPath, transfer_path, transfer_samples
 from .inverse_kinematics import IKResult, solve_ik
 from .kinematics import (
     GripperKinematics,

@@ -8,8 +8,8 @@ inverse kinematics along the path. Each sample starts from the previous solution
 least-squares steps on the full pose error (``log6`` of the remaining transform, in the end-effector
 frame); a redundant arm (7 joints for a 6-D pose) spends its spare freedom in the Jacobian's null
 space pulling every joint toward the middle of its range (weighted by the inverse squared range), which
-keeps it away from its limits. The first pose is solved from a few deterministic seeds, keeping the
-converged solution with the largest limit margin. Sampled paths of the prediction are transferred by
+keeps it away from its limits. The hand-over pose (the path's last) is solved first, from a few
+deterministic seeds, and the path is followed back from it. Sampled paths of the prediction are transferred by
 one linearised step around the mean's solution (their hand-over configurations exactly).
 """
 
@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import pinocchio as pin
+from scipy.spatial.transform import Rotation
 
 from ..exceptions import InfeasibleError
 from .kinematics import as_joint_path, frame_placements
@@ -33,6 +34,14 @@ TOL_RAD = float(np.radians(0.5))
 NULL_SPACE_GAIN = 0.1
 """Fraction of the way toward the middle of the limits (weighted by the inverse squared range, the
 narrowest joint at full weight) each sample's first step takes in the pose task's null space."""
+
+TRACK_ITERATIONS = 10
+"""Iterations per path sample, each started from the previous sample's solution (one or two suffice
+on a smooth path)."""
+
+GOOD_MARGIN = 0.05
+"""A first solution this far from every limit (as a fraction of the joint's range) is kept without
+trying the other seeds."""
 
 N_SEEDS = 8
 """Start configurations tried for the first pose (the middle of the limits, then fixed random ones)."""
@@ -111,7 +120,9 @@ class _Solver:
         pin.forwardKinematics(r.model, r.data, full)
         current = pin.updateFramePlacement(r.model, r.data, r.ee_frame_id)
         rest = current.actInv(target)
-        jac_local = pin.computeFrameJacobian(r.model, r.data, full, r.ee_frame_id, pin.LOCAL)[:, r.arm_v_index]
+        jac_local = pin.computeFrameJacobian(r.model, r.data, full, r.ee_frame_id, pin.LOCAL)[
+            :, r.arm_v_index
+        ]
         return pin.log6(rest).vector, pin.Jlog6(rest.inverse()) @ jac_local, rest
 
     def solve(
@@ -119,9 +130,9 @@ class _Solver:
     ) -> tuple[np.ndarray, float, float, np.ndarray]:
         """Joint angles (n,), position and orientation errors [m], [rad] and the Jacobian (6, n),
         from ``seed``: the first step also moves toward the middle of the limits in the pose task's
-        null space, the next ones only reduce the pose error (to a hundredth of the tolerances)."""
+        null space, the next ones only reduce the pose error (to a tenth of the tolerances)."""
         q = np.clip(seed, self.lo, self.hi)
-        tol_m, tol_r = TOL_M * 0.01, TOL_RAD * 0.01
+        tol_m, tol_r = TOL_M * 0.1, TOL_RAD * 0.1
         jac = np.zeros((6, self.robot.n_joints))
         err_p = err_r = np.inf
         for k in range(self.max_iter if max_iter is None else max_iter):
@@ -142,8 +153,10 @@ class _Solver:
         return float(np.min(np.minimum(q - self.lo, self.hi - q) / (self.hi - self.lo)))
 
     def first(self, target: pin.SE3, seed: np.ndarray | None) -> tuple[np.ndarray, float, float, np.ndarray]:
-        """The first pose from ``seed`` (if given) and :data:`N_SEEDS` fixed seeds: the converged
-        solution with the largest limit margin, else the one closest to the pose."""
+        """A pose from no previous solution: from ``seed`` (if given), the middle of the limits, then
+        fixed random seeds (up to :data:`N_SEEDS`), the first converged solution at least
+        :data:`GOOD_MARGIN` from every limit, else the converged one with the largest margin, else
+        the one closest to the pose."""
         rng = np.random.default_rng(0)
         seeds = [] if seed is None else [np.asarray(seed, dtype=float)]
         seeds += [self.mid] + [rng.uniform(self.lo, self.hi) for _ in range(N_SEEDS - 1)]
@@ -154,8 +167,8 @@ class _Solver:
             key = (ok, self.margin(out[0]) if ok else -(out[1] + 0.1 * out[2]))
             if best_key is None or key > best_key:
                 best, best_key = out, key
-            if ok and seed is not None and s is seeds[0]:
-                break  # the caller's seed (e.g. the previous plan's solution) keeps the motion consistent
+            if ok and key[1] >= GOOD_MARGIN:
+                break
         assert best is not None
         return best
 
@@ -173,6 +186,11 @@ def transfer_path(
 
     Raises:
         InfeasibleError: the target is not placed in the source's scene.
+
+    The hand-over pose (the last) is solved first, then the path is followed back from it to the
+    start, each sample from the next one's solution. When the target cannot reach the hand-over, every
+    sample holds that best attempt and :attr:`TransferredPath.reached` is False (the caller refuses
+    the plan).
     """
     check_pair(source, target)
     q_source = as_joint_path(source, q_source, "source joint path")
@@ -181,34 +199,43 @@ def transfer_path(
     m, n = len(poses), target.n_joints
     q = np.empty((m, n))
     err_p, err_r, jacs = np.empty(m), np.empty(m), np.empty((m, 6, n))
-    q[0], err_p[0], err_r[0], jacs[0] = solver.first(poses[0], q_seed)
-    for i in range(1, m):
-        q[i], err_p[i], err_r[i], jacs[i] = solver.solve(poses[i], q[i - 1])
-    if not (err_p[-1] <= TOL_M and err_r[-1] <= TOL_RAD):  # lost on the way: the hand-over on its own
-        alt = solver.first(poses[-1], q[-1])
-        if alt[1] <= TOL_M and alt[2] <= TOL_RAD:
-            q[-1], err_p[-1], err_r[-1], jacs[-1] = alt
+    end = solver.first(poses[-1], q_seed)
+    if not (end[1] <= TOL_M and end[2] <= TOL_RAD):  # out of reach: refused, the path is not followed
+        q[:], err_p[:], err_r[:], jacs[:] = end
+        return TransferredPath(q, err_p, err_r, jacs)
+    q[-1], err_p[-1], err_r[-1], jacs[-1] = end
+    for i in range(m - 2, -1, -1):  # back from the hand-over: the path leads to that solution
+        q[i], err_p[i], err_r[i], jacs[i] = solver.solve(poses[i], q[i + 1], TRACK_ITERATIONS)
     return TransferredPath(q, err_p, err_r, jacs)
 
 
 def transfer_samples(
-    source: Robot, target: Robot, q_source_samples: np.ndarray, mean: TransferredPath, q_source_mean: np.ndarray
+    source: Robot,
+    target: Robot,
+    q_source_samples: np.ndarray,
+    mean: TransferredPath,
+    q_source_mean: np.ndarray,
 ) -> np.ndarray:
     """Sampled source joint paths (n, M, n_source) [rad] as target joint paths (n, M, n_target) [rad]:
     one linearised step around ``mean`` (the transferred mean path, same M) per sample and time, then
     exact inverse kinematics for each sample's last configuration (the hand-over, which the uncertainty
     check uses)."""
     n_s, m, _ = q_source_samples.shape
-    mean_poses = gripper_poses(source, q_source_mean)
     solver = _Solver(target)
-    out = np.empty((n_s, m, target.n_joints))
-    for k in range(n_s):
-        poses = gripper_poses(source, q_source_samples[k])
-        for i in range(m):
-            e = pin.log6(mean_poses[i].actInv(poses[i])).vector
-            jac = mean.jacobians[i]
-            out[k, i] = mean.q[i] + jac.T @ np.linalg.solve(jac @ jac.T + solver.damping * solver.eye_6, e)
-        out[k, -1] = solver.solve(poses[-1], out[k, -1])[0]
+    pm, rm = frame_placements(source, q_source_mean)  # (M, 3), (M, 3, 3)
+    ps, rs = frame_placements(source, q_source_samples.reshape(n_s * m, -1))
+    ps, rs = ps.reshape(n_s, m, 3), rs.reshape(n_s, m, 3, 3)
+    # the sample's pose in the mean's gripper frame, to first order: translation and rotation vector
+    dp = np.einsum("mji,smj->smi", rm, ps - pm)
+    rel = np.einsum("mji,smjk->smik", rm, rs)
+    dr = Rotation.from_matrix(rel.reshape(-1, 3, 3)).as_rotvec().reshape(n_s, m, 3)
+    jac = mean.jacobians  # (M, 6, n)
+    jjt = np.einsum("mij,mkj->mik", jac, jac) + solver.damping * solver.eye_6
+    step = np.linalg.solve(jjt[None], np.concatenate([dp, dr], axis=2)[..., None])[..., 0]  # (n_s, M, 6)
+    out = mean.q[None] + np.einsum("mji,smj->smi", jac, step)
+    for k in range(n_s):  # the hand-overs exactly (the uncertainty check's configurations)
+        end = pin.SE3(rs[k, -1], ps[k, -1])
+        out[k, -1] = solver.solve(end, out[k, -1])[0]
     return np.clip(out, solver.lo, solver.hi)
 
 

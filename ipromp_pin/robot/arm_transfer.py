@@ -98,7 +98,7 @@ def gripper_poses(robot: Robot, q: np.ndarray) -> list[pin.SE3]:
     return [pin.SE3(r, p) for p, r in zip(pos, rot, strict=True)]
 
 
-class _Solver:
+class PoseSolver:
     """Damped least-squares IK of one target arm's ``ee`` frame (work buffers of the robot)."""
 
     def __init__(self, robot: Robot, damping: float = 1e-8, max_iter: int = 60) -> None:
@@ -195,7 +195,7 @@ def transfer_path(
     check_pair(source, target)
     q_source = as_joint_path(source, q_source, "source joint path")
     poses = gripper_poses(source, q_source)
-    solver = _Solver(target)
+    solver = PoseSolver(target)
     m, n = len(poses), target.n_joints
     q = np.empty((m, n))
     err_p, err_r, jacs = np.empty(m), np.empty(m), np.empty((m, 6, n))
@@ -221,7 +221,7 @@ def transfer_samples(
     exact inverse kinematics for each sample's last configuration (the hand-over, which the uncertainty
     check uses)."""
     n_s, m, _ = q_source_samples.shape
-    solver = _Solver(target)
+    solver = PoseSolver(target)
     pm, rm = frame_placements(source, q_source_mean)  # (M, 3), (M, 3, 3)
     ps, rs = frame_placements(source, q_source_samples.reshape(n_s * m, -1))
     ps, rs = ps.reshape(n_s, m, 3), rs.reshape(n_s, m, 3, 3)

@@ -453,6 +453,13 @@ def prepare_replay(
     (``benchmarks/closed_loop.py`` times the replays of this set-up)."""
     check_outputs(cfg)
     robot = load_robot(cfg.robot)
+    if robot.settings.placement is not None:  # never another arm's joint angles on this one
+        raise PipelineError(
+            f"replay: robot '{robot.settings.name}' executes models of '{robot.settings.placement.source}' "
+            "retargeted through the gripper, which the closed loop does not do yet (docs/other_arms.md); "
+            f"run it one-shot (ipromp-pin run --robot {robot.settings.name}) or replay with --robot "
+            f"{robot.settings.placement.source}"
+        )
     from_file = check_profile_choice(limits, robot, cfg.source)
     checks = ReplayChecks(cfg.observe, settings)
     session = prepare_session(cfg, log, warn, robot=robot, checks=checks, observe=False)

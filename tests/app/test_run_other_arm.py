@@ -86,7 +86,7 @@ def test_the_written_panda_trajectory_holds_the_urdf_s_limits_torques_and_no_sel
 
 def test_an_arm_placed_out_of_reach_is_refused_with_exit_3_and_the_reason(tmp_path, capsys):
     text = (ROBOTS / "panda.toml").read_text()
-    start, end = text.index("[placement]"), text.index("[fixed_joints]")
+    start, end = text.index("\n[placement]") + 1, text.index("[fixed_joints]")
     far = tmp_path / "panda_far.toml"
     far.write_text(
         text[:start] + '[placement]\nsource = "baxter_left"\nxyz_m = [-0.6, 0.2, -0.1]\n\n' + text[end:]
@@ -97,3 +97,11 @@ def test_an_arm_placed_out_of_reach_is_refused_with_exit_3_and_the_reason(tmp_pa
     line = one_error_line(capsys.readouterr().err)
     assert "cannot reach the hand-over pose at its placement" in line and "mm" in line
     assert not (out / "trajectory.csv").exists()
+
+
+def test_replay_refuses_a_placed_arm_before_training(tmp_path, capsys):
+    out = tmp_path / "out"
+    assert main(["replay", str(PIPELINE), "--robot", "panda", "--out", str(out), "--no-preview"]) == 2
+    line = one_error_line(capsys.readouterr().err)
+    assert "the closed loop does not do yet" in line and "--robot baxter_left" in line
+    assert not out.exists() or not any(out.iterdir())

@@ -22,7 +22,7 @@ ROBOTS = Path(__file__).resolve().parents[2] / "robots"
 def placed_copy(tmp_path: Path, placement: str) -> Path:
     """panda.toml with its [placement] table replaced by ``placement``."""
     text = (ROBOTS / "panda.toml").read_text()
-    start = text.index("[placement]")
+    start = text.index("\n[placement]") + 1
     end = text.index("[fixed_joints]")
     out = tmp_path / "panda_moved.toml"
     out.write_text(text[:start] + placement + "\n\n" + text[end:])

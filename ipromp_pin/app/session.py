@@ -124,10 +124,8 @@ def prepare_session(
     check_assumed_human(robot)  # an assumed human inside the robot's fixed links, before any computation
     objects = load_objects(cfg.objects)
     objects.check_robot(robot)  # retreat targets the robot cannot take, before any computation
-    placement = robot.settings.placement
-    source = None if placement is None else load_robot(placement.source)  # the recordings' robot
+    source, ds = recordings_robot(cfg, robot, log)
     recorded = robot if source is None else source
-    ds = load_data(cfg, log, recorded)
     early = missing_object_warnings(ds.tasks, objects)  # before training: the model learns ds.tasks
     for w in early:
         warn(w)
@@ -165,6 +163,24 @@ def prepare_session(
             f"({observation.t[-1]:.2f} s, {observation.n_samples} samples) of {', '.join(cfg.observe)}"
         )
     return session
+
+
+def recordings_robot(cfg: PipelineConfig, robot: Robot, log: LogFn = print) -> tuple[Robot | None, Dataset]:
+    """The robot the demos are recorded on when it is not ``robot`` (its ``[placement] source``: the
+    model is retargeted; None: ``robot`` itself) and the demos read with its joints. A placed arm's
+    own recordings (a dataset with its joints, e.g. ``synth --robot panda``) are its own."""
+    placement = robot.settings.placement
+    if placement is None:
+        return None, load_data(cfg, log, robot)
+    if cfg.dataset is not None:
+        try:
+            own = load_data(cfg, lambda _msg: None, robot)
+            log(f"[data] {cfg.dataset}: {len(own.all_demos())} demos recorded on {robot.settings.name}")
+            return None, own
+        except (PipelineError, DataError):
+            pass  # not recorded on this arm: on the robot it is placed beside
+    source = load_robot(placement.source)
+    return source, load_data(cfg, log, source)
 
 
 def observe_window(session: Session, warn: LogFn = warn_stderr) -> Demo:

@@ -105,3 +105,25 @@ def test_replay_refuses_a_placed_arm_before_training(tmp_path, capsys):
     line = one_error_line(capsys.readouterr().err)
     assert "the closed loop does not do yet" in line and "--robot baxter_left" in line
     assert not out.exists() or not any(out.iterdir())
+
+
+def test_synth_on_the_panda_then_run_trains_on_the_panda_s_own_demos(tmp_path):
+    ds, out = tmp_path / "ds", tmp_path / "out"
+    assert main(["synth", str(ds), "--tasks", "2", "--demos", "4", "--robot", "panda"]) == 0
+    from ipromp_pin.readers import load_dataset
+
+    names = tuple(f"panda_joint{i}" for i in range(1, 8))
+    demos = load_dataset(ds, robot_joints=names).all_demos()
+    assert len(demos) == 8 and all(d.channel_names["robot"] == names for d in demos)
+    args = ["run", str(PIPELINE), "--dataset", str(ds), "--robot", "panda", "--out", str(out), "--no-preview"]
+    assert main(args) == 0
+    report = json.loads((out / "report.json").read_text())
+    assert report["retarget"] is None  # the model is the Panda's own: nothing to retarget
+    assert report["feasibility"]["robot"] == "panda"
+
+
+def test_synth_for_an_arm_without_placement_is_refused(tmp_path, capsys):
+    assert (
+        main(["synth", str(tmp_path / "ds"), "--tasks", "1", "--demos", "2", "--robot", "baxter_right"]) == 2
+    )
+    assert "has no [placement]" in one_error_line(capsys.readouterr().err)

@@ -58,6 +58,11 @@ class InfeasibleError(IPrompPinError):
     """A path or start state cannot be turned into a trajectory within the limits."""
 
 
+class UnreachableError(InfeasibleError):
+    """The executing arm cannot reach the predicted hand-over pose (a plan retargeted to another arm):
+    refused, never a shifted hand-over (exit status 3 on the command line, as a failed check)."""
+
+
 class PipelineError(IPrompPinError):
     """A pipeline definition file is invalid."""
 

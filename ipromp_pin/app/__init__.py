@@ -33,7 +33,7 @@ import argparse
 import os
 import sys
 
-from ..exceptions import IPrompPinError
+from ..exceptions import IPrompPinError, UnreachableError
 from ..version import __version__
 from . import calibrate, evaluate, plan, preview, replay, run, synth, train
 from .arguments import OneLineErrorParser
@@ -94,7 +94,8 @@ def _main(argv: list[str] | None, seen: list[str]) -> int:
 
     try:
         return int(args.func(args) or 0)
-    except HumanModelMisfit as exc:  # --strict-human: refused like a plan that fails its checks
+    except (HumanModelMisfit, UnreachableError) as exc:  # --strict-human, an arm that cannot reach:
+        # refused like a plan that fails its checks
         print_error(args.command, str(exc))
         return EXIT_CHECKS_FAILED
     except IPrompPinError as exc:

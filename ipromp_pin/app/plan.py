@@ -182,6 +182,7 @@ def run(
     from .. import atomic
     from ..evaluation.dask_cluster import DaskCluster
     from ..planning.one_shot import check_model_joints
+    from ..planning.transfer import source_robot
     from ..plans.batch import PlanWorker, batch_jobs, plan_batch
     from ..plans.summary import counts, write_summary
     from ..plans.warnings import warn_stderr
@@ -196,7 +197,7 @@ def run(
     atomic.check_output_dir(out_dir)
     arm = load_robot(robot)
     model = IProMP.load(model_path)
-    check_model_joints(model, arm)
+    check_model_joints(model, source_robot(model, arm) or arm)  # a placed arm takes its source's model
     check_human_fit(model, str(model_path), strict_human, warn_stderr)
     table = load_objects(objects)
     work = batch_jobs(recordings, out_dir)

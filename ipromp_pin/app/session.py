@@ -68,6 +68,8 @@ class Session:
         suite: The checks of every plan (:meth:`ipromp_pin.safety.CheckSuite.build`).
         context: What they know about the world for ``demo`` (:func:`check_context`; cut to what the
             planner knows at the end of the observation when there is one).
+        source: The robot of the recordings and the model when ``robot`` executes it retargeted
+            (its ``[placement] source``), None: ``robot`` itself.
     """
 
     cfg: PipelineConfig
@@ -81,6 +83,7 @@ class Session:
     observation: Demo | None = None
     suite: CheckSuite = field(default_factory=lambda: CheckSuite([]))
     context: CheckContext = field(default_factory=CheckContext)
+    source: Robot | None = None
 
     def observed(self) -> Demo:
         """The observation of a session prepared with ``observe=True`` (PipelineError without one)."""
@@ -127,13 +130,14 @@ def prepare_session(
     check_assumed_human(robot)  # an assumed human inside the robot's fixed links, before any computation
     objects = load_objects(cfg.objects)
     objects.check_robot(robot)  # retreat targets the robot cannot take, before any computation
-    ds = load_data(cfg, log, robot)
+    source, ds = recordings_robot(cfg, robot, log)
+    recorded = robot if source is None else source
     early = missing_object_warnings(ds.tasks, objects)  # before training: the model learns ds.tasks
     for w in early:
         warn(w)
     if cfg.load_model is None:  # before training: a robot the demos were not recorded on cannot plan
         check_recorded_joints(
-            ds, robot, "the built-in synthetic demos" if cfg.dataset is None else str(cfg.dataset)
+            ds, recorded, "the built-in synthetic demos" if cfg.dataset is None else str(cfg.dataset)
         )
     if cfg.objects is not None:
         objects.check_tasks(ds.tasks)
@@ -142,11 +146,11 @@ def prepare_session(
     context = check_context(cfg, demo, robot, objects)  # a skeleton the map does not cover: before training
     prefetch = start_mesh_prefetch(robot) if prefetch_meshes else None
     train = [d for d in ds.all_demos() if d is not demo]
-    model = get_model(cfg, ds, demo, log, robot, train=train)
-    check_model_joints(model, robot)
+    model = get_model(cfg, ds, demo, log, recorded, train=train)
+    check_model_joints(model, recorded)
     checks.check_model(model, demo)
-    source = str(cfg.load_model or "model")
-    misfit = check_human_fit(model, source, strict_human, warn)
+    model_source = str(cfg.load_model or "model")
+    misfit = check_human_fit(model, model_source, strict_human, warn)
     warnings = model_warnings(cfg, ds, demo, model) + ([] if misfit is None else [misfit])
     for w in warnings[: len(warnings) - (misfit is not None)]:
         warn(w)
@@ -154,11 +158,11 @@ def prepare_session(
     for w in later:
         warn(w)
     warnings = early + warnings + later
-    session = Session(cfg, robot, ds, demo, train, model, warnings, prefetch)
+    session = Session(cfg, robot, ds, demo, train, model, warnings, prefetch, source=source)
     session.suite = CheckSuite.build(robot)
     session.context = context
     if session.context.human is not None:
-        corrected = registered(session.context.human, model_registration(model, source))
+        corrected = registered(session.context.human, model_registration(model, model_source))
         session.context = session.context.replace(human=corrected)
     if observe:
         session.observation = observation = observe_window(session, warn)
@@ -180,6 +184,24 @@ def recorded_human(session: Session) -> HumanMotion | None:
     if human is None:
         return None
     return registered(human, model_registration(session.model, str(session.cfg.load_model or "model")))
+
+
+def recordings_robot(cfg: PipelineConfig, robot: Robot, log: LogFn = print) -> tuple[Robot | None, Dataset]:
+    """The robot the demos are recorded on when it is not ``robot`` (its ``[placement] source``: the
+    model is retargeted; None: ``robot`` itself) and the demos read with its joints. A placed arm's
+    own recordings (a dataset with its joints, e.g. ``synth --robot panda``) are its own."""
+    placement = robot.settings.placement
+    if placement is None:
+        return None, load_data(cfg, log, robot)
+    if cfg.dataset is not None:
+        try:
+            own = load_data(cfg, lambda _msg: None, robot)
+            log(f"[data] {cfg.dataset}: {len(own.all_demos())} demos recorded on {robot.settings.name}")
+            return None, own
+        except (PipelineError, DataError):
+            pass  # not recorded on this arm: on the robot it is placed beside
+    source = load_robot(placement.source)
+    return source, load_data(cfg, log, source)
 
 
 def observe_window(session: Session, warn: LogFn = warn_stderr) -> Demo:
@@ -469,6 +491,13 @@ def prepare_replay(
     (``benchmarks/closed_loop.py`` times the replays of this set-up)."""
     check_outputs(cfg)
     robot = load_robot(cfg.robot)
+    if robot.settings.placement is not None:  # never another arm's joint angles on this one
+        raise PipelineError(
+            f"replay: robot '{robot.settings.name}' executes models of '{robot.settings.placement.source}' "
+            "retargeted through the gripper, which the closed loop does not do yet (docs/other_arms.md); "
+            f"run it one-shot (ipromp-pin run --robot {robot.settings.name}) or replay with --robot "
+            f"{robot.settings.placement.source}"
+        )
     from_file = check_profile_choice(limits, robot, cfg.source)
     checks = ReplayChecks(cfg.observe, settings)
     session = prepare_session(

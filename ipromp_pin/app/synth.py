@@ -3,9 +3,15 @@
 from __future__ import annotations
 
 import argparse
+from dataclasses import replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
+from ..exceptions import PipelineError
 from .arguments import bounded
+
+if TYPE_CHECKING:
+    from ..data import Dataset
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -25,6 +31,12 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         help="seed of the random generator: the same seed writes the same demos (default %(default)s)",
     )
     p.add_argument("--csv", action="store_true", help="write .csv files (one row per sample) instead of .npz")
+    p.add_argument(
+        "--robot",
+        default="baxter_left",
+        help="the arm the demos are recorded on (default %(default)s); an arm placed in Baxter's scene "
+        "(panda, ur5, xarm7) gets Baxter's demos retargeted through the gripper, with its own joints",
+    )
     p.set_defaults(func=main)
 
 
@@ -37,6 +49,7 @@ def main(args: argparse.Namespace) -> int:
     atomic.check_output_dir(args.out)
 
     ds = make_synthetic_dataset(n_tasks=args.tasks, n_demos=args.demos, seed=args.seed)
+    ds = on_robot(ds, args.robot)
     suffix = ".csv" if args.csv else ".npz"
     n = 0
     for task, demos in ds.demos.items():
@@ -45,3 +58,37 @@ def main(args: argparse.Namespace) -> int:
             n += 1
     print(f"wrote {n} demos of {', '.join(ds.tasks)} into {args.out} ({suffix} files)")
     return 0
+
+
+def on_robot(ds: Dataset, robot: str) -> Dataset:
+    """The synthetic (Baxter left-arm) demos as recorded on ``robot``: unchanged for Baxter's left arm,
+    else the robot group retargeted through the gripper to the arm placed in Baxter's scene
+    (:func:`ipromp_pin.robot.transfer_path`), named with the arm's recorded joint names.
+
+    Raises:
+        PipelineError: the arm is not placed in Baxter's scene, or cannot reach a demo's hand-over.
+    """
+    from ..data import ROBOT, Demo
+    from ..robot import load_robot, transfer_path
+
+    arm = load_robot(robot)
+    placement = arm.settings.placement
+    if placement is None:
+        if arm.settings.recorded_arm_joints != ds.all_demos()[0].channel_names[ROBOT]:
+            raise PipelineError(
+                f"synth --robot {robot}: the synthetic demos are Baxter's left arm's; robot "
+                f"'{arm.settings.name}' has no [placement] in Baxter's scene to retarget them to"
+            )
+        return ds
+    source = load_robot(placement.source)
+    demos: dict[str, list[Demo]] = {}
+    for task, items in ds.demos.items():
+        demos[task] = []
+        for d in items:
+            moved = transfer_path(source, arm, d.groups[ROBOT])
+            if not moved.reached:
+                raise PipelineError(f"synth --robot {robot}: {d.name}: {moved.why_not_reached(arm)}")
+            groups = {**d.groups, ROBOT: moved.q}
+            names = {**d.channel_names, ROBOT: arm.settings.recorded_arm_joints}
+            demos[task].append(replace(d, groups=groups, channel_names=names))
+    return replace(ds, demos=demos)

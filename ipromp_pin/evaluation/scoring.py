@@ -108,15 +108,24 @@ class RecordedScores:
         return asdict(self)
 
 
-def recorded_scores(result: PlanResult, recording: Demo, robot: Robot) -> RecordedScores:
-    """``result`` (planned from the first part of ``recording``) measured against the recording."""
+def recorded_scores(
+    result: PlanResult, recording: Demo, robot: Robot, source: Robot | None = None
+) -> RecordedScores:
+    """``result`` (planned from the first part of ``recording``) measured against the recording
+    (``source``: the robot the recording's joints are of, when ``robot`` executed a retargeted plan;
+    both grippers are in the scene frame)."""
     q_end = result.trajectory.q[-1]
     truth = recording.groups.get(ROBOT)
     error = orientation = hand = None
     if truth is not None and len(truth):
-        p = ee_positions(robot, np.stack([q_end, truth[-1]]))
+        if source is None:
+            p = ee_positions(robot, np.stack([q_end, truth[-1]]))
+            orientation = handover_orientation_error_deg(robot, q_end, truth[-1])
+        else:
+            (pe, re), (pt, rt) = frame_placements(robot, q_end), frame_placements(source, truth[-1])
+            p = np.vstack([pe, pt])
+            orientation = float(geodesic_deg(re[0], rt[0]))
         error = float(np.linalg.norm(p[0] - p[1]) * 100.0)
-        orientation = handover_orientation_error_deg(robot, q_end, truth[-1])
     path = recording.extras.get("hand_position")
     if path is not None:
         seen = np.flatnonzero(np.all(np.isfinite(path), axis=1))

@@ -93,7 +93,23 @@ def report_dict(
         "warnings": list(warnings or []),
         "scores": None if scores is None else scores.to_dict(),
         "peak_torque_ratio": None if torques is None else torques.peak_torque_ratio,
+        "retarget": None if result.retarget is None else result.retarget.to_dict(),
     }
+
+
+def retarget_lines(result: PlanResult) -> list[str]:
+    """Which arm executed a retargeted plan and how closely it follows the model's gripper path (no
+    line when the model predicts the executing arm's own joints)."""
+    r = result.retarget
+    if r is None:
+        return []
+    d = r.to_dict()
+    line = (
+        f"Executed by {result.robot}, retargeted through the gripper from a model of {d['source_robot']}: "
+        f"hand-over residual {d['ik_residual_mm']:.3f} mm / {d['ik_residual_deg']:.3f} deg, "
+        f"path at most {d['max_path_residual_mm']:.3f} mm"
+    )
+    return [line]
 
 
 def feasibility_dict(result: PlanResult) -> dict:
@@ -165,6 +181,7 @@ def report_text(
         f"(observed {p.observed_until_s:.2f} s)"
     )
     lines.append(arrival_line(result))
+    lines += retarget_lines(result)
     if scores is not None:
         lines += scores_lines(scores)
     lines.append(
@@ -194,6 +211,7 @@ def summary_text(
         f"Hand-over pose: position ({pose[0]:.3f}, {pose[1]:.3f}, {pose[2]:.3f}) m, "
         f"quaternion xyzw ({pose[3]:.3f}, {pose[4]:.3f}, {pose[5]:.3f}, {pose[6]:.3f})",
         f"Checks: {'PASS' if result.checks.passed else 'FAIL'} ({checks})",
+        *retarget_lines(result),
         arrival_line(result),
         f"Trajectory: {tr.duration_s:.2f} s, {tr.n_samples} samples; online stages "
         + ", ".join(f"{k} {v:.1f} ms" for k, v in result.stage_ms.items()),

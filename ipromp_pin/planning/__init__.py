@@ -8,6 +8,7 @@
   state, checked before they are committed (``ClosedLoopPlanner``, ``replay_demo``);
 - :mod:`.timers`: how each of them times a motion for the one re-time-until-safe loop of
   :mod:`ipromp_pin.safety`;
+- :mod:`.transfer`: a model of another robot executed on this arm, retargeted through the gripper;
 - :mod:`.goal`: a prediction conditioned on a goal hand-over pose through inverse kinematics.
 
 The planners are thin users of the model (:mod:`ipromp_pin.promp`), the checks

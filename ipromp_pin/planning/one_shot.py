@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..data import Demo
-from ..exceptions import ModelError
+from ..exceptions import ModelError, UnreachableError
 from ..motion.timing import TimingReport
 from ..motion.trajectory import JointLimits, Trajectory
 from ..promp import IProMP, Prediction
@@ -26,6 +26,7 @@ from ..robot import Robot, ee_positions, frame_placements
 from ..robot.kinematics import rotations_to_quat_xyzw
 from ..safety import CheckContext, CheckReport, CheckSuite
 from .timers import path_timer
+from .transfer import Retargeting, retarget_prediction
 
 LogFn = Callable[[str], None]
 """Where progress messages go (one line each)."""
@@ -58,6 +59,8 @@ class PlanResult:
         slowdown: The uniform slow-down ``k >= 1`` the checks asked for (1: none): velocity,
             acceleration and jerk limits / k, k^2, k^3 (when the plan failed: the largest tried).
         slowdown_delay_s: How much longer the slowed trajectory takes, in [s].
+        retarget: How the joint paths came from the model's robot through the gripper (None: the
+            model predicts this arm's joints).
     """
 
     robot: str
@@ -72,6 +75,7 @@ class PlanResult:
     start_s: float = 0.0
     slowdown: float = 1.0
     slowdown_delay_s: float = 0.0
+    retarget: Retargeting | None = None
 
     @property
     def known(self) -> bool:
@@ -134,6 +138,7 @@ def plan(
     control_rate_hz: float = 100.0,
     log: LogFn | None = None,
     check_joints: bool = True,
+    source: Robot | None = None,
 ) -> PlanResult:
     """Recognise and predict from ``observation``, time the predicted path from the end of the
     observation, check it with ``suite`` and re-time it slower while the checks ask for it.
@@ -148,13 +153,17 @@ def plan(
         control_rate_hz: Output sampling rate in [Hz].
         log: Progress messages (None: silent).
         check_joints: Refuse a model whose joints are not the robot's (False: checked already).
+        source: The robot whose joints the model predicts when it is not ``robot`` (e.g. Baxter's
+            left arm for a Panda placed in its scene): the predicted paths are retargeted through the
+            gripper (:func:`~.transfer.retarget_prediction`) and everything after is ``robot``'s.
 
     Raises:
         InfeasibleError: the predicted path cannot be timed at all.
+        UnreachableError: ``robot`` cannot reach the hand-over pose of ``source``'s prediction.
     """
     say = log or (lambda _msg: None)
     if check_joints:
-        check_model_joints(model, robot)
+        check_model_joints(model, robot if source is None else source)
     suite = suite if suite is not None else CheckSuite.build(robot)
     ms: dict[str, float] = {}
     t0 = time.perf_counter()
@@ -171,15 +180,25 @@ def plan(
     if not prediction.known:
         say(f"[recognise] UNKNOWN: {prediction.unknown_reason}")
     samples = prediction.sample_q(N_UNCERTAINTY_SAMPLES, np.random.default_rng(0))
+    q_path, retarget = prediction.q_mean, None
+    if source is not None:
+        q_path, samples, retarget = retarget_prediction(source, robot, q_path, samples)
+        ms["retarget"] = retarget.ms
+        moved = retarget.to_dict()
+        say(
+            f"[retarget] {source.settings.name} -> {robot.settings.name} through the gripper: hand-over "
+            f"residual {moved['ik_residual_mm']:.3f} mm / {moved['ik_residual_deg']:.3f} deg, path at most "
+            f"{moved['max_path_residual_mm']:.3f} mm"
+        )
+        if not retarget.reached:  # refused: never a hand-over shifted to where the arm reaches
+            raise UnreachableError(retarget.path.why_not_reached(robot))
     start_s = float(observation.t[-1] - observation.t[0])
     ctx = prediction_context(prediction, context if context is not None else CheckContext(), samples)
     limits = JointLimits.from_robot(robot)
-    timer = path_timer(
-        prediction.q_mean, limits, suite.timing_constraints(ctx), control_rate_hz, start_s, say
-    )
+    timer = path_timer(q_path, limits, suite.timing_constraints(ctx), control_rate_hz, start_s, say)
     retimed = suite.retime_until_safe(timer, ctx)
     t2 = time.perf_counter()
-    ms["time_check"] = (t2 - t1) * 1e3
+    ms["time_check"] = (t2 - t1) * 1e3 - ms.get("retarget", 0.0)
     trajectory = suite.annotate(retimed.motion, ctx)
     pos, rot = frame_placements(robot, trajectory.q[-1:])
     result = PlanResult(
@@ -189,12 +208,13 @@ def plan(
         timing_report=retimed.timed.report,  # type: ignore[arg-type]  # a path timer's report
         checks=retimed.report,
         handover_pose=np.hstack([pos[0], rotations_to_quat_xyzw(rot)[0]]),
-        ee_path=ee_positions(robot, prediction.q_mean),
+        ee_path=ee_positions(robot, q_path),
         q_samples=samples,
         stage_ms=ms,
         start_s=start_s,
         slowdown=retimed.slowdown,
         slowdown_delay_s=retimed.delay_s,
+        retarget=retarget,
     )
     ms["annotate"] = (time.perf_counter() - t2) * 1e3
     say(f"[check] {'pass' if result.passed else 'FAIL: ' + ', '.join(result.failures)}")

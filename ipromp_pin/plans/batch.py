@@ -25,7 +25,8 @@ from threadpoolctl import threadpool_limits
 
 from ..data import ROBOT, Demo, ObservationWindow
 from ..evaluation.jobs import JobRunner, runner_of
-from ..exceptions import DataError, InfeasibleError
+from ..exceptions import DataError, InfeasibleError, UnreachableError
+from ..planning.transfer import source_robot
 from ..promp import IProMP
 from ..readers import expand_recordings
 from ..readers.recordings import recording_name
@@ -155,6 +156,8 @@ class PlanWorker:
         self.objects = objects
         self.options = options
         self.suite: CheckSuite | None = None
+        # the recordings are the model's robot's: the placement's source when the arm is retargeted
+        self.recorded = source_robot(model, robot) or robot
 
     def __getstate__(self) -> dict:
         return {**self.__dict__, "suite": None}  # a suite is rebuilt where it runs
@@ -189,7 +192,7 @@ class PlanWorker:
                 job.index,
                 str(job.recording),
                 "failed",
-                failures=["timing"],
+                failures=["unreachable" if isinstance(exc, UnreachableError) else "timing"],
                 observed_until_s=float(observation.t[-1]),
                 warnings=notes,
                 error=str(exc),
@@ -216,7 +219,7 @@ class PlanWorker:
             DataError: unreadable, or lacking a group the model observes.
         """
         opts = self.options
-        recording = read_recording_for(path, self.robot, frames=opts.frames, rate_hz=opts.rate_hz)
+        recording = read_recording_for(path, self.recorded, frames=opts.frames, rate_hz=opts.rate_hz)
         missing = [g for g in self.model.observe_ if g not in recording.groups]
         if missing:
             raise DataError(

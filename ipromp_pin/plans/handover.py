@@ -34,6 +34,7 @@ from ..motion.trajectory import Trajectory
 from ..planning.one_shot import PlanResult, check_model_joints
 from ..planning.one_shot import plan as plan_one_shot
 from ..planning.retreat import RetreatResult, plan_retreat
+from ..planning.transfer import source_robot
 from ..promp import IProMP
 from ..robot import Robot, load_robot
 from ..robot.objects import ObjectTable, load_objects
@@ -124,7 +125,8 @@ class HandoverPlan:
     def scored(self, recording: Demo) -> HandoverPlan:
         """This plan with its scores against ``recording``, the whole recording it was planned from
         (its robot group and hand path after the observation)."""
-        return replace(self, scores=recorded_scores(self.approach, recording, self.robot))
+        source = None if self.approach.retarget is None else self.approach.retarget.source
+        return replace(self, scores=recorded_scores(self.approach, recording, self.robot, source))
 
     def write(self, out_dir: str | Path, **options: Any) -> WrittenPlan:
         """Write the plan's files into ``out_dir`` together; ``options``: those of
@@ -171,7 +173,9 @@ def plan(
         model: A fitted :class:`~ipromp_pin.promp.IProMP` (its robot joints the robot's).
         observation: The observed first part of the human's motion (the model's observed groups;
             times in [s] from the start of the motion); nothing after it is used.
-        robot: The robot settings (a shipped name, a settings file) or a loaded robot.
+        robot: The robot settings (a shipped name, a settings file) or a loaded robot. An arm with a
+            ``[placement]`` executes a model of its placement's source robot (e.g. ``"panda"`` with a
+            Baxter model): the prediction is retargeted through the gripper (``plan.approach.retarget``).
         objects: The tasks' objects (a task file, or a table read already; None: the shipped
             ``robots/objects.toml``).
         human: The human the checks judge (None: the observation's tracked skeleton through the
@@ -184,18 +188,27 @@ def plan(
         log: Progress messages (None: silent).
 
     Raises:
-        ModelError: the model's joints are not the robot's.
+        ModelError: the model's joints are neither the robot's nor its placement source's.
         InfeasibleError: the predicted path cannot be timed.
     """
     arm = robot if isinstance(robot, Robot) else load_robot(robot)
     table = objects if isinstance(objects, ObjectTable) else load_objects(objects)
-    check_model_joints(model, arm)
+    source = source_robot(model, arm)  # a model of the robot the arm is placed beside: retargeted
+    check_model_joints(model, arm if source is None else source)
     checks = suite if suite is not None else CheckSuite.build(arm)
     checks.reset()  # a plan does not depend on the plans before it (e.g. distances computed for them)
     correction = registration_of(getattr(model, "human_fit_", None))
     context = CheckContext(human=human_as_observed(observation, arm, human, correction), objects=table)
     approach = plan_one_shot(
-        model, arm, observation, checks, context, control_rate_hz=control_rate_hz, log=log, check_joints=False
+        model,
+        arm,
+        observation,
+        checks,
+        context,
+        control_rate_hz=control_rate_hz,
+        log=log,
+        check_joints=False,
+        source=source,
     )
     task = approach.prediction.task
     warnings = [w for w in [single_task_warning(model)] if w] + range_warnings(model, observation)

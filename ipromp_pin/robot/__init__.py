@@ -7,6 +7,7 @@ Modules, each one concept, from the bottom up:
   and :func:`load_robot`'s cache;
 * :mod:`~ipromp_pin.robot.kinematics`: forward kinematics along a joint path;
 * :mod:`~ipromp_pin.robot.inverse_kinematics`: damped least-squares inverse kinematics;
+* :mod:`~ipromp_pin.robot.arm_transfer`: retargeting a joint path to another arm through the gripper;
 * :mod:`~ipromp_pin.robot.collision`: contact tests; :mod:`~ipromp_pin.robot.clearance`: certified
   self-collision clearance along a path;
 * :mod:`~ipromp_pin.robot.dynamics`: inverse dynamics with a payload;
@@ -16,6 +17,7 @@ The checks that judge a motion with these are :mod:`ipromp_pin.safety`'s. The na
 re-exported here (``from ipromp_pin.robot import load_robot``).
 """
 
+from .arm_transfer import TransferredPath, transfer_path, transfer_samples
 from .calibration import (
     CalibrationResult,
     calibrate_tool_offset,
@@ -53,6 +55,7 @@ __all__ = [
     "IKResult",
     "Robot",
     "RobotSettings",
+    "TransferredPath",
     "Workspace",
     "build_robot",
     "calibrate_tool_offset",
@@ -70,6 +73,8 @@ __all__ = [
     "map_recorded_joints",
     "resolve_settings_path",
     "solve_ik",
+    "transfer_path",
+    "transfer_samples",
     "uncalibrated_robot",
     "write_calibration",
 ]

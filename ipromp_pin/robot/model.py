@@ -315,6 +315,30 @@ def _add_ee_frame(model: pin.Model, s: RobotSettings, last_joint_id: int) -> tup
     return int(ee_id), int(parent_id)
 
 
+def placement_pose(s: RobotSettings) -> pin.SE3:
+    """The arm's base pose in the scene (``[placement]``; identity without one)."""
+    if s.placement is None:
+        return pin.SE3.Identity()
+    rot = pin.rpy.rpyToMatrix(*np.radians(s.placement.rpy_deg))
+    return pin.SE3(rot, np.asarray(s.placement.xyz_m, dtype=float))
+
+
+def _place(model: pin.Model, s: RobotSettings) -> None:
+    """Put the whole model at its ``[placement]``: every joint and frame fixed to the world is moved,
+    so the world frame of the model (and of its geometries, built from it) is the scene's."""
+    if s.placement is None:
+        return
+    pose = placement_pose(s)
+    for j in range(1, model.njoints):
+        if model.parents[j] == 0:
+            model.jointPlacements[j] = pose * model.jointPlacements[j]
+    for i in range(1, len(model.frames)):
+        frame = model.frames[i]
+        if frame.parentJoint == 0:
+            frame.placement = pose * frame.placement
+            model.frames[i] = frame
+
+
 def _collision_model(model: pin.Model, s: RobotSettings) -> tuple[pin.GeometryModel, int, int]:
     """The collision model with the SRDF's disabled pairs removed, the number of pairs before and the
     number the SRDF removed."""
@@ -392,6 +416,7 @@ def build_robot(s: RobotSettings, collision: bool = True) -> Robot:
     ee_id, parent_id = _add_ee_frame(model, s, int(joint_ids[-1]))
     root = int(joint_ids[0])
     model.jointPlacements[root] = pin.SE3(np.eye(3), s.mount_offset_m) * model.jointPlacements[root]
+    _place(model, s)
     data = model.createData()
     kinematic = dict(
         settings=s,

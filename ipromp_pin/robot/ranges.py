@@ -130,6 +130,12 @@ PLAUSIBLE_RANGES: dict[str, Range] = {
     "calibration.mount_offset_m": Range(
         -1.0, 1.0, "m", "calibration corrects millimetres (Baxter's mount: 10 mm); per axis"
     ),
+    "placement.xyz_m": Range(
+        -3.0, 3.0, "m",
+        "a target arm mounted within 3 m of the source robot's base: the recorded hand-overs lie within "
+        "1.2 m of it and the arms reach at most 1 m; per axis",
+    ),
+    "placement.rpy_deg": Range(-180.0, 180.0, "deg", "roll, pitch, yaw angles, each at most half a turn"),
     "workspace.min_m": Range(-10.0, 10.0, "m", "within the readers' tracking range (10 m from the base)"),
     "workspace.max_m": Range(-10.0, 10.0, "m", "within the readers' tracking range (10 m from the base)"),
     "workspace.center_m": Range(-10.0, 10.0, "m", "within the readers' tracking range (10 m from the base)"),

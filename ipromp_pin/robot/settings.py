@@ -31,6 +31,7 @@ __all__ = [
     "PLAUSIBLE_RANGES",
     "TABLES",
     "DemoLimitRecipe",
+    "Placement",
     "ROBOTS_DIR",
     "RobotSettings",
     "Workspace",
@@ -69,6 +70,7 @@ TABLES: dict[str, tuple[str, ...] | None] = {
         "demonstrated",
     ),
     "fixed_joints": None,
+    "placement": ("source", "xyz_m", "rpy_deg"),
     "workspace": ("shape", "min_m", "max_m", "center_m", "radius_m"),
     "checks": ("min_clearance_m", "collision_max_step_rad"),
     "springs": None,
@@ -159,6 +161,26 @@ class Workspace:
 
 
 @dataclass(frozen=True)
+class Placement:
+    """Where an arm stands in the scene of another robot's recordings (``[placement]``): its base
+    pose in the base frame of the ``source`` robot, whose recorded demonstrations (and the models
+    trained on them) it executes through the gripper (:mod:`ipromp_pin.robot.arm_transfer`).
+
+    The arm's model is built already placed: its world frame is the source robot's base frame, so
+    the workspace, the assumed human and every check's positions are in that frame.
+
+    Attributes:
+        source: Settings name (or path) of the robot whose base frame this is, e.g. ``"baxter_left"``.
+        xyz_m: (3,) base position in [m].
+        rpy_deg: (3,) base orientation, roll, pitch, yaw in [deg] (rotation ``Rz(yaw) Ry(pitch) Rx(roll)``).
+    """
+
+    source: str
+    xyz_m: np.ndarray
+    rpy_deg: np.ndarray
+
+
+@dataclass(frozen=True)
 class RobotSettings:
     """Validated content of a robot settings file (see ``robots/README.md``).
 
@@ -192,6 +214,8 @@ class RobotSettings:
             adds ``c0 + c1 * q`` [N m] (``q`` in [rad]) to that joint, so the motor delivers the rest
             (``[springs]``; default none).
         human: The ``[human]`` / ``[iso15066]`` tables (:mod:`.human_settings`).
+        placement: The arm's base pose in another robot's scene (``[placement]``), None: the arm is
+            the robot of its recordings (its base frame is the scene's).
     """
 
     name: str
@@ -218,6 +242,7 @@ class RobotSettings:
     effort_margin: float = 0.1
     spring_torque_nm: dict[str, tuple[float, float]] = field(default_factory=dict)
     human: HumanSettings = field(default_factory=HumanSettings)
+    placement: Placement | None = None
 
     @property
     def n_joints(self) -> int:
@@ -422,6 +447,18 @@ def _workspace(ws: Table) -> Workspace:
     return Workspace("sphere", center_m=centre, radius_m=ws.number("radius_m", _range("workspace.radius_m")))
 
 
+def _placement(table: Table, path: Path) -> Placement | None:
+    """The optional ``[placement]`` table: the source robot and the base pose in its base frame."""
+    if not table.data:
+        return None
+    source = table.text("source")
+    if not source or Path(source).stem == path.stem:
+        raise table.error("source", f"must name another robot's settings, got '{source}'")
+    xyz = table.vector("xyz_m", 3, _range("placement.xyz_m"))
+    rpy = table.vector("rpy_deg", 3, _range("placement.rpy_deg"), [0.0, 0.0, 0.0])
+    return Placement(source, xyz, rpy)
+
+
 def _check_thresholds(checks: Table) -> tuple[float, float]:
     """The optional ``[checks]`` table: min clearance [m], collision step [rad]."""
     defaults = {"min_clearance_m": 0.0, "collision_max_step_rad": 0.05}
@@ -489,4 +526,5 @@ def load_robot_settings(path_or_name: str | Path) -> RobotSettings:
         effort_margin=limits.number("effort_margin", _range("limits.effort_margin"), 0.1),
         spring_torque_nm=_springs(_sub(doc, "springs", required=False), joints),
         human=read_human_settings(doc, path),
+        placement=_placement(_sub(doc, "placement", required=False), path),
     )

@@ -1,0 +1,262 @@
+"""Retargeting through the gripper: a joint path of one arm (the source, e.g. Baxter's left arm, whose
+recordings trained the model) becomes the joint path of another arm placed in the same scene.
+
+The source's forward kinematics give the gripper's pose path (its ``ee`` frame, in the source's base
+frame: the scene frame); the target arm, built at its ``[placement]`` in that frame
+(:class:`~ipromp_pin.robot.settings.Placement`), follows the same poses of its own ``ee`` frame by
+inverse kinematics along the path. Each sample starts from the previous solution and takes damped
+least-squares steps on the full pose error (``log6`` of the remaining transform, in the end-effector
+frame); a redundant arm (7 joints for a 6-D pose) spends its spare freedom in the Jacobian's null
+space pulling every joint toward the middle of its range (weighted by the inverse squared range), which
+keeps it away from its limits. The hand-over pose (the path's last) is solved first, from a few
+deterministic seeds, and the path is followed back from it. Sampled paths of the prediction are transferred by
+one linearised step around the mean's solution (their hand-over configurations exactly).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+from scipy.spatial.transform import Rotation
+
+from ..exceptions import InfeasibleError
+from .kinematics import as_joint_path, frame_placements
+from .model import Robot
+
+TOL_M = 1e-3
+"""Largest gripper position residual [m] at which a pose counts as reached (1 mm)."""
+
+TOL_RAD = float(np.radians(0.5))
+"""Largest gripper orientation residual [rad] at which a pose counts as reached (0.5 deg)."""
+
+NULL_SPACE_GAIN = 0.1
+"""Fraction of the way toward the middle of the limits (weighted by the inverse squared range, the
+narrowest joint at full weight) each sample's first step takes in the pose task's null space."""
+
+TRACK_ITERATIONS = 10
+"""Iterations per path sample, each started from the previous sample's solution (one or two suffice
+on a smooth path)."""
+
+MAX_STEP_RAD = 0.3
+"""Largest joint step of one iteration [rad]: far from the pose, a full Gauss-Newton step overshoots
+(without it the UR5 reached a synthetic hand-over pose from none of 10 random seeds, with it it
+reaches all 60 synthetic hand-over poses; ``benchmarks/placement.py``)."""
+
+GOOD_MARGIN = 0.05
+"""A first solution this far from every limit (as a fraction of the joint's range) is kept without
+trying the other seeds."""
+
+N_SEEDS = 8
+"""Start configurations tried for the first pose (the middle of the limits, then fixed random ones)."""
+
+
+@dataclass(frozen=True)
+class TransferredPath:
+    """A joint path of the target arm that follows the source's gripper poses.
+
+    Attributes:
+        q: (M, n_target_joints) joint angles of the target arm in [rad].
+        position_error_m: (M,) remaining gripper position error per sample in [m].
+        rotation_error_rad: (M,) remaining gripper orientation error per sample in [rad].
+        jacobians: (M, 6, n_target_joints) the ee frame's Jacobians (local frame) at ``q``.
+    """
+
+    q: np.ndarray
+    position_error_m: np.ndarray
+    rotation_error_rad: np.ndarray
+    jacobians: np.ndarray
+
+    @property
+    def reached(self) -> bool:
+        """Whether the last pose (the hand-over) is reached within :data:`TOL_M` and :data:`TOL_RAD`."""
+        return bool(self.position_error_m[-1] <= TOL_M and self.rotation_error_rad[-1] <= TOL_RAD)
+
+    @property
+    def handover_residual_mm(self) -> float:
+        """Gripper position residual at the hand-over in [mm]."""
+        return float(self.position_error_m[-1] * 1e3)
+
+    @property
+    def handover_residual_deg(self) -> float:
+        """Gripper orientation residual at the hand-over in [deg]."""
+        return float(np.degrees(self.rotation_error_rad[-1]))
+
+    @property
+    def max_path_residual_mm(self) -> float:
+        """Largest gripper position residual along the path in [mm]."""
+        return float(np.max(self.position_error_m) * 1e3)
+
+    def why_not_reached(self, target: Robot) -> str:
+        """One clause: how far the target arm stays from the hand-over pose."""
+        return (
+            f"robot '{target.settings.name}' cannot reach the hand-over pose at its placement: inverse "
+            f"kinematics stops {self.handover_residual_mm:.1f} mm and {self.handover_residual_deg:.2f} deg "
+            f"away (at most {TOL_M * 1e3:g} mm and {np.degrees(TOL_RAD):g} deg)"
+        )
+
+
+def gripper_poses(robot: Robot, q: np.ndarray) -> list[pin.SE3]:
+    """The ``ee`` frame's poses (M,) in the scene frame along a joint path (M, n_joints) [rad]."""
+    pos, rot = frame_placements(robot, q)
+    return [pin.SE3(r, p) for p, r in zip(pos, rot, strict=True)]
+
+
+class PoseSolver:
+    """Damped least-squares IK of one target arm's ``ee`` frame (work buffers of the robot)."""
+
+    def __init__(self, robot: Robot, damping: float = 1e-6, max_iter: int = 60) -> None:
+        self.robot = robot
+        self.lo = robot.lower_rad + robot.settings.position_margin_rad
+        self.hi = robot.upper_rad - robot.settings.position_margin_rad
+        self.mid = 0.5 * (self.lo + self.hi)
+        weight = 1.0 / np.maximum(self.hi - self.lo, 1e-6) ** 2
+        self.pull = weight / weight.max()
+        self.damping = damping
+        self.max_iter = max_iter
+        self.eye_n = np.eye(robot.n_joints)
+        self.eye_6 = np.eye(6)
+
+    def error(self, q: np.ndarray, target: pin.SE3) -> tuple[np.ndarray, np.ndarray, pin.SE3]:
+        """The pose error (6,) in the ee frame, its Jacobian (6, n) and the remaining transform."""
+        r = self.robot
+        full = r.full_configuration(q)
+        pin.forwardKinematics(r.model, r.data, full)
+        current = pin.updateFramePlacement(r.model, r.data, r.ee_frame_id)
+        rest = current.actInv(target)
+        jac_local = pin.computeFrameJacobian(r.model, r.data, full, r.ee_frame_id, pin.LOCAL)[
+            :, r.arm_v_index
+        ]
+        return pin.log6(rest).vector, pin.Jlog6(rest.inverse()) @ jac_local, rest
+
+    def solve(
+        self, target: pin.SE3, seed: np.ndarray, max_iter: int | None = None
+    ) -> tuple[np.ndarray, float, float, np.ndarray]:
+        """Joint angles (n,), position and orientation errors [m], [rad] and the Jacobian (6, n),
+        from ``seed``: the first step also moves toward the middle of the limits in the pose task's
+        null space, the next ones only reduce the pose error (to a tenth of the tolerances)."""
+        q = np.clip(seed, self.lo, self.hi)
+        tol_m, tol_r = TOL_M * 0.1, TOL_RAD * 0.1
+        jac = np.zeros((6, self.robot.n_joints))
+        err_p = err_r = np.inf
+        for k in range(self.max_iter if max_iter is None else max_iter):
+            e, jac, rest = self.error(q, target)
+            err_p = float(np.linalg.norm(rest.translation))
+            err_r = float(np.linalg.norm(e[3:]))
+            if err_p <= tol_m and err_r <= tol_r:
+                break
+            pinv = jac.T @ np.linalg.solve(jac @ jac.T + self.damping * self.eye_6, self.eye_6)
+            step = pinv @ e
+            if k == 0:  # spare freedom: toward the middle of the limits
+                step += (self.eye_n - pinv @ jac) @ (NULL_SPACE_GAIN * self.pull * (self.mid - q))
+            largest = float(np.max(np.abs(step)))
+            if largest > MAX_STEP_RAD:  # far from the pose the linearisation does not hold
+                step *= MAX_STEP_RAD / largest
+            q = np.clip(q + step, self.lo, self.hi)
+        return q, err_p, err_r, jac
+
+    def margin(self, q: np.ndarray) -> float:
+        """Smallest distance to a limit as a fraction of the joint's range."""
+        return float(np.min(np.minimum(q - self.lo, self.hi - q) / (self.hi - self.lo)))
+
+    def first(self, target: pin.SE3, seed: np.ndarray | None) -> tuple[np.ndarray, float, float, np.ndarray]:
+        """A pose from no previous solution: from ``seed`` (if given), the middle of the limits, then
+        fixed random seeds (up to :data:`N_SEEDS`), the first converged solution at least
+        :data:`GOOD_MARGIN` from every limit, else the converged one with the largest margin, else
+        the one closest to the pose."""
+        rng = np.random.default_rng(0)
+        seeds = [] if seed is None else [np.asarray(seed, dtype=float)]
+        seeds += [self.mid] + [rng.uniform(self.lo, self.hi) for _ in range(N_SEEDS - 1)]
+        best, best_key = None, None
+        for s in seeds:
+            out = self.solve(target, s)
+            ok = out[1] <= TOL_M and out[2] <= TOL_RAD
+            key = (ok, self.margin(out[0]) if ok else -(out[1] + 0.1 * out[2]))
+            if best_key is None or key > best_key:
+                best, best_key = out, key
+            if ok and key[1] >= GOOD_MARGIN:
+                break
+        assert best is not None
+        return best
+
+
+def transfer_path(
+    source: Robot, target: Robot, q_source: np.ndarray, q_seed: np.ndarray | None = None
+) -> TransferredPath:
+    """The target arm's joint path whose gripper follows the source arm's gripper along ``q_source``.
+
+    Args:
+        source: The robot of the joint path (its base frame is the scene frame).
+        target: The arm that executes it, built at its ``[placement]`` in the source's base frame.
+        q_source: (M, n_source_joints) source joint path in [rad].
+        q_seed: (n_target_joints,) start configuration for the first pose (default: fixed seeds).
+
+    Raises:
+        InfeasibleError: the target is not placed in the source's scene.
+
+    The hand-over pose (the last) is solved first, then the path is followed back from it to the
+    start, each sample from the next one's solution. When the target cannot reach the hand-over, every
+    sample holds that best attempt and :attr:`TransferredPath.reached` is False (the caller refuses
+    the plan).
+    """
+    check_pair(source, target)
+    q_source = as_joint_path(source, q_source, "source joint path")
+    poses = gripper_poses(source, q_source)
+    solver = PoseSolver(target)
+    m, n = len(poses), target.n_joints
+    q = np.empty((m, n))
+    err_p, err_r, jacs = np.empty(m), np.empty(m), np.empty((m, 6, n))
+    end = solver.first(poses[-1], q_seed)
+    if not (end[1] <= TOL_M and end[2] <= TOL_RAD):  # out of reach: refused, the path is not followed
+        q[:], err_p[:], err_r[:], jacs[:] = end
+        return TransferredPath(q, err_p, err_r, jacs)
+    q[-1], err_p[-1], err_r[-1], jacs[-1] = end
+    for i in range(m - 2, -1, -1):  # back from the hand-over: the path leads to that solution
+        q[i], err_p[i], err_r[i], jacs[i] = solver.solve(poses[i], q[i + 1], TRACK_ITERATIONS)
+    return TransferredPath(q, err_p, err_r, jacs)
+
+
+def transfer_samples(
+    source: Robot,
+    target: Robot,
+    q_source_samples: np.ndarray,
+    mean: TransferredPath,
+    q_source_mean: np.ndarray,
+) -> np.ndarray:
+    """Sampled source joint paths (n, M, n_source) [rad] as target joint paths (n, M, n_target) [rad]:
+    one linearised step around ``mean`` (the transferred mean path, same M) per sample and time, then
+    exact inverse kinematics for each sample's last configuration (the hand-over, which the uncertainty
+    check uses)."""
+    n_s, m, _ = q_source_samples.shape
+    solver = PoseSolver(target)
+    pm, rm = frame_placements(source, q_source_mean)  # (M, 3), (M, 3, 3)
+    ps, rs = frame_placements(source, q_source_samples.reshape(n_s * m, -1))
+    ps, rs = ps.reshape(n_s, m, 3), rs.reshape(n_s, m, 3, 3)
+    # the sample's pose in the mean's gripper frame, to first order: translation and rotation vector
+    dp = np.einsum("mji,smj->smi", rm, ps - pm)
+    rel = np.einsum("mji,smjk->smik", rm, rs)
+    dr = Rotation.from_matrix(rel.reshape(-1, 3, 3)).as_rotvec().reshape(n_s, m, 3)
+    jac = mean.jacobians  # (M, 6, n)
+    jjt = np.einsum("mij,mkj->mik", jac, jac) + solver.damping * solver.eye_6
+    step = np.linalg.solve(jjt[None], np.concatenate([dp, dr], axis=2)[..., None])[..., 0]  # (n_s, M, 6)
+    out = mean.q[None] + np.einsum("mji,smj->smi", jac, step)
+    for k in range(n_s):  # the hand-overs exactly (the uncertainty check's configurations)
+        end = pin.SE3(rs[k, -1], ps[k, -1])
+        out[k, -1] = solver.solve(end, out[k, -1])[0]
+    return np.clip(out, solver.lo, solver.hi)
+
+
+def check_pair(source: Robot, target: Robot) -> None:
+    """Refuse a target arm that is not placed in ``source``'s scene (``[placement] source``)."""
+    p = target.settings.placement
+    if p is None:
+        raise InfeasibleError(
+            f"robot '{target.settings.name}' has no [placement] in {target.settings.path.name}: it cannot "
+            f"execute robot '{source.settings.name}''s motion through the gripper"
+        )
+    if p.source not in (source.settings.name, str(source.settings.path), source.settings.path.stem):
+        raise InfeasibleError(
+            f"robot '{target.settings.name}' is placed in the scene of '{p.source}', not of "
+            f"'{source.settings.name}'"
+        )

@@ -1,0 +1,104 @@
+"""Retargeting through the gripper (issue 37): an arm with a [placement] in Baxter's scene follows
+Baxter's gripper poses by inverse kinematics, every key of the placement is known or refused, and an
+arm that cannot reach the hand-over is refused, never shifted."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from ipromp_pin.exceptions import InfeasibleError, RobotError
+from ipromp_pin.readers.synthetic import make_synthetic_dataset
+from ipromp_pin.robot import frame_placements, load_robot, load_robot_settings, transfer_path
+from ipromp_pin.robot.arm_transfer import TOL_M, TOL_RAD
+from ipromp_pin.robot.rotations import geodesic_deg
+
+ROBOTS = Path(__file__).resolve().parents[2] / "robots"
+
+
+def placed_copy(tmp_path: Path, placement: str) -> Path:
+    """panda.toml with its [placement] table replaced by ``placement``."""
+    text = (ROBOTS / "panda.toml").read_text()
+    start = text.index("\n[placement]") + 1
+    end = text.index("[fixed_joints]")
+    out = tmp_path / "panda_moved.toml"
+    out.write_text(text[:start] + placement + "\n\n" + text[end:])
+    return out
+
+
+@pytest.fixture(scope="module")
+def robots():
+    return load_robot("baxter_left"), load_robot("panda")
+
+
+@pytest.fixture(scope="module")
+def baxter_paths():
+    demos = make_synthetic_dataset(n_demos=3).all_demos()
+    return [d.groups["robot"] for d in demos]
+
+
+def test_the_placed_arm_s_base_is_where_the_placement_puts_it(robots):
+    _, panda = robots
+    s = panda.settings
+    assert s.placement is not None and s.placement.source == "baxter_left"
+    base = panda.model.getFrameId("panda_link0")
+    data = panda.model.createData()
+    pin.framesForwardKinematics(panda.model, data, panda.q_neutral)
+    np.testing.assert_allclose(data.oMf[base].translation, s.placement.xyz_m, atol=1e-12)
+
+
+def test_the_panda_s_gripper_follows_baxter_s_poses_within_the_tolerances(robots, baxter_paths):
+    baxter, panda = robots
+    for q in baxter_paths:
+        moved = transfer_path(baxter, panda, q)
+        assert moved.reached
+        # independently of the solver's own residuals: both grippers through forward kinematics
+        pb, rb = frame_placements(baxter, q)
+        pp, rp = frame_placements(panda, moved.q)
+        dist = np.linalg.norm(pb - pp, axis=1)
+        angle = np.array([geodesic_deg(a, b) for a, b in zip(rb, rp, strict=True)])
+        assert dist.max() <= TOL_M and angle.max() <= np.degrees(TOL_RAD)
+        assert np.isclose(moved.max_path_residual_mm, dist.max() * 1e3, atol=1e-6)
+        lo = panda.lower_rad + panda.settings.position_margin_rad
+        hi = panda.upper_rad - panda.settings.position_margin_rad
+        assert np.all(moved.q >= lo - 1e-12) and np.all(moved.q <= hi + 1e-12)
+        # a continuous joint path: no jump to another IK branch between samples
+        assert np.abs(np.diff(moved.q, axis=0)).max() < 0.2
+
+
+def test_an_arm_placed_out_of_reach_does_not_reach_and_says_how_far(tmp_path, robots, baxter_paths):
+    baxter, _ = robots
+    far = load_robot(placed_copy(tmp_path, '[placement]\nsource = "baxter_left"\nxyz_m = [-0.6, 0.2, -0.1]'))
+    moved = transfer_path(baxter, far, baxter_paths[0])
+    assert not moved.reached
+    assert moved.handover_residual_mm > 100
+    assert "cannot reach the hand-over pose" in moved.why_not_reached(far)
+
+
+def test_an_arm_without_placement_cannot_take_another_robot_s_path(robots, baxter_paths):
+    baxter, _ = robots
+    right = load_robot("baxter_right")
+    with pytest.raises(InfeasibleError, match=r"no \[placement\]"):
+        transfer_path(baxter, right, baxter_paths[0])
+
+
+@pytest.mark.parametrize(
+    "placement, message",
+    [
+        ('[placement]\nsource = "baxter_left"\nxyz_m = [5.0, 0.0, 0.0]', "placement.xyz_m"),
+        ('[placement]\nsource = "baxter_left"\nxyz_m = [0.3, 0.2, -0.1]\nrpy_deg = [0, 0, 270]', "rpy_deg"),
+        ('[placement]\nsource = "baxter_left"\nxyz = [0.3, 0.2, -0.1]', "did you mean 'xyz_m'"),
+        ("[placement]\nxyz_m = [0.3, 0.2, -0.1]", "placement.source"),
+        ('[placement]\nsource = "panda_moved"\nxyz_m = [0.3, 0.2, -0.1]', "another robot"),
+    ],
+)
+def test_a_bad_placement_is_refused_naming_the_field(tmp_path, placement, message):
+    with pytest.raises(RobotError, match=message):
+        load_robot_settings(placed_copy(tmp_path, placement))
+
+
+def test_baxter_itself_has_no_placement():
+    assert load_robot_settings("baxter_left").placement is None

@@ -188,6 +188,23 @@ def _number_or_text(value: object) -> float | str:
     return value if isinstance(value, str) else float(value)  # type: ignore[arg-type]
 
 
+def _handover_meta(ho: HandoverRegression | None) -> dict | None:
+    """The hand-over regression's header field (its sizes and trust; None: none)."""
+    if ho is None:
+        return None
+    neighbours = None
+    if ho.kind is not None:
+        assert ho.neighbour_x is not None  # present with kind (validate_fitted)
+        neighbours = int(ho.neighbour_x.shape[2])
+    return {
+        "ratios": int(ho.ratios.size),
+        "outputs": int(ho.readout.shape[1]),
+        "features": int(ho.dims.size),
+        "trust": float(ho.trust),
+        "neighbours": neighbours,
+    }
+
+
 def write_model(params: dict, fitted: FittedModel, path: str | Path) -> None:
     """Write an estimator's parameters (``IProMP.get_params()``) and fitted state to ``path`` (``.npz``),
     atomically (an earlier file is replaced only by a complete new one).
@@ -202,10 +219,6 @@ def write_model(params: dict, fitted: FittedModel, path: str | Path) -> None:
     layout = fitted.layout
     ho = fitted.handover
     robot_lo = layout.slices[layout.robot_group][0]
-    neighbours = None
-    if ho is not None and ho.kind is not None:
-        assert ho.neighbour_x is not None  # present with kind (validate_fitted)
-        neighbours = int(ho.neighbour_x.shape[2])
     header = {
         "format": FORMAT_NAME,
         "format_version": FORMAT_VERSION,
@@ -223,15 +236,7 @@ def write_model(params: dict, fitted: FittedModel, path: str | Path) -> None:
         "condition_noise_ratio": float(fitted.nu_condition),
         "condition_cv_scores": [[float(k), float(v)] for k, v in fitted.condition_cv_scores.items()],
         "head": None if fitted.head is None else {"regressions": int(fitted.head.ratios.size)},
-        "handover": None
-        if ho is None
-        else {
-            "ratios": int(ho.ratios.size),
-            "outputs": int(ho.readout.shape[1]),
-            "features": int(ho.dims.size),
-            "trust": float(ho.trust),
-            "neighbours": neighbours,
-        },
+        "handover": _handover_meta(ho),
         "handover_cv_scores": [
             ["off" if not np.isfinite(k) else float(k), float(v)]
             for k, v in fitted.handover_cv_scores.items()

@@ -12,6 +12,15 @@ Then the same for the built-in synthetic demos (seed 0, 3 tasks x 20), against t
 ``robots/baxter_left.toml`` (``[human.assumed]``): the numbers the synthetic hand-over and the
 assumed human are placed with (``ipromp_pin/readers/synthetic.py``).
 
+Last, how fast each demo's robot path brings the arm toward the human's face (:func:`face_approach`):
+the robot's joint path of the demo (smoothed over :data:`SMOOTH_S`, from where it has gone 2 % of the
+way from its first to its last configuration to where it is within 2 % of the last) timed as
+``ipromp-pin run`` times a plan (time-optimal, starting after :data:`OBSERVED` of the demo) and
+re-timed until ``human_clearance`` and ``contact_speed`` pass against the human as known at that
+time (the tracked skeleton of the recordings, the assumed human of the synthetic demos); the same
+for the straight joint-space line between the path's two ends (the shape of the synthetic robot's
+path); and the largest approach speed / contact-speed limit of the path at the demo's own pace.
+
     PYTHONPATH=. python benchmarks/handover_geometry.py [../shared/datasets/handover_20171128]
 
 ``--smoke``: the synthetic part only (no shared dataset, seconds).
@@ -23,21 +32,35 @@ import sys
 from pathlib import Path
 
 import numpy as np
+from scipy.interpolate import CubicSpline
+from scipy.ndimage import gaussian_filter1d
 
-from ipromp_pin.data import ROBOT, Dataset
+from ipromp_pin.data import ROBOT, Dataset, Demo
 from ipromp_pin.human import HumanMotion
+from ipromp_pin.motion.limits import JointLimits
+from ipromp_pin.motion.trajectory import Trajectory
+from ipromp_pin.planning.timers import path_timer
 from ipromp_pin.readers.synthetic import make_synthetic_dataset
 from ipromp_pin.robot import load_robot
-from ipromp_pin.robot.kinematics import ee_positions, gripper_kinematics
+from ipromp_pin.robot.kinematics import ee_positions, frame_placements, gripper_kinematics
 from ipromp_pin.robot.recordings import read_recordings
+from ipromp_pin.safety import CheckContext, CheckSuite
+from ipromp_pin.safety.contact_speed import SLOWDOWN_MARGIN
+
+OBSERVED = 0.2
+"""Observed fraction of the demo before the robot starts (``run``'s default ``observation.ratio``)."""
+SMOOTH_S = 0.06
+"""Gaussian smoothing (standard deviation) of a recorded joint path, in [s]: the joint encoders' noise
+would make the time-optimal timing crawl."""
 
 
 def geometry(ds: Dataset, robot: object, tracked: bool) -> dict[str, np.ndarray]:
     """Per demo (N, 3) [m]: gripper - torso, gripper - head, hand start - torso, hand end - gripper,
-    gripper, torso."""
+    gripper, torso, the robot's elbow (``left_lower_elbow``) - head at the start and at the end."""
     fk = gripper_kinematics(robot).fk  # type: ignore[arg-type]
     settings = robot.settings.human  # type: ignore[attr-defined]
-    keys = ("g_torso", "g_head", "h0_torso", "h1_g", "gripper", "torso")
+    keys = ("g_torso", "g_head", "h0_torso", "h1_g", "gripper", "torso", "e0_head", "e1_head")
+    elbow = robot.model.getFrameId("left_lower_elbow")  # type: ignore[attr-defined]
     rows: dict[str, list[np.ndarray]] = {k: [] for k in keys}
     for task in ds.tasks:
         for d in ds.demos[task]:
@@ -59,6 +82,9 @@ def geometry(ds: Dataset, robot: object, tracked: bool) -> dict[str, np.ndarray]
             rows["h1_g"].append(h1 - gripper)
             rows["gripper"].append(gripper)
             rows["torso"].append(torso)
+            ends = frame_placements(robot, d.groups[ROBOT][[0, -1]], elbow)[0]  # type: ignore[arg-type]
+            rows["e0_head"].append(ends[0] - head)
+            rows["e1_head"].append(ends[1] - head)
     return {k: np.array(v) for k, v in rows.items()}
 
 
@@ -72,6 +98,8 @@ def show(title: str, g: dict[str, np.ndarray]) -> None:
         "g_head": "gripper - head",
         "h0_torso": "hand at the start - torso",
         "h1_g": "hand at the end - gripper",
+        "e0_head": "elbow at the start - head",
+        "e1_head": "elbow at the end - head",
     }
     for key, label in labels.items():
         q = np.nanpercentile(g[key], [5, 50, 95], axis=0)
@@ -120,6 +148,112 @@ def robot_constants(ds: Dataset, robot: object) -> None:
         print(f"  {key} (mean of the tasks) {np.mean(rows[key], axis=0).round(3).tolist()}")
 
 
+def _span(q: np.ndarray) -> tuple[int, int]:
+    """First and last sample of the motion of joint path ``q`` (N, 7) [rad]: one sample before it has
+    gone 2 % of the way from its first to its last configuration, and where it is within 2 % of the
+    last."""
+    f = 1.0 - np.linalg.norm(q - q[-1], axis=1) / max(float(np.linalg.norm(q[0] - q[-1])), 1e-9)
+    return max(int(np.argmax(f > 0.02)) - 1, 0), int(np.argmax(f > 0.98))
+
+
+def _timed(robot: object, suite: CheckSuite, path: np.ndarray, human: HumanMotion, t_obs: float) -> list:
+    """``path`` (M, 7) [rad] timed like a plan from ``t_obs`` [s], re-timed until the checks pass:
+    [slow-down, unslowed duration [s], end [s], worst contact-speed pair, local factor]. The local
+    factor is a first-order estimate of the duration factor of a slow-down only where the unslowed
+    motion needs it (each control sample stretched by its own contact-speed ratio over the planning
+    limit, times the check's margin), against the uniform slow-down the planner makes."""
+    ctx = CheckContext(human=human.until(t_obs))
+    limits = JointLimits.from_robot(robot)  # type: ignore[arg-type]
+    timer = path_timer(path, limits, suite.timing_constraints(ctx), 100.0, t_obs, lambda _m: None)
+    r = suite.retime_until_safe(timer, ctx)
+    m = r.report["contact_speed"].measures
+    pair = f"{m.link} -> {m.body_part}" if r.slowdown > 1.0 else ""  # type: ignore[attr-defined]
+    unslowed = timer(1.0).motion
+    check = suite.get("contact_speed")
+    ratio = check.summary(unslowed, ctx).max_ratio  # type: ignore[union-attr]
+    allowed = 1.0 - robot.settings.human.speed_margin  # type: ignore[attr-defined]
+    local = float(np.mean(np.maximum(1.0, ratio / allowed * SLOWDOWN_MARGIN)))
+    return [r.slowdown, r.motion.duration_s / r.slowdown, r.motion.end_s, pair, local]
+
+
+def _own_pace_ratio(suite: CheckSuite, demo: Demo, q: np.ndarray, human: HumanMotion) -> float:
+    """The largest approach speed / contact-speed limit of the joint path ``q`` (N, 7) [rad] at the
+    demo's own pace against ``human`` (every sample known)."""
+    t = demo.t - demo.t[0]
+    spline = CubicSpline(t, q)
+    tt = np.arange(0.0, t[-1], 0.01)
+    motion = Trajectory(
+        tt, spline(tt), spline(tt, 1), spline(tt, 2), tuple(f"q{j}" for j in range(q.shape[1]))
+    )
+    verdict = suite.only(("contact_speed",)).run(motion, CheckContext(human=human))[0]
+    return float(verdict.measures.max_speed_ratio)  # type: ignore[attr-defined]
+
+
+def face_approach(ds: Dataset, robot: object, tracked: bool, every: int = 1) -> dict[str, list]:
+    """Per demo (every ``every``-th): the recorded path and the straight joint-space line between its
+    ends timed like a plan and re-timed until the human checks pass (``path``, ``line``: see
+    :func:`_timed`), the path's own-pace contact-speed ratio (``pace``), the human's duration [s]
+    (``human_s``) and the gripper's path length [m] (``gripper_m``)."""
+    settings = robot.settings.human  # type: ignore[attr-defined]
+    suite = CheckSuite.build(robot, ("human_clearance", "contact_speed"))  # type: ignore[arg-type]
+    rows: dict[str, list] = {k: [] for k in ("path", "line", "pace", "human_s", "gripper_m")}
+    for demo in ds.all_demos()[::every]:
+        t = demo.t - demo.t[0]
+        if tracked:
+            human = HumanMotion.from_demo(demo, settings)
+        else:
+            human = HumanMotion.assumed_human(settings, t, demo.extras.get("hand_position"))
+        if human is None:
+            continue
+        rate = (len(t) - 1) / t[-1]
+        q = gaussian_filter1d(np.asarray(demo.groups[ROBOT], float), SMOOTH_S * rate, axis=0, mode="nearest")
+        i0, i1 = _span(q)
+        path = q[i0 : i1 + 1]
+        line = path[0] + np.linspace(0.0, 1.0, len(path))[:, None] * (path[-1] - path[0])
+        t_obs = OBSERVED * float(t[-1])
+        rows["path"].append(_timed(robot, suite, path, human, t_obs))
+        rows["line"].append(_timed(robot, suite, line, human, t_obs))
+        rows["pace"].append(_own_pace_ratio(suite, demo, q, human))
+        rows["human_s"].append(float(t[-1]))
+        rows["gripper_m"].append(
+            float(np.linalg.norm(np.diff(ee_positions(robot, path), axis=0), axis=1).sum())
+        )  # type: ignore[arg-type]
+    return rows
+
+
+def show_face(title: str, rows: dict[str, list]) -> None:
+    """Print the medians and shares of :func:`face_approach`'s rows."""
+    n = len(rows["human_s"])
+    human_s = np.array(rows["human_s"])
+    pace = np.array(rows["pace"])
+    p5, p50, p95 = np.percentile(pace, [5, 50, 95])
+    print(
+        f"{title}: {n} demos; robot path at the demo's own pace: approach speed / contact-speed limit "
+        f"median {p50:.2f} [5th {p5:.2f}, 95th {p95:.2f}], over the planning limit 0.9 in "
+        f"{np.mean(pace > 0.9):.0%}; gripper path median {np.median(rows['gripper_m']):.3f} m"
+    )
+    for key, label in (("path", "the demo's robot path"), ("line", "straight joint line between its ends")):
+        k = np.array([r[0] for r in rows[key]], dtype=float)
+        base = np.array([r[1] for r in rows[key]], dtype=float)
+        late = np.array([r[2] for r in rows[key]], dtype=float) - human_s
+        worst = {}
+        for r in rows[key]:
+            if r[3]:
+                worst[r[3]] = worst.get(r[3], 0) + 1
+        top = ", ".join(f"{p} {c}" for p, c in sorted(worst.items(), key=lambda x: -x[1])[:3]) or "none"
+        print(
+            f"  {label:<38} timed like a plan: slow-down median {np.median(k):.2f} "
+            f"[95th {np.percentile(k, 95):.2f}], over 1.3x in {np.mean(k > 1.3):.0%}; unslowed "
+            f"{np.median(base):.2f} s; at rest after the human's end median {np.median(late):+.2f} s, "
+            f"within 0.5 s in {np.mean(late <= 0.5):.0%}; slowed by: {top}"
+        )
+        local = np.array([r[4] for r in rows[key]], dtype=float)
+        print(
+            f"  {'':<38} slowed only where needed (first order): duration x{np.median(local):.2f} median "
+            f"[95th {np.percentile(local, 95):.2f}] instead of x{np.median(k):.2f}"
+        )
+
+
 def main() -> None:
     robot = load_robot("baxter_left")
     if "--smoke" not in sys.argv:
@@ -127,7 +261,13 @@ def main() -> None:
         recorded = read_recordings(root, robot)
         show(f"recorded ({root.name}, tracked torso)", geometry(recorded, robot, True))
         robot_constants(recorded, robot)
-    show("synthetic (seed 0, assumed human)", geometry(make_synthetic_dataset(seed=0), robot, False))
+    synthetic = make_synthetic_dataset(seed=0)
+    show("synthetic (seed 0, assumed human)", geometry(synthetic, robot, False))
+    print("the arm toward the face, each demo's robot path timed like a plan (module docstring):")
+    if "--smoke" not in sys.argv:
+        show_face(f"recorded ({root.name}, tracked human)", face_approach(recorded, robot, True))
+    every = 10 if "--smoke" in sys.argv else 1
+    show_face("synthetic (seed 0, assumed human)", face_approach(synthetic, robot, False, every))
 
 
 if __name__ == "__main__":

@@ -40,6 +40,8 @@ EXPECTED = {
     "handover_geometry.py": [
         r"synthetic \(seed 0, assumed human\): \d+ demos",
         r"gripper - torso\s+x [-+][\d.]+",
+        r"demo's robot path\s+timed like a plan: slow-down median [\d.]+ \[95th [\d.]+\]",
+        r"straight joint line between its ends\s+timed like a plan: slow-down median [\d.]+",
     ],
     "inference.py": [r"(?m)^paper\s+\d+\s+12\s", r"speed-up \d+x", r"task accuracy [\d.]+"],
     "model_load.py": [r"this checkout:\s+[\d.]+ ms", r"paired difference \(this - other\): median"],

@@ -140,8 +140,10 @@ def replay_preview_html(
     checks: CheckReport,
     human: HumanMotion | None = None,
     objects: ObjectTable | None = None,
+    recorded_robot: Robot | None = None,
 ) -> str:
-    """The time-scrubbing ``preview.html`` of a replay (one self-contained page).
+    """The time-scrubbing ``preview.html`` of a replay (one self-contained page; ``recorded_robot``:
+    the robot the demo's joints are of when ``robot`` executed it retargeted, None: ``robot``).
 
     ``checks`` are the commanded motion's verdicts as the replay report judges it
     (:func:`~.replay_report.replay_checks`): the check list shows them after the closed loop's rows,
@@ -177,7 +179,7 @@ def replay_preview_html(
         joint_names=robot.joint_names,
         q_full=robot.full_configuration(traj.q[0]),
         ee_mean=ee_positions(robot, traj.q[:: max(1, traj.n_samples // 200)]),
-        ee_truth=ee_positions(robot, demo.groups[ROBOT]),
+        ee_truth=ee_positions(recorded_robot or robot, demo.groups[ROBOT]),
         hand_path=hand,
         hand_t_s=hand_t,
         body=body,

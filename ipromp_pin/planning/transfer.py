@@ -116,7 +116,8 @@ class ReplanRetarget:
             reference (its end is the inverse kinematics' hand-over solution).
         handover_residual_deg: Gripper orientation residual [deg] there.
         max_path_residual_mm: Largest gripper position residual [mm] of the executing arm's reference
-            at the phase samples (inverse kinematics and fit on the basis together).
+            at the phase samples and halfway between them (inverse kinematics and fit on the basis
+            together).
         ms: Wall time [ms] of the retargeting.
     """
 
@@ -159,8 +160,9 @@ class ReplanTransfer:
         self.target = target
         self.solver = PoseSolver(target)
         self.phase = np.linspace(0.0, 1.0, n_grid)
+        self.mid = 0.5 * (self.phase[1:] + self.phase[:-1])  # where the fit's residual is measured too
         self._previous: np.ndarray | None = None  # (n_grid, n_target) the last reached solution
-        self._fit: tuple[bytes, float, np.ndarray, np.ndarray] | None = None
+        self._fit: tuple[bytes, float, np.ndarray, np.ndarray, np.ndarray] | None = None
 
     def start(self, q_source: np.ndarray) -> np.ndarray:
         """The arm's configuration (n_target,) [rad] whose gripper is at ``source``'s at ``q_source``
@@ -179,13 +181,15 @@ class ReplanTransfer:
             )
         return q
 
-    def _basis(self, reference: ReferenceMotion) -> tuple[np.ndarray, np.ndarray]:
-        """The basis at the phase samples (M, K) and the constrained fit's operator (K, M) (kept
-        while the reference's basis stays the same)."""
+    def _basis(self, reference: ReferenceMotion) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The basis at the phase samples (M, K) and between them (M - 1, K), and the constrained
+        fit's operator (K, M) (kept while the reference's basis stays the same)."""
         key = reference.centres.tobytes()
         if self._fit is None or self._fit[0] != key or self._fit[1] != reference.width:
             diff = self.phase[:, None] - reference.centres[None, :]
             phi = np.exp(-0.5 * diff * diff / reference.width**2)  # (M, K)
+            diff = self.mid[:, None] - reference.centres[None, :]
+            phi_mid = np.exp(-0.5 * diff * diff / reference.width**2)
             k, m = phi.shape[1], phi.shape[0]
             kkt = np.zeros((k + 1, k + 1))
             kkt[:k, :k] = phi.T @ phi + FIT_RIDGE * np.eye(k)
@@ -193,8 +197,8 @@ class ReplanTransfer:
             rhs = np.zeros((k + 1, m))
             rhs[:k] = phi.T
             rhs[k, -1] = 1.0
-            self._fit = (key, reference.width, phi, np.linalg.solve(kkt, rhs)[:k])
-        return self._fit[2], self._fit[3]
+            self._fit = (key, reference.width, phi, phi_mid, np.linalg.solve(kkt, rhs)[:k])
+        return self._fit[2], self._fit[3], self._fit[4]
 
     def _follow(self, poses: list, q_now: np.ndarray, t_now_s: float, duration_s: float) -> tuple:
         """Joint samples (M, n), position and orientation errors (M,) along ``poses``."""
@@ -237,12 +241,14 @@ class ReplanTransfer:
                 name, False, err_p[-1] * 1e3, float(np.degrees(err_r[-1])), float(err_p.max() * 1e3), ms
             )
         self._previous = q
-        phi, fit = self._basis(reference)
+        phi, phi_mid, fit = self._basis(reference)
         weights = fit @ q  # (K, n)
         n = self.target.n_joints
         moved = ReferenceMotion(weights.T, reference.centres, reference.width, np.ones(n), np.zeros(n), d)
-        pos, _ = frame_placements(self.target, phi @ weights)
-        target_pos = np.array([p.translation for p in poses])
+        # the residual of what the arm is commanded: at the samples and between them (the fit's)
+        pos, _ = frame_placements(self.target, np.vstack([phi @ weights, phi_mid @ weights]))
+        src_mid, _ = frame_placements(self.source, reference.evaluate(self.mid * d, order=0)[0])
+        target_pos = np.vstack([[p.translation for p in poses], src_mid])
         path_mm = float(np.max(np.linalg.norm(pos - target_pos, axis=1)) * 1e3)
         ms = (time.perf_counter() - t0) * 1e3
         return moved, ReplanRetarget(

@@ -252,7 +252,8 @@ def retarget_lines(result: ClosedLoopResult) -> list[str]:
             f"hand-over residual at most {d['ik_residual_mm']:.3f} mm / {d['ik_residual_deg']:.3f} deg, path "
             f"at most {d['max_path_residual_mm']:.3f} mm"
         )
-    cost = "" if d["ms"]["median"] is None else f"; retargeting {d['ms']['median']:.2f} ms per re-plan (median)"
+    median = d["ms"]["median"]
+    cost = "" if median is None else f"; retargeting {median:.2f} ms per re-plan (median)"
     return [
         f"Executed by {result.robot}, every re-plan retargeted through the gripper from a model of "
         f"{d['source_robot']}: {close}; {d['unreachable_replans']} re-plans refused as unreachable{cost}"

@@ -99,14 +99,6 @@ def test_an_arm_placed_out_of_reach_is_refused_with_exit_3_and_the_reason(tmp_pa
     assert not (out / "trajectory.csv").exists()
 
 
-def test_replay_refuses_a_placed_arm_before_training(tmp_path, capsys):
-    out = tmp_path / "out"
-    assert main(["replay", str(PIPELINE), "--robot", "panda", "--out", str(out), "--no-preview"]) == 2
-    line = one_error_line(capsys.readouterr().err)
-    assert "the closed loop does not do yet" in line and "--robot baxter_left" in line
-    assert not out.exists() or not any(out.iterdir())
-
-
 def test_synth_on_the_panda_then_run_trains_on_the_panda_s_own_demos(tmp_path):
     ds, out = tmp_path / "ds", tmp_path / "out"
     assert main(["synth", str(ds), "--tasks", "2", "--demos", "4", "--robot", "panda"]) == 0

@@ -96,3 +96,16 @@ def test_replay_on_an_arm_that_cannot_reach_the_recorded_start_is_refused_with_e
     line = one_error_line(capsys.readouterr().err)
     assert "cannot reach the recorded start pose" in line and "mm" in line
     assert not (out / "trajectory.csv").exists()
+
+
+def test_replay_with_the_six_joint_ur5_writes_its_preview_and_scores_against_baxter_s_gripper(tmp_path):
+    out = tmp_path / "out"
+    assert main(["replay", str(PIPELINE), "--robot", "ur5", "--out", str(out)]) == 0
+    report = json.loads((out / "report.json").read_text())
+    replans = json.loads((out / "replans.json").read_text())
+    assert report["robot"] == "ur5" and report["retarget"]["source_robot"] == "baxter_left"
+    assert len(replans["limit_profile"]["joint_names"]) == 6
+    # scored against the recorded Baxter gripper in the scene frame: a finite error of centimetres
+    assert 0.0 <= report["handover_error_cm"] < 10.0
+    html = (out / "preview.html").read_text()
+    assert "ipromp_pin replay" in html and "shoulder_pan_joint" in html

@@ -18,7 +18,7 @@ import math
 import numpy as np
 
 from ..data import ROBOT, Demo
-from ..evaluation.scoring import ClosedLoopScore, handover_orientation_error_deg
+from ..evaluation.scoring import ClosedLoopScore
 from ..human import HumanMotion
 from ..motion.trajectory import Trajectory
 from ..planning.closed_loop import ClosedLoopResult
@@ -26,8 +26,9 @@ from ..planning.one_shot import PlanResult
 from ..planning.retreat import RetreatResult
 from ..preview import PreviewContent
 from ..preview.timeline import TimelineEvent, render_timeline_html
-from ..robot import Robot, ee_positions
+from ..robot import Robot, ee_positions, frame_placements
 from ..robot.objects import ObjectTable
+from ..robot.rotations import geodesic_deg
 from ..safety import CheckContext, CheckReport, Verdict
 from ..safety.joint_limits import JointLimitMeasures
 from ..safety.self_collision import SelfCollisionMeasures
@@ -68,12 +69,11 @@ def preview_content(
     hand = hand_t = None
     notes = [arrival_line(result)]
     if demo is not None and ROBOT in demo.groups:
-        truth = ee_positions(robot, demo.groups[ROBOT])
-        notes.append(
-            orientation_line(
-                handover_orientation_error_deg(robot, result.trajectory.q[-1], demo.groups[ROBOT][-1])
-            )
-        )
+        # the recording's joints are the model's robot's when the plan was retargeted to this arm
+        recorded = robot if result.retarget is None else result.retarget.source
+        truth, rot_true = frame_placements(recorded, demo.groups[ROBOT])
+        rot_end = frame_placements(robot, result.trajectory.q[-1:])[1]
+        notes.append(orientation_line(float(geodesic_deg(rot_end[0], rot_true[-1]))))
         if "hand_position" in demo.extras:
             hand, hand_t = demo.extras["hand_position"], demo.t
     failed = [v.measures for v in checks if not v.passed]

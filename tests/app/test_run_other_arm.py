@@ -119,3 +119,12 @@ def test_synth_for_an_arm_without_placement_is_refused(tmp_path, capsys):
         main(["synth", str(tmp_path / "ds"), "--tasks", "1", "--demos", "2", "--robot", "baxter_right"]) == 2
     )
     assert "has no [placement]" in one_error_line(capsys.readouterr().err)
+
+
+def test_run_with_the_six_joint_ur5_writes_its_preview_with_baxter_s_recorded_gripper(tmp_path):
+    # the preview's recorded gripper path is Baxter's joints through Baxter's kinematics (it failed
+    # with "q: expected shape (M, 6), got (176, 7)" when drawn through the UR5's)
+    out = tmp_path / "out"
+    assert main(["run", str(PIPELINE), "--robot", "ur5", "--out", str(out), "--no-rosbag"]) == 0
+    assert (out / "preview.html").read_text().startswith("<!DOCTYPE html>")
+    assert json.loads((out / "report.json").read_text())["feasibility"]["robot"] == "ur5"

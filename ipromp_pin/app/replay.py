@@ -222,7 +222,9 @@ def _stage_files(
         visual = preview_visual_model(session.robot)
         ctx = session.context
         human = recorded if recorded is not None else ctx.human  # else the one the closed loop planned with
-        html = replay_preview_html(demo, result, score, session.robot, visual, judged, human, ctx.objects)
+        html = replay_preview_html(
+            demo, result, score, session.robot, visual, judged, human, ctx.objects, session.source
+        )
         out.write_text("preview.html", html)
         log(f"[preview] {out.path('preview.html')} ({time.perf_counter() - t0:.1f} s)")
     report = report_dict(result, score, demo, session.model, session.warnings, judged)

@@ -462,6 +462,7 @@ class ReplaySetup:
             settings,
             s.suite if suite is None else suite,
             s.context if context is None else context,
+            source=s.source,
         )
 
     def scored(self, settings: ClosedLoopSettings) -> tuple[ClosedLoopScore, ClosedLoopResult]:
@@ -475,7 +476,7 @@ class ReplaySetup:
         def replay(suite: CheckSuite, context: CheckContext) -> ClosedLoopResult:
             return self.replay(settings, suite, context)
 
-        return replay_scored(replay, s.demo, s.robot, s.suite, s.context, recorded)
+        return replay_scored(replay, s.demo, s.robot, s.suite, s.context, recorded, source=s.source)
 
 
 def prepare_replay(
@@ -491,22 +492,28 @@ def prepare_replay(
     (``benchmarks/closed_loop.py`` times the replays of this set-up)."""
     check_outputs(cfg)
     robot = load_robot(cfg.robot)
-    if robot.settings.placement is not None:  # never another arm's joint angles on this one
-        raise PipelineError(
-            f"replay: robot '{robot.settings.name}' executes models of '{robot.settings.placement.source}' "
-            "retargeted through the gripper, which the closed loop does not do yet (docs/other_arms.md); "
-            f"run it one-shot (ipromp-pin run --robot {robot.settings.name}) or replay with --robot "
-            f"{robot.settings.placement.source}"
-        )
     from_file = check_profile_choice(limits, robot, cfg.source)
     checks = ReplayChecks(cfg.observe, settings)
     session = prepare_session(
         cfg, log, warn, robot=robot, checks=checks, observe=False, strict_human=strict_human
     )
     demo, train = session.demo, session.train
+    source = session.source
+    if source is not None and from_file is None and limits == "demonstrated":
+        limits = "conservative"  # the demonstrated peaks are the recorded robot's joints, not this arm's
+        log(
+            f"[limits] the demonstrated profile is derived from {source.settings.name}'s recorded joints, "
+            f"which robot '{robot.settings.name}' does not have: its conservative profile instead"
+        )
     profile = choose_limit_profile(from_file or limits, robot, train, training_label(cfg))
     log(f"[limits] {profile.name}: {profile.source}")
-    prime_checks(session.suite, train, log)
+    if source is None:
+        prime_checks(session.suite, train, log)
+    else:
+        log(
+            f"[retarget] {source.settings.name} -> {robot.settings.name}: every re-plan retargeted through "
+            "the gripper (its checks not primed on the training motions, which are the other arm's)"
+        )
     log(
         f"[replay] {demo.task}/{demo.name}: {demo.duration_s:.2f} s at its recorded timing; the robot starts "
         f"{settings.start_text(float(session.model.duration_nominal_s_))} (its sample at "

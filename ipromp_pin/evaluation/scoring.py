@@ -308,17 +308,19 @@ def score_closed_loop(
     robot: Robot,
     tolerance_m: float = ARRIVAL_TOLERANCE_M,
     check_collisions: bool = True,
+    source: Robot | None = None,
 ) -> ClosedLoopScore:
     """The commanded motion's measures against the recorded demo it replayed (without the torques and
-    the human: :func:`replay_scored` adds those)."""
+    the human: :func:`replay_scored` adds those); ``source``: the robot the demo's joints are of when
+    ``robot`` executed it retargeted (both grippers are in the scene frame)."""
     traj = result.trajectory
     t_demo = demo.t - demo.t[0]
     truth = demo.groups[ROBOT]
     t_end = float(t_demo[-1])
     q_at = np.array([np.interp(t_end, traj.t_s, traj.q[:, j]) for j in range(traj.q.shape[1])])
     p_cmd = ee_positions(robot, traj.q)
-    p_true = ee_positions(robot, truth)
-    p_at, p_rest = ee_positions(robot, np.stack([q_at, traj.q[-1]]))
+    p_true, r_true = frame_placements(robot if source is None else source, truth)
+    (p_at, p_rest), r_cmd = frame_placements(robot, np.stack([q_at, traj.q[-1]]))
     arrival = arrival_time(traj.t_s, p_cmd, tolerance_m)
     recorded = arrival_time(t_demo, p_true, tolerance_m)
     lim = result.profile.limits
@@ -342,7 +344,7 @@ def score_closed_loop(
         replans=len(result.replans),
         refused_replans=result.n_refused,
         final_task=committed[-1].task if committed else "",
-        handover_orientation_error_deg=handover_orientation_error_deg(robot, q_at, truth[-1]),
+        handover_orientation_error_deg=float(geodesic_deg(r_cmd[0], r_true[-1])),
     )
 
 
@@ -358,6 +360,7 @@ def replay_scored(
     context: CheckContext,
     judge_human: HumanMotion | None,
     check_collisions: bool = True,
+    source: Robot | None = None,
 ) -> tuple[ClosedLoopScore, ClosedLoopResult]:
     """Replay ``demo`` with ``suite`` and ``context`` and score it (``run`` of the replay command and
     every trial of ``evaluate --closed-loop`` alike).
@@ -366,10 +369,10 @@ def replay_scored(
     suite has the joint-torque check) and, with ``judge_human`` (the recorded human, every sample
     known) and the suite's human checks, their measures against it and the arrival delay of the same
     replay without the human checks (:data:`~ipromp_pin.safety.HUMAN_CHECKS`). Returns the score and
-    the replay.
+    the replay (``source``: the robot the demo's joints are of, when ``robot`` executed it retargeted).
     """
     result = replay(suite, context)
-    score = score_closed_loop(result, demo, robot, check_collisions=check_collisions)
+    score = score_closed_loop(result, demo, robot, check_collisions=check_collisions, source=source)
     if context.objects is not None:
         score.peak_torque_ratio = peak_torque_ratio(suite, result.trajectory, demo.task, context.objects)
     humans = suite.only(HUMAN_CHECKS)
@@ -377,7 +380,7 @@ def replay_scored(
         return score, result
     measures = human_measures(result.trajectory, judge_human, humans)
     free_result = replay(suite.without(HUMAN_CHECKS), context.replace(human=None))
-    free = score_closed_loop(free_result, demo, robot, check_collisions=False)
+    free = score_closed_loop(free_result, demo, robot, check_collisions=False, source=source)
     scored = replace(
         score,
         human_min_separation_m=measures.min_separation_m,

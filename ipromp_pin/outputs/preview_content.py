@@ -18,7 +18,7 @@ import math
 import numpy as np
 
 from ..data import ROBOT, Demo
-from ..evaluation.scoring import ClosedLoopScore, handover_orientation_error_deg
+from ..evaluation.scoring import ClosedLoopScore
 from ..human import HumanMotion
 from ..motion.trajectory import Trajectory
 from ..planning.closed_loop import ClosedLoopResult
@@ -26,8 +26,9 @@ from ..planning.one_shot import PlanResult
 from ..planning.retreat import RetreatResult
 from ..preview import PreviewContent
 from ..preview.timeline import TimelineEvent, render_timeline_html
-from ..robot import Robot, ee_positions
+from ..robot import Robot, ee_positions, frame_placements
 from ..robot.objects import ObjectTable
+from ..robot.rotations import geodesic_deg
 from ..safety import CheckContext, CheckReport, Verdict
 from ..safety.joint_limits import JointLimitMeasures
 from ..safety.self_collision import SelfCollisionMeasures
@@ -68,12 +69,11 @@ def preview_content(
     hand = hand_t = None
     notes = [arrival_line(result)]
     if demo is not None and ROBOT in demo.groups:
-        truth = ee_positions(robot, demo.groups[ROBOT])
-        notes.append(
-            orientation_line(
-                handover_orientation_error_deg(robot, result.trajectory.q[-1], demo.groups[ROBOT][-1])
-            )
-        )
+        # the recording's joints are the model's robot's when the plan was retargeted to this arm
+        recorded = robot if result.retarget is None else result.retarget.source
+        truth, rot_true = frame_placements(recorded, demo.groups[ROBOT])
+        rot_end = frame_placements(robot, result.trajectory.q[-1:])[1]
+        notes.append(orientation_line(float(geodesic_deg(rot_end[0], rot_true[-1]))))
         if "hand_position" in demo.extras:
             hand, hand_t = demo.extras["hand_position"], demo.t
     failed = [v.measures for v in checks if not v.passed]
@@ -140,8 +140,10 @@ def replay_preview_html(
     checks: CheckReport,
     human: HumanMotion | None = None,
     objects: ObjectTable | None = None,
+    recorded_robot: Robot | None = None,
 ) -> str:
-    """The time-scrubbing ``preview.html`` of a replay (one self-contained page).
+    """The time-scrubbing ``preview.html`` of a replay (one self-contained page; ``recorded_robot``:
+    the robot the demo's joints are of when ``robot`` executed it retargeted, None: ``robot``).
 
     ``checks`` are the commanded motion's verdicts as the replay report judges it
     (:func:`~.replay_report.replay_checks`): the check list shows them after the closed loop's rows,
@@ -177,7 +179,7 @@ def replay_preview_html(
         joint_names=robot.joint_names,
         q_full=robot.full_configuration(traj.q[0]),
         ee_mean=ee_positions(robot, traj.q[:: max(1, traj.n_samples // 200)]),
-        ee_truth=ee_positions(robot, demo.groups[ROBOT]),
+        ee_truth=ee_positions(recorded_robot or robot, demo.groups[ROBOT]),
         hand_path=hand,
         hand_t_s=hand_t,
         body=body,

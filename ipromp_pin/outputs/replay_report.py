@@ -62,12 +62,41 @@ def replans_json(result: ClosedLoopResult, demo: Demo) -> dict:
         "format": "ipromp_pin.replans",
         "version": 1,
         "demo": {"task": demo.task, "name": demo.name, "source": demo.source, "duration_s": duration},
+        "robot": result.robot,
+        "source_robot": result.source_robot or None,
         "settings": result.settings.to_dict(),
         "limit_profile": result.profile.to_dict(),
         "start_s": result.start_s,
         "start_reason": result.start_reason,
         "stopped": result.stopped,
         "replans": rows,
+    }
+
+
+def retarget_summary(result: ClosedLoopResult) -> dict | None:
+    """The replay report's ``retarget``: how the re-plans' references came from the model's robot
+    through the gripper (None: the arm's own model). Residuals are the largest over the committed
+    re-plans, times over every retargeted one."""
+    if not result.source_robot:
+        return None
+    moved = [r for r in result.replans if r.retarget is not None]
+    kept = [r.retarget for r in moved if r.committed and r.retarget is not None]
+    ms = np.array([r.retarget["ms"] for r in moved if r.retarget is not None])
+
+    def largest(key: str) -> float | None:
+        return max(float(d[key]) for d in kept) if kept else None
+
+    return {
+        "source_robot": result.source_robot,
+        "retargeted_replans": len(moved),
+        "unreachable_replans": sum(r.reason.startswith("unreachable") for r in result.replans),
+        "ik_residual_mm": largest("ik_residual_mm"),
+        "ik_residual_deg": largest("ik_residual_deg"),
+        "max_path_residual_mm": largest("max_path_residual_mm"),
+        "ms": {
+            "median": float(np.median(ms)) if ms.size else None,
+            "max": float(ms.max()) if ms.size else None,
+        },
     }
 
 
@@ -117,6 +146,8 @@ def report_dict(
             "format": REPLAY_FORMAT,
             "version": REPLAY_VERSION,
             "demo": {"task": demo.task, "name": demo.name, "source": demo.source},
+            "robot": result.robot,
+            "retarget": retarget_summary(result),
             "warnings": list(warnings or []),
             "passed": replay_passed(score),
             "failures": replay_failures(score) or [],
@@ -182,6 +213,7 @@ def report_text(
         f"{s.replan_rate_hz:g} Hz, control {s.control_rate_hz:g} Hz, blend {s.blend_s:g} s, "
         f"freeze phase {s.freeze_phase:g}",
         f"Limit profile: {p.name} ({p.source})",
+        *retarget_lines(result),
         f"Re-plans: {score.replans} ({result.n_committed} committed, {score.refused_replans} refused); "
         f"final task {score.final_task or '(none)'}",
         f"Hand-over error at the recorded hand-over time: {score.handover_error_cm:.2f} cm; where the motion "
@@ -205,6 +237,27 @@ def report_text(
     if len(refused) > 10:
         lines.append(f"  ... {len(refused) - 10} more refused re-plans in replans.json")
     return "\n".join(lines)
+
+
+def retarget_lines(result: ClosedLoopResult) -> list[str]:
+    """Which arm executed a retargeted replay and how closely it followed (no line for the arm's own
+    model)."""
+    d = retarget_summary(result)
+    if d is None:
+        return []
+    if d["ik_residual_mm"] is None:
+        close = "no re-plan committed"
+    else:
+        close = (
+            f"hand-over residual at most {d['ik_residual_mm']:.3f} mm / {d['ik_residual_deg']:.3f} deg, path "
+            f"at most {d['max_path_residual_mm']:.3f} mm"
+        )
+    median = d["ms"]["median"]
+    cost = "" if median is None else f"; retargeting {median:.2f} ms per re-plan (median)"
+    return [
+        f"Executed by {result.robot}, every re-plan retargeted through the gripper from a model of "
+        f"{d['source_robot']}: {close}; {d['unreachable_replans']} re-plans refused as unreachable{cost}"
+    ]
 
 
 def summary_lines(demo: Demo, result: ClosedLoopResult, score: ClosedLoopScore, elapsed_s: float) -> str:

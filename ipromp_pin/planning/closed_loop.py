@@ -26,6 +26,10 @@ and runs a simulated control loop at ``control_rate_hz`` (no waiting):
   changes the needed slow-down much in between); the delay it costs is recorded. A re-plan that
   fails is not committed: the robot keeps the last safe plan and the :class:`Replan` record says
   why. A change of recognised task is handled the same way.
+* on an arm placed beside the model's robot (a :class:`~.transfer.ReplanTransfer`), each re-plan's
+  predicted reference motion becomes the executing arm's through the gripper before it is
+  re-targeted and checked on that arm; a re-plan whose hand-over pose the arm cannot reach is refused
+  like any other (``unreachable``: the robot keeps its last committed plan).
 
 Before its first committed plan the robot rests at its start configuration. :meth:`finish` plays
 the last committed plan to its end and returns the commanded trajectory with every re-plan.
@@ -52,6 +56,7 @@ from ..safety.self_collision import SelfCollisionMeasures
 from ..safety.speed_limits import SpeedLimitMeasures
 from ..safety.workspace import WorkspaceMeasures
 from .timers import retarget_timer
+from .transfer import ReplanTransfer
 
 CONDITION_NOISE = 0.3
 """Observation-noise ratio ``nu`` with which the closed loop conditions the robot trajectory (the
@@ -226,6 +231,8 @@ class Replan:
         cycle_ms: Wall time of the cycle in [ms]: stream update of the latest sample, conditioning,
             re-target, checks.
         stage_ms: Wall time per stage in [ms].
+        retarget: How the reference came from the model's robot through the gripper
+            (:meth:`~.transfer.ReplanRetarget.to_dict`; None: the model predicts this arm's joints).
     """
 
     index: int
@@ -250,6 +257,7 @@ class Replan:
     slowdown_delay_s: float = 0.0
     cycle_ms: float = 0.0
     stage_ms: dict[str, float] = field(default_factory=dict)
+    retarget: dict | None = None
 
     def to_dict(self) -> dict:
         """JSON-serialisable form (rounded)."""
@@ -279,6 +287,9 @@ class ClosedLoopResult:
         plans: The committed plans, in the order of the committed re-plans.
         start_reason: What started the robot and when (empty: it never started).
         start_rule: The start rule in words (:meth:`ClosedLoopSettings.start_text`).
+        robot: The executing arm's name.
+        source_robot: The model's robot when the arm executed it retargeted through the gripper
+            (empty: the arm's own model).
     """
 
     trajectory: Trajectory
@@ -290,6 +301,8 @@ class ClosedLoopResult:
     plans: list[Trajectory] = field(default_factory=list)
     start_reason: str = ""
     start_rule: str = ""
+    robot: str = ""
+    source_robot: str = ""
 
     @property
     def n_refused(self) -> int:
@@ -333,6 +346,8 @@ class ClosedLoopPlanner:
         conditioner: The predictor that conditions the robot trajectory and applies the hand-over
             estimates (default: the stream's predictor for ``settings.condition_noise``,
             :meth:`~ipromp_pin.promp.streaming.StreamingEstimator.predict`).
+        transfer: The retargeting of each re-plan's reference to ``robot`` when the model predicts
+            another robot's joints (None: ``robot``'s own; ``q_start`` is ``robot``'s either way).
 
     Attributes:
         prediction: The prediction of the latest re-plan (None before the first).
@@ -349,8 +364,10 @@ class ClosedLoopPlanner:
         suite: CheckSuite | None = None,
         context: CheckContext | None = None,
         conditioner: Predictor | None = None,
+        transfer: ReplanTransfer | None = None,
     ) -> None:
         self.settings = (settings or ClosedLoopSettings()).validate()
+        self.transfer = transfer
         self.model = model
         self.robot = robot
         self.profile = profile
@@ -491,6 +508,15 @@ class ClosedLoopPlanner:
             r.reason = f"not re-targeted: unknown task ({pred.unknown_reason})"
             r.stage_ms = ms
             return r
+        if self.transfer is not None:  # the model's robot's reference -> this arm's, through the gripper
+            moved, how = self.transfer.reference(reference, state.q, float(state.t_s))
+            ms["arm_transfer"] = how.ms
+            r.retarget = how.to_dict()
+            if moved is None:  # refused as any failed re-plan: never a shifted hand-over
+                r.reason = f"unreachable: {self.transfer.why_not_reached(how)}"
+                r.stage_ms = ms
+                return r
+            reference = moved
         context = self.context.replace(task=pred.task, handover_s=float(pred.duration_s))
         if context.human is not None:  # the human as observed up to this re-plan
             context = context.replace(human=context.human.until(r.observed_until_s))
@@ -595,6 +621,8 @@ class ClosedLoopPlanner:
             plans,
             self.start_reason,
             self.start_rule,
+            self.robot.settings.name,
+            "" if self.transfer is None else self.transfer.source.settings.name,
         )
 
 
@@ -660,24 +688,32 @@ def replay_demo(
     suite: CheckSuite | None = None,
     context: CheckContext | None = None,
     conditioner: Predictor | None = None,
+    source: Robot | None = None,
 ) -> ClosedLoopResult:
     """Run the closed loop on a recorded demo at its recorded timing (simulated clock, no waiting).
 
     The robot starts at rest at the demo's first recorded configuration; the human's observed groups
     (``model.observe_``) arrive sample by sample. ``suite`` and ``context``: the checks of every
-    re-plan and what they know (:class:`ClosedLoopPlanner`).
+    re-plan and what they know (:class:`ClosedLoopPlanner`). ``source``: the robot the demo and the
+    model are recorded on when ``robot`` is placed beside it (every re-plan retargeted through the
+    gripper, :class:`~.transfer.ReplanTransfer`; ``robot`` starts where its gripper meets the recorded
+    start's).
 
     Raises:
         DataError: the demo lacks an observed group or the robot group.
         ObservationError: the start window holds fewer than 2 samples or ends after the demo.
+        UnreachableError: ``robot`` cannot reach the recorded start pose.
     """
     settings = (settings or ClosedLoopSettings()).validate()
     groups = list(model.observe_)
     demo.require(groups + [model.robot_group])
     start = start_time(demo, settings, float(model.duration_nominal_s_))
     q_start = demo.groups[model.robot_group][0]
+    transfer = None if source is None else ReplanTransfer(source, robot)
+    if transfer is not None:
+        q_start = transfer.start(q_start)
     with ClosedLoopPlanner(
-        model, robot, profile, q_start, start, settings, suite, context, conditioner
+        model, robot, profile, q_start, start, settings, suite, context, conditioner, transfer
     ) as planner:
         for t, sample in zip(demo.t - demo.t[0], demo_samples(demo, groups), strict=True):
             planner.step(float(t), sample)

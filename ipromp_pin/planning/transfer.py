@@ -6,6 +6,8 @@ checked on that arm.
 else the ``[placement] source`` of its settings (the robot of the recordings, in whose base frame the
 arm is placed). :func:`retarget_prediction` turns the predicted mean path and the sampled paths into
 the arm's joint paths, with the inverse kinematics' residuals (:class:`Retargeting`).
+:class:`ReplanTransfer` does it for every re-plan of the closed loop: the predicted reference motion
+(:class:`~ipromp_pin.motion.retarget.ReferenceMotion`) becomes the executing arm's.
 """
 
 from __future__ import annotations
@@ -15,9 +17,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..exceptions import ModelError
+from ..exceptions import ModelError, UnreachableError
+from ..motion.retarget import ReferenceMotion
 from ..promp import IProMP
 from ..robot import Robot, TransferredPath, load_robot, transfer_path, transfer_samples
+from ..robot.arm_transfer import TOL_M, TOL_RAD, TRACK_ITERATIONS, PoseSolver, check_pair, gripper_poses
+from ..robot.kinematics import frame_placements
 
 
 @dataclass(frozen=True)
@@ -89,3 +94,172 @@ def retarget_prediction(
     else:  # refused: the samples are not followed either
         moved = np.broadcast_to(path.q, (samples.shape[0],) + path.q.shape).copy()
     return path.q, moved, Retargeting(source, robot, path, (time.perf_counter() - t0) * 1e3)
+
+
+N_GRID = 41
+"""Phase samples [0, 1] at which a re-plan's predicted gripper path is followed by inverse kinematics
+(the executing arm's reference is fitted to them on the prediction's own basis)."""
+
+FIT_RIDGE = 1e-8
+"""Ridge of the least-squares fit of the executing arm's joint samples on the basis (conditioning
+only: overlapping Gaussian bumps are nearly collinear)."""
+
+
+@dataclass(frozen=True)
+class ReplanRetarget:
+    """How one re-plan's reference motion came from the model's robot (``replans.json``'s ``retarget``).
+
+    Attributes:
+        source: The model's robot's name.
+        reached: Whether the executing arm reaches the predicted hand-over pose.
+        handover_residual_mm: Gripper position residual [mm] at the hand-over of the executing arm's
+            reference (its end is the inverse kinematics' hand-over solution).
+        handover_residual_deg: Gripper orientation residual [deg] there.
+        max_path_residual_mm: Largest gripper position residual [mm] of the executing arm's reference
+            at the phase samples and halfway between them (inverse kinematics and fit on the basis
+            together).
+        ms: Wall time [ms] of the retargeting.
+    """
+
+    source: str
+    reached: bool
+    handover_residual_mm: float
+    handover_residual_deg: float
+    max_path_residual_mm: float
+    ms: float
+
+    def to_dict(self) -> dict:
+        """JSON-serialisable form, with the keys of the one-shot report's ``retarget``."""
+        return {
+            "source_robot": self.source,
+            "reached": self.reached,
+            "ik_residual_mm": round(self.handover_residual_mm, 4),
+            "ik_residual_deg": round(self.handover_residual_deg, 4),
+            "max_path_residual_mm": round(self.max_path_residual_mm, 4),
+            "ms": round(self.ms, 3),
+        }
+
+
+class ReplanTransfer:
+    """The closed loop's retargeting through the gripper, one re-plan after the other.
+
+    Each re-plan's reference motion of ``source``'s joints is sampled at :data:`N_GRID` phases, its
+    gripper poses followed by ``target``'s inverse kinematics, and the solutions fitted on the
+    reference's basis, the hand-over exactly (a least-squares fit constrained at the end): a reference
+    motion of ``target``'s joints on the same timeline, with exact derivatives. The first re-plan
+    follows the path from the arm's commanded configuration (at the sample nearest the re-plan's
+    time, forward to the hand-over and back to the start); every later one starts each sample from the
+    previous re-plan's solution at the same phase, so that consecutive re-plans stay on one branch of
+    the inverse kinematics and take one or two iterations per sample. A re-plan whose hand-over the
+    arm cannot reach keeps no solution (the next one starts from the last reached).
+    """
+
+    def __init__(self, source: Robot, target: Robot, n_grid: int = N_GRID) -> None:
+        check_pair(source, target)
+        self.source = source
+        self.target = target
+        self.solver = PoseSolver(target)
+        self.phase = np.linspace(0.0, 1.0, n_grid)
+        self.mid = 0.5 * (self.phase[1:] + self.phase[:-1])  # where the fit's residual is measured too
+        self._previous: np.ndarray | None = None  # (n_grid, n_target) the last reached solution
+        self._fit: tuple[bytes, float, np.ndarray, np.ndarray, np.ndarray] | None = None
+
+    def start(self, q_source: np.ndarray) -> np.ndarray:
+        """The arm's configuration (n_target,) [rad] whose gripper is at ``source``'s at ``q_source``
+        (n_source,) [rad] (the start of a replayed demo).
+
+        Raises:
+            UnreachableError: the arm cannot reach that pose at its placement.
+        """
+        pose = gripper_poses(self.source, np.asarray(q_source, dtype=float)[None])[0]
+        q, err_p, err_r, _ = self.solver.first(pose, None)
+        if not (err_p <= TOL_M and err_r <= TOL_RAD):
+            raise UnreachableError(
+                f"robot '{self.target.settings.name}' cannot reach the recorded start pose of "
+                f"'{self.source.settings.name}''s gripper at its placement: inverse kinematics stops "
+                f"{err_p * 1e3:.1f} mm and {np.degrees(err_r):.2f} deg away"
+            )
+        return q
+
+    def _basis(self, reference: ReferenceMotion) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The basis at the phase samples (M, K) and between them (M - 1, K), and the constrained
+        fit's operator (K, M) (kept while the reference's basis stays the same)."""
+        key = reference.centres.tobytes()
+        if self._fit is None or self._fit[0] != key or self._fit[1] != reference.width:
+            diff = self.phase[:, None] - reference.centres[None, :]
+            phi = np.exp(-0.5 * diff * diff / reference.width**2)  # (M, K)
+            diff = self.mid[:, None] - reference.centres[None, :]
+            phi_mid = np.exp(-0.5 * diff * diff / reference.width**2)
+            k, m = phi.shape[1], phi.shape[0]
+            kkt = np.zeros((k + 1, k + 1))
+            kkt[:k, :k] = phi.T @ phi + FIT_RIDGE * np.eye(k)
+            kkt[:k, k] = kkt[k, :k] = phi[-1]
+            rhs = np.zeros((k + 1, m))
+            rhs[:k] = phi.T
+            rhs[k, -1] = 1.0
+            self._fit = (key, reference.width, phi, phi_mid, np.linalg.solve(kkt, rhs)[:k])
+        return self._fit[2], self._fit[3], self._fit[4]
+
+    def _follow(self, poses: list, q_now: np.ndarray, t_now_s: float, duration_s: float) -> tuple:
+        """Joint samples (M, n), position and orientation errors (M,) along ``poses``."""
+        solve, m = self.solver.solve, len(poses)
+        q = np.empty((m, self.target.n_joints))
+        err_p, err_r = np.empty(m), np.empty(m)
+        prev = self._previous
+        if prev is not None:
+            for i in range(m):
+                q[i], err_p[i], err_r[i], _ = solve(poses[i], prev[i], TRACK_ITERATIONS)
+            return q, err_p, err_r
+        j = int(np.clip(round(t_now_s / duration_s * (m - 1)), 0, m - 1))
+        q[j], err_p[j], err_r[j], _ = solve(poses[j], q_now)
+        for i in list(range(j + 1, m)) + list(range(j - 1, -1, -1)):
+            seed = q[i - 1] if i > j else q[i + 1]
+            q[i], err_p[i], err_r[i], _ = solve(poses[i], seed, TRACK_ITERATIONS)
+        return q, err_p, err_r
+
+    def reference(
+        self, reference: ReferenceMotion, q_now: np.ndarray, t_now_s: float
+    ) -> tuple[ReferenceMotion | None, ReplanRetarget]:
+        """``reference`` (of ``source``'s joints) as the executing arm's reference motion, from its
+        commanded configuration ``q_now`` (n_target,) [rad] at ``t_now_s`` [s] on the reference's
+        timeline (used by the first re-plan only), and how closely it follows (None: the arm cannot
+        reach the hand-over pose; the re-plan is refused)."""
+        t0 = time.perf_counter()
+        d = reference.duration_s
+        poses = gripper_poses(self.source, reference.evaluate(self.phase * d, order=0)[0])
+        q, err_p, err_r = self._follow(poses, q_now, t_now_s, d)
+        if not (err_p[-1] <= TOL_M and err_r[-1] <= TOL_RAD):  # the tracked branch misses: every seed
+            end = self.solver.first(poses[-1], q[-1])
+            if end[1] <= TOL_M and end[2] <= TOL_RAD:
+                q[-1], err_p[-1], err_r[-1] = end[:3]
+                for i in range(len(poses) - 2, -1, -1):  # the path leads to that solution
+                    q[i], err_p[i], err_r[i], _ = self.solver.solve(poses[i], q[i + 1], TRACK_ITERATIONS)
+        name = self.source.settings.name
+        if not (err_p[-1] <= TOL_M and err_r[-1] <= TOL_RAD):
+            ms = (time.perf_counter() - t0) * 1e3
+            return None, ReplanRetarget(
+                name, False, err_p[-1] * 1e3, float(np.degrees(err_r[-1])), float(err_p.max() * 1e3), ms
+            )
+        self._previous = q
+        phi, phi_mid, fit = self._basis(reference)
+        weights = fit @ q  # (K, n)
+        n = self.target.n_joints
+        moved = ReferenceMotion(weights.T, reference.centres, reference.width, np.ones(n), np.zeros(n), d)
+        # the residual of what the arm is commanded: at the samples and between them (the fit's)
+        pos, _ = frame_placements(self.target, np.vstack([phi @ weights, phi_mid @ weights]))
+        src_mid, _ = frame_placements(self.source, reference.evaluate(self.mid * d, order=0)[0])
+        target_pos = np.vstack([[p.translation for p in poses], src_mid])
+        path_mm = float(np.max(np.linalg.norm(pos - target_pos, axis=1)) * 1e3)
+        ms = (time.perf_counter() - t0) * 1e3
+        return moved, ReplanRetarget(
+            name, True, err_p[-1] * 1e3, float(np.degrees(err_r[-1])), max(path_mm, err_p[-1] * 1e3), ms
+        )
+
+    def why_not_reached(self, retarget: ReplanRetarget) -> str:
+        """One clause: how far the executing arm stays from the re-plan's hand-over pose."""
+        return (
+            f"robot '{self.target.settings.name}' cannot reach the predicted hand-over pose at its "
+            f"placement: inverse kinematics stops {retarget.handover_residual_mm:.1f} mm and "
+            f"{retarget.handover_residual_deg:.2f} deg away (at most {TOL_M * 1e3:g} mm and "
+            f"{np.degrees(TOL_RAD):g} deg)"
+        )

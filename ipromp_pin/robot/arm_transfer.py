@@ -117,16 +117,20 @@ class PoseSolver:
         self.max_iter = max_iter
         self.eye_n = np.eye(robot.n_joints)
         self.eye_6 = np.eye(6)
+        self._full = robot.full_configuration(self.mid)  # the full configuration, arm joints set per call
+        self._q_index = robot.arm_q_index
+        self._v_index = robot.arm_v_index
 
     def error(self, q: np.ndarray, target: pin.SE3) -> tuple[np.ndarray, np.ndarray, pin.SE3]:
         """The pose error (6,) in the ee frame, its Jacobian (6, n) and the remaining transform."""
         r = self.robot
-        full = r.full_configuration(q)
+        full = self._full
+        full[self._q_index] = q
         pin.forwardKinematics(r.model, r.data, full)
         current = pin.updateFramePlacement(r.model, r.data, r.ee_frame_id)
         rest = current.actInv(target)
         jac_local = pin.computeFrameJacobian(r.model, r.data, full, r.ee_frame_id, pin.LOCAL)[
-            :, r.arm_v_index
+            :, self._v_index
         ]
         return pin.log6(rest).vector, pin.Jlog6(rest.inverse()) @ jac_local, rest
 

@@ -99,14 +99,6 @@ def test_an_arm_placed_out_of_reach_is_refused_with_exit_3_and_the_reason(tmp_pa
     assert not (out / "trajectory.csv").exists()
 
 
-def test_replay_refuses_a_placed_arm_before_training(tmp_path, capsys):
-    out = tmp_path / "out"
-    assert main(["replay", str(PIPELINE), "--robot", "panda", "--out", str(out), "--no-preview"]) == 2
-    line = one_error_line(capsys.readouterr().err)
-    assert "the closed loop does not do yet" in line and "--robot baxter_left" in line
-    assert not out.exists() or not any(out.iterdir())
-
-
 def test_synth_on_the_panda_then_run_trains_on_the_panda_s_own_demos(tmp_path):
     ds, out = tmp_path / "ds", tmp_path / "out"
     assert main(["synth", str(ds), "--tasks", "2", "--demos", "4", "--robot", "panda"]) == 0
@@ -127,3 +119,12 @@ def test_synth_for_an_arm_without_placement_is_refused(tmp_path, capsys):
         main(["synth", str(tmp_path / "ds"), "--tasks", "1", "--demos", "2", "--robot", "baxter_right"]) == 2
     )
     assert "has no [placement]" in one_error_line(capsys.readouterr().err)
+
+
+def test_run_with_the_six_joint_ur5_writes_its_preview_with_baxter_s_recorded_gripper(tmp_path):
+    # the preview's recorded gripper path is Baxter's joints through Baxter's kinematics (it failed
+    # with "q: expected shape (M, 6), got (176, 7)" when drawn through the UR5's)
+    out = tmp_path / "out"
+    assert main(["run", str(PIPELINE), "--robot", "ur5", "--out", str(out), "--no-rosbag"]) == 0
+    assert (out / "preview.html").read_text().startswith("<!DOCTYPE html>")
+    assert json.loads((out / "report.json").read_text())["feasibility"]["robot"] == "ur5"

@@ -1,0 +1,111 @@
+"""``ipromp-pin replay baxter_handover --robot panda``: the closed loop of the Baxter model drives a
+Panda placed in the recordings' scene, every re-plan retargeted through the gripper (issue 37); the
+commanded trajectory is re-evaluated here independently, from the Panda's URDF through Pinocchio; an
+arm that cannot reach the recorded start is refused with exit 3 and one line."""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+import jsonschema
+import numpy as np
+import pinocchio as pin
+import pytest
+from helpers_cli import PIPELINE, one_error_line
+
+from ipromp_pin.app import main
+from ipromp_pin.robot import load_robot_settings
+from ipromp_pin.schemas import load_schema
+
+ROBOTS = Path(__file__).resolve().parents[2] / "robots"
+PANDA_JOINTS = [f"panda_joint{i}" for i in range(1, 8)]
+
+
+@pytest.fixture(scope="module")
+def panda_replay(tmp_path_factory):
+    out = tmp_path_factory.mktemp("panda_replay") / "out"
+    code = main(["replay", str(PIPELINE), "--robot", "panda", "--out", str(out), "--no-preview"])
+    return code, out
+
+
+def test_replay_with_the_panda_commits_retargeted_re_plans_and_says_so(panda_replay):
+    code, out = panda_replay
+    assert code == 0
+    replans = json.loads((out / "replans.json").read_text())
+    report = json.loads((out / "report.json").read_text())
+    jsonschema.Draft202012Validator(load_schema("replans")).validate(replans)
+    jsonschema.Draft202012Validator(load_schema("replay_report")).validate(report)
+    assert replans["robot"] == report["robot"] == "panda" and replans["source_robot"] == "baxter_left"
+    # the demonstrated profile is Baxter's joints': the Panda runs its conservative one
+    assert replans["limit_profile"]["name"] == "conservative"
+    assert replans["limit_profile"]["joint_names"] == PANDA_JOINTS
+    committed = [r for r in replans["replans"] if r["committed"]]
+    assert committed
+    for r in committed:
+        moved = r["retarget"]
+        assert moved["source_robot"] == "baxter_left" and moved["reached"]
+        assert moved["ik_residual_mm"] <= 1.0 and moved["ik_residual_deg"] <= 0.5
+        assert moved["ik_residual_mm"] <= moved["max_path_residual_mm"]
+        assert r["stage_ms"]["arm_transfer"] > 0
+    summary = report["retarget"]
+    assert summary["source_robot"] == "baxter_left"
+    assert summary["retargeted_replans"] >= len(committed)
+    assert summary["ik_residual_mm"] == max(r["retarget"]["ik_residual_mm"] for r in committed)
+    text = (out / "report.txt").read_text()
+    assert "Executed by panda, every re-plan retargeted through the gripper from a model of" in text
+
+
+def test_the_commanded_panda_trajectory_holds_the_urdf_s_limits_and_no_self_collision(panda_replay):
+    code, out = panda_replay
+    assert code == 0
+    with (out / "trajectory.csv").open() as f:
+        rows = list(csv.DictReader(f))
+    assert [c[2:] for c in rows[0] if c.startswith("q.")] == PANDA_JOINTS
+    q = np.array([[float(r[f"q.{n}"]) for n in PANDA_JOINTS] for r in rows])
+    qd = np.array([[float(r[f"qd.{n}"]) for n in PANDA_JOINTS] for r in rows])
+    s = load_robot_settings("panda")
+    model = pin.buildModelFromUrdf(str(s.urdf_path))
+    idx_q = [model.joints[model.getJointId(n)].idx_q for n in PANDA_JOINTS]
+    idx_v = [model.joints[model.getJointId(n)].idx_v for n in PANDA_JOINTS]
+    assert np.all(q >= model.lowerPositionLimit[idx_q]) and np.all(q <= model.upperPositionLimit[idx_q])
+    assert np.all(np.abs(qd) <= model.velocityLimit[idx_v] + 1e-9)
+    assert np.ptp(q, axis=0).max() > 0.05  # the Panda moved
+    full = np.tile(pin.neutral(model), (len(q), 1))
+    full[:, idx_q] = q
+    for name, value in s.fixed_joints.items():
+        full[:, model.joints[model.getJointId(name)].idx_q] = value
+    geom = pin.buildGeomFromUrdf(model, str(s.urdf_path), pin.COLLISION, package_dirs=list(s.package_dirs))
+    geom.addAllCollisionPairs()
+    pin.removeCollisionPairs(model, geom, str(s.srdf_path))
+    data, gdata = model.createData(), pin.GeometryData(geom)
+    for k in range(0, len(q), 3):
+        assert not pin.computeCollisions(model, data, geom, gdata, full[k], True), k
+
+
+def test_replay_on_an_arm_that_cannot_reach_the_recorded_start_is_refused_with_exit_3(tmp_path, capsys):
+    text = (ROBOTS / "panda.toml").read_text()
+    start, end = text.index("\n[placement]") + 1, text.index("[fixed_joints]")
+    far = tmp_path / "panda_far.toml"
+    far.write_text(
+        text[:start] + '[placement]\nsource = "baxter_left"\nxyz_m = [-0.6, 0.2, -0.1]\n\n' + text[end:]
+    )
+    out = tmp_path / "out"
+    assert main(["replay", str(PIPELINE), "--robot", str(far), "--out", str(out), "--no-preview"]) == 3
+    line = one_error_line(capsys.readouterr().err)
+    assert "cannot reach the recorded start pose" in line and "mm" in line
+    assert not (out / "trajectory.csv").exists()
+
+
+def test_replay_with_the_six_joint_ur5_writes_its_preview_and_scores_against_baxter_s_gripper(tmp_path):
+    out = tmp_path / "out"
+    assert main(["replay", str(PIPELINE), "--robot", "ur5", "--out", str(out)]) == 0
+    report = json.loads((out / "report.json").read_text())
+    replans = json.loads((out / "replans.json").read_text())
+    assert report["robot"] == "ur5" and report["retarget"]["source_robot"] == "baxter_left"
+    assert len(replans["limit_profile"]["joint_names"]) == 6
+    # scored against the recorded Baxter gripper in the scene frame: a finite error of centimetres
+    assert 0.0 <= report["handover_error_cm"] < 10.0
+    html = (out / "preview.html").read_text()
+    assert "ipromp_pin replay" in html and "shoulder_pan_joint" in html

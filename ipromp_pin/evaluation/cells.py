@@ -119,7 +119,9 @@ class ClosedLoopCell(Cell):
     ``protective_distance_time_s`` (median time closer than ``S_p``), ``contact_speed_violations``
     (sum of the control samples inside ``S_p`` faster than the contact-speed limit) and
     ``arrival_delay_without_human_s`` (median arrival delay of the replays without the human checks).
-    ``robot_start_s`` is the median time the robot started, [s] from the motion start.
+    ``robot_start_s`` is the median time the robot started, [s] from the motion start;
+    ``never_started`` counts the replays in which it never did (no re-plan: the observation matched
+    none of the tasks throughout, ``require_known``; their hand-over error is from the rest pose).
     """
 
     limit_profile: str = ""
@@ -131,6 +133,7 @@ class ClosedLoopCell(Cell):
     max_limit_ratio: float | None = None
     refused_replans: int = 0
     replans: int = 0
+    never_started: int = 0
     collisions: int = 0
     closed_loop_handover_orientation_error_deg: float | None = None
     human_min_separation_m: float | None = None

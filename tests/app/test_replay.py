@@ -149,10 +149,12 @@ def test_evaluate_closed_loop_adds_the_closed_loop_fields(tmp_path, capsys):
             assert c[key] is not None, key
         assert c["max_limit_ratio"] <= 1 + 1e-6 and c["collisions"] == 0
         assert c["n_test"] == len(c["closed_loop_trials"]) == 2
+        # replays that never started (no re-plan: the task unknown throughout) are counted
+        assert c["never_started"] == sum(t["closed_loop_replans"] == 0 for t in c["closed_loop_trials"])
         trial_errors = [t["closed_loop_handover_error_cm"] for t in c["closed_loop_trials"]]
         assert c["closed_loop_handover_error_cm"] == pytest.approx(float(np.median(trial_errors)), abs=1e-3)
     md = out.with_suffix(".md").read_text()
-    assert "### Closed loop, protocol `splits`" in md and "one-shot" in md
+    assert "### Closed loop, protocol `splits`" in md and "one-shot" in md and "replays never started" in md
     capsys.readouterr()
     for extra, field in ((["--freeze-phase", "2"], "freeze_phase"), (["--ratios", "1.0"], "start_ratio")):
         assert main([*args, *extra]) == 2

@@ -283,6 +283,7 @@ class ClosedLoopScorer(Scorer):
             "max_limit_ratio": max((s.max_limit_ratio for s in scores), default=None),
             "refused_replans": int(sum(s.refused_replans for s in scores)),
             "replans": int(sum(s.replans for s in scores)),
+            "never_started": int(sum(s.replans == 0 for s in scores)),
             "collisions": int(sum(s.collisions for s in scores)),
             "closed_loop_handover_orientation_error_deg": median(
                 [s.handover_orientation_error_deg for s in scores]

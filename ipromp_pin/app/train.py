@@ -119,6 +119,7 @@ def add_tasks(args: argparse.Namespace) -> int:
             f"command line: field 'dataset': {args.dataset} with --add-task: the new tasks' demos are in DIR"
         )
     model = IProMP.load(args.model)
+    had_novelty = model.fitted_.novelty is not None
     robot = load_robot(args.robot)
     args.dataset = args.add_task
     ds = read_dataset(args, skeleton_frames(model.observe_) or None, robot)
@@ -131,7 +132,7 @@ def add_tasks(args: argparse.Namespace) -> int:
         f"the model has {len(model.tasks_)} tasks ({', '.join(model.tasks_)}), "
         f"{len(model.fitted_.added_tasks)} added after its training; {time.perf_counter() - t0:.2f} s"
     )
-    if model.fitted_.novelty is None and IProMP.load(args.model).fitted_.novelty is not None:
+    if had_novelty and model.fitted_.novelty is None:
         print("note: the model has no open-set recognition now (too few demos of an added task)")
     print(f"wrote {args.out}")
     return 0

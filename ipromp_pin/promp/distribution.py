@@ -246,6 +246,7 @@ def added_task_covariance(
     blocks: list[np.ndarray],
     diag: np.ndarray,
     shrinkage: np.ndarray,
+    cache: ShrinkageCache | None = None,
 ) -> ShrunkCovariance:
     """The shrunk covariance of a task added to fitted ones without changing them: the fitted tasks'
     shared diagonal ``diag`` (D,) and per-dim intensities ``shrinkage`` (D,) are kept, the new task's
@@ -257,6 +258,8 @@ def added_task_covariance(
         new: (N, D, K) the new task's weights (N >= 2).
         pooling, blocks: As in :func:`shrink_covariances` (the fit's coupling blocks).
         diag, shrinkage: The fitted tasks' shared diagonal and intensities.
+        cache: The statistics of ``weights`` (:class:`ShrinkageCache`; a caller that builds several
+            candidates against the same fitted tasks computes them once).
     """
     n, d, k = new.shape
     if n < 2:
@@ -265,7 +268,7 @@ def added_task_covariance(
     for dims in (np.asarray(b, dtype=int).reshape(-1) for b in blocks):
         if dims.size == 0:
             continue
-        stats = [_BlockStats(w[:, dims]) for w in [*weights, new]]
+        stats = [*(_block_stats(w, dims, cache) for w in weights), _BlockStats(new[:, dims])]
         pool = None
         if pooling > 0.0:
             pool = np.vstack([st.xc for st in stats]) / np.sqrt(sum(st.shape[0] for st in stats))
@@ -400,6 +403,32 @@ class TaskModel:
     train_weights: np.ndarray
     train_alpha: np.ndarray
 
+    @classmethod
+    def from_estimate(
+        cls,
+        task: str,
+        cov: ShrunkCovariance,
+        prior: tuple[float, float],
+        candidates: tuple[np.ndarray, np.ndarray],
+        weights: np.ndarray,
+        alphas: np.ndarray,
+    ) -> TaskModel:
+        """The model of ``task`` from its shrunk covariance, phase prior ``(mu, sigma)``, phase
+        candidates and their log prior weights, and its demos' weights (N, D, K) and phases (N,)."""
+        return cls(
+            task=task,
+            mean=cov.mean,
+            diag=cov.diag,
+            factor=cov.factor,
+            shrinkage=cov.shrinkage,
+            alpha_mu=prior[0],
+            alpha_sigma=prior[1],
+            alpha_grid=candidates[0],
+            alpha_log_prior=candidates[1],
+            train_weights=weights,
+            train_alpha=alphas,
+        )
+
     @property
     def n_demos(self) -> int:
         """Number of training demos N."""
@@ -452,7 +481,8 @@ def alpha_candidates(
     return [lattice_candidates(origin, spacing, n_cand, prior, width) for prior in priors]
 
 
-def _support(prior: tuple[float, float], width: float) -> tuple[float, float]:
+def phase_support(prior: tuple[float, float], width: float) -> tuple[float, float]:
+    """A phase prior ``(mu, sigma)``'s candidate support ``mu +- width sigma``, kept above ``0.2 mu``."""
     mu, sd = prior
     return max(mu - width * sd, 0.2 * mu), mu + width * sd
 
@@ -462,7 +492,7 @@ def candidate_lattice(
 ) -> tuple[float, float, int]:
     """The common lattice of :func:`alpha_candidates`: its origin, spacing and the number ``C`` of
     candidates of every task."""
-    lo, hi = (np.array(v) for v in zip(*(_support(p, width) for p in priors), strict=True))
+    lo, hi = (np.array(v) for v in zip(*(phase_support(p, width) for p in priors), strict=True))
     spacing = float(np.min(hi - lo)) / n_alpha  # any interval this long holds >= n_alpha lattice points
     n_cand = int(np.max(np.ceil((hi - lo) / spacing - 1e-9))) + 2
     return float(np.min(lo)), spacing, n_cand
@@ -474,7 +504,7 @@ def lattice_candidates(
     """One task's ``n_cand`` candidates on the lattice from its support's start, and their
     normalised log prior weights."""
     mu, sd = prior
-    start = int(np.floor((_support(prior, width)[0] - origin) / spacing + 1e-9))
+    start = int(np.floor((phase_support(prior, width)[0] - origin) / spacing + 1e-9))
     grid = origin + spacing * (start + np.arange(n_cand))
     logp = -0.5 * ((grid - mu) / sd) ** 2
     return grid, logp - np.logaddexp.reduce(logp)

@@ -41,6 +41,7 @@ import numpy as np
 from ..data import Demo
 from ..exceptions import DataError
 from .distribution import (
+    ShrinkageCache,
     ShrunkCovariance,
     TaskModel,
     added_task_covariance,
@@ -48,6 +49,7 @@ from .distribution import (
     alpha_prior,
     candidate_lattice,
     lattice_candidates,
+    phase_support,
 )
 from .fitted import FittedModel
 from .novelty import NoveltyRow, with_added_task
@@ -128,15 +130,7 @@ def _grown(
 ) -> FittedModel:
     """``fitted`` with the task ``task`` of demos' weights (N, D, K) and phases (N,), its covariance
     pooled with weight ``pooling``, without a novelty detector."""
-    first = fitted.models[fitted.tasks[0]]
-    cov = added_task_covariance(
-        [fitted.models[t].train_weights for t in fitted.tasks],
-        weights,
-        pooling,
-        coupling_blocks(fitted.layout, fitted.coupled_groups),
-        first.diag,
-        first.shrinkage,
-    )
+    cov = _added_covariance(fitted, weights, pooling)
     models = _with_candidates(fitted, alpha_prior(alphas), *settings, task, cov, weights, alphas)
     tasks = (*fitted.tasks, task)
     return dataclasses.replace(
@@ -147,6 +141,18 @@ def _grown(
         added_tasks=(*fitted.added_tasks, task),
         novelty=None,
     )
+
+
+def _added_covariance(
+    fitted: FittedModel, weights: np.ndarray, pooling: float, cache: ShrinkageCache | None = None
+) -> ShrunkCovariance:
+    """The covariance of a task of weights (N, D, K) added to ``fitted`` with ``pooling``
+    (:func:`~ipromp_pin.promp.distribution.added_task_covariance`: the fitted tasks' diagonal and
+    intensities, their coupling blocks)."""
+    first = fitted.models[fitted.tasks[0]]
+    fitted_weights = [m.train_weights for m in fitted.task_models()]
+    blocks = coupling_blocks(fitted.layout, fitted.coupled_groups)
+    return added_task_covariance(fitted_weights, weights, pooling, blocks, first.diag, first.shrinkage, cache)
 
 
 def choose_pooling(
@@ -164,21 +170,16 @@ def choose_pooling(
     if len(demos) < 3:
         return 1.0, {}
     observe = fitted.layout.observe
-    first = fitted.models[fitted.tasks[0]]
-    blocks = coupling_blocks(fitted.layout, fitted.coupled_groups)
-    fitted_weights = [fitted.models[t].train_weights for t in fitted.tasks]
+    cache = ShrinkageCache([m.train_weights for m in fitted.task_models()])  # the fitted tasks' statistics
     scores = {}
     for pooling in ADDED_POOLING_GRID:
         total = []
         for i, d in enumerate(demos):
             keep = np.arange(len(demos)) != i
-            cov = added_task_covariance(
-                fitted_weights, weights[keep], pooling, blocks, first.diag, first.shrinkage
-            )
+            cov = _added_covariance(fitted, weights[keep], pooling, cache)
             prior = alpha_prior(alphas[keep])
-            grid, logw = alpha_candidates([prior], *settings)[0]
-            alone = TaskModel("held-out", cov.mean, cov.diag, cov.factor, cov.shrinkage, *prior, grid, logw,
-                              weights[keep], alphas[keep])  # fmt: skip
+            cands = alpha_candidates([prior], *settings)[0]
+            alone = TaskModel.from_estimate("held-out", cov, prior, cands, weights[keep], alphas[keep])
             one = dataclasses.replace(
                 fitted, tasks=("held-out",), models={"held-out": alone}, task_log_prior=np.zeros(1),
                 head=None, handover=None, orientation=None, novelty=None, added_tasks=(),
@@ -240,7 +241,7 @@ def _with_candidates(
         np.array_equal(m.alpha_grid, lattice_candidates(origin, spacing, n_cand, p, width)[0])
         for m, p in zip(old, priors, strict=True)
     )
-    lo, hi = max(prior[0] - width * prior[1], 0.2 * prior[0]), prior[0] + width * prior[1]
+    lo, hi = phase_support(prior, width)
     if on_lattice and lo >= origin and np.ceil((hi - lo) / spacing - 1e-9) + 2 <= n_cand:
         new_cands = lattice_candidates(origin, spacing, n_cand, prior, width)
     else:
@@ -248,19 +249,7 @@ def _with_candidates(
         for m, (grid, logw) in zip(old, cands, strict=False):
             models[m.task] = dataclasses.replace(m, alpha_grid=grid, alpha_log_prior=logw)
         new_cands = cands[-1]
-    models[task] = TaskModel(
-        task=task,
-        mean=cov.mean,
-        diag=cov.diag,
-        factor=cov.factor,
-        shrinkage=cov.shrinkage,
-        alpha_mu=prior[0],
-        alpha_sigma=prior[1],
-        alpha_grid=new_cands[0],
-        alpha_log_prior=new_cands[1],
-        train_weights=weights,
-        train_alpha=alphas,
-    )
+    models[task] = TaskModel.from_estimate(task, cov, prior, new_cands, weights, alphas)
     return models
 
 

@@ -254,20 +254,8 @@ def task_models(
     blocks = coupling_blocks(training.layout, coupled)
     covs = shrink_covariances([weights[t] for t in tasks], settings.pooling, blocks, cache=training.cache)
     models = {}
-    for task, (mu, sigma), (grid, logw), cov in zip(tasks, priors, cands, covs, strict=True):
-        models[task] = TaskModel(
-            task=task,
-            mean=cov.mean,
-            diag=cov.diag,
-            factor=cov.factor,
-            shrinkage=cov.shrinkage,
-            alpha_mu=mu,
-            alpha_sigma=sigma,
-            alpha_grid=grid,
-            alpha_log_prior=logw,
-            train_weights=weights[task],
-            train_alpha=alphas[task],
-        )
+    for task, prior, cand, cov in zip(tasks, priors, cands, covs, strict=True):
+        models[task] = TaskModel.from_estimate(task, cov, prior, cand, weights[task], alphas[task])
     return models
 
 

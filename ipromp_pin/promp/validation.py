@@ -133,6 +133,8 @@ def check_fitted(fitted: FittedModel) -> FittedModel:
         raise _fail("coupled_groups", f"{coupled} must be distinct observed groups {list(layout.observe)}")
     _positive("residual_var", _array("residual_var", fitted.residual_var, (d,)), True, MAX_SCALED)
     n_blocks = 1 + any(g not in coupled for g in layout.observe)  # see training.coupling_blocks
+    # a covariance pooled over tasks (``pooling`` > 0) has at most the rank of every task's demos
+    n_all = sum(int(np.shape(m.train_weights)[0]) for m in fitted.models.values())
     n_cand = None
     for t in tasks:
         m = fitted.models[t]
@@ -161,8 +163,6 @@ def check_fitted(fitted: FittedModel) -> FittedModel:
         if n < 2:
             raise _fail(f"{w} train_weights", f"{n} training demo(s); a task needs at least 2")
         _positive(f"{w} train_alpha", _array(f"{w} train_alpha", m.train_alpha, (n,)), bound=MAX_PHASE)
-        # a covariance pooled over tasks (``pooling`` > 0) has at most the rank of every task's demos
-        n_all = sum(int(np.shape(x.train_weights)[0]) for x in fitted.models.values())
         if factor.shape[2] > max(n_all - 1, 1) * n_blocks:
             raise _fail(f"{w} factor", f"rank {factor.shape[2]} exceeds what {n_all} demos can give")
     added = tuple(fitted.added_tasks)

@@ -7,19 +7,16 @@ from __future__ import annotations
 
 import csv
 import json
-from pathlib import Path
 
 import jsonschema
 import numpy as np
-import pinocchio as pin
 import pytest
 from helpers_cli import PIPELINE, one_error_line
+from helpers_urdf import UrdfArm, panda_out_of_reach, written_joints
 
 from ipromp_pin.app import main
-from ipromp_pin.robot import load_robot_settings
 from ipromp_pin.schemas import load_schema
 
-ROBOTS = Path(__file__).resolve().parents[2] / "robots"
 PANDA_JOINTS = [f"panda_joint{i}" for i in range(1, 8)]
 
 
@@ -63,34 +60,15 @@ def test_the_commanded_panda_trajectory_holds_the_urdf_s_limits_and_no_self_coll
     with (out / "trajectory.csv").open() as f:
         rows = list(csv.DictReader(f))
     assert [c[2:] for c in rows[0] if c.startswith("q.")] == PANDA_JOINTS
-    q = np.array([[float(r[f"q.{n}"]) for n in PANDA_JOINTS] for r in rows])
-    qd = np.array([[float(r[f"qd.{n}"]) for n in PANDA_JOINTS] for r in rows])
-    s = load_robot_settings("panda")
-    model = pin.buildModelFromUrdf(str(s.urdf_path))
-    idx_q = [model.joints[model.getJointId(n)].idx_q for n in PANDA_JOINTS]
-    idx_v = [model.joints[model.getJointId(n)].idx_v for n in PANDA_JOINTS]
-    assert np.all(q >= model.lowerPositionLimit[idx_q]) and np.all(q <= model.upperPositionLimit[idx_q])
-    assert np.all(np.abs(qd) <= model.velocityLimit[idx_v] + 1e-9)
+    _, q, qd = written_joints(out / "trajectory.csv", PANDA_JOINTS)
+    arm = UrdfArm("panda")
+    arm.assert_within_limits(q, qd)
     assert np.ptp(q, axis=0).max() > 0.05  # the Panda moved
-    full = np.tile(pin.neutral(model), (len(q), 1))
-    full[:, idx_q] = q
-    for name, value in s.fixed_joints.items():
-        full[:, model.joints[model.getJointId(name)].idx_q] = value
-    geom = pin.buildGeomFromUrdf(model, str(s.urdf_path), pin.COLLISION, package_dirs=list(s.package_dirs))
-    geom.addAllCollisionPairs()
-    pin.removeCollisionPairs(model, geom, str(s.srdf_path))
-    data, gdata = model.createData(), pin.GeometryData(geom)
-    for k in range(0, len(q), 3):
-        assert not pin.computeCollisions(model, data, geom, gdata, full[k], True), k
+    arm.assert_no_self_collision(arm.full(q))
 
 
 def test_replay_on_an_arm_that_cannot_reach_the_recorded_start_is_refused_with_exit_3(tmp_path, capsys):
-    text = (ROBOTS / "panda.toml").read_text()
-    start, end = text.index("\n[placement]") + 1, text.index("[fixed_joints]")
-    far = tmp_path / "panda_far.toml"
-    far.write_text(
-        text[:start] + '[placement]\nsource = "baxter_left"\nxyz_m = [-0.6, 0.2, -0.1]\n\n' + text[end:]
-    )
+    far = panda_out_of_reach(tmp_path)
     out = tmp_path / "out"
     assert main(["replay", str(PIPELINE), "--robot", str(far), "--out", str(out), "--no-preview"]) == 3
     line = one_error_line(capsys.readouterr().err)

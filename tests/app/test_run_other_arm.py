@@ -4,29 +4,15 @@ here independently, from the URDF through Pinocchio; an arm placed out of reach 
 
 from __future__ import annotations
 
-import csv
 import json
-from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
 import pytest
 from helpers_cli import PIPELINE, one_error_line
+from helpers_urdf import UrdfArm, panda_out_of_reach, written_joints
 
 from ipromp_pin.app import main
-from ipromp_pin.robot import load_robot_settings
-
-ROBOTS = Path(__file__).resolve().parents[2] / "robots"
-
-
-def written_joints(path: Path, names: list[str]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Times (N,) [s], positions and velocities (N, J) of trajectory.csv."""
-    with path.open() as f:
-        rows = list(csv.DictReader(f))
-    t = np.array([float(r["time_s"]) for r in rows])
-    q = np.array([[float(r[f"q.{n}"]) for n in names] for r in rows])
-    qd = np.array([[float(r[f"qd.{n}"]) for n in names] for r in rows])
-    return t, q, qd
 
 
 @pytest.fixture(scope="module")
@@ -52,19 +38,11 @@ def test_run_with_the_panda_passes_and_reports_the_retargeting(panda_run):
 def test_the_written_panda_trajectory_holds_the_urdf_s_limits_torques_and_no_self_collision(panda_run):
     code, out = panda_run
     assert code == 0
-    s = load_robot_settings("panda")
-    model = pin.buildModelFromUrdf(str(s.urdf_path))
-    names = list(s.arm_joints)
-    t, q, qd = written_joints(out / "trajectory.csv", names)
-    idx_q = [model.joints[model.getJointId(n)].idx_q for n in names]
-    idx_v = [model.joints[model.getJointId(n)].idx_v for n in names]
-    lo, hi = model.lowerPositionLimit[idx_q], model.upperPositionLimit[idx_q]
-    assert np.all(q >= lo) and np.all(q <= hi)
-    assert np.all(np.abs(qd) <= model.velocityLimit[idx_v] + 1e-9)
-    full = np.tile(pin.neutral(model), (len(t), 1))
-    full[:, idx_q] = q
-    for name, value in s.fixed_joints.items():
-        full[:, model.joints[model.getJointId(name)].idx_q] = value
+    arm = UrdfArm("panda")
+    model, idx_v = arm.model, arm.idx_v
+    t, q, qd = written_joints(out / "trajectory.csv", arm.names)
+    arm.assert_within_limits(q, qd)
+    full = arm.full(q)
     # torques of the arm alone (no object) from finite-difference accelerations, under the limits
     data = model.createData()
     qdd = np.gradient(qd, t, axis=0)
@@ -75,22 +53,11 @@ def test_the_written_panda_trajectory_holds_the_urdf_s_limits_torques_and_no_sel
         v[idx_v], a[idx_v] = qd[k], qdd[k]
         tau = pin.rnea(model, data, full[k], v, a)[idx_v]
         assert np.all(np.abs(tau) <= effort), (k, tau)
-    # self-collision: the URDF's collision geometry with the SRDF's disabled pairs removed
-    geom = pin.buildGeomFromUrdf(model, str(s.urdf_path), pin.COLLISION, package_dirs=list(s.package_dirs))
-    geom.addAllCollisionPairs()
-    pin.removeCollisionPairs(model, geom, str(s.srdf_path))
-    gdata = pin.GeometryData(geom)
-    for k in range(0, len(t), 3):
-        assert not pin.computeCollisions(model, data, geom, gdata, full[k], True), k
+    arm.assert_no_self_collision(full)
 
 
 def test_an_arm_placed_out_of_reach_is_refused_with_exit_3_and_the_reason(tmp_path, capsys):
-    text = (ROBOTS / "panda.toml").read_text()
-    start, end = text.index("\n[placement]") + 1, text.index("[fixed_joints]")
-    far = tmp_path / "panda_far.toml"
-    far.write_text(
-        text[:start] + '[placement]\nsource = "baxter_left"\nxyz_m = [-0.6, 0.2, -0.1]\n\n' + text[end:]
-    )
+    far = panda_out_of_reach(tmp_path)
     out = tmp_path / "out"
     code = main(["run", str(PIPELINE), "--robot", str(far), "--out", str(out), "--no-preview"])
     assert code == 3

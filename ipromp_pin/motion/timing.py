@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -53,6 +54,12 @@ from .path import (
 from .toppra_profile import TorqueLimit, sample_profile, toppra_profile
 from .tracking import ruckig_to_rest, track_1d
 from .trajectory import JointLimits, Trajectory
+
+CAP_RAMP = 0.25
+"""Into and out of a part of the path whose velocity is capped (``sd_cap`` of :func:`time_path`),
+the path velocity changes with at most this fraction of the largest path acceleration of the uncapped
+profile: the jerk-limited tracking of the profile (step 3) overshoots, and may even reverse, after an
+abrupt deceleration to a lower speed."""
 
 __all__ = ["TimingReport", "TorqueLimit", "time_path", "verify_trajectory"]
 
@@ -78,6 +85,10 @@ class TimingReport:
         time_scale: Uniform slow-down factor applied to meet the limits (1 = none).
         timings_ms: Time per stage in [ms].
         tolerance: Relative tolerance used by :attr:`passed` on the ratios.
+        path_s: Per sample (N,), the path coordinate (arc length in [rad] of the cleaned path; NaN
+            while blending in from a start off the path), when :func:`time_path` made the trajectory;
+            not part of :meth:`to_dict`.
+        path_sd: Per sample (N,), the path velocity in [rad/s] (NaN likewise).
     """
 
     duration_s: float
@@ -95,6 +106,8 @@ class TimingReport:
     time_scale: float = 1.0
     timings_ms: dict[str, float] = field(default_factory=dict)
     tolerance: float = 1e-6
+    path_s: np.ndarray | None = field(default=None, repr=False, compare=False)
+    path_sd: np.ndarray | None = field(default=None, repr=False, compare=False)
 
     @property
     def passed(self) -> bool:
@@ -111,7 +124,8 @@ class TimingReport:
 
     def to_dict(self) -> dict:
         """JSON-serialisable form."""
-        out = {k: v for k, v in self.__dict__.items() if k != "timings_ms"}
+        skip = ("timings_ms", "path_s", "path_sd")
+        out = {k: v for k, v in self.__dict__.items() if k not in skip}
         out = {k: (float(v) if isinstance(v, float | np.floating) else v) for k, v in out.items()}
         out["passed"] = self.passed
         out["timings_ms"] = {k: round(float(v), 3) for k, v in self.timings_ms.items()}
@@ -191,6 +205,7 @@ def time_path(
     lookahead_s: float = 0.0,
     torque: TorqueLimit | None = None,
     start_s: float = 0.0,
+    sd_cap: Callable[[np.ndarray], np.ndarray] | None = None,
 ) -> tuple[Trajectory, TimingReport]:
     """Turn a predicted joint path into a jerk-limited trajectory sampled at ``rate_hz``.
 
@@ -209,6 +224,9 @@ def time_path(
         lookahead_s: How far ahead of the current time the 1-D ruckig target is taken, in [s].
         torque: Joint-torque limits toppra respects too (:class:`TorqueLimit`; ``None``: none).
         start_s: Time of the first sample in [s] on the human's clock (the robot starts then).
+        sd_cap: The largest path velocity at path coordinates: grid (G,) in [rad] -> (G,) in [rad/s]
+            (``inf``: none), a local slow-down (:class:`~.toppra_profile.PathVelocityCap`), entered
+            and left gently (:data:`CAP_RAMP`).
 
     Returns:
         The trajectory and its verification report.
@@ -237,6 +255,11 @@ def time_path(
 
     head = limits.scaled(toppra_headroom, toppra_headroom)
     t_grid, sd, sdd = toppra_profile(spline, s_grid, head, torque, toppra_headroom)
+    if sd_cap is not None:
+        cap = np.asarray(sd_cap(s_grid), dtype=float)
+        if np.any(cap < sd):
+            cap = ramped_cap(s_grid, cap, CAP_RAMP * float(np.abs(sdd).max()))
+            t_grid, sd, sdd = toppra_profile(spline, s_grid, head, torque, toppra_headroom, cap)
     t2 = time.perf_counter()
     timings["toppra_ms"] = (t2 - t1) * 1e3
 
@@ -246,7 +269,7 @@ def time_path(
     t3 = time.perf_counter()
     timings["ruckig_ms"] = (t3 - t2) * 1e3
 
-    q, qd, qdd, qddd, k = _meet_limits(spline, s_t, v_t, a_t, j_t, length, limits, dt)
+    q, qd, qdd, qddd, k, path_s, path_sd = _meet_limits(spline, s_t, v_t, a_t, j_t, length, limits, dt)
     q[-1], qd[-1], qdd[-1] = pts[-1], 0.0, 0.0
     q = np.clip(q, limits.lower_rad, limits.upper_rad)
 
@@ -256,6 +279,8 @@ def time_path(
         qd = np.vstack([pqd, qd[1:]])
         qdd = np.vstack([pqdd, qdd[1:]])
         qddd = np.vstack([pqddd, qddd[1:]])
+        blend = np.full(pq.shape[0] - 1, np.nan)
+        path_s, path_sd = np.concatenate([blend, path_s]), np.concatenate([blend, path_sd])
         q_ref_path = np.vstack([q_start[None], q_in])
     else:
         q_ref_path = q_in
@@ -275,7 +300,21 @@ def time_path(
     timings["verify_ms"] = (time.perf_counter() - t4) * 1e3
     timings["total_ms"] = (time.perf_counter() - t0) * 1e3
     report.timings_ms = timings
+    report.path_s, report.path_sd = path_s, path_sd
     return traj, report
+
+
+def ramped_cap(s_grid: np.ndarray, cap: np.ndarray, accel: float) -> np.ndarray:
+    """Path velocity caps (G,) [rad/s] at the grid points (G,) [rad] lowered so that they change at
+    most as fast as a path acceleration ``accel`` [rad/s^2] allows (``sdot^2`` by ``2 accel ds``)
+    between grid points: into and out of a capped part of the path the profile changes gently."""
+    x = np.asarray(cap, dtype=float) ** 2
+    step = 2.0 * accel * np.diff(s_grid)
+    for g in range(1, x.size):
+        x[g] = min(x[g], x[g - 1] + step[g - 1])
+    for g in range(x.size - 2, -1, -1):
+        x[g] = min(x[g], x[g + 1] + step[g])
+    return np.sqrt(x)
 
 
 def _check_rate_headroom(rate_hz: float, toppra_headroom: float) -> None:
@@ -333,14 +372,15 @@ def _meet_limits(
     length: float,
     limits: JointLimits,
     dt: float,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, float]:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, float, np.ndarray, np.ndarray]:
     """Step 4 of :func:`time_path`: joint derivatives along the path of the tracked path coordinate
     (``s_t`` etc., (N,) each, sampled every ``dt`` [s], on a path of ``length`` [rad]), then the
     uniform slow-down that meets every limit (the jerk is checked as a controller replaying the
     samples sees it: differences of accelerations).
 
     Returns:
-        Joint position, velocity, acceleration and jerk (N', n_joints) each, and the slow-down factor.
+        Joint position, velocity, acceleration and jerk (N', n_joints) each, the slow-down factor, and
+        the path coordinate [rad] and velocity [rad/s] (N',) each.
     """
     t_old = np.arange(s_t.size) * dt
     k = 1.0
@@ -367,7 +407,7 @@ def _meet_limits(
         k *= factor * (1.0 + (1e-3 if k == 1.0 else 1e-2))
     else:
         raise InfeasibleError(f"could not meet the limits by slowing down (last factor {factor:.3f})")
-    return q, qd, qdd, qddd, k
+    return q, qd, qdd, qddd, k, s_q, v_q
 
 
 def _joint_states(

@@ -55,12 +55,35 @@ class TorqueLimit:
         return constraint.JointTorqueConstraint(scaled, np.column_stack([-lim, lim]), zero)
 
 
+class PathVelocityCap(constraint.JointVelocityConstraintVarying):
+    """An upper bound on the path velocity ``sdot`` per grid point (a local slow-down: the joint
+    velocities, hence every Cartesian speed along the path, scale with ``sdot``).
+
+    Args:
+        cap: Largest ``sdot`` (G,) at the grid points it will be used with (``inf``: none).
+        n_joints: The path's joint count.
+    """
+
+    def __init__(self, cap: np.ndarray, n_joints: int) -> None:
+        ones = np.column_stack([-np.ones(n_joints), np.ones(n_joints)])
+        super().__init__(lambda _s: ones)
+        self._cap = np.asarray(cap, dtype=float)
+
+    def compute_constraint_params(self, path: object, gridpoints: np.ndarray) -> tuple:
+        if self._cap.shape != (len(gridpoints),):
+            n = len(gridpoints)
+            raise ValueError(f"path velocity cap has {self._cap.size} values for {n} grid points")
+        upper = np.where(np.isfinite(self._cap), np.maximum(self._cap, 0.0) ** 2, 1e12)
+        return None, None, None, None, None, None, np.column_stack([np.zeros(upper.size), upper])
+
+
 def toppra_profile(
     spline: CubicSpline,
     s_grid: np.ndarray,
     limits: JointLimits,
     torque: TorqueLimit | None = None,
     headroom: float = 1.0,
+    sd_cap: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Time-optimal path velocity at grid points under joint velocity/acceleration limits (toppra).
 
@@ -70,6 +93,7 @@ def toppra_profile(
         limits: Limits (use headroom-scaled ones).
         torque: Joint-torque limits too (``None``: none).
         headroom: The fraction of the torque limits' dynamic room given to toppra.
+        sd_cap: Largest path velocity (G,) at the grid points (``inf``: none; None: no cap).
 
     Returns:
         ``t`` (G,) in [s], ``sdot`` (G,) and ``sddot`` (G-1,) (constant path acceleration per interval).
@@ -88,6 +112,8 @@ def toppra_profile(
     ]
     if torque is not None:
         cons.append(torque.headroom_constraint(headroom))
+    if sd_cap is not None:
+        cons.append(PathVelocityCap(sd_cap, v.size))
     instance = algo.TOPPRA(cons, path, gridpoints=s_grid, solver_wrapper="seidel")
     instance.compute_parameterization(0.0, 0.0)
     data = instance.problem_data
@@ -109,6 +135,8 @@ def toppra_profile(
             x_acc = np.min(limits.acceleration_rad_s2 / np.maximum(denom, 1e-12))
             x_vel = np.min((limits.velocity_rad_s / np.maximum(c1, 1e-12)) ** 2)
             x_fix = min(x_acc, x_vel, sd[nb] ** 2)
+            if sd_cap is not None and math.isfinite(sd_cap[i]):
+                x_fix = min(x_fix, float(sd_cap[i]) ** 2)
             if sd[i] ** 2 < 0.1 * x_fix:
                 sd[i] = math.sqrt(x_fix)
     ds = np.diff(s_grid)

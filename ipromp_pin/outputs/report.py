@@ -23,12 +23,13 @@ REPORT_VERSION = 2
 """Value of ``report.json``'s ``version`` field."""
 
 
-def arrival(result: PlanResult) -> dict[str, float]:
+def arrival(result: PlanResult) -> dict[str, float | bool]:
     """When the human and the robot reach the hand-over, in [s] from the start of the human's motion:
     ``human_s`` the predicted end of the human's motion (the model's hand-over time), ``robot_start_s``
     when the robot starts (the end of the observation, when the plan is published: the bags' stamp),
     ``robot_s`` when it comes to rest at the hand-over (start + trajectory duration) and ``delay_s``
-    = robot minus human (positive: the robot arrives after the human, who waits)."""
+    = robot minus human (positive: the robot arrives after the human, who waits); ``slowdown``,
+    ``slowdown_local`` and ``slowdown_delay_s`` how much of that the checks' slow-down made."""
     p = result.prediction
     robot = result.trajectory.end_s
     return {
@@ -36,6 +37,9 @@ def arrival(result: PlanResult) -> dict[str, float]:
         "robot_start_s": result.trajectory.start_s,
         "robot_s": robot,
         "delay_s": robot - float(p.duration_s),
+        "slowdown": max(float(result.slowdown), 1.0),
+        "slowdown_local": bool(result.slowdown_local),
+        "slowdown_delay_s": max(float(result.slowdown_delay_s), 0.0),
     }
 
 

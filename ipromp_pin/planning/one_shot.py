@@ -56,9 +56,11 @@ class PlanResult:
             check's hand-overs, the preview's sampled paths).
         stage_ms: Wall time of every stage in [ms].
         start_s: When the robot starts (the end of the observation), in [s] on the human's clock.
-        slowdown: The uniform slow-down ``k >= 1`` the checks asked for (1: none): velocity,
+        slowdown: The slow-down ``k >= 1`` the checks asked for (1: none): uniformly, velocity,
             acceleration and jerk limits / k, k^2, k^3 (when the plan failed: the largest tried).
         slowdown_delay_s: How much longer the slowed trajectory takes, in [s].
+        slowdown_local: Whether it was slowed only where the checks asked (``slowdown`` is then its
+            duration over the unslowed one's), not uniformly.
         retarget: How the joint paths came from the model's robot through the gripper (None: the
             model predicts this arm's joints).
     """
@@ -75,6 +77,7 @@ class PlanResult:
     start_s: float = 0.0
     slowdown: float = 1.0
     slowdown_delay_s: float = 0.0
+    slowdown_local: bool = False
     retarget: Retargeting | None = None
 
     @property
@@ -214,6 +217,7 @@ def plan(
         start_s=start_s,
         slowdown=retimed.slowdown,
         slowdown_delay_s=retimed.delay_s,
+        slowdown_local=retimed.local,
         retarget=retarget,
     )
     ms["annotate"] = (time.perf_counter() - t2) * 1e3
@@ -223,5 +227,11 @@ def plan(
         f"from t = {start_s:.2f} s"
     )
     if result.slowdown > 1.0:
-        say(f"[timing] slowed {result.slowdown:.2f}x for the checks: {result.slowdown_delay_s:+.2f} s")
+        if result.slowdown_local:
+            say(
+                f"[timing] slowed where the checks ask (duration {result.slowdown:.2f}x): "
+                f"{result.slowdown_delay_s:+.2f} s"
+            )
+        else:
+            say(f"[timing] slowed {result.slowdown:.2f}x for the checks: {result.slowdown_delay_s:+.2f} s")
     return result

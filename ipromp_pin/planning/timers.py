@@ -3,7 +3,8 @@ motion timed that much slower, for the one re-time-until-safe loop of :mod:`ipro
 
 - :func:`path_timer`: a joint path timed with toppra and ruckig (:func:`~ipromp_pin.motion.timing.time_path`)
   under the joint limits scaled by ``1/k``, ``1/k^2``, ``1/k^3`` and the checks' torque limits (the
-  one-shot plan, the retreat); every timing follows the same geometric path;
+  one-shot plan, the retreat), or slowed only where the checks ask (its path velocity capped there);
+  every timing follows the same geometric path;
 - :func:`retarget_timer`: the closed loop's re-target from the commanded state onto the predicted
   motion followed at least ``k`` times slower (:meth:`~ipromp_pin.motion.retarget.Retargeter.plan`).
 """
@@ -13,15 +14,99 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
+from scipy.ndimage import maximum_filter1d
 
 from ..exceptions import InfeasibleError
 from ..motion.retarget import ReferenceMotion, Retargeter
-from ..motion.timing import time_path
+from ..motion.timing import TorqueLimit, time_path
 from ..motion.trajectory import JointLimits, MotionState
 from ..safety import Timed, Timer, TimingConstraints
 
 LogFn = Callable[[str], None]
 """Where progress messages go (one line each)."""
+
+
+LOCAL_SPREAD_SAMPLES = 3
+"""A local slow-down asked for at a sample is applied this many samples either side too (the
+jerk-limited tracking lags the timed profile where it slows down)."""
+
+
+class PathTimer:
+    """A timer of the joint path ``path`` (M, n_joints) [rad] from rest to rest, its first sample at
+    ``start_s`` [s] on the human's clock, at ``rate_hz`` [Hz]; a
+    :class:`~ipromp_pin.safety.retime.LocalTimer`: :meth:`locally` slows it only where asked.
+
+    When toppra finds no profile under the torque limits (gravity alone exceeds them somewhere on the
+    path: slowing down cannot help), the first timing is made without them and says so (``what``:
+    the log line's tag); the joint-torque check then fails the motion.
+    """
+
+    def __init__(
+        self,
+        path: np.ndarray,
+        limits: JointLimits,
+        constraints: TimingConstraints,
+        rate_hz: float,
+        start_s: float,
+        say: LogFn,
+        what: str = "timing",
+    ) -> None:
+        self.path, self.limits, self.rate_hz, self.start_s = path, limits, rate_hz, start_s
+        self.say, self.what = say, what
+        self._torque = constraints.torque
+        self._caps: list[tuple[np.ndarray, np.ndarray]] = []  # (path coordinates [rad], sdot caps [rad/s])
+
+    def __call__(self, k: float) -> Timed:
+        """The path timed under the joint limits scaled by ``1/k``, ``1/k^2``, ``1/k^3``."""
+        scaled = self.limits if k == 1.0 else self.limits.scaled(1.0 / k, 1.0 / k**2, 1.0 / k**3)
+        if self._torque is not None:
+            try:
+                return self._timed(scaled, k, None, self._torque)
+            except InfeasibleError as exc:
+                if k != 1.0:
+                    raise
+                self.say(f"[{self.what}] not timeable under the torque limits ({exc}): timed without them")
+                self._torque = None
+        return self._timed(scaled, k, None, None)
+
+    def locally(self, timed: Timed, need: np.ndarray) -> Timed:
+        """The path timed under the joint limits with its path velocity capped where ``timed`` (a
+        timing of this timer) needs slowing: ``need`` (N,) per sample of it, at most its path velocity
+        there over ``need`` (spread :data:`LOCAL_SPREAD_SAMPLES` either side), and every cap an
+        earlier call set."""
+        report = timed.report
+        s = getattr(report, "path_s", None)
+        sd = getattr(report, "path_sd", None)
+        if s is None or sd is None or s.shape != need.shape:
+            raise InfeasibleError("the motion has no path coordinates to slow it locally")
+        spread = maximum_filter1d(np.asarray(need, dtype=float), 2 * LOCAL_SPREAD_SAMPLES + 1)
+        where = (spread > 1.0) & np.isfinite(s) & (sd > 0.0)
+        if not where.any():
+            raise InfeasibleError("no sample asks for a slow-down")
+        self._caps.append((s[where], sd[where] / spread[where]))
+        return self._timed(self.limits, timed.scale, self._cap_at, self._torque)
+
+    def _cap_at(self, grid: np.ndarray) -> np.ndarray:
+        """The path velocity caps at the grid points (G,) [rad]: each cap binds the grid points either
+        side of its path coordinate."""
+        out = np.full(grid.size, np.inf)
+        for s, cap in self._caps:
+            i = np.searchsorted(grid, s)
+            np.minimum.at(out, np.clip(i - 1, 0, grid.size - 1), cap)
+            np.minimum.at(out, np.clip(i, 0, grid.size - 1), cap)
+        return out
+
+    def _timed(
+        self,
+        limits: JointLimits,
+        k: float,
+        sd_cap: Callable[[np.ndarray], np.ndarray] | None,
+        torque: TorqueLimit | None,
+    ) -> Timed:
+        motion, report = time_path(
+            self.path, limits, rate_hz=self.rate_hz, torque=torque, start_s=self.start_s, sd_cap=sd_cap
+        )
+        return Timed(motion, report, k, self.path)
 
 
 def path_timer(
@@ -32,32 +117,9 @@ def path_timer(
     start_s: float,
     say: LogFn,
     what: str = "timing",
-) -> Timer:
-    """A timer of the joint path ``path`` (M, n_joints) [rad] from rest to rest, its first sample at
-    ``start_s`` [s] on the human's clock, at ``rate_hz`` [Hz].
-
-    When toppra finds no profile under the torque limits (gravity alone exceeds them somewhere on the
-    path: slowing down cannot help), the first timing is made without them and says so (``what``:
-    the log line's tag); the joint-torque check then fails the motion.
-    """
-    torque = constraints.torque
-
-    def timer(k: float) -> Timed:
-        nonlocal torque
-        scaled = limits if k == 1.0 else limits.scaled(1.0 / k, 1.0 / k**2, 1.0 / k**3)
-        if torque is not None:
-            try:
-                motion, report = time_path(path, scaled, rate_hz=rate_hz, torque=torque, start_s=start_s)
-                return Timed(motion, report, k, path)
-            except InfeasibleError as exc:
-                if k != 1.0:
-                    raise
-                say(f"[{what}] not timeable under the torque limits ({exc}): timed without them")
-                torque = None
-        motion, report = time_path(path, scaled, rate_hz=rate_hz, start_s=start_s)
-        return Timed(motion, report, k, path)
-
-    return timer
+) -> PathTimer:
+    """A :class:`PathTimer` (the one-shot plan's and the retreat's timer)."""
+    return PathTimer(path, limits, constraints, rate_hz, start_s, say, what)
 
 
 def retarget_timer(retargeter: Retargeter, state: MotionState, reference: ReferenceMotion) -> Timer:

@@ -12,9 +12,12 @@ settings' ``[iso15066] speed_margin``: room for the human's motion after the obs
 was checked against). ``n_speed_violations`` counts the samples faster than ``v_max`` itself,
 ``n_over_planning_limit`` those beyond the margin. A failing check asks for the uniform slow-down
 ``k = max(approach speed / v_max) / (1 - speed_margin)`` (times :data:`SLOWDOWN_MARGIN`): going
-``k`` times slower divides every approach speed by ``k`` and shrinks S_p. The same ``k`` of a passing
-motion (below 1) is its estimate of how much faster would still pass (:attr:`Verdict.fits_at
-<ipromp_pin.safety.verdict.Verdict.fits_at>`).
+``k`` times slower divides every approach speed by ``k`` and shrinks S_p; it also gives the
+slow-down each sample needs on its own (:attr:`Verdict.local_slowdown
+<ipromp_pin.safety.verdict.Verdict.local_slowdown>`), so that a planner that can may slow the motion
+only where it approaches too fast (an approach speed scales with the path velocity there). The same
+``k`` of a passing motion (below 1) is its estimate of how much faster would still pass
+(:attr:`Verdict.fits_at <ipromp_pin.safety.verdict.Verdict.fits_at>`).
 """
 
 from __future__ import annotations
@@ -105,7 +108,8 @@ class ContactSpeed(SeparationCheck):
                 f"({m.n_speed_violations} beyond the limit): {speed:.2f} m/s, limit {m.v_max_m_s:.2f} m/s "
                 f"({where})"
             )
-            return Verdict(self.name, "fail", reason, m, slowdown=fits, fits_at=fits)
+            local = np.maximum(sep.max_ratio / allowed * SLOWDOWN_MARGIN, 1.0)
+            return Verdict(self.name, "fail", reason, m, slowdown=fits, fits_at=fits, local_slowdown=local)
         if worst <= 0:
             return Verdict(
                 self.name, "pass", f"no approach near a contact-speed limit ({who})", m, fits_at=0.0

@@ -33,12 +33,14 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Protocol
+from typing import Protocol, runtime_checkable
+
+import numpy as np
 
 from ..exceptions import InfeasibleError
 from ..motion.trajectory import Trajectory
 from .context import CheckContext
-from .verdict import CheckReport, Verdict, needed_slowdown
+from .verdict import CheckReport, Verdict, needed_local_slowdown, needed_slowdown
 
 MAX_SLOWDOWN = 4.0
 """The largest slow-down a motion is given before it is refused (4x the duration)."""
@@ -96,6 +98,19 @@ Timer = Callable[[float], Timed]
 Raises :class:`~ipromp_pin.exceptions.InfeasibleError` when it cannot time the motion."""
 
 
+@runtime_checkable
+class LocalTimer(Protocol):
+    """A timer that can also slow its motion only where the checks ask for it."""
+
+    def __call__(self, k: float) -> Timed: ...
+
+    def locally(self, timed: Timed, need: np.ndarray) -> Timed:
+        """The motion of ``timed`` (one this timer made) slowed by ``need`` (N,) >= 1 at each of
+        its samples (1: as fast as before), and where every earlier call asked; raises
+        :class:`~ipromp_pin.exceptions.InfeasibleError` when it cannot."""
+        ...
+
+
 class Runs(Protocol):
     """What the loop needs of a suite: its checks' names by dependency, and running them."""
 
@@ -122,6 +137,8 @@ class Retimed:
         slowdown: Its slow-down over the first (1: none).
         rounds: Motions checked.
         guessed: Whether the first motion checked was a guess (not the unslowed one).
+        local: Whether the motion was slowed only where the checks asked for it (``slowdown`` is
+            then its duration over the first's).
     """
 
     timed: Timed
@@ -130,6 +147,7 @@ class Retimed:
     slowdown: float = 1.0
     rounds: int = 1
     guessed: bool = False
+    local: bool = False
 
     @property
     def motion(self) -> Trajectory:
@@ -179,7 +197,7 @@ def retime_until_safe(
 
     Args:
         suite: The checks.
-        timer: The planner's timer.
+        timer: The planner's timer (a :class:`LocalTimer` is slowed only where the checks ask first).
         context: What the checks know.
         stop_early: Stop checking a motion at its first failure that no slow-down fixes (the closed
             loop: a refused re-plan needs no further verdicts).
@@ -199,6 +217,27 @@ def retime_until_safe(
         except InfeasibleError:
             cur, requested = first, 1.0
     verdicts = suite.run(cur.motion, context, stop_early=stop_early)
+    if isinstance(timer, LocalTimer) and not guessed:
+        local = _slow_locally(suite, timer, context, first, verdicts, stop_early)
+        if local is not None:
+            return local
+    return _slow_uniformly(suite, timer, context, first, (cur, requested), verdicts, guessed, stop_early)
+
+
+def _slow_uniformly(
+    suite: Runs,
+    timer: Timer,
+    context: CheckContext,
+    first: Timed,
+    start: tuple[Timed, float],
+    verdicts: list[Verdict],
+    guessed: bool,
+    stop_early: bool,
+) -> Retimed:
+    """The uniform slow-downs of :func:`retime_until_safe` from ``start`` (the motion checked first,
+    its verdicts ``verdicts``, and the scale it was asked for)."""
+    base = first.scale
+    cur, requested = start
     path_names = suite.path_checks()
     cur_v, rounds, reused = verdicts, 1, False
     while rounds <= MAX_SLOWDOWN_ROUNDS:
@@ -219,3 +258,40 @@ def retime_until_safe(
         timing = [v for v in cur_v if v.name not in path_names]
         cur_v = suite.run(cur.motion, context, reuse=timing, stop_early=stop_early)
     return Retimed(cur, cur_v, first, 1.0 if cur is first else requested / base, rounds, guessed)
+
+
+def _slow_locally(
+    suite: Runs,
+    timer: LocalTimer,
+    context: CheckContext,
+    first: Timed,
+    verdicts: list[Verdict],
+    stop_early: bool,
+) -> Retimed | None:
+    """Slow ``first`` (checked: ``verdicts``) only where its failing checks ask for it, at most
+    :data:`MAX_SLOWDOWN_ROUNDS` times; the first motion that passes, or None when none does (or a
+    failing check asks for no local slow-down: the uniform slow-down decides then)."""
+    cur, cur_v = first, verdicts
+    path_names = suite.path_checks()
+    for rounds in range(1, MAX_SLOWDOWN_ROUNDS + 2):
+        if not any(v.blocks for v in cur_v):
+            if cur is not first:  # the path checks' numbers and times of the returned motion itself
+                timing = [v for v in cur_v if v.name not in path_names]
+                cur_v = suite.run(cur.motion, context, reuse=timing, stop_early=stop_early)
+            slowdown = cur.motion.duration_s / first.motion.duration_s
+            return Retimed(cur, cur_v, first, slowdown, rounds, local=True)
+        if rounds > MAX_SLOWDOWN_ROUNDS:
+            return None
+        need = needed_local_slowdown(cur_v, cur.motion.n_samples)
+        if need is None or float(need.max()) > MAX_SLOWDOWN:
+            return None
+        try:
+            nxt = timer.locally(cur, np.where(need > 1.0, need * SLOWDOWN_STEP, 1.0))
+        except InfeasibleError:
+            return None
+        if nxt.motion.duration_s > first.motion.duration_s * MAX_SLOWDOWN:
+            return None
+        same = nxt.path is not None and nxt.path is cur.path
+        keep = [v for v in cur_v if v.name in path_names] if same else []
+        cur, cur_v = nxt, suite.run(nxt.motion, context, reuse=keep, stop_early=stop_early)
+    return None

@@ -13,7 +13,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Iterator, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Literal
 
 import numpy as np
@@ -69,6 +69,10 @@ class Verdict:
             motion passes with room (that much faster would still pass); None when the check does
             not estimate it. Not part of the report: a planner's next timing may start from it
             (:func:`~.retime.next_guess`).
+        local_slowdown: For a failure that slowing the motion only where it fails would fix: per
+            sample of the motion (N,), the slow-down that sample needs (1 where it needs none; the
+            velocities there / k); None otherwise. Not part of the report: the re-time loop slows
+            the path there only (:func:`~.retime.retime_until_safe`).
     """
 
     name: str
@@ -78,6 +82,7 @@ class Verdict:
     required: bool = True
     slowdown: float | None = None
     fits_at: float | None = None
+    local_slowdown: np.ndarray | None = field(default=None, compare=False, repr=False)
 
     @property
     def passed(self) -> bool:
@@ -166,3 +171,19 @@ def needed_slowdown(verdicts: Sequence[Verdict], max_slowdown: float) -> float |
             return None
         k = max(k, float(hint))
     return k
+
+
+def needed_local_slowdown(verdicts: Sequence[Verdict], n_samples: int) -> np.ndarray | None:
+    """The slow-down per sample (N,) that the failing required checks ask for together (the
+    largest per sample), when every one of them asks for a local one
+    (:attr:`Verdict.local_slowdown`, one value per sample of the motion); None otherwise (none
+    failed, or one asks for a uniform slow-down only or none at all)."""
+    need: np.ndarray | None = None
+    for v in verdicts:
+        if not v.blocks:
+            continue
+        local = v.local_slowdown
+        if local is None or local.shape != (n_samples,) or not np.all(np.isfinite(local)):
+            return None
+        need = local.copy() if need is None else np.maximum(need, local)
+    return need

@@ -98,6 +98,20 @@ def test_written_report_equals_the_returned_report(tmp_path):
     assert sorted(p.name for p in out.iterdir()) == sorted(Path(f).name for f in report["files"].values())
 
 
+def test_the_default_run_meets_the_human_in_time_with_every_check_passed(tmp_path):
+    """The built-in default (issue 38): the robot at rest at the hand-over within 0.5 s of the human,
+    every check passed, slowed for them by at most 1.3x, and only where they asked."""
+    out = tmp_path / "out"
+    assert main(["run", str(PIPELINE), "--out", str(out), "--no-preview", "--no-rosbag"]) == 0
+    report = json.loads((out / "report.json").read_text())
+    a = report["arrival"]
+    assert report["passed"] and report["feasibility"]["checks"]["contact_speed"]["status"] == "pass"
+    assert abs(a["delay_s"]) <= 0.5 and 1.0 <= a["slowdown"] <= 1.3
+    assert a["slowdown_delay_s"] <= a["robot_s"] - a["robot_start_s"]
+    if a["slowdown"] > 1.0:
+        assert a["slowdown_local"]
+
+
 def test_pipeline_saved_model_gives_the_same_result(tmp_path):
     model = tmp_path / "model.npz"
     a, b = tmp_path / "a", tmp_path / "b"

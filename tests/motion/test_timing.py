@@ -186,3 +186,27 @@ def test_absurd_limits_are_refused_before_allocating():
     slow = dataclasses.replace(limits, velocity_rad_s=np.full(3, 1.0), acceleration_rad_s2=np.full(3, 1e-12))
     with pytest.raises(InfeasibleError, match="acceleration 1e-12"):
         time_path(path, slow, rate_hz=100.0)
+
+
+def test_a_path_velocity_cap_slows_only_that_part_of_the_path(limits):
+    q = _curved_path()
+    free, rep_free = time_path(q, limits)
+    assert rep_free.path_s is not None and rep_free.path_sd is not None
+    assert rep_free.path_s.shape == (free.n_samples,) and np.all(np.diff(rep_free.path_s) >= -1e-3)
+    assert "path_s" not in rep_free.to_dict() and "path_sd" not in rep_free.to_dict()
+    length = float(rep_free.path_s[-1])
+    lo, hi, cap = 0.4 * length, 0.6 * length, 0.5 * float(rep_free.path_sd.max())
+
+    def sd_cap(grid: np.ndarray) -> np.ndarray:
+        return np.where((grid >= lo) & (grid <= hi), cap, np.inf)
+
+    traj, rep = time_path(q, limits, sd_cap=sd_cap)
+    _assert_within_limits(traj, limits)
+    assert rep.passed and free.duration_s < traj.duration_s
+    inside = (rep.path_s > lo + 0.02 * length) & (rep.path_s < hi - 0.02 * length)
+    assert inside.any() and np.all(rep.path_sd[inside] <= cap * 1.02)
+    # the joint velocities follow the path velocity: q' = c'(s) sdot
+    np.testing.assert_allclose(traj.q[-1], q[-1], atol=1e-9)
+    # a cap nowhere on the path changes nothing
+    same, _ = time_path(q, limits, sd_cap=lambda grid: np.full(grid.size, np.inf))
+    np.testing.assert_allclose(same.q, free.q, atol=1e-9)

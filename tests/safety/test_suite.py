@@ -68,6 +68,33 @@ class SpeedBound(Check):
         )
 
 
+class RegionSpeedBound(SpeedBound):
+    """A toy check: joint speeds at most ``bound`` [rad/s] where the motion is between 35 % and 65 % of
+    the way from ``q0`` to ``q1`` (a region of the path, like an approach near the human); asks for the
+    slow-down each sample needs there (``local``), or only the uniform one; ``stingy`` < 1 asks
+    locally for that power of what it needs."""
+
+    name = "region_speed"
+
+    def __init__(self, robot, bound, q0, q1, local: bool = True, stingy: float = 1.0) -> None:
+        super().__init__(robot, bound)
+        self.q0, self.q1, self.local, self.stingy = np.asarray(q0), np.asarray(q1), local, stingy
+
+    def region(self, motion: Trajectory) -> np.ndarray:
+        way = np.linalg.norm(motion.q - self.q0, axis=1) / np.linalg.norm(self.q1 - self.q0)
+        return (way > 0.35) & (way < 0.65)
+
+    def check(self, motion: Trajectory, context: CheckContext) -> Verdict:
+        self.seen.append(motion)
+        speed = np.where(self.region(motion), np.max(np.abs(motion.qd), axis=1), 0.0)
+        peak = float(speed.max())
+        if peak <= self.bound:
+            return Verdict(self.name, "pass", f"peak {peak:.3f} rad/s", PeakMeasures(peak))
+        local = np.maximum(speed / self.bound, 1.0) ** self.stingy if self.local else None
+        k = peak / self.bound
+        return Verdict(self.name, "fail", "too fast", PeakMeasures(peak), slowdown=k, local_slowdown=local)
+
+
 class PathCount(Check):
     """A toy path check that counts its runs and never fails."""
 
@@ -305,3 +332,44 @@ def test_closed_loop_re_targets_slower_when_a_check_asks_and_records_the_delay(s
     never = replay_demo(model, robot, demo, profile, settings, stuck)
     assert never.n_committed == 0 and not never.trajectory.qd.any()
     assert all("speed_bound" in r.reason for r in never.replans)
+
+
+def test_a_check_that_asks_locally_slows_the_motion_only_where_it_fails(setup):
+    model, robot, _, test = setup
+    obs = test[0].head(0.3, groups=OBSERVE)
+    base = plan(model, robot, obs, CheckSuite([]))
+    q0, q1 = base.trajectory.q[0], base.trajectory.q[-1]
+    probe = RegionSpeedBound(robot, np.inf, q0, q1)
+    inside = probe.region(base.trajectory)
+    peak_in = float(np.abs(base.trajectory.qd[inside]).max())
+    local = plan(model, robot, obs, CheckSuite([RegionSpeedBound(robot, 0.6 * peak_in, q0, q1)]))
+    only_uniform = RegionSpeedBound(robot, 0.6 * peak_in, q0, q1, local=False)
+    uniform = plan(model, robot, obs, CheckSuite([only_uniform]))
+    assert local.passed and uniform.passed
+    assert local.slowdown_local and not uniform.slowdown_local
+    motion = local.trajectory
+    assert np.abs(motion.qd[probe.region(motion)]).max() <= 0.6 * peak_in
+    # the same path, in less time than the uniform slow-down: only the region was slowed
+    np.testing.assert_allclose(motion.q[-1], base.trajectory.q[-1], atol=1e-6)
+    assert base.trajectory.duration_s < motion.duration_s < uniform.trajectory.duration_s - 0.1
+    assert local.slowdown == pytest.approx(motion.duration_s / base.trajectory.duration_s)
+    assert local.slowdown_delay_s == pytest.approx(motion.end_s - base.trajectory.end_s)
+    outside = ~probe.region(motion) & (np.linalg.norm(motion.q - q0, axis=1) < 0.2 * np.linalg.norm(q1 - q0))
+    before = np.linalg.norm(base.trajectory.q - q0, axis=1) < 0.2 * np.linalg.norm(q1 - q0)
+    # before the region the motion is as fast as unslowed (not slowed uniformly)
+    assert np.abs(motion.qd[outside]).max() >= 0.95 * np.abs(base.trajectory.qd[before]).max()
+
+
+def test_a_local_slowdown_that_does_not_pass_falls_back_to_the_uniform_one(setup):
+    model, robot, _, test = setup
+    obs = test[0].head(0.3, groups=OBSERVE)
+    base = plan(model, robot, obs, CheckSuite([]))
+    q0, q1 = base.trajectory.q[0], base.trajectory.q[-1]
+    inside = RegionSpeedBound(robot, np.inf, q0, q1).region(base.trajectory)
+    bound = 0.5 * float(np.abs(base.trajectory.qd[inside]).max())
+    stingy = RegionSpeedBound(robot, bound, q0, q1, stingy=0.05)  # asks locally for far too little
+    result = plan(model, robot, obs, CheckSuite([stingy]))
+    assert result.passed and not result.slowdown_local and result.slowdown > 1.0
+    # the local rounds were tried first: the unslowed motion, MAX_SLOWDOWN_ROUNDS local timings, then
+    # the uniform ones
+    assert len(stingy.seen) > 1 + MAX_SLOWDOWN_ROUNDS

@@ -89,6 +89,9 @@ class TimingReport:
             while blending in from a start off the path), when :func:`time_path` made the trajectory;
             not part of :meth:`to_dict`.
         path_sd: Per sample (N,), the path velocity in [rad/s] (NaN likewise).
+        profile_sd: Per sample (N,), the velocity [rad/s] the timed (toppra) profile has at the
+            sample's path coordinate: what the jerk-limited tracking follows (it lags behind and
+            catches up faster where the profile slows down); NaN likewise.
     """
 
     duration_s: float
@@ -108,6 +111,7 @@ class TimingReport:
     tolerance: float = 1e-6
     path_s: np.ndarray | None = field(default=None, repr=False, compare=False)
     path_sd: np.ndarray | None = field(default=None, repr=False, compare=False)
+    profile_sd: np.ndarray | None = field(default=None, repr=False, compare=False)
 
     @property
     def passed(self) -> bool:
@@ -124,7 +128,7 @@ class TimingReport:
 
     def to_dict(self) -> dict:
         """JSON-serialisable form."""
-        skip = ("timings_ms", "path_s", "path_sd")
+        skip = ("timings_ms", "path_s", "path_sd", "profile_sd")
         out = {k: v for k, v in self.__dict__.items() if k not in skip}
         out = {k: (float(v) if isinstance(v, float | np.floating) else v) for k, v in out.items()}
         out["passed"] = self.passed
@@ -284,6 +288,7 @@ def time_path(
         q_ref_path = np.vstack([q_start[None], q_in])
     else:
         q_ref_path = q_in
+    profile_sd = np.interp(path_s, s_grid, sd)  # NaN stays NaN
     traj = Trajectory(start_s + np.arange(q.shape[0]) * dt, q, qd, qdd, tuple(limits.joint_names), qddd)
     t4 = time.perf_counter()
     timings["sampling_ms"] = (t4 - t3) * 1e3
@@ -300,7 +305,7 @@ def time_path(
     timings["verify_ms"] = (time.perf_counter() - t4) * 1e3
     timings["total_ms"] = (time.perf_counter() - t0) * 1e3
     report.timings_ms = timings
-    report.path_s, report.path_sd = path_s, path_sd
+    report.path_s, report.path_sd, report.profile_sd = path_s, path_sd, profile_sd
     return traj, report
 
 

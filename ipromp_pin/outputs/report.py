@@ -37,9 +37,9 @@ def arrival(result: PlanResult) -> dict[str, float | bool]:
         "robot_start_s": result.trajectory.start_s,
         "robot_s": robot,
         "delay_s": robot - float(p.duration_s),
-        "slowdown": max(float(result.slowdown), 1.0),
+        "slowdown": float(result.slowdown),
         "slowdown_local": bool(result.slowdown_local),
-        "slowdown_delay_s": max(float(result.slowdown_delay_s), 0.0),
+        "slowdown_delay_s": float(result.slowdown_delay_s),
     }
 
 

@@ -72,13 +72,17 @@ class PathTimer:
     def locally(self, timed: Timed, need: np.ndarray) -> Timed:
         """The path timed under the joint limits with its path velocity capped where ``timed`` (a
         timing of this timer) needs slowing: ``need`` (N,) per sample of it, at most its path velocity
-        there over ``need`` (spread :data:`LOCAL_SPREAD_SAMPLES` either side), and every cap an
-        earlier call set."""
+        there (or its timed profile's, the lower) over ``need`` (spread :data:`LOCAL_SPREAD_SAMPLES`
+        either side), and every cap an earlier call set."""
         report = timed.report
         s = getattr(report, "path_s", None)
-        sd = getattr(report, "path_sd", None)
-        if s is None or sd is None or s.shape != need.shape:
+        actual = getattr(report, "path_sd", None)
+        profile = getattr(report, "profile_sd", None)
+        if s is None or actual is None or profile is None or s.shape != need.shape:
             raise InfeasibleError("the motion has no path coordinates to slow it locally")
+        # the profile the tracking follows, lowered: where the tracking catches up after a slow-down
+        # it runs faster than the profile, and a cap above the profile would change nothing
+        sd = np.fmin(actual, profile)
         spread = maximum_filter1d(np.asarray(need, dtype=float), 2 * LOCAL_SPREAD_SAMPLES + 1)
         where = (spread > 1.0) & np.isfinite(s) & (sd > 0.0)
         if not where.any():

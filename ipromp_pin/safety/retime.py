@@ -10,6 +10,15 @@ the checks' first-order estimates), at most :data:`MAX_SLOWDOWN_ROUNDS` times an
 (slowest) motion tried is returned with its verdicts, refused: it says how far slowing went and what
 still fails.
 
+A :class:`LocalTimer` (the one-shot plan's path timer) is first slowed only where the checks ask:
+when every failing required check says which samples need how much slow-down
+(:attr:`~.verdict.Verdict.local_slowdown`, e.g. ``contact_speed`` where the arm approaches a body part
+too fast), the path velocity is capped there and nowhere else, again at most
+:data:`MAX_SLOWDOWN_ROUNDS` times (each adding its caps to the last); the first motion that passes
+is committed, its slow-down the ratio of the durations. When none does, the uniform slow-downs
+above start again from the unslowed motion, so that slowing locally never refuses a motion the
+uniform slow-down would pass.
+
 A planner that plans the same motion again and again (the closed loop, every 50 ms) may pass a
 ``guess``: the slow-down its last committed motion turned out to need (:func:`next_guess`). The first
 (unslowed) motion is still timed, as the base the slow-downs are counted from (its samples are not
@@ -279,7 +288,7 @@ def _slow_locally(
                 timing = [v for v in cur_v if v.name not in path_names]
                 cur_v = suite.run(cur.motion, context, reuse=timing, stop_early=stop_early)
             slowdown = cur.motion.duration_s / first.motion.duration_s
-            return Retimed(cur, cur_v, first, slowdown, rounds, local=True)
+            return Retimed(cur, cur_v, first, slowdown, rounds, local=cur is not first)
         if rounds > MAX_SLOWDOWN_ROUNDS:
             return None
         need = needed_local_slowdown(cur_v, cur.motion.n_samples)

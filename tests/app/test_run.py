@@ -106,7 +106,7 @@ def test_the_default_run_meets_the_human_in_time_with_every_check_passed(tmp_pat
     report = json.loads((out / "report.json").read_text())
     a = report["arrival"]
     assert report["passed"] and report["feasibility"]["checks"]["contact_speed"]["status"] == "pass"
-    assert abs(a["delay_s"]) <= 0.5 and 1.0 <= a["slowdown"] <= 1.3
+    assert abs(a["delay_s"]) <= 0.5 and a["slowdown"] <= 1.3
     assert a["slowdown_delay_s"] <= a["robot_s"] - a["robot_start_s"]
     if a["slowdown"] > 1.0:
         assert a["slowdown_local"]

@@ -165,7 +165,7 @@ def test_one_shot_plan_runs_the_checks_on_the_timed_motion_from_the_observation_
     np.testing.assert_array_equal(motion.q, base.trajectory.q)
     assert check.contexts[0].task == result.prediction.task
     assert check.contexts[0].handover_s == pytest.approx(result.prediction.duration_s)
-    assert result.slowdown == 1.0 and result.slowdown_delay_s == 0.0
+    assert result.slowdown == 1.0 and result.slowdown_delay_s == 0.0 and not result.slowdown_local
 
 
 def test_one_shot_plan_is_re_timed_when_a_check_asks_for_a_slower_motion(setup):

@@ -27,7 +27,6 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from scipy.signal import savgol_filter
 
 from ..data import ROBOT, Demo
 from ..exceptions import PipelineError
@@ -103,6 +102,8 @@ def conservative_profile(robot: Robot) -> LimitProfile:
 def demo_peaks(demos: Iterable[Demo], window_s: float, group: str = ROBOT) -> np.ndarray:
     """Per demo, the peak |velocity|, |acceleration| and |jerk| of every joint, (n_demos, 3, J),
     in [rad/s], [rad/s^2], [rad/s^3] (Savitzky-Golay derivatives, order 4, window ``window_s``)."""
+    from scipy.signal import savgol_filter  # here: importing scipy.signal takes about a second
+
     out = []
     for d in demos:
         q = d.groups[group]

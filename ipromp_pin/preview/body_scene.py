@@ -11,18 +11,18 @@
   ``static/separation.js`` (the figures, the value at the current time and the states along the
   time slider).
 
-The scene's animation calls :func:`body_frame` at every frame with the human's time.
+The scene's animation gets every frame's body and rod from :func:`body_tracks`.
 """
 
 from __future__ import annotations
 
-from typing import Any
-
 import meshcat
+import meshcat.animation as ma
 import meshcat.geometry as mg
 import numpy as np
 
 from .body import SEPARATION_STATES, BodyTrack, SeparationTrack
+from .tracks import put_property, put_transforms
 
 __all__ = [
     "BODY_NODE",
@@ -30,7 +30,7 @@ __all__ = [
     "COLOR_BODY",
     "COLOR_BODY_ASSUMED",
     "SEPARATION_COLORS",
-    "body_frame",
+    "body_tracks",
     "capsule_transforms",
     "draw_body",
     "separation_panel",
@@ -140,42 +140,69 @@ def _pose_static(
             node.set_property("visible", state == separation.state[i])
 
 
-def body_frame(
-    frame: Any,
+def _segments(a: np.ndarray, b: np.ndarray, radius: np.ndarray | float) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_segment` of ``n`` segments at once: placements (n, 4, 4) and scales (n, 3)."""
+    d = b - a
+    length = np.linalg.norm(d, axis=1)
+    long = length > _MIN_LENGTH_M
+    y = np.where(long[:, None], d / np.where(long, length, 1.0)[:, None], [0.0, 1.0, 0.0])
+    helper = np.where((np.abs(y[:, 0]) < 0.9)[:, None], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0])
+    x = np.cross(y, helper)
+    x /= np.linalg.norm(x, axis=1)[:, None]
+    T = np.tile(np.eye(4), (a.shape[0], 1, 1))
+    T[:, :3, :3] = np.where(long[:, None, None], np.stack([x, y, np.cross(x, y)], axis=-1), np.eye(3))
+    T[:, :3, 3] = (a + b) / 2.0
+    r = np.broadcast_to(np.asarray(radius, dtype=float), length.shape)
+    return T, np.stack([r, np.maximum(length, _MIN_LENGTH_M), r], axis=1)
+
+
+def _translations(p: np.ndarray) -> np.ndarray:
+    T = np.tile(np.eye(4), (p.shape[0], 1, 1))
+    T[:, :3, 3] = p
+    return T
+
+
+def body_tracks(
+    animation: ma.Animation,
+    viewer: meshcat.Visualizer,
     body: BodyTrack | None,
     separation: SeparationTrack | None,
-    t_s: float,
-    shown: dict[str, Any],
-    first: bool,
+    times_s: np.ndarray,
 ) -> None:
-    """Pose the body and the closest-pair rod in one animation ``frame`` at the human's time ``t_s``.
-
-    Args:
-        frame: A meshcat animation frame (``animation.at_frame(viewer, k)``).
-        shown: State kept across the frames of one animation (which rod was shown): pass the same
-            empty dict to every frame.
-        first: Whether this is the animation's first frame (every property is set).
-    """
+    """Pose the body's capsules and the closest-pair rod in every frame of ``animation`` (frame ``k``
+    at the human's time ``times_s[k]`` [s]): each capsule's nodes placed and scaled per frame; the rod
+    of the sample's separation state placed where that state is in force, shown and hidden where it
+    changes (every rod's visibility set in the first frame)."""
+    n = times_s.size
+    frames = list(range(n))
     if body is not None:
-        a, b, r = (x[0] for x in body.at(np.array([t_s])))
+        a, b, r = body.at(times_s)
         for k in range(body.n_parts):
-            for end, (T, scale) in capsule_transforms(a[k], b[k], float(r[k])).items():
-                node = frame[f"{BODY_NODE}/{k}/{end}"]
-                node.set_transform(T)
-                node.set_property("scale", "vector3", scale)
+            T, scale = _segments(a[:, k], b[:, k], r[:, k])
+            ends = np.repeat(r[:, k, None], 3, axis=1).tolist()
+            for name, placement, size in (
+                ("cyl", T, scale.tolist()),
+                ("a", _translations(a[:, k]), ends),
+                ("b", _translations(b[:, k]), ends),
+            ):
+                path = viewer[f"{BODY_NODE}/{k}/{name}"].path
+                put_transforms(animation, path, frames, placement)
+                put_property(animation, path, "scale", "vector3", frames, size)
     if separation is None:
         return
-    i = _closest_at(separation, t_s)
-    T, scale = _segment(separation.robot_point_m[i], separation.body_point_m[i], _ROD_RADIUS_M)
-    state = separation.state[i]
-    node = frame[f"{CLOSEST_NODE}/{state}"]
-    node.set_transform(T)
-    node.set_property("scale", "vector3", scale)
-    if first or shown.get("state") != state:
-        for s in SEPARATION_STATES:
-            if first or s in (state, shown.get("state")):
-                frame[f"{CLOSEST_NODE}/{s}"].set_property("visible", "boolean", s == state)
-        shown["state"] = state
+    idx = np.clip(np.searchsorted(separation.t_s, times_s + 1e-9) - 1, 0, separation.t_s.size - 1)
+    T, scale = _segments(separation.robot_point_m[idx], separation.body_point_m[idx], _ROD_RADIUS_M)
+    state = np.asarray(separation.state, dtype=object)[idx]
+    changed = np.flatnonzero(state[1:] != state[:-1]) + 1
+    for s in SEPARATION_STATES:
+        path = viewer[f"{CLOSEST_NODE}/{s}"].path
+        visible = [(0, bool(state[0] == s))]
+        visible += [(int(k), bool(state[k] == s)) for k in changed if s in (state[k], state[k - 1])]
+        put_property(animation, path, "visible", "boolean", [f for f, _ in visible], [v for _, v in visible])
+        at = np.flatnonzero(state == s)
+        if at.size:
+            put_transforms(animation, path, at.tolist(), T[at])
+            put_property(animation, path, "scale", "vector3", at.tolist(), scale[at].tolist())
 
 
 def separation_panel(separation: SeparationTrack, body: BodyTrack | None = None) -> dict:

@@ -10,21 +10,21 @@ at the human's time).
 
 from __future__ import annotations
 
-from typing import Any
-
 import meshcat
+import meshcat.animation as ma
 import meshcat.geometry as mg
 import numpy as np
 import pinocchio as pin
 
 from .content import PreviewContent, preview_error
 from .torques import HeldObject
+from .tracks import put_property, put_transforms
 
 __all__ = [
     "COLOR_OBJECT",
     "OBJECT_NODE",
     "draw_object",
-    "object_frame",
+    "object_tracks",
     "object_placements",
     "shape_transform",
 ]
@@ -85,10 +85,14 @@ def draw_object(
     viewer[f"{OBJECT_NODE}/shape"].set_property("visible", bool(held))
 
 
-def object_frame(frame: Any, pose: np.ndarray, held: bool, shown: dict[str, Any], first: bool) -> None:
-    """Pose the object in one animation ``frame`` at its frame's pose ``pose`` (4, 4); its visibility
-    is set on the first frame and where ``held`` changes (``shown``: the same dict for every frame)."""
-    frame[OBJECT_NODE].set_transform(pose)
-    if first or shown.get("held") != held:
-        frame[f"{OBJECT_NODE}/shape"].set_property("visible", "boolean", bool(held))
-        shown["held"] = held
+def object_tracks(
+    animation: ma.Animation, viewer: meshcat.Visualizer, poses: np.ndarray, held: np.ndarray
+) -> None:
+    """Pose the object in every frame of ``animation`` at its frame's poses ``poses`` (K, 4, 4); its
+    visibility ``held`` (K,) set in the first frame and where it changes."""
+    frames = list(range(poses.shape[0]))
+    put_transforms(animation, viewer[OBJECT_NODE].path, frames, poses)
+    held = np.asarray(held, dtype=bool)
+    keys = [0, *(np.flatnonzero(held[1:] != held[:-1]) + 1).tolist()]
+    shape = viewer[f"{OBJECT_NODE}/shape"].path
+    put_property(animation, shape, "visible", "boolean", keys, [bool(held[k]) for k in keys])

@@ -14,9 +14,23 @@ import threading
 from collections.abc import Callable, Iterator
 from typing import Any
 
+import msgpack
 import umsgpack
 
-__all__ = ["SceneRecorder"]
+__all__ = ["SceneRecorder", "packb"]
+
+
+def _ext(value: object) -> msgpack.ExtType:
+    if isinstance(value, umsgpack.Ext):
+        return msgpack.ExtType(value.type, value.data)
+    raise TypeError(f"cannot pack {type(value).__name__}")
+
+
+def packb(data: Any) -> bytes:
+    """``data`` as meshcat's own packing (``umsgpack.packb``) gives it, byte for byte (its typed
+    arrays are ``umsgpack.Ext`` values), with the compiled ``msgpack`` (umsgpack is pure Python: the
+    packing of an animation was a large part of writing a preview)."""
+    return msgpack.packb(data, default=_ext, use_bin_type=True)
 
 
 class _Node(dict):
@@ -73,7 +87,7 @@ class SceneRecorder:
         """
         data = command.lower()
         kind = data["type"]
-        packed = umsgpack.packb(data)
+        packed = packb(data)
         path = [p for p in str(data.get("path", "")).split("/") if p]
         with self.lock:
             if kind == "set_object":
@@ -100,7 +114,7 @@ class SceneRecorder:
 
     def set_overlay(self, state: dict[str, Any]) -> None:
         """Record the HTML panel's state (JSON-serialisable) and forward it to the listener."""
-        packed = umsgpack.packb({"type": "ipromp_overlay", "state": state})
+        packed = packb({"type": "ipromp_overlay", "state": state})
         with self.lock:
             self.overlay = packed
             if self.listener is not None:

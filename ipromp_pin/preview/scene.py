@@ -37,15 +37,16 @@ from .body_scene import (
     COLOR_BODY,
     COLOR_BODY_ASSUMED,
     SEPARATION_COLORS,
-    body_frame,
+    body_tracks,
     draw_body,
     separation_panel,
 )
 from .content import PreviewContent
 from .meshes import simplify_visual_model, sphere_mesh, tube_mesh
-from .object_scene import COLOR_OBJECT, draw_object, object_frame, object_placements
+from .object_scene import COLOR_OBJECT, draw_object, object_placements, object_tracks
 from .recorder import SceneRecorder
 from .torques import torque_panel
+from .tracks import put_transforms
 
 __all__ = [
     "CAMERA_DIRECTION",
@@ -60,6 +61,7 @@ __all__ = [
     "COLOR_NEAR_LIMIT",
     "RobotView",
     "animation_times",
+    "scene_animation",
     "build_scene",
     "camera_view",
     "overlay_state",
@@ -288,42 +290,38 @@ def animation_times(end_s: float, fps: float) -> tuple[np.ndarray, float]:
 
 
 def _animate(viewer: meshcat.Visualizer, robot: RobotView, content: PreviewContent, fps: float) -> None:
-    """Meshcat animation of the robot (and of the hand marker) in real time at about ``fps`` frames/s.
-
-    One clock: the animation's time is the human's (the content's ``t_s``, ``hand_t_s``, body,
-    separation and torque tracks), from 0 to the page's last time (:attr:`PreviewContent.end_s`).
-    """
+    """Meshcat animation of the scene in real time at about ``fps`` frames/s (:func:`scene_animation`),
+    from 0 to the page's last time (:attr:`PreviewContent.end_s`)."""
     times, rate = animation_times(content.end_s, fps)
-    n_frames = times.size
-    qs = content.configurations(times)
-    frames = [robot.placements(q) for q in qs]
+    viewer.set_animation(scene_animation(viewer, robot, content, times, rate), play=True, repetitions=1)
+
+
+def scene_animation(
+    viewer: meshcat.Visualizer, robot: RobotView, content: PreviewContent, times: np.ndarray, rate: float
+) -> meshcat.animation.Animation:
+    """The animation of the robot's moving links, the hand marker, the body, the closest-pair rod and
+    the held object, frame ``k`` at the human's time ``times[k]`` [s] (one clock: the content's
+    ``t_s``, ``hand_t_s``, body, separation and torque tracks are the human's), ``rate`` frames/s.
+    Every node's frames are put at once (:mod:`.tracks`)."""
+    frames = list(range(times.size))
+    placements = np.array([robot.placements(q) for q in content.configurations(times)])  # (K, nodes, 4, 4)
     names = [
         robot.visualizer.getViewerNodeName(o, pin.GeometryType.VISUAL) for o in robot.geometry.geometryObjects
     ]
-    moving = [
-        i for i in range(len(names)) if any(not np.allclose(f[i], frames[0][i], atol=1e-9) for f in frames)
-    ]
+    still = np.isclose(placements, placements[:1], rtol=1e-5, atol=1e-9).all(axis=(0, 2, 3))
     animation = meshcat.animation.Animation(default_framerate=rate)
-    hand = None
+    for i in np.flatnonzero(~still):
+        put_transforms(animation, viewer[names[i]].path, frames, placements[:, i])
     if content.hand_path is not None and content.hand_t_s is not None:
         hand = np.stack([np.interp(times, content.hand_t_s, content.hand_path[:, d]) for d in range(3)], -1)
-    shown: dict[str, Any] = {}
-    shown_object: dict[str, Any] = {}
+        T = np.tile(np.eye(4), (times.size, 1, 1))
+        T[:, :3, 3] = hand
+        put_transforms(animation, viewer["human/hand"].path, frames, T)
+    body_tracks(animation, viewer, content.body, content.separation, times)
     obj = content.held_object
-    obj_poses = None if obj is None else object_placements(content, obj, times)
-    obj_held = None if obj is None else obj.held(times)
-    for k in range(n_frames):
-        with animation.at_frame(viewer, k) as frame:
-            for i in moving:
-                frame[names[i]].set_transform(frames[k][i])
-            if hand is not None:
-                T = np.eye(4)
-                T[:3, 3] = hand[k]
-                frame["human/hand"].set_transform(T)
-            body_frame(frame, content.body, content.separation, float(times[k]), shown, k == 0)
-            if obj_poses is not None and obj_held is not None:
-                object_frame(frame, obj_poses[k], bool(obj_held[k]), shown_object, k == 0)
-    viewer.set_animation(animation, play=True, repetitions=1)
+    if obj is not None:
+        object_tracks(animation, viewer, object_placements(content, obj, times), obj.held(times))
+    return animation
 
 
 def _draw_human(viewer: meshcat.Visualizer, content: PreviewContent) -> None:

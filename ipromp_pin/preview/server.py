@@ -28,12 +28,11 @@ import tornado.iostream
 import tornado.netutil
 import tornado.web
 import tornado.websocket
-import umsgpack
 
 from .content import FeasibilityCheck, PreviewContent, finite_array, preview_error
 from .meshes import DEFAULT_MAX_TRIANGLES
 from .page import live_page
-from .recorder import SceneRecorder
+from .recorder import SceneRecorder, packb
 from .scene import RobotView, build_scene, update_scene
 
 __all__ = ["LivePreview", "serve_preview"]
@@ -199,7 +198,7 @@ class LivePreview:
         for data in commands:
             if not self._send(socket, data):
                 return
-        if self._send(socket, umsgpack.packb({"type": "ipromp_synced", "count": len(commands)})):
+        if self._send(socket, packb({"type": "ipromp_synced", "count": len(commands)})):
             self._connected.set()
 
     def _send(self, socket: Any, data: bytes) -> bool:

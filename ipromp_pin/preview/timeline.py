@@ -37,15 +37,20 @@ import meshcat
 import meshcat.animation
 import meshcat.geometry as mg
 import numpy as np
-import pinocchio as pin
 
-from .body_scene import body_frame
 from .content import PreviewContent, finite_array, preview_error
 from .meshes import DEFAULT_MAX_TRIANGLES, sphere_mesh, tube_mesh
-from .object_scene import object_frame, object_placements
 from .page import recorded_page
 from .recorder import SceneRecorder
-from .scene import COLOR_HAND_OBSERVED, COLOR_HANDOVER, RobotView, animation_times, build_scene, overlay_state
+from .scene import (
+    COLOR_HAND_OBSERVED,
+    COLOR_HANDOVER,
+    RobotView,
+    animation_times,
+    build_scene,
+    overlay_state,
+    scene_animation,
+)
 
 __all__ = ["TimelineEvent", "render_timeline_html", "timeline_end_s", "write_timeline_html"]
 
@@ -160,38 +165,14 @@ def _timeline_scene(
             trail_t.append(float(content.hand_t_s[b]))
 
     times, rate = animation_times(timeline_end_s(content, events), fps)
-    frames = [robot.placements(q) for q in content.configurations(times)]
-    names = [
-        robot.visualizer.getViewerNodeName(o, pin.GeometryType.VISUAL) for o in robot.geometry.geometryObjects
-    ]
-    moving = [
-        i for i in range(len(names)) if any(not np.allclose(f[i], frames[0][i], atol=1e-9) for f in frames)
-    ]
-    hand = None
-    if content.hand_path is not None and content.hand_t_s is not None:
-        hand = np.stack([np.interp(times, content.hand_t_s, content.hand_path[:, d]) for d in range(3)], -1)
     event_t = np.array([e.t_s for e in events])
     plan_t = event_t[plans] if plans else np.zeros(0)
     point_t = event_t[points] if points else np.zeros(0)
-    animation = meshcat.animation.Animation(default_framerate=rate)
+    animation = scene_animation(viewer, robot, content, times, rate)
     shown_plan, shown_point = -2, -2
     shown_trail = 0
-    shown_body: dict = {}
-    shown_object: dict = {}
-    obj = content.held_object
-    obj_poses = None if obj is None else object_placements(content, obj, times)
-    obj_held = None if obj is None else obj.held(times)
     for f, t in enumerate(times):
         with animation.at_frame(viewer, f) as frame:
-            for i in moving:
-                frame[names[i]].set_transform(frames[f][i])
-            body_frame(frame, content.body, content.separation, float(t), shown_body, f == 0)
-            if obj_poses is not None and obj_held is not None:
-                object_frame(frame, obj_poses[f], bool(obj_held[f]), shown_object, f == 0)
-            if hand is not None:
-                T = np.eye(4)
-                T[:3, 3] = hand[f]
-                frame["human/hand"].set_transform(T)
             k_plan = int(np.searchsorted(plan_t, t + 1e-9)) - 1
             if k_plan != shown_plan or f == 0:
                 for k in range(len(plans)):

@@ -10,4 +10,9 @@
   profile files).
 
 The package knows joints, times and limits; it imports the robot model only for its limits.
+Importing it defers toppra's import of ``matplotlib.pyplot`` (:mod:`.deferred`).
 """
+
+from .deferred import defer_pyplot
+
+defer_pyplot()

@@ -258,12 +258,7 @@ def time_path(
     timings["clean_ms"] = (t1 - t0) * 1e3
 
     head = limits.scaled(toppra_headroom, toppra_headroom)
-    t_grid, sd, sdd = toppra_profile(spline, s_grid, head, torque, toppra_headroom)
-    if sd_cap is not None:
-        cap = np.asarray(sd_cap(s_grid), dtype=float)
-        if np.any(cap < sd):
-            cap = ramped_cap(s_grid, cap, CAP_RAMP * float(np.abs(sdd).max()))
-            t_grid, sd, sdd = toppra_profile(spline, s_grid, head, torque, toppra_headroom, cap)
+    t_grid, sd, sdd = _capped_profile(spline, s_grid, head, torque, toppra_headroom, sd_cap)
     t2 = time.perf_counter()
     timings["toppra_ms"] = (t2 - t1) * 1e3
 
@@ -277,36 +272,45 @@ def time_path(
     q[-1], qd[-1], qdd[-1] = pts[-1], 0.0, 0.0
     q = np.clip(q, limits.lower_rad, limits.upper_rad)
 
+    q_ref_path = q_in
     if not (np.allclose(q_start, pts[0], atol=1e-9) and not qd_start.any() and not qdd_start.any()):
-        pq, pqd, pqdd, pqddd = ruckig_to_rest(q_start, qd_start, qdd_start, pts[0], limits, dt)
-        q = np.vstack([pq, q[1:]])
-        qd = np.vstack([pqd, qd[1:]])
-        qdd = np.vstack([pqdd, qdd[1:]])
-        qddd = np.vstack([pqddd, qddd[1:]])
-        blend = np.full(pq.shape[0] - 1, np.nan)
-        path_s, path_sd = np.concatenate([blend, path_s]), np.concatenate([blend, path_sd])
+        blend = ruckig_to_rest(q_start, qd_start, qdd_start, pts[0], limits, dt)
+        q, qd, qdd, qddd = (np.vstack([b, x[1:]]) for b, x in zip(blend, (q, qd, qdd, qddd), strict=True))
+        off = np.full(blend[0].shape[0] - 1, np.nan)  # blending in: not on the path yet
+        path_s, path_sd = np.concatenate([off, path_s]), np.concatenate([off, path_sd])
         q_ref_path = np.vstack([q_start[None], q_in])
-    else:
-        q_ref_path = q_in
-    profile_sd = np.interp(path_s, s_grid, sd)  # NaN stays NaN
     traj = Trajectory(start_s + np.arange(q.shape[0]) * dt, q, qd, qdd, tuple(limits.joint_names), qddd)
     t4 = time.perf_counter()
     timings["sampling_ms"] = (t4 - t3) * 1e3
     report = verify_trajectory(
-        traj,
-        limits,
-        q_ref_path,
-        toppra_duration_s=float(t_grid[-1]),
-        n_path_points=int(pts.shape[0]),
-        time_scale=k,
-        timings_ms=timings,
-        rate_hz=float(rate_hz),
-    )
+        traj, limits, q_ref_path, toppra_duration_s=float(t_grid[-1]), n_path_points=int(pts.shape[0]),
+        time_scale=k, rate_hz=float(rate_hz),
+    )  # fmt: skip
     timings["verify_ms"] = (time.perf_counter() - t4) * 1e3
     timings["total_ms"] = (time.perf_counter() - t0) * 1e3
     report.timings_ms = timings
-    report.path_s, report.path_sd, report.profile_sd = path_s, path_sd, profile_sd
+    report.path_s, report.path_sd = path_s, path_sd
+    report.profile_sd = np.interp(path_s, s_grid, sd)  # NaN stays NaN
     return traj, report
+
+
+def _capped_profile(
+    spline: CubicSpline,
+    s_grid: np.ndarray,
+    head: JointLimits,
+    torque: TorqueLimit | None,
+    headroom: float,
+    sd_cap: Callable[[np.ndarray], np.ndarray] | None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Step 2 of :func:`time_path`: the time-optimal profile, under the path velocity cap where it
+    binds (entered and left gently: :func:`ramped_cap`)."""
+    t_grid, sd, sdd = toppra_profile(spline, s_grid, head, torque, headroom)
+    if sd_cap is not None:
+        cap = np.asarray(sd_cap(s_grid), dtype=float)
+        if np.any(cap < sd):
+            cap = ramped_cap(s_grid, cap, CAP_RAMP * float(np.abs(sdd).max()))
+            t_grid, sd, sdd = toppra_profile(spline, s_grid, head, torque, headroom, cap)
+    return t_grid, sd, sdd
 
 
 def ramped_cap(s_grid: np.ndarray, cap: np.ndarray, accel: float) -> np.ndarray:

@@ -226,12 +226,16 @@ def plan(
         f"[timing] {trajectory.duration_s:.2f} s at {control_rate_hz:g} Hz, {trajectory.n_samples} samples, "
         f"from t = {start_s:.2f} s"
     )
-    if result.slowdown > 1.0:
-        if result.slowdown_local:
-            say(
-                f"[timing] slowed where the checks ask (duration {result.slowdown:.2f}x): "
-                f"{result.slowdown_delay_s:+.2f} s"
-            )
-        else:
-            say(f"[timing] slowed {result.slowdown:.2f}x for the checks: {result.slowdown_delay_s:+.2f} s")
+    if result.slowdown != 1.0:
+        say(_slowdown_line(result))
     return result
+
+
+def _slowdown_line(result: PlanResult) -> str:
+    """The log line of a plan re-timed for its checks."""
+    if result.slowdown_local:
+        return (
+            f"[timing] slowed where the checks ask (duration {result.slowdown:.2f}x): "
+            f"{result.slowdown_delay_s:+.2f} s"
+        )
+    return f"[timing] slowed {result.slowdown:.2f}x for the checks: {result.slowdown_delay_s:+.2f} s"

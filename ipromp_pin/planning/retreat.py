@@ -40,7 +40,7 @@ from ..robot.objects import TaskObject
 from ..robot.retreat_target import RetreatTarget
 from ..safety import CheckContext, CheckReport, CheckSuite, Timed, Timer
 from .one_shot import LogFn, PlanResult
-from .timers import path_timer
+from .timers import PathTimer, path_timer
 
 PATH_SPACING_RAD = 0.02
 """Joint-space spacing [rad] of the points of the straight retreat path handed to the timing."""
@@ -207,12 +207,26 @@ def retreat_timer(
 
         return still
     inner = path_timer(path, limits, suite.timing_constraints(context), rate_hz, dwell.end_s, say, "retreat")
+    return DwellThenPath(dwell, inner)
 
-    def timer(k: float) -> Timed:
-        timed = inner(k)
-        return Timed(dwell.then(timed.motion), timed.report, timed.scale, timed.path)
 
-    return timer
+class DwellThenPath:
+    """A :class:`~ipromp_pin.safety.retime.LocalTimer` of a dwell at rest followed by a path timer's
+    motion: slowing (uniformly or locally) slows the path only."""
+
+    def __init__(self, dwell: Trajectory, inner: PathTimer) -> None:
+        self.dwell, self.inner = dwell, inner
+
+    def __call__(self, k: float) -> Timed:
+        return self._after_dwell(self.inner(k))
+
+    def locally(self, timed: Timed, need: np.ndarray) -> Timed:
+        """The path slowed where ``need`` (per sample of ``timed``, the dwell's first) asks (``timed``'s
+        report is its path's)."""
+        return self._after_dwell(self.inner.locally(timed, need[self.dwell.n_samples - 1 :]))
+
+    def _after_dwell(self, timed: Timed) -> Timed:
+        return Timed(self.dwell.then(timed.motion), timed.report, timed.scale, timed.path)
 
 
 def plan_retreat(

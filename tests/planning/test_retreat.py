@@ -253,3 +253,40 @@ def test_a_bad_retreat_config_exits_2_before_any_computation(tmp_path, tiny, cap
     line = one_error_line(capsys.readouterr().err)
     assert str(objects) in line and "rod.retreat.joints_rad" in line and "has 2 angles" in line
     assert not (tmp_path / "out").exists()
+
+
+class _SlowNearHandover(Check):
+    """A toy check: joint speeds at most ``bound`` [rad/s] within 0.3 rad of the hand-over (the retreat's
+    first part), asking for the slow-down each sample needs there."""
+
+    name = "slow_near"
+
+    def __init__(self, robot, bound: float) -> None:
+        super().__init__(robot)
+        self.bound = bound
+
+    def near(self, motion: Trajectory) -> np.ndarray:
+        return np.linalg.norm(motion.q - Q_HANDOVER, axis=1) < 0.3
+
+    def check(self, motion: Trajectory, context: CheckContext) -> Verdict:
+        speed = np.where(self.near(motion), np.max(np.abs(motion.qd), axis=1), 0.0)
+        if speed.max() <= self.bound:
+            return Verdict(self.name, "pass", "slow enough")
+        need = np.maximum(speed / self.bound, 1.0)
+        return Verdict(self.name, "fail", "too fast", slowdown=float(need.max()), local_slowdown=need)
+
+
+def test_the_retreat_is_slowed_only_where_a_check_asks_after_its_dwell(robot, approach):
+    target = RetreatTarget("start", dwell_s=0.5)
+    free = plan_retreat(robot, approach, target, CheckSuite([]), CheckContext()).trajectory
+    check = _SlowNearHandover(robot, 1.0)
+    peak = float(np.abs(free.qd[check.near(free)]).max())
+    check.bound = 0.5 * peak
+    r = plan_retreat(robot, approach, target, CheckSuite([check]), CheckContext())
+    tr = r.trajectory
+    assert r.passed and np.abs(tr.qd[check.near(tr)]).max() <= 0.5 * peak
+    dwell = tr.t_s - r.start_s <= 0.5 + 1e-9
+    assert np.count_nonzero(dwell) == 51 and not tr.qd[dwell].any()  # the dwell is kept as it was
+    np.testing.assert_allclose(tr.q[-1], free.q[-1], atol=1e-9)
+    # slowed near the hand-over only: in less time than twice the motion (a uniform 2x slow-down)
+    assert free.duration_s < tr.duration_s < 0.5 + 2.0 * (free.duration_s - 0.5) - 0.05

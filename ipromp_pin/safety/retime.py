@@ -10,7 +10,7 @@ the checks' first-order estimates), at most :data:`MAX_SLOWDOWN_ROUNDS` times an
 (slowest) motion tried is returned with its verdicts, refused: it says how far slowing went and what
 still fails.
 
-A :class:`LocalTimer` (the one-shot plan's path timer) is first slowed only where the checks ask:
+A :class:`LocalTimer` (the one-shot plan's and the retreat's) is first slowed only where the checks ask:
 when every failing required check says which samples need how much slow-down
 (:attr:`~.verdict.Verdict.local_slowdown`, e.g. ``contact_speed`` where the arm approaches a body part
 too fast), the path velocity is capped there and nowhere else, again at most

@@ -121,12 +121,14 @@ def run(
     from ..outputs.rosbag import check_bag_paths
     from ..plans.files import write_plan
     from ..plans.warnings import warn_stderr
+    from ..promp.compiled import INFERENCE, prefer_backend
     from .session import check_outputs, plan_session, prepare_session
 
     check_outputs(cfg)
     check_bag_paths(cfg.out_dir)  # never replace or remove a user's own file named rosbag / run.bag
     say = warn or warn_stderr
     session = prepare_session(cfg, log, say, prefetch_meshes=cfg.preview_html, strict_human=strict_human)
+    prefer_backend(INFERENCE, "numpy")  # one prediction left (a model just trained has decided already)
     planned = plan_session(session, log)
     for w in planned.warnings:
         if w not in session.warnings:

@@ -48,6 +48,7 @@ __all__ = [
     "kernels",
     "kernels_cached",
     "numba_kernels",
+    "prefer_backend",
     "register_kernel_set",
     "set_announcer",
     "set_kernel_backend",
@@ -185,6 +186,17 @@ def active_backend(name: str = INFERENCE) -> str:
     (deciding ``"auto"`` now if the set was not used yet)."""
     backend = _state["backend"]
     return backend if backend != "auto" else _state["auto"].get(name) or _decide(name)
+
+
+def prefer_backend(name: str, backend: str) -> str:
+    """For a process that calls set ``name`` only a few times more (e.g. ``run``: one prediction from
+    a model it did not train): under ``"auto"``, take ``backend`` for the set if it was not used yet
+    (loading compiled kernels costs more than a few numpy calls). Returns the set's backend."""
+    if backend not in ("numba", "numpy"):
+        raise ValueError(f"unknown kernel backend {backend!r} (use numba or numpy)")
+    if _state["backend"] == "auto" and name not in _state["auto"]:
+        _state["auto"][name] = backend
+    return active_backend(name)
 
 
 def numba_kernels(name: str = INFERENCE) -> ModuleType:

@@ -179,3 +179,16 @@ def test_the_summary_kernels_block_bounds_skip_no_pair_that_matters():
     nc = int(np.argmin(clear))
     assert nc == int(np.argmin(every[0])) and clear[nc] == pytest.approx(every[0][nc], rel=1e-12)
     assert np.all(clear >= every[0] - 1e-12)  # elsewhere at least the true clearance
+
+
+def test_a_preferred_backend_holds_only_for_an_undecided_set_under_auto():
+    from ipromp_pin.promp import compiled
+
+    with use_kernels("auto"):
+        assert compiled.prefer_backend("inference", "numpy") == "numpy"
+        assert compiled.kernels().__name__ == "ipromp_pin.promp.numpy_kernels"
+        assert compiled.prefer_backend("inference", "numba") == "numpy"  # decided: kept for the process
+    with use_kernels("numba"):
+        assert compiled.prefer_backend("inference", "numpy") == "numba"  # not auto: the backend holds
+    with pytest.raises(ValueError, match="unknown kernel backend"):
+        compiled.prefer_backend("inference", "auto")

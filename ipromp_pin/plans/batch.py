@@ -123,7 +123,7 @@ class PlannedRecording:
     novelty_p_value: float | None = None
     failures: list[str] = field(default_factory=list)
     observed_until_s: float | None = None
-    arrival: dict[str, float] | None = None
+    arrival: dict[str, float | bool] | None = None
     handover_error_cm: float | None = None
     warnings: list[str] = field(default_factory=list)
     error: str | None = None

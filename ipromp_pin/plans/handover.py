@@ -31,6 +31,7 @@ from ..evaluation.scoring import RecordedScores, recorded_scores
 from ..human import HumanMotion
 from ..human.fit import Registration, registered, registration_of
 from ..motion.trajectory import Trajectory
+from ..outputs.report import arrival
 from ..planning.one_shot import PlanResult, check_model_joints
 from ..planning.one_shot import plan as plan_one_shot
 from ..planning.retreat import RetreatResult, plan_retreat
@@ -110,17 +111,11 @@ class HandoverPlan:
         return self.approach.failures + later
 
     @property
-    def arrival(self) -> dict[str, float]:
-        """When the human (predicted) and the robot reach the hand-over, in [s] on the human's clock:
-        ``human_s``, ``robot_start_s``, ``robot_s`` and ``delay_s`` (robot minus human)."""
-        p = self.approach.prediction
-        tr = self.approach.trajectory
-        return {
-            "human_s": float(p.duration_s),
-            "robot_start_s": tr.start_s,
-            "robot_s": tr.end_s,
-            "delay_s": tr.end_s - float(p.duration_s),
-        }
+    def arrival(self) -> dict[str, float | bool]:
+        """When the human (predicted) and the robot reach the hand-over, in [s] on the human's clock,
+        and how much the checks' slow-down made of it (``report.json``'s ``arrival``:
+        :func:`~ipromp_pin.outputs.report.arrival`)."""
+        return arrival(self.approach)
 
     def scored(self, recording: Demo) -> HandoverPlan:
         """This plan with its scores against ``recording``, the whole recording it was planned from

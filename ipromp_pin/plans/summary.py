@@ -37,6 +37,7 @@ CSV_COLUMNS = (
     "robot_start_s",
     "robot_s",
     "delay_s",
+    "slowdown",
     "handover_error_cm",
     "out_dir",
     "report",

@@ -166,6 +166,7 @@ def motion_plot(
     events: Sequence[tuple[float, str]] = (),
     ticks_s: np.ndarray | None = None,
     title: str = "",
+    labels: Sequence[str] = ("approach", "retreat"),
 ) -> Path:
     """``motion`` (then the ``later`` segments) against ``limits`` (the checks'; None: the robot's own,
     :meth:`JointLimits.from_robot`) and the URDF position limits, drawn into ``path``."""
@@ -183,6 +184,7 @@ def motion_plot(
         joint_names=series.joint_names,
         events=events,
         ticks_s=ticks_s,
+        segment_labels=labels,
         title=title
         or "the timed trajectory"
         + (" and its retreat" if later else "")

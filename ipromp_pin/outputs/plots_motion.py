@@ -47,6 +47,7 @@ def plot_joint_motion(
     joint_names: Sequence[str] | None = None,
     events: Sequence[tuple[float, str]] = (),
     ticks_s: np.ndarray | None = None,
+    segment_labels: Sequence[str] = ("approach", "retreat"),
     title: str = "",
     figsize: tuple[float, float] = (20.0, 10.0),
     dpi: int = 90,
@@ -64,6 +65,7 @@ def plot_joint_motion(
         path: PNG file to write.
         position_bounds: (lower, upper), each (J,), the URDF position limits (red solid), when known.
         segment: (N,) segment of every sample (0: approach, 1: retreat, drawn in another colour).
+        segment_labels: The legend's name of each segment.
         joint_names: (J,) joint names (column titles).
         events: (t [s], label) marked with a vertical line in every panel.
         ticks_s: Times [s] marked with short ticks at the bottom of every panel (the re-plans).
@@ -89,7 +91,7 @@ def plot_joint_motion(
     for r, (x, (quantity, unit)) in enumerate(zip(series, rows, strict=False)):
         for c in range(j):
             ax = grid[r, c]
-            _segments(ax, t_s, x[:, c], seg, (r, c) == (0, 0))
+            _segments(ax, t_s, x[:, c], seg, segment_labels if (r, c) == (0, 0) else ())
             if r == 0:
                 _position_limits(ax, x[:, c], lower[c], upper[c], position_bounds, c)
                 ax.set_title(names[c], fontsize=9)
@@ -111,11 +113,12 @@ def plot_joint_motion(
     return save_png(fig, path, dpi)
 
 
-def _segments(ax: Axes, t_s: np.ndarray, x: np.ndarray, seg: np.ndarray, first: bool) -> None:
-    """``x`` (N,) over ``t_s`` (N,), each segment of ``seg`` (0: approach, 1: retreat) in its colour."""
+def _segments(ax: Axes, t_s: np.ndarray, x: np.ndarray, seg: np.ndarray, labels: Sequence[str]) -> None:
+    """``x`` (N,) over ``t_s`` (N,), each segment of ``seg`` in its colour (named ``labels[k]``; none
+    when ``labels`` is empty)."""
     for k in np.unique(seg):
         on = seg == k
-        label = ("approach", "retreat")[min(int(k), 1)] if first else None
+        label = labels[int(k)] if int(k) < len(labels) else None
         ax.plot(t_s[on], x[on], color=f"C{int(k)}", lw=1.2, label=label)
 
 

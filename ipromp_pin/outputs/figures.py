@@ -141,7 +141,7 @@ def robot_plots(
         held = ""
         if track.held.any():
             on = track.t_s[track.held]
-            held = f"; shaded: holding {track.payload} ({on[0]:.2f}-{on[-1]:.2f} s)"
+            held = f"; shaded: holding {track.payload}, {on[0]:.2f}-{on[-1]:.2f} s"
         files["plot_torques"] = plots.plot_torques(
             track.t_s,
             track.ratio * track.limit_nm,
@@ -151,8 +151,8 @@ def robot_plots(
             held=track.held,
             joint_names=list(track.joint_names),
             events=events,
-            title="|joint torque| of the timed trajectory" + (" and its retreat" if later else "")
-            + " (t = 0 at the start of the human's motion)" + held,
+            title="|joint torque|" + (", approach and retreat" if later else "")
+            + " (t = 0: the human starts)" + held,
         )  # fmt: skip
     return files
 

@@ -332,7 +332,8 @@ def plot_accuracy(
     dpi: int = 100,
 ) -> Path:
     """Recognition accuracy per cell (training-set size, observed ratio) as grouped bars, with error
-    bars of the spread over the random splits where the records have one (:class:`AccuracyBars`).
+    bars of the spread over the random splits where the records have one (:class:`AccuracyBars`;
+    clipped to accuracies in [0, 1]).
 
     One bar per ``observe`` setting (e.g. ``"orientation"`` vs ``"orientation,emg"``), averaged
     over the tasks of the records; the legend beside the axes.
@@ -354,17 +355,20 @@ def plot_accuracy(
         hatch = None if "emg" in setting else "//"
         ax.bar(pos, mean, width, color=f"C{k}", hatch=hatch, edgecolor="white", label=setting)
         if np.isfinite(spread).any():
-            ax.errorbar(pos, mean, yerr=np.where(np.isfinite(spread), spread, 0.0), fmt="none",
-                        ecolor="0.15", elinewidth=1.0, capsize=3)  # fmt: skip
+            sd = np.where(np.isfinite(spread), spread, 0.0)  # clipped to accuracies in [0, 1]
+            yerr = np.vstack([np.minimum(sd, mean), np.minimum(sd, 1.0 - mean)])
+            ax.errorbar(pos, mean, yerr=yerr, fmt="none", ecolor="0.15", elinewidth=1.0, capsize=3)
         for xi, value, sd in zip(pos, mean, spread, strict=True):
             if np.isfinite(value):
-                top = value + (sd if np.isfinite(sd) else 0.0)
+                top = min(value + (sd if np.isfinite(sd) else 0.0), 1.0)
                 ax.annotate(f"{value:.2f}", (xi, top), textcoords="offset points", xytext=(0, 2),
                             ha="center", fontsize=7, color=f"C{k}")  # fmt: skip
     ax.set_xticks(x, [f"{n} train / task\n{ratio:.0%} observed" for n, ratio in bars.cells])
     ylabel = "accuracy (mean over tasks)"
     if bars.n_splits:
-        ylabel += f"\nerror bars: +- mean over tasks of\nthe std over {bars.n_splits} random splits"
+        ylabel += (
+            f"\nerror bars: ± mean over tasks of the std\nover {bars.n_splits} random splits (within [0, 1])"
+        )
     ax.set_ylabel(ylabel, fontsize=8)
     ax.set_ylim(0.0, 1.15)
     ax.grid(axis="y", alpha=0.3)

@@ -131,7 +131,7 @@ def test_accuracy_bars_have_the_spread_over_splits_and_the_legend_beside(tmp_pat
         (segments,) = container.lines[2]
         heights = [seg[1, 1] - seg[0, 1] for seg in segments.get_segments()]
         np.testing.assert_allclose(heights, 2 * spread)
-    assert "std over 5 random splits" in ax.get_ylabel()
+    assert "the std\nover 5 random splits" in ax.get_ylabel()
     legend = ax.get_legend()
     assert legend.get_bbox_to_anchor().x0 > ax.get_window_extent().x1  # beside the axes, over no bar
     # the paper's protocol has no splits: no error bars, and the label says none
@@ -139,5 +139,12 @@ def test_accuracy_bars_have_the_spread_over_splits_and_the_legend_beside(tmp_pat
     ax = figures[1].axes[0]
     assert not [c for c in ax.containers if isinstance(c, ErrorbarContainer)]
     assert "split" not in ax.get_ylabel()
+    # an accuracy of 1 has no error above it (the bar stays within [0, 1])
+    perfect = [{**r, "accuracy": 1.0} for r in _records(5)]
+    plots.plot_accuracy(perfect, tmp_path / "c.png")
+    container = next(c for c in figures[2].axes[0].containers if isinstance(c, ErrorbarContainer))
+    (segments,) = container.lines[2]
+    ((low, high),) = [seg[:, 1] for seg in segments.get_segments()]
+    assert high == pytest.approx(1.0) and low == pytest.approx(1.0 - 0.075)
     with pytest.raises(DataError, match="accuracy_std"):
         plots.accuracy_bars([{**_records(5)[0], "accuracy_std": -0.1}])

@@ -13,7 +13,9 @@ and writes into the output folder, together:
 - ``report.json`` / ``report.txt``: the hand-over error, arrival delay, limit profile and its source,
   limit ratios, torques, the human measures, re-plan counts and cycle times;
 - ``limits.toml``: the limit profile used (reusable with ``--limits limits.toml``);
-- ``preview.html``: the time-scrubbing preview (:mod:`ipromp_pin.preview.timeline`).
+- ``preview.html``: the time-scrubbing preview (:mod:`ipromp_pin.preview.timeline`);
+- ``rosbag/`` (unless ``--no-rosbag``): the commanded trajectory as ``run``'s bag holds a plan, and
+  with ``--plots`` ``motion.png`` and ``separation.png`` (:mod:`ipromp_pin.outputs.replay_files`).
 
 Every input is checked before anything is computed (one-line errors naming the file and field).
 The modules that compute are imported when it runs, so that ``--help`` answers at once.
@@ -43,6 +45,7 @@ if TYPE_CHECKING:
     from ..data import Demo
     from ..evaluation.scoring import ClosedLoopScore
     from ..human import HumanMotion
+    from ..outputs.replay_files import ReplayExtras
     from ..planning.closed_loop import ClosedLoopResult, ClosedLoopSettings
     from ..planning.one_shot import LogFn
     from ..safety import CheckReport
@@ -97,6 +100,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     )
     add_closed_loop_options(p)
     p.add_argument("--no-preview", action="store_true", help="do not write preview.html")
+    add_replay_outputs(p)
     p.add_argument(
         "--allow-failing-checks",
         action="store_true",
@@ -105,6 +109,24 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     )
     add_strict_human(p)
     p.set_defaults(func=main)
+
+
+def add_replay_outputs(p: argparse.ArgumentParser) -> None:
+    """``replay``'s ``--plots`` and ``--no-rosbag`` (as ``run`` has them)."""
+    p.add_argument(
+        "--plots",
+        action="store_true",
+        help="also write PNG figures: motion.png (the commanded motion against its limits, the re-plans "
+        "marked) and, with a tracked human, separation.png",
+    )
+    p.add_argument("--no-rosbag", action="store_true", help="do not write the rosbag2 folder rosbag/ (MCAP)")
+
+
+def replay_extras(cfg: PipelineConfig) -> ReplayExtras:
+    """The optional files of a replay of ``cfg`` (its ``rosbag``, ``ros1_bag`` and ``plots``)."""
+    from ..outputs.replay_files import ReplayExtras
+
+    return ReplayExtras(rosbag=cfg.rosbag, ros1_bag=cfg.ros1_bag, plots=cfg.plots)
 
 
 def start_fraction() -> str:
@@ -170,10 +192,12 @@ def run_replay(
     from .. import atomic
     from ..outputs.files import ALL_OUTPUTS, keyed
     from ..outputs.replay_report import replay_checks, replay_passed, summary_lines
+    from ..outputs.rosbag import check_bag_paths
     from ..plans.warnings import warn_stderr
     from ..safety import CheckContext
     from .session import prepare_replay, recorded_human
 
+    check_bag_paths(cfg.out_dir)  # never replace or remove a user's own file named rosbag / run.bag
     setup = prepare_replay(cfg, settings, limits, log, warn or warn_stderr, strict_human)
     session = setup.session
     demo = session.demo
@@ -185,7 +209,10 @@ def run_replay(
     recorded = recorded_human(session)
     judged = replay_checks(result.trajectory, session.suite, demo.task, truth.objects, recorded)
     with atomic.OutputSet(cfg.out_dir, managed=ALL_OUTPUTS) as out:  # one command's files only
-        _stage_files(out, session, result, score, judged, recorded, allow_failing_checks, preview, log)
+        _stage_files(
+            out, session, result, score, judged, recorded, allow_failing_checks, preview, log,
+            replay_extras(cfg),
+        )  # fmt: skip
         files = keyed(out.commit())
     log(summary_lines(demo, result, score, time.perf_counter() - t_start))
     return ReplayOutcome(demo, result, score, files, replay_passed(score))
@@ -201,20 +228,32 @@ def _stage_files(
     allow_failing_checks: bool,
     preview: bool,
     log: LogFn,
+    extras: ReplayExtras | None = None,
 ) -> None:
     """Stage the replay's files: the trajectory (:func:`~ipromp_pin.outputs.staging.stage_trajectory`),
     ``replans.json``, ``limits.toml``, ``preview.html`` and, last, the reports; ``judged``: the
     commanded motion's verdicts after the fact (the report's ``checks``, the preview's), ``recorded``:
-    the recorded human they judged (None: no tracked skeleton)."""
+    the recorded human they judged (None: no tracked skeleton); ``extras``: the bags and figures
+    (:mod:`ipromp_pin.outputs.replay_files`; None: the bags as ``run`` writes them, no figures)."""
     from ..outputs.preview_content import replay_preview_html
+    from ..outputs.replay_files import ReplayExtras, replay_bag, stage_replay_plots
     from ..outputs.replay_report import replans_text, replay_failures, report_dict, report_text
     from ..outputs.staging import stage_report, stage_trajectory
     from ..preview.mesh_cache import preview_visual_model
 
     demo = session.demo
+    more = extras if extras is not None else ReplayExtras()
     stage_trajectory(
-        out, result.trajectory, replay_failures(score), allow_failing_checks=allow_failing_checks
+        out,
+        result.trajectory,
+        replay_failures(score),
+        allow_failing_checks=allow_failing_checks,
+        bag=replay_bag(result, demo, session.robot) if more.rosbag or more.ros1_bag else None,
+        rosbag=more.rosbag,
+        ros1_bag=more.ros1_bag,
     )
+    if more.plots:
+        stage_replay_plots(out, session.robot, result, judged, recorded)
     out.write_text("replans.json", replans_text(result, demo))
     out.write_text("limits.toml", result.profile.to_toml())
     if preview:

@@ -51,7 +51,7 @@ OUTPUT_FILES: tuple[OutputFile, ...] = (
     _row("trajectory.csv", "trajectory_csv", True, RUN, REPLAY, PLAN),
     _row("trajectory.json", "trajectory_json", True, RUN, REPLAY, PLAN),
     _row("retreat.csv", "retreat_csv", True, RUN, PLAN),
-    _row("rosbag", "rosbag", True, RUN, PLAN),
+    _row("rosbag", "rosbag", True, RUN, REPLAY, PLAN),
     _row("run.bag", "ros1_bag", True, RUN, PLAN),
     _row("replans.json", "replans", False, REPLAY),
     _row("report.json", "report", False, RUN, REPLAY, PLAN),
@@ -62,6 +62,8 @@ OUTPUT_FILES: tuple[OutputFile, ...] = (
     _row("phase_posterior.png", "plot_phase", False, RUN),
     _row("distributions.png", "plot_distributions", False, RUN),
     _row("torques.png", "plot_torques", False, RUN),
+    _row("motion.png", "plot_motion", False, RUN, REPLAY),
+    _row("separation.png", "plot_separation", False, RUN, REPLAY),
 )
 """Every output file of the commands, in the order the reports list them."""
 

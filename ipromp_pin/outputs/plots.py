@@ -12,88 +12,31 @@ does not select one).
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-from matplotlib.axes import Axes
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
 
-from .. import atomic
-from ..exceptions import DataError
+from .plot_canvas import as_array as _array
+from .plot_canvas import dim_names as _names
+from .plot_canvas import legend_entries as _legend_entries
+from .plot_canvas import mark_times as _mark_times
+from .plot_canvas import one_panel as _axes
+from .plot_canvas import panel_grid as _panels
+from .plot_canvas import plot_error as _err
+from .plot_canvas import save_png as _save
 
 __all__ = [
+    "AccuracyBars",
+    "accuracy_bars",
+    "held_spans",
     "plot_accuracy",
     "plot_distributions",
     "plot_phase_posterior",
     "plot_prediction",
     "plot_torques",
 ]
-
-_SOURCE = "plots"
-
-
-def _err(field_name: str, problem: str) -> DataError:
-    return DataError(_SOURCE, field_name, problem)
-
-
-def _array(value: Any, name: str, ndim: int) -> np.ndarray:
-    try:
-        arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise _err(name, f"not a numeric array ({exc})") from exc
-    if arr.ndim != ndim:
-        raise _err(name, f"expected {ndim} dimensions, got shape {arr.shape}")
-    if arr.size == 0:
-        raise _err(name, "is empty")
-    return arr
-
-
-def _names(names: Sequence[str] | None, n: int, name: str, prefix: str) -> list[str]:
-    if names is None:
-        return [f"{prefix}{i}" for i in range(n)]
-    names = [str(x) for x in names]
-    if len(names) != n:
-        raise _err(name, f"has {len(names)} names for {n} dimensions")
-    return names
-
-
-def _figure(figsize: tuple[float, float]) -> Figure:
-    """An empty figure of ``figsize`` in inches with a constrained layout, drawn by an Agg canvas."""
-    fig = Figure(figsize=figsize, layout="constrained")
-    FigureCanvasAgg(fig)
-    return fig
-
-
-def _axes(figsize: tuple[float, float]) -> tuple[Figure, Axes]:
-    """A figure with one panel."""
-    fig = _figure(figsize)
-    return fig, fig.subplots()
-
-
-def _panels(n: int, figsize: tuple[float, float], max_cols: int = 4) -> tuple[Figure, list[Axes], int]:
-    """A figure with ``n`` panels on a grid of at most ``max_cols`` columns (unused cells hidden).
-
-    Returns:
-        The figure, its ``n`` axes and the number of columns (panel ``i`` has none below it when
-        ``i + cols >= n``).
-    """
-    cols = min(n, max_cols)
-    rows = int(np.ceil(n / cols))
-    fig = _figure(figsize)
-    grid = fig.subplots(rows, cols, squeeze=False)
-    for ax in grid.flat[n:]:
-        ax.set_visible(False)
-    return fig, list(grid.flat[:n]), cols
-
-
-def _save(fig: Figure, path: str | Path, dpi: int) -> Path:
-    """Save ``fig`` as PNG, atomically (a temporary file renamed into place)."""
-    path = Path(path)
-    with atomic.replacing(path) as tmp:
-        fig.savefig(tmp, format="png", dpi=dpi)
-    return path
 
 
 def plot_distributions(
@@ -317,6 +260,69 @@ def plot_phase_posterior(
     return _save(fig, path, dpi)
 
 
+@dataclass(frozen=True)
+class AccuracyBars:
+    """The bars of :func:`plot_accuracy`: one group per cell, one bar per observed set.
+
+    Attributes:
+        cells: (C,) (training demos per task, observed ratio) of the groups.
+        settings: (S,) the observed sets (the legend).
+        mean: (S, C) accuracy averaged over the tasks (NaN: no record).
+        spread: (S, C) the mean over the tasks of the accuracy's standard deviation over the random
+            splits (NaN: no split, e.g. the paper's protocol): an upper bound of the standard
+            deviation over the splits of the task-averaged accuracy (the standard deviation of a
+            mean is at most the mean of the standard deviations).
+        n_splits: The number of random splits of the records that have one (0: none).
+    """
+
+    cells: list[tuple[int, float]]
+    settings: list[str]
+    mean: np.ndarray
+    spread: np.ndarray
+    n_splits: int
+
+
+def accuracy_bars(records: Sequence[Mapping[str, Any]]) -> AccuracyBars:
+    """The bars of :func:`plot_accuracy` from its ``records`` (see there), checked."""
+    required = ("n_train", "obs_ratio", "observe", "accuracy")
+    if not records:
+        raise _err("records", "no records given")
+    rows = []
+    splits = set()
+    for i, record in enumerate(records):
+        missing = [k for k in required if k not in record]
+        if missing:
+            raise _err("records", f"record {i} lacks {missing}")
+        accuracy = float(record["accuracy"])
+        if not 0.0 <= accuracy <= 1.0:
+            raise _err("records", f"record {i} has accuracy {accuracy} outside [0, 1]")
+        std = record.get("accuracy_std")
+        std = float("nan") if std is None else float(std)
+        if std < 0:
+            raise _err("records", f"record {i} has accuracy_std {std} < 0")
+        if record.get("n_splits"):
+            splits.add(int(record["n_splits"]))
+        observe = record["observe"]
+        if not isinstance(observe, str):
+            observe = ",".join(observe)
+        protocol = record.get("protocol")
+        rows.append((int(record["n_train"]), float(record["obs_ratio"]), observe, accuracy, protocol, std))
+    if len({r[4] for r in rows}) > 1:  # several protocols: name them in the legend
+        rows = [(n, ratio, f"{p}: {observe}", acc, p, sd) for n, ratio, observe, acc, p, sd in rows]
+    cells = sorted({(r[0], r[1]) for r in rows}, key=lambda c: (-c[0], c[1]))
+    settings = sorted({r[2] for r in rows}, key=lambda s: ("emg" in s, s))
+    mean = np.full((len(settings), len(cells)), np.nan)
+    spread = np.full_like(mean, np.nan)
+    for k, setting in enumerate(settings):
+        for c, (n_train, ratio) in enumerate(cells):
+            chosen = [r for r in rows if (r[0], r[1], r[2]) == (n_train, ratio, setting)]
+            if chosen:
+                mean[k, c] = float(np.mean([r[3] for r in chosen]))
+                stds = [r[5] for r in chosen if np.isfinite(r[5])]
+                spread[k, c] = float(np.mean(stds)) if stds else np.nan
+    return AccuracyBars(cells, settings, mean, spread, max(splits) if splits else 0)
+
+
 def plot_accuracy(
     records: Sequence[Mapping[str, Any]],
     path: str | Path,
@@ -325,66 +331,48 @@ def plot_accuracy(
     figsize: tuple[float, float] = (12.0, 4.5),
     dpi: int = 100,
 ) -> Path:
-    """Recognition accuracy per cell (training-set size, observed ratio) as grouped bars.
+    """Recognition accuracy per cell (training-set size, observed ratio) as grouped bars, with error
+    bars of the spread over the random splits where the records have one (:class:`AccuracyBars`;
+    clipped to accuracies in [0, 1]).
 
     One bar per ``observe`` setting (e.g. ``"orientation"`` vs ``"orientation,emg"``), averaged
-    over the tasks of the records.
+    over the tasks of the records; the legend beside the axes.
 
     Args:
         records: Rows ``{"n_train": int, "obs_ratio": float, "observe": str or list of groups,
-            "task": str, "accuracy": float in [0, 1]}`` (an optional ``"protocol"`` is named in the
-            legend when the records mix several).
+            "task": str, "accuracy": float in [0, 1]}``, optionally ``"accuracy_std"`` (its standard
+            deviation over the random splits) and ``"n_splits"`` (an optional ``"protocol"`` is named
+            in the legend when the records mix several).
         path: PNG file to write.
     """
-    required = ("n_train", "obs_ratio", "observe", "accuracy")
-    if not records:
-        raise _err("records", "no records given")
-    rows = []
-    for i, record in enumerate(records):
-        missing = [k for k in required if k not in record]
-        if missing:
-            raise _err("records", f"record {i} lacks {missing}")
-        accuracy = float(record["accuracy"])
-        if not 0.0 <= accuracy <= 1.0:
-            raise _err("records", f"record {i} has accuracy {accuracy} outside [0, 1]")
-        observe = record["observe"]
-        if not isinstance(observe, str):
-            observe = ",".join(observe)
-        protocol = record.get("protocol")
-        rows.append((int(record["n_train"]), float(record["obs_ratio"]), observe, accuracy, protocol))
-    if len({r[4] for r in rows}) > 1:  # several protocols: name them in the legend
-        rows = [
-            (n, ratio, f"{protocol}: {observe}", acc, protocol) for n, ratio, observe, acc, protocol in rows
-        ]
-    cells = sorted({(r[0], r[1]) for r in rows}, key=lambda c: (-c[0], c[1]))
-    settings = sorted({r[2] for r in rows}, key=lambda s: ("emg" in s, s))
+    bars = accuracy_bars(records)
     fig, ax = _axes(figsize)
-    width = 0.8 / len(settings)
-    x = np.arange(len(cells))
-    for k, setting in enumerate(settings):
-        mean: list[float] = []
-        for n_train, ratio in cells:
-            values = [r[3] for r in rows if (r[0], r[1], r[2]) == (n_train, ratio, setting)]
-            mean.append(float(np.mean(values)) if values else float("nan"))
+    width = 0.8 / len(bars.settings)
+    x = np.arange(len(bars.cells))
+    for k, setting in enumerate(bars.settings):
+        mean, spread = bars.mean[k], bars.spread[k]
         pos = x - 0.4 + (k + 0.5) * width
         hatch = None if "emg" in setting else "//"
         ax.bar(pos, mean, width, color=f"C{k}", hatch=hatch, edgecolor="white", label=setting)
-        for xi, value in zip(pos, mean, strict=True):
+        if np.isfinite(spread).any():
+            sd = np.where(np.isfinite(spread), spread, 0.0)  # clipped to accuracies in [0, 1]
+            yerr = np.vstack([np.minimum(sd, mean), np.minimum(sd, 1.0 - mean)])
+            ax.errorbar(pos, mean, yerr=yerr, fmt="none", ecolor="0.15", elinewidth=1.0, capsize=3)
+        for xi, value, sd in zip(pos, mean, spread, strict=True):
             if np.isfinite(value):
-                ax.annotate(
-                    f"{value:.2f}",
-                    (xi, value),
-                    textcoords="offset points",
-                    xytext=(0, 2),
-                    ha="center",
-                    fontsize=7,
-                    color=f"C{k}",
-                )
-    ax.set_xticks(x, [f"{n} train / task\n{ratio:.0%} observed" for n, ratio in cells])
-    ax.set_ylabel("accuracy (mean over tasks)")
-    ax.set_ylim(0.0, 1.1)
+                top = min(value + (sd if np.isfinite(sd) else 0.0), 1.0)
+                ax.annotate(f"{value:.2f}", (xi, top), textcoords="offset points", xytext=(0, 2),
+                            ha="center", fontsize=7, color=f"C{k}")  # fmt: skip
+    ax.set_xticks(x, [f"{n} train / task\n{ratio:.0%} observed" for n, ratio in bars.cells])
+    ylabel = "accuracy (mean over tasks)"
+    if bars.n_splits:
+        ylabel += (
+            f"\nerror bars: ± mean over tasks of the std\nover {bars.n_splits} random splits (within [0, 1])"
+        )
+    ax.set_ylabel(ylabel, fontsize=8)
+    ax.set_ylim(0.0, 1.15)
     ax.grid(axis="y", alpha=0.3)
-    ax.legend(fontsize=8, loc="lower left")
+    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0), title="observed", title_fontsize=8)
     fig.suptitle(title)
     return _save(fig, path, dpi)
 
@@ -398,6 +386,7 @@ def plot_torques(
     effort_margin: float = 0.0,
     held: np.ndarray | None = None,
     joint_names: Sequence[str] | None = None,
+    events: Sequence[tuple[float, str]] = (),
     title: str = "",
     figsize: tuple[float, float] = (12.0, 7.0),
     dpi: int = 100,
@@ -411,8 +400,10 @@ def plot_torques(
         path: PNG file to write.
         effort_margin: Fraction of the limit kept free, in [0, 1): the allowed torque
             ``(1 - effort_margin) x limit`` is a dashed line.
-        held: (N,) whether the gripper holds the object (shaded).
+        held: (N,) whether the gripper holds the object (shaded from the first to the last sample of
+            each run, widened by half a sample period: :func:`held_spans`).
         joint_names: (J,) joint names.
+        events: (t [s], label) marked with a vertical line (e.g. the robot's start, the hand-over).
     """
     t_s = _array(t_s, "t_s", 1)
     tau = _array(tau_nm, "tau_nm", 2)
@@ -429,12 +420,11 @@ def plot_torques(
     n_joints = tau.shape[1]
     names = _names(joint_names, n_joints, "joint_names", "joint ")
     fig, axes, cols = _panels(n_joints, figsize)
+    spans = [] if mask is None else held_spans(t_s, mask)
     for j, ax in enumerate(axes):
-        if mask is not None and mask.any():
-            ax.fill_between(
-                t_s, 0, 1, where=mask, transform=ax.get_xaxis_transform(), color="C5", alpha=0.12,
-                label="object held",
-            )  # fmt: skip
+        for k, (a, b) in enumerate(spans):
+            ax.axvspan(a, b, color="C2", alpha=0.22, lw=0, label="object held" if k == 0 else None)
+        _mark_times(ax, events, None, j == 0)
         ax.plot(t_s, np.abs(tau[:, j]), color="C0", lw=1.5, label="|torque|")
         ax.axhline(limit[j], color="C3", lw=1.2, label="effort limit")
         ax.axhline((1.0 - effort_margin) * limit[j], color="C3", lw=1.0, ls="--", label="allowed")
@@ -445,7 +435,24 @@ def plot_torques(
         ax.tick_params(labelsize=7)
         if j + cols >= n_joints:
             ax.set_xlabel("time [s]", fontsize=8)
-    axes[0].legend(fontsize=7, loc="best")
+    fig.legend(*_legend_entries(axes[0]), loc="outside lower center", ncol=6, fontsize=8)
     if title:
         fig.suptitle(title)
     return _save(fig, path, dpi)
+
+
+def held_spans(t_s: np.ndarray, held: np.ndarray) -> list[tuple[float, float]]:
+    """The time spans [s] of the runs of ``held`` (N,) at the times ``t_s`` (N,): from a run's first
+    sample to its last, widened by half a sample period on each side (within the samples' range),
+    so that a run of one sample is a visible span."""
+    t = np.asarray(t_s, dtype=float)
+    h = np.asarray(held, dtype=bool)
+    if t.size == 0 or not h.any():
+        return []
+    half = 0.5 * float(np.median(np.diff(t))) if t.size > 1 else 0.0
+    edges = np.diff(np.r_[0, h.astype(int), 0])
+    starts, stops = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1) - 1
+    return [
+        (max(float(t[a]) - half, float(t[0])), min(float(t[b]) + half, float(t[-1])))
+        for a, b in zip(starts, stops, strict=True)
+    ]

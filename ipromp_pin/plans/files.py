@@ -96,7 +96,7 @@ def write_plan(
         if plots and model is not None:
             from ..outputs.figures import write_plots  # matplotlib, only with figures
 
-            write_plots(approach, model, shown, out, robot, plan.context.objects)
+            write_plots(approach, model, shown, out, robot, plan.context.objects, plan.retreat, plan.context)
         scores = plan.scores
         report = stage_report(
             out,

@@ -196,4 +196,10 @@ def test_a_replay_into_a_run_folder_leaves_the_replay_files_only(tmp_path, tiny)
     report = json.loads((out / "report.json").read_text())
     written = {Path(p).name for p in report["files"].values()}
     assert sorted(p.name for p in out.iterdir()) == sorted(written | {"notes.txt"})
-    assert "retreat.csv" not in written and "rosbag" not in written
+    assert "retreat.csv" not in written and "run.bag" not in written
+    # the bag is the replay's own: the commanded trajectory, no retreat
+    from rosbags.rosbag2 import Reader
+
+    with Reader(out / "rosbag") as reader:
+        topics = {c.topic for c in reader.connections}
+    assert "/ipromp_pin/planned_trajectory" in topics and "/ipromp_pin/retreat_trajectory" not in topics

@@ -57,16 +57,28 @@ def test_evaluation_recognises_synthetic_tasks_and_conditioning_helps(synthetic)
     assert "| 10 | 0.2 | orientation+emg |" in md
 
 
-def test_evaluate_command_writes_json_and_markdown(tmp_path, capsys):
+def test_evaluate_command_writes_json_and_markdown(tmp_path, capsys, monkeypatch):
+    from ipromp_pin.outputs import plots
+
+    drawn = []
+    original = plots.accuracy_bars
+    monkeypatch.setattr(plots, "accuracy_bars", lambda records: drawn.append(original(records)) or drawn[-1])
     data = tmp_path / "synthetic"
     assert main(["synth", str(data), "--demos", "13", "--seed", "5"]) == 0
     out = tmp_path / "eval.json"
     code = main(
         ["evaluate", str(data), "--protocol", "splits", "--observe", "orientation,emg", "--json", str(out)]
         + ["--grid", "full", "--n-train", "10", "--ratios", "0.2", "--splits", "2", "--n-test", "3"]
+        + ["--plots", str(tmp_path / "figures")]
     )
     assert code == 0
     doc = json.loads(out.read_text())
+    # the accuracy figure's error bars: the mean over the tasks of each cell's std over the 2 splits
+    assert (tmp_path / "figures" / "accuracy.png").stat().st_size > 5000
+    (bars,) = drawn
+    assert bars.n_splits == 2
+    ratio_cells = [c for c in doc["cells"] if c["window"]["kind"] == "ratio"]
+    assert bars.spread[0, 0] == pytest.approx(np.mean([c["accuracy_std"] for c in ratio_cells]))
     # by default each cell of the grid and its counterpart in seconds: the same fraction of the
     # training demos' mean length
     assert len(doc["cells"]) == 6

@@ -319,7 +319,9 @@ def search_placement(
     own = (*(float(v) for v in current.xyz_m), float(current.rpy_deg[2]))
     score([own])  # type: ignore[list-item]
     score(sorted(grid.candidates(), key=lambda p: test.promise(subset, with_pose(current, *p))))
-    scored.pop(tuple(round(v, 6) for v in own), None)  # suggested only from the region (or kept below)
+    own_key = tuple(round(v, 6) for v in own)
+    if own_key not in {tuple(round(v, 6) for v in p) for p in grid.candidates()}:
+        scored.pop(own_key, None)  # suggested only from the region (or kept below, as the current one)
     steps = grid.steps()
     for _ in range(refinements):
         steps = tuple(s / 2 for s in steps)  # type: ignore[assignment]

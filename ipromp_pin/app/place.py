@@ -39,7 +39,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--robot",
         required=True,
-        help="the arm: a shipped name (panda, ur5, xarm7, kinova_jaco2) or a settings file with a [placement]",
+        help="the arm: a shipped name (panda, ur5, xarm7, kinova_jaco2) or a settings file with a "
+        "[placement]",
     )
     p.add_argument(
         "--write",
@@ -105,7 +106,8 @@ def run_place(
     if settings.placement is None:
         raise RobotError(
             f"{settings.path}: field 'placement': robot '{settings.name}' has no [placement]: it is not "
-            "placed in another robot's recordings' scene (place suggests one for panda, ur5, xarm7, kinova_jaco2)"
+            "placed in another robot's recordings' scene (place suggests one for panda, ur5, xarm7, "
+            "kinova_jaco2)"
         )
     source = load_robot(settings.placement.source)
     if dataset is None:

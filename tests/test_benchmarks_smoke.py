@@ -46,7 +46,8 @@ EXPECTED = {
     "inference.py": [r"(?m)^paper\s+\d+\s+12\s", r"speed-up \d+x", r"task accuracy [\d.]+"],
     "model_load.py": [r"this checkout:\s+[\d.]+ ms", r"paired difference \(this - other\): median"],
     "placement.py": [
-        r"panda settings \([-\d., ]+\): [\d.]+% of \d+ hand-over poses reached",
+        r"panda study grid \(yaw 0\): best \([-\d., ]+\) m: \d+/\d+ \([\d.]+%\) reached",
+        r"panda settings \([-\d., ]+\) on synthetic: \d+/\d+ \([\d.]+%\) reached",
         r"panda: retarget a whole path \(\d+ samples\): median [\d.]+ ms",
     ],
     "pipeline.py": [r"total \(observation->files\)\s+[\d.]+"],

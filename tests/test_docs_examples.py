@@ -8,6 +8,8 @@ from pathlib import Path
 
 import pytest
 
+from ipromp_pin.robot import load_robot_settings
+
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = ROOT / "docs"
 PAGES = ["api.md", "your_data.md"]
@@ -27,6 +29,35 @@ def test_docs_examples_run(page, tmp_path, monkeypatch, capsys):
     for i, block in enumerate(blocks):
         exec(compile(block, f"{page} block {i + 1}", "exec"), namespace)  # noqa: S102
     assert capsys.readouterr().out  # the examples print what they show
+
+
+def on_six_joints(block: str) -> str | None:
+    """An api.md block as it runs on a UR5 (6 joints): its demos recorded on the UR5 (the synthetic
+    demos retargeted through the gripper, as ``ipromp-pin synth --robot ur5`` writes them) and the
+    UR5 where Baxter is named; ``None`` for the block that executes Baxter's model on a UR5 (there
+    the model is the UR5's own) and for the goal-pose block: the retargeted demos do not all lie on
+    one branch of the UR5's inverse kinematics (the held-out rod demo's hand-over is on the other
+    elbow branch than the rod demos the model learned, where the UR5 cannot reach it: inverse
+    kinematics from the prediction stops 578 mm away at a singular configuration)."""
+    if 'robot="ur5"' in block or "condition_on_goal_pose(" in block:
+        return None
+    synthetic = "make_synthetic_dataset(n_demos=10, seed=1)"
+    assert synthetic in block or "make_synthetic_dataset(" not in block
+    return block.replace(synthetic, f'on_robot({synthetic}, "ur5")').replace('"baxter_left"', '"ur5"')
+
+
+def test_the_api_examples_run_on_a_six_joint_arm(tmp_path, monkeypatch, capsys):
+    from ipromp_pin.app.synth import on_robot
+
+    blocks = [b for b in map(on_six_joints, code_blocks(DOCS / "api.md")) if b is not None]
+    assert any('"ur5"' in b for b in blocks)  # the plan and the goal pose on the UR5
+    monkeypatch.chdir(tmp_path)
+    namespace: dict = {"__name__": "docs_api_ur5", "on_robot": on_robot}
+    for i, block in enumerate(blocks):
+        exec(compile(block, f"api.md (UR5) block {i + 1}", "exec"), namespace)  # noqa: S102
+    assert capsys.readouterr().out
+    assert namespace["model"].joint_names_ == load_robot_settings("ur5").recorded_arm_joints
+    assert namespace["plan"].trajectory.q.shape[1] == 6 and namespace["samples"].shape[2] == 6
 
 
 def test_readme_python_example_runs_as_pasted(datasets_dir, tmp_path, monkeypatch):

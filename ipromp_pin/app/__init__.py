@@ -1,4 +1,5 @@
-"""The application layer: ``ipromp-pin run | replay | evaluate | train | preview | calibrate | synth``.
+"""The application layer: ``ipromp-pin run | replay | evaluate | train | preview | calibrate | synth |
+place``.
 
 Stable interface (people script against it)::
 
@@ -12,8 +13,8 @@ planned motion fails its checks (it then writes no trajectory file unless
 ``--allow-failing-checks``). Progress lines are shown on a terminal only.
 
 One module per command (:mod:`.run`, :mod:`.replay`, :mod:`.evaluate`, :mod:`.train`,
-:mod:`.preview`, :mod:`.calibrate`, :mod:`.synth`): its parser (``add_parser``), what it runs (a
-typed request in, a typed outcome out) and its exit status (``main``). They share
+:mod:`.preview`, :mod:`.calibrate`, :mod:`.synth`, :mod:`.place`): its parser (``add_parser``), what
+it runs (a typed request in, a typed outcome out) and its exit status (``main``). They share
 :mod:`.arguments` (argument types, the pipeline overrides), :mod:`.config` (pipeline definitions),
 :mod:`.session` (the set-up of the commands that plan on one held-out demo), :mod:`.progress` (the
 progress line, one-line errors, exit codes), :mod:`.interrupt` (SIGINT / SIGTERM),
@@ -35,14 +36,14 @@ import sys
 
 from ..exceptions import IPrompPinError, UnreachableError
 from ..version import __version__
-from . import calibrate, evaluate, plan, preview, replay, run, synth, train
+from . import calibrate, evaluate, place, plan, preview, replay, run, synth, train
 from .arguments import OneLineErrorParser
 from .interrupt import EXIT_INTERRUPTED, interruptible, interruption_behind, report_interruption
 from .progress import EXIT_CHECKS_FAILED, EXIT_ERROR, ProgressLine, print_error
 
 __all__ = ["EXIT_CHECKS_FAILED", "EXIT_ERROR", "build_parser", "console_main", "main"]
 
-COMMANDS = (run, train, plan, replay, evaluate, preview, calibrate, synth)
+COMMANDS = (run, train, plan, replay, evaluate, preview, calibrate, synth, place)
 """The command modules, in the order of ``ipromp-pin --help``; each adds its parser."""
 
 

@@ -35,7 +35,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "--robot",
         default="baxter_left",
         help="the arm the demos are recorded on (default %(default)s); an arm placed in Baxter's scene "
-        "(panda, ur5, xarm7) gets Baxter's demos retargeted through the gripper, with its own joints",
+        "(panda, ur5, xarm7, kinova_jaco2) gets Baxter's demos retargeted through the gripper, with its own "
+        "joints",
     )
     p.set_defaults(func=main)
 

@@ -18,6 +18,7 @@ import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
+from xml.etree import ElementTree
 
 import numpy as np
 import pinocchio as pin
@@ -50,7 +51,7 @@ class Robot:
         upper_rad: Arm position upper limits (n_joints,) in [rad].
         velocity_rad_s: Arm velocity limits (n_joints,) in [rad/s] (URDF or settings override).
         n_pairs_total: Collision pairs before removing the SRDF's disabled pairs.
-        n_pairs_srdf_removed: Pairs the SRDF disabled.
+        n_pairs_srdf_removed: Pairs the SRDF (and ``[checks] disabled_pairs``) disabled.
         active_pair_ids: Indices (into ``collision_model.collisionPairs``) of pairs whose distance
             can change when the arm moves.
         static_min_distance_m: Smallest distance among the other (static) pairs at ``q_neutral``.
@@ -206,11 +207,41 @@ def rebuilt_robot(settings: RobotSettings, collision: bool = True) -> Robot:
     return load_robot(settings) if collision else build_robot(settings, collision=False)
 
 
+CONTINUOUS_RANGE_RAD = 2.0 * math.pi
+"""A continuous URDF joint is modelled as a revolute joint within +-this [rad]: two full turns of
+travel. Pinocchio models a continuous joint with two configuration values (cos, sin: nq = 2, nv =
+1), which a joint-angle vector (one value per arm joint) cannot hold; a plan's motion between two
+configurations never needs more than a turn, and +-2 pi is what the URDFs of the continuous arms
+shipped here write in their (otherwise ignored) ``<limit>`` (Kinova's j2s6s200: joints 1, 4 and 6,
+which turn endlessly on the hardware; kinova-ros ``kinova_description``)."""
+
+
+def bounded_continuous_joints(urdf_text: str) -> str | None:
+    """``urdf_text`` with every continuous joint made revolute within +-:data:`CONTINUOUS_RANGE_RAD`
+    (its effort and velocity limits kept), or ``None`` when it has no continuous joint."""
+    root = ElementTree.fromstring(urdf_text)
+    continuous = [j for j in root.iter("joint") if j.get("type") == "continuous"]
+    if not continuous:
+        return None
+    for joint in continuous:
+        joint.set("type", "revolute")
+        limit = joint.find("limit")
+        if limit is None:
+            limit = ElementTree.SubElement(joint, "limit")
+        limit.set("lower", repr(-CONTINUOUS_RANGE_RAD))
+        limit.set("upper", repr(CONTINUOUS_RANGE_RAD))
+    return ElementTree.tostring(root, encoding="unicode")
+
+
 def _parse_urdf(s: RobotSettings) -> pin.Model:
-    """The kinematic model of the settings' URDF."""
+    """The kinematic model of the settings' URDF, continuous joints bounded
+    (:func:`bounded_continuous_joints`: one configuration value per joint)."""
     try:
-        return pin.buildModelFromUrdf(str(s.urdf_path))
-    except (RuntimeError, ValueError) as exc:
+        bounded = bounded_continuous_joints(s.urdf_path.read_text(encoding="utf-8"))
+        if bounded is None:
+            return pin.buildModelFromUrdf(str(s.urdf_path))
+        return pin.buildModelFromXML(bounded)
+    except (RuntimeError, ValueError, ElementTree.ParseError, UnicodeDecodeError) as exc:
         raise settings_error(s.path, "description.urdf", f"cannot be parsed: {exc}") from exc
 
 
@@ -294,7 +325,8 @@ def _held_configuration(
 
 
 def _add_ee_frame(model: pin.Model, s: RobotSettings, last_joint_id: int) -> tuple[int, int]:
-    """Add the end-effector frame (parent frame * tool offset) to ``model``; its id and the parent's."""
+    """Add the end-effector frame (parent frame * tool offset, turned by ``[end_effector] rpy_deg``)
+    to ``model``; its id and the parent's."""
     src = s.path
     if not model.existFrame(s.ee_parent_frame):
         raise settings_error(src, "end_effector.parent_frame", f"unknown frame '{s.ee_parent_frame}'")
@@ -306,7 +338,7 @@ def _add_ee_frame(model: pin.Model, s: RobotSettings, last_joint_id: int) -> tup
         raise settings_error(
             src, "end_effector.parent_frame", f"frame '{s.ee_parent_frame}' is not moved by the arm"
         )
-    offset = pin.SE3(np.eye(3), s.tool_offset_m)
+    offset = pin.SE3(pin.rpy.rpyToMatrix(*np.radians(s.ee_rpy_deg)), np.asarray(s.tool_offset_m, dtype=float))
     ee_id = model.addFrame(
         pin.Frame(
             s.ee_frame, parent.parentJoint, parent_id, parent.placement * offset, pin.FrameType.OP_FRAME
@@ -356,7 +388,24 @@ def _collision_model(model: pin.Model, s: RobotSettings) -> tuple[pin.GeometryMo
             pin.removeCollisionPairs(model, cmodel, str(s.srdf_path))
         except (RuntimeError, ValueError) as exc:
             raise settings_error(src, "description.srdf", f"cannot be applied: {exc}") from exc
+    _remove_listed_pairs(model, cmodel, s)
     return cmodel, n_total, n_total - len(cmodel.collisionPairs)
+
+
+def _remove_listed_pairs(model: pin.Model, cmodel: pin.GeometryModel, s: RobotSettings) -> None:
+    """Remove the collision pairs between the links of ``[checks] disabled_pairs`` (names checked)."""
+    if not s.disabled_pairs:
+        return
+    for a, b in s.disabled_pairs:
+        for name in (a, b):
+            if not model.existFrame(name):
+                raise settings_error(s.path, "checks.disabled_pairs", f"unknown link '{name}'")
+    listed = {frozenset(p) for p in s.disabled_pairs}
+    g = cmodel.geometryObjects
+    for cp in list(cmodel.collisionPairs):
+        links = frozenset(model.frames[g[k].parentFrame].name for k in (cp.first, cp.second))
+        if links in listed:
+            cmodel.removeCollisionPair(cp)
 
 
 def _split_pairs(

@@ -136,6 +136,7 @@ PLAUSIBLE_RANGES: dict[str, Range] = {
         "1.2 m of it and the arms reach at most 1 m; per axis",
     ),
     "placement.rpy_deg": Range(-180.0, 180.0, "deg", "roll, pitch, yaw angles, each at most half a turn"),
+    "end_effector.rpy_deg": Range(-180.0, 180.0, "deg", "roll, pitch, yaw angles, each at most half a turn"),
     "workspace.min_m": Range(-10.0, 10.0, "m", "within the readers' tracking range (10 m from the base)"),
     "workspace.max_m": Range(-10.0, 10.0, "m", "within the readers' tracking range (10 m from the base)"),
     "workspace.center_m": Range(-10.0, 10.0, "m", "within the readers' tracking range (10 m from the base)"),

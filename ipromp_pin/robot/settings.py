@@ -51,7 +51,7 @@ TABLES: dict[str, tuple[str, ...] | None] = {
     "name": None,
     "description": ("package", "urdf", "srdf"),
     "arm": ("joints", "recorded_names"),
-    "end_effector": ("parent_frame", "frame"),
+    "end_effector": ("parent_frame", "frame", "rpy_deg"),
     "calibration": (
         "fit",
         "tool_offset_m",
@@ -72,7 +72,7 @@ TABLES: dict[str, tuple[str, ...] | None] = {
     "fixed_joints": None,
     "placement": ("source", "xyz_m", "rpy_deg"),
     "workspace": ("shape", "min_m", "max_m", "center_m", "radius_m"),
-    "checks": ("min_clearance_m", "collision_max_step_rad"),
+    "checks": ("min_clearance_m", "collision_max_step_rad", "disabled_pairs"),
     "springs": None,
     "human": HUMAN_KEYS,
     "iso15066": ISO15066_KEYS,
@@ -193,7 +193,7 @@ class RobotSettings:
         arm_joints: The arm's model joint names in kinematic order (n_joints,).
         recorded_names: Recorded joint name -> model joint name.
         ee_parent_frame: Model frame the tool offset is expressed in, e.g. ``"left_gripper"``.
-        ee_frame: Name of the added end-effector frame (parent frame * offset).
+        ee_frame: Name of the added end-effector frame (parent frame * offset, turned by ``ee_rpy_deg``).
         tool_offset_m: Tool offset (3,) in [m] in the parent frame's axes.
         mount_offset_m: Translation (3,) in [m] of the arm's mount (the placement of its first joint),
             in the frame of that joint's parent (Baxter: the base frame). Each Baxter has its own
@@ -216,6 +216,11 @@ class RobotSettings:
         human: The ``[human]`` / ``[iso15066]`` tables (:mod:`.human_settings`).
         placement: The arm's base pose in another robot's scene (``[placement]``), None: the arm is
             the robot of its recordings (its base frame is the scene's).
+        ee_rpy_deg: (3,) orientation of the end-effector frame in the parent frame's axes, roll, pitch,
+            yaw in [deg] (``Rz Ry Rx``; ``[end_effector] rpy_deg``, default none): a gripper whose URDF
+            frame does not point z out of the gripper gets one that does.
+        disabled_pairs: Link pairs whose collisions are not checked, besides the SRDF's disabled
+            pairs (``[checks] disabled_pairs``; for a description whose SRDF disables none).
     """
 
     name: str
@@ -243,6 +248,8 @@ class RobotSettings:
     spring_torque_nm: dict[str, tuple[float, float]] = field(default_factory=dict)
     human: HumanSettings = field(default_factory=HumanSettings)
     placement: Placement | None = None
+    ee_rpy_deg: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    disabled_pairs: tuple[tuple[str, str], ...] = ()
 
     @property
     def n_joints(self) -> int:
@@ -466,6 +473,23 @@ def _check_thresholds(checks: Table) -> tuple[float, float]:
     return clearance, step
 
 
+def _disabled_pairs(checks: Table) -> tuple[tuple[str, str], ...]:
+    """``[checks] disabled_pairs``: link pairs (two different link names each, no pair twice) whose
+    collisions are not checked, besides the SRDF's (the links are checked against the model)."""
+    raw = checks.raw("disabled_pairs", [])
+    form = "must be a list of [link, link] pairs of two different link names"
+    if not isinstance(raw, list):
+        raise checks.error("disabled_pairs", form)
+    pairs: list[tuple[str, str]] = []
+    for item in raw:
+        if not (isinstance(item, list) and len(item) == 2 and all(isinstance(n, str) and n for n in item)):
+            raise checks.error("disabled_pairs", f"{form}, got {item!r}")
+        if item[0] == item[1] or tuple(sorted(item)) in {tuple(sorted(p)) for p in pairs}:
+            raise checks.error("disabled_pairs", f"{form}: {item!r} is a link with itself or listed twice")
+        pairs.append((item[0], item[1]))
+    return tuple(pairs)
+
+
 def load_robot_settings(path_or_name: str | Path) -> RobotSettings:
     """Read and validate a robot settings file (file-level checks; model checks are in :func:`load_robot`).
 
@@ -494,12 +518,14 @@ def load_robot_settings(path_or_name: str | Path) -> RobotSettings:
     ee = _sub(doc, "end_effector")
     parent_frame = ee.text("parent_frame")
     ee_frame = ee.text("frame", EE_FRAME)
+    ee_rpy = ee.vector("rpy_deg", 3, _range("end_effector.rpy_deg"), [0.0, 0.0, 0.0])
 
     offset, mount, calib_info = _calibration(_sub(doc, "calibration", required=False))
 
     limits = _sub(doc, "limits")
     margin, vel, acc, jerk = _joint_limits(limits, len(joints))
-    clearance, step = _check_thresholds(_sub(doc, "checks", required=False))
+    checks = _sub(doc, "checks", required=False)
+    clearance, step = _check_thresholds(checks)
 
     return RobotSettings(
         name=name,
@@ -511,6 +537,8 @@ def load_robot_settings(path_or_name: str | Path) -> RobotSettings:
         recorded_names=dict(recorded),
         ee_parent_frame=parent_frame,
         ee_frame=ee_frame,
+        ee_rpy_deg=ee_rpy,
+        disabled_pairs=_disabled_pairs(checks),
         tool_offset_m=offset,
         mount_offset_m=mount,
         calibration_info=calib_info,

@@ -87,3 +87,17 @@ def test_replay_with_the_six_joint_ur5_writes_its_preview_and_scores_against_bax
     assert 0.0 <= report["handover_error_cm"] < 10.0
     html = (out / "preview.html").read_text()
     assert "ipromp_pin replay" in html and "shoulder_pan_joint" in html
+
+
+def test_replay_with_the_kinova_holds_the_urdf_s_limits_torques_and_no_self_collision(tmp_path):
+    # the Jaco's continuous joints 1, 4 and 6 are one angle each in the commanded trajectory
+    out = tmp_path / "out"
+    assert main(["replay", str(PIPELINE), "--robot", "kinova_jaco2", "--out", str(out), "--no-preview"]) == 0
+    report = json.loads((out / "report.json").read_text())
+    assert report["robot"] == "kinova_jaco2" and report["retarget"]["source_robot"] == "baxter_left"
+    arm = UrdfArm("kinova_jaco2")
+    t, q, qd = written_joints(out / "trajectory.csv", arm.names)
+    assert np.ptp(q, axis=0).max() > 0.05  # the Jaco moved
+    arm.assert_within_limits(q, qd)
+    arm.assert_torques_within(t, q, qd)
+    arm.assert_no_self_collision(arm.full(q))

@@ -1,6 +1,7 @@
-"""``ipromp-pin run baxter_handover --robot panda``: the Baxter model drives a Panda placed in the
-recordings' scene, retargeted through the gripper (issue 37); the written trajectory is re-evaluated
-here independently, from the URDF through Pinocchio; an arm placed out of reach is refused (exit 3)."""
+"""``ipromp-pin run baxter_handover --robot panda`` (and the Kinova Jaco 2, whose continuous joints
+the robot model bounds): the Baxter model drives an arm placed in the recordings' scene, retargeted
+through the gripper (issue 37); the written trajectory is re-evaluated here independently, from the
+URDF through Pinocchio; an arm placed out of reach is refused (exit 3)."""
 
 from __future__ import annotations
 
@@ -15,45 +16,66 @@ from helpers_urdf import UrdfArm, panda_out_of_reach, written_joints
 from ipromp_pin.app import main
 
 
-@pytest.fixture(scope="module")
-def panda_run(tmp_path_factory):
-    out = tmp_path_factory.mktemp("panda") / "out"
-    code = main(["run", str(PIPELINE), "--robot", "panda", "--out", str(out), "--no-preview", "--no-retreat"])
-    return code, out
+@pytest.fixture(scope="module", params=["panda", "kinova_jaco2"])
+def arm_run(request, tmp_path_factory):
+    name = request.param
+    out = tmp_path_factory.mktemp(name) / "out"
+    code = main(["run", str(PIPELINE), "--robot", name, "--out", str(out), "--no-preview", "--no-retreat"])
+    return name, code, out
 
 
-def test_run_with_the_panda_passes_and_reports_the_retargeting(panda_run):
-    code, out = panda_run
+def test_run_with_the_arm_passes_and_reports_the_retargeting(arm_run):
+    name, code, out = arm_run
     assert code == 0
     report = json.loads((out / "report.json").read_text())
-    assert report["feasibility"]["robot"] == "panda"
+    assert report["feasibility"]["robot"] == name
     r = report["retarget"]
     assert r["source_robot"] == "baxter_left" and r["reached"]
     assert 0 <= r["ik_residual_mm"] <= 1.0 and r["ik_residual_deg"] <= 0.5
     assert r["ik_residual_mm"] <= r["max_path_residual_mm"] <= 1.0
     text = (out / "report.txt").read_text()
-    assert "Executed by panda, retargeted through the gripper from a model of baxter_left" in text
+    assert f"Executed by {name}, retargeted through the gripper from a model of baxter_left" in text
+    checks = report["feasibility"]["checks"]
+    assert {"joint_limits", "self_collision", "human_clearance", "contact_speed", "joint_torques"} <= set(
+        checks
+    )
+    assert all(v["status"] == "pass" for v in checks.values()), checks
 
 
-def test_the_written_panda_trajectory_holds_the_urdf_s_limits_torques_and_no_self_collision(panda_run):
-    code, out = panda_run
+def test_the_written_trajectory_holds_the_urdf_s_limits_torques_and_no_self_collision(arm_run):
+    name, code, out = arm_run
     assert code == 0
-    arm = UrdfArm("panda")
-    model, idx_v = arm.model, arm.idx_v
+    arm = UrdfArm(name)
     t, q, qd = written_joints(out / "trajectory.csv", arm.names)
+    assert np.ptp(q, axis=0).max() > 0.05  # the arm moved
     arm.assert_within_limits(q, qd)
-    full = arm.full(q)
-    # torques of the arm alone (no object) from finite-difference accelerations, under the limits
-    data = model.createData()
-    qdd = np.gradient(qd, t, axis=0)
-    effort = model.effortLimit[idx_v]
-    for k in range(0, len(t), 5):
-        v = np.zeros(model.nv)
-        a = np.zeros(model.nv)
-        v[idx_v], a[idx_v] = qd[k], qdd[k]
-        tau = pin.rnea(model, data, full[k], v, a)[idx_v]
-        assert np.all(np.abs(tau) <= effort), (k, tau)
-    arm.assert_no_self_collision(full)
+    arm.assert_torques_within(t, q, qd)
+    arm.assert_no_self_collision(arm.full(q))
+
+
+def test_the_kinova_s_continuous_joints_are_one_angle_each_within_two_turns():
+    from ipromp_pin.robot import load_robot
+
+    kinova, urdf = load_robot("kinova_jaco2"), UrdfArm("kinova_jaco2")
+    assert kinova.model.nq == kinova.n_joints == 6 and sum(urdf.continuous) == 3  # joints 1, 4, 6
+    for k, cont in enumerate(urdf.continuous):
+        if cont:
+            assert (kinova.lower_rad[k], kinova.upper_rad[k]) == (-2 * np.pi, 2 * np.pi)
+    # the same kinematics as the URDF's (cos, sin) joints, at angles beyond half a turn too
+    q = np.random.default_rng(0).uniform(kinova.lower_rad, kinova.upper_rad, size=(20, 6))
+    data, udata = kinova.model.createData(), urdf.model.createData()
+    tip = "j2s6s200_end_effector"
+    for row, full in zip(kinova.full_configuration(q), urdf.full(q), strict=True):
+        pin.framesForwardKinematics(kinova.model, data, row)
+        pin.framesForwardKinematics(urdf.model, udata, full)
+        # relative to the arm's base link: the package's model is built at its placement
+        rel = data.oMf[kinova.model.getFrameId("j2s6s200_link_base")].actInv(
+            data.oMf[kinova.model.getFrameId(tip)]
+        )
+        urel = udata.oMf[urdf.model.getFrameId("j2s6s200_link_base")].actInv(
+            udata.oMf[urdf.model.getFrameId(tip)]
+        )
+        np.testing.assert_allclose(rel.homogeneous, urel.homogeneous, atol=1e-9)
 
 
 def test_an_arm_placed_out_of_reach_is_refused_with_exit_3_and_the_reason(tmp_path, capsys):

@@ -109,6 +109,22 @@ def test_recorded_names_are_mapped_by_name_not_position():
         (r'"left_s1", "left_e0"', '"left_e0", "left_s1"', "not in kinematic order"),
         (r'^urdf = ".*"$', 'urdf = "/abs/baxter.urdf"', "relative path"),
         (r'^urdf = ".*"$', 'urdf = "nowhere/baxter.urdf"', "file not found"),
+        (
+            r"^min_clearance_m = .*$",
+            'min_clearance_m = 0.0\ndisabled_pairs = [["left_upper_elbow"]]',
+            r"checks\.disabled_pairs.*\[link, link\]",
+        ),
+        (
+            r"^min_clearance_m = .*$",
+            'min_clearance_m = 0.0\ndisabled_pairs = [["head", "head"]]',
+            r"checks\.disabled_pairs.*itself",
+        ),
+        (
+            r"^min_clearance_m = .*$",
+            'min_clearance_m = 0.0\ndisabled_pairs = [["head", "no_such_link"]]',
+            r"checks\.disabled_pairs.*unknown link 'no_such_link'",
+        ),
+        (r'^frame = "ee"$', 'frame = "ee"\nrpy_deg = [0.0, 270.0, 0.0]', r"end_effector\.rpy_deg"),
     ],
 )
 def test_bad_settings_fail_clearly(tmp_path, old, new, message):
@@ -189,3 +205,34 @@ def test_panda_settings_describe_another_robot_without_code():
     # the workspace is the hand-over box of the scene the Panda is placed in: this path ends where it ends
     inside = panda.settings.workspace.contains(ee_positions(panda, traj.q[-1:])[0])
     assert [v.name for v in report if v.status == "fail"] == ([] if inside else ["workspace"]), report.lines()
+
+
+def test_an_end_effector_rotation_turns_the_ee_frame_and_disabled_pairs_leave_the_collision_model(tmp_path):
+    import pinocchio as pin
+
+    base = load_robot(LEFT, cache=False)
+    text = re.sub(
+        r'^frame = "ee"$', 'frame = "ee"\nrpy_deg = [0.0, 90.0, 0.0]', LEFT.read_text(), count=1, flags=re.M
+    )
+    text = re.sub(
+        r"^min_clearance_m = .*$",
+        'min_clearance_m = 0.0\ndisabled_pairs = [["left_upper_elbow", "left_wrist"]]',
+        text,
+        count=1,
+        flags=re.M,
+    )
+    (tmp_path / "turned.toml").write_text(text)
+    turned = load_robot(tmp_path / "turned.toml", cache=False)
+    for r in (base, turned):
+        pin.framesForwardKinematics(r.model, r.data, r.q_neutral)
+    a, b = base.data.oMf[base.ee_frame_id], turned.data.oMf[turned.ee_frame_id]
+    np.testing.assert_allclose(b.translation, a.translation, atol=1e-12)  # same point
+    np.testing.assert_allclose(b.rotation, a.rotation @ pin.rpy.rpyToMatrix(0.0, np.pi / 2, 0.0), atol=1e-12)
+
+    def links(r):
+        cm, _ = r.collision()
+        return {frozenset(r.pair_links(k)) for k in range(len(cm.collisionPairs))}
+
+    gone = links(base) - links(turned)
+    assert gone == {frozenset({"left_upper_elbow", "left_wrist"})}
+    assert turned.n_pairs_srdf_removed > base.n_pairs_srdf_removed

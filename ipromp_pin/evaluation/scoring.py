@@ -273,6 +273,9 @@ class ClosedLoopScore:
         arrival_delay_without_human_s: ``arrival_delay_s`` of the same replay without the human
             checks, [s].
         start_s: When the robot started (its first re-plan), [s] from the motion start.
+        stop_s: When the robot stopped on an observation turned unknown after the start, [s] from the
+            motion start (the first time; None: never, :mod:`~ipromp_pin.planning.unknown_stop`).
+        retreat_s: When it retreated after holding, [s] (None: never).
     """
 
     handover_error_cm: float
@@ -296,6 +299,8 @@ class ClosedLoopScore:
     contact_speed_violations: int | None = None
     arrival_delay_without_human_s: float | None = None
     start_s: float = float("nan")
+    stop_s: float | None = None
+    retreat_s: float | None = None
 
     def to_dict(self) -> dict:
         """JSON-serialisable form."""
@@ -345,6 +350,8 @@ def score_closed_loop(
         refused_replans=result.n_refused,
         final_task=committed[-1].task if committed else "",
         handover_orientation_error_deg=float(geodesic_deg(r_cmd[0], r_true[-1])),
+        stop_s=result.first_event_s("unknown"),
+        retreat_s=result.first_event_s("retreat"),
     )
 
 

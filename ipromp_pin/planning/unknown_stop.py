@@ -185,7 +185,7 @@ class UnknownStop:
         assert motion is not None, "only a passed segment is committed"
         if segment.action == "stop":
             self.rest_s = float(motion.end_s) - self.hold_s
-            self.events.append(StopEvent("unknown", t_s, f"stopping: unknown task ({why})"))
+            self.events.append(StopEvent("unknown", t_s, f"unknown task ({why})"))
             self.events.append(
                 StopEvent("hold", self.rest_s, f"at rest, holding for {self.hold_s:g} s before retreating")
             )

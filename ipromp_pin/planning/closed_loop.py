@@ -61,7 +61,7 @@ from ..safety.speed_limits import SpeedLimitMeasures
 from ..safety.workspace import WorkspaceMeasures
 from .timers import retarget_timer
 from .transfer import ReplanTransfer
-from .unknown_stop import UNKNOWN_HOLD_RANGE_S, UNKNOWN_HOLD_S, StopEvent, UnknownStop
+from .unknown_stop import UNKNOWN_HOLD_RANGE_S, UNKNOWN_HOLD_S, Segment, StopEvent, UnknownStop
 
 CONDITION_NOISE = 0.3
 """Observation-noise ratio ``nu`` with which the closed loop conditions the robot trajectory (the
@@ -533,7 +533,7 @@ class ClosedLoopPlanner:
             r.reason = f"not re-targeted: unknown task ({pred.unknown_reason})"
             r.stage_ms = ms
             if len(self._plans) > 1:  # it moved: stop, hold, retreat
-                self._unknown_segment(r, tick, state, pred.unknown_reason)
+                self._unknown_segment(r, tick, state, pred.unknown_reason or "")
             return r
         if self.transfer is not None:  # the model's robot's reference -> this arm's, through the gripper
             moved, how = self.transfer.reference(reference, state.q, float(state.t_s))
@@ -568,11 +568,7 @@ class ClosedLoopPlanner:
             context = context.replace(human=context.human.until(r.observed_until_s))
         segment = self._unknown.segment(action, state, context)
         r.stage_ms[action] = (time.perf_counter() - t0) * 1e3
-        r.action = action
-        if segment.retimed is not None:
-            record_verdicts(r, segment.retimed.verdicts)
-            r.planned_arrival_s = segment.retimed.motion.end_s
-            r.slowdown = segment.retimed.slowdown
+        record_segment(r, segment)
         motion = segment.motion
         if motion is None:
             r.reason = f"{r.reason}; {segment.reason}"
@@ -693,6 +689,15 @@ class ClosedLoopPlanner:
             "" if self.transfer is None else self.transfer.source.settings.name,
             list(self._unknown.events),
         )
+
+
+def record_segment(r: Replan, segment: Segment) -> None:
+    """Fill ``r``'s action, check fields, arrival and slow-down from a stop or retreat segment."""
+    r.action = segment.action
+    if segment.retimed is not None:
+        record_verdicts(r, segment.retimed.verdicts)
+        r.planned_arrival_s = segment.retimed.motion.end_s
+        r.slowdown = segment.retimed.slowdown
 
 
 def record_verdicts(r: Replan, verdicts: list[Verdict]) -> None:

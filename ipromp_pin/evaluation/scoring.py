@@ -261,7 +261,8 @@ class ClosedLoopScore:
         collisions: Commanded control samples in contact.
         replans: Re-plans made.
         refused_replans: Re-plans not committed.
-        final_task: Task of the last committed re-plan ("" if none).
+        final_task: Task of the last committed re-plan toward a hand-over ("" if none; not a stop or
+            retreat on an unknown observation).
         handover_orientation_error_deg: Commanded vs recorded gripper rotation at the recorded
             hand-over time, [deg].
         peak_torque_ratio: Largest |joint torque| / effort limit of the commanded motion with the true
@@ -332,7 +333,7 @@ def score_closed_loop(
     ratios = limit_ratios(traj, lim)[0]
     excess = float(np.max(np.maximum(np.maximum(lim.lower_rad - traj.q, traj.q - lim.upper_rad), 0.0)))
     collisions = int(np.count_nonzero(in_collision(robot, traj.q))) if check_collisions else 0
-    committed = [r for r in result.replans if r.committed]
+    committed = [r for r in result.replans if r.committed and not r.action]  # toward a hand-over
     return ClosedLoopScore(
         handover_error_cm=float(np.linalg.norm(p_at - p_true[-1]) * 100.0),
         final_error_cm=float(np.linalg.norm(p_rest - p_true[-1]) * 100.0),

@@ -163,7 +163,7 @@ def replay_preview_html(
     context = CheckContext(task=demo.task, objects=objects)
     torques, held = torque_preview(robot, traj, context, reported=torque_figures(checks))
     tasks = list(result.replans[0].posterior) if result.replans else []
-    committed = [r for r in result.replans if r.committed]
+    committed = [r for r in result.replans if r.committed and not r.action]  # toward a hand-over
     hand = hand_t = None
     if "hand_position" in demo.extras:
         hp = demo.extras["hand_position"]

@@ -166,7 +166,7 @@ def report_dict(
         if not r.committed:
             key = r.reason.split(":")[0]
             reasons[key] = reasons.get(key, 0) + 1
-    committed = [r for r in result.replans if r.committed]
+    committed = [r for r in result.replans if r.committed and not r.action]  # toward a hand-over
     last = committed[-1] if committed else None
     return _round_dict(
         {

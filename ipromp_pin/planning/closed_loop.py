@@ -650,7 +650,7 @@ class ClosedLoopPlanner:
         if self.settings.require_known and last_unknown and end is not None:  # samples ended in the hold
             observed = self.replans[-1].observed_until_s
             r = Replan(len(self.replans), 0.0, observed, self._stream.n_samples, known=False)
-            tick = max(self._tick(end), self._plans[-1][0] + 1)
+            tick = max(self._tick(end), self._plans[-1][0] + 1, self._tick(self.replans[-1].t_s) + 1)
             r.t_s = tick * self.dt_s
             r.reason = "not re-targeted: the human's samples ended while the robot held"
             self._unknown_segment(r, tick, self.state_at(tick), "the last observation was unknown")

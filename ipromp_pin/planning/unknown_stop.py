@@ -213,7 +213,3 @@ class UnknownStop:
                 self.events.pop()  # resumed while stopping: it never came to rest
             self.events.append(StopEvent("resume", t_s, "known again: re-targeting resumed"))
             self.rest_s = None
-
-    def first(self, kind: str) -> float | None:
-        """The time [s] of the first event of ``kind`` (None: none)."""
-        return next((e.t_s for e in self.events if e.kind == kind), None)

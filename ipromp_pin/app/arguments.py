@@ -307,7 +307,18 @@ def add_closed_loop_options(p: argparse.ArgumentParser) -> None:
         choices=["hold", "ignore"],
         default=None,
         help="what the robot does while the observation matches none of the model's tasks: hold (default: "
-        "it does not start, and stops re-targeting once started) or ignore (acts on the most probable task)",
+        "it does not start, and once started it stops, holds and, still unknown, retreats to its rest "
+        "configuration) or ignore (acts on the most probable task)",
+    )
+    show_default(
+        p.add_argument(
+            "--unknown-hold",
+            type=float,  # checked with the other closed-loop settings (one line naming unknown_hold_s)
+            metavar="S",
+            help="with --unknown-task hold: seconds the robot holds at rest after stopping on an unknown "
+            f"observation before it retreats (default {DEFAULT_MARK})",
+        ),
+        closed_loop_default("unknown_hold_s"),
     )
     show_default(
         p.add_argument("--replan-rate", type=float, help=f"re-plan rate in [Hz] (default {DEFAULT_MARK})"),
@@ -348,6 +359,7 @@ def closed_loop_settings(args: argparse.Namespace, **given: float | None) -> Clo
         "blend_s": args.blend,
         "freeze_phase": args.freeze_phase,
         "start_confidence": args.start_confidence,
+        "unknown_hold_s": getattr(args, "unknown_hold", None),
         **given,
     }
     chosen = {name: value for name, value in options.items() if value is not None}

@@ -121,7 +121,9 @@ class ClosedLoopCell(Cell):
     ``arrival_delay_without_human_s`` (median arrival delay of the replays without the human checks).
     ``robot_start_s`` is the median time the robot started, [s] from the motion start;
     ``never_started`` counts the replays in which it never did (no re-plan: the observation matched
-    none of the tasks throughout, ``require_known``; their hand-over error is from the rest pose).
+    none of the tasks throughout, ``require_known``; their hand-over error is from the rest pose),
+    ``stopped_unknown`` those in which it stopped because the observation turned unknown after it
+    started and ``retreated`` those in which it then retreated (:mod:`~ipromp_pin.planning.unknown_stop`).
     """
 
     limit_profile: str = ""
@@ -134,6 +136,8 @@ class ClosedLoopCell(Cell):
     refused_replans: int = 0
     replans: int = 0
     never_started: int = 0
+    stopped_unknown: int = 0
+    retreated: int = 0
     collisions: int = 0
     closed_loop_handover_orientation_error_deg: float | None = None
     human_min_separation_m: float | None = None

@@ -261,7 +261,8 @@ class ClosedLoopScore:
         collisions: Commanded control samples in contact.
         replans: Re-plans made.
         refused_replans: Re-plans not committed.
-        final_task: Task of the last committed re-plan ("" if none).
+        final_task: Task of the last committed re-plan toward a hand-over ("" if none; not a stop or
+            retreat on an unknown observation).
         handover_orientation_error_deg: Commanded vs recorded gripper rotation at the recorded
             hand-over time, [deg].
         peak_torque_ratio: Largest |joint torque| / effort limit of the commanded motion with the true
@@ -273,6 +274,9 @@ class ClosedLoopScore:
         arrival_delay_without_human_s: ``arrival_delay_s`` of the same replay without the human
             checks, [s].
         start_s: When the robot started (its first re-plan), [s] from the motion start.
+        stop_s: When the robot stopped on an observation turned unknown after the start, [s] from the
+            motion start (the first time; None: never, :mod:`~ipromp_pin.planning.unknown_stop`).
+        retreat_s: When it retreated after holding, [s] (None: never).
     """
 
     handover_error_cm: float
@@ -296,6 +300,8 @@ class ClosedLoopScore:
     contact_speed_violations: int | None = None
     arrival_delay_without_human_s: float | None = None
     start_s: float = float("nan")
+    stop_s: float | None = None
+    retreat_s: float | None = None
 
     def to_dict(self) -> dict:
         """JSON-serialisable form."""
@@ -327,7 +333,7 @@ def score_closed_loop(
     ratios = limit_ratios(traj, lim)[0]
     excess = float(np.max(np.maximum(np.maximum(lim.lower_rad - traj.q, traj.q - lim.upper_rad), 0.0)))
     collisions = int(np.count_nonzero(in_collision(robot, traj.q))) if check_collisions else 0
-    committed = [r for r in result.replans if r.committed]
+    committed = [r for r in result.replans if r.committed and not r.action]  # toward a hand-over
     return ClosedLoopScore(
         handover_error_cm=float(np.linalg.norm(p_at - p_true[-1]) * 100.0),
         final_error_cm=float(np.linalg.norm(p_rest - p_true[-1]) * 100.0),
@@ -345,6 +351,8 @@ def score_closed_loop(
         refused_replans=result.n_refused,
         final_task=committed[-1].task if committed else "",
         handover_orientation_error_deg=float(geodesic_deg(r_cmd[0], r_true[-1])),
+        stop_s=result.first_event_s("unknown"),
+        retreat_s=result.first_event_s("retreat"),
     )
 
 

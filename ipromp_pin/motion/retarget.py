@@ -29,7 +29,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from ruckig import InputParameter, Result, Ruckig, RuckigError
+from ruckig import ControlInterface, InputParameter, Result, Ruckig, RuckigError
 from ruckig import Trajectory as RuckigTrajectory
 
 from ..exceptions import InfeasibleError
@@ -428,3 +428,41 @@ def retarget(
 ) -> tuple[Trajectory, RetargetReport]:
     """The remaining motion from ``state`` onto ``reference``'s timeline (see the module docstring)."""
     return Retargeter(limits, dt_s, blend_s, headroom, settle_s).plan(state, reference)
+
+
+def stop_motion(state: MotionState, limits: JointLimits, dt_s: float, hold_s: float = 0.0) -> Trajectory:
+    """The quickest jerk-limited stop from ``state`` (a control tick's commanded state): ruckig's
+    velocity interface brings every joint's velocity and acceleration to zero together, within the
+    velocity, acceleration and jerk ``limits`` (less :data:`RUCKIG_MARGIN`), wherever the joints then
+    are; then at rest there for ``hold_s`` [s]. Sampled every ``dt_s`` [s] from ``state.t_s`` (the
+    start state first, at rest at the end).
+
+    Raises:
+        InfeasibleError: ruckig finds no stop.
+    """
+    n = limits.n_joints
+    otg = Ruckig(n)
+    inp = InputParameter(n)
+    keep = 1.0 - RUCKIG_MARGIN
+    inp.control_interface = ControlInterface.Velocity
+    inp.max_velocity = limits.velocity_rad_s * keep
+    inp.max_acceleration = limits.acceleration_rad_s2 * keep
+    inp.max_jerk = limits.jerk_rad_s3 * keep
+    inp.current_position, inp.current_velocity, inp.current_acceleration = state.q, state.qd, state.qdd
+    inp.target_velocity = np.zeros(n)
+    inp.target_acceleration = np.zeros(n)
+    traj = RuckigTrajectory(n)
+    try:
+        result = otg.calculate(inp, traj)
+    except RuckigError as exc:
+        raise InfeasibleError("ruckig stop: " + " ".join(str(exc).split())) from exc
+    if result not in (Result.Working, Result.Finished):
+        raise InfeasibleError(f"ruckig stop: no trajectory to rest ({result})")
+    n_stop = int(math.ceil(traj.duration / dt_s - 1e-9))
+    n_hold = int(round(max(hold_s, 0.0) / dt_s))
+    t = dt_s * np.arange(n_stop + n_hold + 1)
+    q, qd, qdd = sample_trajectory(traj, np.minimum(t, traj.duration))
+    qd[n_stop:], qdd[n_stop:] = 0.0, 0.0  # at rest from the stop's end (ruckig's end state, to the bit)
+    q[n_stop:] = q[n_stop]
+    q[0], qd[0], qdd[0] = state.q, state.qd, state.qdd
+    return Trajectory(float(state.t_s) + t, q, qd, qdd, limits.joint_names)

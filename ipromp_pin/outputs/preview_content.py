@@ -33,6 +33,7 @@ from ..safety import CheckContext, CheckReport, Verdict
 from ..safety.joint_limits import JointLimitMeasures
 from ..safety.self_collision import SelfCollisionMeasures
 from .human_preview import human_label, human_tracks, judged_human, separation_figures
+from .replay_report import unknown_lines
 from .report import arrival_line, orientation_line
 from .torque_preview import plan_torques, torque_figures, torque_preview
 
@@ -162,7 +163,7 @@ def replay_preview_html(
     context = CheckContext(task=demo.task, objects=objects)
     torques, held = torque_preview(robot, traj, context, reported=torque_figures(checks))
     tasks = list(result.replans[0].posterior) if result.replans else []
-    committed = [r for r in result.replans if r.committed]
+    committed = [r for r in result.replans if r.committed and not r.action]  # toward a hand-over
     hand = hand_t = None
     if "hand_position" in demo.extras:
         hp = demo.extras["hand_position"]
@@ -202,6 +203,7 @@ def replay_preview_html(
         f"Arrival {score.arrival_s:.2f} s vs recorded {score.recorded_arrival_s:.2f} s "
         f"(delay {score.arrival_delay_s:+.2f} s); {result.profile.name} limits",
         "Blue: commanded gripper path; cyan: the latest plan; purple: recorded robot; green: hand observed.",
+        *unknown_lines(result),
     ]
     events = timeline_events(result, robot, tasks)
     return render_timeline_html(content, events, motion_s=score.handover_time_s, summary=summary)
@@ -224,6 +226,13 @@ def closed_loop_rows(result: ClosedLoopResult, score: ClosedLoopScore) -> list[t
         ),
         ("collisions", score.collisions == 0, f"{score.collisions} commanded samples in contact"),
     ]
+
+
+ACTION_WORDS = {
+    "stop": "stop on an unknown task (jerk-limited, then hold at rest)",
+    "retreat": "retreat to the rest configuration (the task still unknown after the hold)",
+}
+"""How the preview's panel names a re-plan's :attr:`~ipromp_pin.planning.closed_loop.Replan.action`."""
 
 
 def timeline_events(result: ClosedLoopResult, robot: Robot, tasks: list[str]) -> list[TimelineEvent]:
@@ -250,6 +259,7 @@ def timeline_events(result: ClosedLoopResult, robot: Robot, tasks: list[str]) ->
                 arrival_s=r.planned_arrival_s,
                 committed=r.committed,
                 reason=r.reason,
+                action=ACTION_WORDS.get(r.action, r.action),
             )
         )
     return events

@@ -69,8 +69,35 @@ def replans_json(result: ClosedLoopResult, demo: Demo) -> dict:
         "start_s": result.start_s,
         "start_reason": result.start_reason,
         "stopped": result.stopped,
+        "unknown_events": [e.to_dict() for e in result.unknown_events],
         "replans": rows,
     }
+
+
+def unknown_task_dict(result: ClosedLoopResult) -> dict:
+    """The replay report's ``unknown_task``: when the observation turned unknown after the start and
+    the robot stopped, held and retreated (times [s] on the report's clock, the human's motion's start
+    at 0; :mod:`~ipromp_pin.planning.unknown_stop`)."""
+    hold = next((e.t_s for e in result.unknown_events if e.kind == "hold"), None)
+    return {
+        "require_known": result.settings.require_known,
+        "hold_s": result.settings.unknown_hold_s,
+        "stop_s": result.first_event_s("unknown"),
+        "hold_start_s": hold,
+        "retreat_s": result.first_event_s("retreat"),
+        "events": [e.to_dict() for e in result.unknown_events],
+    }
+
+
+def unknown_lines(result: ClosedLoopResult) -> list[str]:
+    """One line per stop-hold-retreat event (none when the observation stayed known after the start)."""
+    words = {
+        "unknown": "turned unknown, stopping",
+        "hold": "held at rest",
+        "resume": "resumed",
+        "retreat": "retreated",
+    }
+    return [f"Unknown task: {words[e.kind]} at {e.t_s:.2f} s: {e.detail}" for e in result.unknown_events]
 
 
 def retarget_summary(result: ClosedLoopResult) -> dict | None:
@@ -139,7 +166,7 @@ def report_dict(
         if not r.committed:
             key = r.reason.split(":")[0]
             reasons[key] = reasons.get(key, 0) + 1
-    committed = [r for r in result.replans if r.committed]
+    committed = [r for r in result.replans if r.committed and not r.action]  # toward a hand-over
     last = committed[-1] if committed else None
     return _round_dict(
         {
@@ -183,6 +210,7 @@ def report_dict(
             "refused_replans": score.refused_replans,
             "refusals": reasons,
             "stopped": result.stopped,
+            "unknown_task": unknown_task_dict(result),
             "final_task": score.final_task,
             "final_posterior": last.posterior if last else {},
             "predicted_handover_s": last.predicted_handover_s if last else None,
@@ -231,6 +259,7 @@ def report_text(
         lines.append(f"FAILED: {failure_reason(result, score)}")
     if result.stopped:
         lines.append(f"Re-planning stopped: {result.stopped}")
+    lines += unknown_lines(result)
     refused = [r for r in result.replans if not r.committed]
     for r in refused[:10]:
         lines.append(f"  refused at {r.t_s:.2f} s: {r.reason}")
@@ -271,6 +300,7 @@ def summary_lines(demo: Demo, result: ClosedLoopResult, score: ClosedLoopScore, 
             f"Hand-over error {score.handover_error_cm:.2f} cm at the recorded hand-over time; arrival delay "
             f"{score.arrival_delay_s:+.2f} s ({result.profile.name} limits, max ratio "
             f"{score.max_limit_ratio:.3f}); collisions {score.collisions}",
+            *unknown_lines(result),
             f"Re-plan cycle median {np.median(cycles):.2f} ms" if cycles else "No re-plan",
             f"Total {elapsed_s:.1f} s",
         ]

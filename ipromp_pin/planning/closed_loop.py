@@ -30,6 +30,10 @@ and runs a simulated control loop at ``control_rate_hz`` (no waiting):
   predicted reference motion becomes the executing arm's through the gripper before it is
   re-targeted and checked on that arm; a re-plan whose hand-over pose the arm cannot reach is refused
   like any other (``unreachable``: the robot keeps its last committed plan).
+* with ``require_known``, a re-plan whose observation is unknown after a committed motion stops the
+  robot (jerk-limited), holds it at rest for ``unknown_hold_s`` and, if the observation is still
+  unknown then, retreats it to its rest configuration; a known re-plan during the stop or the hold
+  resumes re-targeting (:mod:`.unknown_stop`).
 
 Before its first committed plan the robot rests at its start configuration. :meth:`finish` plays
 the last committed plan to its end and returns the commanded trajectory with every re-plan.
@@ -57,6 +61,7 @@ from ..safety.speed_limits import SpeedLimitMeasures
 from ..safety.workspace import WorkspaceMeasures
 from .timers import retarget_timer
 from .transfer import ReplanTransfer
+from .unknown_stop import UNKNOWN_HOLD_RANGE_S, UNKNOWN_HOLD_S, Segment, StopEvent, UnknownStop
 
 CONDITION_NOISE = 0.3
 """Observation-noise ratio ``nu`` with which the closed loop conditions the robot trajectory (the
@@ -119,8 +124,10 @@ class ClosedLoopSettings:
         require_known: The robot acts only on a known task: it does not start while the observation
             matches none of the model's tasks (its novelty p-value at most the model's ``alpha``, or no
             task explains it), and once started, a re-plan whose observation is unknown is not
-            committed (the robot keeps its last committed plan: it stops re-targeting). False: act on
+            committed: the robot stops, holds and then retreats (:mod:`.unknown_stop`). False: act on
             the most probable task whatever its novelty.
+        unknown_hold_s: With ``require_known``: how long the robot holds at rest after stopping on an
+            unknown observation before it retreats, in [s] (:data:`~.unknown_stop.UNKNOWN_HOLD_S`).
     """
 
     start_ratio: float | None = None
@@ -135,6 +142,7 @@ class ClosedLoopSettings:
     condition_noise: float | None = CONDITION_NOISE
     handover_estimates: bool = False
     require_known: bool = True
+    unknown_hold_s: float = UNKNOWN_HOLD_S
 
     def validate(self, source: str = "closed loop") -> ClosedLoopSettings:
         """Check the values; raise :class:`PipelineError` naming ``source`` and the field."""
@@ -174,6 +182,11 @@ class ClosedLoopSettings:
         for name in ("handover_estimates", "require_known"):
             if not isinstance(getattr(self, name), bool):
                 raise bad(name, f"must be true or false, got {getattr(self, name)!r}")
+        h = self.unknown_hold_s
+        if not (isinstance(h, int | float) and not isinstance(h, bool) and UNKNOWN_HOLD_RANGE_S.contains(h)):
+            raise bad(
+                "unknown_hold_s", UNKNOWN_HOLD_RANGE_S.problem(h) if isinstance(h, int | float) else f"{h!r}"
+            )
         return self
 
     def to_dict(self) -> dict:
@@ -212,8 +225,7 @@ class Replan:
         n_observed: Human samples received.
         task: Recognised task.
         posterior: Task -> posterior probability.
-        known: Whether the observation was recognised as one of the model's tasks (recorded; the
-            closed loop does not act on it yet).
+        known: Whether the observation was recognised as one of the model's tasks.
         novelty_p_value: The observation's conformal novelty p-value (None: no novelty detector).
         predicted_handover_s: Predicted hand-over time (end of the human's motion) in [s].
         predicted_handover_position_m: Gripper position (3,) at the predicted hand-over in [m].
@@ -233,6 +245,8 @@ class Replan:
         stage_ms: Wall time per stage in [ms].
         retarget: How the reference came from the model's robot through the gripper
             (:meth:`~.transfer.ReplanRetarget.to_dict`; None: the model predicts this arm's joints).
+        action: What the plan does: ``""`` a re-target toward the hand-over, ``stop`` or ``retreat``
+            on an unknown observation (:mod:`.unknown_stop`).
     """
 
     index: int
@@ -258,6 +272,7 @@ class Replan:
     cycle_ms: float = 0.0
     stage_ms: dict[str, float] = field(default_factory=dict)
     retarget: dict | None = None
+    action: str = ""
 
     def to_dict(self) -> dict:
         """JSON-serialisable form (rounded)."""
@@ -290,6 +305,8 @@ class ClosedLoopResult:
         robot: The executing arm's name.
         source_robot: The model's robot when the arm executed it retargeted through the gripper
             (empty: the arm's own model).
+        unknown_events: When the observation turned unknown after the start, the robot held, resumed
+            or retreated (:class:`~.unknown_stop.StopEvent`, in time order).
     """
 
     trajectory: Trajectory
@@ -303,6 +320,11 @@ class ClosedLoopResult:
     start_rule: str = ""
     robot: str = ""
     source_robot: str = ""
+    unknown_events: list[StopEvent] = field(default_factory=list)
+
+    def first_event_s(self, kind: str) -> float | None:
+        """The time [s] of the first :attr:`unknown_events` of ``kind`` (None: none)."""
+        return next((e.t_s for e in self.unknown_events if e.kind == kind), None)
 
     @property
     def n_refused(self) -> int:
@@ -394,6 +416,8 @@ class ClosedLoopPlanner:
         self._guess: float | None = None
         self._stopped = ""
         self._finished = False
+        self._unknown = UnknownStop(self.suite, profile.limits, q_start, s.unknown_hold_s, self.dt_s)
+        self._task = ""  # that of the last committed re-plan
 
     def __enter__(self) -> ClosedLoopPlanner:
         self._open_stream()
@@ -440,7 +464,8 @@ class ClosedLoopPlanner:
         if rec is None or not self._may_start(t_s, rec) or t_s < self._next_replan - 1e-9:
             return None
         freeze = self.settings.freeze_phase
-        if freeze < 1.0 and len(self._plans) > 1 and t_s >= freeze * rec.duration_s:
+        stopping = self._unknown.hold_end_s() is not None  # frozen only once it retreats or resumes
+        if freeze < 1.0 and len(self._plans) > 1 and not stopping and t_s >= freeze * rec.duration_s:
             self._stopped = (
                 f"re-planning stopped at t={t_s:.3f} s: {t_s / rec.duration_s:.0%} of the predicted "
                 f"motion observed (freeze_phase {self.settings.freeze_phase:g})"
@@ -507,6 +532,8 @@ class ClosedLoopPlanner:
         if self.settings.require_known and not pred.known:
             r.reason = f"not re-targeted: unknown task ({pred.unknown_reason})"
             r.stage_ms = ms
+            if len(self._plans) > 1:  # it moved: stop, hold, retreat
+                self._unknown_segment(r, tick, state, pred.unknown_reason or "")
             return r
         if self.transfer is not None:  # the model's robot's reference -> this arm's, through the gripper
             moved, how = self.transfer.reference(reference, state.q, float(state.t_s))
@@ -525,7 +552,34 @@ class ClosedLoopPlanner:
         if plan is not None and not r.reason:
             r.committed = True
             self._plans.append((tick, plan))
+            self._task = pred.task
+            self._unknown.resumed(tick * self.dt_s)
         return r
+
+    def _unknown_segment(self, r: Replan, tick: int, state: MotionState, why: str) -> None:
+        """Commit the stop or the retreat due at ``tick`` (:meth:`UnknownStop.due`) into ``r``, an
+        unknown re-plan at the commanded ``state``, when its checks pass."""
+        action = self._unknown.due(tick * self.dt_s)
+        if not action:
+            return
+        t0 = time.perf_counter()
+        context = self.context.replace(task=self._task or None, handover_s=None)
+        if context.human is not None:
+            context = context.replace(human=context.human.until(r.observed_until_s))
+        segment = self._unknown.segment(action, state, context)
+        r.stage_ms[action] = (time.perf_counter() - t0) * 1e3
+        record_segment(r, segment)
+        motion = segment.motion
+        if motion is None:
+            r.reason = f"{r.reason}; {segment.reason}"
+            return
+        r.committed, r.reason = True, ""
+        self._plans.append((tick, motion))
+        self._unknown.committed(segment, tick * self.dt_s, why)
+        if action == "retreat":
+            self._stopped = (
+                f"re-planning stopped at t={r.t_s:.3f} s: retreating, the task still unknown ({why})"
+            )
 
     def _plan_checked(
         self,
@@ -591,6 +645,16 @@ class ClosedLoopPlanner:
     def finish(self) -> ClosedLoopResult:
         """Stop receiving samples and return the commanded trajectory until it comes to rest."""
         self.close()
+        last_unknown = bool(self.replans) and not self.replans[-1].known
+        end = self._unknown.hold_end_s()
+        if self.settings.require_known and last_unknown and end is not None:  # samples ended in the hold
+            observed = self.replans[-1].observed_until_s
+            r = Replan(len(self.replans), 0.0, observed, self._stream.n_samples, known=False)
+            tick = max(self._tick(end), self._plans[-1][0] + 1, self._tick(self.replans[-1].t_s) + 1)
+            r.t_s = tick * self.dt_s
+            r.reason = "not re-targeted: the human's samples ended while the robot held"
+            self._unknown_segment(r, tick, self.state_at(tick), "the last observation was unknown")
+            self.replans.append(r)
         k_last, last = self._plans[-1]
         n = k_last + last.n_samples
         nj = last.q.shape[1]
@@ -623,7 +687,17 @@ class ClosedLoopPlanner:
             self.start_rule,
             self.robot.settings.name,
             "" if self.transfer is None else self.transfer.source.settings.name,
+            list(self._unknown.events),
         )
+
+
+def record_segment(r: Replan, segment: Segment) -> None:
+    """Fill ``r``'s action, check fields, arrival and slow-down from a stop or retreat segment."""
+    r.action = segment.action
+    if segment.retimed is not None:
+        record_verdicts(r, segment.retimed.verdicts)
+        r.planned_arrival_s = segment.retimed.motion.end_s
+        r.slowdown = segment.retimed.slowdown
 
 
 def record_verdicts(r: Replan, verdicts: list[Verdict]) -> None:

@@ -16,9 +16,9 @@ the human's hand path (grey) when hand positions are known. On top of it, as fun
   states along the slider;
 - the HTML panel shows, at the scrubbed time, the task posterior of the latest re-plan, the observed
   part of the human's motion, and a second panel (``static/timeline.js``) the re-plan's predicted
-  hand-over time, its planned arrival and whether it was committed or refused (and why), with a
-  time slider. Both follow meshcat's animation ("Open Controls > Animations" plays it); the slider
-  seeks it.
+  hand-over time, its planned arrival and whether it was committed or refused (and why), or the
+  stop or retreat it committed on an unknown observation, with a time slider. Both follow meshcat's
+  animation ("Open Controls > Animations" plays it); the slider seeks it.
 
 Everything comes in plain arrays (:class:`TimelineEvent`), like :class:`PreviewContent`.
 """
@@ -76,6 +76,8 @@ class TimelineEvent:
         arrival_s: When the plan comes to rest, in [s], or None.
         committed: Whether the plan was committed.
         reason: Why it was refused.
+        action: What a committed plan does: ``""`` a re-target toward the hand-over, else its words
+            (e.g. a stop or a retreat on an unknown observation).
     """
 
     t_s: float
@@ -88,6 +90,7 @@ class TimelineEvent:
     arrival_s: float | None = None
     committed: bool = False
     reason: str = ""
+    action: str = ""
 
 
 def _static(name: str) -> str:
@@ -119,6 +122,7 @@ def _check_events(content: PreviewContent, events: Sequence[TimelineEvent]) -> l
             TimelineEvent(
                 float(e.t_s), float(e.observed_until_s), str(e.task), [float(p) for p in e.posterior],
                 e.predicted_handover_s, point, path, e.arrival_s, bool(e.committed), str(e.reason),
+                str(e.action),
             )
         )  # fmt: skip
     return out
@@ -251,6 +255,7 @@ def render_timeline_html(
                 "arrival_s": e.arrival_s,
                 "committed": e.committed,
                 "reason": e.reason,
+                "action": e.action,
             }
             for e in events
         ],

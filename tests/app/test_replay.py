@@ -203,3 +203,69 @@ def test_a_replay_into_a_run_folder_leaves_the_replay_files_only(tmp_path, tiny)
     with Reader(out / "rosbag") as reader:
         topics = {c.topic for c in reader.connections}
     assert "/ipromp_pin/planned_trajectory" in topics and "/ipromp_pin/retreat_trajectory" not in topics
+
+
+def test_a_replay_turned_unknown_reports_and_previews_the_stop_hold_and_retreat(tmp_path, capsys):
+    """The held-out demo's observed channels buried in noise from 40 % of it on (a motion the model
+    never learned): the robot, started on a known task, stops, holds and retreats; the report says
+    when on its clock (0: the human's motion's start), its schema holds, the preview marks the times."""
+    import jsonschema
+
+    from ipromp_pin.schemas import load_schema
+
+    ds = make_synthetic_dataset(n_tasks=2, n_demos=6, seed=5)
+    rng = np.random.default_rng(1)
+    for task, demos in ds.demos.items():
+        for i, d in enumerate(demos):
+            if task == "rod" and i == len(demos) - 1:
+                cut = int(0.4 * d.n_samples)
+                o, e = d.groups["orientation"][cut:], d.groups["emg"][cut:]
+                o += rng.standard_normal(o.shape)  # still unit quaternions, another way round
+                o /= np.linalg.norm(o, axis=1, keepdims=True)
+                e += np.abs(3.0 * rng.standard_normal(e.shape))
+            write_demo(d, tmp_path / "data" / task / f"{d.name}.npz")
+    out = tmp_path / "out"
+    args = ["replay", str(PIPELINE), "--out", str(out), "--dataset", str(tmp_path / "data")]
+    args += ["--task", "rod", "--demo", "-1", "--start-ratio", "0.2", "--unknown-hold", "0.3"]
+    assert main(args) == 0
+    report = json.loads((out / "report.json").read_text())
+    jsonschema.Draft202012Validator(load_schema("replay_report")).validate(report)
+    replans = json.loads((out / "replans.json").read_text())
+    jsonschema.Draft202012Validator(load_schema("replans")).validate(replans)
+    u = report["unknown_task"]
+    assert u["require_known"] and u["hold_s"] == 0.3 == report["settings"]["unknown_hold_s"]
+    kinds = [e["kind"] for e in u["events"]]  # a flicker of known may resume it in between
+    assert kinds[0] == "unknown" and kinds[-2:] == ["hold", "retreat"]
+    times = {k: [e["t_s"] for e in u["events"] if e["kind"] == k] for k in set(kinds)}
+    assert (u["stop_s"], u["hold_start_s"], u["retreat_s"]) == (
+        times["unknown"][0],
+        times["hold"][0],
+        times["retreat"][0],
+    )
+    assert report["start_s"] < u["stop_s"] < u["hold_start_s"] < u["retreat_s"]
+    assert [e["t_s"] for e in u["events"]] == sorted(e["t_s"] for e in u["events"])
+    assert u["retreat_s"] >= times["hold"][-1] + 0.3 - 1e-6
+    # the report's clock is the trajectory's and the re-plans' (0: the human's motion's start)
+    stop = next(r for r in replans["replans"] if r["action"] == "stop")
+    assert stop["t_s"] == u["stop_s"] and not stop["known"] and stop["committed"]
+    traj = read_trajectory_csv(out / "trajectory.csv")
+    i_hold = int(round(u["hold_start_s"] / 0.01))
+    assert traj.t_s[i_hold] == pytest.approx(u["hold_start_s"]) and not traj.qd[i_hold].any()
+    assert traj.qd[i_hold - 1].any()  # still moving just before the hold
+    np.testing.assert_allclose(traj.q[-1], ds.demos["rod"][-1].groups["robot"][0], atol=1e-6)  # at rest
+    text = (out / "report.txt").read_text()
+    assert f"Unknown task: held at rest at {u['hold_start_s']:.2f} s" in text
+    assert f"Unknown task: retreated at {u['retreat_s']:.2f} s" in text
+    page = (out / "preview.html").read_text()
+    data = json.loads(page.split('id="ipromp-timeline-data">')[1].split("</script>")[0].replace("<\\/", "</"))
+    assert any(
+        line.startswith(f"Unknown task: turned unknown, stopping at {u['stop_s']:.2f} s")
+        for line in data["summary"]
+    )
+    marked = {e["t_s"]: e["action"] for e in data["events"] if e["action"]}
+    assert marked[u["stop_s"]].startswith("stop") and marked[u["retreat_s"]].startswith("retreat")
+    assert "Unknown task: retreated at" in capsys.readouterr().out
+    # a hold outside its plausible range: one line naming the field, nothing computed
+    assert main([*args[:-1], "20"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "command line: field 'unknown_hold_s': implausible value 20 s" in err and "\n" not in err

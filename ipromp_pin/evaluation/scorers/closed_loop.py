@@ -113,6 +113,8 @@ TRIAL_KEYS = (
     "closed_loop_protective_distance_time_s",
     "closed_loop_contact_speed_violations",
     "closed_loop_arrival_delay_without_human_s",
+    "closed_loop_stop_s",
+    "closed_loop_retreat_s",
 )
 """The fields of a trial kept in a cell's ``closed_loop_trials`` (floats rounded to 4 decimals)."""
 
@@ -284,6 +286,8 @@ class ClosedLoopScorer(Scorer):
             "refused_replans": int(sum(s.refused_replans for s in scores)),
             "replans": int(sum(s.replans for s in scores)),
             "never_started": int(sum(s.replans == 0 for s in scores)),
+            "stopped_unknown": int(sum(s.stop_s is not None for s in scores)),
+            "retreated": int(sum(s.retreat_s is not None for s in scores)),
             "collisions": int(sum(s.collisions for s in scores)),
             "closed_loop_handover_orientation_error_deg": median(
                 [s.handover_orientation_error_deg for s in scores]

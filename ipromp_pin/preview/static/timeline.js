@@ -44,7 +44,8 @@
           " s: predicted hand-over at " + fmt(e.predicted_handover_s, "s") + ", plan at rest at " +
           fmt(e.arrival_s, "s")),
         iprompEl("div", {"class": e.committed ? "committed" : "refused"},
-          e.committed ? "committed" : "refused (the robot keeps the last safe plan): " + e.reason));
+          e.committed ? (e.action ? "committed: " + e.action : "committed")
+            : "refused (the robot keeps the last safe plan): " + e.reason));
     } else {
       state.task = "";
       state.no_task_text = "(none yet: before the first re-plan at " + fmt(events.length ? events[0].t_s : null, "s") + ")";

@@ -126,7 +126,7 @@ def main() -> None:
     base_env = {k: v for k, v in os.environ.items() if k not in drop}
     load0 = os.getloadavg()
     results: dict[str, list[dict]] = {"cold": [], "warm": [], "compile_s": []}
-    with tempfile.TemporaryDirectory() as tmp:
+    with tempfile.TemporaryDirectory(ignore_cleanup_errors=True) as tmp:
         tmp = Path(tmp)
         if args.smoke:
             results = smoke(tmp)

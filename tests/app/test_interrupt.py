@@ -122,7 +122,9 @@ def test_console_script_interrupted_at_start_up_or_in_training(tiny, tmp_path, s
     err = proc.communicate(timeout=120)[1]
     if proc.returncode == 0:  # finished before the signal on a fast machine: nothing to check
         pytest.skip("the command finished before the signal")
-    assert proc.returncode == status
+    # 130 / 143, or (seen on a loaded machine, after the one line was printed) the interpreter ending
+    # itself with the signal, which a shell reports as the same 128 + signal
+    assert proc.returncode in (status, -sig)
     _one_line(err, name)
     assert target.read_bytes() == model.read_bytes()
     _no_temporary(tmp_path)

@@ -117,3 +117,19 @@ def test_run_with_the_six_joint_ur5_writes_its_preview_with_baxter_s_recorded_gr
     assert main(["run", str(PIPELINE), "--robot", "ur5", "--out", str(out), "--no-rosbag"]) == 0
     assert (out / "preview.html").read_text().startswith("<!DOCTYPE html>")
     assert json.loads((out / "report.json").read_text())["feasibility"]["robot"] == "ur5"
+
+
+def test_a_pipeline_names_its_arm_once(arm_run, tmp_path):
+    """pipelines/panda_handover.toml: the Panda named once, every other key the documented default;
+    it plans what ``run baxter_handover --robot panda`` plans."""
+    from ipromp_pin.app.config import load_pipeline
+
+    name, code, out = arm_run
+    if name != "panda":
+        pytest.skip("the shipped pipeline is the Panda's")
+    cfg, base = load_pipeline("panda_handover"), load_pipeline(str(PIPELINE))
+    assert cfg.robot == "panda" and base.robot == "baxter_left"
+    assert (cfg.task, cfg.demo, cfg.ratio, cfg.observe) == (base.task, base.demo, base.ratio, base.observe)
+    mine = tmp_path / "out"
+    assert main(["run", "panda_handover", "--out", str(mine), "--no-preview", "--no-retreat"]) == 0
+    assert (mine / "trajectory.csv").read_text() == (out / "trajectory.csv").read_text()

@@ -39,7 +39,7 @@ from ipromp_pin.data import ROBOT, Dataset, Demo
 from ipromp_pin.human import HumanMotion
 from ipromp_pin.motion.limits import JointLimits
 from ipromp_pin.motion.trajectory import Trajectory
-from ipromp_pin.planning.timers import path_timer
+from ipromp_pin.planning.timers import PathTimer
 from ipromp_pin.readers.synthetic import make_synthetic_dataset
 from ipromp_pin.robot import load_robot
 from ipromp_pin.robot.kinematics import ee_positions, frame_placements, gripper_kinematics
@@ -162,7 +162,7 @@ def _timed(robot: object, suite: CheckSuite, path: np.ndarray, human: HumanMotio
     uniform slow-down the same checks would have asked for]."""
     ctx = CheckContext(human=human.until(t_obs))
     limits = JointLimits.from_robot(robot)  # type: ignore[arg-type]
-    timer = path_timer(path, limits, suite.timing_constraints(ctx), 100.0, t_obs, lambda _m: None)
+    timer = PathTimer(path, limits, suite.timing_constraints(ctx), 100.0, t_obs, lambda _m: None)
     r = suite.retime_until_safe(timer, ctx)
     uniform = suite.retime_until_safe(lambda k: timer(k), ctx)  # a plain timer: the uniform slow-down
     m = CheckReport(suite.run(r.first.motion, ctx))["contact_speed"].measures

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
 from ipromp_pin.data import Demo
@@ -25,3 +27,16 @@ def leaning_skeleton(settings: HumanSettings, demo: Demo, lean_m: float = 0.12) 
     return Demo(
         demo.task, demo.name, demo.source, demo.t, demo.groups, demo.channel_names, demo.missing, extras
     )
+
+
+def write_leaning_dataset(folder: Path, settings: HumanSettings) -> list[str]:
+    """Two synthetic tasks of 6 demos (seed 5), each with a tracked skeleton leaning toward the robot
+    (:func:`leaning_skeleton`), written as native demos into ``folder/<task>/``; the task names."""
+    from ipromp_pin.readers.native import write_demo
+    from ipromp_pin.readers.synthetic import make_synthetic_dataset
+
+    ds = make_synthetic_dataset(n_tasks=2, n_demos=6, seed=5)
+    for task, demos in ds.demos.items():
+        for d in demos:
+            write_demo(leaning_skeleton(settings, d), folder / task / f"{d.name}.npz")
+    return list(ds.tasks)

@@ -44,7 +44,7 @@ from ..human import HumanMotion
 from ..motion.trajectory import JointLimits, Trajectory
 from ..planning.closed_loop import ClosedLoopResult
 from ..planning.one_shot import PlanResult
-from ..planning.timers import path_timer
+from ..planning.timers import PathTimer
 from ..promp import Prediction, handover_orientation
 from ..robot import Robot, ee_positions, frame_placements
 from ..robot.collision import in_collision
@@ -168,7 +168,7 @@ def one_shot_peak_torque_ratio(
     RECOGNISED task's object; without the slow-downs the other checks may ask for) with the object
     of the TRUE ``task``; NaN when the path cannot be timed."""
     ctx = CheckContext(task=prediction.task, objects=objects)
-    timer = path_timer(
+    timer = PathTimer(
         prediction.q_mean,
         JointLimits.from_robot(robot),
         suite.timing_constraints(ctx),

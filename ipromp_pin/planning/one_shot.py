@@ -25,7 +25,7 @@ from ..promp.inputs import ObservationWarning
 from ..robot import Robot, ee_positions, frame_placements
 from ..robot.kinematics import rotations_to_quat_xyzw
 from ..safety import CheckContext, CheckReport, CheckSuite
-from .timers import path_timer
+from .timers import PathTimer
 from .transfer import Retargeting, retarget_prediction
 
 LogFn = Callable[[str], None]
@@ -198,7 +198,7 @@ def plan(
     start_s = float(observation.t[-1] - observation.t[0])
     ctx = prediction_context(prediction, context if context is not None else CheckContext(), samples)
     limits = JointLimits.from_robot(robot)
-    timer = path_timer(q_path, limits, suite.timing_constraints(ctx), control_rate_hz, start_s, say)
+    timer = PathTimer(q_path, limits, suite.timing_constraints(ctx), control_rate_hz, start_s, say)
     retimed = suite.retime_until_safe(timer, ctx)
     t2 = time.perf_counter()
     ms["time_check"] = (t2 - t1) * 1e3 - ms.get("retarget", 0.0)

@@ -40,7 +40,7 @@ from ..robot.objects import TaskObject
 from ..robot.retreat_target import RetreatTarget
 from ..safety import CheckContext, CheckReport, CheckSuite, Timed, Timer
 from .one_shot import LogFn, PlanResult
-from .timers import PathTimer, path_timer
+from .timers import PathTimer
 
 PATH_SPACING_RAD = 0.02
 """Joint-space spacing [rad] of the points of the straight retreat path handed to the timing."""
@@ -206,7 +206,7 @@ def retreat_timer(
             return Timed(dwell, None, 1.0, None)
 
         return still
-    inner = path_timer(path, limits, suite.timing_constraints(context), rate_hz, dwell.end_s, say, "retreat")
+    inner = PathTimer(path, limits, suite.timing_constraints(context), rate_hz, dwell.end_s, say, "retreat")
     return DwellThenPath(dwell, inner)
 
 

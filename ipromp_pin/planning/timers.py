@@ -1,7 +1,7 @@
 """The planners' timers (:data:`~ipromp_pin.safety.retime.Timer`): a requested slow-down -> the
 motion timed that much slower, for the one re-time-until-safe loop of :mod:`ipromp_pin.safety`.
 
-- :func:`path_timer`: a joint path timed with toppra and ruckig (:func:`~ipromp_pin.motion.timing.time_path`)
+- :class:`PathTimer`: a joint path timed with toppra and ruckig (:func:`~ipromp_pin.motion.timing.time_path`)
   under the joint limits scaled by ``1/k``, ``1/k^2``, ``1/k^3`` and the checks' torque limits (the
   one-shot plan, the retreat), or slowed only where the checks ask (its path velocity capped there);
   every timing follows the same geometric path;
@@ -111,19 +111,6 @@ class PathTimer:
             self.path, limits, rate_hz=self.rate_hz, torque=torque, start_s=self.start_s, sd_cap=sd_cap
         )
         return Timed(motion, report, k, self.path)
-
-
-def path_timer(
-    path: np.ndarray,
-    limits: JointLimits,
-    constraints: TimingConstraints,
-    rate_hz: float,
-    start_s: float,
-    say: LogFn,
-    what: str = "timing",
-) -> PathTimer:
-    """A :class:`PathTimer` (the one-shot plan's and the retreat's timer)."""
-    return PathTimer(path, limits, constraints, rate_hz, start_s, say, what)
 
 
 def retarget_timer(retargeter: Retargeter, state: MotionState, reference: ReferenceMotion) -> Timer:

@@ -55,24 +55,11 @@ _BODY_OPACITY = 0.35
 _MIN_LENGTH_M = 1e-6
 
 
-def _frame_y_to(d: np.ndarray) -> np.ndarray:
-    """Rotation (3, 3) whose y column is the unit vector ``d`` (3,)."""
-    y = d / np.linalg.norm(d)
-    helper = np.array([1.0, 0.0, 0.0]) if abs(y[0]) < 0.9 else np.array([0.0, 0.0, 1.0])
-    x = np.cross(y, helper)
-    x /= np.linalg.norm(x)
-    return np.column_stack([x, y, np.cross(x, y)])
-
-
 def _segment(a: np.ndarray, b: np.ndarray, radius: float) -> tuple[np.ndarray, list[float]]:
     """Placement (4, 4) without scale and scale (x, y, z) of a unit cylinder (axis y, height 1,
-    radius 1) spanning ``a`` to ``b`` (3,) [m] with ``radius`` [m]."""
-    d = b - a
-    length = float(np.linalg.norm(d))
-    T = np.eye(4)
-    T[:3, :3] = _frame_y_to(d) if length > _MIN_LENGTH_M else np.eye(3)
-    T[:3, 3] = (a + b) / 2.0
-    return T, [radius, max(length, _MIN_LENGTH_M), radius]
+    radius 1) spanning ``a`` to ``b`` (3,) [m] with ``radius`` [m] (:func:`_segments` of one)."""
+    T, scale = _segments(np.asarray(a, dtype=float)[None], np.asarray(b, dtype=float)[None], radius)
+    return T[0], scale[0].tolist()
 
 
 def capsule_transforms(
@@ -141,7 +128,10 @@ def _pose_static(
 
 
 def _segments(a: np.ndarray, b: np.ndarray, radius: np.ndarray | float) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`_segment` of ``n`` segments at once: placements (n, 4, 4) and scales (n, 3)."""
+    """Placements (n, 4, 4) without scale and scales (n, 3) of unit cylinders (axis y, height 1,
+    radius 1) spanning ``a`` to ``b`` (n, 3) [m] with ``radius`` [m] (scalar or (n,)): the axis a
+    rotation whose y column is the unit direction (the identity for a segment shorter than
+    ``_MIN_LENGTH_M``)."""
     d = b - a
     length = np.linalg.norm(d, axis=1)
     long = length > _MIN_LENGTH_M

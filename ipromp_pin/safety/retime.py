@@ -259,13 +259,10 @@ def _slow_uniformly(
         except InfeasibleError:
             break
         rounds += 1
-        same = nxt.path is not None and nxt.path is cur.path
-        keep = [v for v in cur_v if v.name in path_names] if same else []
-        reused = bool(keep)
-        cur, cur_v = nxt, suite.run(nxt.motion, context, reuse=keep, stop_early=stop_early)
-    if reused:  # the path checks' numbers and times of the returned motion itself
-        timing = [v for v in cur_v if v.name not in path_names]
-        cur_v = suite.run(cur.motion, context, reuse=timing, stop_early=stop_early)
+        cur_v, reused = _check_next(suite, context, (cur, cur_v), nxt, path_names, stop_early)
+        cur = nxt
+    if reused:
+        cur_v = _recheck_path(suite, context, cur, cur_v, path_names, stop_early)
     return Retimed(cur, cur_v, first, 1.0 if cur is first else requested / base, rounds, guessed)
 
 
@@ -280,13 +277,12 @@ def _slow_locally(
     """Slow ``first`` (checked: ``verdicts``) only where its failing checks ask for it, at most
     :data:`MAX_SLOWDOWN_ROUNDS` times; the first motion that passes, or None when none does (or a
     failing check asks for no local slow-down: the uniform slow-down decides then)."""
-    cur, cur_v = first, verdicts
+    cur, cur_v, reused = first, verdicts, False
     path_names = suite.path_checks()
     for rounds in range(1, MAX_SLOWDOWN_ROUNDS + 2):
         if not any(v.blocks for v in cur_v):
-            if cur is not first:  # the path checks' numbers and times of the returned motion itself
-                timing = [v for v in cur_v if v.name not in path_names]
-                cur_v = suite.run(cur.motion, context, reuse=timing, stop_early=stop_early)
+            if reused:
+                cur_v = _recheck_path(suite, context, cur, cur_v, path_names, stop_early)
             slowdown = cur.motion.duration_s / first.motion.duration_s
             return Retimed(cur, cur_v, first, slowdown, rounds, local=cur is not first)
         if rounds > MAX_SLOWDOWN_ROUNDS:
@@ -300,7 +296,36 @@ def _slow_locally(
             return None
         if nxt.motion.duration_s > first.motion.duration_s * MAX_SLOWDOWN:
             return None
-        same = nxt.path is not None and nxt.path is cur.path
-        keep = [v for v in cur_v if v.name in path_names] if same else []
-        cur, cur_v = nxt, suite.run(nxt.motion, context, reuse=keep, stop_early=stop_early)
+        cur_v, reused = _check_next(suite, context, (cur, cur_v), nxt, path_names, stop_early)
+        cur = nxt
     return None
+
+
+def _check_next(
+    suite: Runs,
+    context: CheckContext,
+    last: tuple[Timed, list[Verdict]],
+    nxt: Timed,
+    path_names: set[str],
+    stop_early: bool,
+) -> tuple[list[Verdict], bool]:
+    """The verdicts on ``nxt``, keeping those of the path-only checks of ``last`` (a motion and its
+    verdicts) for the decision when ``nxt`` follows the same path; and whether any were kept."""
+    cur, cur_v = last
+    same = nxt.path is not None and nxt.path is cur.path
+    keep = [v for v in cur_v if v.name in path_names] if same else []
+    return suite.run(nxt.motion, context, reuse=keep, stop_early=stop_early), bool(keep)
+
+
+def _recheck_path(
+    suite: Runs,
+    context: CheckContext,
+    timed: Timed,
+    verdicts: list[Verdict],
+    path_names: set[str],
+    stop_early: bool,
+) -> list[Verdict]:
+    """The path checks run once more on the returned motion (their numbers and times its own), its
+    timing checks' ``verdicts`` kept."""
+    timing = [v for v in verdicts if v.name not in path_names]
+    return suite.run(timed.motion, context, reuse=timing, stop_early=stop_early)

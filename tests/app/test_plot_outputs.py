@@ -10,14 +10,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 from helpers_cli import PIPELINE, run_tiny
-from helpers_human import leaning_skeleton
+from helpers_human import write_leaning_dataset
 
 from ipromp_pin.app import main
 from ipromp_pin.outputs import plots, plots_motion
 from ipromp_pin.outputs.rosbag import TOPIC_JOINT_STATES, TOPIC_TRAJECTORY
 from ipromp_pin.outputs.trajectory_files import read_trajectory_csv
-from ipromp_pin.readers.native import write_demo
-from ipromp_pin.readers.synthetic import make_synthetic_dataset
 from ipromp_pin.robot import load_robot
 from ipromp_pin.robot.objects import load_objects
 
@@ -92,13 +90,9 @@ def replayed(tmp_path_factory):
     """A replay with --plots of a demo with a tracked skeleton (the human checks judge it), and the
     arguments its separation figure was drawn with."""
     folder = tmp_path_factory.mktemp("skeleton_dataset")
-    settings = load_robot("baxter_left").settings.human
-    ds = make_synthetic_dataset(n_tasks=2, n_demos=6, seed=5)
-    for task, demos in ds.demos.items():
-        for d in demos:
-            write_demo(leaning_skeleton(settings, d), folder / task / f"{d.name}.npz")
+    tasks = write_leaning_dataset(folder, load_robot("baxter_left").settings.human)
     out = tmp_path_factory.mktemp("replay")
-    args = ["replay", str(PIPELINE), "--dataset", str(folder), "--task", ds.tasks[0], "--demo", "1"]
+    args = ["replay", str(PIPELINE), "--dataset", str(folder), "--task", tasks[0], "--demo", "1"]
     with pytest.MonkeyPatch.context() as mp:
         calls = spied(mp, plots_motion, "plot_separation")
         code = main([*args, "--out", str(out), "--allow-failing-checks", "--plots", "--no-preview"])

@@ -13,12 +13,10 @@ import numpy as np
 import pytest
 import umsgpack
 from helpers_cli import PIPELINE
-from helpers_human import leaning_skeleton
+from helpers_human import write_leaning_dataset
 
 from ipromp_pin.app import main
 from ipromp_pin.outputs.trajectory_files import read_trajectory_csv
-from ipromp_pin.readers.native import write_demo
-from ipromp_pin.readers.synthetic import make_synthetic_dataset
 from ipromp_pin.robot import load_robot
 
 TIME = re.compile(r"t=(\d+\.\d+) s")
@@ -46,13 +44,9 @@ def animation_end_s(commands: list[dict]) -> float:
 @pytest.fixture(scope="module")
 def replayed(tmp_path_factory):
     folder = tmp_path_factory.mktemp("skeleton_dataset")
-    settings = load_robot("baxter_left").settings.human
-    ds = make_synthetic_dataset(n_tasks=2, n_demos=6, seed=5)
-    for task, demos in ds.demos.items():
-        for d in demos:
-            write_demo(leaning_skeleton(settings, d), folder / task / f"{d.name}.npz")
+    tasks = write_leaning_dataset(folder, load_robot("baxter_left").settings.human)
     out = tmp_path_factory.mktemp("replay")
-    args = ["replay", str(PIPELINE), "--dataset", str(folder), "--task", ds.tasks[0], "--demo", "1"]
+    args = ["replay", str(PIPELINE), "--dataset", str(folder), "--task", tasks[0], "--demo", "1"]
     assert main([*args, "--out", str(out), "--allow-failing-checks"]) in (0, 3)
     report = json.loads((out / "report.json").read_text())
     data, commands = page_data((out / "preview.html").read_text())

@@ -22,7 +22,7 @@ import meshcat.geometry as mg
 import numpy as np
 
 from .body import SEPARATION_STATES, BodyTrack, SeparationTrack
-from .tracks import put_property, put_transforms
+from .tracks import put_property, put_transforms, translations
 
 __all__ = [
     "BODY_NODE",
@@ -146,12 +146,6 @@ def _segments(a: np.ndarray, b: np.ndarray, radius: np.ndarray | float) -> tuple
     return T, np.stack([r, np.maximum(length, _MIN_LENGTH_M), r], axis=1)
 
 
-def _translations(p: np.ndarray) -> np.ndarray:
-    T = np.tile(np.eye(4), (p.shape[0], 1, 1))
-    T[:, :3, 3] = p
-    return T
-
-
 def body_tracks(
     animation: ma.Animation,
     viewer: meshcat.Visualizer,
@@ -172,8 +166,8 @@ def body_tracks(
             ends = np.repeat(r[:, k, None], 3, axis=1).tolist()
             for name, placement, size in (
                 ("cyl", T, scale.tolist()),
-                ("a", _translations(a[:, k]), ends),
-                ("b", _translations(b[:, k]), ends),
+                ("a", translations(a[:, k]), ends),
+                ("b", translations(b[:, k]), ends),
             ):
                 path = viewer[f"{BODY_NODE}/{k}/{name}"].path
                 put_transforms(animation, path, frames, placement)

@@ -46,7 +46,7 @@ from .meshes import simplify_visual_model, sphere_mesh, tube_mesh
 from .object_scene import COLOR_OBJECT, draw_object, object_placements, object_tracks
 from .recorder import SceneRecorder
 from .torques import torque_panel
-from .tracks import put_transforms
+from .tracks import put_transforms, translations
 
 __all__ = [
     "CAMERA_DIRECTION",
@@ -314,9 +314,7 @@ def scene_animation(
         put_transforms(animation, viewer[names[i]].path, frames, placements[:, i])
     if content.hand_path is not None and content.hand_t_s is not None:
         hand = np.stack([np.interp(times, content.hand_t_s, content.hand_path[:, d]) for d in range(3)], -1)
-        T = np.tile(np.eye(4), (times.size, 1, 1))
-        T[:, :3, 3] = hand
-        put_transforms(animation, viewer["human/hand"].path, frames, T)
+        put_transforms(animation, viewer["human/hand"].path, frames, translations(hand))
     body_tracks(animation, viewer, content.body, content.separation, times)
     obj = content.held_object
     if obj is not None:

@@ -15,7 +15,7 @@ from typing import Any
 import meshcat.animation as ma
 import numpy as np
 
-__all__ = ["put_property", "put_transforms", "quaternions_wxyz"]
+__all__ = ["put_property", "put_transforms", "quaternions_wxyz", "translations"]
 
 
 def quaternions_wxyz(T: np.ndarray) -> np.ndarray:
@@ -64,6 +64,13 @@ def put_property(
     )
     track.frames = [k[0] for k in keys]
     track.values = [k[3] for k in keys]
+
+
+def translations(p: np.ndarray) -> np.ndarray:
+    """Placements (n, 4, 4) without rotation at the positions ``p`` (n, 3) [m]."""
+    T = np.tile(np.eye(4), (p.shape[0], 1, 1))
+    T[:, :3, 3] = p
+    return T
 
 
 def put_transforms(animation: ma.Animation, path: Any, frames: Sequence[int], T: np.ndarray) -> None:

@@ -30,7 +30,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..exceptions import InfeasibleError
 from ..motion.timing import TimingReport
 from ..motion.trajectory import JointLimits, Trajectory
 from ..robot import IKResult, Robot
@@ -40,7 +39,7 @@ from ..robot.objects import TaskObject
 from ..robot.retreat_target import RetreatTarget
 from ..safety import CheckContext, CheckReport, CheckSuite, Timed, Timer
 from .one_shot import LogFn, PlanResult
-from .timers import PathTimer
+from .timers import PathTimer, fixed_timer
 
 PATH_SPACING_RAD = 0.02
 """Joint-space spacing [rad] of the points of the straight retreat path handed to the timing."""
@@ -199,13 +198,7 @@ def retreat_timer(
     n_dwell = int(round(dwell_s * rate_hz))
     dwell = Trajectory.at_rest(start_s, q_from, limits.joint_names, n_dwell + 1, dt)
     if path is None:
-
-        def still(k: float) -> Timed:
-            if k != 1.0:
-                raise InfeasibleError("the retreat does not move: nothing to slow down")
-            return Timed(dwell, None, 1.0, None)
-
-        return still
+        return fixed_timer(dwell, "the retreat does not move: nothing to slow down")
     inner = PathTimer(path, limits, suite.timing_constraints(context), rate_hz, dwell.end_s, say, "retreat")
     return DwellThenPath(dwell, inner)
 

@@ -19,7 +19,7 @@ from scipy.ndimage import maximum_filter1d
 from ..exceptions import InfeasibleError
 from ..motion.retarget import ReferenceMotion, Retargeter
 from ..motion.timing import TorqueLimit, time_path
-from ..motion.trajectory import JointLimits, MotionState
+from ..motion.trajectory import JointLimits, MotionState, Trajectory
 from ..safety import Timed, Timer, TimingConstraints
 
 LogFn = Callable[[str], None]
@@ -111,6 +111,18 @@ class PathTimer:
             self.path, limits, rate_hz=self.rate_hz, torque=torque, start_s=self.start_s, sd_cap=sd_cap
         )
         return Timed(motion, report, k, self.path)
+
+
+def fixed_timer(motion: Trajectory, why: str) -> Timer:
+    """The timer of a motion that is never slowed: ``motion`` itself; a slower one is refused with
+    ``why`` (:class:`~ipromp_pin.exceptions.InfeasibleError`)."""
+
+    def timer(k: float) -> Timed:
+        if k != 1.0:
+            raise InfeasibleError(why)
+        return Timed(motion, None, 1.0, None)
+
+    return timer
 
 
 def retarget_timer(retargeter: Retargeter, state: MotionState, reference: ReferenceMotion) -> Timer:

@@ -37,12 +37,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..exceptions import InfeasibleError, IPrompPinError
+from ..exceptions import IPrompPinError
 from ..fields import Range
 from ..motion.retarget import stop_motion
 from ..motion.trajectory import JointLimits, MotionState, Trajectory
-from ..safety import CheckContext, CheckSuite, Retimed, Timed, Timer
+from ..safety import CheckContext, CheckSuite, Retimed
 from .retreat import retreat_timer, straight_path
+from .timers import fixed_timer
 
 UNKNOWN_HOLD_S = 0.5
 """Default of ``unknown_hold_s``: how long the robot holds at rest after stopping on an unknown
@@ -62,18 +63,6 @@ UNKNOWN_HOLD_RANGE_S = Range(
 
 NOT_AT_HANDOVER = ("workspace", "uncertainty")
 """The checks that judge a motion's end as a hand-over pose; the stop and the retreat end elsewhere."""
-
-
-def unslowed(motion: Trajectory) -> Timer:
-    """The timer of a stop: ``motion`` itself, never slowed (a slower stop travels further toward the
-    human)."""
-
-    def timer(k: float) -> Timed:
-        if k != 1.0:
-            raise InfeasibleError("a slower stop travels further: not slowed")
-        return Timed(motion, None, 1.0, None)
-
-    return timer
 
 
 @dataclass(frozen=True)
@@ -166,7 +155,8 @@ class UnknownStop:
         ``context`` (the re-plan's: the human as observed until then, the task last committed to)."""
         try:
             if action == "stop":
-                timer = unslowed(stop_motion(state, self.limits, self.dt_s, self.hold_s))
+                stop = stop_motion(state, self.limits, self.dt_s, self.hold_s)
+                timer = fixed_timer(stop, "a slower stop travels further: not slowed")
             else:
                 timer = retreat_timer(
                     straight_path(state.q, self.q_rest),

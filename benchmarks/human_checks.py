@@ -8,14 +8,20 @@ model of a fold is trained on the other folds' demos), observing ``--observe`` f
   it (the tracked skeleton until the end of the observation, then held and growing at the human
   speed; the assumed human without a skeleton) and against the recorded human (what happened);
 * *after*: the plan of ``plan(..., suite)`` with the human checks, re-timed when a failing check asks for a
-  slower motion (only where it asks when that passes, else uniformly); its delay (the longer duration).
+  slower motion (only where it asks when that passes, else uniformly); its delay (the longer duration),
+  and its checks against the recorded human.
 
 Prints the share of plans failing each human check before and after the re-timing, the delays and
 the cost of the two checks on a whole plan (per plan the median of 5 runs, then the median over
 plans, in ms; the machine may be shared).
 
     python benchmarks/human_checks.py [--dataset ../shared/datasets/handover_20171128]
-        [--observe /left_hand_1,emg] [--folds 5] [--ratio 0.2] [--json FILE]
+        [--observe /left_hand_1,emg] [--folds 5] [--ratio 0.2] [--handing-arm predicted|held]
+        [--json FILE]
+
+``--handing-arm``: ``predicted`` (default) calibrates each fold's forecast of the body on its
+training demos (:mod:`ipromp_pin.planning.human_forecast`) and plans against it; ``held`` holds the
+body where last seen.
 
 ``--smoke``: 2 synthetic tasks, 4 demos each, 2 folds: seconds, what the test suite runs.
 """
@@ -33,6 +39,7 @@ import numpy as np
 from ipromp_pin.data import parse_groups, skeleton_frames
 from ipromp_pin.human import HumanMotion
 from ipromp_pin.motion.trajectory import Trajectory
+from ipromp_pin.planning.human_forecast import with_forecast
 from ipromp_pin.planning.one_shot import plan
 from ipromp_pin.promp import IProMP
 from ipromp_pin.readers import load_dataset
@@ -70,6 +77,7 @@ def _one(model, robot, checks, demo, observe, ratio) -> dict:
     cost_ms = float(np.median(costs))
     truth = checks.run(motion, CheckContext(human=recorded))
     after = plan(model, robot, obs, checks, CheckContext(human=known), check_joints=False)
+    truth_after = checks.run(after.trajectory, CheckContext(human=recorded))
     out = {
         "demo": f"{demo.task}/{demo.name}",
         "human": known.label,
@@ -79,10 +87,11 @@ def _one(model, robot, checks, demo, observe, ratio) -> dict:
         "delay_s": float(after.slowdown_delay_s),
         "local": bool(after.slowdown_local),
     }
-    for r, r_true in zip(before, truth, strict=True):
+    for r, r_true, r_after in zip(before, truth, truth_after, strict=True):
         out[f"{r.name}_before"] = r.passed
         out[f"{r.name}_recorded"] = r_true.passed
         out[f"{r.name}_after"] = after.checks[r.name].passed
+        out[f"{r.name}_recorded_after"] = r_after.passed
         out[f"{r.name}_values"] = {
             k: v for k, v in r.measures.to_dict().items() if isinstance(v, float | int | str)
         }
@@ -97,6 +106,7 @@ def main() -> None:
     parser.add_argument("--observe", default="/left_hand_1,emg")
     parser.add_argument("--folds", type=int, default=5)
     parser.add_argument("--ratio", type=float, default=0.2)
+    parser.add_argument("--handing-arm", choices=("predicted", "held"), default="predicted")
     parser.add_argument("--json", type=Path, default=None)
     parser.add_argument("--smoke", action="store_true", help="2 synthetic tasks, 4 demos, 2 folds: seconds")
     args = parser.parse_args()
@@ -123,6 +133,8 @@ def main() -> None:
         model = IProMP(observe=observe, **smoke_model).fit(
             train, fk=partial(ee_positions, robot), fk_rot=partial(gripper_rotations, robot)
         )
+        if args.handing_arm == "predicted":
+            model = with_forecast(model, train, robot.settings.human)
         for demo in test:
             rows.append(_one(model, robot, checks, demo, observe, args.ratio))
             r = rows[-1]
@@ -145,7 +157,8 @@ def _summary(rows: list[dict]) -> None:
 
     print(f"plans: {n} ({', '.join(sorted({r['human'] for r in rows}))} human)")
     for key, what in (("before", "planner's human, before re-timing"), ("after", "after re-timing"),
-                      ("recorded", "recorded human, before re-timing")):  # fmt: skip
+                      ("recorded", "recorded human, before re-timing"),
+                      ("recorded_after", "recorded human, after re-timing")):  # fmt: skip
         print(f"failing the human checks ({what}): {share(key)}; human_clearance {share(key, NAMES[0])}, "
               f"contact_speed {share(key, NAMES[1])}")  # fmt: skip
     slowed = [r for r in rows if r["slowdown"] != 1.0]

@@ -34,6 +34,7 @@ import json
 import os
 from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -44,6 +45,9 @@ from ..exceptions import IPrompPinError
 from ..promp import IProMP
 from ..promp.serialization import FORMAT_VERSION
 from ..version import __version__
+
+if TYPE_CHECKING:
+    from ..robot.human_settings import HumanSettings
 
 __all__ = ["CACHE_VERSION", "MAX_ENTRIES", "fit_cached", "training_key", "verify_entry"]
 
@@ -95,9 +99,11 @@ def training_key(
     demos: Sequence[Demo],
     fk: Callable[[np.ndarray], np.ndarray] | None = None,
     fk_rot: Callable[[np.ndarray], np.ndarray] | None = None,
+    human: HumanSettings | None = None,
 ) -> str | None:
-    """The cache key (hex SHA-256) of ``model.fit(demos, fk=fk, fk_rot=fk_rot)``, or None when it
-    cannot be cached."""
+    """The cache key (hex SHA-256) of ``model.fit(demos, fk=fk, fk_rot=fk_rot)`` (with ``human``: and
+    of the handing arm's forecast calibrated on the demos' skeletons through its skeleton map), or
+    None when it cannot be cached."""
     params = model.get_params()
     h = hashlib.sha256()
     header = {
@@ -116,6 +122,12 @@ def training_key(
             _update_array(h, d.groups[g])
             if g in d.missing:
                 _update_array(h, d.missing[g])
+        if human is not None:
+            for k in sorted(k for k in d.extras if k.startswith("skeleton:")):
+                h.update(k.encode())
+                _update_array(h, np.asarray(d.extras[k], dtype=float))
+    if human is not None:
+        h.update(json.dumps(["human", repr(human.skeleton)]).encode())
     for name, kinematics in (("fk", fk), ("fk_rot", fk_rot)):
         if kinematics is None:
             continue
@@ -198,6 +210,7 @@ def fit_cached(
     folder: Path | None = None,
     log: Callable[[str], None] | None = None,
     fk_rot: Callable[[np.ndarray], np.ndarray] | None = None,
+    human: HumanSettings | None = None,
 ) -> tuple[IProMP, Path | None]:
     """``model.fit(demos, fk=fk, fk_rot=fk_rot)``, or the identical model trained earlier and kept
     in the cache.
@@ -211,12 +224,14 @@ def fit_cached(
         log: Where the one line about an entry that failed its verification goes (None: nowhere).
         fk_rot: Gripper rotations given to ``fit`` (joint angles -> rotation matrices (n, 3, 3)), or
             None.
+        human: The human settings with which the handing arm's forecast is calibrated after the fit
+            (:func:`~ipromp_pin.planning.human_forecast.with_forecast`); None: no forecast.
 
     Returns:
         The fitted model and the cache file it was read from (None when it was trained here).
     """
     folder = cache_dir("models") if folder is None else folder
-    key = training_key(model, demos, fk, fk_rot)
+    key = training_key(model, demos, fk, fk_rot, human)
     path = None if key is None else folder / f"{key}.npz"
     if path is not None and key is not None and path.is_file():
         try:
@@ -233,6 +248,10 @@ def fit_cached(
         if log is not None:
             log(f"[model] the cached model {path} is not used ({why}): training again and replacing it")
     model.fit(list(demos), fk=fk, fk_rot=fk_rot)
+    if human is not None:
+        from ..planning.human_forecast import with_forecast  # the planning layer, when used
+
+        model = with_forecast(model, demos, human)
     if path is not None and key is not None:
         try:
             folder.mkdir(parents=True, exist_ok=True)

@@ -28,6 +28,7 @@ from ..human.fit import registered
 from ..human.placement import check_assumed_human
 from ..motion.limits import LimitProfile, check_profile_choice, choose_limit_profile
 from ..planning.closed_loop import ClosedLoopResult, ClosedLoopSettings, replay_demo, start_time
+from ..planning.human_forecast import forecast_of, forecast_summary, with_forecast
 from ..planning.one_shot import LogFn, check_model_joints
 from ..plans import HandoverPlan, plan
 from ..plans.warnings import (
@@ -343,14 +344,20 @@ def get_model(
     t0 = time.perf_counter()
     fk, fk_rot = (None, None) if robot is None else gripper_kinematics(robot)
     what = f"{len(train)} demos ({', '.join(cfg.observe)} + robot)"
+    human = None if robot is None else robot.settings.human  # the body's forecast, calibrated
     if cfg.model_cache:
-        model, cached = fit_cached(IProMP(observe=cfg.observe), train, fk, log=log, fk_rot=fk_rot)
+        model, cached = fit_cached(
+            IProMP(observe=cfg.observe), train, fk, log=log, fk_rot=fk_rot, human=human
+        )
     else:
         model, cached = IProMP(observe=cfg.observe).fit(train, fk=fk, fk_rot=fk_rot), None
+        model = model if human is None else with_forecast(model, train, human)
     if cached is not None:
         log(f"[model] reused the model an earlier run trained on {what}: {cached} (--retrain: train again)")
     else:
         log(f"[model] trained on {what}, {time.perf_counter() - t0:.2f} s")
+    if model.human_forecast_ is not None:
+        log(f"[model] {forecast_summary(forecast_of(model))}")
     if cfg.save_model is not None:
         model.save(cfg.save_model)  # atomic: an earlier file is replaced only by a complete one
         log(f"[model] saved {cfg.save_model}")

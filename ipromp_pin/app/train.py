@@ -66,6 +66,7 @@ def main(args: argparse.Namespace) -> int:
     from .. import atomic
     from ..data import parse_groups, skeleton_frames
     from ..exceptions import PipelineError
+    from ..planning.human_forecast import forecast_of, forecast_summary, with_forecast
     from ..plans.warnings import single_task_warning, warn_stderr
     from ..promp import IProMP
     from ..robot import gripper_kinematics, load_robot
@@ -91,6 +92,8 @@ def main(args: argparse.Namespace) -> int:
         print(f"held out {h.task}/{h.name} ({h.source})")
     model = IProMP(observe=observe, coupling=coupling).fit(train, **kinematics._asdict())
     model = model.with_human_fit(human_self_check(train, robot))
+    model = with_forecast(model, train, robot.settings.human)
+    print(forecast_summary(forecast_of(model, source=str(args.out))))
     single = single_task_warning(model)
     if single is not None:
         warn_stderr(single)

@@ -15,6 +15,8 @@ on the human's clock (0 at the start of the demo, the clock of every
 * :meth:`HumanMotion.until` gives the human as known at ``t_obs`` (what a planner knows then): the
   samples after ``t_obs`` are unknown, so every frame is held at its last reliable position before
   ``t_obs`` and grows at the human speed (the same arrays, no copy);
+* :meth:`HumanMotion.with_forecast` places the handing arm after ``t_obs`` where the model predicts
+  it, where that is a tighter bound than holding it (:mod:`ipromp_pin.human.forecast`);
 * :meth:`HumanMotion.assumed` is a default standing human placed by the settings, for recordings
   without a skeleton (``assumed = True``; reports say "assumed human").
 """
@@ -32,6 +34,7 @@ from ..exceptions import DataError
 from ..fields import unknown
 from ..robot.human_settings import HumanSettings
 from ..robot.ranges import BODY_PART_RADII_M as RADII
+from .forecast import BodyForecast
 from .skeleton import plausible_positions
 
 SKELETON_PREFIX = "skeleton:"
@@ -120,6 +123,7 @@ class HumanMotion:
         static: Whether each frame (F,) is known for all time (the assumed human's standing pose).
         horizon_s: Samples after this time [s] are unknown (:meth:`until`); ``inf``: all known.
         source: Where the motion comes from (a demo's source, or "assumed human").
+        forecast: The handing arm as predicted after the horizon (:meth:`with_forecast`), or None.
     """
 
     t_s: np.ndarray
@@ -133,6 +137,7 @@ class HumanMotion:
     static: np.ndarray | None = None
     horizon_s: float = math.inf
     source: str = ""
+    forecast: BodyForecast | None = None
 
     @property
     def part_names(self) -> np.ndarray:
@@ -151,10 +156,18 @@ class HumanMotion:
 
     @property
     def label(self) -> str:
-        """``"assumed"`` or ``"tracked"``, as reports say it."""
-        return "assumed" if self.assumed else "tracked"
+        """``"assumed"``, ``"tracked"`` or ``"predicted"`` (tracked until the horizon, then frames
+        placed by the model's prediction: :meth:`with_forecast`), as reports say it."""
+        if self.assumed:
+            return "assumed"
+        return "tracked" if self.forecast is None else "predicted"
 
     # ----------------------------------------------------------------- construction
+    @staticmethod
+    def body_frames(parts: tuple[BodyPart, ...] = BODY_PARTS) -> tuple[str, ...]:
+        """The skeleton frames (body model names) the parts are placed by, once each."""
+        return tuple(_frame_list(parts))
+
     @classmethod
     def from_demo(
         cls,
@@ -254,7 +267,31 @@ class HumanMotion:
         speed). Shares the arrays of ``self``."""
         seen = copy.copy(self)  # shallow: the arrays and their indices are shared
         object.__setattr__(seen, "horizon_s", float(min(t_obs_s, self.horizon_s)))
+        object.__setattr__(seen, "forecast", None)  # a forecast belongs to its horizon
         return seen
+
+    def with_forecast(self, forecast: BodyForecast | None) -> HumanMotion:
+        """This human (as known at its horizon) with ``forecast`` placing its frames after the horizon
+        where the forecast's radius is below the held growth (:mod:`~ipromp_pin.human.forecast`).
+        Shares the arrays of ``self``."""
+        out = copy.copy(self)
+        object.__setattr__(out, "forecast", forecast)
+        return out
+
+    def last_seen(self, frames: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray]:
+        """Where each of ``frames`` was last reliably seen at or before the horizon, (F, 3) [m], and
+        when (F,) [s]; NaN for a frame this body does not track, a static one, or one never seen."""
+        pos = np.full((len(frames), 3), np.nan)
+        when = np.full(len(frames), np.nan)
+        held = self.held_frames()
+        if held is None:
+            return pos, when
+        for j, f in enumerate(frames):
+            if f in self.frames:
+                k = self.frames.index(f)
+                if np.isfinite(held[1][k]) and np.all(np.isfinite(held[0][k])):
+                    pos[j], when[j] = held[0][k], held[1][k]
+        return pos, when
 
     # ----------------------------------------------------------------- queries
     def __post_init__(self) -> None:
@@ -299,7 +336,26 @@ class HumanMotion:
         if self.static is not None:
             out[:, self.static] = pos[0, self.static]
             grow[:, self.static] = 0.0
-        return out, np.minimum(np.maximum(grow, 0.0), self.max_inflation_m)
+        grow = np.minimum(np.maximum(grow, 0.0), self.max_inflation_m)
+        if self.forecast is not None:
+            self._apply_forecast(t, late, out, grow)
+        return out, grow
+
+    def _apply_forecast(self, t: np.ndarray, late: np.ndarray, out: np.ndarray, grow: np.ndarray) -> None:
+        """Frames of :attr:`forecast` at times after the horizon (``late``) take its position and
+        radius where that radius is below the held growth (in place on ``out`` (N, F, 3), ``grow``
+        (N, F))."""
+        fc = self.forecast
+        if fc is None or not np.any(late):
+            return
+        pos, radius = fc.at(t[late], self.speed_m_s)
+        rows = np.flatnonzero(late)
+        for j, f in enumerate(fc.frames):
+            k = self.frames.index(f)
+            tighter = radius[:, j] < grow[rows, k]
+            sel = rows[tighter]
+            out[sel, k] = pos[tighter, j]
+            grow[sel, k] = radius[tighter, j]
 
     def held_frames(self) -> tuple[np.ndarray, np.ndarray] | None:
         """At every time at or after :attr:`horizon_s` each frame is held where it was last seen:
@@ -362,6 +418,8 @@ class HumanMotion:
         from the held frames (the ends computed once per object, :meth:`_held_parts`), or None when
         that does not apply."""
         if t.size == 0 or not math.isfinite(self.horizon_s) or not np.all(t >= self.horizon_s):
+            return None
+        if self.forecast is not None:
             return None
         parts = self._held_parts()
         if parts is None:

@@ -110,7 +110,7 @@ class Separation(SeparationReductions):
         geometries: Robot capsule geometry names (L,).
         parts: Body part names (P,).
         regions: Body regions (P,).
-        human: ``"tracked"`` or ``"assumed"``.
+        human: ``"tracked"``, ``"predicted"`` or ``"assumed"`` (:attr:`.body.HumanMotion.label`).
     """
 
     t_s: np.ndarray

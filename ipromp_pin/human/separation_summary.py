@@ -52,7 +52,7 @@ class SeparationSummary(SeparationReductions):
         links: Robot capsule links (L,).
         parts: Body part names (P,).
         regions: Body regions (P,).
-        human: ``"tracked"`` or ``"assumed"``.
+        human: ``"tracked"``, ``"predicted"`` or ``"assumed"`` (:attr:`.body.HumanMotion.label`).
     """
 
     t_s: np.ndarray

@@ -49,6 +49,12 @@ def human_label(human: HumanMotion) -> str:
     """How the page names ``human``: tracked (as observed until when) or assumed."""
     if human.assumed:
         return "assumed human (no tracked skeleton)"
+    if math.isfinite(human.horizon_s) and human.forecast is not None:
+        n = len(human.forecast.frames)
+        return (
+            f"tracked human as observed until {human.horizon_s:.2f} s, then {n} of its {len(human.frames)} "
+            "frames placed as the model predicts them, the others held where last seen"
+        )
     if math.isfinite(human.horizon_s):
         return f"tracked human as observed until {human.horizon_s:.2f} s, then held where last seen"
     return "recorded human (tracked skeleton, every sample)"

@@ -59,6 +59,7 @@ from ..safety import CheckContext, CheckSuite, Timed, Verdict, next_guess
 from ..safety.self_collision import SelfCollisionMeasures
 from ..safety.speed_limits import SpeedLimitMeasures
 from ..safety.workspace import WorkspaceMeasures
+from .human_forecast import forecast_of, predicted_human
 from .timers import retarget_timer
 from .transfer import ReplanTransfer
 from .unknown_stop import UNKNOWN_HOLD_RANGE_S, UNKNOWN_HOLD_S, Segment, StopEvent, UnknownStop
@@ -390,7 +391,7 @@ class ClosedLoopPlanner:
     ) -> None:
         self.settings = (settings or ClosedLoopSettings()).validate()
         self.transfer = transfer
-        self.model = model
+        self.model, self.forecast = model, forecast_of(model, robot.settings.human)
         self.robot = robot
         self.profile = profile
         self.start_s = float(start_s)
@@ -545,8 +546,10 @@ class ClosedLoopPlanner:
                 return r
             reference = moved
         context = self.context.replace(task=pred.task, handover_s=float(pred.duration_s))
-        if context.human is not None:  # the human as observed up to this re-plan
-            context = context.replace(human=context.human.until(r.observed_until_s))
+        if context.human is not None:  # as observed up to this re-plan, the handing arm as predicted
+            context = context.replace(
+                human=predicted_human(context.human.until(r.observed_until_s), pred, self.forecast)
+            )
         plan = self._plan_checked(state, reference, r, ms, context)
         r.stage_ms = ms
         if plan is not None and not r.reason:

@@ -18,6 +18,7 @@ import numpy as np
 
 from ..data import Demo
 from ..exceptions import ModelError, UnreachableError
+from ..human.forecast import ForecastCalibration
 from ..motion.timing import TimingReport
 from ..motion.trajectory import JointLimits, Trajectory
 from ..promp import IProMP, Prediction
@@ -25,6 +26,7 @@ from ..promp.inputs import ObservationWarning
 from ..robot import Robot, ee_positions, frame_placements
 from ..robot.kinematics import rotations_to_quat_xyzw
 from ..safety import CheckContext, CheckReport, CheckSuite
+from .human_forecast import forecast_of, predicted_human
 from .timers import PathTimer
 from .transfer import Retargeting, retarget_prediction
 
@@ -123,11 +125,21 @@ def check_model_joints(model: IProMP, robot: Robot) -> None:
     )
 
 
-def prediction_context(prediction: Prediction, context: CheckContext, samples: np.ndarray) -> CheckContext:
+def prediction_context(
+    prediction: Prediction,
+    context: CheckContext,
+    samples: np.ndarray,
+    forecast: ForecastCalibration | None = None,
+) -> CheckContext:
     """What the checks know once ``prediction`` is made: the recognised task, the predicted hand-over
-    time and the sampled hand-over configurations (``samples`` (n, M, n_joints) [rad])."""
+    time, the sampled hand-over configurations (``samples`` (n, M, n_joints) [rad]) and, with the
+    model's ``forecast``, the handing arm where the prediction places it
+    (:func:`~.human_forecast.predicted_human`)."""
     return context.replace(
-        task=prediction.task, handover_s=float(prediction.duration_s), handover_samples=samples[:, -1, :]
+        task=prediction.task,
+        handover_s=float(prediction.duration_s),
+        handover_samples=samples[:, -1, :],
+        human=predicted_human(context.human, prediction, forecast),
     )
 
 
@@ -196,7 +208,12 @@ def plan(
         if not retarget.reached:  # refused: never a hand-over shifted to where the arm reaches
             raise UnreachableError(retarget.path.why_not_reached(robot))
     start_s = float(observation.t[-1] - observation.t[0])
-    ctx = prediction_context(prediction, context if context is not None else CheckContext(), samples)
+    ctx = prediction_context(
+        prediction,
+        context if context is not None else CheckContext(),
+        samples,
+        forecast_of(model, robot.settings.human),
+    )
     limits = JointLimits.from_robot(robot)
     timer = PathTimer(q_path, limits, suite.timing_constraints(ctx), control_rate_hz, start_s, say)
     retimed = suite.retime_until_safe(timer, ctx)

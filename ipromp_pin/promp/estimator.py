@@ -252,6 +252,12 @@ class IProMP(ParameterMixin):
         :meth:`ipromp_pin.human.fit.HumanFit.to_json`; None: not measured); written by :meth:`save`."""
         return self._set_fitted(replace(self._predictor().fitted, human_fit=record))
 
+    def with_human_forecast(self, record: Mapping[str, Any] | None) -> IProMP:
+        """Store the handing arm's forecast calibration (a JSON object,
+        :meth:`ipromp_pin.human.forecast.ForecastCalibration.to_json`; None: none); written by
+        :meth:`save`."""
+        return self._set_fitted(replace(self._predictor().fitted, human_forecast=record))
+
     def _set_fitted(self, fitted: FittedModel) -> IProMP:
         """Store a fitted state and its predictor (the fitted attributes read them)."""
         predictor = Predictor(fitted, int(self.n_points))
@@ -265,6 +271,9 @@ class IProMP(ParameterMixin):
     tasks_ = FittedAttribute(lambda f: list(f.tasks), "Task names.")
     human_fit_ = FittedAttribute(
         lambda f: f.human_fit, "The training demos' body-model self-check (a JSON object, or None)."
+    )
+    human_forecast_ = FittedAttribute(
+        lambda f: f.human_forecast, "The handing arm's forecast calibration (a JSON object, or None)."
     )
     models_ = FittedAttribute(lambda f: dict(f.models), "Task name -> its TaskModel.")
     basis_ = FittedAttribute(lambda f: f.basis, "The GaussianBasis.")

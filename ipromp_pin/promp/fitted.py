@@ -71,6 +71,9 @@ class FittedModel:
         human_fit: The self-check and calibration of the training demos' body model, as the JSON
             object of :meth:`ipromp_pin.human.fit.HumanFit.to_json` (None: not measured, e.g. no
             skeleton in the training demos or a model file of format version 6 or older).
+        human_forecast: The cross-validated forecast of the handing arm from the predicted hand, as
+            the JSON object of :meth:`ipromp_pin.human.forecast.ForecastCalibration.to_json` (None:
+            none, e.g. no observed hand frame, or a model file of format version 7 or older).
     """
 
     layout: ChannelLayout
@@ -103,6 +106,7 @@ class FittedModel:
         return len(self.tasks) - len(self.added_tasks)
 
     human_fit: Mapping[str, Any] | None = None
+    human_forecast: Mapping[str, Any] | None = None
 
     @property
     def nu_condition(self) -> float:

@@ -49,14 +49,17 @@ A model file is a single ``.npz`` archive (``numpy.savez``) read back with
   regression's and the orientation estimate's task axis then holds the fitted tasks only; and the
   header's ``human_fit``: null (not measured), or the JSON object of the training
   demos' body-model self-check and registration calibration (:mod:`ipromp_pin.human.fit`), at most
-  :data:`MAX_HUMAN_FIT_BYTES` long.
+  :data:`MAX_HUMAN_FIT_BYTES` long;
+* (version 8) the header's ``human_forecast``: null (none), or the JSON object of the handing arm's
+  forecast calibration (:mod:`ipromp_pin.human.forecast`), at most :data:`MAX_HUMAN_FIT_BYTES` long.
 
 Files of format version 1 (no ``trained_on``) load with ``trained_on`` None
 (unknown); files of format version 2 load with an all-logistic head and no hand-over regression;
 files of format version 3 with an all-ridge hand-over regression; files of format version 4 and
 older without an orientation estimate (as they predicted); files of format version 5 and older
 without a novelty detector (every observation some task explains is known, as they predicted);
-files of format version 6 and older with no body-model self-check (``human_fit`` None: not measured).
+files of format version 6 and older with no body-model self-check (``human_fit`` None: not measured);
+files of format version 7 and older with no forecast of the handing arm (``human_forecast`` None).
 Files written before the coupling was introduced (no ``coupling`` parameter, no
 ``task{i}_shrinkage``) load as fully coupled models with one shrinkage intensity;
 the covariance is entirely in ``diag`` and ``factor``, so older readers also load
@@ -103,18 +106,20 @@ from .validation import check_fitted
 FORMAT_NAME = "ipromp_pin.IProMP"
 """Value of the header's ``format`` field."""
 
-FORMAT_VERSION = 7
+FORMAT_VERSION = 8
 """Current (and highest readable) format version. Version 2 added ``trained_on`` (the training demos),
 the likelihood temperature, the conditioning noise ratio and the recognition head (``head_*``
 arrays); version 3 the head's model families and features and the hand-over regression
 (``handover_*`` arrays); version 4 the hand-over's k-nearest-neighbour estimates
 (``handover_kind``, ``handover_neighbour_*``); version 5 the hand-over orientation estimate
 (``orientation_*``); version 6 the novelty detector (``novelty_*``); version 7 the tasks added after
-the fit (``added_tasks``) and the header's ``human_fit`` (the body-model self-check). Version-1 files
+the fit (``added_tasks``) and the header's ``human_fit`` (the body-model self-check); version 8 the
+header's ``human_forecast`` (the handing arm's forecast calibration). Version-1 files
 load with no record of their training demos, temperature 1, the conditioning noise ratio equal to the
 noise ratio and no head; version-2 files with an all-logistic head and no hand-over regression (as they
 predicted); version-3 files with an all-ridge hand-over regression (as they predicted); files before
-version 6 with no novelty detector; files before version 7 with no body-model self-check."""
+version 6 with no novelty detector; files before version 7 with no body-model self-check; files
+before version 8 with no forecast of the handing arm."""
 
 _HEAD_ARRAYS = ("ratios", "coef", "intercept", "feature_mean", "feature_scale", "c", "cv_log_loss")
 _HEAD_V3_ARRAYS = ("kind", "generative")
@@ -128,6 +133,7 @@ _HEADER_KEYS = {
     "duration_nominal_s", "noise_ratio", "cv_scores", "coupled_groups", "coupling_cv_scores", "task_scalars",
     "trained_on", "temperature", "condition_noise_ratio", "condition_cv_scores", "head", "handover",
     "handover_cv_scores", "orientation", "orientation_cv_scores", "novelty", "added_tasks", "human_fit",
+    "human_forecast",
 }  # fmt: skip
 _PARAM_KEYS = {
     "observe", "n_basis", "width", "ridge", "margin", "blas_threads", "n_alpha", "alpha_width", "noise",
@@ -150,7 +156,7 @@ MAX_EXPANSION = 20.0
 little (``write_model`` stores them uncompressed), a member of zeros a thousandfold."""
 
 MAX_HUMAN_FIT_BYTES = 100_000
-"""Largest JSON text of a model file's ``human_fit`` entry, in bytes."""
+"""Largest JSON text of a model file's ``human_fit`` or ``human_forecast`` entry, in bytes."""
 
 MAX_DEMOS_PER_TASK = 100_000
 """Largest number of training demos (or phase candidates) of a task a model file may declare."""
@@ -259,6 +265,7 @@ def write_model(params: dict, fitted: FittedModel, path: str | Path) -> None:
         "novelty": None if fitted.novelty is None else novelty_meta(fitted.novelty),
         "added_tasks": list(fitted.added_tasks),
         "human_fit": None if fitted.human_fit is None else dict(fitted.human_fit),
+        "human_forecast": None if fitted.human_forecast is None else dict(fitted.human_forecast),
     }
     arrays: dict[str, Any] = {  # np.savez's keyword arguments (all arrays)
         "header": np.array(json.dumps(header)),
@@ -646,7 +653,8 @@ def _fitted(header: dict, arrays: dict[str, np.ndarray]) -> FittedModel:
         orientation=_orientation(header.get("orientation"), arrays),
         novelty=novelty_from_arrays(header.get("novelty"), arrays),
         added_tasks=added,
-        human_fit=_human_fit(header),
+        human_fit=_json_record(header, "human_fit"),
+        human_forecast=_json_record(header, "human_forecast"),
         orientation_cv_scores={
             (np.inf if k == "off" else float(k)): float(v) for k, v in header.get("orientation_cv_scores", [])
         },
@@ -705,13 +713,14 @@ def _orientation(meta: dict | None, arrays: dict[str, np.ndarray]) -> Orientatio
     )
 
 
-def _human_fit(header: dict) -> dict | None:
-    """The body-model self-check of a header (None: not measured, or format version 6 and older)."""
-    record = header.get("human_fit")
+def _json_record(header: dict, key: str) -> dict | None:
+    """The header's JSON object ``key`` (``human_fit``, ``human_forecast``; None: absent, e.g. a file
+    of a format version before it)."""
+    record = header.get(key)
     if record is None:
         return None
     if not isinstance(record, dict) or len(json.dumps(record)) > MAX_HUMAN_FIT_BYTES:
-        raise ValueError("human_fit is not a JSON object of at most MAX_HUMAN_FIT_BYTES")
+        raise ValueError(f"{key} is not a JSON object of at most MAX_HUMAN_FIT_BYTES")
     return record
 
 

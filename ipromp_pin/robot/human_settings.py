@@ -109,6 +109,9 @@ class HumanSettings:
         regions: Body region -> its Annex A values (defaults :data:`REGION_LIMITS`, overridable).
         skeleton: Which frames of a recording's tracked skeleton are the body's joints
             (:mod:`ipromp_pin.robot.skeleton_maps`; default the OpenNI frames).
+        handing_arm: ``"predicted"``: after the last observation the handing arm is placed where the
+            model predicts it, where its cross-validated error is a tighter bound than holding it
+            (:mod:`ipromp_pin.planning.human_forecast`); ``"held"``: every frame is held where last seen.
         source: The settings file the values come from (for messages; ``""``: built in code).
     """
 
@@ -126,8 +129,12 @@ class HumanSettings:
     speed_margin: float = 0.1
     regions: dict[str, RegionLimit] = field(default_factory=lambda: dict(REGION_LIMITS))
     skeleton: SkeletonMap = field(default_factory=lambda: SKELETONS["openni"])
+    handing_arm: str = "predicted"
     source: str = ""
 
+
+HANDING_ARMS = ("predicted", "held")
+"""Values of ``[human] handing_arm``."""
 
 HUMAN_KEYS = (
     "speed_m_s",
@@ -137,6 +144,7 @@ HUMAN_KEYS = (
     "assumed",
     "skeleton",
     "skeleton_map",
+    "handing_arm",
 )
 """Keys of the ``[human]`` table."""
 
@@ -254,5 +262,6 @@ def read_human_settings(doc: Table, source: object) -> HumanSettings:
         speed_margin=_ranged(iso, "speed_margin", d.speed_margin),
         regions=_regions(iso),
         skeleton=_skeleton(human),
+        handing_arm=human.text("handing_arm", d.handing_arm, HANDING_ARMS),
         source=str(source),
     )

@@ -51,7 +51,7 @@ class ContactSpeedMeasures(Measures):
     robot_mass_kg: The robot's effective mass there [kg] (None: no approach).
     protective_distance_m: S_p there [m] (None: no approach).
     time_within_sp_s: Time closer than S_p to some part [s].
-    human: ``"tracked"`` or ``"assumed"``.
+    human: ``"tracked"``, ``"predicted"`` or ``"assumed"`` (:attr:`~ipromp_pin.human.body.HumanMotion.label`).
     """
 
     n_speed_violations: int

@@ -32,7 +32,7 @@ class ClearanceMeasures(Measures):
     protective_distance_m: The smallest S_p of any pair then [m] (None: none finite).
     time_within_sp_s: Time closer than S_p to some part [s].
     min_required_m: The distance at or below which the body counts as touched [m].
-    human: ``"tracked"`` or ``"assumed"``.
+    human: ``"tracked"``, ``"predicted"`` or ``"assumed"`` (:attr:`~ipromp_pin.human.body.HumanMotion.label`).
     """
 
     min_separation_m: float

@@ -23,6 +23,7 @@ from ipromp_pin.promp.handover import (
     neighbour_arrays,
     readouts,
 )
+from ipromp_pin.promp.serialization import FORMAT_VERSION
 from ipromp_pin.promp.window import WindowSummary
 
 
@@ -175,7 +176,7 @@ def test_round_trip_with_the_regression(tmp_path: Path, fused) -> None:
     for name in ("log_posterior", "alpha", "q_mean", "q_cov"):
         assert np.array_equal(getattr(a, name), getattr(b, name)), name
     header = json.loads(str(np.load(path)["header"][()]))
-    assert header["format_version"] == 7 and header["handover"]["trust"] == model.handover_.trust
+    assert header["format_version"] == FORMAT_VERSION and header["handover"]["trust"] == model.handover_.trust
     assert header["handover"]["neighbours"] is None and "handover_kind" not in np.load(path).files
 
 
@@ -285,7 +286,7 @@ def test_round_trip_with_neighbours_and_version_3_files(tmp_path: Path, stepped)
     with np.load(path, allow_pickle=False) as npz:
         arrays = {k: npz[k] for k in npz.files}
     header = json.loads(str(arrays["header"][()]))
-    assert header["format_version"] == 7 and header["handover"]["neighbours"] == 15
+    assert header["format_version"] == FORMAT_VERSION and header["handover"]["neighbours"] == 15
     # a version-3 file (no neighbours) loads as an all-ridge regression
     for key in [k for k in arrays if k == "handover_kind" or k.startswith("handover_neighbour_")]:
         arrays.pop(key)

@@ -36,6 +36,7 @@ from ...data import Demo
 from ...human import HumanMotion
 from ...motion.limits import LimitProfile, choose_limit_profile, read_limit_profile
 from ...planning.closed_loop import ClosedLoopResult, ClosedLoopSettings, conditioning_predictor, replay_demo
+from ...planning.human_forecast import with_forecast
 from ...promp import IProMP
 from ...robot import DemoLimitRecipe, Robot, gripper_kinematics
 from ...robot.objects import ObjectTable
@@ -61,6 +62,9 @@ class ClosedLoopOptions:
         check_collisions: Contact-test every commanded control sample.
         human: Replay demos with a tracked skeleton with the human checks and measure them
             against the recorded human (see the module docstring).
+        human_forecast: With ``human``, the planner places the handing arm where the model predicts
+            it (:mod:`ipromp_pin.planning.human_forecast`, calibrated on each fit's training demos);
+            False: the body is held where last seen.
     """
 
     limits: str = "demonstrated"
@@ -68,6 +72,7 @@ class ClosedLoopOptions:
     recipe: DemoLimitRecipe | None = None
     check_collisions: bool = True
     human: bool = True
+    human_forecast: bool = True
 
 
 @dataclass
@@ -244,6 +249,10 @@ class ClosedLoopScorer(Scorer):
         fk, fk_rot = gripper_kinematics(self.robot)  # settings chosen for the hand-over position
         model = IProMP(observe=list(observe), **self.model_params)
         self.model_ = model.fit(train, fk=fk, fk_rot=fk_rot)
+        if (
+            self.options.human and self.options.human_forecast
+        ):  # the handing arm's forecast, calibrated on the training demos
+            self.model_ = with_forecast(self.model_, train, self.robot.settings.human)
         self.profile_ = profile_for(self.options, self.robot, train, self.label_name)
         self.mean_rot_ = mean_handover_rotations(train, fk_rot)
         return self

@@ -29,7 +29,7 @@ from ..human.placement import check_assumed_human
 from ..motion.limits import LimitProfile, check_profile_choice, choose_limit_profile
 from ..planning.closed_loop import ClosedLoopResult, ClosedLoopSettings, replay_demo, start_time
 from ..planning.one_shot import LogFn, check_model_joints
-from ..planning.transfer import scene_robot
+from ..planning.transfer import predicts_gripper, scene_robot
 from ..plans import HandoverPlan, plan
 from ..plans.warnings import (
     loaded_model_warnings,
@@ -201,6 +201,9 @@ def recordings_robot(cfg: PipelineConfig, robot: Robot, log: LogFn = print) -> t
     if cfg.dataset is not None:
         try:
             own = load_data(cfg, lambda _msg: None, robot)
+            if robot_side(own.all_demos()) == GRIPPER:  # no joints: in the scene of the placement's source
+                log(f"[data] {cfg.dataset}: {len(own.all_demos())} demos of gripper poses")
+                return load_robot(placement.source), own
             log(f"[data] {cfg.dataset}: {len(own.all_demos())} demos recorded on {robot.settings.name}")
             return None, own
         except (PipelineError, DataError):
@@ -507,20 +510,24 @@ def prepare_replay(
     )
     demo, train = session.demo, session.train
     source = session.source
+    poses = predicts_gripper(session.model)  # the demos' robot side is a gripper pose path: no joints
     if source is not None and from_file is None and limits == "demonstrated":
         limits = "conservative"  # the demonstrated peaks are the recorded robot's joints, not this arm's
-        log(
-            f"[limits] the demonstrated profile is derived from {source.settings.name}'s recorded joints, "
-            f"which robot '{robot.settings.name}' does not have: its conservative profile instead"
+        why = (
+            "the demos record no joints (a gripper pose path)"
+            if poses
+            else f"{source.settings.name}'s recorded joints, which robot '{robot.settings.name}' does not have"
         )
+        log(f"[limits] the demonstrated profile is derived from {why}: its conservative profile instead")
     profile = choose_limit_profile(from_file or limits, robot, train, training_label(cfg))
     log(f"[limits] {profile.name}: {profile.source}")
     if source is None:
         prime_checks(session.suite, train, log)
     else:
+        origin = f"gripper poses ({source.settings.name}'s frame)" if poses else source.settings.name
         log(
-            f"[retarget] {source.settings.name} -> {robot.settings.name}: every re-plan retargeted through "
-            "the gripper (its checks not primed on the training motions, which are the other arm's)"
+            f"[retarget] {origin} -> {robot.settings.name}: every re-plan retargeted through "
+            "the gripper (its checks not primed on the training motions, which are not this arm's joints)"
         )
     log(
         f"[replay] {demo.task}/{demo.name}: {demo.duration_s:.2f} s at its recorded timing; the robot starts "

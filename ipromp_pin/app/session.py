@@ -514,11 +514,12 @@ def prepare_replay(
     if source is not None and from_file is None and limits == "demonstrated":
         limits = "conservative"  # the demonstrated peaks are the recorded robot's joints, not this arm's
         why = (
-            "the demos record no joints (a gripper pose path)"
+            "is derived from recorded joints, which the demos (a gripper pose path) do not have"
             if poses
-            else f"{source.settings.name}'s recorded joints, which robot '{robot.settings.name}' does not have"
+            else f"is derived from {source.settings.name}'s recorded joints, which robot "
+            f"'{robot.settings.name}' does not have"
         )
-        log(f"[limits] the demonstrated profile is derived from {why}: its conservative profile instead")
+        log(f"[limits] the demonstrated profile {why}: its conservative profile instead")
     profile = choose_limit_profile(from_file or limits, robot, train, training_label(cfg))
     log(f"[limits] {profile.name}: {profile.source}")
     if source is None:

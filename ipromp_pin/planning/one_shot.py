@@ -191,21 +191,9 @@ def plan(
         say(f"[recognise] UNKNOWN: {prediction.unknown_reason}")
     samples = prediction.sample_q(N_UNCERTAINTY_SAMPLES, np.random.default_rng(0))
     q_path, retarget = prediction.q_mean, None
-    from_poses = predicts_gripper(model)
-    if from_poses and source is None:  # gripper poses: followed by this arm, standing at the scene's origin
-        source = robot
-    if source is not None:
-        q_path, samples, retarget = retarget_prediction(source, robot, q_path, samples, from_poses)
+    if source is not None or predicts_gripper(model):  # gripper poses: followed by any arm
+        q_path, samples, retarget = retargeted(model, prediction, samples, robot, source, say)
         ms["retarget"] = retarget.ms
-        moved = retarget.to_dict()
-        origin = f"gripper poses ({source.settings.name}'s frame)" if from_poses else source.settings.name
-        say(
-            f"[retarget] {origin} -> {robot.settings.name} through the gripper: hand-over "
-            f"residual {moved['ik_residual_mm']:.3f} mm / {moved['ik_residual_deg']:.3f} deg, path at most "
-            f"{moved['max_path_residual_mm']:.3f} mm"
-        )
-        if not retarget.reached:  # refused: never a hand-over shifted to where the arm reaches
-            raise UnreachableError(retarget.path.why_not_reached(robot))
     start_s = float(observation.t[-1] - observation.t[0])
     ctx = prediction_context(prediction, context if context is not None else CheckContext(), samples)
     limits = JointLimits.from_robot(robot)
@@ -240,6 +228,36 @@ def plan(
     if result.slowdown != 1.0:
         say(_slowdown_line(result))
     return result
+
+
+def retargeted(
+    model: IProMP,
+    prediction: Prediction,
+    samples: np.ndarray,
+    robot: Robot,
+    source: Robot | None,
+    say: LogFn,
+) -> tuple[np.ndarray, np.ndarray, Retargeting]:
+    """The prediction's mean path and ``samples`` (n, M, ...) as ``robot``'s joint paths [rad]
+    (:func:`~.transfer.retarget_prediction`): from ``source``'s joints, or from the predicted gripper
+    poses for a model of them (``source`` None: in ``robot``'s own base frame).
+
+    Raises:
+        UnreachableError: ``robot`` cannot reach the predicted hand-over pose.
+    """
+    from_poses = predicts_gripper(model)
+    source = robot if source is None else source
+    q_path, samples, retarget = retarget_prediction(source, robot, prediction.q_mean, samples, from_poses)
+    moved = retarget.to_dict()
+    origin = f"gripper poses ({source.settings.name}'s frame)" if from_poses else source.settings.name
+    say(
+        f"[retarget] {origin} -> {robot.settings.name} through the gripper: hand-over "
+        f"residual {moved['ik_residual_mm']:.3f} mm / {moved['ik_residual_deg']:.3f} deg, path at most "
+        f"{moved['max_path_residual_mm']:.3f} mm"
+    )
+    if not retarget.reached:  # refused: never a hand-over shifted to where the arm reaches
+        raise UnreachableError(retarget.path.why_not_reached(robot))
+    return q_path, samples, retarget
 
 
 def _slowdown_line(result: PlanResult) -> str:

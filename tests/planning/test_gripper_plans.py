@@ -143,3 +143,21 @@ def test_on_handover_20171128_a_gripper_model_plans_on_the_panda_as_the_joint_mo
         assert pg.passed, pg.approach.failures
         gap = np.linalg.norm(pg.approach.handover_pose[:3] - pj.approach.handover_pose[:3])
         assert gap < 0.03, (demo.name, gap)
+
+
+def test_gripper_rotations_are_the_quaternions_rotations():
+    from scipy.spatial.transform import Rotation
+
+    q = Rotation.random(20, random_state=4).as_quat()  # x, y, z, w
+    values = np.hstack([np.zeros((20, 3)), 1.003 * q])  # renormalised
+    np.testing.assert_allclose(gripper_rotations(values), Rotation.from_quat(q).as_matrix(), atol=1e-12)
+
+
+def test_the_hand_over_poses_of_gripper_demos_are_those_of_the_joints():
+    from ipromp_pin.robot.reachability import handover_poses
+
+    baxter = load_robot("baxter_left")
+    joints = make_synthetic_dataset(n_tasks=1, n_demos=4).all_demos()
+    grip = as_gripper_demos(make_synthetic_dataset(n_tasks=1, n_demos=4), baxter).all_demos()
+    for a, b in zip(handover_poses(baxter, joints), handover_poses(baxter, grip), strict=True):
+        assert np.allclose(a.homogeneous, b.homogeneous, atol=1e-9)

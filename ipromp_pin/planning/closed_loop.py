@@ -783,7 +783,9 @@ def replay_demo(
     demo.require(groups + [model.robot_group])
     start = start_time(demo, settings, float(model.duration_nominal_s_))
     q_start = demo.groups[model.robot_group][0]
-    transfer = None if source is None else ReplanTransfer(source, robot, from_poses=predicts_gripper(model))
+    poses = predicts_gripper(model)  # gripper poses: always followed by inverse kinematics
+    source = robot if source is None and poses else source
+    transfer = None if source is None else ReplanTransfer(source, robot, from_poses=poses)
     if transfer is not None:
         q_start = transfer.start(q_start)
     with ClosedLoopPlanner(

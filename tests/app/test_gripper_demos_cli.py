@@ -46,11 +46,13 @@ def test_plan_on_the_panda_follows_the_predicted_poses_and_scores_them(gripper_d
     assert "--robot NAME" in one_error_line(capsys.readouterr().err)
 
 
-@pytest.mark.parametrize("command", ["run", "replay"])
-def test_run_and_replay_a_gripper_dataset_on_the_panda(gripper_data, command):
+@pytest.mark.parametrize(
+    ("command", "arm"), [("run", "panda"), ("replay", "panda"), ("replay", "baxter_left")]
+)
+def test_run_and_replay_a_gripper_dataset_on_the_panda_and_baxter(gripper_data, command, arm):
     root, data, _ = gripper_data
-    out = root / command
-    args = [command, str(PIPELINE), "--dataset", str(data), "--robot", "panda", "--out", str(out)]
+    out = root / f"{command}_{arm}"
+    args = [command, str(PIPELINE), "--dataset", str(data), "--robot", arm, "--out", str(out)]
     assert main([*args, "--no-preview"]) == 0
     report = json.loads((out / "report.json").read_text())
     if command == "run":
@@ -58,5 +60,5 @@ def test_run_and_replay_a_gripper_dataset_on_the_panda(gripper_data, command):
         assert all(v["status"] == "pass" for v in report["feasibility"]["checks"].values())
         assert np.isfinite(report["scores"]["handover_error_cm"])
     else:
-        assert report["robot"] == "panda" and report["retarget"]["retargeted_replans"] > 0
+        assert report["robot"] == arm and report["retarget"]["retargeted_replans"] > 0
         assert report["handover_error_cm"] < 10 and report["passed"]

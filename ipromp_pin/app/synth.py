@@ -67,8 +67,8 @@ def main(args: argparse.Namespace) -> int:
         for d in demos:
             write_demo(d, args.out / task / f"{d.name}{suffix}")
             n += 1
-    side = "a gripper pose path" if args.gripper else "joints"
-    print(f"wrote {n} demos of {', '.join(ds.tasks)} into {args.out} ({suffix} files, robot side: {side})")
+    side = "; the robot side a gripper pose path (no joints)" if args.gripper else ""
+    print(f"wrote {n} demos of {', '.join(ds.tasks)} into {args.out} ({suffix} files){side}")
     return 0
 
 

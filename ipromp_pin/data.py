@@ -10,7 +10,9 @@ Channel groups:
   (8 Myo channels) or a tracked skeleton frame such as ``"/left_hand_1"``
   (position x, y, z in [m]);
 * the robot group :data:`ROBOT` (joint angles in [rad], in the robot settings'
-  kinematic order).
+  kinematic order), or instead the gripper group :data:`GRIPPER` (the robot side as a
+  gripper pose path: position x, y, z in [m] in the scene frame and a unit quaternion
+  qx, qy, qz, qw; :data:`GRIPPER_CHANNELS`).
 
 Samples known to be missing (a skeleton tracker that lost the hand) are NaN in
 ``groups`` and flagged in ``missing``; any other NaN is an error.
@@ -28,6 +30,14 @@ from .fields import Range, did_you_mean
 
 ROBOT = "robot"
 """Name of the channel group holding the robot's joint angles in [rad]."""
+
+GRIPPER = "gripper"
+"""Name of the channel group holding the robot side as a gripper pose path (no joints): a
+human-human recording (the giver's hand or the object plays the robot) or another robot's."""
+
+GRIPPER_CHANNELS = ("x", "y", "z", "qx", "qy", "qz", "qw")
+"""The gripper group's channels: position [m] in the scene frame (the base frame of the robot the
+arms' ``[placement]`` refer to: Baxter's for the shipped data), then a unit quaternion, scalar last."""
 
 
 def _numeric_values(source: str, name: str, values: object) -> np.ndarray:
@@ -361,6 +371,28 @@ def parse_groups(text: str | Iterable[str]) -> list[str]:
     if len(set(groups)) != len(groups):
         raise DataError(None, "observe", f"channel group listed twice in {groups}")
     return groups
+
+
+def robot_side(demos: Iterable[Demo]) -> str:
+    """The robot group of demos: :data:`ROBOT` when every demo records joints, else :data:`GRIPPER`
+    when every one records a gripper pose path.
+
+    Raises:
+        DataError: naming the first demo that has neither (or the other one).
+    """
+    demos = list(demos)
+    for side in (ROBOT, GRIPPER):
+        if demos and all(side in d.groups for d in demos):
+            return side
+    first = next((d for d in demos if ROBOT in d.groups or GRIPPER in d.groups), None)
+    want = ROBOT if first is None or ROBOT in first.groups else GRIPPER
+    lacking = next((d for d in demos if want not in d.groups), demos[0] if demos else None)
+    raise DataError(
+        None if lacking is None else lacking.source,
+        want,
+        f"no '{want}' group: every demo needs the robot side, as joint angles ('{ROBOT}') or as a gripper "
+        f"pose path ('{GRIPPER}'), the same in every demo",
+    )
 
 
 def skeleton_frames(groups: Iterable[str]) -> list[str]:

@@ -43,6 +43,11 @@ EXPECTED = {
         r"demo's robot path\s+timed like a plan: slow-down median [\d.]+ \[95th [\d.]+\]",
         r"straight joint line between its ends\s+timed like a plan: slow-down median [\d.]+",
     ],
+    "gripper_demos.py": [
+        r"ratio gripper/joints [\d.]+",
+        r"gripper vs joint model: median [\d.]+ cm",
+        r"passed: joint model \d+/3, gripper model \d+/3",
+    ],
     "inference.py": [r"(?m)^paper\s+\d+\s+12\s", r"speed-up \d+x", r"task accuracy [\d.]+"],
     "model_load.py": [r"this checkout:\s+[\d.]+ ms", r"paired difference \(this - other\): median"],
     "placement.py": [

@@ -57,7 +57,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "length is known once the motion is over; the paper's protocol)",
     )
     p.add_argument(
-        "--robot", default="baxter_left", help="robot settings file or shipped name (default baxter_left)"
+        "--robot",
+        help="robot settings file or shipped name (default baxter_left; a model of gripper poses needs one)",
     )
     p.add_argument(
         "--objects",
@@ -168,7 +169,7 @@ def run(
     out_dir: Path,
     options: PlanOptions,
     *,
-    robot: str | Path = "baxter_left",
+    robot: str | Path | None = None,
     objects: Path | None = None,
     jobs: int = 1,
     cluster: str | None = None,
@@ -182,12 +183,12 @@ def run(
     from .. import atomic
     from ..evaluation.dask_cluster import DaskCluster
     from ..planning.one_shot import check_model_joints
-    from ..planning.transfer import source_robot
+    from ..planning.transfer import arm_for, source_robot
     from ..plans.batch import PlanWorker, batch_jobs, plan_batch
     from ..plans.summary import counts, write_summary
     from ..plans.warnings import warn_stderr
     from ..promp import IProMP
-    from ..robot import load_robot
+    from ..robot import Robot, load_robot
     from ..robot.objects import load_objects
     from .human_fit import check_human_fit
 
@@ -195,8 +196,9 @@ def run(
     # a bad spec fails here, before any work; the cluster says when it has started
     runner = None if cluster is None else DaskCluster.from_spec(cluster, log=log)
     atomic.check_output_dir(out_dir)
-    arm = load_robot(robot)
     model = IProMP.load(model_path)
+    named = arm_for(model, robot, "--robot NAME")  # a model of gripper poses names no arm itself
+    arm = named if isinstance(named, Robot) else load_robot(named)
     check_model_joints(model, source_robot(model, arm) or arm)  # a placed arm takes its source's model
     check_human_fit(model, str(model_path), strict_human, warn_stderr)
     table = load_objects(objects)

@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from .. import atomic
-from ..data import ROBOT, Dataset, Demo, skeleton_frames
+from ..data import GRIPPER, ROBOT, Dataset, Demo, robot_side, skeleton_frames
 from ..evaluation.scoring import ClosedLoopScore, replay_scored
 from ..exceptions import DataError, PipelineError
 from ..fields import did_you_mean
@@ -30,6 +30,7 @@ from ..motion.limits import LimitProfile, check_profile_choice, choose_limit_pro
 from ..planning.closed_loop import ClosedLoopResult, ClosedLoopSettings, replay_demo, start_time
 from ..planning.human_forecast import forecast_of, forecast_summary, with_forecast
 from ..planning.one_shot import LogFn, check_model_joints
+from ..planning.transfer import predicts_gripper, scene_robot
 from ..plans import HandoverPlan, plan
 from ..plans.warnings import (
     loaded_model_warnings,
@@ -132,11 +133,15 @@ def prepare_session(
     objects = load_objects(cfg.objects)
     objects.check_robot(robot)  # retreat targets the robot cannot take, before any computation
     source, ds = recordings_robot(cfg, robot, log)
+    side = robot_side(ds.all_demos())
+    if side == GRIPPER:  # no joints: the arm follows the demos' gripper poses, in its scene's frame
+        source = scene_robot(robot)
+        log(f"[data] the robot side is a gripper pose path: {robot.settings.name} follows it")
     recorded = robot if source is None else source
     early = missing_object_warnings(ds.tasks, objects)  # before training: the model learns ds.tasks
     for w in early:
         warn(w)
-    if cfg.load_model is None:  # before training: a robot the demos were not recorded on cannot plan
+    if cfg.load_model is None and side == ROBOT:  # before training: not recorded on this robot
         check_recorded_joints(
             ds, recorded, "the built-in synthetic demos" if cfg.dataset is None else str(cfg.dataset)
         )
@@ -147,7 +152,7 @@ def prepare_session(
     context = check_context(cfg, demo, robot, objects)  # a skeleton the map does not cover: before training
     prefetch = start_mesh_prefetch(robot) if prefetch_meshes else None
     train = [d for d in ds.all_demos() if d is not demo]
-    model = get_model(cfg, ds, demo, log, recorded, train=train)
+    model = get_model(cfg, ds, demo, log, recorded if side == ROBOT else None, train=train, side=side)
     check_model_joints(model, recorded)
     checks.check_model(model, demo)
     model_source = str(cfg.load_model or "model")
@@ -197,6 +202,9 @@ def recordings_robot(cfg: PipelineConfig, robot: Robot, log: LogFn = print) -> t
     if cfg.dataset is not None:
         try:
             own = load_data(cfg, lambda _msg: None, robot)
+            if robot_side(own.all_demos()) == GRIPPER:  # no joints: in the scene of the placement's source
+                log(f"[data] {cfg.dataset}: {len(own.all_demos())} demos of gripper poses")
+                return load_robot(placement.source), own
             log(f"[data] {cfg.dataset}: {len(own.all_demos())} demos recorded on {robot.settings.name}")
             return None, own
         except (PipelineError, DataError):
@@ -326,10 +334,11 @@ def get_model(
     robot: Robot | None = None,
     *,
     train: list[Demo] | None = None,
+    side: str = ROBOT,
 ) -> IProMP:
     """Load the saved model, or train one on ``train`` (default: every demo but ``held_out``), with
     the ``robot``'s forward kinematics when given, so that its settings are chosen for the hand-over
-    position error."""
+    position error (``side``: the robot group, joints or a gripper pose path)."""
     if cfg.load_model is not None:
         log(f"[model] loading {cfg.load_model}")
         model = IProMP.load(cfg.load_model)
@@ -343,14 +352,13 @@ def get_model(
         train = [d for d in ds.all_demos() if d is not held_out]
     t0 = time.perf_counter()
     fk, fk_rot = (None, None) if robot is None else gripper_kinematics(robot)
-    what = f"{len(train)} demos ({', '.join(cfg.observe)} + robot)"
+    what = f"{len(train)} demos ({', '.join(cfg.observe)} + {side})"
+    fresh = IProMP(observe=cfg.observe, robot_group=side)
     human = None if robot is None else robot.settings.human  # the body's forecast, calibrated
     if cfg.model_cache:
-        model, cached = fit_cached(
-            IProMP(observe=cfg.observe), train, fk, log=log, fk_rot=fk_rot, human=human
-        )
+        model, cached = fit_cached(fresh, train, fk, log=log, fk_rot=fk_rot, human=human)
     else:
-        model, cached = IProMP(observe=cfg.observe).fit(train, fk=fk, fk_rot=fk_rot), None
+        model, cached = fresh.fit(train, fk=fk, fk_rot=fk_rot), None
         model = model if human is None else with_forecast(model, train, human)
     if cached is not None:
         log(f"[model] reused the model an earlier run trained on {what}: {cached} (--retrain: train again)")
@@ -412,7 +420,8 @@ class ReplayChecks(SetupChecks):
     def check_demo(self, demo: Demo) -> None:
         """Refuse a demo without the observed and robot groups or with a start window under 2 samples
         (before training, when the start rule does not depend on the model)."""
-        demo.require(list(self.observe) + [ROBOT])
+        demo.require(list(self.observe))
+        robot_side([demo])  # joints or a gripper pose path: where the robot starts
         if self.settings.start_ratio is not None or self.settings.start_after_s is not None:
             self.start_s = start_time(demo, self.settings, math.nan)
 
@@ -506,20 +515,25 @@ def prepare_replay(
     )
     demo, train = session.demo, session.train
     source = session.source
+    poses = predicts_gripper(session.model)  # the demos' robot side is a gripper pose path: no joints
     if source is not None and from_file is None and limits == "demonstrated":
         limits = "conservative"  # the demonstrated peaks are the recorded robot's joints, not this arm's
-        log(
-            f"[limits] the demonstrated profile is derived from {source.settings.name}'s recorded joints, "
-            f"which robot '{robot.settings.name}' does not have: its conservative profile instead"
+        why = (
+            "is derived from recorded joints, which the demos (a gripper pose path) do not have"
+            if poses
+            else f"is derived from {source.settings.name}'s recorded joints, which robot "
+            f"'{robot.settings.name}' does not have"
         )
+        log(f"[limits] the demonstrated profile {why}: its conservative profile instead")
     profile = choose_limit_profile(from_file or limits, robot, train, training_label(cfg))
     log(f"[limits] {profile.name}: {profile.source}")
     if source is None:
         prime_checks(session.suite, train, log)
     else:
+        origin = f"gripper poses ({source.settings.name}'s frame)" if poses else source.settings.name
         log(
-            f"[retarget] {source.settings.name} -> {robot.settings.name}: every re-plan retargeted through "
-            "the gripper (its checks not primed on the training motions, which are the other arm's)"
+            f"[retarget] {origin} -> {robot.settings.name}: every re-plan retargeted through "
+            "the gripper (its checks not primed on the training motions, which are not this arm's joints)"
         )
     log(
         f"[replay] {demo.task}/{demo.name}: {demo.duration_s:.2f} s at its recorded timing; the robot starts "

@@ -38,6 +38,13 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "(panda, ur5, xarm7, kinova_jaco2) gets Baxter's demos retargeted through the gripper, with its own "
         "joints",
     )
+    p.add_argument(
+        "--gripper",
+        action="store_true",
+        help="write the robot side as Baxter's gripper pose path (a 'gripper' group: x, y, z [m] and qx, qy, "
+        "qz, qw in Baxter's base frame, the forward kinematics of the synthetic joints) instead of joints, "
+        "as a human-human recording gives it",
+    )
     p.set_defaults(func=main)
 
 
@@ -50,14 +57,18 @@ def main(args: argparse.Namespace) -> int:
     atomic.check_output_dir(args.out)
 
     ds = make_synthetic_dataset(n_tasks=args.tasks, n_demos=args.demos, seed=args.seed)
-    ds = on_robot(ds, args.robot)
+    if args.gripper:
+        ds = as_gripper(ds, args.robot)
+    else:
+        ds = on_robot(ds, args.robot)
     suffix = ".csv" if args.csv else ".npz"
     n = 0
     for task, demos in ds.demos.items():
         for d in demos:
             write_demo(d, args.out / task / f"{d.name}{suffix}")
             n += 1
-    print(f"wrote {n} demos of {', '.join(ds.tasks)} into {args.out} ({suffix} files)")
+    side = "; the robot side a gripper pose path (no joints)" if args.gripper else ""
+    print(f"wrote {n} demos of {', '.join(ds.tasks)} into {args.out} ({suffix} files){side}")
     return 0
 
 
@@ -93,3 +104,25 @@ def on_robot(ds: Dataset, robot: str) -> Dataset:
             names = {**d.channel_names, ROBOT: arm.settings.recorded_arm_joints}
             demos[task].append(replace(d, groups=groups, channel_names=names))
     return replace(ds, demos=demos)
+
+
+def as_gripper(ds: Dataset, robot: str) -> Dataset:
+    """The synthetic (Baxter left-arm) demos with their robot side as Baxter's gripper pose path
+    (:func:`ipromp_pin.robot.recordings.as_gripper_demos`).
+
+    Raises:
+        PipelineError: ``robot`` is not Baxter's left arm (the poses are in its base frame, and no
+            joints are written for another arm).
+    """
+    from ..robot import load_robot
+    from ..robot.recordings import as_gripper_demos
+    from ..shipped import DEFAULT_ROBOT
+
+    arm = load_robot(robot)
+    baxter = load_robot(DEFAULT_ROBOT)
+    if arm.settings.name != baxter.settings.name:
+        raise PipelineError(
+            f"synth --gripper --robot {robot}: a gripper pose path has no joints of any arm (it is Baxter's "
+            "gripper in Baxter's base frame, the scene frame); leave out --robot, and plan with --robot NAME"
+        )
+    return as_gripper_demos(ds, baxter)

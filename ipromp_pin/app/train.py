@@ -64,7 +64,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 def main(args: argparse.Namespace) -> int:
     """Train on every demo of the dataset and save the model."""
     from .. import atomic
-    from ..data import parse_groups, skeleton_frames
+    from ..data import ROBOT, parse_groups, robot_side, skeleton_frames
     from ..exceptions import PipelineError
     from ..planning.human_forecast import forecast_of, forecast_summary, with_forecast
     from ..plans.warnings import single_task_warning, warn_stderr
@@ -85,12 +85,15 @@ def main(args: argparse.Namespace) -> int:
     robot = load_robot(args.robot)
     ds = read_dataset(args, frames, robot)
     t0 = time.perf_counter()
-    kinematics = gripper_kinematics(robot)  # settings chosen for the hand-over position of this robot
+    side = robot_side(ds.all_demos())  # joints, or a gripper pose path (its own kinematics)
+    kinematics = gripper_kinematics(robot)._asdict() if side == ROBOT else {}  # chosen for the hand-over
     held = held_out_demos(ds, args.holdout)
     train = [d for d in ds.all_demos() if not any(d is h for h in held)]
     for h in held:
         print(f"held out {h.task}/{h.name} ({h.source})")
-    model = IProMP(observe=observe, coupling=coupling).fit(train, **kinematics._asdict())
+    if side != ROBOT:
+        print(f"the robot side is a gripper pose path ('{side}' group): plan with --robot NAME")
+    model = IProMP(observe=observe, coupling=coupling, robot_group=side).fit(train, **kinematics)
     model = model.with_human_fit(human_self_check(train, robot))
     model = with_forecast(model, train, robot.settings.human)
     print(forecast_summary(forecast_of(model, source=str(args.out))))

@@ -38,7 +38,7 @@ from typing import Any
 
 import numpy as np
 
-from ..data import ROBOT, Demo
+from ..data import GRIPPER, ROBOT, Demo
 from ..exceptions import InfeasibleError
 from ..human import HumanMotion
 from ..motion.trajectory import JointLimits, Trajectory
@@ -55,6 +55,7 @@ from ..safety.contact_speed import ContactSpeedMeasures
 from ..safety.human_clearance import ClearanceMeasures
 from ..safety.joint_torques import TorqueMeasures
 from ..safety.speed_limits import limit_ratios
+from ..signals.gripper import gripper_rotations
 
 ARRIVAL_TOLERANCE_M = 0.01
 """A gripper has arrived once it stays within this distance [m] of its final position."""
@@ -113,10 +114,15 @@ def recorded_scores(
 ) -> RecordedScores:
     """``result`` (planned from the first part of ``recording``) measured against the recording
     (``source``: the robot the recording's joints are of, when ``robot`` executed a retargeted plan;
-    both grippers are in the scene frame)."""
+    both grippers are in the scene frame; a recording without joints: its gripper pose path)."""
     q_end = result.trajectory.q[-1]
     truth = recording.groups.get(ROBOT)
     error = orientation = hand = None
+    pose = recording.groups.get(GRIPPER)
+    if truth is None and pose is not None:  # the recorded gripper pose path, in the scene frame
+        (pe, re), rt = frame_placements(robot, q_end), gripper_rotations(pose[-1:])
+        error = float(np.linalg.norm(pe[0] - pose[-1, :3]) * 100.0)
+        orientation = float(geodesic_deg(re[0], rt[0]))
     if truth is not None and len(truth):
         if source is None:
             p = ee_positions(robot, np.stack([q_end, truth[-1]]))
@@ -308,6 +314,15 @@ class ClosedLoopScore:
         return asdict(self)
 
 
+def recorded_gripper(demo: Demo, robot: Robot) -> tuple[np.ndarray, np.ndarray]:
+    """The demo's recorded gripper path in the scene frame: positions (T, 3) [m] and rotations
+    (T, 3, 3), of ``robot``'s joints, or of its gripper pose path when it recorded no joints."""
+    if ROBOT not in demo.groups and GRIPPER in demo.groups:
+        pose = demo.groups[GRIPPER]
+        return pose[:, :3], gripper_rotations(pose)
+    return frame_placements(robot, demo.groups[ROBOT])
+
+
 def score_closed_loop(
     result: ClosedLoopResult,
     demo: Demo,
@@ -321,11 +336,10 @@ def score_closed_loop(
     ``robot`` executed it retargeted (both grippers are in the scene frame)."""
     traj = result.trajectory
     t_demo = demo.t - demo.t[0]
-    truth = demo.groups[ROBOT]
     t_end = float(t_demo[-1])
     q_at = np.array([np.interp(t_end, traj.t_s, traj.q[:, j]) for j in range(traj.q.shape[1])])
     p_cmd = ee_positions(robot, traj.q)
-    p_true, r_true = frame_placements(robot if source is None else source, truth)
+    p_true, r_true = recorded_gripper(demo, robot if source is None else source)
     (p_at, p_rest), r_cmd = frame_placements(robot, np.stack([q_at, traj.q[-1]]))
     arrival = arrival_time(traj.t_s, p_cmd, tolerance_m)
     recorded = arrival_time(t_demo, p_true, tolerance_m)

@@ -108,8 +108,13 @@ def retarget_lines(result: PlanResult) -> list[str]:
     if r is None:
         return []
     d = r.to_dict()
+    origin = (
+        f"a model of gripper poses (in {d['source_robot']}'s frame)"
+        if d["source_path"] == "gripper_pose"
+        else f"a model of {d['source_robot']}"
+    )
     line = (
-        f"Executed by {result.robot}, retargeted through the gripper from a model of {d['source_robot']}: "
+        f"Executed by {result.robot}, retargeted through the gripper from {origin}: "
         f"hand-over residual {d['ik_residual_mm']:.3f} mm / {d['ik_residual_deg']:.3f} deg, "
         f"path at most {d['max_path_residual_mm']:.3f} mm"
     )

@@ -61,7 +61,7 @@ from ..safety.speed_limits import SpeedLimitMeasures
 from ..safety.workspace import WorkspaceMeasures
 from .human_forecast import forecast_of, predicted_human
 from .timers import retarget_timer
-from .transfer import ReplanTransfer
+from .transfer import ReplanTransfer, predicts_gripper
 from .unknown_stop import UNKNOWN_HOLD_RANGE_S, UNKNOWN_HOLD_S, Segment, StopEvent, UnknownStop
 
 CONDITION_NOISE = 0.3
@@ -786,7 +786,9 @@ def replay_demo(
     demo.require(groups + [model.robot_group])
     start = start_time(demo, settings, float(model.duration_nominal_s_))
     q_start = demo.groups[model.robot_group][0]
-    transfer = None if source is None else ReplanTransfer(source, robot)
+    poses = predicts_gripper(model)  # gripper poses: always followed by inverse kinematics
+    source = robot if source is None and poses else source
+    transfer = None if source is None else ReplanTransfer(source, robot, from_poses=poses)
     if transfer is not None:
         q_start = transfer.start(q_start)
     with ClosedLoopPlanner(

@@ -28,7 +28,7 @@ from ..robot.kinematics import rotations_to_quat_xyzw
 from ..safety import CheckContext, CheckReport, CheckSuite
 from .human_forecast import forecast_of, predicted_human
 from .timers import PathTimer
-from .transfer import Retargeting, retarget_prediction
+from .transfer import Retargeting, predicts_gripper, retarget_prediction
 
 LogFn = Callable[[str], None]
 """Where progress messages go (one line each)."""
@@ -106,9 +106,14 @@ def check_model_joints(model: IProMP, robot: Robot) -> None:
     by name through the settings' recorded names (a left-arm model run with a right-arm robot would
     otherwise command the right arm with the left arm's angles).
 
+    A model of gripper poses (:func:`~.transfer.predicts_gripper`) has no joints to check: any arm
+    follows its poses by inverse kinematics.
+
     Raises:
         ModelError: naming both joint lists.
     """
+    if predicts_gripper(model):
+        return
     names = tuple(model.joint_names_)
     recorded = robot.settings.recorded_names
     if tuple(recorded.get(n, n) for n in names) == robot.joint_names:
@@ -170,7 +175,9 @@ def plan(
         check_joints: Refuse a model whose joints are not the robot's (False: checked already).
         source: The robot whose joints the model predicts when it is not ``robot`` (e.g. Baxter's
             left arm for a Panda placed in its scene): the predicted paths are retargeted through the
-            gripper (:func:`~.transfer.retarget_prediction`) and everything after is ``robot``'s.
+            gripper (:func:`~.transfer.retarget_prediction`) and everything after is ``robot``'s. A
+            model of gripper poses is always followed by ``robot``'s inverse kinematics (``source``:
+            the robot of the poses' frame, :func:`~.transfer.source_robot`; None: ``robot``'s own).
 
     Raises:
         InfeasibleError: the predicted path cannot be timed at all.
@@ -196,17 +203,9 @@ def plan(
         say(f"[recognise] UNKNOWN: {prediction.unknown_reason}")
     samples = prediction.sample_q(N_UNCERTAINTY_SAMPLES, np.random.default_rng(0))
     q_path, retarget = prediction.q_mean, None
-    if source is not None:
-        q_path, samples, retarget = retarget_prediction(source, robot, q_path, samples)
+    if source is not None or predicts_gripper(model):  # gripper poses: followed by any arm
+        q_path, samples, retarget = retargeted(model, prediction, samples, robot, source, say)
         ms["retarget"] = retarget.ms
-        moved = retarget.to_dict()
-        say(
-            f"[retarget] {source.settings.name} -> {robot.settings.name} through the gripper: hand-over "
-            f"residual {moved['ik_residual_mm']:.3f} mm / {moved['ik_residual_deg']:.3f} deg, path at most "
-            f"{moved['max_path_residual_mm']:.3f} mm"
-        )
-        if not retarget.reached:  # refused: never a hand-over shifted to where the arm reaches
-            raise UnreachableError(retarget.path.why_not_reached(robot))
     start_s = float(observation.t[-1] - observation.t[0])
     ctx = prediction_context(
         prediction,
@@ -246,6 +245,36 @@ def plan(
     if result.slowdown != 1.0:
         say(_slowdown_line(result))
     return result
+
+
+def retargeted(
+    model: IProMP,
+    prediction: Prediction,
+    samples: np.ndarray,
+    robot: Robot,
+    source: Robot | None,
+    say: LogFn,
+) -> tuple[np.ndarray, np.ndarray, Retargeting]:
+    """The prediction's mean path and ``samples`` (n, M, ...) as ``robot``'s joint paths [rad]
+    (:func:`~.transfer.retarget_prediction`): from ``source``'s joints, or from the predicted gripper
+    poses for a model of them (``source`` None: in ``robot``'s own base frame).
+
+    Raises:
+        UnreachableError: ``robot`` cannot reach the predicted hand-over pose.
+    """
+    from_poses = predicts_gripper(model)
+    source = robot if source is None else source
+    q_path, samples, retarget = retarget_prediction(source, robot, prediction.q_mean, samples, from_poses)
+    moved = retarget.to_dict()
+    origin = f"gripper poses ({source.settings.name}'s frame)" if from_poses else source.settings.name
+    say(
+        f"[retarget] {origin} -> {robot.settings.name} through the gripper: hand-over "
+        f"residual {moved['ik_residual_mm']:.3f} mm / {moved['ik_residual_deg']:.3f} deg, path at most "
+        f"{moved['max_path_residual_mm']:.3f} mm"
+    )
+    if not retarget.reached:  # refused: never a hand-over shifted to where the arm reaches
+        raise UnreachableError(retarget.path.why_not_reached(robot))
+    return q_path, samples, retarget
 
 
 def _slowdown_line(result: PlanResult) -> str:

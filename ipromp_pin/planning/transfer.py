@@ -14,15 +14,29 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
+import pinocchio as pin
 
+from ..data import GRIPPER
 from ..exceptions import ModelError, UnreachableError
 from ..motion.retarget import ReferenceMotion
 from ..promp import IProMP
 from ..robot import Robot, TransferredPath, load_robot, transfer_path, transfer_samples
-from ..robot.arm_transfer import TOL_M, TOL_RAD, TRACK_ITERATIONS, PoseSolver, check_pair, gripper_poses
+from ..robot.arm_transfer import (
+    TOL_M,
+    TOL_RAD,
+    TRACK_ITERATIONS,
+    PoseSolver,
+    check_pair,
+    follow_pose_path,
+    follow_pose_samples,
+    gripper_poses,
+)
 from ..robot.kinematics import frame_placements
+from ..shipped import DEFAULT_ROBOT
+from ..signals.gripper import gripper_positions, gripper_rotations
 
 
 @dataclass(frozen=True)
@@ -30,16 +44,19 @@ class Retargeting:
     """How a plan's joint paths came from another robot's prediction.
 
     Attributes:
-        source: The robot whose joints the model predicts (e.g. Baxter's left arm).
+        source: The robot whose joints the model predicts (e.g. Baxter's left arm); for a model of
+            gripper poses, the robot in whose base frame they are (the scene's).
         target: The arm that executes the plan.
         path: The mean path on the executing arm, with its residuals.
         ms: Wall time of the retargeting in [ms].
+        from_poses: The model predicts the gripper pose path itself (no source joints).
     """
 
     source: Robot
     target: Robot
     path: TransferredPath
     ms: float
+    from_poses: bool = False
 
     @property
     def reached(self) -> bool:
@@ -50,12 +67,44 @@ class Retargeting:
         """The report's ``retarget`` entry (JSON-serialisable)."""
         return {
             "source_robot": self.source.settings.name,
+            "source_path": "gripper_pose" if self.from_poses else "joints",
             "reached": self.reached,
             "ik_residual_mm": round(self.path.handover_residual_mm, 4),
             "ik_residual_deg": round(self.path.handover_residual_deg, 4),
             "max_path_residual_mm": round(self.path.max_path_residual_mm, 4),
             "ms": round(self.ms, 3),
         }
+
+
+def predicts_gripper(model: IProMP) -> bool:
+    """Whether ``model``'s robot side is a gripper pose path (the ``gripper`` group), not joints."""
+    return bool(model.groups_[-1] == GRIPPER)
+
+
+def arm_for(model: IProMP, robot: str | Path | Robot | None, how: str) -> str | Path | Robot:
+    """The arm that executes ``model``: ``robot``, or when None the default (Baxter's left arm) for a
+    model of joints; a model of gripper poses names no arm, so none is chosen for it.
+
+    Raises:
+        ModelError: ``robot`` is None and the model predicts a gripper pose path (``how``: how to name
+            the arm, e.g. ``"--robot NAME"``).
+    """
+    if robot is not None:
+        return robot
+    if predicts_gripper(model):
+        raise ModelError(
+            f"the model predicts a gripper pose path, not a robot's joints: name the arm that executes it "
+            f"with {how} (e.g. panda, ur5, xarm7, kinova_jaco2, baxter_left)"
+        )
+    return DEFAULT_ROBOT
+
+
+def scene_robot(robot: Robot) -> Robot:
+    """The robot in whose base frame (the scene frame) a gripper pose path is given: ``robot``'s
+    ``[placement] source``, or ``robot`` itself when it has no placement (it stands at the scene's
+    origin, as Baxter's left arm for the shipped data)."""
+    placement = robot.settings.placement
+    return robot if placement is None else load_robot(placement.source)
 
 
 def model_robot_names(model: IProMP, robot: Robot) -> tuple[str, ...]:
@@ -68,9 +117,14 @@ def source_robot(model: IProMP, robot: Robot) -> Robot | None:
     """The robot whose joints ``model`` predicts when it is not ``robot`` (None: ``robot`` itself):
     the ``[placement] source`` of ``robot``'s settings.
 
+    A model of gripper poses (:func:`predicts_gripper`) has no joints: its source is always the scene's
+    robot (:func:`scene_robot`), ``robot`` itself when unplaced, and every plan is retargeted.
+
     Raises:
         ModelError: the model predicts neither ``robot``'s joints nor its placement source's.
     """
+    if predicts_gripper(model):
+        return scene_robot(robot)
     if model_robot_names(model, robot) == robot.joint_names or robot.settings.placement is None:
         return None  # the arm's own model, or no other arm to take it from (check_model_joints says why)
     source = load_robot(robot.settings.placement.source)
@@ -83,17 +137,30 @@ def source_robot(model: IProMP, robot: Robot) -> Robot | None:
 
 
 def retarget_prediction(
-    source: Robot, robot: Robot, q_mean: np.ndarray, samples: np.ndarray
+    source: Robot, robot: Robot, q_mean: np.ndarray, samples: np.ndarray, from_poses: bool = False
 ) -> tuple[np.ndarray, np.ndarray, Retargeting]:
     """The mean path (M, n_joints) and the sampled paths (n, M, n_joints) of ``robot`` [rad] whose
-    gripper follows ``source``'s along ``q_mean`` (M, n_source) and ``samples`` (n, M, n_source)."""
+    gripper follows ``source``'s along ``q_mean`` (M, n_source) and ``samples`` (n, M, n_source);
+    ``from_poses``: they are gripper pose paths (M, 7) and (n, M, 7) (x, y, z [m] and a quaternion
+    qx, qy, qz, qw, renormalised here) in ``source``'s base frame, followed as they are."""
     t0 = time.perf_counter()
-    path = transfer_path(source, robot, q_mean)
-    if path.reached:
-        moved = transfer_samples(source, robot, samples, path, q_mean)
-    else:  # refused: the samples are not followed either
+    if from_poses:
+        if robot.settings.placement is not None:
+            check_pair(source, robot)
+        pm, rm = gripper_positions(q_mean), gripper_rotations(q_mean)
+        path = follow_pose_path(robot, pm, rm)
+    else:
+        path = transfer_path(source, robot, q_mean)
+    if not path.reached:  # refused: the samples are not followed either
         moved = np.broadcast_to(path.q, (samples.shape[0],) + path.q.shape).copy()
-    return path.q, moved, Retargeting(source, robot, path, (time.perf_counter() - t0) * 1e3)
+    elif from_poses:
+        moved = follow_pose_samples(
+            robot, gripper_positions(samples), gripper_rotations(samples), path, pm, rm
+        )
+    else:
+        moved = transfer_samples(source, robot, samples, path, q_mean)
+    ms = (time.perf_counter() - t0) * 1e3
+    return path.q, moved, Retargeting(source, robot, path, ms, from_poses)
 
 
 N_GRID = 41
@@ -154,10 +221,12 @@ class ReplanTransfer:
     arm cannot reach keeps no solution (the next one starts from the last reached).
     """
 
-    def __init__(self, source: Robot, target: Robot, n_grid: int = N_GRID) -> None:
-        check_pair(source, target)
+    def __init__(self, source: Robot, target: Robot, n_grid: int = N_GRID, from_poses: bool = False) -> None:
+        if not from_poses or target.settings.placement is not None:
+            check_pair(source, target)
         self.source = source
         self.target = target
+        self.from_poses = from_poses  # the reference motion is a gripper pose path (7 channels), not joints
         self.solver = PoseSolver(target)
         self.phase = np.linspace(0.0, 1.0, n_grid)
         self.mid = 0.5 * (self.phase[1:] + self.phase[:-1])  # where the fit's residual is measured too
@@ -171,7 +240,7 @@ class ReplanTransfer:
         Raises:
             UnreachableError: the arm cannot reach that pose at its placement.
         """
-        pose = gripper_poses(self.source, np.asarray(q_source, dtype=float)[None])[0]
+        pose = self._poses(np.asarray(q_source, dtype=float)[None])[0]
         q, err_p, err_r, _ = self.solver.first(pose, None)
         if not (err_p <= TOL_M and err_r <= TOL_RAD):
             raise UnreachableError(
@@ -180,6 +249,14 @@ class ReplanTransfer:
                 f"{err_p * 1e3:.1f} mm and {np.degrees(err_r):.2f} deg away"
             )
         return q
+
+    def _poses(self, values: np.ndarray) -> list[pin.SE3]:
+        """The gripper poses of the source's joints (M, n_source) [rad], or of gripper pose values
+        (M, 7) with ``from_poses``."""
+        if not self.from_poses:
+            return gripper_poses(self.source, values)
+        pos, rot = gripper_positions(values), gripper_rotations(values)
+        return [pin.SE3(r, p) for p, r in zip(pos, rot, strict=True)]
 
     def _basis(self, reference: ReferenceMotion) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The basis at the phase samples (M, K) and between them (M - 1, K), and the constrained
@@ -226,7 +303,7 @@ class ReplanTransfer:
         reach the hand-over pose; the re-plan is refused)."""
         t0 = time.perf_counter()
         d = reference.duration_s
-        poses = gripper_poses(self.source, reference.evaluate(self.phase * d, order=0)[0])
+        poses = self._poses(reference.evaluate(self.phase * d, order=0)[0])
         q, err_p, err_r = self._follow(poses, q_now, t_now_s, d)
         if not (err_p[-1] <= TOL_M and err_r[-1] <= TOL_RAD):  # the tracked branch misses: every seed
             end = self.solver.first(poses[-1], q[-1])
@@ -247,7 +324,7 @@ class ReplanTransfer:
         moved = ReferenceMotion(weights.T, reference.centres, reference.width, np.ones(n), np.zeros(n), d)
         # the residual of what the arm is commanded: at the samples and between them (the fit's)
         pos, _ = frame_placements(self.target, np.vstack([phi @ weights, phi_mid @ weights]))
-        src_mid, _ = frame_placements(self.source, reference.evaluate(self.mid * d, order=0)[0])
+        src_mid = [p.translation for p in self._poses(reference.evaluate(self.mid * d, order=0)[0])]
         target_pos = np.vstack([[p.translation for p in poses], src_mid])
         path_mm = float(np.max(np.linalg.norm(pos - target_pos, axis=1)) * 1e3)
         ms = (time.perf_counter() - t0) * 1e3

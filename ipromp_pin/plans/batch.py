@@ -23,7 +23,7 @@ from pathlib import Path
 
 from threadpoolctl import threadpool_limits
 
-from ..data import ROBOT, Demo, ObservationWindow
+from ..data import GRIPPER, ROBOT, Demo, ObservationWindow
 from ..evaluation.jobs import JobRunner, runner_of
 from ..exceptions import DataError, InfeasibleError, UnreachableError
 from ..planning.transfer import source_robot
@@ -198,7 +198,8 @@ class PlanWorker:
                 error=str(exc),
             )
         planned.warnings = notes + planned.warnings
-        scorable = opts.score and ROBOT in recording.groups and recording.t[-1] > observation.t[-1]
+        recorded_side = ROBOT in recording.groups or GRIPPER in recording.groups
+        scorable = opts.score and recorded_side and recording.t[-1] > observation.t[-1]
         if scorable:
             planned = planned.scored(recording)
         written = planned.write(

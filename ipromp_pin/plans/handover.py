@@ -35,7 +35,7 @@ from ..outputs.report import arrival
 from ..planning.one_shot import PlanResult, check_model_joints
 from ..planning.one_shot import plan as plan_one_shot
 from ..planning.retreat import RetreatResult, plan_retreat
-from ..planning.transfer import source_robot
+from ..planning.transfer import arm_for, source_robot
 from ..promp import IProMP
 from ..robot import Robot, load_robot
 from ..robot.objects import ObjectTable, load_objects
@@ -153,7 +153,7 @@ def human_as_observed(
 def plan(
     model: IProMP,
     observation: Demo,
-    robot: str | Robot = "baxter_left",
+    robot: str | Robot | None = None,
     *,
     objects: str | Path | ObjectTable | None = None,
     human: HumanMotion | None = None,
@@ -171,6 +171,8 @@ def plan(
         robot: The robot settings (a shipped name, a settings file) or a loaded robot. An arm with a
             ``[placement]`` executes a model of its placement's source robot (e.g. ``"panda"`` with a
             Baxter model): the prediction is retargeted through the gripper (``plan.approach.retarget``).
+            None: Baxter's left arm for a model of its joints; a model of gripper poses needs one named
+            (any arm follows them, Baxter's left arm too).
         objects: The tasks' objects (a task file, or a table read already; None: the shipped
             ``robots/objects.toml``).
         human: The human the checks judge (None: the observation's tracked skeleton through the
@@ -183,10 +185,12 @@ def plan(
         log: Progress messages (None: silent).
 
     Raises:
-        ModelError: the model's joints are neither the robot's nor its placement source's.
+        ModelError: the model's joints are neither the robot's nor its placement source's, or a model
+            of gripper poses without ``robot``.
         InfeasibleError: the predicted path cannot be timed.
     """
-    arm = robot if isinstance(robot, Robot) else load_robot(robot)
+    named = arm_for(model, robot, "robot=NAME")
+    arm = named if isinstance(named, Robot) else load_robot(named)
     table = objects if isinstance(objects, ObjectTable) else load_objects(objects)
     source = source_robot(model, arm)  # a model of the robot the arm is placed beside: retargeted
     check_model_joints(model, arm if source is None else source)

@@ -106,7 +106,9 @@ class IProMP(ParameterMixin):
             split-conformal calibration on held-out training demos; None: no novelty detector.
         n_points: Number M of points of the predicted trajectories.
         task_prior: Prior task probabilities (task -> p, or None for uniform).
-        robot_group: Name of the robot's joint-angle group.
+        robot_group: Name of the robot's group: its joint angles (``"robot"``), or ``"gripper"`` for
+            demos whose robot side is a gripper pose path (x, y, z [m], qx, qy, qz, qw; the model then
+            predicts that path, :mod:`~ipromp_pin.promp.gripper_side`).
         log_groups: Observed groups modelled in log space (EMG envelopes: see
             :class:`~ipromp_pin.promp.distribution.ChannelScaler`); groups not observed are ignored.
         pooling: Weight in [0, 1] of the covariance pooled over tasks in each task's covariance

@@ -25,6 +25,7 @@ from ..data import Dataset, Demo
 from ..exceptions import ModelError
 from .basis import GaussianBasis
 from .fitted import FittedModel
+from .gripper_side import aligned_demos, gripper_kinematics, is_gripper_group
 from .handover import HandoverRegression
 from .handover_orientation import OrientationEstimate
 from .handover_selection import HandoverChoice, choose_handover
@@ -166,7 +167,8 @@ def fit_model(
         data: A :class:`~ipromp_pin.data.Dataset` or demos (grouped by ``demo.task``).
         params: The estimator's parameters (``IProMP.get_params()``, validated).
         observe, coupling: The parsed observed groups and coupling (``parse_params``).
-        fk: The robot's forward kinematics (the cross-validations then score the hand-over position).
+        fk: The robot's forward kinematics (the cross-validations then score the hand-over position;
+            a gripper model's default: its position channels, :mod:`.gripper_side`).
         limit_threads: A context limiting the BLAS threads during the cross-validations.
         fk_rot: The gripper's rotations (joint angles (n, J) in [rad] -> rotation matrices (n, 3, 3));
             with ``fk``, the model gets a hand-over orientation estimate
@@ -177,7 +179,11 @@ def fit_model(
     """
     basis = GaussianBasis(params["n_basis"], params["width"], params["ridge"], params["margin"])
     by_task = demos_by_task(data)
-    training = prepare_training(by_task, observe, params["robot_group"], basis, params["log_groups"])
+    fitted_demos = by_task
+    if is_gripper_group(params["robot_group"]):  # a gripper pose path: sign-consistent quaternions
+        fitted_demos = aligned_demos(by_task)
+        fk, fk_rot = (fk, fk_rot) if fk is not None else gripper_kinematics()
+    training = prepare_training(fitted_demos, observe, params["robot_group"], basis, params["log_groups"])
     prior = log_task_prior(training.tasks, params["task_prior"])
     with limit_threads():
         hp = select_hyperparameters(training, params, observe, coupling, prior, fk, fk_rot)

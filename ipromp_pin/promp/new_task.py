@@ -52,6 +52,7 @@ from .distribution import (
     phase_support,
 )
 from .fitted import FittedModel
+from .gripper_side import added_demos
 from .novelty import NoveltyRow, with_added_task
 from .predictor import Predictor
 from .provenance import demo_digest, demo_record
@@ -96,13 +97,14 @@ def add_task(
             None, "task_prior", f"the model was fitted with a task prior: give the prior of '{task}'"
         )
     layout = fitted.layout
-    demos = [layout.aligned(d) for d in demos]
+    given = list(demos)
+    demos = [layout.aligned(d) for d in added_demos(fitted, given)]
     weights = np.stack([demo_weights(layout, fitted.basis, fitted.scaler, d)[0] for d in demos])
     alphas = np.array([d.t[-1] - d.t[0] for d in demos]) / fitted.duration_nominal_s
     settings = (int(params["n_alpha"]), float(params["alpha_width"]))
     pooling = choose_pooling(fitted, demos, weights, alphas, settings)[0]
     grown = _grown(fitted, task, weights, alphas, pooling, settings, task_prior)
-    records = None if fitted.trained_on is None else (*fitted.trained_on, *map(demo_record, demos))
+    records = None if fitted.trained_on is None else (*fitted.trained_on, *map(demo_record, given))
     grown = dataclasses.replace(grown, trained_on=records)
     if fitted.novelty is not None:
         rows = _novelty_rows(grown, demos, fitted.novelty.ratios)

@@ -8,12 +8,17 @@ ordered by file name). Both forms hold the same content:
   reader shifts them to start at 0; the spacing may deviate by at most 1 %;
   :func:`load_dataset <ipromp_pin.readers.load_dataset>` resamples demos whose
   rate differs from its ``rate_hz``);
-* per channel group (``"orientation"``, ``"emg"``, ``"robot"``, a skeleton frame
-  such as ``"/left_hand_1"`` ...): its values (T, D) and channel names, and
+* per channel group (``"orientation"``, ``"emg"``, ``"robot"`` or ``"gripper"``, a
+  skeleton frame such as ``"/left_hand_1"`` ...): its values (T, D) and channel names, and
   optionally a missing-sample mask (T,) (values there may be NaN; any other
   NaN is an error);
 * optional extras: ``endpoint_pose`` (T, 7) (x, y, z [m], quaternion x, y, z, w),
   ``hand_position`` (T, 3) [m], or any other (T, K) array.
+
+The robot side is either ``"robot"`` (joint angles, channels named after the joints) or
+``"gripper"`` (a gripper pose path: ``x, y, z`` [m] in the scene frame and a unit quaternion
+``qx, qy, qz, qw``, scalar last; read by name in any column order, checked and made
+sign-continuous, :mod:`ipromp_pin.signals.gripper`).
 
 Units are those of :class:`~ipromp_pin.data.Demo`: joint angles in [rad],
 positions in [m], the orientation a unit quaternion (qw, qx, qy, qz), the EMG
@@ -64,9 +69,11 @@ from pathlib import Path
 import numpy as np
 
 from .. import atomic
-from ..data import ROBOT, Dataset, Demo
+from ..data import GRIPPER, GRIPPER_CHANNELS, ROBOT, Dataset, Demo
 from ..exceptions import DataError
 from ..inputs import check_regular
+from ..signals.checks import GRIPPER_HINT, pose_like
+from ..signals.gripper import gripper_values
 from ..signals.groups import group_spec
 from ..signals.preprocess import Stream, align_streams
 from .streams import full_duration_s
@@ -385,6 +392,19 @@ def extra_columns(path: Path, name: str, parts: list[tuple[str, int]]) -> list[i
 
 def _select_joints(demo: Demo, joints: tuple[str, ...]) -> Demo:
     have = demo.channel_names[ROBOT]
+    posed = pose_like(joints)
+    if posed:  # robot_joints=("x", "y", "z") would label a position as joint angles in [rad]
+        raise DataError(
+            demo.source,
+            "robot_joints",
+            f"{', '.join(posed)} are a pose's channels, not joints: " + GRIPPER_HINT,
+        )
+    if pose_like(have):
+        raise DataError(
+            demo.source,
+            ROBOT,
+            f"the robot group holds {', '.join(have)}, a pose, not joint angles in [rad]: {GRIPPER_HINT}",
+        )
     if have == joints:
         return demo
     for j in joints:
@@ -401,6 +421,28 @@ def _select_joints(demo: Demo, joints: tuple[str, ...]) -> Demo:
         groups=groups,
         channel_names={**demo.channel_names, ROBOT: joints},
         missing=dict(demo.missing),
+        extras=dict(demo.extras),
+        duration_s=demo.duration_s,
+    )
+
+
+def canonical_gripper(demo: Demo) -> Demo:
+    """``demo`` with its gripper group (if any) checked, in the canonical channel order
+    (:data:`~ipromp_pin.data.GRIPPER_CHANNELS`) and its quaternion sign-continuous
+    (:func:`~ipromp_pin.signals.gripper.gripper_values`); DataError naming the file and field."""
+    if GRIPPER not in demo.groups:
+        return demo
+    if GRIPPER in demo.missing and np.any(demo.missing[GRIPPER]):
+        raise DataError(demo.source, GRIPPER, "a gripper pose path has no missing samples (fill or cut them)")
+    values = gripper_values(demo.source, GRIPPER, demo.groups[GRIPPER], demo.channel_names[GRIPPER])
+    return Demo(
+        task=demo.task,
+        name=demo.name,
+        source=demo.source,
+        t=demo.t,
+        groups={**demo.groups, GRIPPER: values},
+        channel_names={**demo.channel_names, GRIPPER: GRIPPER_CHANNELS},
+        missing={g: m for g, m in demo.missing.items() if g != GRIPPER},
         extras=dict(demo.extras),
         duration_s=demo.duration_s,
     )
@@ -479,6 +521,7 @@ def read_demo(
         raise DataError(path, None, "native demos are .npz or .csv files")
     if frames:
         demo.require(frames)
+    demo = canonical_gripper(demo)
     if robot_joints is not None and ROBOT in demo.groups:
         demo = _select_joints(demo, tuple(robot_joints))
     return demo if rate_hz is None else resample_demo(demo, rate_hz)

@@ -23,11 +23,13 @@ from ..exceptions import DataError
 from ..signals.checks import (
     ACCELERATION_MAX_G,
     EMG_RAW_RANGE,
+    GRIPPER_HINT,
     POSITION_BOUND_M,
     UNIT_QUATERNION_TOLERANCE,
     check_joint_angles,
     check_norms,
     check_range,
+    pose_like,
 )
 from ..signals.groups import ACC, EMG, ORIENTATION, ROBOT_GROUP, SKELETON_FRAME
 from ..signals.preprocess import (
@@ -294,6 +296,11 @@ def select_joint_messages(
     robot_joints = list(robot_joints)
     if not robot_joints:
         raise DataError(source, "robot_joints", "no robot joint requested")
+    posed = pose_like(robot_joints)
+    if posed:  # never a pose labelled as joint angles in [rad]
+        raise DataError(
+            source, "robot_joints", f"{', '.join(posed)} are a pose's channels, not joints: {GRIPPER_HINT}"
+        )
     wanted = set(robot_joints)
     keep = np.zeros(len(names_per_msg), dtype=bool)
     layout: tuple[str, ...] | None = None

@@ -11,6 +11,9 @@ space pulling every joint toward the middle of its range (weighted by the invers
 keeps it away from its limits. The hand-over pose (the path's last) is solved first, from a few
 deterministic seeds, and the path is followed back from it. Sampled paths of the prediction are transferred by
 one linearised step around the mean's solution (their hand-over configurations exactly).
+
+The pose path may also come straight from a model whose robot side is a gripper pose path (no
+source joints): :func:`follow_pose_path` and :func:`follow_pose_samples` take the poses.
 """
 
 from __future__ import annotations
@@ -199,14 +202,32 @@ def transfer_path(
     Raises:
         InfeasibleError: the target is not placed in the source's scene.
 
+    The source's forward kinematics give the pose path that :func:`follow_pose_path` follows.
+    """
+    check_pair(source, target)
+    q_source = as_joint_path(source, q_source, "source joint path")
+    pos, rot = frame_placements(source, q_source)
+    return follow_pose_path(target, pos, rot, q_seed)
+
+
+def follow_pose_path(
+    target: Robot, positions: np.ndarray, rotations: np.ndarray, q_seed: np.ndarray | None = None
+) -> TransferredPath:
+    """The target arm's joint path whose ``ee`` frame follows a gripper pose path in the scene frame
+    (the target's model frame: its placement applied).
+
+    Args:
+        target: The executing arm.
+        positions: (M, 3) gripper positions in [m].
+        rotations: (M, 3, 3) gripper rotation matrices.
+        q_seed: (n_target_joints,) start configuration for the first pose (default: fixed seeds).
+
     The hand-over pose (the last) is solved first, then the path is followed back from it to the
     start, each sample from the next one's solution. When the target cannot reach the hand-over, every
     sample holds that best attempt and :attr:`TransferredPath.reached` is False (the caller refuses
     the plan).
     """
-    check_pair(source, target)
-    q_source = as_joint_path(source, q_source, "source joint path")
-    poses = gripper_poses(source, q_source)
+    poses = [pin.SE3(r, p) for p, r in zip(np.asarray(positions), np.asarray(rotations), strict=True)]
     solver = PoseSolver(target)
     m, n = len(poses), target.n_joints
     q = np.empty((m, n))
@@ -228,19 +249,34 @@ def transfer_samples(
     mean: TransferredPath,
     q_source_mean: np.ndarray,
 ) -> np.ndarray:
-    """Sampled source joint paths (n, M, n_source) [rad] as target joint paths (n, M, n_target) [rad]:
-    one linearised step around ``mean`` (the transferred mean path, same M) per sample and time, then
-    exact inverse kinematics for each sample's last configuration (the hand-over, which the uncertainty
-    check uses)."""
+    """Sampled source joint paths (n, M, n_source) [rad] as target joint paths (n, M, n_target) [rad]
+    (:func:`follow_pose_samples` of their gripper poses)."""
     n_s, m, _ = q_source_samples.shape
-    solver = PoseSolver(target)
     pm, rm = frame_placements(source, q_source_mean)  # (M, 3), (M, 3, 3)
     ps, rs = frame_placements(source, q_source_samples.reshape(n_s * m, -1))
-    ps, rs = ps.reshape(n_s, m, 3), rs.reshape(n_s, m, 3, 3)
+    return follow_pose_samples(target, ps.reshape(n_s, m, 3), rs.reshape(n_s, m, 3, 3), mean, pm, rm)
+
+
+def follow_pose_samples(
+    target: Robot,
+    positions: np.ndarray,
+    rotations: np.ndarray,
+    mean: TransferredPath,
+    mean_positions: np.ndarray,
+    mean_rotations: np.ndarray,
+) -> np.ndarray:
+    """Sampled gripper pose paths (positions (n, M, 3) [m], rotations (n, M, 3, 3)) as target joint
+    paths (n, M, n_target) [rad]: one linearised step around ``mean`` (the followed mean path, of the
+    poses ``mean_positions`` (M, 3), ``mean_rotations`` (M, 3, 3)) per sample and time, then exact
+    inverse kinematics for each sample's last configuration (the hand-over, which the uncertainty
+    check uses)."""
+    ps, rs, pm, rm = positions, rotations, mean_positions, mean_rotations
+    n_s = ps.shape[0]
+    solver = PoseSolver(target)
     # the sample's pose in the mean's gripper frame, to first order: translation and rotation vector
     dp = np.einsum("mji,smj->smi", rm, ps - pm)
     rel = np.einsum("mji,smjk->smik", rm, rs)
-    dr = Rotation.from_matrix(rel.reshape(-1, 3, 3)).as_rotvec().reshape(n_s, m, 3)
+    dr = Rotation.from_matrix(rel.reshape(-1, 3, 3)).as_rotvec().reshape(n_s, -1, 3)
     jac = mean.jacobians  # (M, 6, n)
     jjt = np.einsum("mij,mkj->mik", jac, jac) + solver.damping * solver.eye_6
     step = np.linalg.solve(jjt[None], np.concatenate([dp, dr], axis=2)[..., None])[..., 0]  # (n_s, M, 6)

@@ -29,8 +29,9 @@ import numpy as np
 import pinocchio as pin
 
 from .. import atomic
-from ..data import ROBOT, Demo
+from ..data import GRIPPER, ROBOT, Demo
 from ..exceptions import DataError, RobotError
+from ..signals.gripper import gripper_positions, gripper_rotations
 from .arm_transfer import TOL_M, TOL_RAD, PoseSolver, gripper_poses
 from .model import Robot, build_robot, placement_pose
 from .settings import ROBOTS_DIR, Placement, RobotSettings, load_robot_settings, settings_error
@@ -147,13 +148,17 @@ class PlacementSearch:
 
 
 def handover_poses(source: Robot, demos: Sequence[Demo]) -> list[pin.SE3]:
-    """The source robot's gripper poses (N,) in its base frame at the last sample of each demo.
+    """The source robot's gripper poses (N,) in its base frame at the last sample of each demo (of
+    demos without joints: their gripper pose path's last pose).
 
     Raises:
         DataError: no demos, or a demo whose robot group is not ``source``'s arm joints.
     """
     if not demos:
         raise DataError(None, "dataset", "no demos: no hand-over poses to reach")
+    if all(ROBOT not in d.groups and GRIPPER in d.groups for d in demos):
+        last = np.array([d.groups[GRIPPER][-1] for d in demos])
+        return [pin.SE3(r, p) for p, r in zip(gripper_positions(last), gripper_rotations(last), strict=True)]
     n = source.n_joints
     for d in demos:
         q = d.groups.get(ROBOT)

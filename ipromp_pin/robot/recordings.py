@@ -4,16 +4,21 @@
 ``replay``, ``preview``, ``train``, ``evaluate``): the robot group holds the robot settings'
 recorded arm joints in kinematic order, every angle is checked against the robot's limits, and the
 robot's forward kinematics locates the gripper where a recording lacks the end-point stream.
+:func:`as_gripper_demos` turns recorded joints into the gripper pose path (the ``gripper`` group)
+that a human-human recording gives in their place.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from dataclasses import replace
 from pathlib import Path
 
-from ..data import Dataset, Demo
+from ..data import GRIPPER, GRIPPER_CHANNELS, ROBOT, Dataset, Demo
+from ..exceptions import DataError
 from ..readers import load_dataset, read_recording
-from .kinematics import gripper_kinematics
+from ..signals.gripper import pose_values
+from .kinematics import forward_kinematics, gripper_kinematics
 from .model import Robot
 
 
@@ -58,3 +63,34 @@ def read_recording_for(
         joint_limits=robot.recorded_joint_limits(),
         end_effector=gripper_kinematics(robot).fk,
     )
+
+
+def as_gripper_demo(demo: Demo, robot: Robot) -> Demo:
+    """``demo`` with its robot group (``robot``'s recorded arm joints, in [rad]) replaced by the
+    gripper's pose path (the ``gripper`` group: the ``ee`` frame's position [m] and quaternion x, y,
+    z, w in ``robot``'s base frame, sign-continuous): the demo as a recording without robot joints
+    would give it.
+
+    Raises:
+        DataError: the demo has no robot group of ``robot``'s joints.
+    """
+    if ROBOT not in demo.groups:
+        raise DataError(demo.source, ROBOT, "no robot joints to turn into a gripper pose path")
+    have = tuple(demo.channel_names[ROBOT])
+    if have != tuple(robot.settings.recorded_arm_joints):
+        raise DataError(
+            demo.source, ROBOT, f"joints {list(have)} are not robot '{robot.settings.name}''s arm joints"
+        )
+    pose = forward_kinematics(robot, demo.groups[ROBOT])  # (T, 7): x, y, z, qx, qy, qz, qw
+    groups = {g: v for g, v in demo.groups.items() if g != ROBOT}
+    names = {g: n for g, n in demo.channel_names.items() if g != ROBOT}
+    groups[GRIPPER] = pose_values(pose[:, :3], pose[:, 3:])
+    names[GRIPPER] = GRIPPER_CHANNELS
+    missing = {g: m for g, m in demo.missing.items() if g != ROBOT}
+    return replace(demo, groups=groups, channel_names=names, missing=missing)
+
+
+def as_gripper_demos(dataset: Dataset, robot: Robot) -> Dataset:
+    """Every demo of ``dataset`` as a gripper demo (:func:`as_gripper_demo`)."""
+    demos = {task: [as_gripper_demo(d, robot) for d in items] for task, items in dataset.demos.items()}
+    return replace(dataset, demos=demos)

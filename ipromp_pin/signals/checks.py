@@ -50,6 +50,26 @@ POSITION_BOUND_M = 10.0
 frame. Skeleton trackers see up to about 5 m, Baxter reaches 1.2 m; measured at most 1.28 m."""
 
 
+GRIPPER_QUATERNION_TOLERANCE = 0.01
+"""Largest deviation of a gripper pose's quaternion norm from 1. A pose exported with 4 significant
+digits or more is unit to about 1e-4; 0.01 refuses a corrupt sample or a quaternion whose fields are
+not one quaternion's (the reader then normalises the rest exactly)."""
+
+POSE_CHANNELS = frozenset({"x", "y", "z", "qx", "qy", "qz", "qw"})
+"""Channel names of a pose (the gripper group's): never joint names."""
+
+GRIPPER_HINT = (
+    "a robot side given as a gripper pose path goes in a 'gripper' group: position x, y, z [m] in the "
+    "scene frame and a unit quaternion qx, qy, qz, qw (docs/your_data.md)"
+)
+"""What a robot side given as poses needs (the end of a one-line error)."""
+
+
+def pose_like(names: Sequence[str]) -> list[str]:
+    """The names among ``names`` that are a pose's channels (x, y, z, qx ... qw), not joints."""
+    return [n for n in names if n.lower() in POSE_CHANNELS]
+
+
 def _first_bad(mask: np.ndarray) -> tuple[int, int]:
     rows, cols = np.nonzero(mask.reshape(mask.shape[0], -1))
     return int(rows[0]), int(cols[0])
@@ -133,6 +153,13 @@ def check_joint_angles(
         joint_limits: Joint name -> (lower, upper) in [rad] (the robot's URDF limits); joints not
             listed (or all, when None) must lie within :data:`GENERIC_JOINT_BOUND_RAD`.
     """
+    posed = pose_like(names)
+    if posed:  # never a position or a quaternion labelled as joint angles in [rad]
+        raise DataError(
+            source,
+            field,
+            f"channels {', '.join(posed)} are a pose, not joint angles in [rad]: " + GRIPPER_HINT,
+        )
     q = np.asarray(q, dtype=float)
     m = JOINT_LIMIT_MARGIN_RAD
     lo = np.full(len(names), -GENERIC_JOINT_BOUND_RAD)

@@ -8,7 +8,8 @@ the native resampling, the IProMP's ``log_groups`` default and the rosbag writer
 (:mod:`ipromp_pin.outputs.rosbag`) all read it: adding a sensor group is one :func:`register_group`
 call plus its reader.
 
-Entries: ``"robot"`` (joint angles), ``"orientation"`` (Myo quaternion), ``"emg"`` (Myo EMG
+Entries: ``"robot"`` (joint angles), ``"gripper"`` (the robot side as a gripper pose path),
+``"orientation"`` (Myo quaternion), ``"emg"`` (Myo EMG
 envelopes), ``"acc"`` (Myo accelerations), skeleton frames ``"/<frame>"`` (a name pattern: every
 group whose name starts with ``/``), and the extras ``"hand_position"`` and ``"endpoint_pose"``
 (time-aligned signals that are not modelled). A group without an entry gets
@@ -25,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from ..data import ROBOT
+from ..data import GRIPPER, GRIPPER_CHANNELS, ROBOT
 from ..exceptions import DataError
 from .checks import (
     ACCELERATION_MAX_G,
@@ -41,8 +42,9 @@ from .checks import (
     PoseCheck,
     RangeCheck,
 )
+from .gripper import GripperPoseCheck
 
-INTERPOLATIONS = ("linear", "previous", "quaternion")
+INTERPOLATIONS = ("linear", "previous", "quaternion", "pose")
 """Interpolation kinds of :func:`ipromp_pin.signals.preprocess.align_streams`."""
 
 RosTypes = Mapping[str, Any]
@@ -287,6 +289,17 @@ _QUATERNION_NORM = NormCheck(1 - UNIT_QUATERNION_TOLERANCE, 1 + UNIT_QUATERNION_
 _POSITION = NormCheck(0.0, POSITION_BOUND_M, "m")
 
 ROBOT_GROUP = register_group(ChannelGroup(ROBOT, "rad", check=JointAngleCheck()))
+GRIPPER_GROUP = register_group(
+    ChannelGroup(
+        GRIPPER,
+        "m, unitless",
+        interpolation="pose",
+        check=GripperPoseCheck(),
+        channels=GRIPPER_CHANNELS,
+        n_channels=None,
+    )
+)
+"""The robot side as a gripper pose path (:mod:`.gripper`): every shape is checked as a pose."""
 ORIENTATION = register_group(
     ChannelGroup(
         "orientation",

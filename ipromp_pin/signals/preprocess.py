@@ -271,8 +271,8 @@ class Stream:
         values: Samples, shape (N, D).
         channel_names: Names of the D channels.
         kind: Resampling kind: ``"linear"``, ``"previous"`` (sample-and-hold)
-            or ``"quaternion"`` (linear on sign-continuous quaternions, then
-            renormalised).
+            ``"quaternion"`` (linear on sign-continuous quaternions, then
+            renormalised) or ``"pose"`` (7 channels: a position, linear, then a quaternion).
         source: File the stream was read from (for error messages).
         clock_offset_s: Offset removed from its header stamps, in [s] (information).
         allow_missing: NaN values are known-missing samples (e.g. a skeleton tracker
@@ -381,6 +381,11 @@ def align_streams(
         if s.kind == "quaternion":
             v = resample(s.t, quaternion_continuity(s.values), grid, "linear")
             v = quaternion_continuity(normalize_quaternions(v))
+        elif s.kind == "pose":  # x, y, z linear, then a quaternion (a gripper pose path)
+            if s.values.shape[1] != 7:
+                raise DataError(s.source, name, f"a pose stream has 7 channels, got {s.values.shape[1]}")
+            q = resample(s.t, quaternion_continuity(s.values[:, 3:]), grid, "linear")
+            v = np.hstack([resample(s.t, s.values[:, :3], grid, "linear"), quaternion_continuity(q)])
         else:
             v = resample(s.t, s.values, grid, s.kind)
         out[name] = v

@@ -44,7 +44,7 @@ def test_file_has_no_pickled_objects(tmp_path: Path, model_and_obs) -> None:
     with np.load(path, allow_pickle=False) as npz:
         header = json.loads(str(npz["header"][()]))
         assert all(npz[name].dtype != object for name in npz.files)
-    assert header["format"] == "ipromp_pin.IProMP" and header["format_version"] == FORMAT_VERSION == 7
+    assert header["format"] == "ipromp_pin.IProMP" and header["format_version"] == FORMAT_VERSION == 8
     assert header["tasks"] == ["task0", "task1", "task2"]
 
 

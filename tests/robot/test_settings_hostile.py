@@ -50,6 +50,8 @@ def _refused(path: Path, field: str) -> str:
         (r"^stopping_time_s = 0\.3$", "stoping_time_s = 3.0", "iso15066.stoping_time_s", "stopping_time_s"),
         (r"^speed_m_s = 1\.6$", "sped_m_s = 1.6", "human.sped_m_s", "speed_m_s"),
         (r"^max_inflation_m = ", "max_inflaton_m = ", "human.max_inflaton_m", "max_inflation_m"),
+        (r"^handing_arm = ", "handing_arms = ", "human.handing_arms", "handing_arm"),
+        (r"^handing_arm = \"predicted\"$", 'handing_arm = "predict"', "human.handing_arm", "predicted"),
         (r"^\[iso15066\]$", "[iso15606]", "iso15606", "iso15066"),
         (r"^\[human\]$", "[humans]", "humans", "human"),
         (r"^\[human\.assumed\]$", "[human.asumed]", "human.asumed", "assumed"),

@@ -23,6 +23,7 @@ from ipromp_pin.promp.handover_orientation import (
     rotation_readouts,
 )
 from ipromp_pin.promp.orientation_selection import FinalRow, choose_orientation
+from ipromp_pin.promp.serialization import FORMAT_VERSION
 
 
 def _axis_rotation(axis: int, angle: np.ndarray) -> np.ndarray:
@@ -202,7 +203,9 @@ def test_round_trip_and_a_broken_estimate_is_refused_in_one_line(tmp_path: Path,
     for name in ("q_mean", "q_cov"):
         assert np.array_equal(getattr(loaded.predict(obs), name), getattr(model.predict(obs), name)), name
     header = json.loads(str(np.load(path)["header"][()]))
-    assert header["format_version"] == 7 and header["orientation"] == {"trust": model.orientation_.trust}
+    assert header["format_version"] == FORMAT_VERSION and header["orientation"] == {
+        "trust": model.orientation_.trust
+    }
     # a non-positive-definite noise covariance in the file
     arrays = dict(np.load(path))
     arrays["orientation_noise_cov"] = -arrays["orientation_noise_cov"]

@@ -42,6 +42,7 @@ __all__ = [
     "INFERENCE",
     "KernelSet",
     "active_backend",
+    "announce",
     "compiled_kernels_cached",
     "kernel_backend",
     "kernel_sets",
@@ -144,7 +145,8 @@ def set_announcer(announce: Callable[[str], None] | None) -> None:
     _state["announce"] = announce
 
 
-def _say(message: str) -> None:
+def announce(message: str) -> None:
+    """Pass a one-line notice about the kernels to the announcer (:func:`set_announcer`), if any."""
     if _state["announce"] is not None:
         _state["announce"](message)
 
@@ -233,7 +235,7 @@ def _load(name: str, backend: str) -> ModuleType:
             if name not in _state["announced"] and not kernels_cached(name):
                 _state["announced"].add(name)
                 seconds = f"up to about {COMPILE_SECONDS} s" if name == INFERENCE else "a few seconds"
-                _say(
+                announce(
                     f"[kernels] compiling the {kernel_set.label} ({seconds}, once; cached on disk for "
                     "the next runs)"
                 )
@@ -260,7 +262,7 @@ def _decide(name: str) -> str:
                 else f" (a compile is running, or failed within a day: see its log in {log})"
             )
             label = _sets[name].label
-            _say(f"[kernels] the {label} are not compiled yet: this run uses their numpy version{why}")
+            announce(f"[kernels] the {label} are not compiled yet: this run uses their numpy version{why}")
     _state["auto"][name] = choice
     return choice
 

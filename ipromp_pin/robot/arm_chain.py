@@ -41,7 +41,7 @@ __all__ = [
 IK = "ik"
 """Name of the inverse kinematics' kernel set."""
 
-KERNELS = ("chain_fk", "solve_sequence", "solve_first")
+KERNELS = ("chain_fk", "solve_sequence", "solve_first", "linearised_samples")
 """The kernels the retargeting calls."""
 
 CHECK_TOL = 1e-9

@@ -374,23 +374,55 @@ def transfer_samples(
     one linearised step around ``mean`` (the transferred mean path, same M) per sample and time, then
     exact inverse kinematics for each sample's last configuration (the hand-over, which the uncertainty
     check uses)."""
-    n_s, m, _ = q_source_samples.shape
+    n_s = q_source_samples.shape[0]
     solver = PoseSolver(target)
-    pm, rm = chain_placements(source, q_source_mean)  # (M, 3), (M, 3, 3)
-    ps, rs = chain_placements(source, q_source_samples.reshape(n_s * m, -1))
+    chain = arm_chain(source)
+    moved = None
+    if chain is not None:
+        moved = run_compiled(
+            "linearised_samples",
+            np.ascontiguousarray(q_source_samples, dtype=float),
+            chain.x0,
+            chain.axis,
+            chain.ee,
+            *chain_placements(source, q_source_mean),
+            np.ascontiguousarray(mean.jacobians),
+            np.ascontiguousarray(mean.q),
+            float(solver.damping),
+        )
+    out, end_pos, end_rot = (
+        moved
+        if moved is not None
+        else linearised_samples(source, q_source_samples, mean, q_source_mean, solver.damping)
+    )  # type: ignore[misc]
+    ends = PathSolution.empty(n_s, target.n_joints)  # the hand-overs exactly (the uncertainty check's)
+    solver.follow(end_rot, end_pos, SolveSteps.seeded(out[:, -1], solver.max_iter), ends)
+    out[:, -1] = ends.q
+    return np.clip(out, solver.lo, solver.hi)
+
+
+def linearised_samples(
+    source: Robot,
+    q_source_samples: np.ndarray,
+    mean: TransferredPath,
+    q_source_mean: np.ndarray,
+    damping: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The reference of the compiled ``linearised_samples``: sampled source paths (n, M, n_source)
+    [rad] moved by one damped least-squares step around ``mean`` (n, M, n_target) [rad], and the
+    samples' last gripper poses (n, 3) [m], (n, 3, 3)."""
+    n_s, m, _ = q_source_samples.shape
+    pm, rm = frame_placements(source, q_source_mean)  # (M, 3), (M, 3, 3)
+    ps, rs = frame_placements(source, q_source_samples.reshape(n_s * m, -1))
     ps, rs = ps.reshape(n_s, m, 3), rs.reshape(n_s, m, 3, 3)
     # the sample's pose in the mean's gripper frame, to first order: translation and rotation vector
     dp = np.einsum("mji,smj->smi", rm, ps - pm)
     rel = np.einsum("mji,smjk->smik", rm, rs)
     dr = Rotation.from_matrix(rel.reshape(-1, 3, 3)).as_rotvec().reshape(n_s, m, 3)
     jac = mean.jacobians  # (M, 6, n)
-    jjt = np.einsum("mij,mkj->mik", jac, jac) + solver.damping * solver.eye_6
+    jjt = np.einsum("mij,mkj->mik", jac, jac) + damping * np.eye(6)
     step = np.linalg.solve(jjt[None], np.concatenate([dp, dr], axis=2)[..., None])[..., 0]  # (n_s, M, 6)
-    out = mean.q[None] + np.einsum("mji,smj->smi", jac, step)
-    ends = PathSolution.empty(n_s, target.n_joints)  # the hand-overs exactly (the uncertainty check's)
-    solver.follow(rs[:, -1], ps[:, -1], SolveSteps.seeded(out[:, -1], solver.max_iter), ends)
-    out[:, -1] = ends.q
-    return np.clip(out, solver.lo, solver.hi)
+    return mean.q[None] + np.einsum("mji,smj->smi", jac, step), ps[:, -1], rs[:, -1]
 
 
 def check_pair(source: Robot, target: Robot) -> None:

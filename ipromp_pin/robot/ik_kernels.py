@@ -38,37 +38,56 @@ def _chain_pose(
 ) -> None:
     """The ``ee`` frame's rotation ``rot`` (3, 3) and position ``pos`` (3,) at ``q`` (n,) [rad],
     with every joint's origin ``origins`` (n, 3) and world axis ``axes`` (n, 3)."""
-    tmp = np.empty((3, 3))
-    rot[:] = 0.0
-    rot[0, 0] = rot[1, 1] = rot[2, 2] = 1.0
-    pos[:] = 0.0
+    r00, r01, r02, r10, r11, r12, r20, r21, r22 = 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0
+    px = py = pz = 0.0
     for k in range(q.size):
-        for r in range(3):
-            pos[r] += rot[r, 0] * x0[k, 0, 3] + rot[r, 1] * x0[k, 1, 3] + rot[r, 2] * x0[k, 2, 3]
-        for r in range(3):
-            for c in range(3):
-                tmp[r, c] = rot[r, 0] * x0[k, 0, c] + rot[r, 1] * x0[k, 1, c] + rot[r, 2] * x0[k, 2, c]
-        rot[:] = tmp
-        x, y, z = axis[k, 0], axis[k, 1], axis[k, 2]
-        for r in range(3):
-            origins[k, r] = pos[r]
-            axes[k, r] = rot[r, 0] * x + rot[r, 1] * y + rot[r, 2] * z
+        x = x0[k]
+        px, py, pz = (
+            px + r00 * x[0, 3] + r01 * x[1, 3] + r02 * x[2, 3],
+            py + r10 * x[0, 3] + r11 * x[1, 3] + r12 * x[2, 3],
+            pz + r20 * x[0, 3] + r21 * x[1, 3] + r22 * x[2, 3],
+        )
+        a00 = r00 * x[0, 0] + r01 * x[1, 0] + r02 * x[2, 0]
+        a01 = r00 * x[0, 1] + r01 * x[1, 1] + r02 * x[2, 1]
+        a02 = r00 * x[0, 2] + r01 * x[1, 2] + r02 * x[2, 2]
+        a10 = r10 * x[0, 0] + r11 * x[1, 0] + r12 * x[2, 0]
+        a11 = r10 * x[0, 1] + r11 * x[1, 1] + r12 * x[2, 1]
+        a12 = r10 * x[0, 2] + r11 * x[1, 2] + r12 * x[2, 2]
+        a20 = r20 * x[0, 0] + r21 * x[1, 0] + r22 * x[2, 0]
+        a21 = r20 * x[0, 1] + r21 * x[1, 1] + r22 * x[2, 1]
+        a22 = r20 * x[0, 2] + r21 * x[1, 2] + r22 * x[2, 2]
+        ux, uy, uz = axis[k, 0], axis[k, 1], axis[k, 2]
+        origins[k, 0], origins[k, 1], origins[k, 2] = px, py, pz
+        axes[k, 0] = a00 * ux + a01 * uy + a02 * uz
+        axes[k, 1] = a10 * ux + a11 * uy + a12 * uz
+        axes[k, 2] = a20 * ux + a21 * uy + a22 * uz
         c_, s_ = math.cos(q[k]), math.sin(q[k])
         t_ = 1.0 - c_
-        m00, m01, m02 = c_ + t_ * x * x, t_ * x * y - s_ * z, t_ * x * z + s_ * y
-        m10, m11, m12 = t_ * x * y + s_ * z, c_ + t_ * y * y, t_ * y * z - s_ * x
-        m20, m21, m22 = t_ * x * z - s_ * y, t_ * y * z + s_ * x, c_ + t_ * z * z
-        for r in range(3):
-            a, b, d = rot[r, 0], rot[r, 1], rot[r, 2]
-            rot[r, 0] = a * m00 + b * m10 + d * m20
-            rot[r, 1] = a * m01 + b * m11 + d * m21
-            rot[r, 2] = a * m02 + b * m12 + d * m22
-    for r in range(3):
-        pos[r] += rot[r, 0] * ee[0, 3] + rot[r, 1] * ee[1, 3] + rot[r, 2] * ee[2, 3]
-    for r in range(3):
-        for c in range(3):
-            tmp[r, c] = rot[r, 0] * ee[0, c] + rot[r, 1] * ee[1, c] + rot[r, 2] * ee[2, c]
-    rot[:] = tmp
+        m00, m01, m02 = c_ + t_ * ux * ux, t_ * ux * uy - s_ * uz, t_ * ux * uz + s_ * uy
+        m10, m11, m12 = t_ * ux * uy + s_ * uz, c_ + t_ * uy * uy, t_ * uy * uz - s_ * ux
+        m20, m21, m22 = t_ * ux * uz - s_ * uy, t_ * uy * uz + s_ * ux, c_ + t_ * uz * uz
+        r00, r01, r02 = (
+            a00 * m00 + a01 * m10 + a02 * m20,
+            a00 * m01 + a01 * m11 + a02 * m21,
+            a00 * m02 + a01 * m12 + a02 * m22,
+        )
+        r10, r11, r12 = (
+            a10 * m00 + a11 * m10 + a12 * m20,
+            a10 * m01 + a11 * m11 + a12 * m21,
+            a10 * m02 + a11 * m12 + a12 * m22,
+        )
+        r20, r21, r22 = (
+            a20 * m00 + a21 * m10 + a22 * m20,
+            a20 * m01 + a21 * m11 + a22 * m21,
+            a20 * m02 + a21 * m12 + a22 * m22,
+        )
+    pos[0] = px + r00 * ee[0, 3] + r01 * ee[1, 3] + r02 * ee[2, 3]
+    pos[1] = py + r10 * ee[0, 3] + r11 * ee[1, 3] + r12 * ee[2, 3]
+    pos[2] = pz + r20 * ee[0, 3] + r21 * ee[1, 3] + r22 * ee[2, 3]
+    for c in range(3):
+        rot[0, c] = r00 * ee[0, c] + r01 * ee[1, c] + r02 * ee[2, c]
+        rot[1, c] = r10 * ee[0, c] + r11 * ee[1, c] + r12 * ee[2, c]
+        rot[2, c] = r20 * ee[0, c] + r21 * ee[1, c] + r22 * ee[2, c]
 
 
 @njit(**_JIT)
@@ -220,6 +239,39 @@ def _jlog6(rot: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
 
 
 @njit(**_JIT)
+def _cholesky6(a: np.ndarray, low: np.ndarray) -> None:
+    """The lower Cholesky factor ``low`` (6, 6) of the symmetric positive definite ``a`` (6, 6)."""
+    for j in range(6):
+        d = a[j, j]
+        for k in range(j):
+            d -= low[j, k] * low[j, k]
+        d = math.sqrt(d)
+        low[j, j] = d
+        for i in range(j + 1, 6):
+            v = a[i, j]
+            for k in range(j):
+                v -= low[i, k] * low[j, k]
+            low[i, j] = v / d
+        for i in range(j):
+            low[i, j] = 0.0
+
+
+@njit(**_JIT)
+def _cho_solve6(low: np.ndarray, b: np.ndarray) -> None:
+    """``b <- (low low^T)^-1 b`` for a lower Cholesky factor ``low`` (6, 6) and ``b`` (6,)."""
+    for r in range(6):
+        v = b[r]
+        for c in range(r):
+            v -= low[r, c] * b[c]
+        b[r] = v / low[r, r]
+    for r in range(5, -1, -1):
+        v = b[r]
+        for c in range(r + 1, 6):
+            v -= low[c, r] * b[c]
+        b[r] = v / low[r, r]
+
+
+@njit(**_JIT)
 def _pose_error(
     q: np.ndarray,
     rt: np.ndarray,
@@ -229,40 +281,45 @@ def _pose_error(
     ee: np.ndarray,
     e: np.ndarray,
     jac: np.ndarray,
+    work: np.ndarray,
 ) -> tuple[float, float]:
     """The pose error ``e`` (6,) in the ee frame toward ``(rt, pt)`` and its Jacobian ``jac`` (6, n)
-    at ``q`` (n,); returns the position and orientation errors [m], [rad]."""
+    at ``q`` (n,) (``work``: (2 n + 24, 6) scratch); returns the position and orientation errors
+    [m], [rad]."""
     n = q.size
-    origins = np.empty((n, 3))
-    axes = np.empty((n, 3))
-    rc = np.empty((3, 3))
-    pc = np.empty(3)
+    origins, axes, local = work[:n, :3], work[n : 2 * n, :3], work[2 * n : 2 * n + 6, :n]
+    jl = work[2 * n + 6 : 2 * n + 12]
+    rc, rr, ri = (
+        work[2 * n + 12 : 2 * n + 15, :3],
+        work[2 * n + 15 : 2 * n + 18, :3],
+        work[2 * n + 18 : 2 * n + 21, :3],
+    )
+    pc, pr, pi = work[2 * n + 21, :3], work[2 * n + 22, :3], work[2 * n + 23, :3]
     _chain_pose(q, x0, axis, ee, origins, axes, rc, pc)
-    rr = np.empty((3, 3))  # the remaining transform: current^-1 target
-    pr = np.empty(3)
-    for r in range(3):
+    for r in range(3):  # the remaining transform: current^-1 target
         pr[r] = rc[0, r] * (pt[0] - pc[0]) + rc[1, r] * (pt[1] - pc[1]) + rc[2, r] * (pt[2] - pc[2])
         for c in range(3):
             rr[r, c] = rc[0, r] * rt[0, c] + rc[1, r] * rt[1, c] + rc[2, r] * rt[2, c]
     _log6(rr, pr, e)
-    ri = np.empty((3, 3))  # its inverse
-    pi = np.empty(3)
-    for r in range(3):
+    for r in range(3):  # its inverse
         for c in range(3):
             ri[r, c] = rr[c, r]
     for r in range(3):
         pi[r] = -(ri[r, 0] * pr[0] + ri[r, 1] * pr[1] + ri[r, 2] * pr[2])
-    jl = np.empty((6, 6))
     _jlog6(ri, pi, jl)
-    local = np.empty((6, n))  # the frame Jacobian in the ee frame: linear, then angular
-    for k in range(n):
+    for k in range(n):  # the frame Jacobian in the ee frame: linear, then angular
         dx, dy, dz = pc[0] - origins[k, 0], pc[1] - origins[k, 1], pc[2] - origins[k, 2]
         zx, zy, zz = axes[k, 0], axes[k, 1], axes[k, 2]
         vx, vy, vz = zy * dz - zz * dy, zz * dx - zx * dz, zx * dy - zy * dx
         for r in range(3):
             local[r, k] = rc[0, r] * vx + rc[1, r] * vy + rc[2, r] * vz
             local[3 + r, k] = rc[0, r] * zx + rc[1, r] * zy + rc[2, r] * zz
-    jac[:] = jl @ local
+    for r in range(6):
+        for k in range(n):
+            acc = 0.0
+            for c in range(6):
+                acc += jl[r, c] * local[c, k]
+            jac[r, k] = acc
     err_p = math.sqrt(pr[0] * pr[0] + pr[1] * pr[1] + pr[2] * pr[2])
     err_r = math.sqrt(e[3] * e[3] + e[4] * e[4] + e[5] * e[5])
     return err_p, err_r
@@ -285,28 +342,58 @@ def _solve(
     """One pose from ``seed`` (n,): :meth:`PoseSolver.solve`'s iterations. ``limits`` (4, n): lower,
     upper, middle, null-space weight; ``params``: damping, position and orientation tolerances [m],
     [rad] (where iterating stops), null-space gain, largest step [rad]. Writes ``q_out`` (n,) and
-    ``jac`` (6, n); returns the position and orientation errors [m], [rad] of the last evaluation."""
+    ``jac`` (6, n); returns the position and orientation errors [m], [rad] of the last evaluation.
+    The damped pseudo-inverse ``J^T (J J^T + damping I)^-1`` is applied through a Cholesky factor."""
     n = seed.size
     lo, hi, mid, pull = limits[0], limits[1], limits[2], limits[3]
     damping, tol_m, tol_r, gain, max_step = params[0], params[1], params[2], params[3], params[4]
-    q = np.minimum(np.maximum(seed, lo), hi)
-    e = np.empty(6)
-    eye6 = np.eye(6)
+    work = np.empty((2 * n + 24, max(n, 6)))
+    a, low = np.empty((6, 6)), np.empty((6, 6))
+    e, u = np.empty(6), np.empty(6)
+    step, z = np.empty(n), np.empty(n)
+    q = q_out
+    for j in range(n):
+        q[j] = min(max(seed[j], lo[j]), hi[j])
     err_p = err_r = np.inf
     jac[:] = 0.0
     for k in range(max_iter):
-        err_p, err_r = _pose_error(q, rt, pt, x0, axis, ee, e, jac)
+        err_p, err_r = _pose_error(q, rt, pt, x0, axis, ee, e, jac, work)
         if err_p <= tol_m and err_r <= tol_r:
             break
-        pinv = jac.T @ np.linalg.solve(jac @ jac.T + damping * eye6, eye6)
-        step = pinv @ e
-        if k == 0:  # spare freedom: toward the middle of the limits
-            step += (np.eye(n) - pinv @ jac) @ (gain * pull * (mid - q))
-        largest = np.max(np.abs(step))
-        if largest > max_step:
-            step *= max_step / largest
-        q = np.minimum(np.maximum(q + step, lo), hi)
-    q_out[:] = q
+        for r in range(6):
+            for c in range(r + 1):
+                acc = 0.0
+                for j in range(n):
+                    acc += jac[r, j] * jac[c, j]
+                a[r, c] = a[c, r] = acc
+            a[r, r] += damping
+        _cholesky6(a, low)
+        _cho_solve6(low, e)
+        for j in range(n):
+            acc = 0.0
+            for r in range(6):
+                acc += jac[r, j] * e[r]
+            step[j] = acc
+        if k == 0:  # spare freedom: toward the middle of the limits, in the pose task's null space
+            for j in range(n):
+                z[j] = gain * pull[j] * (mid[j] - q[j])
+            for r in range(6):
+                acc = 0.0
+                for j in range(n):
+                    acc += jac[r, j] * z[j]
+                u[r] = acc
+            _cho_solve6(low, u)
+            for j in range(n):
+                acc = 0.0
+                for r in range(6):
+                    acc += jac[r, j] * u[r]
+                step[j] += z[j] - acc
+        largest = 0.0
+        for j in range(n):
+            largest = max(largest, abs(step[j]))
+        scale = max_step / largest if largest > max_step else 1.0
+        for j in range(n):
+            q[j] = min(max(q[j] + step[j] * scale, lo[j]), hi[j])
     return err_p, err_r
 
 
@@ -383,3 +470,67 @@ def solve_first(
         if ok and key >= reach[2]:
             break
     return best_p, best_r
+
+
+@njit(**_JIT)
+def linearised_samples(
+    q_samples: np.ndarray,
+    x0: np.ndarray,
+    axis: np.ndarray,
+    ee: np.ndarray,
+    pos_mean: np.ndarray,
+    rot_mean: np.ndarray,
+    jacs: np.ndarray,
+    q_mean: np.ndarray,
+    damping: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Sampled source paths ``q_samples`` (S, M, n_source) [rad] as target paths (S, M, n) by one
+    damped least-squares step around the target's mean path ``q_mean`` (M, n) with its Jacobians
+    ``jacs`` (M, 6, n): each sample's gripper pose (the source chain ``x0``, ``axis``, ``ee``) in the
+    mean's gripper frame (``pos_mean`` (M, 3), ``rot_mean`` (M, 3, 3)) as translation and rotation
+    vector. Returns the paths and the samples' last gripper poses (S, 3), (S, 3, 3)."""
+    s_n, m, ns = q_samples.shape
+    n = q_mean.shape[1]
+    out = np.empty((s_n, m, n))
+    end_pos = np.empty((s_n, 3))
+    end_rot = np.empty((s_n, 3, 3))
+    origins = np.empty((ns, 3))
+    axes = np.empty((ns, 3))
+    rot = np.empty((3, 3))
+    pos = np.empty(3)
+    rel = np.empty((3, 3))
+    e = np.empty(6)
+    w = np.empty(3)
+    a, low = np.empty((6, 6)), np.empty((6, 6))
+    for i in range(m):
+        for r in range(6):
+            for c in range(r + 1):
+                acc = 0.0
+                for j in range(n):
+                    acc += jacs[i, r, j] * jacs[i, c, j]
+                a[r, c] = a[c, r] = acc
+            a[r, r] += damping
+        _cholesky6(a, low)
+        for s in range(s_n):
+            _chain_pose(q_samples[s, i], x0, axis, ee, origins, axes, rot, pos)
+            if i == m - 1:
+                end_pos[s] = pos
+                end_rot[s] = rot
+            rm = rot_mean[i]
+            for r in range(3):
+                e[r] = (
+                    rm[0, r] * (pos[0] - pos_mean[i, 0])
+                    + rm[1, r] * (pos[1] - pos_mean[i, 1])
+                    + rm[2, r] * (pos[2] - pos_mean[i, 2])
+                )
+                for c in range(3):
+                    rel[r, c] = rm[0, r] * rot[0, c] + rm[1, r] * rot[1, c] + rm[2, r] * rot[2, c]
+            _log3(rel, w)
+            e[3], e[4], e[5] = w[0], w[1], w[2]
+            _cho_solve6(low, e)  # (J J^T + damping) x = e
+            for j in range(n):
+                acc = q_mean[i, j]
+                for r in range(6):
+                    acc += jacs[i, r, j] * e[r]
+                out[s, i, j] = acc
+    return out, end_pos, end_rot

@@ -18,6 +18,7 @@ from __future__ import annotations
 import weakref
 from dataclasses import dataclass
 from types import ModuleType
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
@@ -167,7 +168,7 @@ def ik_kernels_cached() -> bool:
     return compiled.kernels_cached(IK)
 
 
-def run_compiled(name: str, *args: object) -> object | None:
+def run_compiled(name: str, *args: Any) -> Any:
     """Kernel ``name`` of the compiled set called with ``args``; None when the set is not in use or
     numba fails to compile it (recorded: the reference solver for the rest of the process)."""
     module = ik_kernels()
@@ -192,5 +193,5 @@ def chain_placements(robot: Robot, q: np.ndarray) -> tuple[np.ndarray, np.ndarra
         path = np.ascontiguousarray(as_joint_path(robot, q))
         out = run_compiled("chain_fk", path, chain.x0, chain.axis, chain.ee)
         if out is not None:
-            return out  # type: ignore[return-value]
+            return out
     return frame_placements(robot, q)

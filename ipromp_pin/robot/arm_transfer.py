@@ -288,7 +288,7 @@ class PoseSolver:
             rot_, pos_ = np.ascontiguousarray(rot, dtype=float), np.ascontiguousarray(pos, dtype=float)
             out = run_compiled("solve_first", rot_, pos_, self.seeds(seed), self.max_iter, *args)
             if out is not None:
-                err_p, err_r = out  # type: ignore[misc]
+                err_p, err_r = out
                 return q, float(err_p), float(err_r), jac
         return self.first(pin.SE3(rot, pos), seed)
 
@@ -394,7 +394,7 @@ def transfer_samples(
         moved
         if moved is not None
         else linearised_samples(source, q_source_samples, mean, q_source_mean, solver.damping)
-    )  # type: ignore[misc]
+    )
     ends = PathSolution.empty(n_s, target.n_joints)  # the hand-overs exactly (the uncertainty check's)
     solver.follow(end_rot, end_pos, SolveSteps.seeded(out[:, -1], solver.max_iter), ends)
     out[:, -1] = ends.q

@@ -158,7 +158,7 @@ def _log3(rot: np.ndarray, out: np.ndarray) -> float:
 
 
 @njit(**_JIT)
-def _log6(rot: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
+def log6(rot: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
     """``log6`` (6,) (linear, then angular) of the transform ``(rot, p)``."""
     w = np.empty(3)
     a0, a1, a2 = 0.5 * (rot[2, 1] - rot[1, 2]), 0.5 * (rot[0, 2] - rot[2, 0]), 0.5 * (rot[1, 0] - rot[0, 1])
@@ -183,7 +183,7 @@ def _log6(rot: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
 
 
 @njit(**_JIT)
-def _jlog6(rot: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
+def jlog6(rot: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
     """``Jlog6`` (6, 6) of the transform ``(rot, p)``: the derivative of its ``log6`` under a right
     perturbation (blocks ``[[A, C A], [0, A]]``, ``A`` the derivative of ``log3``)."""
     w = np.empty(3)
@@ -300,13 +300,13 @@ def _pose_error(
         pr[r] = rc[0, r] * (pt[0] - pc[0]) + rc[1, r] * (pt[1] - pc[1]) + rc[2, r] * (pt[2] - pc[2])
         for c in range(3):
             rr[r, c] = rc[0, r] * rt[0, c] + rc[1, r] * rt[1, c] + rc[2, r] * rt[2, c]
-    _log6(rr, pr, e)
+    log6(rr, pr, e)
     for r in range(3):  # its inverse
         for c in range(3):
             ri[r, c] = rr[c, r]
     for r in range(3):
         pi[r] = -(ri[r, 0] * pr[0] + ri[r, 1] * pr[1] + ri[r, 2] * pr[2])
-    _jlog6(ri, pi, jl)
+    jlog6(ri, pi, jl)
     for k in range(n):  # the frame Jacobian in the ee frame: linear, then angular
         dx, dy, dz = pc[0] - origins[k, 0], pc[1] - origins[k, 1], pc[2] - origins[k, 2]
         zx, zy, zz = axes[k, 0], axes[k, 1], axes[k, 2]

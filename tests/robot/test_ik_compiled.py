@@ -25,8 +25,14 @@ TOL = 1e-9
 
 
 @pytest.fixture(scope="module")
-def baxter():
-    return load_robot("baxter_left")
+def robots():
+    """Every arm, built apart from load_robot's cache (which keeps the 8 last robots of the session)."""
+    return {name: load_robot(name, cache=False) for name in ("baxter_left",) + ARMS}
+
+
+@pytest.fixture(scope="module")
+def baxter(robots):
+    return robots["baxter_left"]
 
 
 @pytest.fixture(scope="module")
@@ -44,8 +50,8 @@ def both(fn, *args):
 
 
 @pytest.mark.parametrize("name", ("baxter_left",) + ARMS)
-def test_the_chain_read_from_the_model_gives_pinocchio_s_gripper_pose(name):
-    robot = load_robot(name)
+def test_the_chain_read_from_the_model_gives_pinocchio_s_gripper_pose(name, robots):
+    robot = robots[name]
     assert arm_chain(robot) is not None
     q = np.random.default_rng(1).uniform(robot.lower_rad, robot.upper_rad, size=(50, robot.n_joints))
     with use_kernels("numba"):
@@ -69,8 +75,8 @@ def test_log6_and_its_jacobian_are_pinocchio_s_near_zero_and_near_pi(angle):
 
 
 @pytest.mark.parametrize("name", ARMS)
-def test_the_compiled_path_equals_pinocchio_s_on_every_placed_arm(name, baxter, baxter_paths):
-    arm = load_robot(name)
+def test_the_compiled_path_equals_pinocchio_s_on_every_placed_arm(name, robots, baxter, baxter_paths):
+    arm = robots[name]
     for q in baxter_paths:
         ref, new = both(transfer_path, baxter, arm, q)
         assert ref.reached and new.reached
@@ -92,7 +98,7 @@ def test_an_arm_out_of_reach_is_refused_alike_with_the_same_residual(tmp_path, b
     path.write_text(
         text[:start] + '[placement]\nsource = "baxter_left"\nxyz_m = [-0.6, 0.2, -0.1]\n\n' + text[end:]
     )
-    far = load_robot(path)
+    far = load_robot(path, cache=False)
     ref, new = both(transfer_path, baxter, far, baxter_paths[0])
     assert not ref.reached and not new.reached
     # every seed runs all its iterations far from the pose: agreement to rounding still
@@ -101,9 +107,9 @@ def test_an_arm_out_of_reach_is_refused_alike_with_the_same_residual(tmp_path, b
     assert new.handover_residual_deg == pytest.approx(ref.handover_residual_deg, abs=1e-6)
 
 
-def test_a_kinova_wrist_turned_past_a_half_turn_is_solved_as_pinocchio_solves_it(baxter):
+def test_a_kinova_wrist_turned_past_a_half_turn_is_solved_as_pinocchio_solves_it(robots):
     """The Kinova's continuous joints are bounded to +-2 pi: a seed beyond pi on them."""
-    kinova = load_robot("kinova_jaco2")
+    kinova = robots["kinova_jaco2"]
     solver = PoseSolver(kinova)
     q_goal = solver.mid.copy()
     q_goal[[0, 3, 5]] += [2.5, -3.5, 4.0]
@@ -119,7 +125,7 @@ def test_a_kinova_wrist_turned_past_a_half_turn_is_solved_as_pinocchio_solves_it
 
 
 def test_a_failing_compile_falls_back_to_pinocchio_s_solver_and_says_so_once(
-    monkeypatch, baxter, baxter_paths
+    monkeypatch, robots, baxter, baxter_paths
 ):
     from numba.core.errors import TypingError
 
@@ -131,7 +137,7 @@ def test_a_failing_compile_falls_back_to_pinocchio_s_solver_and_says_so_once(
     monkeypatch.setattr(ik_kernels, "solve_first", broken)
     compiled.set_announcer(heard.append)
     try:
-        panda = load_robot("panda")
+        panda = robots["panda"]
         with use_kernels("numpy"):
             ref = transfer_path(baxter, panda, baxter_paths[0])
         with use_kernels("numba"):
@@ -145,13 +151,13 @@ def test_a_failing_compile_falls_back_to_pinocchio_s_solver_and_says_so_once(
     assert len(heard) == 1 and "inverse-kinematics kernels failed (TypingError" in heard[0]
 
 
-def test_the_warm_up_compiles_every_signature_the_retargeting_uses(baxter, baxter_paths):
+def test_the_warm_up_compiles_every_signature_the_retargeting_uses(robots, baxter, baxter_paths):
     from ipromp_pin.robot.ik_warmup import compile_kernels
 
     compile_kernels()
     before = {n: list(getattr(ik_kernels, n).signatures) for n in KERNELS}
     assert all(before.values())
-    panda = load_robot("panda")
+    panda = robots["panda"]
     with use_kernels("numba"):
         q = baxter_paths[0]
         path = transfer_path(baxter, panda, q)

@@ -14,8 +14,9 @@ synthetic demos (seed 1). For each arm:
 
 Both versions (the kernel switch's ``"ik"`` set: ``numba``, and ``numpy``, which is Pinocchio's
 solver) get the same inputs, called alternately in one process (one-shot: call by call; re-plan:
-sequence by sequence, as each re-plan starts from the previous one); the medians, their ratio and
-the largest difference of the results are printed. The compiled kernels' first call in the process
+sequence by sequence, as each re-plan starts from the previous one); the medians of the wall time and
+of the process's CPU time (which a shared machine stretches less: a call of a few ms is often
+preempted), their ratio and the largest difference of the results are printed. The compiled kernels' first call in the process
 (loading them from numba's cache, or compiling them) is reported apart.
 
     taskset -c 0 python benchmarks/retarget.py [--arms panda,ur5,xarm7,kinova_jaco2] [--demos 3]
@@ -68,7 +69,7 @@ def predictions(args: argparse.Namespace) -> list[tuple[Prediction, list[Predict
 def one_shot(arm: str, preds: list, repeats: int) -> tuple[dict[str, list[float]], float]:
     """Times [ms] per version, and the largest joint difference [rad] between the versions."""
     baxter, robot = load_robot("baxter_left"), load_robot(arm)
-    times: dict[str, list[float]] = {name: [] for name, _ in VERSIONS}
+    times: dict[str, list[float]] = {k: [] for name, _ in VERSIONS for k in (name, name + " cpu")}
     diff = 0.0
     for _ in range(repeats):
         for one, _replans, _start in preds:
@@ -76,9 +77,10 @@ def one_shot(arm: str, preds: list, repeats: int) -> tuple[dict[str, list[float]
             results = []
             for name, backend in VERSIONS:
                 with use_kernels(backend):
-                    t0 = time.perf_counter()
+                    t0, c0 = time.perf_counter(), time.thread_time()
                     q, moved, _ = retarget_prediction(baxter, robot, one.q_mean, samples)
                     times[name].append((time.perf_counter() - t0) * 1e3)
+                    times[name + " cpu"].append((time.thread_time() - c0) * 1e3)
                 results.append((q, moved))
             diff = max(diff, float(np.abs(results[0][0] - results[1][0]).max()))
             diff = max(diff, float(np.abs(results[0][1] - results[1][1]).max()))
@@ -89,7 +91,7 @@ def replan(arm: str, preds: list, repeats: int) -> tuple[dict[str, list[float]],
     """Times [ms] per version, the largest difference of the fitted weights [rad] and of the path
     residual [mm] between the versions."""
     baxter, robot = load_robot("baxter_left"), load_robot(arm)
-    times: dict[str, list[float]] = {name: [] for name, _ in VERSIONS}
+    times: dict[str, list[float]] = {k: [] for name, _ in VERSIONS for k in (name, name + " cpu")}
     d_w = d_mm = 0.0
     for _ in range(repeats):
         for _one, replans, start in preds:
@@ -101,9 +103,10 @@ def replan(arm: str, preds: list, repeats: int) -> tuple[dict[str, list[float]],
                     run = []
                     for p in replans:
                         ref = ReferenceMotion.from_prediction(p)
-                        t0 = time.perf_counter()
+                        t0, c0 = time.perf_counter(), time.thread_time()
                         moved, report = transfer.reference(ref, q_now, 0.0)
                         times[name].append((time.perf_counter() - t0) * 1e3)
+                        times[name + " cpu"].append((time.thread_time() - c0) * 1e3)
                         run.append((None if moved is None else moved.weights, report.max_path_residual_mm))
                 runs.append(run)
             for (wa, ma), (wb, mb) in zip(runs[0], runs[1], strict=True):
@@ -124,9 +127,10 @@ def first_call_s() -> float:
 
 def report(label: str, times: dict[str, list[float]]) -> str:
     ref, new = (float(np.median(times[name])) for name, _ in VERSIONS)
+    ref_cpu, new_cpu = (float(np.median(times[name + " cpu"])) for name, _ in VERSIONS)
     return (
-        f"{label}: Pinocchio median {ref:.3f} ms, compiled median {new:.3f} ms: {ref / new:.1f}x faster "
-        f"({len(times['compiled'])} calls each)"
+        f"{label}: Pinocchio median {ref:.3f} ms, compiled median {new:.3f} ms: {ref / new:.1f}x faster; "
+        f"CPU time {ref_cpu:.3f} ms, {new_cpu:.3f} ms: {ref_cpu / new_cpu:.1f}x ({len(times['compiled'])} calls each)"
     )
 
 

@@ -2,10 +2,12 @@
 
 Every set of numba kernels registers here (:func:`register_kernel_set`): the inference kernels
 (``"inference"``: :mod:`ipromp_pin.promp._kernels`, numpy version :mod:`ipromp_pin.promp.numpy_kernels`)
-and the human checks' (``"human"``: :mod:`ipromp_pin.human.separation_kernels` and
-:mod:`ipromp_pin.human.numpy_kernels`, registered by :mod:`ipromp_pin.human.kernels`). Both versions
-of a set have the same functions and results (to rounding: the tests hold them to 1e-9). One backend
-holds for every set:
+the human checks' (``"human"``: :mod:`ipromp_pin.human.separation_kernels` and
+:mod:`ipromp_pin.human.numpy_kernels`, registered by :mod:`ipromp_pin.human.kernels`) and the
+retargeting's inverse kinematics (``"ik"``: :mod:`ipromp_pin.robot.ik_kernels`, registered by
+:mod:`ipromp_pin.robot.arm_chain`, whose "numpy" version is Pinocchio's solver in
+:mod:`ipromp_pin.robot.arm_transfer`). Both versions of a set give the same results (to rounding:
+the tests hold them to 1e-9). One backend holds for every set:
 
 * ``"numba"``: the compiled kernels. Importing :mod:`ipromp_pin` does not import numba; a set's
   module is imported when it is first needed and its machine code is loaded from numba's on-disk

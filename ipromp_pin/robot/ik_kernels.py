@@ -62,6 +62,11 @@ def _chain_pose(
         axes[k, 1] = a10 * ux + a11 * uy + a12 * uz
         axes[k, 2] = a20 * ux + a21 * uy + a22 * uz
         c_, s_ = math.cos(q[k]), math.sin(q[k])
+        if ux == 0.0 and uy == 0.0 and uz == 1.0:  # the usual z axis: the rotation's two columns
+            r00, r01, r02 = a00 * c_ + a01 * s_, a01 * c_ - a00 * s_, a02
+            r10, r11, r12 = a10 * c_ + a11 * s_, a11 * c_ - a10 * s_, a12
+            r20, r21, r22 = a20 * c_ + a21 * s_, a21 * c_ - a20 * s_, a22
+            continue
         t_ = 1.0 - c_
         m00, m01, m02 = c_ + t_ * ux * ux, t_ * ux * uy - s_ * uz, t_ * ux * uz + s_ * uy
         m10, m11, m12 = t_ * ux * uy + s_ * uz, c_ + t_ * uy * uy, t_ * uy * uz - s_ * ux

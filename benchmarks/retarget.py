@@ -15,9 +15,10 @@ synthetic demos (seed 1). For each arm:
 Both versions (the kernel switch's ``"ik"`` set: ``numba``, and ``numpy``, which is Pinocchio's
 solver) get the same inputs, called alternately in one process (one-shot: call by call; re-plan:
 sequence by sequence, as each re-plan starts from the previous one); the medians of the wall time and
-of the process's CPU time (which a shared machine stretches less: a call of a few ms is often
-preempted), their ratio and the largest difference of the results are printed. The compiled kernels' first call in the process
-(loading them from numba's cache, or compiling them) is reported apart.
+of the thread's CPU time (which a shared machine stretches less: a call of a few ms is often
+preempted), their ratios and the largest difference of the results are printed. The compiled
+kernels' first call in the process (loading them from numba's cache, or compiling them) is reported
+apart.
 
     taskset -c 0 python benchmarks/retarget.py [--arms panda,ur5,xarm7,kinova_jaco2] [--demos 3]
         [--repeats 5]
@@ -130,7 +131,8 @@ def report(label: str, times: dict[str, list[float]]) -> str:
     ref_cpu, new_cpu = (float(np.median(times[name + " cpu"])) for name, _ in VERSIONS)
     return (
         f"{label}: Pinocchio median {ref:.3f} ms, compiled median {new:.3f} ms: {ref / new:.1f}x faster; "
-        f"CPU time {ref_cpu:.3f} ms, {new_cpu:.3f} ms: {ref_cpu / new_cpu:.1f}x ({len(times['compiled'])} calls each)"
+        f"CPU time {ref_cpu:.3f} ms, {new_cpu:.3f} ms: {ref_cpu / new_cpu:.1f}x "
+        f"({len(times['compiled'])} calls each)"
     )
 
 

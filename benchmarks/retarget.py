@@ -43,7 +43,7 @@ from ipromp_pin.promp import IProMP, Prediction
 from ipromp_pin.promp.compiled import use_kernels
 from ipromp_pin.readers.synthetic import make_synthetic_dataset
 from ipromp_pin.robot import load_robot
-from ipromp_pin.robot.arm_transfer import PoseSolver
+from ipromp_pin.robot.ik_warmup import compile_kernels
 
 ARMS = ("panda", "ur5", "xarm7", "kinova_jaco2")
 VERSIONS = (("Pinocchio", "numpy"), ("compiled", "numba"))
@@ -119,10 +119,9 @@ def replan(arm: str, preds: list, repeats: int) -> tuple[dict[str, list[float]],
 
 def first_call_s() -> float:
     """Seconds of the compiled kernels' first calls in this process (loaded from numba's cache, or
-    compiled when it lacks them)."""
+    compiled when it lacks them): the warm-up's calls, every kernel with its signature."""
     t0 = time.perf_counter()
-    with use_kernels("numba"):
-        PoseSolver(load_robot("panda")).prime()
+    compile_kernels()
     return time.perf_counter() - t0
 
 

@@ -271,10 +271,9 @@ class PoseSolver:
     def seeds(self, seed: np.ndarray | None) -> np.ndarray:
         """The start configurations (S, n) [rad] of :meth:`first`: ``seed`` (if given), the middle of
         the limits, then fixed random ones."""
-        rng = np.random.default_rng(0)
-        seeds = [] if seed is None else [np.asarray(seed, dtype=float).reshape(-1)]
-        seeds += [self.mid] + [rng.uniform(self.lo, self.hi) for _ in range(N_SEEDS - 1)]
-        return np.ascontiguousarray(np.array(seeds, dtype=float))
+        drawn = np.random.default_rng(0).uniform(self.lo, self.hi, size=(N_SEEDS - 1, self.robot.n_joints))
+        first = [self.mid] if seed is None else [np.asarray(seed, dtype=float).reshape(-1), self.mid]
+        return np.ascontiguousarray(np.vstack(first + [drawn]))
 
     def first_pose(
         self, rot: np.ndarray, pos: np.ndarray, seed: np.ndarray | None

@@ -121,8 +121,7 @@ def run(
     from ..outputs.rosbag import check_bag_paths
     from ..plans.files import write_plan
     from ..plans.warnings import warn_stderr
-    from ..promp.compiled import INFERENCE, prefer_backend
-    from ..robot.arm_chain import IK
+    from ..promp.compiled import IK, INFERENCE, prefer_backend
     from .session import check_outputs, plan_session, prepare_session
 
     check_outputs(cfg)

@@ -4,8 +4,8 @@ Every set of numba kernels registers here (:func:`register_kernel_set`): the inf
 (``"inference"``: :mod:`ipromp_pin.promp._kernels`, numpy version :mod:`ipromp_pin.promp.numpy_kernels`)
 the human checks' (``"human"``: :mod:`ipromp_pin.human.separation_kernels` and
 :mod:`ipromp_pin.human.numpy_kernels`, registered by :mod:`ipromp_pin.human.kernels`) and the
-retargeting's inverse kinematics (``"ik"``: :mod:`ipromp_pin.robot.ik_kernels`, registered by
-:mod:`ipromp_pin.robot.arm_chain`, whose "numpy" version is Pinocchio's solver in
+retargeting's inverse kinematics (``"ik"``: :mod:`ipromp_pin.robot.ik_kernels`, registered here by
+name, used through :mod:`ipromp_pin.robot.arm_chain`; its "numpy" version is Pinocchio's solver in
 :mod:`ipromp_pin.robot.arm_transfer`). Both versions of a set give the same results (to rounding:
 the tests hold them to 1e-9). One backend holds for every set:
 
@@ -41,6 +41,8 @@ __all__ = [
     "BACKEND_ENV",
     "COMPILE_SECONDS",
     "FIT_PREDICT_KERNELS",
+    "IK",
+    "IK_KERNELS",
     "INFERENCE",
     "KernelSet",
     "active_backend",
@@ -138,6 +140,24 @@ register_kernel_set(
         FIT_PREDICT_KERNELS,
         "ipromp_pin.promp.warmup",
         "inference kernels",
+    ),
+)
+
+
+IK = "ik"
+"""Name of the retargeting's inverse-kinematics kernel set (:mod:`ipromp_pin.robot.arm_chain`)."""
+
+IK_KERNELS = ("chain_fk", "solve_sequence", "solve_first", "linearised_samples")
+"""The inverse-kinematics kernels the retargeting calls."""
+
+register_kernel_set(  # here, by name only: importing the robot package does not import the model's
+    IK,
+    KernelSet(
+        "ipromp_pin.robot.ik_kernels",
+        "ipromp_pin.robot.arm_transfer",
+        IK_KERNELS,
+        "ipromp_pin.robot.ik_warmup",
+        "inverse-kinematics kernels",
     ),
 )
 

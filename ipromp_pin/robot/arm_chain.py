@@ -1,6 +1,6 @@
 """An arm as a serial chain of revolute joints, for the compiled inverse and forward kinematics of its
-``ee`` frame (:mod:`ipromp_pin.robot.ik_kernels`), and the kernel set ``"ik"`` of the package's one
-kernel switch (:mod:`ipromp_pin.promp.compiled`).
+``ee`` frame (:mod:`ipromp_pin.robot.ik_kernels`), which are the kernel set ``"ik"`` of the package's
+one kernel switch (:mod:`ipromp_pin.promp.compiled`, which registers the set by name).
 
 :func:`arm_chain` reads the chain from the Pinocchio model once per robot: each arm joint's frame in
 the previous one's at zero angle (the first in the scene frame, so the ``[placement]`` is in it; every
@@ -23,13 +23,10 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
-from ..promp import compiled
 from .kinematics import as_joint_path, frame_placements
 from .model import Robot
 
 __all__ = [
-    "IK",
-    "KERNELS",
     "ArmChain",
     "arm_chain",
     "chain_placements",
@@ -39,26 +36,9 @@ __all__ = [
     "run_compiled",
 ]
 
-IK = "ik"
-"""Name of the inverse kinematics' kernel set."""
-
-KERNELS = ("chain_fk", "solve_sequence", "solve_first", "linearised_samples")
-"""The kernels the retargeting calls."""
-
 CHECK_TOL = 1e-9
 """Largest difference [m], [rad] between the chain's and Pinocchio's ``ee`` pose at which the chain is
 used."""
-
-compiled.register_kernel_set(
-    IK,
-    compiled.KernelSet(
-        "ipromp_pin.robot.ik_kernels",
-        "ipromp_pin.robot.arm_transfer",
-        KERNELS,
-        "ipromp_pin.robot.ik_warmup",
-        "inverse-kinematics kernels",
-    ),
-)
 
 _chains: dict[int, tuple[weakref.ref, ArmChain | None]] = {}
 _failed: dict[str, str] = {}
@@ -143,10 +123,14 @@ def _matches(robot: Robot, chain: ArmChain) -> bool:
 def ik_kernels() -> ModuleType | None:
     """The compiled kernels when the switch chooses them for set ``"ik"`` (None: Pinocchio's solver,
     also when numba is missing or failed to compile them in this process)."""
-    if _failed or compiled.active_backend(IK) != "numba":
+    if _failed:
+        return None
+    from ..promp import compiled  # deferred: importing the robot package does not import the model's
+
+    if compiled.active_backend(compiled.IK) != "numba":
         return None
     try:
-        return compiled.kernels(IK)
+        return compiled.kernels(compiled.IK)
     except ImportError as exc:  # numba missing or broken: the reference solver for this process
         kernel_failed(exc)
         return None
@@ -155,6 +139,8 @@ def ik_kernels() -> ModuleType | None:
 def kernel_failed(exc: BaseException) -> None:
     """Record that the compiled kernels failed (``exc``): Pinocchio's solver from now on, announced
     once through the switch's announcer."""
+    from ..promp import compiled
+
     if not _failed:
         _failed["why"] = f"{type(exc).__name__}: {exc}".splitlines()[0]
         compiled.announce(
@@ -164,8 +150,10 @@ def kernel_failed(exc: BaseException) -> None:
 
 
 def ik_kernels_cached() -> bool:
-    """Whether numba's on-disk cache holds machine code of every kernel in :data:`KERNELS`."""
-    return compiled.kernels_cached(IK)
+    """Whether numba's on-disk cache holds machine code of every kernel of the set ``"ik"``."""
+    from ..promp import compiled
+
+    return compiled.kernels_cached(compiled.IK)
 
 
 def run_compiled(name: str, *args: Any) -> Any:

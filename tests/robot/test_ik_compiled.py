@@ -16,7 +16,7 @@ from ipromp_pin.promp.compiled import use_kernels
 from ipromp_pin.readers.synthetic import make_synthetic_dataset
 from ipromp_pin.robot import arm_chain as chain_module
 from ipromp_pin.robot import frame_placements, ik_kernels, load_robot, transfer_path, transfer_samples
-from ipromp_pin.robot.arm_chain import KERNELS, arm_chain, chain_placements
+from ipromp_pin.robot.arm_chain import arm_chain, chain_placements
 from ipromp_pin.robot.arm_transfer import PoseSolver
 
 ROBOTS = Path(__file__).resolve().parents[2] / "robots"
@@ -155,11 +155,11 @@ def test_the_warm_up_compiles_every_signature_the_retargeting_uses(robots, baxte
     from ipromp_pin.robot.ik_warmup import compile_kernels
 
     compile_kernels()
-    before = {n: list(getattr(ik_kernels, n).signatures) for n in KERNELS}
+    before = {n: list(getattr(ik_kernels, n).signatures) for n in compiled.IK_KERNELS}
     assert all(before.values())
     panda = robots["panda"]
     with use_kernels("numba"):
         q = baxter_paths[0]
         path = transfer_path(baxter, panda, q)
         transfer_samples(baxter, panda, q[None] + 0.01, path, q)
-    assert {n: list(getattr(ik_kernels, n).signatures) for n in KERNELS} == before
+    assert {n: list(getattr(ik_kernels, n).signatures) for n in compiled.IK_KERNELS} == before

@@ -60,6 +60,11 @@ EXPECTED = {
         r"per recording \(--jobs 1, warm, no preview\): median [\d.]+ s",
         r"batch wall time: --jobs 1 [\d.]+ s, --jobs 2 [\d.]+ s: [\d.]+x faster",
     ],
+    "retarget.py": [
+        r"panda one-shot retarget: Pinocchio median [\d.]+ ms, compiled median [\d.]+ ms",
+        r"panda re-plan retarget: Pinocchio median [\d.]+ ms, compiled median [\d.]+ ms",
+        r"largest joint difference [\d.]+e[-+]\d+ rad",
+    ],
     "read_formats.py": [r"rosbag2 \(MCAP\)\s+[\d.]+ ms", r"rosbag2 \(SQLite\)\s+[\d.]+ ms"],
     "profile_update.py": [r"(?m)^  total\s+[\d.]+", r"stream_group \(per update\)\s+[\d.]+"],
     "speed_margin_cv.py": [r"(?m)^0\.1 \| 8 \| 0 \| 0 \| [\d.]+ \|", r"chosen: speed_margin = 0"],

@@ -121,7 +121,7 @@ def run(
     from ..outputs.rosbag import check_bag_paths
     from ..plans.files import write_plan
     from ..plans.warnings import warn_stderr
-    from ..promp.compiled import INFERENCE, prefer_backend
+    from ..promp.compiled import IK, INFERENCE, prefer_backend
     from .session import check_outputs, plan_session, prepare_session
 
     check_outputs(cfg)
@@ -129,6 +129,7 @@ def run(
     say = warn or warn_stderr
     session = prepare_session(cfg, log, say, prefetch_meshes=cfg.preview_html, strict_human=strict_human)
     prefer_backend(INFERENCE, "numpy")  # one prediction left (a model just trained has decided already)
+    prefer_backend(IK, "numpy")  # one retargeting: Pinocchio's solves take less than loading the kernels
     planned = plan_session(session, log)
     for w in planned.warnings:
         if w not in session.warnings:

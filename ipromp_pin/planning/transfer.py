@@ -17,24 +17,24 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-import pinocchio as pin
 
 from ..data import GRIPPER
 from ..exceptions import ModelError, UnreachableError
 from ..motion.retarget import ReferenceMotion
 from ..promp import IProMP
 from ..robot import Robot, TransferredPath, load_robot, transfer_path, transfer_samples
+from ..robot.arm_chain import chain_placements
 from ..robot.arm_transfer import (
     TOL_M,
     TOL_RAD,
     TRACK_ITERATIONS,
+    PathSolution,
     PoseSolver,
+    SolveSteps,
     check_pair,
     follow_pose_path,
     follow_pose_samples,
-    gripper_poses,
 )
-from ..robot.kinematics import frame_placements
 from ..shipped import DEFAULT_ROBOT
 from ..signals.gripper import gripper_positions, gripper_rotations
 
@@ -228,6 +228,7 @@ class ReplanTransfer:
         self.target = target
         self.from_poses = from_poses  # the reference motion is a gripper pose path (7 channels), not joints
         self.solver = PoseSolver(target)
+        self.solver.prime()  # the compiled kernels loaded before the first re-plan, not during it
         self.phase = np.linspace(0.0, 1.0, n_grid)
         self.mid = 0.5 * (self.phase[1:] + self.phase[:-1])  # where the fit's residual is measured too
         self._previous: np.ndarray | None = None  # (n_grid, n_target) the last reached solution
@@ -240,8 +241,8 @@ class ReplanTransfer:
         Raises:
             UnreachableError: the arm cannot reach that pose at its placement.
         """
-        pose = self._poses(np.asarray(q_source, dtype=float)[None])[0]
-        q, err_p, err_r, _ = self.solver.first(pose, None)
+        pos, rot = self._placements(np.asarray(q_source, dtype=float)[None])
+        q, err_p, err_r, _ = self.solver.first_pose(rot[0], pos[0], None)
         if not (err_p <= TOL_M and err_r <= TOL_RAD):
             raise UnreachableError(
                 f"robot '{self.target.settings.name}' cannot reach the recorded start pose of "
@@ -250,13 +251,12 @@ class ReplanTransfer:
             )
         return q
 
-    def _poses(self, values: np.ndarray) -> list[pin.SE3]:
-        """The gripper poses of the source's joints (M, n_source) [rad], or of gripper pose values
-        (M, 7) with ``from_poses``."""
+    def _placements(self, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The gripper positions (M, 3) [m] and rotations (M, 3, 3) of the source's joints
+        (M, n_source) [rad], or of gripper pose values (M, 7) with ``from_poses``."""
         if not self.from_poses:
-            return gripper_poses(self.source, values)
-        pos, rot = gripper_positions(values), gripper_rotations(values)
-        return [pin.SE3(r, p) for p, r in zip(pos, rot, strict=True)]
+            return chain_placements(self.source, values)
+        return gripper_positions(values), gripper_rotations(values)
 
     def _basis(self, reference: ReferenceMotion) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The basis at the phase samples (M, K) and between them (M - 1, K), and the constrained
@@ -277,22 +277,25 @@ class ReplanTransfer:
             self._fit = (key, reference.width, phi, phi_mid, np.linalg.solve(kkt, rhs)[:k])
         return self._fit[2], self._fit[3], self._fit[4]
 
-    def _follow(self, poses: list, q_now: np.ndarray, t_now_s: float, duration_s: float) -> tuple:
-        """Joint samples (M, n), position and orientation errors (M,) along ``poses``."""
-        solve, m = self.solver.solve, len(poses)
-        q = np.empty((m, self.target.n_joints))
-        err_p, err_r = np.empty(m), np.empty(m)
-        prev = self._previous
-        if prev is not None:
-            for i in range(m):
-                q[i], err_p[i], err_r[i], _ = solve(poses[i], prev[i], TRACK_ITERATIONS)
-            return q, err_p, err_r
+    def _follow(
+        self, rot: np.ndarray, pos: np.ndarray, q_now: np.ndarray, t_now_s: float, duration_s: float
+    ) -> PathSolution:
+        """Joint samples, position and orientation errors along the poses ``rot`` (M, 3, 3), ``pos``
+        (M, 3) [m]."""
+        m, n = pos.shape[0], self.target.n_joints
+        out = PathSolution.empty(m, n)
+        if self._previous is not None:
+            self.solver.follow(rot, pos, SolveSteps.seeded(self._previous, TRACK_ITERATIONS), out)
+            return out
         j = int(np.clip(round(t_now_s / duration_s * (m - 1)), 0, m - 1))
-        q[j], err_p[j], err_r[j], _ = solve(poses[j], q_now)
-        for i in list(range(j + 1, m)) + list(range(j - 1, -1, -1)):
-            seed = q[i - 1] if i > j else q[i + 1]
-            q[i], err_p[i], err_r[i], _ = solve(poses[i], seed, TRACK_ITERATIONS)
-        return q, err_p, err_r
+        order = [j] + list(range(j + 1, m)) + list(range(j - 1, -1, -1))
+        steps = SolveSteps.chained(
+            order, [-1] + [i - 1 for i in order[1:] if i > j] + list(range(j, 0, -1)), n
+        )
+        steps.seeds[0] = q_now
+        steps.max_iters[0] = self.solver.max_iter
+        self.solver.follow(rot, pos, steps, out)
+        return out
 
     def reference(
         self, reference: ReferenceMotion, q_now: np.ndarray, t_now_s: float
@@ -303,16 +306,20 @@ class ReplanTransfer:
         reach the hand-over pose; the re-plan is refused)."""
         t0 = time.perf_counter()
         d = reference.duration_s
-        poses = self._poses(reference.evaluate(self.phase * d, order=0)[0])
-        q, err_p, err_r = self._follow(poses, q_now, t_now_s, d)
-        if not (err_p[-1] <= TOL_M and err_r[-1] <= TOL_RAD):  # the tracked branch misses: every seed
-            end = self.solver.first(poses[-1], q[-1])
+        m = self.phase.size
+        src = reference.evaluate(np.concatenate([self.phase, self.mid]) * d, order=0)[0]
+        src_pos, src_rot = self._placements(src)  # the phases, then between them
+        rot, pos = np.ascontiguousarray(src_rot[:m]), np.ascontiguousarray(src_pos[:m])
+        out = self._follow(rot, pos, q_now, t_now_s, d)
+        if not out.reached(m - 1):  # the tracked branch misses: every seed
+            end = self.solver.first_pose(rot[-1], pos[-1], out.q[-1])
             if end[1] <= TOL_M and end[2] <= TOL_RAD:
-                q[-1], err_p[-1], err_r[-1] = end[:3]
-                for i in range(len(poses) - 2, -1, -1):  # the path leads to that solution
-                    q[i], err_p[i], err_r[i], _ = self.solver.solve(poses[i], q[i + 1], TRACK_ITERATIONS)
+                out.set(m - 1, end)
+                back = np.arange(m - 2, -1, -1)  # the path leads to that solution
+                self.solver.follow(rot, pos, SolveSteps.chained(back, back + 1, self.target.n_joints), out)
         name = self.source.settings.name
-        if not (err_p[-1] <= TOL_M and err_r[-1] <= TOL_RAD):
+        q, err_p, err_r = out.q, out.err[:, 0], out.err[:, 1]
+        if not out.reached(m - 1):
             ms = (time.perf_counter() - t0) * 1e3
             return None, ReplanRetarget(
                 name, False, err_p[-1] * 1e3, float(np.degrees(err_r[-1])), float(err_p.max() * 1e3), ms
@@ -323,10 +330,8 @@ class ReplanTransfer:
         n = self.target.n_joints
         moved = ReferenceMotion(weights.T, reference.centres, reference.width, np.ones(n), np.zeros(n), d)
         # the residual of what the arm is commanded: at the samples and between them (the fit's)
-        pos, _ = frame_placements(self.target, np.vstack([phi @ weights, phi_mid @ weights]))
-        src_mid = [p.translation for p in self._poses(reference.evaluate(self.mid * d, order=0)[0])]
-        target_pos = np.vstack([[p.translation for p in poses], src_mid])
-        path_mm = float(np.max(np.linalg.norm(pos - target_pos, axis=1)) * 1e3)
+        commanded, _ = chain_placements(self.target, np.vstack([phi @ weights, phi_mid @ weights]))
+        path_mm = float(np.max(np.linalg.norm(commanded - src_pos, axis=1)) * 1e3)
         ms = (time.perf_counter() - t0) * 1e3
         return moved, ReplanRetarget(
             name, True, err_p[-1] * 1e3, float(np.degrees(err_r[-1])), max(path_mm, err_p[-1] * 1e3), ms

@@ -2,10 +2,12 @@
 
 Every set of numba kernels registers here (:func:`register_kernel_set`): the inference kernels
 (``"inference"``: :mod:`ipromp_pin.promp._kernels`, numpy version :mod:`ipromp_pin.promp.numpy_kernels`)
-and the human checks' (``"human"``: :mod:`ipromp_pin.human.separation_kernels` and
-:mod:`ipromp_pin.human.numpy_kernels`, registered by :mod:`ipromp_pin.human.kernels`). Both versions
-of a set have the same functions and results (to rounding: the tests hold them to 1e-9). One backend
-holds for every set:
+the human checks' (``"human"``: :mod:`ipromp_pin.human.separation_kernels` and
+:mod:`ipromp_pin.human.numpy_kernels`, registered by :mod:`ipromp_pin.human.kernels`) and the
+retargeting's inverse kinematics (``"ik"``: :mod:`ipromp_pin.robot.ik_kernels`, registered here by
+name, used through :mod:`ipromp_pin.robot.arm_chain`; its "numpy" version is Pinocchio's solver in
+:mod:`ipromp_pin.robot.arm_transfer`). Both versions of a set give the same results (to rounding:
+the tests hold them to 1e-9). One backend holds for every set:
 
 * ``"numba"``: the compiled kernels. Importing :mod:`ipromp_pin` does not import numba; a set's
   module is imported when it is first needed and its machine code is loaded from numba's on-disk
@@ -39,9 +41,12 @@ __all__ = [
     "BACKEND_ENV",
     "COMPILE_SECONDS",
     "FIT_PREDICT_KERNELS",
+    "IK",
+    "IK_KERNELS",
     "INFERENCE",
     "KernelSet",
     "active_backend",
+    "announce",
     "compiled_kernels_cached",
     "kernel_backend",
     "kernel_sets",
@@ -139,12 +144,31 @@ register_kernel_set(
 )
 
 
+IK = "ik"
+"""Name of the retargeting's inverse-kinematics kernel set (:mod:`ipromp_pin.robot.arm_chain`)."""
+
+IK_KERNELS = ("chain_fk", "solve_sequence", "solve_first", "linearised_samples")
+"""The inverse-kinematics kernels the retargeting calls."""
+
+register_kernel_set(  # here, by name only: importing the robot package does not import the model's
+    IK,
+    KernelSet(
+        "ipromp_pin.robot.ik_kernels",
+        "ipromp_pin.robot.arm_transfer",
+        IK_KERNELS,
+        "ipromp_pin.robot.ik_warmup",
+        "inverse-kinematics kernels",
+    ),
+)
+
+
 def set_announcer(announce: Callable[[str], None] | None) -> None:
     """Where one-line notices about the kernels go (the one-time compile; ``None``: nowhere)."""
     _state["announce"] = announce
 
 
-def _say(message: str) -> None:
+def announce(message: str) -> None:
+    """Pass a one-line notice about the kernels to the announcer (:func:`set_announcer`), if any."""
     if _state["announce"] is not None:
         _state["announce"](message)
 
@@ -233,7 +257,7 @@ def _load(name: str, backend: str) -> ModuleType:
             if name not in _state["announced"] and not kernels_cached(name):
                 _state["announced"].add(name)
                 seconds = f"up to about {COMPILE_SECONDS} s" if name == INFERENCE else "a few seconds"
-                _say(
+                announce(
                     f"[kernels] compiling the {kernel_set.label} ({seconds}, once; cached on disk for "
                     "the next runs)"
                 )
@@ -260,7 +284,7 @@ def _decide(name: str) -> str:
                 else f" (a compile is running, or failed within a day: see its log in {log})"
             )
             label = _sets[name].label
-            _say(f"[kernels] the {label} are not compiled yet: this run uses their numpy version{why}")
+            announce(f"[kernels] the {label} are not compiled yet: this run uses their numpy version{why}")
     _state["auto"][name] = choice
     return choice
 

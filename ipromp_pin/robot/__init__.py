@@ -7,7 +7,9 @@ Modules, each one concept, from the bottom up:
   and :func:`load_robot`'s cache;
 * :mod:`~ipromp_pin.robot.kinematics`: forward kinematics along a joint path;
 * :mod:`~ipromp_pin.robot.inverse_kinematics`: damped least-squares inverse kinematics;
-* :mod:`~ipromp_pin.robot.arm_transfer`: retargeting a joint path to another arm through the gripper;
+* :mod:`~ipromp_pin.robot.arm_transfer`: retargeting a joint path to another arm through the gripper
+  (its inverse kinematics compiled: :mod:`~ipromp_pin.robot.arm_chain`,
+  :mod:`~ipromp_pin.robot.ik_kernels`);
 * :mod:`~ipromp_pin.robot.collision`: contact tests; :mod:`~ipromp_pin.robot.clearance`: certified
   self-collision clearance along a path;
 * :mod:`~ipromp_pin.robot.dynamics`: inverse dynamics with a payload;

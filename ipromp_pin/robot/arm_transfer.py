@@ -14,6 +14,11 @@ one linearised step around the mean's solution (their hand-over configurations e
 
 The pose path may also come straight from a model whose robot side is a gripper pose path (no
 source joints): :func:`follow_pose_path` and :func:`follow_pose_samples` take the poses.
+
+:class:`PoseSolver` solves whole paths in one call of the compiled kernels
+(:mod:`ipromp_pin.robot.ik_kernels`, the chain read by :mod:`ipromp_pin.robot.arm_chain`) when the
+kernel switch's set ``"ik"`` is compiled; its Pinocchio iterations (:meth:`PoseSolver.solve`,
+:meth:`PoseSolver.first`) are the reference, and what runs otherwise.
 """
 
 from __future__ import annotations
@@ -25,6 +30,7 @@ import pinocchio as pin
 from scipy.spatial.transform import Rotation
 
 from ..exceptions import InfeasibleError
+from .arm_chain import arm_chain, chain_placements, ik_kernels, run_compiled
 from .kinematics import as_joint_path, frame_placements
 from .model import Robot
 
@@ -100,6 +106,83 @@ class TransferredPath:
         )
 
 
+@dataclass(frozen=True)
+class SolveSteps:
+    """Poses to solve in turn (:meth:`PoseSolver.follow`): step ``t`` solves pose ``order[t]`` from
+    the solution of pose ``seed_from[t]`` (solved earlier) or, where that is negative, from
+    ``seeds[t]``, with at most ``max_iters[t]`` iterations.
+
+    Attributes:
+        order: (T,) pose indices.
+        seed_from: (T,) pose whose solution seeds the step (-1: ``seeds[t]``).
+        seeds: (T, n) start configurations [rad] (read where ``seed_from`` is negative).
+        max_iters: (T,) iteration limits.
+    """
+
+    order: np.ndarray
+    seed_from: np.ndarray
+    seeds: np.ndarray
+    max_iters: np.ndarray
+
+    @classmethod
+    def chained(cls, order: list[int] | np.ndarray, seed_from: list[int] | np.ndarray, n: int) -> SolveSteps:
+        """Each pose of ``order`` from the solution of ``seed_from`` (:data:`TRACK_ITERATIONS`)."""
+        order = np.asarray(order, dtype=np.int64)
+        return cls(
+            order,
+            np.asarray(seed_from, dtype=np.int64),
+            np.zeros((order.size, n)),
+            np.full(order.size, TRACK_ITERATIONS, dtype=np.int64),
+        )
+
+    @classmethod
+    def seeded(cls, seeds: np.ndarray, max_iter: int) -> SolveSteps:
+        """Pose ``i`` from ``seeds[i]`` (M, n) [rad] for every ``i``, at most ``max_iter`` iterations."""
+        m = seeds.shape[0]
+        return cls(
+            np.arange(m, dtype=np.int64),
+            np.full(m, -1, dtype=np.int64),
+            np.ascontiguousarray(seeds, dtype=float),
+            np.full(m, max_iter, dtype=np.int64),
+        )
+
+    def arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The four arrays as the compiled kernel takes them (int64, float64, C order)."""
+        return (
+            np.ascontiguousarray(self.order, dtype=np.int64),
+            np.ascontiguousarray(self.seed_from, dtype=np.int64),
+            np.ascontiguousarray(self.seeds, dtype=float),
+            np.ascontiguousarray(self.max_iters, dtype=np.int64),
+        )
+
+
+@dataclass(frozen=True)
+class PathSolution:
+    """Work arrays of :meth:`PoseSolver.follow`: joint angles ``q`` (M, n) [rad], errors ``err``
+    (M, 2) (position [m], orientation [rad]) and Jacobians ``jacs`` (M, 6, n)."""
+
+    q: np.ndarray
+    err: np.ndarray
+    jacs: np.ndarray
+
+    @classmethod
+    def empty(cls, m: int, n: int) -> PathSolution:
+        """Arrays for ``m`` poses of an arm of ``n`` joints."""
+        return cls(np.empty((m, n)), np.empty((m, 2)), np.empty((m, 6, n)))
+
+    def set(self, i: int, solution: tuple[np.ndarray, float, float, np.ndarray]) -> None:
+        """Store ``(q, err_p, err_r, jac)`` as pose ``i``'s solution."""
+        self.q[i], self.err[i, 0], self.err[i, 1], self.jacs[i] = solution
+
+    def reached(self, i: int) -> bool:
+        """Whether pose ``i`` is reached within :data:`TOL_M` and :data:`TOL_RAD`."""
+        return bool(self.err[i, 0] <= TOL_M and self.err[i, 1] <= TOL_RAD)
+
+    def path(self) -> TransferredPath:
+        """The solution as a :class:`TransferredPath`."""
+        return TransferredPath(self.q, self.err[:, 0].copy(), self.err[:, 1].copy(), self.jacs)
+
+
 def gripper_poses(robot: Robot, q: np.ndarray) -> list[pin.SE3]:
     """The ``ee`` frame's poses (M,) in the scene frame along a joint path (M, n_joints) [rad]."""
     pos, rot = frame_placements(robot, q)
@@ -123,6 +206,10 @@ class PoseSolver:
         self._full = robot.full_configuration(self.mid)  # the full configuration, arm joints set per call
         self._q_index = robot.arm_q_index
         self._v_index = robot.arm_v_index
+        self.chain = arm_chain(robot)  # None: not a serial revolute chain, Pinocchio's iterations only
+        self._limits = np.ascontiguousarray(np.vstack([self.lo, self.hi, self.mid, self.pull]))
+        self._params = np.array([damping, TOL_M * 0.1, TOL_RAD * 0.1, NULL_SPACE_GAIN, MAX_STEP_RAD])
+        self._reach = np.array([TOL_M, TOL_RAD, GOOD_MARGIN])
 
     def error(self, q: np.ndarray, target: pin.SE3) -> tuple[np.ndarray, np.ndarray, pin.SE3]:
         """The pose error (6,) in the ee frame, its Jacobian (6, n) and the remaining transform."""
@@ -172,11 +259,8 @@ class PoseSolver:
         fixed random seeds (up to :data:`N_SEEDS`), the first converged solution at least
         :data:`GOOD_MARGIN` from every limit, else the converged one with the largest margin, else
         the one closest to the pose."""
-        rng = np.random.default_rng(0)
-        seeds = [] if seed is None else [np.asarray(seed, dtype=float)]
-        seeds += [self.mid] + [rng.uniform(self.lo, self.hi) for _ in range(N_SEEDS - 1)]
         best, best_key = None, None
-        for s in seeds:
+        for s in self.seeds(seed):
             out = self.solve(target, s)
             ok = out[1] <= TOL_M and out[2] <= TOL_RAD
             key = (ok, self.margin(out[0]) if ok else -(out[1] + 0.1 * out[2]))
@@ -186,6 +270,65 @@ class PoseSolver:
                 break
         assert best is not None
         return best
+
+    def seeds(self, seed: np.ndarray | None) -> np.ndarray:
+        """The start configurations (S, n) [rad] of :meth:`first`: ``seed`` (if given), the middle of
+        the limits, then fixed random ones."""
+        drawn = np.random.default_rng(0).uniform(self.lo, self.hi, size=(N_SEEDS - 1, self.robot.n_joints))
+        first = [self.mid] if seed is None else [np.asarray(seed, dtype=float).reshape(-1), self.mid]
+        return np.ascontiguousarray(np.vstack(first + [drawn]))
+
+    def first_pose(
+        self, rot: np.ndarray, pos: np.ndarray, seed: np.ndarray | None
+    ) -> tuple[np.ndarray, float, float, np.ndarray]:
+        """:meth:`first` for the pose ``rot`` (3, 3), ``pos`` (3,) [m], in one compiled call when the
+        kernels are in use."""
+        if self.chain is not None:
+            q, jac = np.empty(self.robot.n_joints), np.empty((6, self.robot.n_joints))
+            c = self.chain
+            args = (self._limits, self._params, self._reach, c.x0, c.axis, c.ee, q, jac)
+            rot_, pos_ = np.ascontiguousarray(rot, dtype=float), np.ascontiguousarray(pos, dtype=float)
+            out = run_compiled("solve_first", rot_, pos_, self.seeds(seed), self.max_iter, *args)
+            if out is not None:
+                err_p, err_r = out
+                return q, float(err_p), float(err_r), jac
+        return self.first(pin.SE3(rot, pos), seed)
+
+    def prime(self) -> None:
+        """Load (or compile) the compiled kernels now, so that no later call pays for it: the pose at
+        the middle of the limits, solved from there (nothing when Pinocchio's iterations run)."""
+        if self.chain is None or ik_kernels() is None:
+            return
+        pos, rot = chain_placements(self.robot, self.mid[None])
+        self.first_pose(rot[0], pos[0], self.mid)
+        self.follow(
+            rot, pos, SolveSteps.seeded(self.mid[None], 1), PathSolution.empty(1, self.robot.n_joints)
+        )
+
+    def follow(self, rot: np.ndarray, pos: np.ndarray, steps: SolveSteps, out: PathSolution) -> None:
+        """Solve the poses ``rot`` (M, 3, 3), ``pos`` (M, 3) [m] in the order of ``steps`` into
+        ``out``, in one compiled call when the kernels are in use, else by :meth:`solve`."""
+        if self.chain is not None:
+            c = self.chain
+            done = run_compiled(
+                "solve_sequence",
+                np.ascontiguousarray(rot, dtype=float),
+                np.ascontiguousarray(pos, dtype=float),
+                *steps.arrays(),
+                self._limits,
+                self._params,
+                c.x0,
+                c.axis,
+                c.ee,
+                out.q,
+                out.err,
+                out.jacs,
+            )
+            if done is not None:
+                return
+        for t, i in enumerate(steps.order):
+            start = out.q[steps.seed_from[t]] if steps.seed_from[t] >= 0 else steps.seeds[t]
+            out.set(int(i), self.solve(pin.SE3(rot[i], pos[i]), start, int(steps.max_iters[t])))
 
 
 def transfer_path(
@@ -206,7 +349,7 @@ def transfer_path(
     """
     check_pair(source, target)
     q_source = as_joint_path(source, q_source, "source joint path")
-    pos, rot = frame_placements(source, q_source)
+    pos, rot = chain_placements(source, q_source)
     return follow_pose_path(target, pos, rot, q_seed)
 
 
@@ -227,19 +370,18 @@ def follow_pose_path(
     sample holds that best attempt and :attr:`TransferredPath.reached` is False (the caller refuses
     the plan).
     """
-    poses = [pin.SE3(r, p) for p, r in zip(np.asarray(positions), np.asarray(rotations), strict=True)]
+    pos = np.ascontiguousarray(positions, dtype=float)
+    rot = np.ascontiguousarray(rotations, dtype=float)
     solver = PoseSolver(target)
-    m, n = len(poses), target.n_joints
-    q = np.empty((m, n))
-    err_p, err_r, jacs = np.empty(m), np.empty(m), np.empty((m, 6, n))
-    end = solver.first(poses[-1], q_seed)
-    if not (end[1] <= TOL_M and end[2] <= TOL_RAD):  # out of reach: refused, the path is not followed
-        q[:], err_p[:], err_r[:], jacs[:] = end
-        return TransferredPath(q, err_p, err_r, jacs)
-    q[-1], err_p[-1], err_r[-1], jacs[-1] = end
-    for i in range(m - 2, -1, -1):  # back from the hand-over: the path leads to that solution
-        q[i], err_p[i], err_r[i], jacs[i] = solver.solve(poses[i], q[i + 1], TRACK_ITERATIONS)
-    return TransferredPath(q, err_p, err_r, jacs)
+    m, n = pos.shape[0], target.n_joints
+    out = PathSolution.empty(m, n)
+    out.set(m - 1, solver.first_pose(rot[-1], pos[-1], q_seed))
+    if not out.reached(m - 1):  # out of reach: refused, the path is not followed
+        out.q[:], out.err[:], out.jacs[:] = out.q[-1], out.err[-1], out.jacs[-1]
+        return out.path()
+    back = np.arange(m - 2, -1, -1)  # back from the hand-over: the path leads to that solution
+    solver.follow(rot, pos, SolveSteps.chained(back, back + 1, n), out)
+    return out.path()
 
 
 def transfer_samples(
@@ -249,12 +391,69 @@ def transfer_samples(
     mean: TransferredPath,
     q_source_mean: np.ndarray,
 ) -> np.ndarray:
-    """Sampled source joint paths (n, M, n_source) [rad] as target joint paths (n, M, n_target) [rad]
-    (:func:`follow_pose_samples` of their gripper poses)."""
+    """Sampled source joint paths (n, M, n_source) [rad] as target joint paths (n, M, n_target) [rad]:
+    one linearised step around ``mean`` (the transferred mean path, same M) per sample and time, then
+    exact inverse kinematics for each sample's last configuration (the hand-over, which the uncertainty
+    check uses)."""
+    n_s = q_source_samples.shape[0]
+    solver = PoseSolver(target)
+    chain = arm_chain(source)
+    moved = None
+    if chain is not None:
+        moved = run_compiled(
+            "linearised_samples",
+            np.ascontiguousarray(q_source_samples, dtype=float),
+            chain.x0,
+            chain.axis,
+            chain.ee,
+            *chain_placements(source, q_source_mean),
+            np.ascontiguousarray(mean.jacobians),
+            np.ascontiguousarray(mean.q),
+            float(solver.damping),
+        )
+    out, end_pos, end_rot = (
+        moved
+        if moved is not None
+        else linearised_samples(source, q_source_samples, mean, q_source_mean, solver.damping)
+    )
+    ends = PathSolution.empty(n_s, target.n_joints)  # the hand-overs exactly (the uncertainty check's)
+    solver.follow(end_rot, end_pos, SolveSteps.seeded(out[:, -1], solver.max_iter), ends)
+    out[:, -1] = ends.q
+    return np.clip(out, solver.lo, solver.hi)
+
+
+def linearised_samples(
+    source: Robot,
+    q_source_samples: np.ndarray,
+    mean: TransferredPath,
+    q_source_mean: np.ndarray,
+    damping: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The reference of the compiled ``linearised_samples``: sampled source paths (n, M, n_source)
+    [rad] moved by one damped least-squares step around ``mean`` (n, M, n_target) [rad], and the
+    samples' last gripper poses (n, 3) [m], (n, 3, 3)."""
     n_s, m, _ = q_source_samples.shape
     pm, rm = frame_placements(source, q_source_mean)  # (M, 3), (M, 3, 3)
     ps, rs = frame_placements(source, q_source_samples.reshape(n_s * m, -1))
-    return follow_pose_samples(target, ps.reshape(n_s, m, 3), rs.reshape(n_s, m, 3, 3), mean, pm, rm)
+    ps, rs = ps.reshape(n_s, m, 3), rs.reshape(n_s, m, 3, 3)
+    return pose_step(ps, rs, pm, rm, mean, damping), ps[:, -1], rs[:, -1]
+
+
+def pose_step(
+    ps: np.ndarray, rs: np.ndarray, pm: np.ndarray, rm: np.ndarray, mean: TransferredPath, damping: float
+) -> np.ndarray:
+    """Sampled gripper poses (positions (n, M, 3) [m], rotations (n, M, 3, 3)) as one damped
+    least-squares step (n, M, n_target) [rad] around ``mean``, the joint path followed for the
+    poses ``pm`` (M, 3), ``rm`` (M, 3, 3)."""
+    n_s = ps.shape[0]
+    # the sample's pose in the mean's gripper frame, to first order: translation and rotation vector
+    dp = np.einsum("mji,smj->smi", rm, ps - pm)
+    rel = np.einsum("mji,smjk->smik", rm, rs)
+    dr = Rotation.from_matrix(rel.reshape(-1, 3, 3)).as_rotvec().reshape(n_s, -1, 3)
+    jac = mean.jacobians  # (M, 6, n)
+    jjt = np.einsum("mij,mkj->mik", jac, jac) + damping * np.eye(6)
+    step = np.linalg.solve(jjt[None], np.concatenate([dp, dr], axis=2)[..., None])[..., 0]  # (n_s, M, 6)
+    return mean.q[None] + np.einsum("mji,smj->smi", jac, step)
 
 
 def follow_pose_samples(
@@ -267,23 +466,18 @@ def follow_pose_samples(
 ) -> np.ndarray:
     """Sampled gripper pose paths (positions (n, M, 3) [m], rotations (n, M, 3, 3)) as target joint
     paths (n, M, n_target) [rad]: one linearised step around ``mean`` (the followed mean path, of the
-    poses ``mean_positions`` (M, 3), ``mean_rotations`` (M, 3, 3)) per sample and time, then exact
-    inverse kinematics for each sample's last configuration (the hand-over, which the uncertainty
-    check uses)."""
-    ps, rs, pm, rm = positions, rotations, mean_positions, mean_rotations
-    n_s = ps.shape[0]
+    poses ``mean_positions`` (M, 3), ``mean_rotations`` (M, 3, 3)) per sample and time
+    (:func:`pose_step`), then exact inverse kinematics for each sample's last configuration (the
+    hand-over, which the uncertainty check uses)."""
+    ps = np.asarray(positions, dtype=float)
+    rs = np.asarray(rotations, dtype=float)
     solver = PoseSolver(target)
-    # the sample's pose in the mean's gripper frame, to first order: translation and rotation vector
-    dp = np.einsum("mji,smj->smi", rm, ps - pm)
-    rel = np.einsum("mji,smjk->smik", rm, rs)
-    dr = Rotation.from_matrix(rel.reshape(-1, 3, 3)).as_rotvec().reshape(n_s, -1, 3)
-    jac = mean.jacobians  # (M, 6, n)
-    jjt = np.einsum("mij,mkj->mik", jac, jac) + solver.damping * solver.eye_6
-    step = np.linalg.solve(jjt[None], np.concatenate([dp, dr], axis=2)[..., None])[..., 0]  # (n_s, M, 6)
-    out = mean.q[None] + np.einsum("mji,smj->smi", jac, step)
-    for k in range(n_s):  # the hand-overs exactly (the uncertainty check's configurations)
-        end = pin.SE3(rs[k, -1], ps[k, -1])
-        out[k, -1] = solver.solve(end, out[k, -1])[0]
+    out = pose_step(ps, rs, mean_positions, mean_rotations, mean, float(solver.damping))
+    ends = PathSolution.empty(ps.shape[0], target.n_joints)  # the hand-overs exactly
+    end_rot = np.ascontiguousarray(rs[:, -1])
+    end_pos = np.ascontiguousarray(ps[:, -1])
+    solver.follow(end_rot, end_pos, SolveSteps.seeded(out[:, -1], solver.max_iter), ends)
+    out[:, -1] = ends.q
     return np.clip(out, solver.lo, solver.hi)
 
 

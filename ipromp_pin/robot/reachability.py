@@ -252,7 +252,8 @@ class ReachTest:
             if far > TOL_M:
                 ep = far
             else:
-                q, ep, er, _ = self.solver.first(to_built * pose, seed)
+                target = to_built * pose
+                q, ep, er, _ = self.solver.first_pose(target.rotation, target.translation, seed)
                 if ep <= TOL_M and er <= TOL_RAD:
                     seed = q if chained else None
                     margins.append(self.solver.margin(q))

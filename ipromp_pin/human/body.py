@@ -337,25 +337,9 @@ class HumanMotion:
             out[:, self.static] = pos[0, self.static]
             grow[:, self.static] = 0.0
         grow = np.minimum(np.maximum(grow, 0.0), self.max_inflation_m)
-        if self.forecast is not None:
-            self._apply_forecast(t, late, out, grow)
+        if self.forecast is not None and np.any(late):
+            apply_forecast(self.forecast, self.frames, self.speed_m_s, t, late, out, grow)
         return out, grow
-
-    def _apply_forecast(self, t: np.ndarray, late: np.ndarray, out: np.ndarray, grow: np.ndarray) -> None:
-        """Frames of :attr:`forecast` at times after the horizon (``late``) take its position and
-        radius where that radius is below the held growth (in place on ``out`` (N, F, 3), ``grow``
-        (N, F))."""
-        fc = self.forecast
-        if fc is None or not np.any(late):
-            return
-        pos, radius = fc.at(t[late], self.speed_m_s)
-        rows = np.flatnonzero(late)
-        for j, f in enumerate(fc.frames):
-            k = self.frames.index(f)
-            tighter = radius[:, j] < grow[rows, k]
-            sel = rows[tighter]
-            out[sel, k] = pos[tighter, j]
-            grow[sel, k] = radius[tighter, j]
 
     def held_frames(self) -> tuple[np.ndarray, np.ndarray] | None:
         """At every time at or after :attr:`horizon_s` each frame is held where it was last seen:
@@ -460,6 +444,28 @@ class HumanMotion:
         """Capsule end points ``a``, ``b`` (P, 3) [m] and radii (P,) [m] at time ``t_s`` [s]."""
         a, b, r = self.capsules(np.array([float(t_s)]))
         return a[0], b[0], r[0]
+
+
+def apply_forecast(
+    fc: BodyForecast,
+    frames: tuple[str, ...],
+    speed_m_s: float,
+    t: np.ndarray,
+    late: np.ndarray,
+    out: np.ndarray,
+    grow: np.ndarray,
+) -> None:
+    """The frames (of ``frames``) that ``fc`` places take, at the times ``t`` (N,) [s] after the
+    horizon (``late`` (N,)), its position and radius where that radius is below the held growth (in
+    place on the positions ``out`` (N, F, 3) [m] and growths ``grow`` (N, F) [m])."""
+    pos, radius = fc.at(t[late], speed_m_s)
+    rows = np.flatnonzero(late)
+    for j, f in enumerate(fc.frames):
+        k = frames.index(f)
+        tighter = radius[:, j] < grow[rows, k]
+        sel = rows[tighter]
+        out[sel, k] = pos[tighter, j]
+        grow[sel, k] = radius[tighter, j]
 
 
 def _mapped_frames(demo: Demo, frames: list[str], settings: HumanSettings) -> dict[str, np.ndarray] | None:

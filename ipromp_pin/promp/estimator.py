@@ -255,9 +255,7 @@ class IProMP(ParameterMixin):
         return self._set_fitted(replace(self._predictor().fitted, human_fit=record))
 
     def with_human_forecast(self, record: Mapping[str, Any] | None) -> IProMP:
-        """Store the handing arm's forecast calibration (a JSON object,
-        :meth:`ipromp_pin.human.forecast.ForecastCalibration.to_json`; None: none); written by
-        :meth:`save`."""
+        """Store the body's forecast calibration (JSON, :mod:`ipromp_pin.human.forecast`; None: none)."""
         return self._set_fitted(replace(self._predictor().fitted, human_forecast=record))
 
     def _set_fitted(self, fitted: FittedModel) -> IProMP:

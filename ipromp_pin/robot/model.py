@@ -189,8 +189,9 @@ def load_robot(settings: RobotSettings | str | Path, *, cache: bool = True) -> R
         st = settings.path.stat()
         digest = settings_digest(settings)
         key = (str(settings.path), st.st_mtime_ns, st.st_size, digest)
-        robot = _ROBOT_CACHE.get(key)
+        robot = _ROBOT_CACHE.pop(key, None)
         if robot is not None:
+            _ROBOT_CACHE[key] = robot  # the most recently used last: the least recently used goes first
             return robot
     robot = build_robot(settings)
     if key is not None:

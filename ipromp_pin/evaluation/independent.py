@@ -165,10 +165,13 @@ class UrdfArm:
         """Configurations among every ``step``-th of ``q`` (N, J) (and the last) in contact of the
         URDF's collision geometry (the SRDF's disabled pairs and the settings' ``disabled_pairs``
         removed)."""
+        return self.collisions_full(self.full(q), step)
+
+    def collisions_full(self, full: np.ndarray, step: int = 3) -> int:
+        """:meth:`self_collisions` of full configurations ``full`` (N, nq) (:meth:`full`)."""
         geom, gdata = self.geometry()
         m = self.model
         data = m.createData()
-        full = self.full(q)
         rows = sorted(set(range(0, len(full), step)) | {len(full) - 1})
         return sum(bool(pin.computeCollisions(m, data, geom, gdata, full[k], True)) for k in rows)
 

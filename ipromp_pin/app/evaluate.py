@@ -87,6 +87,42 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         default=0,
         help="seed of the random train/test splits (default %(default)s)",
     )
+    add_robot_options(p)
+    p.add_argument(
+        "--jobs",
+        type=bounded(int, 1, 1024),
+        default=default_jobs(),
+        help=f"worker processes (default: every core but one, here {default_jobs()}, so the machine stays "
+        "usable)",
+    )
+    p.add_argument(
+        "--cluster",
+        metavar="CLUSTER",
+        help="run the model fits on a Dask cluster instead of --jobs processes: dask-local:N (N local "
+        "workers started for the run) or a scheduler address such as tcp://HOST:8786 (needs "
+        "pip install 'ipromp_pin[dask]'; the cells are the same)",
+    )
+    p.add_argument("--plots", type=Path, help="write PNG figures into this folder")
+    p.add_argument(
+        "--baselines",
+        action="store_true",
+        help="also run logistic regression, LDA, ridge and kNN on window features of the same windows "
+        "(needs scikit-learn)",
+    )
+    p.add_argument(
+        "--closed-loop",
+        action="store_true",
+        help="replay every test demo in the closed loop, the robot starting at the end of the cell's "
+        "window (a fraction cell: after that fraction of the test demo, the paper's protocol; a cell in "
+        "seconds: after those seconds, the online start rule) and add its hand-over error, arrival "
+        "delay, limit ratio, refused re-plans and collisions to each cell",
+    )
+    add_closed_loop_options(p)
+    p.set_defaults(func=main)
+
+
+def add_robot_options(p: argparse.ArgumentParser) -> None:
+    """The options of ``evaluate``'s folds protocol and of the arm that executes the plans."""
     p.add_argument(
         "--folds",
         type=bounded(int, 2, 1000),
@@ -122,37 +158,6 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "each cell gets the peak joint torque ratio; with --closed-loop every re-plan is torque-checked; "
         "docs/objects.md)",
     )
-    p.add_argument(
-        "--jobs",
-        type=bounded(int, 1, 1024),
-        default=default_jobs(),
-        help=f"worker processes (default: every core but one, here {default_jobs()}, so the machine stays "
-        "usable)",
-    )
-    p.add_argument(
-        "--cluster",
-        metavar="CLUSTER",
-        help="run the model fits on a Dask cluster instead of --jobs processes: dask-local:N (N local "
-        "workers started for the run) or a scheduler address such as tcp://HOST:8786 (needs "
-        "pip install 'ipromp_pin[dask]'; the cells are the same)",
-    )
-    p.add_argument("--plots", type=Path, help="write PNG figures into this folder")
-    p.add_argument(
-        "--baselines",
-        action="store_true",
-        help="also run logistic regression, LDA, ridge and kNN on window features of the same windows "
-        "(needs scikit-learn)",
-    )
-    p.add_argument(
-        "--closed-loop",
-        action="store_true",
-        help="replay every test demo in the closed loop, the robot starting at the end of the cell's "
-        "window (a fraction cell: after that fraction of the test demo, the paper's protocol; a cell in "
-        "seconds: after those seconds, the online start rule) and add its hand-over error, arrival "
-        "delay, limit ratio, refused re-plans and collisions to each cell",
-    )
-    add_closed_loop_options(p)
-    p.set_defaults(func=main)
 
 
 def add_window_options(p: argparse.ArgumentParser) -> None:

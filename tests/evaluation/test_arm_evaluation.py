@@ -170,3 +170,17 @@ def test_the_independent_re_evaluation_finds_limits_torques_and_collisions():
     found = np.array([arm.self_collisions(random[i : i + 1], 1) > 0 for i in range(len(random))])
     assert found.any() and not found.all()
     np.testing.assert_array_equal(found, in_collision(robot, random))
+
+
+@pytest.mark.parametrize("name", ["panda", "baxter_left"])
+def test_the_independent_torques_are_the_package_s_dynamics_with_a_point_mass(name):
+    from ipromp_pin.robot.dynamics import ArmDynamics
+    from ipromp_pin.robot.objects import TaskObject
+
+    robot, arm = load_robot(name), UrdfArm(name)
+    q = np.tile(np.random.default_rng(1).uniform(robot.lower_rad, robot.upper_rad), (3, 1))
+    t = np.array([0.0, 0.01, 0.02])
+    payload = TaskObject("rod", 1.5, np.zeros(3), np.zeros((3, 3)), "robot_gives")
+    effort = np.asarray(arm.model.effortLimit)[arm.idx_v]
+    expected = np.abs(ArmDynamics(robot).torques(q[:1], payload=payload)[0]) / effort  # springs too
+    np.testing.assert_allclose(arm.torque_ratios(t, q, np.zeros_like(q), 1.5, step=1), expected, atol=1e-9)

@@ -15,7 +15,8 @@ Printed per dataset and arm: the hand-over poses reached by the inverse kinemati
 retargeted plans or re-plans) and the largest residuals where reached; the median over the demos of
 the hand-over error (the arm's gripper vs the recorded Baxter gripper at the demo's end, scene frame)
 and of the arrival delay, each with its difference to Baxter's; the plans that passed, refused by
-check; and the plans that passed (the replays) with a violation found by the independent
+check (the closed loop: the replays that moved, a re-plan committed toward the hand-over, and the
+refused re-plans by check); and the plans that passed (the replays) with a violation found by the independent
 re-evaluation of the trajectory (:mod:`ipromp_pin.evaluation.independent`: the arm's URDF limits,
 torques with the true task's object over 90 %, self-collision; the human judged against the whole
 recording). Each run's JSON is kept in ``--out`` and reused when it is there (delete it to re-run).
@@ -123,7 +124,7 @@ def closed_rows(doc: dict) -> dict:
         ),
         "error_cm": _median([t["closed_loop_handover_error_cm"] for t in done]),
         "delay_s": _median([t["closed_loop_arrival_delay_s"] for t in done]),
-        "passed": len(done),
+        "passed": sum(bool(t.get("closed_loop_final_task")) for t in done),
         "refused": dict(sorted(refused.items())),
         "violated": len(violated),
         "found": dict(sorted(found.items())),
@@ -145,6 +146,13 @@ def print_table(title: str, rows: dict[str, dict], closed: bool) -> None:
     base = rows.get("baxter_left")
     unit = "replays" if closed else "plans"
     print(f"\n{title}\n")
+    if closed:
+        print(
+            "(replays: passed = moved toward the hand-over, a re-plan committed; refused = re-plans; "
+            "errors and delays: medians over every replay)\n"
+        )
+    else:
+        print("(refused = plans; errors and delays: medians over the passed plans)\n")
     print(
         f"| arm | {unit} | IK reached | largest IK residual [mm / deg] | hand-over error [cm] (vs Baxter) "
         "| arrival delay [s] (vs Baxter) | passed | refused (by check) | passed with a violation "

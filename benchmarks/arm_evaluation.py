@@ -123,6 +123,7 @@ def closed_rows(doc: dict) -> dict:
             (a["max_ik_residual_deg"] for a in arms if a["max_ik_residual_deg"] is not None), default=None
         ),
         "error_cm": _median([t["closed_loop_handover_error_cm"] for t in done]),
+        "final_cm": _median([t["closed_loop_final_error_cm"] for t in done]),
         "delay_s": _median([t["closed_loop_arrival_delay_s"] for t in done]),
         "passed": sum(bool(t.get("closed_loop_final_task")) for t in done),
         "refused": dict(sorted(refused.items())),
@@ -149,7 +150,8 @@ def print_table(title: str, rows: dict[str, dict], closed: bool) -> None:
     if closed:
         print(
             "(replays: passed = moved toward the hand-over, a re-plan committed; refused = re-plans; "
-            "errors and delays: medians over every replay)\n"
+            "errors and delays: medians over every replay; the hand-over error at the recorded hand-over "
+            "time, and where the arm comes to rest)\n"
         )
     else:
         print("(refused = plans; errors and delays: medians over the passed plans)\n")
@@ -173,9 +175,10 @@ def print_table(title: str, rows: dict[str, dict], closed: bool) -> None:
                 d_delay = r["delay_s"] - base["delay_s"]
         refused = ", ".join(f"{k} {v}" for k, v in r["refused"].items()) or "none"
         found = ", ".join(f"{k} {v}" for k, v in r["found"].items())
+        final = f"; at rest {_num(r['final_cm'])}" if "final_cm" in r else ""
         print(
             f"| {arm} | {r['n']} | {reach} | {_num(r['ik_mm'], 3)} / {_num(r['ik_deg'], 3)} "
-            f"| {_num(r['error_cm'])} ({_num(d_err, sign=True)}) | {_num(r['delay_s'])} "
+            f"| {_num(r['error_cm'])} ({_num(d_err, sign=True)}){final} | {_num(r['delay_s'])} "
             f"({_num(d_delay, sign=True)}) | {r['passed']} | {refused} | {r['violated']}"
             f"{f' ({found})' if found else ''} | {_num(r['torque'], 3)} |"
         )

@@ -40,10 +40,12 @@ from pathlib import Path
 
 import numpy as np
 
+from ipromp_pin.evaluation.arm_plans import violations_of
 from ipromp_pin.evaluation.run import EvaluateRequest, run_evaluate
 from ipromp_pin.evaluation.windows import Window
 from ipromp_pin.readers.native import write_demo
 from ipromp_pin.readers.synthetic import make_synthetic_dataset
+from ipromp_pin.robot import load_robot_settings
 
 ARMS = ("baxter_left", "panda", "ur5", "xarm7", "kinova_jaco2")
 OBSERVE = {"chen2017_handover": "orientation,emg", "handover_20171128": "/left_hand_1,emg"}
@@ -77,15 +79,26 @@ def run_one(dataset: Path, arm: str, closed: bool, out: Path, args: argparse.Nam
     return json.loads(path.read_text())
 
 
+def found(judged: dict | None, arm: str) -> list[str]:
+    """What the re-evaluation ``judged`` found violated (recomputed from its measures by
+    :func:`~ipromp_pin.evaluation.arm_plans.violations_of`: the same rule for every run's JSON)."""
+    if judged is None:
+        return []
+    return violations_of(judged, load_robot_settings(arm).human.min_separation_m)
+
+
 def one_shot_rows(doc: dict) -> dict:
     """Per-demo plans of a one-shot run -> the arm's figures."""
+    arm = doc["meta"]["robot"]
     plans = [t["plan"] for c in doc["cells"] for t in c["trials"] if t.get("plan") is not None]
+    for p in plans:
+        p["violations"] = found(p["judged"], arm)
     moved = [p for p in plans if p["retargeted"]]
     reached = [p for p in moved if p["reached"]]
     passed = [p for p in plans if p["passed"]]
     refused = Counter(f for p in plans if not p["passed"] for f in p["failures"])
-    violated = [p for p in passed if p["judged"] is not None and p["judged"]["violations"]]
-    found = Counter(v for p in violated for v in p["judged"]["violations"])
+    violated = [p for p in passed if p["violations"]]
+    kinds = Counter(v for p in violated for v in p["violations"])
     return {
         "n": len(plans),
         "retargeted": len(moved),
@@ -97,7 +110,7 @@ def one_shot_rows(doc: dict) -> dict:
         "passed": len(passed),
         "refused": dict(sorted(refused.items())),
         "violated": len(violated),
-        "found": dict(sorted(found.items())),
+        "found": dict(sorted(kinds.items())),
         "torque": max((p["judged"]["torque_ratio"] for p in plans if p["judged"]), default=None),
     }
 
@@ -107,11 +120,13 @@ def closed_rows(doc: dict) -> dict:
     trials = [t for c in doc["cells"] for t in c["closed_loop_trials"]]
     done = [t for t in trials if t.get("arm") is not None]
     arms = [t["arm"] for t in done]
+    for a in arms:
+        a["violations"] = found(a["judged"], doc["meta"]["robot"])
     refused: Counter[str] = Counter()
     for a in arms:
         refused.update(a["refused"])
-    violated = [a for a in arms if a["judged"] is not None and a["judged"]["violations"]]
-    found = Counter(v for a in violated for v in a["judged"]["violations"])
+    violated = [a for a in arms if a["violations"]]
+    kinds = Counter(v for a in violated for v in a["violations"])
     return {
         "n": len(trials),
         "retargeted": sum(a["retargeted"] for a in arms),
@@ -128,7 +143,7 @@ def closed_rows(doc: dict) -> dict:
         "passed": sum(bool(t.get("closed_loop_final_task")) for t in done),
         "refused": dict(sorted(refused.items())),
         "violated": len(violated),
-        "found": dict(sorted(found.items())),
+        "found": dict(sorted(kinds.items())),
         "torque": max((a["judged"]["torque_ratio"] for a in arms if a["judged"]), default=None),
     }
 

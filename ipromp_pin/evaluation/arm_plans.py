@@ -18,7 +18,7 @@ gripper (:mod:`ipromp_pin.planning.transfer`) and planned and checked on the arm
 * **Both**: every trajectory that would be executed is re-evaluated independently
   (:mod:`.independent`: the arm's URDF limits, torques with the true task's object, self-collision)
   and its human checks are judged against the whole recorded human
-  (:func:`~.scoring.human_measures`); ``violations`` names what either found.
+  (:func:`~.scoring.human_measures`); ``violations`` names what either found (:func:`violations_of`).
 """
 
 from __future__ import annotations
@@ -62,6 +62,29 @@ def human_of(demo: Demo, robot: Robot) -> HumanMotion:
     return human
 
 
+def violations_of(judged: dict, min_separation_m: float = 0.0) -> list[str]:
+    """What a re-evaluation (:meth:`TrajectoryJudge.judge`'s fields) found violated: ``limits``
+    (beyond the URDF's position or velocity limits), ``torques`` (over :data:`TORQUE_FRACTION` of the
+    effort limits, from the URDF or the joint-torque check with the true task's object),
+    ``self_collision``, ``contact_speed`` (control samples beyond the contact-speed limit against the
+    recorded human; the checks' planning margin below it is not a violation) and ``human_contact``
+    (the robot at or within ``min_separation_m`` [m] of the body outside the hand)."""
+    out = []
+    if judged["position_excess_rad"] > 1e-9 or judged["velocity_ratio"] > 1.0 + 1e-9:
+        out.append("limits")
+    torque = judged.get("object_torque_ratio")
+    if judged["torque_ratio"] > TORQUE_FRACTION or (torque is not None and torque > TORQUE_FRACTION):
+        out.append("torques")
+    if judged["self_collisions"]:
+        out.append("self_collision")
+    if judged.get("contact_speed_violations"):
+        out.append("contact_speed")
+    separation = judged.get("human_min_separation_m")
+    if separation is not None and separation <= min_separation_m:
+        out.append("human_contact")
+    return out
+
+
 class TrajectoryJudge:
     """Re-evaluates a trajectory of ``robot`` after the fact (see the module docstring): the URDF
     model is built in each process on first use."""
@@ -87,18 +110,13 @@ class TrajectoryJudge:
         mass = 0.0 if payload is None else float(payload.mass_kg)
         found = self._arm.judge(trajectory.t_s, trajectory.q, trajectory.qd, mass)
         torque = peak_torque_ratio(self._torques, trajectory, demo.task, self.objects)
-        violations = found.violations()
-        if np.isfinite(torque) and torque > TORQUE_FRACTION and "torques" not in violations:
-            violations.append("torques")
         out = {**found.to_dict(), "object_torque_ratio": round(torque, 6) if np.isfinite(torque) else None}
         if human is not None and self._humans.checks:
             measures = human_measures(trajectory, human, self._humans)
             out["human_passed"] = measures.passed
             out["contact_speed_violations"] = measures.contact_speed_violations
             out["human_min_separation_m"] = measures.min_separation_m
-            if not measures.passed:
-                violations.append("human")
-        return out | {"violations": violations}
+        return out | {"violations": violations_of(out, self.robot.settings.human.min_separation_m)}
 
 
 @dataclass

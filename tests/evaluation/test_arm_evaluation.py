@@ -184,3 +184,26 @@ def test_the_independent_torques_are_the_package_s_dynamics_with_a_point_mass(na
     effort = np.asarray(arm.model.effortLimit)[arm.idx_v]
     expected = np.abs(ArmDynamics(robot).torques(q[:1], payload=payload)[0]) / effort  # springs too
     np.testing.assert_allclose(arm.torque_ratios(t, q, np.zeros_like(q), 1.5, step=1), expected, atol=1e-9)
+
+
+def test_violations_of_names_what_the_re_evaluation_found():
+    from ipromp_pin.evaluation.arm_plans import violations_of
+
+    base = {
+        "position_excess_rad": 0.0,
+        "velocity_ratio": 0.5,
+        "torque_ratio": 0.5,
+        "self_collisions": 0,
+        "object_torque_ratio": 0.5,
+        "contact_speed_violations": 0,
+        "human_min_separation_m": 0.05,
+    }
+    assert violations_of(base) == []
+    assert violations_of(base | {"velocity_ratio": 1.01, "self_collisions": 2}) == [
+        "limits",
+        "self_collision",
+    ]
+    assert violations_of(base | {"object_torque_ratio": 0.95}) == ["torques"]  # the object's torques
+    both = base | {"contact_speed_violations": 3, "human_min_separation_m": -0.01}
+    assert violations_of(both) == ["contact_speed", "human_contact"]
+    assert violations_of(base, min_separation_m=0.06) == ["human_contact"]

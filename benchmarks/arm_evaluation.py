@@ -53,12 +53,32 @@ OBSERVE = {"chen2017_handover": "orientation,emg", "handover_20171128": "/left_h
 
 
 def run_one(dataset: Path, arm: str, closed: bool, out: Path, args: argparse.Namespace) -> dict:
-    """The JSON of one evaluation (run unless it is in ``out`` already)."""
-    mode = "closed" if closed else "oneshot"
-    path = out / f"{mode}_{dataset.name}_{arm}.json"
+    """The JSON of one arm on one dataset: the one-shot run of its folds, or the closed-loop runs, one
+    per fold (``closed_<dataset>_<arm>_f<k>.json``), their cells together (each run unless its JSON
+    is in ``out`` already)."""
+    if not closed:
+        return run_folds(
+            dataset,
+            arm,
+            False,
+            list(range(args.oneshot_folds)),
+            out / f"oneshot_{dataset.name}_{arm}.json",
+            args,
+        )
+    docs = [
+        run_folds(dataset, arm, True, [k], out / f"closed_{dataset.name}_{arm}_f{k + 1}.json", args)
+        for k in range(args.closed_loop_folds)
+    ]
+    return docs[0] | {"cells": [c for d in docs for c in d["cells"]]}
+
+
+def run_folds(
+    dataset: Path, arm: str, closed: bool, folds: list[int], path: Path, args: argparse.Namespace
+) -> dict:
+    """The JSON of one evaluation of ``folds`` (0-based), run unless ``path`` exists."""
     if path.exists():
         return json.loads(path.read_text())
-    folds = list(range(args.closed_loop_folds if closed else args.oneshot_folds))
+    mode = "closed" if closed else "oneshot"
     request = EvaluateRequest(
         dataset=dataset,
         observe=[OBSERVE.get(dataset.name, "orientation,emg").split(",")],
@@ -70,12 +90,12 @@ def run_one(dataset: Path, arm: str, closed: bool, out: Path, args: argparse.Nam
         arm_scores=True,
         closed_loop=closed,
         json=path,
-        command=f"benchmarks/arm_evaluation.py ({mode}, {arm})",
+        command=f"benchmarks/arm_evaluation.py ({mode}, {arm}, folds {[k + 1 for k in folds]})",
         log=lambda _line: None,
     )
     t0 = time.perf_counter()
     run_evaluate(request)
-    print(f"  ran {mode} {dataset.name} {arm}: {time.perf_counter() - t0:.0f} s", flush=True)
+    print(f"  ran {path.name}: {time.perf_counter() - t0:.0f} s", flush=True)
     return json.loads(path.read_text())
 
 

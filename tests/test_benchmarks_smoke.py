@@ -18,6 +18,10 @@ HELPERS = {"checkouts.py"}
 """Modules of ``benchmarks/`` that are imported by the scripts, not run."""
 
 EXPECTED = {
+    "arm_evaluation.py": [
+        r"\| panda \| \d+ \| \d+/\d+ \([\d.]+ %\) \| [\d.]+ / [\d.]+ \| [\d.]+ \([-+][\d.]+\)",
+        r"smoke: 2 arms, one-shot and closed loop",
+    ],
     "add_task.py": [r"(?m)^N=3: accuracy of the refit minus the addition: median [-+][\d.]+", r"of a refit"],
     "ab_compare.py": [
         r"full update, 10% observed: [\d.]+ -> [\d.]+",

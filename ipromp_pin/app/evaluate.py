@@ -30,12 +30,14 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("dataset", type=Path, help="dataset folder (one sub-folder per task)")
     p.add_argument(
         "--protocol",
-        choices=["paper", "splits", "both", "open-set"],
+        choices=["paper", "splits", "both", "folds", "open-set"],
         default="paper",
         help="paper: the paper's experiment, per task the first n_train demos train and the next --n-test "
         "test (its cells train on up to 20: 21+ demos per task); splits: every cell over --splits random "
         "train/test splits per task, mean and standard deviation (for smaller datasets, with --grid full "
-        "--n-train); both: one after the other; open-set: the random splits, each task in turn left out of "
+        "--n-train); both: one after the other; folds: per task the demos in --folds seeded random folds, "
+        "each tested once by a model of n_train of the other folds' demos (every demo a test demo once; "
+        "with --grid full --n-train); open-set: the random splits, each task in turn left out of "
         "training, is it recognised as unknown (false reject/accept rates, AUROC; see docs/open_set.md) "
         "(default: paper)",
     )
@@ -85,14 +87,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         default=0,
         help="seed of the random train/test splits (default %(default)s)",
     )
-    p.add_argument("--robot", default=DEFAULT_ROBOT, help="robot settings for the hand-over error")
-    p.add_argument(
-        "--objects",
-        type=Path,
-        help="task file of the objects the gripper holds (default: the shipped robots/objects.toml; "
-        "each cell gets the peak joint torque ratio; with --closed-loop every re-plan is torque-checked; "
-        "docs/objects.md)",
-    )
+    add_robot_options(p)
     p.add_argument(
         "--jobs",
         type=bounded(int, 1, 1024),
@@ -124,6 +119,45 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     )
     add_closed_loop_options(p)
     p.set_defaults(func=main)
+
+
+def add_robot_options(p: argparse.ArgumentParser) -> None:
+    """The options of ``evaluate``'s folds protocol and of the arm that executes the plans."""
+    p.add_argument(
+        "--folds",
+        type=bounded(int, 2, 1000),
+        default=5,
+        help="folds of the folds protocol (default %(default)s)",
+    )
+    p.add_argument(
+        "--run-folds",
+        type=bounded(int, 1, 1000),
+        nargs="+",
+        metavar="I",
+        help="run only these folds of the folds protocol, 1-based (default: every fold)",
+    )
+    p.add_argument(
+        "--robot",
+        default=DEFAULT_ROBOT,
+        help="robot settings for the hand-over error; an arm with [placement] (panda, ur5, xarm7, "
+        "kinova_jaco2) executes the model of its source robot: the recordings are read with the source's "
+        "joints and every test plan (one-shot) or re-plan (--closed-loop) is retargeted, planned and "
+        "checked on the arm (docs/other_arms.md)",
+    )
+    p.add_argument(
+        "--arm-scores",
+        action="store_true",
+        help="score the plans on the robot as for a placed arm, for an arm of its own model too: every "
+        "one-shot trial planned (timed, checked, re-timed) and scored against the recording, every "
+        "executed trajectory re-evaluated independently (always on for a placed arm)",
+    )
+    p.add_argument(
+        "--objects",
+        type=Path,
+        help="task file of the objects the gripper holds (default: the shipped robots/objects.toml; "
+        "each cell gets the peak joint torque ratio; with --closed-loop every re-plan is torque-checked; "
+        "docs/objects.md)",
+    )
 
 
 def add_window_options(p: argparse.ArgumentParser) -> None:
@@ -175,7 +209,10 @@ def main(args: argparse.Namespace) -> int:
         n_test=args.n_test,
         n_splits=args.splits,
         seed=args.seed,
+        n_folds=args.folds,
+        run_folds=None if args.run_folds is None else [i - 1 for i in args.run_folds],
         robot=args.robot,
+        arm_scores=args.arm_scores,
         jobs=args.jobs,
         cluster=args.cluster,
         baselines=args.baselines,

@@ -9,4 +9,7 @@
 - ``scorers/``: one scorer per file (one-shot, closed loop, baselines) behind ``Scorer``.
 - ``baselines/``: the scikit-learn baselines, one per file behind a registry.
 - ``evaluate.py``, ``closed_loop.py``: the one-shot and closed-loop entry points.
+- ``arm_plans.py``: the plans on the executing arm (another arm retargeted from the recordings' robot,
+  ``evaluate --robot NAME``), scored and re-evaluated; ``arm_tables.py``: their Markdown.
+- ``independent.py``: a trajectory re-evaluated from the arm's URDF, independently of the checks.
 """

@@ -59,6 +59,8 @@ class Cell:
     ``accuracy_std`` over splits) for the classifiers, the median ``handover_error_cm``,
     ``joint_rmse_rad`` and ``final_joint_error_rad`` over the trials ipromp_pin recognised for the
     regressors (the true task given to them).
+    ``plans`` (one-shot plans on the executing arm, ``evaluate --robot NAME`` of a placed arm or
+    ``--plan``): :func:`~.arm_plans.plan_summary` of the cell's trials (None: not planned).
     """
 
     protocol: str
@@ -89,6 +91,7 @@ class Cell:
     brier: float | None = None
     ece: float | None = None
     baselines: dict[str, dict[str, float | None]] = field(default_factory=dict)
+    plans: dict[str, Any] | None = None
     trials: list[dict] = field(default_factory=list)
 
     def __post_init__(self) -> None:
@@ -124,6 +127,8 @@ class ClosedLoopCell(Cell):
     none of the tasks throughout, ``require_known``; their hand-over error is from the rest pose),
     ``stopped_unknown`` those in which it stopped because the observation turned unknown after it
     started and ``retreated`` those in which it then retreated (:mod:`~ipromp_pin.planning.unknown_stop`).
+    ``arm``: the re-plans on an arm executing a model of another robot
+    (:func:`~.arm_plans.replay_arm_summary`; None: the arm's own model).
     """
 
     limit_profile: str = ""
@@ -144,6 +149,7 @@ class ClosedLoopCell(Cell):
     protective_distance_time_s: float | None = None
     contact_speed_violations: int | None = None
     arrival_delay_without_human_s: float | None = None
+    arm: dict[str, Any] | None = None
     closed_loop_trials: list[dict] = field(default_factory=list)
 
 

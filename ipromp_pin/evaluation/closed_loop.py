@@ -25,6 +25,7 @@ from ..data import Dataset
 from ..robot import gripper_kinematics, load_robot
 from ..robot.objects import ObjectTable
 from ..shipped import DEFAULT_ROBOT
+from .arm_plans import TrajectoryJudge, recordings_robot
 from .cells import ClosedLoopCell
 from .config import EvaluationConfig, ProgressFn
 from .jobs import JobRunner
@@ -32,6 +33,7 @@ from .protocol import run_protocol
 from .scorers import BaselineScorer
 from .scorers.closed_loop import (
     TRIAL_KEYS,
+    ArmReplay,
     ClosedLoopOptions,
     ClosedLoopScorer,
     ClosedLoopTrial,
@@ -42,6 +44,7 @@ from .tables import closed_loop_markdown, write_closed_loop_results
 
 __all__ = [
     "TRIAL_KEYS",
+    "ArmReplay",
     "ClosedLoopCell",
     "ClosedLoopOptions",
     "ClosedLoopTrial",
@@ -61,18 +64,28 @@ def evaluate_closed_loop(
     progress: ProgressFn | None = None,
     jobs: int | JobRunner = 1,
     objects: ObjectTable | None = None,
+    judge: bool = False,
 ) -> list[ClosedLoopCell]:
     """Run one protocol with the closed loop over every cell of ``config`` (see the module docstring).
 
     The random splits are those :func:`~ipromp_pin.evaluation.evaluate.evaluate` draws for the same
     seed. With ``config.baselines`` the cells also get the baselines' summaries. With ``objects``
     (:mod:`ipromp_pin.robot.objects`) every re-plan is torque-checked and ``peak_torque_ratio`` scored.
+    An arm with a ``[placement]`` replays its source robot's recordings (``dataset``) with every
+    re-plan retargeted (:class:`~.scorers.closed_loop.ArmReplay`), its commanded trajectories
+    re-evaluated (:class:`~.arm_plans.TrajectoryJudge`), each cell's ``arm`` summarising them;
+    ``judge``: re-evaluate them for an arm of its own model too.
     """
     options = options or ClosedLoopOptions()
     options.settings.validate("closed loop")
     config.check_protocol()
     loaded = load_robot(robot)
-    scorer = ClosedLoopScorer(loaded, options, config.model_params, Path(str(dataset.root)).name, objects)
-    extras = [BaselineScorer(gripper_kinematics(loaded).fk)] if config.baselines else []
+    source = recordings_robot(loaded)
+    arm = None
+    if source is not None or judge:
+        arm = ArmReplay(source, TrajectoryJudge(loaded, objects))
+    name = Path(str(dataset.root)).name
+    scorer = ClosedLoopScorer(loaded, options, config.model_params, name, objects, arm)
+    extras = [BaselineScorer(gripper_kinematics(source or loaded).fk)] if config.baselines else []
     cells = run_protocol(dataset, config, scorer, extras, progress, jobs)
     return [c for c in cells if isinstance(c, ClosedLoopCell)]

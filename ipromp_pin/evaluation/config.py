@@ -24,7 +24,7 @@ PAPER_ACCURACY: dict[tuple[int, float, str], dict[str, float]] = {
 }
 """Accuracies reported in the paper (Chen et al. 2017) on ``chen2017_handover``, per task."""
 
-PROTOCOLS = ("paper", "splits", "open-set")
+PROTOCOLS = ("paper", "splits", "folds", "open-set")
 """The evaluation protocols."""
 
 ProgressFn = Callable[[int, int, str], None]
@@ -36,8 +36,10 @@ class EvaluationConfig:
     """Settings of an evaluation run.
 
     Attributes:
-        protocol: ``"paper"``, ``"splits"`` or ``"open-set"`` (the random splits, each task left out
-            in turn: :mod:`~ipromp_pin.evaluation.open_set`).
+        protocol: ``"paper"``, ``"splits"``, ``"folds"`` (k-fold: per task the demos in ``n_folds``
+            seeded random folds, each fold tested once by a model of ``n_train`` of the other folds'
+            demos, so that every demo is a test demo once) or ``"open-set"`` (the random splits, each
+            task left out in turn: :mod:`~ipromp_pin.evaluation.open_set`).
         observe: Observed channel sets, each a list of group names.
         grid: (n_train, window) cells: a window is an observed fraction of each test demo (a float,
             the paper's ``obs_ratio``) or a :class:`~.windows.Window` (e.g. in seconds).
@@ -47,6 +49,8 @@ class EvaluationConfig:
         model_params: Keyword arguments of the model's constructor.
         baselines: Also run the reference baselines on the same windows
             (:mod:`ipromp_pin.evaluation.baselines`).
+        n_folds: Folds of the ``folds`` protocol.
+        run_folds: The folds run (0-based; None: every fold).
     """
 
     protocol: str = "paper"
@@ -57,12 +61,21 @@ class EvaluationConfig:
     seed: int = 0
     model_params: dict = field(default_factory=dict)
     baselines: bool = False
+    n_folds: int = 5
+    run_folds: list[int] | None = None
 
     def check_protocol(self) -> None:
         """Raise a :class:`DataError` naming the field when the protocol is not one of :data:`PROTOCOLS`."""
         if self.protocol not in PROTOCOLS:
             raise DataError(
-                None, "protocol", f"unknown protocol '{self.protocol}' (use paper, splits or open-set)"
+                None, "protocol", f"unknown protocol '{self.protocol}' (use paper, splits, folds or open-set)"
+            )
+        bad = [f for f in self.run_folds or [] if not 0 <= f < self.n_folds]
+        if self.protocol == "folds" and (self.n_folds < 2 or bad):
+            raise DataError(
+                None,
+                "folds",
+                f"{self.n_folds} folds, folds to run {bad}: at least 2 folds, each run one of them",
             )
 
     def cells(self) -> list[tuple[int, Window]]:
@@ -71,8 +84,15 @@ class EvaluationConfig:
 
     @property
     def repeats(self) -> int:
-        """Model fits per (n_train, observed set): 1 for the paper protocol, ``n_splits`` otherwise."""
+        """Model fits per (n_train, observed set): 1 for the paper protocol, the folds run for
+        ``folds``, ``n_splits`` otherwise."""
+        if self.protocol == "folds":
+            return len(self.fold_indices())
         return 1 if self.protocol == "paper" else self.n_splits
+
+    def fold_indices(self) -> list[int]:
+        """The folds run by the ``folds`` protocol (0-based, in order)."""
+        return sorted(set(self.run_folds)) if self.run_folds else list(range(self.n_folds))
 
 
 def observe_key(observe: Sequence[str]) -> str:

@@ -35,6 +35,7 @@ from ..data import Dataset
 from ..robot import gripper_kinematics, load_robot
 from ..robot.objects import ObjectTable
 from ..shipped import DEFAULT_ROBOT
+from .arm_plans import TrialPlanner, recordings_robot
 from .cells import PROBABILITY_FLOOR, Cell, cell_fields, summarise
 from .config import PAPER_ACCURACY, PAPER_GRID, EvaluationConfig, ProgressFn, observe_key
 from .jobs import JobRunner, run_jobs
@@ -90,28 +91,41 @@ def evaluate(
     progress: ProgressFn | None = None,
     jobs: int | JobRunner = 1,
     objects: ObjectTable | None = None,
+    plan: bool = False,
 ) -> list[Cell]:
     """Run one protocol over every cell of ``config`` and return the table.
 
     Args:
-        dataset: Demos of every task, in protocol order.
+        dataset: Demos of every task, in protocol order (an arm with a ``[placement]``: recorded on
+            its placement's source robot, :func:`~.arm_plans.recordings_robot`).
         config: Protocol, grid and observed channel sets.
         robot: Robot settings (name or file) for the hand-over position error through forward
-            kinematics; ``None`` skips it.
+            kinematics; ``None`` skips it. An arm with a ``[placement]`` executes the model of its
+            source robot: every trial's one-shot plan is retargeted and planned on it.
         progress: Called as ``progress(done, total, label)`` after every model fit.
         jobs: Worker processes (model fits run in parallel), or a :class:`~.jobs.JobRunner` (a
             Dask cluster); the results do not depend on it.
         objects: The tasks' objects (:mod:`ipromp_pin.robot.objects`): with a robot, every trial's
             one-shot plan is torque-scored and the cells get ``peak_torque_ratio`` (None: not).
+        plan: Plan every trial's one-shot hand-over on the robot (timed, checked, re-timed) and
+            score it against the recording (:class:`~.arm_plans.TrialPlanner`; each cell's
+            ``plans``); always for a placed arm.
     """
     config.check_protocol()
-    fk = robot_fk(robot)
+    executing = load_robot(robot) if robot is not None else None
+    source = recordings_robot(executing) if executing is not None else None
+    recorded = source or executing
+    fk = None if recorded is None else gripper_kinematics(recorded).fk
+    fk_rot = None if recorded is None else gripper_kinematics(recorded).fk_rot
     extras = [BaselineScorer(fk)] if config.baselines else []
-    loaded = load_robot(robot) if robot is not None and objects is not None else None
+    planner = None
+    if executing is not None and (plan or source is not None):
+        planner = TrialPlanner(executing, source, objects)
+    loaded = recorded if objects is not None and source is None else None
     return run_protocol(
         dataset,
         config,
-        OneShotScorer(config.model_params, fk, robot_fk_rotations(robot), loaded, objects),
+        OneShotScorer(config.model_params, fk, fk_rot, loaded, objects, planner),
         extras,
         progress,
         jobs,

@@ -33,6 +33,7 @@ from ..robot import Robot, load_robot
 from ..robot.objects import load_objects
 from ..robot.recordings import read_recordings
 from ..shipped import DEFAULT_ROBOT
+from .arm_plans import recordings_robot
 from .baselines import require_sklearn
 from .cells import Cell
 from .closed_loop import ClosedLoopOptions, evaluate_closed_loop
@@ -66,8 +67,16 @@ class EvaluateRequest:
         protocols: Protocols to run, in order (``"paper"``, ``"splits"``).
         n_test: Test demos per task.
         n_splits: Random splits (``splits`` protocol).
-        seed: Seed of the random splits.
-        robot: Robot settings (name or file).
+        seed: Seed of the random splits (and of the folds).
+        n_folds: Folds of the ``folds`` protocol.
+        run_folds: The folds it runs (0-based; None: all).
+        robot: Robot settings (name or file). An arm with a ``[placement]`` executes the model of its
+            source robot: the recordings are read with the source's joints, every test plan (one-shot)
+            or re-plan (closed loop) retargeted to the arm, planned and checked there
+            (:mod:`~.arm_plans`).
+        arm_scores: Score the plans on the robot for an arm of its own model too: every one-shot
+            trial planned (:class:`~.arm_plans.TrialPlanner`), every commanded trajectory
+            re-evaluated (always for a placed arm).
         jobs: Worker processes.
         cluster: A Dask cluster to run the model fits on instead (``dask-local:N`` or a scheduler
             address such as ``tcp://HOST:8786``; :mod:`~ipromp_pin.evaluation.dask_cluster`).
@@ -96,7 +105,10 @@ class EvaluateRequest:
     n_test: int = 10
     n_splits: int = 20
     seed: int = 0
+    n_folds: int = 5
+    run_folds: list[int] | None = None
     robot: str = DEFAULT_ROBOT
+    arm_scores: bool = False
     jobs: int = 1
     cluster: str | None = None
     baselines: bool = False
@@ -128,6 +140,8 @@ class EvaluateRequest:
                 n_splits=self.n_splits,
                 seed=self.seed,
                 baselines=self.baselines,
+                n_folds=self.n_folds,
+                run_folds=self.run_folds,
             )
             for protocol in self.protocols
         ]
@@ -246,17 +260,24 @@ def check_request(request: EvaluateRequest) -> Robot:
 
 
 def read_dataset(request: EvaluateRequest, robot: Robot) -> Dataset:
-    """The dataset, its arm joints and limits those of ``robot``; says what was read in how long."""
+    """The dataset, its arm joints and limits those of ``robot`` (of its placement's source for an
+    arm with a ``[placement]``: :func:`~.arm_plans.recordings_robot`); says what was read in how long."""
     t0 = time.perf_counter()
+    recorded = recordings_robot(robot) or robot
     ds = read_recordings(
         request.dataset,
-        robot,
+        recorded,
         format=request.format,
         frames=skeleton_frames(g for o in request.observe for g in o),
         progress=request.progress() if request.progress else None,
     )
     request.log(
         f"read {len(ds.all_demos())} demos of {', '.join(ds.tasks)} in {time.perf_counter() - t0:.1f} s"
+        + (
+            ""
+            if recorded is robot
+            else f", recorded on {recorded.settings.name} (executed by {robot.settings.name})"
+        )
     )
     return ds
 
@@ -286,10 +307,12 @@ def run_evaluations(request: EvaluateRequest, ds: Dataset, where: int | JobRunne
             cells += evaluate_open_set(ds, cfg, request.alpha, progress, where)  # type: ignore[arg-type]
             request.log(f"protocol open-set: {time.perf_counter() - t1:.1f} s")
         elif request.closed_loop:
-            cells += evaluate_closed_loop(ds, cfg, options, request.robot, progress, where, objects)
+            cells += evaluate_closed_loop(
+                ds, cfg, options, request.robot, progress, where, objects, request.arm_scores
+            )
             request.log(f"protocol {cfg.protocol} (closed loop): {time.perf_counter() - t1:.1f} s")
         else:
-            cells += evaluate(ds, cfg, robot=request.robot, progress=progress, jobs=where, objects=objects)
+            cells += evaluate(ds, cfg, request.robot, progress, where, objects, plan=request.arm_scores)
             request.log(f"protocol {cfg.protocol}: {time.perf_counter() - t1:.1f} s")
     return cells
 
@@ -297,7 +320,12 @@ def run_evaluations(request: EvaluateRequest, ds: Dataset, where: int | JobRunne
 def report(request: EvaluateRequest, cells: list[Cell], seconds: float) -> None:
     """Print the tables, write the JSON, Markdown and plot, and print the summary."""
     md = request.md_path
-    meta: dict = {"dataset": str(request.dataset), "command": request.command, "seconds": round(seconds, 2)}
+    meta: dict = {
+        "dataset": str(request.dataset),
+        "command": request.command,
+        "seconds": round(seconds, 2),
+        **executed_by(request.robot),
+    }
     open_set: list[OpenSetCell] = [c for c in cast(list[Any], cells) if isinstance(c, OpenSetCell)]
     if open_set:  # its own table (the other protocols' cells, if any, below)
         request.log(open_set_markdown(open_set))
@@ -330,6 +358,14 @@ def report(request: EvaluateRequest, cells: list[Cell], seconds: float) -> None:
             request.log(f"{key}: mean accuracy {o['mean_accuracy']:.3f} over {o['cells']} cells{paper}")
     if request.json:
         request.log(f"wrote {request.json}" + (f" and {md}" if md else ""))
+
+
+def executed_by(robot: str) -> dict[str, str | None]:
+    """The results' ``robot`` (the executing arm's name) and ``source_robot`` (the robot of the
+    recordings and the model when the arm executes it retargeted; None: its own)."""
+    loaded = load_robot(robot)
+    source = recordings_robot(loaded)
+    return {"robot": loaded.settings.name, "source_robot": None if source is None else source.settings.name}
 
 
 def run_evaluate(request: EvaluateRequest) -> list[Cell]:

@@ -446,6 +446,8 @@ class TrialResult:
         observed_s: Time of the last observed sample, in [s] from the demo's start.
         observed_fraction: The fraction of the demo's length its window covers (the unobserved part
             the joint errors are over starts there).
+        plan: The one-shot plan on the executing arm, scored (:class:`~.arm_plans.PlannedTrial`;
+            None: not planned).
     """
 
     task: str
@@ -467,6 +469,7 @@ class TrialResult:
     peak_torque_ratio: float = float("nan")
     observed_s: float = float("nan")
     observed_fraction: float = float("nan")
+    plan: Any = None
 
     @property
     def correct(self) -> bool:

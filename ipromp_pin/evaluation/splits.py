@@ -38,6 +38,9 @@ def check_dataset_size(counts: Mapping[str, int], config: EvaluationConfig, sour
         config: The evaluation settings.
         source: The dataset (folder) named in the error.
     """
+    if config.protocol == "folds":
+        check_fold_sizes(counts, config, source)
+        return
     need = max(n for n, _ in config.grid) + 1
     task, have = min(counts.items(), key=lambda kv: kv[1])
     if have >= need:
@@ -50,6 +53,36 @@ def check_dataset_size(counts: Mapping[str, int], config: EvaluationConfig, sour
         f"n_train={need - 1} need {need} per task (n_train to train, 1+ to test); use --protocol splits "
         f"--grid full --n-train {' '.join(str(n) for n in fits)}",
     )
+
+
+def check_fold_sizes(counts: Mapping[str, int], config: EvaluationConfig, source: object = None) -> None:
+    """The ``folds`` protocol's sizes: every task has at least ``n_folds`` demos (a fold each) and,
+    outside its largest fold, the grid's largest ``n_train`` to train on (a :class:`DataError`
+    naming the task otherwise)."""
+    n_train = max(n for n, _ in config.grid)
+    for task, have in counts.items():
+        others = have - -(-have // config.n_folds)
+        if have < config.n_folds or others < n_train:
+            raise DataError(
+                source,
+                task,
+                f"{have} demos: {config.n_folds} folds leave {max(others, 0)} outside a fold to train on, "
+                f"the cells train on {n_train} (use fewer folds or a smaller --n-train)",
+            )
+
+
+def fold_indices(dataset: Dataset, n_train: int, n_folds: int, fold: int, seed: int) -> Indices:
+    """Per task, its demos in ``n_folds`` folds of a random permutation (seeded by ``seed``, the same
+    for every fold and training size): fold ``fold`` tests, the first ``n_train`` of the other
+    folds' demos (in permutation order) train."""
+    rng = np.random.default_rng(seed)
+    out = {}
+    for task in dataset.tasks:
+        perm = rng.permutation(len(dataset.demos[task]))
+        parts = np.array_split(perm, n_folds)
+        rest = np.concatenate([p for k, p in enumerate(parts) if k != fold])
+        out[task] = (rest[:n_train].tolist(), parts[fold].tolist())
+    return out
 
 
 def paper_indices(dataset: Dataset, n_train: int, n_test: int) -> Indices:
@@ -126,7 +159,7 @@ class RandomSplits:
 
 
 def splitter(config: EvaluationConfig) -> PaperSplit | RandomSplits:
-    """The splitter of ``config.protocol``."""
+    """The splitter of ``config.protocol`` (``paper`` or ``splits``)."""
     config.check_protocol()
     if config.protocol == "paper":
         return PaperSplit(config.n_test)
@@ -135,9 +168,15 @@ def splitter(config: EvaluationConfig) -> PaperSplit | RandomSplits:
 
 def iter_splits(dataset: Dataset, config: EvaluationConfig) -> Iterator[tuple[int, int, Indices]]:
     """(repeat, n_train, indices) of every split of ``config``: per repeat, the training sizes of
-    the grid from the largest down (the order that fixes the random draws for a seed)."""
-    split = splitter(config)
+    the grid from the largest down (the order that fixes the random draws for a seed); for the
+    ``folds`` protocol the repeat is the fold (:func:`fold_indices`)."""
     n_train_values = sorted({n for n, _ in config.grid}, reverse=True)
+    if config.protocol == "folds":
+        for fold in config.fold_indices():
+            for n_train in n_train_values:
+                yield fold, n_train, fold_indices(dataset, n_train, config.n_folds, fold, config.seed)
+        return
+    split = splitter(config)
     for rep in range(config.repeats):
         for n_train in n_train_values:
             yield rep, n_train, split.split(dataset, n_train)

@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import atomic
+from .arm_tables import arm_markdown, plans_markdown
 from .baselines import CLASSIFIERS, REGRESSORS
 from .cells import Cell, ClosedLoopCell, median
 from .config import observe_key
@@ -97,8 +98,9 @@ def window_column(cells: Sequence[Cell]) -> str:
 def to_markdown(cells: Sequence[Cell]) -> str:
     """The accuracy table (and prediction errors) as Markdown: per protocol, the cells observing a
     fraction of each test demo, then those observing windows in seconds, then both side by side
-    (:func:`window_comparison_markdown`)."""
-    lines: list[str] = []
+    (:func:`window_comparison_markdown`); first the plans on the executing arm, when planned
+    (:func:`~.arm_tables.plans_markdown`)."""
+    lines: list[str] = plans_markdown(cells)
     for protocol in dict.fromkeys(c.protocol for c in cells):
         pc = [c for c in cells if c.protocol == protocol]
         fractions = [c for c in pc if c.window_kind == "ratio"]
@@ -342,8 +344,9 @@ START_KINDS = {
 
 
 def closed_loop_markdown(cells: Sequence[ClosedLoopCell]) -> str:
-    """The closed-loop table (one row per cell) and its medians over cells, as Markdown."""
-    lines = []
+    """The closed-loop table (one row per cell) and its medians over cells, as Markdown; first the
+    re-plans on the executing arm, when measured (:func:`~.arm_tables.arm_markdown`)."""
+    lines = arm_markdown(cells)
     for protocol in dict.fromkeys(c.protocol for c in cells):
         pc = [c for c in cells if c.protocol == protocol]
         profile = ", ".join(dict.fromkeys(c.limit_profile for c in pc))

@@ -147,7 +147,7 @@ _ROBOT_CACHE: dict[tuple, Robot] = {}
 :func:`load_robot`."""
 
 ROBOT_CACHE_SIZE = 8
-"""Most robots kept in the cache (the oldest is dropped)."""
+"""Most robots kept in the cache (the least recently used is dropped)."""
 
 
 def settings_digest(settings: RobotSettings) -> str:

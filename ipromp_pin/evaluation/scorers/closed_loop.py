@@ -33,6 +33,7 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from ...data import Demo
+from ...exceptions import UnreachableError
 from ...human import HumanMotion
 from ...motion.limits import LimitProfile, choose_limit_profile, read_limit_profile
 from ...planning.closed_loop import ClosedLoopResult, ClosedLoopSettings, conditioning_predictor, replay_demo
@@ -41,6 +42,7 @@ from ...promp import IProMP
 from ...robot import DemoLimitRecipe, Robot, gripper_kinematics
 from ...robot.objects import ObjectTable
 from ...safety import HUMAN_CHECKS, CheckContext, CheckSuite
+from ..arm_plans import TrajectoryJudge, human_of, replay_arm_measures, replay_arm_summary
 from ..cells import CellResults, ClosedLoopCell, baseline_summary, median
 from ..config import EvaluationConfig
 from ..scoring import ClosedLoopScore, TrialResult, mean_handover_rotations, replay_scored, score_trial
@@ -81,11 +83,15 @@ class ClosedLoopTrial(TrialResult):
 
     Attributes:
         split: Index of the split of the test demo.
-        closed_loop: The replay's measures.
+        closed_loop: The replay's measures (None: refused before the loop, the executing arm cannot
+            reach the recorded start pose).
+        arm: The re-plans on the executing arm and the re-evaluation of the commanded trajectory
+            (:func:`~..arm_plans.replay_arm_measures`; None: not measured).
     """
 
     split: int = 0
     closed_loop: ClosedLoopScore | None = None
+    arm: dict | None = None
 
     def to_row(self) -> dict:
         """The record form: the one-shot fields, ``correct``, then the closed loop's prefixed
@@ -120,6 +126,7 @@ TRIAL_KEYS = (
     "closed_loop_arrival_delay_without_human_s",
     "closed_loop_stop_s",
     "closed_loop_retreat_s",
+    "arm",
 )
 """The fields of a trial kept in a cell's ``closed_loop_trials`` (floats rounded to 4 decimals)."""
 
@@ -137,7 +144,7 @@ def profile_for(options: ClosedLoopOptions, robot: Robot, train: Sequence[Demo],
 
 
 def closed_loop_score(trial: ClosedLoopTrial) -> ClosedLoopScore:
-    """The trial's closed-loop measures (:func:`replay_trials` scores every trial it makes)."""
+    """The trial's closed-loop measures (:func:`replay_trials` scores every trial it replays)."""
     assert trial.closed_loop is not None, "a replayed trial has its closed-loop score"
     return trial.closed_loop
 
@@ -171,6 +178,7 @@ def replay_trials(
     split: int = 0,
     mean_rot: dict[str, np.ndarray] | None = None,
     objects: ObjectTable | None = None,
+    arm: ArmReplay | None = None,
 ) -> list[ClosedLoopTrial]:
     """Replay every test demo starting at the end of ``window`` (:func:`start_settings`); one
     :class:`ClosedLoopTrial` each, its one-shot fields from the same window.
@@ -179,9 +187,14 @@ def replay_trials(
     demos with a tracked skeleton, against the recorded human as observed until each re-plan, and are
     then judged against the whole recording (:func:`~ipromp_pin.evaluation.scoring.replay_scored`).
     ``mean_rot``: the orientation baseline per task (training demos). ``objects``: the tasks'
-    objects; the commanded motion's peak torque ratio is scored with the true task's object."""
+    objects; the commanded motion's peak torque ratio is scored with the true task's object.
+    ``arm``: the recordings' robot when ``robot`` executes its model retargeted, and the judge of
+    every commanded trajectory (:class:`ArmReplay`; a demo without a tracked skeleton is then replayed
+    with the human checks of the assumed human, as ``replay`` checks it, and judged against it); a
+    replay whose start the arm cannot reach is a trial without ``closed_loop``."""
     observe = list(model.observe_)
-    fk, fk_rot = gripper_kinematics(robot)
+    source = None if arm is None else arm.source
+    fk, fk_rot = gripper_kinematics(robot if source is None else source)
     window = FitWindow.of(window)
     run = start_settings(settings, window)
     conditioner = conditioning_predictor(model, run.condition_noise)
@@ -190,18 +203,42 @@ def replay_trials(
         prediction = predict_window(model, d, window, observe)
         fraction = window.fraction(d)
         one_shot = score_trial(prediction, d, fraction, fk, fk_rot, (mean_rot or {}).get(d.task))
-        human = (
-            HumanMotion.from_demo(d, robot.settings.human) if set(HUMAN_CHECKS) & set(suite.names) else None
-        )
+        checks_human = bool(set(HUMAN_CHECKS) & set(suite.names))
+        tracked = HumanMotion.from_demo(d, robot.settings.human) if checks_human else None
+        human = tracked
+        if human is None and checks_human and arm is not None and arm.judge is not None:
+            human = human_of(d, robot)  # the assumed human, as ``replay`` checks it
         used = suite if human is not None else suite.without(HUMAN_CHECKS)
 
         def replay(checks: CheckSuite, context: CheckContext, demo: Demo = d) -> ClosedLoopResult:
-            return replay_demo(model, robot, demo, profile, run, checks, context, conditioner)
+            return replay_demo(model, robot, demo, profile, run, checks, context, conditioner, source)
 
         context = CheckContext(human=human, objects=objects)
-        score, _ = replay_scored(replay, d, robot, used, context, human, check_collisions)
-        out.append(ClosedLoopTrial(**one_shot.__dict__, split=split, closed_loop=score))
+        try:
+            score, result = replay_scored(replay, d, robot, used, context, tracked, check_collisions, source)
+        except UnreachableError:
+            out.append(ClosedLoopTrial(**one_shot.__dict__, split=split, closed_loop=None))
+            continue
+        measured = None
+        if arm is not None and arm.judge is not None:
+            judged = arm.judge.judge(result.trajectory, d, human)
+            measured = replay_arm_measures(result, judged)
+        out.append(ClosedLoopTrial(**one_shot.__dict__, split=split, closed_loop=score, arm=measured))
     return out
+
+
+@dataclass
+class ArmReplay:
+    """How the closed loop's arm is measured.
+
+    Attributes:
+        source: The robot whose joints the recordings and the model hold when the arm executes them
+            retargeted (its ``[placement] source``; None: the arm's own).
+        judge: Re-evaluates every commanded trajectory (None: not re-evaluated).
+    """
+
+    source: Robot | None = None
+    judge: TrajectoryJudge | None = None
 
 
 class ClosedLoopScorer(Scorer):
@@ -215,6 +252,10 @@ class ClosedLoopScorer(Scorer):
         label: Name of the dataset, in the demonstrated profile's name.
         objects: The tasks' objects (:mod:`ipromp_pin.robot.objects`): every re-plan is torque-checked
             and each trial's ``peak_torque_ratio`` scored (``None``: neither).
+        arm: The recordings' robot when ``robot`` executes its model retargeted (the model is fitted
+            with its kinematics; the ``demonstrated`` profile, derived from its joints, becomes the
+            arm's ``conservative`` one) and the judge of every commanded trajectory; each cell then
+            gets ``arm`` (:class:`ArmReplay`; None: the arm's own model, nothing re-evaluated).
     """
 
     label = "closed loop "
@@ -227,8 +268,10 @@ class ClosedLoopScorer(Scorer):
         model_params: dict | None = None,
         label_name: str = "",
         objects: ObjectTable | None = None,
+        arm: ArmReplay | None = None,
     ) -> None:
         self.robot = robot
+        self.arm = arm
         self.options = options
         self.model_params = dict(model_params or {})
         self.label_name = label_name
@@ -246,14 +289,16 @@ class ClosedLoopScorer(Scorer):
         if self.suite_ is None:  # once per process
             self.suite_ = evaluation_suite(self.robot, self.objects, self.options.human)
         self.suite_.reset()  # each job's replays start from no cache, whichever jobs ran before
-        fk, fk_rot = gripper_kinematics(self.robot)  # settings chosen for the hand-over position
+        source = None if self.arm is None else self.arm.source
+        fk, fk_rot = gripper_kinematics(source or self.robot)  # settings chosen for the hand-over position
         model = IProMP(observe=list(observe), **self.model_params)
         self.model_ = model.fit(train, fk=fk, fk_rot=fk_rot)
-        if (
-            self.options.human and self.options.human_forecast
-        ):  # the handing arm's forecast, calibrated on the training demos
+        if self.options.human and self.options.human_forecast:  # the body's forecast, on the training demos
             self.model_ = with_forecast(self.model_, train, self.robot.settings.human)
-        self.profile_ = profile_for(self.options, self.robot, train, self.label_name)
+        options = self.options
+        if source is not None and options.limits == "demonstrated":  # the demos are the source's joints
+            options = dataclasses.replace(options, limits="conservative")
+        self.profile_ = profile_for(options, self.robot, train, self.label_name)
         self.mean_rot_ = mean_handover_rotations(train, fk_rot)
         return self
 
@@ -271,6 +316,7 @@ class ClosedLoopScorer(Scorer):
             split,
             self.mean_rot_,
             self.objects,
+            self.arm,
         )
 
     def fit_facts(self) -> dict[str, str]:
@@ -281,7 +327,7 @@ class ClosedLoopScorer(Scorer):
         """The closed-loop medians, maximum and sums (see the module docstring), the baselines'
         summaries (``--baselines``) and every trial's :func:`compact` record."""
         flat: list[ClosedLoopTrial] = [r for rep in reps for r in rep]
-        scores = [closed_loop_score(t) for t in flat]
+        scores = [closed_loop_score(t) for t in flat if t.closed_loop is not None]
         profiles = [f["limit_profile"] for f in results.fits if "limit_profile" in f]
         return {
             "baselines": baseline_summary(reps, config.protocol == "splits"),
@@ -305,8 +351,17 @@ class ClosedLoopScorer(Scorer):
                 (s.peak_torque_ratio for s in scores if np.isfinite(s.peak_torque_ratio)), default=None
             ),
             **human_cell_fields(scores),
+            "arm": self.arm_summary(flat),
             "closed_loop_trials": [compact(t) for t in flat],
         }
+
+    def arm_summary(self, flat: Sequence[ClosedLoopTrial]) -> dict | None:
+        """The cell's ``arm`` (:func:`~..arm_plans.replay_arm_summary`; None without :attr:`arm`)."""
+        if self.arm is None:
+            return None
+        source = None if self.arm.source is None else self.arm.source.settings.name
+        rows = [t.arm if t.closed_loop is not None else None for t in flat]
+        return replay_arm_summary(rows, self.robot.settings.name, source)
 
 
 def human_cell_fields(scores: Sequence[ClosedLoopScore]) -> dict:

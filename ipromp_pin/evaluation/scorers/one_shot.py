@@ -15,10 +15,12 @@ from typing import Any
 import numpy as np
 
 from ...data import Demo
+from ...planning.human_forecast import with_forecast
 from ...promp import IProMP, Prediction
 from ...robot import Robot
 from ...robot.objects import ObjectTable
 from ...safety import CheckSuite
+from ..arm_plans import TrialPlanner, plan_summary
 from ..cells import CellResults, baseline_summary, calibration, expected_calibration_error
 from ..config import EvaluationConfig
 from ..scoring import FK, FKRot, TrialResult, mean_handover_rotations, one_shot_peak_torque_ratio, score_trial
@@ -49,6 +51,8 @@ class OneShotScorer(Scorer):
         objects: The tasks' objects (:mod:`ipromp_pin.robot.objects`); with ``robot``, every trial's
             ``peak_torque_ratio`` is scored and the cells get theirs (``None``: neither, the cells
             are as without torques).
+        planner: Plans every trial's one-shot hand-over on the executing arm and scores it
+            (:class:`~..arm_plans.TrialPlanner`; each cell gets ``plans``). None: not planned.
     """
 
     def __init__(
@@ -58,8 +62,10 @@ class OneShotScorer(Scorer):
         fk_rot: FKRot | None = None,
         robot: Robot | None = None,
         objects: ObjectTable | None = None,
+        planner: TrialPlanner | None = None,
     ) -> None:
         self.model_params = dict(model_params or {})
+        self.planner = planner
         self.fk = fk
         self.fk_rot = fk_rot
         self.robot = robot
@@ -76,6 +82,8 @@ class OneShotScorer(Scorer):
         self.observe_ = list(observe)
         model = IProMP(observe=list(observe), **self.model_params)
         self.model_ = model.fit(train, fk=self.fk, fk_rot=self.fk_rot)
+        if self.planner is not None:  # its plans judge the body as `run` does: forecast where trusted
+            self.model_ = with_forecast(self.model_, train, self.planner.robot.settings.human)
         self.mean_rot_ = {} if self.fk_rot is None else mean_handover_rotations(train, self.fk_rot)
         return self
 
@@ -93,6 +101,8 @@ class OneShotScorer(Scorer):
                 trial.peak_torque_ratio = one_shot_peak_torque_ratio(
                     self.suite_, self.robot, prediction, d.task, self.objects
                 )
+            if self.planner is not None:
+                trial.plan = self.planner.plan_trial(self.model_, d, window)
             out.append(trial)
         return out
 
@@ -113,6 +123,10 @@ class OneShotScorer(Scorer):
         if self.scores_torques:
             peaks = [r.peak_torque_ratio for r in flat if np.isfinite(r.peak_torque_ratio)]
             out["peak_torque_ratio"] = max(peaks, default=None)
+        if self.planner is not None:
+            p = self.planner
+            source = None if p.source is None else p.source.settings.name
+            out["plans"] = plan_summary([r.plan for r in flat], p.robot.settings.name, source)
         if config.protocol != "splits":
             out["trials"] = [self._trial_row(r) for r in flat]
         return out
@@ -122,4 +136,6 @@ class OneShotScorer(Scorer):
         row = asdict(trial) | {"correct": trial.correct}
         if not self.scores_torques:
             row.pop("peak_torque_ratio")
+        if self.planner is None:
+            row.pop("plan")
         return row

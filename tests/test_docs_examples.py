@@ -8,6 +8,7 @@ from pathlib import Path
 
 import pytest
 
+from ipromp_pin import IProMP
 from ipromp_pin.robot import load_robot_settings
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -74,4 +75,5 @@ def test_readme_python_example_runs_as_pasted(datasets_dir, tmp_path, monkeypatc
     for i, block in enumerate(blocks):
         exec(compile(block, f"README.md block {i + 1}", "exec"), namespace)  # noqa: S102
     assert (work / "out" / "model.npz").is_file()
-    assert namespace["via"].q_mean.shape == namespace["pred"].q_mean.shape
+    assert namespace["pred"].task in namespace["model"].tasks_
+    assert IProMP.load(work / "out" / "model.npz").tasks_ == namespace["model"].tasks_

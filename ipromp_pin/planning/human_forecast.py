@@ -48,7 +48,7 @@ MIN_DEMOS = 10
 """Fewest training demos with a tracked skeleton a calibration is made from."""
 
 GAIN_LAGS_S = (0.2, 0.5, 1.0)
-"""Lags [s] of the displacement pairs the arm's gains are fitted on."""
+"""Lags [s] of the displacement pairs the frames' gains are fitted on."""
 
 
 @dataclass(frozen=True)
@@ -88,7 +88,7 @@ def forecast_of(
 
 
 def with_forecast(model: IProMP, demos: Sequence[Demo], settings: HumanSettings | None = None) -> IProMP:
-    """``model`` (fitted on ``demos``) with the handing arm's forecast calibrated on them
+    """``model`` (fitted on ``demos``) with the body's forecast calibrated on them
     (:func:`calibrate`; its record None when there is none)."""
     cal = calibrate(model, demos, settings)
     return model.with_human_forecast(None if cal is None else cal.to_json())
@@ -121,30 +121,30 @@ def calibrate(
 ) -> ForecastCalibration | None:
     """The forecast calibration of ``model`` from its training ``demos`` (module docstring); None
     when the model observes no hand frame or fewer than :data:`MIN_DEMOS` demos have a tracked
-    skeleton of its arm (then plans hold the body as observed)."""
+    skeleton with the hand (then plans hold the body as observed)."""
     settings = settings if settings is not None else HumanSettings()
     hand = forecast_group(model, settings)
     if hand is None:
         return None
     group = settings.skeleton.body_frames().get(hand, (hand,))[0]
     frames = (hand, *(f for f in HumanMotion.body_frames() if f != hand))
-    arms: list[_Body | None] = [_body(d, frames, settings) for d in demos]
-    usable = [i for i, a in enumerate(arms) if a is not None]
+    bodies: list[_Body | None] = [_body(d, frames, settings) for d in demos]
+    usable = [i for i, b in enumerate(bodies) if b is not None]
     if len(usable) < MIN_DEMOS:
         return None
     errors: list[np.ndarray] = []
     looks: list[np.ndarray] = []
     offsets: list[np.ndarray] = []
     for train, test in _folds(demos, usable):
-        gains = _gains([a for i in train if (a := arms[i]) is not None])
+        gains = _gains([b for i in train if (b := bodies[i]) is not None])
         try:
             fold = IProMP(**_fixed_params(model)).fit([demos[i] for i in train])
         except IPrompPinError:
             continue
         for i in test:
-            arm = arms[i]
-            assert arm is not None
-            for e, lk, off in _measure(fold, demos[i], arm, group, gains, frames):
+            body = bodies[i]
+            assert body is not None
+            for e, lk, off in _measure(fold, demos[i], body, group, gains, frames):
                 errors.append(e)
                 looks.append(lk)
                 offsets.append(off)
@@ -172,7 +172,7 @@ def calibrate(
     n_ok = radii.shape[1] if np.all(finite) else int(np.argmin(finite))
     if n_ok < 2:
         return None
-    gains_all = _gains([a for a in arms if a is not None])[keep]
+    gains_all = _gains([b for b in bodies if b is not None])[keep]
     return ForecastCalibration(
         group, frames, gains_all, LOOKAHEAD_GRID_S[:n_ok].copy(), radii[:, :n_ok].copy(), offset_m[keep],
         QUANTILE, len(usable), int(np.sum(per_forecast[:, 0] <= offset_m[0])),
@@ -188,9 +188,9 @@ def _quantile(x: np.ndarray) -> float:
 def predicted_human(
     human: HumanMotion | None, prediction: Prediction, calibration: ForecastCalibration | None
 ) -> HumanMotion | None:
-    """``human`` (as known at its horizon) with its handing arm placed by ``prediction`` after the
-    horizon where the calibration trusts it (module docstring); ``human`` itself when there is no
-    calibration, the task is unknown, the human is assumed, its arm was not seen or the predicted
+    """``human`` (as known at its horizon) with its frames placed by ``prediction`` after the horizon
+    where the calibration trusts them (module docstring); ``human`` itself when there is no
+    calibration, the task is unknown, the human is assumed, its hand was not seen or the predicted
     hand does not follow the observed one."""
     if calibration is None or human is None or human.assumed or not prediction.known:
         return human
@@ -308,7 +308,7 @@ def _gains(bodies: list[_Body]) -> np.ndarray:
 
 
 def _measure(
-    model: IProMP, demo: Demo, arm: _Body, group: str, gains: np.ndarray, frames: tuple[str, ...]
+    model: IProMP, demo: Demo, rec: _Body, group: str, gains: np.ndarray, frames: tuple[str, ...]
 ) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
     """Per observed fraction of ``demo``: the forecast errors (N, F) [m] at the demo's later samples,
     their look-aheads (N, F) [s] and the frames' trust residuals (:func:`trust_residuals`),
@@ -326,18 +326,18 @@ def _measure(
         assert isinstance(pred, Prediction)
         hand = pred.human_mean.get(group)
         t_obs = float(obs.t[-1])
-        anchors, anchor_s = arm.body.until(t_obs).last_seen(frames)
-        later = np.flatnonzero(arm.t_s > t_obs)[::2]
+        anchors, anchor_s = rec.body.until(t_obs).last_seen(frames)
+        later = np.flatnonzero(rec.t_s > t_obs)[::2]
         if not pred.known or hand is None or not np.isfinite(anchor_s[0]) or later.size == 0:
             continue
-        residual = trust_residuals(arm.body, frames, gains, pred.t, hand, anchors, anchor_s)
+        residual = trust_residuals(rec.body, frames, gains, pred.t, hand, anchors, anchor_s)
         if not np.isfinite(residual[0]):
             continue
         fc = forecast_body(unit, pred.t, hand, anchors, anchor_s)
-        t = arm.t_s[later]
+        t = rec.t_s[later]
         pos = fc.positions(t)
         err = np.full((later.size, n_f), np.nan)  # NaN: not tracked
-        err[:, fc.index] = np.linalg.norm(pos - arm.positions_m[later][:, fc.index], axis=2)
+        err[:, fc.index] = np.linalg.norm(pos - rec.positions_m[later][:, fc.index], axis=2)
         look = np.full_like(err, np.nan)
         look[:, fc.index] = t[:, None] - fc.anchor_s[None, :]
         out.append((err, look, np.tile(residual, (later.size, 1))))

@@ -299,8 +299,32 @@ class HumanMotion:
         object.__setattr__(self, "_parts", _part_matrices(self.parts, self.frames))
 
     def frames_at(self, t_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Frame positions (N, F, 3) [m] and their uncertainty radii (N, F) [m] at times (N,) [s]."""
+        """Frame positions (N, F, 3) [m] and their uncertainty radii (N, F) [m] at times (N,) [s];
+        with a :attr:`forecast`, its frames after the horizon where it is the tighter bound."""
         t = np.atleast_1d(np.asarray(t_s, dtype=float))
+        held = self._late_frames(t)
+        out, grow = held if held is not None else self._recorded_frames_at(t)
+        late = t > self.horizon_s
+        if self.forecast is not None and np.any(late):
+            apply_forecast(self.forecast, self.frames, self.speed_m_s, t, late, out, grow)
+        return out, grow
+
+    def _late_frames(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+        """:meth:`_recorded_frames_at` of times (N,) all at or after the horizon, from the held
+        frames (:meth:`held_frames`: the same numbers without the per-sample indexing), or None when
+        that does not apply."""
+        if t.size == 0 or not math.isfinite(self.horizon_s) or not np.all(t >= self.horizon_s):
+            return None
+        held = self.held_frames()
+        if held is None or not np.all(np.isfinite(held[0])):
+            return None
+        pos, seen = held
+        grow = self.speed_m_s * (t[:, None] - seen[None, :])  # a static frame (seen inf) grows by 0
+        out = np.repeat(pos[None, :, :], t.size, axis=0)
+        return out, np.minimum(np.maximum(grow, 0.0), self.max_inflation_m)
+
+    def _recorded_frames_at(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`frames_at` without the forecast: interpolated, bridged or held and grown."""
         prev_i, next_i = self._index  # type: ignore[attr-defined]
         ts, pos = self.t_s, self.positions_m
         n_t = ts.size
@@ -336,10 +360,7 @@ class HumanMotion:
         if self.static is not None:
             out[:, self.static] = pos[0, self.static]
             grow[:, self.static] = 0.0
-        grow = np.minimum(np.maximum(grow, 0.0), self.max_inflation_m)
-        if self.forecast is not None and np.any(late):
-            apply_forecast(self.forecast, self.frames, self.speed_m_s, t, late, out, grow)
-        return out, grow
+        return out, np.minimum(np.maximum(grow, 0.0), self.max_inflation_m)
 
     def held_frames(self) -> tuple[np.ndarray, np.ndarray] | None:
         """At every time at or after :attr:`horizon_s` each frame is held where it was last seen:
@@ -460,12 +481,10 @@ def apply_forecast(
     place on the positions ``out`` (N, F, 3) [m] and growths ``grow`` (N, F) [m])."""
     pos, radius = fc.at(t[late], speed_m_s)
     rows = np.flatnonzero(late)
-    for j, f in enumerate(fc.frames):
-        k = frames.index(f)
-        tighter = radius[:, j] < grow[rows, k]
-        sel = rows[tighter]
-        out[sel, k] = pos[tighter, j]
-        grow[sel, k] = radius[tighter, j]
+    cols = np.array([frames.index(f) for f in fc.frames], dtype=np.int64)
+    r, c = np.nonzero(radius < grow[np.ix_(rows, cols)])  # (late sample, forecast frame) pairs
+    out[rows[r], cols[c]] = pos[r, c]
+    grow[rows[r], cols[c]] = radius[r, c]
 
 
 def _mapped_frames(demo: Demo, frames: list[str], settings: HumanSettings) -> dict[str, np.ndarray] | None:

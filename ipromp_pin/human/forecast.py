@@ -75,14 +75,6 @@ class ForecastCalibration:
     n_demos: int
     n_forecasts: int
 
-    def radius_at(self, frame: int, lookahead_s: np.ndarray) -> np.ndarray:
-        """Radii (N,) [m] of frame ``frame`` (its index) at look-aheads (N,) [s]: interpolated,
-        ``inf`` beyond the calibrated ones (no evidence there) and for negative look-aheads."""
-        d = np.atleast_1d(np.asarray(lookahead_s, dtype=float))
-        out = np.interp(d, self.lookahead_s, self.radius_m[frame])
-        out[(d < 0.0) | (d > self.lookahead_s[-1])] = np.inf
-        return out
-
     def to_json(self) -> dict[str, Any]:
         """JSON-serialisable form (the model file's header ``human_forecast``)."""
         return {
@@ -178,13 +170,12 @@ class BodyForecast:
         after the path's end (the predicted hand-over) the radius grows at ``speed_m_s`` from
         there; ``inf`` before the anchor or beyond the calibration."""
         t = np.atleast_1d(np.asarray(t_s, dtype=float))
-        n_f = len(self.frames)
         pos = self.positions(t)
         tc = np.clip(t, self.t_s[0], self.t_s[-1])
         look = tc[:, None] - self.anchor_s[None, :]  # (N, Fp)
-        radius = np.empty((t.size, n_f))
-        for j in range(n_f):
-            radius[:, j] = self.calibration.radius_at(int(self.index[j]), look[:, j])
+        grid, radii = self.calibration.lookahead_s, self.calibration.radius_m
+        radius = np.stack([np.interp(look[:, j], grid, radii[i]) for j, i in enumerate(self.index)], axis=1)
+        radius[(look < 0.0) | (look > grid[-1])] = np.inf  # no evidence there
         radius += speed_m_s * np.maximum(t - self.t_s[-1], 0.0)[:, None]
         radius[t[:, None] < self.anchor_s[None, :]] = np.inf
         return pos, radius

@@ -225,12 +225,14 @@ def trust_residuals(
     if seen.size == 0:
         return out
     starts = anchor_s[seen] - TRUST_WINDOW_S
-    pos, _ = human.frames_at(starts)  # (n, F_body, 3): row i is frame seen[i]'s window start
-    for row, j in enumerate(seen):
-        ends = np.array([starts[row], anchor_s[j]])
-        mu = np.stack([np.interp(ends, t_pred, hand_pred[:, c]) for c in range(3)], axis=1)
-        observed = anchors[j] - pos[row, human.frames.index(frames[j])]
-        out[j] = float(np.linalg.norm(observed - gains[j] @ (mu[1] - mu[0])))
+    times, row = np.unique(starts, return_inverse=True)  # most frames were last seen together
+    pos, _ = human.frames_at(times)  # (U, F_body, 3)
+    before = pos[row, [human.frames.index(frames[j]) for j in seen]]  # (n, 3): each at its start
+    ends = np.concatenate([starts, anchor_s[seen]])
+    mu = np.stack([np.interp(ends, t_pred, hand_pred[:, c]) for c in range(3)], axis=1)
+    moved = mu[seen.size :] - mu[: seen.size]  # (n, 3): the predicted hand over each window
+    predicted = (gains[seen] @ moved[:, :, None])[:, :, 0]
+    out[seen] = np.linalg.norm((anchors[seen] - before) - predicted, axis=1)
     return out
 
 

@@ -130,6 +130,20 @@ def test_the_forecast_replaces_the_held_frame_only_where_it_is_tighter():
     assert body.until(1.0).forecast is None and moved.until(1.5).forecast is None  # tied to its horizon
 
 
+def test_after_the_horizon_the_held_frames_give_the_numbers_of_the_per_sample_path():
+    body = _still_body(3.0).until(1.0)
+    t = np.linspace(0.0, 2.0, 21)
+    hand = np.stack([t, 0 * t, 0 * t], axis=1)
+    cal = _calibration(radius=0.05)
+    moved = body.with_forecast(forecast_body(cal, t, hand, *body.last_seen(cal.frames)))
+    late = np.linspace(1.0, 2.5, 40)
+    for human in (body, moved):
+        fast = human.capsules(late)  # every time at or after the horizon
+        general = human.capsules(np.concatenate([[0.5], late]))  # one before it: per-sample indexing
+        for x, y in zip(fast, general, strict=True):
+            np.testing.assert_array_equal(x, y[1:])
+
+
 def test_a_plan_through_the_predicted_body_is_refused_and_one_beside_it_passes():
     robot = load_robot("baxter_left")
     q = np.zeros(robot.n_joints)

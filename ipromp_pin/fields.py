@@ -257,3 +257,23 @@ def numbers(
     if rng is not None:
         rng.check(arr, field, error)
     return arr
+
+
+def float_array(
+    value: Any, field: str, ndim: int, error: FieldError, last: int | None = None, finite: bool = True
+) -> np.ndarray:
+    """``value`` as a non-empty float array with ``ndim`` dimensions (and last dimension ``last``),
+    every value finite unless ``finite`` is False; else ``error(field, problem)``."""
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise error(field, f"not a numeric array ({exc})") from exc
+    if arr.ndim != ndim:
+        raise error(field, f"expected {ndim} dimensions, got shape {arr.shape}")
+    if last is not None and arr.shape[-1] != last:
+        raise error(field, f"expected last dimension {last}, got shape {arr.shape}")
+    if arr.size == 0:
+        raise error(field, "is empty")
+    if finite and not np.all(np.isfinite(arr)):
+        raise error(field, "contains NaN or infinite values")
+    return arr

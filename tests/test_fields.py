@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from ipromp_pin.exceptions import PipelineError
-from ipromp_pin.fields import Range, Table, did_you_mean, field_errors
+from ipromp_pin.fields import Range, Table, did_you_mean, field_errors, float_array
 
 ERROR = field_errors(PipelineError, "f.toml")
 
@@ -65,3 +65,13 @@ def test_a_vector_a_text_and_a_sub_table():
     )
     assert "field 't.sub.y': unknown key (known: z)" in _problem(lambda: table.table("sub", ["z"]))
     assert "field 't.missing': missing" in _problem(lambda: table.table("missing", required=True))
+
+
+def test_a_float_array_is_numeric_of_its_shape_non_empty_and_finite_unless_told():
+    assert float_array([[1, 2, 3]], "a", 2, ERROR, last=3).shape == (1, 3)
+    assert "'a': not a numeric array" in _problem(lambda: float_array([["x"]], "a", 2, ERROR))
+    assert "expected 2 dimensions, got shape (3,)" in _problem(lambda: float_array([1, 2, 3], "a", 2, ERROR))
+    assert "expected last dimension 4" in _problem(lambda: float_array([[1.0, 2.0]], "a", 2, ERROR, last=4))
+    assert "is empty" in _problem(lambda: float_array(np.zeros((0, 3)), "a", 2, ERROR))
+    assert "NaN or infinite" in _problem(lambda: float_array([np.nan], "a", 1, ERROR))
+    assert np.isnan(float_array([np.nan, 1.0], "a", 1, ERROR, finite=False)[0])

@@ -15,25 +15,19 @@ from matplotlib.figure import Figure
 
 from .. import atomic
 from ..exceptions import DataError
+from ..fields import float_array
 
 SOURCE = "plots"
 """The source the figures' input errors name."""
 
 
-def plot_error(field_name: str, problem: str) -> DataError:
+def plot_error(field_name: str | None, problem: str) -> DataError:
     return DataError(SOURCE, field_name, problem)
 
 
 def as_array(value: Any, name: str, ndim: int) -> np.ndarray:
-    try:
-        arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise plot_error(name, f"not a numeric array ({exc})") from exc
-    if arr.ndim != ndim:
-        raise plot_error(name, f"expected {ndim} dimensions, got shape {arr.shape}")
-    if arr.size == 0:
-        raise plot_error(name, "is empty")
-    return arr
+    """``value`` as a non-empty float array of ``ndim`` dimensions (NaN allowed: a gap in a curve)."""
+    return float_array(value, name, ndim, plot_error, finite=False)
 
 
 def dim_names(names: Sequence[str] | None, n: int, name: str, prefix: str) -> list[str]:

@@ -18,6 +18,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..exceptions import DataError
+from ..fields import float_array
 from .body import BodyTrack, SeparationTrack
 from .torques import HeldObject, TorqueTrack
 
@@ -38,19 +39,7 @@ def finite_array(value: Any, field_name: str, ndim: int, last: int | None = None
     Raises:
         DataError: Not numeric, wrong shape, empty, or with NaN / infinite values.
     """
-    try:
-        arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise preview_error(field_name, f"not a numeric array ({exc})") from exc
-    if arr.ndim != ndim:
-        raise preview_error(field_name, f"expected {ndim} dimensions, got shape {arr.shape}")
-    if last is not None and arr.shape[-1] != last:
-        raise preview_error(field_name, f"expected last dimension {last}, got shape {arr.shape}")
-    if arr.size == 0:
-        raise preview_error(field_name, "is empty")
-    if not np.all(np.isfinite(arr)):
-        raise preview_error(field_name, "contains NaN or infinite values")
-    return arr
+    return float_array(value, field_name, ndim, preview_error, last)
 
 
 def _optional_array(value: Any, field_name: str, ndim: int, last: int | None = None) -> np.ndarray | None:

@@ -20,8 +20,7 @@ from ipromp_pin.planning.closed_loop import (
     start_time,
 )
 from ipromp_pin.promp import IProMP
-from ipromp_pin.readers.synthetic import make_synthetic_dataset
-from ipromp_pin.robot import ee_positions, load_robot
+from ipromp_pin.robot import ee_positions
 from ipromp_pin.safety import CheckContext, CheckSuite, Verdict
 from ipromp_pin.safety.self_collision import SelfCollision
 from ipromp_pin.safety.speed_limits import limit_ratios as motion_limit_ratios
@@ -30,14 +29,9 @@ OBSERVE = ["orientation", "emg"]
 
 
 @pytest.fixture(scope="module")
-def setup():
+def setup(synthetic_closed_loop):
     """A model trained on synthetic Baxter hand-overs (all but the last demo of each task)."""
-    ds = make_synthetic_dataset(n_tasks=3, n_demos=8, seed=3)
-    train = [d for demos in ds.demos.values() for d in demos[:-1]]
-    test = [demos[-1] for demos in ds.demos.values()]
-    model = IProMP(observe=OBSERVE).fit(train)
-    robot = load_robot("baxter_left")
-    return model, robot, train, test
+    return synthetic_closed_loop
 
 
 @pytest.fixture(scope="module")

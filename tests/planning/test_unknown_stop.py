@@ -13,8 +13,6 @@ from ipromp_pin.motion.limits import demonstrated_profile
 from ipromp_pin.motion.retarget import stop_motion
 from ipromp_pin.motion.trajectory import JointLimits, MotionState
 from ipromp_pin.planning.closed_loop import ClosedLoopPlanner, ClosedLoopSettings, demo_samples
-from ipromp_pin.promp import IProMP
-from ipromp_pin.readers.synthetic import make_synthetic_dataset
 from ipromp_pin.robot import ee_positions, load_robot
 from ipromp_pin.safety import CheckSuite
 
@@ -22,13 +20,9 @@ OBSERVE = ["orientation", "emg"]
 
 
 @pytest.fixture(scope="module")
-def setup():
+def setup(synthetic_closed_loop):
     """A model of three synthetic Baxter hand-over tasks, a held-out demo of each, the motion's checks."""
-    ds = make_synthetic_dataset(n_tasks=3, n_demos=8, seed=3)
-    train = [d for demos in ds.demos.values() for d in demos[:-1]]
-    test = [demos[-1] for demos in ds.demos.values()]
-    model = IProMP(observe=OBSERVE).fit(train)
-    robot = load_robot("baxter_left")
+    model, robot, train, test = synthetic_closed_loop
     suite = CheckSuite.build(robot, ["speed_limits", "joint_limits", "workspace", "self_collision"])
     return model, robot, demonstrated_profile(robot, train), test, suite
 

@@ -98,8 +98,8 @@ def forecast_summary(cal: ForecastCalibration | None) -> str:
     """One line on the calibration, for the console."""
     if cal is None:
         return (
-            "body forecast: none (the model observes no tracked hand frame, or too few demos have a "
-            "skeleton): plans hold the body where last seen"
+            "body forecast: none (the robot settings' handing_arm is held, the model observes no tracked "
+            "hand frame, or too few demos have a skeleton): plans hold the body where last seen"
         )
     look = cal.lookahead_s
     at = [k for k in (0.5, 1.0) if k <= look[-1]]
@@ -120,11 +120,12 @@ def calibrate(
     model: IProMP, demos: Sequence[Demo], settings: HumanSettings | None = None
 ) -> ForecastCalibration | None:
     """The forecast calibration of ``model`` from its training ``demos`` (module docstring); None
-    when the model observes no hand frame or fewer than :data:`MIN_DEMOS` demos have a tracked
-    skeleton with the hand (then plans hold the body as observed)."""
+    when the settings hold the body (``handing_arm = "held"``), the model observes no hand frame or
+    fewer than :data:`MIN_DEMOS` demos have a tracked skeleton with the hand (then plans hold the
+    body as observed)."""
     settings = settings if settings is not None else HumanSettings()
     hand = forecast_group(model, settings)
-    if hand is None:
+    if hand is None or settings.handing_arm == "held":  # held: no forecast is used, none is made
         return None
     group = settings.skeleton.body_frames().get(hand, (hand,))[0]
     frames = (hand, *(f for f in HumanMotion.body_frames() if f != hand))

@@ -175,6 +175,7 @@ def test_calibrated_on_demos_with_a_skeleton_used_when_trusted_and_stored_in_the
     moving = [cal.frames.index(f) for f in (HAND, "/left_elbow_1")]  # the assumed body's others stand
     assert np.all(cal.radius_m[moving, 1] > 0) and np.all(cal.radius_m[:, 1] < 0.2)
     assert cal.n_demos == len(demos)
+    assert calibrate(model, demos, replace(settings, handing_arm="held")) is None  # held: none made
     stored = with_forecast(model, demos, settings)
     stored.save(tmp_path / "m.npz")
     loaded = IProMP.load(tmp_path / "m.npz")

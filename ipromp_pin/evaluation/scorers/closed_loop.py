@@ -64,9 +64,6 @@ class ClosedLoopOptions:
         check_collisions: Contact-test every commanded control sample.
         human: Replay demos with a tracked skeleton with the human checks and measure them
             against the recorded human (see the module docstring).
-        human_forecast: With ``human``, the planner places the handing arm where the model predicts
-            it (:mod:`ipromp_pin.planning.human_forecast`, calibrated on each fit's training demos);
-            False: the body is held where last seen.
     """
 
     limits: str = "demonstrated"
@@ -74,7 +71,6 @@ class ClosedLoopOptions:
     recipe: DemoLimitRecipe | None = None
     check_collisions: bool = True
     human: bool = True
-    human_forecast: bool = True
 
 
 @dataclass
@@ -293,7 +289,7 @@ class ClosedLoopScorer(Scorer):
         fk, fk_rot = gripper_kinematics(source or self.robot)  # settings chosen for the hand-over position
         model = IProMP(observe=list(observe), **self.model_params)
         self.model_ = model.fit(train, fk=fk, fk_rot=fk_rot)
-        if self.options.human and self.options.human_forecast:  # the body's forecast, on the training demos
+        if self.options.human:  # the body's forecast, on the training demos (none with handing_arm "held")
             self.model_ = with_forecast(self.model_, train, self.robot.settings.human)
         options = self.options
         if source is not None and options.limits == "demonstrated":  # the demos are the source's joints

@@ -395,7 +395,6 @@ def transfer_samples(
     one linearised step around ``mean`` (the transferred mean path, same M) per sample and time, then
     exact inverse kinematics for each sample's last configuration (the hand-over, which the uncertainty
     check uses)."""
-    n_s = q_source_samples.shape[0]
     solver = PoseSolver(target)
     chain = arm_chain(source)
     moved = None
@@ -416,10 +415,7 @@ def transfer_samples(
         if moved is not None
         else linearised_samples(source, q_source_samples, mean, q_source_mean, solver.damping)
     )
-    ends = PathSolution.empty(n_s, target.n_joints)  # the hand-overs exactly (the uncertainty check's)
-    solver.follow(end_rot, end_pos, SolveSteps.seeded(out[:, -1], solver.max_iter), ends)
-    out[:, -1] = ends.q
-    return np.clip(out, solver.lo, solver.hi)
+    return exact_handovers(solver, out, end_pos, end_rot)
 
 
 def linearised_samples(
@@ -473,9 +469,16 @@ def follow_pose_samples(
     rs = np.asarray(rotations, dtype=float)
     solver = PoseSolver(target)
     out = pose_step(ps, rs, mean_positions, mean_rotations, mean, float(solver.damping))
-    ends = PathSolution.empty(ps.shape[0], target.n_joints)  # the hand-overs exactly
-    end_rot = np.ascontiguousarray(rs[:, -1])
-    end_pos = np.ascontiguousarray(ps[:, -1])
+    return exact_handovers(solver, out, np.ascontiguousarray(ps[:, -1]), np.ascontiguousarray(rs[:, -1]))
+
+
+def exact_handovers(
+    solver: PoseSolver, out: np.ndarray, end_pos: np.ndarray, end_rot: np.ndarray
+) -> np.ndarray:
+    """Sampled joint paths ``out`` (n, M, n_target) [rad] with each last configuration solved
+    exactly for its hand-over pose (``end_pos`` (n, 3) [m], ``end_rot`` (n, 3, 3); the uncertainty
+    check's configurations), from the linearised one, then clipped to the joint limits."""
+    ends = PathSolution.empty(out.shape[0], out.shape[2])
     solver.follow(end_rot, end_pos, SolveSteps.seeded(out[:, -1], solver.max_iter), ends)
     out[:, -1] = ends.q
     return np.clip(out, solver.lo, solver.hi)

@@ -53,11 +53,10 @@ GAIN_LAGS_S = (0.2, 0.5, 1.0)
 
 @dataclass(frozen=True)
 class _Body:
-    """A demo's recorded body: times (T,) [s] and frame positions (T, F, 3) [m] (NaN: not tracked),
-    the calibration's frames in its order."""
+    """A demo's recorded body and its frame positions (T, F, 3) [m] at its times (NaN: not tracked),
+    the calibration's frames in their order."""
 
     body: HumanMotion
-    t_s: np.ndarray
     positions_m: np.ndarray
 
 
@@ -250,7 +249,7 @@ def _body(demo: Demo, frames: tuple[str, ...], settings: HumanSettings) -> _Body
     for j, f in enumerate(frames):
         if f in body.frames:
             pos[:, j] = body.positions_m[:, body.frames.index(f)]
-    return _Body(body, body.t_s, pos)
+    return _Body(body, pos)
 
 
 def _folds(demos: Sequence[Demo], usable: list[int]) -> list[tuple[list[int], list[int]]]:
@@ -294,10 +293,10 @@ def _gains(bodies: list[_Body]) -> np.ndarray:
     n_f = bodies[0].positions_m.shape[1]
     pairs: list[np.ndarray] = []
     for b in bodies:
-        dt = float(np.median(np.diff(b.t_s)))
+        dt = float(np.median(np.diff(b.body.t_s)))
         for lag in GAIN_LAGS_S:
             k = int(round(lag / dt))
-            if 0 < k < b.t_s.size:
+            if 0 < k < b.body.t_s.size:
                 pairs.append(b.positions_m[k:] - b.positions_m[:-k])  # (T-k, F, 3)
     d = np.concatenate(pairs)
     gains = np.zeros((n_f, 3, 3))
@@ -330,14 +329,14 @@ def _measure(
         hand = pred.human_mean.get(group)
         t_obs = float(obs.t[-1])
         anchors, anchor_s = rec.body.until(t_obs).last_seen(frames)
-        later = np.flatnonzero(rec.t_s > t_obs)[::2]
+        later = np.flatnonzero(rec.body.t_s > t_obs)[::2]
         if not pred.known or hand is None or not np.isfinite(anchor_s[0]) or later.size == 0:
             continue
         residual = trust_residuals(rec.body, frames, gains, pred.t, hand, anchors, anchor_s)
         if not np.isfinite(residual[0]):
             continue
         fc = forecast_body(unit, pred.t, hand, anchors, anchor_s)
-        t = rec.t_s[later]
+        t = rec.body.t_s[later]
         pos = fc.positions(t)
         err = np.full((later.size, n_f), np.nan)  # NaN: not tracked
         err[:, fc.index] = np.linalg.norm(pos - rec.positions_m[later][:, fc.index], axis=2)

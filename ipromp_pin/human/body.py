@@ -302,26 +302,12 @@ class HumanMotion:
         """Frame positions (N, F, 3) [m] and their uncertainty radii (N, F) [m] at times (N,) [s];
         with a :attr:`forecast`, its frames after the horizon where it is the tighter bound."""
         t = np.atleast_1d(np.asarray(t_s, dtype=float))
-        held = self._late_frames(t)
+        held = _late_frames(self, t)
         out, grow = held if held is not None else self._recorded_frames_at(t)
         late = t > self.horizon_s
         if self.forecast is not None and np.any(late):
             apply_forecast(self.forecast, self.frames, self.speed_m_s, t, late, out, grow)
         return out, grow
-
-    def _late_frames(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
-        """:meth:`_recorded_frames_at` of times (N,) all at or after the horizon, from the held
-        frames (:meth:`held_frames`: the same numbers without the per-sample indexing), or None when
-        that does not apply."""
-        if t.size == 0 or not math.isfinite(self.horizon_s) or not np.all(t >= self.horizon_s):
-            return None
-        held = self.held_frames()
-        if held is None or not np.all(np.isfinite(held[0])):
-            return None
-        pos, seen = held
-        grow = self.speed_m_s * (t[:, None] - seen[None, :])  # a static frame (seen inf) grows by 0
-        out = np.repeat(pos[None, :, :], t.size, axis=0)
-        return out, np.minimum(np.maximum(grow, 0.0), self.max_inflation_m)
 
     def _recorded_frames_at(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`frames_at` without the forecast: interpolated, bridged or held and grown."""
@@ -465,6 +451,21 @@ class HumanMotion:
         """Capsule end points ``a``, ``b`` (P, 3) [m] and radii (P,) [m] at time ``t_s`` [s]."""
         a, b, r = self.capsules(np.array([float(t_s)]))
         return a[0], b[0], r[0]
+
+
+def _late_frames(human: HumanMotion, t: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """``human``'s frame positions (N, F, 3) [m] and growths (N, F) [m] without the forecast at times
+    (N,) all at or after its horizon, from the held frames (:meth:`HumanMotion.held_frames`: the
+    numbers of the per-sample path without its indexing), or None when that does not apply."""
+    if t.size == 0 or not math.isfinite(human.horizon_s) or not np.all(t >= human.horizon_s):
+        return None
+    held = human.held_frames()
+    if held is None or not np.all(np.isfinite(held[0])):
+        return None
+    pos, seen = held
+    grow = human.speed_m_s * (t[:, None] - seen[None, :])  # a static frame (seen inf) grows by 0
+    out = np.repeat(pos[None, :, :], t.size, axis=0)
+    return out, np.minimum(np.maximum(grow, 0.0), human.max_inflation_m)
 
 
 def apply_forecast(

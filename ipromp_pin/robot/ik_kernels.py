@@ -188,6 +188,17 @@ def log6(rot: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
 
 
 @njit(**_JIT)
+def _add_half_skew(m: np.ndarray, v: np.ndarray) -> None:
+    """``m <- m + [v]x / 2`` for a (3, 3) matrix and the skew-symmetric matrix of ``v`` (3,)."""
+    m[0, 1] -= 0.5 * v[2]
+    m[0, 2] += 0.5 * v[1]
+    m[1, 0] += 0.5 * v[2]
+    m[1, 2] -= 0.5 * v[0]
+    m[2, 0] -= 0.5 * v[1]
+    m[2, 1] += 0.5 * v[0]
+
+
+@njit(**_JIT)
 def jlog6(rot: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
     """``Jlog6`` (6, 6) of the transform ``(rot, p)``: the derivative of its ``log6`` under a right
     perturbation (blocks ``[[A, C A], [0, A]]``, ``A`` the derivative of ``log3``)."""
@@ -206,12 +217,7 @@ def jlog6(rot: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
         for c in range(3):
             a[r, c] = alpha3 * w[r] * w[c]
         a[r, r] += diag
-    a[0, 1] -= 0.5 * w[2]
-    a[0, 2] += 0.5 * w[1]
-    a[1, 0] += 0.5 * w[2]
-    a[1, 2] -= 0.5 * w[0]
-    a[2, 0] -= 0.5 * w[1]
-    a[2, 1] += 0.5 * w[0]
+    _add_half_skew(a, w)
     t2 = t * t
     inv_2_2ct = 1.0 / (2.0 * (1.0 - ct))
     if t < _PREC3:
@@ -229,12 +235,7 @@ def jlog6(rot: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
         for c in range(3):
             cm[r, c] = v3 * w[c] + beta * w[r] * p[c]
         cm[r, r] += wp * beta
-    cm[0, 1] -= 0.5 * p[2]
-    cm[0, 2] += 0.5 * p[1]
-    cm[1, 0] += 0.5 * p[2]
-    cm[1, 2] -= 0.5 * p[0]
-    cm[2, 0] -= 0.5 * p[1]
-    cm[2, 1] += 0.5 * p[0]
+    _add_half_skew(cm, p)
     out[:] = 0.0
     for r in range(3):
         for c in range(3):

@@ -253,7 +253,8 @@ class SeparationAnalyser:
         q = np.ascontiguousarray(q, dtype=float)
         qd = np.ascontiguousarray(qd, dtype=float)
         origins, axes, ra, rb = arm_kinematics(caps, q)
-        ha, hb, hr = human.capsules(t)
+        times, at = np.unique(t, return_inverse=True)  # several configurations at one time: once
+        ha, hb, hr = (x[at] for x in human.capsules(times)) if times.size < t.size else human.capsules(t)
         caps_radius_p = human.radius_m[None, :]
         if not (np.all(np.isfinite(ha)) and np.all(np.isfinite(hb)) and np.all(np.isfinite(hr))):
             raise DataError(human.source or "human", "body capsules", "non-finite position or radius")

@@ -45,6 +45,7 @@ import math
 import time
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field
+from functools import partial
 
 import numpy as np
 
@@ -59,9 +60,9 @@ from ..safety import CheckContext, CheckSuite, Timed, Verdict, next_guess
 from ..safety.self_collision import SelfCollisionMeasures
 from ..safety.speed_limits import SpeedLimitMeasures
 from ..safety.workspace import WorkspaceMeasures
-from .human_forecast import forecast_of, predicted_human
+from .human_forecast import forecast_of, replan_context
 from .timers import retarget_timer
-from .transfer import ReplanTransfer, predicts_gripper
+from .transfer import ReplanTransfer, kindest_to_human, predicts_gripper
 from .unknown_stop import UNKNOWN_HOLD_RANGE_S, UNKNOWN_HOLD_S, Segment, StopEvent, UnknownStop
 
 CONDITION_NOISE = 0.3
@@ -536,8 +537,10 @@ class ClosedLoopPlanner:
             if len(self._plans) > 1:  # it moved: stop, hold, retreat
                 self._unknown_segment(r, tick, state, pred.unknown_reason or "")
             return r
+        context = replan_context(self.context, pred, r.observed_until_s, self.forecast)
         if self.transfer is not None:  # the model's robot's reference -> this arm's, through the gripper
-            moved, how = self.transfer.reference(reference, state.q, float(state.t_s))
+            prefer = partial(kindest_to_human, self.suite, context)
+            moved, how = self.transfer.reference(reference, state.q, float(state.t_s), prefer)
             ms["arm_transfer"] = how.ms
             r.retarget = how.to_dict()
             if moved is None:  # refused as any failed re-plan: never a shifted hand-over
@@ -545,11 +548,6 @@ class ClosedLoopPlanner:
                 r.stage_ms = ms
                 return r
             reference = moved
-        context = self.context.replace(task=pred.task, handover_s=float(pred.duration_s))
-        if context.human is not None:  # as observed up to this re-plan, the handing arm as predicted
-            context = context.replace(
-                human=predicted_human(context.human.until(r.observed_until_s), pred, self.forecast)
-            )
         plan = self._plan_checked(state, reference, r, ms, context)
         r.stage_ms = ms
         if plan is not None and not r.reason:

@@ -23,6 +23,7 @@ from ..human.forecast import HAND_FRAMES, ForecastCalibration, fit_gains, foreca
 from ..promp import IProMP, Prediction
 from ..promp.inputs import ObservationWarning
 from ..robot.human_settings import HumanSettings
+from ..safety import CheckContext
 
 QUANTILE = 0.95
 """Quantile of the cross-validated forecast errors the radii take (one in 20 held-out forecasts
@@ -205,6 +206,22 @@ def predicted_human(
     untrusted = ~(residual <= calibration.offset_m)  # a frame moving unlike the training demos: held
     anchors[untrusted], anchor_s[untrusted] = np.nan, np.nan
     return human.with_forecast(forecast_body(calibration, prediction.t, hand, anchors, anchor_s))
+
+
+def replan_context(
+    context: CheckContext,
+    prediction: Prediction,
+    observed_until_s: float,
+    calibration: ForecastCalibration | None,
+) -> CheckContext:
+    """What a closed-loop re-plan's checks know: ``context`` with the predicted task and hand-over
+    time, the human as observed until ``observed_until_s`` [s] with the handing arm as predicted
+    (:func:`predicted_human`)."""
+    context = context.replace(task=prediction.task, handover_s=float(prediction.duration_s))
+    if context.human is None:
+        return context
+    human = context.human.until(observed_until_s)
+    return context.replace(human=predicted_human(human, prediction, calibration))
 
 
 def trust_residuals(

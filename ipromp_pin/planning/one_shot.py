@@ -24,11 +24,12 @@ from ..motion.trajectory import JointLimits, Trajectory
 from ..promp import IProMP, Prediction
 from ..promp.inputs import ObservationWarning
 from ..robot import Robot, ee_positions, frame_placements
+from ..robot.arm_transfer import Preference
 from ..robot.kinematics import rotations_to_quat_xyzw
 from ..safety import CheckContext, CheckReport, CheckSuite
 from .human_forecast import forecast_of, predicted_human
 from .timers import PathTimer
-from .transfer import Retargeting, predicts_gripper, retarget_prediction
+from .transfer import Retargeting, kindest_to_human, predicts_gripper, retarget_prediction
 
 LogFn = Callable[[str], None]
 """Where progress messages go (one line each)."""
@@ -203,16 +204,20 @@ def plan(
         say(f"[recognise] UNKNOWN: {prediction.unknown_reason}")
     samples = prediction.sample_q(N_UNCERTAINTY_SAMPLES, np.random.default_rng(0))
     q_path, retarget = prediction.q_mean, None
-    if source is not None or predicts_gripper(model):  # gripper poses: followed by any arm
-        q_path, samples, retarget = retargeted(model, prediction, samples, robot, source, say)
-        ms["retarget"] = retarget.ms
-    start_s = float(observation.t[-1] - observation.t[0])
     ctx = prediction_context(
         prediction,
         context if context is not None else CheckContext(),
         samples,
         forecast_of(model, robot.settings.human),
     )
+    start_s = float(observation.t[-1] - observation.t[0])
+    if source is not None or predicts_gripper(model):  # gripper poses: followed by any arm
+        # the path as if it reached the hand-over when the human is predicted to
+        along = np.linspace(start_s, max(start_s, float(prediction.duration_s)), prediction.q_mean.shape[0])
+        prefer = kindest_to_human(suite, ctx, along)
+        q_path, samples, retarget = retargeted(model, prediction, samples, robot, source, say, prefer)
+        ctx = ctx.replace(handover_samples=samples[:, -1, :])
+        ms["retarget"] = retarget.ms
     limits = JointLimits.from_robot(robot)
     timer = PathTimer(q_path, limits, suite.timing_constraints(ctx), control_rate_hz, start_s, say)
     retimed = suite.retime_until_safe(timer, ctx)
@@ -254,17 +259,21 @@ def retargeted(
     robot: Robot,
     source: Robot | None,
     say: LogFn,
+    prefer: Preference | None = None,
 ) -> tuple[np.ndarray, np.ndarray, Retargeting]:
     """The prediction's mean path and ``samples`` (n, M, ...) as ``robot``'s joint paths [rad]
     (:func:`~.transfer.retarget_prediction`): from ``source``'s joints, or from the predicted gripper
-    poses for a model of them (``source`` None: in ``robot``'s own base frame).
+    poses for a model of them (``source`` None: in ``robot``'s own base frame); ``prefer`` chooses
+    the hand-over configuration (:func:`~.transfer.kindest_to_human`).
 
     Raises:
         UnreachableError: ``robot`` cannot reach the predicted hand-over pose.
     """
     from_poses = predicts_gripper(model)
     source = robot if source is None else source
-    q_path, samples, retarget = retarget_prediction(source, robot, prediction.q_mean, samples, from_poses)
+    q_path, samples, retarget = retarget_prediction(
+        source, robot, prediction.q_mean, samples, from_poses, prefer
+    )
     moved = retarget.to_dict()
     origin = f"gripper poses ({source.settings.name}'s frame)" if from_poses else source.settings.name
     say(

@@ -5,7 +5,9 @@ checked on that arm.
 :func:`source_robot` finds the model's robot: the arm itself when the model predicts its joints,
 else the ``[placement] source`` of its settings (the robot of the recordings, in whose base frame the
 arm is placed). :func:`retarget_prediction` turns the predicted mean path and the sampled paths into
-the arm's joint paths, with the inverse kinematics' residuals (:class:`Retargeting`).
+the arm's joint paths, with the inverse kinematics' residuals (:class:`Retargeting`); where the arm
+can meet the hand-over pose in several configurations, :func:`kindest_to_human` prefers the path
+that keeps clear of the human's body and needs the least slow-down near it.
 :class:`ReplanTransfer` does it for every re-plan of the closed loop: the predicted reference motion
 (:class:`~ipromp_pin.motion.retarget.ReferenceMotion`) becomes the executing arm's.
 """
@@ -13,10 +15,12 @@ the arm's joint paths, with the inverse kinematics' residuals (:class:`Retargeti
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from ..data import GRIPPER
 from ..exceptions import ModelError, UnreachableError
@@ -30,11 +34,14 @@ from ..robot.arm_transfer import (
     TRACK_ITERATIONS,
     PathSolution,
     PoseSolver,
+    Preference,
     SolveSteps,
     check_pair,
     follow_pose_path,
     follow_pose_samples,
 )
+from ..safety import CheckContext, CheckSuite
+from ..safety.separation import SeparationCheck
 from ..shipped import DEFAULT_ROBOT
 from ..signals.gripper import gripper_positions, gripper_rotations
 
@@ -136,21 +143,75 @@ def source_robot(model: IProMP, robot: Robot) -> Robot | None:
     return source
 
 
+CLEARANCE_TIE_M = 0.01
+"""Candidate paths whose smallest clearance from the body is within this [m] of the best one's count
+as equally clear (:func:`kindest_to_human`)."""
+
+
+FIRST_PATH_ADVANTAGE = 0.8
+"""Another candidate path is preferred to the first (the seeds' first solution: the one toward the
+middle of the joint ranges) only when it is expected to take less than this fraction of its time:
+the time is a rough estimate (a one-off study on handover_20171128, 90 one-shot Panda plans, kept the
+first in 54: of the 29 others, 19 arrived later)."""
+
+
+def kindest_to_human(suite: CheckSuite, context: CheckContext, t_s: np.ndarray) -> Preference | None:
+    """Scores an arm's candidate paths (S, K, n_joints) [rad] toward one hand-over, given at K of the
+    path's samples (their indices (K,) into ``t_s``, the samples' times (M,) [s]), against the
+    human's body as ``suite``'s ``human_clearance`` check knows it in ``context``. A path whose
+    smallest clearance from the body outside the hand is more than :data:`CLEARANCE_TIE_M` below the
+    largest scores -inf; the others score minus the time they are expected to take: the longer of
+    the time their joints need at their velocity and acceleration limits and the time the
+    contact-speed limits ask for (the largest approach speed / limit within the protective
+    separation distance at that timing, over ``1 - speed_margin``), the first path's times
+    :data:`FIRST_PATH_ADVANTAGE`. None: the suite has no such check or it does not apply."""
+    check = suite.get("human_clearance")
+    if not isinstance(check, SeparationCheck) or not check.applies(context):
+        return None
+    analyser, human, robot = check.analyser, check.human(context), check.robot
+    vel, acc = robot.velocity_rad_s, robot.settings.acceleration_rad_s2
+    keep = 1.0 - robot.settings.human.speed_margin
+    t_s = np.asarray(t_s, dtype=float)
+
+    def score(paths: np.ndarray, samples: np.ndarray) -> np.ndarray:
+        s, k, n = paths.shape
+        t = t_s[samples]
+        span = float(t[-1] - t[0])
+        qd = np.gradient(paths, t, axis=1) if span > 0 and k > 1 else np.zeros_like(paths)
+        q = np.ascontiguousarray(paths.reshape(-1, n), dtype=float)
+        sep = analyser.analyse(np.tile(t, s), q, qd.reshape(-1, n), human)
+        clear = sep.clearance_m().reshape(s, k).min(axis=1)
+        travel = np.abs(np.diff(paths, axis=1)).sum(axis=1)  # (S, n) [rad] per joint
+        limits_s = np.maximum(travel / vel, 2.0 * np.sqrt(travel / acc)).max(axis=1)
+        contact_s = span * sep.max_ratio.reshape(s, k).max(axis=1) / keep
+        expected = np.maximum(limits_s, contact_s)
+        expected[0] *= FIRST_PATH_ADVANTAGE  # the first candidate unless another is clearly quicker
+        return np.where(clear >= clear.max() - CLEARANCE_TIE_M, -expected, -np.inf)
+
+    return score
+
+
 def retarget_prediction(
-    source: Robot, robot: Robot, q_mean: np.ndarray, samples: np.ndarray, from_poses: bool = False
+    source: Robot,
+    robot: Robot,
+    q_mean: np.ndarray,
+    samples: np.ndarray,
+    from_poses: bool = False,
+    prefer: Preference | None = None,
 ) -> tuple[np.ndarray, np.ndarray, Retargeting]:
     """The mean path (M, n_joints) and the sampled paths (n, M, n_joints) of ``robot`` [rad] whose
     gripper follows ``source``'s along ``q_mean`` (M, n_source) and ``samples`` (n, M, n_source);
     ``from_poses``: they are gripper pose paths (M, 7) and (n, M, 7) (x, y, z [m] and a quaternion
-    qx, qy, qz, qw, renormalised here) in ``source``'s base frame, followed as they are."""
+    qx, qy, qz, qw, renormalised here) in ``source``'s base frame, followed as they are. ``prefer``
+    chooses the hand-over configuration where the arm has several (e.g. :func:`kindest_to_human`)."""
     t0 = time.perf_counter()
     if from_poses:
         if robot.settings.placement is not None:
             check_pair(source, robot)
         pm, rm = gripper_positions(q_mean), gripper_rotations(q_mean)
-        path = follow_pose_path(robot, pm, rm)
+        path = follow_pose_path(robot, pm, rm, prefer=prefer)
     else:
-        path = transfer_path(source, robot, q_mean)
+        path = transfer_path(source, robot, q_mean, prefer=prefer)
     if not path.reached:  # refused: the samples are not followed either
         moved = np.broadcast_to(path.q, (samples.shape[0],) + path.q.shape).copy()
     elif from_poses:
@@ -161,6 +222,22 @@ def retarget_prediction(
         moved = transfer_samples(source, robot, samples, path, q_mean)
     ms = (time.perf_counter() - t0) * 1e3
     return path.q, moved, Retargeting(source, robot, path, ms, from_poses)
+
+
+def fade_out(z: np.ndarray, z_from: float) -> np.ndarray:
+    """Weights (M,) at phases ``z`` (M,): 1 up to ``z_from``, then a smoothstep down to 0 at phase 1."""
+    x = np.clip((np.asarray(z, dtype=float) - z_from) / max(1.0 - z_from, 1e-9), 0.0, 1.0)
+    return 1.0 - x * x * (3.0 - 2.0 * x)
+
+
+def warped_poses(
+    pos: np.ndarray, rot: np.ndarray, keep: np.ndarray, pos_offset: np.ndarray, rot_offset: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """A gripper pose path (positions (M, 3) [m], rotations (M, 3, 3)) moved by the weights ``keep``
+    (M,) of an offset: ``pos_offset`` (3,) [m] in the scene frame, ``rot_offset`` (3,) a rotation
+    vector [rad] in the path's own frame."""
+    turn = Rotation.from_rotvec(keep[:, None] * np.asarray(rot_offset)[None, :]).as_matrix()
+    return pos + keep[:, None] * np.asarray(pos_offset)[None, :], rot @ turn
 
 
 N_GRID = 41
@@ -277,17 +354,14 @@ class ReplanTransfer:
             self._fit = (key, reference.width, phi, phi_mid, np.linalg.solve(kkt, rhs)[:k])
         return self._fit[2], self._fit[3], self._fit[4]
 
-    def _follow(
-        self, rot: np.ndarray, pos: np.ndarray, q_now: np.ndarray, t_now_s: float, duration_s: float
-    ) -> PathSolution:
+    def _follow(self, rot: np.ndarray, pos: np.ndarray, q_now: np.ndarray, j: int) -> PathSolution:
         """Joint samples, position and orientation errors along the poses ``rot`` (M, 3, 3), ``pos``
-        (M, 3) [m]."""
+        (M, 3) [m]: from the previous re-plan's, else from ``q_now`` at sample ``j``."""
         m, n = pos.shape[0], self.target.n_joints
         out = PathSolution.empty(m, n)
         if self._previous is not None:
             self.solver.follow(rot, pos, SolveSteps.seeded(self._previous, TRACK_ITERATIONS), out)
             return out
-        j = int(np.clip(round(t_now_s / duration_s * (m - 1)), 0, m - 1))
         order = [j] + list(range(j + 1, m)) + list(range(j - 1, -1, -1))
         steps = SolveSteps.chained(
             order, [-1] + [i - 1 for i in order[1:] if i > j] + list(range(j, 0, -1)), n
@@ -297,20 +371,57 @@ class ReplanTransfer:
         self.solver.follow(rot, pos, steps, out)
         return out
 
+    def _kindest(
+        self, out: PathSolution, rot: np.ndarray, pos: np.ndarray, j: int, prefer: Preference
+    ) -> PathSolution:
+        """``out`` (followed from the arm's configuration), unless a path back from another
+        configuration at the hand-over keeps more than :data:`CLEARANCE_TIE_M` farther from the body
+        from sample ``j`` on: then the one of those ``prefer`` scores highest."""
+        m, n = pos.shape[0], self.target.n_joints
+        back = np.arange(m - 2, -1, -1)
+        paths = [out]
+        for end in self.solver.good_poses(rot[-1], pos[-1], out.q[-1]):
+            other = PathSolution.empty(m, n)
+            other.set(m - 1, end)
+            self.solver.follow(rot, pos, SolveSteps.chained(back, back + 1, n), other)
+            paths.append(other)
+        scores = np.asarray(prefer(np.stack([p.q[j:] for p in paths]), np.arange(m - j)), dtype=float)
+        if len(paths) == 1 or (out.reached(m - 1) and np.isfinite(scores[0])):
+            return out
+        scores[0] = -np.inf  # off the hand-over, or clearly closer to the body than another path
+        return paths[int(np.argmax(scores))]
+
     def reference(
-        self, reference: ReferenceMotion, q_now: np.ndarray, t_now_s: float
+        self,
+        reference: ReferenceMotion,
+        q_now: np.ndarray,
+        t_now_s: float,
+        prefer: Callable[[np.ndarray], Preference | None] | None = None,
     ) -> tuple[ReferenceMotion | None, ReplanRetarget]:
         """``reference`` (of ``source``'s joints) as the executing arm's reference motion, from its
         commanded configuration ``q_now`` (n_target,) [rad] at ``t_now_s`` [s] on the reference's
         timeline (used by the first re-plan only), and how closely it follows (None: the arm cannot
-        reach the hand-over pose; the re-plan is refused)."""
+        reach the hand-over pose; the re-plan is refused). ``prefer``: for the sample times (T,)
+        [s] of the rest of the path, how to score candidate paths (:func:`kindest_to_human`); the
+        first re-plan then leaves the arm's branch for a path back from another hand-over
+        configuration that keeps clearly farther from the body."""
         t0 = time.perf_counter()
         d = reference.duration_s
         m = self.phase.size
-        src = reference.evaluate(np.concatenate([self.phase, self.mid]) * d, order=0)[0]
-        src_pos, src_rot = self._placements(src)  # the phases, then between them
+        z = np.concatenate([self.phase, self.mid])
+        src_pos, src_rot = self._placements(reference.evaluate(z * d, order=0)[0])  # phases, then between
+        j = int(np.clip(round(t_now_s / d * (m - 1)), 0, m - 1))
+        first = self._previous is None
+        if first and j < m - 1:  # from where the gripper is now, joining the predicted path by the hand-over
+            now_pos, now_rot = chain_placements(self.target, np.asarray(q_now, dtype=float)[None])
+            offset = Rotation.from_matrix(src_rot[j].T @ now_rot[0]).as_rotvec()
+            keep = fade_out(z, self.phase[j])
+            src_pos, src_rot = warped_poses(src_pos, src_rot, keep, now_pos[0] - src_pos[j], offset)
         rot, pos = np.ascontiguousarray(src_rot[:m]), np.ascontiguousarray(src_pos[:m])
-        out = self._follow(rot, pos, q_now, t_now_s, d)
+        out = self._follow(rot, pos, q_now, j)
+        score = None if prefer is None or not first else prefer(self.phase[j:] * d)
+        if score is not None:
+            out = self._kindest(out, rot, pos, j, score)
         if not out.reached(m - 1):  # the tracked branch misses: every seed
             end = self.solver.first_pose(rot[-1], pos[-1], out.q[-1])
             if end[1] <= TOL_M and end[2] <= TOL_RAD:

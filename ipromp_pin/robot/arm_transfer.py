@@ -23,6 +23,7 @@ kernel switch's set ``"ik"`` is compiled; its Pinocchio iterations (:meth:`PoseS
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -59,6 +60,18 @@ trying the other seeds."""
 
 N_SEEDS = 8
 """Start configurations tried for the first pose (the middle of the limits, then fixed random ones)."""
+
+SAME_SOLUTION_RAD = 0.05
+"""Two solutions of one pose closer than this in every joint [rad] are the same candidate."""
+
+Preference = Callable[[np.ndarray, np.ndarray], np.ndarray]
+"""Scores candidate joint paths of one pose path, given at some of its samples (S, K, n_joints)
+[rad] with those samples' indices (K,): (S,), higher preferred (e.g.
+:func:`ipromp_pin.planning.transfer.kindest_to_human`)."""
+
+SCORED_SAMPLES = 21
+"""Samples of a candidate path (evenly spaced, both ends included) that :func:`follow_pose_path`
+follows to score it: the chosen candidate is then followed at every sample."""
 
 
 @dataclass(frozen=True)
@@ -294,6 +307,26 @@ class PoseSolver:
                 return q, float(err_p), float(err_r), jac
         return self.first(pin.SE3(rot, pos), seed)
 
+    def good_poses(
+        self, rot: np.ndarray, pos: np.ndarray, seed: np.ndarray | None = None
+    ) -> list[tuple[np.ndarray, float, float, np.ndarray]]:
+        """The distinct solutions (q, position and orientation errors, Jacobian) of the pose ``rot``
+        (3, 3), ``pos`` (3,) [m] that the seeds of :meth:`seeds` reach at least :data:`GOOD_MARGIN`
+        from every limit, in seed order (two within :data:`SAME_SOLUTION_RAD` count once)."""
+        seeds = self.seeds(seed)
+        s = seeds.shape[0]
+        out = PathSolution.empty(s, self.robot.n_joints)
+        rots = np.ascontiguousarray(np.broadcast_to(rot, (s, 3, 3)), dtype=float)
+        poss = np.ascontiguousarray(np.broadcast_to(pos, (s, 3)), dtype=float)
+        self.follow(rots, poss, SolveSteps.seeded(seeds, self.max_iter), out)
+        kept: list[int] = []
+        for i in range(s):
+            if not out.reached(i) or self.margin(out.q[i]) < GOOD_MARGIN:
+                continue
+            if all(np.max(np.abs(out.q[i] - out.q[k])) > SAME_SOLUTION_RAD for k in kept):
+                kept.append(i)
+        return [(out.q[i], float(out.err[i, 0]), float(out.err[i, 1]), out.jacs[i]) for i in kept]
+
     def prime(self) -> None:
         """Load (or compile) the compiled kernels now, so that no later call pays for it: the pose at
         the middle of the limits, solved from there (nothing when Pinocchio's iterations run)."""
@@ -332,7 +365,11 @@ class PoseSolver:
 
 
 def transfer_path(
-    source: Robot, target: Robot, q_source: np.ndarray, q_seed: np.ndarray | None = None
+    source: Robot,
+    target: Robot,
+    q_source: np.ndarray,
+    q_seed: np.ndarray | None = None,
+    prefer: Preference | None = None,
 ) -> TransferredPath:
     """The target arm's joint path whose gripper follows the source arm's gripper along ``q_source``.
 
@@ -341,6 +378,8 @@ def transfer_path(
         target: The arm that executes it, built at its ``[placement]`` in the source's base frame.
         q_source: (M, n_source_joints) source joint path in [rad].
         q_seed: (n_target_joints,) start configuration for the first pose (default: fixed seeds).
+        prefer: Chooses among the paths to the hand-over configurations the seeds reach
+            (:func:`follow_pose_path`).
 
     Raises:
         InfeasibleError: the target is not placed in the source's scene.
@@ -350,11 +389,15 @@ def transfer_path(
     check_pair(source, target)
     q_source = as_joint_path(source, q_source, "source joint path")
     pos, rot = chain_placements(source, q_source)
-    return follow_pose_path(target, pos, rot, q_seed)
+    return follow_pose_path(target, pos, rot, q_seed, prefer)
 
 
 def follow_pose_path(
-    target: Robot, positions: np.ndarray, rotations: np.ndarray, q_seed: np.ndarray | None = None
+    target: Robot,
+    positions: np.ndarray,
+    rotations: np.ndarray,
+    q_seed: np.ndarray | None = None,
+    prefer: Preference | None = None,
 ) -> TransferredPath:
     """The target arm's joint path whose ``ee`` frame follows a gripper pose path in the scene frame
     (the target's model frame: its placement applied).
@@ -364,6 +407,8 @@ def follow_pose_path(
         positions: (M, 3) gripper positions in [m].
         rotations: (M, 3, 3) gripper rotation matrices.
         q_seed: (n_target_joints,) start configuration for the first pose (default: fixed seeds).
+        prefer: Chooses among the paths back from the hand-over configurations the seeds reach
+            (:meth:`PoseSolver.good_poses`; None: the first one far enough from the limits).
 
     The hand-over pose (the last) is solved first, then the path is followed back from it to the
     start, each sample from the next one's solution. When the target cannot reach the hand-over, every
@@ -374,14 +419,40 @@ def follow_pose_path(
     rot = np.ascontiguousarray(rotations, dtype=float)
     solver = PoseSolver(target)
     m, n = pos.shape[0], target.n_joints
+    back = np.arange(m - 2, -1, -1)  # back from the hand-over: the path leads to that solution
+    ends = [] if prefer is None else solver.good_poses(rot[-1], pos[-1], q_seed)
+    if len(ends) > 1:  # several ways to meet the hand-over: the path ``prefer`` scores highest
+        ends = [ends[int(np.argmax(_scored(solver, rot, pos, ends, prefer)))]]  # type: ignore[arg-type]
     out = PathSolution.empty(m, n)
-    out.set(m - 1, solver.first_pose(rot[-1], pos[-1], q_seed))
+    out.set(m - 1, ends[0] if ends else solver.first_pose(rot[-1], pos[-1], q_seed))
     if not out.reached(m - 1):  # out of reach: refused, the path is not followed
         out.q[:], out.err[:], out.jacs[:] = out.q[-1], out.err[-1], out.jacs[-1]
         return out.path()
-    back = np.arange(m - 2, -1, -1)  # back from the hand-over: the path leads to that solution
     solver.follow(rot, pos, SolveSteps.chained(back, back + 1, n), out)
     return out.path()
+
+
+def _scored(
+    solver: PoseSolver,
+    rot: np.ndarray,
+    pos: np.ndarray,
+    ends: list[tuple[np.ndarray, float, float, np.ndarray]],
+    prefer: Preference,
+) -> np.ndarray:
+    """``prefer``'s scores (S,) of the paths back from the hand-over solutions ``ends`` along the
+    poses ``rot`` (M, 3, 3), ``pos`` (M, 3) [m], each followed at :data:`SCORED_SAMPLES` samples."""
+    m, n = pos.shape[0], solver.robot.n_joints
+    samples = np.unique(np.linspace(0, m - 1, min(SCORED_SAMPLES, m)).round().astype(np.int64))
+    k = samples.size
+    r, p = np.ascontiguousarray(rot[samples]), np.ascontiguousarray(pos[samples])
+    back = np.arange(k - 2, -1, -1)
+    paths = np.empty((len(ends), k, n))
+    for i, end in enumerate(ends):
+        out = PathSolution.empty(k, n)
+        out.set(k - 1, end)
+        solver.follow(r, p, SolveSteps.chained(back, back + 1, n), out)
+        paths[i] = out.q
+    return np.asarray(prefer(paths, samples), dtype=float)
 
 
 def transfer_samples(

@@ -52,8 +52,9 @@ def test_the_panda_s_reference_follows_baxter_s_gripper_and_meets_the_hand_over_
     baxter, panda = arms
     transfer = ReplanTransfer(baxter, panda)
     ref = baxter_reference(0)
-    q0 = transfer.start(ref.evaluate(np.array([0.0]), order=0)[0][0])
-    moved, how = transfer.reference(ref, q0, 0.3 * ref.duration_s)
+    t_now = 0.3 * ref.duration_s  # the arm's gripper where the prediction has it now
+    q0 = transfer.start(ref.evaluate(np.array([t_now]), order=0)[0][0])
+    moved, how = transfer.reference(ref, q0, t_now)
     assert moved is not None and how.reached and how.source == "baxter_left"
     assert moved.weights.shape == (panda.n_joints, BASIS.n_basis) and moved.duration_s == ref.duration_s
     # at times the fit never saw too: within a few mm, and the reported residual close to the truth
@@ -82,7 +83,13 @@ def test_the_first_re_plan_starts_at_the_commanded_configuration_and_the_next_st
     assert moved is not None
     assert np.abs(moved.evaluate(np.array([t_now]), order=0)[0][0] - q_now).max() < 0.05
     later = baxter_reference(1, shift=0.05)  # the next re-plan predicts a slightly different motion
-    moved2, how2 = transfer.reference(later, q_now + 1.0, t_now)  # seeded by the last solution, not q_now
+    # the arm's configuration given as another solution of the same gripper pose: the next re-plan is
+    # seeded by the last solution, not by it
+    pos, rot = frame_placements(panda, q_now[None])
+    alts = [a[0] for a in transfer.solver.good_poses(rot[0], pos[0])]
+    q_alt = max(alts, key=lambda q: float(np.abs(q - q_now).max()))
+    assert np.abs(q_alt - q_now).max() > 0.3
+    moved2, how2 = transfer.reference(later, q_alt, t_now)
     assert moved2 is not None and how2.reached
     t = np.linspace(0.0, ref.duration_s, 50)
     step = np.abs(moved2.evaluate(t, order=0)[0] - moved.evaluate(t, order=0)[0]).max()
@@ -106,3 +113,82 @@ def test_an_unreachable_hand_over_is_refused_and_keeps_the_last_solution(arms, t
     assert "cannot reach the predicted hand-over pose" in transfer.why_not_reached(how)
     with pytest.raises(UnreachableError, match="cannot reach the recorded start pose"):
         transfer.start(ref.evaluate(np.array([0.0]), order=0)[0][0])
+
+
+def test_the_first_re_plan_keeps_the_arm_s_branch_unless_another_path_keeps_clearly_clearer(arms):
+    baxter, panda = arms
+    ref = baxter_reference(1)
+    t_now = 0.25 * ref.duration_s
+    q_src_now = ref.evaluate(np.array([t_now]), order=0)[0][0]
+    grid = np.linspace(0.0, ref.duration_s, 50)
+
+    def run(score):
+        transfer = ReplanTransfer(baxter, panda)
+        q_now = transfer.start(q_src_now)
+        seen: list[np.ndarray] = []
+
+        def prefer(t_s: np.ndarray):
+            assert t_s[0] == pytest.approx(t_now, abs=ref.duration_s / 40) and t_s[-1] == ref.duration_s
+
+            def scored(paths: np.ndarray, samples: np.ndarray) -> np.ndarray:
+                assert samples.size == paths.shape[1] and samples[-1] == t_s.size - 1
+                seen.append(paths)
+                return score(paths)
+
+            return scored
+
+        moved, how = transfer.reference(ref, q_now, t_now, prefer)
+        assert moved is not None and how.reached
+        return moved.evaluate(grid, order=0)[0], seen, q_now
+
+    plain = ReplanTransfer(baxter, panda)
+    base, _ = plain.reference(ref, plain.start(q_src_now), t_now)
+    assert base is not None
+    # every candidate as clear as the arm's own: the arm's own path, as without a preference
+    kept, seen, _ = run(lambda paths: np.zeros(paths.shape[0]))
+    np.testing.assert_allclose(kept, base.evaluate(grid, order=0)[0], atol=1e-9)
+    assert len(seen) == 1 and seen[0].shape[0] >= 2  # the arm's path and a path back from the hand-over
+    # the arm's own path clearly closer to the body: the best-scored other path (here the last
+    # candidate), which still meets its hand-over configuration exactly
+    scores = lambda paths: np.r_[-np.inf, np.arange(1.0, paths.shape[0])]  # noqa: E731
+    moved, seen, _ = run(scores)
+    chosen = seen[0][-1]
+    assert np.abs(moved[-1] - chosen[-1]).max() < 1e-6
+    assert np.abs(moved - kept).max() > 1e-3
+
+
+def test_a_re_plan_starts_where_the_arm_s_gripper_is_and_joins_the_predicted_path_by_the_hand_over(arms):
+    baxter, panda = arms
+    ref = baxter_reference(1)
+    transfer = ReplanTransfer(baxter, panda)
+    # the arm still rests at the motion's start while the prediction has moved on by a quarter
+    q_now = transfer.start(ref.evaluate(np.array([0.0]), order=0)[0][0])
+    t_now = 0.25 * ref.duration_s
+    moved, how = transfer.reference(ref, q_now, t_now)
+    assert moved is not None and how.reached
+    p_now, _ = frame_placements(panda, q_now[None])
+    p_ref, _ = frame_placements(baxter, ref.evaluate(np.array([t_now]), order=0)[0])
+    assert np.linalg.norm(p_now[0] - p_ref[0]) > 0.02  # the prediction is elsewhere by now
+    # the reference starts at the arm's configuration (its gripper where it is), not at the prediction
+    assert np.abs(moved.evaluate(np.array([t_now]), order=0)[0][0] - q_now).max() < 0.02
+    # and meets the predicted hand-over pose exactly
+    gap_m, angle = gripper_gap(baxter, panda, ref, moved, np.array([ref.duration_s]))
+    assert gap_m[0] <= TOL_M and angle[0] <= TOL_RAD
+
+
+def test_the_offset_of_a_warped_pose_path_fades_from_the_given_phase_to_none_at_the_end():
+    from scipy.spatial.transform import Rotation
+
+    from ipromp_pin.planning.transfer import fade_out, warped_poses
+
+    z = np.linspace(0.0, 1.0, 41)
+    keep = fade_out(z, 0.25)
+    assert np.all(keep[z <= 0.25] == 1.0) and keep[-1] == 0.0 and np.all(np.diff(keep) <= 0.0)
+    rng = np.random.default_rng(3)
+    pos = rng.normal(size=(41, 3))
+    rot = Rotation.random(41, random_state=4).as_matrix()
+    dp, dr = np.array([0.1, -0.2, 0.05]), np.array([0.0, 0.3, -0.1])
+    wp, wr = warped_poses(pos, rot, keep, dp, dr)
+    np.testing.assert_allclose(wp[:10], pos[:10] + dp)  # the whole offset up to the phase
+    np.testing.assert_allclose(wr[5], rot[5] @ Rotation.from_rotvec(dr).as_matrix(), atol=1e-12)
+    np.testing.assert_allclose(wp[-1], pos[-1]) and np.testing.assert_allclose(wr[-1], rot[-1], atol=1e-12)

@@ -102,3 +102,26 @@ def test_a_bad_placement_is_refused_naming_the_field(tmp_path, placement, messag
 
 def test_baxter_itself_has_no_placement():
     assert load_robot_settings("baxter_left").placement is None
+
+
+def test_the_preferred_path_is_the_best_scored_of_the_hand_over_configurations_the_seeds_reach(robots):
+    from ipromp_pin.robot.arm_transfer import GOOD_MARGIN, PoseSolver
+
+    baxter = robots[0]
+    ur5 = load_robot("ur5")  # six joints: isolated solutions (elbow, wrist, shoulder)
+    q = make_synthetic_dataset(n_demos=3).all_demos()[0].groups["robot"]
+    pos, rot = frame_placements(baxter, q)
+    solver = PoseSolver(ur5)
+    ends = solver.good_poses(rot[-1], pos[-1])
+    assert len(ends) >= 2  # a UR5 meets a pose in several configurations
+    for qe, err_p, err_r, _ in ends:
+        assert err_p <= TOL_M and err_r <= TOL_RAD and solver.margin(qe) >= GOOD_MARGIN
+    default = transfer_path(baxter, ur5, q)
+    # a preference for the largest first joint at the hand-over
+    chosen = transfer_path(baxter, ur5, q, prefer=lambda paths, _samples: paths[:, -1, 0])
+    assert chosen.reached
+    assert chosen.q[-1, 0] == pytest.approx(max(e[0][0] for e in ends), abs=1e-6)
+    worst = transfer_path(baxter, ur5, q, prefer=lambda paths, _samples: -paths[:, -1, 0])
+    assert worst.q[-1, 0] == pytest.approx(min(e[0][0] for e in ends), abs=1e-6)
+    assert np.abs(chosen.q[-1] - worst.q[-1]).max() > 0.1
+    assert default.reached and np.abs(np.diff(chosen.q, axis=0)).max() < 0.3  # followed back, no jump

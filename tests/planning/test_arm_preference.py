@@ -1,0 +1,56 @@
+"""Choosing how a placed arm meets the hand-over (issue 37: redundancy used to stay away from the
+human): of the candidate paths, :func:`kindest_to_human` keeps those as clear of the body as the
+clearest, then prefers the one expected to take the least time."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from ipromp_pin.planning.transfer import CLEARANCE_TIE_M, kindest_to_human
+from ipromp_pin.robot import load_robot
+from ipromp_pin.safety import CheckContext, CheckSuite
+
+
+@pytest.fixture(scope="module")
+def panda():
+    return load_robot("panda")
+
+
+def test_paths_clearly_closer_to_the_body_than_the_clearest_are_never_preferred(panda):
+    suite = CheckSuite.build(panda)
+    t = np.linspace(0.5, 3.0, 30)
+    prefer = kindest_to_human(suite, CheckContext(), t)  # the assumed human
+    assert prefer is not None
+    mid = 0.5 * (panda.lower_rad + panda.upper_rad)
+    turns = np.linspace(-1.5, 1.5, 7)  # the whole arm turned toward or away from the human
+    paths = np.repeat(np.repeat(mid[None, None], 30, axis=1), turns.size, axis=0)
+    paths[:, :, 0] += turns[:, None]
+    scores = prefer(paths, np.arange(t.size))
+    check = suite.get("human_clearance")
+    human = check.human(CheckContext())
+    clear = np.array(
+        [
+            check.analyser.analyse(t.copy(), p.copy(), np.zeros_like(p), human).clearance_m().min()
+            for p in paths
+        ]
+    )
+    assert np.ptp(clear) > 2 * CLEARANCE_TIE_M  # some turns clearly closer than others
+    np.testing.assert_array_equal(np.isfinite(scores), clear >= clear.max() - CLEARANCE_TIE_M)
+
+
+def test_of_equally_clear_paths_the_one_with_less_joint_travel_is_preferred(panda):
+    suite = CheckSuite.build(panda)
+    t = np.linspace(0.5, 3.0, 30)
+    prefer = kindest_to_human(suite, CheckContext(), t)
+    mid = 0.5 * (panda.lower_rad + panda.upper_rad)
+    still = np.repeat(mid[None], 30, axis=0)
+    wrist = still.copy()
+    wrist[:, 6] += 1.5 * np.sin(np.linspace(0.0, np.pi, 30))  # the flange turns and back: 3 rad travel
+    scores = prefer(np.stack([still, wrist]), np.arange(t.size))
+    assert np.all(np.isfinite(scores)) and scores[0] > scores[1]
+
+
+def test_without_a_human_check_nothing_is_preferred(panda):
+    suite = CheckSuite.build(panda, exclude=["human_clearance"])
+    assert kindest_to_human(suite, CheckContext(), np.linspace(0.0, 1.0, 5)) is None

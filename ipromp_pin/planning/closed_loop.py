@@ -45,7 +45,6 @@ import math
 import time
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field
-from functools import partial
 
 import numpy as np
 
@@ -62,7 +61,7 @@ from ..safety.speed_limits import SpeedLimitMeasures
 from ..safety.workspace import WorkspaceMeasures
 from .human_forecast import forecast_of, replan_context
 from .timers import retarget_timer
-from .transfer import ReplanTransfer, kindest_to_human, predicts_gripper
+from .transfer import ReplanTransfer, predicts_gripper
 from .unknown_stop import UNKNOWN_HOLD_RANGE_S, UNKNOWN_HOLD_S, Segment, StopEvent, UnknownStop
 
 CONDITION_NOISE = 0.3
@@ -537,10 +536,12 @@ class ClosedLoopPlanner:
             if len(self._plans) > 1:  # it moved: stop, hold, retreat
                 self._unknown_segment(r, tick, state, pred.unknown_reason or "")
             return r
-        context = replan_context(self.context, pred, r.observed_until_s, self.forecast)
         if self.transfer is not None:  # the model's robot's reference -> this arm's, through the gripper
-            prefer = partial(kindest_to_human, self.suite, context)
-            moved, how = self.transfer.reference(reference, state.q, float(state.t_s), prefer)
+            # not moved yet after a refused re-plan (that was not restarted): from where its gripper is
+            last = self.replans[-1] if self.replans else None
+            restart = len(self._plans) == 1 and last is not None and not last.committed
+            restart = restart and last is not None and not (last.retarget or {}).get("restarted", False)
+            moved, how = self.transfer.reference(reference, state.q, float(state.t_s), restart)
             ms["arm_transfer"] = how.ms
             r.retarget = how.to_dict()
             if moved is None:  # refused as any failed re-plan: never a shifted hand-over
@@ -548,6 +549,7 @@ class ClosedLoopPlanner:
                 r.stage_ms = ms
                 return r
             reference = moved
+        context = replan_context(self.context, pred, r.observed_until_s, self.forecast)
         plan = self._plan_checked(state, reference, r, ms, context)
         r.stage_ms = ms
         if plan is not None and not r.reason:

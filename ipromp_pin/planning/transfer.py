@@ -5,9 +5,9 @@ checked on that arm.
 :func:`source_robot` finds the model's robot: the arm itself when the model predicts its joints,
 else the ``[placement] source`` of its settings (the robot of the recordings, in whose base frame the
 arm is placed). :func:`retarget_prediction` turns the predicted mean path and the sampled paths into
-the arm's joint paths, with the inverse kinematics' residuals (:class:`Retargeting`); where the arm
-can meet the hand-over pose in several configurations, :func:`kindest_to_human` prefers the path
-that keeps clear of the human's body and needs the least slow-down near it.
+the arm's joint paths, with the inverse kinematics' residuals (:class:`Retargeting`); where a
+6-joint arm meets the hand-over pose in several configurations, :func:`kindest_to_human` prefers the
+path that keeps clear of the human's body and is expected to take the least time.
 :class:`ReplanTransfer` does it for every re-plan of the closed loop: the predicted reference motion
 (:class:`~ipromp_pin.motion.retarget.ReferenceMotion`) becomes the executing arm's.
 """
@@ -15,7 +15,6 @@ that keeps clear of the human's body and needs the least slow-down near it.
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -148,11 +147,19 @@ CLEARANCE_TIE_M = 0.01
 as equally clear (:func:`kindest_to_human`)."""
 
 
+POSE_DOF = 6
+"""Joints of an arm that meets a gripper pose in a few isolated configurations (elbow up or down, wrist
+flipped, ...): only such an arm chooses among them (:func:`kindest_to_human`). A redundant arm meets
+it along a continuum, of which the seeds' solutions are arbitrary points: choosing among them by the
+rough time estimate changed 29 of 90 one-shot Panda plans on handover_20171128, 19 of which then
+arrived later (without :data:`FIRST_PATH_ADVANTAGE`), and with that margin still made the Panda's
+median arrival on chen2017_handover 0.16 s later (one-shot, 5 folds, 20 % observed); it keeps its
+first solution, drawn toward the middle of its joint ranges."""
+
 FIRST_PATH_ADVANTAGE = 0.8
-"""Another candidate path is preferred to the first (the seeds' first solution: the one toward the
+"""Another candidate path is preferred to the first (the seeds' first solution: the one from the
 middle of the joint ranges) only when it is expected to take less than this fraction of its time:
-the time is a rough estimate (a one-off study on handover_20171128, 90 one-shot Panda plans, kept the
-first in 54: of the 29 others, 19 arrived later)."""
+the time is a rough estimate."""
 
 
 def kindest_to_human(suite: CheckSuite, context: CheckContext, t_s: np.ndarray) -> Preference | None:
@@ -164,9 +171,12 @@ def kindest_to_human(suite: CheckSuite, context: CheckContext, t_s: np.ndarray) 
     the time their joints need at their velocity and acceleration limits and the time the
     contact-speed limits ask for (the largest approach speed / limit within the protective
     separation distance at that timing, over ``1 - speed_margin``), the first path's times
-    :data:`FIRST_PATH_ADVANTAGE`. None: the suite has no such check or it does not apply."""
+    :data:`FIRST_PATH_ADVANTAGE`. None: the suite has no such check or it does not apply, or the arm
+    is redundant (more joints than :data:`POSE_DOF`)."""
     check = suite.get("human_clearance")
     if not isinstance(check, SeparationCheck) or not check.applies(context):
+        return None
+    if check.robot.n_joints > POSE_DOF:  # a continuum of solutions: the seeds' are arbitrary points of it
         return None
     analyser, human, robot = check.analyser, check.human(context), check.robot
     vel, acc = robot.velocity_rad_s, robot.settings.acceleration_rad_s2
@@ -263,6 +273,9 @@ class ReplanRetarget:
             at the phase samples and halfway between them (inverse kinematics and fit on the basis
             together).
         ms: Wall time [ms] of the retargeting.
+        restarted: Whether it was followed as a first re-plan from where the arm's gripper is (the
+            arm had not moved and the previous re-plan was refused; the residuals are then against
+            that moved path).
     """
 
     source: str
@@ -271,6 +284,7 @@ class ReplanRetarget:
     handover_residual_deg: float
     max_path_residual_mm: float
     ms: float
+    restarted: bool = False
 
     def to_dict(self) -> dict:
         """JSON-serialisable form, with the keys of the one-shot report's ``retarget``."""
@@ -281,6 +295,7 @@ class ReplanRetarget:
             "ik_residual_deg": round(self.handover_residual_deg, 4),
             "max_path_residual_mm": round(self.max_path_residual_mm, 4),
             "ms": round(self.ms, 3),
+            "restarted": self.restarted,
         }
 
 
@@ -292,10 +307,12 @@ class ReplanTransfer:
     reference's basis, the hand-over exactly (a least-squares fit constrained at the end): a reference
     motion of ``target``'s joints on the same timeline, with exact derivatives. The first re-plan
     follows the path from the arm's commanded configuration (at the sample nearest the re-plan's
-    time, forward to the hand-over and back to the start); every later one starts each sample from the
-    previous re-plan's solution at the same phase, so that consecutive re-plans stay on one branch of
-    the inverse kinematics and take one or two iterations per sample. A re-plan whose hand-over the
-    arm cannot reach keeps no solution (the next one starts from the last reached).
+    time, forward to the hand-over and back to the start); every later one starts each sample from
+    the previous re-plan's solution at the same phase, so that consecutive re-plans stay on one
+    branch of the inverse kinematics and take one or two iterations per sample. A re-plan whose
+    hand-over the arm cannot reach keeps no solution (the next one starts from the last reached). An
+    arm that has not moved yet after a refused re-plan restarts: the next one is followed as a first
+    re-plan, its path moved to start where the arm's gripper is (``restart``).
     """
 
     def __init__(self, source: Robot, target: Robot, n_grid: int = N_GRID, from_poses: bool = False) -> None:
@@ -371,57 +388,30 @@ class ReplanTransfer:
         self.solver.follow(rot, pos, steps, out)
         return out
 
-    def _kindest(
-        self, out: PathSolution, rot: np.ndarray, pos: np.ndarray, j: int, prefer: Preference
-    ) -> PathSolution:
-        """``out`` (followed from the arm's configuration), unless a path back from another
-        configuration at the hand-over keeps more than :data:`CLEARANCE_TIE_M` farther from the body
-        from sample ``j`` on: then the one of those ``prefer`` scores highest."""
-        m, n = pos.shape[0], self.target.n_joints
-        back = np.arange(m - 2, -1, -1)
-        paths = [out]
-        for end in self.solver.good_poses(rot[-1], pos[-1], out.q[-1]):
-            other = PathSolution.empty(m, n)
-            other.set(m - 1, end)
-            self.solver.follow(rot, pos, SolveSteps.chained(back, back + 1, n), other)
-            paths.append(other)
-        scores = np.asarray(prefer(np.stack([p.q[j:] for p in paths]), np.arange(m - j)), dtype=float)
-        if len(paths) == 1 or (out.reached(m - 1) and np.isfinite(scores[0])):
-            return out
-        scores[0] = -np.inf  # off the hand-over, or clearly closer to the body than another path
-        return paths[int(np.argmax(scores))]
-
     def reference(
-        self,
-        reference: ReferenceMotion,
-        q_now: np.ndarray,
-        t_now_s: float,
-        prefer: Callable[[np.ndarray], Preference | None] | None = None,
+        self, reference: ReferenceMotion, q_now: np.ndarray, t_now_s: float, restart: bool = False
     ) -> tuple[ReferenceMotion | None, ReplanRetarget]:
         """``reference`` (of ``source``'s joints) as the executing arm's reference motion, from its
         commanded configuration ``q_now`` (n_target,) [rad] at ``t_now_s`` [s] on the reference's
         timeline (used by the first re-plan only), and how closely it follows (None: the arm cannot
-        reach the hand-over pose; the re-plan is refused). ``prefer``: for the sample times (T,)
-        [s] of the rest of the path, how to score candidate paths (:func:`kindest_to_human`); the
-        first re-plan then leaves the arm's branch for a path back from another hand-over
-        configuration that keeps clearly farther from the body."""
+        reach the hand-over pose; the re-plan is refused). ``restart``: follow it as a first re-plan,
+        the pose path moved to start where the arm's gripper is (:func:`warped_poses`): for an arm
+        that has not moved yet and whose re-plan was refused."""
         t0 = time.perf_counter()
         d = reference.duration_s
         m = self.phase.size
         z = np.concatenate([self.phase, self.mid])
         src_pos, src_rot = self._placements(reference.evaluate(z * d, order=0)[0])  # phases, then between
         j = int(np.clip(round(t_now_s / d * (m - 1)), 0, m - 1))
-        first = self._previous is None
-        if first and j < m - 1:  # from where the gripper is now, joining the predicted path by the hand-over
-            now_pos, now_rot = chain_placements(self.target, np.asarray(q_now, dtype=float)[None])
-            offset = Rotation.from_matrix(src_rot[j].T @ now_rot[0]).as_rotvec()
-            keep = fade_out(z, self.phase[j])
-            src_pos, src_rot = warped_poses(src_pos, src_rot, keep, now_pos[0] - src_pos[j], offset)
+        if restart:
+            self._previous = None
+            if j < m - 1:  # from where the gripper is now, joining the predicted path by the hand-over
+                now_pos, now_rot = chain_placements(self.target, np.asarray(q_now, dtype=float)[None])
+                offset = Rotation.from_matrix(src_rot[j].T @ now_rot[0]).as_rotvec()
+                keep = fade_out(z, self.phase[j])
+                src_pos, src_rot = warped_poses(src_pos, src_rot, keep, now_pos[0] - src_pos[j], offset)
         rot, pos = np.ascontiguousarray(src_rot[:m]), np.ascontiguousarray(src_pos[:m])
         out = self._follow(rot, pos, q_now, j)
-        score = None if prefer is None or not first else prefer(self.phase[j:] * d)
-        if score is not None:
-            out = self._kindest(out, rot, pos, j, score)
         if not out.reached(m - 1):  # the tracked branch misses: every seed
             end = self.solver.first_pose(rot[-1], pos[-1], out.q[-1])
             if end[1] <= TOL_M and end[2] <= TOL_RAD:
@@ -433,7 +423,13 @@ class ReplanTransfer:
         if not out.reached(m - 1):
             ms = (time.perf_counter() - t0) * 1e3
             return None, ReplanRetarget(
-                name, False, err_p[-1] * 1e3, float(np.degrees(err_r[-1])), float(err_p.max() * 1e3), ms
+                name,
+                False,
+                err_p[-1] * 1e3,
+                float(np.degrees(err_r[-1])),
+                float(err_p.max() * 1e3),
+                ms,
+                restart,
             )
         self._previous = q
         phi, phi_mid, fit = self._basis(reference)
@@ -445,7 +441,13 @@ class ReplanTransfer:
         path_mm = float(np.max(np.linalg.norm(commanded - src_pos, axis=1)) * 1e3)
         ms = (time.perf_counter() - t0) * 1e3
         return moved, ReplanRetarget(
-            name, True, err_p[-1] * 1e3, float(np.degrees(err_r[-1])), max(path_mm, err_p[-1] * 1e3), ms
+            name,
+            True,
+            err_p[-1] * 1e3,
+            float(np.degrees(err_r[-1])),
+            max(path_mm, err_p[-1] * 1e3),
+            ms,
+            restart,
         )
 
     def why_not_reached(self, retarget: ReplanRetarget) -> str:

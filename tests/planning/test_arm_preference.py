@@ -13,16 +13,16 @@ from ipromp_pin.safety import CheckContext, CheckSuite
 
 
 @pytest.fixture(scope="module")
-def panda():
-    return load_robot("panda")
+def ur5():
+    return load_robot("ur5")  # six joints: a few isolated configurations per gripper pose
 
 
-def test_paths_clearly_closer_to_the_body_than_the_clearest_are_never_preferred(panda):
-    suite = CheckSuite.build(panda)
+def test_paths_clearly_closer_to_the_body_than_the_clearest_are_never_preferred(ur5):
+    suite = CheckSuite.build(ur5)
     t = np.linspace(0.5, 3.0, 30)
     prefer = kindest_to_human(suite, CheckContext(), t)  # the assumed human
     assert prefer is not None
-    mid = 0.5 * (panda.lower_rad + panda.upper_rad)
+    mid = 0.5 * (ur5.lower_rad + ur5.upper_rad)
     turns = np.linspace(-1.5, 1.5, 7)  # the whole arm turned toward or away from the human
     paths = np.repeat(np.repeat(mid[None, None], 30, axis=1), turns.size, axis=0)
     paths[:, :, 0] += turns[:, None]
@@ -39,18 +39,20 @@ def test_paths_clearly_closer_to_the_body_than_the_clearest_are_never_preferred(
     np.testing.assert_array_equal(np.isfinite(scores), clear >= clear.max() - CLEARANCE_TIE_M)
 
 
-def test_of_equally_clear_paths_the_one_with_less_joint_travel_is_preferred(panda):
-    suite = CheckSuite.build(panda)
+def test_of_equally_clear_paths_the_one_with_less_joint_travel_is_preferred(ur5):
+    suite = CheckSuite.build(ur5)
     t = np.linspace(0.5, 3.0, 30)
     prefer = kindest_to_human(suite, CheckContext(), t)
-    mid = 0.5 * (panda.lower_rad + panda.upper_rad)
+    mid = 0.5 * (ur5.lower_rad + ur5.upper_rad)
     still = np.repeat(mid[None], 30, axis=0)
     wrist = still.copy()
-    wrist[:, 6] += 1.5 * np.sin(np.linspace(0.0, np.pi, 30))  # the flange turns and back: 3 rad travel
+    wrist[:, 5] += 1.5 * np.sin(np.linspace(0.0, np.pi, 30))  # the flange turns and back: 3 rad travel
     scores = prefer(np.stack([still, wrist]), np.arange(t.size))
     assert np.all(np.isfinite(scores)) and scores[0] > scores[1]
 
 
-def test_without_a_human_check_nothing_is_preferred(panda):
-    suite = CheckSuite.build(panda, exclude=["human_clearance"])
+def test_without_a_human_check_or_for_a_redundant_arm_nothing_is_preferred(ur5):
+    suite = CheckSuite.build(ur5, exclude=["human_clearance"])
     assert kindest_to_human(suite, CheckContext(), np.linspace(0.0, 1.0, 5)) is None
+    panda = load_robot("panda")  # seven joints: a continuum of configurations, the first one kept
+    assert kindest_to_human(CheckSuite.build(panda), CheckContext(), np.linspace(0.0, 1.0, 5)) is None

@@ -10,12 +10,17 @@ import numpy as np
 import pytest
 
 from ipromp_pin.exceptions import UnreachableError
+from ipromp_pin.motion.limits import conservative_profile
 from ipromp_pin.motion.retarget import ReferenceMotion
+from ipromp_pin.motion.trajectory import Trajectory
+from ipromp_pin.planning.closed_loop import ClosedLoopSettings, replay_demo
 from ipromp_pin.planning.transfer import ReplanTransfer
 from ipromp_pin.promp.basis import GaussianBasis
 from ipromp_pin.readers.synthetic import make_synthetic_dataset
 from ipromp_pin.robot import frame_placements, load_robot
 from ipromp_pin.robot.arm_transfer import TOL_M, TOL_RAD
+from ipromp_pin.safety import CheckContext, CheckSuite, Verdict
+from ipromp_pin.safety.base import Check
 
 ROBOTS = Path(__file__).resolve().parents[2] / "robots"
 BASIS = GaussianBasis(31)  # the model's default basis
@@ -52,9 +57,8 @@ def test_the_panda_s_reference_follows_baxter_s_gripper_and_meets_the_hand_over_
     baxter, panda = arms
     transfer = ReplanTransfer(baxter, panda)
     ref = baxter_reference(0)
-    t_now = 0.3 * ref.duration_s  # the arm's gripper where the prediction has it now
-    q0 = transfer.start(ref.evaluate(np.array([t_now]), order=0)[0][0])
-    moved, how = transfer.reference(ref, q0, t_now)
+    q0 = transfer.start(ref.evaluate(np.array([0.0]), order=0)[0][0])
+    moved, how = transfer.reference(ref, q0, 0.3 * ref.duration_s)
     assert moved is not None and how.reached and how.source == "baxter_left"
     assert moved.weights.shape == (panda.n_joints, BASIS.n_basis) and moved.duration_s == ref.duration_s
     # at times the fit never saw too: within a few mm, and the reported residual close to the truth
@@ -115,62 +119,25 @@ def test_an_unreachable_hand_over_is_refused_and_keeps_the_last_solution(arms, t
         transfer.start(ref.evaluate(np.array([0.0]), order=0)[0][0])
 
 
-def test_the_first_re_plan_keeps_the_arm_s_branch_unless_another_path_keeps_clearly_clearer(arms):
-    baxter, panda = arms
-    ref = baxter_reference(1)
-    t_now = 0.25 * ref.duration_s
-    q_src_now = ref.evaluate(np.array([t_now]), order=0)[0][0]
-    grid = np.linspace(0.0, ref.duration_s, 50)
-
-    def run(score):
-        transfer = ReplanTransfer(baxter, panda)
-        q_now = transfer.start(q_src_now)
-        seen: list[np.ndarray] = []
-
-        def prefer(t_s: np.ndarray):
-            assert t_s[0] == pytest.approx(t_now, abs=ref.duration_s / 40) and t_s[-1] == ref.duration_s
-
-            def scored(paths: np.ndarray, samples: np.ndarray) -> np.ndarray:
-                assert samples.size == paths.shape[1] and samples[-1] == t_s.size - 1
-                seen.append(paths)
-                return score(paths)
-
-            return scored
-
-        moved, how = transfer.reference(ref, q_now, t_now, prefer)
-        assert moved is not None and how.reached
-        return moved.evaluate(grid, order=0)[0], seen, q_now
-
-    plain = ReplanTransfer(baxter, panda)
-    base, _ = plain.reference(ref, plain.start(q_src_now), t_now)
-    assert base is not None
-    # every candidate as clear as the arm's own: the arm's own path, as without a preference
-    kept, seen, _ = run(lambda paths: np.zeros(paths.shape[0]))
-    np.testing.assert_allclose(kept, base.evaluate(grid, order=0)[0], atol=1e-9)
-    assert len(seen) == 1 and seen[0].shape[0] >= 2  # the arm's path and a path back from the hand-over
-    # the arm's own path clearly closer to the body: the best-scored other path (here the last
-    # candidate), which still meets its hand-over configuration exactly
-    scores = lambda paths: np.r_[-np.inf, np.arange(1.0, paths.shape[0])]  # noqa: E731
-    moved, seen, _ = run(scores)
-    chosen = seen[0][-1]
-    assert np.abs(moved[-1] - chosen[-1]).max() < 1e-6
-    assert np.abs(moved - kept).max() > 1e-3
-
-
-def test_a_re_plan_starts_where_the_arm_s_gripper_is_and_joins_the_predicted_path_by_the_hand_over(arms):
+def test_a_restarted_re_plan_starts_where_the_arm_s_gripper_is_and_joins_the_path_by_the_hand_over(arms):
     baxter, panda = arms
     ref = baxter_reference(1)
     transfer = ReplanTransfer(baxter, panda)
     # the arm still rests at the motion's start while the prediction has moved on by a quarter
     q_now = transfer.start(ref.evaluate(np.array([0.0]), order=0)[0][0])
     t_now = 0.25 * ref.duration_s
-    moved, how = transfer.reference(ref, q_now, t_now)
+    plain, _ = transfer.reference(ref, q_now, t_now)  # a first re-plan: the predicted path as it is
+    assert plain is not None
+    moved, how = transfer.reference(ref, q_now, t_now, restart=True)  # that one refused: restarted
     assert moved is not None and how.reached
     p_now, _ = frame_placements(panda, q_now[None])
     p_ref, _ = frame_placements(baxter, ref.evaluate(np.array([t_now]), order=0)[0])
     assert np.linalg.norm(p_now[0] - p_ref[0]) > 0.02  # the prediction is elsewhere by now
-    # the reference starts at the arm's configuration (its gripper where it is), not at the prediction
+    # the restarted reference starts at the arm's configuration (its gripper where it is), the plain
+    # one at the prediction
     assert np.abs(moved.evaluate(np.array([t_now]), order=0)[0][0] - q_now).max() < 0.02
+    p_plain, _ = frame_placements(panda, plain.evaluate(np.array([t_now]), order=0)[0])
+    assert np.linalg.norm(p_plain[0] - p_ref[0]) < 0.005
     # and meets the predicted hand-over pose exactly
     gap_m, angle = gripper_gap(baxter, panda, ref, moved, np.array([ref.duration_s]))
     assert gap_m[0] <= TOL_M and angle[0] <= TOL_RAD
@@ -192,3 +159,37 @@ def test_the_offset_of_a_warped_pose_path_fades_from_the_given_phase_to_none_at_
     np.testing.assert_allclose(wp[:10], pos[:10] + dp)  # the whole offset up to the phase
     np.testing.assert_allclose(wr[5], rot[5] @ Rotation.from_rotvec(dr).as_matrix(), atol=1e-12)
     np.testing.assert_allclose(wp[-1], pos[-1]) and np.testing.assert_allclose(wr[-1], rot[-1], atol=1e-12)
+
+
+class _RefuseEarly(Check):
+    """Refuses every motion that starts before ``until_s`` [s] (asks for no slow-down)."""
+
+    name = "refuse_early"
+    until_s = 0.0
+
+    def check(self, motion: Trajectory, context: CheckContext) -> Verdict:
+        if motion.t_s[0] < self.until_s:
+            return Verdict(self.name, "fail", f"starts at {motion.t_s[0]:.2f} s")
+        return Verdict(self.name, "pass", f"starts at {motion.t_s[0]:.2f} s")
+
+
+def test_an_arm_not_moved_yet_restarts_from_its_gripper_after_a_refused_re_plan(synthetic_closed_loop):
+    model, baxter, _train, test = synthetic_closed_loop
+    panda = load_robot("panda")
+    demo = test[0]
+    check = _RefuseEarly(panda)
+    check.until_s = 0.4 * float(demo.t[-1] - demo.t[0])
+    settings = ClosedLoopSettings(start_ratio=0.2)
+    suite = CheckSuite([check])
+    result = replay_demo(model, panda, demo, conservative_profile(panda), settings, suite, source=baxter)
+    moves = [r for r in result.replans if r.retarget is not None]
+    first = next(i for i, r in enumerate(moves) if r.committed)
+    assert first >= 2  # some re-plans refused before the first committed one
+    restarted = [r.retarget["restarted"] for r in moves]
+    assert restarted[0] is False  # the first follows the predicted path as it is
+    # then, until one is committed, from the arm's gripper after each plain one refused (alternately)
+    assert restarted[1 : first + 1] == [i % 2 == 1 for i in range(1, first + 1)]
+    assert not any(restarted[first + 1 :])  # moving: tracked as before
+    # the committed motion leaves the rest configuration without a jump
+    q = result.trajectory.q
+    assert np.abs(np.diff(q, axis=0)).max() < 0.05

@@ -212,9 +212,7 @@ def plan(
     )
     start_s = float(observation.t[-1] - observation.t[0])
     if source is not None or predicts_gripper(model):  # gripper poses: followed by any arm
-        # the path as if it reached the hand-over when the human is predicted to
-        along = np.linspace(start_s, max(start_s, float(prediction.duration_s)), prediction.q_mean.shape[0])
-        prefer = kindest_to_human(suite, ctx, along)
+        prefer = kindest_to_human(suite, ctx, timed_as_predicted(prediction, start_s))
         q_path, samples, retarget = retargeted(model, prediction, samples, robot, source, say, prefer)
         ctx = ctx.replace(handover_samples=samples[:, -1, :])
         ms["retarget"] = retarget.ms
@@ -250,6 +248,12 @@ def plan(
     if result.slowdown != 1.0:
         say(_slowdown_line(result))
     return result
+
+
+def timed_as_predicted(prediction: Prediction, start_s: float) -> np.ndarray:
+    """Times (M,) [s] of the predicted path's samples for a motion from ``start_s`` [s] that reaches
+    the hand-over when the human is predicted to (evenly spaced)."""
+    return np.linspace(start_s, max(start_s, float(prediction.duration_s)), prediction.q_mean.shape[0])
 
 
 def retargeted(

@@ -276,6 +276,7 @@ class ReplanRetarget:
         restarted: Whether it was followed as a first re-plan from where the arm's gripper is (the
             arm had not moved and the previous re-plan was refused; the residuals are then against
             that moved path).
+        from_poses: The model predicts the gripper pose path itself (no source joints).
     """
 
     source: str
@@ -285,11 +286,13 @@ class ReplanRetarget:
     max_path_residual_mm: float
     ms: float
     restarted: bool = False
+    from_poses: bool = False
 
     def to_dict(self) -> dict:
         """JSON-serialisable form, with the keys of the one-shot report's ``retarget``."""
         return {
             "source_robot": self.source,
+            "source_path": "gripper_pose" if self.from_poses else "joints",
             "reached": self.reached,
             "ik_residual_mm": round(self.handover_residual_mm, 4),
             "ik_residual_deg": round(self.handover_residual_deg, 4),
@@ -430,6 +433,7 @@ class ReplanTransfer:
                 float(err_p.max() * 1e3),
                 ms,
                 restart,
+                self.from_poses,
             )
         self._previous = q
         phi, phi_mid, fit = self._basis(reference)
@@ -448,6 +452,7 @@ class ReplanTransfer:
             max(path_mm, err_p[-1] * 1e3),
             ms,
             restart,
+            self.from_poses,
         )
 
     def why_not_reached(self, retarget: ReplanRetarget) -> str:

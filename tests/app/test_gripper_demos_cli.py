@@ -62,3 +62,6 @@ def test_run_and_replay_a_gripper_dataset_on_the_panda_and_baxter(gripper_data, 
     else:
         assert report["robot"] == arm and report["retarget"]["retargeted_replans"] > 0
         assert report["handover_error_cm"] < 10 and report["passed"]
+        replans = json.loads((out / "replans.json").read_text())["replans"]
+        moved = [r["retarget"] for r in replans if r["retarget"] is not None]
+        assert moved and all(m["source_path"] == "gripper_pose" for m in moved)

@@ -44,6 +44,7 @@ def test_replay_with_the_panda_commits_retargeted_re_plans_and_says_so(panda_rep
     for r in committed:
         moved = r["retarget"]
         assert moved["source_robot"] == "baxter_left" and moved["reached"]
+        assert moved["source_path"] == "joints"
         assert moved["ik_residual_mm"] <= 1.0 and moved["ik_residual_deg"] <= 0.5
         assert moved["ik_residual_mm"] <= moved["max_path_residual_mm"]
         assert r["stage_ms"]["arm_transfer"] > 0

@@ -1,6 +1,7 @@
 """Every benchmark script still runs: its ``--smoke`` setting (tiny synthetic data, a few calls, no
-shared datasets, no clone) as a subprocess, two at a time, each exiting 0 and printing its result
-lines. A benchmark added without an entry here fails the test."""
+shared datasets, no clone) as a subprocess, one test per script (the test workers share them out),
+each exiting 0 and printing its result lines. A benchmark added without an entry here fails the
+test."""
 
 from __future__ import annotations
 
@@ -8,8 +9,9 @@ import os
 import re
 import subprocess
 import sys
-from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
+
+import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 BENCHMARKS = ROOT / "benchmarks"
@@ -99,17 +101,15 @@ def _run(name: str) -> tuple[str, subprocess.CompletedProcess]:
     return name, done
 
 
-def test_every_benchmark_runs_its_smoke_setting():
+def test_every_benchmark_has_a_smoke_entry():
     scripts = sorted(p.name for p in BENCHMARKS.glob("*.py") if p.name not in HELPERS)
     assert scripts == sorted(EXPECTED), "every benchmark needs a --smoke entry in EXPECTED"
-    with ThreadPoolExecutor(2) as pool:
-        results = dict(pool.map(_run, scripts))
-    failures = []
-    for name, done in results.items():
-        if done.returncode != 0:
-            failures.append(f"{name}: exit {done.returncode}\n{done.stdout[-2000:]}\n{done.stderr[-3000:]}")
-            continue
-        missing = [p for p in EXPECTED[name] if not re.search(p, done.stdout)]
-        if missing:
-            failures.append(f"{name}: printed no line matching {missing}:\n{done.stdout[-2000:]}")
-    assert not failures, "\n\n".join(failures)
+
+
+@pytest.mark.parametrize("name", sorted(EXPECTED))
+def test_the_benchmark_runs_its_smoke_setting(name):
+    _, done = _run(name)
+    tail = f"{done.stdout[-2000:]}\n{done.stderr[-3000:]}"
+    assert done.returncode == 0, f"{name}: exit {done.returncode}\n{tail}"
+    missing = [p for p in EXPECTED[name] if not re.search(p, done.stdout)]
+    assert not missing, f"{name}: printed no line matching {missing}:\n{done.stdout[-2000:]}"

@@ -38,7 +38,13 @@ from ..exceptions import IPrompPinError, UnreachableError
 from ..version import __version__
 from . import calibrate, evaluate, place, plan, preview, replay, run, synth, train
 from .arguments import OneLineErrorParser
-from .interrupt import EXIT_INTERRUPTED, interruptible, interruption_behind, report_interruption
+from .interrupt import (
+    EXIT_INTERRUPTED,
+    ignore_late_signals,
+    interruptible,
+    interruption_behind,
+    report_interruption,
+)
 from .progress import EXIT_CHECKS_FAILED, EXIT_ERROR, ProgressLine, print_error
 
 __all__ = ["EXIT_CHECKS_FAILED", "EXIT_ERROR", "build_parser", "console_main", "main"]
@@ -117,4 +123,5 @@ def console_main() -> None:
         code = main()
     except KeyboardInterrupt:  # in the instant before main's handlers are in place
         code = EXIT_INTERRUPTED
+    ignore_late_signals()  # the command has ended: a signal now would only hide its status
     sys.exit(code)

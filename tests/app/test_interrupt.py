@@ -153,3 +153,32 @@ def test_an_error_raised_because_of_an_interruption_is_the_interruption(monkeypa
     monkeypatch.setattr(cli, "_main", plain_error)
     with pytest.raises(RuntimeError, match="a bug"):
         cli.main([])
+
+
+def test_an_interruption_a_ctypes_callback_swallows_is_raised_after_it():
+    import ctypes
+
+    from ipromp_pin.app.interrupt import interruptible
+
+    def callback() -> None:
+        raise KeyboardInterrupt  # as the signal handler does inside a compiler's callback
+
+    call = ctypes.CFUNCTYPE(None)(callback)
+    hook = sys.unraisablehook
+    with pytest.raises(KeyboardInterrupt), interruptible():
+        call()  # ctypes cannot raise it: reported as unraisable, then sent again
+        for _ in range(100):  # handled between two bytecodes of the command's own code
+            time.sleep(0.001)
+    assert sys.unraisablehook is hook  # restored
+
+
+def test_after_the_command_a_late_signal_leaves_its_exit_status(tmp_path):
+    code = (
+        "import os, signal, sys\n"
+        "from ipromp_pin.app.interrupt import ignore_late_signals\n"
+        "ignore_late_signals()\n"
+        "os.kill(os.getpid(), signal.SIGINT); os.kill(os.getpid(), signal.SIGTERM)\n"
+        "sys.exit(3)\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code], env={**os.environ, "PYTHONPATH": str(ROOT)})
+    assert done.returncode == 3

@@ -539,8 +539,8 @@ class ClosedLoopPlanner:
         if self.transfer is not None:  # the model's robot's reference -> this arm's, through the gripper
             # not moved yet after a refused re-plan (that was not restarted): from where its gripper is
             last = self.replans[-1] if self.replans else None
-            restart = len(self._plans) == 1 and last is not None and not last.committed
-            restart = restart and last is not None and not (last.retarget or {}).get("restarted", False)
+            refused = last is not None and not last.committed and not (last.retarget or {}).get("restarted")
+            restart = len(self._plans) == 1 and refused
             moved, how = self.transfer.reference(reference, state.q, float(state.t_s), restart)
             ms["arm_transfer"] = how.ms
             r.retarget = how.to_dict()

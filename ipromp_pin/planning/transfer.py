@@ -176,9 +176,10 @@ def kindest_to_human(suite: CheckSuite, context: CheckContext, t_s: np.ndarray) 
     check = suite.get("human_clearance")
     if not isinstance(check, SeparationCheck) or not check.applies(context):
         return None
-    if check.robot.n_joints > POSE_DOF:  # a continuum of solutions: the seeds' are arbitrary points of it
+    robot = check.robot
+    if robot.n_joints > POSE_DOF:  # a continuum of solutions: the seeds' are arbitrary points of it
         return None
-    analyser, human, robot = check.analyser, check.human(context), check.robot
+    analyser, human = check.analyser, check.human(context)
     vel, acc = robot.velocity_rad_s, robot.settings.acceleration_rad_s2
     keep = 1.0 - robot.settings.human.speed_margin
     t_s = np.asarray(t_s, dtype=float)

@@ -421,8 +421,8 @@ def follow_pose_path(
     m, n = pos.shape[0], target.n_joints
     back = np.arange(m - 2, -1, -1)  # back from the hand-over: the path leads to that solution
     ends = [] if prefer is None else solver.good_poses(rot[-1], pos[-1], q_seed)
-    if len(ends) > 1:  # several ways to meet the hand-over: the path ``prefer`` scores highest
-        ends = [ends[int(np.argmax(_scored(solver, rot, pos, ends, prefer)))]]  # type: ignore[arg-type]
+    if prefer is not None and len(ends) > 1:  # several ways to meet the hand-over: the best-scored
+        ends = [ends[int(np.argmax(_scored(solver, rot, pos, ends, prefer)))]]
     out = PathSolution.empty(m, n)
     out.set(m - 1, ends[0] if ends else solver.first_pose(rot[-1], pos[-1], q_seed))
     if not out.reached(m - 1):  # out of reach: refused, the path is not followed

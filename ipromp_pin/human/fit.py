@@ -348,12 +348,79 @@ def demo_evidence(
     return out
 
 
-def _sample_clearances(ev: DemoEvidence, shift: np.ndarray) -> np.ndarray:
-    """Per measured sample and body part outside the hand (N, P') the recorded robot's clearance [m]
-    with the body moved by ``shift`` (3,) [m]; inf where the part was not reliably tracked."""
+@dataclass(frozen=True)
+class _Samples:
+    """The measured samples of every demo, stacked, with the body's capsules computed once: a
+    registration correction is a translation, which moves every capsule end (an average of frames)
+    by itself, so each measure only adds it.
+
+    Attributes:
+        ra, rb: Recorded robot capsule ends (N, L, 3) [m]; ``caps_radius`` (L,) their radii.
+        ha, hb: Body capsule ends outside the hand (N, P', 3) [m] at the recording's registration.
+        hr: Their radii (N, P') [m].
+        reliable: (N, P') whether the part's frames were reliably tracked at the sample.
+        demo: (N,) the index of every sample's demo, ascending.
+        hand_m: (D, 3) each demo's handing hand at its last reliable sample [m] (NaN: none).
+        gripper_m: (D, 3) each demo's gripper at the hand-over [m].
+    """
+
+    ra: np.ndarray
+    rb: np.ndarray
+    caps_radius: np.ndarray
+    ha: np.ndarray
+    hb: np.ndarray
+    hr: np.ndarray
+    reliable: np.ndarray
+    demo: np.ndarray
+    hand_m: np.ndarray
+    gripper_m: np.ndarray
+
+    @property
+    def n_demos(self) -> int:
+        return int(self.gripper_m.shape[0])
+
+    def sample_clearances(self, shift: np.ndarray) -> np.ndarray:
+        """Per sample and body part outside the hand (N, P') the recorded robot's clearance [m] with
+        the body moved by ``shift`` (3,) [m]; inf where the part was not reliably tracked."""
+        dist, _, _ = human_kernels().capsule_distances(
+            self.ra, self.rb, self.caps_radius, self.ha + shift, self.hb + shift, self.hr
+        )
+        return np.where(self.reliable, dist.min(axis=1), np.inf)
+
+    def part_clearances(self, shift: np.ndarray) -> np.ndarray:
+        """Per demo and body part outside the hand (D, P') the smallest clearance [m] over the
+        demo's samples where the part was reliably tracked (inf: never)."""
+        per = np.full((self.n_demos, self.ha.shape[1]), np.inf)
+        if self.demo.size:
+            which, first = np.unique(self.demo, return_index=True)
+            per[which] = np.minimum.reduceat(self.sample_clearances(shift), first, axis=0)
+        return per
+
+    def hand_reach(self, shift: np.ndarray) -> np.ndarray:
+        """Per demo (D,) the distance [m] from the gripper at the hand-over to the handing hand's last
+        reliable position moved by ``shift`` (NaN: no hand)."""
+        return np.linalg.norm(self.gripper_m - (self.hand_m + shift), axis=1)
+
+    def where(self, keep: np.ndarray) -> _Samples:
+        """The samples where ``keep`` (N,) holds, every demo kept."""
+        return replace(
+            self,
+            ra=self.ra[keep],
+            rb=self.rb[keep],
+            ha=self.ha[keep],
+            hb=self.hb[keep],
+            hr=self.hr[keep],
+            reliable=self.reliable[keep],
+            demo=self.demo[keep],
+        )
+
+
+def _body_capsules(ev: DemoEvidence) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """One demo's body at its measured samples: capsule ends outside the hand (N, P', 3) [m], their
+    radii (N, P') [m] and whether their frames were reliably tracked (N, P')."""
     h = ev.human
     t_idx = np.clip(np.searchsorted(h.t_s, ev.t_s), 0, h.t_s.size - 1)
-    frames = h.positions_m[t_idx] + shift  # (N, F, 3), NaN where not reliable
+    frames = h.positions_m[t_idx]  # (N, F, 3), NaN where not reliable
     wa, wb, ma, mb, trim = h._parts  # type: ignore[attr-defined]
     ok = np.all(np.isfinite(frames), axis=2)  # (N, F)
     member = np.maximum(ma, mb) > 0  # (P, F)
@@ -366,40 +433,46 @@ def _sample_clearances(ev: DemoEvidence, shift: np.ndarray) -> np.ndarray:
         length = np.linalg.norm(axis, axis=2, keepdims=True)
         keep = np.maximum(length - trim[None, :, None], 0.0) / np.maximum(length, 1e-12)
         b = np.where(trim[None, :, None] > 0, a + axis * keep, b)
-    hr = np.ascontiguousarray(np.broadcast_to(h.radius_m, reliable.shape))
-    dist, _, _ = human_kernels().capsule_distances(ev.ra, ev.rb, ev.caps_radius, a, b, hr)
-    d = np.where(reliable, dist.min(axis=1), np.inf)  # (N, P)
-    return d[:, h.regions != "hand"]
+    out = h.regions != "hand"
+    hr = np.broadcast_to(h.radius_m, reliable.shape)
+    return a[:, out], b[:, out], np.ascontiguousarray(hr[:, out]), reliable[:, out]
 
 
-def _clearances(ev: DemoEvidence, shift: np.ndarray) -> np.ndarray:
-    """Per body part outside the hand (P',) the smallest clearance [m] of the recorded robot over the
-    samples where the part was reliably tracked (inf: never), with the body moved by ``shift``."""
-    return _sample_clearances(ev, shift).min(axis=0)
-
-
-def _near(evidence: Sequence[DemoEvidence]) -> list[DemoEvidence]:
-    """The evidence cut to the samples where the recorded robot comes within
-    :data:`MAX_CORRECTION_M` + 5 cm of the recorded body: a correction of at most
-    :data:`MAX_CORRECTION_M` cannot bring another sample inside (a distance changes at most as much
-    as the body moves)."""
-    out = []
-    for ev in evidence:
-        keep = _sample_clearances(ev, np.zeros(3)).min(axis=1) < MAX_CORRECTION_M + 0.05
-        out.append(replace(ev, t_s=ev.t_s[keep], ra=ev.ra[keep], rb=ev.rb[keep]))
-    return out
-
-
-def _hand_reach(ev: DemoEvidence, shift: np.ndarray) -> float:
-    """Distance [m] from the gripper at the hand-over to the hand's last reliable position (NaN: no hand)."""
+def _last_hand(ev: DemoEvidence) -> np.ndarray:
+    """The handing hand's last reliable position (3,) [m] (NaN: no hand tracked)."""
     h = ev.human
     if HANDING_HAND not in h.frames:
-        return math.nan
+        return np.full(3, np.nan)
     hand = h.positions_m[:, h.frames.index(HANDING_HAND)]
     ok = np.flatnonzero(np.all(np.isfinite(hand), axis=1))
-    if ok.size == 0:
-        return math.nan
-    return float(np.linalg.norm(ev.gripper_m - (hand[ok[-1]] + shift)))
+    return hand[ok[-1]] if ok.size else np.full(3, np.nan)
+
+
+def _samples(evidence: Sequence[DemoEvidence]) -> _Samples:
+    """The demos' ``evidence`` stacked (its body parts must be the same model's)."""
+    parts = {tuple(ev.human.part_names) for ev in evidence}
+    if len(parts) > 1:
+        raise ValueError("the demos' evidence holds bodies of different part lists")
+    ha, hb, hr, reliable = (np.concatenate(x) for x in zip(*map(_body_capsules, evidence), strict=True))
+    return _Samples(
+        ra=np.concatenate([ev.ra for ev in evidence]),
+        rb=np.concatenate([ev.rb for ev in evidence]),
+        caps_radius=evidence[0].caps_radius,
+        ha=ha,
+        hb=hb,
+        hr=hr,
+        reliable=reliable,
+        demo=np.repeat(np.arange(len(evidence)), [ev.t_s.size for ev in evidence]),
+        hand_m=np.array([_last_hand(ev) for ev in evidence]),
+        gripper_m=np.array([ev.gripper_m for ev in evidence]),
+    )
+
+
+def _near(samples: _Samples) -> _Samples:
+    """The samples where the recorded robot comes within :data:`MAX_CORRECTION_M` + 5 cm of the
+    recorded body: a correction of at most :data:`MAX_CORRECTION_M` cannot bring another sample
+    inside (a distance changes at most as much as the body moves)."""
+    return samples.where(samples.sample_clearances(np.zeros(3)).min(axis=1) < MAX_CORRECTION_M + 0.05)
 
 
 def measure(evidence: Sequence[DemoEvidence], registration: Registration = Registration()) -> FitMeasures:
@@ -407,7 +480,8 @@ def measure(evidence: Sequence[DemoEvidence], registration: Registration = Regis
     if not evidence:
         raise ValueError("no demo with a skeleton to measure")
     shift = np.asarray(registration.translation_m, dtype=float)
-    per = np.array([_clearances(ev, shift) for ev in evidence])  # (D, P')
+    samples = _samples(evidence)
+    per = samples.part_clearances(shift)  # (D, P')
     body = evidence[0].human
     names = [str(n) for n, r in zip(body.part_names, body.regions, strict=True) if r != "hand"]
     worst = per.min(axis=1)
@@ -418,7 +492,7 @@ def measure(evidence: Sequence[DemoEvidence], registration: Registration = Regis
         if deep.any():
             parts.append(PartFinding(name, int(deep.sum()), float(-per[:, k].min())))
     parts.sort(key=lambda p: -p.depth_m)
-    reach = np.array([_hand_reach(ev, shift) for ev in evidence])
+    reach = samples.hand_reach(shift)
     finite = worst[np.isfinite(worst)]
     return FitMeasures(
         len(evidence),
@@ -457,21 +531,19 @@ def segment_lengths(evidence: Sequence[DemoEvidence]) -> tuple[dict[str, float],
 # --------------------------------------------------------------------------------------------------
 
 
-def _cost(evidence: Sequence[DemoEvidence], shift: np.ndarray) -> float:
+def _cost(samples: _Samples, shift: np.ndarray) -> float:
     """The calibration's cost [m^2] of moving the body by ``shift`` (3,) [m]: penetrations beyond
     :data:`FIT_PENETRATION_M` (mean over the demos, squared), the hand beyond reach (squared), and
     the size of the move (the smallest correction the evidence asks for)."""
     norm = float(np.linalg.norm(shift))
     if norm > MAX_CORRECTION_M:
         return 1.0 + norm
-    pen = 0.0
-    for ev in evidence:
-        c = float(_clearances(ev, shift).min()) if ev.t_s.size else math.inf
-        pen += max(-c - (FIT_PENETRATION_M - FIT_MARGIN_M), 0.0) ** 2
-    reach = np.array([_hand_reach(ev, shift) for ev in evidence])
+    worst = samples.part_clearances(shift).min(axis=1)  # (D,), inf: a demo never near
+    pen = float(np.sum(np.maximum(-worst - (FIT_PENETRATION_M - FIT_MARGIN_M), 0.0) ** 2))
+    reach = samples.hand_reach(shift)
     goal = HAND_REACH_M - FIT_MARGIN_M
     over = max(float(np.nanmedian(reach)) - goal, 0.0) if np.isfinite(reach).any() else 0.0
-    return 100.0 * pen / len(evidence) + 100.0 * over**2 + 1e-3 * norm**2
+    return 100.0 * pen / samples.n_demos + 100.0 * over**2 + 1e-3 * norm**2
 
 
 def calibrate(evidence: Sequence[DemoEvidence]) -> Registration:
@@ -481,7 +553,7 @@ def calibrate(evidence: Sequence[DemoEvidence]) -> Registration:
 
     if measure(evidence).fits:
         return Registration()
-    near = _near(evidence)
+    near = _near(_samples(evidence))
     res = minimize(
         lambda x: _cost(near, x),
         np.zeros(3),

@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..data import Dataset, Demo
+from ..data import ROBOT, Dataset, Demo
 from ..exceptions import DataError
 from ..signals.preprocess import DEFAULT_EMG_CUTOFF_HZ
 from . import chen2017, multimodal, native, plausibility, rosbag, rosbag2
@@ -107,7 +107,7 @@ def read_demo(
     format: str = "auto",
     frames: Sequence[str] | None = None,
     rate_hz: float | None = 50.0,
-    robot_joints: Sequence[str] = BAXTER_LEFT_JOINTS,
+    robot_joints: Sequence[str] | None = None,
     emg_cutoff_hz: float = DEFAULT_EMG_CUTOFF_HZ,
     joint_limits: Mapping[str, tuple[float, float]] | None = None,
     end_effector: Callable[[np.ndarray], np.ndarray] | None = None,
@@ -127,7 +127,9 @@ def read_demo(
             error for chen2017 recordings, which have none).
         rate_hz: Output sampling rate in [Hz] (native demos are resampled when theirs differs;
             ``None`` keeps a native demo's rate).
-        robot_joints: Joint names of the ``"robot"`` group, in the wanted order.
+        robot_joints: Joint names of the ``"robot"`` group, in the wanted order (default: a native
+            file's own joints as written; the recorded formats, whose default topics are those of
+            Baxter's experiments, Baxter's left arm, :data:`BAXTER_LEFT_JOINTS`).
         emg_cutoff_hz: EMG envelope cut-off in [Hz] (recorded formats).
         joint_limits: Recorded joint name -> (lower, upper) in [rad]: the robot's limits, which the
             recorded angles must respect (see :mod:`.plausibility`; default: a generic bound).
@@ -163,9 +165,10 @@ def read_demo(
         )
     # The recordings' readers resample at 50 Hz by default; a native file keeps its own rate.
     rate = 50.0 if rate_hz is None else rate_hz
+    recorded = BAXTER_LEFT_JOINTS if robot_joints is None else robot_joints
     if format == "chen2017":
         demo = chen2017.read_demo(
-            path, task, rate_hz=rate, robot_joints=robot_joints, emg_cutoff_hz=emg_cutoff_hz
+            path, task, rate_hz=rate, robot_joints=recorded, emg_cutoff_hz=emg_cutoff_hz
         )
     elif format == "multimodal":
         demo = multimodal.read_demo(
@@ -173,13 +176,13 @@ def read_demo(
             task,
             frames=frames,
             rate_hz=rate,
-            robot_joints=robot_joints,
+            robot_joints=recorded,
             emg_cutoff_hz=emg_cutoff_hz,
             end_effector=end_effector,
         )
     elif format == "bag":
         demo = rosbag.read_demo(
-            path, task, rate_hz=rate, robot_joints=robot_joints, emg_cutoff_hz=emg_cutoff_hz, topics=topics
+            path, task, rate_hz=rate, robot_joints=recorded, emg_cutoff_hz=emg_cutoff_hz, topics=topics
         )
     elif format == "rosbag2":
         demo = rosbag2.read_demo(
@@ -187,7 +190,7 @@ def read_demo(
             task,
             frames=frames,
             rate_hz=rate,
-            robot_joints=robot_joints,
+            robot_joints=recorded,
             emg_cutoff_hz=emg_cutoff_hz,
             end_effector=end_effector,
             topics=topics,
@@ -202,7 +205,7 @@ def read_recording(
     *,
     frames: Sequence[str] | None = None,
     rate_hz: float | None = 50.0,
-    robot_joints: Sequence[str] = BAXTER_LEFT_JOINTS,
+    robot_joints: Sequence[str] | None = None,
     emg_cutoff_hz: float = DEFAULT_EMG_CUTOFF_HZ,
     joint_limits: Mapping[str, tuple[float, float]] | None = None,
     end_effector: Callable[[np.ndarray], np.ndarray] | None = None,
@@ -317,7 +320,7 @@ def load_dataset(
     format: str = "auto",
     frames: Sequence[str] | None = None,
     rate_hz: float = 50.0,
-    robot_joints: Sequence[str] = BAXTER_LEFT_JOINTS,
+    robot_joints: Sequence[str] | None = None,
     order: str = "config",
     progress: Callable[[int, int, str], None] | None = None,
     emg_cutoff_hz: float = DEFAULT_EMG_CUTOFF_HZ,
@@ -333,11 +336,11 @@ def load_dataset(
         format: One of :data:`FORMATS`; ``"auto"`` detects it per task folder.
         frames: Skeleton frames to read as human groups (multimodal format).
         rate_hz: Output sampling rate in [Hz].
-        robot_joints: Joint names of the ``"robot"`` group, in the wanted order.
         order: ``"config"`` (the authors' cfg order when there is one) or ``"recorded"`` (by stamp).
         progress: Optional ``callable(done, total, name)`` called after each demo.
         emg_cutoff_hz: EMG envelope cut-off in [Hz].
-        joint_limits, end_effector: See :func:`read_demo`.
+        robot_joints, joint_limits, end_effector: See :func:`read_demo`; by default every demo's
+            robot group has the first demo's joints, in its order (matched by name).
 
     Returns:
         Dataset with tasks in sorted folder-name order.
@@ -353,6 +356,7 @@ def load_dataset(
     total = sum(len(files) for _, _, files in plan)
     done = 0
     demos: dict[str, list[Demo]] = {}
+    joints = robot_joints
     for task, fmt, files in plan:
         out = demos.setdefault(task, [])
         for f in files:
@@ -363,12 +367,14 @@ def load_dataset(
                     format=fmt,
                     frames=frames,
                     rate_hz=rate_hz,
-                    robot_joints=robot_joints,
+                    robot_joints=joints,
                     emg_cutoff_hz=emg_cutoff_hz,
                     joint_limits=joint_limits,
                     end_effector=end_effector,
                 )
             )
+            if joints is None and ROBOT in out[-1].groups:  # the others' joints in the first demo's order
+                joints = out[-1].channel_names[ROBOT]
             done += 1
             if progress is not None:
                 progress(done, total, f"{task}/{out[-1].name}")

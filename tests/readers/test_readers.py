@@ -4,6 +4,7 @@ columns matched by name, unreadable or unknown task folders refused."""
 from __future__ import annotations
 
 import csv
+import dataclasses
 import datetime
 import os
 import shutil
@@ -538,6 +539,31 @@ def test_native_resampling_and_joint_selection(tmp_path):
         read_demo(path, frames=["/left_hand_1"])
 
 
+def test_a_native_dataset_of_another_arm_loads_with_its_own_joints_by_default(tmp_path):
+    ds = make_synthetic_dataset(n_tasks=1, n_demos=2, seed=2)
+    ur5 = (
+        "shoulder_pan_joint",
+        "shoulder_lift_joint",
+        "elbow_joint",
+        "wrist_1_joint",
+        "wrist_2_joint",
+        "wrist_3_joint",
+    )
+    for i, demo in enumerate(ds.demos["rod"]):
+        order = slice(None) if i == 0 else slice(None, None, -1)  # the second file lists them reversed
+        names = {**demo.channel_names, ROBOT: ur5[order]}
+        q = demo.groups[ROBOT][:, :6][:, order]
+        write_demo(
+            dataclasses.replace(demo, groups={**demo.groups, ROBOT: q}, channel_names=names),
+            tmp_path / "rod" / f"{i}.npz",
+        )
+    loaded = load_dataset(tmp_path)
+    assert [d.channel_names[ROBOT] for d in loaded.demos["rod"]] == [ur5, ur5]
+    np.testing.assert_allclose(loaded.demos["rod"][1].groups[ROBOT], ds.demos["rod"][1].groups[ROBOT][:, :6])
+    with pytest.raises(DataError, match=r"0\.npz: field 'left_s0': unknown joint name"):
+        load_dataset(tmp_path, robot_joints=BAXTER_LEFT_JOINTS)
+
+
 def test_frames_are_refused_for_chen2017(chen2017_dir):
     with pytest.raises(DataError, match="no tracked frames"):
         read_demo(chen2017_dir / "tape_hold" / "csv" / STAMP, frames=["/left_hand_1"])
@@ -579,9 +605,12 @@ def test_native_csv_columns_in_another_order_read_the_same(tmp_path, tiny):
     rows = [ln.split(",") for ln in lines]
     order = [0, *range(len(rows[0]) - 1, 0, -1)]  # t first, every other column reversed
     (tmp_path / "b.csv").write_text("\n".join(",".join(r[i] for i in order) for r in rows) + "\n")
-    a, b = read_demo(tmp_path / "a.csv"), read_demo(tmp_path / "b.csv")
+    a, b = read_demo(tmp_path / "a.csv"), read_demo(tmp_path / "b.csv", robot_joints=BAXTER_LEFT_JOINTS)
     assert np.array_equal(a.groups["robot"], b.groups["robot"])
     assert a.channel_names["robot"] == b.channel_names["robot"]  # the robot's order, by name
+    as_written = read_demo(tmp_path / "b.csv")  # by default, the file's joints in its order
+    assert as_written.channel_names["robot"] == BAXTER_LEFT_JOINTS[::-1]
+    assert np.array_equal(as_written.groups["robot"], a.groups["robot"][:, ::-1])
     model = IProMP.load(tiny[1])
     pa = model.predict(a.head(0.2, model.observe_))
     pb = model.predict(b.head(0.2, model.observe_))  # emg channels reversed: matched by name

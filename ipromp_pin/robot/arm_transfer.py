@@ -422,7 +422,9 @@ def follow_pose_path(
     back = np.arange(m - 2, -1, -1)  # back from the hand-over: the path leads to that solution
     ends = [] if prefer is None else solver.good_poses(rot[-1], pos[-1], q_seed)
     if prefer is not None and len(ends) > 1:  # several ways to meet the hand-over: the best-scored
-        ends = [ends[int(np.argmax(_scored(solver, rot, pos, ends, prefer)))]]
+        scores, followed = _scored(solver, rot, pos, ends, prefer)
+        # a path the arm can follow to its start beats one it cannot, whatever the preference
+        ends = [ends[max(range(len(ends)), key=lambda i: (bool(followed[i]), float(scores[i])))]]
     out = PathSolution.empty(m, n)
     out.set(m - 1, ends[0] if ends else solver.first_pose(rot[-1], pos[-1], q_seed))
     if not out.reached(m - 1):  # out of reach: refused, the path is not followed
@@ -438,21 +440,25 @@ def _scored(
     pos: np.ndarray,
     ends: list[tuple[np.ndarray, float, float, np.ndarray]],
     prefer: Preference,
-) -> np.ndarray:
+) -> tuple[np.ndarray, np.ndarray]:
     """``prefer``'s scores (S,) of the paths back from the hand-over solutions ``ends`` along the
-    poses ``rot`` (M, 3, 3), ``pos`` (M, 3) [m], each followed at :data:`SCORED_SAMPLES` samples."""
+    poses ``rot`` (M, 3, 3), ``pos`` (M, 3) [m], each followed at :data:`SCORED_SAMPLES` samples, and
+    whether each reaches every one of those poses (S,) (within :data:`TOL_M` and :data:`TOL_RAD`:
+    from some solutions the arm runs into its limits on the way back)."""
     m, n = pos.shape[0], solver.robot.n_joints
     samples = np.unique(np.linspace(0, m - 1, min(SCORED_SAMPLES, m)).round().astype(np.int64))
     k = samples.size
     r, p = np.ascontiguousarray(rot[samples]), np.ascontiguousarray(pos[samples])
     back = np.arange(k - 2, -1, -1)
     paths = np.empty((len(ends), k, n))
+    followed = np.empty(len(ends), dtype=bool)
     for i, end in enumerate(ends):
         out = PathSolution.empty(k, n)
         out.set(k - 1, end)
         solver.follow(r, p, SolveSteps.chained(back, back + 1, n), out)
         paths[i] = out.q
-    return np.asarray(prefer(paths, samples), dtype=float)
+        followed[i] = bool(np.all(out.err[:, 0] <= TOL_M) and np.all(out.err[:, 1] <= TOL_RAD))
+    return np.asarray(prefer(paths, samples), dtype=float), followed
 
 
 def transfer_samples(

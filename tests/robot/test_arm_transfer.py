@@ -100,6 +100,30 @@ def test_a_bad_placement_is_refused_naming_the_field(tmp_path, placement, messag
         load_robot_settings(placed_copy(tmp_path, placement))
 
 
+@pytest.mark.realdata
+def test_a_preference_never_picks_a_configuration_whose_path_back_the_arm_cannot_follow(chen2017_dir, robots):
+    from ipromp_pin.readers import read_demo
+    from ipromp_pin.robot.arm_transfer import PoseSolver
+
+    baxter = robots[0]
+    kinova = load_robot("kinova_jaco2")
+    # a recorded hand-over the Kinova meets in four configurations, two of them at the end of a path
+    # it cannot follow back (its joints run into their limits: 11 cm off Baxter's gripper path)
+    demo = read_demo(chen2017_dir / "aluminum_hold" / "csv" / "2017-07-11-15-20-19", "aluminum_hold")
+    q = demo.groups["robot"][::3]
+    pos, rot = frame_placements(baxter, q)
+    ends = PoseSolver(kinova).good_poses(rot[-1], pos[-1])
+    assert len(ends) >= 3
+    kept = []
+    for favourite in range(len(ends)):  # each configuration in turn the preferred one
+        path = transfer_path(
+            baxter, kinova, q, prefer=lambda paths, _s, f=favourite: -np.abs(np.arange(len(paths)) - f)
+        )
+        assert path.reached and path.max_path_residual_mm <= TOL_M * 1e3
+        kept.append(any(np.abs(path.q[-1] - e[0]).max() < 1e-6 for e in ends[favourite : favourite + 1]))
+    assert 0 < sum(kept) < len(ends)  # the followed ones keep their place, the others are passed over
+
+
 def test_baxter_itself_has_no_placement():
     assert load_robot_settings("baxter_left").placement is None
 

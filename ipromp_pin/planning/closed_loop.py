@@ -61,7 +61,7 @@ from ..safety.speed_limits import SpeedLimitMeasures
 from ..safety.workspace import WorkspaceMeasures
 from .human_forecast import forecast_of, replan_context
 from .timers import retarget_timer
-from .transfer import ReplanTransfer, predicts_gripper
+from .transfer import ReplanTransfer, predicts_gripper, start_motions
 from .unknown_stop import UNKNOWN_HOLD_RANGE_S, UNKNOWN_HOLD_S, Segment, StopEvent, UnknownStop
 
 CONDITION_NOISE = 0.3
@@ -789,8 +789,8 @@ def replay_demo(
     poses = predicts_gripper(model)  # gripper poses: always followed by inverse kinematics
     source = robot if source is None and poses else source
     transfer = None if source is None else ReplanTransfer(source, robot, from_poses=poses)
-    if transfer is not None:
-        q_start = transfer.start(q_start)
+    if transfer is not None:  # its start configuration chosen for the tasks' motions, the human in view
+        q_start = transfer.start(q_start, start_motions(model, suite, context))
     with ClosedLoopPlanner(
         model, robot, profile, q_start, start, settings, suite, context, conditioner, transfer
     ) as planner:

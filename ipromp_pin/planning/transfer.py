@@ -15,6 +15,7 @@ path that keeps clear of the human's body and is expected to take the least time
 from __future__ import annotations
 
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -28,6 +29,7 @@ from ..promp import IProMP
 from ..robot import Robot, TransferredPath, load_robot, transfer_path, transfer_samples
 from ..robot.arm_chain import chain_placements
 from ..robot.arm_transfer import (
+    SCORED_SAMPLES,
     TOL_M,
     TOL_RAD,
     TRACK_ITERATIONS,
@@ -38,6 +40,7 @@ from ..robot.arm_transfer import (
     check_pair,
     follow_pose_path,
     follow_pose_samples,
+    kindest_start,
 )
 from ..safety import CheckContext, CheckSuite
 from ..safety.separation import SeparationCheck
@@ -202,6 +205,32 @@ def kindest_to_human(suite: CheckSuite, context: CheckContext, t_s: np.ndarray) 
     return score
 
 
+def start_motions(
+    model: IProMP, suite: CheckSuite | None, context: CheckContext | None
+) -> list[tuple[np.ndarray, Preference]]:
+    """The motions a replay's arm may be asked to make from its start, to choose its start
+    configuration (:meth:`ReplanTransfer.start`): per task, the model's prior mean of the robot group
+    at :data:`~ipromp_pin.robot.arm_transfer.SCORED_SAMPLES` phases over the task's mean duration,
+    with :func:`kindest_to_human` against the human as known before the replay (``context``'s human
+    until 0 s: its first frame, growing at the human speed after; none: the assumed human). Empty
+    when that preference does not apply (no human check, an arm with more joints than a pose has)."""
+    if suite is None:
+        return []
+    context = context if context is not None else CheckContext()
+    at_start = context if context.human is None else context.replace(human=context.human.until(0.0))
+    z = np.linspace(0.0, 1.0, SCORED_SAMPLES)
+    out = []
+    for task in model.tasks_:
+        mean, _, labels = model.distribution(task, z)
+        cols = [i for i, label in enumerate(labels) if label.startswith(f"{model.robot_group}/")]
+        duration = float(model.models_[task].alpha_mu) * float(model.duration_nominal_s_)
+        prefer = kindest_to_human(suite, at_start, z * duration)
+        if prefer is None:
+            return []
+        out.append((mean[:, cols], prefer))
+    return out
+
+
 def retarget_prediction(
     source: Robot,
     robot: Robot,
@@ -332,14 +361,25 @@ class ReplanTransfer:
         self._previous: np.ndarray | None = None  # (n_grid, n_target) the last reached solution
         self._fit: tuple[bytes, float, np.ndarray, np.ndarray, np.ndarray] | None = None
 
-    def start(self, q_source: np.ndarray) -> np.ndarray:
+    def start(
+        self, q_source: np.ndarray, motions: Sequence[tuple[np.ndarray, Preference]] = ()
+    ) -> np.ndarray:
         """The arm's configuration (n_target,) [rad] whose gripper is at ``source``'s at ``q_source``
-        (n_source,) [rad] (the start of a replayed demo).
+        (n_source,) [rad] (the start of a replayed demo): where the arm meets that pose in several
+        configurations (a 6-joint arm), the one from which it best makes ``motions``, the source's
+        motions it may be asked to follow from there (each (M, n_source) values and the preference
+        scoring the arm's paths along it, :func:`start_motions`; :func:`kindest_start`), else the
+        first the seeds reach.
 
         Raises:
             UnreachableError: the arm cannot reach that pose at its placement.
         """
         pos, rot = self._placements(np.asarray(q_source, dtype=float)[None])
+        if motions:
+            poses = [(*self._placements(values), prefer) for values, prefer in motions]
+            chosen = kindest_start(self.solver, rot[0], pos[0], poses)
+            if chosen is not None:
+                return chosen
         q, err_p, err_r, _ = self.solver.first_pose(rot[0], pos[0], None)
         if not (err_p <= TOL_M and err_r <= TOL_RAD):
             raise UnreachableError(

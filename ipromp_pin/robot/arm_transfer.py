@@ -23,7 +23,7 @@ kernel switch's set ``"ik"`` is compiled; its Pinocchio iterations (:meth:`PoseS
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -432,6 +432,41 @@ def follow_pose_path(
         return out.path()
     solver.follow(rot, pos, SolveSteps.chained(back, back + 1, n), out)
     return out.path()
+
+
+def kindest_start(
+    solver: PoseSolver,
+    rot: np.ndarray,
+    pos: np.ndarray,
+    motions: Sequence[tuple[np.ndarray, np.ndarray, Preference]],
+) -> np.ndarray | None:
+    """The configuration (n,) [rad] in which the arm best starts from the pose ``rot`` (3, 3), ``pos``
+    (3,) [m] the ``motions`` it may be asked to make from there, each a pose path (positions (M, 3)
+    [m], rotations (M, 3, 3); its first pose is taken to be the start) with the preference scoring
+    the arm's paths along it: of the distinct configurations the seeds reach
+    (:meth:`PoseSolver.good_poses`), the one from which the arm follows the most motions to their
+    end, then scores above -inf in the most, then has the largest sum of finite scores. None when the
+    seeds reach one configuration at most (nothing to choose)."""
+    ends = solver.good_poses(rot, pos)
+    if len(ends) < 2:
+        return None
+    keys = np.zeros((len(ends), 3))
+    for m_pos, m_rot, prefer in motions:
+        m = m_pos.shape[0]
+        # forward from the start: the same following as back from a hand-over, on the reversed path
+        r = np.ascontiguousarray(np.concatenate([rot[None], m_rot[1:]])[::-1])
+        p = np.ascontiguousarray(np.concatenate([pos[None], m_pos[1:]])[::-1])
+
+        def forward(
+            paths: np.ndarray, samples: np.ndarray, prefer: Preference = prefer, m: int = m
+        ) -> np.ndarray:
+            return prefer(paths[:, ::-1], (m - 1 - samples)[::-1])
+
+        scores, followed = _scored(solver, r, p, ends, forward)
+        finite = np.isfinite(scores)
+        keys += np.stack([followed, finite, np.where(finite, scores, 0.0)], axis=1)
+    best = max(range(len(ends)), key=lambda i: tuple(keys[i]))
+    return np.array(ends[best][0], dtype=float)
 
 
 def _scored(

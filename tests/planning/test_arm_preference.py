@@ -56,3 +56,23 @@ def test_without_a_human_check_or_for_a_redundant_arm_nothing_is_preferred(ur5):
     assert kindest_to_human(suite, CheckContext(), np.linspace(0.0, 1.0, 5)) is None
     panda = load_robot("panda")  # seven joints: a continuum of configurations, the first one kept
     assert kindest_to_human(CheckSuite.build(panda), CheckContext(), np.linspace(0.0, 1.0, 5)) is None
+
+
+def test_a_replay_s_start_motions_are_the_tasks_prior_paths_scored_against_the_human_at_the_start(
+    ur5, synthetic_closed_loop
+):
+    from ipromp_pin.planning.transfer import start_motions
+    from ipromp_pin.robot.arm_transfer import SCORED_SAMPLES
+
+    model, baxter, train, _ = synthetic_closed_loop
+    motions = start_motions(model, CheckSuite.build(ur5), CheckContext())
+    assert len(motions) == len(model.tasks_)
+    for task, (q, prefer) in zip(model.tasks_, motions, strict=True):
+        assert q.shape == (SCORED_SAMPLES, baxter.n_joints)
+        starts = np.stack([d.groups["robot"][0] for d in train if d.task == task])
+        assert np.abs(q[0] - starts.mean(axis=0)).max() < 0.1  # the prior starts where the demos do
+        mid = 0.5 * (ur5.lower_rad + ur5.upper_rad)
+        assert np.isfinite(prefer(np.repeat(mid[None, None], 3, axis=1), np.arange(3))).all()
+    assert start_motions(model, CheckSuite.build(ur5, exclude=["human_clearance"]), CheckContext()) == []
+    assert start_motions(model, CheckSuite.build(load_robot("panda")), CheckContext()) == []
+    assert start_motions(model, None, CheckContext()) == []

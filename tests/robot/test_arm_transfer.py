@@ -100,6 +100,40 @@ def test_a_bad_placement_is_refused_naming_the_field(tmp_path, placement, messag
         load_robot_settings(placed_copy(tmp_path, placement))
 
 
+def test_the_start_configuration_is_the_one_the_motions_preferences_score_best(robots):
+    from ipromp_pin.robot.arm_transfer import PoseSolver, kindest_start
+
+    baxter = robots[0]
+    ur5 = load_robot("ur5")
+    demos = make_synthetic_dataset(n_demos=2).all_demos()
+    pos, rot = frame_placements(baxter, np.stack([d.groups["robot"][0] for d in demos]))
+    solver = PoseSolver(ur5)
+    ends = solver.good_poses(rot[0], pos[0])
+    assert len(ends) >= 3
+    motions = [frame_placements(baxter, d.groups["robot"]) for d in demos]
+
+    def only(k):  # every motion's preference rejects all but configuration k
+        return lambda paths, samples: np.where(np.arange(len(paths)) == k, 0.0, -np.inf)
+
+    for k in range(len(ends)):
+        q = kindest_start(solver, rot[0], pos[0], [(p, r, only(k)) for p, r in motions])
+        assert np.array_equal(q, ends[k][0])
+    # the motions disagree: the configuration more of them accept wins
+    votes = [(motions[0][0], motions[0][1], only(2)), *((p, r, only(1)) for p, r in motions)]
+    assert np.array_equal(kindest_start(solver, rot[0], pos[0], votes), ends[1][0])
+    # the preference sees each motion forward from the start: its first sample is the start pose
+    seen = []
+    kindest_start(
+        solver,
+        rot[0],
+        pos[0],
+        [(*motions[0], lambda paths, s: seen.append((paths, s)) or np.zeros(len(paths)))],
+    )
+    paths, samples = seen[0]
+    assert samples[0] == 0 and np.all(np.diff(samples) > 0)
+    assert np.allclose(paths[:, 0], np.stack([e[0] for e in ends]))
+
+
 @pytest.mark.realdata
 def test_a_preference_never_picks_a_configuration_whose_path_back_the_arm_cannot_follow(chen2017_dir, robots):
     from ipromp_pin.readers import read_demo

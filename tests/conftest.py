@@ -12,6 +12,7 @@ import os
 from pathlib import Path
 
 import pytest
+import threadpoolctl
 
 PROJECT_ROOT = Path(__file__).resolve().parents[1]
 DATASETS = Path(os.environ.get("IPROMP_PIN_DATASETS", PROJECT_ROOT.parent / "shared" / "datasets"))
@@ -20,6 +21,13 @@ DATASETS = Path(os.environ.get("IPROMP_PIN_DATASETS", PROJECT_ROOT.parent / "sha
 # The command line's "auto" kernels would compile the numba kernels in a background process when
 # numba's cache is cold: the tests use the compiled kernels in-process (tests of "auto" set it).
 os.environ.setdefault("IPROMP_PIN_KERNELS", "numba")
+
+# The suite runs one test worker per core (pytest -n): BLAS threads on top of them would only
+# contend for the cores (about 7 % more CPU time on 2 cores). One thread per worker and per command
+# it starts; the library is loaded already, so its pool is also limited now.
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+threadpoolctl.threadpool_limits(1)
 
 
 @pytest.fixture(scope="session", autouse=True)

@@ -34,6 +34,7 @@ class SeparationCheck(Check):
         self.summariser = (
             summariser if summariser is not None else SeparationSummariser(SeparationAnalyser(robot))
         )
+        self._assumed: HumanMotion | None = None  # built on first use, then the same (immutable) body
 
     @property
     def analyser(self) -> SeparationAnalyser:
@@ -44,7 +45,9 @@ class SeparationCheck(Check):
         """The context's human, or the robot settings' assumed human when the context has none."""
         if context.human is not None:
             return context.human
-        return HumanMotion.assumed_human(self.robot.settings.human)
+        if self._assumed is None:
+            self._assumed = HumanMotion.assumed_human(self.robot.settings.human)
+        return self._assumed
 
     def separation(self, motion: Trajectory, context: CheckContext) -> Separation:
         """The robot-body separation along ``motion``, every pair's numbers."""

@@ -108,6 +108,7 @@ class LivePreview:
         self._robot = RobotView(content, max_triangles)
         build_scene(self._recorder, content, robot=self._robot, fps=self.fps)
         self._clients: set = set()
+        self._writes: set = set()  # the writes to the pages not done yet (futures of the server's loop)
         self._connected = threading.Event()  # set once a page has received the whole scene
         self._loop: tornado.ioloop.IOLoop | None = None
         self._server: tornado.httpserver.HTTPServer | None = None
@@ -174,7 +175,8 @@ class LivePreview:
         ready = threading.Event()
 
         def run() -> None:
-            asyncio.set_event_loop(asyncio.new_event_loop())
+            aio = asyncio.new_event_loop()
+            asyncio.set_event_loop(aio)
             self._loop = loop = tornado.ioloop.IOLoop.current()
             app = tornado.web.Application(
                 [(r"/", PageHandler), (r"/favicon.ico", NoIconHandler), (r"/ws", SocketHandler)],
@@ -184,6 +186,13 @@ class LivePreview:
             server.add_sockets(self._sockets)
             ready.set()
             loop.start()
+            # writes queued when the loop stopped (updates sent as the server closed) are cancelled
+            # and run to their end: none is left pending, or never started, when the loop closes
+            writes = [w for w in preview._writes if not w.done()]
+            for w in writes:
+                w.cancel()
+            if writes:
+                aio.run_until_complete(asyncio.gather(*writes, return_exceptions=True))
             loop.close(all_fds=True)
 
         self._thread = threading.Thread(target=run, name=f"ipromp-preview-{self.port}", daemon=True)
@@ -209,10 +218,12 @@ class LivePreview:
         except (tornado.websocket.WebSocketClosedError, tornado.iostream.StreamClosedError):
             self._clients.discard(socket)
             return False
+        self._writes.add(future)
         future.add_done_callback(lambda f, s=socket: self._sent(f, s))
         return True
 
     def _sent(self, future: Any, socket: Any) -> None:
+        self._writes.discard(future)
         if not future.cancelled() and future.exception() is not None:
             self._clients.discard(socket)
 

@@ -107,3 +107,42 @@ def test_a_page_is_waited_for_until_it_has_the_whole_scene(live):
         assert n == len(server.commands()) + 1 and server.wait_for_page(5.0)
     finally:
         server.close()
+
+
+def test_closing_with_messages_still_queued_leaves_no_write_unawaited(live, caplog):
+    import asyncio
+    import gc
+    import threading
+    import warnings
+
+    import tornado.websocket
+
+    from ipromp_pin.preview import LivePreview
+
+    server = LivePreview(live.content, port=0)
+    connected, done = threading.Event(), threading.Event()
+
+    async def stay_connected() -> None:  # a page that connects and then just stays there
+        ws = await tornado.websocket.websocket_connect(f"ws://127.0.0.1:{server.port}/ws")
+        connected.set()
+        while not done.is_set():
+            await asyncio.sleep(0.01)
+        ws.close()
+
+    page = threading.Thread(target=asyncio.run, args=(stay_connected(),), daemon=True)
+    page.start()
+    try:
+        assert connected.wait(10.0) and server.wait_for_page(10.0)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            for _ in range(50):  # updates queued on the server's loop, then the server closed at once
+                server._forward(b"\x80")
+            server.close()
+            gc.collect()
+        unawaited = [str(w.message) for w in caught if "never awaited" in str(w.message)]
+        assert not unawaited, unawaited
+        assert "Task was destroyed but it is pending" not in caplog.text
+    finally:
+        done.set()
+        server.close()
+        page.join(10.0)

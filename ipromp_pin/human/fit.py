@@ -450,6 +450,8 @@ def _last_hand(ev: DemoEvidence) -> np.ndarray:
 
 def _samples(evidence: Sequence[DemoEvidence]) -> _Samples:
     """The demos' ``evidence`` stacked (its body parts must be the same model's)."""
+    if not evidence:
+        raise ValueError("no demo with a skeleton to measure")
     parts = {tuple(ev.human.part_names) for ev in evidence}
     if len(parts) > 1:
         raise ValueError("the demos' evidence holds bodies of different part lists")
@@ -477,12 +479,15 @@ def _near(samples: _Samples) -> _Samples:
 
 def measure(evidence: Sequence[DemoEvidence], registration: Registration = Registration()) -> FitMeasures:
     """The self-check's measures of the demos' ``evidence`` with ``registration`` applied."""
-    if not evidence:
-        raise ValueError("no demo with a skeleton to measure")
+    return _measure(_samples(evidence), evidence[0].human, registration)
+
+
+def _measure(
+    samples: _Samples, body: HumanMotion, registration: Registration = Registration()
+) -> FitMeasures:
+    """:func:`measure` of the stacked ``samples`` (``body``: any of their demos' body, for its parts)."""
     shift = np.asarray(registration.translation_m, dtype=float)
-    samples = _samples(evidence)
     per = samples.part_clearances(shift)  # (D, P')
-    body = evidence[0].human
     names = [str(n) for n, r in zip(body.part_names, body.regions, strict=True) if r != "hand"]
     worst = per.min(axis=1)
     inside = worst < -PENETRATION_TOLERANCE_M
@@ -495,7 +500,7 @@ def measure(evidence: Sequence[DemoEvidence], registration: Registration = Regis
     reach = samples.hand_reach(shift)
     finite = worst[np.isfinite(worst)]
     return FitMeasures(
-        len(evidence),
+        samples.n_demos,
         int(inside.sum()),
         float(finite.min()) if finite.size else math.nan,
         float(np.median(finite)) if finite.size else math.nan,
@@ -549,11 +554,17 @@ def _cost(samples: _Samples, shift: np.ndarray) -> float:
 def calibrate(evidence: Sequence[DemoEvidence]) -> Registration:
     """The smallest translation of the registration that the evidence asks for, at most
     :data:`MAX_CORRECTION_M` (identity when the recording fits; see the module docstring)."""
+    samples = _samples(evidence)
+    if _measure(samples, evidence[0].human).fits:
+        return Registration()
+    return _fitted_translation(samples)
+
+
+def _fitted_translation(samples: _Samples) -> Registration:
+    """:func:`calibrate`'s translation for stacked ``samples`` that do not fit as recorded."""
     from scipy.optimize import minimize
 
-    if measure(evidence).fits:
-        return Registration()
-    near = _near(_samples(evidence))
+    near = _near(samples)
     res = minimize(
         lambda x: _cost(near, x),
         np.zeros(3),
@@ -579,9 +590,10 @@ def self_check(
     evidence = demo_evidence(demos, robot, settings, refused)
     if not evidence:
         return None
-    recorded = measure(evidence)
+    samples, body = _samples(evidence), evidence[0].human  # stacked once for every measure below
+    recorded = _measure(samples, body)
     segments, stature = segment_lengths(evidence)
     if not fit or recorded.fits:
         return HumanFit(recorded, Registration(), None, segments, stature, tuple(refused))
-    reg = calibrate(evidence)
-    return HumanFit(recorded, reg, measure(evidence, reg), segments, stature, tuple(refused))
+    reg = _fitted_translation(samples)
+    return HumanFit(recorded, reg, _measure(samples, body, reg), segments, stature, tuple(refused))

@@ -462,20 +462,18 @@ class ReplanTransfer:
                 out.set(m - 1, end)
                 back = np.arange(m - 2, -1, -1)  # the path leads to that solution
                 self.solver.follow(rot, pos, SolveSteps.chained(back, back + 1, self.target.n_joints), out)
-        name = self.source.settings.name
         q, err_p, err_r = out.q, out.err[:, 0], out.err[:, 1]
-        if not out.reached(m - 1):
+
+        def report(reached: bool, path_mm: float) -> ReplanRetarget:
             ms = (time.perf_counter() - t0) * 1e3
-            return None, ReplanRetarget(
-                name,
-                False,
-                err_p[-1] * 1e3,
-                float(np.degrees(err_r[-1])),
-                float(err_p.max() * 1e3),
-                ms,
-                restart,
-                self.from_poses,
+            handover_deg = float(np.degrees(err_r[-1]))
+            name = self.source.settings.name
+            return ReplanRetarget(
+                name, reached, err_p[-1] * 1e3, handover_deg, path_mm, ms, restart, self.from_poses
             )
+
+        if not out.reached(m - 1):
+            return None, report(False, float(err_p.max() * 1e3))
         self._previous = q
         phi, phi_mid, fit = self._basis(reference)
         weights = fit @ q  # (K, n)
@@ -484,17 +482,7 @@ class ReplanTransfer:
         # the residual of what the arm is commanded: at the samples and between them (the fit's)
         commanded, _ = chain_placements(self.target, np.vstack([phi @ weights, phi_mid @ weights]))
         path_mm = float(np.max(np.linalg.norm(commanded - src_pos, axis=1)) * 1e3)
-        ms = (time.perf_counter() - t0) * 1e3
-        return moved, ReplanRetarget(
-            name,
-            True,
-            err_p[-1] * 1e3,
-            float(np.degrees(err_r[-1])),
-            max(path_mm, err_p[-1] * 1e3),
-            ms,
-            restart,
-            self.from_poses,
-        )
+        return moved, report(True, max(path_mm, err_p[-1] * 1e3))
 
     def why_not_reached(self, retarget: ReplanRetarget) -> str:
         """One clause: how far the executing arm stays from the re-plan's hand-over pose."""

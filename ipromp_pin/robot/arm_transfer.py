@@ -492,7 +492,7 @@ def _scored(
         out.set(k - 1, end)
         solver.follow(r, p, SolveSteps.chained(back, back + 1, n), out)
         paths[i] = out.q
-        followed[i] = bool(np.all(out.err[:, 0] <= TOL_M) and np.all(out.err[:, 1] <= TOL_RAD))
+        followed[i] = all(out.reached(j) for j in range(k))
     return np.asarray(prefer(paths, samples), dtype=float), followed
 
 

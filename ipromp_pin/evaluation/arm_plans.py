@@ -116,6 +116,8 @@ class TrajectoryJudge:
             out["human_passed"] = measures.passed
             out["contact_speed_violations"] = measures.contact_speed_violations
             out["human_min_separation_m"] = measures.min_separation_m
+            # where the closest pair met: the arm's link, the body part, when [s] on the demo's clock
+            out["human_closest"] = [measures.link, measures.body_part, measures.t_s]
         return out | {"violations": violations_of(out, self.robot.settings.human.min_separation_m)}
 
 

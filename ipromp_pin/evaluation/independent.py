@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from ..robot import load_robot_settings
+from ..robot import add_tool_geometry, add_tool_inertia, load_robot_settings
 
 TORQUE_FRACTION = 0.9
 """Largest |joint torque| / URDF effort limit a plan may need (issue 37's 90 %)."""
@@ -80,6 +80,7 @@ class UrdfArm:
     def __init__(self, name: str | Path) -> None:
         self.settings = s = load_robot_settings(name)
         self.model = pin.buildModelFromUrdf(str(s.urdf_path))
+        add_tool_inertia(self.model, s)  # a [tool] the URDF lacks: its mass and volume
         self.names = list(s.arm_joints)
         joints = [self.model.joints[self.model.getJointId(n)] for n in self.names]
         self.idx_q = [j.idx_q for j in joints]
@@ -89,7 +90,7 @@ class UrdfArm:
             turn = pin.rpy.rpyToMatrix(*np.radians(s.placement.rpy_deg))
             self.model.gravity.linear = turn.T @ np.array([0.0, 0.0, -GRAVITY_M_S2])
         self.parent = self.model.getFrameId(s.ee_parent_frame)
-        self.offset = np.asarray(s.tool_offset_m, dtype=float)
+        self.offset = s.gripper_point_m  # where the payload is held, in the parent frame's axes
         self._geometry: tuple[pin.GeometryModel, pin.GeometryData] | None = None
 
     def limit_excess(self, q: np.ndarray, qd: np.ndarray) -> tuple[float, float]:
@@ -184,6 +185,7 @@ class UrdfArm:
             geom.addAllCollisionPairs()
             if s.srdf_path is not None:
                 pin.removeCollisionPairs(m, geom, str(s.srdf_path))
+            add_tool_geometry(m, geom, s, pairs=True)
             listed = {frozenset(p) for p in s.disabled_pairs}
             g = geom.geometryObjects
             for cp in list(geom.collisionPairs):

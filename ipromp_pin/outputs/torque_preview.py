@@ -90,7 +90,8 @@ def torque_figures(verdicts: Iterable[Verdict], prefix: str = "") -> list[Report
 
 
 def held_object(robot: Robot, payload: TaskObject | None, handover_s: float) -> HeldObject | None:
-    """The object drawn in the gripper (the dynamics' gripper frame, ``ee_parent_frame``): its task
+    """The object drawn in the gripper (the dynamics' gripper frame: ``ee_parent_frame``'s axes, at its
+    gripper point, the ``[tool]``'s centre point when one is mounted): its task
     file's shape, else a small sphere at ``com_m``; held until ``handover_s`` [s] on the human's clock
     (``robot_gives``) or from it on (``robot_receives``). ``None`` without a payload."""
     if payload is None or payload.mass_kg <= 0:
@@ -112,7 +113,7 @@ def held_object(robot: Robot, payload: TaskObject | None, handover_s: float) -> 
         frame=robot.settings.ee_parent_frame,
         kind=kind,
         dims_m=dims,
-        center_m=np.asarray(payload.com_m, dtype=float),
+        center_m=robot.settings.gripper_point_m + np.asarray(payload.com_m, dtype=float),
         axis=axis,
         held_from_s=None if gives else handover_s,
         held_until_s=handover_s if gives else None,

@@ -22,6 +22,7 @@ import multiprocessing as mp
 import xml.etree.ElementTree as ET
 import zipfile
 from collections.abc import Callable, Sequence
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -31,7 +32,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..cache import cache_dir, write_atomically
-from ..robot import Robot, load_visual_model
+from ..robot import Robot, add_tool_geometry, load_visual_model
 from .meshes import (
     DEFAULT_MAX_TRIANGLES,
     count_triangles,
@@ -294,6 +295,8 @@ def preview_visual_model(robot: Robot, prefetch: mp.process.BaseProcess | None =
     if prefetch is not None:
         prefetch.join()
     s = robot.settings
-    return cached_visual_model(
-        robot.model, s.urdf_path, s.package_dirs, DEFAULT_MAX_TRIANGLES, lambda: load_visual_model(robot)
-    )
+    # the cache holds the URDF's meshes (its key is the URDF's); the settings' [tool] is added after
+    urdf_only = partial(load_visual_model, robot, tool=False)
+    visual = cached_visual_model(robot.model, s.urdf_path, s.package_dirs, DEFAULT_MAX_TRIANGLES, urdf_only)
+    add_tool_geometry(robot.model, visual, s, pairs=False)
+    return visual

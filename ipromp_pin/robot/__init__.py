@@ -36,12 +36,22 @@ from .kinematics import (
     gripper_kinematics,
     gripper_rotations,
 )
-from .model import Robot, build_robot, clear_robot_cache, load_robot, load_visual_model, map_recorded_joints
+from .model import (
+    Robot,
+    add_tool_geometry,
+    add_tool_inertia,
+    build_robot,
+    clear_robot_cache,
+    load_robot,
+    load_visual_model,
+    map_recorded_joints,
+)
 from .settings import (
     EE_FRAME,
     ROBOTS_DIR,
     DemoLimitRecipe,
     RobotSettings,
+    Tool,
     Workspace,
     find_robot_data_dir,
     load_robot_settings,
@@ -57,8 +67,11 @@ __all__ = [
     "IKResult",
     "Robot",
     "RobotSettings",
+    "Tool",
     "TransferredPath",
     "Workspace",
+    "add_tool_geometry",
+    "add_tool_inertia",
     "build_robot",
     "calibrate_tool_offset",
     "clear_robot_cache",

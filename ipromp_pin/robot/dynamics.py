@@ -58,7 +58,8 @@ class ArmDynamics:
         self.effort_limit_nm = np.asarray(self.model_.effortLimit, dtype=float).copy()
         frame = self.model_.frames[self.model_.getFrameId(robot.settings.ee_parent_frame)]
         self.gripper_joint_ = int(frame.parentJoint)
-        self.gripper_placement_ = frame.placement
+        # where the gripper holds the object: the tool centre point of a [tool], else the frame itself
+        self.gripper_placement_ = frame.placement * pin.SE3(np.eye(3), robot.settings.gripper_point_m)
         coef = robot.settings.spring_torque_nm if springs else {}
         self.spring_ = np.array([coef.get(n, (0.0, 0.0)) for n in robot.joint_names]).reshape(-1, 2)
         self._models: dict[tuple, tuple[pin.Model, pin.Data, object]] = {}

@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from xml.etree import ElementTree
 
+import coal
 import numpy as np
 import pinocchio as pin
 
@@ -340,12 +341,62 @@ def _add_ee_frame(model: pin.Model, s: RobotSettings, last_joint_id: int) -> tup
             src, "end_effector.parent_frame", f"frame '{s.ee_parent_frame}' is not moved by the arm"
         )
     offset = pin.SE3(pin.rpy.rpyToMatrix(*np.radians(s.ee_rpy_deg)), np.asarray(s.tool_offset_m, dtype=float))
+    if s.tool is not None:  # the tool centre point, at the tool's far end
+        offset = offset * pin.SE3(np.eye(3), np.array([0.0, 0.0, s.tool.length_m]))
     ee_id = model.addFrame(
         pin.Frame(
             s.ee_frame, parent.parentJoint, parent_id, parent.placement * offset, pin.FrameType.OP_FRAME
         )
     )
     return int(ee_id), int(parent_id)
+
+
+TOOL_GEOMETRY = "tool"
+"""Name of the ``[tool]`` cylinder among the collision and visual geometries."""
+
+TOOL_COLOUR = np.array([0.25, 0.25, 0.28, 1.0])
+"""RGBA of the ``[tool]`` cylinder in the preview (a dark grey gripper)."""
+
+
+def _tool_centre(model: pin.Model, s: RobotSettings) -> tuple[int, int, pin.SE3]:
+    """The ``[tool]`` cylinder's joint, frame (the end-effector parent frame) and the placement of its
+    centre in that joint's frame (z along the cylinder)."""
+    assert s.tool is not None
+    parent_id = model.getFrameId(s.ee_parent_frame)
+    parent = model.frames[parent_id]
+    turn = pin.rpy.rpyToMatrix(*np.radians(s.ee_rpy_deg))
+    mount = pin.SE3(turn, np.asarray(s.tool_offset_m, dtype=float))
+    half = pin.SE3(np.eye(3), np.array([0.0, 0.0, 0.5 * s.tool.length_m]))
+    return int(parent.parentJoint), int(parent_id), parent.placement * mount * half
+
+
+def add_tool_inertia(model: pin.Model, s: RobotSettings) -> None:
+    """Add the ``[tool]``'s mass (a solid cylinder) to the inertia of the joint that carries it
+    (before any data of ``model`` is created; nothing without a tool or with a massless one)."""
+    if s.tool is None or s.tool.mass_kg <= 0.0:
+        return
+    joint, _, centre = _tool_centre(model, s)
+    body = pin.Inertia.FromCylinder(s.tool.mass_kg, s.tool.radius_m, s.tool.length_m)
+    model.appendBodyToJoint(joint, body, centre)
+
+
+def add_tool_geometry(model: pin.Model, geometry: pin.GeometryModel, s: RobotSettings, pairs: bool) -> None:
+    """Add the ``[tool]`` cylinder to ``geometry`` (collision or visual); ``pairs``: also pair it with
+    every geometry except those its own link and the link before it carry (in contact by design)."""
+    if s.tool is None:
+        return
+    joint, frame, centre = _tool_centre(model, s)
+    shape = coal.Cylinder(s.tool.radius_m, s.tool.length_m)
+    obj = pin.GeometryObject(TOOL_GEOMETRY, joint, frame, centre, shape)
+    obj.meshColor = TOOL_COLOUR
+    obj.overrideMaterial = True
+    tool_id = geometry.addGeometryObject(obj)
+    if not pairs:
+        return
+    adjacent = {joint, int(model.parents[joint])}
+    for k, other in enumerate(geometry.geometryObjects):
+        if k != tool_id and int(other.parentJoint) not in adjacent:
+            geometry.addCollisionPair(pin.CollisionPair(k, tool_id))
 
 
 def placement_pose(s: RobotSettings) -> pin.SE3:
@@ -390,7 +441,10 @@ def _collision_model(model: pin.Model, s: RobotSettings) -> tuple[pin.GeometryMo
         except (RuntimeError, ValueError) as exc:
             raise settings_error(src, "description.srdf", f"cannot be applied: {exc}") from exc
     _remove_listed_pairs(model, cmodel, s)
-    return cmodel, n_total, n_total - len(cmodel.collisionPairs)
+    n_removed = n_total - len(cmodel.collisionPairs)
+    n_before = len(cmodel.collisionPairs)
+    add_tool_geometry(model, cmodel, s, pairs=True)
+    return cmodel, n_total + len(cmodel.collisionPairs) - n_before, n_removed
 
 
 def _remove_listed_pairs(model: pin.Model, cmodel: pin.GeometryModel, s: RobotSettings) -> None:
@@ -467,6 +521,7 @@ def build_robot(s: RobotSettings, collision: bool = True) -> Robot:
     root = int(joint_ids[0])
     model.jointPlacements[root] = pin.SE3(np.eye(3), s.mount_offset_m) * model.jointPlacements[root]
     _place(model, s)
+    add_tool_inertia(model, s)
     data = model.createData()
     kinematic = dict(
         settings=s,
@@ -500,15 +555,19 @@ def build_robot(s: RobotSettings, collision: bool = True) -> Robot:
     return robot
 
 
-def load_visual_model(robot: Robot) -> pin.GeometryModel:
-    """Visual geometry (meshes) of ``robot``, for previews only (slow: ~2 s; never used by the checks)."""
+def load_visual_model(robot: Robot, tool: bool = True) -> pin.GeometryModel:
+    """Visual geometry (meshes) of ``robot``, for previews only (slow: ~2 s; never used by the checks);
+    ``tool``: with the ``[tool]`` cylinder (False: the URDF's alone)."""
     s = robot.settings
     try:
-        return pin.buildGeomFromUrdf(
+        visual = pin.buildGeomFromUrdf(
             robot.model, str(s.urdf_path), pin.VISUAL, package_dirs=list(s.package_dirs)
         )
     except (RuntimeError, ValueError) as exc:
         raise settings_error(s.path, "description.urdf", f"visual geometry cannot be loaded: {exc}") from exc
+    if tool:
+        add_tool_geometry(robot.model, visual, s, pairs=False)
+    return visual
 
 
 def map_recorded_joints(settings: RobotSettings, names: list[str] | tuple[str, ...]) -> np.ndarray:

@@ -137,6 +137,21 @@ PLAUSIBLE_RANGES: dict[str, Range] = {
     ),
     "placement.rpy_deg": Range(-180.0, 180.0, "deg", "roll, pitch, yaw angles, each at most half a turn"),
     "end_effector.rpy_deg": Range(-180.0, 180.0, "deg", "roll, pitch, yaw angles, each at most half a turn"),
+    "tool.length_m": Range(
+        0.01, 0.4, "m",
+        "flange to tool centre point of a hand-over gripper: the xArm Gripper's is 0.172 m (xarm_ros2), a "
+        "Robotiq 2F-85's 0.15 m plus its 8 mm coupling; beyond 0.4 m the tool is an arm link of its own",
+    ),
+    "tool.radius_m": Range(
+        0.01, 0.2, "m",
+        "half the width of a gripper with its fingers open: 85-86 mm strokes plus the fingers make "
+        "0.1-0.15 m across",
+    ),
+    "tool.mass_kg": Range(
+        0.0, 5.0, "kg",
+        "a hand-over gripper weighs 0.5-1.5 kg (xArm Gripper about 0.75 kg, xarm_ros2's links; Robotiq "
+        "2F-85 0.925 kg); the arms here carry 3-5 kg in all",
+    ),
     "workspace.min_m": Range(-10.0, 10.0, "m", "within the readers' tracking range (10 m from the base)"),
     "workspace.max_m": Range(-10.0, 10.0, "m", "within the readers' tracking range (10 m from the base)"),
     "workspace.center_m": Range(-10.0, 10.0, "m", "within the readers' tracking range (10 m from the base)"),

@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from ..exceptions import RobotError
 from ..fields import Range, Table, field_errors
@@ -34,6 +35,7 @@ __all__ = [
     "Placement",
     "ROBOTS_DIR",
     "RobotSettings",
+    "Tool",
     "Workspace",
     "find_robot_data_dir",
     "load_robot_settings",
@@ -52,6 +54,7 @@ TABLES: dict[str, tuple[str, ...] | None] = {
     "description": ("package", "urdf", "srdf"),
     "arm": ("joints", "recorded_names"),
     "end_effector": ("parent_frame", "frame", "rpy_deg"),
+    "tool": ("name", "length_m", "radius_m", "mass_kg", "source"),
     "calibration": (
         "fit",
         "tool_offset_m",
@@ -181,6 +184,34 @@ class Placement:
 
 
 @dataclass(frozen=True)
+class Tool:
+    """A gripper mounted on the arm's flange that its URDF does not describe (``[tool]``): a solid
+    cylinder along the ``ee`` frame's z axis from the end-effector parent frame (turned and offset as
+    ``[end_effector]`` and ``[calibration]`` say) to the tool centre point, which becomes the ``ee``
+    frame. Its volume joins the collision geometry (self-collision, the human checks) and its mass
+    the last link's inertia (the joint torques); the preview draws it.
+
+    Attributes:
+        name: What it is, e.g. ``"Robotiq 2F-85"``.
+        length_m: Flange to tool centre point along z [m].
+        radius_m: Radius [m] of the cylinder that holds the gripper with its fingers open.
+        mass_kg: Mass [kg], spread evenly over the cylinder.
+        source: Where the numbers come from.
+    """
+
+    name: str
+    length_m: float
+    radius_m: float
+    mass_kg: float
+    source: str
+
+    def tip_in_parent(self, rpy_deg: np.ndarray, offset_m: np.ndarray) -> np.ndarray:
+        """The tool centre point (3,) [m] in the end-effector parent frame's axes."""
+        turn = Rotation.from_euler("xyz", np.radians(rpy_deg)).as_matrix()
+        return np.asarray(offset_m, dtype=float) + turn @ np.array([0.0, 0.0, self.length_m])
+
+
+@dataclass(frozen=True)
 class RobotSettings:
     """Validated content of a robot settings file (see ``robots/README.md``).
 
@@ -250,11 +281,20 @@ class RobotSettings:
     placement: Placement | None = None
     ee_rpy_deg: np.ndarray = field(default_factory=lambda: np.zeros(3))
     disabled_pairs: tuple[tuple[str, str], ...] = ()
+    tool: Tool | None = None
 
     @property
     def n_joints(self) -> int:
         """Number of arm joints."""
         return len(self.arm_joints)
+
+    @property
+    def gripper_point_m(self) -> np.ndarray:
+        """Where the gripper holds an object (3,) [m] in the end-effector parent frame's axes: the
+        tool offset, plus the tool's length along the turned z axis when a ``[tool]`` is mounted."""
+        if self.tool is None:
+            return np.asarray(self.tool_offset_m, dtype=float)
+        return self.tool.tip_in_parent(self.ee_rpy_deg, self.tool_offset_m)
 
     @property
     def recorded_arm_joints(self) -> tuple[str, ...]:
@@ -466,6 +506,18 @@ def _placement(table: Table, path: Path) -> Placement | None:
     return Placement(source, xyz, rpy)
 
 
+def _tool(table: Table) -> Tool | None:
+    """The optional ``[tool]`` table: a gripper the URDF does not describe (every key required)."""
+    if not table.data:
+        return None
+    numbers = (table.number(k, _range(f"tool.{k}")) for k in ("length_m", "radius_m", "mass_kg"))
+    length, radius, mass = numbers
+    name, source = table.text("name"), table.text("source")
+    if not name or not source:
+        raise table.error("name" if not name else "source", "must not be empty")
+    return Tool(name, length, radius, mass, source)
+
+
 def _check_thresholds(checks: Table) -> tuple[float, float]:
     """The optional ``[checks]`` table: min clearance [m], collision step [rad]."""
     defaults = {"min_clearance_m": 0.0, "collision_max_step_rad": 0.05}
@@ -555,4 +607,5 @@ def load_robot_settings(path_or_name: str | Path) -> RobotSettings:
         spring_torque_nm=_springs(_sub(doc, "springs", required=False), joints),
         human=read_human_settings(doc, path),
         placement=_placement(_sub(doc, "placement", required=False), path),
+        tool=_tool(_sub(doc, "tool", required=False)),
     )

@@ -100,11 +100,16 @@ def test_a_bad_placement_is_refused_naming_the_field(tmp_path, placement, messag
         load_robot_settings(placed_copy(tmp_path, placement))
 
 
-def test_the_start_configuration_is_the_one_the_motions_preferences_score_best(robots):
+def test_the_start_configuration_is_the_one_the_motions_preferences_score_best(robots, tmp_path):
     from ipromp_pin.robot.arm_transfer import PoseSolver, kindest_start
 
     baxter = robots[0]
-    ur5 = load_robot("ur5")
+    # a UR5 placed where each of its start configurations can follow every synthetic motion (at its
+    # shipped placement some cannot, and a configuration that follows more motions wins first)
+    text = (ROBOTS / "ur5.toml").read_text()
+    moved = tmp_path / "ur5_moved.toml"
+    moved.write_text(text.replace("xyz_m = [0.10, 0.20, 0.10]", "xyz_m = [0.30, 0.20, 0.10]"))
+    ur5 = load_robot(moved)
     demos = make_synthetic_dataset(n_demos=2).all_demos()
     pos, rot = frame_placements(baxter, np.stack([d.groups["robot"][0] for d in demos]))
     solver = PoseSolver(ur5)

@@ -168,3 +168,12 @@ def test_a_bad_tool_is_refused_naming_the_file_and_field(tmp_path, line, field, 
         load_robot_settings(path)
     message = str(err.value)
     assert str(path) in message and field in message and re.search(problem, message), message
+
+
+def test_the_tool_centre_point_turns_with_the_ee_frames_rpy():
+    tool = load_robot_settings("ur5").tool
+    assert tool is not None
+    rpy, offset = np.array([10.0, 80.0, -30.0]), np.array([0.01, -0.02, 0.03])
+    turn = pin.rpy.rpyToMatrix(*np.radians(rpy))
+    expected = offset + turn @ np.array([0.0, 0.0, tool.length_m])
+    assert np.allclose(tool.tip_in_parent(rpy, offset), expected, atol=1e-12)

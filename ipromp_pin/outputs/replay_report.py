@@ -174,6 +174,7 @@ def report_dict(
             "version": REPLAY_VERSION,
             "demo": {"task": demo.task, "name": demo.name, "source": demo.source},
             "robot": result.robot,
+            "tool": result.tool,
             "retarget": retarget_summary(result),
             "warnings": list(warnings or []),
             "passed": replay_passed(score),

@@ -127,6 +127,7 @@ def feasibility_dict(result: PlanResult) -> dict:
     pose = result.handover_pose
     return {
         "robot": result.robot,
+        "tool": result.tool,
         "passed": result.checks.passed,
         "failures": result.checks.failures,
         "handover_position_m": [float(x) for x in pose[:3]],
@@ -136,13 +137,20 @@ def feasibility_dict(result: PlanResult) -> dict:
     }
 
 
+def _with_tool(tool: dict | None) -> str:
+    """`` with <the tool> (<length> m, <mass> kg)`` for a robot with a ``[tool]``, else nothing."""
+    if tool is None:
+        return ""
+    return f" with {tool['name']} ({tool['length_m']:.3f} m, {tool['mass_kg']:.2f} kg)"
+
+
 def checks_text(result: PlanResult) -> str:
     """The verdicts as ``report.txt`` lists them: the verdict line, the hand-over position, one line
     per check."""
     p = result.handover_pose
     verdict = "PASSED" if result.checks.passed else "FAILED: " + ", ".join(result.checks.failures)
     lines = [
-        f"Feasibility ({result.robot}): {verdict}",
+        f"Feasibility ({result.robot}{_with_tool(result.tool)}): {verdict}",
         f"  hand-over position [m]: ({p[0]:.3f}, {p[1]:.3f}, {p[2]:.3f})",
     ]
     return "\n".join(lines + result.checks.lines())

@@ -308,6 +308,8 @@ class ClosedLoopResult:
             (empty: the arm's own model).
         unknown_events: When the observation turned unknown after the start, the robot held, resumed
             or retreated (:class:`~.unknown_stop.StopEvent`, in time order).
+        tool: The executing arm's ``[tool]`` (:meth:`~ipromp_pin.robot.settings.Tool.to_dict`), the
+            gripper the checks saw on an arm whose URDF ends at the flange (None: none).
     """
 
     trajectory: Trajectory
@@ -322,6 +324,7 @@ class ClosedLoopResult:
     robot: str = ""
     source_robot: str = ""
     unknown_events: list[StopEvent] = field(default_factory=list)
+    tool: dict | None = None
 
     def first_event_s(self, kind: str) -> float | None:
         """The time [s] of the first :attr:`unknown_events` of ``kind`` (None: none)."""
@@ -691,6 +694,7 @@ class ClosedLoopPlanner:
             self.robot.settings.name,
             "" if self.transfer is None else self.transfer.source.settings.name,
             list(self._unknown.events),
+            None if self.robot.settings.tool is None else self.robot.settings.tool.to_dict(),
         )
 
 

@@ -66,6 +66,8 @@ class PlanResult:
             duration over the unslowed one's), not uniformly.
         retarget: How the joint paths came from the model's robot through the gripper (None: the
             model predicts this arm's joints).
+        tool: The robot settings' ``[tool]`` (:meth:`~ipromp_pin.robot.settings.Tool.to_dict`), the
+            gripper the checks saw on an arm whose URDF ends at the flange (None: none).
     """
 
     robot: str
@@ -82,6 +84,7 @@ class PlanResult:
     slowdown_delay_s: float = 0.0
     slowdown_local: bool = False
     retarget: Retargeting | None = None
+    tool: dict | None = None
 
     @property
     def known(self) -> bool:
@@ -238,6 +241,7 @@ def plan(
         slowdown_delay_s=retimed.delay_s,
         slowdown_local=retimed.local,
         retarget=retarget,
+        tool=None if robot.settings.tool is None else robot.settings.tool.to_dict(),
     )
     ms["annotate"] = (time.perf_counter() - t2) * 1e3
     say(f"[check] {'pass' if result.passed else 'FAIL: ' + ', '.join(result.failures)}")

@@ -205,6 +205,16 @@ class Tool:
     mass_kg: float
     source: str
 
+    def to_dict(self) -> dict:
+        """JSON-serialisable form (the reports' ``tool``)."""
+        return {
+            "name": self.name,
+            "length_m": self.length_m,
+            "radius_m": self.radius_m,
+            "mass_kg": self.mass_kg,
+            "source": self.source,
+        }
+
     def tip_in_parent(self, rpy_deg: np.ndarray, offset_m: np.ndarray) -> np.ndarray:
         """The tool centre point (3,) [m] in the end-effector parent frame's axes."""
         turn = Rotation.from_euler("xyz", np.radians(rpy_deg)).as_matrix()

@@ -35,6 +35,7 @@ def test_replay_with_the_panda_commits_retargeted_re_plans_and_says_so(panda_rep
     jsonschema.Draft202012Validator(load_schema("replans")).validate(replans)
     jsonschema.Draft202012Validator(load_schema("replay_report")).validate(report)
     assert replans["robot"] == report["robot"] == "panda" and replans["source_robot"] == "baxter_left"
+    assert report["tool"] is None  # the Panda's URDF has its hand
     # the demonstrated profile is Baxter's joints': the Panda runs its conservative one
     assert replans["limit_profile"]["name"] == "conservative"
     assert replans["limit_profile"]["joint_names"] == PANDA_JOINTS
@@ -84,6 +85,7 @@ def test_replay_with_the_six_joint_ur5_writes_its_preview_and_scores_against_bax
     report = json.loads((out / "report.json").read_text())
     replans = json.loads((out / "replans.json").read_text())
     assert report["robot"] == "ur5" and report["retarget"]["source_robot"] == "baxter_left"
+    assert report["tool"]["name"].startswith("Robotiq 2F-85")  # the gripper the checks saw
     assert len(replans["limit_profile"]["joint_names"]) == 6
     # scored against the recorded Baxter gripper in the scene frame: a finite error of centimetres
     assert 0.0 <= report["handover_error_cm"] < 10.0

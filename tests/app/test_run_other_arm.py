@@ -28,7 +28,7 @@ def test_run_with_the_arm_passes_and_reports_the_retargeting(arm_run):
     name, code, out = arm_run
     assert code == 0
     report = json.loads((out / "report.json").read_text())
-    assert report["feasibility"]["robot"] == name
+    assert report["feasibility"]["robot"] == name and report["feasibility"]["tool"] is None
     r = report["retarget"]
     assert r["source_robot"] == "baxter_left" and r["reached"]
     assert 0 <= r["ik_residual_mm"] <= 1.0 and r["ik_residual_deg"] <= 0.5
@@ -116,7 +116,14 @@ def test_run_with_the_six_joint_ur5_writes_its_preview_with_baxter_s_recorded_gr
     out = tmp_path / "out"
     assert main(["run", str(PIPELINE), "--robot", "ur5", "--out", str(out), "--no-rosbag"]) == 0
     assert (out / "preview.html").read_text().startswith("<!DOCTYPE html>")
-    assert json.loads((out / "report.json").read_text())["feasibility"]["robot"] == "ur5"
+    feasibility = json.loads((out / "report.json").read_text())["feasibility"]
+    assert feasibility["robot"] == "ur5"
+    # the gripper its URDF lacks, which the checks saw, is named in both reports
+    assert feasibility["tool"]["name"].startswith("Robotiq 2F-85") and feasibility["tool"]["length_m"] > 0.1
+    assert (
+        "Feasibility (ur5 with Robotiq 2F-85 on its 8 mm coupling (0.158 m, 0.93 kg))"
+        in (out / "report.txt").read_text()
+    )
 
 
 def test_a_pipeline_names_its_arm_once(arm_run, tmp_path):

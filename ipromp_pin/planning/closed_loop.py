@@ -308,8 +308,7 @@ class ClosedLoopResult:
             (empty: the arm's own model).
         unknown_events: When the observation turned unknown after the start, the robot held, resumed
             or retreated (:class:`~.unknown_stop.StopEvent`, in time order).
-        tool: The executing arm's ``[tool]`` (:meth:`~ipromp_pin.robot.settings.Tool.to_dict`), the
-            gripper the checks saw on an arm whose URDF ends at the flange (None: none).
+        tool: The executing arm's ``[tool]``, the gripper its URDF lacks (``Tool.to_dict``; None: none).
     """
 
     trajectory: Trajectory
@@ -723,12 +722,10 @@ def record_verdicts(r: Replan, verdicts: list[Verdict]) -> None:
 
 def demo_samples(demo: Demo, groups: list[str]) -> list[dict[str, np.ndarray | None]]:
     """The demo's human samples as the planner receives them: group -> values, None where missing."""
-    out = []
-    for i in range(demo.n_samples):
-        out.append(
-            {g: None if (g in demo.missing and demo.missing[g][i]) else demo.groups[g][i] for g in groups}
-        )
-    return out
+    return [
+        {g: None if (g in demo.missing and demo.missing[g][i]) else demo.groups[g][i] for g in groups}
+        for i in range(demo.n_samples)
+    ]
 
 
 def start_time(demo: Demo, settings: ClosedLoopSettings, nominal_s: float) -> float:

@@ -107,6 +107,18 @@ def found(judged: dict | None, arm: str) -> list[str]:
     return violations_of(judged, load_robot_settings(arm).human.min_separation_m)
 
 
+def contacts_of(violated: list[dict]) -> dict[str, int]:
+    """Where the recorded human touched the arm in plans (or replays) whose re-evaluation found a
+    ``human_contact``: ``"link - body part"`` -> how many (its ``judged.human_closest``; none in runs
+    written before it was recorded)."""
+    out: Counter[str] = Counter()
+    for v in violated:
+        closest = (v["judged"] or {}).get("human_closest")
+        if "human_contact" in v["violations"] and closest:
+            out[f"{closest[0]} - {closest[1]}"] += 1
+    return dict(sorted(out.items()))
+
+
 def one_shot_rows(doc: dict) -> dict:
     """Per-demo plans of a one-shot run -> the arm's figures."""
     arm = doc["meta"]["robot"]
@@ -120,6 +132,7 @@ def one_shot_rows(doc: dict) -> dict:
     violated = [p for p in passed if p["violations"]]
     kinds = Counter(v for p in violated for v in p["violations"])
     return {
+        "contacts": contacts_of(violated),
         "n": len(plans),
         "retargeted": len(moved),
         "reached": len(reached),
@@ -148,6 +161,7 @@ def closed_rows(doc: dict) -> dict:
     violated = [a for a in arms if a["violations"]]
     kinds = Counter(v for a in violated for v in a["violations"])
     return {
+        "contacts": contacts_of(violated),
         "n": len(trials),
         "retargeted": sum(a["retargeted"] for a in arms),
         "reached": sum(a["reached"] for a in arms),
@@ -216,6 +230,18 @@ def print_table(title: str, rows: dict[str, dict], closed: bool) -> None:
             f"| {_num(r['error_cm'])} ({_num(d_err, sign=True)}){final} | {_num(r['delay_s'])} "
             f"({_num(d_delay, sign=True)}) | {r['passed']} | {refused} | {r['violated']}"
             f"{f' ({found})' if found else ''} | {_num(r['torque'], 3)} |"
+        )
+    touched = [
+        f"{arm}: " + ", ".join(f"{k} {v}" for k, v in r["contacts"].items())
+        for arm, r in rows.items()
+        if r["contacts"]
+    ]
+    if touched:
+        print(
+            "\nwhere the recorded human touched passed "
+            + unit
+            + " (arm link - body part): "
+            + "; ".join(touched)
         )
 
 

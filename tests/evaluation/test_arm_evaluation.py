@@ -18,6 +18,7 @@ from ipromp_pin.evaluation.config import EvaluationConfig
 from ipromp_pin.evaluation.independent import UrdfArm
 from ipromp_pin.evaluation.splits import iter_splits
 from ipromp_pin.exceptions import DataError
+from ipromp_pin.human import BODY_PARTS
 from ipromp_pin.readers.synthetic import make_synthetic_dataset
 from ipromp_pin.robot import load_robot
 
@@ -60,6 +61,9 @@ def test_evaluate_on_the_panda_plans_every_test_demo_on_it_and_names_it(syntheti
         assert judged["velocity_ratio"] <= 1.0 + 1e-9 and judged["position_excess_rad"] == 0.0
         # a passed plan's re-evaluation found nothing (the target of issue 37)
         assert not (p["passed"] and judged["violations"]), p
+        # where the arm came closest to the human: its link, the body part, when
+        link, part, when = judged["human_closest"]
+        assert link.startswith("panda_") and part in {b.name for b in BODY_PARTS} and math.isfinite(when)
 
 
 def test_the_panda_s_hand_over_error_is_baxter_s_where_it_reaches_the_pose(synthetic_folder, tmp_path):

@@ -39,7 +39,8 @@ def on_six_joints(block: str) -> str | None:
     the model is the UR5's own) and for the grid search, which scores the recognition only (the
     arm's joints are fitted as in the first block) and is the page's slowest block. The goal-pose
     block runs: at the UR5's placement with its gripper every task's demos lie on one branch of its
-    inverse kinematics (at its earlier placement without the gripper, one rod demo did not)."""
+    inverse kinematics (at its earlier placement without the gripper they did not,
+    tests/promp/test_branches.py)."""
     if 'robot="ur5"' in block or "GridSearchCV(" in block:
         return None
     synthetic = "make_synthetic_dataset(n_demos=10, seed=1)"

@@ -24,6 +24,7 @@ import numpy as np
 from ..data import Dataset, Demo
 from ..exceptions import ModelError
 from .basis import GaussianBasis
+from .branches import warn_mixed_branches
 from .fitted import FittedModel
 from .gripper_side import aligned_demos, gripper_kinematics, is_gripper_group
 from .handover import HandoverRegression
@@ -183,6 +184,8 @@ def fit_model(
     if is_gripper_group(params["robot_group"]):  # a gripper pose path: sign-consistent quaternions
         fitted_demos = aligned_demos(by_task)
         fk, fk_rot = (fk, fk_rot) if fk is not None else gripper_kinematics()
+    elif fk is not None:  # joint angles: a task's demos on two branches of the IK average badly
+        warn_mixed_branches(by_task, params["robot_group"], fk)
     training = prepare_training(fitted_demos, observe, params["robot_group"], basis, params["log_groups"])
     prior = log_task_prior(training.tasks, params["task_prior"])
     with limit_threads():

@@ -16,11 +16,9 @@ branches: 3.3 to 6.3 times the spread (11.8 to 42.7 cm).
 from __future__ import annotations
 
 import warnings
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Mapping
 
 import numpy as np
-
-from ..data import Demo
 
 MIN_OFFSET_M = 0.02
 """A mean configuration's gripper within this distance [m] of the demos' mean hand-over position is
@@ -32,27 +30,18 @@ class MixedBranchesWarning(UserWarning):
     the model averages them into configurations none of them took."""
 
 
-def hand_over_configurations(demos: Sequence[Demo], robot_group: str) -> np.ndarray:
-    """Each demo's last robot sample with every joint recorded (n, J) [rad] (demos without one left out)."""
-    rows = []
-    for d in demos:
-        q = np.asarray(d.groups[robot_group], dtype=float)
-        whole = np.flatnonzero(np.all(np.isfinite(q), axis=1))
-        if whole.size:
-            rows.append(q[whole[-1]])
-    return np.asarray(rows, dtype=float).reshape(len(rows), -1)
-
-
 def mixed_branch_tasks(
-    by_task: Mapping[str, Sequence[Demo]], robot_group: str, fk: Callable[[np.ndarray], np.ndarray]
+    q_end: Mapping[str, np.ndarray], fk: Callable[[np.ndarray], np.ndarray]
 ) -> list[tuple[str, float, float]]:
-    """The tasks whose mean hand-over configuration puts the gripper (``fk``: joint angles (n, J)
-    [rad] -> positions (n, 3) [m]) farther from the demos' mean hand-over position than the median
-    distance of the demos' own hand-overs from it (and than :data:`MIN_OFFSET_M`): (task, that
-    distance [m], the median distance [m]) each, in the tasks' order."""
+    """Of the tasks' final configurations ``q_end`` (task -> (N, J) [rad]; e.g.
+    :func:`~ipromp_pin.promp.handover_selection.final_configurations`), those whose mean puts the
+    gripper (``fk``: joint angles (n, J) [rad] -> positions (n, 3) [m]) farther from the demos' mean
+    hand-over position than the median distance of the demos' own hand-overs from it (and than
+    :data:`MIN_OFFSET_M`): (task, that distance [m], the median distance [m]) each, in the tasks'
+    order."""
     out = []
-    for task, demos in by_task.items():
-        q = hand_over_configurations(demos, robot_group)
+    for task, q in q_end.items():
+        q = np.asarray(q, dtype=float)
         if q.shape[0] < 2:
             continue
         pos = np.asarray(fk(q), dtype=float)
@@ -64,11 +53,9 @@ def mixed_branch_tasks(
     return out
 
 
-def warn_mixed_branches(
-    by_task: Mapping[str, Sequence[Demo]], robot_group: str, fk: Callable[[np.ndarray], np.ndarray]
-) -> None:
+def warn_mixed_branches(q_end: Mapping[str, np.ndarray], fk: Callable[[np.ndarray], np.ndarray]) -> None:
     """A :class:`MixedBranchesWarning` per task of :func:`mixed_branch_tasks`."""
-    for task, offset, spread in mixed_branch_tasks(by_task, robot_group, fk):
+    for task, offset, spread in mixed_branch_tasks(q_end, fk):
         where = f"{offset * 100:.1f} cm from their mean hand-over position"
         spread_cm = f"{spread * 100:.1f} cm"
         message = (

@@ -29,7 +29,7 @@ from .fitted import FittedModel
 from .gripper_side import aligned_demos, gripper_kinematics, is_gripper_group
 from .handover import HandoverRegression
 from .handover_orientation import OrientationEstimate
-from .handover_selection import HandoverChoice, choose_handover
+from .handover_selection import HandoverChoice, choose_handover, final_configurations
 from .head import RecognitionHead
 from .novelty import NoveltyDetector, NoveltyRow, fit_novelty
 from .provenance import demo_record
@@ -184,9 +184,9 @@ def fit_model(
     if is_gripper_group(params["robot_group"]):  # a gripper pose path: sign-consistent quaternions
         fitted_demos = aligned_demos(by_task)
         fk, fk_rot = (fk, fk_rot) if fk is not None else gripper_kinematics()
-    elif fk is not None:  # joint angles: a task's demos on two branches of the IK average badly
-        warn_mixed_branches(by_task, params["robot_group"], fk)
     training = prepare_training(fitted_demos, observe, params["robot_group"], basis, params["log_groups"])
+    if fk is not None and not is_gripper_group(params["robot_group"]):
+        warn_mixed_branches(final_configurations(training), fk)  # a task's demos on two IK branches
     prior = log_task_prior(training.tasks, params["task_prior"])
     with limit_threads():
         hp = select_hyperparameters(training, params, observe, coupling, prior, fk, fk_rot)

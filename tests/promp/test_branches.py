@@ -6,6 +6,7 @@ from __future__ import annotations
 import re
 import warnings
 
+import numpy as np
 import pytest
 
 from ipromp_pin.app.synth import on_robot
@@ -28,16 +29,21 @@ def mixed(tmp_path_factory):
     return robot, on_robot(make_synthetic_dataset(n_demos=10, seed=1), str(path))
 
 
+def last_samples(ds) -> dict[str, np.ndarray]:
+    """Task -> (N, J) its demos' last robot samples (complete in these demos)."""
+    return {task: np.stack([d.groups["robot"][-1] for d in demos]) for task, demos in ds.demos.items()}
+
+
 def test_demos_on_two_branches_are_found_and_one_branch_is_not(mixed):
     robot, ds = mixed
-    found = mixed_branch_tasks(ds.demos, "robot", lambda q: ee_positions(robot, q))
+    found = mixed_branch_tasks(last_samples(ds), lambda q: ee_positions(robot, q))
     assert [t for t, _, _ in found] == ["rod", "wrench", "tape"]
     assert all(offset > 3.0 * spread for _, offset, spread in found)
     baxter = load_robot("baxter_left")
     one = make_synthetic_dataset(n_demos=10, seed=1)
-    assert mixed_branch_tasks(one.demos, "robot", lambda q: ee_positions(baxter, q)) == []
+    assert mixed_branch_tasks(last_samples(one), lambda q: ee_positions(baxter, q)) == []
     ur5 = load_robot("ur5")  # at its placement with its gripper: one branch per task
-    assert mixed_branch_tasks(on_robot(one, "ur5").demos, "robot", lambda q: ee_positions(ur5, q)) == []
+    assert mixed_branch_tasks(last_samples(on_robot(one, "ur5")), lambda q: ee_positions(ur5, q)) == []
 
 
 def test_training_on_them_warns_naming_the_task(mixed):
@@ -59,4 +65,5 @@ def test_the_recorded_baxter_demos_lie_on_one_branch(chen2017_dir, handover2017_
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             ds = load_dataset(folder)
-        assert mixed_branch_tasks(ds.demos, "robot", lambda q: ee_positions(baxter, q)) == []
+        assert np.isfinite(np.concatenate(list(last_samples(ds).values()))).all()
+        assert mixed_branch_tasks(last_samples(ds), lambda q: ee_positions(baxter, q)) == []

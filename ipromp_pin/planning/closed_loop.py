@@ -693,7 +693,7 @@ class ClosedLoopPlanner:
             self.robot.settings.name,
             "" if self.transfer is None else self.transfer.source.settings.name,
             list(self._unknown.events),
-            None if self.robot.settings.tool is None else self.robot.settings.tool.to_dict(),
+            self.robot.settings.tool_record,
         )
 
 

@@ -241,7 +241,7 @@ def plan(
         slowdown_delay_s=retimed.delay_s,
         slowdown_local=retimed.local,
         retarget=retarget,
-        tool=None if robot.settings.tool is None else robot.settings.tool.to_dict(),
+        tool=robot.settings.tool_record,
     )
     ms["annotate"] = (time.perf_counter() - t2) * 1e3
     say(f"[check] {'pass' if result.passed else 'FAIL: ' + ', '.join(result.failures)}")

@@ -340,9 +340,7 @@ def _add_ee_frame(model: pin.Model, s: RobotSettings, last_joint_id: int) -> tup
         raise settings_error(
             src, "end_effector.parent_frame", f"frame '{s.ee_parent_frame}' is not moved by the arm"
         )
-    offset = pin.SE3(pin.rpy.rpyToMatrix(*np.radians(s.ee_rpy_deg)), np.asarray(s.tool_offset_m, dtype=float))
-    if s.tool is not None:  # the tool centre point, at the tool's far end
-        offset = offset * pin.SE3(np.eye(3), np.array([0.0, 0.0, s.tool.length_m]))
+    offset = _ee_offset(s, 0.0 if s.tool is None else s.tool.length_m)  # a [tool]'s far end: its centre point
     ee_id = model.addFrame(
         pin.Frame(
             s.ee_frame, parent.parentJoint, parent_id, parent.placement * offset, pin.FrameType.OP_FRAME
@@ -358,16 +356,21 @@ TOOL_COLOUR = np.array([0.25, 0.25, 0.28, 1.0])
 """RGBA of the ``[tool]`` cylinder in the preview (a dark grey gripper)."""
 
 
+def _ee_offset(s: RobotSettings, along_m: float) -> pin.SE3:
+    """The placement, in the end-effector parent frame, of the point ``along_m`` [m] along the ``ee``
+    frame's z from its mount (the tool offset, turned by ``[end_effector] rpy_deg``)."""
+    turn = pin.rpy.rpyToMatrix(*np.radians(s.ee_rpy_deg))
+    mount = pin.SE3(turn, np.asarray(s.tool_offset_m, dtype=float))
+    return mount * pin.SE3(np.eye(3), np.array([0.0, 0.0, along_m]))
+
+
 def _tool_centre(model: pin.Model, s: RobotSettings) -> tuple[int, int, pin.SE3]:
     """The ``[tool]`` cylinder's joint, frame (the end-effector parent frame) and the placement of its
     centre in that joint's frame (z along the cylinder)."""
     assert s.tool is not None
     parent_id = model.getFrameId(s.ee_parent_frame)
     parent = model.frames[parent_id]
-    turn = pin.rpy.rpyToMatrix(*np.radians(s.ee_rpy_deg))
-    mount = pin.SE3(turn, np.asarray(s.tool_offset_m, dtype=float))
-    half = pin.SE3(np.eye(3), np.array([0.0, 0.0, 0.5 * s.tool.length_m]))
-    return int(parent.parentJoint), int(parent_id), parent.placement * mount * half
+    return int(parent.parentJoint), int(parent_id), parent.placement * _ee_offset(s, 0.5 * s.tool.length_m)
 
 
 def add_tool_inertia(model: pin.Model, s: RobotSettings) -> None:

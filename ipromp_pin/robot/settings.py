@@ -307,6 +307,11 @@ class RobotSettings:
         return self.tool.tip_in_parent(self.ee_rpy_deg, self.tool_offset_m)
 
     @property
+    def tool_record(self) -> dict | None:
+        """The ``[tool]`` as the reports give it (:meth:`Tool.to_dict`; None: none)."""
+        return None if self.tool is None else self.tool.to_dict()
+
+    @property
     def recorded_arm_joints(self) -> tuple[str, ...]:
         """The arm's joints as the recordings name them, in kinematic order (what readers ask for)."""
         inverse = {model: rec for rec, model in self.recorded_names.items()}

@@ -34,6 +34,7 @@ from ruckig import Trajectory as RuckigTrajectory
 
 from ..exceptions import InfeasibleError
 from .ruckig_sampling import sample_trajectory
+from .time_warp import TimeWarp
 from .trajectory import JointLimits, MotionState, Trajectory
 
 HEADROOM = 0.95
@@ -304,23 +305,32 @@ class Retargeter:
         planned = self.planned(state, reference, min_scale)
         return planned.sample(), planned.report
 
-    def planned(self, state: MotionState, reference: ReferenceMotion, min_scale: float = 1.0) -> Planned:
+    def planned(
+        self,
+        state: MotionState,
+        reference: ReferenceMotion,
+        min_scale: float = 1.0,
+        warp: TimeWarp | None = None,
+    ) -> Planned:
         """:meth:`plan` up to its samples: the pieces and the report, the samples made on demand
-        (:meth:`Planned.sample`; a caller that needs only the report saves their cost)."""
+        (:meth:`Planned.sample`; a caller that needs only the report saves their cost). ``warp``:
+        the followed reference slowed further where it asks, and the catch-up with it
+        (:mod:`.time_warp`)."""
         h = self.blend_s
         t_c = float(state.t_s)
         d_end = reference.duration_s
         start = (state.q, state.qd, state.qdd)
         q_end = reference.end()
-        # (kind, t_begin, t_end, data): data a ruckig trajectory, or (tau0, k) of a followed piece
+        # (kind, t_begin, t_end, data): data a ruckig trajectory, or (tau0, k, warp) of a followed piece
         pieces: list[tuple[str, float, float, Any]] = []
         k = 1.0
         zeros = np.zeros_like(q_end)
         d_follow = d_end - self.settle_s
+        slower = float(min_scale) * (1.0 if warp is None else warp.catch_up)
         if t_c + h >= d_follow:
             blend = self._ruckig(start, (q_end, zeros, zeros), d_end - t_c)
-            if min_scale > 1.0:  # the last blend, stretched: ruckig's time-optimal profile k times longer
-                blend = self._ruckig(start, (q_end, zeros, zeros), blend.duration * float(min_scale))
+            if slower > 1.0:  # the last blend, stretched: ruckig's time-optimal profile k times longer
+                blend = self._ruckig(start, (q_end, zeros, zeros), blend.duration * slower)
                 k = float(min_scale)
             pieces.append(("ruckig", t_c, t_c + blend.duration, blend))
             blend_s = blend.duration
@@ -334,18 +344,24 @@ class Retargeter:
                 k = self.reachable_scale(v0, a0, k_follow)
                 # a slowed plan (min_scale > 1) catches up min_scale times slower too: the catch-up is
                 # part of the motion the checks asked to slow down
-                window = (tau0 - t_c) * float(min_scale)
-                blend = self._ruckig(start, (q0, v0 / k, a0 / k**2), window)
+                window = (tau0 - t_c) * slower
+                blend = self._ruckig(start, _followed_state(q0, v0, a0, tau0, k, warp), window)
                 if blend.duration <= window + 1e-9 or tau0 >= d_follow:
                     break
                 target_t = min(t_c + blend.duration, d_follow)
             blend_s = blend.duration
             t_b = t_c + blend.duration
-            t_f = t_b + k * (d_follow - tau0)
+            span = k * (d_follow - tau0) if warp is None else warp.span_s(tau0, d_follow, k)
+            t_f = t_b + span
             pieces.append(("ruckig", t_c, t_b, blend))
-            pieces.append(("follow", t_b, t_f, (tau0, k)))
+            pieces.append(("follow", t_b, t_f, (tau0, k, warp)))
             q_f, v_f, a_f = reference.at(d_follow)
-            settle = self._ruckig((q_f, v_f / k, a_f / k**2), (q_end, zeros, zeros), k * self.settle_s)
+            g_end = 1.0 if warp is None else float(warp.factor(d_follow))
+            settle = self._ruckig(
+                _followed_state(q_f, v_f, a_f, d_follow, k, warp),
+                (q_end, zeros, zeros),
+                k * g_end * self.settle_s,
+            )
             pieces.append(("ruckig", t_f, t_f + settle.duration, settle))
         arrival = pieces[-1][2]
         report = RetargetReport(float(arrival), d_end, float(k), float(blend_s))
@@ -381,6 +397,23 @@ class Planned:
             self._motion = _sample_pieces(*self._args)
         return self._motion
 
+    def followed(self, times_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """At times ``times_s`` (n,) [s] of the motion: which piece moves it (0: the catch-up,
+        1: the followed reference, 2: the settle to rest) and the reference time [s] it follows
+        there (NaN outside the followed piece)."""
+        t = np.asarray(times_s, dtype=float)
+        which = np.zeros(t.size, dtype=int)
+        tau = np.full(t.size, np.nan)
+        pieces = self._args[3]
+        if len(pieces) < 3:  # one blend to rest: nothing followed
+            return which, tau
+        _, t_b, t_f, data = pieces[1]
+        inside = (t >= t_b) & (t < t_f)
+        which[inside] = 1
+        which[t >= t_f] = 2
+        tau[inside] = followed_times(data, t[inside] - t_b)
+        return which, tau
+
 
 def _sample_pieces(
     state: MotionState,
@@ -407,14 +440,40 @@ def _sample_pieces(
         sel = slice(i0, i1)
         if kind == "ruckig":
             q[sel], qd[sel], qdd[sel] = sample_trajectory(data, times[sel] - t0)
-        else:
-            tau0_, k_ = data
+        elif data[2] is None:
+            tau0_, k_, _ = data
             tq, tv, ta, _ = reference.evaluate(tau0_ + (times[sel] - t0) / k_, order=2)
             assert tv is not None and ta is not None
             q[sel], qd[sel], qdd[sel] = tq, tv / k_, ta / k_**2
+        else:
+            tau = followed_times(data, times[sel] - t0)
+            tq, tv, ta, _ = reference.evaluate(tau, order=2)
+            assert tv is not None and ta is not None
+            rate, accel = data[2].rates(tau, data[1])
+            q[sel], qd[sel], qdd[sel] = tq, tv * rate[:, None], ta * (rate**2)[:, None] + tv * accel[:, None]
     q[-1], qd[-1], qdd[-1] = q_end, 0.0, 0.0
     q[0], qd[0], qdd[0] = state.q, state.qd, state.qdd
     return Trajectory(times, q, qd, qdd, joint_names)
+
+
+def followed_times(follow: tuple[float, float, TimeWarp | None], elapsed_s: np.ndarray) -> np.ndarray:
+    """The reference times (n,) [s] a follow piece ``(tau0, k, warp)`` reaches ``elapsed_s`` (n,) [s]
+    after it starts."""
+    tau0, k, warp = follow
+    if warp is None:
+        return tau0 + np.asarray(elapsed_s, dtype=float) / k
+    return warp.reference_times(elapsed_s, tau0, k)
+
+
+def _followed_state(
+    q: np.ndarray, v: np.ndarray, a: np.ndarray, tau: float, k: float, warp: TimeWarp | None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The follower's state (J,) each where it passes reference time ``tau`` [s], the reference's
+    state there being ``q``, ``v``, ``a``: ``(q, v tau', a tau'^2 + v tau'')``."""
+    if warp is None:
+        return q, v / k, a / k**2
+    rate, accel = (float(x[0]) for x in warp.rates(np.array([tau]), k))
+    return q, v * rate, a * rate**2 + v * accel
 
 
 def retarget(

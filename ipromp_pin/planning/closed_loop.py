@@ -55,12 +55,12 @@ from ..motion.retarget import HEADROOM, SETTLE_S, ReferenceMotion, Retargeter, R
 from ..motion.trajectory import MotionState, Trajectory
 from ..promp import IProMP, Prediction, Predictor, Recognition
 from ..robot import Robot
-from ..safety import CheckContext, CheckSuite, Timed, Verdict, next_guess
+from ..safety import CheckContext, CheckSuite, Verdict, next_guess
 from ..safety.self_collision import SelfCollisionMeasures
 from ..safety.speed_limits import SpeedLimitMeasures
 from ..safety.workspace import WorkspaceMeasures
 from .human_forecast import forecast_of, replan_context
-from .timers import retarget_timer
+from .timers import CountedTimer, retarget_timer
 from .transfer import ReplanTransfer, predicts_gripper, start_motions
 from .unknown_stop import UNKNOWN_HOLD_RANGE_S, UNKNOWN_HOLD_S, Segment, StopEvent, UnknownStop
 
@@ -239,7 +239,10 @@ class Replan:
         min_distance_m: Closest computed self-collision distance near the plan, in [m].
         checks: Timed-motion check name -> its status, reason and values (:mod:`ipromp_pin.safety`),
             for the last plan checked.
-        slowdown: Extra slow-down ``k >= 1`` that the timed-motion checks asked for (1: none).
+        slowdown: Extra slow-down ``k >= 1`` that the timed-motion checks asked for (1: none; slowed
+            only where they asked: how many times longer the plan takes).
+        slowdown_local: Whether the plan was slowed only where the checks asked (its reference's
+            timeline warped there, :mod:`~ipromp_pin.motion.time_warp`), not as a whole.
         slowdown_delay_s: How much later the slowed plan arrives than the plan without it, in [s].
         cycle_ms: Wall time of the cycle in [ms]: stream update of the latest sample, conditioning,
             re-target, checks.
@@ -269,6 +272,7 @@ class Replan:
     min_distance_m: float | None = None
     checks: dict[str, dict] = field(default_factory=dict)
     slowdown: float = 1.0
+    slowdown_local: bool = False
     slowdown_delay_s: float = 0.0
     cycle_ms: float = 0.0
     stage_ms: dict[str, float] = field(default_factory=dict)
@@ -598,41 +602,23 @@ class ClosedLoopPlanner:
         plan (``r.reason`` empty), the refused one (``r.reason`` says why) or None when re-targeting
         failed."""
         t0 = time.perf_counter()
-        timer = retarget_timer(self.retargeter, state, reference)
-        spent = [0.0]  # in the re-target, the rest of the loop is the checks
-
-        def timed(k: float) -> Timed:
-            t = time.perf_counter()
-            try:
-                got = timer(k)
-            finally:
-                spent[0] += time.perf_counter() - t
-
-            def sample() -> Trajectory:  # the samples, when the loop needs them, count as re-target too
-                t = time.perf_counter()
-                try:
-                    return got.motion
-                finally:
-                    spent[0] += time.perf_counter() - t
-
-            return Timed(sample, got.report, got.scale, got.path)
-
+        timer = CountedTimer(retarget_timer(self.retargeter, state, reference))  # the rest: the checks
         try:
-            retimed = self.suite.retime_until_safe(timed, context, stop_early=True, guess=self._guess)
+            retimed = self.suite.retime_until_safe(timer, context, stop_early=True, guess=self._guess)
         except IPrompPinError as exc:
             r.reason = f"re-target failed: {exc}"
             self._guess = None
             return None
         finally:
-            ms["retarget"] = spent[0] * 1e3
-            ms["checks"] = (time.perf_counter() - t0 - spent[0]) * 1e3
+            ms["retarget"] = timer.spent_s * 1e3
+            ms["checks"] = (time.perf_counter() - t0 - timer.spent_s) * 1e3
         report = retimed.timed.report
         first = retimed.first.report
         assert isinstance(report, RetargetReport) and isinstance(first, RetargetReport)
         r.planned_arrival_s = report.arrival_s
         r.lateness_s = report.lateness_s
         r.time_scale = report.time_scale
-        r.slowdown = retimed.slowdown
+        r.slowdown, r.slowdown_local = retimed.slowdown, retimed.local
         r.slowdown_delay_s = float(report.arrival_s - first.arrival_s)
         record_verdicts(r, retimed.verdicts)
         r.reason = retimed.report.refusal()

@@ -6,18 +6,21 @@ motion timed that much slower, for the one re-time-until-safe loop of :mod:`ipro
   one-shot plan, the retreat), or slowed only where the checks ask (its path velocity capped there);
   every timing follows the same geometric path;
 - :func:`retarget_timer`: the closed loop's re-target from the commanded state onto the predicted
-  motion followed at least ``k`` times slower (:meth:`~ipromp_pin.motion.retarget.Retargeter.plan`).
+  motion followed at least ``k`` times slower (:meth:`~ipromp_pin.motion.retarget.Retargeter.plan`),
+  or slowed only where the checks ask (its timeline warped there, :mod:`~ipromp_pin.motion.time_warp`).
 """
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
 
 import numpy as np
 from scipy.ndimage import maximum_filter1d
 
 from ..exceptions import InfeasibleError
-from ..motion.retarget import ReferenceMotion, Retargeter
+from ..motion.retarget import Planned, ReferenceMotion, Retargeter
+from ..motion.time_warp import TimeWarp
 from ..motion.timing import TorqueLimit, time_path
 from ..motion.trajectory import JointLimits, MotionState, Trajectory
 from ..safety import Timed, Timer, TimingConstraints
@@ -125,15 +128,91 @@ def fixed_timer(motion: Trajectory, why: str) -> Timer:
     return timer
 
 
-def retarget_timer(retargeter: Retargeter, state: MotionState, reference: ReferenceMotion) -> Timer:
+class RetargetTimer:
+    """The closed loop's timer (:func:`retarget_timer`), a :class:`~ipromp_pin.safety.retime.LocalTimer`:
+    :meth:`locally` slows the followed reference only where the checks ask (a
+    :class:`~ipromp_pin.motion.time_warp.TimeWarp` of its timeline), the catch-up to it as a whole.
+    The asked factors add up over the calls of one re-plan."""
+
+    def __init__(self, retargeter: Retargeter, state: MotionState, reference: ReferenceMotion) -> None:
+        self.retargeter, self.state, self.reference = retargeter, state, reference
+        self._made: dict[int, tuple[Planned, float]] = {}  # id(report) -> (planned, the k asked)
+        self._warp: TimeWarp | None = None
+
+    def __call__(self, k: float) -> Timed:
+        """The remaining motion with the reference followed at least ``k`` times slower."""
+        return self._timed(self.retargeter.planned(self.state, self.reference, min_scale=k), k)
+
+    def locally(self, timed: Timed, need: np.ndarray) -> Timed:
+        """``timed`` (one this timer made) slowed by ``need`` (N,) >= 1 per sample where it follows
+        the reference, its catch-up by the largest ``need`` there, its settle to rest by the largest
+        there (at the reference's end), and where earlier calls asked."""
+        made = self._made.get(id(timed.report))
+        if made is None:
+            raise InfeasibleError("the motion was not re-targeted by this timer")
+        planned, k = made
+        which, tau = planned.followed(timed.motion.t_s)
+        need = np.asarray(need, dtype=float)
+        slow = need > 1.0
+        if need.shape != which.shape or not slow.any():
+            raise InfeasibleError("no sample asks for a slow-down")
+        if not np.any(which == 1):
+            raise InfeasibleError("the motion follows no reference to slow locally")
+        follow = slow & (which == 1)
+        settle = slow & (which == 2)
+        taus, factors = tau[follow], need[follow]
+        if settle.any():
+            d_follow = self.reference.duration_s - self.retargeter.settle_s
+            taus, factors = np.append(taus, d_follow), np.append(factors, need[settle].max())
+        catch_up = float(need[slow & (which == 0)].max(initial=1.0))
+        warp = self._warp if self._warp is not None else TimeWarp(self.reference.duration_s)
+        self._warp = warp.asking(taus, factors, catch_up)
+        return self._timed(self.retargeter.planned(self.state, self.reference, k, self._warp), k)
+
+    def _timed(self, planned: Planned, k: float) -> Timed:
+        self._made[id(planned.report)] = (planned, k)
+        return Timed(planned.sample, planned.report, planned.report.time_scale, None)
+
+
+class CountedTimer:
+    """``timer`` (a :class:`~ipromp_pin.safety.retime.LocalTimer` when it has ``locally``), adding
+    the time its timings and their samples take to :attr:`spent_s` [s]."""
+
+    def __init__(self, timer: Timer) -> None:
+        self.timer = timer
+        self.spent_s = 0.0
+
+    def __call__(self, k: float) -> Timed:
+        return self._counted(lambda: self.timer(k))
+
+    def locally(self, timed: Timed, need: np.ndarray) -> Timed:
+        local = getattr(self.timer, "locally", None)
+        if local is None:
+            raise InfeasibleError("the timer slows its motion only as a whole")
+        return self._counted(lambda: local(timed, need))
+
+    def _counted(self, make: Callable[[], Timed]) -> Timed:
+        t = time.perf_counter()
+        try:
+            got = make()
+        finally:
+            self.spent_s += time.perf_counter() - t
+
+        def sample() -> Trajectory:
+            t = time.perf_counter()
+            try:
+                return got.motion
+            finally:
+                self.spent_s += time.perf_counter() - t
+
+        return Timed(sample, got.report, got.scale, got.path)
+
+
+def retarget_timer(retargeter: Retargeter, state: MotionState, reference: ReferenceMotion) -> RetargetTimer:
     """A timer of the remaining motion from ``state`` (the commanded state at a control tick) onto
     ``reference``'s timeline; its scale is the followed reference's slow-down
     (:attr:`~ipromp_pin.motion.retarget.RetargetReport.time_scale`). The path is not the same for
     every slow-down (the blend to the reference changes with it). A motion is sampled when it is
-    first used (:meth:`~ipromp_pin.motion.retarget.Planned.sample`)."""
-
-    def timer(k: float) -> Timed:
-        planned = retargeter.planned(state, reference, min_scale=k)
-        return Timed(planned.sample, planned.report, planned.report.time_scale, None)
-
-    return timer
+    first used (:meth:`~ipromp_pin.motion.retarget.Planned.sample`); :meth:`RetargetTimer.locally`
+    slows it only where the checks ask."""
+    return RetargetTimer(retargeter, state, reference)

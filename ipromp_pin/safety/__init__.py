@@ -17,13 +17,23 @@ A new check is one file here plus one line in :data:`~.suite.CHECKS`.
 
 from .base import Check, TimingConstraints
 from .context import CheckContext
-from .retime import MAX_SLOWDOWN, MAX_SLOWDOWN_ROUNDS, SLOWDOWN_STEP, Retimed, Timed, Timer, next_guess
+from .retime import (
+    MAX_LOCAL_SLOWDOWN,
+    MAX_SLOWDOWN,
+    MAX_SLOWDOWN_ROUNDS,
+    SLOWDOWN_STEP,
+    Retimed,
+    Timed,
+    Timer,
+    next_guess,
+)
 from .suite import CHECKS, HUMAN_CHECKS, CheckSuite
 from .verdict import CheckReport, Measures, Verdict, needed_slowdown
 
 __all__ = [
     "CHECKS",
     "HUMAN_CHECKS",
+    "MAX_LOCAL_SLOWDOWN",
     "MAX_SLOWDOWN",
     "MAX_SLOWDOWN_ROUNDS",
     "SLOWDOWN_STEP",

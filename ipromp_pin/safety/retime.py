@@ -10,12 +10,14 @@ the checks' first-order estimates), at most :data:`MAX_SLOWDOWN_ROUNDS` times an
 (slowest) motion tried is returned with its verdicts, refused: it says how far slowing went and what
 still fails.
 
-A :class:`LocalTimer` (the one-shot plan's and the retreat's) is first slowed only where the checks ask:
+A :class:`LocalTimer` (every planner's: the one-shot plan's and the retreat's cap their path
+velocity, the closed loop warps its reference's timeline) is first slowed only where the checks ask:
 when every failing required check says which samples need how much slow-down
 (:attr:`~.verdict.Verdict.local_slowdown`, e.g. ``contact_speed`` where the arm approaches a body part
-too fast), the path velocity is capped there and nowhere else, again at most
-:data:`MAX_SLOWDOWN_ROUNDS` times (each adding its caps to the last); the first motion that passes
-is committed, its slow-down the ratio of the durations. When none does, the uniform slow-downs
+too fast), the motion is slowed there and nowhere else, at most :data:`MAX_LOCAL_SLOWDOWN` times at
+any sample and :data:`MAX_SLOWDOWN` times longer in all, again at most :data:`MAX_SLOWDOWN_ROUNDS`
+times (each adding its slow-downs to the last); the first motion that passes is committed, its
+slow-down the ratio of the durations. When none does, the uniform slow-downs
 above start again from the unslowed motion, so that slowing locally never refuses a motion the
 uniform slow-down would pass.
 
@@ -53,6 +55,10 @@ from .verdict import CheckReport, Verdict, needed_local_slowdown, needed_slowdow
 
 MAX_SLOWDOWN = 4.0
 """The largest slow-down a motion is given before it is refused (4x the duration)."""
+
+MAX_LOCAL_SLOWDOWN = 2.0 * MAX_SLOWDOWN
+"""The largest slow-down a motion slowed only where the checks ask is given at any one sample (the
+whole motion still takes at most :data:`MAX_SLOWDOWN` times as long)."""
 
 MAX_SLOWDOWN_ROUNDS = 3
 """How many times a motion is slowed again while its slower version still fails a check that asks
@@ -184,9 +190,10 @@ def next_guess(retimed: Retimed) -> float | None:
     :func:`retime_until_safe`): the committed slow-down times the largest slow-down at which the
     checks estimate the committed motion would just pass (:attr:`~.verdict.Verdict.fits_at`, below 1
     when it passed with room), times :data:`SLOWDOWN_STEP` as for a requested slow-down. None (start
-    unslowed) when the motion was not slowed, was refused, started from a guess itself (see the
-    module docstring), or no check estimates it."""
-    if retimed.guessed or not retimed.passed or retimed.slowdown <= 1.0:
+    unslowed) when the motion was not slowed, was slowed only locally (the next is slowed locally
+    again), was refused, started from a guess itself (see the module docstring), or no check
+    estimates it."""
+    if retimed.guessed or retimed.local or not retimed.passed or retimed.slowdown <= 1.0:
         return None
     fits = [float(v.fits_at) for v in retimed.verdicts if v.fits_at is not None and v.required]
     if not fits or not all(math.isfinite(f) for f in fits):
@@ -288,7 +295,7 @@ def _slow_locally(
         if rounds > MAX_SLOWDOWN_ROUNDS:
             return None
         need = needed_local_slowdown(cur_v, cur.motion.n_samples)
-        if need is None or float(need.max()) > MAX_SLOWDOWN:
+        if need is None or float(need.max()) > MAX_LOCAL_SLOWDOWN:
             return None
         try:
             nxt = timer.locally(cur, np.where(need > 1.0, need * SLOWDOWN_STEP, 1.0))

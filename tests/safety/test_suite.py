@@ -5,10 +5,9 @@ run again on a re-timing of the same path, and a check that does not apply gives
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 import pytest
+from helpers_checks import RegionSpeedBound, SpeedBound
 
 from ipromp_pin.exceptions import PipelineError
 from ipromp_pin.motion.limits import demonstrated_profile
@@ -26,7 +25,6 @@ from ipromp_pin.safety import (
     Check,
     CheckContext,
     CheckSuite,
-    Measures,
     Timed,
     Verdict,
     needed_slowdown,
@@ -35,64 +33,6 @@ from ipromp_pin.safety import (
 from ipromp_pin.safety.retime import retime_until_safe
 
 OBSERVE = ["orientation", "emg"]
-
-
-@dataclass(frozen=True)
-class PeakMeasures(Measures):
-    peak_rad_s: float
-
-
-class SpeedBound(Check):
-    """A toy check: every joint speed at most ``bound`` [rad/s]; asks for the slow-down that gives it."""
-
-    name = "speed_bound"
-
-    def __init__(self, robot, bound: float = np.inf, fixable: bool = True, power: float = 1.0) -> None:
-        super().__init__(robot)
-        self.bound = bound
-        self.fixable = fixable
-        self.power = power  # < 1: asks for less slow-down than it needs (a first-order estimate)
-        self.seen: list[Trajectory] = []
-        self.contexts: list[CheckContext] = []
-
-    def check(self, motion: Trajectory, context: CheckContext) -> Verdict:
-        self.seen.append(motion)
-        self.contexts.append(context)
-        peak = float(np.max(np.abs(motion.qd)))
-        m = PeakMeasures(peak)
-        fits = (peak / self.bound) ** self.power if self.fixable else None
-        if peak <= self.bound:
-            return Verdict(self.name, "pass", f"peak {peak:.3f} rad/s", m, fits_at=fits)
-        return Verdict(
-            self.name, "fail", f"peak {peak:.3f} rad/s > {self.bound}", m, slowdown=fits, fits_at=fits
-        )
-
-
-class RegionSpeedBound(SpeedBound):
-    """A toy check: joint speeds at most ``bound`` [rad/s] where the motion is between 35 % and 65 % of
-    the way from ``q0`` to ``q1`` (a region of the path, like an approach near the human); asks for the
-    slow-down each sample needs there (``local``), or only the uniform one; ``stingy`` < 1 asks
-    locally for that power of what it needs."""
-
-    name = "region_speed"
-
-    def __init__(self, robot, bound, q0, q1, local: bool = True, stingy: float = 1.0) -> None:
-        super().__init__(robot, bound)
-        self.q0, self.q1, self.local, self.stingy = np.asarray(q0), np.asarray(q1), local, stingy
-
-    def region(self, motion: Trajectory) -> np.ndarray:
-        way = np.linalg.norm(motion.q - self.q0, axis=1) / np.linalg.norm(self.q1 - self.q0)
-        return (way > 0.35) & (way < 0.65)
-
-    def check(self, motion: Trajectory, context: CheckContext) -> Verdict:
-        self.seen.append(motion)
-        speed = np.where(self.region(motion), np.max(np.abs(motion.qd), axis=1), 0.0)
-        peak = float(speed.max())
-        if peak <= self.bound:
-            return Verdict(self.name, "pass", f"peak {peak:.3f} rad/s", PeakMeasures(peak))
-        local = np.maximum(speed / self.bound, 1.0) ** self.stingy if self.local else None
-        k = peak / self.bound
-        return Verdict(self.name, "fail", "too fast", PeakMeasures(peak), slowdown=k, local_slowdown=local)
 
 
 class PathCount(Check):
@@ -373,3 +313,22 @@ def test_a_local_slowdown_that_does_not_pass_falls_back_to_the_uniform_one(setup
     # the local rounds were tried first: the unslowed motion, MAX_SLOWDOWN_ROUNDS local timings, then
     # the uniform ones
     assert len(stingy.seen) > 1 + MAX_SLOWDOWN_ROUNDS
+
+
+def test_a_stretch_may_be_slowed_beyond_the_uniform_cap_while_the_whole_stays_within_it(setup):
+    model, robot, _, test = setup
+    obs = test[0].head(0.3, groups=OBSERVE)
+    base = plan(model, robot, obs, CheckSuite([]))
+    q0, q1 = base.trajectory.q[0], base.trajectory.q[-1]
+    inside = RegionSpeedBound(robot, np.inf, q0, q1).region(base.trajectory)
+    bound = float(np.abs(base.trajectory.qd[inside]).max()) / (1.25 * MAX_SLOWDOWN)
+    local = plan(model, robot, obs, CheckSuite([RegionSpeedBound(robot, bound, q0, q1)]))
+    assert local.passed and local.slowdown_local
+    assert local.slowdown < MAX_SLOWDOWN
+    assert (
+        np.abs(local.trajectory.qd[RegionSpeedBound(robot, bound, q0, q1).region(local.trajectory)]).max()
+        <= bound
+    )
+    # slowed as a whole, the same stretch would need more than the cap: refused
+    uniform = plan(model, robot, obs, CheckSuite([RegionSpeedBound(robot, bound, q0, q1, local=False)]))
+    assert not uniform.passed

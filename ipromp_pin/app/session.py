@@ -147,7 +147,7 @@ def prepare_session(
         )
     if cfg.objects is not None:
         objects.check_tasks(ds.tasks)
-    demo = choose_demo(ds, cfg)
+    demo = choose_demo(ds, cfg, log)
     checks.check_demo(demo)
     context = check_context(cfg, demo, robot, objects)  # a skeleton the map does not cover: before training
     prefetch = start_mesh_prefetch(robot) if prefetch_meshes else None
@@ -301,9 +301,19 @@ def load_data(cfg: PipelineConfig, log: LogFn = print, robot: Robot | None = Non
     return ds
 
 
-def choose_demo(ds: Dataset, cfg: PipelineConfig) -> Demo:
-    """The demo to observe (raises :class:`PipelineError` for an unknown task or index)."""
+def choose_demo(ds: Dataset, cfg: PipelineConfig, log: LogFn | None = None) -> Demo:
+    """The demo to observe (raises :class:`PipelineError` for an unknown task or index). The
+    pipeline file's task names a task of the file's dataset: with another dataset given on the
+    command line (``--dataset``) and no ``--task``, a task it lacks gives way to the first task
+    (``log`` says so)."""
     task = cfg.task or ds.tasks[0]
+    if task not in ds.demos and "dataset" in cfg.options and "task" not in cfg.options:
+        if log is not None:
+            log(
+                f"[data] the pipeline's task '{task}' is not in {cfg.dataset}: observing its first task, "
+                f"'{ds.tasks[0]}' (--task to choose)"
+            )
+        task = ds.tasks[0]
     if task not in ds.demos:
         raise PipelineError(
             f"{cfg.where('task')}: unknown task '{task}'{did_you_mean(task, ds.tasks)} "

@@ -4,6 +4,9 @@ choice, task or channel group; ``ipromp-pin --version``."""
 
 from __future__ import annotations
 
+import json
+import shutil
+
 import pytest
 from helpers_cli import PIPELINE, one_error_line
 
@@ -78,3 +81,17 @@ def test_version(capsys):
         main(["--version"])
     assert exc.value.code == 0
     assert capsys.readouterr().out.strip() == f"ipromp-pin {__version__}"
+
+
+def test_another_dataset_without_the_pipelines_task_observes_its_first_task(tiny, tmp_path, capsys):
+    ds = tmp_path / "ds"
+    shutil.copytree(tiny[0], ds)
+    (ds / "wrench").rename(ds / "bottle")  # the shipped pipeline observes 'wrench' of its own demos
+    argv = ["run", str(PIPELINE), "--dataset", str(ds), "--no-preview", "--no-retreat"]
+    main([*argv, "--out", str(tmp_path / "o")])
+    out = capsys.readouterr().out
+    assert f"the pipeline's task 'wrench' is not in {ds}: observing its first task, 'bottle'" in out
+    assert json.loads((tmp_path / "o" / "report.json").read_text())["observation"]["task"] == "bottle"
+    # a task typed on the command line is still the user's: refused, naming the option
+    line = _refused([*argv, "--out", str(tmp_path / "p"), "--task", "wrench"], capsys)
+    assert "command line: option '--task': unknown task 'wrench'" in line

@@ -65,6 +65,13 @@ class TimeWarp:
         np.maximum.at(asked, i, want)
         return TimeWarp(float(self.tau[-1]), asked, self.catch_up * max(float(catch_up), 1.0))
 
+    def over(self, duration_s: float) -> TimeWarp:
+        """The factors asked here at the same reference times [s], on a reference of
+        ``duration_s`` [s] (none asked beyond this one's end), and the same catch-up."""
+        grid = np.linspace(0.0, duration_s, max(int(np.ceil(duration_s / GRID_S)), 1) + 1)
+        asked = np.interp(grid, self.tau, self.asked, right=1.0)
+        return TimeWarp(duration_s, asked, self.catch_up)
+
     def factor(self, tau_s: np.ndarray | float) -> np.ndarray:
         """``g`` at reference times ``tau_s`` [s]."""
         return np.interp(tau_s, self.tau, self.g)

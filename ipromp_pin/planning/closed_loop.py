@@ -22,8 +22,9 @@ and runs a simulated control loop at ``control_rate_hz`` (no waiting):
   one loop of every planner (:func:`~ipromp_pin.safety.retime.retime_until_safe`, with the re-target
   as its timer: :func:`~.timers.retarget_timer`); after a re-plan that checked its unslowed motion
   and had to slow it down, the next one starts from the slow-down that turned out to be needed
-  (:func:`~ipromp_pin.safety.retime.next_guess`: re-plans are 50 ms apart, and the human rarely
-  changes the needed slow-down much in between); the delay it costs is recorded. A re-plan that
+  (:func:`~ipromp_pin.safety.retime.next_guess`, or where it was slowed locally: re-plans are 50 ms
+  apart, and the human rarely changes the needed slow-down much in between); the delay it costs is
+  recorded. A re-plan that
   fails is not committed: the robot keeps the last safe plan and the :class:`Replan` record says
   why. A change of recognised task is handled the same way.
 * on an arm placed beside the model's robot (a :class:`~.transfer.ReplanTransfer`), each re-plan's
@@ -52,6 +53,7 @@ from ..data import DEFAULT_WINDOW_FRACTION, WINDOW_RANGE_S, Demo
 from ..exceptions import IPrompPinError, ObservationError, PipelineError
 from ..motion.limits import LimitProfile
 from ..motion.retarget import HEADROOM, SETTLE_S, ReferenceMotion, Retargeter, RetargetReport
+from ..motion.time_warp import TimeWarp
 from ..motion.trajectory import MotionState, Trajectory
 from ..promp import IProMP, Prediction, Predictor, Recognition
 from ..robot import Robot
@@ -421,6 +423,7 @@ class ClosedLoopPlanner:
         self.start_rule = self.settings.start_text(float(model.duration_nominal_s_))
         self.prediction: Prediction | None = None  # that of the latest re-plan
         self._guess: float | None = None
+        self._warp_guess: TimeWarp | None = None  # where the last re-plan was slowed locally
         self._stopped = ""
         self._finished = False
         self._unknown = UnknownStop(self.suite, profile.limits, q_start, s.unknown_hold_s, self.dt_s)
@@ -602,12 +605,13 @@ class ClosedLoopPlanner:
         plan (``r.reason`` empty), the refused one (``r.reason`` says why) or None when re-targeting
         failed."""
         t0 = time.perf_counter()
-        timer = CountedTimer(retarget_timer(self.retargeter, state, reference))  # the rest: the checks
+        retarget = retarget_timer(self.retargeter, state, reference, self._warp_guess)
+        timer = CountedTimer(retarget)  # the rest of the loop's time: the checks
         try:
             retimed = self.suite.retime_until_safe(timer, context, stop_early=True, guess=self._guess)
         except IPrompPinError as exc:
             r.reason = f"re-target failed: {exc}"
-            self._guess = None
+            self._guess = self._warp_guess = None
             return None
         finally:
             ms["retarget"] = timer.spent_s * 1e3
@@ -623,6 +627,9 @@ class ClosedLoopPlanner:
         record_verdicts(r, retimed.verdicts)
         r.reason = retimed.report.refusal()
         self._guess = next_guess(retimed)
+        # slowed locally from its unslowed motion: the next re-plan checks first that slow-down
+        fresh = retimed.local and retimed.passed and not retimed.guessed
+        self._warp_guess = retarget.warp if fresh else None
         return retimed.motion
 
     def close(self) -> None:

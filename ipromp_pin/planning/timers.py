@@ -134,14 +134,34 @@ class RetargetTimer:
     :class:`~ipromp_pin.motion.time_warp.TimeWarp` of its timeline), the catch-up to it as a whole.
     The asked factors add up over the calls of one re-plan."""
 
-    def __init__(self, retargeter: Retargeter, state: MotionState, reference: ReferenceMotion) -> None:
+    def __init__(
+        self,
+        retargeter: Retargeter,
+        state: MotionState,
+        reference: ReferenceMotion,
+        guess: TimeWarp | None = None,
+    ) -> None:
         self.retargeter, self.state, self.reference = retargeter, state, reference
         self._made: dict[int, tuple[Planned, float]] = {}  # id(report) -> (planned, the k asked)
+        self._guess = guess.over(reference.duration_s) if guess is not None and guess.active else None
         self._warp: TimeWarp | None = None
+
+    @property
+    def warp(self) -> TimeWarp | None:
+        """The warp of the last locally slowed motion (None: none was)."""
+        return self._warp
 
     def __call__(self, k: float) -> Timed:
         """The remaining motion with the reference followed at least ``k`` times slower."""
         return self._timed(self.retargeter.planned(self.state, self.reference, min_scale=k), k)
+
+    def guessed(self) -> Timed | None:
+        """The remaining motion slowed where the last re-plan was slowed locally (``guess``, at the
+        same reference times), or None without a guess; :meth:`locally` adds to it."""
+        if self._guess is None:
+            return None
+        self._warp = self._guess
+        return self._timed(self.retargeter.planned(self.state, self.reference, 1.0, self._guess), 1.0)
 
     def locally(self, timed: Timed, need: np.ndarray) -> Timed:
         """``timed`` (one this timer made) slowed by ``need`` (N,) >= 1 per sample where it follows
@@ -191,6 +211,17 @@ class CountedTimer:
             raise InfeasibleError("the timer slows its motion only as a whole")
         return self._counted(lambda: local(timed, need))
 
+    def guessed(self) -> Timed | None:
+        guess = getattr(self.timer, "guessed", None)
+        if guess is None:
+            return None
+        t = time.perf_counter()
+        try:
+            got = guess()
+        finally:
+            self.spent_s += time.perf_counter() - t
+        return None if got is None else self._counted(lambda: got)
+
     def _counted(self, make: Callable[[], Timed]) -> Timed:
         t = time.perf_counter()
         try:
@@ -208,11 +239,14 @@ class CountedTimer:
         return Timed(sample, got.report, got.scale, got.path)
 
 
-def retarget_timer(retargeter: Retargeter, state: MotionState, reference: ReferenceMotion) -> RetargetTimer:
+def retarget_timer(
+    retargeter: Retargeter, state: MotionState, reference: ReferenceMotion, guess: TimeWarp | None = None
+) -> RetargetTimer:
     """A timer of the remaining motion from ``state`` (the commanded state at a control tick) onto
     ``reference``'s timeline; its scale is the followed reference's slow-down
     (:attr:`~ipromp_pin.motion.retarget.RetargetReport.time_scale`). The path is not the same for
     every slow-down (the blend to the reference changes with it). A motion is sampled when it is
     first used (:meth:`~ipromp_pin.motion.retarget.Planned.sample`); :meth:`RetargetTimer.locally`
-    slows it only where the checks ask."""
-    return RetargetTimer(retargeter, state, reference)
+    slows it only where the checks ask, :meth:`RetargetTimer.guessed` where ``guess`` (the last
+    re-plan's warp) did."""
+    return RetargetTimer(retargeter, state, reference, guess)

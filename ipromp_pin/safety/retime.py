@@ -37,6 +37,10 @@ A timing of the same path (the timer says so, :attr:`Timed.path`) keeps the verd
 that depend on the path only (:attr:`~.base.Check.depends_on`) for the decision; the committed motion
 is then checked by them once more, so that every verdict's numbers and times are those of the motion
 that is committed.
+
+A :class:`GuessingTimer` (the closed loop's) may instead guess where its motion needs slowing (where
+the last re-plan was slowed locally): that motion is checked first and slowed further locally from
+there; a guessed plan again gives no guess for the next.
 """
 
 from __future__ import annotations
@@ -123,6 +127,21 @@ class LocalTimer(Protocol):
         """The motion of ``timed`` (one this timer made) slowed by ``need`` (N,) >= 1 at each of
         its samples (1: as fast as before), and where every earlier call asked; raises
         :class:`~ipromp_pin.exceptions.InfeasibleError` when it cannot."""
+        ...
+
+
+@runtime_checkable
+class GuessingTimer(Protocol):
+    """A :class:`LocalTimer` that may know where its motion will need slowing (e.g. where the last
+    similar motion was slowed locally)."""
+
+    def __call__(self, k: float) -> Timed: ...
+
+    def locally(self, timed: Timed, need: np.ndarray) -> Timed: ...
+
+    def guessed(self) -> Timed | None:
+        """The motion slowed where the timer expects it (None: no such guess); further
+        :meth:`locally` calls add to that slow-down."""
         ...
 
 
@@ -225,18 +244,24 @@ def retime_until_safe(
     """
     first = timer(1.0)
     base = first.scale
-    cur, requested, guessed = first, 1.0, False
+    cur, requested, guessed, local_guess = first, 1.0, False, None
     if guess is not None and math.isfinite(guess) and guess > 1.0:
         try:
             requested = base * min(float(guess), MAX_SLOWDOWN)
             cur, guessed = timer(requested), True
         except InfeasibleError:
             cur, requested = first, 1.0
+    elif isinstance(timer, GuessingTimer):
+        local_guess = timer.guessed()
+        cur, guessed = (first, False) if local_guess is None else (local_guess, True)
     verdicts = suite.run(cur.motion, context, stop_early=stop_early)
-    if isinstance(timer, LocalTimer) and not guessed:
-        local = _slow_locally(suite, timer, context, first, verdicts, stop_early)
+    if isinstance(timer, LocalTimer) and (not guessed or local_guess is not None):
+        local = _slow_locally(suite, timer, context, first, (cur, verdicts), stop_early)
         if local is not None:
             return local
+    if local_guess is not None:  # the uniform slow-downs count from the unslowed motion, checked now
+        cur, guessed = first, False
+        verdicts = suite.run(first.motion, context, stop_early=stop_early)
     return _slow_uniformly(suite, timer, context, first, (cur, requested), verdicts, guessed, stop_early)
 
 
@@ -278,20 +303,22 @@ def _slow_locally(
     timer: LocalTimer,
     context: CheckContext,
     first: Timed,
-    verdicts: list[Verdict],
+    start: tuple[Timed, list[Verdict]],
     stop_early: bool,
 ) -> Retimed | None:
-    """Slow ``first`` (checked: ``verdicts``) only where its failing checks ask for it, at most
-    :data:`MAX_SLOWDOWN_ROUNDS` times; the first motion that passes, or None when none does (or a
-    failing check asks for no local slow-down: the uniform slow-down decides then)."""
-    cur, cur_v, reused = first, verdicts, False
+    """Slow ``start`` (``first`` or the timer's own guess, with its verdicts) only where its failing
+    checks ask for it, at most :data:`MAX_SLOWDOWN_ROUNDS` times; the first motion that passes, or
+    None when none does (or a failing check asks for no local slow-down: the uniform slow-down
+    decides then)."""
+    (cur, cur_v), reused = start, False
+    guessed = cur is not first
     path_names = suite.path_checks()
     for rounds in range(1, MAX_SLOWDOWN_ROUNDS + 2):
         if not any(v.blocks for v in cur_v):
             if reused:
                 cur_v = _recheck_path(suite, context, cur, cur_v, path_names, stop_early)
             slowdown = cur.motion.duration_s / first.motion.duration_s
-            return Retimed(cur, cur_v, first, slowdown, rounds, local=cur is not first)
+            return Retimed(cur, cur_v, first, slowdown, rounds, guessed, local=cur is not first)
         if rounds > MAX_SLOWDOWN_ROUNDS:
             return None
         need = needed_local_slowdown(cur_v, cur.motion.n_samples)

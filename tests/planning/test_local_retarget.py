@@ -141,3 +141,46 @@ def test_a_locally_slowed_re_plan_gives_the_next_no_guess(synthetic_closed_loop,
     out = retime_until_safe(CheckSuite([check]), timer, CheckContext())
     assert out.passed and out.local and out.slowdown > 1.0
     assert next_guess(out) is None  # the next re-plan is slowed locally again, from unslowed
+
+
+def test_the_next_re_plan_checks_first_where_the_last_was_slowed_locally(synthetic_closed_loop, follow):
+    ref, limits, state = follow
+    _, robot, _, _ = synthetic_closed_loop
+    retargeter = Retargeter(limits, DT, 0.2)
+    motion = retarget_timer(retargeter, state, ref)(1.0).motion
+    check = RegionSpeedBound(robot, 0.0, motion.q[0], motion.q[-1])
+    check.bound = 0.5 * float(np.abs(motion.qd[check.region(motion)]).max())
+    timer = retarget_timer(retargeter, state, ref)
+    fresh = retime_until_safe(CheckSuite([check]), timer, CheckContext())
+    assert fresh.local and not fresh.guessed and fresh.rounds > 1 and timer.warp is not None
+    # the next re-plan (here: the same motion) guesses that warp: checked first, and it passes at once
+    check.seen.clear()
+    again = retime_until_safe(
+        CheckSuite([check]), retarget_timer(retargeter, state, ref, timer.warp), CheckContext()
+    )
+    assert again.passed and again.guessed and again.local and again.rounds == 1 and len(check.seen) == 1
+    np.testing.assert_allclose(again.motion.q, fresh.motion.q, atol=1e-9)
+    assert again.slowdown == pytest.approx(fresh.slowdown)
+    # a guess that is not needed (the check gone) is still what is checked first: the plan after a
+    # guessed one checks its unslowed motion again (the closed loop keeps no warp from a guessed plan)
+    free = retime_until_safe(
+        CheckSuite([]), retarget_timer(retargeter, state, ref, timer.warp), CheckContext()
+    )
+    assert free.guessed and free.passed
+
+
+def test_a_guess_too_weak_is_slowed_further_where_the_checks_ask(synthetic_closed_loop, follow):
+    ref, limits, state = follow
+    _, robot, _, _ = synthetic_closed_loop
+    retargeter = Retargeter(limits, DT, 0.2)
+    timer = retarget_timer(retargeter, state, ref)
+    first = timer(1.0)
+    motion = first.motion
+    check = RegionSpeedBound(robot, 0.0, motion.q[0], motion.q[-1])
+    check.bound = 0.4 * float(np.abs(motion.qd[check.region(motion)]).max())
+    which, tau = timer._made[id(first.report)][0].followed(motion.t_s)
+    inside = check.region(motion) & (which == 1)
+    weak = TimeWarp(ref.duration_s).asking(tau[inside], np.full(inside.sum(), 1.2))
+    out = retime_until_safe(CheckSuite([check]), retarget_timer(retargeter, state, ref, weak), CheckContext())
+    assert out.passed and out.guessed and out.local and out.rounds > 1
+    assert np.abs(out.motion.qd[check.region(out.motion)]).max() <= check.bound * (1 + 1e-6)

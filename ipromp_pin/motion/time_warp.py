@@ -28,7 +28,7 @@ time)."""
 
 
 class TimeWarp:
-    """The slow-down factor ``g(tau) >= 1`` (:mod:`module docstring <.time_warp>`) over the reference
+    """The slow-down factor ``g(tau) >= 1`` (see the module docstring) over the reference
     times ``[0, duration_s]`` [s], held flat outside.
 
     Args:

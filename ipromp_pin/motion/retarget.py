@@ -11,7 +11,8 @@ at ``D``. :func:`retarget` builds the remaining commanded motion in three pieces
    time it reaches (a few iterations), so the robot catches up as fast as the limits allow;
 2. **follow**: the reference itself on its own timeline up to ``D - settle``, slowed uniformly by the
    factor ``k >= 1`` that keeps its velocity, acceleration and jerk within ``headroom`` of the
-   limits (``k = 1`` when they already hold: then the hand-over happens when the human gets there);
+   limits (``k = 1`` when they already hold: then the hand-over happens when the human gets there),
+   and further only where the checks ask by a :class:`~.time_warp.TimeWarp` of its timeline;
 3. **settle**: ruckig from the reference's state at ``D - settle`` to rest at ``r(D)``, in at least
    the (slowed) time the reference takes for that last part.
 

@@ -300,13 +300,20 @@ def test_a_check_that_asks_locally_slows_the_motion_only_where_it_fails(setup):
     assert np.abs(motion.qd[outside]).max() >= 0.95 * np.abs(base.trajectory.qd[before]).max()
 
 
-def test_a_local_slowdown_that_does_not_pass_falls_back_to_the_uniform_one(setup):
+def _region_plan(setup):
+    """The unslowed one-shot plan of the first test demo, the toy region's ends and the peak joint
+    speed in it [rad/s]: (model, robot, observation, plan, q0, q1, peak)."""
     model, robot, _, test = setup
     obs = test[0].head(0.3, groups=OBSERVE)
     base = plan(model, robot, obs, CheckSuite([]))
     q0, q1 = base.trajectory.q[0], base.trajectory.q[-1]
     inside = RegionSpeedBound(robot, np.inf, q0, q1).region(base.trajectory)
-    bound = 0.5 * float(np.abs(base.trajectory.qd[inside]).max())
+    return model, robot, obs, base, q0, q1, float(np.abs(base.trajectory.qd[inside]).max())
+
+
+def test_a_local_slowdown_that_does_not_pass_falls_back_to_the_uniform_one(setup):
+    model, robot, obs, base, q0, q1, peak = _region_plan(setup)
+    bound = 0.5 * peak
     stingy = RegionSpeedBound(robot, bound, q0, q1, stingy=0.05)  # asks locally for far too little
     result = plan(model, robot, obs, CheckSuite([stingy]))
     assert result.passed and not result.slowdown_local and result.slowdown > 1.0
@@ -316,12 +323,8 @@ def test_a_local_slowdown_that_does_not_pass_falls_back_to_the_uniform_one(setup
 
 
 def test_a_stretch_may_be_slowed_beyond_the_uniform_cap_while_the_whole_stays_within_it(setup):
-    model, robot, _, test = setup
-    obs = test[0].head(0.3, groups=OBSERVE)
-    base = plan(model, robot, obs, CheckSuite([]))
-    q0, q1 = base.trajectory.q[0], base.trajectory.q[-1]
-    inside = RegionSpeedBound(robot, np.inf, q0, q1).region(base.trajectory)
-    bound = float(np.abs(base.trajectory.qd[inside]).max()) / (1.25 * MAX_SLOWDOWN)
+    model, robot, obs, _, q0, q1, peak = _region_plan(setup)
+    bound = peak / (1.25 * MAX_SLOWDOWN)
     local = plan(model, robot, obs, CheckSuite([RegionSpeedBound(robot, bound, q0, q1)]))
     assert local.passed and local.slowdown_local
     assert local.slowdown < MAX_SLOWDOWN

@@ -60,7 +60,8 @@ class TimeWarp:
         top of the slow-down the warp already gives there) and its catch-up ``catch_up`` times
         slower; the asked factors only grow."""
         asked = self.asked.copy()
-        i = np.clip(np.rint(np.asarray(tau_s, dtype=float) / GRID_S).astype(int), 0, asked.size - 1)
+        h = self.tau[1] - self.tau[0] if self.tau.size > 1 else GRID_S
+        i = np.clip(np.rint(np.asarray(tau_s, dtype=float) / h).astype(int), 0, asked.size - 1)
         want = self.factor(tau_s) * np.asarray(factors, dtype=float)
         np.maximum.at(asked, i, want)
         return TimeWarp(float(self.tau[-1]), asked, self.catch_up * max(float(catch_up), 1.0))

@@ -184,3 +184,10 @@ def test_a_guess_too_weak_is_slowed_further_where_the_checks_ask(synthetic_close
     out = retime_until_safe(CheckSuite([check]), retarget_timer(retargeter, state, ref, weak), CheckContext())
     assert out.passed and out.guessed and out.local and out.rounds > 1
     assert np.abs(out.motion.qd[check.region(out.motion)]).max() <= check.bound * (1 + 1e-6)
+
+
+def test_a_factor_is_asked_at_its_own_time_on_any_grid():
+    for duration in (4.0, 4.125, 30.005):  # grids of 0.01 s and slightly finer
+        warp = TimeWarp(duration).asking(np.array([0.9 * duration]), np.array([2.0]))
+        peak = warp.tau[np.argmax(warp.g)]
+        assert abs(peak - 0.9 * duration) < 0.006

@@ -243,8 +243,8 @@ def report_text(
         f"freeze phase {s.freeze_phase:g}",
         f"Limit profile: {p.name} ({p.source})",
         *retarget_lines(result),
-        f"Re-plans: {score.replans} ({result.n_committed} committed, {score.refused_replans} refused); "
-        f"final task {score.final_task or '(none)'}",
+        f"Re-plans: {score.replans} ({result.n_committed} committed, {score.refused_replans} refused; "
+        f"{slowed_text(result)}); final task {score.final_task or '(none)'}",
         f"Hand-over error at the recorded hand-over time: {score.handover_error_cm:.2f} cm; where the motion "
         f"comes to rest: {score.final_error_cm:.2f} cm; gripper orientation error at the hand-over "
         f"{score.handover_orientation_error_deg:.1f} deg; peak joint torque "
@@ -267,6 +267,13 @@ def report_text(
     if len(refused) > 10:
         lines.append(f"  ... {len(refused) - 10} more refused re-plans in replans.json")
     return "\n".join(lines)
+
+
+def slowed_text(result: ClosedLoopResult) -> str:
+    """How many committed re-plans the checks slowed, and how many of them only where they asked."""
+    slowed = [r for r in result.replans if r.committed and r.slowdown != 1.0]
+    local = sum(1 for r in slowed if r.slowdown_local)
+    return f"{len(slowed)} slowed for the checks, {local} of them only where they asked"
 
 
 def retarget_lines(result: ClosedLoopResult) -> list[str]:

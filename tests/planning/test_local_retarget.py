@@ -11,6 +11,7 @@ from ipromp_pin.motion.limits import conservative_profile, demonstrated_profile
 from ipromp_pin.motion.retarget import ReferenceMotion, Retargeter
 from ipromp_pin.motion.time_warp import SMOOTH_S, SPREAD_S, TimeWarp
 from ipromp_pin.motion.trajectory import MotionState, Trajectory
+from ipromp_pin.outputs.replay_report import slowed_text
 from ipromp_pin.planning.closed_loop import ClosedLoopSettings, replay_demo
 from ipromp_pin.planning.timers import retarget_timer
 from ipromp_pin.safety import CheckContext, CheckSuite, next_guess
@@ -123,6 +124,12 @@ def test_the_closed_loop_slows_locally_where_a_check_asks(synthetic_closed_loop)
         assert any(r.slowdown > 1.0 for r in committed)
         assert np.abs(out.trajectory.qd[probe.region(out.trajectory)]).max() <= bound * (1 + 1e-6)
     assert any(r.slowdown_local for r in local.replans) and not any(r.slowdown_local for r in uniform.replans)
+    slowed = [r for r in local.replans if r.committed and r.slowdown != 1.0]
+    n_local = sum(r.slowdown_local for r in slowed)
+    assert 0 < n_local < len(slowed)  # report.txt counts both
+    assert (
+        slowed_text(local) == f"{len(slowed)} slowed for the checks, {n_local} of them only where they asked"
+    )
     # slowed only where it is too fast, the first plan arrives sooner than slowed as a whole
     first_local = next(r for r in local.replans if r.committed)
     first_uniform = next(r for r in uniform.replans if r.committed)

@@ -359,9 +359,7 @@ TOOL_COLOUR = np.array([0.25, 0.25, 0.28, 1.0])
 def _ee_offset(s: RobotSettings, along_m: float) -> pin.SE3:
     """The placement, in the end-effector parent frame, of the point ``along_m`` [m] along the ``ee``
     frame's z from its mount (the tool offset, turned by ``[end_effector] rpy_deg``)."""
-    turn = pin.rpy.rpyToMatrix(*np.radians(s.ee_rpy_deg))
-    mount = pin.SE3(turn, np.asarray(s.tool_offset_m, dtype=float))
-    return mount * pin.SE3(np.eye(3), np.array([0.0, 0.0, along_m]))
+    return pin.SE3(s.ee_turn, s.point_on_ee_axis_m(along_m))
 
 
 def _tool_centre(model: pin.Model, s: RobotSettings) -> tuple[int, int, pin.SE3]:
@@ -445,9 +443,8 @@ def _collision_model(model: pin.Model, s: RobotSettings) -> tuple[pin.GeometryMo
             raise settings_error(src, "description.srdf", f"cannot be applied: {exc}") from exc
     _remove_listed_pairs(model, cmodel, s)
     n_removed = n_total - len(cmodel.collisionPairs)
-    n_before = len(cmodel.collisionPairs)
-    add_tool_geometry(model, cmodel, s, pairs=True)
-    return cmodel, n_total + len(cmodel.collisionPairs) - n_before, n_removed
+    add_tool_geometry(model, cmodel, s, pairs=True)  # its pairs are kept: the total counts them
+    return cmodel, n_removed + len(cmodel.collisionPairs), n_removed
 
 
 def _remove_listed_pairs(model: pin.Model, cmodel: pin.GeometryModel, s: RobotSettings) -> None:

@@ -14,7 +14,7 @@ A bare name such as ``"baxter_left"`` is looked up among the shipped settings fi
 from __future__ import annotations
 
 import importlib.metadata
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -207,18 +207,7 @@ class Tool:
 
     def to_dict(self) -> dict:
         """JSON-serialisable form (the reports' ``tool``)."""
-        return {
-            "name": self.name,
-            "length_m": self.length_m,
-            "radius_m": self.radius_m,
-            "mass_kg": self.mass_kg,
-            "source": self.source,
-        }
-
-    def tip_in_parent(self, rpy_deg: np.ndarray, offset_m: np.ndarray) -> np.ndarray:
-        """The tool centre point (3,) [m] in the end-effector parent frame's axes."""
-        turn = Rotation.from_euler("xyz", np.radians(rpy_deg)).as_matrix()
-        return np.asarray(offset_m, dtype=float) + turn @ np.array([0.0, 0.0, self.length_m])
+        return asdict(self)
 
 
 @dataclass(frozen=True)
@@ -299,12 +288,21 @@ class RobotSettings:
         return len(self.arm_joints)
 
     @property
+    def ee_turn(self) -> np.ndarray:
+        """The ``ee`` frame's rotation (3, 3) in the end-effector parent frame (``[end_effector]
+        rpy_deg``: roll, pitch, yaw about the fixed x, y, z axes)."""
+        return Rotation.from_euler("xyz", np.radians(self.ee_rpy_deg)).as_matrix()
+
+    def point_on_ee_axis_m(self, along_m: float) -> np.ndarray:
+        """The point (3,) [m], in the end-effector parent frame's axes, ``along_m`` [m] along the
+        ``ee`` frame's z axis from its mount (the tool offset)."""
+        return np.asarray(self.tool_offset_m, dtype=float) + self.ee_turn @ np.array([0.0, 0.0, along_m])
+
+    @property
     def gripper_point_m(self) -> np.ndarray:
         """Where the gripper holds an object (3,) [m] in the end-effector parent frame's axes: the
         tool offset, plus the tool's length along the turned z axis when a ``[tool]`` is mounted."""
-        if self.tool is None:
-            return np.asarray(self.tool_offset_m, dtype=float)
-        return self.tool.tip_in_parent(self.ee_rpy_deg, self.tool_offset_m)
+        return self.point_on_ee_axis_m(0.0 if self.tool is None else self.tool.length_m)
 
     @property
     def tool_record(self) -> dict | None:

@@ -4,6 +4,7 @@ the independent re-evaluation's), and the preview draws it."""
 
 from __future__ import annotations
 
+import dataclasses
 import re
 from pathlib import Path
 
@@ -171,9 +172,11 @@ def test_a_bad_tool_is_refused_naming_the_file_and_field(tmp_path, line, field, 
 
 
 def test_the_tool_centre_point_turns_with_the_ee_frames_rpy():
-    tool = load_robot_settings("ur5").tool
-    assert tool is not None
+    ur5 = load_robot_settings("ur5")
+    assert ur5.tool is not None
     rpy, offset = np.array([10.0, 80.0, -30.0]), np.array([0.01, -0.02, 0.03])
+    turned = dataclasses.replace(ur5, ee_rpy_deg=rpy, tool_offset_m=offset)
     turn = pin.rpy.rpyToMatrix(*np.radians(rpy))
-    expected = offset + turn @ np.array([0.0, 0.0, tool.length_m])
-    assert np.allclose(tool.tip_in_parent(rpy, offset), expected, atol=1e-12)
+    expected = offset + turn @ np.array([0.0, 0.0, ur5.tool.length_m])
+    assert np.allclose(turned.gripper_point_m, expected, atol=1e-12)
+    assert np.allclose(turned.ee_turn, turn, atol=1e-12)

@@ -441,7 +441,7 @@ def _sample_pieces(
         sel = slice(i0, i1)
         if kind == "ruckig":
             q[sel], qd[sel], qdd[sel] = sample_trajectory(data, times[sel] - t0)
-        elif data[2] is None:
+        elif data[2] is None:  # the uniform follower, as before warps: the same operations, to the bit
             tau0_, k_, _ = data
             tq, tv, ta, _ = reference.evaluate(tau0_ + (times[sel] - t0) / k_, order=2)
             assert tv is not None and ta is not None

@@ -27,6 +27,11 @@ smoothing (2.5 standard deviations: the smoothed ``g`` keeps about 99 % of a fac
 time)."""
 
 
+def reference_grid(duration_s: float) -> np.ndarray:
+    """The reference times (G,) [s] over ``[0, duration_s]`` at most :data:`GRID_S` apart, evenly."""
+    return np.linspace(0.0, duration_s, max(int(np.ceil(duration_s / GRID_S)), 1) + 1)
+
+
 class TimeWarp:
     """The slow-down factor ``g(tau) >= 1`` (see the module docstring) over the reference
     times ``[0, duration_s]`` [s], held flat outside.
@@ -39,13 +44,13 @@ class TimeWarp:
 
     def __init__(self, duration_s: float, asked: np.ndarray | None = None, catch_up: float = 1.0) -> None:
         self.catch_up = max(float(catch_up), 1.0)
-        n = max(int(np.ceil(duration_s / GRID_S)), 1) + 1
-        self.tau = np.linspace(0.0, duration_s, n)
+        self.tau = reference_grid(duration_s)
+        n = self.tau.size
         self.asked = np.ones(n) if asked is None else np.maximum(np.asarray(asked, dtype=float), 1.0)
-        h = self.tau[1] - self.tau[0] if n > 1 else GRID_S
+        self.step_s = h = float(self.tau[1] - self.tau[0])  # the grid's spacing [s], at most GRID_S
         spread = maximum_filter1d(self.asked, 2 * int(round(SPREAD_S / h)) + 1, mode="nearest")
         self.g = 1.0 + gaussian_filter1d(spread - 1.0, SMOOTH_S / h, mode="nearest")
-        self.dg = np.gradient(self.g, h) if n > 1 else np.zeros(n)
+        self.dg = np.gradient(self.g, h)
         # C(tau) = integral of g from 0: the followed time is k (C(tau) - C(tau0)) after the follow starts
         steps = 0.5 * (self.g[1:] + self.g[:-1]) * np.diff(self.tau)
         self.cumulative = np.concatenate([[0.0], np.cumsum(steps)])
@@ -60,8 +65,7 @@ class TimeWarp:
         top of the slow-down the warp already gives there) and its catch-up ``catch_up`` times
         slower; the asked factors only grow."""
         asked = self.asked.copy()
-        h = self.tau[1] - self.tau[0] if self.tau.size > 1 else GRID_S
-        i = np.clip(np.rint(np.asarray(tau_s, dtype=float) / h).astype(int), 0, asked.size - 1)
+        i = np.clip(np.rint(np.asarray(tau_s, dtype=float) / self.step_s).astype(int), 0, asked.size - 1)
         want = self.factor(tau_s) * np.asarray(factors, dtype=float)
         np.maximum.at(asked, i, want)
         return TimeWarp(float(self.tau[-1]), asked, self.catch_up * max(float(catch_up), 1.0))
@@ -69,8 +73,7 @@ class TimeWarp:
     def over(self, duration_s: float) -> TimeWarp:
         """The factors asked here at the same reference times [s], on a reference of
         ``duration_s`` [s] (none asked beyond this one's end), and the same catch-up."""
-        grid = np.linspace(0.0, duration_s, max(int(np.ceil(duration_s / GRID_S)), 1) + 1)
-        asked = np.interp(grid, self.tau, self.asked, right=1.0)
+        asked = np.interp(reference_grid(duration_s), self.tau, self.asked, right=1.0)
         return TimeWarp(duration_s, asked, self.catch_up)
 
     def factor(self, tau_s: np.ndarray | float) -> np.ndarray:
@@ -80,7 +83,7 @@ class TimeWarp:
     def rates(self, tau_s: np.ndarray, k: float) -> tuple[np.ndarray, np.ndarray]:
         """``tau'`` [1] and ``tau''`` [1/s] at reference times ``tau_s`` (n,) [s], the reference
         followed ``k`` times slower and warped."""
-        g = np.interp(tau_s, self.tau, self.g)
+        g = self.factor(tau_s)
         dg = np.interp(tau_s, self.tau, self.dg)
         return 1.0 / (k * g), -dg / (k * k * g**3)
 

@@ -173,8 +173,10 @@ class RetargetTimer:
         planned, k = made
         which, tau = planned.followed(timed.motion.t_s)
         need = np.asarray(need, dtype=float)
+        if need.shape != which.shape:
+            raise InfeasibleError(f"{need.size} slow-downs for a motion of {which.size} samples")
         slow = need > 1.0
-        if need.shape != which.shape or not slow.any():
+        if not slow.any():
             raise InfeasibleError("no sample asks for a slow-down")
         if not np.any(which == 1):
             raise InfeasibleError("the motion follows no reference to slow locally")

@@ -21,14 +21,22 @@ time (the tracked skeleton of the recordings, the assumed human of the synthetic
 for the straight joint-space line between the path's two ends (the shape of the synthetic robot's
 path); and the largest approach speed / contact-speed limit of the path at the demo's own pace.
 
-    PYTHONPATH=. python benchmarks/handover_geometry.py [../shared/datasets/handover_20171128]
+With ``--arms panda,ur5,...``: the same per arm, each demo's recorded path retargeted through the
+gripper onto the arm at its placement (:func:`~ipromp_pin.robot.transfer_path`) and judged with the
+arm's own capsules, limits and human checks; a dataset without a tracked skeleton
+(``chen2017_handover``) is judged against the assumed human of the arm's settings. Per arm the
+own-pace ratio's most frequent limiting pairs (robot link -> body part) are printed too: which part of
+the arm meets which part of the person too fast, the gripper path being the same for every arm.
 
-``--smoke``: the synthetic part only (no shared dataset, seconds).
+    PYTHONPATH=. python benchmarks/handover_geometry.py [../shared/datasets/handover_20171128]
+        [--arms baxter_left,panda,ur5,xarm7,kinova_jaco2]
+
+``--smoke``: the synthetic part only (no shared dataset, seconds), on Baxter and the UR5.
 """
 
 from __future__ import annotations
 
-import sys
+import argparse
 from pathlib import Path
 
 import numpy as np
@@ -41,7 +49,7 @@ from ipromp_pin.motion.limits import JointLimits
 from ipromp_pin.motion.trajectory import Trajectory
 from ipromp_pin.planning.timers import PathTimer
 from ipromp_pin.readers.synthetic import make_synthetic_dataset
-from ipromp_pin.robot import load_robot
+from ipromp_pin.robot import load_robot, transfer_path
 from ipromp_pin.robot.kinematics import ee_positions, frame_placements, gripper_kinematics
 from ipromp_pin.robot.recordings import read_recordings
 from ipromp_pin.safety import CheckContext, CheckReport, CheckSuite
@@ -101,6 +109,9 @@ def show(title: str, g: dict[str, np.ndarray]) -> None:
         "e1_head": "elbow at the end - head",
     }
     for key, label in labels.items():
+        if np.all(np.isnan(g[key])):
+            print(f"  {label:<26} not recorded")
+            continue
         q = np.nanpercentile(g[key], [5, 50, 95], axis=0)
         cells = "  ".join(f"{a} {q[1, i]:+.3f} [{q[0, i]:+.3f}, {q[2, i]:+.3f}]" for i, a in enumerate("xyz"))
         print(f"  {label:<26} {cells}")
@@ -170,27 +181,33 @@ def _timed(robot: object, suite: CheckSuite, path: np.ndarray, human: HumanMotio
     return [r.slowdown, r.first.motion.duration_s, r.motion.end_s, pair, r.local, uniform.slowdown]
 
 
-def _own_pace_ratio(suite: CheckSuite, demo: Demo, q: np.ndarray, human: HumanMotion) -> float:
-    """The largest approach speed / contact-speed limit of the joint path ``q`` (N, 7) [rad] at the
-    demo's own pace against ``human`` (every sample known)."""
+def _own_pace_ratio(suite: CheckSuite, demo: Demo, q: np.ndarray, human: HumanMotion) -> tuple[float, str]:
+    """The largest approach speed / contact-speed limit of the joint path ``q`` (N, n_joints) [rad]
+    at the demo's own pace against ``human`` (every sample known), and its pair (link -> body part)."""
     t = demo.t - demo.t[0]
     spline = CubicSpline(t, q)
     tt = np.arange(0.0, t[-1], 0.01)
     motion = Trajectory(
         tt, spline(tt), spline(tt, 1), spline(tt, 2), tuple(f"q{j}" for j in range(q.shape[1]))
     )
-    verdict = suite.only(("contact_speed",)).run(motion, CheckContext(human=human))[0]
-    return float(verdict.measures.max_speed_ratio)  # type: ignore[attr-defined]
+    m = suite.only(("contact_speed",)).run(motion, CheckContext(human=human))[0].measures
+    return float(m.max_speed_ratio), f"{m.link} -> {m.body_part}"  # type: ignore[attr-defined]
 
 
-def face_approach(ds: Dataset, robot: object, tracked: bool, every: int = 1) -> dict[str, list]:
+def face_approach(
+    ds: Dataset, robot: object, tracked: bool, every: int = 1, arm: object | None = None
+) -> dict[str, list]:
     """Per demo (every ``every``-th): the recorded path and the straight joint-space line between its
     ends timed like a plan and re-timed until the human checks pass (``path``, ``line``: see
-    :func:`_timed`), the path's own-pace contact-speed ratio (``pace``), the human's duration [s]
-    (``human_s``) and the gripper's path length [m] (``gripper_m``)."""
-    settings = robot.settings.human  # type: ignore[attr-defined]
-    suite = CheckSuite.build(robot, ("human_clearance", "contact_speed"))  # type: ignore[arg-type]
-    rows: dict[str, list] = {k: [] for k in ("path", "line", "pace", "human_s", "gripper_m")}
+    :func:`_timed`), the path's own-pace contact-speed ratio and its pair (``pace``, ``pair``), the
+    human's duration [s] (``human_s``) and the gripper's path length [m] (``gripper_m``). ``arm``:
+    the paths retargeted onto that arm and judged on it (demos whose hand-over it does not reach are
+    left out, counted in ``unreached``)."""
+    executing = robot if arm is None else arm
+    settings = executing.settings.human  # type: ignore[attr-defined]
+    suite = CheckSuite.build(executing, ("human_clearance", "contact_speed"))  # type: ignore[arg-type]
+    keys = ("path", "line", "pace", "pair", "human_s", "gripper_m", "unreached")
+    rows: dict[str, list] = {k: [] for k in keys}
     for demo in ds.all_demos()[::every]:
         t = demo.t - demo.t[0]
         if tracked:
@@ -203,15 +220,22 @@ def face_approach(ds: Dataset, robot: object, tracked: bool, every: int = 1) -> 
         q = gaussian_filter1d(np.asarray(demo.groups[ROBOT], float), SMOOTH_S * rate, axis=0, mode="nearest")
         i0, i1 = _span(q)
         path = q[i0 : i1 + 1]
+        gripper_m = float(np.linalg.norm(np.diff(ee_positions(robot, path), axis=0), axis=1).sum())  # type: ignore[arg-type]
+        if arm is not None:  # the same gripper path on the arm: the whole demo's and the motion's
+            moved = transfer_path(robot, arm, q)  # type: ignore[arg-type]
+            if not moved.reached:
+                rows["unreached"].append(demo.name)
+                continue
+            q, path = moved.q, moved.q[i0 : i1 + 1]
         line = path[0] + np.linspace(0.0, 1.0, len(path))[:, None] * (path[-1] - path[0])
         t_obs = OBSERVED * float(t[-1])
-        rows["path"].append(_timed(robot, suite, path, human, t_obs))
-        rows["line"].append(_timed(robot, suite, line, human, t_obs))
-        rows["pace"].append(_own_pace_ratio(suite, demo, q, human))
+        rows["path"].append(_timed(executing, suite, path, human, t_obs))
+        rows["line"].append(_timed(executing, suite, line, human, t_obs))
+        ratio, pair = _own_pace_ratio(suite, demo, q, human)
+        rows["pace"].append(ratio)
+        rows["pair"].append(pair)
         rows["human_s"].append(float(t[-1]))
-        rows["gripper_m"].append(
-            float(np.linalg.norm(np.diff(ee_positions(robot, path), axis=0), axis=1).sum())
-        )  # type: ignore[arg-type]
+        rows["gripper_m"].append(gripper_m)
     return rows
 
 
@@ -226,6 +250,12 @@ def show_face(title: str, rows: dict[str, list]) -> None:
         f"median {p50:.2f} [5th {p5:.2f}, 95th {p95:.2f}], over the planning limit 0.9 in "
         f"{np.mean(pace > 0.9):.0%}; gripper path median {np.median(rows['gripper_m']):.3f} m"
     )
+    pairs: dict[str, int] = {}
+    for p in rows["pair"]:
+        pairs[p] = pairs.get(p, 0) + 1
+    top = ", ".join(f"{p} {c}" for p, c in sorted(pairs.items(), key=lambda x: -x[1])[:4])
+    unreached = f"; hand-over not reached in {len(rows['unreached'])}" if rows["unreached"] else ""
+    print(f"  largest at the demo's own pace between: {top}{unreached}")
     for key, label in (("path", "the demo's robot path"), ("line", "straight joint line between its ends")):
         k = np.array([r[0] for r in rows[key]], dtype=float)
         base = np.array([r[1] for r in rows[key]], dtype=float)
@@ -251,19 +281,44 @@ def show_face(title: str, rows: dict[str, list]) -> None:
 
 
 def main() -> None:
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument("dataset", nargs="?", default="../shared/datasets/handover_20171128")
+    parser.add_argument(
+        "--arms", default="", help="comma-separated robots the demos' paths are retargeted onto"
+    )
+    parser.add_argument("--smoke", action="store_true", help="the synthetic part only (seconds)")
+    args = parser.parse_args()
     robot = load_robot("baxter_left")
-    if "--smoke" not in sys.argv:
-        root = Path(sys.argv[1] if len(sys.argv) > 1 else "../shared/datasets/handover_20171128")
-        recorded = read_recordings(root, robot)
-        show(f"recorded ({root.name}, tracked torso)", geometry(recorded, robot, True))
-        robot_constants(recorded, robot)
+    arms = [load_robot(a) for a in (args.arms or ("ur5" if args.smoke else "")).split(",") if a]
+    every = 10 if args.smoke else 1
     synthetic = make_synthetic_dataset(seed=0)
+    if not args.smoke:
+        root = Path(args.dataset)
+        recorded = read_recordings(root, robot)
+        tracked = any(
+            HumanMotion.from_demo(d, robot.settings.human) is not None for d in recorded.all_demos()[:1]
+        )
+        human = "tracked" if tracked else "assumed"
+        show(f"recorded ({root.name}, {human} torso)", geometry(recorded, robot, tracked))
+        robot_constants(recorded, robot)
     show("synthetic (seed 0, assumed human)", geometry(synthetic, robot, False))
     print("the arm toward the face, each demo's robot path timed like a plan (module docstring):")
-    if "--smoke" not in sys.argv:
-        show_face(f"recorded ({root.name}, tracked human)", face_approach(recorded, robot, True))
-    every = 10 if "--smoke" in sys.argv else 1
+    if not args.smoke:
+        show_face(f"recorded ({root.name}, {human} human)", face_approach(recorded, robot, tracked))
     show_face("synthetic (seed 0, assumed human)", face_approach(synthetic, robot, False, every))
+    for arm in arms:
+        name = arm.settings.name
+        if not args.smoke:
+            show_face(
+                f"on {name}: recorded ({root.name}, {human} human)",
+                face_approach(recorded, robot, tracked, 1, arm),
+            )
+        show_face(
+            f"on {name}: synthetic (seed 0, assumed human)",
+            face_approach(synthetic, robot, False, every, arm),
+        )
 
 
 if __name__ == "__main__":

@@ -48,6 +48,8 @@ EXPECTED = {
         r"gripper - torso\s+x [-+][\d.]+",
         r"demo's robot path\s+timed like a plan: slow-down median [\d.]+ \[95th [\d.]+\]",
         r"straight joint line between its ends\s+timed like a plan: slow-down median [\d.]+",
+        r"on ur5: synthetic \(seed 0, assumed human\): \d+ demos; robot path at the demo's own pace",
+        r"largest at the demo's own pace between: \w+ -> \w+ \d+",
     ],
     "gripper_demos.py": [
         r"ratio gripper/joints [\d.]+",

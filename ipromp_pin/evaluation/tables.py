@@ -399,13 +399,29 @@ def closed_loop_markdown(cells: Sequence[ClosedLoopCell]) -> str:
     return "\n".join(lines)
 
 
+NO_HUMAN_LINE = (
+    "no replay above was checked against a human: the test demos have no tracked skeleton (or the "
+    "human checks were off). `replay` and `run` check such a demo against the assumed human "
+    "(`[human.assumed]` of the robot settings), which slows the robot where it passes the assumed "
+    "face; these figures do not include that (`evaluate --arm-scores`, or `--robot` with a placed "
+    "arm, replays with it)"
+)
+"""The closed-loop Markdown's line for cells replayed without the human checks."""
+
+
 def human_markdown(cells: Sequence[ClosedLoopCell]) -> list[str]:
     """Markdown lines of the human measures (against the recorded human) of the cells that have
-    them, one row per cell, with the arrival delay with and without the human checks; none when no
-    cell has them (datasets without a skeleton)."""
+    them, one row per cell, with the arrival delay with and without the human checks; when no cell
+    has them and none was replayed on an arm judged against the assumed human (``--robot``), one
+    line saying that these replays ran without any human checks."""
     hc = [c for c in cells if c.arrival_delay_without_human_s is not None]
     if not hc:
-        return []
+        if any(c.arm is not None for c in cells):
+            return []
+        return [
+            f"- {NO_HUMAN_LINE}",
+            "",
+        ]
     lines = [
         f"### The human in the closed loop, protocol `{hc[0].protocol}` (judged against the recorded "
         "human motion)\n",

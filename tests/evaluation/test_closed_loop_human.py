@@ -219,4 +219,7 @@ def test_tiny_grid_cells_have_the_human_fields(setup, monkeypatch):
     for c, p in zip(cells, plain, strict=True):
         assert p.human_min_separation_m is None and p.arrival_delay_without_human_s is None
         assert p.arrival_delay_s == pytest.approx(c.arrival_delay_s)  # no limit: the same replays
-    assert "The human in the closed loop" not in closed_loop_markdown(plain)
+    plain_md = closed_loop_markdown(plain)
+    assert "The human in the closed loop" not in plain_md
+    assert "no replay above was checked against a human" in plain_md  # the figures say so
+    assert "no replay above was checked against a human" not in md

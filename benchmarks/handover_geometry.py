@@ -37,6 +37,7 @@ the arm meets which part of the person too fast, the gripper path being the same
 from __future__ import annotations
 
 import argparse
+from collections import Counter
 from pathlib import Path
 
 import numpy as np
@@ -250,21 +251,15 @@ def show_face(title: str, rows: dict[str, list]) -> None:
         f"median {p50:.2f} [5th {p5:.2f}, 95th {p95:.2f}], over the planning limit 0.9 in "
         f"{np.mean(pace > 0.9):.0%}; gripper path median {np.median(rows['gripper_m']):.3f} m"
     )
-    pairs: dict[str, int] = {}
-    for p in rows["pair"]:
-        pairs[p] = pairs.get(p, 0) + 1
-    top = ", ".join(f"{p} {c}" for p, c in sorted(pairs.items(), key=lambda x: -x[1])[:4])
+    top = ", ".join(f"{p} {c}" for p, c in Counter(rows["pair"]).most_common(4))
     unreached = f"; hand-over not reached in {len(rows['unreached'])}" if rows["unreached"] else ""
     print(f"  largest at the demo's own pace between: {top}{unreached}")
     for key, label in (("path", "the demo's robot path"), ("line", "straight joint line between its ends")):
         k = np.array([r[0] for r in rows[key]], dtype=float)
         base = np.array([r[1] for r in rows[key]], dtype=float)
         late = np.array([r[2] for r in rows[key]], dtype=float) - human_s
-        worst = {}
-        for r in rows[key]:
-            if r[3]:
-                worst[r[3]] = worst.get(r[3], 0) + 1
-        top = ", ".join(f"{p} {c}" for p, c in sorted(worst.items(), key=lambda x: -x[1])[:3]) or "none"
+        worst = Counter(r[3] for r in rows[key] if r[3])
+        top = ", ".join(f"{p} {c}" for p, c in worst.most_common(3)) or "none"
         print(
             f"  {label:<38} timed like a plan: slow-down median {np.median(k):.2f} "
             f"[95th {np.percentile(k, 95):.2f}], over 1.3x in {np.mean(k > 1.3):.0%}; unslowed "
@@ -297,9 +292,7 @@ def main() -> None:
     if not args.smoke:
         root = Path(args.dataset)
         recorded = read_recordings(root, robot)
-        tracked = any(
-            HumanMotion.from_demo(d, robot.settings.human) is not None for d in recorded.all_demos()[:1]
-        )
+        tracked = HumanMotion.from_demo(recorded.all_demos()[0], robot.settings.human) is not None
         human = "tracked" if tracked else "assumed"
         show(f"recorded ({root.name}, {human} torso)", geometry(recorded, robot, tracked))
         robot_constants(recorded, robot)

@@ -13,7 +13,8 @@ motion timed that much slower, for the one re-time-until-safe loop of :mod:`ipro
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 
 import numpy as np
 from scipy.ndimage import maximum_filter1d
@@ -205,38 +206,41 @@ class CountedTimer:
         self.spent_s = 0.0
 
     def __call__(self, k: float) -> Timed:
-        return self._counted(lambda: self.timer(k))
+        with self._counting():
+            got = self.timer(k)
+        return self._counted(got)
 
     def locally(self, timed: Timed, need: np.ndarray) -> Timed:
         local = getattr(self.timer, "locally", None)
         if local is None:
             raise InfeasibleError("the timer slows its motion only as a whole")
-        return self._counted(lambda: local(timed, need))
+        with self._counting():
+            got = local(timed, need)
+        return self._counted(got)
 
     def guessed(self) -> Timed | None:
         guess = getattr(self.timer, "guessed", None)
         if guess is None:
             return None
-        t = time.perf_counter()
-        try:
+        with self._counting():
             got = guess()
-        finally:
-            self.spent_s += time.perf_counter() - t
-        return None if got is None else self._counted(lambda: got)
+        return None if got is None else self._counted(got)
 
-    def _counted(self, make: Callable[[], Timed]) -> Timed:
+    @contextmanager
+    def _counting(self) -> Iterator[None]:
+        """Adds the time the block takes to :attr:`spent_s`, also when it raises."""
         t = time.perf_counter()
         try:
-            got = make()
+            yield
         finally:
             self.spent_s += time.perf_counter() - t
+
+    def _counted(self, got: Timed) -> Timed:
+        """``got`` whose samples, made when first used, count too."""
 
         def sample() -> Trajectory:
-            t = time.perf_counter()
-            try:
+            with self._counting():
                 return got.motion
-            finally:
-                self.spent_s += time.perf_counter() - t
 
         return Timed(sample, got.report, got.scale, got.path)
 
